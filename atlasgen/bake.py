@@ -1,0 +1,251 @@
+"""The bake: validated materials in, an 8-bit atlas with mips, manifest, include and timings out."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
+from .dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, encode_dds
+from .errors import InputError, MaterialError
+from .mips import build_array_mips, build_volume_mips
+from .quantize import dequantize_rgba, quantize_rgba
+from .slots import assign_slices
+
+__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake"]
+
+
+@dataclass
+class BakeResult:
+    """Everything a bake produces, in memory, before anything touches the disk."""
+
+    levels: list  # uint8 mip levels, as write_dds takes them
+    layout: str
+    dxgi_format: int
+    manifest: dict
+    include: str
+    timings: dict
+    warnings: list = field(default_factory=list)
+
+    @property
+    def summary(self) -> str:
+        fmt = "R8G8B8A8_UNORM_SRGB" if self.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB else "R8G8B8A8_UNORM"
+        if self.layout == "volume":
+            return f"({WIDTH}x{HEIGHT}x{LAYERS}, {len(self.levels)} mips, {fmt}, 3D)"
+        return f"({WIDTH}x{HEIGHT}, {len(self.levels)} mips, {LAYERS} layers, {fmt}, 2DArray)"
+
+
+def sibling_paths(dds_path) -> dict:
+    """The files written beside ``X.dds``: manifest, include and timings."""
+    p = Path(dds_path)
+    stem = p.with_suffix("")
+    return {
+        "dds": p,
+        "manifest": stem.with_suffix(".json"),
+        "include": stem.with_suffix(".wgsl"),
+        "timings": Path(str(stem) + ".timings.json"),
+    }
+
+
+def read_previous_slots(manifest_path) -> dict[str, int]:
+    """``name -> first_slice`` from an existing manifest, so re-bakes keep IDs stable."""
+    path = Path(manifest_path)
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return {m["name"]: int(m["first_slice"]) for m in data["materials"]}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(
+            f"{path.as_posix()}: previous manifest is unreadable ({exc}); expected atlas JSON "
+            "(delete it to re-number every material)"
+        ) from None
+
+
+def _jsonable(value):
+    if isinstance(value, tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, list):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _measure_volume_bleed(float_levels, materials_slots, scales):
+    """Per volume mip level, how far a material's texels are from its own 2D mip (linear units).
+
+    Level k of a volume averages 2^k neighbouring slices, so material m read at level
+    k sees its neighbours; the reference is m's own box-filtered 2D chain.
+    """
+    bleed = []
+    used = [(first, count, scales[first]) for first, count in materials_slots]
+    own_chains = {}
+    for k in range(1, len(float_levels)):
+        worst, sq, n = 0.0, 0.0, 0
+        level = float_levels[k]
+        for first, count, _ in used:
+            for s in range(first, first + count):
+                if s not in own_chains:
+                    own_chains[s] = build_array_mips(float_levels[0][s : s + 1])
+                chain = own_chains[s]
+                own = chain[min(k, len(chain) - 1)][0]
+                got = level[min(s >> k, level.shape[0] - 1)]
+                scale = np.array([scales[s][0]] * 3 + [scales[s][1]])
+                diff = np.abs(got - own) * scale
+                worst = max(worst, float(diff.max()))
+                sq += float((diff**2).sum())
+                n += diff.size
+        bleed.append({"level": k, "max": worst, "rms": (sq / n) ** 0.5 if n else 0.0})
+    return bleed
+
+
+def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None) -> BakeResult:
+    """Bake validated materials into an RGBA8 atlas.
+
+    Parameters
+    ----------
+    materials
+        :class:`atlasgen.material.Material` records (see :func:`read_materials`).
+    layout
+        ``"array"`` (Texture2DArray, a mip chain per slice) or ``"volume"`` (Texture3D,
+        whose mips also halve depth and so blend neighbouring materials).
+    linear
+        Store RGB linearly (DXGI 28) instead of sRGB-encoded (DXGI 29).
+    previous_slots
+        ``name -> first_slice`` of the previous bake; keeps slices stable.
+    progress
+        Called with each material's name once it is baked.
+    """
+    if layout not in ("array", "volume"):
+        raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
+    t_start = time.perf_counter()
+    srgb = not linear
+    baked = []
+    timings = {"materials": {}}
+    for material in materials:
+        t0 = time.perf_counter()
+        model = material.model
+        slices = model.bake(material.params)
+        values = np.asarray(slices.values, dtype=np.float64)
+        if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
+            raise MaterialError(material.source, "type", f"model produced slices of shape {values.shape}; expected (n, {HEIGHT}, {WIDTH}, 4)")
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise MaterialError(
+                material.source, None,
+                f"model '{material.type}' produced {int(bad.sum())} non-finite texels; expected finite values (check the parameters)",
+            )
+        encoded = model.encode(material.params, slices, material.rgb_scale, material.alpha_scale)
+        baked.append((material, slices, values, encoded))
+        timings["materials"][material.name] = {"bake_s": time.perf_counter() - t0, **slices.timings}
+        if progress:
+            progress(material.name)
+
+    requests = [(m.name, v.shape[0], m.id, m.source) for m, _, v, _ in baked]
+    slots = assign_slices(requests, previous_slots)
+
+    level0 = np.zeros((LAYERS, HEIGHT, WIDTH, 4))
+    scales = np.ones((LAYERS, 2))
+    biases = np.zeros((LAYERS, 2))
+    for material, _, values, encoded in baked:
+        first = slots[material.name]
+        n = values.shape[0]
+        level0[first : first + n] = encoded.stored
+        scales[first : first + n] = encoded.scale
+        biases[first : first + n] = encoded.bias
+
+    t0 = time.perf_counter()
+    float_levels = build_volume_mips(level0) if layout == "volume" else build_array_mips(level0)
+    levels = [quantize_rgba(lv, srgb) for lv in float_levels]
+    timings["mips_and_quantize_s"] = time.perf_counter() - t0
+
+    decoded0 = dequantize_rgba(levels[0], srgb)
+    warnings = []
+    entries = []
+    for material, slices, values, encoded in baked:
+        first = slots[material.name]
+        n = values.shape[0]
+        dec = decoded0[first : first + n]
+        scale_c = np.concatenate([np.repeat(encoded.scale[:, :1], 3, 1), encoded.scale[:, 1:]], 1)[:, None, None, :]
+        bias_c = np.concatenate([np.repeat(encoded.bias[:, :1], 3, 1), encoded.bias[:, 1:]], 1)[:, None, None, :]
+        err = np.abs(dec * scale_c + bias_c - values)
+        if encoded.clamped_fraction > 0:
+            warnings.append(
+                f"{material.source}: material '{material.name}': clamped {100 * encoded.clamped_fraction:.3f}% of "
+                f"texel channels to the slice scale (rgb_scale={material.rgb_scale}, alpha_scale={material.alpha_scale})"
+            )
+        entry = {
+            "name": material.name,
+            "id": first,
+            "constant": material.constant_name,
+            "first_slice": first,
+            "slice_count": n,
+            "type": material.type,
+            "source": material.source,
+            "content_hash": material.content_hash,
+            "description": material.description,
+            "params": _jsonable(material.params),
+            "scale": encoded.scale.tolist(),
+            "bias": encoded.bias.tolist(),
+            "flags": _jsonable(material.model.flags(material.params)),
+            "clamped_fraction": encoded.clamped_fraction,
+            "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt((err**2).mean()))},
+        }
+        entry.update(_jsonable(slices.extra))
+        entry.update(_jsonable(encoded.extra))
+        entry.update(_jsonable(material.model.finalize(material.params, slices, encoded, dec)))
+        entries.append(entry)
+    entries.sort(key=lambda e: e["first_slice"])
+
+    manifest = {
+        "format_version": FORMAT_VERSION,
+        "generator": f"atlasgen {__version__}",
+        "dimensions": {"width": WIDTH, "height": HEIGHT, "layers": LAYERS, "mip_count": len(levels)},
+        "encoding": "srgb" if srgb else "linear",
+        "dxgi_format": DXGI_FORMAT_R8G8B8A8_UNORM_SRGB if srgb else DXGI_FORMAT_R8G8B8A8_UNORM,
+        "layout": layout,
+        "mapping": MAPPING,
+        "materials": entries,
+    }
+    if layout == "volume":
+        bleed = _measure_volume_bleed(float_levels, [(slots[m.name], v.shape[0]) for m, _, v, _ in baked], scales)
+        manifest["volume_bleed"] = bleed
+        worst = max((b["max"] for b in bleed), default=0.0)
+        warnings.append(
+            f"volume layout: mip levels >= 1 blend neighbouring materials (worst measured bleed {worst:.3f} linear); "
+            "sample level 0 only, or use --layout array"
+        )
+
+    from .include import render_include
+
+    include = render_include(manifest, scales, biases)
+    timings["total_s"] = time.perf_counter() - t_start
+    return BakeResult(levels, layout, manifest["dxgi_format"], manifest, include, timings, warnings)
+
+
+def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
+    """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths."""
+    from .atomic import write_files_atomically
+
+    paths = sibling_paths(dds_path)
+    contents = {
+        paths["dds"]: encode_dds(result.levels, result.layout, result.dxgi_format),
+        paths["manifest"]: (json.dumps(result.manifest, indent=2, sort_keys=False) + "\n").encode(),
+        paths["include"]: result.include.encode(),
+        paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
+    }
+    if preview_path is not None:
+        from .preview import render_contact_sheet
+
+        paths["preview"] = Path(preview_path)
+        contents[paths["preview"]] = render_contact_sheet(result, paths["preview"])
+    write_files_atomically(contents)
+    return paths

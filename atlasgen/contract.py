@@ -1,0 +1,68 @@
+"""The atlas contract: dimensions and the (N.L, N.V) <-> texel mapping.
+
+Every other module (baker, shader include, renderer, readers) takes its numbers
+from here, so the contract is written down exactly once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "FORMAT_VERSION",
+    "WIDTH",
+    "HEIGHT",
+    "LAYERS",
+    "ARRAY_MIP_COUNT",
+    "VOLUME_MIP_COUNT",
+    "MAPPING",
+    "texel_centres",
+    "texel_grid",
+    "atlas_uv",
+]
+
+FORMAT_VERSION = 1
+WIDTH = 64  # u: N.L in [-1, 1]
+HEIGHT = 32  # v: N.V in [0, 1]
+LAYERS = 256
+ARRAY_MIP_COUNT = 7  # 64x32 -> 1x1
+VOLUME_MIP_COUNT = 9  # 64x32x256 -> 1x1x1
+
+MAPPING = {
+    "u_axis": "N.L in [-1, 1]; texel i centre at N.L = -1 + 2*i/63",
+    "v_axis": "N.V in [0, 1]; texel j centre at N.V = j/31; row 0 is N.V = 0",
+    "u": "u = (0.5 + 63*(N.L + 1)/2) / 64",
+    "v": "v = (0.5 + 31*N.V) / 32",
+    "layer": "array: layer = material_id; volume: w = (material_id + 0.5) / 256",
+    "value": "linear = texel * scale + bias, per slice: (rgb_scale, rgb_bias) for RGB, (alpha_scale, alpha_bias) for A",
+}
+
+
+def texel_centres(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+    """N.L and N.V at the texel centres of one slice.
+
+    N.L_i = -1 + 2 i / (W - 1) and N.V_j = j / (H - 1): both range ends lie on
+    texel centres, so a texture lookup at N.L = +-1 or N.V = 0, 1 reads an
+    unfiltered texel.
+    """
+    nl = -1.0 + 2.0 * np.arange(width, dtype=np.float64) / (width - 1)
+    nv = np.arange(height, dtype=np.float64) / (height - 1)
+    return nl, nv
+
+
+def texel_grid(width: int = WIDTH, height: int = HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+    """(N.L, N.V) broadcast to ``(height, width)``; row j is N.V_j."""
+    nl, nv = texel_centres(width, height)
+    return np.meshgrid(nl, nv, indexing="xy")
+
+
+def atlas_uv(n_dot_l, n_dot_v, width: int = WIDTH, height: int = HEIGHT):
+    """Normalised texture coordinates of (N.L, N.V), exactly as the shader include computes them.
+
+    u = (0.5 + (W-1) (N.L+1)/2) / W and v = (0.5 + (H-1) N.V) / H.
+    """
+    nl = np.clip(np.asarray(n_dot_l, dtype=np.float64), -1.0, 1.0)
+    nv = np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0)
+    u = (0.5 + (width - 1) * (nl + 1.0) * 0.5) / width
+    v = (0.5 + (height - 1) * nv) / height
+    return u, v

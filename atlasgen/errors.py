@@ -1,0 +1,65 @@
+"""Typed errors raised by the library; the CLI maps each to a message and an exit code."""
+
+from __future__ import annotations
+
+__all__ = [
+    "AtlasgenError",
+    "InputError",
+    "MaterialError",
+    "SceneError",
+    "OutputError",
+    "BackendError",
+]
+
+
+class AtlasgenError(Exception):
+    """Base class of every error atlasgen raises on purpose.
+
+    ``exit_code`` is the process exit status the CLI uses for it (see docs/cli.md).
+    """
+
+    exit_code = 1
+
+
+class InputError(AtlasgenError):
+    """A path the user named is missing or unreadable."""
+
+    exit_code = 3
+
+
+class MaterialError(InputError):
+    """A material definition is invalid.
+
+    The message always names the file, the field and what was expected, on one line:
+    ``materials/gold.toml: field 'ior': expected a finite number >= 1, got nan``.
+    """
+
+    def __init__(self, path, field: str | None, expected: str):
+        self.path = str(path)
+        self.field = field
+        self.expected = expected
+        where = f"{self.path}: field '{field}'" if field else self.path
+        super().__init__(f"{where}: {expected}")
+
+
+class SceneError(InputError):
+    """A scene file is invalid, or asks for something the atlas or renderer lacks."""
+
+    def __init__(self, path, field: str | None, expected: str):
+        self.path = str(path)
+        self.field = field
+        self.expected = expected
+        where = f"{self.path}: field '{field}'" if field else self.path
+        super().__init__(f"{where}: {expected}")
+
+
+class OutputError(AtlasgenError):
+    """An output file or folder cannot be written."""
+
+    exit_code = 4
+
+
+class BackendError(AtlasgenError):
+    """An optional backend (Mitsuba's LLVM variant, a GPU adapter) is missing."""
+
+    exit_code = 5

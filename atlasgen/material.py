@@ -1,0 +1,155 @@
+"""Reading material definitions from TOML files into validated :class:`Material` records."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError, MaterialError
+from .models import MODEL_TYPES, get_model
+
+__all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "COMMON_KEYS"]
+
+NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
+
+#: Keys every material file may carry besides its model's parameters.
+COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale")
+
+
+@dataclass
+class Material:
+    """One validated material definition."""
+
+    name: str
+    type: str
+    params: dict
+    source: str  # path as given, POSIX separators
+    content_hash: str  # sha256 of the file's bytes
+    id: int | None = None
+    description: str = ""
+    rgb_scale: object = "auto"
+    alpha_scale: object = "auto"
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def model(self):
+        return get_model(self.type)
+
+    @property
+    def slice_count(self) -> int:
+        return self.model.slice_count(self.params)
+
+    @property
+    def constant_name(self) -> str:
+        """Shader-constant spelling of the name, e.g. ``gold-film`` -> ``MATERIAL_GOLD_FILM``."""
+        return "MATERIAL_" + re.sub(r"[^A-Z0-9]", "_", self.name.upper())
+
+
+def _scale_field(raw, key, path):
+    value = raw.get(key, "auto")
+    if value == "auto":
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise MaterialError(path, key, f"expected \"auto\" or a finite number > 0, got {value!r}")
+    return float(value)
+
+
+def read_material(path) -> Material:
+    """Parse and validate one material file.
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable.
+    MaterialError
+        Malformed TOML, an unknown type or key, or a parameter out of range; the
+        message names the file, the field and what was expected.
+    """
+    path = Path(path)
+    shown = path.as_posix()
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{shown}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise MaterialError(shown, None, "expected UTF-8 TOML text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise MaterialError(shown, None, f"malformed TOML: {exc}") from None
+
+    type_name = raw.get("type")
+    if type_name is None:
+        raise MaterialError(shown, "type", "missing; expected one of " + ", ".join(MODEL_TYPES))
+    if type_name not in MODEL_TYPES:
+        raise MaterialError(shown, "type", f"unknown model {type_name!r}; expected one of " + ", ".join(MODEL_TYPES))
+
+    name = raw.get("name", path.stem)
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise MaterialError(shown, "name", f"expected a letter then letters, digits, '-' or '_' (at most 63), got {name!r}")
+
+    material_id = raw.get("id")
+    if material_id is not None and (isinstance(material_id, bool) or not isinstance(material_id, int) or not 0 <= material_id < 256):
+        raise MaterialError(shown, "id", f"expected an integer slice index in [0, 255], got {material_id!r}")
+
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        raise MaterialError(shown, "description", f"expected a string, got {description!r}")
+
+    model = get_model(type_name)
+    model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
+    from .params import validate_params
+
+    params = validate_params(model.params, model_raw, shown)
+    model.check(params, shown)
+    return Material(
+        name=name,
+        type=type_name,
+        params=params,
+        source=shown,
+        content_hash=hashlib.sha256(data).hexdigest(),
+        id=material_id,
+        description=description,
+        rgb_scale=_scale_field(raw, "rgb_scale", shown),
+        alpha_scale=_scale_field(raw, "alpha_scale", shown),
+    )
+
+
+def find_material_files(paths) -> list[Path]:
+    """Expand files and folders (``*.toml``, sorted, non-recursive) into a file list.
+
+    Sorting makes the bake order, and so the atlas, independent of the file system.
+    """
+    files: list[Path] = []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir():
+            files.extend(sorted(p.glob("*.toml")))
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise InputError(f"{p.as_posix()}: no such file or folder")
+    return files
+
+
+def read_materials(paths) -> list[Material]:
+    """Read every material under ``paths``; duplicate names are an error."""
+    return check_unique_names([read_material(f) for f in find_material_files(paths)])
+
+
+def check_unique_names(materials: list[Material]) -> list[Material]:
+    """Reject two materials whose names (or shader constants) collide."""
+    seen: dict[str, Material] = {}
+    for m in materials:
+        key = m.constant_name
+        if key in seen:
+            raise MaterialError(m.source, "name", f"duplicate material name {m.name!r} (also in {seen[key].source})")
+        seen[key] = m
+    return materials

@@ -1,0 +1,109 @@
+"""The interface every material model implements, and the default way its slices are encoded."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from ..contract import HEIGHT, WIDTH, texel_grid
+from ..params import Param
+
+__all__ = ["Model", "SliceSet", "EncodedSlices", "encode_scaled"]
+
+
+@dataclass
+class SliceSet:
+    """Float slices a model wants in the atlas: ``values`` is ``(n, HEIGHT, WIDTH, 4)`` linear RGBA."""
+
+    values: np.ndarray
+    extra: dict = field(default_factory=dict)  # model-specific manifest fields (must be deterministic)
+    timings: dict = field(default_factory=dict)  # seconds per stage, for atlas.timings.json
+
+
+@dataclass
+class EncodedSlices:
+    """Slices mapped into [0, 1] for 8-bit storage.
+
+    A renderer recovers the linear value as ``stored * scale + bias``, with one
+    ``(rgb, alpha)`` pair of each per slice.
+    """
+
+    stored: np.ndarray  # (n, H, W, 4) in [0, 1]
+    scale: np.ndarray  # (n, 2): rgb, alpha
+    bias: np.ndarray  # (n, 2)
+    clamped_fraction: float
+    extra: dict = field(default_factory=dict)  # model-specific manifest fields (e.g. per-factor scale/bias)
+
+
+def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
+    """Divide each slice by a scale so it fits UNORM8; report what had to be clamped.
+
+    With ``"auto"`` the scale is max(1, max value) of the slice's RGB (or A), so nothing
+    clamps; a fixed scale trades range for precision, and what exceeds it is clamped
+    and counted. Negative values (never produced by a valid LUT model) clamp to 0 and
+    are counted too.
+    """
+    n = values.shape[0]
+    scale = np.ones((n, 2))
+    for s in range(n):
+        for g, (chan, fixed) in enumerate(((slice(0, 3), rgb_scale), (slice(3, 4), alpha_scale))):
+            if fixed == "auto":
+                peak = float(values[s, ..., chan].max(initial=0.0))
+                scale[s, g] = max(1.0, peak)
+            else:
+                scale[s, g] = float(fixed)
+    per_channel = np.concatenate([np.repeat(scale[:, :1], 3, axis=1), scale[:, 1:]], axis=1)
+    scaled = values / per_channel[:, None, None, :]
+    out_of_range = (scaled > 1.0) | (scaled < 0.0)
+    stored = np.clip(scaled, 0.0, 1.0)
+    return EncodedSlices(stored, scale, np.zeros((n, 2)), float(out_of_range.mean()))
+
+
+class Model:
+    """A material model: a TOML ``type``, its parameter schema and its evaluation.
+
+    Subclasses set ``type_name``, ``params`` and ``reference``, and implement
+    :meth:`evaluate`; multi-slice models override :meth:`bake` and :meth:`encode`.
+    """
+
+    type_name: ClassVar[str] = ""
+    params: ClassVar[tuple[Param, ...]] = ()
+    reference: ClassVar[str] = ""
+
+    def check(self, values: dict, path) -> None:
+        """Cross-parameter checks beyond each parameter's own range; raise MaterialError."""
+
+    def evaluate(self, values: dict, n_dot_l: np.ndarray, n_dot_v: np.ndarray) -> np.ndarray:
+        """Linear RGBA at arbitrary (N.L, N.V): RGB the diffuse response, A the specular scale."""
+        raise NotImplementedError
+
+    def flags(self, values: dict) -> dict:
+        """Render-time requests recorded in the manifest (e.g. ``{"outline": True}``)."""
+        return {}
+
+    def slice_count(self, values: dict) -> int:
+        return 1
+
+    def bake(self, values: dict) -> SliceSet:
+        """Evaluate at the texel centres of one slice."""
+        nl, nv = texel_grid(WIDTH, HEIGHT)
+        rgba = np.asarray(self.evaluate(values, nl, nv), dtype=np.float64)
+        return SliceSet(rgba.reshape(1, HEIGHT, WIDTH, 4))
+
+    def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
+        return encode_scaled(slices.values, rgb_scale, alpha_scale)
+
+    def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
+        """Extra manifest fields measured on the 8-bit result.
+
+        ``decoded`` is what a sampler returns at level 0, ``(n, H, W, 4)``, sRGB
+        already decoded, before the slice's scale and bias.
+        """
+        return {}
+
+    @classmethod
+    def include_wgsl(cls, entries: list[dict]) -> str:
+        """WGSL this model type adds to the shader include, given its manifest entries."""
+        return ""

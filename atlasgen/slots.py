@@ -1,0 +1,86 @@
+"""Stable slice allocation: explicit TOML ids first, then the previous manifest, then the lowest free range."""
+
+from __future__ import annotations
+
+from .contract import LAYERS
+from .errors import MaterialError
+
+__all__ = ["assign_slices"]
+
+
+def _span(start, count):
+    return range(start, start + count)
+
+
+def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None, layers: int = LAYERS) -> dict[str, int]:
+    """First slice of every material, keeping slices stable across re-bakes.
+
+    Parameters
+    ----------
+    requests
+        ``(name, slice_count, explicit_id_or_None, source_path)`` per material, in bake order.
+    previous
+        ``name -> first_slice`` from the previous manifest, if any.
+
+    A material with an explicit ``id`` gets exactly that slice; one that was in the
+    previous manifest keeps its slice when it still fits there; the rest take the
+    lowest free run of slices. Two explicit ids that overlap are a conflict, and so is
+    an explicit id that lands on a slice the previous manifest gave to a material
+    still present (moving that one would silently change its ID in every scene).
+
+    Raises
+    ------
+    MaterialError
+        On a conflict, or when the materials need more slices than the atlas has.
+    """
+    previous = previous or {}
+    owner: dict[int, str] = {}
+    first: dict[str, int] = {}
+    sources = {name: src for name, _, _, src in requests}
+
+    def claim(name, start, count, src, why):
+        if start < 0 or start + count > layers:
+            raise MaterialError(src, "id", f"expected slices {start}..{start + count - 1} to lie within 0..{layers - 1}")
+        for s in _span(start, count):
+            if s in owner:
+                other = owner[s]
+                raise MaterialError(
+                    src, "id", f"slice {s} ({why}) conflicts with material {other!r} ({sources[other]}); expected a free slice"
+                )
+        for s in _span(start, count):
+            owner[s] = name
+        first[name] = start
+
+    total = sum(count for _, count, _, _ in requests)
+    if total > layers:
+        src = requests[-1][3] if requests else "materials"
+        raise MaterialError(src, None, f"the materials need {total} slices; expected at most {layers} (the atlas has {layers})")
+
+    for name, count, explicit, src in requests:
+        if explicit is not None:
+            claim(name, explicit, count, src, "explicit id")
+    explicit_names = {name for name, _, explicit, _ in requests if explicit is not None}
+    for name, count, explicit, src in requests:
+        if explicit is None and name in previous:
+            start = previous[name]
+            taken = [s for s in _span(start, count) if s in owner]
+            if start + count <= layers and not taken:
+                claim(name, start, count, src, "previous manifest")
+            elif taken and owner[taken[0]] in explicit_names:
+                other = owner[taken[0]]
+                raise MaterialError(
+                    sources[other], "id",
+                    f"explicit id takes slice {taken[0]}, which the previous manifest gives to {name!r} ({src}); "
+                    "expected a free slice (or delete the old manifest to re-number)",
+                )
+    # A material whose multi-slice run grew past its old place moves to the lowest free run.
+    for name, count, explicit, src in requests:
+        if name in first:
+            continue
+        start = 0
+        while start + count <= layers and any(s in owner for s in _span(start, count)):
+            start += 1
+        if start + count > layers:
+            raise MaterialError(src, None, f"needs {count} consecutive free slices; expected a gap that large in the atlas")
+        claim(name, start, count, src, "allocated")
+    return first
