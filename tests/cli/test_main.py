@@ -1,0 +1,123 @@
+"""The CLI: exit codes, messages on stderr, untouched outputs on failure, and the summary line."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+@pytest.fixture
+def library(write_material, tmp_path):
+    write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
+    write_material("snow", 'type = "lambert"\nid = 9\n')
+    return tmp_path / "materials"
+
+
+def test_bake_writes_all_outputs_and_a_texconv_summary(runner, library, tmp_path):
+    out = tmp_path / "build" / "atlas.dds"
+    res = runner.invoke(app, ["bake", str(library), "-o", str(out), "--preview", str(tmp_path / "build" / "p.png")])
+    assert res.exit_code == 0, res.output
+    assert res.stdout.strip() == f"{out.as_posix()} (64x32, 7 mips, 256 layers, R8G8B8A8_UNORM_SRGB, 2DArray)"
+    for suffix in (".dds", ".json", ".wgsl", ".timings.json"):
+        assert (tmp_path / "build" / f"atlas{suffix}").stat().st_size > 0
+    assert (tmp_path / "build" / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    manifest = json.loads((tmp_path / "build" / "atlas.json").read_text())
+    assert [m["name"] for m in manifest["materials"]] == ["clay", "snow"]
+    assert not list((tmp_path / "build").glob(".*.tmp"))
+
+
+def test_volume_and_linear_summary(runner, library, tmp_path):
+    out = tmp_path / "v.dds"
+    res = runner.invoke(app, ["bake", str(library), "-o", str(out), "--layout", "volume", "--linear"])
+    assert res.exit_code == 0
+    assert res.stdout.strip() == f"{out.as_posix()} (64x32x256, 9 mips, R8G8B8A8_UNORM, 3D)"
+    assert "volume layout" in res.stderr
+
+
+def test_quiet_prints_nothing(runner, library, tmp_path):
+    res = runner.invoke(app, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "-q"])
+    assert res.exit_code == 0 and res.output == ""
+
+
+def test_info_text_and_json(runner, library, tmp_path):
+    out = tmp_path / "a.dds"
+    runner.invoke(app, ["bake", str(library), "-o", str(out), "-q"])
+    text = runner.invoke(app, ["info", str(out)])
+    assert text.exit_code == 0 and "R8G8B8A8_UNORM_SRGB" in text.output and "snow" in text.output
+    data = json.loads(runner.invoke(app, ["info", str(out), "--format", "json"]).output)
+    assert data["header"]["layers"] == 256 and data["header"]["mip_count"] == 7
+    assert data["manifest"]["slices_used"] == 2
+
+
+BAD_CASES = {
+    "malformed TOML": ('type = "lambert"\ncolour = [', "bad.toml: malformed TOML"),
+    "unknown type": ('type = "plasticky"\n', "bad.toml: field 'type': unknown model"),
+    "unknown key": ('type = "lambert"\ncolur = [1, 1, 1]\n', "bad.toml: field 'colur': unknown key"),
+    "nan": ('type = "lambert"\ncolour = [nan, 0, 0]\n', "bad.toml: field 'colour'"),
+    "duplicate id": ('type = "lambert"\nid = 9\n', "field 'id'"),
+    "duplicate name": ('type = "lambert"\nname = "clay"\n', "field 'name': duplicate material name 'clay'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_CASES))
+def test_bad_material_fails_cleanly_and_leaves_outputs_untouched(runner, library, write_material, tmp_path, case):
+    out = tmp_path / "build" / "atlas.dds"
+    assert runner.invoke(app, ["bake", str(library), "-o", str(out), "-q"]).exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.parent.iterdir()}
+    text, expected = BAD_CASES[case]
+    write_material("bad", text)
+    res = runner.invoke(app, ["bake", str(library), "-o", str(out)])
+    assert res.exit_code == 3
+    assert res.stdout == ""
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("atlasgen: error: ") and expected in lines[0]
+    assert {p.name: p.read_bytes() for p in out.parent.iterdir()} == before
+
+
+def test_more_materials_than_slices(runner, tmp_path):
+    folder = tmp_path / "many"
+    folder.mkdir()
+    for i in range(257):
+        (folder / f"m{i:03d}.toml").write_text('type = "lambert"\n')
+    res = runner.invoke(app, ["bake", str(folder), "-o", str(tmp_path / "a.dds")])
+    assert res.exit_code == 3 and "expected at most 256" in res.stderr
+    assert not (tmp_path / "a.dds").exists()
+
+
+def test_missing_input_path(runner, tmp_path):
+    res = runner.invoke(app, ["bake", str(tmp_path / "nowhere"), "-o", str(tmp_path / "a.dds")])
+    assert res.exit_code == 3 and "nowhere: no such file or folder" in res.stderr
+
+
+def test_unwritable_output_folder(runner, library, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    res = runner.invoke(app, ["bake", str(library), "-o", str(blocker / "atlas.dds")])
+    assert res.exit_code == 4 and "cannot write output folder" in res.stderr
+    assert blocker.read_text() == "not a folder"
+
+
+def test_lut_bake_imports_no_heavy_backend(library, tmp_path):
+    code = (
+        "import sys; from atlasgen.cli.main import main\n"
+        f"try: main(['bake', {str(library)!r}, '-o', {str(tmp_path / 'a.dds')!r}, '-q'])\n"
+        "except SystemExit as e: assert not e.code, e.code\n"
+        "heavy = sorted(m for m in ('mitsuba', 'drjit', 'wgpu', 'matplotlib', 'OpenImageIO') if m in sys.modules)\n"
+        "print(','.join(heavy))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def test_help_lists_commands(runner):
+    res = runner.invoke(app, ["--help"])
+    assert res.exit_code == 0 and "bake" in res.output and "info" in res.output

@@ -1,0 +1,70 @@
+"""Reading material files: every bad input is a one-line error naming file, field and expectation."""
+
+import pytest
+
+from atlasgen.errors import InputError, MaterialError
+from atlasgen.material import read_material, read_materials
+
+
+def test_defaults_are_filled_and_hex_colours_decoded(write_material):
+    m = read_material(write_material("clay", 'type = "lambert"\ndescription = "wet clay"\n'))
+    assert m.name == "clay" and m.params == {"colour": (1.0, 1.0, 1.0)} and m.id is None
+    assert m.constant_name == "MATERIAL_CLAY"
+    m = read_material(write_material("red", 'type = "lambert"\ncolour = "#ff0000"\n'))
+    assert m.params["colour"] == (1.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    "text, field, expected",
+    [
+        ('type = "lambert"\ncolour = [1, 2', None, "malformed TOML"),
+        ('type = "lambertian"\n', "type", "unknown model 'lambertian'; expected one of lambert"),
+        ('colour = [1, 1, 1]\n', "type", "missing"),
+        ('type = "lambert"\ncolor = [1, 1, 1]\n', "color", "unknown key (did you mean 'colour'?)"),
+        ('type = "lambert"\ncolour = [nan, 1, 1]\n', "colour", "finite numbers in [0, 1]"),
+        ('type = "lambert"\ncolour = [inf, 1, 1]\n', "colour", "finite numbers in [0, 1]"),
+        ('type = "lambert"\ncolour = [1.5, 1, 1]\n', "colour", "in [0, 1]"),
+        ('type = "lambert"\ncolour = "#12345"\n', "colour", "'#rrggbb'"),
+        ('type = "lambert"\nid = 256\n', "id", "expected an integer slice index in [0, 255]"),
+        ('type = "lambert"\nid = 1.0\n', "id", "expected an integer slice index"),
+        ('type = "lambert"\nname = "9lives"\n', "name", "expected a letter"),
+        ('type = "lambert"\nrgb_scale = -1\n', "rgb_scale", "expected \"auto\" or a finite number > 0"),
+        ('type = "lambert"\nalpha_scale = nan\n', "alpha_scale", "expected \"auto\" or a finite number > 0"),
+    ],
+)
+def test_bad_definitions(write_material, text, field, expected):
+    path = write_material("bad", text)
+    with pytest.raises(MaterialError) as info:
+        read_material(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(path.as_posix() + ":")
+    if field:
+        assert f"field '{field}'" in message
+    assert expected in message
+
+
+def test_duplicate_names_are_rejected(write_material, tmp_path):
+    write_material("a", 'type = "lambert"\nname = "same"\n')
+    write_material("b", 'type = "lambert"\nname = "same"\n')
+    with pytest.raises(MaterialError, match=r"b\.toml: field 'name': duplicate material name 'same' \(also in .*a\.toml\)"):
+        read_materials([tmp_path / "materials"])
+
+
+def test_names_colliding_as_shader_constants_are_duplicates(write_material, tmp_path):
+    write_material("gold-film", 'type = "lambert"\n')
+    write_material("gold_film", 'type = "lambert"\n')
+    with pytest.raises(MaterialError, match="duplicate material name"):
+        read_materials([tmp_path / "materials"])
+
+
+def test_missing_path(tmp_path):
+    with pytest.raises(InputError, match="nope: no such file or folder"):
+        read_materials([tmp_path / "nope"])
+
+
+def test_not_utf8(tmp_path):
+    p = tmp_path / "x.toml"
+    p.write_bytes(b"type = \"lambert\"\n\xff\xfe")
+    with pytest.raises(MaterialError, match="expected UTF-8"):
+        read_material(p)

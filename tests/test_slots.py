@@ -1,0 +1,44 @@
+"""Stable slice allocation."""
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from atlasgen.errors import MaterialError
+from atlasgen.slots import assign_slices
+
+
+def req(name, count=1, explicit=None):
+    return (name, count, explicit, f"{name}.toml")
+
+
+def test_explicit_then_previous_then_lowest_free():
+    slots = assign_slices([req("a"), req("b", explicit=0), req("c", 2), req("d")], previous={"d": 5})
+    assert slots == {"b": 0, "d": 5, "a": 1, "c": 2}
+
+
+def test_overlapping_explicit_ids_conflict():
+    with pytest.raises(MaterialError, match="y.toml: field 'id'.*conflicts with material 'x'"):
+        assign_slices([req("x", 3, explicit=10), req("y", explicit=12)])
+
+
+def test_more_slices_than_layers():
+    with pytest.raises(MaterialError, match="need 257 slices; expected at most 256"):
+        assign_slices([req(f"m{i}") for i in range(257)])
+
+
+def test_no_gap_large_enough():
+    with pytest.raises(MaterialError, match="consecutive free slices"):
+        assign_slices([req("a", explicit=1), req("b", 255)])
+
+
+@given(st.lists(st.integers(1, 4), min_size=1, max_size=40), st.randoms(use_true_random=False))
+def test_allocation_never_overlaps_and_respects_previous(counts, rnd):
+    names = [f"m{i}" for i in range(len(counts))]
+    first = assign_slices([req(n, c) for n, c in zip(names, counts)])
+    used = [s for n, c in zip(names, counts) for s in range(first[n], first[n] + c)]
+    assert len(used) == len(set(used)) and max(used) < 256
+    keep = rnd.sample(names, k=len(names) // 2)
+    again = assign_slices([req(n, c) for n, c in zip(names, counts) if n in keep] + [req("new", 2)],
+                          previous={n: first[n] for n in names})
+    assert all(again[n] == first[n] for n in keep)
