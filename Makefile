@@ -37,7 +37,7 @@ test: setup
 
 bench: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(PY) -m atlasgen.bench
+	$(PY) bench/run.py
 
 clean:
 	rm -rf $(BUILD) .pytest_cache .hypothesis

@@ -17,7 +17,7 @@ from .mips import build_array_mips, build_volume_mips
 from .quantize import dequantize_rgba, quantize_rgba
 from .slots import assign_slices
 
-__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake"]
+__all__ = ["BakeResult", "bake_atlas", "format_manifest", "read_previous_slots", "sibling_paths", "write_bake"]
 
 
 @dataclass
@@ -164,7 +164,14 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
 
     t0 = time.perf_counter()
     float_levels = build_volume_mips(level0) if layout == "volume" else build_array_mips(level0)
-    levels = [quantize_rgba(lv, srgb) for lv in float_levels]
+    if layout == "array":
+        # Unused layers stay zero at every level of their own chain: quantise only used ones.
+        used = sorted({s for m, _, v, _ in baked for s in range(slots[m.name], slots[m.name] + v.shape[0])})
+        levels = [np.zeros(lv.shape, np.uint8) for lv in float_levels]
+        for lv, fl in zip(levels, float_levels):
+            lv[used] = quantize_rgba(fl[used], srgb)
+    else:
+        levels = [quantize_rgba(lv, srgb) for lv in float_levels]
     timings["mips_and_quantize_s"] = time.perf_counter() - t0
 
     decoded0 = dequantize_rgba(levels[0], srgb)
@@ -231,6 +238,26 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     return BakeResult(levels, layout, manifest["dxgi_format"], manifest, include, timings, warnings)
 
 
+def format_manifest(manifest: dict) -> str:
+    """Manifest JSON with one material per line: readable in a diff, and fast to write.
+
+    (``json.dumps(indent=...)`` falls back to the pure-Python encoder, which costs
+    more than the rest of a 256-material bake.)
+    """
+    lines = ["{"]
+    items = list(manifest.items())
+    for i, (key, value) in enumerate(items):
+        comma = "," if i < len(items) - 1 else ""
+        if key in ("materials", "volume_bleed") and value:
+            lines.append(f"  {json.dumps(key)}: [")
+            lines += [f"    {json.dumps(v)}{',' if j < len(value) - 1 else ''}" for j, v in enumerate(value)]
+            lines.append(f"  ]{comma}")
+        else:
+            lines.append(f"  {json.dumps(key)}: {json.dumps(value)}{comma}")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
 def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
     """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths."""
     from .atomic import write_files_atomically
@@ -238,7 +265,7 @@ def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
     paths = sibling_paths(dds_path)
     contents = {
         paths["dds"]: encode_dds(result.levels, result.layout, result.dxgi_format),
-        paths["manifest"]: (json.dumps(result.manifest, indent=2, sort_keys=False) + "\n").encode(),
+        paths["manifest"]: format_manifest(result.manifest).encode(),
         paths["include"]: result.include.encode(),
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }

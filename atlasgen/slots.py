@@ -74,10 +74,13 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
                     "expected a free slice (or delete the old manifest to re-number)",
                 )
     # A material whose multi-slice run grew past its old place moves to the lowest free run.
+    lowest_free = 0
     for name, count, explicit, src in requests:
         if name in first:
             continue
-        start = 0
+        while lowest_free in owner:
+            lowest_free += 1
+        start = lowest_free
         while start + count <= layers and any(s in owner for s in _span(start, count)):
             start += 1
         if start + count > layers:
