@@ -1,0 +1,110 @@
+"""The generated WGSL include: compiled by a real WebGPU device and checked against the contract."""
+
+import numpy as np
+import pytest
+
+from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.contract import atlas_uv, texel_centres
+from atlasgen.errors import BackendError
+from atlasgen.material import read_materials
+from atlasgen.quantize import dequantize_rgba
+
+
+@pytest.fixture
+def gpu():
+    pytest.importorskip("wgpu")
+    from atlasgen.render.device import get_device
+
+    try:
+        ctx = get_device()
+    except BackendError as exc:
+        pytest.skip(str(exc))
+    ctx.take_errors()
+    yield ctx
+    assert ctx.take_errors() == []
+
+
+@pytest.fixture
+def atlas(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\ncolour = [0.8, 0.5, 0.25]\nid = 3\n')
+    write_material("hot", 'type = "lambert"\nid = 4\nrgb_scale = 0.5\n')  # clamps: stored 1 -> 0.5 linear
+    result = bake_atlas(read_materials([tmp_path / "materials"]))
+    paths = write_bake(result, tmp_path / "atlas.dds")
+    return result, paths["include"].read_text()
+
+
+def test_include_defines_the_contract(atlas):
+    result, text = atlas
+    assert "const MATERIAL_CLAY: u32 = 3u;" in text and "const MATERIAL_HOT: u32 = 4u;" in text
+    assert "fn atlas_uv(n_dot_l: f32, n_dot_v: f32) -> vec2<f32>" in text
+    assert "fn atlas_sample(atlas: texture_2d_array<f32>" in text
+
+
+def bilinear(texels, u, v):
+    """Reference bilinear lookup with clamp-to-edge, in normalised coordinates."""
+    h, w, _ = texels.shape
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = np.clip(np.floor(x).astype(int), 0, w - 1), np.clip(np.floor(y).astype(int), 0, h - 1)
+    x1, y1 = np.clip(x0 + 1, 0, w - 1), np.clip(y0 + 1, 0, h - 1)
+    fx, fy = np.clip(x - x0, 0, 1)[:, None], np.clip(y - y0, 0, 1)[:, None]
+    return ((1 - fy) * ((1 - fx) * texels[y0, x0] + fx * texels[y0, x1]) + fy * ((1 - fx) * texels[y1, x0] + fx * texels[y1, x1]))
+
+
+def test_atlas_sample_on_the_gpu_matches_the_contract(gpu, atlas):
+    import wgpu
+
+    from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
+
+    result, include = atlas
+    rng = np.random.default_rng(7)
+    nl_c, nv_c = texel_centres()
+    # Texel centres (exact) and random points in between (bilinear), for both materials.
+    nl = np.concatenate([nl_c[rng.integers(0, 64, 64)], rng.uniform(-1, 1, 64)])
+    nv = np.concatenate([nv_c[rng.integers(0, 32, 64)], rng.uniform(0, 1, 64)])
+    ids = np.tile([3, 4], 64)
+    points = np.stack([nl, nv, ids.astype(np.float64), np.zeros_like(nl)], axis=1).astype(np.float32)
+
+    shader = include + """
+@group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
+@group(0) @binding(1) var atlas_smp: sampler;
+@group(0) @binding(2) var<storage, read> points: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> out: array<vec4<f32>>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let p = points[gid.x];
+    out[gid.x] = atlas_sample(atlas_tex, atlas_smp, u32(p.z), p.x, p.y, 0.0);
+}
+"""
+    device = gpu.device
+    texture = upload_atlas(gpu, RenderAtlas(result.levels, True, result.manifest, include))
+    sampler = device.create_sampler(mag_filter="linear", min_filter="linear", mipmap_filter="linear",
+                                    address_mode_u="clamp-to-edge", address_mode_v="clamp-to-edge")
+    pbuf = device.create_buffer_with_data(data=points.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    obuf = device.create_buffer(size=points.nbytes, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    pipeline = device.create_compute_pipeline(layout="auto", compute={"module": device.create_shader_module(code=shader), "entry_point": "main"})
+    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
+        {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
+        {"binding": 1, "resource": sampler},
+        {"binding": 2, "resource": {"buffer": pbuf}},
+        {"binding": 3, "resource": {"buffer": obuf}},
+    ])
+    enc = device.create_command_encoder()
+    cp = enc.begin_compute_pass()
+    cp.set_pipeline(pipeline)
+    cp.set_bind_group(0, bind)
+    cp.dispatch_workgroups(len(points) // 64)
+    cp.end()
+    device.queue.submit([enc.finish()])
+    got = np.frombuffer(device.queue.read_buffer(obuf), np.float32).reshape(-1, 4)
+
+    u, v = atlas_uv(nl, nv)
+    for material_id, scale in ((3, 1.0), (4, 0.5)):
+        sel = ids == material_id
+        texels = dequantize_rgba(result.levels[0][material_id], srgb=True)
+        expected = bilinear(texels, u[sel], v[sel]) * np.array([scale, scale, scale, 1.0])
+        # Filtering precision of an 8-bit sampler (8-bit fraction weights) bounds the match.
+        np.testing.assert_allclose(got[sel], expected, atol=4e-3)
+    # At texel centres the clay slice is its closed form, to 8-bit precision.
+    centre = (ids == 3) & (np.arange(len(ids)) < 64)
+    closed = np.maximum(nl[centre], 0)[:, None] * np.array([0.8, 0.5, 0.25])
+    np.testing.assert_allclose(got[centre, :3], closed, atol=8e-3)
