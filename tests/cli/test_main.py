@@ -121,3 +121,14 @@ def test_lut_bake_imports_no_heavy_backend(library, tmp_path):
 def test_help_lists_commands(runner):
     res = runner.invoke(app, ["--help"])
     assert res.exit_code == 0 and "bake" in res.output and "info" in res.output
+
+
+def test_cli_reference_is_generated_from_the_app():
+    from pathlib import Path
+
+    from atlasgen.cli.docgen import render_cli_reference
+
+    text = render_cli_reference()
+    assert "## `atlasgen bake`" in text and "--layout [array|volume]" in text
+    stale = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
+    assert stale.read_text() == text, "docs/cli.md is stale: run python -m atlasgen.cli.docgen"

@@ -1,0 +1,66 @@
+"""Generate docs/cli.md from the click app itself, so the reference cannot drift from the code."""
+
+from __future__ import annotations
+
+import click
+
+from .main import app
+
+__all__ = ["render_cli_reference"]
+
+#: Fixed, so the file does not depend on the terminal it was generated in.
+WIDTH = 100
+
+EXIT_CODES = """\
+## Exit codes
+
+| code | meaning |
+|---|---|
+| 0 | success |
+| 1 | internal error (a bug: please report it with the traceback) |
+| 2 | usage error: an unknown option or a bad option value (click) |
+| 3 | bad input: a material or scene file, a missing path; the message names the file, the field and what was expected |
+| 4 | an output file or folder cannot be written; existing outputs are left untouched |
+| 5 | a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU adapter (`apt-get install mesa-vulkan-drivers`) |
+
+Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, `info`) go to stdout.
+"""
+
+
+def _command_section(ctx, name, command, level=2):
+    sub_ctx = click.Context(command, info_name=name, parent=ctx, terminal_width=WIDTH, max_content_width=WIDTH)
+    lines = [f"{'#' * level} `{sub_ctx.command_path}`", "", "```", command.get_help(sub_ctx).rstrip(), "```", ""]
+    if isinstance(command, click.Group):
+        for sub in command.list_commands(sub_ctx):
+            lines += _command_section(sub_ctx, sub, command.get_command(sub_ctx, sub), level + 1)
+    return lines
+
+
+def render_cli_reference() -> str:
+    """Markdown reference of every command and option, generated from the click app."""
+    ctx = click.Context(app, info_name="atlasgen", terminal_width=WIDTH, max_content_width=WIDTH)
+    lines = [
+        "# Command-line reference",
+        "",
+        "Generated from the click app by `python -m atlasgen.cli.docgen`; a test fails when this file is stale.",
+        "",
+        "```",
+        app.get_help(ctx).rstrip(),
+        "```",
+        "",
+        EXIT_CODES,
+    ]
+    for name in app.list_commands(ctx):
+        command = app.get_command(ctx, name)
+        if command is not None:
+            lines += _command_section(ctx, name, command)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+if __name__ == "__main__":
+    import sys
+    from pathlib import Path
+
+    target = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/cli.md")
+    target.write_text(render_cli_reference())
+    print(f"wrote {target}")
