@@ -28,7 +28,7 @@ Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-l
 
 
 def _command_section(ctx, name, command, level=2):
-    sub_ctx = click.Context(command, info_name=name, parent=ctx, terminal_width=WIDTH, max_content_width=WIDTH)
+    sub_ctx = command.make_context(name, [], parent=ctx, resilient_parsing=True, terminal_width=WIDTH, max_content_width=WIDTH)
     lines = [f"{'#' * level} `{sub_ctx.command_path}`", "", "```", command.get_help(sub_ctx).rstrip(), "```", ""]
     if isinstance(command, click.Group):
         for sub in command.list_commands(sub_ctx):
@@ -38,7 +38,8 @@ def _command_section(ctx, name, command, level=2):
 
 def render_cli_reference() -> str:
     """Markdown reference of every command and option, generated from the click app."""
-    ctx = click.Context(app, info_name="atlasgen", terminal_width=WIDTH, max_content_width=WIDTH)
+    # make_context applies each command's context_settings (e.g. -h as a help option).
+    ctx = app.make_context("atlasgen", [], resilient_parsing=True, terminal_width=WIDTH, max_content_width=WIDTH)
     lines = [
         "# Command-line reference",
         "",
