@@ -17,7 +17,7 @@ from .mips import build_array_mips, build_volume_mips
 from .quantize import dequantize_rgba, quantize_rgba
 from .slots import assign_slices
 
-__all__ = ["BakeResult", "bake_atlas", "format_manifest", "read_previous_slots", "sibling_paths", "write_bake"]
+__all__ = ["BakeResult", "bake_atlas", "bake_material", "format_manifest", "read_previous_slots", "sibling_paths", "write_bake"]
 
 
 @dataclass
@@ -107,7 +107,20 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
     return bleed
 
 
-def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None) -> BakeResult:
+def bake_material(material):
+    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
+    from .models.base import Model
+
+    model = material.model
+    if material.error_budget is not None and type(model).bake is Model.bake:
+        from .adaptive import bake_within_budget
+
+        return bake_within_budget(model, material.params, material.error_budget)
+    return model.bake(material.params)
+
+
+def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None,
+               cache_dir=None) -> BakeResult:
     """Bake validated materials into an RGBA8 atlas.
 
     Parameters
@@ -123,17 +136,30 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         ``name -> first_slice`` of the previous bake; keeps slices stable.
     progress
         Called with each material's name once it is baked.
+    cache_dir
+        Folder of per-material float slices (:mod:`atlasgen.cache`); materials whose
+        file and bake code are unchanged are loaded instead of baked.
     """
+    from .cache import load_cached, store_cached
+
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
     t_start = time.perf_counter()
     srgb = not linear
     baked = []
     timings = {"materials": {}}
+    cache_hits, baked_names = [], []
     for material in materials:
         t0 = time.perf_counter()
         model = material.model
-        slices = model.bake(material.params)
+        slices = load_cached(cache_dir, material) if cache_dir is not None else None
+        if slices is None:
+            slices = bake_material(material)
+            baked_names.append(material.name)
+            if cache_dir is not None:
+                store_cached(cache_dir, material, slices)
+        else:
+            cache_hits.append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
             raise MaterialError(material.source, "type", f"model produced slices of shape {values.shape}; expected (n, {HEIGHT}, {WIDTH}, 4)")
@@ -234,6 +260,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     from .include import render_include
 
     include = render_include(manifest, scales, biases)
+    timings["cache"] = {"hits": cache_hits, "baked": baked_names}
     timings["total_s"] = time.perf_counter() - t_start
     return BakeResult(levels, layout, manifest["dxgi_format"], manifest, include, timings, warnings)
 

@@ -13,12 +13,12 @@ from pathlib import Path
 from .errors import InputError, MaterialError
 from .models import MODEL_TYPES, get_model
 
-__all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "COMMON_KEYS"]
+__all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
-COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale")
+COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget")
 
 
 @dataclass
@@ -34,6 +34,7 @@ class Material:
     description: str = ""
     rgb_scale: object = "auto"
     alpha_scale: object = "auto"
+    error_budget: float | None = None
     extra: dict = field(default_factory=dict)
 
     @property
@@ -103,6 +104,13 @@ def read_material(path) -> Material:
     if not isinstance(description, str):
         raise MaterialError(shown, "description", f"expected a string, got {description!r}")
 
+    error_budget = raw.get("error_budget")
+    if error_budget is not None and (
+        isinstance(error_budget, bool) or not isinstance(error_budget, (int, float))
+        or not math.isfinite(error_budget) or error_budget <= 0
+    ):
+        raise MaterialError(shown, "error_budget", f"expected a finite number > 0 (linear RMS), got {error_budget!r}")
+
     model = get_model(type_name)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
     from .params import validate_params
@@ -119,6 +127,7 @@ def read_material(path) -> Material:
         description=description,
         rgb_scale=_scale_field(raw, "rgb_scale", shown),
         alpha_scale=_scale_field(raw, "alpha_scale", shown),
+        error_budget=None if error_budget is None else float(error_budget),
     )
 
 
@@ -153,3 +162,25 @@ def check_unique_names(materials: list[Material]) -> list[Material]:
             raise MaterialError(m.source, "name", f"duplicate material name {m.name!r} (also in {seen[key].source})")
         seen[key] = m
     return materials
+
+
+def select_scene_materials(materials: list[Material], scene_path) -> list[Material]:
+    """Only the materials ``scene_path`` references, in library order.
+
+    Raises
+    ------
+    SceneError
+        The scene names a material the library does not have (the message lists them).
+    """
+    from .errors import SceneError
+    from .render.scene import read_scene
+
+    scene = read_scene(scene_path)
+    wanted = {obj.material for obj in scene.objects}
+    by_name = {m.name: m for m in materials}
+    for index, obj in enumerate(scene.objects):
+        if obj.material not in by_name:
+            known = ", ".join(sorted(by_name)) or "none"
+            raise SceneError(Path(scene_path).as_posix(), f"objects[{index}].material",
+                             f"unknown material {obj.material!r}; known: {known}")
+    return [m for m in materials if m.name in wanted]

@@ -83,21 +83,47 @@ def app():
               help="Texture2DArray (a mip chain per material) or Texture3D (mips blend neighbouring materials).")
 @click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28) instead of sRGB (DXGI 29).")
 @click.option("--preview", type=click.Path(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
+@click.option("--scene", type=click.Path(path_type=Path), default=None,
+              help="Bake only the materials this scene references.")
+@click.option("--ids-from", type=click.Path(path_type=Path), default=None,
+              help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).")
+@click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
+              help="Per-material cache folder: unchanged materials are loaded, not re-baked.")
+@click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
 @fail_on_errors
-def bake(paths, output, layout, linear, preview, quiet):
+def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
-    from atlasgen.bake import bake_atlas, read_previous_slots, sibling_paths, write_bake
-    from atlasgen.material import read_materials
+    from atlasgen.bake import bake_atlas, bake_material, read_previous_slots, sibling_paths, write_bake
+    from atlasgen.material import read_materials, select_scene_materials
 
     materials = read_materials(paths or [Path("materials")])
-    previous = read_previous_slots(sibling_paths(output)["manifest"])
+    if scene is not None:
+        materials = select_scene_materials(materials, scene)
+    if cache_only:
+        if cache_dir is None:
+            raise click.UsageError("--cache-only needs --cache DIR")
+        from atlasgen.cache import load_cached, store_cached
+
+        import os
+
+        from atlasgen.cache import cache_path
+
+        for material in materials:
+            if load_cached(cache_dir, material) is None:
+                store_cached(cache_dir, material, bake_material(material))
+            else:
+                # Up to date: refresh the time stamp so Make does not ask again.
+                os.utime(cache_path(cache_dir, material))
+        return
+    previous = read_previous_slots(ids_from) if ids_from is not None else {}
+    previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
     show_bar = not quiet and sys.stderr.isatty()
     if show_bar:
         with click.progressbar(length=len(materials), label="baking", file=sys.stderr) as bar:
-            result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1))
+            result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
-        result = bake_atlas(materials, layout, linear, previous)
+        result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
     write_bake(result, output, preview)
     if not quiet:
         for warning in result.warnings:

@@ -1,0 +1,69 @@
+"""Per-material bake cache, keyed by the material file's hash and the bake-relevant tool code."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .models.base import SliceSet
+
+__all__ = ["tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached"]
+
+_PACKAGE = Path(__file__).resolve().parent
+#: Code whose change can change a material's float slices. Encoding, mips and file
+#: writing run at assembly time on every bake, so they are not part of the key.
+BAKE_RELEVANT = ("params.py", "contract.py", "adaptive.py", "models", "separable")
+
+
+@functools.cache
+def tool_fingerprint() -> str:
+    """SHA-256 over the atlasgen version and the bake-relevant source files."""
+    digest = hashlib.sha256(__version__.encode())
+    for entry in BAKE_RELEVANT:
+        path = _PACKAGE / entry
+        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
+        for f in files:
+            if f.exists():
+                digest.update(f.relative_to(_PACKAGE).as_posix().encode())
+                digest.update(f.read_bytes())
+    return digest.hexdigest()
+
+
+def cache_key(material) -> str:
+    return hashlib.sha256(f"{material.content_hash}:{tool_fingerprint()}".encode()).hexdigest()
+
+
+def cache_path(cache_dir, material) -> Path:
+    """``<cache_dir>/<source file stem>.npz``: one file per material file, so Make can name it."""
+    return Path(cache_dir) / f"{Path(material.source).stem}.npz"
+
+
+def load_cached(cache_dir, material) -> SliceSet | None:
+    """The cached slices of ``material``, or None when absent, stale or unreadable."""
+    path = cache_path(cache_dir, material)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta.get("key") != cache_key(material):
+                return None
+            return SliceSet(np.array(data["values"]), extra=meta["extra"], timings=meta["timings"])
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def store_cached(cache_dir, material, slices: SliceSet) -> Path:
+    """Write the slices atomically (parallel ``make -j`` jobs each write their own file)."""
+    from .atomic import write_file_atomically
+
+    meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": slices.timings}
+    buffer = io.BytesIO()
+    np.savez(buffer, values=np.asarray(slices.values, dtype=np.float64), meta=np.array(json.dumps(meta)))
+    path = cache_path(cache_dir, material)
+    write_file_atomically(path, buffer.getvalue())
+    return path

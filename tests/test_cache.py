@@ -1,0 +1,35 @@
+"""The per-material cache: only what changed is re-baked."""
+
+import numpy as np
+
+from atlasgen.bake import bake_atlas
+from atlasgen.cache import cache_path, load_cached
+from atlasgen.material import read_materials
+
+
+def test_only_the_changed_material_is_rebaked(tmp_path, write_material):
+    folder, cache = tmp_path / "materials", tmp_path / "cache"
+    for name in ("a", "b", "c"):
+        write_material(name, f'type = "lambert"\ncolour = [0.{ord(name) % 10}, 0.5, 0.5]\n')
+    first = bake_atlas(read_materials([folder]), cache_dir=cache)
+    assert sorted(first.timings["cache"]["baked"]) == ["a", "b", "c"]
+
+    again = bake_atlas(read_materials([folder]), cache_dir=cache)
+    assert again.timings["cache"] == {"hits": ["a", "b", "c"], "baked": []}
+    assert all(np.array_equal(x, y) for x, y in zip(first.levels, again.levels))
+
+    write_material("b", 'type = "lambert"\ncolour = [0.9, 0.1, 0.1]\n')
+    changed = bake_atlas(read_materials([folder]), cache_dir=cache)
+    assert changed.timings["cache"]["baked"] == ["b"]
+    assert changed.timings["cache"]["hits"] == ["a", "c"]
+    facing = changed.levels[0][:, 31, 63, :3]
+    assert facing[1].tolist() != first.levels[0][1, 31, 63, :3].tolist()
+
+
+def test_a_stale_or_corrupt_cache_entry_is_rebaked(tmp_path, write_material):
+    write_material("a", 'type = "lambert"\n')
+    materials = read_materials([tmp_path / "materials"])
+    bake_atlas(materials, cache_dir=tmp_path / "cache")
+    cache_path(tmp_path / "cache", materials[0]).write_bytes(b"garbage")
+    assert load_cached(tmp_path / "cache", materials[0]) is None
+    assert bake_atlas(materials, cache_dir=tmp_path / "cache").timings["cache"]["baked"] == ["a"]
