@@ -1,0 +1,57 @@
+"""`atlasgen bake --scene`: the atlas holds exactly the scene's materials, with their library IDs."""
+
+import json
+
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+
+SCENE = """
+[camera]
+position = [0, 0, 5]
+target = [0, 0, 0]
+fov = 40
+
+[[objects]]
+shape = "sphere"
+material = "{first}"
+
+[[objects]]
+shape = "box"
+material = "{second}"
+translate = [1.5, 0, 0]
+"""
+
+
+def _bake(*args):
+    res = CliRunner().invoke(app, ["bake", *map(str, args)])
+    return res
+
+
+def test_scene_atlas_holds_exactly_its_materials_with_stable_ids(tmp_path, write_material):
+    for name in ("alpha", "bravo", "charlie", "delta"):
+        write_material(name, 'type = "lambert"\n')
+    library = tmp_path / "materials"
+    full = tmp_path / "full.dds"
+    assert _bake(library, "-o", full, "-q").exit_code == 0
+    full_ids = {m["name"]: m["id"] for m in json.loads(full.with_suffix(".json").read_text())["materials"]}
+
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(first="delta", second="bravo"))
+    out = tmp_path / "scene.dds"
+    res = _bake(library, "--scene", scene, "--ids-from", full.with_suffix(".json"), "-o", out, "-q")
+    assert res.exit_code == 0, res.output
+    entries = json.loads(out.with_suffix(".json").read_text())["materials"]
+    assert {m["name"] for m in entries} == {"bravo", "delta"}
+    assert all(m["id"] == full_ids[m["name"]] for m in entries)
+    assert "MATERIAL_ALPHA" not in out.with_suffix(".wgsl").read_text()
+
+
+def test_scene_with_an_unknown_material_is_refused(tmp_path, write_material):
+    write_material("alpha", 'type = "lambert"\n')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(first="alpha", second="zulu"))
+    res = _bake(tmp_path / "materials", "--scene", scene, "-o", tmp_path / "a.dds")
+    assert res.exit_code == 3
+    assert "scene.toml: field 'objects[1].material': unknown material 'zulu'; known: alpha" in res.stderr
+    assert not (tmp_path / "a.dds").exists()
