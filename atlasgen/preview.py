@@ -12,12 +12,35 @@ from .contract import HEIGHT, WIDTH
 from .errors import OutputError
 from .srgb import encode_srgb
 
-__all__ = ["render_contact_sheet"]
+__all__ = ["render_contact_sheet", "slice_display_image", "write_png"]
 
 ZOOM = 2
 COLUMNS = 4
 LABEL_H = 18
 PAD = 6
+
+
+def slice_display_image(level0: np.ndarray, slice_index: int, srgb: bool) -> np.ndarray:
+    """Display RGB in [0, 1] of one stored slice: its RGB then its alpha in grey, side by side.
+
+    N.V = 1 (facing) is at the top, as an artist reads it.
+    """
+    texels = level0[slice_index].astype(np.float64) / 255.0
+    rgb = texels[..., :3] if srgb else encode_srgb(texels[..., :3])
+    alpha = np.repeat(texels[..., 3:4], 3, axis=2)
+    return np.concatenate([rgb, alpha], axis=1)[::-1]
+
+
+def write_png(image: np.ndarray, path, zoom: int = 1) -> None:
+    """Write display RGB in [0, 1] as an 8-bit PNG with OpenImageIO (nearest-neighbour zoom)."""
+    import OpenImageIO as oiio
+
+    if zoom > 1:
+        image = np.kron(image, np.ones((zoom, zoom, 1)))
+    buf = oiio.ImageBuf(oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
+    buf.set_pixels(oiio.ROI(), np.ascontiguousarray(image, dtype=np.float32))
+    if not buf.write(str(path), oiio.UINT8):
+        raise OutputError(f"{Path(path).as_posix()}: cannot write PNG ({oiio.geterror()})")
 
 
 def render_contact_sheet(result, target_path) -> bytes:
@@ -29,23 +52,19 @@ def render_contact_sheet(result, target_path) -> bytes:
     import OpenImageIO as oiio
 
     srgb = result.manifest["encoding"] == "srgb"
-    level0 = result.levels[0].astype(np.float64) / 255.0
     cells = []
     for m in result.manifest["materials"]:
         for k in range(m["slice_count"]):
             s = m["first_slice"] + k
             label = f"{s} {m['name']}" + (f" [{k}]" if m["slice_count"] > 1 else "")
-            rgb = level0[s, ..., :3] if srgb else encode_srgb(level0[s, ..., :3])
-            alpha = np.repeat(level0[s, ..., 3:4], 3, axis=2)
-            cells.append((label, np.concatenate([rgb, alpha], axis=1)))
+            cells.append((label, slice_display_image(result.levels[0], s, srgb)))
     cell_w, cell_h = 2 * WIDTH * ZOOM + PAD, HEIGHT * ZOOM + LABEL_H + PAD
     rows = max(1, (len(cells) + COLUMNS - 1) // COLUMNS)
     sheet = np.full((rows * cell_h + PAD, COLUMNS * cell_w + PAD, 3), 0.12)
     for i, (_, image) in enumerate(cells):
         y = PAD + (i // COLUMNS) * cell_h
         x = PAD + (i % COLUMNS) * cell_w
-        # Flip vertically so N.V = 1 (facing) is at the top, as artists expect to read it.
-        big = np.kron(image[::-1], np.ones((ZOOM, ZOOM, 1)))
+        big = np.kron(image, np.ones((ZOOM, ZOOM, 1)))
         sheet[y : y + big.shape[0], x : x + big.shape[1]] = big
     buf = oiio.ImageBuf(oiio.ImageSpec(sheet.shape[1], sheet.shape[0], 3, oiio.FLOAT))
     buf.set_pixels(oiio.ROI(), sheet.astype(np.float32))

@@ -1,0 +1,154 @@
+"""One HTML page over the whole material library: representation, errors, bake time, previews."""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from pathlib import Path
+
+from .errors import InputError
+
+__all__ = ["write_library_report"]
+
+
+def _read_json(path):
+    path = Path(path)
+    if not path.exists():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:
+        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+
+
+def _representation(entry: dict) -> str:
+    rep = entry.get("representation") or {}
+    if entry["type"] == "separable":
+        terms = entry.get("terms", entry["slice_count"])
+        param = entry.get("parametrization", "")
+        return f"separable, {terms} term(s){', ' + param if param else ''}"
+    if rep.get("kind") == "lut":
+        return f"LUT, supersampling {rep['supersampling']}x (budget {rep['error_budget']:g})"
+    return "LUT, point-sampled"
+
+
+def _validation_rows(validation: dict | None, name: str) -> list[dict]:
+    """Per-reference metrics of one material from validate's report.json, whatever refs it has."""
+    if not validation:
+        return []
+    for m in validation.get("materials", []):
+        if m.get("name") == name:
+            refs = m.get("references", {})
+            return [{"reference": k, **v} for k, v in refs.items() if isinstance(v, dict)]
+    return []
+
+
+def _fmt(x, spec=".3g"):
+    return "–" if x is None else format(x, spec)
+
+
+def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir=None) -> Path:
+    """Write ``out_dir/index.html`` (+ slice previews and a speed-against-error plot).
+
+    Every figure on the page is read from files the toolchain measured: the manifest
+    (errors, representation), the timings file (bake time), and, when present,
+    ``validation_dir/report.json`` (errors against Mitsuba references).
+    """
+    import numpy as np
+
+    from .atlas import read_atlas
+    from .preview import slice_display_image, write_png
+
+    atlas = read_atlas(atlas_path)
+    if atlas.manifest is None:
+        raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
+    timings = _read_json(Path(atlas_path).with_suffix("").as_posix() + ".timings.json") or {}
+    validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
+    out_dir = Path(out_dir)
+    (out_dir / "slices").mkdir(parents=True, exist_ok=True)
+
+    rows, points = [], []
+    srgb = atlas.manifest["encoding"] == "srgb"
+    for entry in atlas.manifest["materials"]:
+        name = entry["name"]
+        previews = []
+        for k in range(entry["slice_count"]):
+            rel = f"slices/{name}-{k}.png"
+            write_png(slice_display_image(atlas.image.levels[0], entry["first_slice"] + k, srgb), out_dir / rel, zoom=2)
+            previews.append(rel)
+        bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
+        refs = _validation_rows(validation, name)
+        err = entry.get("errors", {}).get("atlas_rel_rms") if isinstance(entry.get("errors"), dict) else None
+        if err is None:
+            err = entry["quantization_error"]["rms"]
+        rows.append((entry, previews, bake_s, refs))
+        if bake_s is not None:
+            points.append((name, bake_s, max(err, 1e-6), entry["type"]))
+
+    plot = None
+    if points:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(7, 4.5), dpi=100)
+        for kind in sorted({p[3] for p in points}):
+            sel = [p for p in points if p[3] == kind]
+            ax.scatter([p[1] * 1e3 for p in sel], [p[2] for p in sel], label=kind)
+            for p in sel:
+                ax.annotate(p[0], (p[1] * 1e3, p[2]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("bake time per material (ms)")
+        ax.set_ylabel("error (separable: rel. RMS of the 8-bit atlas; LUT: RMS quantisation, linear)")
+        ax.set_title("Speed against error, whole library")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(out_dir / "speed-vs-error.png")
+        plt.close(fig)
+        plot = "speed-vs-error.png"
+
+    def link(target: Path | None, label: str) -> str:
+        if target is None or not Path(target).exists():
+            return ""
+        rel = os.path.relpath(target, out_dir)
+        return f'<a href="{html.escape(rel)}">{html.escape(label)}</a>'
+
+    e = html.escape
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>atlasgen library report</title>",
+        "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
+        "td,th{border:1px solid #ccc;padding:4px 8px;vertical-align:top;font-size:90%}img{image-rendering:pixelated}</style>",
+        "</head><body>",
+        f"<h1>Material library: {e(Path(atlas_path).as_posix())}</h1>",
+        f"<p>{len(rows)} materials, {e(atlas.manifest['encoding'])} encoding, {e(atlas.manifest['layout'])} layout. "
+        "Every figure is read from the bake's manifest and timings, and from validation's report.json.</p>",
+    ]
+    links = [link(Path(validation_dir) / "index.html" if validation_dir else None, "validation report"),
+             link(Path(separable_dir) / "index.md" if separable_dir else None, "separable factorisation report")]
+    if any(links):
+        parts.append("<p>" + " · ".join(x for x in links if x) + "</p>")
+    if plot:
+        parts.append(f'<p><img src="{plot}" alt="speed against error"></p>')
+    parts.append("<table><tr><th>ID</th><th>material</th><th>type</th><th>representation</th><th>bake (ms)</th>"
+                 "<th>quantisation error (max / RMS)</th><th>errors against references</th><th>slices (RGB | A)</th></tr>")
+    for entry, previews, bake_s, refs in rows:
+        q = entry["quantization_error"]
+        ref_text = "<br>".join(
+            f"{e(r['reference'])}: PSNR {_fmt(r.get('psnr'), '.1f')} dB, FLIP {_fmt(r.get('flip'), '.4f')}"
+            for r in refs
+        ) or "not validated"
+        imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry["name"])} slice">' for p in previews)
+        parts.append(
+            f"<tr><td>{entry['first_slice']}</td><td>{e(entry['name'])}</td><td>{e(entry['type'])}</td>"
+            f"<td>{e(_representation(entry))}</td><td>{_fmt(None if bake_s is None else bake_s * 1e3, '.2f')}</td>"
+            f"<td>{q['max']:.4f} / {q['rms']:.4f}</td><td>{ref_text}</td><td>{imgs}</td></tr>"
+        )
+    parts.append("</table></body></html>")
+    index = out_dir / "index.html"
+    from .atomic import write_file_atomically
+
+    write_file_atomically(index, "\n".join(parts).encode())
+    return index

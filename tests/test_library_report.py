@@ -1,0 +1,35 @@
+"""The whole-library HTML report opens with no broken image."""
+
+from html.parser import HTMLParser
+
+from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.library_report import write_library_report
+from atlasgen.material import read_materials
+
+
+class Images(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.sources, self.links = [], []
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "img":
+            self.sources.append(attrs["src"])
+        if tag == "a":
+            self.links.append(attrs["href"])
+
+
+def test_every_referenced_image_exists(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n')
+    write_material("snow", 'type = "lambert"\nerror_budget = 0.01\n')
+    atlas = tmp_path / "build" / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    index = write_library_report(atlas, tmp_path / "build" / "report")
+    parser = Images()
+    parser.feed(index.read_text())
+    assert len(parser.sources) == 3  # the plot and one preview per slice
+    for src in parser.sources + parser.links:
+        assert (index.parent / src).is_file(), src
+    text = index.read_text()
+    assert "supersampling 1x" in text and "clay" in text
