@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..contract import HEIGHT, WIDTH, texel_grid
+from ..contract import HEIGHT, WIDTH, texel_centres
 from ..params import Param
 
 __all__ = ["Model", "SliceSet", "EncodedSlices", "encode_scaled"]
@@ -87,10 +87,15 @@ class Model:
         return 1
 
     def bake(self, values: dict) -> SliceSet:
-        """Evaluate at the texel centres of one slice."""
-        nl, nv = texel_grid(WIDTH, HEIGHT)
-        rgba = np.asarray(self.evaluate(values, nl, nv), dtype=np.float64)
-        return SliceSet(rgba.reshape(1, HEIGHT, WIDTH, 4))
+        """Evaluate at the texel centres of one slice.
+
+        The axes go in as a row and a column, so a model that separates its N.L and
+        N.V work (a spectral film, a profile integral) computes each only once.
+        """
+        nl, nv = texel_centres(WIDTH, HEIGHT)
+        rgba = np.asarray(self.evaluate(values, nl[None, :], nv[:, None]), dtype=np.float64)
+        rgba = np.broadcast_to(rgba, (HEIGHT, WIDTH, 4))
+        return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4))
 
     def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
         return encode_scaled(slices.values, rgb_scale, alpha_scale)

@@ -25,7 +25,7 @@ def test_bake_is_the_closed_form_at_texel_centres(colour, valid_slice):
     assert (values == values[:1]).all()
 
 
-def test_evaluate_broadcasts_and_clamps():
+def test_evaluate_broadcasts_at_arbitrary_points():
     nl = np.array([-2.0, -0.5, 0.0, 0.25, 1.0, 3.0])[:, None]
     nv = np.linspace(0.0, 1.0, 5)[None, :]
     out = MODEL.evaluate({"colour": (0.2, 0.4, 0.8)}, nl, nv)

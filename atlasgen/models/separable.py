@@ -1,0 +1,245 @@
+"""Kautz-McCool separable BRDFs: any BRDF factored by SVD into K atlas slices.
+
+f(l, v) cos(theta_l) ~ sum_k g_k(pi1) h_k(pi2) (Kautz & McCool 1999), one slice per
+term. The math lives in :mod:`atlasgen.separable`; this module is the TOML schema
+and the bake/encode/finalize hooks. Mitsuba is imported only for ``source = "mitsuba"``.
+"""
+
+from __future__ import annotations
+
+import time
+from functools import lru_cache
+
+import numpy as np
+
+from ..errors import MaterialError
+from ..params import Param
+from .base import EncodedSlices, Model, SliceSet
+
+__all__ = ["Separable", "MAX_AUTO_TERMS"]
+
+MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
+#: Largest fixed ``terms``: the rank of a 32 x 1024 factor matrix.
+MAX_TERMS = 32
+
+SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba")
+
+
+def _parametrization_names():
+    from ..separable.parametrization import PARAMETRIZATIONS
+
+    return tuple(PARAMETRIZATIONS)
+
+
+@lru_cache(maxsize=1)
+def _error_pairs():
+    from ..separable.error import sample_hemisphere_pairs
+
+    return sample_hemisphere_pairs()
+
+
+def _reference(source):
+    """f cos at the fixed error pairs, with non-finite values masked (and counted)."""
+    from ..separable.approximate import reference_values
+
+    return reference_values(source, _error_pairs())
+
+
+def _error_seed():
+    from ..separable.error import ERROR_SEED
+
+    return ERROR_SEED
+
+
+class Separable(Model):
+    """A BRDF approximated by K separable terms, f cos(theta_l) ~ sum_k g_k(pi1) h_k(pi2).
+
+    Reference: J. Kautz and M. D. McCool, "Interactive Rendering with Arbitrary BRDFs
+    using Separable Approximations", EGWR 1999. The factors, layout, parametrization and
+    error measures are described in docs/separable.md.
+    """
+
+    type_name = "separable"
+    reference = "Kautz & McCool 1999; f cos ~ sum_k g_k(pi1) h_k(pi2), truncated SVD"
+    params = (
+        Param("source", "ggx", "choice", choices=SOURCES, doc="the BRDF to factor"),
+        Param("alpha", 0.2, "float", lo=0.0, hi=4.0, lo_open=True, doc="roughness (GGX, Beckmann, Ward)"),
+        Param("fresnel", "schlick", "choice", choices=("schlick", "exact", "none"), doc="microfacet Fresnel"),
+        Param("f0", (0.04, 0.04, 0.04), "colour", doc="Schlick's normal-incidence reflectance"),
+        Param("ior", 1.5, "float", lo=1.0, hi=10.0, lo_open=True, doc="dielectric index for exact Fresnel"),
+        Param("specular", (1.0, 1.0, 1.0), "colour", doc="specular lobe colour"),
+        Param("diffuse", (0.0, 0.0, 0.0), "colour", doc="Lambertian colour added (the whole BRDF for 'lambert')"),
+        Param("exponent", 100.0, "float", lo=0.0, hi=1e6, lo_open=True, doc="Blinn-Phong exponent"),
+        Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
+        Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
+        Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: smallest K <= 8 meeting it"),
+        Param("parametrization", "half_diff", "choice", choices=_parametrization_names(), doc="pi1 / pi2 split"),
+        Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
+        Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
+    )
+
+    # -- validation ---------------------------------------------------------------------------
+    def check(self, values: dict, path) -> None:
+        if values["terms"] is not None and values["max_error"] is not None:
+            raise MaterialError(path, "max_error", "give either 'terms' or 'max_error', not both")
+        if values["factorization"] == "nd" and (values["terms"] or 1) != 1:
+            raise MaterialError(path, "terms", f"expected 1 with factorization = 'nd' (one term), got {values['terms']}")
+        if values["source"] == "mitsuba":
+            if values["bsdf"] is None:
+                raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'")
+            from ..separable.mitsuba_source import load_mitsuba_bsdf
+
+            load_mitsuba_bsdf(values["bsdf"], path)
+        elif values["bsdf"] is not None:
+            raise MaterialError(path, "bsdf", f"only used with source = 'mitsuba', but source is {values['source']!r}")
+
+    # -- LUT-style evaluation (previews) ---------------------------------------------------------
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        """RGB = the exact f cos(theta_l) with l and v coplanar on opposite sides of n; A = 0.
+
+        A separable material has no single (N.L, N.V) table; this in-plane cut is what a
+        preview can show. The atlas slices themselves hold the factors (see :meth:`bake`).
+        """
+        from ..separable.source import make_source
+
+        nl = np.asarray(n_dot_l, dtype=np.float64)
+        nv = np.asarray(n_dot_v, dtype=np.float64)
+        nl, nv = np.broadcast_arrays(nl, nv)
+        sl = np.sqrt(np.maximum(1.0 - nl * nl, 0.0))
+        sv = np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
+        l = np.stack([-sl, np.zeros_like(nl), np.maximum(nl, 0.0)], axis=-1)
+        v = np.stack([sv, np.zeros_like(nv), nv], axis=-1)
+        l = l / np.maximum(np.linalg.norm(l, axis=-1), 1e-300)[..., None]
+        rgb = make_source(values).f_cos(l, v)
+        rgb = np.where((nl > 0.0)[..., None] & np.isfinite(rgb), rgb, 0.0)
+        out = np.zeros(nl.shape + (4,))
+        out[..., :3] = rgb
+        return out
+
+    def slice_count(self, values: dict) -> int:
+        """K when fixed; with ``max_error`` only the bake knows (len of its slices)."""
+        return values["terms"] if values["terms"] is not None else MAX_AUTO_TERMS
+
+    # -- bake -------------------------------------------------------------------------------------
+    def bake(self, values: dict) -> SliceSet:
+        from ..separable.approximate import approximate_brdf
+        from ..separable.source import make_source
+        from ..separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
+
+        source = make_source(values)
+        method = values["factorization"]
+        reference, ref_nonfinite = _reference(source)
+        result = approximate_brdf(
+            source,
+            values["parametrization"],
+            terms=1 if method == "nd" else values["terms"],
+            max_error=values["max_error"],
+            method=method,
+            target=values["target"],
+            resolution=FACTOR_RESOLUTION,
+            reference=reference,
+            pairs=_error_pairs(),
+        )
+        timings = dict(result.timings)
+        t0 = time.perf_counter()
+        slices = factors_to_slices(result.factors)
+        stored, scale, bias, clamped = encode_factor_slices(slices)
+        timings["quantize_s"] = time.perf_counter() - t0
+
+        extra = {
+            "source": values["source"],
+            "parametrization": result.factors.parametrization,
+            "factorization": method,
+            "target": result.target,
+            "terms": int(result.terms),
+            "factor_resolution": FACTOR_RESOLUTION,
+            "channel_layout": CHANNEL_LAYOUT,
+            "factor_scale": _rounded(scale),
+            "factor_bias": _rounded(bias),
+            "nonfinite_samples": result.nonfinite_samples,
+            "nonfinite_reference": ref_nonfinite,
+            "errors": {
+                "pairs": int(_error_pairs()[0].shape[0]),
+                "seed": _error_seed(),
+                "float": result.errors,
+                "float_by_terms": result.errors_by_terms,
+                "estimated_8bit_srgb_by_terms": result.errors_8bit_by_terms,
+                "grid_by_terms": result.matrix_errors_by_terms,
+            },
+        }
+        if result.max_error_met is not None:
+            extra["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
+            extra["max_error_met"] = result.max_error_met
+        out = SliceSet(slices, extra, timings)
+        # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
+        out._separable = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,
+                          "reference": reference, "parametrization": result.factors.parametrization,
+                          "target": result.target}
+        return out
+
+    def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
+        """Per-term, per-factor, per-channel scale and bias (docs/separable.md, "Storage").
+
+        ``rgb_scale`` and ``alpha_scale`` do not apply: every factor gets the scale and
+        bias that fit it exactly. The generic (K, 2) ``scale``/``bias`` are 1 and 0; the
+        real ones are ``factor_scale``/``factor_bias`` in the manifest entry.
+        """
+        from ..separable.storage import encode_factor_slices
+
+        cached = getattr(slices, "_separable", None)
+        if cached is None or cached["stored"].shape != slices.values.shape:
+            stored, scale, bias, clamped = encode_factor_slices(slices.values)
+        else:
+            stored, scale, bias, clamped = cached["stored"], cached["scale"], cached["bias"], cached["clamped"]
+        k = stored.shape[0]
+        extra = {"factor_scale": _rounded(scale), "factor_bias": _rounded(bias)}
+        try:
+            return EncodedSlices(stored, np.ones((k, 2)), np.zeros((k, 2)), clamped, extra=extra)
+        except TypeError:  # EncodedSlices without an ``extra`` field
+            encoded = EncodedSlices(stored, np.ones((k, 2)), np.zeros((k, 2)), clamped)
+            encoded.extra = extra
+            return encoded
+
+    def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
+        """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
+        from ..separable.error import measure_errors
+        from ..separable.rebuild import evaluate_factors, factors_from_slices
+        from ..separable.source import make_source
+
+        cached = getattr(slices, "_separable", None)
+        if cached is not None:
+            reference, name, target = cached["reference"], cached["parametrization"], cached["target"]
+        else:  # slices from the bake cache: only the manifest fields survive
+            reference, _ = _reference(make_source(values))
+            name = slices.extra.get("parametrization", values["parametrization"])
+            target = slices.extra.get("target", "f_cos")
+        extra = getattr(encoded, "extra", None) or {}
+        scale = np.asarray(extra.get("factor_scale"), dtype=np.float64)
+        bias = np.asarray(extra.get("factor_bias"), dtype=np.float64)
+        factors = factors_from_slices(decoded, scale, bias, name, target)
+        l, v = _error_pairs()
+        approx = evaluate_factors(factors, None, l, v, cosine=True)
+        # The generic quantization error assumes one (rgb, a) scale per slice; with
+        # per-factor scale and bias it is measured here, in factor units.
+        half = decoded.shape[2] // 2
+        rebuilt = np.empty(decoded.shape[:3] + (3,))
+        rebuilt[:, :, :half] = decoded[:, :, :half, :3] * scale[:, None, None, 0] + bias[:, None, None, 0]
+        rebuilt[:, :, half:] = decoded[:, :, half:, :3] * scale[:, None, None, 1] + bias[:, None, None, 1]
+        err = np.abs(rebuilt - np.asarray(slices.values)[..., :3])
+        return {
+            "errors_8bit": measure_errors(reference, approx),
+            "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))},
+        }
+
+    # -- shader -----------------------------------------------------------------------------------
+    @classmethod
+    def include_wgsl(cls, entries: list[dict]) -> str:
+        """WGSL that rebuilds f cos(theta_l) of each separable material from the atlas."""
+        from ..separable.shader import separable_wgsl
+
+        return separable_wgsl(entries)
+
+
+def _rounded(array) -> list:
+    """Floats as float32-exact values: deterministic JSON, and what the shader's f32 constants hold."""
+    return np.asarray(array, dtype=np.float32).astype(np.float64).tolist()

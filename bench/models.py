@@ -1,0 +1,55 @@
+"""Benchmark: one slice's ``model.bake()`` per LUT model, for the shipped library and each model's defaults."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RUNS = 50
+LUT_MODELS = ("lambert", "fresnel", "iridescent", "sss", "backlit", "toon")
+
+
+def _cases():
+    from atlasgen.material import read_materials
+    from atlasgen.models import get_model
+    from atlasgen.params import validate_params
+
+    cases = [(m.name, m.type, m.model, m.params) for m in read_materials([ROOT / "materials"]) if m.type in LUT_MODELS]
+    for type_name in LUT_MODELS:
+        model = get_model(type_name)
+        cases.append((f"({type_name} defaults)", type_name, model, validate_params(model.params, {}, "defaults")))
+    return cases
+
+
+def run() -> dict:
+    rows, data = [], {}
+    for name, type_name, model, params in _cases():
+        model.bake(params)  # first call fills the models' caches (quadrature rules, spectral grids)
+        times = []
+        for _ in range(RUNS):
+            t0 = time.perf_counter()
+            model.bake(params)
+            times.append(time.perf_counter() - t0)
+        med = statistics.median(times)
+        data[name] = {"type": type_name, "median_s": med, "min_s": min(times), "max_s": max(times)}
+        rows.append(f"| {name} | {type_name} | {med * 1e3:.2f} | {min(times) * 1e3:.2f} | {max(times) * 1e3:.2f} |")
+    worst = max(v["median_s"] for v in data.values())
+    md = [
+        "## `model.bake()`: one 64x32 slice per LUT material, in process",
+        "",
+        f"Median of {RUNS} calls after one warm-up call; the shipped library, then each model with its defaults.",
+        "",
+        "| material | model | median (ms) | min (ms) | max (ms) |",
+        "|---|---|---|---|---|",
+        *rows,
+        "",
+        f"Slowest median: {worst * 1e3:.2f} ms, so 256 such slices take at most {256 * worst:.2f} s of model time.",
+        "",
+    ]
+    return {"markdown": "\n".join(md), "data": {"runs": RUNS, "materials": data}}
+
+
+if __name__ == "__main__":
+    print(run()["markdown"])

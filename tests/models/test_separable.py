@@ -1,0 +1,193 @@
+"""The separable model through the real loader and bake: bad inputs, hard cases, manifest, determinism."""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from atlasgen.bake import bake_atlas
+from atlasgen.errors import MaterialError
+from atlasgen.material import read_material, read_materials
+from atlasgen.models import get_model
+
+MODEL = get_model("separable")
+
+
+@pytest.mark.parametrize(
+    "body, field, expected",
+    [
+        ("terms = 0", "terms", ">= 1"),
+        ("terms = -3", "terms", ">= 1"),
+        ("terms = 2.5", "terms", "an integer"),
+        ("max_error = 0", "max_error", "> 0"),
+        ("max_error = -0.1", "max_error", "> 0"),
+        ("terms = 2\nmax_error = 0.05", "max_error", "not both"),
+        ('source = "mitsuba"', "bsdf", "missing"),
+        ('bsdf = { type = "diffuse" }', "bsdf", "only used with source = 'mitsuba'"),
+        ('factorization = "nd"\nterms = 2', "terms", "expected 1"),
+        ('parametrization = "polar"', "parametrization", "half_diff"),
+        ('source = "phong"', "source", "blinn_phong"),
+        ("alpha = 0", "alpha", "> 0"),
+    ],
+)
+def test_bad_parameters_are_one_line_errors(expect_rejected, body, field, expected):
+    expect_rejected("separable", body, field, expected)
+
+
+@pytest.mark.parametrize(
+    "bsdf, quoted",
+    [
+        ('{ type = "plasticky" }', 'Plugin "plasticky" not found'),
+        ('{ type = "roughconductor", alhpa = 0.2 }', "unreferenced property"),
+    ],
+)
+def test_bad_mitsuba_dicts_quote_mitsuba(mitsuba_llvm, expect_rejected, bsdf, quoted):
+    message = expect_rejected("separable", f'source = "mitsuba"\nbsdf = {bsdf}', "bsdf", quoted)
+    assert "Mitsuba rejected" in message
+
+
+@pytest.fixture
+def bake_folder(write_material, tmp_path):
+    def run(files: dict, **kwargs):
+        for name, text in files.items():
+            write_material(name, textwrap.dedent(text))
+        return bake_atlas(read_materials([tmp_path / "materials"]), **kwargs)
+
+    return run
+
+
+def _entry(result, name):
+    return next(m for m in result.manifest["materials"] if m["name"] == name)
+
+
+def test_terms_fill_consecutive_slices_with_the_manifest_fields(bake_folder):
+    result = bake_folder({
+        "a": 'type = "lambert"\nid = 0\n',
+        "glossy": 'type = "separable"\nsource = "ggx"\nalpha = 0.2\nterms = 3\n',
+    })
+    e = _entry(result, "glossy")
+    assert e["slice_count"] == e["terms"] == 3 and e["first_slice"] == 1
+    assert np.asarray(e["factor_scale"]).shape == (3, 2, 3) == np.asarray(e["factor_bias"]).shape
+    assert e["parametrization"] == "half_diff" and e["target"] in ("f_cos", "f_proxy")
+    assert e["errors"]["pairs"] >= 100_000
+    for key in ("float", "float_by_terms", "estimated_8bit_srgb_by_terms", "grid_by_terms"):
+        assert key in e["errors"]
+    assert 0 < e["errors"]["float"]["relative_rms"] < 0.1
+    assert e["errors_8bit"]["relative_rms"] >= e["errors"]["float"]["relative_rms"] - 1e-3
+    # The atlas level 0 holds the factors: the slice's non-zero texels are exactly its 3 layers.
+    level0 = result.levels[0]
+    assert level0[1:4, :, :, :3].any() and not level0[4:].any()
+    timings = result.timings["materials"]["glossy"]
+    for key in ("sample_s", "svd_s", "quantize_s", "error_s"):
+        assert timings[key] >= 0.0
+    assert "fn separable_f_cos_glossy(" in result.include
+
+
+def test_rebake_is_byte_identical(bake_folder, tmp_path):
+    files = {"g": 'type = "separable"\nsource = "beckmann"\nalpha = 0.3\nmax_error = 0.05\n'}
+    a = bake_folder(files)
+    b = bake_atlas(read_materials([tmp_path / "materials"]))
+    for la, lb in zip(a.levels, b.levels):
+        np.testing.assert_array_equal(la, lb)
+    assert json.dumps(a.manifest, sort_keys=True) == json.dumps(b.manifest, sort_keys=True)
+    assert a.include == b.include
+
+
+def test_max_error_picks_the_smallest_k_meeting_it(bake_folder):
+    result = bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nmax_error = 0.03\n'})
+    e = _entry(result, "g")
+    k = e["terms"]
+    by_k = [x["relative_rms"] for x in e["errors"]["estimated_8bit_srgb_by_terms"][e["target"]]]
+    assert by_k[k - 1] <= 0.03 and all(x > 0.03 for x in by_k[: k - 1])
+    # Every other target needed at least as many terms.
+    for target, errs in e["errors"]["estimated_8bit_srgb_by_terms"].items():
+        assert all(x["relative_rms"] > 0.03 for x in errs[: k - 1]), target
+    assert e["max_error_met"] is True and e["slice_count"] == k
+    # The estimate is the real 8-bit atlas (sRGB, the default) to rounding.
+    assert e["errors_8bit"]["relative_rms"] == pytest.approx(by_k[k - 1], rel=1e-3)
+
+
+def test_unreachable_budget_uses_eight_terms_and_says_so(bake_folder):
+    e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.01\nmax_error = 1e-6\n'}), "g")
+    assert e["terms"] == 8 and e["max_error_met"] is False
+
+
+@pytest.mark.parametrize("alpha", [0.005, 1.0])
+def test_near_delta_and_very_rough_ggx_stay_finite_and_report_their_error(bake_folder, alpha):
+    result = bake_folder({"g": f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nterms = 4\n'})
+    e = _entry(result, "g")
+    for errs in (e["errors"]["float"], e["errors_8bit"]):
+        assert np.isfinite(errs["relative_rms"]) and np.isfinite(errs["log_error"])
+    assert np.isfinite(np.asarray(e["factor_scale"])).all() and np.isfinite(np.asarray(e["factor_bias"])).all()
+    if alpha < 0.01:
+        # A 32-texel grid cannot hold a 0.3-degree lobe: the error says so rather than hiding it.
+        assert e["errors"]["float"]["relative_rms"] > 0.2
+    else:
+        assert e["errors"]["float"]["relative_rms"] < 0.05
+
+
+def test_all_zero_brdf_gives_zero_slices_and_zero_error(bake_folder):
+    result = bake_folder({"black": 'type = "separable"\nsource = "lambert"\ndiffuse = [0, 0, 0]\nterms = 2\n'})
+    e = _entry(result, "black")
+    assert not result.levels[0][e["first_slice"] : e["first_slice"] + 2].any()
+    assert e["errors"]["float"]["relative_rms"] == 0.0 and e["errors_8bit"]["relative_rms"] == 0.0
+    assert e["clamped_fraction"] == 0.0 and not result.warnings
+
+
+def _fragmented(write_material, terms=32):
+    """LUT materials pinned every 30 slices leave no run of 32 free slices; one material asks for 32 terms."""
+    for i in range(9):
+        write_material(f"lut{i}", f'type = "lambert"\nid = {30 * i}\n')
+    if terms:
+        write_material("wide", f'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = {terms}\n')
+
+
+def test_more_terms_than_free_slices_is_an_error(write_material, tmp_path):
+    _fragmented(write_material)
+    with pytest.raises(MaterialError, match="32 consecutive free slices"):
+        bake_atlas(read_materials([tmp_path / "materials"]))
+
+
+def test_cli_leaves_the_atlas_untouched_when_terms_do_not_fit(write_material, tmp_path):
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    _fragmented(write_material, terms=None)
+    out = tmp_path / "atlas.dds"
+    runner = CliRunner()
+    assert runner.invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"]).exit_code == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert "atlas.dds" in before
+    _fragmented(write_material, terms=32)
+    res = runner.invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"])
+    assert res.exit_code != 0 and "32 consecutive free slices" in res.output
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+
+
+def test_evaluate_is_the_in_plane_cut(load):
+    m = load("separable", 'source = "lambert"\ndiffuse = [0.5, 0.25, 1.0]')
+    out = MODEL.evaluate(m.params, np.array([-0.5, 0.0, 0.5, 1.0]), np.array([0.3, 0.3, 0.3, 0.3]))
+    np.testing.assert_allclose(out[:, :3], np.outer([0, 0, 0.5, 1.0], [0.5, 0.25, 1.0]) / np.pi, atol=1e-12)
+    assert not out[:, 3].any()
+
+
+def test_lut_only_bake_imports_no_separable_or_mitsuba_code(write_material, tmp_path):
+    write_material("clay", 'type = "lambert"\n')
+    code = textwrap.dedent(f"""
+        import sys
+        from atlasgen.bake import bake_atlas
+        from atlasgen.material import read_materials
+        bake_atlas(read_materials([{str(tmp_path / 'materials')!r}]))
+        bad = [m for m in sys.modules if m.startswith(('mitsuba', 'drjit', 'atlasgen.separable', 'matplotlib'))]
+        assert not bad, bad
+    """)
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_slice_count_declares_the_budget_mode_upper_bound(load):
+    assert MODEL.slice_count(load("separable", "terms = 5").params) == 5
+    assert MODEL.slice_count(load("separable", "max_error = 0.1").params) == 8

@@ -1,0 +1,96 @@
+"""Toon: bands, silhouette and stepped specular at exact positions; the outline flag; cross-field checks."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atlasgen.contract import texel_centres
+from atlasgen.models import get_model
+from atlasgen.params import validate_params
+
+MODEL = get_model("toon")
+DEFAULTS = validate_params(MODEL.params, {}, "test")
+RED, GREEN, BLUE, INK = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (0.1, 0.1, 0.1)
+THREE = "colours = [[0,0,0],[1,1,1],[1,0,0]]"
+
+
+def test_bands_switch_exactly_at_the_thresholds():
+    params = {**DEFAULTS, "thresholds": (-0.2, 0.4), "colours": (RED, GREEN, BLUE)}
+    eps = 1e-12
+    nl = np.array([-1.0, -0.2 - eps, -0.2, 0.4 - eps, 0.4, 1.0])
+    out = MODEL.evaluate(params, nl, 0.5)
+    np.testing.assert_array_equal(out[:, :3], [RED, RED, GREEN, GREEN, BLUE, BLUE])
+
+
+def test_baked_slice_assigns_each_texel_its_band():
+    params = {**DEFAULTS, "thresholds": (0.0, 0.5), "colours": (RED, GREEN, BLUE), "silhouette": 0.2, "silhouette_colour": INK}
+    values = MODEL.bake(params).values[0]
+    nl, nv = texel_centres()
+    for j, v in enumerate(nv):
+        for i, l in enumerate(nl):
+            expected = INK if v < 0.2 else (RED if l < 0.0 else GREEN if l < 0.5 else BLUE)
+            np.testing.assert_array_equal(values[j, i, :3], expected)
+
+
+def test_stepped_specular_is_off_in_the_silhouette_and_below_its_threshold():
+    params = {**DEFAULTS, "specular": 2.5, "specular_threshold": 0.7, "silhouette": 0.1}
+    nl = np.array([0.69, 0.7, 1.0])[:, None]
+    nv = np.array([0.05, 0.1, 0.9])[None, :]
+    a = MODEL.evaluate(params, nl, nv)[..., 3]
+    np.testing.assert_array_equal(a, [[0, 0, 0], [0, 2.5, 2.5], [0, 2.5, 2.5]])
+
+
+def test_outline_flag_reaches_the_manifest_flags(load):
+    assert MODEL.flags(DEFAULTS) == {"outline": False}
+    material = load("toon", "outline = true")
+    assert material.model.flags(material.params) == {"outline": True}
+
+
+def test_no_thresholds_is_a_flat_colour():
+    params = {**DEFAULTS, "thresholds": (), "colours": (GREEN,)}
+    out = MODEL.bake(params).values
+    assert (out[..., :3] == GREEN).all()
+
+
+@st.composite
+def params_strategy(draw):
+    thresholds = sorted(set(draw(st.lists(st.floats(-1.0, 1.0), max_size=6))))
+    colour = st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3)
+    return {
+        "thresholds": thresholds,
+        "colours": draw(st.lists(colour, min_size=len(thresholds) + 1, max_size=len(thresholds) + 1)),
+        "silhouette": draw(st.floats(0.0, 1.0)),
+        "silhouette_colour": draw(colour),
+        "specular": draw(st.floats(0.0, 16.0)),
+        "specular_threshold": draw(st.floats(-1.0, 1.0)),
+        "outline": draw(st.booleans()),
+    }
+
+
+@given(raw=params_strategy())
+@settings(max_examples=50, deadline=None)
+def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slice):
+    params = validate_params(MODEL.params, raw, "hypothesis")
+    MODEL.check(params, "hypothesis")
+    values = valid_slice(MODEL, params)
+    # Every texel holds one of the declared colours: the table never blends bands itself.
+    allowed = {tuple(c) for c in raw["colours"]} | {tuple(raw["silhouette_colour"])}
+    assert {tuple(t) for t in values[0, :, :, :3].reshape(-1, 3).tolist()} <= allowed
+
+
+@pytest.mark.parametrize(
+    "body, field, expected",
+    [
+        (f"thresholds = [0.5, 0.2]\n{THREE}", "thresholds", "expected strictly ascending values, got [0.5, 0.2]"),
+        (f"thresholds = [0.2, 0.2]\n{THREE}", "thresholds", "strictly ascending"),
+        (f"thresholds = [0.2]\n{THREE}", "colours", "expected 2 colours (one more than the 1 thresholds), got 3"),
+        ("thresholds = [1.5]\ncolours = [[0,0,0],[1,1,1]]", "thresholds[0]", "<= 1"),
+        ("thresholds = [nan]\ncolours = [[0,0,0],[1,1,1]]", "thresholds[0]", "got nan"),
+        ('colours = [[0,0,0],"#zzzzzz",[1,1,1]]', "colours[1]", "'#rrggbb'"),
+        ("outline = 1", "outline", "expected true or false"),
+        ("outlines = true", "outlines", "did you mean 'outline'?"),
+    ],
+)
+def test_bad_parameters_are_rejected(expect_rejected, body, field, expected):
+    expect_rejected("toon", body, field, expected)
