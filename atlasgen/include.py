@@ -55,6 +55,27 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
     for start in range(0, LAYERS, 32):
         lines.append("    " + ", ".join(f"{f}u" for f in flags[start : start + 32]) + ",")
     lines.append(");")
+    # The functions below read switch statements, not the tables above: indexing a
+    # 256-entry var<private> array with a runtime ID makes Mesa's lavapipe spend ~66 s
+    # compiling the renderer's lighting shader (measured; ~1 s with the switches). The
+    # tables stay for engines that port the include. Only slices whose value differs
+    # from the default get a case.
+    sb_cases = [
+        f"        case {s}u: {{ return vec4<f32>({_f32(scales[s, 0])}, {_f32(scales[s, 1])}, {_f32(biases[s, 0])}, {_f32(biases[s, 1])}); }}"
+        for s in range(LAYERS)
+        if (scales[s, 0], scales[s, 1], biases[s, 0], biases[s, 1]) != (1.0, 1.0, 0.0, 0.0)
+    ]
+    flag_cases = [f"        case {s}u: {{ return {f}u; }}" for s, f in enumerate(flags) if f]
+    lines += [
+        "",
+        "// (rgb_scale, alpha_scale, rgb_bias, alpha_bias) of a slice: ATLAS_SCALE_BIAS[material_id].",
+        "fn atlas_scale_bias(material_id: u32) -> vec4<f32> {",
+        "    switch material_id {",
+        *sb_cases,
+        "        default: { return vec4<f32>(1.0, 1.0, 0.0, 0.0); }",
+        "    }",
+        "}",
+    ]
     texture_type = "texture_3d<f32>" if volume else "texture_2d_array<f32>"
     lookup = (
         "textureSampleLevel(atlas, atlas_sampler, vec3<f32>(uv, (f32(material_id) + 0.5) / f32(ATLAS_LAYERS)), lod)"
@@ -72,7 +93,10 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
         "}",
         "",
         "fn atlas_material_flags(material_id: u32) -> u32 {",
-        "    return ATLAS_FLAGS[min(material_id, ATLAS_LAYERS - 1u)];",
+        "    switch material_id {",
+        *flag_cases,
+        "        default: { return 0u; }",
+        "    }",
         "}",
         "",
         "// Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale.",
@@ -80,7 +104,7 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
         "                n_dot_l: f32, n_dot_v: f32, lod: f32) -> vec4<f32> {",
         "    let uv = atlas_uv(n_dot_l, n_dot_v);",
         f"    let texel = {lookup};",
-        "    let sb = ATLAS_SCALE_BIAS[min(material_id, ATLAS_LAYERS - 1u)];",
+        "    let sb = atlas_scale_bias(material_id);",
         "    return vec4<f32>(texel.rgb * sb.x + vec3<f32>(sb.z), texel.a * sb.y + sb.w);",
         "}",
         "",

@@ -28,3 +28,36 @@ def write_material(tmp_path):
         return path
 
     return write
+
+
+@pytest.fixture(scope="session")
+def gpu_device():
+    """The shared WebGPU context (lavapipe here); skips when wgpu or an adapter is missing.
+
+    Tests using it should end with ``assert gpu_device.take_errors() == []``-style
+    checks (see ``tests/render``): the context collects every validation error the
+    device reports.
+    """
+    from atlasgen.errors import BackendError
+
+    try:
+        from atlasgen.render.device import get_device
+
+        return get_device()
+    except BackendError as exc:
+        pytest.skip(str(exc))
+
+
+@pytest.fixture(scope="session")
+def mitsuba_llvm():
+    """Mitsuba 3 set to its ``llvm_ad_rgb`` variant; skips when Mitsuba or the variant is missing.
+
+    (Separable BRDFs, issue 3: Mitsuba BSDFs are evaluated in this variant only.)
+    """
+    try:
+        import mitsuba as mi
+
+        mi.set_variant("llvm_ad_rgb")
+    except Exception as exc:  # ImportError, or the variant/LLVM is unavailable
+        pytest.skip(f"Mitsuba 3 llvm_ad_rgb is unavailable: {exc}")
+    return mi

@@ -142,7 +142,7 @@ def _fragmented(write_material, terms=32):
     for i in range(9):
         write_material(f"lut{i}", f'type = "lambert"\nid = {30 * i}\n')
     if terms:
-        write_material("wide", f'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = {terms}\n')
+        write_material("wide", f'type = "separable"\nsource = "ggx"\nalpha = 0.3\ntarget = "f_cos"\nterms = {terms}\n')
 
 
 def test_more_terms_than_free_slices_is_an_error(write_material, tmp_path):

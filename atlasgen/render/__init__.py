@@ -1,0 +1,52 @@
+"""The bundled deferred renderer (WebGPU through wgpu-py): g-buffer, atlas lighting,
+deferred translucency with stencil masking, toon outlines, EXR and PNG output.
+
+Only this module's functions are imported eagerly; wgpu, trimesh and OpenImageIO are
+imported inside the functions that need them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["render_scene_file"]
+
+
+def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=None, outlines=True) -> list[Path]:
+    """Render a scene file with a baked atlas and write the result; return the paths written.
+
+    Without ``aov``: ``output_path`` (linear EXR) and the same path with ``.png``
+    (tone-mapped sRGB, the scene's exposure). With ``aov`` (normal, depth, id, albedo):
+    that g-buffer layer as an EXR at ``output_path``.
+
+    Raises
+    ------
+    InputError, SceneError
+        Missing or invalid scene, mesh, atlas, manifest or include; unknown material.
+    BackendError
+        No GPU adapter, or the device reported an error.
+    OutputError
+        The output cannot be written.
+    """
+    from ..errors import OutputError
+    from .atlas_texture import read_render_atlas
+    from .output import write_aov, write_exr, write_png
+    from .renderer import AOVS, Renderer
+    from .scene import read_scene, resolve_materials
+
+    output_path = Path(output_path)
+    if aov is not None and aov not in AOVS:
+        raise ValueError(f"aov must be one of {AOVS}, not {aov!r}")
+    if output_path.suffix.lower() != ".exr":
+        raise OutputError(f"{output_path.as_posix()}: expected an .exr output path")
+    scene = read_scene(scene_path)
+    atlas = read_render_atlas(atlas_path)
+    resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU
+    result = Renderer(atlas).render(scene, mip_bias=mip_bias, outlines=outlines, aovs=aov is not None)
+    if aov is not None:
+        write_aov(output_path, aov, result.aov(aov))
+        return [output_path]
+    png = output_path.with_suffix(".png")
+    write_exr(output_path, result.radiance)
+    write_png(png, result.radiance, scene.settings.exposure)
+    return [output_path, png]

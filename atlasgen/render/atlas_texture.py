@@ -1,0 +1,86 @@
+"""The baked atlas as the renderer uses it: mip levels, manifest and generated WGSL include.
+
+The atlas is uploaded level by level exactly as baked (a 2D texture array,
+``rgba8unorm-srgb`` for DXGI 29 or ``rgba8unorm`` for DXGI 28): mips are never
+regenerated on the GPU, so what the bake measured is what the renderer samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
+
+
+@dataclass
+class RenderAtlas:
+    """``levels[k]`` is ``(layers, h_k, w_k, 4)`` uint8; ``include`` the generated WGSL text."""
+
+    levels: list
+    srgb: bool
+    manifest: dict
+    include: str
+    name: str = "atlas"
+
+    @property
+    def material_names(self) -> list[str]:
+        return sorted(m["name"] for m in self.manifest.get("materials", []))
+
+    def __post_init__(self):
+        if not self.levels:
+            raise InputError(f"{self.name}: atlas has no mip levels")
+        first = self.levels[0]
+        if first.ndim != 4 or first.shape[3] != 4 or first.dtype != np.uint8:
+            raise InputError(f"{self.name}: expected levels of shape (layers, h, w, 4) uint8, got {first.shape} {first.dtype}")
+
+
+def read_render_atlas(dds_path) -> RenderAtlas:
+    """Read ``X.dds`` with its manifest ``X.json`` and include ``X.wgsl`` (all written by the bake).
+
+    Raises :class:`InputError` when one of the three is missing or the atlas is a volume:
+    the renderer samples a 2D texture array, whose layer is never filtered.
+    """
+    from ..atlas import read_atlas
+
+    dds_path = Path(dds_path)
+    atlas = read_atlas(dds_path)
+    shown = dds_path.as_posix()
+    if atlas.manifest is None:
+        raise InputError(f"{shown}: no manifest {dds_path.with_suffix('.json').as_posix()} beside the atlas; re-run atlasgen bake")
+    if atlas.image.layout != "array":
+        raise InputError(f"{shown}: the renderer needs a 2D-array atlas (bake with --layout array), got a {atlas.image.layout}")
+    include_path = dds_path.with_suffix(".wgsl")
+    try:
+        include = include_path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{include_path.as_posix()}: no shader include beside the atlas; re-run atlasgen bake") from None
+    return RenderAtlas(list(atlas.image.levels), atlas.srgb, atlas.manifest, include, shown)
+
+
+def upload_atlas(ctx, atlas: RenderAtlas):
+    """Create the texture array and write every baked level into it; return the texture."""
+    import wgpu
+
+    layers, height, width, _ = atlas.levels[0].shape
+    texture = ctx.device.create_texture(
+        label="atlas",
+        size=(width, height, layers),
+        format=wgpu.TextureFormat.rgba8unorm_srgb if atlas.srgb else wgpu.TextureFormat.rgba8unorm,
+        usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST,
+        dimension="2d",
+        mip_level_count=len(atlas.levels),
+    )
+    for k, level in enumerate(atlas.levels):
+        n, h, w, _ = level.shape
+        ctx.device.queue.write_texture(
+            {"texture": texture, "mip_level": k, "origin": (0, 0, 0)},
+            np.ascontiguousarray(level),
+            {"offset": 0, "bytes_per_row": 4 * w, "rows_per_image": h},
+            (w, h, n),
+        )
+    return texture

@@ -1,0 +1,177 @@
+"""The g-buffer: its render targets and the pass that draws objects into it.
+
+Targets (all at the output resolution):
+
+==================  ====================  ===========================================
+target              format                contents
+==================  ====================  ===========================================
+``albedo_gloss``    ``rgba16float``       linear albedo (rgb), gloss (a)
+``normal_depth``    ``rgba32float``       world unit normal (xyz), view depth (w)
+``material``        ``r16uint``           atlas slice; cleared to 0xFFFF = no object
+``depth_stencil``   ``depth24plus-        z-buffer; stencil marks the pixels of the
+                    stencil8``            translucent object being composited
+==================  ====================  ===========================================
+
+View depth is the distance along the camera's forward axis, so the lighting pass
+rebuilds the surface point as ``eye + ray * depth`` without inverting a projection.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .shaders import assemble_shader
+
+__all__ = ["GBuffer", "GBufferPass", "NO_MATERIAL", "OBJECT_UNIFORM_STRIDE", "pack_object"]
+
+NO_MATERIAL = 0xFFFF
+#: Bytes per object in the dynamic-offset uniform buffer (the WebGPU offset alignment).
+OBJECT_UNIFORM_STRIDE = 256
+#: Depth cleared into ``normal_depth.w`` where nothing is drawn.
+FAR_DEPTH = 3.0e38
+
+
+@dataclass
+class GBuffer:
+    """The textures of one resolution; :meth:`create` makes them."""
+
+    width: int
+    height: int
+    albedo_gloss: object
+    normal_depth: object
+    material: object
+    depth_stencil: object
+
+    @classmethod
+    def create(cls, device, width: int, height: int) -> "GBuffer":
+        import wgpu
+
+        usage = wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_SRC
+
+        def make(label, fmt, use=usage):
+            return device.create_texture(label=label, size=(width, height, 1), format=fmt, usage=use)
+
+        return cls(
+            width,
+            height,
+            make("albedo_gloss", wgpu.TextureFormat.rgba16float),
+            make("normal_depth", wgpu.TextureFormat.rgba32float),
+            make("material", wgpu.TextureFormat.r16uint),
+            make("depth_stencil", wgpu.TextureFormat.depth24plus_stencil8,
+                 wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC),  # fmt: skip
+        )
+
+    def colour_attachments(self, clear: bool) -> list[dict]:
+        op = "clear" if clear else "load"
+        return [
+            {"view": self.albedo_gloss.create_view(), "load_op": op, "store_op": "store", "clear_value": (0, 0, 0, 0)},
+            {"view": self.normal_depth.create_view(), "load_op": op, "store_op": "store",
+             "clear_value": (0, 0, 0, FAR_DEPTH)},  # fmt: skip
+            {"view": self.material.create_view(), "load_op": op, "store_op": "store",
+             "clear_value": (NO_MATERIAL, 0, 0, 0)},  # fmt: skip
+        ]
+
+
+def pack_object(model: np.ndarray, albedo, gloss: float, material_id: int) -> bytes:
+    """The ``Object`` uniform of gbuffer.wgsl, padded to :data:`OBJECT_UNIFORM_STRIDE`.
+
+    The normal matrix is the inverse transpose of the model matrix's linear part, which
+    keeps normals perpendicular to surfaces under non-uniform scale.
+    """
+    normal = np.eye(4)
+    normal[:3, :3] = np.linalg.inv(model[:3, :3]).T
+    floats = np.concatenate([
+        model.T.ravel(), normal.T.ravel(), np.array([*albedo, gloss]),
+    ]).astype(np.float32)  # fmt: skip  (WGSL matrices are column-major)
+    ids = np.array([material_id, 0, 0, 0], dtype=np.uint32)
+    data = floats.tobytes() + ids.tobytes()
+    return data + bytes(OBJECT_UNIFORM_STRIDE - len(data))
+
+
+class GBufferPass:
+    """Pipeline drawing meshes into the g-buffer with z-test, z-write and stencil marking.
+
+    The stencil reference replaces the stencil value wherever a fragment passes the
+    depth test: 0 for opaque objects, 1 for the translucent object being composited.
+    """
+
+    def __init__(self, device, frame_layout):
+        import wgpu
+
+        self.device = device
+        module = device.create_shader_module(label="gbuffer", code=assemble_shader("common.wgsl", "gbuffer.wgsl"))
+        self.object_layout = device.create_bind_group_layout(
+            label="object",
+            entries=[{
+                "binding": 0,
+                "visibility": wgpu.ShaderStage.VERTEX | wgpu.ShaderStage.FRAGMENT,
+                "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": 160},
+            }],
+        )  # fmt: skip
+        layout = device.create_pipeline_layout(bind_group_layouts=[frame_layout, self.object_layout])
+        stencil = {"compare": "always", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "replace"}
+        self.pipeline = device.create_render_pipeline(
+            label="gbuffer",
+            layout=layout,
+            vertex={
+                "module": module,
+                "entry_point": "vs_main",
+                "buffers": [{
+                    "array_stride": 24,
+                    "step_mode": "vertex",
+                    "attributes": [
+                        {"format": "float32x3", "offset": 0, "shader_location": 0},
+                        {"format": "float32x3", "offset": 12, "shader_location": 1},
+                    ],
+                }],
+            },  # fmt: skip
+            primitive={"topology": "triangle-list", "front_face": "ccw", "cull_mode": "none"},
+            depth_stencil={
+                "format": wgpu.TextureFormat.depth24plus_stencil8,
+                "depth_write_enabled": True,
+                "depth_compare": "less",
+                "stencil_front": stencil,
+                "stencil_back": stencil,
+                "stencil_read_mask": 0xFF,
+                "stencil_write_mask": 0xFF,
+            },
+            fragment={
+                "module": module,
+                "entry_point": "fs_main",
+                "targets": [
+                    {"format": wgpu.TextureFormat.rgba16float},
+                    {"format": wgpu.TextureFormat.rgba32float},
+                    {"format": wgpu.TextureFormat.r16uint},
+                ],
+            },
+        )
+
+    def encode(self, encoder, gbuffer: GBuffer, frame_group, object_group, draws, clear: bool, stencil_reference: int):
+        """Record one render pass drawing ``draws`` = [(gpu_mesh, object_slot), ...].
+
+        ``clear`` starts a frame (all targets, depth 1, stencil 0); otherwise colour and
+        depth are kept and only the stencil is cleared, so it marks just this pass's pixels.
+        """
+        pass_ = encoder.begin_render_pass(
+            color_attachments=gbuffer.colour_attachments(clear),
+            depth_stencil_attachment={
+                "view": gbuffer.depth_stencil.create_view(),
+                "depth_load_op": "clear" if clear else "load",
+                "depth_store_op": "store",
+                "depth_clear_value": 1.0,
+                "stencil_load_op": "clear",
+                "stencil_store_op": "store",
+                "stencil_clear_value": 0,
+            },
+        )
+        pass_.set_pipeline(self.pipeline)
+        pass_.set_bind_group(0, frame_group)
+        pass_.set_stencil_reference(stencil_reference)
+        for mesh, slot in draws:
+            pass_.set_bind_group(1, object_group, [slot * OBJECT_UNIFORM_STRIDE])
+            pass_.set_vertex_buffer(0, mesh.vertices)
+            pass_.set_index_buffer(mesh.indices, "uint32")
+            pass_.draw_indexed(mesh.index_count)
+        pass_.end()

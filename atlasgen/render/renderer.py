@@ -1,0 +1,393 @@
+"""The frame: g-buffer, deferred lighting, deferred translucency, outlines, read-back.
+
+Order of passes in one frame (each a WebGPU render pass):
+
+1. g-buffer, opaque objects (clear; stencil reference 0);
+2. lighting, opaque (every pixel; background where the material ID is 0xFFFF);
+3. for each translucent object, far to near (:mod:`.translucency`): g-buffer with
+   stencil marking, stencil-masked lighting blended with the object's opacity;
+4. outlines (:mod:`.outline`) over the final g-buffer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import BackendError, SceneError
+from .atlas_texture import RenderAtlas, upload_atlas
+from .camera import camera_basis, projection_matrix, tangents, view_matrix
+from .gbuffer import NO_MATERIAL, OBJECT_UNIFORM_STRIDE, GBuffer, GBufferPass, pack_object
+from .lighting import LightingPass, pack_lights
+from .meshes import build_mesh
+from .outline import OutlinePass, outline_parameters
+from .scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials
+from .translucency import encode_translucent, screen_rectangle, sort_back_to_front
+
+__all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
+
+#: G-buffer layers ``--aov`` can dump.
+AOVS = ("normal", "depth", "id", "albedo")
+FRAME_UNIFORM_SIZE = 64 + 10 * 16
+
+
+@dataclass
+class TranslucentStep:
+    """What one translucent object did (``trace=True``): its stencil mask and the frame after it."""
+
+    object_index: int
+    stencil: np.ndarray  # (h, w) bool: pixels it won in the g-buffer
+    radiance: np.ndarray  # (h, w, 3) float32 after blending it in
+
+
+@dataclass
+class RenderResult:
+    """Linear radiance and, when read, the final g-buffer layers."""
+
+    radiance: np.ndarray  # (h, w, 3) float32, W/(m^2 sr)
+    aovs: dict = field(default_factory=dict)
+    opaque_radiance: np.ndarray | None = None  # after step 2 (trace only)
+    steps: list = field(default_factory=list)
+    draw_order: list = field(default_factory=list)  # object indices, opaque first then translucent far to near
+
+    def aov(self, name: str) -> np.ndarray:
+        """``normal`` (h, w, 3) world unit normals (0 where empty), ``depth`` (h, w) view
+        depth (inf where empty), ``id`` (h, w) uint16 material slice (65535 where empty),
+        ``albedo`` (h, w, 3) linear albedo (0 where empty)."""
+        return self.aovs[name]
+
+
+@dataclass
+class _GpuMesh:
+    vertices: object
+    indices: object
+    index_count: int
+    bounds: np.ndarray  # (2, 3) object-space min, max
+
+
+def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None) -> bytes:
+    """The ``Frame`` uniform of common.wgsl for ``scene`` (see that file for the layout)."""
+    cam, w, h = scene.camera, scene.width, scene.height
+    right, up, forward = camera_basis(cam)
+    tan_x, tan_y = tangents(cam, w, h)
+    view_proj = projection_matrix(cam, w, h) @ view_matrix(cam)
+    s = scene.settings
+    depth_threshold, normal_cos = outline_parameters(s)
+    bias = s.mip_bias if mip_bias is None else mip_bias
+    floats = np.concatenate([
+        view_proj.T.ravel(),
+        [*cam.position, 1.0], [*forward, tan_x], [*right, tan_y], [*up, 0.0],
+        [w, h, 1.0 / w, 1.0 / h], [*scene.background, 1.0], [bias, s.mip_distance, mip_levels - 1, 0.0],
+    ]).astype(np.float32)  # fmt: skip
+    counts = np.array([len(scene.lights), 0, 0, 0], dtype=np.uint32)
+    tail = np.array([*s.outline_colour, 1.0, depth_threshold, normal_cos, 0.0, 0.0], dtype=np.float32)
+    data = floats.tobytes() + counts.tobytes() + tail.tobytes()
+    assert len(data) == FRAME_UNIFORM_SIZE
+    return data
+
+
+class Renderer:
+    """Renders scenes with one atlas on one device.
+
+    Parameters
+    ----------
+    atlas
+        The baked atlas with its manifest and generated include.
+    ctx
+        A :class:`~atlasgen.render.device.GpuContext`; the shared one by default.
+    """
+
+    def __init__(self, atlas: RenderAtlas, ctx=None):
+        import wgpu
+
+        from .device import get_device
+
+        self.ctx = ctx or get_device()
+        self.atlas = atlas
+        device = self.ctx.device
+        self.device = device
+        self.atlas_texture = upload_atlas(self.ctx, atlas)
+        self.frame_layout = device.create_bind_group_layout(
+            label="frame",
+            entries=[{
+                "binding": 0,
+                "visibility": wgpu.ShaderStage.VERTEX | wgpu.ShaderStage.FRAGMENT,
+                "buffer": {"type": "uniform"},
+            }],
+        )  # fmt: skip
+        self.gbuffer_pass = GBufferPass(device, self.frame_layout)
+        self.lighting_pass = LightingPass(device, atlas.include, atlas.manifest)
+        self.outline_pass = OutlinePass(device, atlas.include)
+        self._meshes: dict = {}
+        self._gbuffers: dict = {}
+        self._fence = None
+
+    # ---- resources -------------------------------------------------------------------
+
+    def _mesh(self, obj) -> _GpuMesh:
+        key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
+        if key not in self._meshes:
+            import wgpu
+
+            mesh = build_mesh(obj)
+            usage = wgpu.BufferUsage.COPY_DST
+            vertices = self.device.create_buffer_with_data(data=mesh.interleaved(), usage=wgpu.BufferUsage.VERTEX | usage)
+            indices = self.device.create_buffer_with_data(data=mesh.indices.ravel(), usage=wgpu.BufferUsage.INDEX | usage)
+            bounds = np.stack([mesh.positions.min(0), mesh.positions.max(0)]).astype(np.float64)
+            self._meshes[key] = _GpuMesh(vertices, indices, int(mesh.indices.size), bounds)
+        return self._meshes[key]
+
+    def _gbuffer(self, width, height):
+        key = (width, height)
+        if key not in self._gbuffers:
+            import wgpu
+
+            hdr = self.device.create_texture(
+                label="radiance",
+                size=(width, height, 1),
+                format=wgpu.TextureFormat.rgba16float,
+                usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC,
+            )
+            self._gbuffers = {key: (GBuffer.create(self.device, width, height), hdr)}  # keep one size only
+        return self._gbuffers[key]
+
+    def prepare(self, scene: Scene, mip_bias: float | None = None) -> "_PreparedFrame":
+        """Upload everything a frame of ``scene`` needs; raise SceneError for what the atlas lacks."""
+        import wgpu
+
+        if len(scene.lights) > MAX_LIGHTS:
+            raise SceneError(scene.path, "lights", f"{len(scene.lights)} lights; expected at most {MAX_LIGHTS}")
+        entries = resolve_materials(scene, self.atlas.manifest, self.atlas.name)
+        gbuffer, hdr = self._gbuffer(scene.width, scene.height)
+        device = self.device
+        frame_buffer = device.create_buffer_with_data(
+            data=pack_frame(scene, len(self.atlas.levels), mip_bias), usage=wgpu.BufferUsage.UNIFORM
+        )
+        light_buffer = device.create_buffer_with_data(data=pack_lights(scene.lights), usage=wgpu.BufferUsage.STORAGE)
+        object_data = bytearray()
+        draws, centres, rectangles = [], [], []
+        view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
+        for obj, entry in zip(scene.objects, entries):
+            mesh = self._mesh(obj)
+            model = object_matrix(obj)
+            object_data += pack_object(model, obj.albedo, obj.gloss, entry["first_slice"])
+            corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
+            world = (model @ corners.T).T[:, :3]
+            centres.append(0.5 * (world.min(0) + world.max(0)))
+            rectangles.append(screen_rectangle(world, view_proj, scene.width, scene.height))
+            draws.append((mesh, len(draws)))
+        if not object_data:
+            object_data = bytearray(OBJECT_UNIFORM_STRIDE)
+        object_buffer = device.create_buffer_with_data(data=bytes(object_data), usage=wgpu.BufferUsage.UNIFORM)
+        frame_group = device.create_bind_group(
+            layout=self.frame_layout, entries=[{"binding": 0, "resource": {"buffer": frame_buffer}}]
+        )
+        object_group = device.create_bind_group(
+            layout=self.gbuffer_pass.object_layout,
+            entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": 160}}],
+        )
+        lighting_group = self.lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)
+        outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
+        # The outline pass only draws next to flagged materials: skip it when none is in view.
+        wants_outlines = any(entry.get("flags", {}).get("outline") for entry in entries)
+        opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
+        translucent = sort_back_to_front(scene.objects, centres, scene.camera)
+        return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_group, outline_group,
+                              draws, opaque, translucent, rectangles, wants_outlines,
+                              (frame_buffer, light_buffer, object_buffer))  # fmt: skip
+
+    # ---- encoding ----------------------------------------------------------------------
+
+    def encode_frame(self, frame: "_PreparedFrame", outlines: bool = True, trace=None):
+        """Command buffers for one whole frame (several when tracing, to read in between)."""
+        buffers = []
+        encoder = self.device.create_command_encoder()
+        objs = frame.scene.objects
+        self.gbuffer_pass.encode(encoder, frame.gbuffer, frame.frame_group, frame.object_group,
+                                 [frame.draws[i] for i in frame.opaque], clear=True, stencil_reference=0)  # fmt: skip
+        self.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
+        for n, i in enumerate(frame.translucent):
+            if trace is not None:
+                buffers.append(encoder.finish())
+                buffers.append((trace, n > 0))  # marker: read the frame (and the last stencil mask) here
+                encoder = self.device.create_command_encoder()
+            encode_translucent(encoder, self.gbuffer_pass, self.lighting_pass, frame.gbuffer, frame.hdr,
+                               frame.frame_group, frame.object_group, frame.lighting_group, frame.draws[i],
+                               objs[i].opacity, scissor=frame.rectangles[i],
+                               after=None if trace is None else trace.copy_stencil)  # fmt: skip
+        if trace is not None:
+            buffers.append(encoder.finish())
+            buffers.append((trace, bool(frame.translucent)))
+            encoder = self.device.create_command_encoder()
+        if outlines and frame.wants_outlines:
+            self.outline_pass.encode(encoder, frame.hdr, frame.outline_group)
+        buffers.append(encoder.finish())
+        return buffers
+
+    def encode_lighting(self, frame: "_PreparedFrame"):
+        """One command buffer holding only the opaque lighting pass (for benchmarks)."""
+        encoder = self.device.create_command_encoder()
+        self.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
+        return encoder.finish()
+
+    def submit(self, command_buffers) -> None:
+        """Submit and wait until the GPU is done.
+
+        Waiting maps a 4-byte buffer that the last command buffer copies into: a mapping
+        completes only after the submission that wrote it (wgpu-py 0.32's
+        ``on_submitted_work_done`` is broken against its wgpu-native).
+        """
+        import wgpu
+
+        if self._fence is None:
+            src = self.device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_SRC)
+            dst = self.device.create_buffer(size=4, usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+            self._fence = (src, dst)
+        src, dst = self._fence
+        encoder = self.device.create_command_encoder()
+        encoder.copy_buffer_to_buffer(src, 0, dst, 0, 4)
+        self.device.queue.submit([*command_buffers, encoder.finish()])
+        dst.map_sync("READ")
+        dst.unmap()
+
+    # ---- the whole thing ------------------------------------------------------------
+
+    def render(self, scene: Scene, mip_bias: float | None = None, outlines: bool = True,
+               aovs: bool = True, trace: bool = False) -> RenderResult:  # fmt: skip
+        """Render ``scene``; read back radiance and (``aovs``) the g-buffer layers.
+
+        ``trace`` records, for each translucent object, its stencil mask and the frame
+        after blending it (:class:`TranslucentStep`), for tests and debugging.
+
+        Raises :class:`BackendError` if the device reported a validation error.
+        """
+        before = len(self.ctx.errors)
+        frame = self.prepare(scene, mip_bias)
+        tracer = _Tracer(self, frame) if trace else None
+        pending = []
+        for item in self.encode_frame(frame, outlines, tracer):
+            if isinstance(item, tuple):
+                self.submit(pending)
+                pending = []
+                tracer.read(with_mask=item[1])
+            else:
+                pending.append(item)
+        self.submit(pending)
+        result = RenderResult(self.read_radiance(frame))
+        result.draw_order = list(frame.opaque) + list(frame.translucent)
+        if tracer is not None:
+            result.opaque_radiance = tracer.frames[0]
+            result.steps = [
+                TranslucentStep(i, mask, rad)
+                for i, mask, rad in zip(frame.translucent, tracer.masks, tracer.frames[1:])
+            ]
+        if aovs:
+            result.aovs = self.read_aovs(frame)
+        errors = self.ctx.errors[before:]
+        if errors:
+            raise BackendError(f"the GPU device reported {len(errors)} error(s); first: {errors[0].splitlines()[0]}")
+        return result
+
+    # ---- read-back ------------------------------------------------------------------
+
+    def _read(self, texture, bytes_per_pixel, dtype, channels, width, height, aspect="all"):
+        data = self.device.queue.read_texture(
+            {"texture": texture, "mip_level": 0, "origin": (0, 0, 0), "aspect": aspect},
+            {"offset": 0, "bytes_per_row": bytes_per_pixel * width, "rows_per_image": height},
+            (width, height, 1),
+        )
+        return np.frombuffer(data, dtype=dtype).reshape(height, width, channels).copy()
+
+    def read_radiance(self, frame) -> np.ndarray:
+        w, h = frame.gbuffer.width, frame.gbuffer.height
+        return self._read(frame.hdr, 8, np.float16, 4, w, h)[..., :3].astype(np.float32)
+
+    def read_aovs(self, frame) -> dict:
+        g = frame.gbuffer
+        albedo_gloss = self._read(g.albedo_gloss, 8, np.float16, 4, g.width, g.height).astype(np.float32)
+        normal_depth = self._read(g.normal_depth, 16, np.float32, 4, g.width, g.height)
+        ids = self._read(g.material, 2, np.uint16, 1, g.width, g.height)[..., 0]
+        empty = ids == NO_MATERIAL
+        depth = np.where(empty, np.inf, normal_depth[..., 3]).astype(np.float32)
+        return {
+            "normal": np.where(empty[..., None], 0.0, normal_depth[..., :3]).astype(np.float32),
+            "depth": depth,
+            "id": ids,
+            "albedo": albedo_gloss[..., :3],
+            "gloss": albedo_gloss[..., 3],
+        }
+
+
+@dataclass
+class _PreparedFrame:
+    scene: Scene
+    gbuffer: GBuffer
+    hdr: object
+    frame_group: object
+    object_group: object
+    lighting_group: object
+    outline_group: object
+    draws: list
+    opaque: list
+    translucent: list
+    rectangles: list  # per object: screen rectangle (x, y, w, h) of its bounding box, None if off screen
+    wants_outlines: bool  # some object's material has flags.outline
+    keepalive: tuple
+
+
+class _Tracer:
+    """Reads the frame and stencil between translucent objects (``render(trace=True)``).
+
+    The stencil is read through a pass that writes 1 to an ``r8unorm`` target wherever
+    a stencil test ``== 1`` passes: that is exactly the set the lighting pass shades.
+    """
+
+    def __init__(self, renderer: Renderer, frame: _PreparedFrame):
+        import wgpu
+
+        from .shaders import assemble_shader
+
+        self.renderer, self.frame = renderer, frame
+        device = renderer.device
+        g = frame.gbuffer
+        self.mask = device.create_texture(
+            label="stencil-mask", size=(g.width, g.height, 1), format=wgpu.TextureFormat.r8unorm,
+            usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC,
+        )  # fmt: skip
+        module = device.create_shader_module(label="stencil-mask", code=assemble_shader("common.wgsl", "stencil_mask.wgsl"))
+        stencil = {"compare": "equal", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "keep"}
+        self.pipeline = device.create_render_pipeline(
+            label="stencil-mask",
+            layout=device.create_pipeline_layout(bind_group_layouts=[]),
+            vertex={"module": module, "entry_point": "vs_fullscreen", "buffers": []},
+            primitive={"topology": "triangle-list", "cull_mode": "none"},
+            depth_stencil={
+                "format": wgpu.TextureFormat.depth24plus_stencil8, "depth_write_enabled": False,
+                "depth_compare": "always", "stencil_front": stencil, "stencil_back": stencil,
+                "stencil_read_mask": 0xFF, "stencil_write_mask": 0,
+            },
+            fragment={"module": module, "entry_point": "fs_main", "targets": [{"format": wgpu.TextureFormat.r8unorm}]},
+        )  # fmt: skip
+        self.frames, self.masks = [], []
+
+    def copy_stencil(self, encoder):
+        pass_ = encoder.begin_render_pass(
+            color_attachments=[{"view": self.mask.create_view(), "load_op": "clear", "store_op": "store",
+                                "clear_value": (0, 0, 0, 0)}],
+            depth_stencil_attachment={
+                "view": self.frame.gbuffer.depth_stencil.create_view(),
+                "depth_read_only": True,
+                "stencil_read_only": True,
+            },
+        )  # fmt: skip
+        pass_.set_pipeline(self.pipeline)
+        pass_.set_stencil_reference(1)
+        pass_.draw(3)
+        pass_.end()
+
+    def read(self, with_mask: bool):
+        self.frames.append(self.renderer.read_radiance(self.frame))
+        if with_mask:
+            g = self.frame.gbuffer
+            self.masks.append(self.renderer._read(self.mask, 1, np.uint8, 1, g.width, g.height)[..., 0] == 255)

@@ -1,0 +1,334 @@
+"""The TOML scene format: camera, image, lights and objects (documented in docs/scenes.md).
+
+Every bad value raises :class:`atlasgen.errors.SceneError` naming the file, the field
+(``objects[2].material``) and what was expected, on one line. Material names are
+checked against the atlas later, by :func:`resolve_materials`, since a scene does not
+know which atlas it will be rendered with.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, SceneError
+from .camera import Camera
+
+__all__ = [
+    "MAX_LIGHTS",
+    "SHAPES",
+    "Light",
+    "SceneObject",
+    "RenderSettings",
+    "Scene",
+    "read_scene",
+    "parse_scene",
+    "resolve_materials",
+    "object_matrix",
+]
+
+#: Lights one frame can take; they live in one storage buffer read by one lighting pass.
+MAX_LIGHTS = 1024
+SHAPES = ("sphere", "plane", "box", "torus", "mesh")
+
+
+@dataclass(frozen=True)
+class Light:
+    """A point or directional light.
+
+    ``point``: ``intensity`` is radiant intensity I (W/sr, Mitsuba ``point.intensity``);
+    irradiance at distance d is I / d^2. ``directional``: ``intensity`` is the
+    irradiance E normal to ``direction`` (Mitsuba ``directional.irradiance``), and
+    ``direction`` is the direction the light travels.
+    """
+
+    type: str
+    colour: tuple
+    intensity: float
+    position: tuple | None = None
+    direction: tuple | None = None
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One object: a shape, its transform and its surface."""
+
+    index: int
+    shape: str
+    material: str
+    albedo: tuple = (1.0, 1.0, 1.0)
+    gloss: float = 0.5
+    opacity: float = 1.0
+    translate: tuple = (0.0, 0.0, 0.0)
+    rotate: tuple = (0.0, 0.0, 0.0)  # degrees about x, then y, then z
+    scale: tuple = (1.0, 1.0, 1.0)
+    file: Path | None = None
+    segments: int = 64
+    minor_radius: float = 0.25
+
+    @property
+    def translucent(self) -> bool:
+        return self.opacity < 1.0
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Pipeline knobs: mip selection, outlines and the PNG's exposure."""
+
+    mip_bias: float = 0.0
+    mip_distance: float = 10.0
+    outline_colour: tuple = (0.0, 0.0, 0.0)
+    outline_depth: float = 0.05
+    outline_normal_degrees: float = 35.0
+    exposure: float = 1.0
+
+
+@dataclass
+class Scene:
+    """A parsed scene; ``path`` is what error messages name."""
+
+    path: str
+    camera: Camera
+    width: int
+    height: int
+    background: tuple
+    lights: list = field(default_factory=list)
+    objects: list = field(default_factory=list)
+    settings: RenderSettings = field(default_factory=RenderSettings)
+
+
+class _Reader:
+    """Typed field access with one-line errors naming file and field."""
+
+    def __init__(self, path: str):
+        self.path = path
+
+    def fail(self, name, expected, value):
+        raise SceneError(self.path, name, f"expected {expected}, got {value!r}")
+
+    def table(self, raw, name, allowed):
+        if not isinstance(raw, dict):
+            self.fail(name, "a table", raw)
+        for key in raw:
+            if key not in allowed:
+                where = f"{name}.{key}" if name else key
+                raise SceneError(self.path, where, "unknown key; expected one of " + ", ".join(allowed))
+        return raw
+
+    def number(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, lo_open=False):
+        value = raw.get(key, default)
+        if value is None:
+            raise SceneError(self.path, name, "missing; expected a number")
+        ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+        if ok:
+            ok = (value > lo if lo_open else value >= lo) and value <= hi
+        if not ok:
+            bound = []
+            if lo > -math.inf:
+                bound.append(f"{'>' if lo_open else '>='} {lo:g}")
+            if hi < math.inf:
+                bound.append(f"<= {hi:g}")
+            self.fail(name, "a finite number" + (" " + " and ".join(bound) if bound else ""), value)
+        return float(value)
+
+    def integer(self, raw, key, name, default, lo, hi):
+        value = raw.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            self.fail(name, f"an integer in [{lo}, {hi}]", value)
+        return value
+
+    def vec3(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, nonzero=False):
+        value = raw.get(key, default)
+        if value is None:
+            raise SceneError(self.path, name, "missing; expected [x, y, z]")
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and key == "scale":
+            value = [value] * 3
+        ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(
+            not isinstance(c, bool) and isinstance(c, (int, float)) and math.isfinite(c) and lo <= c <= hi for c in value
+        )
+        if ok and nonzero:
+            ok = any(c != 0 for c in value)
+        if not ok:
+            what = "[x, y, z] of 3 finite numbers"
+            if lo > -math.inf or hi < math.inf:
+                what += f" in [{lo:g}, {hi:g}]"
+            if nonzero:
+                what += ", not all zero"
+            self.fail(name, what, value)
+        return tuple(float(c) for c in value)
+
+
+def _read_camera(r: _Reader, raw) -> Camera:
+    r.table(raw, "camera", ("position", "target", "up", "fov", "near", "far"))
+    position = r.vec3(raw, "position", "camera.position")
+    target = r.vec3(raw, "target", "camera.target")
+    up = r.vec3(raw, "up", "camera.up", default=(0.0, 1.0, 0.0), nonzero=True)
+    if np.allclose(position, target):
+        raise SceneError(r.path, "camera.target", "expected a point different from camera.position")
+    forward = np.subtract(target, position)
+    if np.linalg.norm(np.cross(forward, up)) < 1e-9 * np.linalg.norm(forward) * np.linalg.norm(up):
+        raise SceneError(r.path, "camera.up", "expected a direction not parallel to target - position")
+    fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=0.0, hi=179.0, lo_open=True)
+    near = r.number(raw, "near", "camera.near", default=0.05, lo=0.0, lo_open=True)
+    far = r.number(raw, "far", "camera.far", default=1000.0, lo=near, lo_open=True)
+    return Camera(position, target, up, fov, near, far)
+
+
+def _read_light(r: _Reader, raw, i) -> Light:
+    name = f"lights[{i}]"
+    r.table(raw, name, ("type", "colour", "intensity", "position", "direction"))
+    kind = raw.get("type")
+    if kind not in ("point", "directional"):
+        r.fail(f"{name}.type", "'point' or 'directional'", kind)
+    colour = r.vec3(raw, "colour", f"{name}.colour", default=(1.0, 1.0, 1.0), lo=0.0)
+    intensity = r.number(raw, "intensity", f"{name}.intensity", lo=0.0)
+    if kind == "point":
+        if "direction" in raw:
+            raise SceneError(r.path, f"{name}.direction", "not used by a point light; expected 'position'")
+        return Light("point", colour, intensity, position=r.vec3(raw, "position", f"{name}.position"))
+    if "position" in raw:
+        raise SceneError(r.path, f"{name}.position", "not used by a directional light; expected 'direction'")
+    direction = np.asarray(r.vec3(raw, "direction", f"{name}.direction", nonzero=True))
+    return Light("directional", colour, intensity, direction=tuple(direction / np.linalg.norm(direction)))
+
+
+def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
+    name = f"objects[{i}]"
+    keys = ("shape", "file", "material", "albedo", "gloss", "opacity", "translate", "rotate", "scale",
+            "segments", "minor_radius")  # fmt: skip
+    r.table(raw, name, keys)
+    shape = raw.get("shape")
+    if shape not in SHAPES:
+        r.fail(f"{name}.shape", "one of " + ", ".join(SHAPES), shape)
+    material = raw.get("material")
+    if not isinstance(material, str) or not material:
+        r.fail(f"{name}.material", "a material name from the atlas manifest", material)
+    file = None
+    if shape == "mesh":
+        text = raw.get("file")
+        if not isinstance(text, str) or not text:
+            r.fail(f"{name}.file", "a path to an OBJ or PLY mesh", text)
+        file = Path(text) if Path(text).is_absolute() else base / text
+        if not file.is_file():
+            raise SceneError(r.path, f"{name}.file", f"no such mesh file {file.as_posix()!r}; expected an OBJ or PLY file")
+        if file.suffix.lower() not in (".obj", ".ply"):
+            raise SceneError(r.path, f"{name}.file", f"expected an .obj or .ply file, got {file.name!r}")
+    elif "file" in raw:
+        raise SceneError(r.path, f"{name}.file", f"only used with shape = 'mesh', not {shape!r}")
+    scale = r.vec3(raw, "scale", f"{name}.scale", default=(1.0, 1.0, 1.0))
+    if any(s == 0 for s in scale):
+        r.fail(f"{name}.scale", "non-zero scale factors", raw.get("scale"))
+    return SceneObject(
+        index=i,
+        shape=shape,
+        material=material,
+        albedo=r.vec3(raw, "albedo", f"{name}.albedo", default=(1.0, 1.0, 1.0), lo=0.0, hi=1.0),
+        gloss=r.number(raw, "gloss", f"{name}.gloss", default=0.5, lo=0.0, hi=1.0),
+        opacity=r.number(raw, "opacity", f"{name}.opacity", default=1.0, lo=0.0, hi=1.0),
+        translate=r.vec3(raw, "translate", f"{name}.translate", default=(0.0, 0.0, 0.0)),
+        rotate=r.vec3(raw, "rotate", f"{name}.rotate", default=(0.0, 0.0, 0.0)),
+        scale=scale,
+        file=file,
+        segments=r.integer(raw, "segments", f"{name}.segments", 64, 3, 1024),
+        minor_radius=r.number(raw, "minor_radius", f"{name}.minor_radius", default=0.25, lo=0.0, hi=1.0, lo_open=True),
+    )
+
+
+def parse_scene(data: dict, path="<scene>", base=None) -> Scene:
+    """Validate a scene already parsed from TOML; ``base`` resolves relative mesh paths."""
+    path = str(path)
+    r = _Reader(path)
+    r.table(data, "", ("camera", "image", "render", "lights", "objects"))
+    if "camera" not in data:
+        raise SceneError(path, "camera", "missing; expected a [camera] table")
+    camera = _read_camera(r, data["camera"])
+    image = r.table(data.get("image", {}), "image", ("width", "height", "background"))
+    width = r.integer(image, "width", "image.width", 640, 1, 8192)
+    height = r.integer(image, "height", "image.height", 360, 1, 8192)
+    background = r.vec3(image, "background", "image.background", default=(0.0, 0.0, 0.0), lo=0.0)
+    rs = r.table(data.get("render", {}), "render",
+                 ("mip_bias", "mip_distance", "outline_colour", "outline_depth", "outline_normal_degrees", "exposure"))  # fmt: skip
+    settings = RenderSettings(
+        mip_bias=r.number(rs, "mip_bias", "render.mip_bias", default=0.0, lo=-16.0, hi=16.0),
+        mip_distance=r.number(rs, "mip_distance", "render.mip_distance", default=10.0, lo=0.0, lo_open=True),
+        outline_colour=r.vec3(rs, "outline_colour", "render.outline_colour", default=(0.0, 0.0, 0.0), lo=0.0),
+        outline_depth=r.number(rs, "outline_depth", "render.outline_depth", default=0.05, lo=0.0, lo_open=True),
+        outline_normal_degrees=r.number(rs, "outline_normal_degrees", "render.outline_normal_degrees",
+                                        default=35.0, lo=0.0, hi=180.0, lo_open=True),  # fmt: skip
+        exposure=r.number(rs, "exposure", "render.exposure", default=1.0, lo=0.0, lo_open=True),
+    )
+    lights_raw = data.get("lights", [])
+    if not isinstance(lights_raw, list):
+        r.fail("lights", "an array of tables [[lights]]", lights_raw)
+    if len(lights_raw) > MAX_LIGHTS:
+        raise SceneError(path, "lights", f"{len(lights_raw)} lights; expected at most {MAX_LIGHTS} (the renderer's limit)")
+    lights = [_read_light(r, raw, i) for i, raw in enumerate(lights_raw)]
+    objects_raw = data.get("objects", [])
+    if not isinstance(objects_raw, list):
+        r.fail("objects", "an array of tables [[objects]]", objects_raw)
+    base = Path(base) if base is not None else Path(".")
+    objects = [_read_object(r, raw, i, base) for i, raw in enumerate(objects_raw)]
+    return Scene(path, camera, width, height, background, lights, objects, settings)
+
+
+def read_scene(path) -> Scene:
+    """Read and validate a TOML scene file.
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable.
+    SceneError
+        Malformed TOML or a bad field; the message names the file and the field.
+    """
+    path = Path(path)
+    shown = path.as_posix()
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{shown}: no such scene file") from None
+    except UnicodeDecodeError:
+        raise SceneError(shown, None, "expected UTF-8 TOML text") from None
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(shown, None, f"malformed TOML: {exc}") from None
+    return parse_scene(data, shown, path.parent)
+
+
+def resolve_materials(scene: Scene, manifest: dict, atlas_name: str = "atlas") -> list[dict]:
+    """The manifest entry of each object's material, in object order.
+
+    Raises :class:`SceneError` for an unknown name, listing the names the atlas knows.
+    """
+    by_name = {m["name"]: m for m in manifest.get("materials", [])}
+    out = []
+    for obj in scene.objects:
+        entry = by_name.get(obj.material)
+        if entry is None:
+            known = ", ".join(sorted(by_name)) or "none"
+            raise SceneError(
+                scene.path, f"objects[{obj.index}].material",
+                f"unknown material {obj.material!r}; expected one of the names in {atlas_name}: {known}",
+            )  # fmt: skip
+        out.append(entry)
+    return out
+
+
+def object_matrix(obj: SceneObject) -> np.ndarray:
+    """Object to world: translate . rotate_z . rotate_y . rotate_x . scale (column vectors)."""
+    rx, ry, rz = (math.radians(a) for a in obj.rotate)
+    cx, sx, cy, sy, cz, sz = math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry), math.cos(rz), math.sin(rz)
+    rot_x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    rot_y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rot_z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    m = np.eye(4)
+    m[:3, :3] = rot_z @ rot_y @ rot_x @ np.diag(obj.scale)
+    m[:3, 3] = obj.translate
+    return m

@@ -1,0 +1,71 @@
+"""Deferred translucency, as in Meshkin's "Fully Deferred Rendering Pipeline" (sec. 2).
+
+After the opaque objects are lit, each translucent object, sorted back to front, is
+
+1. drawn into the g-buffer *opaque*, with z-test and z-writes, over what is there;
+   every pixel it wins gets stencil 1 (the stencil is cleared to 0 first);
+2. lit by the same deferred lighting pass, restricted by the stencil to those pixels;
+3. blended into the lit frame: frame = opacity * lit + (1 - opacity) * frame.
+
+Only the nearest surface of each object reaches the g-buffer, so an object never
+blends with itself: no intra-object sorting is needed, which is the talk's point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera import camera_basis
+
+__all__ = ["sort_back_to_front", "object_sort_key", "encode_translucent", "screen_rectangle"]
+
+
+def object_sort_key(obj, centre, eye, forward) -> tuple:
+    """Far to near by view depth of the bounding-box centre; ties broken by the object's
+    own fields, never its position in the scene file, so listing order cannot matter."""
+    depth = float(np.dot(np.asarray(centre) - eye, forward))
+    return (-depth, obj.material, obj.translate, obj.rotate, obj.scale, obj.shape, obj.opacity, obj.albedo, obj.gloss,
+            str(obj.file), obj.segments, obj.minor_radius)  # fmt: skip
+
+
+def sort_back_to_front(objects, centres, camera) -> list[int]:
+    """Indices into ``objects`` of the translucent ones, farthest first."""
+    _, _, forward = camera_basis(camera)
+    eye = np.asarray(camera.position, dtype=np.float64)
+    chosen = [i for i, o in enumerate(objects) if o.translucent]
+    return sorted(chosen, key=lambda i: object_sort_key(objects[i], centres[i], eye, forward))
+
+
+def screen_rectangle(corners_world: np.ndarray, view_proj: np.ndarray, width: int, height: int):
+    """Pixel rectangle ``(x, y, w, h)`` covering the projected box corners, or ``None`` if off screen.
+
+    A box reaching behind the camera (any corner with clip w <= 0) gets the full screen.
+    """
+    clip = np.c_[corners_world, np.ones(len(corners_world))] @ view_proj.T
+    if (clip[:, 3] <= 1e-6).any():
+        return (0, 0, width, height)
+    ndc = clip[:, :2] / clip[:, 3:]
+    x0 = int(np.floor((ndc[:, 0].min() + 1) / 2 * width)) - 1
+    x1 = int(np.ceil((ndc[:, 0].max() + 1) / 2 * width)) + 1
+    y0 = int(np.floor((1 - ndc[:, 1].max()) / 2 * height)) - 1
+    y1 = int(np.ceil((1 - ndc[:, 1].min()) / 2 * height)) + 1
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, width), min(y1, height)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
+def encode_translucent(encoder, gbuffer_pass, lighting_pass, gbuffer, hdr, frame_group, object_group,
+                       lighting_group, draw, opacity, scissor=None, after=None):  # fmt: skip
+    """Record steps 1-3 for one object; ``draw`` is its ``(gpu_mesh, slot)``.
+
+    ``scissor`` is the object's screen rectangle (:func:`screen_rectangle`); the
+    lighting pass is skipped when it is empty. ``after(encoder)`` (optional) is called
+    between the g-buffer and lighting passes, e.g. to copy out the stencil.
+    """
+    gbuffer_pass.encode(encoder, gbuffer, frame_group, object_group, [draw], clear=False, stencil_reference=1)
+    if after is not None:
+        after(encoder)
+    if scissor is None:
+        return
+    lighting_pass.encode(encoder, hdr, gbuffer, lighting_group, opacity=opacity, scissor=scissor)

@@ -1,0 +1,315 @@
+"""``atlasgen report separable``: Markdown and PNG plots of error against terms, grid, bits and time.
+
+Every figure is measured here, by the running code, at the fixed error pairs
+(:func:`atlasgen.separable.error.sample_hemisphere_pairs`). matplotlib is imported
+lazily (Agg backend), inside :func:`write_separable_report`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, OutputError
+from .approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
+from .error import errors_by_terms, sample_hemisphere_pairs
+from .factorize import factorize
+from .parametrization import PARAMETRIZATIONS, get_parametrization
+from .source import make_source, sample_matrices
+from .storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
+
+__all__ = ["MaterialStudy", "study_material", "write_separable_report", "RESOLUTIONS"]
+
+#: Sampling grids of the resolution study (texels per factor axis; the atlas stores 32).
+RESOLUTIONS = (8, 12, 16, 24, 32, 48, 64)
+#: Terms of the NMF comparison (NMF is not nested, so each K is its own fit).
+NMF_TERMS = (1, 2, 4, 8)
+
+
+@dataclass
+class MaterialStudy:
+    """Everything the report says about one material, as measured."""
+
+    name: str
+    source: str
+    chosen: dict
+    by_terms: dict  # target -> {"float": [...], "8bit": [...]} (K = 1..8)
+    by_parametrization: dict  # name -> [best float rel RMS over targets, K = 1..8]
+    by_resolution: list  # [{"resolution", "terms", "relative_rms", "seconds"}]
+    nonnegative: dict  # {"nmf": [{terms, relative_rms}], "nd": {...}}
+    timings: dict
+    atlas: dict | None = None
+    pareto: list = field(default_factory=list)
+
+
+def _median_time(fn, repeats=5):
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
+                   parametrizations=tuple(PARAMETRIZATIONS)) -> MaterialStudy:
+    """Measure one separable material: the chosen bake, and every comparison the report plots."""
+    params = material.params
+    source = make_source(params, material.source)
+    pairs = sample_hemisphere_pairs()
+    reference, _ = reference_values(source, pairs)
+    l, v = pairs
+    name = params["parametrization"]
+    p = get_parametrization(name)
+
+    chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
+                              method=params["factorization"], target=params["target"], reference=reference, pairs=pairs)
+    full = approximate_brdf(source, name, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs)
+    by_terms = {
+        t: {"float": [e["relative_rms"] for e in full.errors_by_terms[t]],
+            "8bit": [e["relative_rms"] for e in full.errors_8bit_by_terms[t]],
+            "log_float": [e["log_error"] for e in full.errors_by_terms[t]]}
+        for t in full.errors_by_terms
+    }
+
+    by_param = {}
+    for other in parametrizations:
+        r = approximate_brdf(source, other, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs,
+                             measure_8bit=False)
+        curves = [[e["relative_rms"] for e in errs] for errs in r.errors_by_terms.values()]
+        by_param[other] = [float(min(c[k] for c in curves)) for k in range(MAX_AUTO_TERMS)]
+
+    target = chosen.target
+    by_res = []
+    for res in resolutions:
+        def run(res=res):
+            mats, _ = sample_matrices(source, p, res, (target,))
+            w1, w2 = p.quadrature_weights(res)
+            return factorize(mats[target], w1, w2, MAX_AUTO_TERMS, name)
+
+        seconds = _median_time(run, repeats)
+        f = run()
+        f.target = target
+        for e in errors_by_terms(f, reference, l, v, (1, 2, 4, 8)):
+            by_res.append({"resolution": res, "terms": e["terms"], "relative_rms": e["relative_rms"], "seconds": seconds})
+
+    mats, _ = sample_matrices(source, p, FACTOR_RESOLUTION, (target,))
+    w1, w2 = p.quadrature_weights(FACTOR_RESOLUTION)
+    nmf = []
+    for k in NMF_TERMS:
+        f = factorize(mats[target], w1, w2, k, name, "nmf")
+        f.target = target
+        e = errors_by_terms(f, reference, l, v, (k,))[0]
+        e8 = errors_by_terms(quantize_factors(f), reference, l, v, (k,))[0]
+        nmf.append({"terms": k, "relative_rms": e["relative_rms"], "relative_rms_8bit": e8["relative_rms"]})
+    f = factorize(mats[target], w1, w2, 1, name, "nd")
+    f.target = target
+    nd = {"terms": 1, "relative_rms": errors_by_terms(f, reference, l, v, (1,))[0]["relative_rms"],
+          "relative_rms_8bit": errors_by_terms(quantize_factors(f), reference, l, v, (1,))[0]["relative_rms"]}
+
+    def stage_times():
+        t0 = time.perf_counter()
+        mats, _ = sample_matrices(source, p, FACTOR_RESOLUTION, (target,))
+        t1 = time.perf_counter()
+        f = factorize(mats[target], w1, w2, chosen.terms, name, params["factorization"])
+        t2 = time.perf_counter()
+        encode_factor_slices(factors_to_slices(f))
+        return {"sample_s": t1 - t0, "svd_s": t2 - t1, "quantize_s": time.perf_counter() - t2}
+
+    stage = [stage_times() for _ in range(repeats)]
+    timings = {k: float(np.median([s[k] for s in stage])) for k in ("sample_s", "svd_s", "quantize_s")}
+    timings["error_s"] = chosen.timings["error_s"]
+
+    atlas = None
+    if atlas_path is not None:
+        from ..separable.rebuild import evaluate_separable
+        from .error import measure_errors
+
+        try:
+            got = evaluate_separable(atlas_path, material.name, np.array([0.0, 0.0, 1.0]), l, v, cosine=True)
+            atlas = {"path": Path(atlas_path).as_posix(), **measure_errors(reference, got)}
+        except InputError as exc:
+            atlas = {"path": Path(atlas_path).as_posix(), "missing": str(exc)}
+
+    points = sorted({(r["seconds"], r["relative_rms"], r["resolution"], r["terms"]) for r in by_res})
+    front, best = [], np.inf
+    for seconds, err, res, k in points:
+        if err < best:
+            front.append({"seconds": seconds, "relative_rms": err, "resolution": res, "terms": k})
+            best = err
+
+    return MaterialStudy(
+        name=material.name,
+        source=material.source,
+        chosen={"parametrization": name, "target": target, "terms": chosen.terms, "factorization": params["factorization"],
+                "float": chosen.errors, "8bit_srgb": {k: v for k, v in next(
+                    e for e in chosen.errors_8bit_by_terms[target] if e["terms"] == chosen.terms).items() if k != "terms"}},
+        by_terms=by_terms,
+        by_parametrization=by_param,
+        by_resolution=by_res,
+        nonnegative={"nmf": nmf, "nd": nd},
+        timings=timings,
+        atlas=atlas,
+        pareto=front,
+    )
+
+
+def _plots(study: MaterialStudy, folder: Path) -> dict:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = {}
+    ks = np.arange(1, MAX_AUTO_TERMS + 1)
+    meta = {"Software": None}
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for target, curves in study.by_terms.items():
+        ax.semilogy(ks, curves["float"], "o-", label=f"SVD {target}, float")
+        ax.semilogy(ks, curves["8bit"], "s--", label=f"SVD {target}, 8-bit sRGB")
+    ax.semilogy([e["terms"] for e in study.nonnegative["nmf"]], [e["relative_rms"] for e in study.nonnegative["nmf"]],
+                "^:", label="NMF, float")
+    ax.semilogy([1], [study.nonnegative["nd"]["relative_rms"]], "kx", markersize=9, label="Kautz-McCool ND, float")
+    ax.set_xlabel("terms K (atlas slices)")
+    ax.set_ylabel("relative RMS of f cos (1e5 pairs)")
+    ax.set_title(f"{study.name}: error against K; float against 8-bit")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    paths["terms"] = folder / f"{study.name}-terms.png"
+    fig.tight_layout()
+    fig.savefig(paths["terms"], dpi=110, metadata=meta)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for k in (1, 2, 4, 8):
+        rows = [r for r in study.by_resolution if r["terms"] == k]
+        ax.semilogy([r["resolution"] for r in rows], [r["relative_rms"] for r in rows], "o-", label=f"K = {k}")
+    ax.axvline(FACTOR_RESOLUTION, color="grey", ls=":", label="stored grid (32)")
+    ax.set_xlabel("sampling grid, texels per factor axis")
+    ax.set_ylabel("relative RMS of f cos (float)")
+    ax.set_title(f"{study.name}: error against grid resolution")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    paths["resolution"] = folder / f"{study.name}-resolution.png"
+    fig.tight_layout()
+    fig.savefig(paths["resolution"], dpi=110, metadata=meta)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    xs = [r["seconds"] * 1e3 for r in study.by_resolution]
+    ys = [r["relative_rms"] for r in study.by_resolution]
+    ax.loglog(xs, ys, "o", alpha=0.4, label="(grid, K) configurations")
+    ax.loglog([p["seconds"] * 1e3 for p in study.pareto], [p["relative_rms"] for p in study.pareto], "r-o",
+              label="Pareto front")
+    for p in study.pareto:
+        ax.annotate(f"{p['resolution']}/K{p['terms']}", (p["seconds"] * 1e3, p["relative_rms"]), fontsize=6)
+    ax.set_xlabel("sampling + SVD time (ms, median)")
+    ax.set_ylabel("relative RMS of f cos (float)")
+    ax.set_title(f"{study.name}: error against time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    paths["pareto"] = folder / f"{study.name}-pareto.png"
+    fig.tight_layout()
+    fig.savefig(paths["pareto"], dpi=110, metadata=meta)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, curve in study.by_parametrization.items():
+        ax.semilogy(ks, curve, "o-" if name in ("half_diff", "in_out") else ".:", label=name)
+    ax.set_xlabel("terms K")
+    ax.set_ylabel("relative RMS of f cos (float, best target)")
+    ax.set_title(f"{study.name}: parametrizations, same 32-texel grid")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    paths["parametrization"] = folder / f"{study.name}-parametrization.png"
+    fig.tight_layout()
+    fig.savefig(paths["parametrization"], dpi=110, metadata=meta)
+    plt.close(fig)
+    return paths
+
+
+def _pct(x) -> str:
+    return f"{100 * x:.2f}%"
+
+
+def _markdown(studies: list, plots: dict) -> str:
+    lines = [
+        "# Separable BRDFs: error against terms, grid, bits and time",
+        "",
+        "Generated by `atlasgen report separable`. Every figure is measured by the running code: relative RMS",
+        "and Löw 2012 log error of f cos(theta_l) over 100,000 (l, v) pairs uniform on the hemisphere (fixed",
+        "seed); 8-bit figures quantize the factors as an sRGB atlas stores them. See docs/separable.md.",
+        "",
+        "| material | parametrization | target | K | float rel. RMS | 8-bit rel. RMS | log error | sample + SVD + quantize (ms) | atlas rel. RMS |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for s in studies:
+        t = s.timings
+        atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
+        lines.append(
+            f"| {s.name} | {s.chosen['parametrization']} | {s.chosen['target']} | {s.chosen['terms']} | "
+            f"{_pct(s.chosen['float']['relative_rms'])} | {_pct(s.chosen['8bit_srgb']['relative_rms'])} | "
+            f"{s.chosen['float']['log_error']:.4g} | {1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f} | {atlas} |"
+        )
+    for s in studies:
+        lines += ["", f"## {s.name}", "", f"Source file: `{s.source}`.", ""]
+        lines += ["### Error against K (float and 8-bit), SVD against NMF and ND", "",
+                  f"![error against K]({plots[s.name]['terms'].name})", "",
+                  "| K | " + " | ".join(f"{t} float | {t} 8-bit" for t in s.by_terms) + " |",
+                  "|---|" + "---|---|" * len(s.by_terms)]
+        for k in range(MAX_AUTO_TERMS):
+            lines.append(f"| {k + 1} | " + " | ".join(
+                f"{_pct(c['float'][k])} | {_pct(c['8bit'][k])}" for c in s.by_terms.values()) + " |")
+        nmf = ", ".join(f"K={e['terms']}: {_pct(e['relative_rms'])} float / {_pct(e['relative_rms_8bit'])} 8-bit"
+                        for e in s.nonnegative["nmf"])
+        nd = s.nonnegative["nd"]
+        lines += ["", f"Non-negative alternatives (no bias, full 8-bit range): NMF {nmf}; Kautz-McCool ND (K=1): "
+                      f"{_pct(nd['relative_rms'])} float / {_pct(nd['relative_rms_8bit'])} 8-bit.", ""]
+        lines += ["### Error against the sampling grid", "", f"![error against grid]({plots[s.name]['resolution'].name})", "",
+                  "| grid | K=1 | K=2 | K=4 | K=8 | sample + SVD (ms) |", "|---|---|---|---|---|---|"]
+        for res in sorted({r["resolution"] for r in s.by_resolution}):
+            rows = {r["terms"]: r for r in s.by_resolution if r["resolution"] == res}
+            lines.append(f"| {res} | " + " | ".join(_pct(rows[k]["relative_rms"]) for k in (1, 2, 4, 8))
+                         + f" | {1e3 * rows[1]['seconds']:.1f} |")
+        lines += ["", "### Error against time (Pareto front)", "", f"![pareto]({plots[s.name]['pareto'].name})", "",
+                  "Front: " + ", ".join(f"grid {p['resolution']} K={p['terms']}: {1e3 * p['seconds']:.1f} ms, "
+                                        f"{_pct(p['relative_rms'])}" for p in s.pareto) + ".", ""]
+        lines += ["### Parametrizations (same 32-texel grid, same K)", "",
+                  f"![parametrizations]({plots[s.name]['parametrization'].name})", "",
+                  "| parametrization | K=1 | K=2 | K=4 | K=8 |", "|---|---|---|---|---|"]
+        for name, curve in s.by_parametrization.items():
+            lines.append(f"| {name} | " + " | ".join(_pct(curve[k - 1]) for k in (1, 2, 4, 8)) + " |")
+        t = s.timings
+        lines += ["", f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, SVD {1e3 * t['svd_s']:.1f} ms, "
+                      f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms.", ""]
+    return "\n".join(lines) + "\n"
+
+
+def write_separable_report(materials, output, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
+                           parametrizations=tuple(PARAMETRIZATIONS)) -> dict:
+    """Study each separable material and write ``index.md``, ``report.json`` and PNG plots into ``output``.
+
+    Returns the written paths. Raises :class:`InputError` when no material is
+    separable, :class:`OutputError` when the folder cannot be written.
+    """
+    import json
+
+    materials = [m for m in materials if m.type == "separable"]
+    if not materials:
+        raise InputError("no separable materials to report on; expected TOML files with type = \"separable\"")
+    folder = Path(output)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{folder.as_posix()}: cannot create the report folder ({exc.strerror})") from None
+    studies = [study_material(m, atlas_path, resolutions, repeats, parametrizations) for m in materials]
+    plots = {s.name: _plots(s, folder) for s in studies}
+    index = folder / "index.md"
+    index.write_text(_markdown(studies, plots))
+    data = folder / "report.json"
+    data.write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")
+    return {"markdown": index, "json": data, "plots": plots}

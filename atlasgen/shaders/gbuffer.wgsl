@@ -1,0 +1,68 @@
+// G-buffer pass: one draw per object writes albedo + gloss, normal + view depth and
+// the material ID. Depth-stencil state (z-writes, stencil marking of translucent
+// objects) is set by the pipeline, not here. Prepended by common.wgsl.
+
+struct Object {
+    model: mat4x4<f32>,
+    normal_matrix: mat4x4<f32>,  // inverse transpose of the model matrix's 3x3 part
+    albedo_gloss: vec4<f32>,     // linear albedo, gloss in [0, 1]
+    material: vec4<u32>,         // x: atlas slice (material ID)
+};
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(1) @binding(0) var<uniform> object: Object;
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+};
+
+@vertex
+fn vs_main(@location(0) position: vec3<f32>, @location(1) normal: vec3<f32>) -> VertexOut {
+    let world = object.model * vec4<f32>(position, 1.0);
+    var out: VertexOut;
+    out.clip = frame.view_proj * world;
+    out.world = world.xyz;
+    out.normal = (object.normal_matrix * vec4<f32>(normal, 0.0)).xyz;
+    return out;
+}
+
+struct GBufferOut {
+    @location(0) albedo_gloss: vec4<f32>,
+    @location(1) normal_depth: vec4<f32>,  // world-space unit normal, view depth along forward
+    @location(2) material: u32,
+};
+
+@fragment
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBufferOut {
+    // Derivatives must be taken in uniform control flow, so before any branch.
+    let face = cross(dpdx(in.world), dpdy(in.world));
+    let to_eye = frame.eye.xyz - in.world;
+    var n = in.normal;
+    let len2 = dot(n, n);
+    if (len2 > 1e-20) {
+        n = n * inverseSqrt(len2);
+        // Two-sided: a back face (a plane seen from below) is shaded with the flipped normal.
+        if (!front) {
+            n = -n;
+        }
+    } else {
+        // Zero (or NaN) interpolated normals come from degenerate input: fall back to
+        // the face normal, and to the view direction when even that is degenerate.
+        let flen2 = dot(face, face);
+        if (flen2 > 1e-30) {
+            n = face * inverseSqrt(flen2);
+            if (dot(n, to_eye) < 0.0) {
+                n = -n;
+            }
+        } else {
+            n = normalize(to_eye);
+        }
+    }
+    var out: GBufferOut;
+    out.albedo_gloss = object.albedo_gloss;
+    out.normal_depth = vec4<f32>(n, dot(in.world - frame.eye.xyz, frame.forward.xyz));
+    out.material = object.material.x;
+    return out;
+}

@@ -1,0 +1,110 @@
+// Deferred lighting: one full-screen pass loops over every light for each pixel.
+// Prepended by the generated atlas include (atlas_sample, ATLAS_* tables, and for
+// separable BRDFs separable_f_cos), the renderer's material_is_separable switch
+// (generated from the manifest) and common.wgsl.
+//
+// Per light, with E the irradiance normal to the light direction at the surface:
+//
+//     L += E * (albedo * A.rgb / pi + A.a * spec(n, l, v, gloss))
+//
+// A = atlas_sample(material, N.L, N.V, lod) is the material's slice with its scale and
+// bias applied. A.rgb already holds the cosine fall-off (a lambert slice stores
+// colour * max(N.L, 0)), so albedo * A.rgb / pi is a Lambertian BRDF times cos and
+// the 1/pi lives here, in the renderer. spec is a BRDF times cos as well.
+//
+// Separable materials store f cos itself (Kautz & McCool 1999), rebuilt by the
+// include's separable_f_cos at mip level 0: L += E * albedo * f cos.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> lights: array<Light>;
+@group(0) @binding(2) var albedo_gloss_tex: texture_2d<f32>;
+@group(0) @binding(3) var normal_depth_tex: texture_2d<f32>;
+@group(0) @binding(4) var material_tex: texture_2d<u32>;
+@group(0) @binding(5) var atlas: texture_2d_array<f32>;
+@group(0) @binding(6) var atlas_sampler: sampler;
+
+struct Light {
+    position: vec4<f32>,  // w = 1: point at xyz; w = 0: directional travelling along xyz
+    radiant: vec4<f32>,   // colour * intensity: I in W/sr (point) or E in W/m^2 (directional)
+};
+
+// gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal.
+fn specular_exponent(gloss: f32) -> f32 {
+    return exp2(1.0 + 12.0 * gloss);
+}
+
+// Energy-normalised Blinn-Phong lobe times the cosine (Blinn 1977):
+//     f_s cos = k(s) * max(N.H, 0)^s * max(N.L, 0),   k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2)))
+// k(s) makes the lobe's directional albedo exactly 1 at normal view (v = n), and it
+// only falls off towards grazing views, so a white specular never creates energy:
+// with v = n, h lies halfway to l, and 1/k(s) = 2 pi int cos^s(theta/2) cos(theta) sin(theta) dtheta
+// over [0, pi/2], which integrates in closed form (x = cos(theta/2)). For large s it
+// tends to the familiar (s + 8) / (8 pi) approximation (Akenine-Moeller et al.,
+// Real-Time Rendering, 3rd ed., 2008), which overshoots 1 for small s.
+fn specular_normalisation(s: f32) -> f32 {
+    return (s + 2.0) * (s + 4.0) / (8.0 * PI * (s + exp2(-0.5 * s)));
+}
+
+// s and k = specular_normalisation(s) depend on the pixel only: computed once, outside the light loop.
+fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, s: f32, k: f32) -> f32 {
+    let n_dot_l = dot(n, l);
+    let hv = l + v;
+    let hv2 = dot(hv, hv);
+    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+        return 0.0;
+    }
+    let n_dot_h = max(dot(n, hv * inverseSqrt(hv2)), 0.0);
+    return k * pow(n_dot_h, s) * n_dot_l;
+}
+
+// Mip level from view depth, as the talk suggests: level 0 up to the reference
+// distance, one level more per doubling of depth beyond it, then the bias.
+fn atlas_lod(depth: f32) -> f32 {
+    let reference = frame.mip.y;
+    return clamp(log2(max(depth, reference) / reference) + frame.mip.x, 0.0, frame.mip.z);
+}
+
+@fragment
+fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
+    let pixel = vec2<i32>(coord.xy);
+    let material = textureLoad(material_tex, pixel, 0).r;
+    if (material == NO_MATERIAL) {
+        return vec4<f32>(frame.background.rgb, 1.0);
+    }
+    let albedo_gloss = textureLoad(albedo_gloss_tex, pixel, 0);
+    let normal_depth = textureLoad(normal_depth_tex, pixel, 0);
+    let n = normal_depth.xyz;
+    let depth = normal_depth.w;
+
+    // The pixel's ray has unit length along forward, so eye + ray * depth is the surface.
+    let ndc = coord.xy * frame.viewport.zw * 2.0 - 1.0;
+    let ray = frame.forward.xyz + ndc.x * frame.forward.w * frame.right.xyz - ndc.y * frame.right.w * frame.up.xyz;
+    let world = frame.eye.xyz + ray * depth;
+    let v = normalize(-ray);
+    let n_dot_v = dot(n, v);
+    let lod = atlas_lod(depth);
+    let separable = material_is_separable(material);
+    let s = specular_exponent(albedo_gloss.a);
+    let k = specular_normalisation(s);
+
+    var radiance = vec3<f32>(0.0);
+    for (var i = 0u; i < frame.counts.x; i = i + 1u) {
+        let light = lights[i];
+        var l = -light.position.xyz;
+        var irradiance = light.radiant.rgb;
+        if (light.position.w > 0.5) {
+            let d = light.position.xyz - world;
+            let d2 = max(dot(d, d), 1e-12);
+            l = d * inverseSqrt(d2);
+            irradiance = irradiance / d2;
+        }
+        if (separable) {
+            // The slices hold a factored BRDF: f cos comes back in 1/sr, no 1/pi here.
+            radiance += irradiance * albedo_gloss.rgb * separable_f_cos(atlas, atlas_sampler, material, n, l, v);
+        } else {
+            let a = atlas_sample(atlas, atlas_sampler, material, dot(n, l), n_dot_v, lod);
+            radiance += irradiance * (albedo_gloss.rgb * a.rgb / PI + a.a * specular(n, l, v, s, k));
+        }
+    }
+    return vec4<f32>(radiance, 1.0);
+}

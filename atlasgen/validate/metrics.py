@@ -1,0 +1,110 @@
+"""Image metrics on the same tone-mapped LDR image: RMSE, PSNR and mean FLIP.
+
+Every metric compares ``tonemap(test)`` with ``tonemap(reference)``, the 8-bit-ready
+sRGB image a user looks at, so dark and bright regions weigh as they are seen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["tonemap", "rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images"]
+
+
+def tonemap(linear, exposure: float = 1.0) -> np.ndarray:
+    """Linear radiance to display sRGB in [0, 1]: encode_srgb(clip(exposure * L, 0, 1)).
+
+    The sRGB transfer function is IEC 61966-2-1, eq. 5 (:func:`atlasgen.srgb.encode_srgb`);
+    NaN maps to 0 so a broken pixel shows as an error, never as a crash.
+    """
+    from ..srgb import encode_srgb
+
+    x = np.nan_to_num(np.asarray(linear, dtype=np.float64) * float(exposure), nan=0.0, posinf=1.0, neginf=0.0)
+    return encode_srgb(np.clip(x, 0.0, 1.0))
+
+
+def rmse(reference, test) -> float:
+    """Root-mean-square difference over every pixel and channel."""
+    a = np.asarray(reference, dtype=np.float64)
+    b = np.asarray(test, dtype=np.float64)
+    if a.shape != b.shape:
+        raise ValueError(f"image shapes differ: {a.shape} vs {b.shape}")
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+def psnr(reference, test, peak: float = 1.0) -> float:
+    """PSNR = 20 log10(peak / RMSE) in dB; ``inf`` for identical images."""
+    e = rmse(reference, test)
+    return math.inf if e == 0.0 else 20.0 * math.log10(peak / e)
+
+
+def relative_rms(reference, test) -> float:
+    """Relative L2 error of linear images, sqrt(sum (t - r)^2 / sum r^2); 0 for two black images.
+
+    Pixels no object covers are black in both, so this is the relative RMS over the
+    objects, weighted by radiance: the image-space counterpart of the separable
+    bake's relative RMS of f cos (docs/separable.md).
+    """
+    a = np.asarray(reference, dtype=np.float64)
+    b = np.asarray(test, dtype=np.float64)
+    den = float((a * a).sum())
+    num = float(((a - b) ** 2).sum())
+    return 0.0 if den == 0.0 and num == 0.0 else (math.inf if den == 0.0 else math.sqrt(num / den))
+
+
+def flip(reference, test) -> tuple[np.ndarray, float]:
+    """LDR FLIP (Andersson et al., "FLIP: A Difference Evaluator for Alternating Images",
+    HPG 2020) of two sRGB images in [0, 1]: ``(per-pixel error map (h, w), mean)``.
+
+    Uses NVIDIA's ``flip-evaluator`` package at its default 67 pixels per degree.
+    """
+    import flip_evaluator
+
+    ref = np.ascontiguousarray(np.clip(reference, 0.0, 1.0), dtype=np.float32)
+    tst = np.ascontiguousarray(np.clip(test, 0.0, 1.0), dtype=np.float32)
+    error_map, mean, _ = flip_evaluator.evaluate(ref, tst, "LDR", inputsRGB=True, applyMagma=False)
+    error_map = np.asarray(error_map, dtype=np.float32)
+    if error_map.ndim == 3:
+        error_map = error_map[..., 0]
+    return error_map, float(mean)
+
+
+def flip_heatmap(error_map) -> np.ndarray:
+    """FLIP's magma colour map of an error map in [0, 1], ``(h, w, 3)`` in [0, 1]."""
+    import matplotlib
+
+    cmap = matplotlib.colormaps["magma"]
+    return np.asarray(cmap(np.clip(error_map, 0.0, 1.0))[..., :3], dtype=np.float32)
+
+
+@dataclass
+class ImageMetrics:
+    """Metrics of a test image against a reference, both tone-mapped alike."""
+
+    rmse: float
+    psnr: float
+    flip: float
+    linear_rmse: float
+    linear_relative_rms: float = math.nan
+    flip_map: np.ndarray | None = None
+
+    def as_dict(self) -> dict:
+        return {
+            "rmse": self.rmse,
+            "psnr_db": self.psnr if math.isfinite(self.psnr) else None,
+            "flip": self.flip,
+            "linear_rmse": self.linear_rmse,
+            "linear_relative_rms": self.linear_relative_rms if math.isfinite(self.linear_relative_rms) else None,
+        }
+
+
+def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True) -> ImageMetrics:
+    """RMSE and PSNR of the tone-mapped images, mean FLIP and its map; linear RMSE and relative RMS."""
+    ref_ldr = tonemap(reference, exposure)
+    test_ldr = tonemap(test, exposure)
+    error_map, mean = flip(ref_ldr, test_ldr) if with_flip else (None, math.nan)
+    return ImageMetrics(rmse(ref_ldr, test_ldr), psnr(ref_ldr, test_ldr), mean, rmse(reference, test),
+                        relative_rms(reference, test), error_map)  # fmt: skip

@@ -1,0 +1,219 @@
+"""A renderer scene (:mod:`atlasgen.render.scene`) as a Mitsuba 3 scene, for pixel-by-pixel comparison.
+
+What is kept identical, so that only the shading differs:
+
+- **Camera.** Mitsuba's ``perspective`` sensor with ``fov_axis = "x"``, built by
+  ``look_at(position, target, up)`` with the renderer's near and far planes; the
+  renderer's camera follows the same conventions (:mod:`atlasgen.render.camera`).
+- **Sampling.** A ``stratified`` sampler without jitter and a ``box`` reconstruction
+  filter: with one sample per pixel the ray goes through the pixel centre, as the
+  rasteriser's g-buffer sample does. With N = k^2 samples they sit at the centres of a
+  k x k grid and the box filter averages them (an anti-aliased reference).
+- **Geometry.** The renderer's own triangle meshes (:func:`atlasgen.render.meshes.build_mesh`)
+  in world space, with the renderer's normal transform (inverse transpose, not
+  renormalised per vertex), so interpolated shading normals match the g-buffer's.
+- **Lights.** ``point`` -> Mitsuba ``point`` with ``intensity`` = colour * intensity
+  (W/sr, falls off as I/d^2); ``directional`` -> ``directional`` with ``irradiance`` =
+  colour * intensity, travelling along the same direction.
+- **Integration.** Direct lighting only, and without the visibility test: the deferred
+  renderer casts no shadows, so :class:`DirectNoShadow` (registered as
+  ``atlasgen_direct``) evaluates every emitter at every hit point. That also checks
+  back-lighting on closed geometry, where Mitsuba's ``direct`` would see the far side
+  of a sphere shadow its own back-lit front.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+__all__ = [
+    "DIRECT_INTEGRATOR",
+    "register_direct_integrator",
+    "sensor_dict",
+    "emitter_dicts",
+    "mitsuba_mesh",
+    "build_mitsuba_scene",
+    "render_mitsuba",
+]
+
+DIRECT_INTEGRATOR = "atlasgen_direct"
+_registered: set = set()
+
+
+def register_direct_integrator(mi) -> str:
+    """Register :class:`DirectNoShadow` as ``atlasgen_direct`` for the current variant; return its name.
+
+    For a hit point x with shading frame (n at +z), view direction w_i and each emitter
+    e sampled deterministically (point and directional emitters are delta lights, so one
+    sample is exact), the pixel value is
+
+        L(x, w_i) = sum_e f(w_i, w_o,e) cos(theta_o,e) E_e(x),
+
+    with E_e = I / d^2 for a point and E for a directional emitter, and no shadow ray.
+    Rays that miss every shape return the constant ``background`` radiance.
+    """
+    variant = mi.variant()
+    if (variant, DIRECT_INTEGRATOR) in _registered:
+        return DIRECT_INTEGRATOR
+    import drjit as dr
+
+    class DirectNoShadow(mi.SamplingIntegrator):
+        def __init__(self, props):
+            mi.SamplingIntegrator.__init__(self, props)
+            self.background = [props.get(f"background_{c}", 0.0) for c in "rgb"]
+
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            si = scene.ray_intersect(ray, active)
+            hit = si.is_valid()
+            bsdf = si.bsdf(ray)
+            ctx = mi.BSDFContext()
+            result = mi.Spectrum(0.0)
+            for emitter in scene.emitters():
+                ds, weight = emitter.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
+                wo = si.to_local(ds.d)
+                value = bsdf.eval(ctx, si, wo, hit)
+                result += dr.select(hit & (ds.pdf > 0), value * weight, 0.0)
+            if any(self.background):
+                bg = mi.Spectrum(mi.Color3f(*self.background)) if mi.is_rgb else mi.Spectrum(
+                    mi.srgb_model_eval(mi.srgb_model_fetch(mi.ScalarColor3f(*self.background)), ray.wavelengths)
+                )
+                result = dr.select(hit, result, bg)
+            return result, hit, []
+
+        def aov_names(self):
+            return []
+
+        def to_string(self):
+            return "DirectNoShadow[]"
+
+    mi.register_integrator(DIRECT_INTEGRATOR, lambda props: DirectNoShadow(props))
+    _registered.add((variant, DIRECT_INTEGRATOR))
+    return DIRECT_INTEGRATOR
+
+
+def sensor_dict(mi, scene, spp: int = 1) -> dict:
+    """Mitsuba ``perspective`` sensor matching the renderer's camera and image size."""
+    cam = scene.camera
+    return {
+        "type": "perspective",
+        "fov": float(cam.fov),
+        "fov_axis": "x",
+        "near_clip": float(cam.near),
+        "far_clip": float(cam.far),
+        "to_world": mi.ScalarTransform4f().look_at(
+            origin=[float(c) for c in cam.position], target=[float(c) for c in cam.target], up=[float(c) for c in cam.up]
+        ),
+        "film": {
+            "type": "hdrfilm",
+            "width": int(scene.width),
+            "height": int(scene.height),
+            "rfilter": {"type": "box"},
+            "pixel_format": "rgb",
+            "component_format": "float32",
+        },
+        "sampler": {"type": "stratified", "sample_count": int(spp), "jitter": False},
+    }
+
+
+def emitter_dicts(scene) -> dict:
+    """The scene's lights as Mitsuba emitter dicts, in the renderer's units."""
+    out = {}
+    for i, light in enumerate(scene.lights):
+        value = {"type": "rgb", "value": [float(c) * float(light.intensity) for c in light.colour]}
+        if light.type == "point":
+            out[f"light_{i:04d}"] = {"type": "point", "position": [float(c) for c in light.position], "intensity": value}
+        else:
+            out[f"light_{i:04d}"] = {
+                "type": "directional",
+                "direction": [float(c) for c in light.direction],
+                "irradiance": value,
+            }
+    return out
+
+
+def world_mesh_arrays(obj):
+    """World-space positions, normals (inverse transpose, not renormalised) and faces of ``obj``."""
+    from ..render.meshes import build_mesh
+    from ..render.scene import object_matrix
+
+    mesh = build_mesh(obj)
+    m = object_matrix(obj)
+    normal_matrix = np.linalg.inv(m[:3, :3]).T
+    positions = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    normals = mesh.normals.astype(np.float64) @ normal_matrix.T
+    return positions, normals, mesh.indices
+
+
+def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None):
+    """A Mitsuba ``Mesh`` holding exactly the renderer's triangles for ``obj``.
+
+    ``bsdf`` is a BSDF instance or dict; ``interior`` an optional medium (instance or
+    dict), for volumetric references.
+    """
+    import drjit as dr
+
+    positions, normals, faces = world_mesh_arrays(obj)
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf if not isinstance(bsdf, dict) else mi.load_dict(bsdf)
+    if interior is not None:
+        props["interior"] = interior if not isinstance(interior, dict) else mi.load_dict(interior)
+    mesh = mi.Mesh(name or f"object_{obj.index}", len(positions), len(faces), props, has_vertex_normals=True)
+    params = mi.traverse(mesh)
+    f32 = [np.ascontiguousarray(positions[:, k], dtype=np.float32) for k in range(3)]
+    n32 = [np.ascontiguousarray(normals[:, k], dtype=np.float32) for k in range(3)]
+    idx = [np.ascontiguousarray(faces[:, k], dtype=np.uint32) for k in range(3)]
+    params["vertex_positions"] = dr.ravel(mi.Point3f(*[mi.Float(a) for a in f32]))
+    params["vertex_normals"] = dr.ravel(mi.Normal3f(*[mi.Float(a) for a in n32]))
+    params["faces"] = dr.ravel(mi.Vector3u(*[mi.UInt32(a) for a in idx]))
+    params.update()
+    return mesh
+
+
+def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None = None, interiors=None):
+    """Load the Mitsuba twin of ``scene``.
+
+    Parameters
+    ----------
+    mi
+        The ``mitsuba`` module with a variant set (:func:`atlasgen.validate.backend.load_mitsuba`).
+    scene
+        A :class:`atlasgen.render.scene.Scene`.
+    bsdfs
+        One BSDF (dict or instance) per object, in object order.
+    integrator
+        Defaults to ``atlasgen_direct`` with the scene's background.
+    interiors
+        Optional per-object interior media (``None`` entries for none).
+    """
+    if integrator is None:
+        register_direct_integrator(mi)
+        bg = [float(c) for c in scene.background]
+        integrator = {"type": DIRECT_INTEGRATOR, "background_r": bg[0], "background_g": bg[1], "background_b": bg[2]}
+    d = {"type": "scene", "integrator": integrator, "sensor": sensor_dict(mi, scene, spp)}
+    d.update(emitter_dicts(scene))
+    interiors = interiors or [None] * len(scene.objects)
+    for obj, bsdf, interior in zip(scene.objects, bsdfs, interiors):
+        d[f"object_{obj.index:04d}"] = mitsuba_mesh(mi, obj, bsdf, interior)
+    return mi.load_dict(d)
+
+
+def render_mitsuba(mi, mi_scene, spp: int = 1, seed: int = 0, python_plugins: bool = True) -> tuple[np.ndarray, float]:
+    """Render and return ``(linear RGB (h, w, 3) float32, wall seconds)``.
+
+    With ``python_plugins`` virtual function calls are evaluated in wavefront mode
+    (``SymbolicCalls`` off), so atlasgen's Python BSDFs receive concrete arrays they
+    can hand to NumPy; scenes of built-in plugins only keep Mitsuba's default.
+    """
+    import drjit as dr
+
+    t0 = time.perf_counter()
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, not python_plugins):
+        image = mi.render(mi_scene, spp=int(spp), seed=int(seed))
+        rgb = np.array(image, dtype=np.float32)
+    seconds = time.perf_counter() - t0
+    if rgb.ndim == 3 and rgb.shape[2] > 3:
+        rgb = rgb[..., :3]
+    return rgb, seconds

@@ -1,0 +1,244 @@
+"""The validation report: ``index.html``, ``report.json``, the images and one speed/error plot.
+
+Everything is built in memory as ``{path: bytes}`` and written by the caller in one
+all-or-nothing step (:func:`atlasgen.atomic.write_files_atomically`). Every figure in
+the report is a measured value from the run; nothing is typed in.
+"""
+
+from __future__ import annotations
+
+import html
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["build_report", "report_dict", "encode_png", "plot_speed_error", "image_name"]
+
+_KIND_LABEL = {
+    "atlas": "atlas (deferred renderer)",
+    "model": "model reference",
+    "physical": "physical reference",
+    "rebuild": "CPU rebuild from the atlas",
+}
+
+
+def encode_png(rgb01) -> bytes:
+    """PNG bytes of an ``(h, w, 3)`` image in [0, 1] (8 bits per channel)."""
+    from PIL import Image
+
+    data = np.clip(np.round(np.asarray(rgb01, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(data), "RGB").save(buffer, format="PNG", optimize=False)
+    return buffer.getvalue()
+
+
+def image_name(material: str, scene: str, what: str) -> str:
+    """Relative path of one report image, e.g. ``images/skin__front__atlas.png``."""
+    return f"images/{material}__{scene}__{what}.png"
+
+
+def _finite(x):
+    return None if x is None or (isinstance(x, float) and not math.isfinite(x)) else x
+
+
+def _goal(run, ref, goals) -> bool | None:
+    """Whether a LUT material meets the model-reference goals (None where they don't apply)."""
+    if ref.kind != "model" or run.type == "separable":
+        return None
+    return bool(ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"])
+
+
+def report_dict(run) -> dict:
+    """The JSON report: settings, environment, and per material and scene every measured figure."""
+    goals = run.settings["goals"]
+    rows = []
+    for r in run.runs:
+        refs = {}
+        for kind, ref in r.references.items():
+            refs[kind] = {
+                "description": ref.description,
+                "variant": ref.variant,
+                "spp": ref.spp,
+                "seconds": ref.seconds,
+                "speed_ratio": _finite(ref.seconds / r.atlas_seconds if r.atlas_seconds > 0 else math.inf),
+                **ref.metrics.as_dict(),
+                "meets_goal": _goal(r, ref, goals),
+                "images": {"reference": image_name(r.material, r.scene, kind),
+                           "flip": image_name(r.material, r.scene, f"flip-{kind}")},  # fmt: skip
+            }
+        row = {
+            "material": r.material,
+            "type": r.type,
+            "scene": r.scene,
+            "exposure": r.exposure,
+            "atlas_seconds": r.atlas_seconds,
+            "atlas_image": image_name(r.material, r.scene, "atlas"),
+            "references": refs,
+            "notes": list(r.notes),
+        }
+        if r.claimed is not None:
+            row["claimed_errors"] = r.claimed
+        if r.breakdown is not None:
+            row["error_breakdown"] = r.breakdown
+        rows.append(row)
+    lut = [row["references"]["model"] for row in rows if row["type"] != "separable" and "model" in row["references"]]
+    summary = {
+        "lut_results": len(lut),
+        "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
+        "worst_lut_psnr_db": min((x["psnr_db"] for x in lut if x["psnr_db"] is not None), default=None),
+        "worst_lut_flip": max((x["flip"] for x in lut), default=None),
+    }
+    return {
+        "atlas": run.atlas,
+        "settings": run.settings,
+        "environment": run.environment,
+        "total_seconds": run.seconds,
+        "summary": summary,
+        "results": rows,
+    }
+
+
+def plot_speed_error(run) -> bytes:
+    """One PNG plot: speed-up of the atlas frame over each reference render (x, log) against
+    the atlas image's mean FLIP against that reference (y, log), one point per material and scene."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5.0), dpi=100)
+    markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
+    for kind, (marker, colour) in markers.items():
+        xs, ys, labels = [], [], []
+        for r in run.runs:
+            ref = r.references.get(kind)
+            if ref is None or r.atlas_seconds <= 0:
+                continue
+            xs.append(ref.seconds / r.atlas_seconds)
+            ys.append(max(ref.metrics.flip, 1e-4))
+            labels.append(f"{r.material}/{r.scene}")
+        if xs:
+            ax.scatter(xs, ys, marker=marker, color=colour, label=f"atlas vs {kind} reference", alpha=0.8)
+            for x, y, label in zip(xs, ys, labels):
+                ax.annotate(label, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    goal = run.settings["goals"]["flip"]
+    ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("speed-up: Mitsuba render time / atlas frame time")
+    ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
+    ax.set_title("atlasgen validate: speed against error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def _fmt(x, spec):
+    return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def _html(data: dict) -> str:
+    e = html.escape
+    s = data["settings"]
+    out = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8"><title>atlasgen validation</title>',
+        "<style>body{font-family:sans-serif;margin:1.5em;max-width:1400px}table{border-collapse:collapse}"
+        "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:right}th{background:#eee}"
+        "td.l{text-align:left}.pass{background:#dfd}.fail{background:#fdd}"
+        "figure{display:inline-block;margin:4px;text-align:center}figure img{width:256px;image-rendering:pixelated}"
+        "figcaption{font-size:12px}</style></head><body>",
+        "<h1>atlasgen validation</h1>",
+        f"<p>Atlas <code>{e(data['atlas'])}</code>; GPU: {e(data['environment']['gpu'])}; Mitsuba {e(str(data['environment']['mitsuba']))}; "
+        f"{s['spp']} spp (model references), {s['physical_spp']} spp (stochastic physical references); "
+        f"total {data['total_seconds']:.1f} s.</p>",
+        f"<p>Timing: atlas = {e(data['environment']['atlas_timing'])}; Mitsuba = {e(data['environment']['mitsuba_timing'])}. "
+        f"Metrics compare the tone-mapped sRGB images (exposure from the scene): RMSE and PSNR over [0, 1], mean LDR FLIP. "
+        f"Goals for LUT materials against the model reference: PSNR &ge; {s['goals']['psnr_db']} dB and mean FLIP &le; {s['goals']['flip']}. "
+        "Conventions and the limits of each reference: docs/validation.md.</p>",
+        "<h2>Summary</h2>",
+        f"<p>{data['summary']['lut_meeting_goals']} of {data['summary']['lut_results']} LUT material/scene results meet the goals; "
+        f"worst PSNR {_fmt(data['summary']['worst_lut_psnr_db'], '.2f')} dB, worst mean FLIP {_fmt(data['summary']['worst_lut_flip'], '.4f')}.</p>",
+        '<p><img src="speed_error.png" alt="speed against error" width="750"></p>',
+        "<h2>Metrics</h2>",
+        "<table><tr><th>material</th><th>type</th><th>scene</th><th>atlas ms</th><th>reference</th><th>reference s</th>"
+        "<th>speed-up</th><th>RMSE</th><th>PSNR dB</th><th>mean FLIP</th><th>goal</th><th>claimed (manifest)</th></tr>",
+    ]
+    for row in data["results"]:
+        for kind, ref in row["references"].items():
+            goal = ref["meets_goal"]
+            cls = "" if goal is None else (' class="pass"' if goal else ' class="fail"')
+            claimed = ""
+            if kind == "model" and row.get("claimed_errors"):
+                c = row["claimed_errors"]
+                claimed = (f"claimed rel. RMS {_fmt(c['relative_rms_8bit'], '.4f')} (8-bit, K={c['terms']}); "
+                           f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
+            out.append(
+                f"<tr><td class=l>{e(row['material'])}</td><td class=l>{e(row['type'])}</td><td class=l>{e(row['scene'])}</td>"
+                f"<td>{1000 * row['atlas_seconds']:.1f}</td><td class=l>{e(kind)}</td><td>{ref['seconds']:.3f}</td>"
+                f"<td>{_fmt(ref['speed_ratio'], '.1f')}</td><td>{ref['rmse']:.5f}</td><td>{_fmt(ref['psnr_db'], '.2f')}</td>"
+                f"<td>{ref['flip']:.4f}</td><td{cls}>{'' if goal is None else ('met' if goal else 'missed')}</td>"
+                f"<td class=l>{e(claimed)}</td></tr>"
+            )
+    out.append("</table>")
+    out += [
+        "<h2>Where the atlas's error comes from (LUT materials)</h2>",
+        "<p>The renderer's equation evaluated on the CPU at the g-buffer's pixels, with the slice sampled "
+        "bilinearly from (a) the model's float table at the texel centres: resolution and filtering only; "
+        "(b) the baked 8-bit slice: adds quantization. Both against the model reference. (c) The GPU image "
+        "against (b): the renderer's own precision.</p>",
+        "<table><tr><th>material</th><th>scene</th><th>(a) float table PSNR</th><th>(a) FLIP</th>"
+        "<th>(b) 8-bit table PSNR</th><th>(b) FLIP</th><th>GPU atlas PSNR</th><th>GPU FLIP</th><th>(c) GPU vs (b) PSNR</th></tr>",
+    ]
+    for row in data["results"]:
+        b = row.get("error_breakdown")
+        if not b:
+            continue
+        model = row["references"]["model"]
+        out.append(
+            f"<tr><td class=l>{e(row['material'])}</td><td class=l>{e(row['scene'])}</td>"
+            f"<td>{_fmt(b['table_float']['psnr_db'], '.2f')}</td><td>{b['table_float']['flip']:.4f}</td>"
+            f"<td>{_fmt(b['table_8bit']['psnr_db'], '.2f')}</td><td>{b['table_8bit']['flip']:.4f}</td>"
+            f"<td>{_fmt(model['psnr_db'], '.2f')}</td><td>{model['flip']:.4f}</td>"
+            f"<td>{_fmt(b['gpu_vs_8bit']['psnr_db'], '.2f')}</td></tr>"
+        )
+    out.append("</table>")
+    out.append("<h2>Images</h2><p>Tone-mapped sRGB; FLIP heat maps in magma (black = no visible difference).</p>")
+    for row in data["results"]:
+        out.append(f"<h3>{e(row['material'])} ({e(row['type'])}), scene {e(row['scene'])}</h3><div>")
+        figures = [(row["atlas_image"], _KIND_LABEL["atlas"])]
+        for kind, ref in row["references"].items():
+            figures.append((ref["images"]["reference"], f"{_KIND_LABEL[kind]}: {ref['description']}"))
+            figures.append((ref["images"]["flip"], f"FLIP atlas vs {kind}: {ref['flip']:.4f}"))
+        for src, caption in figures:
+            out.append(f'<figure><img src="{e(src)}" alt="{e(caption)}"><figcaption>{e(caption)}</figcaption></figure>')
+        for note in row["notes"]:
+            out.append(f"<p><em>{e(note)}</em></p>")
+        out.append("</div>")
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def build_report(run, out_dir) -> dict:
+    """``{path: bytes}`` of every report file under ``out_dir``."""
+    from .metrics import flip_heatmap, tonemap
+
+    out_dir = Path(out_dir)
+    files = {}
+    for r in run.runs:
+        files[out_dir / image_name(r.material, r.scene, "atlas")] = encode_png(tonemap(r.atlas_image, r.exposure))
+        for kind, ref in r.references.items():
+            files[out_dir / image_name(r.material, r.scene, kind)] = encode_png(tonemap(ref.image, r.exposure))
+            files[out_dir / image_name(r.material, r.scene, f"flip-{kind}")] = encode_png(flip_heatmap(ref.metrics.flip_map))
+    data = report_dict(run)
+    files[out_dir / "speed_error.png"] = plot_speed_error(run)
+    files[out_dir / "report.json"] = (json.dumps(data, indent=2, allow_nan=False) + "\n").encode()
+    files[out_dir / "index.html"] = _html(data).encode()
+    return files

@@ -1,0 +1,408 @@
+"""Orchestration of ``atlasgen validate``: every material, every scene, atlas against references.
+
+For each material and validation scene:
+
+1. the bundled deferred renderer renders it through the baked atlas (GPU; timed as the
+   median of :data:`ATLAS_TIMING_FRAMES` frames after a warm-up frame);
+2. Mitsuba 3 renders the *model reference* (:mod:`.references`) in ``llvm_ad_rgb``;
+3. where one exists, Mitsuba renders the *physical reference*.
+
+Images stay in memory; :func:`write_validation` writes the report all-or-nothing.
+Everything that can be checked before rendering is checked first (materials,
+references, scenes, Mitsuba, the GPU), so bad input fails fast and writes nothing.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import statistics
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import BackendError, InputError, SceneError
+
+__all__ = [
+    "DEFAULT_SCENES",
+    "ATLAS_TIMING_FRAMES",
+    "GOAL_PSNR_DB",
+    "GOAL_FLIP",
+    "ReferenceRender",
+    "MaterialRun",
+    "ValidationRun",
+    "plan_validation",
+    "validate_atlas",
+    "write_validation",
+]
+
+DEFAULT_SCENES = ("front", "back")
+ATLAS_TIMING_FRAMES = 3
+#: Goals against the model reference for shipped LUT materials (issue #5).
+GOAL_PSNR_DB = 45.0
+GOAL_FLIP = 0.01
+
+
+@dataclass
+class ReferenceRender:
+    """One Mitsuba reference render and the atlas image's metrics against it."""
+
+    kind: str  # "model" or "physical"
+    description: str
+    image: np.ndarray
+    seconds: float
+    spp: int
+    variant: str
+    metrics: object = None  # ImageMetrics
+
+
+@dataclass
+class MaterialRun:
+    """A material on one scene: the atlas render and its references."""
+
+    material: str
+    type: str
+    scene: str
+    atlas_image: np.ndarray
+    atlas_seconds: float
+    exposure: float
+    references: dict = field(default_factory=dict)  # kind -> ReferenceRender
+    claimed: dict | None = None  # separable: the errors the manifest claims
+    breakdown: dict | None = None  # LUT: the atlas's error split by cause (:func:`_break_down`)
+    notes: list = field(default_factory=list)
+
+
+@dataclass
+class ValidationRun:
+    atlas: str
+    runs: list
+    settings: dict
+    environment: dict
+    seconds: float = 0.0
+
+
+@dataclass
+class _Plan:
+    atlas_path: Path
+    manifest: dict
+    entries: list
+    scenes: list  # (name, Scene)
+
+
+def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None) -> _Plan:
+    """Check every input before anything renders: atlas, materials, references and scenes."""
+    from ..atlas import read_atlas
+    from .references import model_reference
+    from .scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
+
+    atlas_path = Path(atlas_path)
+    if not atlas_path.exists():
+        raise InputError(f"{atlas_path.as_posix()}: no such atlas; bake one first (atlasgen bake -o {atlas_path.as_posix()})")
+    atlas = read_atlas(atlas_path)
+    if atlas.manifest is None:
+        raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
+    entries_by_name = {e["name"]: e for e in atlas.manifest.get("materials", [])}
+    names = list(dict.fromkeys(materials)) if materials else sorted(entries_by_name, key=lambda n: entries_by_name[n]["first_slice"])
+    entries = []
+    for name in names:
+        if name not in entries_by_name:
+            known = ", ".join(sorted(entries_by_name)) or "none"
+            raise InputError(f"{atlas_path.as_posix()}: no material {name!r}; known: {known}")
+        entry = entries_by_name[name]
+        if "params" not in entry:
+            raise InputError(f"{atlas_path.with_suffix('.json').as_posix()}: material {name!r} has no 'params'; no reference can be built")
+        model_reference(entry)  # raises InputError when no reference is possible
+        _check_params_current(atlas_path, entry)
+        entries.append(entry)
+    if not entries:
+        raise InputError(f"{atlas_path.as_posix()}: the atlas holds no materials to validate")
+    loaded = []
+    for s in scenes:
+        name, scene = load_validation_scene(s)
+        if resolution is not None:
+            scene = resize_scene(scene, *resolution)
+        for obj in scene.objects:  # objects with a fixed material: it must be in the atlas
+            if obj.material != MATERIAL_PLACEHOLDER and obj.material not in entries_by_name:
+                known = ", ".join(sorted(entries_by_name)) or "none"
+                raise SceneError(scene.path, f"objects[{obj.index}].material",
+                                 f"unknown material {obj.material!r}; expected one of the names in {atlas_path.as_posix()}: {known}")  # fmt: skip
+            if obj.material != MATERIAL_PLACEHOLDER:
+                model_reference(entries_by_name[obj.material])
+        loaded.append((name, scene))
+    return _Plan(atlas_path, atlas.manifest, entries, loaded)
+
+
+def _check_params_current(atlas_path, entry) -> None:
+    """The model reference evaluates today's model code with the manifest's parameters:
+    refuse an atlas whose parameter set no longer matches (baked by another version)."""
+    from ..models import get_model
+
+    expected = {p.name for p in get_model(entry["type"]).params}
+    got = set(entry["params"])
+    if got != expected:
+        missing, extra = sorted(expected - got), sorted(got - expected)
+        what = "; ".join(x for x in (f"missing {', '.join(missing)}" if missing else "",
+                                     f"unknown {', '.join(extra)}" if extra else "") if x)  # fmt: skip
+        raise InputError(
+            f"{atlas_path.with_suffix('.json').as_posix()}: material {entry['name']!r}: parameters do not match the "
+            f"current '{entry['type']}' model ({what}); expected an atlas baked by this atlasgen: re-run atlasgen bake"
+        )
+
+
+def _object_entries(scene, entry, manifest) -> list:
+    """Per object of a bound scene: its manifest entry (the material under test, or its own)."""
+    by_name = {e["name"]: e for e in manifest["materials"]}
+    return [by_name.get(o.material, entry) for o in scene.objects]
+
+
+def _object_bsdfs(scene, entry, manifest):
+    """Per object: its material's model reference, with the object's albedo and gloss."""
+    from .references import model_reference
+
+    return [model_reference(e, o.albedo, o.gloss) for o, e in zip(scene.objects, _object_entries(scene, entry, manifest))]
+
+
+def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
+    """The atlas image, the median frame time and the g-buffer read-backs (from the warm-up)."""
+    warm = renderer.render(scene, outlines=False, aovs=True)  # warm-up: pipelines, uploads
+    times, image = [], None
+    for _ in range(ATLAS_TIMING_FRAMES):
+        t0 = time.perf_counter()
+        image = renderer.render(scene, outlines=False, aovs=False).radiance
+        times.append(time.perf_counter() - t0)
+    return np.asarray(image, dtype=np.float32), statistics.median(times), warm.aovs
+
+
+def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = 64,
+                   resolution=None, physical: bool = True, progress=None) -> ValidationRun:  # fmt: skip
+    """Render every material on every scene, through the atlas and with Mitsuba; measure.
+
+    Parameters
+    ----------
+    atlas_path
+        ``X.dds`` with ``X.json`` and ``X.wgsl`` beside it (``atlasgen bake``).
+    materials
+        Names to validate; all materials of the atlas by default.
+    scenes
+        Standard scene names (``front``, ``back``) or scene TOML paths.
+    spp
+        Mitsuba samples per pixel of the model references (1 = the pixel centre, what
+        the rasteriser samples; a square number k^2 averages a k x k grid).
+    physical_spp
+        Samples per pixel of the stochastic physical references (``volpath``).
+    resolution
+        ``(width, height)`` overriding the scenes' image size.
+    physical
+        Also render physical references where they exist.
+    progress
+        Called with a short text after each render.
+
+    Raises
+    ------
+    InputError, SceneError
+        Unknown material or scene, or a material no reference can be built for.
+    BackendError
+        Mitsuba's LLVM backend or a GPU adapter is missing.
+    """
+    from ..render.atlas_texture import read_render_atlas
+    from ..render.renderer import Renderer
+    from .backend import load_mitsuba
+    from .metrics import compare_images
+    from .mitsuba_scene import build_mitsuba_scene, render_mitsuba
+    from .references import model_reference, physical_reference, register_references
+    from .scenes import bind_material
+
+    if spp < 1 or physical_spp < 1:
+        raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
+    t_start = time.perf_counter()
+    plan = plan_validation(atlas_path, materials, scenes, resolution)
+    mi = load_mitsuba("llvm_ad_rgb")
+    register_references(mi)
+    renderer = Renderer(read_render_atlas(plan.atlas_path))
+    errors_before = len(renderer.ctx.errors)
+    say = progress or (lambda text: None)
+
+    runs = []
+    for entry in plan.entries:
+        for scene_name, scene in plan.scenes:
+            bound = bind_material(scene, entry["name"])
+            atlas_image, atlas_s, aovs = _time_atlas(renderer, bound)
+            run = MaterialRun(entry["name"], entry["type"], scene_name, atlas_image, atlas_s, bound.settings.exposure)
+            say(f"{entry['name']} / {scene_name}: atlas {1000 * atlas_s:.1f} ms")
+
+            mi.set_variant("llvm_ad_rgb")
+            mi_scene = build_mitsuba_scene(mi, bound, _object_bsdfs(bound, entry, plan.manifest), spp)
+            image, seconds = render_mitsuba(mi, mi_scene, spp)
+            ref = ReferenceRender("model", _describe_model(entry), image, seconds, spp, "llvm_ad_rgb")
+            ref.metrics = compare_images(image, atlas_image, run.exposure)
+            run.references["model"] = ref
+            del mi_scene
+            if entry["type"] == "separable":
+                _check_separable(run, plan.atlas_path, entry, bound, aovs)
+            else:
+                _break_down(run, plan.atlas_path, entry, bound, aovs)
+            say(f"{entry['name']} / {scene_name}: model reference {seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+
+            phys = physical_reference(entry) if physical else None
+            if phys is not None:
+                ref = _render_physical(mi, bound, entry, plan.manifest, physical_spp, spp)
+                ref.metrics = compare_images(ref.image, atlas_image, run.exposure)
+                run.references["physical"] = ref
+                say(f"{entry['name']} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+            runs.append(run)
+
+    errors = renderer.ctx.errors[errors_before:]
+    if errors:
+        raise BackendError(f"the GPU device reported {len(errors)} error(s); first: {errors[0].splitlines()[0]}")
+    environment = {
+        "gpu": renderer.ctx.name,
+        "mitsuba": getattr(mi, "__version__", "?"),
+        "atlas_timing": f"median of {ATLAS_TIMING_FRAMES} frames after a warm-up, outlines off, including read-back",
+        "mitsuba_timing": "one mi.render call, including Dr.Jit kernel compilation (cached across materials)",
+    }
+    settings = {
+        "spp": spp,
+        "physical_spp": physical_spp,
+        "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
+        "goals": {"psnr_db": GOAL_PSNR_DB, "flip": GOAL_FLIP},
+    }
+    return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
+
+
+def _break_down(run, atlas_path, entry, scene, aovs) -> None:
+    """Split a LUT material's error against its model reference by cause, on the CPU.
+
+    ``table_float``: the model's float table at the texel centres, sampled bilinearly
+    (resolution and filtering only); ``table_8bit``: the baked slice decoded (adds the
+    8-bit quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
+    renderer's own precision, half-float output, f32 filtering).
+    """
+    from .metrics import compare_images
+    from .rebuild import lut_tables, rebuild_lut_image
+
+    model_image = _only_material(run.references["model"].image, entry, aovs)
+    atlas_image = _only_material(run.atlas_image, entry, aovs)
+    tables = lut_tables(atlas_path, entry)
+    images = {k: rebuild_lut_image(entry, t, scene, aovs) for k, t in tables.items()}
+    out = {}
+    for key, image in (("table_float", images["float"]), ("table_8bit", images["8bit"])):
+        m = compare_images(model_image, image, run.exposure)
+        out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": m.flip, "linear_relative_rms": m.linear_relative_rms}
+    m = compare_images(images["8bit"], atlas_image, run.exposure, with_flip=False)
+    out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    run.breakdown = out
+
+
+def _only_material(image, entry, aovs) -> np.ndarray:
+    """``image`` with every pixel not covered by ``entry``'s slices set to 0 (the CPU rebuilds cover only those)."""
+    ids = np.asarray(aovs["id"]).astype(np.int64)
+    mask = (ids >= entry["first_slice"]) & (ids < entry["first_slice"] + entry["slice_count"])
+    return np.where(mask[..., None], image, 0.0).astype(np.float32)
+
+
+def _finite_or_none(x: float):
+    return x if math.isfinite(x) else None
+
+
+def _check_separable(run, atlas_path, entry, scene, aovs) -> None:
+    """Set the manifest's claims beside what the scene measures, and split the gap."""
+    from .metrics import compare_images, relative_rms
+    from .rebuild import rebuild_separable_image
+
+    image, seconds = rebuild_separable_image(atlas_path, entry, scene, aovs)
+    ref = ReferenceRender("rebuild", "the include's rebuild in float64 on the CPU (atlasgen.separable)", image,
+                          seconds, 1, "numpy")  # fmt: skip
+    ref.metrics = compare_images(image, _only_material(run.atlas_image, entry, aovs), run.exposure)
+    run.references["rebuild"] = ref
+    source = _only_material(run.references["model"].image, entry, aovs)
+    in_scene = relative_rms(source, image)
+    claimed = (entry.get("errors_8bit") or {}).get("relative_rms")
+    claimed_float = ((entry.get("errors") or {}).get("float") or {}).get("relative_rms")
+    run.claimed = {
+        "relative_rms_8bit": claimed,
+        "relative_rms_float": claimed_float,
+        "terms": entry.get("terms"),
+        "measured_relative_rms_rebuild_vs_source": in_scene,
+        "measured_relative_rms_atlas_vs_source": relative_rms(source, _only_material(run.atlas_image, entry, aovs)),
+        "measured_relative_rms_atlas_vs_rebuild": ref.metrics.linear_relative_rms,
+    }
+    if claimed is not None:
+        run.notes.append(
+            f"manifest claims relative RMS {claimed:.4f} (8-bit; f cos over uniform (l, v) pairs); in this scene the "
+            f"rebuild differs from the source BSDF by {in_scene:.4f} (radiance-weighted), and the GPU image from the "
+            f"rebuild by {ref.metrics.linear_relative_rms:.4f}"
+        )
+
+
+def _describe_model(entry) -> str:
+    if entry["type"] == "separable":
+        src = entry["params"].get("source")
+        return f"source BSDF ({src})" + (f": {entry['params'].get('bsdf')}" if src == "mitsuba" else "")
+    return f"{entry['type']} model, exact, in the renderer's equation"
+
+
+def register_references_for_variant(mi) -> None:
+    """atlasgen's Python plugins for the current variant (Mitsuba registers per variant)."""
+    from .mitsuba_scene import register_direct_integrator
+    from .physical import register_physical
+    from .references import register_references
+
+    register_references(mi)
+    register_physical(mi)
+    register_direct_integrator(mi)
+
+
+def _render_physical(mi, scene, entry, manifest, physical_spp, spp) -> ReferenceRender:
+    """The physical reference of ``entry`` on ``scene``. Objects of other materials keep
+    their model reference, or a diffuse stand-in where the integrator needs built-in
+    plugins only."""
+    from .mitsuba_scene import build_mitsuba_scene, render_mitsuba
+    from .physical import describe_physical, plane_stand_in
+    from .references import model_reference, physical_reference
+
+    _, extras = physical_reference(entry)
+    if extras.get("builtin_only"):
+        # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
+        # live instance, and NumPy cannot run on symbolic arrays.
+        gc.collect()
+    variant = extras.get("variant", "llvm_ad_rgb")
+    mi.set_variant(variant)
+    register_references_for_variant(mi)
+    bsdfs, interiors = [], []
+    for o, e in zip(scene.objects, _object_entries(scene, entry, manifest)):
+        mine = e["name"] == entry["name"]
+        if mine and not (o.shape == "plane" and "interior" in extras):
+            bsdf, ex = physical_reference(entry, o.albedo, o.gloss)
+            bsdfs.append(bsdf)
+            interiors.append(ex.get("interior"))
+        else:
+            # A medium needs a closed surface: an open plane keeps a diffuse stand-in, as
+            # do other materials' objects where only built-in plugins may run, or where
+            # the variant is spectral (the model references are RGB).
+            stand_in = extras.get("builtin_only") or "interior" in extras or variant != "llvm_ad_rgb"
+            bsdfs.append(plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss))
+            interiors.append(None)
+    n = physical_spp if extras.get("stochastic") else spp
+    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, extras.get("integrator"), interiors)
+    image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not extras.get("builtin_only", False))
+    del mi_scene
+    mi.set_variant("llvm_ad_rgb")
+    return ReferenceRender("physical", describe_physical(entry), image, seconds, n, variant)
+
+
+def write_validation(run: ValidationRun, out_dir) -> dict:
+    """Write ``index.html``, ``report.json``, the images and the plot, all-or-nothing."""
+    from ..atomic import write_files_atomically
+    from .report import build_report
+
+    out_dir = Path(out_dir)
+    files = build_report(run, out_dir)
+    write_files_atomically(files)
+    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files)}
+
+
+def speed_ratio(reference_seconds: float, atlas_seconds: float) -> float:
+    """How many times faster the atlas frame is than the reference render."""
+    return reference_seconds / atlas_seconds if atlas_seconds > 0 else math.inf

@@ -1,0 +1,33 @@
+"""``atlasgen render``: a thin click layer over :mod:`atlasgen.render`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from atlasgen.cli.main import fail_on_errors
+
+__all__ = ["render"]
+
+AOVS = ("normal", "depth", "id", "albedo")
+
+
+@click.command("render")
+@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--atlas", type=click.Path(path_type=Path, dir_okay=False), default=Path("build/atlas.dds"),
+              show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True,
+              help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip
+@click.option("--aov", type=click.Choice(AOVS), default=None,
+              help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip
+@click.option("--mip-bias", type=float, default=None, help="Added to the depth-chosen mip level (overrides the scene).")
+@click.option("--no-outlines", is_flag=True, help="Skip the toon-outline pass.")
+@fail_on_errors
+def render(scene, atlas, output, aov, mip_bias, no_outlines):
+    """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
+    from atlasgen.render import render_scene_file
+
+    written = render_scene_file(scene, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
+    for path in written:
+        click.echo(f"wrote {path.as_posix()}")

@@ -1,0 +1,45 @@
+"""``atlasgen report separable``: a thin layer over :func:`atlasgen.separable.report.write_separable_report`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from atlasgen.cli.main import fail_on_errors
+
+__all__ = ["report"]
+
+
+@click.group()
+def report():
+    """Measured reports on baked materials."""
+
+
+@report.command("separable")
+@click.argument("names", nargs=-1)
+@click.option("-m", "--materials", "materials_dir", type=click.Path(path_type=Path), default=Path("materials"),
+              show_default=True, help="Folder (or TOML file) of materials to pick from.")
+@click.option("--atlas", type=click.Path(path_type=Path), default=None,
+              help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).")
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report/separable"), show_default=True,
+              help="Folder for index.md, report.json and the PNG plots.")
+@click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True, help="Timing repeats (median).")
+@fail_on_errors
+def separable(names, materials_dir, atlas, output, repeats):
+    """Error against K, grid, 8 bits and time for separable MATERIAL names (default: all separable ones)."""
+    from atlasgen.errors import InputError
+    from atlasgen.material import read_materials
+    from atlasgen.separable.report import write_separable_report
+
+    files = [Path(n) for n in names if n.endswith(".toml")]
+    wanted = [n for n in names if not n.endswith(".toml")]
+    pool = read_materials([materials_dir]) if (wanted or not files) else []
+    chosen = [m for m in pool if not wanted or m.name in wanted]
+    missing = sorted(set(wanted) - {m.name for m in chosen})
+    if missing:
+        raise InputError(f"{materials_dir.as_posix()}: no material named {', '.join(missing)}")
+    if files:
+        chosen += read_materials(files)
+    written = write_separable_report(chosen, output, atlas, repeats=repeats)
+    click.echo(written["markdown"].as_posix())

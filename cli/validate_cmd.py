@@ -1,0 +1,63 @@
+"""``atlasgen validate``: a thin click layer over :mod:`atlasgen.validate`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from atlasgen.cli.main import fail_on_errors
+
+__all__ = ["validate"]
+
+
+def _resolution(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        w, h = (int(x) for x in value.lower().split("x"))
+    except ValueError:
+        raise click.BadParameter(f"expected WIDTHxHEIGHT, e.g. 128x96, got {value!r}") from None
+    if not (1 <= w <= 4096 and 1 <= h <= 4096):
+        raise click.BadParameter(f"expected sizes in [1, 4096], got {value!r}")
+    return w, h
+
+
+@click.command("validate")
+@click.argument("materials", nargs=-1)
+@click.option("--scene", "scenes", multiple=True, default=("front", "back"), show_default=True,
+              help="Validation scene: a standard name (front, back) or a scene TOML with material = \"$material\". Repeatable.")  # fmt: skip
+@click.option("--spp", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
+@click.option("--physical-spp", type=click.IntRange(min=1), default=64, show_default=True,
+              help="Samples per pixel for stochastic physical references (sss volpath).")  # fmt: skip
+@click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
+              help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
+@click.option("--no-physical", is_flag=True, help="Skip the physical references.")
+@click.option("--atlas", type=click.Path(path_type=Path, dir_okay=False), default=Path("build/atlas.dds"),
+              show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
+@click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
+              show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
+@click.option("-q", "--quiet", is_flag=True, help="Print only errors and the summary line.")
+@fail_on_errors
+def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, quiet):
+    """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
+
+    Each material is rendered on each validation scene by the bundled deferred
+    renderer through the atlas, and by Mitsuba 3 with its model reference (the exact
+    model the slice was baked from) and, where one exists, a physical reference.
+    Writes OUTPUT/index.html and OUTPUT/report.json (docs/validation.md).
+    """
+    from atlasgen.validate.run import validate_atlas, write_validation
+
+    def progress(text):
+        if not quiet:
+            click.echo(text, err=True)
+
+    run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
+                         resolution=resolution, physical=not no_physical, progress=progress)  # fmt: skip
+    written = write_validation(run, output)
+    model = [r.references["model"] for r in run.runs if r.type != "separable"]
+    met = sum(1 for ref in model if ref.metrics.psnr >= run.settings["goals"]["psnr_db"] and ref.metrics.flip <= run.settings["goals"]["flip"])
+    click.echo(f"{written['html'].as_posix()} ({len(run.runs)} material/scene results, "
+               f"{met}/{len(model)} LUT results meet the goals, {run.seconds:.1f} s)")  # fmt: skip

@@ -1,0 +1,108 @@
+"""``atlasgen render``: outputs, AOVs and one-line errors with their exit codes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.cli.main import app
+from atlasgen.material import read_materials
+
+SCENE = """
+[camera]
+position = [0, 0, 4]
+target = [0, 0, 0]
+[image]
+width = 40
+height = 30
+[[lights]]
+type = "directional"
+direction = [0, 0, -1]
+intensity = 3.14159265
+[[objects]]
+shape = "sphere"
+material = "{material}"
+"""
+
+
+@pytest.fixture
+def atlas(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
+    write_material("snow", 'type = "lambert"\nid = 9\n')
+    path = tmp_path / "build" / "atlas.dds"
+    path.parent.mkdir()
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), path)
+    return path
+
+
+def write_scene(tmp_path, text, name="scene.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def read_exr(path):
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(str(path))
+    return buf.get_pixels(oiio.FLOAT), buf.spec()
+
+
+@pytest.mark.gpu
+def test_render_writes_exr_png_and_aov(gpu_device, atlas, tmp_path):
+    scene = write_scene(tmp_path, SCENE.format(material="snow"))
+    out = tmp_path / "out.exr"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.exists() and out.with_suffix(".png").exists()
+    pixels, spec = read_exr(out)
+    assert spec.width == 40 and spec.height == 30
+    # Centre pixel: N.L = N.V = 1 on a white lambert with E = pi: radiance 1.
+    assert pixels[15, 20, 0] == pytest.approx(1.0, abs=0.01)
+    ids = tmp_path / "ids.exr"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(ids), "--aov", "id"])
+    assert res.exit_code == 0, res.output
+    pixels, spec = read_exr(ids)
+    assert list(spec.channelnames) == ["id"]
+    assert set(np.unique(pixels)) == {9.0, 65535.0}
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.parametrize(
+    "scene_text, words",
+    [
+        (SCENE.format(material="gold"), "unknown material 'gold'; expected one of the names in"),
+        (SCENE.format(material="clay").replace('shape = "sphere"', 'shape = "mesh"\nfile = "nope.obj"'), "no such mesh file"),
+        (SCENE.format(material="clay") + "[[lights]]\ntype = 'point'\nposition = [0, 0, 1]\nintensity = 1\n" * 1025,
+         "expected at most 1024"),
+    ],
+)
+def test_bad_scenes_fail_with_one_line(atlas, tmp_path, scene_text, words):
+    scene = write_scene(tmp_path, scene_text)
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "o.exr")])
+    assert res.exit_code == 3
+    assert res.stderr.count("\n") == 1 and words in res.stderr
+    assert res.stderr.startswith(f"atlasgen: error: {scene.as_posix()}: field '")
+    if "unknown material" in words:
+        assert "clay, snow" in res.stderr
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_no_adapter(atlas, tmp_path, monkeypatch):
+    wgpu = pytest.importorskip("wgpu")
+    from atlasgen.render import device
+
+    monkeypatch.setattr(device, "_shared", None)
+    monkeypatch.setattr(wgpu.gpu, "request_adapter_sync", lambda **kwargs: None)
+    scene = write_scene(tmp_path, SCENE.format(material="clay"))
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "o.exr")])
+    assert res.exit_code == 5
+    assert "apt-get install mesa-vulkan-drivers" in res.stderr and res.stderr.count("\n") == 1
+
+
+def test_missing_atlas(tmp_path):
+    scene = write_scene(tmp_path, SCENE.format(material="clay"))
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(tmp_path / "x.dds"), "-o", str(tmp_path / "o.exr")])
+    assert res.exit_code == 3 and "no such atlas" in res.stderr

@@ -1,0 +1,138 @@
+"""A small hand-made atlas for the renderer tests, and a numpy reference of the lighting.
+
+The atlas is built from closed forms (not by the bake), so what the GPU must return
+is known independently: each slice's 8-bit texels are decoded here with the sRGB
+formula and filtered bilinearly with the contract's texel-centre mapping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
+from atlasgen.include import render_include
+from atlasgen.mips import build_array_mips
+from atlasgen.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.render.atlas_texture import RenderAtlas
+
+LAMBERT, GLOSSY, TOON, MIPS, PLAIN = 0, 1, 2, 3, 4
+#: Constant linear grey of each mip level of the ``mips`` slice (levels differ on purpose).
+MIP_GREYS = np.array([0.9, 0.6, 0.35, 0.2, 0.1, 0.05, 0.02])
+GLOSSY_SCALE = (2.0, 1.5)  # rgb, alpha: exercises the include's per-slice scale
+
+
+def glossy_values(nl, nv):
+    """A slice with colour, N.V dependence and a Fresnel-like specular scale (linear, pre-scale)."""
+    rgb = np.maximum(nl, 0.0)[..., None] * np.array([1.6, 0.9, 0.3]) * (0.6 + 0.4 * nv)[..., None]
+    alpha = 0.3 + 1.2 * (1.0 - nv) ** 5
+    return np.concatenate([rgb, alpha[..., None]], -1)
+
+
+def build_fixture_atlas() -> RenderAtlas:
+    nl, nv = texel_grid()
+    values = np.zeros((LAYERS, HEIGHT, WIDTH, 4))
+    values[LAMBERT, ..., :3] = np.maximum(nl, 0.0)[..., None]
+    values[GLOSSY] = glossy_values(nl, nv)
+    toon = np.where(nl > 0.3, 0.9, 0.25) * np.where(nv > 0.2, 1.0, 0.4)
+    values[TOON, ..., :3] = toon[..., None]
+    values[PLAIN, ..., :3] = np.maximum(nl, 0.0)[..., None] * np.array([0.8, 0.7, 0.6])
+    scales = np.ones((LAYERS, 2))
+    scales[GLOSSY] = GLOSSY_SCALE
+    stored = values / np.concatenate([np.repeat(scales[:, :1], 3, 1), scales[:, 1:]], 1)[:, None, None, :]
+    float_levels = build_array_mips(np.clip(stored, 0.0, 1.0))
+    for k, grey in enumerate(MIP_GREYS):
+        float_levels[k][MIPS, ..., :3] = grey
+        float_levels[k][MIPS, ..., 3] = 0.0
+    levels = [quantize_rgba(lv, True) for lv in float_levels]
+    entries = []
+    for name, slot, outline in (("lambert", LAMBERT, False), ("glossy", GLOSSY, False), ("toon", TOON, True),
+                                ("mips", MIPS, False), ("plain", PLAIN, False)):  # fmt: skip
+        entries.append({
+            "name": name, "id": slot, "constant": f"MATERIAL_{name.upper()}", "first_slice": slot, "slice_count": 1,
+            "type": "lambert", "flags": {"outline": outline},
+            "scale": [list(scales[slot])], "bias": [[0.0, 0.0]],
+        })  # fmt: skip
+    manifest = {
+        "format_version": 1, "encoding": "srgb", "layout": "array",
+        "dimensions": {"width": WIDTH, "height": HEIGHT, "layers": LAYERS, "mip_count": len(levels)},
+        "materials": entries,
+    }  # fmt: skip
+    include = render_include(manifest, scales, np.zeros((LAYERS, 2)))
+    return RenderAtlas(levels, True, manifest, include, "fixture-atlas")
+
+
+def decoded_slice(atlas: RenderAtlas, slot: int, level: int = 0) -> np.ndarray:
+    """Linear RGBA of one slice as the sampler returns it, with the slice's scale applied."""
+    rgba = dequantize_rgba(atlas.levels[level][slot], atlas.srgb)
+    entry = next(m for m in atlas.manifest["materials"] if m["first_slice"] == slot)
+    scale = entry["scale"][0]
+    rgba[..., :3] *= scale[0]
+    rgba[..., 3] *= scale[1]
+    return rgba
+
+
+def sample_bilinear(table: np.ndarray, n_dot_l, n_dot_v) -> np.ndarray:
+    """Bilinear lookup with clamp-to-edge at the contract's (u, v); ``table`` is (H, W, C)."""
+    h, w = table.shape[:2]
+    u, v = atlas_uv(n_dot_l, n_dot_v, w, h)
+    x = np.clip(u * w - 0.5, 0.0, w - 1.0)
+    y = np.clip(v * h - 0.5, 0.0, h - 1.0)
+    x0 = np.minimum(np.floor(x).astype(int), w - 2)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    t = table
+    return ((t[y0, x0] * (1 - fx) + t[y0, x0 + 1] * fx) * (1 - fy)
+            + (t[y0 + 1, x0] * (1 - fx) + t[y0 + 1, x0 + 1] * fx) * fy)  # fmt: skip
+
+
+def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.ndarray:
+    """The lighting equation evaluated in float64 numpy from the g-buffer read back.
+
+    L = sum_lights E (albedo A.rgb / pi + A.a k(s) max(N.H, 0)^s max(N.L, 0)),
+    k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))),
+    E = I / d^2 (point) or E (directional), s = 2^(1 + 12 gloss), A bilinear at lod 0.
+    """
+    n = aovs["normal"].astype(np.float64)
+    depth = aovs["depth"].astype(np.float64)
+    ids = aovs["id"]
+    albedo = aovs["albedo"].astype(np.float64)
+    gloss = aovs["gloss"].astype(np.float64)
+    covered = ids != 0xFFFF
+    world = np.asarray(scene.camera.position) + rays * np.where(covered, depth, 0.0)[..., None]
+    v = -rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    n_dot_v = np.sum(n * v, -1)
+    out = np.zeros(n.shape)
+    s = np.exp2(1.0 + 12.0 * gloss)
+    for slot in np.unique(ids[covered]):
+        table = decoded_slice(atlas, int(slot))
+        mask = ids == slot
+        for light in scene.lights:
+            if light.type == "point":
+                d = np.asarray(light.position) - world
+                d2 = np.sum(d * d, -1)
+                l = d / np.sqrt(d2)[..., None]
+                e = np.asarray(light.colour) * light.intensity / d2[..., None]
+            else:
+                l = np.broadcast_to(-np.asarray(light.direction), n.shape)
+                e = np.asarray(light.colour) * light.intensity
+            n_dot_l = np.sum(n * l, -1)
+            a = sample_bilinear(table, n_dot_l, n_dot_v)
+            h = l + v
+            h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+            n_dot_h = np.maximum(np.sum(n * h, -1), 0.0)
+            spec = np.where(n_dot_l > 0, (s + 2) * (s + 4) / (8 * np.pi * (s + np.exp2(-s / 2))) * n_dot_h**s * np.maximum(n_dot_l, 0.0), 0.0)
+            contrib = e * (albedo * a[..., :3] / np.pi + (a[..., 3] * spec * specular)[..., None])
+            out[mask] += contrib[mask]
+    out[~covered] = scene.background
+    return out
+
+
+def interior(ids: np.ndarray, margin: int = 1) -> np.ndarray:
+    """Covered pixels whose (2 margin + 1)^2 neighbourhood has one material only (no silhouettes)."""
+    h, w = ids.shape
+    pad = np.pad(ids, margin, mode="edge")
+    same = np.ones_like(ids, dtype=bool)
+    for dy in range(-margin, margin + 1):
+        for dx in range(-margin, margin + 1):
+            same &= pad[margin + dy : margin + dy + h, margin + dx : margin + dx + w] == ids
+    return same & (ids != 0xFFFF)

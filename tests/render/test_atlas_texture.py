@@ -1,0 +1,57 @@
+"""Reading a baked atlas for the renderer: DDS, manifest and include must all be there."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.errors import InputError
+from atlasgen.material import read_materials
+from atlasgen.render.atlas_texture import RenderAtlas, read_render_atlas
+from atlasgen.srgb import decode_srgb
+
+
+@pytest.fixture
+def baked(tmp_path, write_material):
+    write_material("white", 'type = "lambert"\n')
+    write_material("warm", 'type = "lambert"\nid = 7\ncolour = [0.9, 0.4, 0.1]\n')
+
+    def bake(layout="array"):
+        out = tmp_path / f"atlas-{layout}.dds"
+        write_bake(bake_atlas(read_materials([tmp_path / "materials"]), layout=layout), out)
+        return out
+
+    return bake
+
+
+def test_reads_levels_manifest_and_include(baked):
+    atlas = read_render_atlas(baked())
+    assert atlas.srgb and len(atlas.levels) == 7
+    assert atlas.levels[0].shape == (256, 32, 64, 4) and atlas.levels[6].shape == (256, 1, 1, 4)
+    assert atlas.material_names == ["warm", "white"]
+    assert "fn atlas_sample(" in atlas.include and "MATERIAL_WARM: u32 = 7u" in atlas.include
+    # Slice 7 holds the warm colour's cosine ramp, sRGB-encoded: at N.L = 1 it is the colour.
+    np.testing.assert_allclose(decode_srgb(atlas.levels[0][7, -1, -1, :3] / 255), [0.9, 0.4, 0.1], atol=4e-3)
+
+
+def test_missing_pieces(baked):
+    path = baked()
+    path.with_suffix(".wgsl").unlink()
+    with pytest.raises(InputError, match="no shader include"):
+        read_render_atlas(path)
+    path.with_suffix(".json").unlink()
+    with pytest.raises(InputError, match="no manifest"):
+        read_render_atlas(path)
+    with pytest.raises(InputError, match="no such atlas"):
+        read_render_atlas(path.with_name("other.dds"))
+
+
+def test_volume_atlas_is_refused(baked):
+    with pytest.raises(InputError, match="2D-array atlas"):
+        read_render_atlas(baked("volume"))
+
+
+def test_levels_must_be_uint8_rgba():
+    with pytest.raises(InputError, match="uint8"):
+        RenderAtlas([np.zeros((1, 2, 2, 4), dtype=np.float32)], True, {}, "")

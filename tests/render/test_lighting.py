@@ -1,0 +1,173 @@
+"""The deferred lighting pass against an independent numpy evaluation of its equation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.render.camera import pixel_rays
+from atlasgen.render.lighting import pack_lights, specular_exponent, specular_normalisation
+from atlasgen.render.scene import Light
+from atlasgen.srgb import decode_srgb
+
+from render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
+
+pytestmark = pytest.mark.gpu
+
+SPHERE = """
+[camera]
+position = [0.3, 0.4, 3.5]
+target = [0, 0, 0]
+fov = 45
+[image]
+width = 64
+height = 48
+background = [0.02, 0.03, 0.04]
+[render]
+mip_distance = 100.0
+{lights}
+[[objects]]
+shape = "sphere"
+material = "{material}"
+albedo = [0.7, 0.5, 0.9]
+gloss = {gloss}
+segments = 96
+"""
+
+LIGHTS = """
+[[lights]]
+type = "point"
+position = [2.0, 2.0, 2.0]
+colour = [1.0, 0.8, 0.6]
+intensity = 6.0
+[[lights]]
+type = "point"
+position = [-2.5, 0.5, 1.0]
+colour = [0.3, 0.6, 1.0]
+intensity = 4.0
+[[lights]]
+type = "point"
+position = [0.0, -2.0, 2.5]
+intensity = 3.0
+[[lights]]
+type = "directional"
+direction = [0.5, -0.3, -1.0]
+colour = [1.0, 1.0, 0.9]
+intensity = 1.5
+"""
+
+
+def relative_error(got, ref):
+    floor = 1e-3 * np.abs(ref).max()
+    return np.abs(got - ref) / np.maximum(np.abs(ref), floor)
+
+
+@pytest.mark.parametrize("material, gloss", [("glossy", 0.3), ("glossy", 0.6), ("plain", 0.5)])
+def test_shading_equation_matches_numpy(renderer, fixture_atlas, scene_from, no_gpu_errors, material, gloss):
+    scene = scene_from(SPHERE.format(lights=LIGHTS, material=material, gloss=gloss))
+    result = renderer.render(scene, outlines=False)
+    rays = pixel_rays(scene.camera, scene.width, scene.height)
+    ref = reference_radiance(fixture_atlas, scene, result.aovs, rays)
+    inside = interior(result.aov("id"))
+    assert inside.sum() > 0.3 * inside.size
+    err = relative_error(result.radiance[inside], ref[inside])
+    assert err.max() < 1e-2, f"worst relative error {err.max():.4f}"
+    background = result.aov("id") == 0xFFFF
+    assert np.allclose(result.radiance[background], scene.background, atol=1e-3)
+    if material == "glossy":
+        # The comparison can fail: without the specular term the reference no longer matches.
+        diffuse_only = reference_radiance(fixture_atlas, scene, result.aovs, rays, specular=False)
+        assert relative_error(result.radiance[inside], diffuse_only[inside]).max() > 0.1
+
+
+def test_lambert_slice_reproduces_cosine_at_texel_centres(renderer, scene_from, no_gpu_errors):
+    # E = pi and albedo 1 make the radiance equal to the slice value A.rgb = max(N.L, 0).
+    lights = '[[lights]]\ntype = "directional"\ndirection = [-0.8, -0.1, -0.5]\nintensity = 3.141592653589793\n'
+    scene = scene_from(SPHERE.format(lights=lights, material="lambert", gloss=0.5).replace("[0.7, 0.5, 0.9]", "[1, 1, 1]"))
+    result = renderer.render(scene, outlines=False)
+    inside = interior(result.aov("id"))
+    l = -np.asarray(scene.lights[0].direction)
+    n_dot_l = np.clip(result.aov("normal") @ l, -1, 1)
+    expected = np.maximum(n_dot_l, 0.0)
+    # Half an 8-bit sRGB step at the top of the range, plus half-float output rounding.
+    quantization = (decode_srgb(1.0) - decode_srgb(254 / 255)) / 2 + 1e-3
+    away_from_kink = inside & (np.abs(n_dot_l) > 2.0 / 63)
+    got = result.radiance[..., 0]
+    assert np.abs(got - expected)[away_from_kink].max() < quantization
+    assert (n_dot_l[inside] < -0.3).any() and (n_dot_l[inside] > 0.9).any()
+    # A lookup half a texel off (u = (N.L + 1) / 2, no texel-centre offset) is caught.
+    shifted = np.maximum(-1.0 + 2.0 * ((n_dot_l + 1) / 2 * 64 - 0.5) / 63, 0.0)
+    assert np.abs(got - shifted)[away_from_kink & (n_dot_l > 0)].max() > quantization
+
+
+def test_sixty_four_lights_add_linearly(renderer, scene_from, no_gpu_errors):
+    one = '[[lights]]\ntype = "directional"\ndirection = [0.2, -0.5, -1]\nintensity = 6.4\n'
+    many = "".join(
+        f'[[lights]]\ntype = "directional"\ndirection = [0.2, -0.5, -1]\nintensity = {6.4 / 64!r}\n' for _ in range(64)
+    )
+    single = renderer.render(scene_from(SPHERE.format(lights=one, material="glossy", gloss=0.4)), outlines=False)
+    summed = renderer.render(scene_from(SPHERE.format(lights=many, material="glossy", gloss=0.4)), outlines=False)
+    assert single.radiance.max() > 0.5
+    np.testing.assert_allclose(summed.radiance, single.radiance, rtol=2e-3, atol=2e-3)
+
+
+def test_mip_bias_changes_the_level(renderer, scene_from, no_gpu_errors):
+    # The "mips" slice is a constant grey per level, different at every level.
+    lights = '[[lights]]\ntype = "directional"\ndirection = [0, 0, -1]\nintensity = 3.141592653589793\n'
+    text = SPHERE.format(lights=lights, material="mips", gloss=0.5).replace("[0.7, 0.5, 0.9]", "[1, 1, 1]")
+    scene = scene_from(text)
+    inside = interior(renderer.render(scene, outlines=False).aov("id"))
+    greys = np.array([decoded_slice(renderer.atlas, MIPS, k)[0, 0, 1] for k in range(len(MIP_GREYS))])
+    assert np.abs(greys - MIP_GREYS).max() < 0.01
+    seen = {}
+    for bias in (-1.0, 0.0, 1.0, 1.5, 2.0, 6.0, 9.0):
+        value = renderer.render(scene, mip_bias=bias, outlines=False).radiance[..., 1][inside]
+        assert np.ptp(value) < 2e-3, "depth below mip_distance: one level everywhere"
+        lod = min(max(bias, 0.0), len(MIP_GREYS) - 1)
+        k = int(np.floor(lod))
+        t = lod - k
+        expected = greys[k] * (1 - t) + greys[min(k + 1, len(greys) - 1)] * t
+        assert value.mean() == pytest.approx(expected, abs=2e-3)
+        seen[bias] = value.mean()
+    assert seen[0.0] != pytest.approx(seen[2.0], abs=0.05)
+    # Depth beyond mip_distance raises the level by log2(depth / mip_distance).
+    far = scene_from(text.replace("mip_distance = 100.0", "mip_distance = 0.8125"))
+    result = renderer.render(far, outlines=False)
+    lod = np.clip(np.log2(np.maximum(result.aov("depth"), 0.8125) / 0.8125), 0, 6)
+    k = np.floor(lod).astype(int)
+    t = lod - k
+    expected = greys[k] * (1 - t) + greys[np.minimum(k + 1, 6)] * t
+    np.testing.assert_allclose(result.radiance[..., 1][inside], expected[inside], atol=3e-3)
+
+
+def test_pack_lights_layout():
+    lights = [Light("point", (1.0, 0.5, 0.25), 4.0, position=(1.0, 2.0, 3.0)),
+              Light("directional", (1.0, 1.0, 1.0), 2.0, direction=(0.0, -1.0, 0.0))]  # fmt: skip
+    data = np.frombuffer(pack_lights(lights), dtype=np.float32).reshape(2, 8)
+    np.testing.assert_array_equal(data[0], [1, 2, 3, 1, 4, 2, 1, 0])
+    np.testing.assert_array_equal(data[1], [0, -1, 0, 0, 2, 2, 2, 0])
+    assert len(pack_lights([])) == 32  # never a zero-size buffer
+
+
+def test_specular_lobe_is_energy_normalised():
+    # Directional albedo of k(s) (N.H)^s cos(theta_l), integrated numerically over the
+    # hemisphere of l: exactly 1 at normal view, below 1 at oblique views.
+    for gloss in (0.0, 0.2, 0.4):
+        s = float(specular_exponent(gloss))
+        k = float(specular_normalisation(s))
+        albedos = []
+        for view_angle in (0.0, 30.0, 60.0, 85.0):
+            t = np.radians(view_angle)
+            v = np.array([np.sin(t), 0.0, np.cos(t)])
+            theta = (np.arange(400) + 0.5) / 400 * np.pi / 2
+            phi = (np.arange(400) + 0.5) / 400 * 2 * np.pi
+            th, ph = np.meshgrid(theta, phi, indexing="ij")
+            l = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
+            h = l + v
+            h /= np.linalg.norm(h, axis=-1, keepdims=True)
+            f = k * np.maximum(h[..., 2], 0) ** s * l[..., 2] * np.sin(th)
+            albedos.append(f.sum() * (np.pi / 2 / 400) * (2 * np.pi / 400))
+        assert albedos[0] == pytest.approx(1.0, abs=2e-3)
+        assert all(a < 1.0 for a in albedos[1:])
+    # The (s + 8) / (8 pi) approximation it replaces overshoots for small s.
+    assert 10 / (8 * np.pi) > specular_normalisation(2.0)

@@ -1,0 +1,75 @@
+"""Toon outlines from g-buffer depth and normal discontinuities, for flagged materials only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.gpu
+
+SCENE = """
+[camera]
+position = [0, 0, 4]
+target = [0, 0, 0]
+fov = 40
+[image]
+width = 80
+height = 64
+[render]
+mip_distance = 100.0
+outline_colour = [0.0, 100.0, 0.0]
+[[lights]]
+type = "directional"
+direction = [0.3, -0.4, -1]
+intensity = 3.0
+[[objects]]
+shape = "{shape}"
+material = "{material}"
+segments = 128
+rotate = [30, 40, 0]
+"""
+
+
+def outline_pixels(result):
+    # The outline colour (green 100) cannot come out of the lighting of this scene.
+    return result.radiance[..., 1] > 50.0
+
+
+def distance_to_silhouette(covered: np.ndarray) -> np.ndarray:
+    """City-block distance of each covered pixel to the nearest empty pixel (4-neighbour steps)."""
+    from scipy.ndimage import distance_transform_cdt
+
+    return distance_transform_cdt(covered, metric="taxicab")
+
+
+def test_outline_follows_sphere_silhouette_and_nothing_inside(renderer, scene_from, no_gpu_errors):
+    result = renderer.render(scene_from(SCENE.format(shape="sphere", material="toon")))
+    covered = result.aov("id") != 0xFFFF
+    outline = outline_pixels(result)
+    dist = distance_to_silhouette(covered)
+    silhouette = covered & (dist == 1)
+    assert outline[silhouette].mean() > 0.95
+    assert not (outline & (dist > 2)).any(), "outline pixels inside the smooth sphere"
+    # Empty pixels touching the sphere are outlined too; empty pixels farther away are not.
+    outside = distance_to_silhouette(~covered)
+    assert not (outline & ~covered & (outside > 1)).any()
+
+
+def test_outline_marks_box_creases(renderer, scene_from, no_gpu_errors):
+    result = renderer.render(scene_from(SCENE.format(shape="box", material="toon").replace("segments = 128\n", "")))
+    covered = result.aov("id") != 0xFFFF
+    outline = outline_pixels(result)
+    dist = distance_to_silhouette(covered)
+    # Some interior pixels (the crease between two visible faces) are outlined.
+    assert (outline & (dist > 3)).any()
+
+
+@pytest.mark.parametrize("material", ["lambert", "glossy"])
+def test_no_outline_for_materials_that_do_not_ask(renderer, scene_from, no_gpu_errors, material):
+    result = renderer.render(scene_from(SCENE.format(shape="sphere", material=material)))
+    assert not outline_pixels(result).any()
+
+
+def test_outlines_can_be_switched_off(renderer, scene_from, no_gpu_errors):
+    result = renderer.render(scene_from(SCENE.format(shape="sphere", material="toon")), outlines=False)
+    assert not outline_pixels(result).any()

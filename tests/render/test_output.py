@@ -1,0 +1,54 @@
+"""EXR and PNG output through OpenImageIO, read back independently."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import OutputError
+from atlasgen.render.output import tone_map, write_aov, write_exr, write_png
+from atlasgen.srgb import encode_srgb
+
+
+def read(path):
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(str(path))
+    return buf.get_pixels(oiio.FLOAT if str(path).endswith(".exr") else oiio.UINT8), buf.spec()
+
+
+def test_exr_round_trips_linear_floats(tmp_path):
+    rng = np.random.default_rng(1)
+    radiance = (rng.random((5, 7, 3)) * 40).astype(np.float32)
+    write_exr(tmp_path / "a.exr", radiance)
+    pixels, spec = read(tmp_path / "a.exr")
+    np.testing.assert_array_equal(pixels, radiance)
+    assert list(spec.channelnames) == ["R", "G", "B"]
+
+
+def test_png_is_aces_then_srgb(tmp_path):
+    values = np.array([[[0.0, 0.18, 1.0], [4.0, 100.0, -1.0]]], dtype=np.float32)
+    write_png(tmp_path / "a.png", values, exposure=2.0)
+    pixels, _ = read(tmp_path / "a.png")
+    x = np.maximum(values.astype(np.float64) * 2.0, 0)
+    aces = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0, 1)
+    np.testing.assert_array_equal(pixels, np.rint(encode_srgb(aces) * 255).astype(np.uint8))
+    assert pixels[0, 0, 0] == 0 and pixels[0, 1, 1] == 255
+    # Monotone and never NaN.
+    ramp = tone_map(np.linspace(0, 50, 200)[None, :, None].repeat(3, 2))
+    assert (np.diff(ramp[0, :, 0].astype(int)) >= 0).all()
+    assert tone_map(np.full((1, 1, 3), np.nan)).tolist() == [[[0, 0, 0]]]
+
+
+@pytest.mark.parametrize("name, channels", [("normal", 3), ("albedo", 3), ("depth", 1), ("id", 1)])
+def test_aov_exr(tmp_path, name, channels):
+    value = np.arange(12, dtype=np.float32).reshape(2, 2, 3) if channels == 3 else np.array([[1.0, np.inf], [3.0, 4.0]])
+    write_aov(tmp_path / f"{name}.exr", name, value)
+    pixels, spec = read(tmp_path / f"{name}.exr")
+    assert spec.nchannels == channels
+    np.testing.assert_array_equal(pixels.reshape(value.shape), value)
+
+
+def test_unwritable_output(tmp_path):
+    with pytest.raises(OutputError, match="does not exist"):
+        write_exr(tmp_path / "missing" / "a.exr", np.zeros((2, 2, 3)))

@@ -1,0 +1,126 @@
+"""The frame as a whole: g-buffer contents against ray-traced geometry, degenerate input, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import SceneError
+from atlasgen.render.camera import pixel_rays
+from atlasgen.render.renderer import pack_frame
+
+pytestmark = pytest.mark.gpu
+
+SCENE = """
+[camera]
+position = [0.5, 1.0, 4.0]
+target = [0, 0, 0]
+fov = 45
+[image]
+width = 72
+height = 56
+[render]
+mip_distance = 100.0
+[[lights]]
+type = "point"
+position = [1, 3, 3]
+intensity = 10
+"""
+
+
+def ray_sphere_depth(eye, rays, centre, radius):
+    """View depth of the nearest ray-sphere hit (rays have unit forward component), inf if none."""
+    d = rays
+    oc = np.asarray(eye) - np.asarray(centre)
+    a = np.sum(d * d, -1)
+    b = 2 * np.sum(d * oc, -1)
+    c = oc @ oc - radius**2
+    disc = b * b - 4 * a * c
+    t = (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a)
+    return np.where(disc > 0, t, np.inf)
+
+
+def test_gbuffer_matches_ray_traced_sphere(renderer, scene_from, no_gpu_errors):
+    scene = scene_from(SCENE + """
+[[objects]]
+shape = "sphere"
+material = "glossy"
+translate = [0.2, -0.1, 0.3]
+scale = 1.1
+albedo = [0.25, 0.5, 0.75]
+gloss = 0.8
+segments = 256
+""")
+    result = renderer.render(scene)
+    rays = pixel_rays(scene.camera, scene.width, scene.height)
+    depth = ray_sphere_depth(scene.camera.position, rays, (0.2, -0.1, 0.3), 1.1)
+    ids = result.aov("id")
+    # Coverage equals the analytic disc except along its rim (tessellation, sampling).
+    from render.atlas_fixture import interior
+
+    inside = interior(ids, margin=2)
+    assert (np.isfinite(depth) == (ids != 0xFFFF)).mean() > 0.97
+    assert np.isfinite(depth[inside]).all()
+    np.testing.assert_allclose(result.aov("depth")[inside], depth[inside], rtol=2e-3)
+    hit = np.asarray(scene.camera.position) + rays * depth[..., None]
+    normal = (hit - [0.2, -0.1, 0.3]) / 1.1
+    cos = np.sum(result.aov("normal")[inside] * normal[inside], -1)
+    assert cos.min() > 0.9995
+    np.testing.assert_allclose(result.aov("albedo")[inside], np.broadcast_to([0.25, 0.5, 0.75], (inside.sum(), 3)), atol=1e-3)
+    assert np.allclose(result.aov("gloss")[inside], 0.8, atol=1e-3)
+    assert set(np.unique(ids)) == {1, 0xFFFF}
+    assert np.isinf(result.aov("depth")[ids == 0xFFFF]).all()
+
+
+def test_degenerate_meshes_give_no_nan(renderer, scene_from, tmp_path, no_gpu_errors):
+    # Zero-area triangles (repeated and collinear vertices) and all-zero normals.
+    lines = ["v -1 -1 0", "v 1 -1 0", "v -1 1 0", "v 1 1 0", "v 0 0 0", "v 0.5 0.5 0", "v 2 2 0", "vn 0 0 0"]
+    faces = ["f 1//1 2//1 3//1", "f 3//1 2//1 4//1", "f 5//1 5//1 5//1", "f 5//1 6//1 7//1", "f 1//1 1//1 2//1"]
+    (tmp_path / "degenerate.obj").write_text("\n".join(lines + faces) + "\n")
+    scene = scene_from(SCENE + """
+[[objects]]
+shape = "mesh"
+file = "degenerate.obj"
+material = "glossy"
+[[objects]]
+shape = "sphere"
+material = "lambert"
+segments = 3
+translate = [1.5, 0, 0]
+scale = 0.4
+opacity = 0.5
+""", base=tmp_path)
+    result = renderer.render(scene)
+    assert np.isfinite(result.radiance).all()
+    covered = result.aov("id") != 0xFFFF
+    assert covered.sum() > 100
+    normals = result.aov("normal")[covered]
+    assert np.isfinite(normals).all()
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=-1), 1.0, atol=1e-3)
+    # The quad's fallback (face) normal faces the camera.
+    quad = result.aov("id") == 1
+    assert (result.aov("normal")[quad][:, 2] > 0.99).all()
+    assert result.radiance[quad].max() > 0
+
+
+def test_unknown_material_is_a_scene_error(renderer, scene_from):
+    scene = scene_from(SCENE + "[[objects]]\nshape = 'sphere'\nmaterial = 'unobtainium'\n", path="s.toml")
+    with pytest.raises(SceneError) as info:
+        renderer.render(scene)
+    assert "glossy, lambert, mips, plain, toon" in str(info.value)
+
+
+def test_empty_scene_is_background(renderer, scene_from, no_gpu_errors):
+    scene = scene_from(SCENE.replace("[render]", "[render]\n") + "")
+    result = renderer.render(scene)
+    assert (result.radiance == 0).all() and (result.aov("id") == 0xFFFF).all()
+
+
+def test_frame_uniform_layout(scene_from):
+    data = np.frombuffer(pack_frame(scene_from(SCENE), 7, mip_bias=1.25), dtype=np.float32)
+    assert data.size == 56
+    assert data[16:19].tolist() == [0.5, 1.0, 4.0]  # eye
+    assert data[32:36].tolist() == [72, 56, np.float32(1 / 72), np.float32(1 / 56)]  # viewport
+    assert data[40:43].tolist() == [1.25, 100.0, 6.0]  # bias, mip distance, last level
+    assert np.frombuffer(data[44:48].tobytes(), dtype=np.uint32).tolist() == [1, 0, 0, 0]  # one light
+    assert data[52] == np.float32(0.05)  # outline depth threshold

@@ -1,0 +1,131 @@
+"""The TOML scene format: defaults, validation messages, material resolution, transforms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atlasgen.errors import InputError, SceneError
+from atlasgen.render.scene import MAX_LIGHTS, SceneObject, object_matrix, read_scene, resolve_materials
+
+MINIMAL = """
+[camera]
+position = [0, 0, 5]
+target = [0, 0, 0]
+"""
+
+
+def test_defaults(scene_from):
+    scene = scene_from(MINIMAL)
+    assert (scene.width, scene.height) == (640, 360)
+    assert scene.camera.fov == 40.0 and scene.camera.up == (0.0, 1.0, 0.0)
+    assert scene.lights == [] and scene.objects == []
+    assert scene.settings.mip_bias == 0.0
+
+
+def test_full_scene(scene_from, tmp_path):
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = scene_from(MINIMAL + """
+[image]
+width = 32
+height = 16
+[[lights]]
+type = "point"
+position = [1, 2, 3]
+colour = [1, 0.5, 0]
+intensity = 7
+[[lights]]
+type = "directional"
+direction = [0, -2, 0]
+intensity = 1.5
+[[objects]]
+shape = "mesh"
+file = "m.obj"
+material = "gold"
+scale = 2
+opacity = 0.25
+""", base=tmp_path)
+    point, sun = scene.lights
+    assert point.position == (1.0, 2.0, 3.0) and point.intensity == 7.0 and point.colour == (1.0, 0.5, 0.0)
+    assert sun.direction == (0.0, -1.0, 0.0)  # normalised
+    obj = scene.objects[0]
+    assert obj.file == tmp_path / "m.obj" and obj.scale == (2.0, 2.0, 2.0) and obj.translucent
+
+
+@pytest.mark.parametrize(
+    "extra, field, words",
+    [
+        ("[[objects]]\nshape = 'cone'\nmaterial = 'a'\n", "objects[0].shape", "one of sphere"),
+        ("[[objects]]\nshape = 'sphere'\n", "objects[0].material", "material name"),
+        ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\nopacity = 1.5\n", "objects[0].opacity", "<= 1"),
+        ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\nscale = [1, 0, 1]\n", "objects[0].scale", "non-zero"),
+        ("[[objects]]\nshape = 'mesh'\nmaterial = 'a'\nfile = 'nope.ply'\n", "objects[0].file", "no such mesh file"),
+        ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ncolour = [1, 1, 1]\n", "objects[0].colour", "unknown key"),
+        ("[[lights]]\ntype = 'spot'\nintensity = 1\n", "lights[0].type", "'point' or 'directional'"),
+        ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
+        ("[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, 0]\n", "lights[0].direction", "not all zero"),
+        ("[image]\nwidth = 0\n", "image.width", "integer in [1, 8192]"),
+        ("[render]\nmip_distance = 0\n", "render.mip_distance", "> 0"),
+    ],
+)
+def test_bad_fields_name_file_field_and_expectation(scene_from, extra, field, words):
+    with pytest.raises(SceneError) as info:
+        scene_from(MINIMAL + extra, path="scenes/x.toml")
+    message = str(info.value)
+    assert message.startswith(f"scenes/x.toml: field '{field}'")
+    assert words in message and "\n" not in message
+
+
+def test_camera_must_not_look_along_up(scene_from):
+    with pytest.raises(SceneError, match="camera.up"):
+        scene_from("[camera]\nposition = [0, 5, 0]\ntarget = [0, 0, 0]\n")
+
+
+def test_too_many_lights(scene_from):
+    lights = "[[lights]]\ntype = 'directional'\ndirection = [0, -1, 0]\nintensity = 1\n" * (MAX_LIGHTS + 1)
+    with pytest.raises(SceneError, match=f"expected at most {MAX_LIGHTS}"):
+        scene_from(MINIMAL + lights)
+    assert len(scene_from(MINIMAL + lights.replace("[[lights]]", "[[x]]", 1).split("[[x]]")[0]).lights) == 0
+
+
+def test_read_scene_errors(tmp_path):
+    with pytest.raises(InputError, match="no such scene file"):
+        read_scene(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[camera\n")
+    with pytest.raises(SceneError, match="malformed TOML"):
+        read_scene(bad)
+
+
+def test_unknown_material_lists_known_names(scene_from):
+    scene = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'golld'\n", path="s.toml")
+    manifest = {"materials": [{"name": "gold", "first_slice": 3}, {"name": "skin", "first_slice": 4}]}
+    with pytest.raises(SceneError) as info:
+        resolve_materials(scene, manifest, "build/atlas.dds")
+    assert "objects[0].material" in str(info.value) and "'golld'" in str(info.value)
+    assert "gold, skin" in str(info.value)
+    ok = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'skin'\n")
+    assert resolve_materials(ok, manifest)[0]["first_slice"] == 4
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    angles=st.tuples(*[st.floats(-180, 180)] * 3),
+    scale=st.tuples(*[st.floats(0.1, 3)] * 3),
+    translate=st.tuples(*[st.floats(-5, 5)] * 3),
+)
+def test_object_matrix_composes_scale_rotation_translation(angles, scale, translate):
+    obj = SceneObject(0, "sphere", "m", rotate=angles, scale=scale, translate=translate)
+    m = object_matrix(obj)
+    rotation = m[:3, :3] / np.asarray(scale)  # columns scaled by the scale factors
+    np.testing.assert_allclose(rotation.T @ rotation, np.eye(3), atol=1e-9)
+    assert np.linalg.det(rotation) == pytest.approx(1.0)
+    np.testing.assert_allclose(m[:3, 3], translate)
+    # A rotation about x alone turns +y towards +z by the angle.
+    rx = object_matrix(SceneObject(0, "sphere", "m", rotate=(angles[0], 0, 0)))
+    a = math.radians(angles[0])
+    np.testing.assert_allclose(rx[:3, :3] @ [0, 1, 0], [0, math.cos(a), math.sin(a)], atol=1e-12)

@@ -1,0 +1,46 @@
+"""Error measures: the fixed hemisphere pairs, relative RMS and the Löw 2012 log error."""
+
+import numpy as np
+import pytest
+
+from atlasgen.separable.error import ERROR_PAIRS, log_error, measure_errors, relative_rms, sample_hemisphere_pairs
+
+
+def test_pairs_are_uniform_on_the_hemisphere_and_fixed():
+    l, v = sample_hemisphere_pairs()
+    assert l.shape == v.shape == (ERROR_PAIRS, 3) and ERROR_PAIRS >= 100_000
+    for d in (l, v):
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-12)
+        assert d[:, 2].min() >= 0.0
+        # Uniform in solid angle: z is uniform on [0, 1], so E[z] = 1/2, E[z^2] = 1/3;
+        # the azimuth is uniform, so E[x] = E[y] = 0. Tolerances are ~5 standard errors.
+        assert d[:, 2].mean() == pytest.approx(0.5, abs=5 * 0.29 / np.sqrt(ERROR_PAIRS))
+        assert (d[:, 2] ** 2).mean() == pytest.approx(1 / 3, abs=5 * 0.3 / np.sqrt(ERROR_PAIRS))
+        assert abs(d[:, 0].mean()) < 5 * 0.5 / np.sqrt(ERROR_PAIRS)
+    # l and v are independent.
+    assert abs(np.corrcoef(l[:, 2], v[:, 2])[0, 1]) < 0.02
+    l2, v2 = sample_hemisphere_pairs()
+    np.testing.assert_array_equal(l, l2)
+    np.testing.assert_array_equal(v, v2)
+
+
+def test_relative_rms_closed_forms():
+    rng = np.random.default_rng(0)
+    ref = rng.random((1000, 3))
+    assert relative_rms(ref, ref) == 0.0
+    assert relative_rms(ref, 1.03 * ref) == pytest.approx(0.03)
+    assert relative_rms(ref, np.zeros_like(ref)) == pytest.approx(1.0)
+    # All-zero reference: no division by zero.
+    zero = np.zeros((10, 3))
+    assert relative_rms(zero, zero) == 0.0
+    assert relative_rms(zero, np.full((10, 3), 0.5)) == pytest.approx(0.5)
+
+
+def test_log_error_closed_forms():
+    ref = np.zeros((100, 3))
+    assert log_error(ref, ref) == 0.0
+    assert log_error(ref, np.full_like(ref, np.e - 1.0)) == pytest.approx(1.0)
+    # Negative approximations are clamped to 0 first, as the shader clamps.
+    assert log_error(ref, np.full_like(ref, -5.0)) == 0.0
+    out = measure_errors(np.ones((4, 3)), np.full((4, 3), 1.5))
+    assert out == {"relative_rms": 0.5, "log_error": pytest.approx(np.log(2.5) - np.log(2.0), rel=1e-5)}

@@ -1,0 +1,66 @@
+"""Metrics: closed forms for RMSE and PSNR, the tone map against the sRGB standard, FLIP's basics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from atlasgen.validate.metrics import compare_images, flip, psnr, relative_rms, rmse, tonemap
+
+
+@given(st.floats(1e-4, 0.5), st.integers(1, 8), st.integers(1, 8))
+def test_psnr_of_a_constant_offset_is_minus_20_log10_of_it(d, h, w):
+    a = np.full((h, w, 3), 0.25)
+    assert rmse(a, a + d) == pytest.approx(d, rel=1e-12)
+    assert psnr(a, a + d) == pytest.approx(-20.0 * math.log10(d), rel=1e-9)
+
+
+def test_psnr_of_identical_images_is_infinite_and_shapes_must_match():
+    a = np.random.default_rng(1).random((4, 5, 3))
+    assert psnr(a, a) == math.inf
+    with pytest.raises(ValueError, match="shapes differ"):
+        rmse(a, a[:, :4])
+
+
+def test_tonemap_is_the_srgb_oetf_of_the_clipped_exposed_value():
+    linear = np.array([0.0, 0.001, 0.0031308, 0.18, 0.5, 1.0, 4.0, np.nan])
+    got = tonemap(linear, exposure=2.0)
+    x = np.clip(np.nan_to_num(linear * 2.0), 0.0, 1.0)
+    # IEC 61966-2-1 eq. 5, written out independently of atlasgen.srgb.
+    expected = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+
+
+def test_flip_is_zero_for_identical_images_and_grows_with_the_error():
+    rng = np.random.default_rng(7)
+    ref = rng.uniform(0.2, 0.8, (32, 32, 3))
+    same_map, same = flip(ref, ref)
+    assert same_map.shape == (32, 32)
+    assert same == pytest.approx(0.0, abs=1e-7)
+    small = flip(ref, np.clip(ref + 0.01, 0, 1))[1]
+    large = flip(ref, np.clip(ref + 0.1, 0, 1))[1]
+    assert 0.0 < small < large <= 1.0
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.floats(0.001, 0.2))
+def test_compare_images_measures_the_tone_mapped_pair(offset):
+    rng = np.random.default_rng(3)
+    ref = rng.uniform(0.0, 0.8, (16, 16, 3))
+    test = ref + offset
+    m = compare_images(ref, test, exposure=1.0)
+    assert m.rmse == pytest.approx(rmse(tonemap(ref), tonemap(test)))
+    assert m.linear_rmse == pytest.approx(offset, abs=1e-12)
+    assert m.flip_map.shape == (16, 16)
+    assert 0.0 < m.flip < 1.0
+
+
+@given(st.floats(0.0, 2.0))
+def test_relative_rms_of_a_scaled_image_is_the_scale_error(k):
+    ref = np.random.default_rng(2).uniform(0.0, 1.0, (6, 7, 3))
+    assert relative_rms(ref, ref * k) == pytest.approx(abs(1.0 - k), abs=1e-12)
+    assert relative_rms(np.zeros((2, 2, 3)), np.zeros((2, 2, 3))) == 0.0

@@ -1,0 +1,157 @@
+"""Model references: the renderer's equation without the atlas, as NumPy and as a Mitsuba BSDF."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import InputError
+from atlasgen.models import get_model
+from atlasgen.validate.references import (
+    LUT_TYPES,
+    model_reference,
+    physical_reference,
+    renderer_f_cos,
+)
+
+
+class _SpecularOnly:
+    """A stand-in model: RGB 0, A = 1 everywhere (isolates the specular lobe)."""
+
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        nl = np.asarray(n_dot_l)
+        out = np.zeros(nl.shape + (4,))
+        out[..., 3] = 1.0
+        return out
+
+
+def _hemisphere(n=400):
+    """Midpoint rule over (theta, phi) of the upper hemisphere: directions and solid-angle weights."""
+    t = (np.arange(n) + 0.5) * (0.5 * np.pi / n)
+    p = (np.arange(2 * n) + 0.5) * (np.pi / n)
+    tt, pp = np.meshgrid(t, p, indexing="ij")
+    d = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], -1)
+    w = np.sin(tt) * (0.5 * np.pi / n) * (np.pi / n)
+    return d.reshape(-1, 3), w.ravel()
+
+
+def test_lambert_reference_is_albedo_times_colour_over_pi_times_cos():
+    values = {"colour": (0.8, 0.5, 0.3)}
+    nl = np.linspace(-1, 1, 9)
+    got = renderer_f_cos(get_model("lambert"), values, (0.5, 1.0, 0.25), 0.7, nl, np.full(9, 0.6), np.full(9, 0.9))
+    expected = np.array([0.4, 0.5, 0.075]) / np.pi * np.maximum(nl, 0.0)[:, None]
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("gloss", [0.0, 0.3, 0.6])
+def test_specular_lobe_has_directional_albedo_one_at_normal_view(gloss):
+    """The renderer normalises its lobe to albedo 1 at v = n (lighting.wgsl); the reference must too."""
+    l, w = _hemisphere()
+    v = np.array([0.0, 0.0, 1.0])
+    h = l + v
+    nh = h[:, 2] / np.linalg.norm(h, axis=1)
+    f_cos = renderer_f_cos(_SpecularOnly(), {}, (1, 1, 1), gloss, l[:, 2], np.ones(len(l)), nh)
+    assert (f_cos[:, 0] * w).sum() == pytest.approx(1.0, rel=2e-3)
+
+
+def test_specular_is_zero_below_the_horizon_and_for_degenerate_half_vectors():
+    f = renderer_f_cos(_SpecularOnly(), {}, (1, 1, 1), 0.5, np.array([-0.2, 0.5]), np.array([0.5, 0.5]),
+                       np.array([1.0, 1.0]), lv_degenerate=np.array([False, True]))  # fmt: skip
+    assert np.all(f == 0.0)
+
+
+def test_every_lut_type_and_separable_has_a_model_reference_and_unknown_types_do_not():
+    for kind in LUT_TYPES:
+        ref = model_reference({"name": "m", "type": kind, "params": {}})
+        assert ref["type"] == "atlasgen_model" and json.loads(ref["material"])["type"] == kind
+    sep = model_reference({"name": "s", "type": "separable", "params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}}, (0.5, 1, 1))
+    assert sep["type"] == "atlasgen_brdf"
+    assert json.loads(sep["material"]) == {"params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "albedo": [0.5, 1.0, 1.0]}
+    with pytest.raises(InputError, match="'mystery'.*no reference for model type 'hologram'"):
+        model_reference({"name": "mystery", "type": "hologram", "params": {}})
+
+
+def test_physical_references_exist_only_where_physics_does():
+    params = {"colour": (0.5, 0.5, 0.5), "ior": 1.5, "specular": 1.0, "radius": 10.0,
+              "thickness": 300.0, "film_ior": 1.33, "base_ior": 1.5, "base_k": 0.0}  # fmt: skip
+    for kind in ("backlit", "toon"):
+        assert physical_reference({"type": kind, "params": params}) is None
+    bsdf, _ = physical_reference({"type": "lambert", "params": {"colour": (0.8, 0.5, 0.3)}}, albedo=(0.5, 1, 1))
+    assert bsdf == {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}}
+    assert physical_reference({"type": "fresnel", "params": params})[0]["type"] == "roughplastic"
+    assert physical_reference({"type": "sss", "params": params})[1]["integrator"]["type"] == "volpath"
+    assert physical_reference({"type": "iridescent", "params": params})[1]["variant"] == "llvm_ad_spectral"
+
+
+def _interaction(mi, dr, wi, n_geo):
+    si = dr.zeros(mi.SurfaceInteraction3f, len(wi))
+    si.wi = mi.Vector3f(*[mi.Float(np.ascontiguousarray(wi[:, k], np.float32)) for k in range(3)])
+    si.n = mi.Normal3f(*[mi.Float(np.full(len(wi), c, np.float32)) for c in n_geo])
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
+    return si
+
+
+def _random_directions(rng, n, upper=True):
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    if upper:
+        d[:, 2] = np.abs(d[:, 2])
+    return d
+
+
+def test_mitsuba_model_reference_evaluates_the_numpy_equation(mitsuba_rgb):
+    import drjit as dr
+
+    from atlasgen.validate.references import register_references
+
+    mi = mitsuba_rgb
+    register_references(mi)
+    values = {"colour": (0.2, 0.35, 0.6), "fresnel": "exact", "ior": 1.5, "specular": 1.0, "normalise": True, "energy": "coupled"}
+    bsdf = mi.load_dict(model_reference({"name": "coat", "type": "fresnel", "params": values}, (0.9, 0.8, 0.7), 0.4))
+    rng = np.random.default_rng(5)
+    wi, wo = _random_directions(rng, 256), _random_directions(rng, 256, upper=False)
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
+        got = bsdf.eval(mi.BSDFContext(), _interaction(mi, dr, wi, (0, 0, 1)),
+                        mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo[:, k], np.float32)) for k in range(3)]))  # fmt: skip
+    got = np.stack([np.asarray(c) for c in (got.x, got.y, got.z)], -1)
+    h = wi + wo
+    nh = h[:, 2] / np.linalg.norm(h, axis=1)
+    expected = renderer_f_cos(get_model("fresnel"), values, (0.9, 0.8, 0.7), 0.4, wo[:, 2], wi[:, 2], nh)
+    np.testing.assert_allclose(got, expected, rtol=2e-4, atol=2e-5)
+
+
+def test_mitsuba_model_reference_of_lambert_equals_mitsubas_own_diffuse(mitsuba_rgb):
+    """Two implementations that share no code: atlasgen's lambert in the renderer's equation, Mitsuba's diffuse."""
+    import drjit as dr
+
+    from atlasgen.validate.references import register_references
+
+    mi = mitsuba_rgb
+    register_references(mi)
+    ours = mi.load_dict(model_reference({"name": "m", "type": "lambert", "params": {"colour": [0.8, 0.5, 0.3]}}, (0.5, 1, 1), 0.5))
+    theirs = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}})
+    rng = np.random.default_rng(9)
+    wi, wo = _random_directions(rng, 128), _random_directions(rng, 128)
+    si = _interaction(mi, dr, wi, (0, 0, 1))
+    w = mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo[:, k], np.float32)) for k in range(3)])
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
+        a, b = ours.eval(mi.BSDFContext(), si, w), theirs.eval(mi.BSDFContext(), si, w)
+    for ca, cb in zip((a.x, a.y, a.z), (b.x, b.y, b.z)):
+        np.testing.assert_allclose(np.asarray(ca), np.asarray(cb), rtol=1e-5, atol=1e-7)
+
+
+def test_back_faces_are_shaded_with_the_flipped_normal_like_the_gbuffer(mitsuba_rgb):
+    import drjit as dr
+
+    from atlasgen.validate.references import register_references
+
+    mi = mitsuba_rgb
+    register_references(mi)
+    bsdf = mi.load_dict(model_reference({"name": "m", "type": "lambert", "params": {"colour": [1, 1, 1]}}))
+    wi = np.array([[0.0, 0.6, -0.8]])
+    wo = mi.Vector3f(0.0, 0.0, -1.0)
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
+        back = bsdf.eval(mi.BSDFContext(), _interaction(mi, dr, wi, (0, 0, 1)), wo)  # geometric normal faces away from the eye
+    assert np.asarray(back.x)[0] == pytest.approx(1.0 / np.pi, rel=1e-6)

@@ -1,0 +1,71 @@
+"""The report: every image the HTML references exists, and the JSON holds the measured figures."""
+
+from __future__ import annotations
+
+import json
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from atlasgen.errors import OutputError
+
+
+class _Sources(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.sources = []
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "img":
+            self.sources.append(dict(attrs).get("src"))
+
+
+@pytest.fixture(scope="module")
+def written(validation_run, tmp_path_factory):
+    from atlasgen.validate.run import write_validation
+
+    out = tmp_path_factory.mktemp("report") / "validation"
+    return out, write_validation(validation_run, out)
+
+
+def test_every_image_the_html_references_exists_and_is_a_png(written):
+    out, paths = written
+    parser = _Sources()
+    parser.feed((out / "index.html").read_text(encoding="utf-8"))
+    assert len(parser.sources) > 10
+    for src in parser.sources:
+        assert src and not Path(src).is_absolute() and ".." not in Path(src).parts
+        data = (out / src).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n", src
+    assert "speed_error.png" in parser.sources
+
+
+def test_json_holds_the_measured_metrics_of_every_result(written, validation_run):
+    out, _ = written
+    data = json.loads((out / "report.json").read_text())
+    assert len(data["results"]) == len(validation_run.runs)
+    for row, run in zip(data["results"], validation_run.runs):
+        assert (row["material"], row["scene"]) == (run.material, run.scene)
+        assert row["atlas_seconds"] == run.atlas_seconds
+        for kind, ref in run.references.items():
+            got = row["references"][kind]
+            assert got["psnr_db"] == pytest.approx(ref.metrics.psnr)
+            assert got["flip"] == pytest.approx(ref.metrics.flip)
+            assert got["speed_ratio"] == pytest.approx(ref.seconds / run.atlas_seconds)
+            assert (out / got["images"]["reference"]).is_file() and (out / got["images"]["flip"]).is_file()
+            if kind == "model" and run.type != "separable":
+                assert got["meets_goal"] == (ref.metrics.psnr >= 45.0 and ref.metrics.flip <= 0.01)
+    summary = data["summary"]
+    assert summary["lut_results"] == sum(1 for r in validation_run.runs if r.type != "separable")
+
+
+def test_report_files_are_written_all_or_nothing(validation_run, tmp_path):
+    from atlasgen.validate.run import write_validation
+
+    blocker = tmp_path / "validation"
+    blocker.write_text("a file where the output folder should be")
+    with pytest.raises(OutputError):
+        write_validation(validation_run, blocker / "sub")
+    assert blocker.read_text() == "a file where the output folder should be"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["validation"]

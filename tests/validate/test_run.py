@@ -1,0 +1,120 @@
+"""End to end: the atlas through the GPU renderer against Mitsuba; the consistency gate; bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import BackendError, InputError, SceneError
+
+
+def _result(run, material, scene, kind="model"):
+    (r,) = [r for r in run.runs if r.material == material and r.scene == scene]
+    return r, r.references.get(kind)
+
+
+@pytest.mark.parametrize("scene", ["front", "back"])
+def test_consistency_gate_lambert_atlas_against_mitsubas_diffuse(validation_run, scene):
+    """Units, pi, camera and tone map line up: the atlas path against Mitsuba's own ``diffuse``."""
+    r, ref = _result(validation_run, "matte", scene, "physical")
+    assert "diffuse" in ref.description
+    assert float(np.max(r.atlas_image)) > 0.05  # the scene is lit: a black image would agree trivially
+    assert ref.metrics.psnr >= 50.0
+
+
+@pytest.mark.parametrize("material", ["matte", "coat", "film", "skin", "leaf"])
+def test_smooth_lut_models_match_their_model_reference(validation_run, material):
+    """For smooth tables only resolution, 8 bits and filtering separate atlas and model."""
+    for r in [r for r in validation_run.runs if r.material == material]:
+        ref = r.references["model"]
+        assert ref.metrics.psnr >= 45.0, (material, r.scene, ref.metrics.psnr)
+        assert ref.metrics.flip < 0.05
+
+
+def test_toon_steps_are_softened_by_filtering_and_measured_not_hidden(validation_run):
+    r, ref = _result(validation_run, "cel", "front")
+    assert math.isfinite(ref.metrics.psnr) and 15.0 < ref.metrics.psnr < 80.0
+    assert r.atlas_seconds > 0 and ref.seconds > 0
+
+
+def test_physical_references_render_where_they_exist(validation_run):
+    kinds = {(r.material, r.scene): set(r.references) for r in validation_run.runs}
+    for material in ("matte", "coat", "film", "skin"):
+        assert kinds[(material, "front")] == {"model", "physical"}
+    for material in ("leaf", "cel"):
+        assert kinds[(material, "front")] == {"model"}
+    _, film = _result(validation_run, "film", "front", "physical")
+    assert film.variant == "llvm_ad_spectral" and np.isfinite(film.image).all() and film.image.max() > 0
+    _, skin = _result(validation_run, "skin", "front", "physical")
+    assert skin.spp == 4 and np.isfinite(skin.image).all()
+
+
+def test_unknown_material_and_material_without_reference_fail_before_rendering(validation_atlas, tmp_path):
+    from atlasgen.validate.run import plan_validation
+
+    with pytest.raises(InputError, match="no material 'nosuch'; known: cel, coat"):
+        plan_validation(validation_atlas, ["nosuch"])
+    # A manifest entry of a type validate knows no reference for (e.g. from a newer atlasgen).
+    odd = tmp_path / "odd.dds"
+    odd.write_bytes(validation_atlas.read_bytes())
+    manifest = json.loads(validation_atlas.with_suffix(".json").read_text())
+    manifest["materials"][0]["type"] = "hologram"
+    odd.with_suffix(".json").write_text(json.dumps(manifest))
+    name = manifest["materials"][0]["name"]
+    with pytest.raises(InputError, match=f"'{name}': no reference for model type 'hologram'"):
+        plan_validation(odd, [name])
+
+
+def test_unknown_scene_and_scene_without_placeholder(validation_atlas, tmp_path):
+    from atlasgen.validate.run import plan_validation
+
+    with pytest.raises(InputError, match="unknown validation scene; expected one of front, back"):
+        plan_validation(validation_atlas, ["matte"], ["sideways"])
+    path = tmp_path / "fixed.toml"
+    path.write_text('[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "matte"\n')
+    with pytest.raises(SceneError, match="fixed.toml: field 'objects': no object uses material = '\\$material'"):
+        plan_validation(validation_atlas, ["matte"], [str(path)])
+
+
+def test_missing_llvm_backend_names_libllvm19(monkeypatch):
+    dr = pytest.importorskip("drjit")
+
+    from atlasgen.validate.backend import load_mitsuba
+
+    monkeypatch.setattr(dr, "has_backend", lambda backend: False)
+    with pytest.raises(BackendError, match="install libllvm19"):
+        load_mitsuba("llvm_ad_rgb")
+
+
+def test_atlas_baked_by_another_model_version_is_refused(validation_atlas, tmp_path):
+    """The model reference runs today's model code: a manifest with other parameters would mislead."""
+    from atlasgen.validate.run import plan_validation
+
+    odd = tmp_path / "old.dds"
+    odd.write_bytes(validation_atlas.read_bytes())
+    manifest = json.loads(validation_atlas.with_suffix(".json").read_text())
+    coat = next(e for e in manifest["materials"] if e["name"] == "coat")
+    del coat["params"]["ior"]
+    coat["params"]["gain"] = 2.0
+    odd.with_suffix(".json").write_text(json.dumps(manifest))
+    with pytest.raises(InputError, match="'coat': parameters do not match the current 'fresnel' model "
+                                         r"\(missing ior; unknown gain\).*re-run atlasgen bake"):  # fmt: skip
+        plan_validation(odd, ["coat"])
+
+
+def test_custom_scene_objects_with_fixed_materials_must_exist_in_the_atlas(validation_atlas, tmp_path):
+    from atlasgen.validate.run import plan_validation
+
+    text = ('[camera]\nposition = [0, 1, 3]\ntarget = [0, 0, 0]\n'
+            '[[objects]]\nshape = "sphere"\nmaterial = "$material"\n'
+            '[[objects]]\nshape = "plane"\nmaterial = "{}"\n')  # fmt: skip
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    good.write_text(text.format("matte"))
+    bad.write_text(text.format("marble"))
+    plan = plan_validation(validation_atlas, ["coat"], [str(good)])
+    assert [o.material for o in plan.scenes[0][1].objects] == ["$material", "matte"]
+    with pytest.raises(SceneError, match=r"bad.toml: field 'objects\[1\].material': unknown material 'marble'; .*coat"):
+        plan_validation(validation_atlas, ["coat"], [str(bad)])

@@ -1,0 +1,64 @@
+"""Validation test fixtures, shared by tests/validate and tests/cli/test_validate_cmd.py."""
+
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+
+#: One material per LUT model type; names are what the tests look up.
+MATERIALS = {
+    "matte": 'type = "lambert"\ncolour = [0.8, 0.5, 0.3]\n',
+    "coat": 'type = "fresnel"\ncolour = [0.2, 0.35, 0.6]\nior = 1.5\n',
+    "film": 'type = "iridescent"\ncolour = [0.05, 0.05, 0.05]\nthickness = 420.0\nbacklight = 0.5\n',
+    "skin": 'type = "sss"\ncolour = [0.9, 0.7, 0.6]\nradius = 8.0\n',
+    "leaf": 'type = "backlit"\ncolour = [0.2, 0.5, 0.1]\ntransmission_colour = [0.6, 0.9, 0.2]\n',
+    "cel": 'type = "toon"\nsilhouette = 0.2\noutline = true\n',
+    "gloss": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\ndiffuse = [0.2, 0.2, 0.2]\n',
+}
+
+#: Tiny images keep every Mitsuba and GPU render in the tens of milliseconds.
+TINY = (40, 30)
+
+
+@pytest.fixture(scope="session")
+def validation_atlas(tmp_path_factory):
+    """``atlas.dds`` (with manifest and include) holding :data:`MATERIALS`."""
+    from atlasgen.bake import bake_atlas, write_bake
+    from atlasgen.material import read_materials
+
+    root = tmp_path_factory.mktemp("validation")
+    folder = root / "materials"
+    folder.mkdir()
+    for name, text in MATERIALS.items():
+        (folder / f"{name}.toml").write_text(textwrap.dedent(text))
+    dds = root / "atlas.dds"
+    write_bake(bake_atlas(read_materials([folder])), dds)
+    return dds
+
+
+@pytest.fixture(scope="session")
+def mitsuba_rgb():
+    """Mitsuba in ``llvm_ad_rgb`` through atlasgen's loader; skips where the LLVM backend is missing."""
+    from atlasgen.errors import BackendError
+
+    try:
+        from atlasgen.validate.backend import load_mitsuba
+
+        return load_mitsuba("llvm_ad_rgb")
+    except BackendError as exc:
+        pytest.skip(str(exc))
+
+
+@pytest.fixture(scope="session")
+def validation_run(validation_atlas, mitsuba_rgb, gpu_device):
+    """validate_atlas at :data:`TINY`: every test material on ``front`` (with physical
+    references), and the ones with back-lighting or the gate on ``back``."""
+    from atlasgen.validate.run import validate_atlas
+
+    gpu_device.take_errors()
+    run = validate_atlas(validation_atlas, scenes=["front"], resolution=TINY, physical_spp=4)
+    back = validate_atlas(validation_atlas, ["matte", "skin", "leaf", "film"], scenes=["back"], resolution=TINY, physical_spp=4)
+    run.runs += back.runs
+    assert gpu_device.take_errors() == []
+    return run
