@@ -9,7 +9,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test bench clean atlas FORCE
+.PHONY: setup apt demo test bench clean atlas render validate report FORCE
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -20,6 +20,9 @@ CACHE_DIR := $(BUILD)/cache
 CACHED := $(patsubst materials/%.toml,$(CACHE_DIR)/%.npz,$(MATERIAL_FILES))
 BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/params.py atlasgen/contract.py atlasgen/adaptive.py
 ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py))
+SEPARABLE_FILES := $(sort $(wildcard materials/separable-*.toml))
+RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
+VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE)
 
 setup: apt $(VENV)/.stamp
 
@@ -49,9 +52,31 @@ $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 $(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png
 
+# Each of these re-runs only when its inputs change; every writer is atomic.
+render: $(BUILD)/demo.png
+$(BUILD)/demo.png: scenes/demo.toml $(wildcard scenes/meshes/*) $(BUILD)/atlas.dds $(RENDER_CODE) | $(VENV)/.stamp
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	$(ATLASGEN) render scenes/demo.toml --atlas $(BUILD)/atlas.dds -o $(BUILD)/demo.exr
+
+validate: $(BUILD)/validation/report.json
+$(BUILD)/validation/report.json: $(BUILD)/atlas.dds $(VALIDATE_CODE) | $(VENV)/.stamp
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	$(ATLASGEN) validate --atlas $(BUILD)/atlas.dds -o $(BUILD)/validation -q
+
+$(BUILD)/report/separable/index.md: $(SEPARABLE_FILES) $(BUILD)/atlas.dds $(BAKE_CODE) | $(VENV)/.stamp
+	$(ATLASGEN) report separable $(SEPARABLE_FILES) --atlas $(BUILD)/atlas.dds -o $(BUILD)/report/separable
+
+report: $(BUILD)/report/index.html
+$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(BUILD)/report/separable/index.md $(wildcard $(BUILD)/validation/report.json) | $(VENV)/.stamp
+	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(BUILD)/validation --separable $(BUILD)/report/separable -o $(BUILD)/report
+
 demo: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(MAKE) atlas
+	$(MAKE) render
+	$(MAKE) validate
+	$(MAKE) report
+	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/demo.png, build/validation/index.html, build/report/index.html"
 
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)

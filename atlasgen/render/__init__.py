@@ -30,7 +30,7 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     """
     from ..errors import OutputError
     from .atlas_texture import read_render_atlas
-    from .output import write_aov, write_exr, write_png
+    from .output import write_aov, write_render
     from .renderer import AOVS, Renderer
     from .scene import read_scene, resolve_materials
 
@@ -46,7 +46,4 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     if aov is not None:
         write_aov(output_path, aov, result.aov(aov))
         return [output_path]
-    png = output_path.with_suffix(".png")
-    write_exr(output_path, result.radiance)
-    write_png(png, result.radiance, scene.settings.exposure)
-    return [output_path, png]
+    return write_render(output_path, result.radiance, scene.settings.exposure)

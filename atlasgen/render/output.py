@@ -1,4 +1,8 @@
-"""Writing renders: a linear float EXR and a tone-mapped sRGB PNG, both through OpenImageIO."""
+"""Writing renders: a linear float EXR and a tone-mapped sRGB PNG, both through OpenImageIO.
+
+Files are replaced atomically (:mod:`atlasgen.atomic`): a failed write never leaves a
+half-written image or an EXR without its PNG.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_files_atomically
 from ..errors import OutputError
 
-__all__ = ["tone_map", "write_exr", "write_png", "write_aov", "aov_channels"]
+__all__ = ["tone_map", "encode_image", "write_exr", "write_png", "write_render", "write_aov", "aov_channels"]
 
 
 def tone_map(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
@@ -25,34 +30,58 @@ def tone_map(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     return np.rint(encode_srgb(y) * 255.0).astype(np.uint8)
 
 
-def _write(path, pixels: np.ndarray, channel_names, pixel_type) -> None:
+def encode_image(pixels: np.ndarray, channel_names, pixel_type: str, suffix: str) -> bytes:
+    """The bytes of an image file (format from ``suffix``: ``.exr`` or ``.png``) written by OpenImageIO.
+
+    OpenImageIO writes to a path, so the file is made in a private temporary folder
+    and read back; callers then place it atomically.
+    """
+    import tempfile
+
     import OpenImageIO as oiio
 
-    path = Path(path)
-    if not path.parent.exists():
-        raise OutputError(f"{path.as_posix()}: folder {path.parent.as_posix()!r} does not exist")
     h, w, c = pixels.shape
     spec = oiio.ImageSpec(w, h, c, pixel_type)
     spec.channelnames = tuple(channel_names)
-    if path.suffix.lower() == ".exr":
+    if suffix == ".exr":
         spec.attribute("compression", "zip")
-    out = oiio.ImageOutput.create(str(path))
-    if out is None or not out.open(str(path), spec):
-        raise OutputError(f"{path.as_posix()}: cannot write ({oiio.geterror() or 'unknown format'})")
-    ok = out.write_image(np.ascontiguousarray(pixels))
-    out.close()
-    if not ok:
-        raise OutputError(f"{path.as_posix()}: cannot write ({out.geterror()})")
+    with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
+        path = str(Path(folder) / f"image{suffix}")
+        out = oiio.ImageOutput.create(path)
+        if out is None or not out.open(path, spec):
+            raise OutputError(f"cannot encode a {suffix} image ({oiio.geterror() or 'unknown format'})")
+        ok = out.write_image(np.ascontiguousarray(pixels))
+        error = out.geterror()
+        out.close()
+        if not ok:
+            raise OutputError(f"cannot encode a {suffix} image ({error})")
+        return Path(path).read_bytes()
+
+
+def _exr_bytes(radiance) -> bytes:
+    return encode_image(np.asarray(radiance, dtype=np.float32), ("R", "G", "B"), "float", ".exr")
+
+
+def _png_bytes(radiance, exposure) -> bytes:
+    return encode_image(tone_map(radiance, exposure), ("R", "G", "B"), "uint8", ".png")
 
 
 def write_exr(path, radiance: np.ndarray) -> None:
-    """Linear radiance ``(h, w, 3)`` as a float32 RGB OpenEXR."""
-    _write(path, np.asarray(radiance, dtype=np.float32), ("R", "G", "B"), "float")
+    """Linear radiance ``(h, w, 3)`` as a float32 RGB OpenEXR (replaced atomically)."""
+    write_files_atomically({Path(path): _exr_bytes(radiance)})
 
 
 def write_png(path, radiance: np.ndarray, exposure: float = 1.0) -> None:
     """``(h, w, 3)`` linear radiance, tone-mapped with :func:`tone_map`, as an 8-bit sRGB PNG."""
-    _write(path, tone_map(radiance, exposure), ("R", "G", "B"), "uint8")
+    write_files_atomically({Path(path): _png_bytes(radiance, exposure)})
+
+
+def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
+    """The EXR and, beside it, the PNG (same stem): both replaced, or neither."""
+    exr_path = Path(exr_path)
+    png_path = exr_path.with_suffix(".png")
+    write_files_atomically({exr_path: _exr_bytes(radiance), png_path: _png_bytes(radiance, exposure)})
+    return [exr_path, png_path]
 
 
 def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
@@ -74,6 +103,6 @@ def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
 
 
 def write_aov(path, name: str, value: np.ndarray) -> None:
-    """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`)."""
+    """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), replaced atomically."""
     pixels, channels = aov_channels(name, value)
-    _write(path, pixels, channels, "float")
+    write_files_atomically({Path(path): encode_image(pixels, channels, "float", ".exr")})

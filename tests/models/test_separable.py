@@ -10,7 +10,7 @@ import pytest
 
 from atlasgen.bake import bake_atlas
 from atlasgen.errors import MaterialError
-from atlasgen.material import read_material, read_materials
+from atlasgen.material import read_materials
 from atlasgen.models import get_model
 
 MODEL = get_model("separable")

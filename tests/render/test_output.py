@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import OutputError
-from atlasgen.render.output import tone_map, write_aov, write_exr, write_png
+from atlasgen.render.output import tone_map, write_aov, write_exr, write_png, write_render
 from atlasgen.srgb import encode_srgb
 
 
@@ -49,6 +49,14 @@ def test_aov_exr(tmp_path, name, channels):
     np.testing.assert_array_equal(pixels.reshape(value.shape), value)
 
 
-def test_unwritable_output(tmp_path):
-    with pytest.raises(OutputError, match="does not exist"):
-        write_exr(tmp_path / "missing" / "a.exr", np.zeros((2, 2, 3)))
+def test_write_render_writes_both_or_neither(tmp_path):
+    radiance = np.full((3, 4, 3), 0.5, dtype=np.float32)
+    paths = write_render(tmp_path / "out" / "frame.exr", radiance, exposure=1.0)
+    assert [p.name for p in paths] == ["frame.exr", "frame.png"]
+    np.testing.assert_array_equal(read(paths[0])[0], radiance)
+    assert read(paths[1])[0].shape == (3, 4, 3)
+    # A folder that cannot be made (a file is in the way): an OutputError, nothing written.
+    (tmp_path / "blocker").write_text("")
+    with pytest.raises(OutputError):
+        write_render(tmp_path / "blocker" / "frame.exr", radiance)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker", "out"]

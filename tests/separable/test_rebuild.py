@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from separable_helpers import analytic, random_frames
+from separable_helpers import random_frames
 
 from atlasgen.errors import InputError
 from atlasgen.material import read_material

@@ -1,7 +1,6 @@
 """The WGSL include: it compiles, and on a GPU it returns what the Python rebuild returns."""
 
 import numpy as np
-import pytest
 from separable_helpers import random_frames
 
 from atlasgen.separable import evaluate_separable
