@@ -6,6 +6,7 @@ import numpy as np
 
 from .contract import HEIGHT, WIDTH, texel_centres
 from .models.base import SliceSet
+from .sampling import sample_slice
 
 __all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget"]
 
@@ -15,17 +16,6 @@ SUPERSAMPLING_FACTORS = (1, 2, 4, 8)
 ERROR_DENSITY = 8
 
 
-def _bilinear_slice(slice_rgba: np.ndarray, nl: np.ndarray, nv: np.ndarray) -> np.ndarray:
-    """What a bilinear sampler returns between texel centres (clamp-to-edge)."""
-    x = (np.clip(nl, -1, 1) + 1) * 0.5 * (WIDTH - 1)
-    y = np.clip(nv, 0, 1) * (HEIGHT - 1)
-    x0 = np.minimum(np.floor(x).astype(int), WIDTH - 2)
-    y0 = np.minimum(np.floor(y).astype(int), HEIGHT - 2)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    s = slice_rgba
-    return (1 - fy) * ((1 - fx) * s[y0, x0] + fx * s[y0, x0 + 1]) + fy * ((1 - fx) * s[y0 + 1, x0] + fx * s[y0 + 1, x0 + 1])
-
-
 def _dense_grid():
     nl = np.linspace(-1, 1, (WIDTH - 1) * ERROR_DENSITY + 1)
     nv = np.linspace(0, 1, (HEIGHT - 1) * ERROR_DENSITY + 1)
@@ -33,14 +23,18 @@ def _dense_grid():
 
 
 def reconstruction_error(model, values: dict, slice_rgba: np.ndarray) -> float:
-    """RMS over a dense (N.L, N.V) grid of |bilinear(slice) - model|, all four channels, linear units.
+    """RMS over a dense (N.L, N.V) grid of |sampled slice - model|, all four channels, linear units.
+
+    The slice is sampled as the renderer samples it: bilinearly, or nearest for slices
+    whose model asks for it (``flags()["nearest"]``).
 
     This is the error a renderer sees between texel centres, which is where a
     discontinuous model (toon bands) loses most to point sampling.
     """
     nl, nv = _dense_grid()
     truth = np.asarray(model.evaluate(values, nl, nv), dtype=np.float64)
-    return float(np.sqrt(np.mean((_bilinear_slice(slice_rgba, nl, nv) - truth) ** 2)))
+    seen = sample_slice(slice_rgba, nl, nv, nearest=bool(model.flags(values).get("nearest")))
+    return float(np.sqrt(np.mean((seen - truth) ** 2)))
 
 
 def bake_supersampled(model, values: dict, factor: int) -> np.ndarray:

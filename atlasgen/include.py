@@ -33,14 +33,15 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
         f"const ATLAS_LAYERS: u32 = {LAYERS}u;",
         f"const ATLAS_MIP_COUNT: u32 = {manifest['dimensions']['mip_count']}u;",
         "const ATLAS_FLAG_OUTLINE: u32 = 1u;",
+        "const ATLAS_FLAG_NEAREST: u32 = 2u;",
         "",
     ]
     flags = [0] * LAYERS
     for m in manifest["materials"]:
         lines.append(f"const {m['constant']}: u32 = {m['first_slice']}u;  // {m['type']}, {m['slice_count']} slice(s)")
-        if m.get("flags", {}).get("outline"):
-            for s in range(m["first_slice"], m["first_slice"] + m["slice_count"]):
-                flags[s] = 1
+        bits = (1 if m.get("flags", {}).get("outline") else 0) | (2 if m.get("flags", {}).get("nearest") else 0)
+        for s in range(m["first_slice"], m["first_slice"] + m["slice_count"]):
+            flags[s] = bits
     lines.append("")
     lines.append("// Per slice: (rgb_scale, alpha_scale, rgb_bias, alpha_bias); linear = texel * scale + bias.")
     rows = [
@@ -102,7 +103,13 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
         "// Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale.",
         f"fn atlas_sample(atlas: {texture_type}, atlas_sampler: sampler, material_id: u32,",
         "                n_dot_l: f32, n_dot_v: f32, lod: f32) -> vec4<f32> {",
-        "    let uv = atlas_uv(n_dot_l, n_dot_v);",
+        "    var uv = atlas_uv(n_dot_l, n_dot_v);",
+        "    if ((atlas_material_flags(material_id) & ATLAS_FLAG_NEAREST) != 0u) {",
+        "        // Step functions (toon bands) are baked with their edges on texel boundaries:",
+        "        // read the one texel, so the steps stay hard instead of ramping over a texel.",
+        "        let size = vec2<f32>(f32(ATLAS_WIDTH), f32(ATLAS_HEIGHT));",
+        "        uv = (floor(uv * size) + 0.5) / size;",
+        "    }",
         f"    let texel = {lookup};",
         "    let sb = atlas_scale_bias(material_id);",
         "    return vec4<f32>(texel.rgb * sb.x + vec3<f32>(sb.z), texel.a * sb.y + sb.w);",

@@ -35,13 +35,13 @@ def _representation(entry: dict) -> str:
 
 def _validation_rows(validation: dict | None, name: str) -> list[dict]:
     """Per-reference metrics of one material from validate's report.json, whatever refs it has."""
-    if not validation:
-        return []
-    for m in validation.get("materials", []):
-        if m.get("name") == name:
-            refs = m.get("references", {})
-            return [{"reference": k, **v} for k, v in refs.items() if isinstance(v, dict)]
-    return []
+    rows = []
+    for result in (validation or {}).get("results", []):
+        if result.get("material") == name:
+            for kind, ref in result.get("references", {}).items():
+                rows.append({"reference": f"{result.get('scene', '?')}/{kind}", "psnr": ref.get("psnr_db"),
+                             "flip": ref.get("flip"), "speed_ratio": ref.get("speed_ratio")})
+    return rows
 
 
 def _fmt(x, spec=".3g"):
@@ -137,7 +137,8 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     for entry, previews, bake_s, refs in rows:
         q = entry["quantization_error"]
         ref_text = "<br>".join(
-            f"{e(r['reference'])}: PSNR {_fmt(r.get('psnr'), '.1f')} dB, FLIP {_fmt(r.get('flip'), '.4f')}"
+            f"{e(r['reference'])}: PSNR {_fmt(r['psnr'], '.1f')} dB, FLIP {_fmt(r['flip'], '.4f')}, "
+            f"atlas {_fmt(r['speed_ratio'], '.1f')}x faster"
             for r in refs
         ) or "not validated"
         imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry["name"])} slice">' for p in previews)

@@ -1,4 +1,4 @@
-"""``atlasgen report separable``: a thin layer over :func:`atlasgen.separable.report.write_separable_report`."""
+"""``atlasgen report``: thin layers over the separable report and the whole-library report."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import click
 
 from atlasgen.cli.main import fail_on_errors
 
-__all__ = ["report"]
+__all__ = ["report", "library", "separable"]
 
 
 @click.group()
@@ -43,3 +43,20 @@ def separable(names, materials_dir, atlas, output, repeats):
         chosen += read_materials(files)
     written = write_separable_report(chosen, output, atlas, repeats=repeats)
     click.echo(written["markdown"].as_posix())
+
+
+@report.command("library")
+@click.option("--atlas", type=click.Path(path_type=Path), default=Path("build/atlas.dds"), show_default=True,
+              help="Baked atlas (X.dds with X.json and X.timings.json beside it).")
+@click.option("--validation", type=click.Path(path_type=Path), default=Path("build/validation"), show_default=True,
+              help="Folder of `atlasgen validate` (report.json, index.html), used when present.")
+@click.option("--separable", "separable_dir", type=click.Path(path_type=Path), default=Path("build/report/separable"),
+              show_default=True, help="Folder of `atlasgen report separable`, linked when present.")
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report"), show_default=True,
+              help="Folder for index.html, slice previews and the speed-against-error plot.")
+@fail_on_errors
+def library(atlas, validation, separable_dir, output):
+    """One HTML page over the whole library: representation, errors, bake time, slice previews."""
+    from atlasgen.library_report import write_library_report
+
+    click.echo(write_library_report(atlas, output, validation, separable_dir).as_posix())

@@ -28,6 +28,7 @@ def gpu():
 def atlas(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\ncolour = [0.8, 0.5, 0.25]\nid = 3\n')
     write_material("hot", 'type = "lambert"\nid = 4\nrgb_scale = 0.5\n')  # clamps: stored 1 -> 0.5 linear
+    write_material("cel", 'type = "toon"\nid = 5\nthresholds = [-0.3, 0.33]\nsilhouette = 0.2\n')
     result = bake_atlas(read_materials([tmp_path / "materials"]))
     paths = write_bake(result, tmp_path / "atlas.dds")
     return result, paths["include"].read_text()
@@ -61,7 +62,7 @@ def test_atlas_sample_on_the_gpu_matches_the_contract(gpu, atlas):
     # Texel centres (exact) and random points in between (bilinear), for both materials.
     nl = np.concatenate([nl_c[rng.integers(0, 64, 64)], rng.uniform(-1, 1, 64)])
     nv = np.concatenate([nv_c[rng.integers(0, 32, 64)], rng.uniform(0, 1, 64)])
-    ids = np.tile([3, 4], 64)
+    ids = np.tile([3, 4, 5, 3], 32)
     points = np.stack([nl, nv, ids.astype(np.float64), np.zeros_like(nl)], axis=1).astype(np.float32)
 
     shader = include + """
@@ -98,12 +99,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     got = np.frombuffer(device.queue.read_buffer(obuf), np.float32).reshape(-1, 4)
 
     u, v = atlas_uv(nl, nv)
-    for material_id, scale in ((3, 1.0), (4, 0.5)):
+    for material_id, scale in ((3, 1.0), (4, 0.5)):  # bilinear slices
         sel = ids == material_id
         texels = dequantize_rgba(result.levels[0][material_id], srgb=True)
         expected = bilinear(texels, u[sel], v[sel]) * np.array([scale, scale, scale, 1.0])
         # Filtering precision of an 8-bit sampler (8-bit fraction weights) bounds the match.
         np.testing.assert_allclose(got[sel], expected, atol=4e-3)
+    # The toon slice is flagged nearest: the GPU reads one texel, so the bands stay hard
+    # and equal the model itself at any point, to 8-bit precision.
+    from atlasgen.material import read_material
+
+    cel = [m for m in result.manifest["materials"] if m["name"] == "cel"][0]
+    assert cel["flags"]["nearest"]
+    toon = read_material(cel["source"])
+    sel = ids == 5
+    np.testing.assert_allclose(got[sel], toon.model.evaluate(toon.params, nl[sel], nv[sel]), atol=3e-3)
     # At texel centres the clay slice is its closed form, to 8-bit precision.
     centre = (ids == 3) & (np.arange(len(ids)) < 64)
     closed = np.maximum(nl[centre], 0)[:, None] * np.array([0.8, 0.5, 0.25])

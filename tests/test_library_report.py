@@ -33,3 +33,23 @@ def test_every_referenced_image_exists(tmp_path, write_material):
         assert (index.parent / src).is_file(), src
     text = index.read_text()
     assert "supersampling 1x" in text and "clay" in text
+
+
+def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
+    import json
+
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    vdir = tmp_path / "validation"
+    vdir.mkdir()
+    (vdir / "index.html").write_text("<html></html>")
+    (vdir / "report.json").write_text(json.dumps({"results": [
+        {"material": "clay", "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.00425, "speed_ratio": 3.5}}},
+    ]}))
+    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
+    text = index.read_text()
+    assert "front/model: PSNR 61.2 dB, FLIP 0.0043, atlas 3.5x faster" in text
+    parser = Images()
+    parser.feed(text)
+    assert "../validation/index.html" in parser.links

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..errors import MaterialError
 from ..params import Param
+from ..contract import HEIGHT, WIDTH
 from .base import Model
 
 __all__ = ["Toon"]
@@ -28,8 +29,13 @@ class Toon(Model):
     threshold, so ``outline = true`` also asks the renderer (through :meth:`flags` and
     the manifest) for screen-space outlines from depth and normal discontinuities
     (Saito & Takahashi, "Comprehensible Rendering of 3-D Shapes", SIGGRAPH 1990).
-    Evaluated at texel centres the steps land between texels; bilinear filtering in
-    the renderer softens each edge over one texel (2/63 in N.L, 1/31 in N.V).
+    With ``sampling = "nearest"`` (the default) every step is moved to the nearest
+    texel boundary (N.L = -1 + (2i+1)/63, N.V = (2j+1)/62) and the manifest flags the
+    slice ``nearest``, so the include's ``atlas_sample`` reads single texels: the
+    table then reproduces the bands exactly, with hard edges, at any (N.L, N.V). With
+    ``"linear"`` the steps stay where the artist put them and bilinear filtering
+    softens each edge over one texel (2/63 in N.L, 1/31 in N.V); an ``error_budget``
+    then lets the bake pre-filter (supersample) the texels.
     """
 
     type_name = "toon"
@@ -47,6 +53,8 @@ class Toon(Model):
         Param("specular", 1.0, lo=0.0, hi=16.0, doc="A where the highlight is allowed"),
         Param("specular_threshold", 0.8, lo=-1.0, hi=1.0, doc="N.L from which the highlight is allowed"),
         Param("outline", False, "bool", doc="ask the renderer for screen-space outlines"),
+        Param("sampling", "nearest", "choice", choices=("nearest", "linear"),
+              doc="nearest: steps snap to texel boundaries and stay hard; linear: steps blur over a texel"),
     )
 
     def check(self, values, path):
@@ -61,17 +69,40 @@ class Toon(Model):
             )
 
     def flags(self, values):
-        return {"outline": bool(values["outline"])}
+        return {"outline": bool(values["outline"]), "nearest": values["sampling"] == "nearest"}
+
+    @staticmethod
+    def snap_n_dot_l(t):
+        """The texel boundary of the N.L axis nearest to ``t``: -1 + (2i+1)/63, i in 0..62."""
+        i = np.clip(np.rint((np.asarray(t, dtype=np.float64) + 1.0) * (WIDTH - 1) / 2.0 - 0.5), 0, WIDTH - 2)
+        return -1.0 + (2.0 * i + 1.0) / (WIDTH - 1)
+
+    @staticmethod
+    def snap_n_dot_v(t):
+        """The texel boundary of the N.V axis nearest to ``t``: (2j+1)/62, j in 0..30; 0 stays 0 (off)."""
+        t = np.asarray(t, dtype=np.float64)
+        j = np.clip(np.rint(t * (HEIGHT - 1) - 0.5), 0, HEIGHT - 2)
+        return np.where(t > 0, (2.0 * j + 1.0) / (2 * (HEIGHT - 1)), 0.0)
+
+    def steps(self, values):
+        """(N.L thresholds, silhouette, specular threshold) as the table and the renderer see them."""
+        thresholds = np.asarray(values["thresholds"], dtype=np.float64)
+        silhouette, specular_threshold = values["silhouette"], values["specular_threshold"]
+        if values["sampling"] == "nearest":
+            return (self.snap_n_dot_l(thresholds), float(self.snap_n_dot_v(silhouette)),
+                    float(self.snap_n_dot_l(specular_threshold)))  # fmt: skip
+        return thresholds, silhouette, specular_threshold
 
     def evaluate(self, values, n_dot_l, n_dot_v):
         nl, nv = np.broadcast_arrays(
             np.clip(np.asarray(n_dot_l, dtype=np.float64), -1.0, 1.0),
             np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0),
         )
-        band = np.searchsorted(np.asarray(values["thresholds"], dtype=np.float64), nl, side="right")
+        thresholds, silhouette, specular_threshold = self.steps(values)
+        band = np.searchsorted(thresholds, nl, side="right")
         out = np.empty(nl.shape + (4,))
         out[..., :3] = np.asarray(values["colours"], dtype=np.float64)[band]
-        edge = nv < values["silhouette"]
+        edge = nv < silhouette
         out[edge, :3] = values["silhouette_colour"]
-        out[..., 3] = np.where((nl >= values["specular_threshold"]) & ~edge, values["specular"], 0.0)
+        out[..., 3] = np.where((nl >= specular_threshold) & ~edge, values["specular"], 0.0)
         return out

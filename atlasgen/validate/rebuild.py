@@ -26,34 +26,22 @@ import numpy as np
 __all__ = ["rebuild_separable_image", "rebuild_lut_image", "sample_table", "lut_tables"]
 
 
-def sample_table(table: np.ndarray, n_dot_l, n_dot_v) -> np.ndarray:
-    """Bilinear, clamp-to-edge lookup of an ``(H, W, C)`` slice at (N.L, N.V), as a GPU sampler does.
+def sample_table(table: np.ndarray, n_dot_l, n_dot_v, nearest: bool = False) -> np.ndarray:
+    """The slice as the renderer samples it: :func:`atlasgen.sampling.sample_slice`."""
+    from ..sampling import sample_slice
 
-    Coordinates follow the atlas contract (:func:`atlasgen.contract.atlas_uv`): texel i
-    centre at N.L = -1 + 2i/(W-1), texel j centre at N.V = j/(H-1).
-    """
-    from ..contract import atlas_uv
-
-    h, w = table.shape[:2]
-    u, v = atlas_uv(n_dot_l, n_dot_v, w, h)
-    x = np.clip(u * w - 0.5, 0.0, w - 1.0)
-    y = np.clip(v * h - 0.5, 0.0, h - 1.0)
-    x0 = np.minimum(np.floor(x).astype(np.int64), w - 2)
-    y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    top = table[y0, x0] * (1 - fx) + table[y0, x0 + 1] * fx
-    bottom = table[y0 + 1, x0] * (1 - fx) + table[y0 + 1, x0 + 1] * fx
-    return top * (1 - fy) + bottom * fy
+    return sample_slice(table, n_dot_l, n_dot_v, nearest)
 
 
 class _TableModel:
     """Stands in for a model: ``evaluate`` samples a table instead of the formula."""
 
-    def __init__(self, table):
+    def __init__(self, table, nearest=False):
         self.table = np.asarray(table, dtype=np.float64)
+        self.nearest = nearest
 
     def evaluate(self, values, n_dot_l, n_dot_v):
-        return sample_table(self.table, n_dot_l, n_dot_v)
+        return sample_table(self.table, n_dot_l, n_dot_v, self.nearest)
 
 
 def lut_tables(atlas_path, entry: dict) -> dict:
@@ -105,7 +93,7 @@ def rebuild_lut_image(entry: dict, table: np.ndarray, scene, aovs: dict) -> np.n
     x, n, v = _pixel_geometry(scene, aovs, mask)
     albedo = np.asarray(aovs["albedo"], dtype=np.float64)[mask]
     gloss = np.asarray(aovs["gloss"], dtype=np.float64)[mask]
-    model = _TableModel(table)
+    model = _TableModel(table, nearest=bool(entry.get("flags", {}).get("nearest")))
     total = np.zeros((len(x), 3))
     for light in scene.lights:
         l, irradiance = _light_at(light, x)

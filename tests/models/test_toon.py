@@ -16,7 +16,7 @@ THREE = "colours = [[0,0,0],[1,1,1],[1,0,0]]"
 
 
 def test_bands_switch_exactly_at_the_thresholds():
-    params = {**DEFAULTS, "thresholds": (-0.2, 0.4), "colours": (RED, GREEN, BLUE)}
+    params = {**DEFAULTS, "thresholds": (-0.2, 0.4), "colours": (RED, GREEN, BLUE), "sampling": "linear"}
     eps = 1e-12
     nl = np.array([-1.0, -0.2 - eps, -0.2, 0.4 - eps, 0.4, 1.0])
     out = MODEL.evaluate(params, nl, 0.5)
@@ -34,7 +34,7 @@ def test_baked_slice_assigns_each_texel_its_band():
 
 
 def test_stepped_specular_is_off_in_the_silhouette_and_below_its_threshold():
-    params = {**DEFAULTS, "specular": 2.5, "specular_threshold": 0.7, "silhouette": 0.1}
+    params = {**DEFAULTS, "specular": 2.5, "specular_threshold": 0.7, "silhouette": 0.1, "sampling": "linear"}
     nl = np.array([0.69, 0.7, 1.0])[:, None]
     nv = np.array([0.05, 0.1, 0.9])[None, :]
     a = MODEL.evaluate(params, nl, nv)[..., 3]
@@ -42,9 +42,35 @@ def test_stepped_specular_is_off_in_the_silhouette_and_below_its_threshold():
 
 
 def test_outline_flag_reaches_the_manifest_flags(load):
-    assert MODEL.flags(DEFAULTS) == {"outline": False}
-    material = load("toon", "outline = true")
-    assert material.model.flags(material.params) == {"outline": True}
+    assert MODEL.flags(DEFAULTS) == {"outline": False, "nearest": True}
+    material = load("toon", 'outline = true\nsampling = "linear"')
+    assert material.model.flags(material.params) == {"outline": True, "nearest": False}
+
+
+def test_nearest_steps_lie_on_texel_boundaries():
+    nl_edges = -1 + (2 * np.arange(63) + 1) / 63
+    nv_edges = (2 * np.arange(31) + 1) / 62
+    t = np.linspace(-1, 1, 401)
+    snapped = MODEL.snap_n_dot_l(t)
+    assert np.isin(snapped, nl_edges).all()
+    assert np.abs(snapped - t).max() <= 1 / 63 + 1e-12
+    v = np.linspace(0.001, 1, 300)
+    assert np.isin(MODEL.snap_n_dot_v(v), nv_edges).all() and MODEL.snap_n_dot_v(0.0) == 0.0
+
+
+@given(seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=20, deadline=None)
+def test_nearest_sampled_slice_reproduces_the_model_everywhere(seed):
+    """What the renderer reads (nearest texel of the baked slice) equals the model at any (N.L, N.V)."""
+    from atlasgen.sampling import sample_slice
+
+    rng = np.random.default_rng(seed)
+    thresholds = tuple(sorted(rng.uniform(-1, 1, 3)))
+    params = {**DEFAULTS, "thresholds": thresholds, "colours": (INK, RED, GREEN, BLUE),
+              "silhouette": float(rng.uniform(0, 0.5)), "specular_threshold": float(rng.uniform(-1, 1))}
+    table = MODEL.bake(params).values[0]
+    nl, nv = rng.uniform(-1, 1, 5000), rng.uniform(0, 1, 5000)
+    np.testing.assert_array_equal(sample_slice(table, nl, nv, nearest=True), MODEL.evaluate(params, nl, nv))
 
 
 def test_no_thresholds_is_a_flat_colour():
@@ -65,6 +91,7 @@ def params_strategy(draw):
         "specular": draw(st.floats(0.0, 16.0)),
         "specular_threshold": draw(st.floats(-1.0, 1.0)),
         "outline": draw(st.booleans()),
+        "sampling": draw(st.sampled_from(["nearest", "linear"])),
     }
 
 
