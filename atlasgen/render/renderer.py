@@ -117,13 +117,26 @@ class Renderer:
             }],
         )  # fmt: skip
         self.gbuffer_pass = GBufferPass(device, self.frame_layout)
-        self.lighting_pass = LightingPass(device, atlas.include, atlas.manifest)
+        self._lighting_passes: dict = {}
         self.outline_pass = OutlinePass(device, atlas.include)
         self._meshes: dict = {}
         self._gbuffers: dict = {}
         self._fence = None
 
     # ---- resources -------------------------------------------------------------------
+
+    def lighting_pass_for(self, separable_ids=frozenset()) -> LightingPass:
+        """The lighting pass compiled for the separable materials a scene actually shows.
+
+        A lighting shader that merely contains the separable reconstruction runs ~9x
+        slower on lavapipe at 720p even when no pixel takes that branch (measured: 3.8 s
+        against 0.43 s for 16 lights and 4 translucent objects), so the branch is only
+        compiled in for scenes that use a separable material.
+        """
+        key = frozenset(separable_ids)
+        if key not in self._lighting_passes:
+            self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, key)
+        return self._lighting_passes[key]
 
     def _mesh(self, obj) -> _GpuMesh:
         key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
@@ -187,13 +200,14 @@ class Renderer:
             layout=self.gbuffer_pass.object_layout,
             entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": 160}}],
         )
-        lighting_group = self.lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)
+        lighting_pass = self.lighting_pass_for(e["first_slice"] for e in entries if e.get("type") == "separable")
+        lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.
         wants_outlines = any(entry.get("flags", {}).get("outline") for entry in entries)
         opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
         translucent = sort_back_to_front(scene.objects, centres, scene.camera)
-        return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_group, outline_group,
+        return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, wants_outlines,
                               (frame_buffer, light_buffer, object_buffer))  # fmt: skip
 
@@ -206,13 +220,13 @@ class Renderer:
         objs = frame.scene.objects
         self.gbuffer_pass.encode(encoder, frame.gbuffer, frame.frame_group, frame.object_group,
                                  [frame.draws[i] for i in frame.opaque], clear=True, stencil_reference=0)  # fmt: skip
-        self.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
+        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
         for n, i in enumerate(frame.translucent):
             if trace is not None:
                 buffers.append(encoder.finish())
                 buffers.append((trace, n > 0))  # marker: read the frame (and the last stencil mask) here
                 encoder = self.device.create_command_encoder()
-            encode_translucent(encoder, self.gbuffer_pass, self.lighting_pass, frame.gbuffer, frame.hdr,
+            encode_translucent(encoder, self.gbuffer_pass, frame.lighting_pass, frame.gbuffer, frame.hdr,
                                frame.frame_group, frame.object_group, frame.lighting_group, frame.draws[i],
                                objs[i].opacity, scissor=frame.rectangles[i],
                                after=None if trace is None else trace.copy_stencil)  # fmt: skip
@@ -228,7 +242,7 @@ class Renderer:
     def encode_lighting(self, frame: "_PreparedFrame"):
         """One command buffer holding only the opaque lighting pass (for benchmarks)."""
         encoder = self.device.create_command_encoder()
-        self.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
+        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
         return encoder.finish()
 
     def submit(self, command_buffers) -> None:
@@ -326,6 +340,7 @@ class _PreparedFrame:
     hdr: object
     frame_group: object
     object_group: object
+    lighting_pass: LightingPass
     lighting_group: object
     outline_group: object
     draws: list
