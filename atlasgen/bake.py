@@ -178,7 +178,8 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     requests = [(m.name, v.shape[0], m.id, m.source) for m, _, v, _ in baked]
     slots = assign_slices(requests, previous_slots)
 
-    level0 = np.zeros((LAYERS, HEIGHT, WIDTH, 4))
+    # float32 is ample for 8-bit output, and halves the cost of the mips and their encoding.
+    level0 = np.zeros((LAYERS, HEIGHT, WIDTH, 4), dtype=np.float32)
     scales = np.ones((LAYERS, 2))
     biases = np.zeros((LAYERS, 2))
     for material, _, values, encoded in baked:

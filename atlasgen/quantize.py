@@ -18,7 +18,7 @@ def quantize_rgba(linear: np.ndarray, srgb: bool) -> np.ndarray:
     if srgb:
         x = x.copy()
         x[..., :3] = encode_srgb(x[..., :3])
-    return np.rint(x * 255.0).astype(np.uint8)
+    return np.rint(x * np.float32(255.0) if x.dtype == np.float32 else x * 255.0).astype(np.uint8)
 
 
 def dequantize_rgba(texels: np.ndarray, srgb: bool) -> np.ndarray:

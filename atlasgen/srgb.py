@@ -12,8 +12,11 @@ def encode_srgb(linear):
 
     c = 12.92 L for L <= 0.0031308, else 1.055 L^(1/2.4) - 0.055 (IEC 61966-2-1, eq. 5).
     """
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    x = np.asarray(linear)
+    if x.dtype != np.float32:  # float32 stays float32: the atlas's own mips are built in it
+        x = x.astype(np.float64)
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, x * 12.92, np.power(x, 1.0 / 2.4) * 1.055 - 0.055).astype(x.dtype, copy=False)
 
 
 def decode_srgb(encoded):

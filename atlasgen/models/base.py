@@ -46,16 +46,11 @@ def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> E
     are counted too.
     """
     n = values.shape[0]
-    scale = np.ones((n, 2))
-    for s in range(n):
-        for g, (chan, fixed) in enumerate(((slice(0, 3), rgb_scale), (slice(3, 4), alpha_scale))):
-            if fixed == "auto":
-                peak = float(values[s, ..., chan].max(initial=0.0))
-                scale[s, g] = max(1.0, peak)
-            else:
-                scale[s, g] = float(fixed)
-    per_channel = np.concatenate([np.repeat(scale[:, :1], 3, axis=1), scale[:, 1:]], axis=1)
-    scaled = values / per_channel[:, None, None, :]
+    peaks = np.stack([values[..., :3].max(axis=(1, 2, 3)), values[..., 3].max(axis=(1, 2))], axis=1)
+    scale = np.empty((n, 2))
+    for g, fixed in enumerate((rgb_scale, alpha_scale)):
+        scale[:, g] = np.maximum(1.0, peaks[:, g]) if fixed == "auto" else float(fixed)
+    scaled = values / scale[:, [0, 0, 0, 1]][:, None, None, :]
     out_of_range = (scaled > 1.0) | (scaled < 0.0)
     stored = np.clip(scaled, 0.0, 1.0)
     return EncodedSlices(stored, scale, np.zeros((n, 2)), float(out_of_range.mean()))
