@@ -79,5 +79,8 @@ def test_error_breakdown_separates_resolution_quantization_and_the_gpu(validatio
             # The GPU renders what the CPU rebuild of the same 8-bit slice predicts.
             assert b["gpu_vs_8bit"]["psnr_db"] >= 50.0
         if r.type == "toon":
-            # Steps between texel centres: filtering, not quantization, is the cost.
-            assert abs(r.breakdown["table_float"]["psnr_db"] - r.breakdown["table_8bit"]["psnr_db"]) < 1.0
+            # Steps on texel boundaries, sampled nearest: the float table is the model,
+            # so only quantization is left to cost anything.
+            b = r.breakdown
+            assert b["table_float"]["psnr_db"] >= b["table_8bit"]["psnr_db"] + 3.0, b
+            assert b["table_8bit"]["psnr_db"] >= 45.0, b
