@@ -117,6 +117,8 @@ def read_material(path) -> Material:
 
     params = validate_params(model.params, model_raw, shown)
     model.check(params, shown)
+    if error_budget is not None:
+        params = model.apply_budget(params, float(error_budget), shown)
     return Material(
         name=name,
         type=type_name,

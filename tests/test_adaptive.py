@@ -71,3 +71,13 @@ def test_bad_budget(write_material, bad):
 
     with pytest.raises(MaterialError, match="field 'error_budget': expected a finite number > 0"):
         read_material(write_material("a", f'type = "lambert"\nerror_budget = {bad}\n'))
+
+
+def test_a_separable_budget_is_its_term_budget(write_material):
+    from atlasgen.errors import MaterialError
+    from atlasgen.material import read_material
+
+    m = read_material(write_material("s", 'type = "separable"\nsource = "ggx"\nerror_budget = 0.03\n'))
+    assert m.params["max_error"] == 0.03
+    with pytest.raises(MaterialError, match="field 'error_budget': expected either 'terms'"):
+        read_material(write_material("t", 'type = "separable"\nterms = 2\nerror_budget = 0.03\n'))

@@ -74,6 +74,15 @@ class Model:
         """Linear RGBA at arbitrary (N.L, N.V): RGB the diffuse response, A the specular scale."""
         raise NotImplementedError
 
+    def apply_budget(self, values: dict, budget: float, path) -> dict:
+        """Parameters for a material that carries an ``error_budget``.
+
+        LUT models keep theirs: the bake meets the budget by supersampling
+        (:mod:`atlasgen.adaptive`). Models with their own knob (the separable term
+        count) map the budget onto it here.
+        """
+        return values
+
     def flags(self, values: dict) -> dict:
         """Render-time requests recorded in the manifest (e.g. ``{"outline": True}``)."""
         return {}

@@ -94,6 +94,14 @@ class Separable(Model):
             raise MaterialError(path, "bsdf", f"only used with source = 'mitsuba', but source is {values['source']!r}")
 
     # -- LUT-style evaluation (previews) ---------------------------------------------------------
+    def apply_budget(self, values: dict, budget: float, path) -> dict:
+        """``error_budget`` is this model's ``max_error``: the fewest terms whose relative RMS meets it."""
+        if values["terms"] is not None:
+            raise MaterialError(path, "error_budget", "expected either 'terms' or an error budget, not both")
+        if values["max_error"] is not None and values["max_error"] != budget:
+            raise MaterialError(path, "error_budget", "expected either 'max_error' or 'error_budget', not both")
+        return {**values, "max_error": budget}
+
     def evaluate(self, values, n_dot_l, n_dot_v):
         """RGB = the exact f cos(theta_l) with l and v coplanar on opposite sides of n; A = 0.
 
