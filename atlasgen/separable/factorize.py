@@ -99,6 +99,13 @@ def _weighted(matrix, w1, w2):
     return matrix * r1[None, :, None] * r2[None, None, :], r1, r2
 
 
+def _signed_top_singular(matrix: np.ndarray, terms: int):
+    """The top ``terms`` singular triplets with the deterministic sign convention, and sqrt(s)."""
+    u, s, vt = _top_singular(matrix, terms)
+    u, vt = fix_signs(u, vt)
+    return u, s, vt, np.sqrt(s)
+
+
 def factorize_svd(matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int, parametrization: str) -> Factors:
     """Truncated SVD per colour channel (Kautz & McCool 1999, sec. 3; Eckart & Young 1936).
 
@@ -116,10 +123,8 @@ def factorize_svd(matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int
     for c in range(channels):
         if not np.any(a[c]):
             continue
-        u, s, vt = _top_singular(a[c], terms)
+        u, s, vt, root = _signed_top_singular(a[c], terms)
         keep = s.size
-        u, vt = fix_signs(u, vt)
-        root = np.sqrt(s)
         g[:keep, c] = (u * root[None, :]).T / r1[None, :]
         h[:keep, c] = vt * root[:, None] / r2[None, :]
         sv[c, :keep] = s[:keep]
@@ -145,10 +150,8 @@ def factorize_nmf(
     for c in range(channels):
         if not np.any(a[c]):
             continue
-        u, s, vt = _top_singular(a[c], terms)
+        u, s, vt, root = _signed_top_singular(a[c], terms)
         keep = s.size
-        u, vt = fix_signs(u, vt)
-        root = np.sqrt(s)
         wmat = np.abs(u) * root[None, :] + eps  # (n1, K)
         hmat = np.abs(vt) * root[:, None] + eps  # (K, n2)
         x = a[c]
