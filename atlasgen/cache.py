@@ -57,11 +57,16 @@ def load_cached(cache_dir, material) -> SliceSet | None:
         return None
 
 
-def store_cached(cache_dir, material, slices: SliceSet) -> Path:
-    """Write the slices atomically (parallel ``make -j`` jobs each write their own file)."""
+def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> Path:
+    """Write the slices atomically (parallel ``make -j`` jobs each write their own file).
+
+    ``bake_seconds`` is what the bake cost when it ran, so reports built from the cache
+    still show the real bake time, not the time to load it.
+    """
     from .atomic import write_file_atomically
 
-    meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": slices.timings}
+    timings = {**slices.timings, "bake_s": bake_seconds}
+    meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": timings}
     buffer = io.BytesIO()
     np.savez(buffer, values=np.asarray(slices.values, dtype=np.float64), meta=np.array(json.dumps(meta)))
     path = cache_path(cache_dir, material)

@@ -40,8 +40,18 @@ def _validation_rows(validation: dict | None, name: str) -> list[dict]:
         if result.get("material") == name:
             for kind, ref in result.get("references", {}).items():
                 rows.append({"reference": f"{result.get('scene', '?')}/{kind}", "psnr": ref.get("psnr_db"),
-                             "flip": ref.get("flip"), "speed_ratio": ref.get("speed_ratio")})
+                             "flip": ref.get("flip"), "speed_ratio": ref.get("speed_ratio"),
+                             "linear_rmse": ref.get("linear_rmse")})
     return rows
+
+
+def _plotted_error(entry: dict, refs: list[dict], validated: bool):
+    """One error per material on one scale: validation's linear RMSE against the model
+    reference when there is a validation run, else the manifest's quantisation RMS."""
+    if validated:
+        front = [r for r in refs if r["reference"] == "front/model" and r.get("linear_rmse") is not None]
+        return max(front[0]["linear_rmse"], 1e-7) if front else None
+    return max(entry["quantization_error"]["rms"], 1e-7)
 
 
 def _fmt(x, spec=".3g"):
@@ -55,7 +65,6 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     (errors, representation), the timings file (bake time), and, when present,
     ``validation_dir/report.json`` (errors against Mitsuba references).
     """
-    import numpy as np
 
     from .atlas import read_atlas
     from .preview import slice_display_image, write_png
@@ -79,13 +88,12 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
             previews.append(rel)
         bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
         refs = _validation_rows(validation, name)
-        err = entry.get("errors", {}).get("atlas_rel_rms") if isinstance(entry.get("errors"), dict) else None
-        if err is None:
-            err = entry["quantization_error"]["rms"]
         rows.append((entry, previews, bake_s, refs))
         if bake_s is not None:
-            points.append((name, bake_s, max(err, 1e-6), entry["type"]))
+            points.append((name, bake_s, _plotted_error(entry, refs, validation is not None), entry["type"]))
 
+    y_label = ("linear RMSE vs model reference" if validation is not None else "RMS quantisation error, linear")
+    points = [p for p in points if p[2] is not None]
     plot = None
     if points:
         import matplotlib
@@ -102,8 +110,8 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("bake time per material (ms)")
-        ax.set_ylabel("error (separable: rel. RMS of the 8-bit atlas; LUT: RMS quantisation, linear)")
-        ax.set_title("Speed against error, whole library")
+        ax.set_ylabel(y_label)
+        ax.set_title("Speed against error" + (" (validation, front scene)" if validation is not None else " (level 0)"))
         ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(out_dir / "speed-vs-error.png")

@@ -109,9 +109,13 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
 
         from atlasgen.cache import cache_path
 
+        import time
+
         for material in materials:
             if load_cached(cache_dir, material) is None:
-                store_cached(cache_dir, material, bake_material(material))
+                t0 = time.perf_counter()
+                slices = bake_material(material)
+                store_cached(cache_dir, material, slices, time.perf_counter() - t0)
             else:
                 # Up to date: refresh the time stamp so Make does not ask again.
                 os.utime(cache_path(cache_dir, material))
