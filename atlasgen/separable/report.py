@@ -165,7 +165,14 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
 
     paths = {}
     ks = np.arange(1, MAX_AUTO_TERMS + 1)
-    meta = {"Software": None}
+
+    def save(fig, kind: str) -> Path:
+        # No "Software" metadata: the PNG bytes then depend only on the figures.
+        path = folder / f"{study.name}-{kind}.png"
+        fig.tight_layout()
+        fig.savefig(path, dpi=110, metadata={"Software": None})
+        plt.close(fig)
+        return path
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for target, curves in study.by_terms.items():
@@ -179,10 +186,7 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     ax.set_title(f"{study.name}: error against K; float against 8-bit")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    paths["terms"] = folder / f"{study.name}-terms.png"
-    fig.tight_layout()
-    fig.savefig(paths["terms"], dpi=110, metadata=meta)
-    plt.close(fig)
+    paths["terms"] = save(fig, "terms")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for k in (1, 2, 4, 8):
@@ -194,10 +198,7 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     ax.set_title(f"{study.name}: error against grid resolution")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    paths["resolution"] = folder / f"{study.name}-resolution.png"
-    fig.tight_layout()
-    fig.savefig(paths["resolution"], dpi=110, metadata=meta)
-    plt.close(fig)
+    paths["resolution"] = save(fig, "resolution")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     xs = [r["seconds"] * 1e3 for r in study.by_resolution]
@@ -212,10 +213,7 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     ax.set_title(f"{study.name}: error against time")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    paths["pareto"] = folder / f"{study.name}-pareto.png"
-    fig.tight_layout()
-    fig.savefig(paths["pareto"], dpi=110, metadata=meta)
-    plt.close(fig)
+    paths["pareto"] = save(fig, "pareto")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for name, curve in study.by_parametrization.items():
@@ -225,10 +223,7 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     ax.set_title(f"{study.name}: parametrizations, same 32-texel grid")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    paths["parametrization"] = folder / f"{study.name}-parametrization.png"
-    fig.tight_layout()
-    fig.savefig(paths["parametrization"], dpi=110, metadata=meta)
-    plt.close(fig)
+    paths["parametrization"] = save(fig, "parametrization")
     return paths
 
 
