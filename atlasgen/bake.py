@@ -11,7 +11,7 @@ import numpy as np
 
 from . import __version__
 from .contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
-from .dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, encode_dds
+from .dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from .errors import InputError, MaterialError
 from .mips import build_array_mips, build_volume_mips
 from .quantize import dequantize_rgba, quantize_rgba
@@ -32,12 +32,9 @@ class BakeResult:
     timings: dict
     warnings: list = field(default_factory=list)
 
-    @property
-    def summary(self) -> str:
-        fmt = "R8G8B8A8_UNORM_SRGB" if self.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB else "R8G8B8A8_UNORM"
-        if self.layout == "volume":
-            return f"({WIDTH}x{HEIGHT}x{LAYERS}, {len(self.levels)} mips, {fmt}, 3D)"
-        return f"({WIDTH}x{HEIGHT}, {len(self.levels)} mips, {LAYERS} layers, {fmt}, 2DArray)"
+    def describe(self, dds_path) -> str:
+        """The texconv-style line for this atlas written to ``dds_path``."""
+        return describe_texture(dds_path, WIDTH, HEIGHT, LAYERS, len(self.levels), self.dxgi_format, self.layout)
 
 
 def sibling_paths(dds_path) -> dict:
@@ -86,12 +83,11 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
     k sees its neighbours; the reference is m's own box-filtered 2D chain.
     """
     bleed = []
-    used = [(first, count, scales[first]) for first, count in materials_slots]
     own_chains = {}
     for k in range(1, len(float_levels)):
         worst, sq, n = 0.0, 0.0, 0
         level = float_levels[k]
-        for first, count, _ in used:
+        for first, count in materials_slots:
             for s in range(first, first + count):
                 if s not in own_chains:
                     own_chains[s] = build_array_mips(float_levels[0][s : s + 1])

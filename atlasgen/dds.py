@@ -24,6 +24,7 @@ __all__ = [
     "write_dds",
     "read_dds",
     "describe_dds",
+    "describe_texture",
 ]
 
 DXGI_FORMAT_R8G8B8A8_UNORM = 28
@@ -163,11 +164,14 @@ def read_dds(path) -> DDSImage:
                     dxgi_format, "volume" if volume else "array", levels)  # fmt: skip
 
 
-def describe_dds(image: DDSImage, path) -> str:
+def describe_texture(path, width, height, layers, mip_count, dxgi_format, layout) -> str:
     """texconv-style one-line summary, e.g. ``atlas.dds (64x32, 7 mips, 256 layers, R8G8B8A8_UNORM_SRGB, 2DArray)``."""
-    if image.layout == "volume":
-        return f"{Path(path).as_posix()} ({image.width}x{image.height}x{image.depth}, {image.mip_count} mips, {image.format_name}, 3D)"
-    return (
-        f"{Path(path).as_posix()} ({image.width}x{image.height}, {image.mip_count} mips, "
-        f"{image.array_size} layers, {image.format_name}, 2DArray)"
-    )
+    name = DXGI_NAMES.get(dxgi_format, str(dxgi_format))
+    if layout == "volume":
+        return f"{Path(path).as_posix()} ({width}x{height}x{layers}, {mip_count} mips, {name}, 3D)"
+    return f"{Path(path).as_posix()} ({width}x{height}, {mip_count} mips, {layers} layers, {name}, 2DArray)"
+
+
+def describe_dds(image: DDSImage, path) -> str:
+    """:func:`describe_texture` of a parsed file."""
+    return describe_texture(path, image.width, image.height, image.layers, image.mip_count, image.dxgi_format, image.layout)

@@ -80,8 +80,7 @@ def render_contact_sheet(result, target_path) -> bytes:
         raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
     os.close(fd)
     try:
-        out = buf.copy(oiio.UINT8) if hasattr(buf, "copy") else buf
-        if not out.write(tmp, oiio.UINT8):
+        if not buf.write(tmp, oiio.UINT8):
             raise OutputError(f"{Path(target_path).as_posix()}: cannot write preview ({oiio.geterror()})")
         return Path(tmp).read_bytes()
     finally:

@@ -8,6 +8,7 @@ Exit codes (docs/cli.md): 0 success, 1 internal error, 2 usage error (click),
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -132,7 +133,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     if not quiet:
         for warning in result.warnings:
             click.echo(f"atlasgen: warning: {warning}", err=True)
-        click.echo(f"{Path(output).as_posix()} {result.summary}")
+        click.echo(result.describe(output))
 
 
 @app.command()

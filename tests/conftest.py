@@ -17,6 +17,32 @@ os.makedirs(os.environ["XDG_RUNTIME_DIR"], mode=0o700, exist_ok=True)
 
 
 @pytest.fixture
+def expect_rejected(write_material):
+    """Write ``type = <model>`` plus ``body`` (or ``body`` alone when the type is None) to a
+    TOML file and assert read_material rejects it.
+
+    The message must be one line naming the file, the field (when given) and ``expected``.
+    """
+
+    def check(type_name: str, body: str, field: str | None, expected: str) -> str:
+        from atlasgen.errors import MaterialError
+        from atlasgen.material import read_material
+
+        path = write_material("bad", f'type = "{type_name}"\n{body}\n' if type_name else body)
+        with pytest.raises(MaterialError) as info:
+            read_material(path)
+        message = str(info.value)
+        assert "\n" not in message
+        assert message.startswith(path.as_posix() + ": "), message
+        if field is not None:
+            assert f"field '{field}'" in message, message
+        assert expected in message, message
+        return message
+
+    return check
+
+
+@pytest.fixture
 def write_material(tmp_path):
     """Write a material TOML into ``tmp_path/materials`` and return its path."""
     folder = tmp_path / "materials"

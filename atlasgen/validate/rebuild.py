@@ -23,14 +23,13 @@ import time
 
 import numpy as np
 
+from ..sampling import sample_slice
+
 __all__ = ["rebuild_separable_image", "rebuild_lut_image", "sample_table", "lut_tables"]
 
 
-def sample_table(table: np.ndarray, n_dot_l, n_dot_v, nearest: bool = False) -> np.ndarray:
-    """The slice as the renderer samples it: :func:`atlasgen.sampling.sample_slice`."""
-    from ..sampling import sample_slice
-
-    return sample_slice(table, n_dot_l, n_dot_v, nearest)
+#: The slice as the renderer samples it (bilinear, or nearest for flagged slices).
+sample_table = sample_slice
 
 
 class _TableModel:

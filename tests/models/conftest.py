@@ -6,29 +6,7 @@ import numpy as np
 import pytest
 
 from atlasgen.contract import HEIGHT, WIDTH
-from atlasgen.errors import MaterialError
 from atlasgen.material import read_material
-
-
-@pytest.fixture
-def expect_rejected(write_material):
-    """Write ``type = <model>`` plus ``body`` to a TOML file and assert read_material rejects it.
-
-    The message must be one line naming the file, the field and ``expected``.
-    """
-
-    def check(type_name: str, body: str, field: str, expected: str) -> str:
-        path = write_material("bad", f'type = "{type_name}"\n{body}\n')
-        with pytest.raises(MaterialError) as info:
-            read_material(path)
-        message = str(info.value)
-        assert "\n" not in message
-        assert message.startswith(path.as_posix() + ": "), message
-        assert f"field '{field}'" in message, message
-        assert expected in message, message
-        return message
-
-    return check
 
 
 @pytest.fixture
