@@ -72,7 +72,8 @@ class Separable(Model):
         Param("exponent", 100.0, "float", lo=0.0, hi=1e6, lo_open=True, doc="Blinn-Phong exponent"),
         Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
         Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
-        Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: smallest K <= 8 meeting it"),
+        Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: the cheapest K <= 8 and grid meeting it"),
+        Param("grid", None, "int", lo=4, hi=128, doc="fixed sampling grid, texels per factor axis (default: chosen from 16, 32, 48)"),
         Param("parametrization", "half_diff", "choice", choices=_parametrization_names(), doc="pi1 / pi2 split"),
         Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
         Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
@@ -130,7 +131,7 @@ class Separable(Model):
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
-        from ..separable.approximate import approximate_brdf
+        from ..separable.approximate import GRID_RESOLUTIONS, approximate_brdf
         from ..separable.source import make_source
         from ..separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 
@@ -145,6 +146,7 @@ class Separable(Model):
             method=method,
             target=values["target"],
             resolution=FACTOR_RESOLUTION,
+            grids=GRID_RESOLUTIONS if values["grid"] is None else (values["grid"],),
             reference=reference,
             pairs=_error_pairs(),
         )
@@ -160,6 +162,7 @@ class Separable(Model):
             "factorization": method,
             "target": result.target,
             "terms": int(result.terms),
+            "sampling_grid": int(result.grid),
             "factor_resolution": FACTOR_RESOLUTION,
             "channel_layout": CHANNEL_LAYOUT,
             "factor_scale": _rounded(scale),
@@ -178,6 +181,17 @@ class Separable(Model):
         if result.max_error_met is not None:
             extra["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
             extra["max_error_met"] = result.max_error_met
+        chosen_8bit = next(e for e in result.errors_8bit_by_terms[result.target] if e["terms"] == result.terms)
+        extra["representation"] = {
+            "kind": "separable",
+            "terms": int(result.terms),
+            "sampling_grid": int(result.grid),
+            "target": result.target,
+            "error_budget": extra.get("max_error"),
+            "estimated_error_8bit": chosen_8bit["relative_rms"],
+            "meets_budget": result.max_error_met,
+            "candidates": result.candidates,
+        }
         out = SliceSet(slices, extra, timings)
         # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
         out._separable = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,

@@ -1,4 +1,4 @@
-"""The whole approximation of one BRDF: sample, factor, measure, and pick K and the target."""
+"""The whole approximation of one BRDF: sample, factor, measure, and pick K, the grid and the target."""
 
 from __future__ import annotations
 
@@ -11,15 +11,19 @@ import numpy as np
 from .error import errors_by_terms, sample_hemisphere_pairs
 from .factorize import Factors, factorize, matrix_errors
 from .parametrization import get_parametrization
+from .resample import resample_factors
 from .source import BrdfSource, sample_matrices
 from .storage import quantize_factors
 
-__all__ = ["Approximation", "approximate_brdf", "reference_values", "TARGETS", "MAX_AUTO_TERMS"]
+__all__ = ["Approximation", "approximate_brdf", "reference_values", "TARGETS", "MAX_AUTO_TERMS", "GRID_RESOLUTIONS"]
 
 #: ``max_error`` mode tries K = 1 .. MAX_AUTO_TERMS.
 MAX_AUTO_TERMS = 8
 #: What the factors approximate: f cos(theta_l), or f times a separable cosine proxy.
 TARGETS = ("f_cos", "f_proxy")
+#: Sampling grids (texels per factor axis) an automatic bake chooses from, cheapest first.
+#: The atlas always stores 32; 16 is interpolated up, 48 is fitted down by least squares.
+GRID_RESOLUTIONS = (16, 32, 48)
 
 
 @dataclass
@@ -28,8 +32,10 @@ class Approximation:
 
     ``errors_by_terms[target]`` lists, for K = 1 .. the largest K tried, the float
     errors at the fixed (l, v) pairs, ``errors_8bit_by_terms`` the same after 8-bit
-    quantization, ``matrix_errors_by_terms`` the weighted residual on the sampled grid
-    (:func:`matrix_errors`); ``factors`` is truncated to the chosen ``terms``.
+    quantization (relative RMS only), ``matrix_errors_by_terms`` the weighted residual
+    on the sampled grid (:func:`matrix_errors`), all on the chosen sampling ``grid``;
+    ``candidates`` holds the 8-bit relative RMS by K of every (grid, target) tried.
+    ``factors`` is truncated to the chosen ``terms`` and stored on ``resolution`` texels.
     """
 
     factors: Factors
@@ -42,6 +48,8 @@ class Approximation:
     nonfinite_reference: int
     timings: dict = field(default_factory=dict)
     max_error_met: bool | None = None
+    grid: int = 32
+    candidates: list = field(default_factory=list)
 
     @property
     def errors(self) -> dict:
@@ -66,11 +74,24 @@ def _at(errors: list[dict], terms: int) -> dict:
     return next(e for e in errors if e["terms"] == terms)
 
 
-def _choose(errors: list[dict], terms, max_error):
+def _choose(candidates: list[dict], terms, max_error):
+    """Index of the chosen candidate, its K, and whether it meets ``max_error`` (None: K fixed).
+
+    Fixed K: the least error at K. A budget: candidates in a fixed order of cost, fewer
+    terms (atlas slices and texture reads per pixel) before a coarser sampling grid
+    (BRDF evaluations at bake time), then lower error; the first that meets the
+    budget wins. If none does, the least error of all is kept. Because the order
+    does not depend on the budget, a tighter budget never yields a larger error.
+    """
     if terms is not None:
-        return terms, None
-    meeting = [e["terms"] for e in errors if e["relative_rms"] <= max_error]
-    return (meeting[0], True) if meeting else (errors[-1]["terms"], False)
+        best = min(range(len(candidates)), key=lambda i: (_at(candidates[i]["errors"], terms)["relative_rms"], i))
+        return best, terms, None
+    ranked = sorted((e["terms"], c["grid"], e["relative_rms"], i) for i, c in enumerate(candidates) for e in c["errors"])
+    for k, _, error, i in ranked:
+        if error <= max_error:
+            return i, k, True
+    k, _, _, i = min(ranked, key=lambda r: (r[2], r[0], r[1], r[3]))
+    return i, k, False
 
 
 def approximate_brdf(
@@ -85,19 +106,28 @@ def approximate_brdf(
     pairs=None,
     srgb: bool = True,
     measure_8bit: bool = True,
+    grids=None,
 ) -> Approximation:
     """Factor one BRDF (Kautz & McCool 1999) and measure every candidate.
+
+    A candidate is a (sampling grid, target) pair with its K = 1 .. 8 prefixes. The
+    BRDF is sampled on each grid, factored there, and carried to the stored
+    ``resolution`` (:func:`~atlasgen.separable.resample.resample_factors`), so every
+    candidate is judged on what the atlas would hold.
 
     Parameters
     ----------
     terms, max_error
         A fixed K, or the error budget (relative RMS of f cos after 8-bit quantization,
-        :func:`quantize_factors`) for which the smallest K <= 8 is chosen. With
-        neither, ``max_error = 0.02``.
+        :func:`quantize_factors`) for which the cheapest candidate meeting it is chosen
+        (see :func:`_choose`). With neither, ``max_error = 0.02``.
     target
-        ``"f_cos"``, ``"f_proxy"``, or ``"auto"``: both are factored (from one sampling pass)
-        and the one meeting the budget with fewer terms, then the one with the lower
-        8-bit error, wins.
+        ``"f_cos"``, ``"f_proxy"``, or ``"auto"``: both are factored (from one sampling
+        pass per grid) and compete as candidates.
+    resolution
+        Texels per factor axis of the result (the atlas stores 32).
+    grids
+        Sampling grids to try, e.g. :data:`GRID_RESOLUTIONS`; default ``(resolution,)``.
     srgb
         Whether the atlas stores RGB sRGB-encoded (the default), for the 8-bit estimate.
     measure_8bit
@@ -108,27 +138,12 @@ def approximate_brdf(
     """
     if terms is None and max_error is None:
         max_error = 0.02
-    timings = {}
+    grids = (resolution,) if grids is None else tuple(sorted(set(int(g) for g in grids)))
     p = get_parametrization(parametrization)
-    t0 = time.perf_counter()
     targets = TARGETS if target == "auto" else (target,)
-    matrices, nonfinite = sample_matrices(source, p, resolution, targets)
-    t1 = time.perf_counter()
-    timings["sample_s"] = t1 - t0
     most = 1 if method == "nd" else (terms or MAX_AUTO_TERMS)
-    candidates = {}
-    w1, w2 = _weights(p.name, resolution)
-    for name in targets:
-        factors = factorize(matrices[name], w1, w2, most, p.name, method)
-        factors.target = name
-        candidates[name] = factors
-    t2 = time.perf_counter()
-    timings["svd_s"] = t2 - t1
-    grid_errors = {
-        name: [float(f"{e:.6g}") for e in matrix_errors(matrices[name], w1, w2, f.truncated(min(most, MAX_AUTO_TERMS)))]
-        for name, f in candidates.items()
-    }
-
+    # K = 1 .. 8 for the curves, and the fixed K itself when it is larger.
+    wanted = sorted(set(range(1, min(most, MAX_AUTO_TERMS) + 1)) | {most})
     if pairs is None:
         pairs = sample_hemisphere_pairs()
     if reference is None:
@@ -136,32 +151,55 @@ def approximate_brdf(
     else:
         ref_nonfinite = 0
     l, v = pairs
-    # K = 1 .. 8 for the curves, and the fixed K itself when it is larger.
-    wanted = sorted(set(range(1, min(most, MAX_AUTO_TERMS) + 1)) | {most})
-    errors = {name: errors_by_terms(f, reference, l, v, wanted) for name, f in candidates.items()}
-    # Each term has its own scale and bias, so quantizing all K terms once gives the
-    # 8-bit error of every prefix K in one more pass.
-    errors_8bit = {
-        name: errors_by_terms(quantize_factors(f, srgb=srgb), reference, l, v, wanted) for name, f in candidates.items()
-    } if measure_8bit else {}
-    judged = errors_8bit if measure_8bit else errors
-    best = None
-    for name in targets:
-        k, met = _choose(judged[name], most if terms else None, max_error)
-        key = (0 if met in (None, True) else 1, k if met else 0, _at(judged[name], k)["relative_rms"])
-        if best is None or key < best[0]:
-            best = (key, name, k, met)
-    _, chosen, k, met = best
-    timings["error_s"] = time.perf_counter() - t2
+
+    timings = {"sample_s": 0.0, "svd_s": 0.0, "error_s": 0.0}
+    candidates = []
+    for grid in grids:
+        t0 = time.perf_counter()
+        matrices, nonfinite = sample_matrices(source, p, grid, targets)
+        t1 = time.perf_counter()
+        w1, w2 = _weights(p.name, grid)
+        sampled = {}
+        for name in targets:
+            sampled[name] = factorize(matrices[name], w1, w2, most, p.name, method)
+            sampled[name].target = name
+        t2 = time.perf_counter()
+        for name in targets:
+            stored = resample_factors(sampled[name], resolution)
+            # Each term has its own scale and bias, so quantizing all K terms once gives
+            # the 8-bit error of every prefix K in one more pass.
+            judged = (errors_by_terms(quantize_factors(stored, srgb=srgb), reference, l, v, wanted, log=False)
+                      if measure_8bit else errors_by_terms(stored, reference, l, v, wanted))  # fmt: skip
+            candidates.append({"grid": grid, "target": name, "factors": stored, "sampled": sampled[name],
+                               "matrix": matrices[name], "weights": (w1, w2), "nonfinite": nonfinite, "errors": judged})  # fmt: skip
+        timings["sample_s"] += t1 - t0
+        timings["svd_s"] += t2 - t1
+        timings["error_s"] += time.perf_counter() - t2
+
+    t3 = time.perf_counter()
+    index, k, met = _choose(candidates, most if terms else None, max_error)
+    chosen = candidates[index]
+    on_grid = [c for c in candidates if c["grid"] == chosen["grid"]]
+    errors = {c["target"]: (errors_by_terms(c["factors"], reference, l, v, wanted) if measure_8bit else c["errors"])
+              for c in on_grid}  # fmt: skip
+    errors_8bit = {c["target"]: c["errors"] for c in on_grid} if measure_8bit else {}
+    grid_errors = {
+        c["target"]: [float(f"{e:.6g}") for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))]
+        for c in on_grid
+    }
+    timings["error_s"] += time.perf_counter() - t3
     return Approximation(
-        factors=candidates[chosen].truncated(k),
+        factors=chosen["factors"].truncated(k),
         terms=k,
-        target=chosen,
+        target=chosen["target"],
         errors_by_terms=errors,
         errors_8bit_by_terms=errors_8bit,
         matrix_errors_by_terms=grid_errors,
-        nonfinite_samples=nonfinite,
+        nonfinite_samples=chosen["nonfinite"],
         nonfinite_reference=ref_nonfinite,
         timings=timings,
         max_error_met=met,
+        grid=chosen["grid"],
+        candidates=[{"grid": c["grid"], "target": c["target"],
+                     "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]]} for c in candidates],  # fmt: skip
     )

@@ -73,28 +73,56 @@ def measure_errors(reference: np.ndarray, approx: np.ndarray) -> dict:
     }
 
 
-def errors_by_terms(factors, reference: np.ndarray, l: np.ndarray, v: np.ndarray, terms=None) -> list[dict]:
+def errors_by_terms(factors, reference: np.ndarray, l: np.ndarray, v: np.ndarray, terms=None,
+                    log: bool = True) -> list[dict]:
     """Errors of the first K terms at the pairs (l, v), n = +z, for each K in ``terms``.
 
     ``terms`` defaults to 1 .. factors.terms. One interpolation pass serves every K
-    (a running sum over terms). Each dict also holds its ``terms``.
+    (a running sum over terms). Each dict also holds its ``terms``; ``log=False``
+    leaves out ``log_error`` (the costlier measure, not needed to rank candidates).
     """
     from .rebuild import sample_factors
 
     wanted = sorted(set(range(1, factors.terms + 1) if terms is None else terms))
+    if not wanted:
+        return []
     products, valid = sample_factors(factors, None, l, v)
-    if factors.target == "f_proxy":
-        from .parametrization import get_parametrization
-
-        proxy = get_parametrization(factors.parametrization).proxy_at(np.array([0.0, 0.0, 1.0]), l, v)
-        cosine = (np.maximum(l[:, 2], 0.0) / proxy)[:, None]
-    else:
-        cosine = 1.0
-    out = []
-    running = np.zeros(products.shape[1:])
-    for k in range(1, wanted[-1] + 1 if wanted else 0):
-        running += products[k - 1]
-        if k in wanted:
-            approx = np.where(valid[:, None], np.maximum(running.T, 0.0) * cosine, 0.0)
-            out.append({"terms": k, **measure_errors(reference, approx)})
+    weight = _pair_weights(factors.parametrization, factors.target, valid, l, v)
+    ref = np.ascontiguousarray(np.asarray(reference, dtype=np.float64).T)
+    # All K at once, channel-major like ``products``: cumulative sums over terms, then
+    # the shader's clamp and weight, in place (these arrays are K x 3 x 100 000).
+    approx = np.cumsum(products[: wanted[-1]], axis=0)
+    if len(wanted) < approx.shape[0]:
+        approx = approx[np.asarray(wanted) - 1]
+    np.maximum(approx, 0.0, out=approx)
+    approx *= weight
+    logs = None
+    if log:
+        log_ref = np.log1p(np.maximum(ref, 0.0))
+        diff = np.log1p(approx)
+        diff -= log_ref
+        logs = np.sqrt(np.mean(np.square(diff, out=diff), axis=(1, 2)))
+    approx -= ref
+    squared = np.sum(np.square(approx, out=approx), axis=(1, 2))
+    norm = float(np.sum(ref**2))
+    rel = np.sqrt(squared / norm) if norm > 0.0 else np.sqrt(squared / max(ref.size, 1))
+    out = [{"terms": k, "relative_rms": float(f"{r:.6g}")} for k, r in zip(wanted, rel)]
+    if logs is not None:
+        for entry, g in zip(out, logs):
+            entry["log_error"] = float(f"{g:.6g}")
     return out
+
+
+def _pair_weights(parametrization: str, target: str, valid, l, v) -> np.ndarray:
+    """What multiplies the clamped sum at each pair: 0 where invalid, n.l / proxy for f_proxy, else 1."""
+    if target != "f_proxy":
+        return valid.astype(np.float64)
+    from .parametrization import get_parametrization
+    from .rebuild import cached_on_pairs
+
+    def make():
+        proxy = get_parametrization(parametrization).proxy_at(np.array([0.0, 0.0, 1.0]), l, v)
+        return np.maximum(l[:, 2], 0.0) / proxy
+
+    cosine = cached_on_pairs(("proxy", parametrization), (l, v), make)
+    return np.where(valid, cosine, 0.0)

@@ -96,23 +96,40 @@ def test_rebake_is_byte_identical(bake_folder, tmp_path):
     assert a.include == b.include
 
 
-def test_max_error_picks_the_smallest_k_meeting_it(bake_folder):
+def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     result = bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nmax_error = 0.03\n'})
     e = _entry(result, "g")
-    k = e["terms"]
+    k, grid, rep = e["terms"], e["sampling_grid"], e["representation"]
+    assert rep["kind"] == "separable" and (rep["terms"], rep["sampling_grid"]) == (k, grid)
+    assert {c["grid"] for c in rep["candidates"]} == {16, 32, 48}
+    assert {c["target"] for c in rep["candidates"]} == {"f_cos", "f_proxy"}
+    # Fewer terms never meet the budget, on any grid or target...
+    for c in rep["candidates"]:
+        assert all(x > 0.03 for x in c["relative_rms_by_terms"][: k - 1]), c
+    # ...and at K, no coarser grid does.
+    for c in rep["candidates"]:
+        if c["grid"] < grid:
+            assert c["relative_rms_by_terms"][k - 1] > 0.03, c
     by_k = [x["relative_rms"] for x in e["errors"]["estimated_8bit_srgb_by_terms"][e["target"]]]
-    assert by_k[k - 1] <= 0.03 and all(x > 0.03 for x in by_k[: k - 1])
-    # Every other target needed at least as many terms.
-    for target, errs in e["errors"]["estimated_8bit_srgb_by_terms"].items():
-        assert all(x["relative_rms"] > 0.03 for x in errs[: k - 1]), target
-    assert e["max_error_met"] is True and e["slice_count"] == k
+    assert by_k[k - 1] == rep["estimated_error_8bit"] <= 0.03
+    assert e["max_error_met"] is True and rep["meets_budget"] is True and e["slice_count"] == k
     # The estimate is the real 8-bit atlas (sRGB, the default) to rounding.
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(by_k[k - 1], rel=1e-3)
 
 
-def test_unreachable_budget_uses_eight_terms_and_says_so(bake_folder):
+def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.01\nmax_error = 1e-6\n'}), "g")
-    assert e["terms"] == 8 and e["max_error_met"] is False
+    rep = e["representation"]
+    assert e["max_error_met"] is False and rep["meets_budget"] is False
+    least = min(x for c in rep["candidates"] for x in c["relative_rms_by_terms"])
+    assert rep["estimated_error_8bit"] == least
+    assert e["errors_8bit"]["relative_rms"] == pytest.approx(least, rel=1e-3)
+
+
+def test_a_fixed_grid_is_the_only_one_sampled(bake_folder):
+    e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\ngrid = 24\n'}), "g")
+    assert e["sampling_grid"] == 24 and e["factor_resolution"] == 32
+    assert {c["grid"] for c in e["representation"]["candidates"]} == {24}
 
 
 @pytest.mark.parametrize("alpha", [0.005, 1.0])

@@ -1,0 +1,70 @@
+"""Choosing the representation: terms, sampling grid and target against an error budget."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from separable_helpers import analytic
+
+from atlasgen.separable.approximate import GRID_RESOLUTIONS, _choose, approximate_brdf
+
+errors = st.floats(min_value=1e-4, max_value=1.0)
+
+
+@st.composite
+def candidate_tables(draw):
+    grids = draw(st.lists(st.sampled_from((8, 16, 24, 32, 48)), min_size=1, max_size=4, unique=True))
+    k = draw(st.integers(1, 8))
+    return [{"grid": g, "target": t, "errors": [{"terms": i + 1, "relative_rms": draw(errors)} for i in range(k)]}
+            for g in sorted(grids) for t in ("f_cos", "f_proxy")]
+
+
+def _chosen_error(table, budget):
+    i, k, met = _choose(table, None, budget)
+    error = table[i]["errors"][k - 1]["relative_rms"]
+    assert met == (error <= budget)
+    return error
+
+
+@given(candidate_tables(), errors, errors)
+def test_a_tighter_budget_never_yields_a_larger_error(table, a, b):
+    tight, loose = sorted((a, b))
+    assert _chosen_error(table, tight) <= _chosen_error(table, loose)
+
+
+@given(candidate_tables(), errors)
+def test_the_choice_is_the_cheapest_meeting_the_budget_else_the_least_error(table, budget):
+    i, k, met = _choose(table, None, budget)
+    cost = (k, table[i]["grid"])
+    meeting = [(e["terms"], c["grid"]) for c in table for e in c["errors"] if e["relative_rms"] <= budget]
+    if meeting:
+        assert met and cost == min(meeting)
+    else:
+        assert not met
+        assert table[i]["errors"][k - 1]["relative_rms"] == min(e["relative_rms"] for c in table for e in c["errors"])
+
+
+@pytest.fixture(scope="module")
+def sharp():
+    # A near-mirror lobe: the case where the sampling grid matters most.
+    return approximate_brdf(analytic("ggx", alpha=0.05), terms=4, target="f_proxy", grids=GRID_RESOLUTIONS)
+
+
+def test_every_grid_is_measured_on_the_stored_resolution(sharp):
+    assert sharp.factors.resolution == 32 and sharp.terms == 4
+    assert sorted(c["grid"] for c in sharp.candidates) == list(GRID_RESOLUTIONS)
+    assert all(len(c["relative_rms_by_terms"]) == 4 for c in sharp.candidates)
+
+
+def test_a_fixed_k_takes_the_grid_with_the_least_error(sharp):
+    at_k = {c["grid"]: c["relative_rms_by_terms"][3] for c in sharp.candidates}
+    assert sharp.grid == min(at_k, key=at_k.get)
+    # Least squares from a finer grid beats sampling at the stored texels, which beats
+    # interpolating a coarser one: the reason the finer grid is offered at all.
+    assert at_k[48] < at_k[32] < at_k[16]
+
+
+def test_one_grid_by_default_keeps_the_stored_resolution():
+    result = approximate_brdf(analytic("beckmann", alpha=0.4), terms=2)
+    assert result.grid == 32 and [c["grid"] for c in result.candidates] == [32, 32]
+    assert np.isfinite(result.errors["relative_rms"])
