@@ -27,7 +27,10 @@ def _representation(entry: dict) -> str:
     if entry["type"] == "separable":
         terms = entry.get("terms", entry["slice_count"])
         param = entry.get("parametrization", "")
-        return f"separable, {terms} term(s){', ' + param if param else ''}"
+        grid = entry.get("sampling_grid")
+        budget = rep.get("error_budget")
+        return (f"separable, {terms} term(s){', ' + param if param else ''}"
+                f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
     if rep.get("kind") == "lut":
         return f"LUT, supersampling {rep['supersampling']}x (budget {rep['error_budget']:g})"
     return "LUT, point-sampled"

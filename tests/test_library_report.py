@@ -1,10 +1,15 @@
 """The whole-library HTML report opens with no broken image."""
 
+import json
 from html.parser import HTMLParser
 
 from atlasgen.bake import bake_atlas, write_bake
 from atlasgen.library_report import write_library_report
 from atlasgen.material import read_materials
+
+
+def read_json(path):
+    return json.loads(path.read_text())
 
 
 class Images(HTMLParser):
@@ -23,16 +28,21 @@ class Images(HTMLParser):
 def test_every_referenced_image_exists(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n')
     write_material("snow", 'type = "lambert"\nerror_budget = 0.01\n')
+    write_material("gloss", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nerror_budget = 0.05\n')
     atlas = tmp_path / "build" / "atlas.dds"
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
     index = write_library_report(atlas, tmp_path / "build" / "report")
     parser = Images()
     parser.feed(index.read_text())
-    assert len(parser.sources) == 3  # the plot and one preview per slice
+    terms = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")["terms"]
+    assert len(parser.sources) == 3 + terms  # the plot and one preview per slice
     for src in parser.sources + parser.links:
         assert (index.parent / src).is_file(), src
     text = index.read_text()
     assert "supersampling 1x" in text and "clay" in text
+    gloss = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")
+    grid = gloss["sampling_grid"]
+    assert f"separable, {terms} term(s), half_diff, sampled on {grid}x{grid} (budget 0.05)" in text
 
 
 def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
