@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OutputError
-from .approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
+from .approximate import GRID_RESOLUTIONS, MAX_AUTO_TERMS, approximate_brdf, reference_values
 from .error import errors_by_terms, sample_hemisphere_pairs
 from .factorize import factorize
 from .parametrization import PARAMETRIZATIONS, get_parametrization
@@ -65,8 +65,10 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     name = params["parametrization"]
     p = get_parametrization(name)
 
+    grids = GRID_RESOLUTIONS if params.get("grid") is None else (params["grid"],)
     chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
-                              method=params["factorization"], target=params["target"], reference=reference, pairs=pairs)
+                              method=params["factorization"], target=params["target"], reference=reference, pairs=pairs,
+                              grids=grids)
     full = approximate_brdf(source, name, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs)
     by_terms = {
         t: {"float": [e["relative_rms"] for e in full.errors_by_terms[t]],
@@ -144,7 +146,8 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     return MaterialStudy(
         name=material.name,
         source=material.source,
-        chosen={"parametrization": name, "target": target, "terms": chosen.terms, "factorization": params["factorization"],
+        chosen={"parametrization": name, "target": target, "terms": chosen.terms, "grid": chosen.grid,
+                "factorization": params["factorization"],
                 "float": chosen.errors, "8bit_srgb": {k: v for k, v in next(
                     e for e in chosen.errors_8bit_by_terms[target] if e["terms"] == chosen.terms).items() if k != "terms"}},
         by_terms=by_terms,
@@ -239,14 +242,14 @@ def _markdown(studies: list, plots: dict) -> str:
         "and Löw 2012 log error of f cos(theta_l) over 100,000 (l, v) pairs uniform on the hemisphere (fixed",
         "seed); 8-bit figures quantize the factors as an sRGB atlas stores them. See docs/separable.md.",
         "",
-        "| material | parametrization | target | K | float rel. RMS | 8-bit rel. RMS | log error | sample + SVD + quantize (ms) | atlas rel. RMS |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| material | parametrization | target | K | sampling grid | float rel. RMS | 8-bit rel. RMS | log error | sample + SVD + quantize on 32 (ms) | atlas rel. RMS |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in studies:
         t = s.timings
         atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
         lines.append(
-            f"| {s.name} | {s.chosen['parametrization']} | {s.chosen['target']} | {s.chosen['terms']} | "
+            f"| {s.name} | {s.chosen['parametrization']} | {s.chosen['target']} | {s.chosen['terms']} | {s.chosen['grid']} | "
             f"{_pct(s.chosen['float']['relative_rms'])} | {_pct(s.chosen['8bit_srgb']['relative_rms'])} | "
             f"{s.chosen['float']['log_error']:.4g} | {1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f} | {atlas} |"
         )
