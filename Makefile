@@ -15,14 +15,27 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
 # assembled from the cache. Only materials whose file, or whose bake code, changed are re-baked,
 # every write is atomic, and no two jobs write the same file, so `make -j2 atlas` is safe.
+# Validation and the separable report follow the same pattern: one job per material, into its own
+# folder, re-run only when that material's bake result or the code that measures it changed, then
+# a cheap merge that reads the per-material JSON and renders or measures nothing.
 MATERIAL_FILES := $(sort $(wildcard materials/*.toml))
+STEMS := $(patsubst materials/%.toml,%,$(MATERIAL_FILES))
 CACHE_DIR := $(BUILD)/cache
-CACHED := $(patsubst materials/%.toml,$(CACHE_DIR)/%.npz,$(MATERIAL_FILES))
-BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/params.py atlasgen/contract.py atlasgen/adaptive.py
+CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
+# __init__.py holds the version, which is part of every cache key (atlasgen/cache.py).
+BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/params.py atlasgen/contract.py atlasgen/adaptive.py atlasgen/__init__.py
 ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py))
+# What lies between a material's cached float slices and what is measured of them: encoding,
+# mips, DDS, the include, reading the atlas back and the CPU sampler.
+SLICE_CODE := atlasgen/bake.py atlasgen/quantize.py atlasgen/srgb.py atlasgen/mips.py atlasgen/dds.py atlasgen/include.py atlasgen/atlas.py atlasgen/sampling.py
 SEPARABLE_FILES := $(sort $(wildcard materials/separable-*.toml))
+SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
 VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE)
+VALIDATION := $(BUILD)/validation
+VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
+SEPARABLE_REPORT := $(BUILD)/report/separable
+SEPARABLE_STUDIES := $(patsubst %,$(SEPARABLE_REPORT)/materials/%/report.json,$(SEPARABLE_STEMS))
 
 setup: apt $(VENV)/.stamp
 
@@ -58,17 +71,33 @@ $(BUILD)/demo.png: scenes/demo.toml $(wildcard scenes/meshes/*) $(BUILD)/atlas.d
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) render scenes/demo.toml --atlas $(BUILD)/atlas.dds -o $(BUILD)/demo.exr
 
-validate: $(BUILD)/validation/report.json
-$(BUILD)/validation/report.json: $(BUILD)/atlas.dds $(VALIDATE_CODE) | $(VENV)/.stamp
+validate: $(VALIDATION)/report.json
+
+# One material's validation, into its own folder. Its bake result (the cache entry, rewritten or
+# touched whenever make re-bakes the material) stands for the material's slices; the atlas is
+# order-only: it must be current before validating, but another material's change to it does not
+# make this material's report stale.
+$(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(ATLASGEN) validate --atlas $(BUILD)/atlas.dds -o $(BUILD)/validation -q
+	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q
 
-$(BUILD)/report/separable/index.md: $(SEPARABLE_FILES) $(BUILD)/atlas.dds $(BAKE_CODE) | $(VENV)/.stamp
-	$(ATLASGEN) report separable $(SEPARABLE_FILES) --atlas $(BUILD)/atlas.dds -o $(BUILD)/report/separable
+# The combined page (index.html, report.json, speed_error.png) from the per-material report.json
+# files; materials.list re-merges when a material is removed.
+$(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE) | $(VENV)/.stamp
+	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
 
+# The separable study measures each material for ~10 s: one job per separable material, then a merge.
+$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(BAKE_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
+
+$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/separable_merge.py atlasgen/separable/report.py | $(VENV)/.stamp
+	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
+
+# The library page assembles per-material figures that are already measured (manifest, timings,
+# the merged validation report): one cheap job over the whole library.
 report: $(BUILD)/report/index.html
-$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(BUILD)/report/separable/index.md $(wildcard $(BUILD)/validation/report.json) | $(VENV)/.stamp
-	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(BUILD)/validation --separable $(BUILD)/report/separable -o $(BUILD)/report
+$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_REPORT)/index.md $(VALIDATION)/report.json atlasgen/library_report.py atlasgen/preview.py | $(VENV)/.stamp
+	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report
 
 demo: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)

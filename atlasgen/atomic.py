@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
 from .errors import OutputError
 
-__all__ = ["write_files_atomically", "write_file_atomically"]
+__all__ = ["write_files_atomically", "write_file_atomically", "staged_folder"]
 
 
 def write_files_atomically(contents: dict) -> None:
@@ -50,3 +52,32 @@ def write_files_atomically(contents: dict) -> None:
 def write_file_atomically(path, data: bytes) -> None:
     """Atomically replace one file; see :func:`write_files_atomically`."""
     write_files_atomically({path: data})
+
+
+@contextlib.contextmanager
+def staged_folder(folder):
+    """A fresh temporary folder beside ``folder``, for a writer that is not atomic itself.
+
+    On a clean exit every file written under it replaces its counterpart under
+    ``folder`` in one all-or-nothing step (:func:`write_files_atomically`); on an
+    exception nothing under ``folder`` changes. The temporary folder is removed either
+    way. Files already in ``folder`` that the writer did not produce are left alone.
+
+    Raises
+    ------
+    OutputError
+        The temporary folder (beside ``folder``) or the outputs cannot be written.
+    """
+    folder = Path(folder)
+    parent = folder.parent if str(folder.parent) else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=parent))
+    except OSError as exc:
+        raise OutputError(f"{parent.as_posix()}: cannot write output folder ({exc.strerror})") from None
+    try:
+        yield staging
+        files = {folder / p.relative_to(staging): p.read_bytes() for p in sorted(staging.rglob("*")) if p.is_file()}
+        write_files_atomically(files)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

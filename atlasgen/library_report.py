@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import html
+import io
 import json
 import os
 from pathlib import Path
@@ -48,6 +49,13 @@ def _validation_rows(validation: dict | None, name: str) -> list[dict]:
     return rows
 
 
+def _validation_pages(validation: dict | None, name: str) -> list[str]:
+    """The per-material validation pages of one material (``page`` of a merged report), in
+    report order, relative to the validation folder."""
+    pages = [r["page"] for r in (validation or {}).get("results", []) if r.get("material") == name and r.get("page")]
+    return list(dict.fromkeys(pages))
+
+
 def _plotted_error(entry: dict, refs: list[dict], validated: bool):
     """One error per material on one scale: validation's linear RMSE against the model
     reference when there is a validation run, else the manifest's quantisation RMS."""
@@ -66,11 +74,13 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
 
     Every figure on the page is read from files the toolchain measured: the manifest
     (errors, representation), the timings file (bake time), and, when present,
-    ``validation_dir/report.json`` (errors against Mitsuba references).
+    ``validation_dir/report.json`` (errors against Mitsuba references; a merged report
+    also links each material's own validation page). Every file is replaced atomically.
     """
 
     from .atlas import read_atlas
-    from .preview import slice_display_image, write_png
+    from .atomic import write_file_atomically, write_files_atomically
+    from .preview import encode_png, slice_display_image
 
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
@@ -78,20 +88,19 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     timings = _read_json(Path(atlas_path).with_suffix("").as_posix() + ".timings.json") or {}
     validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
     out_dir = Path(out_dir)
-    (out_dir / "slices").mkdir(parents=True, exist_ok=True)
 
-    rows, points = [], []
+    rows, points, files = [], [], {}
     srgb = atlas.manifest["encoding"] == "srgb"
     for entry in atlas.manifest["materials"]:
         name = entry["name"]
         previews = []
         for k in range(entry["slice_count"]):
             rel = f"slices/{name}-{k}.png"
-            write_png(slice_display_image(atlas.image.levels[0], entry["first_slice"] + k, srgb), out_dir / rel, zoom=2)
+            files[out_dir / rel] = encode_png(slice_display_image(atlas.image.levels[0], entry["first_slice"] + k, srgb), zoom=2)
             previews.append(rel)
         bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
         refs = _validation_rows(validation, name)
-        rows.append((entry, previews, bake_s, refs))
+        rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name)))
         if bake_s is not None:
             points.append((name, bake_s, _plotted_error(entry, refs, validation is not None), entry["type"]))
 
@@ -117,9 +126,13 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         ax.set_title("Speed against error" + (" (validation, front scene)" if validation is not None else " (level 0)"))
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out_dir / "speed-vs-error.png")
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png")
         plt.close(fig)
         plot = "speed-vs-error.png"
+        files[out_dir / plot] = buffer.getvalue()
+    # Previews and plot first, all-or-nothing; the page that links them replaces the old one last.
+    write_files_atomically(files)
 
     def link(target: Path | None, label: str) -> str:
         if target is None or not Path(target).exists():
@@ -145,13 +158,16 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         parts.append(f'<p><img src="{plot}" alt="speed against error"></p>')
     parts.append("<table><tr><th>ID</th><th>material</th><th>type</th><th>representation</th><th>bake (ms)</th>"
                  "<th>quantisation error (max / RMS)</th><th>errors against references</th><th>slices (RGB | A)</th></tr>")
-    for entry, previews, bake_s, refs in rows:
+    for entry, previews, bake_s, refs, pages in rows:
         q = entry["quantization_error"]
         ref_text = "<br>".join(
             f"{e(r['reference'])}: PSNR {_fmt(r['psnr'], '.1f')} dB, FLIP {_fmt(r['flip'], '.4f')}, "
             f"atlas {_fmt(r['speed_ratio'], '.1f')}x faster"
             for r in refs
         ) or "not validated"
+        own = [link(Path(validation_dir) / page, "validation page") for page in pages] if validation_dir else []
+        if any(own):
+            ref_text += "<br>" + " · ".join(x for x in own if x)
         imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry["name"])} slice">' for p in previews)
         parts.append(
             f"<tr><td>{entry['first_slice']}</td><td>{e(entry['name'])}</td><td>{e(entry['type'])}</td>"
@@ -160,7 +176,5 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         )
     parts.append("</table></body></html>")
     index = out_dir / "index.html"
-    from .atomic import write_file_atomically
-
     write_file_atomically(index, "\n".join(parts).encode())
     return index

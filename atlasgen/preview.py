@@ -12,7 +12,7 @@ from .contract import HEIGHT, WIDTH
 from .errors import OutputError
 from .srgb import encode_srgb
 
-__all__ = ["render_contact_sheet", "slice_display_image", "write_png"]
+__all__ = ["render_contact_sheet", "slice_display_image", "encode_png", "write_png"]
 
 ZOOM = 2
 COLUMNS = 4
@@ -31,16 +31,31 @@ def slice_display_image(level0: np.ndarray, slice_index: int, srgb: bool) -> np.
     return np.concatenate([rgb, alpha], axis=1)[::-1]
 
 
-def write_png(image: np.ndarray, path, zoom: int = 1) -> None:
-    """Write display RGB in [0, 1] as an 8-bit PNG with OpenImageIO (nearest-neighbour zoom)."""
+def encode_png(image: np.ndarray, zoom: int = 1) -> bytes:
+    """8-bit PNG bytes of display RGB in [0, 1] (nearest-neighbour ``zoom``), by OpenImageIO."""
     import OpenImageIO as oiio
 
     if zoom > 1:
         image = np.kron(image, np.ones((zoom, zoom, 1)))
     buf = oiio.ImageBuf(oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
     buf.set_pixels(oiio.ROI(), np.ascontiguousarray(image, dtype=np.float32))
-    if not buf.write(str(path), oiio.UINT8):
-        raise OutputError(f"{Path(path).as_posix()}: cannot write PNG ({oiio.geterror()})")
+    # OIIO writes to files only: through a private temporary file, so callers can place
+    # the bytes atomically.
+    fd, tmp = tempfile.mkstemp(prefix=".atlasgen-png.", suffix=".png")
+    os.close(fd)
+    try:
+        if not buf.write(tmp, oiio.UINT8):
+            raise OutputError(f"{tmp}: cannot write PNG ({oiio.geterror()})")
+        return Path(tmp).read_bytes()
+    finally:
+        os.unlink(tmp)
+
+
+def write_png(image: np.ndarray, path, zoom: int = 1) -> None:
+    """Write display RGB in [0, 1] as an 8-bit PNG (:func:`encode_png`), atomically."""
+    from .atomic import write_file_atomically
+
+    write_file_atomically(path, encode_png(image, zoom))
 
 
 def render_contact_sheet(result, target_path) -> bytes:

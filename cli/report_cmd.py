@@ -25,12 +25,23 @@ def report():
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report/separable"), show_default=True,
               help="Folder for index.md, report.json and the PNG plots.")
 @click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True, help="Timing repeats (median).")
+@click.option("--merge", is_flag=True,
+              help="Measure nothing: merge earlier reports, the folders given as arguments, into one OUTPUT.")
 @fail_on_errors
-def separable(names, materials_dir, atlas, output, repeats):
-    """Error against K, grid, 8 bits and time for separable MATERIAL names (default: all separable ones)."""
+def separable(names, materials_dir, atlas, output, repeats, merge):
+    """Error against K, grid, 8 bits and time for separable MATERIAL names (default: all separable ones).
+
+    NAMES are material names (picked from --materials) or material files (X.toml).
+    With --merge they are folders of earlier reports (e.g. one per material), combined
+    without measuring again.
+    """
     from atlasgen.errors import InputError
     from atlasgen.material import read_materials
-    from atlasgen.separable.report import write_separable_report
+    from atlasgen.separable_merge import merge_separable_reports, write_separable_report_atomically
+
+    if merge:
+        click.echo(merge_separable_reports([Path(n) for n in names], output)["markdown"].as_posix())
+        return
 
     files = [Path(n) for n in names if n.endswith(".toml")]
     wanted = [n for n in names if not n.endswith(".toml")]
@@ -41,7 +52,7 @@ def separable(names, materials_dir, atlas, output, repeats):
         raise InputError(f"{materials_dir.as_posix()}: no material named {', '.join(missing)}")
     if files:
         chosen += read_materials(files)
-    written = write_separable_report(chosen, output, atlas, repeats=repeats)
+    written = write_separable_report_atomically(chosen, output, atlas, repeats=repeats)
     click.echo(written["markdown"].as_posix())
 
 

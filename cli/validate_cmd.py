@@ -38,26 +38,37 @@ def _resolution(ctx, param, value):
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
+@click.option("--merge", is_flag=True,
+              help="Render nothing: merge the report.json of earlier runs, the folders given as arguments, "
+                   "into one OUTPUT/index.html, report.json and plot.")  # fmt: skip
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors and the summary line.")
 @fail_on_errors
-def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, quiet):
+def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, merge, quiet):
     """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
 
     Each material is rendered on each validation scene by the bundled deferred
     renderer through the atlas, and by Mitsuba 3 with its model reference (the exact
     model the slice was baked from) and, where one exists, a physical reference.
     Writes OUTPUT/index.html and OUTPUT/report.json (docs/validation.md).
+
+    A MATERIAL is a name in the atlas or a material file (X.toml, which must be the
+    file the atlas was baked from). With --merge the arguments are folders of earlier
+    runs (e.g. one per material) whose reports are combined without rendering.
     """
-    from atlasgen.validate.run import validate_atlas, write_validation
+    if merge:
+        from atlasgen.validate.report import merge_validation_reports
 
-    def progress(text):
-        if not quiet:
-            click.echo(text, err=True)
+        written = merge_validation_reports([Path(m) for m in materials], output)
+    else:
+        from atlasgen.validate.run import validate_atlas, write_validation
 
-    run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
-                         resolution=resolution, physical=not no_physical, progress=progress)  # fmt: skip
-    written = write_validation(run, output)
-    model = [r.references["model"] for r in run.runs if r.type != "separable"]
-    met = sum(1 for ref in model if ref.metrics.psnr >= run.settings["goals"]["psnr_db"] and ref.metrics.flip <= run.settings["goals"]["flip"])
-    click.echo(f"{written['html'].as_posix()} ({len(run.runs)} material/scene results, "
-               f"{met}/{len(model)} LUT results meet the goals, {run.seconds:.1f} s)")  # fmt: skip
+        def progress(text):
+            if not quiet:
+                click.echo(text, err=True)
+
+        run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
+                             resolution=resolution, physical=not no_physical, progress=progress)  # fmt: skip
+        written = write_validation(run, output)
+    from atlasgen.validate.report import summary_line
+
+    click.echo(summary_line(written["data"], written["html"]))

@@ -1,8 +1,12 @@
 """The validation report: ``index.html``, ``report.json``, the images and one speed/error plot.
 
-Everything is built in memory as ``{path: bytes}`` and written by the caller in one
-all-or-nothing step (:func:`atlasgen.atomic.write_files_atomically`). Every figure in
-the report is a measured value from the run; nothing is typed in.
+Everything is built in memory as ``{path: bytes}`` and written in one all-or-nothing
+step (:func:`atlasgen.atomic.write_files_atomically`). Every figure in the report is a
+measured value from the run; nothing is typed in.
+
+The page and the plot are made from the JSON dict alone, so that
+:func:`merge_validation_reports` can combine per-material runs (``make validate`` runs
+one process per material) into one page without rendering anything again.
 """
 
 from __future__ import annotations
@@ -11,11 +15,22 @@ import html
 import io
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["build_report", "report_dict", "encode_png", "plot_speed_error", "image_name"]
+from ..errors import InputError
+
+__all__ = [
+    "build_report",
+    "report_dict",
+    "encode_png",
+    "plot_speed_error",
+    "image_name",
+    "merge_validation_reports",
+    "summary_line",
+]
 
 _KIND_LABEL = {
     "atlas": "atlas (deferred renderer)",
@@ -84,26 +99,40 @@ def report_dict(run) -> dict:
         if r.breakdown is not None:
             row["error_breakdown"] = r.breakdown
         rows.append(row)
-    lut = [row["references"]["model"] for row in rows if row["type"] != "separable" and "model" in row["references"]]
-    summary = {
-        "lut_results": len(lut),
-        "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
-        "worst_lut_psnr_db": min((x["psnr_db"] for x in lut if x["psnr_db"] is not None), default=None),
-        "worst_lut_flip": max((x["flip"] for x in lut), default=None),
-    }
     return {
         "atlas": run.atlas,
         "settings": run.settings,
         "environment": run.environment,
         "total_seconds": run.seconds,
-        "summary": summary,
+        "summary": _summary(rows),
         "results": rows,
     }
 
 
-def plot_speed_error(run) -> bytes:
+def _summary(rows: list) -> dict:
+    """The goals line, from the JSON rows (so a merged report recomputes it the same way)."""
+    lut = [row["references"]["model"] for row in rows if row["type"] != "separable" and "model" in row["references"]]
+    return {
+        "lut_results": len(lut),
+        "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
+        "worst_lut_psnr_db": min((x["psnr_db"] for x in lut if x["psnr_db"] is not None), default=None),
+        "worst_lut_flip": max((x["flip"] for x in lut), default=None),
+    }
+
+
+def summary_line(data: dict, html_path) -> str:
+    """The one line ``atlasgen validate`` prints: where the page is and how many results meet the goals."""
+    s = data["summary"]
+    return (f"{Path(html_path).as_posix()} ({len(data['results'])} material/scene results, "
+            f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
+
+
+def plot_speed_error(data: dict) -> bytes:
     """One PNG plot: speed-up of the atlas frame over each reference render (x, log) against
-    the atlas image's mean FLIP against that reference (y, log), one point per material and scene."""
+    the atlas image's mean FLIP against that reference (y, log), one point per material and scene.
+
+    ``data`` is a report dict (:func:`report_dict`, or a merged one): the plot reads only
+    its measured ``speed_ratio`` and ``flip`` figures."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -113,18 +142,19 @@ def plot_speed_error(run) -> bytes:
     markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
     for kind, (marker, colour) in markers.items():
         xs, ys, labels = [], [], []
-        for r in run.runs:
-            ref = r.references.get(kind)
-            if ref is None or r.atlas_seconds <= 0:
+        for row in data["results"]:
+            ref = row["references"].get(kind)
+            # No ratio where the atlas frame took no measurable time (report_dict stores None).
+            if ref is None or ref["speed_ratio"] is None:
                 continue
-            xs.append(ref.seconds / r.atlas_seconds)
-            ys.append(max(ref.metrics.flip, 1e-4))
-            labels.append(f"{r.material}/{r.scene}")
+            xs.append(ref["speed_ratio"])
+            ys.append(max(ref["flip"], 1e-4))  # log axis: a perfect match still gets a point
+            labels.append(f"{row['material']}/{row['scene']}")
         if xs:
             ax.scatter(xs, ys, marker=marker, color=colour, label=f"atlas vs {kind} reference", alpha=0.8)
             for x, y, label in zip(xs, ys, labels):
                 ax.annotate(label, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
-    goal = run.settings["goals"]["flip"]
+    goal = data["settings"]["goals"]["flip"]
     ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -158,11 +188,13 @@ def _html(data: dict) -> str:
         "<h1>atlasgen validation</h1>",
         f"<p>Atlas <code>{e(data['atlas'])}</code>; GPU: {e(data['environment']['gpu'])}; Mitsuba {e(str(data['environment']['mitsuba']))}; "
         f"{s['spp']} spp (model references), {s['physical_spp']} spp (stochastic physical references); "
-        f"total {data['total_seconds']:.1f} s.</p>",
+        f"total {data['total_seconds']:.1f} s{' (the sum of the merged runs)' if 'merged_from' in data else ''}.</p>",
         f"<p>Timing: atlas = {e(data['environment']['atlas_timing'])}; Mitsuba = {e(data['environment']['mitsuba_timing'])}. "
         f"Metrics compare the tone-mapped sRGB images (exposure from the scene): RMSE and PSNR over [0, 1], mean LDR FLIP. "
         f"Goals for LUT materials against the model reference: PSNR &ge; {s['goals']['psnr_db']} dB and mean FLIP &le; {s['goals']['flip']}. "
         "Conventions and the limits of each reference: docs/validation.md.</p>",
+        *([f"<p>Merged from {len(data['merged_from'])} per-material runs (<code>atlasgen validate --merge</code>); "
+           "each material also has its own page, linked from its images below.</p>"] if "merged_from" in data else []),
         "<h2>Summary</h2>",
         f"<p>{data['summary']['lut_meeting_goals']} of {data['summary']['lut_results']} LUT material/scene results meet the goals; "
         f"worst PSNR {_fmt(data['summary']['worst_lut_psnr_db'], '.2f')} dB, worst mean FLIP {_fmt(data['summary']['worst_lut_flip'], '.4f')}.</p>",
@@ -212,7 +244,8 @@ def _html(data: dict) -> str:
     out.append("</table>")
     out.append("<h2>Images</h2><p>Tone-mapped sRGB; FLIP heat maps in magma (black = no visible difference).</p>")
     for row in data["results"]:
-        out.append(f"<h3>{e(row['material'])} ({e(row['type'])}), scene {e(row['scene'])}</h3><div>")
+        page = f' <a href="{e(row["page"])}">(its own page)</a>' if "page" in row else ""
+        out.append(f"<h3>{e(row['material'])} ({e(row['type'])}), scene {e(row['scene'])}{page}</h3><div>")
         figures = [(row["atlas_image"], _KIND_LABEL["atlas"])]
         for kind, ref in row["references"].items():
             figures.append((ref["images"]["reference"], f"{_KIND_LABEL[kind]}: {ref['description']}"))
@@ -237,8 +270,111 @@ def build_report(run, out_dir) -> dict:
         for kind, ref in r.references.items():
             files[out_dir / image_name(r.material, r.scene, kind)] = encode_png(tonemap(ref.image, r.exposure))
             files[out_dir / image_name(r.material, r.scene, f"flip-{kind}")] = encode_png(flip_heatmap(ref.metrics.flip_map))
-    data = report_dict(run)
-    files[out_dir / "speed_error.png"] = plot_speed_error(run)
-    files[out_dir / "report.json"] = (json.dumps(data, indent=2, allow_nan=False) + "\n").encode()
-    files[out_dir / "index.html"] = _html(data).encode()
+    files.update(_page_files(report_dict(run), out_dir))
     return files
+
+
+def _page_files(data: dict, out_dir: Path) -> dict:
+    """``{path: bytes}`` of the plot, the JSON and the page of one report dict."""
+    return {
+        out_dir / "speed_error.png": plot_speed_error(data),
+        out_dir / "report.json": (json.dumps(data, indent=2, allow_nan=False) + "\n").encode(),
+        out_dir / "index.html": _html(data).encode(),
+    }
+
+
+def _read_report(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path.as_posix()}: no such validation report; run atlasgen validate -o {path.parent.as_posix()} first") from None
+    except OSError as exc:
+        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+    except ValueError as exc:
+        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    missing = [k for k in ("atlas", "settings", "environment", "total_seconds", "results") if k not in data] if isinstance(data, dict) else ["everything"]
+    if missing:
+        raise InputError(f"{path.as_posix()}: not a validation report (missing {', '.join(missing)})")
+    return data
+
+
+def _rebase(rel: str, source: Path, out_dir: Path) -> str:
+    """A path relative to a per-material folder, made relative to the merged page's folder."""
+    return Path(os.path.relpath(source / rel, out_dir)).as_posix()
+
+
+def _joined(values) -> str:
+    """Distinct values in first-seen order; one value stays as it is."""
+    return "; ".join(dict.fromkeys(str(v) for v in values))
+
+
+def merge_validation_reports(sources, out_dir) -> dict:
+    """Merge per-material validation reports into one ``index.html``, ``report.json`` and plot.
+
+    Nothing is rendered: every figure is read from the sources' ``report.json``. Image
+    paths are rewritten to point into the source folders, and each result gains
+    ``"page"``: its own material's ``index.html``, relative to ``out_dir``.
+
+    Parameters
+    ----------
+    sources
+        Folders written by ``atlasgen validate -o`` (or their ``report.json`` files), in
+        the order the merged page lists them.
+    out_dir
+        Folder for the merged ``index.html``, ``report.json`` and ``speed_error.png``;
+        nothing else in it is touched, so the sources may live inside it.
+
+    Returns
+    -------
+    dict
+        ``{"html", "json", "files", "data"}``: the written paths and the merged report dict.
+
+    Raises
+    ------
+    InputError
+        No sources, a missing or malformed ``report.json``, sources validated with
+        different settings (their figures would not be comparable), or one material and
+        scene in two sources.
+    OutputError
+        The merged files cannot be written (nothing is written then).
+    """
+    from ..atomic import write_files_atomically
+
+    out_dir = Path(out_dir)
+    paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
+    if not paths:
+        raise InputError("no validation reports to merge; expected folders written by atlasgen validate -o")
+    reports = [_read_report(p) for p in paths]
+    first = reports[0]
+    rows, seen = [], {}
+    for path, report in zip(paths, reports):
+        if report["settings"] != first["settings"]:
+            differing = sorted(k for k in set(first["settings"]) | set(report["settings"])
+                               if first["settings"].get(k) != report["settings"].get(k))  # fmt: skip
+            raise InputError(f"{path.as_posix()}: validated with other settings than {paths[0].as_posix()} "
+                             f"({', '.join(differing)} differ); re-run both with the same options")  # fmt: skip
+        for row in report["results"]:
+            key = (row["material"], row["scene"])
+            if key in seen:
+                raise InputError(f"{path.as_posix()}: material {key[0]!r} on scene {key[1]!r} is also in {seen[key].as_posix()}")
+            seen[key] = path
+            row = json.loads(json.dumps(row))  # a copy: the rebased paths must not leak back
+            row["atlas_image"] = _rebase(row["atlas_image"], path.parent, out_dir)
+            for ref in row["references"].values():
+                ref["images"] = {k: _rebase(v, path.parent, out_dir) for k, v in ref["images"].items()}
+            row["page"] = _rebase("index.html", path.parent, out_dir)
+            rows.append(row)
+    environment = {key: _joined(r["environment"].get(key, "?") for r in reports) for key in first["environment"]}
+    data = {
+        "atlas": _joined(r["atlas"] for r in reports),
+        "settings": first["settings"],
+        "environment": environment,
+        # The work the merged page stands for: the sum of the runs it is made of.
+        "total_seconds": sum(r["total_seconds"] for r in reports),
+        "summary": _summary(rows),
+        "results": rows,
+        "merged_from": [_rebase(".", p.parent, out_dir) for p in paths],
+    }
+    files = _page_files(data, out_dir)
+    write_files_atomically(files)
+    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}

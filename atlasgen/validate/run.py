@@ -15,6 +15,7 @@ references, scenes, Mitsuba, the GPU), so bad input fails fast and writes nothin
 from __future__ import annotations
 
 import gc
+import json
 import math
 import statistics
 import time
@@ -33,6 +34,7 @@ __all__ = [
     "ReferenceRender",
     "MaterialRun",
     "ValidationRun",
+    "is_material_file",
     "plan_validation",
     "validate_atlas",
     "write_validation",
@@ -104,7 +106,10 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
     if atlas.manifest is None:
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
     entries_by_name = {e["name"]: e for e in atlas.manifest.get("materials", [])}
-    names = list(dict.fromkeys(materials)) if materials else sorted(entries_by_name, key=lambda n: entries_by_name[n]["first_slice"])
+    if materials:
+        names = list(dict.fromkeys(_material_name(m, atlas_path, entries_by_name) for m in materials))
+    else:
+        names = sorted(entries_by_name, key=lambda n: entries_by_name[n]["first_slice"])
     entries = []
     for name in names:
         if name not in entries_by_name:
@@ -132,6 +137,35 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
                 model_reference(entries_by_name[obj.material])
         loaded.append((name, scene))
     return _Plan(atlas_path, atlas.manifest, entries, loaded)
+
+
+def is_material_file(item) -> bool:
+    """Whether a ``materials`` item names a material file rather than a material.
+
+    Material names are letters, digits, ``-`` and ``_`` only, so anything ending in
+    ``.toml`` (or a :class:`~pathlib.Path`) cannot be a name.
+    """
+    return isinstance(item, Path) or str(item).endswith(".toml")
+
+
+def _material_name(item, atlas_path, entries_by_name) -> str:
+    """The material name of a ``materials`` item: a name as it is, a material file by its
+    ``name`` field. A file must be the one the atlas was baked from (same content hash),
+    or the atlas's slices would not be what the file describes."""
+    from ..material import read_material
+
+    if not is_material_file(item):
+        return str(item)
+    material = read_material(item)  # InputError / MaterialError naming the file
+    entry = entries_by_name.get(material.name)
+    if entry is None:
+        known = ", ".join(sorted(entries_by_name)) or "none"
+        raise InputError(f"{material.source}: material {material.name!r} is not in {atlas_path.as_posix()} "
+                         f"(known: {known}); re-run atlasgen bake")  # fmt: skip
+    if entry.get("content_hash", material.content_hash) != material.content_hash:
+        raise InputError(f"{material.source}: changed since {atlas_path.as_posix()} was baked "
+                         f"(its content hash differs from the manifest's); re-run atlasgen bake")  # fmt: skip
+    return material.name
 
 
 def _check_params_current(atlas_path, entry) -> None:
@@ -184,7 +218,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     atlas_path
         ``X.dds`` with ``X.json`` and ``X.wgsl`` beside it (``atlasgen bake``).
     materials
-        Names to validate; all materials of the atlas by default.
+        Material names, or material TOML files (read for their ``name``; each must be
+        the file the atlas was baked from), to validate; all materials of the atlas by
+        default.
     scenes
         Standard scene names (``front``, ``back``) or scene TOML paths.
     spp
@@ -202,7 +238,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     Raises
     ------
     InputError, SceneError
-        Unknown material or scene, or a material no reference can be built for.
+        Unknown material or scene, a material no reference can be built for, or a
+        material file that is missing, invalid, or changed since the atlas was baked.
     BackendError
         Mitsuba's LLVM backend or a GPU adapter is missing.
     """
@@ -393,14 +430,18 @@ def _render_physical(mi, scene, entry, manifest, physical_spp, spp) -> Reference
 
 
 def write_validation(run: ValidationRun, out_dir) -> dict:
-    """Write ``index.html``, ``report.json``, the images and the plot, all-or-nothing."""
+    """Write ``index.html``, ``report.json``, the images and the plot, all-or-nothing.
+
+    Returns ``{"html", "json", "files", "data"}``: the written paths and the report dict.
+    """
     from ..atomic import write_files_atomically
     from .report import build_report
 
     out_dir = Path(out_dir)
     files = build_report(run, out_dir)
     write_files_atomically(files)
-    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files)}
+    data = json.loads(files[out_dir / "report.json"])
+    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 
 
 def speed_ratio(reference_seconds: float, atlas_seconds: float) -> float:

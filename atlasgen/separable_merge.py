@@ -1,0 +1,137 @@
+"""Per-material separable reports, written atomically, and their merge into one report.
+
+``atlasgen report separable`` measures each material for about ten seconds (the
+study of :mod:`atlasgen.separable.report`), so ``make report`` runs it once per
+separable material, each into its own folder, and then merges those folders into
+the combined ``index.md``, ``report.json`` and plots without measuring anything
+again. A changed material then costs one study, not one per separable material.
+
+The study, its JSON schema and its Markdown belong to :mod:`atlasgen.separable.report`;
+this module only stages its output and combines it. The merged Markdown is written by
+that module's own writer from the studies read back from JSON, so a merged report
+reads exactly like one written in a single run.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import MISSING, fields
+from pathlib import Path
+
+from .errors import InputError
+
+__all__ = ["PLOT_KINDS", "write_separable_report_atomically", "merge_separable_reports"]
+
+#: The plots :mod:`atlasgen.separable.report` writes per material, as ``<name>-<kind>.png``.
+PLOT_KINDS = ("terms", "resolution", "pareto", "parametrization")
+
+
+def write_separable_report_atomically(materials, output, atlas_path=None, **options) -> dict:
+    """:func:`atlasgen.separable.report.write_separable_report`, all-or-nothing.
+
+    The report is written into a staging folder beside ``output`` and moved into
+    ``output`` only when complete (:func:`atlasgen.atomic.staged_folder`), so an
+    interrupted study never leaves a half-written report for ``make`` to trust.
+    ``options`` are passed on (``repeats``, ``resolutions``, ``parametrizations``).
+
+    Returns
+    -------
+    dict
+        ``{"markdown", "json", "plots"}`` as the wrapped function, with paths under ``output``.
+    """
+    from .atomic import staged_folder
+    from .separable.report import write_separable_report
+
+    output = Path(output)
+    with staged_folder(output) as staging:
+        written = write_separable_report(materials, staging, atlas_path, **options)
+    return {
+        "markdown": output / "index.md",
+        "json": output / "report.json",
+        "plots": {name: {kind: output / path.name for kind, path in plots.items()} for name, plots in written["plots"].items()},
+    }
+
+
+def _read_studies(path: Path) -> list:
+    from .separable.report import MaterialStudy
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path.as_posix()}: no such separable report; run atlasgen report separable -o "
+                         f"{path.parent.as_posix()} first") from None  # fmt: skip
+    except OSError as exc:
+        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+    except ValueError as exc:
+        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    known = {f.name for f in fields(MaterialStudy)}
+    required = {f.name for f in fields(MaterialStudy) if f.default is MISSING and f.default_factory is MISSING}
+    if not isinstance(data, list):
+        raise InputError(f"{path.as_posix()}: not a separable report (expected a list of material studies)")
+    studies = []
+    for index, item in enumerate(data):
+        if not isinstance(item, dict) or not required <= set(item) or not set(item) <= known:
+            got = ", ".join(sorted(item)) if isinstance(item, dict) else type(item).__name__
+            raise InputError(f"{path.as_posix()}: entry {index} is not a material study (expected the fields "
+                             f"{', '.join(sorted(required))}; got {got})")  # fmt: skip
+        studies.append(MaterialStudy(**item))
+    return studies
+
+
+def merge_separable_reports(sources, output) -> dict:
+    """Merge per-material separable reports into one ``index.md``, ``report.json`` and plots.
+
+    Nothing is measured again: the studies are read from each source's ``report.json``
+    and the Markdown is written by the study's own writer, so the merged report reads
+    as one written in a single run over the same materials. The plots are copied next
+    to the merged ``index.md`` (its links are plain file names).
+
+    Parameters
+    ----------
+    sources
+        Folders written by ``atlasgen report separable -o`` (or their ``report.json``
+        files), in the order the merged report lists them.
+    output
+        Folder for the merged files; nothing else in it is touched, so the sources may
+        live inside it.
+
+    Returns
+    -------
+    dict
+        ``{"markdown", "json", "plots"}``: the written paths.
+
+    Raises
+    ------
+    InputError
+        No sources, a missing or malformed ``report.json`` or plot, or one material in
+        two sources.
+    OutputError
+        The merged files cannot be written (nothing is written then).
+    """
+    from .atomic import write_files_atomically
+    from .separable.report import _markdown
+
+    output = Path(output)
+    paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
+    if not paths:
+        raise InputError("no separable reports to merge; expected folders written by atlasgen report separable -o")
+    studies, files, seen, plots = [], {}, {}, {}
+    for path in paths:
+        for study in _read_studies(path):
+            if study.name in seen:
+                raise InputError(f"{path.as_posix()}: material {study.name!r} is also in {seen[study.name].as_posix()}")
+            seen[study.name] = path
+            plots[study.name] = {}
+            for kind in PLOT_KINDS:
+                png = path.parent / f"{study.name}-{kind}.png"
+                try:
+                    files[output / png.name] = png.read_bytes()
+                except OSError as exc:
+                    raise InputError(f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})") from None
+                plots[study.name][kind] = output / png.name
+            studies.append(study)
+    files[output / "index.md"] = _markdown(studies, plots).encode()
+    # The same serialisation as a single run's report.json.
+    files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
+    write_files_atomically(files)
+    return {"markdown": output / "index.md", "json": output / "report.json", "plots": plots}
