@@ -9,7 +9,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test bench clean atlas render validate report FORCE
+.PHONY: setup apt demo test bench clean atlas render validate report
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -55,9 +55,12 @@ $(VENV)/.stamp: pyproject.toml
 
 atlas: $(BUILD)/atlas.dds
 
-# Rewritten only when the set of material files changes, so removing one re-assembles the atlas.
-$(BUILD)/materials.list: FORCE
-	@mkdir -p $(BUILD); echo "$(MATERIAL_FILES)" | cmp -s - $@ || echo "$(MATERIAL_FILES)" > $@
+# Rewritten only when the set of material files changes, so removing one re-assembles the atlas
+# and re-merges the reports. It is refreshed while the Makefile is read, not by a rule that always
+# runs, so that `make -n` and `make -q` report exactly what is out of date.
+ifeq ($(filter clean,$(MAKECMDGOALS)),)
+$(shell mkdir -p $(BUILD) && { echo "$(MATERIAL_FILES)" | cmp -s - $(BUILD)/materials.list || { echo "$(MATERIAL_FILES)" > $(BUILD)/.materials.list.$$$$ && mv -f $(BUILD)/.materials.list.$$$$ $(BUILD)/materials.list; }; })
+endif
 
 $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q

@@ -63,3 +63,24 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     parser = Images()
     parser.feed(text)
     assert "../validation/index.html" in parser.links
+
+
+def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\n')
+    write_material("snow", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    vdir = tmp_path / "validation"
+    (vdir / "materials" / "clay").mkdir(parents=True)
+    for page in (vdir / "index.html", vdir / "materials" / "clay" / "index.html"):
+        page.write_text("<html></html>")
+    model = {"psnr_db": 50.0, "flip": 0.005, "speed_ratio": 2.0, "linear_rmse": 0.001}
+    (vdir / "report.json").write_text(json.dumps({"results": [
+        {"material": "clay", "scene": s, "references": {"model": model}, "page": "materials/clay/index.html"}
+        for s in ("front", "back")]}))  # fmt: skip
+    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
+    parser = Images()
+    parser.feed(index.read_text())
+    # One link per material that has its own page (both scenes share it); snow has none.
+    assert sorted(parser.links) == ["../validation/index.html", "../validation/materials/clay/index.html"]
+    assert not list((tmp_path / "report").rglob(".*.tmp"))

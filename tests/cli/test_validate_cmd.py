@@ -54,3 +54,55 @@ def test_missing_llvm_backend_exits_5_and_names_libllvm19(validation_atlas, tmp_
     assert result.exit_code == 5
     assert "install libllvm19" in result.output
     assert not out.exists()
+
+
+def test_a_material_file_validates_that_material_and_merge_combines_runs(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    folder = validation_atlas.parent / "materials"
+    tiny = ["--scene", "front", "--resolution", "24x18", "--no-physical", "--atlas", str(validation_atlas), "-q"]
+    runner = CliRunner()
+    for material in ("matte", "coat"):
+        result = runner.invoke(app, ["validate", str(folder / f"{material}.toml"), *tiny, "-o", str(tmp_path / material)])
+        assert result.exit_code == 0, result.output
+        assert [r["material"] for r in json.loads((tmp_path / material / "report.json").read_text())["results"]] == [material]
+    result = runner.invoke(app, ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all")])
+    assert result.exit_code == 0, result.output
+    data = json.loads((tmp_path / "all" / "report.json").read_text())
+    assert [r["material"] for r in data["results"]] == ["matte", "coat"]
+    s = data["summary"]
+    assert result.output.strip() == (f"{(tmp_path / 'all' / 'index.html').as_posix()} (2 material/scene results, "
+                                     f"{s['lut_meeting_goals']}/2 LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.parametrize(
+    "make_arg, message",
+    [
+        (lambda tmp, folder: tmp / "nosuch.toml", "nosuch.toml: no such file"),
+        # Same name, other content: the atlas's slices are not what this file describes.
+        (lambda tmp, folder: _write(tmp / "matte.toml", (folder / "matte.toml").read_text().replace("0.8", "0.7")),
+         "matte.toml: changed since"),
+        (lambda tmp, folder: _write(tmp / "other.toml", 'type = "lambert"\n'), "material 'other' is not in"),
+    ],
+    ids=["missing", "changed-since-the-bake", "not-in-the-atlas"],
+)
+def test_a_bad_material_file_gets_one_line_naming_it(validation_atlas, tmp_path, make_arg, message):  # noqa: F811
+    path = make_arg(tmp_path, validation_atlas.parent / "materials")
+    out = tmp_path / "v"
+    result = CliRunner().invoke(app, ["validate", str(path), "--atlas", str(validation_atlas), "-o", str(out)])
+    assert result.exit_code == 3
+    assert result.output.count("\n") == 1 and result.output.startswith(f"atlasgen: error: {path.as_posix()}: ")
+    assert message in result.output
+    assert not out.exists()
+
+
+def test_merge_of_a_folder_without_a_report_names_it(tmp_path):
+    result = CliRunner().invoke(app, ["validate", "--merge", str(tmp_path / "none"), "-o", str(tmp_path / "v")])
+    assert result.exit_code == 3
+    assert result.output.strip() == (f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: no such "
+                                     f"validation report; run atlasgen validate -o {(tmp_path / 'none').as_posix()} first")  # fmt: skip
+    assert not (tmp_path / "v").exists()
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path

@@ -1,0 +1,158 @@
+"""The Makefile's dependency graph: each change re-runs exactly the per-material jobs it affects.
+
+Dry runs (``make -n``) in a copy of the tree whose outputs all exist and are up to
+date; one input is then made newer and the commands make would run are read back.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MATERIALS = ("clay", "snow", "separable-gold")
+SEPARABLE = ("separable-gold",)
+T0 = 1_700_000_000  # sources
+T_BUILT = T0 + 100  # every output, all equally new: make treats them as up to date
+
+pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
+
+
+def _outputs(build: Path) -> list[Path]:
+    """Every file the pipeline's rules name as a target (what `make demo` leaves behind)."""
+    out = [build / "atlas.dds", build / "validation" / "report.json", build / "report" / "separable" / "index.md",
+           build / "report" / "index.html"]  # fmt: skip
+    out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
+    out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
+    out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
+    return out
+
+
+@pytest.fixture
+def tree(tmp_path):
+    """A copy of the Makefile, the code and scenes it names, three material files, and a
+    complete, up-to-date build folder."""
+    root = tmp_path / "tree"
+    root.mkdir()
+    shutil.copy(ROOT / "Makefile", root)
+    for folder in ("atlasgen", "scenes"):
+        shutil.copytree(ROOT / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    (root / "materials").mkdir()
+    for m in MATERIALS:
+        (root / "materials" / f"{m}.toml").write_text('type = "lambert"\n')
+    (root / "pyproject.toml").write_text("")
+    (root / ".venv").mkdir()
+    (root / ".venv" / ".stamp").write_text("")
+    for path in _outputs(root / "build"):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("")
+    _make(root, "-n", "atlas")  # reading the Makefile writes build/materials.list
+    for path in root.rglob("*"):
+        if path.is_file():
+            os.utime(path, (T0, T0))
+    for path in [*_outputs(root / "build"), root / "build" / "materials.list", root / ".venv" / ".stamp"]:
+        os.utime(path, (T_BUILT, T_BUILT))
+    return root
+
+
+def _make(root: Path, *args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MAKEFLAGS": "", "MAKELEVEL": ""}
+    return subprocess.run(["make", "--no-print-directory", *args], cwd=root, env=env, capture_output=True, text=True,
+                          timeout=60)  # fmt: skip
+
+
+def _commands(root: Path, *goals: str) -> list[str]:
+    """The atlasgen commands ``make -n`` would run for ``goals``."""
+    result = _make(root, "-n", *goals)
+    assert result.returncode == 0, result.stderr
+    return [line for line in result.stdout.splitlines() if "/atlasgen " in line]
+
+
+def _touch(path: Path) -> None:
+    os.utime(path, (T_BUILT + 100, T_BUILT + 100))
+
+
+def _validated(commands) -> list[str]:
+    """Material files validated (not merged) by ``commands``."""
+    return [re.search(r"validate (\S+)", c).group(1) for c in commands if " validate " in c and "--merge" not in c]
+
+
+def _studied(commands) -> list[str]:
+    return [re.search(r"report separable (\S+)", c).group(1) for c in commands
+            if " report separable " in c and "--merge" not in c]  # fmt: skip
+
+
+def test_nothing_changed_runs_nothing(tree):
+    assert _commands(tree, "atlas", "validate", "report") == []
+    assert _make(tree, "-q", "validate", "report").returncode == 0
+
+
+def test_a_changed_material_revalidates_only_itself(tree):
+    _touch(tree / "materials" / "snow.toml")
+    commands = _commands(tree, "validate", "report")
+    assert _validated(commands) == ["materials/snow.toml"]
+    assert _studied(commands) == []  # snow is not separable
+    bakes = [c for c in commands if "--cache-only" in c]
+    assert len(bakes) == 1 and "materials/snow.toml" in bakes[0]
+    # The atlas is re-assembled (before validation: it is an order-only prerequisite), the
+    # combined validation page is merged again, and the library page re-assembled.
+    assert sum(" -o build/atlas.dds" in c for c in commands) == 1
+    assert commands.index(next(c for c in commands if " -o build/atlas.dds" in c)) < commands.index(
+        next(c for c in commands if "validate materials/snow.toml" in c))
+    assert sum("validate --merge" in c for c in commands) == 1
+    assert sum("report library" in c for c in commands) == 1
+    assert not any("report separable --merge" in c for c in commands)
+
+
+def test_a_rebaked_separable_material_is_validated_and_studied_alone(tree):
+    # The cache entry is rewritten (or touched) exactly when make re-bakes the material.
+    _touch(tree / "build" / "cache" / "separable-gold.npz")
+    commands = _commands(tree, "validate", "report")
+    assert _validated(commands) == ["materials/separable-gold.toml"]
+    assert _studied(commands) == ["materials/separable-gold.toml"]
+    assert not any("--cache-only" in c for c in commands)
+    assert sum("report separable --merge" in c for c in commands) == 1
+
+
+def test_another_materials_atlas_change_does_not_revalidate(tree):
+    # A newer atlas alone (what another material's bake leaves) does not make a report stale.
+    _touch(tree / "build" / "atlas.dds")
+    commands = _commands(tree, "validate", "report")
+    assert _validated(commands) == [] and _studied(commands) == []
+    assert [c.split()[1:3] for c in commands] == [["report", "library"]]
+
+
+def test_validation_code_revalidates_every_material_and_nothing_else(tree):
+    _touch(tree / "atlasgen" / "validate" / "metrics.py")
+    commands = _commands(tree, "validate", "report")
+    assert sorted(_validated(commands)) == sorted(f"materials/{m}.toml" for m in MATERIALS)
+    assert _studied(commands) == [] and not any("bake" in c for c in commands)
+
+
+def test_a_removed_material_re_merges_without_revalidating(tree):
+    (tree / "materials" / "clay.toml").unlink()
+    commands = _commands(tree, "validate", "report")
+    assert _validated(commands) == []
+    merge = next(c for c in commands if "validate --merge" in c)
+    assert "materials/clay" not in merge and "build/validation/materials/snow" in merge
+
+
+def test_no_two_jobs_write_the_same_place(tree):
+    shutil.rmtree(tree / "build")
+    commands = _commands(tree, "validate", "report")
+    outputs = []
+    for c in commands:
+        if "--cache-only" in c:
+            outputs.append("cache/" + re.search(r"materials/(\S+)\.toml", c).group(1))
+        else:
+            outputs.append(re.search(r" -o (\S+)", c).group(1))
+    assert len(outputs) == len(set(outputs)), outputs
+    assert len(_validated(commands)) == len(MATERIALS) and len(_studied(commands)) == len(SEPARABLE)
+    # Every per-material folder is its own; the merges write beside them, never into them.
+    per_material = [o for o in outputs if "/materials/" in o]
+    assert len(per_material) == len(MATERIALS) + len(SEPARABLE)

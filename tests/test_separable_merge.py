@@ -1,0 +1,121 @@
+"""Per-material separable reports, written all-or-nothing, merge into the report one run writes."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from atlasgen.errors import InputError, OutputError
+from atlasgen.material import read_material
+from atlasgen.separable_merge import PLOT_KINDS, merge_separable_reports, write_separable_report_atomically
+
+#: Small studies: two grids, one repeat, one parametrization (seconds, not tens of seconds).
+CHEAP = {"resolutions": (8, 16), "repeats": 1, "parametrizations": ("half_diff",)}
+
+
+@pytest.fixture(scope="module")
+def reports(tmp_path_factory):
+    """Two materials, each studied into its own folder, as ``make report``'s jobs do."""
+    root = tmp_path_factory.mktemp("separable")
+    sources = {
+        "lobe": 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n',
+        "sheen": 'type = "separable"\nsource = "ggx"\nalpha = 0.4\nterms = 1\n',
+    }
+    folders = {}
+    for name, text in sources.items():
+        (root / f"{name}.toml").write_text(text)
+        folders[name] = root / "out" / "materials" / name
+        written = write_separable_report_atomically([read_material(root / f"{name}.toml")], folders[name], **CHEAP)
+        assert written["markdown"] == folders[name] / "index.md" and written["markdown"].is_file()
+    return root / "out", folders
+
+
+def test_merging_one_report_reproduces_it_byte_for_byte(reports, tmp_path):
+    # The studies survive the JSON round trip: the study's own writer, fed from JSON,
+    # writes the same Markdown the measuring run wrote.
+    _, folders = reports
+    merge_separable_reports([folders["lobe"]], tmp_path)
+    for name in ("index.md", "report.json", *(f"lobe-{kind}.png" for kind in PLOT_KINDS)):
+        assert (tmp_path / name).read_bytes() == (folders["lobe"] / name).read_bytes(), name
+
+
+def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports):
+    out, folders = reports
+    written = merge_separable_reports([folders["lobe"], folders["sheen"]], out)
+    merged = json.loads(written["json"].read_text())
+    assert merged == [json.loads((folders[n] / "report.json").read_text())[0] for n in ("lobe", "sheen")]
+    text = written["markdown"].read_text()
+    links = re.findall(r"\]\(([^)]+)\)", text)
+    assert len(links) == 2 * len(PLOT_KINDS)
+    for link in links:
+        assert "/" not in link and (out / link).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # One summary row per material, with its measured error.
+    for study in merged:
+        assert f"| {study['name']} | " in text
+        assert f"{100 * study['chosen']['float']['relative_rms']:.2f}%" in text
+
+
+def test_bad_sources_are_refused_and_nothing_is_written(reports, tmp_path):
+    _, folders = reports
+    out = tmp_path / "merged"
+    with pytest.raises(InputError, match="'lobe' is also in"):
+        merge_separable_reports([folders["lobe"], folders["lobe"] / "report.json"], out)
+    with pytest.raises(InputError, match=r"none/report.json: no such separable report"):
+        merge_separable_reports([tmp_path / "none"], out)
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "report.json").write_text(json.dumps([{"name": "x"}]))
+    with pytest.raises(InputError, match="entry 0 is not a material study"):
+        merge_separable_reports([broken], out)
+    data = json.loads((folders["lobe"] / "report.json").read_text())
+    (broken / "report.json").write_text(json.dumps(data))
+    with pytest.raises(InputError, match=r"lobe-terms.png: cannot read the terms plot"):
+        merge_separable_reports([broken], out)
+    assert not out.exists()
+
+
+def test_an_interrupted_report_leaves_the_folder_as_it_was(tmp_path, write_material):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "index.md").write_text("the previous report")
+    lut = read_material(write_material("clay", 'type = "lambert"\n'))
+    with pytest.raises(InputError, match="no separable materials"):
+        write_separable_report_atomically([lut], out, **CHEAP)
+    assert (out / "index.md").read_text() == "the previous report"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["materials", "report"]  # no staging folder left
+
+
+def test_staged_folder_replaces_files_only_on_success(tmp_path):
+    from atlasgen.atomic import staged_folder
+
+    out = tmp_path / "out"
+    with staged_folder(out) as staging:
+        (staging / "sub").mkdir()
+        (staging / "sub" / "a.txt").write_text("a")
+    assert (out / "sub" / "a.txt").read_text() == "a"
+    with pytest.raises(RuntimeError), staged_folder(out) as staging:
+        (staging / "sub").mkdir()
+        (staging / "sub" / "a.txt").write_text("half")
+        raise RuntimeError("interrupted")
+    assert (out / "sub" / "a.txt").read_text() == "a"
+    (tmp_path / "file").write_text("not a folder")
+    with pytest.raises(OutputError), staged_folder(tmp_path / "file" / "out") as staging:
+        pass
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "out"]
+
+
+def test_cli_merge_prints_the_merged_markdown_and_names_a_bad_source(reports, tmp_path):
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    _, folders = reports
+    runner = CliRunner()
+    res = runner.invoke(app, ["report", "separable", "--merge", str(folders["lobe"]), str(folders["sheen"]), "-o", str(tmp_path / "m")])
+    assert res.exit_code == 0, res.output
+    assert res.output.strip() == (tmp_path / "m" / "index.md").as_posix()
+    res = runner.invoke(app, ["report", "separable", "--merge", str(tmp_path / "none"), "-o", str(tmp_path / "n")])
+    assert res.exit_code == 3
+    assert res.output.startswith(f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: ") and res.output.count("\n") == 1

@@ -1,0 +1,131 @@
+"""Merging per-material validation reports: the same entries as one run, images in the per-material folders."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from atlasgen.errors import InputError
+
+
+class _Links(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.images, self.links = [], []
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "img":
+            self.images.append(attrs.get("src"))
+        if tag == "a":
+            self.links.append(attrs.get("href"))
+
+
+def _split(run):
+    """One ValidationRun per material, as ``make validate``'s per-material jobs produce."""
+    materials = list(dict.fromkeys(r.material for r in run.runs))
+    return {m: replace(run, runs=[r for r in run.runs if r.material == m], seconds=run.seconds / len(materials))
+            for m in materials}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def merged(validation_run, tmp_path_factory):
+    from atlasgen.validate.report import merge_validation_reports
+    from atlasgen.validate.run import write_validation
+
+    out = tmp_path_factory.mktemp("merge") / "validation"
+    parts = _split(validation_run)
+    for material, part in parts.items():
+        write_validation(part, out / "materials" / material)
+    return out, parts, merge_validation_reports([out / "materials" / m for m in parts], out)
+
+
+def test_merged_entries_equal_a_single_runs(merged, validation_run):
+    from atlasgen.validate.report import report_dict
+
+    out, parts, written = merged
+    single = json.loads(json.dumps(report_dict(validation_run)))  # as report.json holds it
+    data = json.loads((out / "report.json").read_text())
+    assert data == written["data"]
+    assert len(data["results"]) == len(single["results"])
+    by_key = {(r["material"], r["scene"]): r for r in data["results"]}
+    for expected in single["results"]:
+        got = dict(by_key[(expected["material"], expected["scene"])])
+        folder = f"materials/{expected['material']}"
+        assert got.pop("page") == f"{folder}/index.html"
+        # Only the image paths differ: they point into the material's own folder.
+        assert got.pop("atlas_image") == f"{folder}/{expected.pop('atlas_image')}"
+        for kind, ref in expected["references"].items():
+            images = got["references"][kind].pop("images")
+            assert images == {k: f"{folder}/{v}" for k, v in ref.pop("images").items()}
+        assert got == expected
+    assert data["summary"] == single["summary"]
+    assert data["settings"] == single["settings"]
+    assert data["total_seconds"] == pytest.approx(sum(p.seconds for p in parts.values()))
+    assert data["merged_from"] == [f"materials/{m}" for m in parts]
+
+
+def test_every_image_and_page_the_merged_html_links_exists(merged):
+    out, parts, _ = merged
+    parser = _Links()
+    parser.feed((out / "index.html").read_text(encoding="utf-8"))
+    assert "speed_error.png" in parser.images
+    assert (out / "speed_error.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for src in parser.images:
+        assert not Path(src).is_absolute() and ".." not in Path(src).parts
+        assert (out / src).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", src
+    # Every result's images live in its material's folder, and its own page is linked.
+    assert {p for p in parser.images if p != "speed_error.png"} <= {
+        p for m in parts for p in (str(q.relative_to(out)) for q in (out / "materials" / m / "images").iterdir())}
+    assert sorted(set(parser.links)) == sorted(f"materials/{m}/index.html" for m in parts)
+    assert f"{len(parts)} per-material runs" in (out / "index.html").read_text()
+
+
+def test_the_plot_is_made_from_report_dicts(validation_run):
+    from atlasgen.validate.report import plot_speed_error, report_dict
+
+    data = report_dict(validation_run)
+    assert plot_speed_error(data)[:8] == b"\x89PNG\r\n\x1a\n"
+    # A ratio the run could not measure (None in the JSON) is left out, not plotted as 0.
+    for row in data["results"]:
+        for ref in row["references"].values():
+            ref["speed_ratio"] = None
+    assert plot_speed_error(data)[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_summary_line_reads_the_merged_goals(merged):
+    from atlasgen.validate.report import summary_line
+
+    out, _, written = merged
+    s = written["data"]["summary"]
+    line = summary_line(written["data"], written["html"])
+    assert line.startswith(f"{(out / 'index.html').as_posix()} ({len(written['data']['results'])} material/scene results, ")
+    assert f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" in line
+
+
+def test_reports_with_other_settings_or_the_same_material_twice_are_refused(merged, tmp_path):
+    from atlasgen.validate.report import merge_validation_reports
+
+    out, parts, _ = merged
+    first, second = (out / "materials" / m for m in list(parts)[:2])
+    other = tmp_path / "other"
+    other.mkdir()
+    data = json.loads((second / "report.json").read_text())
+    data["settings"]["spp"] += 3
+    (other / "report.json").write_text(json.dumps(data))
+    with pytest.raises(InputError, match=r"other/report.json: validated with other settings .*\(spp differ\)"):
+        merge_validation_reports([first, other], tmp_path / "merged")
+    with pytest.raises(InputError, match="is also in"):
+        merge_validation_reports([first, first / "report.json"], tmp_path / "merged")
+    with pytest.raises(InputError, match="nowhere/report.json: no such validation report"):
+        merge_validation_reports([first, tmp_path / "nowhere"], tmp_path / "merged")
+    (other / "report.json").write_text("[1, 2]")
+    with pytest.raises(InputError, match="not a validation report"):
+        merge_validation_reports([other], tmp_path / "merged")
+    with pytest.raises(InputError, match="no validation reports to merge"):
+        merge_validation_reports([], tmp_path / "merged")
+    assert not (tmp_path / "merged").exists()
