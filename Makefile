@@ -61,6 +61,9 @@ atlas: $(BUILD)/atlas.dds
 ifeq ($(filter clean,$(MAKECMDGOALS)),)
 $(shell mkdir -p $(BUILD) && { echo "$(MATERIAL_FILES)" | cmp -s - $(BUILD)/materials.list || { echo "$(MATERIAL_FILES)" > $(BUILD)/.materials.list.$$$$ && mv -f $(BUILD)/.materials.list.$$$$ $(BUILD)/materials.list; }; })
 endif
+# Only for `make clean <target>`, where the file is not refreshed while the Makefile is read.
+$(BUILD)/materials.list:
+	@mkdir -p $(@D) && echo "$(MATERIAL_FILES)" > $@
 
 $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
