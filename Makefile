@@ -96,7 +96,7 @@ $(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE)
 $(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(BAKE_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
 
-$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/separable_merge.py atlasgen/separable/report.py | $(VENV)/.stamp
+$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/separable/merge.py atlasgen/separable/report.py | $(VENV)/.stamp
 	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
 
 # The library page assembles per-material figures that are already measured (manifest, timings,

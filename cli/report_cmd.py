@@ -37,7 +37,8 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
     """
     from atlasgen.errors import InputError
     from atlasgen.material import read_materials
-    from atlasgen.separable_merge import merge_separable_reports, write_separable_report_atomically
+    from atlasgen.separable.merge import merge_separable_reports
+    from atlasgen.separable.report import write_separable_report
 
     if merge:
         click.echo(merge_separable_reports([Path(n) for n in names], output)["markdown"].as_posix())
@@ -52,7 +53,7 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
         raise InputError(f"{materials_dir.as_posix()}: no material named {', '.join(missing)}")
     if files:
         chosen += read_materials(files)
-    written = write_separable_report_atomically(chosen, output, atlas, repeats=repeats)
+    written = write_separable_report(chosen, output, atlas, repeats=repeats)
     click.echo(written["markdown"].as_posix())
 
 

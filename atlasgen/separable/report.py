@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, OutputError
+from ..errors import InputError
 from .approximate import GRID_RESOLUTIONS, MAX_AUTO_TERMS, approximate_brdf, reference_values
 from .error import errors_by_terms, sample_hemisphere_pairs
 from .factorize import factorize
@@ -21,7 +21,7 @@ from .parametrization import PARAMETRIZATIONS, get_parametrization
 from .source import make_source, sample_matrices
 from .storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
 
-__all__ = ["MaterialStudy", "study_material", "write_separable_report", "RESOLUTIONS"]
+__all__ = ["MaterialStudy", "study_material", "format_separable_report", "write_separable_report", "RESOLUTIONS"]
 
 #: Sampling grids of the resolution study (texels per factor axis; the atlas stores 32).
 RESOLUTIONS = (8, 12, 16, 24, 32, 48, 64)
@@ -234,7 +234,7 @@ def _pct(x) -> str:
     return f"{100 * x:.2f}%"
 
 
-def _markdown(studies: list, plots: dict) -> str:
+def format_separable_report(studies: list, plots: dict) -> str:
     lines = [
         "# Separable BRDFs: error against terms, grid, bits and time",
         "",
@@ -291,23 +291,24 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
                            parametrizations=tuple(PARAMETRIZATIONS)) -> dict:
     """Study each separable material and write ``index.md``, ``report.json`` and PNG plots into ``output``.
 
-    Returns the written paths. Raises :class:`InputError` when no material is
-    separable, :class:`OutputError` when the folder cannot be written.
+    The files appear all at once (:func:`atlasgen.atomic.staged_folder`). Returns the
+    written paths. Raises :class:`InputError` when no material is separable,
+    :class:`OutputError` when the folder cannot be written.
     """
     import json
+
+    from ..atomic import staged_folder
 
     materials = [m for m in materials if m.type == "separable"]
     if not materials:
         raise InputError("no separable materials to report on; expected TOML files with type = \"separable\"")
     folder = Path(output)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{folder.as_posix()}: cannot create the report folder ({exc.strerror})") from None
     studies = [study_material(m, atlas_path, resolutions, repeats, parametrizations) for m in materials]
-    plots = {s.name: _plots(s, folder) for s in studies}
-    index = folder / "index.md"
-    index.write_text(_markdown(studies, plots))
-    data = folder / "report.json"
-    data.write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")
-    return {"markdown": index, "json": data, "plots": plots}
+    # Staged, then moved into place: an interrupted run never leaves a half-written
+    # report that ``make`` would take as up to date.
+    with staged_folder(folder) as staging:
+        plots = {s.name: _plots(s, staging) for s in studies}
+        (staging / "index.md").write_text(format_separable_report(studies, plots))
+        (staging / "report.json").write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")
+    plots = {name: {kind: folder / path.name for kind, path in kinds.items()} for name, kinds in plots.items()}
+    return {"markdown": folder / "index.md", "json": folder / "report.json", "plots": plots}

@@ -1,14 +1,11 @@
-"""Per-material separable reports, written atomically, and their merge into one report.
+"""Merging per-material separable reports into one, without measuring anything again.
 
 ``atlasgen report separable`` measures each material for about ten seconds (the
 study of :mod:`atlasgen.separable.report`), so ``make report`` runs it once per
 separable material, each into its own folder, and then merges those folders into
-the combined ``index.md``, ``report.json`` and plots without measuring anything
-again. A changed material then costs one study, not one per separable material.
-
-The study, its JSON schema and its Markdown belong to :mod:`atlasgen.separable.report`;
-this module only stages its output and combines it. The merged Markdown is written by
-that module's own writer from the studies read back from JSON, so a merged report
+the combined ``index.md``, ``report.json`` and plots. A changed material then costs
+one study, not one per separable material. The merged Markdown is written by the
+report's own formatter from the studies read back from JSON, so a merged report
 reads exactly like one written in a single run.
 """
 
@@ -18,42 +15,16 @@ import json
 from dataclasses import MISSING, fields
 from pathlib import Path
 
-from .errors import InputError
+from ..errors import InputError
 
-__all__ = ["PLOT_KINDS", "write_separable_report_atomically", "merge_separable_reports"]
+__all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
 #: The plots :mod:`atlasgen.separable.report` writes per material, as ``<name>-<kind>.png``.
 PLOT_KINDS = ("terms", "resolution", "pareto", "parametrization")
 
 
-def write_separable_report_atomically(materials, output, atlas_path=None, **options) -> dict:
-    """:func:`atlasgen.separable.report.write_separable_report`, all-or-nothing.
-
-    The report is written into a staging folder beside ``output`` and moved into
-    ``output`` only when complete (:func:`atlasgen.atomic.staged_folder`), so an
-    interrupted study never leaves a half-written report for ``make`` to trust.
-    ``options`` are passed on (``repeats``, ``resolutions``, ``parametrizations``).
-
-    Returns
-    -------
-    dict
-        ``{"markdown", "json", "plots"}`` as the wrapped function, with paths under ``output``.
-    """
-    from .atomic import staged_folder
-    from .separable.report import write_separable_report
-
-    output = Path(output)
-    with staged_folder(output) as staging:
-        written = write_separable_report(materials, staging, atlas_path, **options)
-    return {
-        "markdown": output / "index.md",
-        "json": output / "report.json",
-        "plots": {name: {kind: output / path.name for kind, path in plots.items()} for name, plots in written["plots"].items()},
-    }
-
-
 def _read_studies(path: Path) -> list:
-    from .separable.report import MaterialStudy
+    from .report import MaterialStudy
 
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -108,8 +79,8 @@ def merge_separable_reports(sources, output) -> dict:
     OutputError
         The merged files cannot be written (nothing is written then).
     """
-    from .atomic import write_files_atomically
-    from .separable.report import _markdown
+    from ..atomic import write_files_atomically
+    from .report import format_separable_report
 
     output = Path(output)
     paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
@@ -130,7 +101,7 @@ def merge_separable_reports(sources, output) -> dict:
                     raise InputError(f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})") from None
                 plots[study.name][kind] = output / png.name
             studies.append(study)
-    files[output / "index.md"] = _markdown(studies, plots).encode()
+    files[output / "index.md"] = format_separable_report(studies, plots).encode()
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     write_files_atomically(files)

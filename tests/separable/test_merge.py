@@ -9,7 +9,8 @@ import pytest
 
 from atlasgen.errors import InputError, OutputError
 from atlasgen.material import read_material
-from atlasgen.separable_merge import PLOT_KINDS, merge_separable_reports, write_separable_report_atomically
+from atlasgen.separable.merge import PLOT_KINDS, merge_separable_reports
+from atlasgen.separable.report import write_separable_report
 
 #: Small studies: two grids, one repeat, one parametrization (seconds, not tens of seconds).
 CHEAP = {"resolutions": (8, 16), "repeats": 1, "parametrizations": ("half_diff",)}
@@ -27,7 +28,7 @@ def reports(tmp_path_factory):
     for name, text in sources.items():
         (root / f"{name}.toml").write_text(text)
         folders[name] = root / "out" / "materials" / name
-        written = write_separable_report_atomically([read_material(root / f"{name}.toml")], folders[name], **CHEAP)
+        written = write_separable_report([read_material(root / f"{name}.toml")], folders[name], **CHEAP)
         assert written["markdown"] == folders[name] / "index.md" and written["markdown"].is_file()
     return root / "out", folders
 
@@ -82,7 +83,7 @@ def test_an_interrupted_report_leaves_the_folder_as_it_was(tmp_path, write_mater
     (out / "index.md").write_text("the previous report")
     lut = read_material(write_material("clay", 'type = "lambert"\n'))
     with pytest.raises(InputError, match="no separable materials"):
-        write_separable_report_atomically([lut], out, **CHEAP)
+        write_separable_report([lut], out, **CHEAP)
     assert (out / "index.md").read_text() == "the previous report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["materials", "report"]  # no staging folder left
 
