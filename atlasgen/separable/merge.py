@@ -16,6 +16,7 @@ from dataclasses import MISSING, fields
 from pathlib import Path
 
 from ..errors import InputError
+from ..report_files import read_report_json, report_json_paths
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
@@ -26,15 +27,7 @@ PLOT_KINDS = ("terms", "resolution", "pareto", "parametrization")
 def _read_studies(path: Path) -> list:
     from .report import MaterialStudy
 
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path.as_posix()}: no such separable report; run atlasgen report separable -o "
-                         f"{path.parent.as_posix()} first") from None  # fmt: skip
-    except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
-    except ValueError as exc:
-        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    data = read_report_json(path, "separable", "atlasgen report separable")
     known = {f.name for f in fields(MaterialStudy)}
     required = {f.name for f in fields(MaterialStudy) if f.default is MISSING and f.default_factory is MISSING}
     if not isinstance(data, list):
@@ -83,9 +76,7 @@ def merge_separable_reports(sources, output) -> dict:
     from .report import format_separable_report
 
     output = Path(output)
-    paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
-    if not paths:
-        raise InputError("no separable reports to merge; expected folders written by atlasgen report separable -o")
+    paths = report_json_paths(sources, "separable", "atlasgen report separable")
     studies, files, seen, plots = [], {}, {}, {}
     for path in paths:
         for study in _read_studies(path):

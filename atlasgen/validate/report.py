@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..report_files import read_report_json, report_json_paths
 
 __all__ = [
     "build_report",
@@ -284,14 +285,7 @@ def _page_files(data: dict, out_dir: Path) -> dict:
 
 
 def _read_report(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path.as_posix()}: no such validation report; run atlasgen validate -o {path.parent.as_posix()} first") from None
-    except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
-    except ValueError as exc:
-        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    data = read_report_json(path, "validation", "atlasgen validate")
     missing = [k for k in ("atlas", "settings", "environment", "total_seconds", "results") if k not in data] if isinstance(data, dict) else ["everything"]
     if missing:
         raise InputError(f"{path.as_posix()}: not a validation report (missing {', '.join(missing)})")
@@ -341,9 +335,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
     from ..atomic import write_files_atomically
 
     out_dir = Path(out_dir)
-    paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
-    if not paths:
-        raise InputError("no validation reports to merge; expected folders written by atlasgen validate -o")
+    paths = report_json_paths(sources, "validation", "atlasgen validate")
     reports = [_read_report(p) for p in paths]
     first = reports[0]
     rows, seen = [], {}
