@@ -23,7 +23,8 @@ STEMS := $(patsubst materials/%.toml,%,$(MATERIAL_FILES))
 CACHE_DIR := $(BUILD)/cache
 CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
 # __init__.py holds the version, which is part of every cache key (atlasgen/cache.py).
-BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/params.py atlasgen/contract.py atlasgen/adaptive.py atlasgen/__init__.py
+# The code atlasgen.cache hashes into every cache key (BAKE_RELEVANT less REPORT_ONLY).
+BAKE_CODE := $(filter-out atlasgen/separable/report.py atlasgen/separable/merge.py atlasgen/separable/evidence.py,$(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py))) atlasgen/params.py atlasgen/contract.py atlasgen/adaptive.py atlasgen/__init__.py
 ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
 # mips, DDS, the include, reading the atlas back and the CPU sampler.
@@ -71,11 +72,23 @@ $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 $(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png
 
-# Each of these re-runs only when its inputs change; every writer is atomic.
-render: $(BUILD)/demo.png
-$(BUILD)/demo.png: scenes/demo.toml $(wildcard scenes/meshes/*) $(BUILD)/atlas.dds $(RENDER_CODE) | $(VENV)/.stamp
+# ---- scenes: each renders from its own atlas, holding only the materials it uses -------------
+# build/scenes/X.dds is assembled from the cache with the library's slice IDs (--ids-from), so a
+# material has the same ID in every atlas. The bake also writes build/scenes/X.d, which makes
+# X.dds depend on the files and cache entries of exactly the scene's materials: a change to a
+# material the scene does not use re-bakes and re-renders nothing here.
+SCENE_FILES := $(sort $(wildcard scenes/*.toml))
+SCENE_ATLASES := $(patsubst scenes/%.toml,$(BUILD)/scenes/%.dds,$(SCENE_FILES))
+SCENE_IMAGES := $(SCENE_ATLASES:.dds=.png)
+-include $(SCENE_ATLASES:.dds=.d)
+
+$(SCENE_ATLASES): $(BUILD)/scenes/%.dds: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(@:.dds=.d) -o $@ -q
+
+render: $(SCENE_IMAGES)
+$(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wildcard scenes/meshes/*) $(RENDER_CODE) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(ATLASGEN) render scenes/demo.toml --atlas $(BUILD)/atlas.dds -o $(BUILD)/demo.exr
+	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
 validate: $(VALIDATION)/report.json
 
@@ -93,7 +106,7 @@ $(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE)
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
-$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(BAKE_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(BAKE_CODE) atlasgen/separable/report.py | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
 
 $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/separable/merge.py atlasgen/separable/report.py | $(VENV)/.stamp
@@ -113,7 +126,7 @@ DEMO_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 demo: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(MAKE) -j$(DEMO_JOBS) -Otarget atlas render validate report
-	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/demo.png, build/validation/index.html, build/report/index.html"
+	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/scenes/*.png, build/validation/index.html, build/report/index.html"
 
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)

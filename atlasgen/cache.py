@@ -13,25 +13,33 @@ import numpy as np
 from . import __version__
 from .models.base import SliceSet
 
-__all__ = ["tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached"]
+__all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "fill_cache", "BAKE_RELEVANT"]
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Code whose change can change a material's float slices. Encoding, mips and file
 #: writing run at assembly time on every bake, so they are not part of the key.
 BAKE_RELEVANT = ("params.py", "contract.py", "adaptive.py", "models", "separable")
+#: Modules under those folders that only report on a bake: editing them re-bakes nothing.
+REPORT_ONLY = ("separable/report.py", "separable/merge.py", "separable/evidence.py")
+
+
+def bake_relevant_files() -> list[Path]:
+    """The source files :func:`tool_fingerprint` hashes (the Makefile's BAKE_CODE mirrors them)."""
+    out = []
+    for entry in BAKE_RELEVANT:
+        path = _PACKAGE / entry
+        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
+        out += [f for f in files if f.exists() and f.relative_to(_PACKAGE).as_posix() not in REPORT_ONLY]
+    return out
 
 
 @functools.cache
 def tool_fingerprint() -> str:
     """SHA-256 over the atlasgen version and the bake-relevant source files."""
     digest = hashlib.sha256(__version__.encode())
-    for entry in BAKE_RELEVANT:
-        path = _PACKAGE / entry
-        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
-        for f in files:
-            if f.exists():
-                digest.update(f.relative_to(_PACKAGE).as_posix().encode())
-                digest.update(f.read_bytes())
+    for f in bake_relevant_files():
+        digest.update(f.relative_to(_PACKAGE).as_posix().encode())
+        digest.update(f.read_bytes())
     return digest.hexdigest()
 
 
@@ -72,3 +80,28 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     path = cache_path(cache_dir, material)
     write_file_atomically(path, buffer.getvalue())
     return path
+
+
+def fill_cache(cache_dir, materials) -> dict:
+    """Bake into the cache each material whose entry is missing or stale; leave the rest.
+
+    An up-to-date entry has its time stamp refreshed, so that ``make``, which asked for
+    it because the material file is newer, does not ask again. Returns
+    ``{"baked": [names], "hits": [names]}``.
+    """
+    import os
+    import time
+
+    from .bake import bake_material
+
+    baked, hits = [], []
+    for material in materials:
+        if load_cached(cache_dir, material) is None:
+            t0 = time.perf_counter()
+            slices = bake_material(material)
+            store_cached(cache_dir, material, slices, time.perf_counter() - t0)
+            baked.append(material.name)
+        else:
+            os.utime(cache_path(cache_dir, material))
+            hits.append(material.name)
+    return {"baked": baked, "hits": hits}

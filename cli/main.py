@@ -91,9 +91,11 @@ def app():
 @click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
               help="Per-material cache folder: unchanged materials are loaded, not re-baked.")
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
+@click.option("--depfile", type=click.Path(path_type=Path), default=None,
+              help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
 @fail_on_errors
-def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, quiet):
+def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     from atlasgen.bake import bake_atlas, bake_material, read_previous_slots, sibling_paths, write_bake
     from atlasgen.material import read_materials, select_scene_materials
@@ -104,22 +106,9 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     if cache_only:
         if cache_dir is None:
             raise click.UsageError("--cache-only needs --cache DIR")
-        from atlasgen.cache import load_cached, store_cached
+        from atlasgen.cache import fill_cache
 
-        import os
-
-        from atlasgen.cache import cache_path
-
-        import time
-
-        for material in materials:
-            if load_cached(cache_dir, material) is None:
-                t0 = time.perf_counter()
-                slices = bake_material(material)
-                store_cached(cache_dir, material, slices, time.perf_counter() - t0)
-            else:
-                # Up to date: refresh the time stamp so Make does not ask again.
-                os.utime(cache_path(cache_dir, material))
+        fill_cache(cache_dir, materials)
         return
     previous = read_previous_slots(ids_from) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
@@ -130,6 +119,14 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
     write_bake(result, output, preview)
+    if depfile is not None:
+        from atlasgen.cache import cache_path
+        from atlasgen.depfile import write_depfile
+
+        inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
+        if cache_dir is not None:
+            inputs += [cache_path(cache_dir, m) for m in materials]
+        write_depfile(depfile, output, inputs)
     if not quiet:
         for warning in result.warnings:
             click.echo(f"atlasgen: warning: {warning}", err=True)

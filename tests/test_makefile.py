@@ -14,9 +14,13 @@ from pathlib import Path
 
 import pytest
 
+from atlasgen.depfile import write_depfile
+
 ROOT = Path(__file__).resolve().parents[1]
 MATERIALS = ("clay", "snow", "separable-gold")
 SEPARABLE = ("separable-gold",)
+#: Scene -> the materials it uses, as the bake's --depfile records them.
+SCENES = {"one": ("clay",), "two": ("snow", "separable-gold")}
 T0 = 1_700_000_000  # sources
 T_BUILT = T0 + 100  # every output, all equally new: make treats them as up to date
 
@@ -30,6 +34,7 @@ def _outputs(build: Path) -> list[Path]:
     out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
+    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in ("dds", "png", "d")]
     return out
 
 
@@ -42,6 +47,10 @@ def tree(tmp_path):
     shutil.copy(ROOT / "Makefile", root)
     for folder in ("atlasgen", "scenes"):
         shutil.copytree(ROOT / folder, root / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    for scene in (root / "scenes").glob("*.toml"):
+        scene.unlink()
+    for scene in SCENES:
+        (root / "scenes" / f"{scene}.toml").write_text("")
     (root / "materials").mkdir()
     for m in MATERIALS:
         (root / "materials" / f"{m}.toml").write_text('type = "lambert"\n')
@@ -51,6 +60,9 @@ def tree(tmp_path):
     for path in _outputs(root / "build"):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("")
+    for scene, used in SCENES.items():
+        inputs = [f"materials/{m}.toml" for m in used] + [f"scenes/{scene}.toml"] + [f"build/cache/{m}.npz" for m in used]
+        write_depfile(root / "build" / "scenes" / f"{scene}.d", f"build/scenes/{scene}.dds", inputs)
     _make(root, "-n", "atlas")  # reading the Makefile writes build/materials.list
     for path in root.rglob("*"):
         if path.is_file():
@@ -88,8 +100,8 @@ def _studied(commands) -> list[str]:
 
 
 def test_nothing_changed_runs_nothing(tree):
-    assert _commands(tree, "atlas", "validate", "report") == []
-    assert _make(tree, "-q", "validate", "report").returncode == 0
+    assert _commands(tree, "atlas", "render", "validate", "report") == []
+    assert _make(tree, "-q", "render", "validate", "report").returncode == 0
 
 
 def test_a_changed_material_revalidates_only_itself(tree):
@@ -156,3 +168,42 @@ def test_no_two_jobs_write_the_same_place(tree):
     # Every per-material folder is its own; the merges write beside them, never into them.
     per_material = [o for o in outputs if "/materials/" in o]
     assert len(per_material) == len(MATERIALS) + len(SEPARABLE)
+
+
+def _scene_jobs(commands) -> list[tuple[str, str]]:
+    """(verb, scene) of each scene-atlas bake and scene render in ``commands``."""
+    jobs = []
+    for c in commands:
+        bake = re.search(r"--scene scenes/(\S+)\.toml", c)
+        render = re.search(r" render scenes/(\S+)\.toml", c)
+        if bake:
+            jobs.append(("bake", bake.group(1)))
+        elif render:
+            jobs.append(("render", render.group(1)))
+    return jobs
+
+
+def test_a_material_rebakes_and_rerenders_only_the_scenes_that_use_it(tree):
+    _touch(tree / "build" / "cache" / "snow.npz")
+    assert _scene_jobs(_commands(tree, "render")) == [("bake", "two"), ("render", "two")]
+    _touch(tree / "build" / "cache" / "clay.npz")
+    assert sorted(_scene_jobs(_commands(tree, "render"))) == [("bake", "one"), ("bake", "two"), ("render", "one"), ("render", "two")]
+
+
+def test_a_changed_scene_rebakes_and_rerenders_only_itself(tree):
+    _touch(tree / "scenes" / "one.toml")
+    commands = _commands(tree, "render")
+    assert _scene_jobs(commands) == [("bake", "one"), ("render", "one")]
+    bake = next(c for c in commands if "--scene" in c)
+    # Library IDs, the shared cache, and a fresh dependency file.
+    assert "--ids-from build/atlas.json" in bake and "--cache build/cache" in bake
+    assert "--depfile build/scenes/one.d" in bake and " -o build/scenes/one.dds" in bake
+
+
+def test_the_makefile_bake_code_is_what_the_cache_key_hashes(tree):
+    from atlasgen.cache import bake_relevant_files
+
+    result = _make(tree, "--eval", "print-bake-code: ; @echo $(BAKE_CODE)", "print-bake-code")
+    assert result.returncode == 0, result.stderr
+    listed = set(result.stdout.split()) - {"atlasgen/__init__.py"}  # the version, hashed as a string
+    assert listed == {f.relative_to(ROOT).as_posix() for f in bake_relevant_files()}

@@ -55,3 +55,21 @@ def test_scene_with_an_unknown_material_is_refused(tmp_path, write_material):
     assert res.exit_code == 3
     assert "scene.toml: field 'objects[1].material': unknown material 'zulu'; known: alpha" in res.stderr
     assert not (tmp_path / "a.dds").exists()
+
+
+def test_the_depfile_names_exactly_the_scene_materials_and_their_cache_entries(tmp_path, write_material):
+    for name in ("alpha", "bravo", "charlie"):
+        write_material(name, 'type = "lambert"\n')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(first="charlie", second="alpha"))
+    out, dep, cache = tmp_path / "s.dds", tmp_path / "s.d", tmp_path / "cache"
+    res = _bake(tmp_path / "materials", "--scene", scene, "--cache", cache, "--depfile", dep, "-o", out, "-q")
+    assert res.exit_code == 0, res.output
+    rule = dep.read_text().split("\n\n")[0].replace("\\\n", " ")
+    target, prerequisites = rule.split(":", 1)
+    assert target == out.as_posix()
+    named = set(prerequisites.split())
+    materials = tmp_path / "materials"
+    assert named == {(materials / "alpha.toml").as_posix(), (materials / "charlie.toml").as_posix(), scene.as_posix(),
+                     (cache / "alpha.npz").as_posix(), (cache / "charlie.npz").as_posix()}
+    assert all((cache / f"{n}.npz").is_file() for n in ("alpha", "charlie")) and not (cache / "bravo.npz").exists()

@@ -1,0 +1,34 @@
+"""Make dependency files (the ``gcc -MMD -MP`` format) naming the inputs an output was built from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["format_depfile", "write_depfile"]
+
+
+def _escape(path) -> str:
+    # Make splits prerequisites on spaces and reads ``#`` as a comment and ``$`` as a variable.
+    return Path(path).as_posix().replace("$", "$$").replace("#", r"\#").replace(" ", r"\ ")
+
+
+def format_depfile(target, prerequisites) -> str:
+    """``target: prerequisite ...``, then an empty rule per prerequisite.
+
+    The empty rules (gcc's ``-MP``) keep ``make`` working when a prerequisite is
+    deleted: the output is then rebuilt instead of the build stopping with "No rule to
+    make target". A prerequisite that has a pattern rule keeps it, since a rule
+    without a recipe does not replace one.
+    """
+    prerequisites = list(dict.fromkeys(_escape(p) for p in prerequisites))
+    lines = [" \\\n  ".join([f"{_escape(target)}:", *prerequisites]), ""]
+    lines += [f"{p}:" for p in prerequisites]
+    return "\n".join(lines) + "\n"
+
+
+def write_depfile(path, target, prerequisites) -> Path:
+    """Write :func:`format_depfile` to ``path`` atomically; returns the path."""
+    from .atomic import write_file_atomically
+
+    write_file_atomically(path, format_depfile(target, prerequisites).encode())
+    return Path(path)

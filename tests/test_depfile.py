@@ -1,0 +1,44 @@
+"""Make dependency files: what make reads back from them, checked with make itself."""
+
+import os
+import shutil
+import subprocess
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from atlasgen.depfile import format_depfile, write_depfile
+
+names = st.text(alphabet="abcXYZ019_-.# $", min_size=1, max_size=12).filter(lambda s: s.strip(" .") and not s.startswith("-"))
+
+
+@given(st.lists(names, min_size=1, max_size=5, unique=True))
+def test_every_prerequisite_gets_an_empty_rule(prerequisites):
+    text = format_depfile("out/a b.dds", prerequisites)
+    assert text.startswith("out/a\\ b.dds:")
+    assert text.count("\n\n") == 1 and len(text.split("\n\n")[1].splitlines()) == len(prerequisites)
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
+def test_make_rebuilds_on_a_newer_prerequisite_and_survives_a_deleted_one(tmp_path):
+    inputs = [tmp_path / "in one.toml", tmp_path / "in#2.toml", tmp_path / "cost$.npz"]
+    for i, path in enumerate(inputs):
+        path.write_text(str(i))
+        os.utime(path, (1_000, 1_000))
+    out = tmp_path / "out.dds"
+    out.write_text("built")
+    os.utime(out, (2_000, 2_000))
+    write_depfile(tmp_path / "out.d", "out.dds", [p.name for p in inputs])
+    (tmp_path / "Makefile").write_text("out.dds:\n\t@echo rebuilt\n-include out.d\n")
+
+    def make():
+        return subprocess.run(["make", "-s", "out.dds"], cwd=tmp_path, capture_output=True, text=True, timeout=30)
+
+    assert make().stdout == ""  # up to date
+    os.utime(inputs[1], (3_000, 3_000))
+    assert make().stdout == "rebuilt\n"  # the escaped '#' name is a real prerequisite
+    os.utime(inputs[1], (1_000, 1_000))
+    inputs[0].unlink()
+    result = make()
+    assert result.returncode == 0 and result.stdout == "rebuilt\n", result.stderr
