@@ -83,8 +83,7 @@ def run() -> dict:
     lines = [
         "## Separable BRDFs (Kautz-McCool SVD)",
         "",
-        "GGX with Schlick F0 = 0.04, half/difference parametrization, 32x32 texels per factor (sampled on the grid the bake",
-        "chooses, 16, 32 or 48 texels per axis), sRGB atlas. Errors: relative",
+        "GGX with Schlick F0 = 0.04, half/difference parametrization, 32x32 texels per factor, sRGB atlas. Errors: relative",
         "RMS of f cos(theta_l) over 100,000 (l, v) pairs uniform on the hemisphere (fixed seed), for the float factors and",
         "for the 8-bit atlas read back as a GPU samples it. Each row is a real `bake_atlas` of that material.",
         "",
@@ -97,8 +96,8 @@ def run() -> dict:
         f"**{1e3 * med['factorize_s']:.1f} ms** (min {1e3 * data['timing']['min_factorize_s']:.1f}, max "
         f"{1e3 * data['timing']['max_factorize_s']:.1f}); goal <= {1e3 * TIME_GOAL_S:.0f} ms: "
         f"{'**yes**' if time_ok else '**no**'}. Measuring the error of every K and target (not part of the goal) took "
-        f"{1e3 * med['error_s']:.0f} ms more. That is one 32-texel grid; the bake tries the grids "
-        f"{', '.join(map(str, GRID_RESOLUTIONS))} and chooses among them: sampling + SVD + quantization "
+        f"{1e3 * med['error_s']:.0f} ms more. That is one 32-texel grid; a bake with an error budget may try "
+        f"the grids {', '.join(map(str, GRID_RESOLUTIONS))} (here all of them): sampling + SVD + quantization "
         f"{1e3 * med_grids['factorize_s']:.1f} ms ({med_grids['factorize_s'] / med['factorize_s']:.1f}x one grid), "
         f"error measurement {1e3 * med_grids['error_s']:.0f} ms ({med_grids['error_s'] / med['error_s']:.1f}x), "
         f"medians of {REPEATS} runs in the same process.",

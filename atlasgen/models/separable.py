@@ -73,7 +73,7 @@ class Separable(Model):
         Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
         Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
         Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: the cheapest K <= 8 and grid meeting it"),
-        Param("grid", None, "int", lo=4, hi=128, doc="fixed sampling grid, texels per factor axis (default: chosen from 16, 32, 48)"),
+        Param("grid", None, "int", lo=4, hi=128, doc="fixed sampling grid, texels per factor axis (default: 32, or 16 or 32 chosen by the budget)"),
         Param("parametrization", "half_diff", "choice", choices=_parametrization_names(), doc="pi1 / pi2 split"),
         Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
         Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
@@ -131,7 +131,7 @@ class Separable(Model):
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
-        from ..separable.approximate import GRID_RESOLUTIONS, approximate_brdf
+        from ..separable.approximate import approximate_brdf
         from ..separable.source import make_source
         from ..separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 
@@ -146,7 +146,7 @@ class Separable(Model):
             method=method,
             target=values["target"],
             resolution=FACTOR_RESOLUTION,
-            grids=GRID_RESOLUTIONS if values["grid"] is None else (values["grid"],),
+            grids=self.sampling_grids(values),
             reference=reference,
             pairs=_error_pairs(),
         )
@@ -198,6 +198,18 @@ class Separable(Model):
                           "reference": reference, "parametrization": result.factors.parametrization,
                           "target": result.target}
         return out
+
+    @staticmethod
+    def sampling_grids(values: dict) -> tuple:
+        """The sampling grids the bake tries: ``grid`` if given; with a budget the
+        candidates of :data:`~atlasgen.separable.approximate.GRID_RESOLUTIONS`; else
+        the stored resolution."""
+        from ..separable.approximate import GRID_RESOLUTIONS
+        from ..separable.storage import FACTOR_RESOLUTION
+
+        if values["grid"] is not None:
+            return (values["grid"],)
+        return GRID_RESOLUTIONS if values["terms"] is None else (FACTOR_RESOLUTION,)
 
     def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
         """Per-term, per-factor, per-channel scale and bias (docs/separable.md, "Storage").

@@ -21,9 +21,11 @@ __all__ = ["Approximation", "approximate_brdf", "reference_values", "TARGETS", "
 MAX_AUTO_TERMS = 8
 #: What the factors approximate: f cos(theta_l), or f times a separable cosine proxy.
 TARGETS = ("f_cos", "f_proxy")
-#: Sampling grids (texels per factor axis) an automatic bake chooses from, cheapest first.
-#: The atlas always stores 32; 16 is interpolated up, 48 is fitted down by least squares.
-GRID_RESOLUTIONS = (16, 32, 48)
+#: Sampling grids (texels per factor axis) a bake with an error budget chooses from, cheapest
+#: first. The atlas always stores 32; 16 is interpolated up to it. Finer grids (fitted down by
+#: least squares) lower the measured error of sharp lobes but ring around the highlight in
+#: images, so they are only used when a material asks for one (docs/separable.md).
+GRID_RESOLUTIONS = (16, 32)
 
 
 @dataclass
@@ -128,6 +130,8 @@ def approximate_brdf(
         Texels per factor axis of the result (the atlas stores 32).
     grids
         Sampling grids to try, e.g. :data:`GRID_RESOLUTIONS`; default ``(resolution,)``.
+        With a budget they are tried coarsest first, and a grid meeting it with one term
+        ends the search (nothing after it can be cheaper).
     srgb
         Whether the atlas stores RGB sRGB-encoded (the default), for the 8-bit estimate.
     measure_8bit
@@ -175,6 +179,8 @@ def approximate_brdf(
         timings["sample_s"] += t1 - t0
         timings["svd_s"] += t2 - t1
         timings["error_s"] += time.perf_counter() - t2
+        if terms is None and any(c["errors"][0]["relative_rms"] <= max_error for c in candidates):
+            break  # one term on the coarsest grid so far: no later grid can be cheaper
 
     t3 = time.perf_counter()
     index, k, met = _choose(candidates, most if terms else None, max_error)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .approximate import GRID_RESOLUTIONS, MAX_AUTO_TERMS, approximate_brdf, reference_values
+from .approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from .error import errors_by_terms, sample_hemisphere_pairs
 from .factorize import factorize
 from .parametrization import PARAMETRIZATIONS, get_parametrization
@@ -65,7 +65,9 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     name = params["parametrization"]
     p = get_parametrization(name)
 
-    grids = GRID_RESOLUTIONS if params.get("grid") is None else (params["grid"],)
+    from ..models.separable import Separable
+
+    grids = Separable.sampling_grids(params)
     chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
                               method=params["factorization"], target=params["target"], reference=reference, pairs=pairs,
                               grids=grids)

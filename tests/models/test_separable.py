@@ -101,7 +101,7 @@ def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     e = _entry(result, "g")
     k, grid, rep = e["terms"], e["sampling_grid"], e["representation"]
     assert rep["kind"] == "separable" and (rep["terms"], rep["sampling_grid"]) == (k, grid)
-    assert {c["grid"] for c in rep["candidates"]} == {16, 32, 48}
+    assert {c["grid"] for c in rep["candidates"]} == {16, 32}
     assert {c["target"] for c in rep["candidates"]} == {"f_cos", "f_proxy"}
     # Fewer terms never meet the budget, on any grid or target...
     for c in rep["candidates"]:
@@ -124,6 +124,18 @@ def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     least = min(x for c in rep["candidates"] for x in c["relative_rms_by_terms"])
     assert rep["estimated_error_8bit"] == least
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(least, rel=1e-3)
+
+
+def test_without_a_budget_the_grid_is_the_stored_one(bake_folder):
+    e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n'}), "g")
+    assert e["sampling_grid"] == 32 and {c["grid"] for c in e["representation"]["candidates"]} == {32}
+
+
+def test_a_loose_budget_met_by_one_term_on_the_coarse_grid_samples_nothing_finer(bake_folder):
+    e = _entry(bake_folder({"d": 'type = "separable"\nsource = "lambert"\ndiffuse = [0.5, 0.4, 0.3]\nmax_error = 0.05\n'}), "d")
+    assert (e["terms"], e["sampling_grid"]) == (1, 16)
+    assert {c["grid"] for c in e["representation"]["candidates"]} == {16}
+    assert e["errors_8bit"]["relative_rms"] <= 0.05
 
 
 def test_a_fixed_grid_is_the_only_one_sampled(bake_folder):
