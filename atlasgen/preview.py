@@ -39,13 +39,30 @@ def encode_png(image: np.ndarray, zoom: int = 1) -> bytes:
         image = np.kron(image, np.ones((zoom, zoom, 1)))
     buf = oiio.ImageBuf(oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
     buf.set_pixels(oiio.ROI(), np.ascontiguousarray(image, dtype=np.float32))
-    # OIIO writes to files only: through a private temporary file, so callers can place
-    # the bytes atomically.
-    fd, tmp = tempfile.mkstemp(prefix=".atlasgen-png.", suffix=".png")
+    return _png_bytes(buf)
+
+
+def _png_bytes(buf, target_path=None) -> bytes:
+    """8-bit PNG bytes of an OIIO ImageBuf.
+
+    OIIO writes to files only: through a private temporary file (beside ``target_path``
+    when given, so a full disk is reported for the output's own folder), so callers can
+    place the bytes atomically.
+    """
+    import OpenImageIO as oiio
+
+    folder = Path(target_path).parent if target_path is not None else None
+    try:
+        if folder is not None:
+            folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".atlasgen-png.", suffix=".png", dir=folder)
+    except OSError as exc:
+        raise OutputError(f"{(folder or Path(tempfile.gettempdir())).as_posix()}: cannot write output folder ({exc.strerror})") from None
     os.close(fd)
     try:
         if not buf.write(tmp, oiio.UINT8):
-            raise OutputError(f"{tmp}: cannot write PNG ({oiio.geterror()})")
+            name = Path(target_path).as_posix() if target_path is not None else tmp
+            raise OutputError(f"{name}: cannot write PNG ({oiio.geterror()})")
         return Path(tmp).read_bytes()
     finally:
         os.unlink(tmp)
@@ -87,16 +104,4 @@ def render_contact_sheet(result, target_path) -> bytes:
         y = PAD + (i // COLUMNS) * cell_h + HEIGHT * ZOOM + LABEL_H - 4
         x = PAD + (i % COLUMNS) * cell_w
         oiio.ImageBufAlgo.render_text(buf, x, y, label, 13, "", (0.95, 0.95, 0.95))
-    folder = Path(target_path).parent
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".preview.", suffix=".png", dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
-    os.close(fd)
-    try:
-        if not buf.write(tmp, oiio.UINT8):
-            raise OutputError(f"{Path(target_path).as_posix()}: cannot write preview ({oiio.geterror()})")
-        return Path(tmp).read_bytes()
-    finally:
-        os.unlink(tmp)
+    return _png_bytes(buf, target_path)

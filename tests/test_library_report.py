@@ -1,7 +1,8 @@
 """The whole-library HTML report opens with no broken image."""
 
 import json
-from html.parser import HTMLParser
+
+from html_links import PageLinks
 
 from atlasgen.bake import bake_atlas, write_bake
 from atlasgen.library_report import write_library_report
@@ -12,19 +13,6 @@ def read_json(path):
     return json.loads(path.read_text())
 
 
-class Images(HTMLParser):
-    def __init__(self):
-        super().__init__()
-        self.sources, self.links = [], []
-
-    def handle_starttag(self, tag, attrs):
-        attrs = dict(attrs)
-        if tag == "img":
-            self.sources.append(attrs["src"])
-        if tag == "a":
-            self.links.append(attrs["href"])
-
-
 def test_every_referenced_image_exists(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n')
     write_material("snow", 'type = "lambert"\nerror_budget = 0.01\n')
@@ -32,11 +20,10 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     atlas = tmp_path / "build" / "atlas.dds"
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
     index = write_library_report(atlas, tmp_path / "build" / "report")
-    parser = Images()
-    parser.feed(index.read_text())
+    parser = PageLinks(index.read_text())
     terms = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")["terms"]
-    assert len(parser.sources) == 3 + terms  # the plot and one preview per slice
-    for src in parser.sources + parser.links:
+    assert len(parser.images) == 3 + terms  # the plot and one preview per slice
+    for src in parser.images + parser.links:
         assert (index.parent / src).is_file(), src
     text = index.read_text()
     assert "supersampling 1x" in text and "clay" in text
@@ -60,8 +47,7 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
     text = index.read_text()
     assert "front/model: PSNR 61.2 dB, FLIP 0.0043, atlas 3.5x faster" in text
-    parser = Images()
-    parser.feed(text)
+    parser = PageLinks(text)
     assert "../validation/index.html" in parser.links
 
 
@@ -79,8 +65,7 @@ def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, writ
         {"material": "clay", "scene": s, "references": {"model": model}, "page": "materials/clay/index.html"}
         for s in ("front", "back")]}))  # fmt: skip
     index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
-    parser = Images()
-    parser.feed(index.read_text())
+    parser = PageLinks(index.read_text())
     # One link per material that has its own page (both scenes share it); snow has none.
     assert sorted(parser.links) == ["../validation/index.html", "../validation/materials/clay/index.html"]
     assert not list((tmp_path / "report").rglob(".*.tmp"))

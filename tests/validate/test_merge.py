@@ -4,25 +4,12 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
-from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
+from html_links import PageLinks
 
 from atlasgen.errors import InputError
-
-
-class _Links(HTMLParser):
-    def __init__(self):
-        super().__init__()
-        self.images, self.links = [], []
-
-    def handle_starttag(self, tag, attrs):
-        attrs = dict(attrs)
-        if tag == "img":
-            self.images.append(attrs.get("src"))
-        if tag == "a":
-            self.links.append(attrs.get("href"))
 
 
 def _split(run):
@@ -71,8 +58,7 @@ def test_merged_entries_equal_a_single_runs(merged, validation_run):
 
 def test_every_image_and_page_the_merged_html_links_exists(merged):
     out, parts, _ = merged
-    parser = _Links()
-    parser.feed((out / "index.html").read_text(encoding="utf-8"))
+    parser = PageLinks((out / "index.html").read_text(encoding="utf-8"))
     assert "speed_error.png" in parser.images
     assert (out / "speed_error.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     for src in parser.images:
