@@ -171,13 +171,17 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     paths = {}
     ks = np.arange(1, MAX_AUTO_TERMS + 1)
 
-    def save(fig, kind: str) -> Path:
+    def save(fig, ax, kind: str, xlabel: str, ylabel: str, title: str) -> None:
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.set_title(f"{study.name}: {title}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
         # No "Software" metadata: the PNG bytes then depend only on the figures.
-        path = folder / f"{study.name}-{kind}.png"
+        paths[kind] = folder / f"{study.name}-{kind}.png"
         fig.tight_layout()
-        fig.savefig(path, dpi=110, metadata={"Software": None})
+        fig.savefig(paths[kind], dpi=110, metadata={"Software": None})
         plt.close(fig)
-        return path
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for target, curves in study.by_terms.items():
@@ -186,24 +190,14 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
     ax.semilogy([e["terms"] for e in study.nonnegative["nmf"]], [e["relative_rms"] for e in study.nonnegative["nmf"]],
                 "^:", label="NMF, float")
     ax.semilogy([1], [study.nonnegative["nd"]["relative_rms"]], "kx", markersize=9, label="Kautz-McCool ND, float")
-    ax.set_xlabel("terms K (atlas slices)")
-    ax.set_ylabel("relative RMS of f cos (1e5 pairs)")
-    ax.set_title(f"{study.name}: error against K; float against 8-bit")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    paths["terms"] = save(fig, "terms")
+    save(fig, ax, "terms", "terms K (atlas slices)", "relative RMS of f cos (1e5 pairs)", "error against K; float against 8-bit")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for k in (1, 2, 4, 8):
         rows = [r for r in study.by_resolution if r["terms"] == k]
         ax.semilogy([r["resolution"] for r in rows], [r["relative_rms"] for r in rows], "o-", label=f"K = {k}")
     ax.axvline(FACTOR_RESOLUTION, color="grey", ls=":", label="stored grid (32)")
-    ax.set_xlabel("sampling grid, texels per factor axis")
-    ax.set_ylabel("relative RMS of f cos (float)")
-    ax.set_title(f"{study.name}: error against grid resolution")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    paths["resolution"] = save(fig, "resolution")
+    save(fig, ax, "resolution", "sampling grid, texels per factor axis", "relative RMS of f cos (float)", "error against grid resolution")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     xs = [r["seconds"] * 1e3 for r in study.by_resolution]
@@ -213,22 +207,12 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
               label="Pareto front")
     for p in study.pareto:
         ax.annotate(f"{p['resolution']}/K{p['terms']}", (p["seconds"] * 1e3, p["relative_rms"]), fontsize=6)
-    ax.set_xlabel("sampling + SVD time (ms, median)")
-    ax.set_ylabel("relative RMS of f cos (float)")
-    ax.set_title(f"{study.name}: error against time")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    paths["pareto"] = save(fig, "pareto")
+    save(fig, ax, "pareto", "sampling + SVD time (ms, median)", "relative RMS of f cos (float)", "error against time")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for name, curve in study.by_parametrization.items():
         ax.semilogy(ks, curve, "o-" if name in ("half_diff", "in_out") else ".:", label=name)
-    ax.set_xlabel("terms K")
-    ax.set_ylabel("relative RMS of f cos (float, best target)")
-    ax.set_title(f"{study.name}: parametrizations, same 32-texel grid")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    paths["parametrization"] = save(fig, "parametrization")
+    save(fig, ax, "parametrization", "terms K", "relative RMS of f cos (float, best target)", "parametrizations, same 32-texel grid")
     return paths
 
 
