@@ -29,7 +29,8 @@ ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
 # mips, DDS, the include, reading the atlas back and the CPU sampler.
 SLICE_CODE := atlasgen/bake.py atlasgen/quantize.py atlasgen/srgb.py atlasgen/mips.py atlasgen/dds.py atlasgen/include.py atlasgen/atlas.py atlasgen/sampling.py
-SEPARABLE_FILES := $(sort $(wildcard materials/separable-*.toml))
+# Separable materials by their type, read with grep so that parsing the Makefile stays instant.
+SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
 VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE)
@@ -92,6 +93,11 @@ $(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wi
 
 validate: $(VALIDATION)/report.json
 
+# $(call prune,FOLDER,STEMS): remove FOLDER's per-material subfolders whose material file is gone.
+# Run by the merges, which wait for every per-material job, so nothing is writing there.
+prune = for d in $(1)/*/; do [ -d "$$d" ] || continue; n=$$(basename "$$d"); \
+	case " $(2) " in *" $$n "*) ;; *) echo "removing $$d (no materials/$$n.toml)"; rm -rf "$$d";; esac; done
+
 # One material's validation, into its own folder. Its bake result (the cache entry, rewritten or
 # touched whenever make re-bakes the material) stands for the material's slices; the atlas is
 # order-only: it must be current before validating, but another material's change to it does not
@@ -103,6 +109,7 @@ $(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DI
 # The combined page (index.html, report.json, speed_error.png) from the per-material report.json
 # files; materials.list re-merges when a material is removed.
 $(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE) | $(VENV)/.stamp
+	@$(call prune,$(VALIDATION)/materials,$(STEMS))
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
@@ -110,12 +117,16 @@ $(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.t
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
 
 $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/separable/merge.py atlasgen/separable/report.py | $(VENV)/.stamp
+	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS))
 	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
 
 # The library page assembles per-material figures that are already measured (manifest, timings,
 # the merged validation report): one cheap job over the whole library.
 report: $(BUILD)/report/index.html
-$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_REPORT)/index.md $(VALIDATION)/report.json atlasgen/library_report.py atlasgen/preview.py | $(VENV)/.stamp
+# A library without separable materials has no separable report to merge or link.
+SEPARABLE_INDEX := $(if $(SEPARABLE_STEMS),$(SEPARABLE_REPORT)/index.md)
+$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json atlasgen/library_report.py atlasgen/preview.py | $(VENV)/.stamp
+	$(if $(SEPARABLE_STEMS),,rm -rf $(SEPARABLE_REPORT))
 	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report
 
 # One make over the whole graph, in parallel: validation and the separable study are one process

@@ -53,7 +53,9 @@ def tree(tmp_path):
         (root / "scenes" / f"{scene}.toml").write_text("")
     (root / "materials").mkdir()
     for m in MATERIALS:
-        (root / "materials" / f"{m}.toml").write_text('type = "lambert"\n')
+        # Make finds separable materials by their type, whatever the file is called.
+        kind = "separable" if m in SEPARABLE else "lambert"
+        (root / "materials" / f"{m}.toml").write_text(f"type = '{kind}'\n" if kind == "separable" else f'type = "{kind}"\n')
     (root / "pyproject.toml").write_text("")
     (root / ".venv").mkdir()
     (root / ".venv" / ".stamp").write_text("")
@@ -152,6 +154,35 @@ def test_a_removed_material_re_merges_without_revalidating(tree):
     assert _validated(commands) == []
     merge = next(c for c in commands if "validate --merge" in c)
     assert "materials/clay" not in merge and "build/validation/materials/snow" in merge
+
+
+FAKE_ATLASGEN = """#!/bin/sh
+# Stands in for atlasgen: only touches what the real command writes for its -o.
+out=""; prev=""
+for a in "$@"; do [ "$prev" = "-o" ] && out="$a"; prev="$a"; done
+case "$out" in
+  "") ;;
+  *.dds) touch "$out" ;;
+  *) mkdir -p "$out" && touch "$out/report.json" "$out/index.md" "$out/index.html" ;;
+esac
+"""
+
+
+def test_a_removed_materials_folders_are_pruned_by_the_merges(tree):
+    # Every recipe runs, with a stand-in for atlasgen: what is left is what the Makefile
+    # itself does to the build folder.
+    fake = tree / "fake-atlasgen"
+    fake.write_text(FAKE_ATLASGEN)
+    fake.chmod(0o755)
+    (tree / "materials" / "separable-gold.toml").unlink()
+    stray = tree / "build" / "validation" / "materials" / "separable-gold"
+    result = _make(tree, f"ATLASGEN={fake}", "validate", "report")
+    assert result.returncode == 0, result.stderr
+    assert not stray.exists()
+    # It was the only separable material: its study, and the merged report, go too.
+    assert not (tree / "build" / "report" / "separable").exists()
+    assert (tree / "build" / "validation" / "materials" / "snow" / "report.json").is_file()
+    assert "removing build/validation/materials/separable-gold/" in result.stdout
 
 
 def test_no_two_jobs_write_the_same_place(tree):
