@@ -136,7 +136,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         Folder of per-material float slices (:mod:`atlasgen.cache`); materials whose
         file and bake code are unchanged are loaded instead of baked.
     """
-    from .cache import load_cached, store_cached
+    from .cache import load_or_bake
 
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
@@ -146,18 +146,9 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     timings = {"materials": {}}
     cache_hits, baked_names = [], []
     for material in materials:
-        t0 = time.perf_counter()
         model = material.model
-        slices = load_cached(cache_dir, material) if cache_dir is not None else None
-        if slices is None:
-            slices = bake_material(material)
-            slices.timings["bake_s"] = time.perf_counter() - t0
-            baked_names.append(material.name)
-            if cache_dir is not None:
-                store_cached(cache_dir, material, slices, slices.timings["bake_s"])
-        else:
-            cache_hits.append(material.name)
-            slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
+        slices, hit = load_or_bake(cache_dir, material)
+        (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
             raise MaterialError(material.source, "type", f"model produced slices of shape {values.shape}; expected (n, {HEIGHT}, {WIDTH}, 4)")

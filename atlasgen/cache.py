@@ -13,7 +13,7 @@ import numpy as np
 from . import __version__
 from .models.base import SliceSet
 
-__all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "fill_cache", "BAKE_RELEVANT"]
+__all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Code whose change can change a material's float slices. Encoding, mips and file
@@ -82,6 +82,28 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     return path
 
 
+def load_or_bake(cache_dir, material) -> tuple[SliceSet, bool]:
+    """The material's slices and whether they came from the cache.
+
+    A missing or stale entry is baked (``timings["bake_s"]`` set) and, with a
+    ``cache_dir``, stored; ``cache_dir = None`` always bakes.
+    """
+    import time
+
+    from .bake import bake_material
+
+    t0 = time.perf_counter()
+    slices = load_cached(cache_dir, material) if cache_dir is not None else None
+    if slices is not None:
+        slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
+        return slices, True
+    slices = bake_material(material)
+    slices.timings["bake_s"] = time.perf_counter() - t0
+    if cache_dir is not None:
+        store_cached(cache_dir, material, slices, slices.timings["bake_s"])
+    return slices, False
+
+
 def fill_cache(cache_dir, materials) -> dict:
     """Bake into the cache each material whose entry is missing or stale; leave the rest.
 
@@ -90,18 +112,11 @@ def fill_cache(cache_dir, materials) -> dict:
     ``{"baked": [names], "hits": [names]}``.
     """
     import os
-    import time
-
-    from .bake import bake_material
 
     baked, hits = [], []
     for material in materials:
-        if load_cached(cache_dir, material) is None:
-            t0 = time.perf_counter()
-            slices = bake_material(material)
-            store_cached(cache_dir, material, slices, time.perf_counter() - t0)
-            baked.append(material.name)
-        else:
+        _, hit = load_or_bake(cache_dir, material)
+        if hit:
             os.utime(cache_path(cache_dir, material))
-            hits.append(material.name)
+        (hits if hit else baked).append(material.name)
     return {"baked": baked, "hits": hits}

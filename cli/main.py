@@ -97,7 +97,7 @@ def app():
 @fail_on_errors
 def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
-    from atlasgen.bake import bake_atlas, bake_material, read_previous_slots, sibling_paths, write_bake
+    from atlasgen.bake import bake_atlas, read_previous_slots, sibling_paths, write_bake
     from atlasgen.material import read_materials, select_scene_materials
 
     materials = read_materials(paths or [Path("materials")])
