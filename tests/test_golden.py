@@ -1,0 +1,47 @@
+"""Golden files: the shipped library bakes to the same bytes as the committed atlas, manifest and include.
+
+A deliberate change to the bytes regenerates them with ``ATLASGEN_REGENERATE_GOLDEN=1 pytest
+tests/test_golden.py`` and says why in the commit; an accidental one fails here.
+"""
+
+from __future__ import annotations
+
+import gzip
+import os
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+
+ROOT = Path(__file__).resolve().parents[1]
+GOLDEN = Path(__file__).parent / "resources" / "golden"
+REGENERATE = os.environ.get("ATLASGEN_REGENERATE_GOLDEN") == "1"
+
+#: variant -> extra bake options
+VARIANTS = {"array-srgb": [], "volume-linear": ["--layout", "volume", "--linear"]}
+
+
+def _golden_name(variant: str, suffix: str) -> str:
+    return f"{variant}{suffix}.gz" if suffix == ".dds" else f"{variant}{suffix}"
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_the_shipped_library_bakes_to_the_golden_bytes(variant, tmp_path, monkeypatch):
+    # The manifest names material files as given, so bake from the repository root.
+    monkeypatch.chdir(ROOT)
+    out = tmp_path / f"{variant}.dds"
+    res = CliRunner().invoke(app, ["bake", "materials", "-o", str(out), "-q", *VARIANTS[variant]])
+    assert res.exit_code == 0, res.output
+    for suffix in (".dds", ".json", ".wgsl"):
+        produced = out.with_suffix(suffix).read_bytes()
+        golden = GOLDEN / _golden_name(variant, suffix)
+        if REGENERATE:
+            GOLDEN.mkdir(parents=True, exist_ok=True)
+            golden.write_bytes(gzip.compress(produced, mtime=0) if suffix == ".dds" else produced)
+            continue
+        expected = golden.read_bytes()
+        if suffix == ".dds":
+            expected = gzip.decompress(expected)
+        assert produced == expected, f"{variant}{suffix} differs from {golden.relative_to(ROOT)}"
