@@ -12,9 +12,9 @@ LUT_MODELS = ("lambert", "fresnel", "iridescent", "sss", "backlit", "toon")
 
 
 def _cases():
-    from atlasgen.material import read_materials
+    from atlasgen.materials.material import read_materials
     from atlasgen.models import get_model
-    from atlasgen.params import validate_params
+    from atlasgen.materials.params import validate_params
 
     cases = [(m.name, m.type, m.model, m.params) for m in read_materials([ROOT / "materials"]) if m.type in LUT_MODELS]
     for type_name in LUT_MODELS:

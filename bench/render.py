@@ -37,8 +37,8 @@ def load_atlas():
         atlas = read_render_atlas(built)
         if atlas.manifest.get("materials"):
             return atlas, built.relative_to(ROOT).as_posix()
-    from atlasgen.bake import bake_atlas
-    from atlasgen.material import read_materials
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
 
     files = [ROOT / "materials" / f"{name}.toml" for name in FALLBACK_MATERIALS]
     result = bake_atlas(read_materials([f for f in files if f.exists()]))
@@ -48,7 +48,7 @@ def load_atlas():
 
 def bench_scene(materials: list[str], lights: int, translucent: int):
     """A floor, six opaque spheres, ``translucent`` glass spheres and ``lights`` point lights on a ring."""
-    from atlasgen.render.scene import parse_scene
+    from atlasgen.materials.scene import parse_scene
 
     lines = [
         "[camera]", "position = [0, 3, 10]", "target = [0, 0, 0]", "fov = 55",

@@ -19,8 +19,8 @@ REPEATS = 9
 
 def _bake_entry(alpha: float, terms: int, tmp) -> dict:
     """The manifest entry of one material baked by the real pipeline (sRGB atlas)."""
-    from atlasgen.bake import bake_atlas
-    from atlasgen.material import read_material
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_material
 
     path = tmp / f"ggx-{int(alpha * 1000)}-{terms}.toml"
     path.write_text(f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nfresnel = "schlick"\n'

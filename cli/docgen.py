@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .main import app
+from atlasgen.cli.main import app
 
 __all__ = ["render_cli_reference"]
 

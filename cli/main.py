@@ -97,8 +97,8 @@ def app():
 @fail_on_errors
 def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
-    from atlasgen.bake import bake_atlas, read_previous_slots, sibling_paths, write_bake
-    from atlasgen.material import read_materials, select_scene_materials
+    from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
+    from atlasgen.materials.material import read_materials, select_scene_materials
 
     materials = read_materials(paths or [Path("materials")])
     if scene is not None:
@@ -106,7 +106,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     if cache_only:
         if cache_dir is None:
             raise click.UsageError("--cache-only needs --cache DIR")
-        from atlasgen.cache import fill_cache
+        from atlasgen.bake.cache import fill_cache
 
         fill_cache(cache_dir, materials)
         return
@@ -120,8 +120,8 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
     write_bake(result, output, preview)
     if depfile is not None:
-        from atlasgen.cache import cache_path
-        from atlasgen.depfile import write_depfile
+        from atlasgen.bake.cache import cache_path
+        from atlasgen.io.depfile import write_depfile
 
         inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
         if cache_dir is not None:
@@ -139,7 +139,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
 @fail_on_errors
 def info(atlas, fmt):
     """Print an atlas's DDS header and a summary of its manifest."""
-    from atlasgen.atlas import summarize_atlas
+    from atlasgen.io.atlas import summarize_atlas
 
     summary = summarize_atlas(atlas)
     if fmt == "json":

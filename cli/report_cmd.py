@@ -36,9 +36,9 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
     without measuring again.
     """
     from atlasgen.errors import InputError
-    from atlasgen.material import read_materials
-    from atlasgen.separable.merge import merge_separable_reports
-    from atlasgen.separable.report import write_separable_report
+    from atlasgen.materials.material import read_materials
+    from atlasgen.reports.separable_merge import merge_separable_reports
+    from atlasgen.reports.separable import write_separable_report
 
     if merge:
         click.echo(merge_separable_reports([Path(n) for n in names], output)["markdown"].as_posix())
@@ -69,6 +69,6 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
 @fail_on_errors
 def library(atlas, validation, separable_dir, output):
     """One HTML page over the whole library: representation, errors, bake time, slice previews."""
-    from atlasgen.library_report import write_library_report
+    from atlasgen.reports.library import write_library_report
 
     click.echo(write_library_report(atlas, output, validation, separable_dir).as_posix())

@@ -56,7 +56,7 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
     runs (e.g. one per material) whose reports are combined without rendering.
     """
     if merge:
-        from atlasgen.validate.report import merge_validation_reports
+        from atlasgen.reports.validation import merge_validation_reports
 
         written = merge_validation_reports([Path(m) for m in materials], output)
     else:
@@ -69,6 +69,6 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
         run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
                              resolution=resolution, physical=not no_physical, progress=progress)  # fmt: skip
         written = write_validation(run, output)
-    from atlasgen.validate.report import summary_line
+    from atlasgen.reports.validation import summary_line
 
     click.echo(summary_line(written["data"], written["html"]))

@@ -26,7 +26,7 @@ def expect_rejected(write_material):
 
     def check(type_name: str, body: str, field: str | None, expected: str) -> str:
         from atlasgen.errors import MaterialError
-        from atlasgen.material import read_material
+        from atlasgen.materials.material import read_material
 
         path = write_material("bad", f'type = "{type_name}"\n{body}\n' if type_name else body)
         with pytest.raises(MaterialError) as info:

@@ -1,6 +1,6 @@
 """An independent DDS parser for the tests, written from the DirectXTex spec (DDS.h).
 
-It shares no code with atlasgen.dds on purpose: a bug in the writer must not be
+It shares no code with atlasgen.io.dds on purpose: a bug in the writer must not be
 mirrored by the reader that checks it.
 """
 

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from atlasgen.adaptive import SUPERSAMPLING_FACTORS, bake_supersampled, bake_within_budget, reconstruction_error
+from atlasgen.bake.adaptive import SUPERSAMPLING_FACTORS, bake_supersampled, bake_within_budget, reconstruction_error
 from atlasgen.models.base import Model
 from atlasgen.models.lambert import Lambert
 
@@ -55,8 +55,8 @@ def test_a_tighter_budget_never_yields_a_larger_error(threshold, tight, ratio):
 
 
 def test_budget_reaches_the_manifest(tmp_path, write_material):
-    from atlasgen.bake import bake_atlas
-    from atlasgen.material import read_materials
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
 
     write_material("a", 'type = "lambert"\nerror_budget = 0.02\n')
     entry = bake_atlas(read_materials([tmp_path / "materials"])).manifest["materials"][0]
@@ -67,7 +67,7 @@ def test_budget_reaches_the_manifest(tmp_path, write_material):
 @pytest.mark.parametrize("bad", ["0", "-1", "nan", '"tight"'])
 def test_bad_budget(write_material, bad):
     from atlasgen.errors import MaterialError
-    from atlasgen.material import read_material
+    from atlasgen.materials.material import read_material
 
     with pytest.raises(MaterialError, match="field 'error_budget': expected a finite number > 0"):
         read_material(write_material("a", f'type = "lambert"\nerror_budget = {bad}\n'))
@@ -75,7 +75,7 @@ def test_bad_budget(write_material, bad):
 
 def test_a_separable_budget_is_its_term_budget(write_material):
     from atlasgen.errors import MaterialError
-    from atlasgen.material import read_material
+    from atlasgen.materials.material import read_material
 
     m = read_material(write_material("s", 'type = "separable"\nsource = "ggx"\nerror_budget = 0.03\n'))
     assert m.params["max_error"] == 0.03

@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas, read_previous_slots, sibling_paths, write_bake
+from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.contract import texel_grid
 from atlasgen.errors import InputError, MaterialError
-from atlasgen.material import read_materials
+from atlasgen.materials.material import read_materials
 from atlasgen.models.base import SliceSet
 
 from dds_reader import parse, srgb_to_linear

@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from atlasgen.bake import bake_atlas
-from atlasgen.cache import cache_path, load_cached
-from atlasgen.material import read_materials
+from atlasgen.bake.pipeline import bake_atlas
+from atlasgen.bake.cache import cache_path, load_cached
+from atlasgen.materials.material import read_materials
 
 
 def test_only_the_changed_material_is_rebaked(tmp_path, write_material):

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas, write_bake
-from atlasgen.dds import read_dds
-from atlasgen.material import read_materials
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.io.dds import read_dds
+from atlasgen.materials.material import read_materials
 
 from dds_reader import linear_to_srgb, parse, srgb_to_linear
 

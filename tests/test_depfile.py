@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from atlasgen.depfile import format_depfile, write_depfile
+from atlasgen.io.depfile import format_depfile, write_depfile
 
 names = st.text(alphabet="abcXYZ019_-.# $", min_size=1, max_size=12).filter(lambda s: s.strip(" .") and not s.startswith("-"))
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.contract import atlas_uv, texel_centres
 from atlasgen.errors import BackendError
-from atlasgen.material import read_materials
-from atlasgen.quantize import dequantize_rgba
+from atlasgen.materials.material import read_materials
+from atlasgen.optics.quantize import dequantize_rgba
 
 
 @pytest.fixture
@@ -107,7 +107,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         np.testing.assert_allclose(got[sel], expected, atol=4e-3)
     # The toon slice is flagged nearest: the GPU reads one texel, so the bands stay hard
     # and equal the model itself at any point, to 8-bit precision.
-    from atlasgen.material import read_material
+    from atlasgen.materials.material import read_material
 
     cel = [m for m in result.manifest["materials"] if m["name"] == "cel"][0]
     assert cel["flags"]["nearest"]

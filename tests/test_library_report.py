@@ -4,9 +4,9 @@ import json
 
 from html_links import PageLinks
 
-from atlasgen.bake import bake_atlas, write_bake
-from atlasgen.library_report import write_library_report
-from atlasgen.material import read_materials
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.reports.library import write_library_report
+from atlasgen.materials.material import read_materials
 
 
 def read_json(path):

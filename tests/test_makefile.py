@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from atlasgen.depfile import write_depfile
+from atlasgen.io.depfile import write_depfile
 
 ROOT = Path(__file__).resolve().parents[1]
 MATERIALS = ("clay", "snow", "separable-gold")
@@ -232,7 +232,7 @@ def test_a_changed_scene_rebakes_and_rerenders_only_itself(tree):
 
 
 def test_the_makefile_bake_code_is_what_the_cache_key_hashes(tree):
-    from atlasgen.cache import bake_relevant_files
+    from atlasgen.bake.cache import bake_relevant_files
 
     result = _make(tree, "--eval", "print-bake-code: ; @echo $(BAKE_CODE)", "print-bake-code")
     assert result.returncode == 0, result.stderr

@@ -3,7 +3,7 @@
 import pytest
 
 from atlasgen.errors import InputError, MaterialError
-from atlasgen.material import read_material, read_materials
+from atlasgen.materials.material import read_material, read_materials
 
 
 def test_defaults_are_filled_and_hex_colours_decoded(write_material):

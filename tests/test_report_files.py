@@ -3,7 +3,7 @@
 import pytest
 
 from atlasgen.errors import InputError
-from atlasgen.report_files import read_report_json, report_json_paths
+from atlasgen.io.report_files import read_report_json, report_json_paths
 
 
 def test_folders_and_json_files_both_name_a_report(tmp_path):

@@ -5,7 +5,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from atlasgen.errors import MaterialError
-from atlasgen.slots import assign_slices
+from atlasgen.bake.slots import assign_slices
 
 
 def req(name, count=1, explicit=None):

@@ -4,8 +4,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from atlasgen.quantize import dequantize_rgba, quantize_rgba
-from atlasgen.srgb import SRGB_DECODE_LUT, decode_srgb, encode_srgb
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.optics.srgb import SRGB_DECODE_LUT, decode_srgb, encode_srgb
 
 
 def test_known_points():

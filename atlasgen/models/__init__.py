@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 
-from .base import Model
+from atlasgen.models.base import Model
 
 __all__ = ["MODEL_TYPES", "get_model"]
 

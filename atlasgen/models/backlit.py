@@ -10,8 +10,8 @@ from functools import cache
 
 import numpy as np
 
-from ..params import Param
-from .base import Model
+from atlasgen.materials.params import Param
+from atlasgen.models.base import Model
 
 __all__ = ["Backlit", "translucency", "VIEW_MODES"]
 

@@ -7,8 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..contract import HEIGHT, WIDTH, texel_centres
-from ..params import Param
+from atlasgen.contract import HEIGHT, WIDTH, texel_centres
+from atlasgen.materials.params import Param
 
 __all__ = ["Model", "SliceSet", "EncodedSlices", "encode_scaled"]
 
@@ -78,7 +78,7 @@ class Model:
         """Parameters for a material that carries an ``error_budget``.
 
         LUT models keep theirs: the bake meets the budget by supersampling
-        (:mod:`atlasgen.adaptive`). Models with their own knob (the separable term
+        (:mod:`atlasgen.bake.adaptive`). Models with their own knob (the separable term
         count) map the budget onto it here.
         """
         return values

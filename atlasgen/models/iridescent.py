@@ -12,11 +12,11 @@ from functools import cache
 
 import numpy as np
 
-from ..errors import MaterialError
-from ..params import Param
-from .backlit import VIEW_MODES, translucency
-from .base import Model
-from .fresnel import cosine_rule, normal_reflectance
+from atlasgen.errors import MaterialError
+from atlasgen.materials.params import Param
+from atlasgen.models.backlit import VIEW_MODES, translucency
+from atlasgen.models.base import Model
+from atlasgen.models.fresnel import cosine_rule, normal_reflectance
 
 __all__ = [
     "Iridescent",

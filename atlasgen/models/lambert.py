@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..params import Param
-from .base import Model
+from atlasgen.materials.params import Param
+from atlasgen.models.base import Model
 
 __all__ = ["Lambert"]
 

@@ -12,9 +12,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..errors import MaterialError
-from ..params import Param
-from .base import EncodedSlices, Model, SliceSet
+from atlasgen.errors import MaterialError
+from atlasgen.materials.params import Param
+from atlasgen.models.base import EncodedSlices, Model, SliceSet
 
 __all__ = ["Separable", "MAX_AUTO_TERMS"]
 
@@ -26,27 +26,27 @@ SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba")
 
 
 def _parametrization_names():
-    from ..separable.parametrization import PARAMETRIZATIONS
+    from atlasgen.separable.parametrization import PARAMETRIZATIONS
 
     return tuple(PARAMETRIZATIONS)
 
 
 @lru_cache(maxsize=1)
 def _error_pairs():
-    from ..separable.error import sample_hemisphere_pairs
+    from atlasgen.separable.error import sample_hemisphere_pairs
 
     return sample_hemisphere_pairs()
 
 
 def _reference(source):
     """f cos at the fixed error pairs, with non-finite values masked (and counted)."""
-    from ..separable.approximate import reference_values
+    from atlasgen.separable.approximate import reference_values
 
     return reference_values(source, _error_pairs())
 
 
 def _error_seed():
-    from ..separable.error import ERROR_SEED
+    from atlasgen.separable.error import ERROR_SEED
 
     return ERROR_SEED
 
@@ -88,7 +88,7 @@ class Separable(Model):
         if values["source"] == "mitsuba":
             if values["bsdf"] is None:
                 raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'")
-            from ..separable.mitsuba_source import load_mitsuba_bsdf
+            from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
 
             load_mitsuba_bsdf(values["bsdf"], path)
         elif values["bsdf"] is not None:
@@ -109,7 +109,7 @@ class Separable(Model):
         A separable material has no single (N.L, N.V) table; this in-plane cut is what a
         preview can show. The atlas slices themselves hold the factors (see :meth:`bake`).
         """
-        from ..separable.source import make_source
+        from atlasgen.separable.source import make_source
 
         nl = np.asarray(n_dot_l, dtype=np.float64)
         nv = np.asarray(n_dot_v, dtype=np.float64)
@@ -131,9 +131,9 @@ class Separable(Model):
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
-        from ..separable.approximate import approximate_brdf
-        from ..separable.source import make_source
-        from ..separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
+        from atlasgen.separable.approximate import approximate_brdf
+        from atlasgen.separable.source import make_source
+        from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 
         source = make_source(values)
         method = values["factorization"]
@@ -204,8 +204,8 @@ class Separable(Model):
         """The sampling grids the bake tries: ``grid`` if given; with a budget the
         candidates of :data:`~atlasgen.separable.approximate.GRID_RESOLUTIONS`; else
         the stored resolution."""
-        from ..separable.approximate import GRID_RESOLUTIONS
-        from ..separable.storage import FACTOR_RESOLUTION
+        from atlasgen.separable.approximate import GRID_RESOLUTIONS
+        from atlasgen.separable.storage import FACTOR_RESOLUTION
 
         if values["grid"] is not None:
             return (values["grid"],)
@@ -218,7 +218,7 @@ class Separable(Model):
         bias that fit it exactly. The generic (K, 2) ``scale``/``bias`` are 1 and 0; the
         real ones are ``factor_scale``/``factor_bias`` in the manifest entry.
         """
-        from ..separable.storage import encode_factor_slices
+        from atlasgen.separable.storage import encode_factor_slices
 
         cached = getattr(slices, "_separable", None)
         if cached is None or cached["stored"].shape != slices.values.shape:
@@ -236,9 +236,9 @@ class Separable(Model):
 
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
-        from ..separable.error import measure_errors
-        from ..separable.rebuild import evaluate_factors, factors_from_slices
-        from ..separable.source import make_source
+        from atlasgen.separable.error import measure_errors
+        from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices
+        from atlasgen.separable.source import make_source
 
         cached = getattr(slices, "_separable", None)
         if cached is not None:
@@ -269,7 +269,7 @@ class Separable(Model):
     @classmethod
     def include_wgsl(cls, entries: list[dict]) -> str:
         """WGSL that rebuilds f cos(theta_l) of each separable material from the atlas."""
-        from ..separable.shader import separable_wgsl
+        from atlasgen.separable.shader import separable_wgsl
 
         return separable_wgsl(entries)
 

@@ -6,9 +6,9 @@ from functools import cache
 
 import numpy as np
 
-from ..errors import MaterialError
-from ..params import Param
-from .base import Model
+from atlasgen.errors import MaterialError
+from atlasgen.materials.params import Param
+from atlasgen.models.base import Model
 
 __all__ = ["Subsurface", "preintegrate_ring", "SKIN_VARIANCES", "SKIN_WEIGHTS"]
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import MaterialError
-from ..params import Param
-from ..contract import HEIGHT, WIDTH
-from .base import Model
+from atlasgen.errors import MaterialError
+from atlasgen.materials.params import Param
+from atlasgen.contract import HEIGHT, WIDTH
+from atlasgen.models.base import Model
 
 __all__ = ["Toon"]
 

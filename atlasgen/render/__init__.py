@@ -28,11 +28,11 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     OutputError
         The output cannot be written.
     """
-    from ..errors import OutputError
-    from .atlas_texture import read_render_atlas
-    from .output import write_aov, write_render
-    from .renderer import AOVS, Renderer
-    from .scene import read_scene, resolve_materials
+    from atlasgen.errors import OutputError
+    from atlasgen.render.atlas_texture import read_render_atlas
+    from atlasgen.render.output import write_aov, write_render
+    from atlasgen.render.renderer import AOVS, Renderer
+    from atlasgen.materials.scene import read_scene, resolve_materials
 
     output_path = Path(output_path)
     if aov is not None and aov not in AOVS:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from atlasgen.errors import InputError
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 
@@ -45,7 +45,7 @@ def read_render_atlas(dds_path) -> RenderAtlas:
     Raises :class:`InputError` when one of the three is missing or the atlas is a volume:
     the renderer samples a 2D texture array, whose layer is never filtered.
     """
-    from ..atlas import read_atlas
+    from atlasgen.io.atlas import read_atlas
 
     dds_path = Path(dds_path)
     atlas = read_atlas(dds_path)

@@ -9,23 +9,12 @@ pixel's ray passes through its centre.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from atlasgen.materials.scene import Camera
+
 __all__ = ["Camera", "camera_basis", "view_matrix", "projection_matrix", "pixel_rays"]
-
-
-@dataclass(frozen=True)
-class Camera:
-    """A look-at pinhole camera; ``fov`` is the horizontal field of view in degrees."""
-
-    position: tuple
-    target: tuple
-    up: tuple = (0.0, 1.0, 0.0)
-    fov: float = 40.0
-    near: float = 0.05
-    far: float = 1000.0
 
 
 def camera_basis(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

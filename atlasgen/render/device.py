@@ -12,7 +12,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 
-from ..errors import BackendError
+from atlasgen.errors import BackendError
 
 __all__ = ["GpuContext", "get_device", "create_device", "INSTALL_HINT"]
 

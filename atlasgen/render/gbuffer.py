@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .shaders import assemble_shader
+from atlasgen.render.shaders import assemble_shader
 
 __all__ = ["GBuffer", "GBufferPass", "NO_MATERIAL", "OBJECT_UNIFORM_STRIDE", "pack_object"]
 

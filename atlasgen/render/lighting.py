@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .shaders import assemble_shader
+from atlasgen.render.shaders import assemble_shader
 
 __all__ = [
     "LightingPass",

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SceneError
+from atlasgen.errors import SceneError
 
 __all__ = [
     "Mesh",
@@ -141,7 +141,7 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
 
 
 def build_mesh(obj) -> Mesh:
-    """The object-space mesh of a :class:`~atlasgen.render.scene.SceneObject`."""
+    """The object-space mesh of a :class:`~atlasgen.materials.scene.SceneObject`."""
     if obj.shape == "sphere":
         return make_sphere(obj.segments)
     if obj.shape == "plane":

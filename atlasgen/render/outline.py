@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from .shaders import assemble_shader
+from atlasgen.render.shaders import assemble_shader
 
 __all__ = ["OutlinePass", "outline_parameters"]
 

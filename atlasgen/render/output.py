@@ -1,6 +1,6 @@
 """Writing renders: a linear float EXR and a tone-mapped sRGB PNG, both through OpenImageIO.
 
-Files are replaced atomically (:mod:`atlasgen.atomic`): a failed write never leaves a
+Files are replaced atomically (:mod:`atlasgen.io.atomic`): a failed write never leaves a
 half-written image or an EXR without its PNG.
 """
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_files_atomically
-from ..errors import OutputError
+from atlasgen.io.atomic import write_files_atomically
+from atlasgen.errors import OutputError
 
 __all__ = ["tone_map", "encode_image", "write_exr", "write_png", "write_render", "write_aov", "aov_channels"]
 
@@ -23,7 +23,7 @@ def tone_map(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     [0, 1] (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015), then the sRGB transfer
     function (IEC 61966-2-1) and rounding to nearest.
     """
-    from ..srgb import encode_srgb
+    from atlasgen.optics.srgb import encode_srgb
 
     x = np.maximum(np.nan_to_num(np.asarray(radiance, dtype=np.float64) * exposure, nan=0.0, posinf=1e6), 0.0)
     y = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)

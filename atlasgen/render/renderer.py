@@ -15,15 +15,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import BackendError, SceneError
-from .atlas_texture import RenderAtlas, upload_atlas
-from .camera import camera_basis, projection_matrix, tangents, view_matrix
-from .gbuffer import NO_MATERIAL, OBJECT_UNIFORM_STRIDE, GBuffer, GBufferPass, pack_object
-from .lighting import LightingPass, pack_lights
-from .meshes import build_mesh
-from .outline import OutlinePass, outline_parameters
-from .scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials
-from .translucency import encode_translucent, screen_rectangle, sort_back_to_front
+from atlasgen.errors import BackendError, SceneError
+from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
+from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
+from atlasgen.render.gbuffer import NO_MATERIAL, OBJECT_UNIFORM_STRIDE, GBuffer, GBufferPass, pack_object
+from atlasgen.render.lighting import LightingPass, pack_lights
+from atlasgen.render.meshes import build_mesh
+from atlasgen.render.outline import OutlinePass, outline_parameters
+from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials
+from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
 
 __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
 
@@ -101,7 +101,7 @@ class Renderer:
     def __init__(self, atlas: RenderAtlas, ctx=None):
         import wgpu
 
-        from .device import get_device
+        from atlasgen.render.device import get_device
 
         self.ctx = ctx or get_device()
         self.atlas = atlas
@@ -361,7 +361,7 @@ class _Tracer:
     def __init__(self, renderer: Renderer, frame: _PreparedFrame):
         import wgpu
 
-        from .shaders import assemble_shader
+        from atlasgen.render.shaders import assemble_shader
 
         self.renderer, self.frame = renderer, frame
         device = renderer.device

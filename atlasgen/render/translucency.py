@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import camera_basis
+from atlasgen.render.camera import camera_basis
 
 __all__ = ["sort_back_to_front", "object_sort_key", "encode_translucent", "screen_rectangle"]
 

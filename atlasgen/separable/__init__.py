@@ -8,6 +8,6 @@ One module per concept: :mod:`.parametrization` (pi1, pi2), :mod:`.analytic` and
 
 from __future__ import annotations
 
-from .rebuild import evaluate_separable, read_separable_factors
+from atlasgen.separable.rebuild import evaluate_separable, read_separable_factors
 
 __all__ = ["evaluate_separable", "read_separable_factors"]

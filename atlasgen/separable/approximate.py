@@ -8,12 +8,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from .error import errors_by_terms, sample_hemisphere_pairs
-from .factorize import Factors, factorize, matrix_errors
-from .parametrization import get_parametrization
-from .resample import resample_factors
-from .source import BrdfSource, sample_matrices
-from .storage import quantize_factors
+from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
+from atlasgen.separable.factorize import Factors, factorize, matrix_errors
+from atlasgen.separable.parametrization import get_parametrization
+from atlasgen.separable.resample import resample_factors
+from atlasgen.separable.source import BrdfSource, sample_matrices
+from atlasgen.separable.storage import quantize_factors
 
 __all__ = ["Approximation", "approximate_brdf", "reference_values", "TARGETS", "MAX_AUTO_TERMS", "GRID_RESOLUTIONS"]
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import BackendError, MaterialError
+from atlasgen.errors import BackendError, MaterialError
 
 __all__ = ["VARIANT", "load_mitsuba_bsdf", "evaluate_mitsuba_f_cos"]
 

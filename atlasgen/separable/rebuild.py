@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .factorize import Factors
-from .parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
+from atlasgen.errors import InputError
+from atlasgen.separable.factorize import Factors
+from atlasgen.separable.parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
 
 __all__ = [
     "interpolate_1d",
@@ -204,7 +204,7 @@ def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, 
 def _read_dds_levels(path: Path):
     """Level 0 of a DDS 2D array or volume as ``(layers, h, w, 4)`` uint8, and whether it is sRGB."""
     try:
-        from ..dds import read_dds  # the library reader, when present
+        from atlasgen.io.dds import read_dds  # the library reader, when present
     except ImportError:
         read_dds = None
     if read_dds is not None:
@@ -233,7 +233,7 @@ def read_separable_factors(atlas_path, material: str) -> Factors:
     InputError
         The atlas or manifest is missing, or has no separable material of that name.
     """
-    from ..srgb import SRGB_DECODE_LUT
+    from atlasgen.optics.srgb import SRGB_DECODE_LUT
 
     path = Path(atlas_path)
     manifest_path = path.with_suffix(".json")

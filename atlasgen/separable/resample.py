@@ -15,7 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .factorize import Factors
+from atlasgen.separable.factorize import Factors
 
 __all__ = ["interpolation_matrix", "resampling_matrix", "resample_factors"]
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import re
 
-from .parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, get_parametrization
-from .storage import FACTOR_RESOLUTION
+from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, get_parametrization
+from atlasgen.separable.storage import FACTOR_RESOLUTION
 
 __all__ = ["separable_wgsl", "wgsl_function_name"]
 

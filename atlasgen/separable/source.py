@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .analytic import evaluate_analytic
+from atlasgen.separable.analytic import evaluate_analytic
 
 __all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix"]
 
@@ -45,7 +45,7 @@ class BrdfSource:
         v = np.asarray(v, dtype=np.float64)
         if self._f is not None:
             return self._shape(l, self._f(l, v))
-        from .parametrization import HORIZON_COS
+        from atlasgen.separable.parametrization import HORIZON_COS
 
         return self._shape(l, self._f_cos(l, v)) / np.maximum(l[..., 2], HORIZON_COS)[..., None]
 
@@ -53,7 +53,7 @@ class BrdfSource:
 def make_source(params: dict, path="<material>") -> BrdfSource:
     """The source a separable material's params describe (Mitsuba loaded lazily)."""
     if params["source"] == "mitsuba":
-        from .mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+        from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
         bsdf = load_mitsuba_bsdf(params["bsdf"], path)
         return BrdfSource("mitsuba", evaluate_f_cos=lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v), zero_on_horizon=True)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .factorize import Factors
+from atlasgen.separable.factorize import Factors
 
 __all__ = ["FACTOR_RESOLUTION", "CHANNEL_LAYOUT", "factors_to_slices", "encode_factor_slices", "quantize_factors"]
 
@@ -84,11 +84,11 @@ def quantize_factors(factors: Factors, srgb: bool = True) -> Factors:
     """The factors as an 8-bit atlas returns them: encode, round to UNORM8, decode, rescale.
 
     RGB is sRGB-encoded when ``srgb`` (the default atlas encoding, IEC 61966-2-1), as
-    :func:`atlasgen.quantize.quantize_rgba` does; used to judge candidates on what is
+    :func:`atlasgen.optics.quantize.quantize_rgba` does; used to judge candidates on what is
     actually stored.
     """
-    from ..srgb import SRGB_DECODE_LUT, encode_srgb
-    from .rebuild import factors_from_slices
+    from atlasgen.optics.srgb import SRGB_DECODE_LUT, encode_srgb
+    from atlasgen.separable.rebuild import factors_from_slices
 
     stored, scale, bias, _ = encode_factor_slices(factors_to_slices(factors))
     rgb = stored[..., :3]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..errors import BackendError
+from atlasgen.errors import BackendError
 
 __all__ = ["load_mitsuba", "LLVM_HINT"]
 

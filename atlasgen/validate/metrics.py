@@ -17,10 +17,10 @@ __all__ = ["tonemap", "rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "I
 def tonemap(linear, exposure: float = 1.0) -> np.ndarray:
     """Linear radiance to display sRGB in [0, 1]: encode_srgb(clip(exposure * L, 0, 1)).
 
-    The sRGB transfer function is IEC 61966-2-1, eq. 5 (:func:`atlasgen.srgb.encode_srgb`);
+    The sRGB transfer function is IEC 61966-2-1, eq. 5 (:func:`atlasgen.optics.srgb.encode_srgb`);
     NaN maps to 0 so a broken pixel shows as an error, never as a crash.
     """
-    from ..srgb import encode_srgb
+    from atlasgen.optics.srgb import encode_srgb
 
     x = np.nan_to_num(np.asarray(linear, dtype=np.float64) * float(exposure), nan=0.0, posinf=1.0, neginf=0.0)
     return encode_srgb(np.clip(x, 0.0, 1.0))

@@ -1,4 +1,4 @@
-"""A renderer scene (:mod:`atlasgen.render.scene`) as a Mitsuba 3 scene, for pixel-by-pixel comparison.
+"""A renderer scene (:mod:`atlasgen.materials.scene`) as a Mitsuba 3 scene, for pixel-by-pixel comparison.
 
 What is kept identical, so that only the shading differs:
 
@@ -135,8 +135,8 @@ def emitter_dicts(scene) -> dict:
 
 def world_mesh_arrays(obj):
     """World-space positions, normals (inverse transpose, not renormalised) and faces of ``obj``."""
-    from ..render.meshes import build_mesh
-    from ..render.scene import object_matrix
+    from atlasgen.render.meshes import build_mesh
+    from atlasgen.materials.scene import object_matrix
 
     mesh = build_mesh(obj)
     m = object_matrix(obj)
@@ -180,7 +180,7 @@ def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None 
     mi
         The ``mitsuba`` module with a variant set (:func:`atlasgen.validate.backend.load_mitsuba`).
     scene
-        A :class:`atlasgen.render.scene.Scene`.
+        A :class:`atlasgen.materials.scene.Scene`.
     bsdfs
         One BSDF (dict or instance) per object, in object order.
     integrator

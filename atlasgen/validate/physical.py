@@ -85,7 +85,7 @@ def describe_physical(entry: dict) -> str:
 @lru_cache(maxsize=16)
 def film_table(thickness: float, film_ior: float, base_ior: float, base_k: float):
     """Film reflectance R(cos, lambda) on a grid: cosines 0..1 (1025), wavelengths 360..830 nm (1 nm)."""
-    from ..models.iridescent import film_reflectance
+    from atlasgen.models.iridescent import film_reflectance
 
     cos = np.linspace(0.0, 1.0, 1025)
     lam = np.arange(360.0, 831.0, 1.0)

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from ..sampling import sample_slice
+from atlasgen.optics.interpolation import sample_slice
 
 __all__ = ["rebuild_separable_image", "rebuild_lut_image", "sample_table", "lut_tables"]
 
@@ -45,8 +45,8 @@ class _TableModel:
 
 def lut_tables(atlas_path, entry: dict) -> dict:
     """``{"float": model at texel centres, "8bit": the baked slice decoded}``, both linear ``(H, W, 4)``."""
-    from ..atlas import read_atlas
-    from ..models import get_model
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.models import get_model
 
     baked = get_model(entry["type"]).bake(entry["params"]).values[0]
     decoded = read_atlas(atlas_path).decode_slice(entry["first_slice"])
@@ -54,7 +54,7 @@ def lut_tables(atlas_path, entry: dict) -> dict:
 
 
 def _pixel_geometry(scene, aovs, mask):
-    from ..render.camera import pixel_rays
+    from atlasgen.render.camera import pixel_rays
 
     rays = pixel_rays(scene.camera, scene.width, scene.height)[mask]
     depth = np.asarray(aovs["depth"], dtype=np.float64)[mask]
@@ -82,7 +82,7 @@ def rebuild_lut_image(entry: dict, table: np.ndarray, scene, aovs: dict) -> np.n
     (:func:`atlasgen.validate.references.renderer_f_cos` with the table in place of the
     model). The validation scenes lie within the renderer's level-0 distance.
     """
-    from .references import renderer_f_cos
+    from atlasgen.validate.references import renderer_f_cos
 
     ids = np.asarray(aovs["id"]).astype(np.int64)
     mask = ids == entry["first_slice"]
@@ -114,7 +114,7 @@ def rebuild_separable_image(atlas_path, entry: dict, scene, aovs: dict) -> tuple
     ``aovs`` are the renderer's g-buffer read-backs (``normal``, ``depth``, ``albedo``,
     ``id``). Pixels of other materials and the background stay 0.
     """
-    from ..separable.rebuild import evaluate_factors, read_separable_factors
+    from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
 
     t0 = time.perf_counter()
     first, count = entry["first_slice"], entry["slice_count"]

@@ -44,7 +44,7 @@ import json
 
 import numpy as np
 
-from ..errors import InputError
+from atlasgen.errors import InputError
 
 __all__ = [
     "MODEL_REFERENCE",
@@ -68,14 +68,14 @@ _registered: set = set()
 
 
 def _specular_exponent(gloss):
-    from ..render.lighting import specular_exponent
+    from atlasgen.render.lighting import specular_exponent
 
     return specular_exponent(gloss)
 
 
 def _specular_normalisation(s):
     # The renderer's own k(s), so the reference can never drift from lighting.wgsl.
-    from ..render.lighting import specular_normalisation
+    from atlasgen.render.lighting import specular_normalisation
 
     return specular_normalisation(s)
 
@@ -131,7 +131,7 @@ def register_references(mi) -> None:
         return
     import drjit as dr
 
-    from ..models import get_model
+    from atlasgen.models import get_model
 
     flags = (
         mi.BSDFFlags.DiffuseReflection
@@ -204,7 +204,7 @@ def register_references(mi) -> None:
 
         def __init__(self, props):
             _NumpyBSDF.__init__(self, props)
-            from ..separable.source import make_source
+            from atlasgen.separable.source import make_source
 
             spec = json.loads(props["material"])
             self.source = make_source(spec["params"])
@@ -268,7 +268,7 @@ def physical_reference(entry: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
             "nonlinear": False,
         }, {}
     if kind == "sss":
-        from .physical import skin_medium
+        from atlasgen.validate.physical import skin_medium
 
         medium, _ = skin_medium(entry, colour)
         # An index-matched (null) boundary: next-event estimation cannot pass a smooth
@@ -281,7 +281,7 @@ def physical_reference(entry: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
             "builtin_only": True,
         }
     if kind == "iridescent":
-        from .physical import THIN_FILM_REFERENCE
+        from atlasgen.validate.physical import THIN_FILM_REFERENCE
 
         film = {k: p[k] for k in ("thickness", "film_ior", "base_ior", "base_k")}
         return {

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BackendError, InputError, SceneError
+from atlasgen.errors import BackendError, InputError, SceneError
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -95,9 +95,9 @@ class _Plan:
 
 def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None) -> _Plan:
     """Check every input before anything renders: atlas, materials, references and scenes."""
-    from ..atlas import read_atlas
-    from .references import model_reference
-    from .scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.validate.references import model_reference
+    from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
 
     atlas_path = Path(atlas_path)
     if not atlas_path.exists():
@@ -152,7 +152,7 @@ def _material_name(item, atlas_path, entries_by_name) -> str:
     """The material name of a ``materials`` item: a name as it is, a material file by its
     ``name`` field. A file must be the one the atlas was baked from (same content hash),
     or the atlas's slices would not be what the file describes."""
-    from ..material import read_material
+    from atlasgen.materials.material import read_material
 
     if not is_material_file(item):
         return str(item)
@@ -171,7 +171,7 @@ def _material_name(item, atlas_path, entries_by_name) -> str:
 def _check_params_current(atlas_path, entry) -> None:
     """The model reference evaluates today's model code with the manifest's parameters:
     refuse an atlas whose parameter set no longer matches (baked by another version)."""
-    from ..models import get_model
+    from atlasgen.models import get_model
 
     expected = {p.name for p in get_model(entry["type"]).params}
     got = set(entry["params"])
@@ -193,7 +193,7 @@ def _object_entries(scene, entry, manifest) -> list:
 
 def _object_bsdfs(scene, entry, manifest):
     """Per object: its material's model reference, with the object's albedo and gloss."""
-    from .references import model_reference
+    from atlasgen.validate.references import model_reference
 
     return [model_reference(e, o.albedo, o.gloss) for o, e in zip(scene.objects, _object_entries(scene, entry, manifest))]
 
@@ -243,13 +243,13 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     BackendError
         Mitsuba's LLVM backend or a GPU adapter is missing.
     """
-    from ..render.atlas_texture import read_render_atlas
-    from ..render.renderer import Renderer
-    from .backend import load_mitsuba
-    from .metrics import compare_images
-    from .mitsuba_scene import build_mitsuba_scene, render_mitsuba
-    from .references import model_reference, physical_reference, register_references
-    from .scenes import bind_material
+    from atlasgen.render.atlas_texture import read_render_atlas
+    from atlasgen.render.renderer import Renderer
+    from atlasgen.validate.backend import load_mitsuba
+    from atlasgen.validate.metrics import compare_images
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
+    from atlasgen.validate.references import model_reference, physical_reference, register_references
+    from atlasgen.validate.scenes import bind_material
 
     if spp < 1 or physical_spp < 1:
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
@@ -316,8 +316,8 @@ def _break_down(run, atlas_path, entry, scene, aovs) -> None:
     8-bit quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
     renderer's own precision, half-float output, f32 filtering).
     """
-    from .metrics import compare_images
-    from .rebuild import lut_tables, rebuild_lut_image
+    from atlasgen.validate.metrics import compare_images
+    from atlasgen.validate.rebuild import lut_tables, rebuild_lut_image
 
     model_image = _only_material(run.references["model"].image, entry, aovs)
     atlas_image = _only_material(run.atlas_image, entry, aovs)
@@ -345,8 +345,8 @@ def _finite_or_none(x: float):
 
 def _check_separable(run, atlas_path, entry, scene, aovs) -> None:
     """Set the manifest's claims beside what the scene measures, and split the gap."""
-    from .metrics import compare_images, relative_rms
-    from .rebuild import rebuild_separable_image
+    from atlasgen.validate.metrics import compare_images, relative_rms
+    from atlasgen.validate.rebuild import rebuild_separable_image
 
     image, seconds = rebuild_separable_image(atlas_path, entry, scene, aovs)
     ref = ReferenceRender("rebuild", "the include's rebuild in float64 on the CPU (atlasgen.separable)", image,
@@ -382,9 +382,9 @@ def _describe_model(entry) -> str:
 
 def register_references_for_variant(mi) -> None:
     """atlasgen's Python plugins for the current variant (Mitsuba registers per variant)."""
-    from .mitsuba_scene import register_direct_integrator
-    from .physical import register_physical
-    from .references import register_references
+    from atlasgen.validate.mitsuba_scene import register_direct_integrator
+    from atlasgen.validate.physical import register_physical
+    from atlasgen.validate.references import register_references
 
     register_references(mi)
     register_physical(mi)
@@ -395,9 +395,9 @@ def _render_physical(mi, scene, entry, manifest, physical_spp, spp) -> Reference
     """The physical reference of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
     plugins only."""
-    from .mitsuba_scene import build_mitsuba_scene, render_mitsuba
-    from .physical import describe_physical, plane_stand_in
-    from .references import model_reference, physical_reference
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
+    from atlasgen.validate.physical import describe_physical, plane_stand_in
+    from atlasgen.validate.references import model_reference, physical_reference
 
     _, extras = physical_reference(entry)
     if extras.get("builtin_only"):
@@ -434,8 +434,8 @@ def write_validation(run: ValidationRun, out_dir) -> dict:
 
     Returns ``{"html", "json", "files", "data"}``: the written paths and the report dict.
     """
-    from ..atomic import write_files_atomically
-    from .report import build_report
+    from atlasgen.io.atomic import write_files_atomically
+    from atlasgen.reports.validation import build_report
 
     out_dir = Path(out_dir)
     files = build_report(run, out_dir)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from ..errors import InputError, SceneError
+from atlasgen.errors import InputError, SceneError
 
 __all__ = ["MATERIAL_PLACEHOLDER", "STANDARD_SCENES", "scene_folder", "load_validation_scene", "bind_material", "resize_scene"]
 
@@ -39,7 +39,7 @@ def load_validation_scene(name_or_path):
     SceneError
         The file is not a valid scene, or no object uses ``"$material"``.
     """
-    from ..render.scene import read_scene
+    from atlasgen.materials.scene import read_scene
 
     text = str(name_or_path)
     if text in STANDARD_SCENES:

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.cli.main import app
-from atlasgen.material import read_materials
+from atlasgen.materials.material import read_materials
 
 SCENE = """
 [camera]

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from atlasgen.contract import HEIGHT, WIDTH
-from atlasgen.material import read_material
+from atlasgen.materials.material import read_material
 
 
 @pytest.fixture
 def load(write_material):
-    """Read a material from TOML text through atlasgen.material.read_material."""
+    """Read a material from TOML text through atlasgen.materials.material.read_material."""
 
     def read(type_name: str, body: str = ""):
         return read_material(write_material("ok", f'type = "{type_name}"\n{body}\n'))

@@ -9,7 +9,7 @@ from scipy.integrate import quad
 from atlasgen.contract import texel_grid
 from atlasgen.models import get_model
 from atlasgen.models.fresnel import fresnel_dielectric, fresnel_schlick, hemispherical_average, normal_reflectance
-from atlasgen.params import validate_params
+from atlasgen.materials.params import validate_params
 
 MODEL = get_model("fresnel")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from atlasgen.contract import texel_grid
-from atlasgen.material import read_materials
+from atlasgen.materials.material import read_materials
 from atlasgen.models import get_model
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -8,9 +8,9 @@ import textwrap
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas
+from atlasgen.bake.pipeline import bake_atlas
 from atlasgen.errors import MaterialError
-from atlasgen.material import read_materials
+from atlasgen.materials.material import read_materials
 from atlasgen.models import get_model
 
 MODEL = get_model("separable")
@@ -208,8 +208,8 @@ def test_lut_only_bake_imports_no_separable_or_mitsuba_code(write_material, tmp_
     write_material("clay", 'type = "lambert"\n')
     code = textwrap.dedent(f"""
         import sys
-        from atlasgen.bake import bake_atlas
-        from atlasgen.material import read_materials
+        from atlasgen.bake.pipeline import bake_atlas
+        from atlasgen.materials.material import read_materials
         bake_atlas(read_materials([{str(tmp_path / 'materials')!r}]))
         bad = [m for m in sys.modules if m.startswith(('mitsuba', 'drjit', 'atlasgen.separable', 'matplotlib'))]
         assert not bad, bad

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from atlasgen.contract import texel_centres
 from atlasgen.models import get_model
-from atlasgen.params import validate_params
+from atlasgen.materials.params import validate_params
 
 MODEL = get_model("toon")
 DEFAULTS = validate_params(MODEL.params, {}, "test")
@@ -62,7 +62,7 @@ def test_nearest_steps_lie_on_texel_boundaries():
 @settings(max_examples=20, deadline=None)
 def test_nearest_sampled_slice_reproduces_the_model_everywhere(seed):
     """What the renderer reads (nearest texel of the baked slice) equals the model at any (N.L, N.V)."""
-    from atlasgen.sampling import sample_slice
+    from atlasgen.optics.interpolation import sample_slice
 
     rng = np.random.default_rng(seed)
     thresholds = tuple(sorted(rng.uniform(-1, 1, 3)))

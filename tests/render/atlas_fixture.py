@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
-from atlasgen.include import render_include
-from atlasgen.mips import build_array_mips
-from atlasgen.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.bake.include import render_include
+from atlasgen.bake.mips import build_array_mips
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.render.atlas_texture import RenderAtlas
 
 LAMBERT, GLOSSY, TOON, MIPS, PLAIN = 0, 1, 2, 3, 4

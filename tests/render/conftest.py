@@ -37,7 +37,7 @@ def no_gpu_errors(gpu_device):
 @pytest.fixture
 def scene_from():
     """Parse scene TOML text (dedented) into a Scene."""
-    from atlasgen.render.scene import parse_scene
+    from atlasgen.materials.scene import parse_scene
 
     def parse(text: str, path="test.toml", base=None):
         return parse_scene(tomllib.loads(textwrap.dedent(text)), path, base)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas, write_bake
+from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.errors import InputError
-from atlasgen.material import read_materials
+from atlasgen.materials.material import read_materials
 from atlasgen.render.atlas_texture import RenderAtlas, read_render_atlas
-from atlasgen.srgb import decode_srgb
+from atlasgen.optics.srgb import decode_srgb
 
 
 @pytest.fixture

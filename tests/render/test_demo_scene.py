@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 
 from atlasgen.models import MODEL_TYPES
-from atlasgen.render.scene import read_scene
+from atlasgen.materials.scene import read_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -7,8 +7,8 @@ import pytest
 
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.lighting import pack_lights, specular_exponent, specular_normalisation
-from atlasgen.render.scene import Light
-from atlasgen.srgb import decode_srgb
+from atlasgen.materials.scene import Light
+from atlasgen.optics.srgb import decode_srgb
 
 from render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
 

@@ -7,7 +7,7 @@ import pytest
 
 from atlasgen.errors import OutputError
 from atlasgen.render.output import tone_map, write_aov, write_exr, write_png, write_render
-from atlasgen.srgb import encode_srgb
+from atlasgen.optics.srgb import encode_srgb
 
 
 def read(path):

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.errors import InputError, SceneError
-from atlasgen.render.scene import MAX_LIGHTS, SceneObject, object_matrix, read_scene, resolve_materials
+from atlasgen.materials.scene import MAX_LIGHTS, SceneObject, object_matrix, read_scene, resolve_materials
 
 MINIMAL = """
 [camera]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from atlasgen.bake import bake_atlas, write_bake
-from atlasgen.material import read_materials
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.materials.material import read_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import Renderer

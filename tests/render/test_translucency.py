@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from atlasgen.render.camera import Camera
-from atlasgen.render.scene import SceneObject
+from atlasgen.materials.scene import SceneObject
 from atlasgen.render.translucency import sort_back_to_front
 
 pytestmark = pytest.mark.gpu

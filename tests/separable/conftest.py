@@ -13,8 +13,8 @@ sys.path.insert(0, str(Path(__file__).parent))  # separable_helpers
 @pytest.fixture(scope="session")
 def separable_atlas(tmp_path_factory):
     """An sRGB atlas with separable materials (f_cos and f_proxy targets) and a Lambert LUT, on disk."""
-    from atlasgen.bake import bake_atlas, write_bake
-    from atlasgen.material import read_materials
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
 
     folder = tmp_path_factory.mktemp("separable_atlas")
     mats = folder / "materials"

@@ -8,9 +8,9 @@ import re
 import pytest
 
 from atlasgen.errors import InputError, OutputError
-from atlasgen.material import read_material
-from atlasgen.separable.merge import PLOT_KINDS, merge_separable_reports
-from atlasgen.separable.report import write_separable_report
+from atlasgen.materials.material import read_material
+from atlasgen.reports.separable_merge import PLOT_KINDS, merge_separable_reports
+from atlasgen.reports.separable import write_separable_report
 
 #: Small studies: two grids, one repeat, one parametrization (seconds, not tens of seconds).
 CHEAP = {"resolutions": (8, 16), "repeats": 1, "parametrizations": ("half_diff",)}
@@ -89,7 +89,7 @@ def test_an_interrupted_report_leaves_the_folder_as_it_was(tmp_path, write_mater
 
 
 def test_staged_folder_replaces_files_only_on_success(tmp_path):
-    from atlasgen.atomic import staged_folder
+    from atlasgen.io.atomic import staged_folder
 
     out = tmp_path / "out"
     with staged_folder(out) as staging:

@@ -58,8 +58,8 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
     """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others."""
     import drjit as dr
 
-    from atlasgen.bake import bake_atlas
-    from atlasgen.material import read_materials
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
 
     mi = mitsuba_llvm
 

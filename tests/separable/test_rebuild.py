@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from separable_helpers import random_frames
 
 from atlasgen.errors import InputError
-from atlasgen.material import read_material
+from atlasgen.materials.material import read_material
 from atlasgen.separable import evaluate_separable, read_separable_factors
 from atlasgen.separable.error import measure_errors, sample_hemisphere_pairs
 from atlasgen.separable.rebuild import _read_dds_levels, interpolate_1d, interpolate_2d
@@ -87,7 +87,7 @@ def test_rebuild_in_any_frame_matches_the_local_frame(separable_atlas):
 
 
 def test_dds_fallback_reader_matches_the_library_reader(separable_atlas):
-    from atlasgen.dds import read_dds
+    from atlasgen.io.dds import read_dds
 
     path, _ = separable_atlas
     level0, srgb = _read_dds_levels(path)

@@ -6,8 +6,8 @@ import pytest
 from click.testing import CliRunner
 
 from atlasgen.errors import InputError
-from atlasgen.material import read_material
-from atlasgen.separable.report import write_separable_report
+from atlasgen.materials.material import read_material
+from atlasgen.reports.separable import write_separable_report
 
 
 def test_report_writes_markdown_json_and_the_plots(write_material, tmp_path, separable_atlas):

@@ -99,7 +99,7 @@ def _run(ctx, level0, srgb, include, n, l, v, material):
 
 
 def test_gpu_rebuild_matches_the_python_rebuild(gpu_device, separable_atlas):
-    from atlasgen.dds import read_dds
+    from atlasgen.io.dds import read_dds
 
     path, result = separable_atlas
     dds = read_dds(path)

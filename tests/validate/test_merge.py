@@ -21,7 +21,7 @@ def _split(run):
 
 @pytest.fixture(scope="module")
 def merged(validation_run, tmp_path_factory):
-    from atlasgen.validate.report import merge_validation_reports
+    from atlasgen.reports.validation import merge_validation_reports
     from atlasgen.validate.run import write_validation
 
     out = tmp_path_factory.mktemp("merge") / "validation"
@@ -32,7 +32,7 @@ def merged(validation_run, tmp_path_factory):
 
 
 def test_merged_entries_equal_a_single_runs(merged, validation_run):
-    from atlasgen.validate.report import report_dict
+    from atlasgen.reports.validation import report_dict
 
     out, parts, written = merged
     single = json.loads(json.dumps(report_dict(validation_run)))  # as report.json holds it
@@ -72,7 +72,7 @@ def test_every_image_and_page_the_merged_html_links_exists(merged):
 
 
 def test_the_plot_is_made_from_report_dicts(validation_run):
-    from atlasgen.validate.report import plot_speed_error, report_dict
+    from atlasgen.reports.validation import plot_speed_error, report_dict
 
     data = report_dict(validation_run)
     assert plot_speed_error(data)[:8] == b"\x89PNG\r\n\x1a\n"
@@ -84,7 +84,7 @@ def test_the_plot_is_made_from_report_dicts(validation_run):
 
 
 def test_summary_line_reads_the_merged_goals(merged):
-    from atlasgen.validate.report import summary_line
+    from atlasgen.reports.validation import summary_line
 
     out, _, written = merged
     s = written["data"]["summary"]
@@ -94,7 +94,7 @@ def test_summary_line_reads_the_merged_goals(merged):
 
 
 def test_reports_with_other_settings_or_the_same_material_twice_are_refused(merged, tmp_path):
-    from atlasgen.validate.report import merge_validation_reports
+    from atlasgen.reports.validation import merge_validation_reports
 
     out, parts, _ = merged
     first, second = (out / "materials" / m for m in list(parts)[:2])

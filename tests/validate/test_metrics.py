@@ -30,7 +30,7 @@ def test_tonemap_is_the_srgb_oetf_of_the_clipped_exposed_value():
     linear = np.array([0.0, 0.001, 0.0031308, 0.18, 0.5, 1.0, 4.0, np.nan])
     got = tonemap(linear, exposure=2.0)
     x = np.clip(np.nan_to_num(linear * 2.0), 0.0, 1.0)
-    # IEC 61966-2-1 eq. 5, written out independently of atlasgen.srgb.
+    # IEC 61966-2-1 eq. 5, written out independently of atlasgen.optics.srgb.
     expected = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
     np.testing.assert_allclose(got, expected, atol=1e-12)
 

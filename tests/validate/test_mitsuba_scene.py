@@ -31,7 +31,7 @@ scale = 4.0
 def _scene():
     import tomllib
 
-    from atlasgen.render.scene import parse_scene
+    from atlasgen.materials.scene import parse_scene
 
     return parse_scene(tomllib.loads(SCENE), "units.toml")
 
@@ -68,7 +68,7 @@ def test_direct_integrator_has_no_shadows_and_lights_back_faces_through_the_bsdf
     """A light below an opaque plane still reaches a BSDF that transmits (no visibility test)."""
     import tomllib
 
-    from atlasgen.render.scene import parse_scene
+    from atlasgen.materials.scene import parse_scene
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
     from atlasgen.validate.references import model_reference, register_references
 

@@ -30,7 +30,7 @@ def test_separable_results_carry_the_manifest_claims_and_the_measured_figures(va
 
 
 def test_rebuild_leaves_other_materials_pixels_black(validation_run, validation_atlas):
-    from atlasgen.atlas import read_atlas
+    from atlasgen.io.atlas import read_atlas
     from atlasgen.validate.rebuild import rebuild_separable_image
     from atlasgen.validate.scenes import bind_material, load_validation_scene
 

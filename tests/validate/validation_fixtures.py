@@ -24,8 +24,8 @@ TINY = (40, 30)
 @pytest.fixture(scope="session")
 def validation_atlas(tmp_path_factory):
     """``atlas.dds`` (with manifest and include) holding :data:`MATERIALS`."""
-    from atlasgen.bake import bake_atlas, write_bake
-    from atlasgen.material import read_materials
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
 
     root = tmp_path_factory.mktemp("validation")
     folder = root / "materials"

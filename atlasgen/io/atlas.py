@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .dds import DDSImage, describe_dds, read_dds
-from .errors import InputError
-from .quantize import dequantize_rgba
+from atlasgen.io.dds import DDSImage, describe_dds, read_dds
+from atlasgen.errors import InputError
+from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = ["Atlas", "read_atlas", "summarize_atlas"]
 

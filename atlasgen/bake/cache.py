@@ -10,17 +10,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .models.base import SliceSet
+from atlasgen import __version__
+from atlasgen.models.base import SliceSet
 
 __all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]
 #: Code whose change can change a material's float slices. Encoding, mips and file
 #: writing run at assembly time on every bake, so they are not part of the key.
-BAKE_RELEVANT = ("params.py", "contract.py", "adaptive.py", "models", "separable")
+BAKE_RELEVANT = ("materials/params.py", "contract.py", "bake/adaptive.py", "models", "separable")
 #: Modules under those folders that only report on a bake: editing them re-bakes nothing.
-REPORT_ONLY = ("separable/report.py", "separable/merge.py", "separable/evidence.py")
+REPORT_ONLY = ()
 
 
 def bake_relevant_files() -> list[Path]:
@@ -71,7 +71,7 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     ``bake_seconds`` is what the bake cost when it ran, so reports built from the cache
     still show the real bake time, not the time to load it.
     """
-    from .atomic import write_file_atomically
+    from atlasgen.io.atomic import write_file_atomically
 
     timings = {**slices.timings, "bake_s": bake_seconds}
     meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": timings}
@@ -90,7 +90,7 @@ def load_or_bake(cache_dir, material) -> tuple[SliceSet, bool]:
     """
     import time
 
-    from .bake import bake_material
+    from atlasgen.bake.pipeline import bake_material
 
     t0 = time.perf_counter()
     slices = load_cached(cache_dir, material) if cache_dir is not None else None

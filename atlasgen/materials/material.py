@@ -10,8 +10,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import InputError, MaterialError
-from .models import MODEL_TYPES, get_model
+from atlasgen.errors import InputError, MaterialError
+from atlasgen.models import MODEL_TYPES, get_model
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
@@ -113,7 +113,7 @@ def read_material(path) -> Material:
 
     model = get_model(type_name)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
-    from .params import validate_params
+    from atlasgen.materials.params import validate_params
 
     params = validate_params(model.params, model_raw, shown)
     model.check(params, shown)
@@ -174,8 +174,8 @@ def select_scene_materials(materials: list[Material], scene_path) -> list[Materi
     SceneError
         The scene names a material the library does not have (the message lists them).
     """
-    from .errors import SceneError
-    from .render.scene import read_scene
+    from atlasgen.errors import SceneError
+    from atlasgen.materials.scene import read_scene
 
     scene = read_scene(scene_path)
     wanted = {obj.material for obj in scene.objects}

@@ -28,7 +28,7 @@ def format_depfile(target, prerequisites) -> str:
 
 def write_depfile(path, target, prerequisites) -> Path:
     """Write :func:`format_depfile` to ``path`` atomically; returns the path."""
-    from .atomic import write_file_atomically
+    from atlasgen.io.atomic import write_file_atomically
 
     write_file_atomically(path, format_depfile(target, prerequisites).encode())
     return Path(path)

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .contract import LAYERS
-from .errors import MaterialError
+from atlasgen.contract import LAYERS
+from atlasgen.errors import MaterialError
 
 __all__ = ["assign_slices"]
 

@@ -8,7 +8,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from .errors import OutputError
+from atlasgen.errors import OutputError
 
 __all__ = ["write_files_atomically", "write_file_atomically", "staged_folder"]
 

@@ -1,6 +1,6 @@
 """Measured evidence behind the design choices in docs/separable.md.
 
-``python -m atlasgen.separable.evidence`` prints the Markdown tables:
+``python -m atlasgen.reports.separable_evidence`` prints the Markdown tables:
 
 * every parametrization on the same 32-texel grid and the same K (float error);
 * per-channel SVD against a luminance-plus-colour factorization (one shared,
@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .approximate import _weights, approximate_brdf, reference_values
-from .error import errors_by_terms, sample_hemisphere_pairs
-from .factorize import Factors, _top_singular, fix_signs, single_blas_thread
-from .parametrization import PARAMETRIZATIONS, get_parametrization
-from .source import make_source, sample_matrices
+from atlasgen.separable.approximate import _weights, approximate_brdf, reference_values
+from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
+from atlasgen.separable.factorize import Factors, _top_singular, fix_signs, single_blas_thread
+from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
+from atlasgen.separable.source import make_source, sample_matrices
 
 __all__ = ["EVIDENCE_MATERIALS", "factorize_shared_g", "parametrization_table", "channel_table", "target_table", "main"]
 
@@ -95,7 +95,7 @@ def channel_table(ks=(1, 2, 4), include_mitsuba=True) -> str:
     w1, w2 = _weights(p.name, 32)
     lines = ["| material (f cos target) | " + " | ".join(f"per-channel K={k} | lum+colour K={k}" for k in ks) + " |",
              "|---|" + "---|---|" * len(ks)]
-    from .factorize import factorize_svd
+    from atlasgen.separable.factorize import factorize_svd
 
     for name, src in _sources(include_mitsuba).items():
         ref, _ = reference_values(src, pairs)

@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
-from .error import errors_by_terms, sample_hemisphere_pairs
-from .factorize import factorize
-from .parametrization import PARAMETRIZATIONS, get_parametrization
-from .source import make_source, sample_matrices
-from .storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
+from atlasgen.errors import InputError
+from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
+from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
+from atlasgen.separable.factorize import factorize
+from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
+from atlasgen.separable.source import make_source, sample_matrices
+from atlasgen.separable.storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
 
 __all__ = ["MaterialStudy", "study_material", "format_separable_report", "write_separable_report", "RESOLUTIONS"]
 
@@ -65,7 +65,7 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     name = params["parametrization"]
     p = get_parametrization(name)
 
-    from ..models.separable import Separable
+    from atlasgen.models.separable import Separable
 
     grids = Separable.sampling_grids(params)
     chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
@@ -129,8 +129,8 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
 
     atlas = None
     if atlas_path is not None:
-        from ..separable.rebuild import evaluate_separable
-        from .error import measure_errors
+        from atlasgen.separable.rebuild import evaluate_separable
+        from atlasgen.separable.error import measure_errors
 
         try:
             got = evaluate_separable(atlas_path, material.name, np.array([0.0, 0.0, 1.0]), l, v, cosine=True)
@@ -277,13 +277,13 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
                            parametrizations=tuple(PARAMETRIZATIONS)) -> dict:
     """Study each separable material and write ``index.md``, ``report.json`` and PNG plots into ``output``.
 
-    The files appear all at once (:func:`atlasgen.atomic.staged_folder`). Returns the
+    The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
     written paths. Raises :class:`InputError` when no material is separable,
     :class:`OutputError` when the folder cannot be written.
     """
     import json
 
-    from ..atomic import staged_folder
+    from atlasgen.io.atomic import staged_folder
 
     materials = [m for m in materials if m.type == "separable"]
     if not materials:

@@ -1,7 +1,7 @@
 """The validation report: ``index.html``, ``report.json``, the images and one speed/error plot.
 
 Everything is built in memory as ``{path: bytes}`` and written in one all-or-nothing
-step (:func:`atlasgen.atomic.write_files_atomically`). Every figure in the report is a
+step (:func:`atlasgen.io.atomic.write_files_atomically`). Every figure in the report is a
 measured value from the run; nothing is typed in.
 
 The page and the plot are made from the JSON dict alone, so that
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..report_files import read_report_json, report_json_paths
+from atlasgen.errors import InputError
+from atlasgen.io.report_files import read_report_json, report_json_paths
 
 __all__ = [
     "build_report",
@@ -262,7 +262,7 @@ def _html(data: dict) -> str:
 
 def build_report(run, out_dir) -> dict:
     """``{path: bytes}`` of every report file under ``out_dir``."""
-    from .metrics import flip_heatmap, tonemap
+    from atlasgen.validate.metrics import flip_heatmap, tonemap
 
     out_dir = Path(out_dir)
     files = {}
@@ -332,7 +332,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
     OutputError
         The merged files cannot be written (nothing is written then).
     """
-    from ..atomic import write_files_atomically
+    from atlasgen.io.atomic import write_files_atomically
 
     out_dir = Path(out_dir)
     paths = report_json_paths(sources, "validation", "atlasgen validate")

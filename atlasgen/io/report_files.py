@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .errors import InputError
+from atlasgen.errors import InputError
 
 __all__ = ["report_json_paths", "read_report_json"]
 

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, SceneError
-from .camera import Camera
+from atlasgen.errors import InputError, SceneError
 
 __all__ = [
+    "Camera",
     "MAX_LIGHTS",
     "SHAPES",
     "Light",
@@ -34,6 +34,18 @@ __all__ = [
 #: Lights one frame can take; they live in one storage buffer read by one lighting pass.
 MAX_LIGHTS = 1024
 SHAPES = ("sphere", "plane", "box", "torus", "mesh")
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A look-at pinhole camera; ``fov`` is the horizontal field of view in degrees."""
+
+    position: tuple
+    target: tuple
+    up: tuple = (0.0, 1.0, 0.0)
+    fov: float = 40.0
+    near: float = 0.05
+    far: float = 1000.0
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contract import atlas_uv
+from atlasgen.contract import atlas_uv
 
 __all__ = ["sample_slice"]
 

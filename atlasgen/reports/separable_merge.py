@@ -1,7 +1,7 @@
 """Merging per-material separable reports into one, without measuring anything again.
 
 ``atlasgen report separable`` measures each material for about ten seconds (the
-study of :mod:`atlasgen.separable.report`), so ``make report`` runs it once per
+study of :mod:`atlasgen.reports.separable`), so ``make report`` runs it once per
 separable material, each into its own folder, and then merges those folders into
 the combined ``index.md``, ``report.json`` and plots. A changed material then costs
 one study, not one per separable material. The merged Markdown is written by the
@@ -15,17 +15,17 @@ import json
 from dataclasses import MISSING, fields
 from pathlib import Path
 
-from ..errors import InputError
-from ..report_files import read_report_json, report_json_paths
+from atlasgen.errors import InputError
+from atlasgen.io.report_files import read_report_json, report_json_paths
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
-#: The plots :mod:`atlasgen.separable.report` writes per material, as ``<name>-<kind>.png``.
+#: The plots :mod:`atlasgen.reports.separable` writes per material, as ``<name>-<kind>.png``.
 PLOT_KINDS = ("terms", "resolution", "pareto", "parametrization")
 
 
 def _read_studies(path: Path) -> list:
-    from .report import MaterialStudy
+    from atlasgen.reports.separable import MaterialStudy
 
     data = read_report_json(path, "separable", "atlasgen report separable")
     known = {f.name for f in fields(MaterialStudy)}
@@ -72,8 +72,8 @@ def merge_separable_reports(sources, output) -> dict:
     OutputError
         The merged files cannot be written (nothing is written then).
     """
-    from ..atomic import write_files_atomically
-    from .report import format_separable_report
+    from atlasgen.io.atomic import write_files_atomically
+    from atlasgen.reports.separable import format_separable_report
 
     output = Path(output)
     paths = report_json_paths(sources, "separable", "atlasgen report separable")

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .contract import HEIGHT, WIDTH
-from .errors import OutputError
-from .srgb import encode_srgb
+from atlasgen.contract import HEIGHT, WIDTH
+from atlasgen.errors import OutputError
+from atlasgen.optics.srgb import encode_srgb
 
 __all__ = ["render_contact_sheet", "slice_display_image", "encode_png", "write_png"]
 
@@ -70,7 +70,7 @@ def _png_bytes(buf, target_path=None) -> bytes:
 
 def write_png(image: np.ndarray, path, zoom: int = 1) -> None:
     """Write display RGB in [0, 1] as an 8-bit PNG (:func:`encode_png`), atomically."""
-    from .atomic import write_file_atomically
+    from atlasgen.io.atomic import write_file_atomically
 
     write_file_atomically(path, encode_png(image, zoom))
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .srgb import SRGB_DECODE_LUT, encode_srgb
+from atlasgen.optics.srgb import SRGB_DECODE_LUT, encode_srgb
 
 __all__ = ["quantize_rgba", "dequantize_rgba"]
 

@@ -8,7 +8,7 @@ import json
 import os
 from pathlib import Path
 
-from .errors import InputError
+from atlasgen.errors import InputError
 
 __all__ = ["write_library_report"]
 
@@ -78,9 +78,9 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     also links each material's own validation page). Every file is replaced atomically.
     """
 
-    from .atlas import read_atlas
-    from .atomic import write_file_atomically, write_files_atomically
-    from .preview import encode_png, slice_display_image
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.io.atomic import write_file_atomically, write_files_atomically
+    from atlasgen.bake.preview import encode_png, slice_display_image
 
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:

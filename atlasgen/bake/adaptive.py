@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contract import HEIGHT, WIDTH, texel_centres
-from .models.base import SliceSet
-from .sampling import sample_slice
+from atlasgen.contract import HEIGHT, WIDTH, texel_centres
+from atlasgen.models.base import SliceSet
+from atlasgen.optics.interpolation import sample_slice
 
 __all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget"]
 

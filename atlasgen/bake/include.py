@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .contract import HEIGHT, LAYERS, WIDTH
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 
 __all__ = ["render_include"]
 
@@ -116,7 +116,7 @@ def render_include(manifest: dict, scales: np.ndarray, biases: np.ndarray) -> st
         "}",
         "",
     ]
-    from .models import get_model
+    from atlasgen.models import get_model
 
     for type_name in sorted({m["type"] for m in manifest["materials"]}):
         extra = get_model(type_name).include_wgsl([m for m in manifest["materials"] if m["type"] == type_name])

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
-from .dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
-from .errors import InputError, MaterialError
-from .mips import build_array_mips, build_volume_mips
-from .quantize import dequantize_rgba, quantize_rgba
-from .slots import assign_slices
+from atlasgen import __version__
+from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
+from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
+from atlasgen.errors import InputError, MaterialError
+from atlasgen.bake.mips import build_array_mips, build_volume_mips
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.bake.slots import assign_slices
 
 __all__ = ["BakeResult", "bake_atlas", "bake_material", "format_manifest", "read_previous_slots", "sibling_paths", "write_bake"]
 
@@ -105,11 +105,11 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
 
 def bake_material(material):
     """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
-    from .models.base import Model
+    from atlasgen.models.base import Model
 
     model = material.model
     if material.error_budget is not None and type(model).bake is Model.bake:
-        from .adaptive import bake_within_budget
+        from atlasgen.bake.adaptive import bake_within_budget
 
         return bake_within_budget(model, material.params, material.error_budget)
     return model.bake(material.params)
@@ -122,7 +122,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     Parameters
     ----------
     materials
-        :class:`atlasgen.material.Material` records (see :func:`read_materials`).
+        :class:`atlasgen.materials.material.Material` records (see :func:`read_materials`).
     layout
         ``"array"`` (Texture2DArray, a mip chain per slice) or ``"volume"`` (Texture3D,
         whose mips also halve depth and so blend neighbouring materials).
@@ -133,10 +133,10 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     progress
         Called with each material's name once it is baked.
     cache_dir
-        Folder of per-material float slices (:mod:`atlasgen.cache`); materials whose
+        Folder of per-material float slices (:mod:`atlasgen.bake.cache`); materials whose
         file and bake code are unchanged are loaded instead of baked.
     """
-    from .cache import load_or_bake
+    from atlasgen.bake.cache import load_or_bake
 
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
@@ -249,7 +249,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
             "sample level 0 only, or use --layout array"
         )
 
-    from .include import render_include
+    from atlasgen.bake.include import render_include
 
     include = render_include(manifest, scales, biases)
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
@@ -279,7 +279,7 @@ def format_manifest(manifest: dict) -> str:
 
 def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
     """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths."""
-    from .atomic import write_files_atomically
+    from atlasgen.io.atomic import write_files_atomically
 
     paths = sibling_paths(dds_path)
     contents = {
@@ -289,7 +289,7 @@ def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }
     if preview_path is not None:
-        from .preview import render_contact_sheet
+        from atlasgen.bake.preview import render_contact_sheet
 
         paths["preview"] = Path(preview_path)
         contents[paths["preview"]] = render_contact_sheet(result, paths["preview"])

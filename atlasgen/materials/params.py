@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from .errors import MaterialError
+from atlasgen.errors import MaterialError
 
 __all__ = ["Param", "validate_params", "parse_colour"]
 
@@ -25,7 +25,7 @@ def parse_colour(value, path, name):
             except ValueError:
                 channels = None
             if channels is not None:
-                from .srgb import decode_srgb
+                from atlasgen.optics.srgb import decode_srgb
 
                 return tuple(float(c) for c in decode_srgb(channels))
         raise MaterialError(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {value!r}")

@@ -1,0 +1,1 @@
+"""Files atlasgen reads and writes: DDS, the atlas pair, atomic writes, depfiles, report JSON."""

@@ -1,0 +1,1 @@
+"""Material and scene files: parameters, validation and the parsed types."""
