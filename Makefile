@@ -22,18 +22,22 @@ MATERIAL_FILES := $(sort $(wildcard materials/*.toml))
 STEMS := $(patsubst materials/%.toml,%,$(MATERIAL_FILES))
 CACHE_DIR := $(BUILD)/cache
 CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
-# __init__.py holds the version, which is part of every cache key (atlasgen/bake/cache.py).
-# The code atlasgen.bake.cache hashes into every cache key (BAKE_RELEVANT less REPORT_ONLY).
-BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/materials/params.py atlasgen/contract.py atlasgen/bake/adaptive.py atlasgen/__init__.py
-ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py atlasgen/io/*.py atlasgen/optics/*.py atlasgen/materials/*.py atlasgen/bake/*.py))
+# Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
+# below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
+# agree); __init__.py holds the version, which is part of every key.
+BELOW_BAKE := $(sort $(wildcard atlasgen/*.py $(foreach layer,optics io separable models materials,atlasgen/$(layer)/*.py)))
+BAKE_CODE := $(BELOW_BAKE) atlasgen/bake/adaptive.py
+# Assembling the atlas from cached slices: everything up to and including bake/.
+ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
-# mips, DDS, the include, reading the atlas back and the CPU sampler.
-SLICE_CODE := atlasgen/bake/pipeline.py atlasgen/optics/quantize.py atlasgen/optics/srgb.py atlasgen/bake/mips.py atlasgen/io/dds.py atlasgen/bake/include.py atlasgen/io/atlas.py atlasgen/optics/interpolation.py
+# mips, DDS, the include, reading the atlas back and the CPU sampler: the same layers.
+SLICE_CODE := $(ASSEMBLY_CODE)
+REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py))
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
-VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE)
+VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE) $(REPORT_CODE)
 VALIDATION := $(BUILD)/validation
 VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
@@ -113,10 +117,10 @@ $(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE)
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
-$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(BAKE_CODE) atlasgen/reports/separable.py | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
 
-$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlasgen/reports/separable_merge.py atlasgen/reports/separable.py | $(VENV)/.stamp
+$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(REPORT_CODE) | $(VENV)/.stamp
 	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS))
 	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
 
@@ -125,7 +129,7 @@ $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list atlas
 report: $(BUILD)/report/index.html
 # A library without separable materials has no separable report to merge or link.
 SEPARABLE_INDEX := $(if $(SEPARABLE_STEMS),$(SEPARABLE_REPORT)/index.md)
-$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json atlasgen/reports/library.py atlasgen/bake/preview.py | $(VENV)/.stamp
+$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json $(REPORT_CODE) | $(VENV)/.stamp
 	$(if $(SEPARABLE_STEMS),,rm -rf $(SEPARABLE_REPORT))
 	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report
 

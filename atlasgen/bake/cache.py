@@ -16,20 +16,22 @@ from atlasgen.models.base import SliceSet
 __all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
 
 _PACKAGE = Path(__file__).resolve().parents[1]
-#: Code whose change can change a material's float slices. Encoding, mips and file
-#: writing run at assembly time on every bake, so they are not part of the key.
-BAKE_RELEVANT = ("materials/params.py", "contract.py", "bake/adaptive.py", "models", "separable")
-#: Modules under those folders that only report on a bake: editing them re-bakes nothing.
-REPORT_ONLY = ()
+#: Code whose change can change a material's float slices: every layer below ``bake/`` (the
+#: top-level modules, optics, io, separable, models, materials), and the supersampling that
+#: meets an error budget. The rest of ``bake/`` (encoding, mips, file writing) runs at assembly
+#: time on every bake, so it is not part of the key. The Makefile's BAKE_CODE is the same list.
+BAKE_RELEVANT = ("*.py", "optics", "io", "separable", "models", "materials", "bake/adaptive.py")
 
 
 def bake_relevant_files() -> list[Path]:
-    """The source files :func:`tool_fingerprint` hashes (the Makefile's BAKE_CODE mirrors them)."""
+    """The source files :func:`tool_fingerprint` hashes (the Makefile's BAKE_CODE lists the same)."""
     out = []
     for entry in BAKE_RELEVANT:
         path = _PACKAGE / entry
-        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
-        out += [f for f in files if f.exists() and f.relative_to(_PACKAGE).as_posix() not in REPORT_ONLY]
+        if path.is_dir():
+            out += sorted(path.rglob("*.py"))
+        else:
+            out += sorted(_PACKAGE.glob(entry))
     return out
 
 
