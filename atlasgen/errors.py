@@ -5,8 +5,10 @@ from __future__ import annotations
 __all__ = [
     "AtlasgenError",
     "InputError",
+    "FieldError",
     "MaterialError",
     "SceneError",
+    "ManifestError",
     "OutputError",
     "BackendError",
 ]
@@ -27,11 +29,10 @@ class InputError(AtlasgenError):
     exit_code = 3
 
 
-class MaterialError(InputError):
-    """A material definition is invalid.
+class FieldError(InputError):
+    """An input file's field is invalid: ``path: field 'name': expected ..., got ...`` on one line.
 
-    The message always names the file, the field and what was expected, on one line:
-    ``materials/gold.toml: field 'ior': expected a finite number >= 1, got nan``.
+    ``field`` is ``None`` when the whole file is at fault (then ``path: expected ...``).
     """
 
     def __init__(self, path, field: str | None, expected: str):
@@ -42,15 +43,24 @@ class MaterialError(InputError):
         super().__init__(f"{where}: {expected}")
 
 
-class SceneError(InputError):
+class MaterialError(FieldError):
+    """A material definition is invalid.
+
+    The message always names the file, the field and what was expected, on one line:
+    ``materials/gold.toml: field 'ior': expected a finite number >= 1, got nan``.
+    """
+
+
+class SceneError(FieldError):
     """A scene file is invalid, or asks for something the atlas or renderer lacks."""
 
-    def __init__(self, path, field: str | None, expected: str):
-        self.path = str(path)
-        self.field = field
-        self.expected = expected
-        where = f"{self.path}: field '{field}'" if field else self.path
-        super().__init__(f"{where}: {expected}")
+
+class ManifestError(FieldError):
+    """An atlas manifest (``X.json``) is not one this atlasgen can read.
+
+    One line naming the file and the field:
+    ``build/atlas.json: field 'materials[3].first_slice': expected an integer >= 0, got -1``.
+    """
 
 
 class OutputError(AtlasgenError):

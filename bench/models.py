@@ -8,16 +8,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNS = 50
-LUT_MODELS = ("lambert", "fresnel", "iridescent", "sss", "backlit", "toon")
 
 
 def _cases():
     from atlasgen.materials.material import read_materials
-    from atlasgen.models import get_model
+    from atlasgen.models import get_model, model_types
     from atlasgen.materials.params import validate_params
 
-    cases = [(m.name, m.type, m.model, m.params) for m in read_materials([ROOT / "materials"]) if m.type in LUT_MODELS]
-    for type_name in LUT_MODELS:
+    # The table models: the renderer samples their slice (the others shade with their own code).
+    lut_models = [t for t in model_types() if not get_model(t).custom_lighting]
+    cases = [(m.name, m.type, m.model, m.params) for m in read_materials([ROOT / "materials"]) if m.type in lut_models]
+    for type_name in lut_models:
         model = get_model(type_name)
         cases.append((f"({type_name} defaults)", type_name, model, validate_params(model.params, {}, "defaults")))
     return cases

@@ -35,7 +35,7 @@ def load_atlas():
     built = ROOT / "build" / "atlas.dds"
     if built.exists() and built.with_suffix(".wgsl").exists():
         atlas = read_render_atlas(built)
-        if atlas.manifest.get("materials"):
+        if atlas.manifest.materials:
             return atlas, built.relative_to(ROOT).as_posix()
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_materials
@@ -98,8 +98,8 @@ def run() -> dict:
     renderer = Renderer(atlas)
     device = renderer.ctx.name
     # LUT materials: the common case. (Separable ones cost more per pixel; the demo shows them.)
-    names = [m["name"] for m in atlas.manifest["materials"] if m["type"] != "separable"]
-    names = names or [m["name"] for m in atlas.manifest["materials"]]
+    names = [m.name for m in atlas.manifest.materials if m.factors is None]
+    names = names or atlas.manifest.names
     rows = []
     for lights in LIGHTS:
         for translucent in TRANSLUCENT:

@@ -17,15 +17,16 @@ TIME_GOAL_S = 0.2
 REPEATS = 9
 
 
-def _bake_entry(alpha: float, terms: int, tmp) -> dict:
-    """The manifest entry of one material baked by the real pipeline (sRGB atlas)."""
+def _bake_factors(alpha: float, terms: int, tmp):
+    """The separable factors (:class:`atlasgen.io.manifest.SeparableFactors`) of one material
+    baked by the real pipeline (sRGB atlas)."""
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_material
 
     path = tmp / f"ggx-{int(alpha * 1000)}-{terms}.toml"
     path.write_text(f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nfresnel = "schlick"\n'
                     f"f0 = [0.04, 0.04, 0.04]\nterms = {terms}\n")
-    return bake_atlas([read_material(path)]).manifest["materials"][0]
+    return bake_atlas([read_material(path)]).manifest.materials[0].factors
 
 
 def _stage_times(alpha: float, terms: int = 4, grids=None) -> list[dict]:
@@ -59,15 +60,15 @@ def run() -> dict:
         for alpha in ALPHAS:
             data["alphas"][alpha] = {}
             for terms, goal in GOALS.items():
-                e = _bake_entry(alpha, terms, Path(tmp))
-                flt = e["errors"]["float"]["relative_rms"]
-                bit = e["errors_8bit"]["relative_rms"]
+                f = _bake_factors(alpha, terms, Path(tmp))
+                flt = f.errors.float_error.relative_rms
+                bit = f.errors_8bit.relative_rms
                 ok = flt <= goal and bit - flt <= EIGHT_BIT_GOAL
                 met_all &= ok
-                data["alphas"][alpha][terms] = {"float": flt, "8bit": bit, "target": e["target"],
-                                                "log_error_float": e["errors"]["float"]["log_error"], "met": ok}
+                data["alphas"][alpha][terms] = {"float": flt, "8bit": bit, "target": f.target,
+                                                "log_error_float": f.errors.float_error.log_error, "met": ok}
                 rows.append(f"| {alpha} | {terms} | {100 * flt:.2f}% | <= {100 * goal:.0f}% | {100 * bit:.2f}% | "
-                            f"{100 * (bit - flt):+.2f} pp | {e['target']} | {'yes' if ok else '**no**'} |")
+                            f"{100 * (bit - flt):+.2f} pp | {f.target} | {'yes' if ok else '**no**'} |")
     stages = _stage_times(0.2)
     med = {k: statistics.median(s[k] for s in stages) for k in ("sample_s", "svd_s", "quantize_s", "factorize_s", "error_s")}
     data["timing"] = {"material": "ggx alpha 0.2, K = 4, target auto", "repeats": REPEATS, "median": med,

@@ -138,26 +138,17 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @fail_on_errors
 def info(atlas, fmt):
-    """Print an atlas's DDS header and a summary of its manifest."""
-    from atlasgen.io.atlas import summarize_atlas
+    """Print an atlas's DDS header and a summary of its manifest.
 
-    summary = summarize_atlas(atlas)
+    With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
+    (and the manifest itself atlasgen/schemas/manifest.schema.json).
+    """
+    from atlasgen.io.atlas import describe_atlas, summarize_atlas
+
     if fmt == "json":
-        click.echo(json.dumps(summary, indent=2))
-        return
-    h = summary["header"]
-    click.echo(summary["line"])
-    click.echo(f"  format {h['dxgi_format']} ({h['format_name']}), layout {h['layout']}, "
-               f"{h['width']}x{h['height']}, {h['layers']} layers, {h['mip_count']} mips")
-    m = summary.get("manifest")
-    if m is None:
-        click.echo("  no manifest beside it")
-        return
-    click.echo(f"  manifest v{m['format_version']}, encoding {m['encoding']}, {len(m['materials'])} materials, "
-               f"{m['slices_used']} slices used")
-    for e in m["materials"]:
-        click.echo(f"  {e['first_slice']:>3}+{e['slice_count']:<2} {e['name']:<24} {e['type']:<11} "
-                   f"scale {e['scale']:<18} qerr max {e['qerr_max']:.4f}")
+        click.echo(json.dumps(summarize_atlas(atlas), indent=2))
+    else:
+        click.echo(describe_atlas(atlas))
 
 
 def main(argv=None):

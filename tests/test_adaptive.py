@@ -59,9 +59,9 @@ def test_budget_reaches_the_manifest(tmp_path, write_material):
     from atlasgen.materials.material import read_materials
 
     write_material("a", 'type = "lambert"\nerror_budget = 0.02\n')
-    entry = bake_atlas(read_materials([tmp_path / "materials"])).manifest["materials"][0]
-    assert entry["representation"]["supersampling"] == 1
-    assert entry["representation"]["error_budget"] == 0.02
+    entry = bake_atlas(read_materials([tmp_path / "materials"])).manifest.materials[0]
+    assert entry.representation.supersampling == 1
+    assert entry.representation.error_budget == 0.02
 
 
 @pytest.mark.parametrize("bad", ["0", "-1", "nan", '"tight"'])

@@ -1,13 +1,12 @@
 """The bake pipeline: closed-form slices, scales, clamping, stable IDs and determinism."""
 
-import json
-
 import numpy as np
 import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.contract import texel_grid
 from atlasgen.errors import InputError, MaterialError
+from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
 from atlasgen.models.base import SliceSet
 
@@ -55,12 +54,12 @@ def test_values_above_one_get_a_slice_scale_and_nothing_clamps(tmp_path, write_m
     values = Bright().bake_values()
     monkeypatch.setattr(Lambert, "bake", lambda self, v: SliceSet(values[None].copy()))
     result = bake_folder(tmp_path / "materials", linear=True)
-    entry = result.manifest["materials"][0]
-    assert entry["scale"][0] == [1.0, 25.0]
-    assert entry["clamped_fraction"] == 0.0
+    entry = result.manifest.materials[0]
+    assert entry.scale[0] == [1.0, 25.0]
+    assert entry.clamped_fraction == 0.0
     decoded = result.levels[0][0, ..., 3] / 255 * 25.0
     assert np.abs(decoded - values[..., 3]).max() <= 0.5 / 255 * 25 + 1e-9
-    assert entry["quantization_error"]["max"] <= 0.5 / 255 * 25 + 1e-9
+    assert entry.quantization_error.max <= 0.5 / 255 * 25 + 1e-9
     assert not result.warnings
 
 
@@ -71,9 +70,9 @@ def test_fixed_scale_clamps_and_reports_the_fraction(tmp_path, write_material, m
     values = Bright().bake_values()
     monkeypatch.setattr(Lambert, "bake", lambda self, v: SliceSet(values[None].copy()))
     result = bake_folder(tmp_path / "materials")
-    entry = result.manifest["materials"][0]
+    entry = result.manifest.materials[0]
     expected = float((values[..., 3] > 2.0).sum()) / values.size
-    assert entry["clamped_fraction"] == pytest.approx(expected)
+    assert entry.clamped_fraction == pytest.approx(expected)
     assert len(result.warnings) == 1 and "'bright'" in result.warnings[0] and "clamped" in result.warnings[0]
 
 
@@ -81,16 +80,16 @@ def test_manifest_records_contract_and_materials(tmp_path, write_material):
     path = write_material("clay", 'type = "lambert"\ncolour = "#808080"\n')
     result = bake_folder(tmp_path / "materials")
     m = result.manifest
-    assert m["dimensions"] == {"width": 64, "height": 32, "layers": 256, "mip_count": 7}
-    assert m["encoding"] == "srgb" and m["layout"] == "array" and "u" in m["mapping"]
-    e = m["materials"][0]
+    assert m.dimensions.to_json() == {"width": 64, "height": 32, "layers": 256, "mip_count": 7}
+    assert m.encoding == "srgb" and m.layout == "array" and "u" in m.mapping
+    e = m.materials[0]
     import hashlib
 
-    assert e["content_hash"] == hashlib.sha256(path.read_bytes()).hexdigest()
-    assert e["params"]["colour"] == pytest.approx([float(srgb_to_linear(128 / 255))] * 3)
-    assert e["first_slice"] == 0 and e["slice_count"] == 1 and e["type"] == "lambert"
+    assert e.content_hash == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert e.params["colour"] == pytest.approx([float(srgb_to_linear(128 / 255))] * 3)
+    assert e.first_slice == 0 and e.slice_count == 1 and e.type == "lambert"
     assert "bake_s" in result.timings["materials"]["clay"]
-    assert "timings" not in json.dumps(m)
+    assert "timings" not in format_manifest(m)
 
 
 def test_same_inputs_give_byte_identical_outputs(tmp_path, write_material):

@@ -52,9 +52,9 @@ def test_volume_header_fields(baked):
     assert d["resourceDimension"] == 4 and d["arraySize"] == 1
     assert f["consumed"] == f["size"] == 148 + 2_396_764
     assert [lv.shape[0] for lv in f["levels"]] == [256 >> k for k in range(9)]
-    assert len(result.manifest["volume_bleed"]) == 8
+    assert len(result.manifest.volume_bleed) == 8
     # Level 1 averages slices 6 and 7: the warm material bleeds into its empty neighbour's texel.
-    assert result.manifest["volume_bleed"][0]["max"] > 0.1
+    assert result.manifest.volume_bleed[0].max > 0.1
     assert any("volume layout" in w for w in result.warnings)
 
 

@@ -109,9 +109,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     # and equal the model itself at any point, to 8-bit precision.
     from atlasgen.materials.material import read_material
 
-    cel = [m for m in result.manifest["materials"] if m["name"] == "cel"][0]
-    assert cel["flags"]["nearest"]
-    toon = read_material(cel["source"])
+    cel = result.manifest.entry_named("cel")
+    assert cel.flag("nearest")
+    toon = read_material(cel.source)
     sel = ids == 5
     np.testing.assert_allclose(got[sel], toon.model.evaluate(toon.params, nl[sel], nv[sel]), atol=3e-3)
     # At texel centres the clay slice is its closed form, to 8-bit precision.

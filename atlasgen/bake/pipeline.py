@@ -12,12 +12,13 @@ import numpy as np
 from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
-from atlasgen.errors import InputError, MaterialError
+from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
+from atlasgen.errors import MaterialError
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.bake.slots import assign_slices
 
-__all__ = ["BakeResult", "bake_atlas", "bake_material", "format_manifest", "read_previous_slots", "sibling_paths", "write_bake"]
+__all__ = ["BakeResult", "bake_atlas", "bake_material", "read_previous_slots", "sibling_paths", "write_bake"]
 
 
 @dataclass
@@ -27,7 +28,7 @@ class BakeResult:
     levels: list  # uint8 mip levels, as write_dds takes them
     layout: str
     dxgi_format: int
-    manifest: dict
+    manifest: Manifest
     include: str
     timings: dict
     warnings: list = field(default_factory=list)
@@ -50,18 +51,15 @@ def sibling_paths(dds_path) -> dict:
 
 
 def read_previous_slots(manifest_path) -> dict[str, int]:
-    """``name -> first_slice`` from an existing manifest, so re-bakes keep IDs stable."""
+    """``name -> first_slice`` from an existing manifest, so re-bakes keep IDs stable.
+
+    Raises :class:`~atlasgen.errors.ManifestError` (naming the file and the field) for a
+    manifest that cannot be read; deleting it re-numbers every material.
+    """
     path = Path(manifest_path)
     if not path.exists():
         return {}
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        return {m["name"]: int(m["first_slice"]) for m in data["materials"]}
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise InputError(
-            f"{path.as_posix()}: previous manifest is unreadable ({exc}); expected atlas JSON "
-            "(delete it to re-number every material)"
-        ) from None
+    return {m.name: m.first_slice for m in read_manifest(path).materials}
 
 
 def _jsonable(value):
@@ -99,7 +97,7 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
                 worst = max(worst, float(diff.max()))
                 sq += float((diff**2).sum())
                 n += diff.size
-        bleed.append({"level": k, "max": worst, "rms": (sq / n) ** 0.5 if n else 0.0})
+        bleed.append(VolumeBleed(level=k, max=worst, rms=(sq / n) ** 0.5 if n else 0.0))
     return bleed
 
 
@@ -207,43 +205,46 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
                 f"{material.source}: material '{material.name}': clamped {100 * encoded.clamped_fraction:.3f}% of "
                 f"texel channels to the slice scale (rgb_scale={material.rgb_scale}, alpha_scale={material.alpha_scale})"
             )
-        entry = {
-            "name": material.name,
-            "id": first,
-            "constant": material.constant_name,
-            "first_slice": first,
-            "slice_count": n,
-            "type": material.type,
-            "source": material.source,
-            "content_hash": material.content_hash,
-            "description": material.description,
-            "params": _jsonable(material.params),
-            "scale": encoded.scale.tolist(),
-            "bias": encoded.bias.tolist(),
-            "flags": _jsonable(material.model.flags(material.params)),
-            "clamped_fraction": encoded.clamped_fraction,
-            "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt((err**2).mean()))},
-        }
-        entry.update(_jsonable(slices.extra))
-        entry.update(_jsonable(encoded.extra))
-        entry.update(_jsonable(material.model.finalize(material.params, slices, encoded, dec)))
-        entries.append(entry)
-    entries.sort(key=lambda e: e["first_slice"])
+        entry = MaterialEntry(
+            name=material.name,
+            id=first,
+            constant=material.constant_name,
+            first_slice=first,
+            slice_count=n,
+            type=material.type,
+            source=material.source,
+            content_hash=material.content_hash,
+            description=material.description,
+            params=_jsonable(material.params),
+            scale=encoded.scale.tolist(),
+            bias=encoded.bias.tolist(),
+            flags=_jsonable(material.model.flags(material.params)),
+            clamped_fraction=encoded.clamped_fraction,
+            quantization_error=ErrorSummary(max=float(err.max()), rms=float(np.sqrt((err**2).mean()))),
+        )
+        # The model's own fields, merged in the order it produced them (a key naming a
+        # common field, such as a finer quantization_error, replaces it), become the
+        # entry's typed parts.
+        model_fields = {}
+        for extra in (slices.extra, encoded.extra, material.model.finalize(material.params, slices, encoded, dec)):
+            model_fields.update(_jsonable(extra))
+        entries.append(entry.with_fields(model_fields, material.source))
+    entries.sort(key=lambda e: e.first_slice)
 
-    manifest = {
-        "format_version": FORMAT_VERSION,
-        "generator": f"atlasgen {__version__}",
-        "dimensions": {"width": WIDTH, "height": HEIGHT, "layers": LAYERS, "mip_count": len(levels)},
-        "encoding": "srgb" if srgb else "linear",
-        "dxgi_format": DXGI_FORMAT_R8G8B8A8_UNORM_SRGB if srgb else DXGI_FORMAT_R8G8B8A8_UNORM,
-        "layout": layout,
-        "mapping": MAPPING,
-        "materials": entries,
-    }
+    manifest = Manifest(
+        format_version=FORMAT_VERSION,
+        generator=f"atlasgen {__version__}",
+        dimensions=Dimensions(width=WIDTH, height=HEIGHT, layers=LAYERS, mip_count=len(levels)),
+        encoding="srgb" if srgb else "linear",
+        dxgi_format=DXGI_FORMAT_R8G8B8A8_UNORM_SRGB if srgb else DXGI_FORMAT_R8G8B8A8_UNORM,
+        layout=layout,
+        mapping=dict(MAPPING),
+        materials=entries,
+    )
     if layout == "volume":
         bleed = _measure_volume_bleed(float_levels, [(slots[m.name], v.shape[0]) for m, _, v, _ in baked], scales)
-        manifest["volume_bleed"] = bleed
-        worst = max((b["max"] for b in bleed), default=0.0)
+        manifest.volume_bleed = bleed
+        worst = max((b.max for b in bleed), default=0.0)
         warnings.append(
             f"volume layout: mip levels >= 1 blend neighbouring materials (worst measured bleed {worst:.3f} linear); "
             "sample level 0 only, or use --layout array"
@@ -254,27 +255,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     include = render_include(manifest, scales, biases)
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
     timings["total_s"] = time.perf_counter() - t_start
-    return BakeResult(levels, layout, manifest["dxgi_format"], manifest, include, timings, warnings)
-
-
-def format_manifest(manifest: dict) -> str:
-    """Manifest JSON with one material per line: readable in a diff, and fast to write.
-
-    (``json.dumps(indent=...)`` falls back to the pure-Python encoder, which costs
-    more than the rest of a 256-material bake.)
-    """
-    lines = ["{"]
-    items = list(manifest.items())
-    for i, (key, value) in enumerate(items):
-        comma = "," if i < len(items) - 1 else ""
-        if key in ("materials", "volume_bleed") and value:
-            lines.append(f"  {json.dumps(key)}: [")
-            lines += [f"    {json.dumps(v)}{',' if j < len(value) - 1 else ''}" for j, v in enumerate(value)]
-            lines.append(f"  ]{comma}")
-        else:
-            lines.append(f"  {json.dumps(key)}: {json.dumps(value)}{comma}")
-    lines.append("}")
-    return "\n".join(lines) + "\n"
+    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings)
 
 
 def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
@@ -292,6 +273,6 @@ def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
         from atlasgen.bake.preview import render_contact_sheet
 
         paths["preview"] = Path(preview_path)
-        contents[paths["preview"]] = render_contact_sheet(result, paths["preview"])
+        contents[paths["preview"]] = render_contact_sheet(result)
     write_files_atomically(contents)
     return paths

@@ -1,18 +1,15 @@
-"""A labelled contact sheet of the atlas's used slices, written as PNG with OpenImageIO."""
+"""A labelled contact sheet of the atlas's used slices, and single-slice previews, as PNG."""
 
 from __future__ import annotations
-
-import os
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH
-from atlasgen.errors import OutputError
+from atlasgen.io.images import encode_png
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.srgb import encode_srgb
 
-__all__ = ["render_contact_sheet", "slice_display_image", "encode_png", "write_png"]
+__all__ = ["render_contact_sheet", "slice_display_image", "slice_png"]
 
 ZOOM = 2
 COLUMNS = 4
@@ -20,62 +17,29 @@ LABEL_H = 18
 PAD = 6
 
 
-def slice_display_image(level0: np.ndarray, slice_index: int, srgb: bool) -> np.ndarray:
+def _enlarge(image: np.ndarray, zoom: int) -> np.ndarray:
+    """Nearest-neighbour enlargement by a whole factor, so texels stay sharp squares."""
+    return np.kron(image, np.ones((zoom, zoom, 1))) if zoom > 1 else image
+
+
+def slice_display_image(level0: np.ndarray, slice_index: int, srgb: bool, zoom: int = 1) -> np.ndarray:
     """Display RGB in [0, 1] of one stored slice: its RGB then its alpha in grey, side by side.
 
-    N.V = 1 (facing) is at the top, as an artist reads it.
+    N.V = 1 (facing) is at the top, as an artist reads it. The texels are shown as
+    stored: sRGB codes as they are, linear codes sRGB-encoded for display.
     """
-    texels = level0[slice_index].astype(np.float64) / 255.0
+    texels = dequantize_rgba(level0[slice_index], srgb=False)  # code / 255: the stored values
     rgb = texels[..., :3] if srgb else encode_srgb(texels[..., :3])
     alpha = np.repeat(texels[..., 3:4], 3, axis=2)
-    return np.concatenate([rgb, alpha], axis=1)[::-1]
+    return _enlarge(np.concatenate([rgb, alpha], axis=1)[::-1], zoom)
 
 
-def encode_png(image: np.ndarray, zoom: int = 1) -> bytes:
-    """8-bit PNG bytes of display RGB in [0, 1] (nearest-neighbour ``zoom``), by OpenImageIO."""
-    import OpenImageIO as oiio
-
-    if zoom > 1:
-        image = np.kron(image, np.ones((zoom, zoom, 1)))
-    buf = oiio.ImageBuf(oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
-    buf.set_pixels(oiio.ROI(), np.ascontiguousarray(image, dtype=np.float32))
-    return _png_bytes(buf)
+def slice_png(level0: np.ndarray, slice_index: int, srgb: bool, zoom: int = 1) -> bytes:
+    """PNG bytes of :func:`slice_display_image`."""
+    return encode_png(quantize_rgba(slice_display_image(level0, slice_index, srgb, zoom), srgb=False))
 
 
-def _png_bytes(buf, target_path=None) -> bytes:
-    """8-bit PNG bytes of an OIIO ImageBuf.
-
-    OIIO writes to files only: through a private temporary file (beside ``target_path``
-    when given, so a full disk is reported for the output's own folder), so callers can
-    place the bytes atomically.
-    """
-    import OpenImageIO as oiio
-
-    folder = Path(target_path).parent if target_path is not None else None
-    try:
-        if folder is not None:
-            folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".atlasgen-png.", suffix=".png", dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{(folder or Path(tempfile.gettempdir())).as_posix()}: cannot write output folder ({exc.strerror})") from None
-    os.close(fd)
-    try:
-        if not buf.write(tmp, oiio.UINT8):
-            name = Path(target_path).as_posix() if target_path is not None else tmp
-            raise OutputError(f"{name}: cannot write PNG ({oiio.geterror()})")
-        return Path(tmp).read_bytes()
-    finally:
-        os.unlink(tmp)
-
-
-def write_png(image: np.ndarray, path, zoom: int = 1) -> None:
-    """Write display RGB in [0, 1] as an 8-bit PNG (:func:`encode_png`), atomically."""
-    from atlasgen.io.atomic import write_file_atomically
-
-    write_file_atomically(path, encode_png(image, zoom))
-
-
-def render_contact_sheet(result, target_path) -> bytes:
+def render_contact_sheet(result) -> bytes:
     """PNG bytes of every used slice: its RGB (left) and alpha (right), labelled ``id name``.
 
     Texels are shown as stored (sRGB display of the 8-bit codes, before the slice
@@ -83,25 +47,24 @@ def render_contact_sheet(result, target_path) -> bytes:
     """
     import OpenImageIO as oiio
 
-    srgb = result.manifest["encoding"] == "srgb"
+    srgb = result.manifest.srgb
     cells = []
-    for m in result.manifest["materials"]:
-        for k in range(m["slice_count"]):
-            s = m["first_slice"] + k
-            label = f"{s} {m['name']}" + (f" [{k}]" if m["slice_count"] > 1 else "")
-            cells.append((label, slice_display_image(result.levels[0], s, srgb)))
+    for m in result.manifest.materials:
+        for k, s in enumerate(m.slices):
+            label = f"{s} {m.name}" + (f" [{k}]" if m.slice_count > 1 else "")
+            cells.append((label, slice_display_image(result.levels[0], s, srgb, ZOOM)))
     cell_w, cell_h = 2 * WIDTH * ZOOM + PAD, HEIGHT * ZOOM + LABEL_H + PAD
     rows = max(1, (len(cells) + COLUMNS - 1) // COLUMNS)
     sheet = np.full((rows * cell_h + PAD, COLUMNS * cell_w + PAD, 3), 0.12)
     for i, (_, image) in enumerate(cells):
         y = PAD + (i // COLUMNS) * cell_h
         x = PAD + (i % COLUMNS) * cell_w
-        big = np.kron(image, np.ones((ZOOM, ZOOM, 1)))
-        sheet[y : y + big.shape[0], x : x + big.shape[1]] = big
+        sheet[y : y + image.shape[0], x : x + image.shape[1]] = image
     buf = oiio.ImageBuf(oiio.ImageSpec(sheet.shape[1], sheet.shape[0], 3, oiio.FLOAT))
     buf.set_pixels(oiio.ROI(), sheet.astype(np.float32))
     for i, (label, _) in enumerate(cells):
         y = PAD + (i // COLUMNS) * cell_h + HEIGHT * ZOOM + LABEL_H - 4
         x = PAD + (i % COLUMNS) * cell_w
         oiio.ImageBufAlgo.render_text(buf, x, y, label, 13, "", (0.95, 0.95, 0.95))
-    return _png_bytes(buf, target_path)
+    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float64)
+    return encode_png(quantize_rgba(pixels, srgb=False))

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
+from atlasgen.io.manifest import Manifest, MaterialEntry, read_manifest
 from atlasgen.errors import InputError
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Atlas", "read_atlas", "summarize_atlas"]
+__all__ = ["Atlas", "read_atlas", "summarize_atlas", "describe_atlas"]
 
 
 @dataclass
@@ -21,55 +21,70 @@ class Atlas:
 
     path: Path
     image: DDSImage
-    manifest: dict | None
+    manifest: Manifest | None
 
     @property
     def srgb(self) -> bool:
         return self.image.dxgi_format == 29
 
-    def material(self, name: str) -> dict:
+    def material(self, name: str) -> MaterialEntry:
         """The manifest entry of ``name``; InputError listing the known names otherwise."""
-        for entry in (self.manifest or {}).get("materials", []):
-            if entry["name"] == name:
-                return entry
-        known = ", ".join(sorted(e["name"] for e in (self.manifest or {}).get("materials", []))) or "none"
-        raise InputError(f"{self.path.as_posix()}: no material {name!r}; known: {known}")
+        entry = self.manifest.entry_named(name) if self.manifest is not None else None
+        if entry is None:
+            known = ", ".join(sorted(self.manifest.names if self.manifest is not None else [])) or "none"
+            raise InputError(f"{self.path.as_posix()}: no material {name!r}; known: {known}")
+        return entry
 
     def decode_slice(self, slice_index: int, level: int = 0, apply_scale: bool = True) -> np.ndarray:
         """Linear RGBA ``(h, w, 4)`` of one array slice: what the include's ``atlas_sample`` returns."""
         if self.image.layout != "array":
             raise InputError(f"{self.path.as_posix()}: decode_slice needs a 2D-array atlas")
         rgba = dequantize_rgba(self.image.levels[level][slice_index], self.srgb)
-        if apply_scale and self.manifest is not None:
-            entry = next(
-                e for e in self.manifest["materials"]
-                if e["first_slice"] <= slice_index < e["first_slice"] + e["slice_count"]
-            )  # fmt: skip
-            k = slice_index - entry["first_slice"]
-            scale, bias = entry["scale"][k], entry["bias"][k]
+        entry = self.manifest.by_slice(slice_index) if apply_scale and self.manifest is not None else None
+        if entry is not None:
+            k = slice_index - entry.first_slice
+            scale, bias = entry.scale[k], entry.bias[k]
             rgba[..., :3] = rgba[..., :3] * scale[0] + bias[0]
             rgba[..., 3] = rgba[..., 3] * scale[1] + bias[1]
         return rgba
 
 
 def read_atlas(path) -> Atlas:
-    """Read ``X.dds`` and, if present, its manifest ``X.json``."""
+    """Read ``X.dds`` and, if present, its manifest ``X.json`` (checked: :func:`read_manifest`)."""
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path.as_posix()}: no such atlas")
     image = read_dds(path)
     manifest_path = path.with_suffix(".json")
-    manifest = None
-    if manifest_path.exists():
-        try:
-            manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
-        except ValueError as exc:
-            raise InputError(f"{manifest_path.as_posix()}: malformed manifest JSON ({exc})") from None
+    manifest = read_manifest(manifest_path) if manifest_path.exists() else None
     return Atlas(path, image, manifest)
 
 
+def _scale_text(entry: MaterialEntry) -> str:
+    """The first slice's ``rgb_scale,alpha_scale``, for ``atlasgen info``."""
+    return "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in entry.scale[:1])
+
+
+def describe_atlas(path) -> str:
+    """What ``atlasgen info`` prints: the texconv-style line, the header, one line per material."""
+    atlas = read_atlas(path)
+    img = atlas.image
+    lines = [describe_dds(img, path),
+             f"  format {img.dxgi_format} ({img.format_name}), layout {img.layout}, "
+             f"{img.width}x{img.height}, {img.layers} layers, {img.mip_count} mips"]  # fmt: skip
+    manifest = atlas.manifest
+    if manifest is None:
+        return "\n".join(lines + ["  no manifest beside it"])
+    lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, {len(manifest.materials)} materials, "
+                 f"{manifest.slices_used} slices used")  # fmt: skip
+    lines += [f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
+              f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}" for e in manifest.materials]  # fmt: skip
+    return "\n".join(lines)
+
+
 def summarize_atlas(path) -> dict:
-    """Header fields and a manifest summary, for ``atlasgen info``."""
+    """Header fields and a manifest summary: ``atlasgen info --format json``
+    (``atlasgen/schemas/info.schema.json``)."""
     atlas = read_atlas(path)
     img = atlas.image
     out = {
@@ -81,19 +96,18 @@ def summarize_atlas(path) -> dict:
         },
     }  # fmt: skip
     if atlas.manifest is not None:
-        m = atlas.manifest
+        manifest = atlas.manifest
         out["manifest"] = {
-            "format_version": m.get("format_version"),
-            "encoding": m.get("encoding"),
-            "slices_used": sum(e["slice_count"] for e in m["materials"]),
+            "format_version": manifest.format_version,
+            "encoding": manifest.encoding,
+            "slices_used": manifest.slices_used,
             "materials": [
                 {
-                    "name": e["name"], "type": e["type"], "first_slice": e["first_slice"],
-                    "slice_count": e["slice_count"],
-                    "scale": "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in e["scale"][:1]),
-                    "qerr_max": e["quantization_error"]["max"],
+                    "name": e.name, "type": e.type, "first_slice": e.first_slice, "slice_count": e.slice_count,
+                    "scale": _scale_text(e),
+                    "qerr_max": e.quantization_error.max,
                 }
-                for e in m["materials"]
+                for e in manifest.materials
             ],
         }  # fmt: skip
     return out

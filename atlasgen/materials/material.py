@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import InputError, MaterialError
-from atlasgen.models import MODEL_TYPES, get_model
+from atlasgen.models import get_model, model_types
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
@@ -87,10 +87,11 @@ def read_material(path) -> Material:
         raise MaterialError(shown, None, f"malformed TOML: {exc}") from None
 
     type_name = raw.get("type")
+    known = model_types()
     if type_name is None:
-        raise MaterialError(shown, "type", "missing; expected one of " + ", ".join(MODEL_TYPES))
-    if type_name not in MODEL_TYPES:
-        raise MaterialError(shown, "type", f"unknown model {type_name!r}; expected one of " + ", ".join(MODEL_TYPES))
+        raise MaterialError(shown, "type", "missing; expected one of " + ", ".join(known))
+    if type_name not in known:
+        raise MaterialError(shown, "type", f"unknown model {type_name!r}; expected one of " + ", ".join(known))
 
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not NAME_PATTERN.match(name):

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import math
+import string
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from atlasgen.errors import MaterialError
+from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = ["Param", "validate_params", "parse_colour"]
 
@@ -19,15 +23,9 @@ def parse_colour(value, path, name):
     """
     if isinstance(value, str):
         text = value.strip()
-        if len(text) == 7 and text[0] == "#":
-            try:
-                channels = [int(text[i : i + 2], 16) / 255.0 for i in (1, 3, 5)]
-            except ValueError:
-                channels = None
-            if channels is not None:
-                from atlasgen.optics.srgb import decode_srgb
-
-                return tuple(float(c) for c in decode_srgb(channels))
+        if len(text) == 7 and text[0] == "#" and all(c in string.hexdigits for c in text[1:]):
+            codes = np.frombuffer(bytes.fromhex(text[1:]), dtype=np.uint8)
+            return tuple(float(c) for c in dequantize_rgba(codes, srgb=True))
         raise MaterialError(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {value!r}")
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 numbers in [0, 1], got {value!r}")

@@ -15,7 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import InputError, SceneError
+from atlasgen.errors import SceneError
+from atlasgen.io.manifest import Manifest, MaterialEntry
+from atlasgen.io.text import read_input_text
 
 __all__ = [
     "Camera",
@@ -299,14 +301,7 @@ def read_scene(path) -> Scene:
     """
     path = Path(path)
     shown = path.as_posix()
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{shown}: no such scene file") from None
-    except UnicodeDecodeError:
-        raise SceneError(shown, None, "expected UTF-8 TOML text") from None
-    except OSError as exc:
-        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    text = read_input_text(path, "no such scene file", "UTF-8 TOML text", SceneError)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -314,12 +309,12 @@ def read_scene(path) -> Scene:
     return parse_scene(data, shown, path.parent)
 
 
-def resolve_materials(scene: Scene, manifest: dict, atlas_name: str = "atlas") -> list[dict]:
+def resolve_materials(scene: Scene, manifest: Manifest, atlas_name: str = "atlas") -> list[MaterialEntry]:
     """The manifest entry of each object's material, in object order.
 
     Raises :class:`SceneError` for an unknown name, listing the names the atlas knows.
     """
-    by_name = {m["name"]: m for m in manifest.get("materials", [])}
+    by_name = {m.name: m for m in manifest.materials}
     out = []
     for obj in scene.objects:
         entry = by_name.get(obj.material)

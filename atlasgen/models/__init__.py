@@ -1,4 +1,9 @@
-"""Registry of material models by TOML ``type``; each model module is imported only when used."""
+"""Registry of material models by TOML ``type``; each shipped model module is imported only when used.
+
+A model is one :class:`~atlasgen.models.base.Model` subclass; registering it is all the rest
+of the library needs (docs/adding-a-model.md): the bake, the shader include, the renderer's
+lighting pass, validation and the reports ask it through its hooks.
+"""
 
 from __future__ import annotations
 
@@ -6,11 +11,12 @@ import importlib
 
 from atlasgen.models.base import Model
 
-__all__ = ["MODEL_TYPES", "get_model"]
+__all__ = ["MODEL_TYPES", "get_model", "register_model", "unregister_model", "model_types"]
 
-#: TOML ``type`` -> "module:Class". Import is deferred so a LUT-only bake never
-#: pulls in what the separable model needs (Mitsuba, Dr.Jit).
-MODEL_TYPES = {
+#: TOML ``type`` -> "module:Class" (shipped, imported on first use) or a registered class.
+#: Import is deferred so a LUT-only bake never pulls in what the separable model needs
+#: (Mitsuba, Dr.Jit).
+MODEL_TYPES: dict[str, str | type[Model]] = {
     "lambert": "lambert:Lambert",
     "fresnel": "fresnel:Fresnel",
     "iridescent": "iridescent:Iridescent",
@@ -23,10 +29,39 @@ MODEL_TYPES = {
 _cache: dict[str, Model] = {}
 
 
+def model_types() -> tuple[str, ...]:
+    """Every registered TOML ``type``, in registration order."""
+    return tuple(MODEL_TYPES)
+
+
 def get_model(type_name: str) -> Model:
     """The model instance for a TOML ``type``; ``KeyError`` if unknown."""
     if type_name not in _cache:
-        module_name, class_name = MODEL_TYPES[type_name].split(":")
-        module = importlib.import_module(f"{__name__}.{module_name}")
-        _cache[type_name] = getattr(module, class_name)()
+        spec = MODEL_TYPES[type_name]
+        if isinstance(spec, str):
+            module_name, class_name = spec.split(":")
+            spec = getattr(importlib.import_module(f"{__name__}.{module_name}"), class_name)
+        _cache[type_name] = spec()
     return _cache[type_name]
+
+
+def register_model(cls: type[Model]) -> type[Model]:
+    """Register a :class:`Model` subclass under its ``type_name``; usable as a class decorator.
+
+    Raises ``ValueError`` for a class without a ``type_name`` or one whose name another
+    model already has.
+    """
+    name = getattr(cls, "type_name", "")
+    if not (isinstance(cls, type) and issubclass(cls, Model)) or not name:
+        raise ValueError(f"expected a Model subclass with a type_name, got {cls!r}")
+    if name in MODEL_TYPES and MODEL_TYPES[name] is not cls:
+        raise ValueError(f"model type {name!r} is already registered")
+    MODEL_TYPES[name] = cls
+    _cache.pop(name, None)
+    return cls
+
+
+def unregister_model(type_name: str) -> None:
+    """Forget a model type (tests that register a model of their own clean up with it)."""
+    MODEL_TYPES.pop(type_name, None)
+    _cache.pop(type_name, None)

@@ -12,6 +12,7 @@ import numpy as np
 
 from atlasgen.materials.params import Param
 from atlasgen.models.base import Model
+from atlasgen.optics.quadrature import gauss_legendre_rule
 
 __all__ = ["Backlit", "translucency", "VIEW_MODES"]
 
@@ -22,7 +23,7 @@ VIEW_MODES = ("average", "coplanar")
 @cache
 def _azimuth_rule(n: int = 12):
     """Nodes g_k and weights h_k of the substituted azimuth integral (see :func:`translucency`)."""
-    x, w = np.polynomial.legendre.leggauss(n)
+    x, w = gauss_legendre_rule(n)
     t = 0.5 * np.pi * (x + 1.0)
     nodes, weights = 0.5 * (1.0 - np.cos(t)), 0.5 * np.pi * w * np.cos(0.5 * t)
     nodes.setflags(write=False)

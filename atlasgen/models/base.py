@@ -1,16 +1,30 @@
-"""The interface every material model implements, and the default way its slices are encoded."""
+"""The interface every material model implements (docs/adding-a-model.md), and the default way its slices are encoded."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Callable, ClassVar
 
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
+from atlasgen.io.atlas import read_atlas
+from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.materials.params import Param
+from atlasgen.optics.interpolation import sample_slice
+from atlasgen.optics.specular import renderer_f_cos
 
-__all__ = ["Model", "SliceSet", "EncodedSlices", "encode_scaled"]
+__all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "encode_scaled",
+           "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE"]  # fmt: skip
+
+# Names of atlasgen's Mitsuba BSDF plugins (:mod:`atlasgen.models.mitsuba_bsdfs` registers them).
+#: The renderer's equation with the exact model in place of the atlas.
+MODEL_REFERENCE = "atlasgen_model"
+#: A separable material's source BSDF.
+BRDF_REFERENCE = "atlasgen_brdf"
+#: The iridescent model's thin-film microfacet BSDF.
+THIN_FILM_REFERENCE = "atlasgen_thinfilm"
 
 
 @dataclass
@@ -37,6 +51,40 @@ class EncodedSlices:
     extra: dict = field(default_factory=dict)  # model-specific manifest fields (e.g. per-factor scale/bias)
 
 
+@dataclass
+class RadianceRebuild:
+    """A CPU twin of the lighting pass for one material (:meth:`Model.radiance_rebuilds`).
+
+    ``radiance(n, l, v, albedo, gloss, irradiance)`` is the radiance one light adds at N
+    pixels: unit normals, light and view directions ``(N, 3)``, linear albedo ``(N, 3)``,
+    gloss ``(N,)`` and the light's irradiance normal to its direction ``(N, 3)``; it
+    returns ``(N, 3)``. ``description`` says what it reads, for the validation report.
+    """
+
+    description: str
+    radiance: Callable[..., np.ndarray]
+
+
+@dataclass
+class Reference:
+    """A Mitsuba reference of one material: the BSDF dict and how the scene must be rendered.
+
+    ``bsdf`` goes into ``mi.load_dict`` (atlasgen's own plugins are registered by
+    :func:`atlasgen.models.mitsuba_bsdfs.register_bsdfs`). ``integrator`` replaces the
+    default ``atlasgen_direct``; ``interior`` is a medium for closed objects (open planes
+    get a diffuse stand-in); ``stochastic`` renders with ``--physical-spp`` samples;
+    ``builtin_only`` means no Python plugin may be live (keeps Dr.Jit's symbolic loops).
+    """
+
+    bsdf: dict
+    description: str
+    variant: str = "llvm_ad_rgb"
+    integrator: dict | None = None
+    interior: dict | None = None
+    stochastic: bool = False
+    builtin_only: bool = False
+
+
 def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
     """Divide each slice by a scale so it fits UNORM8; report what had to be clamped.
 
@@ -57,15 +105,30 @@ def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> E
 
 
 class Model:
-    """A material model: a TOML ``type``, its parameter schema and its evaluation.
+    """A material model: a TOML ``type``, its parameter schema, its evaluation, and everything
+    the renderer, validation and the reports need of it (docs/adding-a-model.md).
 
     Subclasses set ``type_name``, ``params`` and ``reference``, and implement
-    :meth:`evaluate`; multi-slice models override :meth:`bake` and :meth:`encode`.
+    :meth:`evaluate`. The defaults of every other hook describe a *table* model: one
+    (N.L, N.V) slice that the renderer samples with ``atlas_sample`` and shades with its
+    own equation (:mod:`atlasgen.optics.specular`). A model that stores something else
+    (the separable model's factors) overrides :meth:`bake`, :meth:`encode`,
+    :meth:`finalize`, sets ``custom_lighting`` with :meth:`include_wgsl` and
+    :meth:`lighting_wgsl`, and supplies its own :meth:`model_reference`,
+    :meth:`radiance_rebuilds` and :meth:`describe_representation`.
     """
 
     type_name: ClassVar[str] = ""
     params: ClassVar[tuple[Param, ...]] = ()
     reference: ClassVar[str] = ""
+    #: The lighting pass shades this model's materials with :meth:`lighting_wgsl` instead of
+    #: the (N.L, N.V) table lookup; the renderer compiles that code in only for scenes that
+    #: show such a material.
+    custom_lighting: ClassVar[bool] = False
+    #: Validation holds the atlas image to the PSNR/FLIP goals against the model reference
+    #: (:data:`atlasgen.validate.run.GOAL_PSNR_DB`); models whose error is claimed in the
+    #: manifest instead (:meth:`claimed_errors`) set False.
+    validation_goals: ClassVar[bool] = True
 
     def check(self, values: dict, path) -> None:
         """Cross-parameter checks beyond each parameter's own range; raise MaterialError."""
@@ -112,7 +175,110 @@ class Model:
         """
         return {}
 
+    # -- shader -----------------------------------------------------------------------------------
     @classmethod
-    def include_wgsl(cls, entries: list[dict]) -> str:
+    def include_wgsl(cls, entries: list[MaterialEntry]) -> str:
         """WGSL this model type adds to the shader include, given its manifest entries."""
         return ""
+
+    @classmethod
+    def lighting_wgsl(cls, entry: MaterialEntry) -> str:
+        """A WGSL expression for f cos(theta_l) of ``entry`` in the lighting pass (``custom_lighting`` only).
+
+        In scope: ``atlas`` (``texture_2d_array<f32>``), ``samp`` (its linear sampler),
+        ``material`` (the g-buffer ID, ``u32``) and unit ``n``, ``l``, ``v``
+        (``vec3<f32>``). The renderer adds L += E * albedo * f cos per light
+        (lighting.wgsl); the functions it calls come from :meth:`include_wgsl`.
+        """
+        raise NotImplementedError(f"model {cls.type_name!r} sets custom_lighting but has no lighting_wgsl")
+
+    # -- references and validation -----------------------------------------------------------------
+    def renderer_f_cos(self, values: dict, albedo, gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None):
+        """f cos(theta_l) of the renderer's equation with this model's exact values in place of the atlas.
+
+        f cos = albedo * M.rgb / pi + M.a * k(s) max(N.H, 0)^s max(N.L, 0)
+        (:func:`atlasgen.optics.specular.renderer_f_cos`), with
+        M = ``evaluate(values, clamp(N.L, -1, 1), clamp(N.V, 0, 1))``: the clamp is the
+        sampler's clamp-to-edge addressing. Returns ``(..., 3)``.
+        """
+        nl = np.asarray(n_dot_l, dtype=np.float64)
+        nv = np.asarray(n_dot_v, dtype=np.float64)
+        m = self.evaluate(values, np.clip(nl, -1.0, 1.0), np.clip(nv, 0.0, 1.0))
+        return renderer_f_cos(m, albedo, gloss, nl, n_dot_h, lv_degenerate)
+
+    def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference | None:
+        """The Mitsuba reference of what the atlas approximates: for a table model the renderer's
+        equation with the exact model (``atlasgen_model``, evaluating :meth:`renderer_f_cos`).
+
+        ``None`` where no reference can be built (validation then refuses the material).
+        """
+        material = {"type": self.type_name, "params": values, "albedo": [float(a) for a in albedo], "gloss": float(gloss)}
+        return Reference({"type": MODEL_REFERENCE, "material": json.dumps(material, sort_keys=True)},
+                         f"{self.type_name} model, exact, in the renderer's equation")  # fmt: skip
+
+    def physical_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference | None:
+        """A physically based Mitsuba reference, where the model has one; ``None`` otherwise."""
+        return None
+
+    def radiance_rebuilds(self, entry: MaterialEntry, atlas_path) -> dict[str, RadianceRebuild]:
+        """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
+        atlas's stored texels (what the GPU samples) and, where it can be computed,
+        ``"float"`` the model's own float data sampled the same way.
+
+        Validation rebuilds the renderer's image from its g-buffer with each. With both,
+        the atlas's error against the model reference splits into resolution and filtering
+        (float), 8-bit quantization (8bit against float) and the GPU's own precision (GPU
+        against 8bit); with ``"8bit"`` only, the rebuild is reported as a reference of its
+        own. A table model samples its slice at mip level 0, bilinearly (or nearest for
+        ``flags.nearest``), in the renderer's equation.
+        """
+        nearest = entry.flag("nearest")
+        return {
+            "float": RadianceRebuild("the model's float table at the texel centres, sampled as the renderer does",
+                                     _table_radiance(_SampledTable(self.bake(entry.params).values[0], nearest))),
+            "8bit": RadianceRebuild("the baked 8-bit slice, sampled as the renderer does",
+                                    _table_radiance(_SampledTable(read_atlas(atlas_path).decode_slice(entry.first_slice), nearest))),
+        }  # fmt: skip
+
+    def claimed_errors(self, entry: MaterialEntry) -> dict | None:
+        """The error the bake claims in the manifest, for validation to set beside what a scene
+        measures: ``{"relative_rms_8bit", "relative_rms_float", "terms"}`` (relative RMS of
+        f cos over uniform (l, v) pairs), or ``None`` where the manifest claims none."""
+        return None
+
+    # -- reports ---------------------------------------------------------------------------------
+    def describe_representation(self, entry: MaterialEntry) -> str:
+        """One line on how ``entry`` is stored, for the library report."""
+        rep = entry.representation
+        if isinstance(rep, LutRepresentation):
+            return f"LUT, supersampling {rep.supersampling}x (budget {rep.error_budget:g})"
+        return "LUT, point-sampled"
+
+
+class _SampledTable(Model):
+    """A baked (H, W, 4) slice in a model's place: :meth:`evaluate` samples it as the renderer does."""
+
+    def __init__(self, table, nearest=False):
+        self.table = np.asarray(table, dtype=np.float64)
+        self.nearest = nearest
+
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        return sample_slice(self.table, n_dot_l, n_dot_v, self.nearest)
+
+
+def _table_radiance(model: Model):
+    """The radiance one light adds through the renderer's equation with ``model`` as the slice."""
+
+    def radiance(n, l, v, albedo, gloss, irradiance):
+        h = l + v
+        h2 = (h * h).sum(1)
+        nh = np.divide((n * h).sum(1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+        nl, nv = (n * l).sum(1), (n * v).sum(1)
+        out = np.zeros((len(n), 3))
+        for g in np.unique(gloss):  # renderer_f_cos takes one gloss (one exponent): group the pixels by it
+            sel = gloss == g
+            f = model.renderer_f_cos({}, albedo[sel], float(g), nl[sel], nv[sel], nh[sel], lv_degenerate=h2[sel] < 1e-12)
+            out[sel] = irradiance[sel] * f
+        return out
+
+    return radiance

@@ -1,88 +1,19 @@
 """A diffuse base under a smooth dielectric interface: Fresnel reflectance in A.
 
-Besides the :class:`Fresnel` model the module holds the Fresnel equations the other
-models share (:func:`fresnel_dielectric`, :func:`fresnel_schlick`, :func:`normal_reflectance`).
+The Fresnel equations themselves are :mod:`atlasgen.optics.fresnel`.
 """
 
 from __future__ import annotations
 
-from functools import cache
-
 import numpy as np
 
 from atlasgen.materials.params import Param
-from atlasgen.models.base import Model
+from atlasgen.models.base import Model, Reference
+from atlasgen.optics.fresnel import fresnel_dielectric, fresnel_schlick, normal_reflectance
+from atlasgen.optics.quadrature import hemispherical_average
+from atlasgen.optics.specular import blinn_phong_alpha
 
-__all__ = [
-    "Fresnel",
-    "fresnel_dielectric",
-    "fresnel_schlick",
-    "normal_reflectance",
-    "hemispherical_average",
-    "cosine_rule",
-]
-
-
-def normal_reflectance(ior, k=0.0):
-    """Reflectance at normal incidence from air, F0.
-
-    F0 = ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) for a complex index n + ik (Born & Wolf,
-    *Principles of Optics*, 7th ed., ch. 14, optics of metals; k = 0 for a dielectric).
-    """
-    n = np.asarray(ior, dtype=np.float64)
-    k = np.asarray(k, dtype=np.float64)
-    return ((n - 1.0) ** 2 + k**2) / ((n + 1.0) ** 2 + k**2)
-
-
-def fresnel_dielectric(cos_i, ior):
-    """Exact unpolarised Fresnel reflectance of light from air onto a dielectric of index ``ior``.
-
-    With n = ior, cos_t = sqrt(1 - (1 - cos_i^2) / n^2),
-
-        r_s = (cos_i - n cos_t) / (cos_i + n cos_t),
-        r_p = (n cos_i - cos_t) / (n cos_i + cos_t),
-        F = (r_s^2 + r_p^2) / 2
-
-    (the Fresnel formulae, Born & Wolf, *Principles of Optics*, 7th ed., section 1.5.2).
-    With ``ior >= 1`` there is no total internal reflection; F(0) = 1, F(1) = F0.
-    """
-    c = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
-    n = float(ior)
-    cos_t = np.sqrt(np.maximum(1.0 - (1.0 - c * c) / (n * n), 0.0))
-    r_s = (c - n * cos_t) / (c + n * cos_t)
-    r_p = (n * c - cos_t) / (n * c + cos_t)
-    return 0.5 * (r_s * r_s + r_p * r_p)
-
-
-def fresnel_schlick(cos_i, f0):
-    """Schlick's approximation F = F0 + (1 - F0) (1 - cos_i)^5.
-
-    Schlick, "An Inexpensive BRDF Model for Physically-based Rendering", Computer
-    Graphics Forum 13(3), 1994.
-    """
-    c = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
-    return f0 + (1.0 - f0) * (1.0 - c) ** 5
-
-
-@cache
-def cosine_rule(n: int = 32):
-    """Nodes c_k in [0, 1] and weights w_k with sum_k w_k f(c_k) ~ 2 int_0^1 f(c) c dc (Gauss-Legendre)."""
-    x, w = np.polynomial.legendre.leggauss(n)
-    c = 0.5 * (x + 1.0)
-    weights = w * c  # 2 * (dx / 2) * c
-    c.setflags(write=False)
-    weights.setflags(write=False)
-    return c, weights
-
-
-def hemispherical_average(reflectance_of_cosine):
-    """F_avg = 2 int_0^1 F(c) c dc: the albedo of an interface under uniform (cosine-weighted) light.
-
-    ``reflectance_of_cosine`` maps cosines of shape (n,) to (n,) or (n, k) reflectances;
-    32-point Gauss-Legendre (exact Fresnel of a dielectric is smooth on [0, 1]).
-    """
-    c, w = cosine_rule()
-    return np.tensordot(w, np.asarray(reflectance_of_cosine(c), dtype=np.float64), axes=(0, 0))
+__all__ = ["Fresnel"]
 
 
 class Fresnel(Model):
@@ -93,7 +24,7 @@ class Fresnel(Model):
         T = (1 - F(N.L)) (1 - F(N.V)) / (1 - F_avg)     energy = "coupled"
         T = 1                                          energy = "none"
 
-    where F_avg = 2 int_0^1 F(c) c dc (:func:`hemispherical_average`). Light crosses the
+    where F_avg = 2 int_0^1 F(c) c dc (:func:`atlasgen.optics.quadrature.hemispherical_average`). Light crosses the
     coat going in and coming out; the 1 / (1 - F_avg) returns what the coat reflects back
     inside, to first order, as Mitsuba's ``plastic`` does with ``nonlinear = false``
     (there written diff / (1 - F_dr,int) / eta^2; by reciprocity eta^2 (1 - F_dr,int) =
@@ -145,3 +76,18 @@ class Fresnel(Model):
         gain = f_v / float(normal_reflectance(values["ior"])) if values["normalise"] else f_v
         out[..., 3] = values["specular"] * gain
         return out
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """Mitsuba's ``roughplastic``: exact Fresnel, and a Beckmann lobe of the same width as the
+        renderer's Blinn-Phong (:func:`atlasgen.optics.specular.blinn_phong_alpha`)."""
+        colour = np.asarray(values["colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        return Reference({
+            "type": "roughplastic",
+            "distribution": "beckmann",
+            "alpha": blinn_phong_alpha(gloss),
+            "int_ior": float(values["ior"]),
+            "ext_ior": 1.0,
+            "diffuse_reflectance": {"type": "rgb", "value": colour.tolist()},
+            "specular_reflectance": {"type": "rgb", "value": [min(1.0, float(values["specular"]))] * 3},
+            "nonlinear": False,
+        }, "Mitsuba roughplastic: exact Fresnel, Beckmann lobe of the renderer's width")  # fmt: skip

@@ -8,6 +8,7 @@ approximation, so the film-free limit is exact.
 
 from __future__ import annotations
 
+import json
 from functools import cache
 
 import numpy as np
@@ -15,8 +16,10 @@ import numpy as np
 from atlasgen.errors import MaterialError
 from atlasgen.materials.params import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
-from atlasgen.models.base import Model
-from atlasgen.models.fresnel import cosine_rule, normal_reflectance
+from atlasgen.models.base import THIN_FILM_REFERENCE, Model, Reference
+from atlasgen.optics.specular import blinn_phong_alpha
+from atlasgen.optics.fresnel import normal_reflectance
+from atlasgen.optics.quadrature import cosine_rule
 
 __all__ = [
     "Iridescent",
@@ -322,4 +325,19 @@ class Iridescent(Model):
             alpha = alpha / float(normal_reflectance(values["base_ior"], values["base_k"]))
         out[..., 3] = alpha
         return out
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: a Beckmann microfacet BSDF of the renderer's
+        lobe width whose Fresnel term is the film stack's Airy reflectance per wavelength, over
+        the base colour (:mod:`atlasgen.models.thin_film`)."""
+        film = {k: values[k] for k in ("thickness", "film_ior", "base_ior", "base_k")}
+        return Reference({
+            "type": THIN_FILM_REFERENCE,
+            "film": json.dumps(film, sort_keys=True),
+            "alpha": blinn_phong_alpha(gloss),
+            "colour_r": float(values["colour"][0] * albedo[0]),
+            "colour_g": float(values["colour"][1] * albedo[1]),
+            "colour_b": float(values["colour"][2] * albedo[2]),
+        }, "thin-film Beckmann microfacet, Airy reflectance per wavelength (llvm_ad_spectral)",
+            variant="llvm_ad_spectral")  # fmt: skip
 

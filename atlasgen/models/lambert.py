@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.materials.params import Param
-from atlasgen.models.base import Model
+from atlasgen.models.base import Model, Reference
 
 __all__ = ["Lambert"]
 
@@ -28,3 +28,13 @@ class Lambert(Model):
         out = np.zeros(shape + (4,))
         out[..., :3] = np.maximum(nl, 0.0)[..., None] * np.asarray(values["colour"])
         return out
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """Mitsuba's own ``diffuse`` with reflectance albedo * colour: the consistency gate.
+
+        It shares no code with atlasgen, so agreement proves that units, pi, camera and
+        tone map line up.
+        """
+        colour = np.asarray(values["colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        return Reference({"type": "diffuse", "reflectance": {"type": "rgb", "value": colour.tolist()}},
+                         "Mitsuba diffuse (the consistency gate)")  # fmt: skip

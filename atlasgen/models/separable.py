@@ -8,13 +8,14 @@ and the bake/encode/finalize hooks. Mitsuba is imported only for ``source = "mit
 from __future__ import annotations
 
 import time
+import json
 from functools import lru_cache
 
 import numpy as np
 
 from atlasgen.errors import MaterialError
 from atlasgen.materials.params import Param
-from atlasgen.models.base import EncodedSlices, Model, SliceSet
+from atlasgen.models.base import BRDF_REFERENCE, EncodedSlices, Model, RadianceRebuild, Reference, SliceSet
 
 __all__ = ["Separable", "MAX_AUTO_TERMS"]
 
@@ -61,6 +62,10 @@ class Separable(Model):
 
     type_name = "separable"
     reference = "Kautz & McCool 1999; f cos ~ sum_k g_k(pi1) h_k(pi2), truncated SVD"
+    # The slices hold factors, not an (N.L, N.V) table: the lighting pass rebuilds f cos with
+    # the include's code, and the bake's error claims take the place of the LUT goals.
+    custom_lighting = True
+    validation_goals = False
     params = (
         Param("source", "ggx", "choice", choices=SOURCES, doc="the BRDF to factor"),
         Param("alpha", 0.2, "float", lo=0.0, hi=4.0, lo_open=True, doc="roughness (GGX, Beckmann, Ward)"),
@@ -267,11 +272,59 @@ class Separable(Model):
 
     # -- shader -----------------------------------------------------------------------------------
     @classmethod
-    def include_wgsl(cls, entries: list[dict]) -> str:
+    def include_wgsl(cls, entries: list) -> str:
         """WGSL that rebuilds f cos(theta_l) of each separable material from the atlas."""
         from atlasgen.separable.shader import separable_wgsl
 
         return separable_wgsl(entries)
+
+    @classmethod
+    def lighting_wgsl(cls, entry) -> str:
+        """The include's ``separable_f_cos_NAME``: f cos rebuilt from the factors at mip level 0, in 1/sr."""
+        from atlasgen.separable.shader import wgsl_function_name
+
+        return f"separable_f_cos_{wgsl_function_name(entry.name)}(atlas, samp, n, l, v)"
+
+    # -- references and validation -------------------------------------------------------------
+    def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """The source BSDF itself times the albedo (``atlasgen_brdf``), f cos for the full (w_i, w_o):
+        the renderer adds L += E albedo f cos with f rebuilt from the factors."""
+        src = values.get("source")
+        material = {"params": values, "albedo": [float(a) for a in albedo]}
+        return Reference({"type": BRDF_REFERENCE, "material": json.dumps(material, sort_keys=True)},
+                         f"source BSDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else ""))  # fmt: skip
+
+    def radiance_rebuilds(self, entry, atlas_path):
+        """``"8bit"``: the include's sum over the 8-bit factors in float64
+        (:func:`atlasgen.separable.rebuild.evaluate_factors`), L = E albedo f cos. The float
+        factors are not in the atlas, so there is no ``"float"`` rebuild."""
+        from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
+
+        factors = read_separable_factors(atlas_path, entry.name)
+
+        def radiance(n, l, v, albedo, gloss, irradiance):
+            return irradiance * albedo * evaluate_factors(factors, n, l, v, cosine=True)
+
+        return {"8bit": RadianceRebuild("the include's rebuild in float64 on the CPU (atlasgen.separable)", radiance)}
+
+    def claimed_errors(self, entry):
+        """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K."""
+        factors = entry.factors
+        return {
+            "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
+            "relative_rms_float": None if factors.errors is None else factors.errors.float_error.relative_rms,
+            "terms": factors.terms,
+        }
+
+    # -- reports ----------------------------------------------------------------------------------
+    def describe_representation(self, entry) -> str:
+        factors, rep = entry.factors, entry.representation
+        terms = factors.terms if factors.terms is not None else entry.slice_count
+        param = factors.parametrization
+        grid = factors.sampling_grid
+        budget = getattr(rep, "error_budget", None)
+        return (f"separable, {terms} term(s){', ' + param if param else ''}"
+                f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
 
 
 def _rounded(array) -> list:

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from functools import cache
-
 import numpy as np
 
 from atlasgen.errors import MaterialError
 from atlasgen.materials.params import Param
-from atlasgen.models.base import Model
+from atlasgen.models.base import Model, Reference
+from atlasgen.optics.quadrature import integrate_gauss_legendre
 
-__all__ = ["Subsurface", "preintegrate_ring", "SKIN_VARIANCES", "SKIN_WEIGHTS"]
+__all__ = ["Subsurface", "preintegrate_ring", "skin_medium", "SKIN_VARIANCES", "SKIN_WEIGHTS",
+           "SKIN1_SIGMA_S_REDUCED", "SKIN1_SIGMA_A", "SKIN1_IOR"]  # fmt: skip
 
 #: d'Eon & Luebke, "Advanced Techniques for Realistic Real-Time Skin Rendering",
 #: GPU Gems 3 ch. 14 (2007), the six-Gaussian skin fit: variances in mm^2 ...
@@ -25,27 +25,19 @@ SKIN_WEIGHTS = (
     (0.078, 0.0, 0.0),
 )
 
+#: Jensen, Marschner, Levoy & Hanrahan, "A Practical Model for Subsurface Light Transport",
+#: SIGGRAPH 2001, table 2, Skin1 (per mm): the physical reference's medium.
+SKIN1_SIGMA_S_REDUCED = (0.74, 0.88, 1.01)
+SKIN1_SIGMA_A = (0.032, 0.17, 0.48)
+SKIN1_IOR = 1.3
+#: World radius of the validation scenes' sphere (unit sphere scaled by 0.5).
+_SPHERE_RADIUS = 0.5
+
 # Half-width of a Gaussian's kernel on the ring, in standard deviations 1/sqrt(kappa):
 # since sin(x/2) >= x/pi on [0, pi], beyond it the kernel is below exp(-2 * 12^2 / pi^2),
 # about 2e-13 of its peak.
 _KERNEL_SIGMAS = 12.0
 _CHUNK = 2048
-
-
-@cache
-def _legendre(n: int = 32):
-    nodes, weights = np.polynomial.legendre.leggauss(n)
-    nodes.setflags(write=False)
-    weights.setflags(write=False)
-    return nodes, weights
-
-
-def _gauss_legendre(lo, hi, integrand):
-    """int_lo^hi integrand(x) dx over broadcast intervals, 32-point Gauss-Legendre."""
-    x, w = _legendre()
-    half = 0.5 * (hi - lo)
-    xs = (0.5 * (hi + lo))[..., None] + half[..., None] * x
-    return half * (integrand(xs) @ w)
 
 
 def _ring_integrals(theta, kappa):
@@ -67,7 +59,7 @@ def _ring_integrals(theta, kappa):
         s = np.sin(0.5 * x)
         return np.exp(-2.0 * kappa[:, None] * s * s)
 
-    z = _gauss_legendre(-half_width, half_width, kernel)
+    z = integrate_gauss_legendre(kernel, -half_width, half_width)
     th = theta[:, None]  # (P, 1)
     w = half_width[None, :]  # (1, G)
     k = kappa[None, :]
@@ -94,7 +86,7 @@ def _ring_integrals(theta, kappa):
         return (1.0 - 2.0 * s2) * np.exp(-2.0 * kappa_piece[:, None] * s2)
 
     c_part = np.zeros(lo.shape)
-    c_part[pieces] = _gauss_legendre(lo[pieces], hi[pieces], cos_kernel)
+    c_part[pieces] = integrate_gauss_legendre(cos_kernel, lo[pieces], hi[pieces])
     c_part = c_part.sum(axis=0)
     s_part = sin_part(lo, hi).sum(axis=0)  # exactly 0 on empty pieces
     n = np.cos(th) * c_part - np.sin(th) * s_part
@@ -183,4 +175,45 @@ class Subsurface(Model):
         out[..., :3] = d * np.asarray(values["colour"])
         out[..., 3] = values["specular"]
         return out
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """Light transport through measured skin inside the sphere (:func:`skin_medium`), by ``volpath``.
+
+        The boundary is index-matched (Mitsuba ``null``): next-event estimation cannot pass
+        a smooth dielectric to reach a point light, so a dielectric sphere would be lit only
+        indirectly. The interface's Fresnel reflection is the price (docs/validation.md).
+        """
+        medium, _ = skin_medium(values["radius"])
+        return Reference(
+            {"type": "null"},
+            "volpath through Jensen 2001 Skin1 inside the sphere, index-matched boundary (plane: diffuse stand-in)",
+            integrator={"type": "volpath", "max_depth": 256, "rr_depth": 64},
+            interior=medium,
+            stochastic=True,
+            builtin_only=True,
+        )
+
+
+def skin_medium(radius_mm: float, object_radius: float = _SPHERE_RADIUS):
+    """``(homogeneous medium dict, ior)``: Jensen et al.'s Skin1 scaled to a curvature radius.
+
+    The reduced scattering coefficient with an isotropic phase function (the similarity
+    relation). Coefficients per scene unit are the per-mm ones times
+    (radius_mm / object_radius), so an object of ``object_radius`` is as large, in mean
+    free paths, as a ``radius_mm`` ball of skin: the scale Penner's pre-integration assumes.
+    """
+    mm_per_unit = float(radius_mm) / float(object_radius)
+    s = np.asarray(SKIN1_SIGMA_S_REDUCED) * mm_per_unit
+    a = np.asarray(SKIN1_SIGMA_A) * mm_per_unit
+    t = s + a
+    medium = {
+        "type": "homogeneous",
+        # RGB values must lie in [0, 1]: the largest coefficient goes into ``scale``.
+        "sigma_t": {"type": "rgb", "value": (t / t.max()).tolist()},
+        "scale": float(t.max()),
+        "albedo": {"type": "rgb", "value": (s / t).tolist()},
+        "phase": {"type": "isotropic"},
+        "sample_emitters": True,
+    }
+    return medium, SKIN1_IOR
 

@@ -1,1 +1,2 @@
-"""Shared formulas: sRGB, 8-bit encoding, Fresnel, microfacet terms, quadrature, atlas interpolation."""
+"""Shared formulas, one implementation each: sRGB, 8-bit encoding, Fresnel, microfacet terms,
+quadrature, atlas interpolation, display transforms, the renderer's specular lobe."""

@@ -1,4 +1,8 @@
-"""8-bit quantisation of atlas levels, and its exact inverse as a GPU sampler applies it."""
+"""8-bit quantisation (UNORM8, linear or sRGB) and its exact inverse as a GPU sampler applies it.
+
+The one encoding to and decoding from 8-bit codes: atlas levels, separable factors judged
+on what is stored, and display images on their way to PNG all go through it.
+"""
 
 from __future__ import annotations
 
@@ -10,9 +14,11 @@ __all__ = ["quantize_rgba", "dequantize_rgba"]
 
 
 def quantize_rgba(linear: np.ndarray, srgb: bool) -> np.ndarray:
-    """Linear RGBA in [0, 1] to RGBA8; RGB sRGB-encoded when ``srgb``, alpha always linear.
+    """Linear RGBA (or RGB) in [0, 1] to 8-bit codes; RGB sRGB-encoded when ``srgb``, alpha always linear.
 
-    Rounds to nearest (``np.rint``), as D3D's float-to-UNORM conversion does.
+    code = rint(255 clip(x, 0, 1)), rounding to nearest as D3D's float-to-UNORM conversion
+    does; with ``srgb`` the first three channels are encoded by :func:`encode_srgb` first.
+    Values already display-encoded (:mod:`atlasgen.optics.display`) use ``srgb=False``.
     """
     x = np.clip(linear, 0.0, 1.0)
     if srgb:
@@ -22,7 +28,7 @@ def quantize_rgba(linear: np.ndarray, srgb: bool) -> np.ndarray:
 
 
 def dequantize_rgba(texels: np.ndarray, srgb: bool) -> np.ndarray:
-    """RGBA8 to the linear floats a sampler returns (sRGB decoded for RGB when ``srgb``)."""
+    """8-bit codes (RGBA or RGB) to the floats a sampler returns: code / 255, or the sRGB decode of RGB when ``srgb``."""
     out = texels.astype(np.float64) / 255.0
     if srgb:
         out[..., :3] = SRGB_DECODE_LUT[texels[..., :3]]

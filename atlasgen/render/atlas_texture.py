@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.manifest import Manifest
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 
@@ -23,13 +24,13 @@ class RenderAtlas:
 
     levels: list
     srgb: bool
-    manifest: dict
+    manifest: Manifest
     include: str
     name: str = "atlas"
 
     @property
     def material_names(self) -> list[str]:
-        return sorted(m["name"] for m in self.manifest.get("materials", []))
+        return sorted(self.manifest.names)
 
     def __post_init__(self):
         if not self.levels:

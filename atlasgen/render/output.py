@@ -1,7 +1,8 @@
-"""Writing renders: a linear float EXR and a tone-mapped sRGB PNG, both through OpenImageIO.
+"""Writing renders: a linear float EXR with a display PNG beside it, and g-buffer layers as EXR.
 
-Files are replaced atomically (:mod:`atlasgen.io.atomic`): a failed write never leaves a
-half-written image or an EXR without its PNG.
+The files are encoded by :mod:`atlasgen.io.images` and replaced atomically
+(:mod:`atlasgen.io.atomic`): a failed write never leaves a half-written image or an EXR
+without its PNG.
 """
 
 from __future__ import annotations
@@ -11,76 +12,23 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.errors import OutputError
+from atlasgen.io.images import encode_exr, encode_png, write_exr
+from atlasgen.optics.display import display_aces
+from atlasgen.optics.quantize import quantize_rgba
 
-__all__ = ["tone_map", "encode_image", "write_exr", "write_png", "write_render", "write_aov", "aov_channels"]
-
-
-def tone_map(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """Linear radiance to 8-bit sRGB for display.
-
-    y = x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14) with x = exposure * L, clamped to
-    [0, 1] (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2015), then the sRGB transfer
-    function (IEC 61966-2-1) and rounding to nearest.
-    """
-    from atlasgen.optics.srgb import encode_srgb
-
-    x = np.maximum(np.nan_to_num(np.asarray(radiance, dtype=np.float64) * exposure, nan=0.0, posinf=1e6), 0.0)
-    y = np.clip(x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
-    return np.rint(encode_srgb(y) * 255.0).astype(np.uint8)
+__all__ = ["render_png", "write_render", "write_aov", "aov_channels"]
 
 
-def encode_image(pixels: np.ndarray, channel_names, pixel_type: str, suffix: str) -> bytes:
-    """The bytes of an image file (format from ``suffix``: ``.exr`` or ``.png``) written by OpenImageIO.
-
-    OpenImageIO writes to a path, so the file is made in a private temporary folder
-    and read back; callers then place it atomically.
-    """
-    import tempfile
-
-    import OpenImageIO as oiio
-
-    h, w, c = pixels.shape
-    spec = oiio.ImageSpec(w, h, c, pixel_type)
-    spec.channelnames = tuple(channel_names)
-    if suffix == ".exr":
-        spec.attribute("compression", "zip")
-    with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
-        path = str(Path(folder) / f"image{suffix}")
-        out = oiio.ImageOutput.create(path)
-        if out is None or not out.open(path, spec):
-            raise OutputError(f"cannot encode a {suffix} image ({oiio.geterror() or 'unknown format'})")
-        ok = out.write_image(np.ascontiguousarray(pixels))
-        error = out.geterror()
-        out.close()
-        if not ok:
-            raise OutputError(f"cannot encode a {suffix} image ({error})")
-        return Path(path).read_bytes()
-
-
-def _exr_bytes(radiance) -> bytes:
-    return encode_image(np.asarray(radiance, dtype=np.float32), ("R", "G", "B"), "float", ".exr")
-
-
-def _png_bytes(radiance, exposure) -> bytes:
-    return encode_image(tone_map(radiance, exposure), ("R", "G", "B"), "uint8", ".png")
-
-
-def write_exr(path, radiance: np.ndarray) -> None:
-    """Linear radiance ``(h, w, 3)`` as a float32 RGB OpenEXR (replaced atomically)."""
-    write_files_atomically({Path(path): _exr_bytes(radiance)})
-
-
-def write_png(path, radiance: np.ndarray, exposure: float = 1.0) -> None:
-    """``(h, w, 3)`` linear radiance, tone-mapped with :func:`tone_map`, as an 8-bit sRGB PNG."""
-    write_files_atomically({Path(path): _png_bytes(radiance, exposure)})
+def render_png(radiance: np.ndarray, exposure: float = 1.0) -> bytes:
+    """PNG bytes of ``(h, w, 3)`` linear radiance for viewing: :func:`~atlasgen.optics.display.display_aces`, 8 bits."""
+    return encode_png(quantize_rgba(display_aces(radiance, exposure), srgb=False))
 
 
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
-    """The EXR and, beside it, the PNG (same stem): both replaced, or neither."""
+    """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither."""
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
-    write_files_atomically({exr_path: _exr_bytes(radiance), png_path: _png_bytes(radiance, exposure)})
+    write_files_atomically({exr_path: encode_exr(radiance), png_path: render_png(radiance, exposure)})
     return [exr_path, png_path]
 
 
@@ -104,5 +52,4 @@ def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
 
 def write_aov(path, name: str, value: np.ndarray) -> None:
     """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), replaced atomically."""
-    pixels, channels = aov_channels(name, value)
-    write_files_atomically({Path(path): encode_image(pixels, channels, "float", ".exr")})
+    write_exr(path, *aov_channels(name, value))

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from atlasgen.errors import BackendError, SceneError
+from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
 from atlasgen.render.gbuffer import NO_MATERIAL, OBJECT_UNIFORM_STRIDE, GBuffer, GBufferPass, pack_object
@@ -125,15 +126,16 @@ class Renderer:
 
     # ---- resources -------------------------------------------------------------------
 
-    def lighting_pass_for(self, separable_ids=frozenset()) -> LightingPass:
-        """The lighting pass compiled for the separable materials a scene actually shows.
+    def lighting_pass_for(self, shaded_ids=frozenset()) -> LightingPass:
+        """The lighting pass compiled for the materials a scene shows whose model shades them
+        itself (``custom_lighting``, e.g. separable BRDFs).
 
         A lighting shader that merely contains the separable reconstruction runs ~9x
         slower on lavapipe at 720p even when no pixel takes that branch (measured: 3.8 s
-        against 0.43 s for 16 lights and 4 translucent objects), so the branch is only
-        compiled in for scenes that use a separable material.
+        against 0.43 s for 16 lights and 4 translucent objects), so a model's own code is
+        only compiled in for scenes that use one of its materials.
         """
-        key = frozenset(separable_ids)
+        key = frozenset(shaded_ids)
         if key not in self._lighting_passes:
             self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, key)
         return self._lighting_passes[key]
@@ -184,7 +186,7 @@ class Renderer:
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj)
             model = object_matrix(obj)
-            object_data += pack_object(model, obj.albedo, obj.gloss, entry["first_slice"])
+            object_data += pack_object(model, obj.albedo, obj.gloss, entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
             centres.append(0.5 * (world.min(0) + world.max(0)))
@@ -200,11 +202,11 @@ class Renderer:
             layout=self.gbuffer_pass.object_layout,
             entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": 160}}],
         )
-        lighting_pass = self.lighting_pass_for(e["first_slice"] for e in entries if e.get("type") == "separable")
+        lighting_pass = self.lighting_pass_for(e.first_slice for e in entries if get_model(e.type).custom_lighting)
         lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.
-        wants_outlines = any(entry.get("flags", {}).get("outline") for entry in entries)
+        wants_outlines = any(entry.flag("outline") for entry in entries)
         opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
         translucent = sort_back_to_front(scene.objects, centres, scene.camera)
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,

@@ -9,6 +9,8 @@ import os
 from pathlib import Path
 
 from atlasgen.errors import InputError
+from atlasgen.io.manifest import MaterialEntry
+from atlasgen.models import get_model
 
 __all__ = ["write_library_report"]
 
@@ -21,20 +23,6 @@ def _read_json(path):
         return json.loads(path.read_text(encoding="utf-8"))
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
-
-
-def _representation(entry: dict) -> str:
-    rep = entry.get("representation") or {}
-    if entry["type"] == "separable":
-        terms = entry.get("terms", entry["slice_count"])
-        param = entry.get("parametrization", "")
-        grid = entry.get("sampling_grid")
-        budget = rep.get("error_budget")
-        return (f"separable, {terms} term(s){', ' + param if param else ''}"
-                f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
-    if rep.get("kind") == "lut":
-        return f"LUT, supersampling {rep['supersampling']}x (budget {rep['error_budget']:g})"
-    return "LUT, point-sampled"
 
 
 def _validation_rows(validation: dict | None, name: str) -> list[dict]:
@@ -56,13 +44,13 @@ def _validation_pages(validation: dict | None, name: str) -> list[str]:
     return list(dict.fromkeys(pages))
 
 
-def _plotted_error(entry: dict, refs: list[dict], validated: bool):
+def _plotted_error(entry: MaterialEntry, refs: list[dict], validated: bool):
     """One error per material on one scale: validation's linear RMSE against the model
     reference when there is a validation run, else the manifest's quantisation RMS."""
     if validated:
         front = [r for r in refs if r["reference"] == "front/model" and r.get("linear_rmse") is not None]
         return max(front[0]["linear_rmse"], 1e-7) if front else None
-    return max(entry["quantization_error"]["rms"], 1e-7)
+    return max(entry.quantization_error.rms, 1e-7)
 
 
 def _fmt(x, spec=".3g"):
@@ -80,7 +68,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
 
     from atlasgen.io.atlas import read_atlas
     from atlasgen.io.atomic import write_file_atomically, write_files_atomically
-    from atlasgen.bake.preview import encode_png, slice_display_image
+    from atlasgen.bake.preview import slice_png
 
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
@@ -90,19 +78,19 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     out_dir = Path(out_dir)
 
     rows, points, files = [], [], {}
-    srgb = atlas.manifest["encoding"] == "srgb"
-    for entry in atlas.manifest["materials"]:
-        name = entry["name"]
+    srgb = atlas.manifest.srgb
+    for entry in atlas.manifest.materials:
+        name = entry.name
         previews = []
-        for k in range(entry["slice_count"]):
+        for k, s in enumerate(entry.slices):
             rel = f"slices/{name}-{k}.png"
-            files[out_dir / rel] = encode_png(slice_display_image(atlas.image.levels[0], entry["first_slice"] + k, srgb), zoom=2)
+            files[out_dir / rel] = slice_png(atlas.image.levels[0], s, srgb, zoom=2)
             previews.append(rel)
         bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
         refs = _validation_rows(validation, name)
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name)))
         if bake_s is not None:
-            points.append((name, bake_s, _plotted_error(entry, refs, validation is not None), entry["type"]))
+            points.append((name, bake_s, _plotted_error(entry, refs, validation is not None), entry.type))
 
     y_label = ("linear RMSE vs model reference" if validation is not None else "RMS quantisation error, linear")
     points = [p for p in points if p[2] is not None]
@@ -147,7 +135,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         "td,th{border:1px solid #ccc;padding:4px 8px;vertical-align:top;font-size:90%}img{image-rendering:pixelated}</style>",
         "</head><body>",
         f"<h1>Material library: {e(Path(atlas_path).as_posix())}</h1>",
-        f"<p>{len(rows)} materials, {e(atlas.manifest['encoding'])} encoding, {e(atlas.manifest['layout'])} layout. "
+        f"<p>{len(rows)} materials, {e(atlas.manifest.encoding)} encoding, {e(atlas.manifest.layout)} layout. "
         "Every figure is read from the bake's manifest and timings, and from validation's report.json.</p>",
     ]
     links = [link(Path(validation_dir) / "index.html" if validation_dir else None, "validation report"),
@@ -159,7 +147,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     parts.append("<table><tr><th>ID</th><th>material</th><th>type</th><th>representation</th><th>bake (ms)</th>"
                  "<th>quantisation error (max / RMS)</th><th>errors against references</th><th>slices (RGB | A)</th></tr>")
     for entry, previews, bake_s, refs, pages in rows:
-        q = entry["quantization_error"]
+        q = entry.quantization_error
         ref_text = "<br>".join(
             f"{e(r['reference'])}: PSNR {_fmt(r['psnr'], '.1f')} dB, FLIP {_fmt(r['flip'], '.4f')}, "
             f"atlas {_fmt(r['speed_ratio'], '.1f')}x faster"
@@ -168,11 +156,11 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         own = [link(Path(validation_dir) / page, "validation page") for page in pages] if validation_dir else []
         if any(own):
             ref_text += "<br>" + " · ".join(x for x in own if x)
-        imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry["name"])} slice">' for p in previews)
+        imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry.name)} slice">' for p in previews)
         parts.append(
-            f"<tr><td>{entry['first_slice']}</td><td>{e(entry['name'])}</td><td>{e(entry['type'])}</td>"
-            f"<td>{e(_representation(entry))}</td><td>{_fmt(None if bake_s is None else bake_s * 1e3, '.2f')}</td>"
-            f"<td>{q['max']:.4f} / {q['rms']:.4f}</td><td>{ref_text}</td><td>{imgs}</td></tr>"
+            f"<tr><td>{entry.first_slice}</td><td>{e(entry.name)}</td><td>{e(entry.type)}</td>"
+            f"<td>{e(get_model(entry.type).describe_representation(entry))}</td><td>{_fmt(None if bake_s is None else bake_s * 1e3, '.2f')}</td>"
+            f"<td>{q.max:.4f} / {q.rms:.4f}</td><td>{ref_text}</td><td>{imgs}</td></tr>"
         )
     parts.append("</table></body></html>")
     index = out_dir / "index.html"

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.models.separable import Separable
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
 from atlasgen.separable.factorize import factorize
@@ -64,8 +65,6 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     l, v = pairs
     name = params["parametrization"]
     p = get_parametrization(name)
-
-    from atlasgen.models.separable import Separable
 
     grids = Separable.sampling_grids(params)
     chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
@@ -285,9 +284,9 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
 
     from atlasgen.io.atomic import staged_folder
 
-    materials = [m for m in materials if m.type == "separable"]
+    materials = [m for m in materials if isinstance(m.model, Separable)]
     if not materials:
-        raise InputError("no separable materials to report on; expected TOML files with type = \"separable\"")
+        raise InputError(f"no separable materials to report on; expected TOML files with type = \"{Separable.type_name}\"")
     folder = Path(output)
     studies = [study_material(m, atlas_path, resolutions, repeats, parametrizations) for m in materials]
     # Staged, then moved into place: an interrupted run never leaves a half-written

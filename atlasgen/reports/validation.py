@@ -21,12 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.optics.display import display_clip
+from atlasgen.optics.quantize import quantize_rgba
 
 __all__ = [
     "build_report",
     "report_dict",
-    "encode_png",
     "plot_speed_error",
     "image_name",
     "merge_validation_reports",
@@ -41,14 +43,9 @@ _KIND_LABEL = {
 }
 
 
-def encode_png(rgb01) -> bytes:
-    """PNG bytes of an ``(h, w, 3)`` image in [0, 1] (8 bits per channel)."""
-    from PIL import Image
-
-    data = np.clip(np.round(np.asarray(rgb01, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
-    buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(data), "RGB").save(buffer, format="PNG", optimize=False)
-    return buffer.getvalue()
+def _display_png(rgb01) -> bytes:
+    """PNG bytes of an ``(h, w, 3)`` display image in [0, 1] (already sRGB-encoded), 8 bits per channel."""
+    return encode_png(quantize_rgba(np.asarray(rgb01, dtype=np.float64), srgb=False))
 
 
 def image_name(material: str, scene: str, what: str) -> str:
@@ -61,8 +58,9 @@ def _finite(x):
 
 
 def _goal(run, ref, goals) -> bool | None:
-    """Whether a LUT material meets the model-reference goals (None where they don't apply)."""
-    if ref.kind != "model" or run.type == "separable":
+    """Whether a material meets the model-reference goals (None where they don't apply:
+    other references, and models whose manifest claims its own error, ``Model.validation_goals``)."""
+    if ref.kind != "model" or not run.goals:
         return None
     return bool(ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"])
 
@@ -111,8 +109,9 @@ def report_dict(run) -> dict:
 
 
 def _summary(rows: list) -> dict:
-    """The goals line, from the JSON rows (so a merged report recomputes it the same way)."""
-    lut = [row["references"]["model"] for row in rows if row["type"] != "separable" and "model" in row["references"]]
+    """The goals line, from the JSON rows (so a merged report recomputes it the same way): over
+    the model-reference results the goals apply to (``meets_goal`` not null)."""
+    lut = [ref for row in rows if (ref := row["references"].get("model")) is not None and ref["meets_goal"] is not None]
     return {
         "lut_results": len(lut),
         "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
@@ -262,15 +261,15 @@ def _html(data: dict) -> str:
 
 def build_report(run, out_dir) -> dict:
     """``{path: bytes}`` of every report file under ``out_dir``."""
-    from atlasgen.validate.metrics import flip_heatmap, tonemap
+    from atlasgen.validate.metrics import flip_heatmap
 
     out_dir = Path(out_dir)
     files = {}
     for r in run.runs:
-        files[out_dir / image_name(r.material, r.scene, "atlas")] = encode_png(tonemap(r.atlas_image, r.exposure))
+        files[out_dir / image_name(r.material, r.scene, "atlas")] = _display_png(display_clip(r.atlas_image, r.exposure))
         for kind, ref in r.references.items():
-            files[out_dir / image_name(r.material, r.scene, kind)] = encode_png(tonemap(ref.image, r.exposure))
-            files[out_dir / image_name(r.material, r.scene, f"flip-{kind}")] = encode_png(flip_heatmap(ref.metrics.flip_map))
+            files[out_dir / image_name(r.material, r.scene, kind)] = _display_png(display_clip(ref.image, r.exposure))
+            files[out_dir / image_name(r.material, r.scene, f"flip-{kind}")] = _display_png(flip_heatmap(ref.metrics.flip_map))
     files.update(_page_files(report_dict(run), out_dir))
     return files
 

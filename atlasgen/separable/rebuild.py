@@ -1,25 +1,25 @@
 """Rebuild f from separable factors: from float factors, or from an atlas file as a GPU would.
 
 The interpolation is the GPU's: linear filtering between texel centres, clamped
-at the edge texels, one mip level (level 0). Each factor texture of a term is one
+at the edge texels (:mod:`atlasgen.optics.interpolation`), one mip level (level 0). Each factor texture of a term is one
 32x32 half of the term's 64x32 slice (g left, h right), so the coordinates below
 stay inside the half and never blend across the seam.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.manifest import read_manifest
+from atlasgen.optics.interpolation import linear_stencil
+from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
 
 __all__ = [
-    "interpolate_1d",
-    "interpolate_2d",
     "sample_factors",
     "evaluate_factors",
     "factors_from_slices",
@@ -27,35 +27,6 @@ __all__ = [
     "evaluate_separable",
     "cached_on_pairs",
 ]
-
-
-def _stencil_1d(n: int, x):
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, n - 1)
-    i0 = np.minimum(np.floor(x).astype(np.intp), max(n - 2, 0))
-    f = x - i0
-    return i0, np.minimum(i0 + 1, n - 1), f
-
-
-def interpolate_1d(table: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Linear interpolation of ``table[..., n]`` at continuous texel coordinates x in [0, n-1].
-
-    Coordinates outside are clamped to the edge texels (a clamp-to-edge sampler).
-    """
-    i0, i1, f = _stencil_1d(table.shape[-1], x)
-    return np.take(table, i0, axis=-1) * (1.0 - f) + np.take(table, i1, axis=-1) * f
-
-
-def interpolate_2d(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of ``table[..., ny, nx]`` at texel coordinates (x, y), clamped."""
-    ny, nx = table.shape[-2:]
-    x0, x1, fx = _stencil_1d(nx, x)
-    y0, y1, fy = _stencil_1d(ny, y)
-    flat = table.reshape(table.shape[:-2] + (ny * nx,))
-    out = np.take(flat, y0 * nx + x0, axis=-1) * ((1 - fx) * (1 - fy))
-    out += np.take(flat, y0 * nx + x1, axis=-1) * (fx * (1 - fy))
-    out += np.take(flat, y1 * nx + x0, axis=-1) * ((1 - fx) * fy)
-    out += np.take(flat, y1 * nx + x1, axis=-1) * (fx * fy)
-    return out
 
 
 class _Stencil:
@@ -72,9 +43,9 @@ class _Stencil:
         n = resolution
         self.valid = valid
         count = np.size(valid)
-        i0, i1, f = _stencil_1d(n, x1)
-        x0, xa, fx = _stencil_1d(n, x2)
-        y0, ya, fy = _stencil_1d(n, y2)
+        i0, i1, f = linear_stencil(n, x1)
+        x0, xa, fx = linear_stencil(n, x2)
+        y0, ya, fy = linear_stencil(n, y2)
 
         def matrix(indices, weights, columns):
             rows = np.repeat(np.arange(count), len(indices))
@@ -233,35 +204,24 @@ def read_separable_factors(atlas_path, material: str) -> Factors:
     InputError
         The atlas or manifest is missing, or has no separable material of that name.
     """
-    from atlasgen.optics.srgb import SRGB_DECODE_LUT
-
     path = Path(atlas_path)
     manifest_path = path.with_suffix(".json")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{manifest_path.as_posix()}: no such file (the manifest beside the atlas)") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"{manifest_path.as_posix()}: cannot read the manifest ({exc})") from None
-    entries = [m for m in manifest.get("materials", []) if m.get("name") == material]
-    if not entries:
-        names = ", ".join(m.get("name", "?") for m in manifest.get("materials", []) if m.get("type") == "separable")
-        raise InputError(f"{manifest_path.as_posix()}: no material {material!r}; separable materials: {names or 'none'}")
-    entry = entries[0]
-    if entry.get("type") != "separable":
-        raise InputError(f"{manifest_path.as_posix()}: material {material!r} is {entry.get('type')!r}, not 'separable'")
+    if not manifest_path.exists():
+        raise InputError(f"{manifest_path.as_posix()}: no such file (the manifest beside the atlas)")
+    manifest = read_manifest(manifest_path)
+    entry = manifest.entry_named(material)
+    if entry is None or entry.factors is None:
+        names = ", ".join(m.name for m in manifest.materials if m.factors is not None) or "none"
+        what = f"no material {material!r}" if entry is None else f"material {material!r} is {entry.type!r}, not 'separable'"
+        raise InputError(f"{manifest_path.as_posix()}: {what}; separable materials: {names}")
     try:
         level0, srgb_format = _read_dds_levels(path)
     except FileNotFoundError:
         raise InputError(f"{path.as_posix()}: no such file") from None
-    first, count = int(entry["first_slice"]), int(entry["slice_count"])
-    texels = level0[first : first + count]
-    decoded = texels.astype(np.float64) / 255.0
-    if srgb_format or manifest.get("encoding") == "srgb":
-        decoded[..., :3] = SRGB_DECODE_LUT[texels[..., :3]]
-    return factors_from_slices(
-        decoded, entry["factor_scale"], entry["factor_bias"], entry["parametrization"], entry.get("target", "f_cos")
-    )
+    texels = level0[entry.first_slice : entry.first_slice + entry.slice_count]
+    decoded = dequantize_rgba(texels, srgb_format or manifest.srgb)
+    factors = entry.factors
+    return factors_from_slices(decoded, factors.factor_scale, factors.factor_bias, factors.parametrization, factors.target)
 
 
 def evaluate_separable(atlas_path, material: str, n, l, v, cosine: bool = False) -> np.ndarray:

@@ -15,6 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from atlasgen.optics.interpolation import linear_stencil
 from atlasgen.separable.factorize import Factors
 
 __all__ = ["interpolation_matrix", "resampling_matrix", "resample_factors"]
@@ -23,17 +24,16 @@ __all__ = ["interpolation_matrix", "resampling_matrix", "resample_factors"]
 def interpolation_matrix(source: int, target: int) -> np.ndarray:
     """``(target, source)`` matrix of linear interpolation between endpoint-inclusive grids.
 
-    Row j holds the weights of the two source samples around t = j / (target - 1).
+    Row j holds the weights of the two source samples around t = j / (target - 1), as a
+    linear filter reads them (:func:`atlasgen.optics.interpolation.linear_stencil`).
     """
     if source < 2 or target < 2:
         raise ValueError(f"grids need at least 2 samples, got {source} -> {target}")
-    x = np.arange(target, dtype=np.float64) * (source - 1) / (target - 1)
-    i0 = np.minimum(np.floor(x).astype(np.intp), source - 2)
-    frac = x - i0
+    i0, i1, frac = linear_stencil(source, np.arange(target, dtype=np.float64) * (source - 1) / (target - 1))
     matrix = np.zeros((target, source))
     rows = np.arange(target)
     matrix[rows, i0] = 1.0 - frac
-    matrix[rows, i0 + 1] += frac
+    matrix[rows, i1] += frac
     return matrix
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 
+from atlasgen.io.manifest import MaterialEntry
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
 
@@ -115,16 +116,17 @@ def _coords_function(name: str) -> str:
     )
 
 
-def _material_function(entry: dict) -> str:
-    fn = wgsl_function_name(entry["name"])
-    first = int(entry["first_slice"])
-    p = get_parametrization(entry["parametrization"])
-    target = entry.get("target", "f_cos")
-    scale = entry["factor_scale"]
-    bias = entry["factor_bias"]
+def _material_function(entry: MaterialEntry) -> str:
+    fn = wgsl_function_name(entry.name)
+    first = entry.first_slice
+    factors = entry.factors
+    p = get_parametrization(factors.parametrization)
+    target = factors.target
+    scale = factors.factor_scale
+    bias = factors.factor_bias
     lines = [
-        f"// Material '{entry['name']}': {len(scale)} term(s), slices {first}..{first + len(scale) - 1}, "
-        f"parametrization '{entry['parametrization']}'.",
+        f"// Material '{entry.name}': {len(scale)} term(s), slices {first}..{first + len(scale) - 1}, "
+        f"parametrization '{factors.parametrization}'.",
         f"const SEPARABLE_{fn.upper()}_FIRST_SLICE: u32 = {first}u;",
         f"fn separable_f_cos_{fn}(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {{",
         "    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {",
@@ -160,23 +162,23 @@ def _material_function(entry: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def separable_wgsl(entries: list[dict]) -> str:
-    """The WGSL include for the separable materials among ``entries`` (manifest entries).
+def separable_wgsl(entries: list[MaterialEntry]) -> str:
+    """The WGSL include for the entries among ``entries`` that store separable factors.
 
     Per material ``NAME``: ``separable_f_cos_NAME(atlas, samp, n, l, v)`` (f cos(theta_l),
     RGB, what a light's irradiance multiplies) and ``separable_f_NAME`` (f). And
     ``separable_f_cos(atlas, samp, material, n, l, v)``, which dispatches on the
     material's first slice (its g-buffer ID), 0 for other IDs.
     """
-    entries = [e for e in entries if e.get("type", "separable") == "separable"]
+    entries = sorted((e for e in entries if e.factors is not None), key=lambda e: e.first_slice)
     if not entries:
         return ""
-    used = sorted({e["parametrization"] for e in entries})
+    used = sorted({e.factors.parametrization for e in entries})
     parts = [_HEADER] + [_coords_function(name) for name in used]
-    parts += [_material_function(e) for e in sorted(entries, key=lambda e: int(e["first_slice"]))]
+    parts += [_material_function(e) for e in entries]
     cases = "\n".join(
-        f"        case {int(e['first_slice'])}u: {{ return separable_f_cos_{wgsl_function_name(e['name'])}(atlas, samp, n, l, v); }}"
-        for e in sorted(entries, key=lambda e: int(e["first_slice"]))
+        f"        case {e.first_slice}u: {{ return separable_f_cos_{wgsl_function_name(e.name)}(atlas, samp, n, l, v); }}"
+        for e in entries
     )
     parts.append(
         "fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {\n"

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.separable.factorize import Factors
 
 __all__ = ["FACTOR_RESOLUTION", "CHANNEL_LAYOUT", "factors_to_slices", "encode_factor_slices", "quantize_factors"]
@@ -83,16 +84,12 @@ def encode_factor_slices(values: np.ndarray):
 def quantize_factors(factors: Factors, srgb: bool = True) -> Factors:
     """The factors as an 8-bit atlas returns them: encode, round to UNORM8, decode, rescale.
 
-    RGB is sRGB-encoded when ``srgb`` (the default atlas encoding, IEC 61966-2-1), as
-    :func:`atlasgen.optics.quantize.quantize_rgba` does; used to judge candidates on what is
-    actually stored.
+    RGB is sRGB-encoded when ``srgb`` (the default atlas encoding, IEC 61966-2-1), by
+    :func:`atlasgen.optics.quantize.quantize_rgba` as the bake does; used to judge
+    candidates on what is actually stored.
     """
-    from atlasgen.optics.srgb import SRGB_DECODE_LUT, encode_srgb
     from atlasgen.separable.rebuild import factors_from_slices
 
     stored, scale, bias, _ = encode_factor_slices(factors_to_slices(factors))
-    rgb = stored[..., :3]
-    codes = np.rint((encode_srgb(rgb) if srgb else np.clip(rgb, 0.0, 1.0)) * 255.0).astype(np.intp)
-    decoded = np.zeros_like(stored)
-    decoded[..., :3] = SRGB_DECODE_LUT[codes] if srgb else codes / 255.0
+    decoded = dequantize_rgba(quantize_rgba(stored, srgb), srgb)
     return factors_from_slices(decoded, scale, bias, factors.parametrization, factors.target)

@@ -1,7 +1,8 @@
 // Deferred lighting: one full-screen pass loops over every light for each pixel.
-// Prepended by the generated atlas include (atlas_sample, ATLAS_* tables, and for
-// separable BRDFs separable_f_cos), the renderer's material_is_separable switch
-// (generated from the manifest) and common.wgsl.
+// Prepended by the generated atlas include (atlas_sample, ATLAS_* tables, and the code
+// models add, e.g. separable_f_cos_NAME), the renderer's material_has_shader and
+// material_f_cos switches (generated from the manifest and the models' lighting_wgsl)
+// and common.wgsl.
 //
 // Per light, with E the irradiance normal to the light direction at the surface:
 //
@@ -12,8 +13,9 @@
 // colour * max(N.L, 0)), so albedo * A.rgb / pi is a Lambertian BRDF times cos and
 // the 1/pi lives here, in the renderer. spec is a BRDF times cos as well.
 //
-// Separable materials store f cos itself (Kautz & McCool 1999), rebuilt by the
-// include's separable_f_cos at mip level 0: L += E * albedo * f cos.
+// Materials whose model shades them itself return f cos from material_f_cos, in 1/sr
+// (separable BRDFs rebuild it from their factors at mip level 0, Kautz & McCool 1999):
+// L += E * albedo * f cos.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> lights: array<Light>;
@@ -83,7 +85,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     let v = normalize(-ray);
     let n_dot_v = dot(n, v);
     let lod = atlas_lod(depth);
-    let separable = material_is_separable(material);
+    let custom = material_has_shader(material);
     let s = specular_exponent(albedo_gloss.a);
     let k = specular_normalisation(s);
 
@@ -98,9 +100,9 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
             l = d * inverseSqrt(d2);
             irradiance = irradiance / d2;
         }
-        if (separable) {
-            // The slices hold a factored BRDF: f cos comes back in 1/sr, no 1/pi here.
-            radiance += irradiance * albedo_gloss.rgb * separable_f_cos(atlas, atlas_sampler, material, n, l, v);
+        if (custom) {
+            // The model's own code returns f cos in 1/sr (a factored BRDF): no 1/pi here.
+            radiance += irradiance * albedo_gloss.rgb * material_f_cos(atlas, atlas_sampler, material, n, l, v);
         } else {
             let a = atlas_sample(atlas, atlas_sampler, material, dot(n, l), n_dot_v, lod);
             radiance += irradiance * (albedo_gloss.rgb * a.rgb / PI + a.a * specular(n, l, v, s, k));

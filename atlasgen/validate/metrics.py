@@ -1,7 +1,8 @@
-"""Image metrics on the same tone-mapped LDR image: RMSE, PSNR and mean FLIP.
+"""Image metrics on the same display image: RMSE, PSNR and mean FLIP.
 
-Every metric compares ``tonemap(test)`` with ``tonemap(reference)``, the 8-bit-ready
-sRGB image a user looks at, so dark and bright regions weigh as they are seen.
+Every metric compares ``display_clip(test)`` with ``display_clip(reference)``
+(:func:`atlasgen.optics.display.display_clip`), the sRGB image a user looks at, so dark
+and bright regions weigh as they are seen.
 """
 
 from __future__ import annotations
@@ -11,19 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["tonemap", "rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images"]
+from atlasgen.optics.display import display_clip
 
-
-def tonemap(linear, exposure: float = 1.0) -> np.ndarray:
-    """Linear radiance to display sRGB in [0, 1]: encode_srgb(clip(exposure * L, 0, 1)).
-
-    The sRGB transfer function is IEC 61966-2-1, eq. 5 (:func:`atlasgen.optics.srgb.encode_srgb`);
-    NaN maps to 0 so a broken pixel shows as an error, never as a crash.
-    """
-    from atlasgen.optics.srgb import encode_srgb
-
-    x = np.nan_to_num(np.asarray(linear, dtype=np.float64) * float(exposure), nan=0.0, posinf=1.0, neginf=0.0)
-    return encode_srgb(np.clip(x, 0.0, 1.0))
+__all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images"]
 
 
 def rmse(reference, test) -> float:
@@ -82,7 +73,7 @@ def flip_heatmap(error_map) -> np.ndarray:
 
 @dataclass
 class ImageMetrics:
-    """Metrics of a test image against a reference, both tone-mapped alike."""
+    """Metrics of a test image against a reference, both shown alike (:func:`display_clip`)."""
 
     rmse: float
     psnr: float
@@ -102,9 +93,9 @@ class ImageMetrics:
 
 
 def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True) -> ImageMetrics:
-    """RMSE and PSNR of the tone-mapped images, mean FLIP and its map; linear RMSE and relative RMS."""
-    ref_ldr = tonemap(reference, exposure)
-    test_ldr = tonemap(test, exposure)
+    """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS."""
+    ref_ldr = display_clip(reference, exposure)
+    test_ldr = display_clip(test, exposure)
     error_map, mean = flip(ref_ldr, test_ldr) if with_flip else (None, math.nan)
     return ImageMetrics(rmse(ref_ldr, test_ldr), psnr(ref_ldr, test_ldr), mean, rmse(reference, test),
                         relative_rms(reference, test), error_map)  # fmt: skip

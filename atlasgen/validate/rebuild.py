@@ -1,20 +1,17 @@
 """The atlas path recomputed on the CPU from the renderer's g-buffer.
 
-LUT materials (:func:`rebuild_lut_image`): the renderer's equation with the slice
-sampled bilinearly on the CPU, from either the 8-bit slice as baked or the model's
-float table at the same texel centres. Against the model reference these split what
-the atlas costs into resolution and filtering (float table) and 8-bit quantization
-(the difference between the two), and the GPU image against the 8-bit rebuild checks
-the renderer itself.
+Each model supplies CPU twins of its lighting (:meth:`atlasgen.models.base.Model.radiance_rebuilds`):
+the radiance one light adds at given normals, light and view directions, albedos and
+glosses, from the atlas's 8-bit texels (what the GPU samples) and, where the model can,
+from its own float data sampled the same way. :func:`rebuild_image` sums them over the
+scene's lights at the pixels the g-buffer holds (normals, depths, albedos, glosses).
 
-For a separable material the renderer adds, per light, L += E albedo f cos with f cos
-rebuilt from the K factor slices by the include's ``separable_f_cos`` (lighting.wgsl).
-:func:`rebuild_separable_image` evaluates the same sum in float64 with the public Python
-rebuild (:func:`atlasgen.separable.rebuild.evaluate_factors`), at the normals, depths
-and albedos the g-buffer holds. It splits the gap between the atlas image and the
-source BSDF in two: GPU image against this rebuild (the renderer's sampling and
-precision), and this rebuild against the source (the factorization and its 8 bits,
-weighted by what the scene shows), which is what the manifest's error claims.
+For a table model that splits what the atlas costs against the model reference into
+resolution and filtering (the float table), 8-bit quantization (the difference between
+the two) and the renderer's own precision (the GPU image against the 8-bit rebuild). For
+a separable material the 8-bit rebuild is the include's ``separable_f_cos`` in float64:
+the GPU image against it checks the renderer's sampling and precision, and it against the
+source BSDF measures the factorization and its 8 bits, weighted by what the scene shows.
 """
 
 from __future__ import annotations
@@ -23,34 +20,16 @@ import time
 
 import numpy as np
 
-from atlasgen.optics.interpolation import sample_slice
+from atlasgen.io.manifest import MaterialEntry
+from atlasgen.models.base import RadianceRebuild
 
-__all__ = ["rebuild_separable_image", "rebuild_lut_image", "sample_table", "lut_tables"]
-
-
-#: The slice as the renderer samples it (bilinear, or nearest for flagged slices).
-sample_table = sample_slice
+__all__ = ["rebuild_images", "rebuild_image", "material_mask"]
 
 
-class _TableModel:
-    """Stands in for a model: ``evaluate`` samples a table instead of the formula."""
-
-    def __init__(self, table, nearest=False):
-        self.table = np.asarray(table, dtype=np.float64)
-        self.nearest = nearest
-
-    def evaluate(self, values, n_dot_l, n_dot_v):
-        return sample_table(self.table, n_dot_l, n_dot_v, self.nearest)
-
-
-def lut_tables(atlas_path, entry: dict) -> dict:
-    """``{"float": model at texel centres, "8bit": the baked slice decoded}``, both linear ``(H, W, 4)``."""
-    from atlasgen.io.atlas import read_atlas
-    from atlasgen.models import get_model
-
-    baked = get_model(entry["type"]).bake(entry["params"]).values[0]
-    decoded = read_atlas(atlas_path).decode_slice(entry["first_slice"])
-    return {"float": baked, "8bit": decoded}
+def material_mask(entry: MaterialEntry, aovs: dict) -> np.ndarray:
+    """``(h, w)`` bool: the pixels whose g-buffer ID is one of ``entry``'s slices."""
+    ids = np.asarray(aovs["id"]).astype(np.int64)
+    return (ids >= entry.first_slice) & (ids < entry.first_slice + entry.slice_count)
 
 
 def _pixel_geometry(scene, aovs, mask):
@@ -75,60 +54,39 @@ def _light_at(light, x):
     return np.broadcast_to(-np.asarray(light.direction, dtype=np.float64), x.shape), np.broadcast_to(radiant, x.shape)
 
 
-def rebuild_lut_image(entry: dict, table: np.ndarray, scene, aovs: dict) -> np.ndarray:
-    """The renderer's equation at the g-buffer's pixels with A sampled from ``table`` (mip level 0).
+def rebuild_image(rebuild: RadianceRebuild, entry: MaterialEntry, scene, aovs: dict) -> np.ndarray:
+    """Linear image ``(h, w, 3)`` of ``entry``'s pixels: sum over the scene's lights of ``rebuild.radiance``.
 
-    L = sum over lights of E (albedo * A.rgb / pi + A.a k(s) max(N.H, 0)^s max(N.L, 0))
-    (:func:`atlasgen.validate.references.renderer_f_cos` with the table in place of the
-    model). The validation scenes lie within the renderer's level-0 distance.
+    ``rebuild`` is one of the model's
+    :meth:`~atlasgen.models.base.Model.radiance_rebuilds`; ``aovs`` are the renderer's
+    g-buffer read-backs (``normal``, ``depth``, ``albedo``, ``gloss``, ``id``). Pixels of
+    other materials and the background stay 0. The validation scenes lie within the
+    renderer's level-0 distance, which is what the rebuilds sample.
     """
-    from atlasgen.validate.references import renderer_f_cos
-
-    ids = np.asarray(aovs["id"]).astype(np.int64)
-    mask = ids == entry["first_slice"]
+    mask = material_mask(entry, aovs)
     out = np.zeros((scene.height, scene.width, 3))
     if not mask.any():
         return out.astype(np.float32)
     x, n, v = _pixel_geometry(scene, aovs, mask)
     albedo = np.asarray(aovs["albedo"], dtype=np.float64)[mask]
     gloss = np.asarray(aovs["gloss"], dtype=np.float64)[mask]
-    model = _TableModel(table, nearest=bool(entry.get("flags", {}).get("nearest")))
     total = np.zeros((len(x), 3))
     for light in scene.lights:
         l, irradiance = _light_at(light, x)
-        h = l + v
-        h2 = (h * h).sum(1)
-        nh = np.divide((n * h).sum(1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-        nl, nv = (n * l).sum(1), (n * v).sum(1)
-        for g in np.unique(gloss):
-            sel = gloss == g
-            f = renderer_f_cos(model, {}, albedo[sel], float(g), nl[sel], nv[sel], nh[sel], lv_degenerate=h2[sel] < 1e-12)
-            total[sel] += irradiance[sel] * f
+        total += rebuild.radiance(n, l, v, albedo, gloss, irradiance)
     out[mask] = total
     return out.astype(np.float32)
 
 
-def rebuild_separable_image(atlas_path, entry: dict, scene, aovs: dict) -> tuple[np.ndarray, float]:
-    """``(linear image (h, w, 3), seconds)`` of ``entry``'s pixels, rebuilt on the CPU.
-
-    ``aovs`` are the renderer's g-buffer read-backs (``normal``, ``depth``, ``albedo``,
-    ``id``). Pixels of other materials and the background stay 0.
-    """
-    from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
-
+def rebuild_images(model, entry: MaterialEntry, atlas_path, scene, aovs: dict) -> dict:
+    """``{name: (image, seconds, description)}`` for each of the model's rebuilds (``"8bit"``,
+    and ``"float"`` where it has one); the seconds include reading the atlas."""
     t0 = time.perf_counter()
-    first, count = entry["first_slice"], entry["slice_count"]
-    ids = np.asarray(aovs["id"]).astype(np.int64)
-    mask = (ids >= first) & (ids < first + count)
-    out = np.zeros((scene.height, scene.width, 3))
-    if not mask.any():
-        return out.astype(np.float32), time.perf_counter() - t0
-    factors = read_separable_factors(atlas_path, entry["name"])
-    x, n, v = _pixel_geometry(scene, aovs, mask)
-    albedo = np.asarray(aovs["albedo"], dtype=np.float64)[mask]
-    total = np.zeros((len(x), 3))
-    for light in scene.lights:
-        l, irradiance = _light_at(light, x)
-        total += irradiance * albedo * evaluate_factors(factors, n, l, v, cosine=True)
-    out[mask] = total
-    return out.astype(np.float32), time.perf_counter() - t0
+    rebuilds = model.radiance_rebuilds(entry, atlas_path)
+    setup = (time.perf_counter() - t0) / max(len(rebuilds), 1)
+    images = {}
+    for name, rebuild in rebuilds.items():
+        t0 = time.perf_counter()
+        image = rebuild_image(rebuild, entry, scene, aovs)
+        images[name] = (image, setup + time.perf_counter() - t0, rebuild.description)
+    return images

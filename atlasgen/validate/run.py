@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import BackendError, InputError, SceneError
+from atlasgen.io.manifest import Manifest
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -71,9 +72,10 @@ class MaterialRun:
     atlas_seconds: float
     exposure: float
     references: dict = field(default_factory=dict)  # kind -> ReferenceRender
-    claimed: dict | None = None  # separable: the errors the manifest claims
-    breakdown: dict | None = None  # LUT: the atlas's error split by cause (:func:`_break_down`)
+    claimed: dict | None = None  # the errors the manifest claims (Model.claimed_errors), and what the scene measures
+    breakdown: dict | None = None  # the atlas's error split by cause, where the model has a float rebuild (:func:`_break_down`)
     notes: list = field(default_factory=list)
+    goals: bool = True  # the model-reference goals apply (Model.validation_goals)
 
 
 @dataclass
@@ -88,7 +90,7 @@ class ValidationRun:
 @dataclass
 class _Plan:
     atlas_path: Path
-    manifest: dict
+    manifest: Manifest
     entries: list
     scenes: list  # (name, Scene)
 
@@ -105,19 +107,17 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
-    entries_by_name = {e["name"]: e for e in atlas.manifest.get("materials", [])}
+    entries_by_name = {e.name: e for e in atlas.manifest.materials}
     if materials:
         names = list(dict.fromkeys(_material_name(m, atlas_path, entries_by_name) for m in materials))
     else:
-        names = sorted(entries_by_name, key=lambda n: entries_by_name[n]["first_slice"])
+        names = sorted(entries_by_name, key=lambda n: entries_by_name[n].first_slice)
     entries = []
     for name in names:
         if name not in entries_by_name:
             known = ", ".join(sorted(entries_by_name)) or "none"
             raise InputError(f"{atlas_path.as_posix()}: no material {name!r}; known: {known}")
         entry = entries_by_name[name]
-        if "params" not in entry:
-            raise InputError(f"{atlas_path.with_suffix('.json').as_posix()}: material {name!r} has no 'params'; no reference can be built")
         model_reference(entry)  # raises InputError when no reference is possible
         _check_params_current(atlas_path, entry)
         entries.append(entry)
@@ -162,7 +162,7 @@ def _material_name(item, atlas_path, entries_by_name) -> str:
         known = ", ".join(sorted(entries_by_name)) or "none"
         raise InputError(f"{material.source}: material {material.name!r} is not in {atlas_path.as_posix()} "
                          f"(known: {known}); re-run atlasgen bake")  # fmt: skip
-    if entry.get("content_hash", material.content_hash) != material.content_hash:
+    if entry.content_hash != material.content_hash:
         raise InputError(f"{material.source}: changed since {atlas_path.as_posix()} was baked "
                          f"(its content hash differs from the manifest's); re-run atlasgen bake")  # fmt: skip
     return material.name
@@ -173,21 +173,21 @@ def _check_params_current(atlas_path, entry) -> None:
     refuse an atlas whose parameter set no longer matches (baked by another version)."""
     from atlasgen.models import get_model
 
-    expected = {p.name for p in get_model(entry["type"]).params}
-    got = set(entry["params"])
+    expected = {p.name for p in get_model(entry.type).params}
+    got = set(entry.params)
     if got != expected:
         missing, extra = sorted(expected - got), sorted(got - expected)
         what = "; ".join(x for x in (f"missing {', '.join(missing)}" if missing else "",
                                      f"unknown {', '.join(extra)}" if extra else "") if x)  # fmt: skip
         raise InputError(
-            f"{atlas_path.with_suffix('.json').as_posix()}: material {entry['name']!r}: parameters do not match the "
-            f"current '{entry['type']}' model ({what}); expected an atlas baked by this atlasgen: re-run atlasgen bake"
+            f"{atlas_path.with_suffix('.json').as_posix()}: material {entry.name!r}: parameters do not match the "
+            f"current '{entry.type}' model ({what}); expected an atlas baked by this atlasgen: re-run atlasgen bake"
         )
 
 
 def _object_entries(scene, entry, manifest) -> list:
     """Per object of a bound scene: its manifest entry (the material under test, or its own)."""
-    by_name = {e["name"]: e for e in manifest["materials"]}
+    by_name = {e.name: e for e in manifest.materials}
     return [by_name.get(o.material, entry) for o in scene.objects]
 
 
@@ -195,7 +195,7 @@ def _object_bsdfs(scene, entry, manifest):
     """Per object: its material's model reference, with the object's albedo and gloss."""
     from atlasgen.validate.references import model_reference
 
-    return [model_reference(e, o.albedo, o.gloss) for o, e in zip(scene.objects, _object_entries(scene, entry, manifest))]
+    return [model_reference(e, o.albedo, o.gloss).bsdf for o, e in zip(scene.objects, _object_entries(scene, entry, manifest))]
 
 
 def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
@@ -243,6 +243,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     BackendError
         Mitsuba's LLVM backend or a GPU adapter is missing.
     """
+    from atlasgen.models import get_model
     from atlasgen.render.atlas_texture import read_render_atlas
     from atlasgen.render.renderer import Renderer
     from atlasgen.validate.backend import load_mitsuba
@@ -263,31 +264,30 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
     runs = []
     for entry in plan.entries:
+        model = get_model(entry.type)
         for scene_name, scene in plan.scenes:
-            bound = bind_material(scene, entry["name"])
+            bound = bind_material(scene, entry.name)
             atlas_image, atlas_s, aovs = _time_atlas(renderer, bound)
-            run = MaterialRun(entry["name"], entry["type"], scene_name, atlas_image, atlas_s, bound.settings.exposure)
-            say(f"{entry['name']} / {scene_name}: atlas {1000 * atlas_s:.1f} ms")
+            run = MaterialRun(entry.name, entry.type, scene_name, atlas_image, atlas_s, bound.settings.exposure,
+                              goals=model.validation_goals)  # fmt: skip
+            say(f"{entry.name} / {scene_name}: atlas {1000 * atlas_s:.1f} ms")
 
             mi.set_variant("llvm_ad_rgb")
             mi_scene = build_mitsuba_scene(mi, bound, _object_bsdfs(bound, entry, plan.manifest), spp)
             image, seconds = render_mitsuba(mi, mi_scene, spp)
-            ref = ReferenceRender("model", _describe_model(entry), image, seconds, spp, "llvm_ad_rgb")
+            ref = ReferenceRender("model", model_reference(entry).description, image, seconds, spp, "llvm_ad_rgb")
             ref.metrics = compare_images(image, atlas_image, run.exposure)
             run.references["model"] = ref
             del mi_scene
-            if entry["type"] == "separable":
-                _check_separable(run, plan.atlas_path, entry, bound, aovs)
-            else:
-                _break_down(run, plan.atlas_path, entry, bound, aovs)
-            say(f"{entry['name']} / {scene_name}: model reference {seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+            _check_rebuilds(run, model, plan.atlas_path, entry, bound, aovs)
+            say(f"{entry.name} / {scene_name}: model reference {seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
-                ref = _render_physical(mi, bound, entry, plan.manifest, physical_spp, spp)
+                ref = _render_physical(mi, bound, entry, phys, plan.manifest, physical_spp, spp)
                 ref.metrics = compare_images(ref.image, atlas_image, run.exposure)
                 run.references["physical"] = ref
-                say(f"{entry['name']} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+                say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
             runs.append(run)
 
     errors = renderer.ctx.errors[errors_before:]
@@ -308,125 +308,133 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
 
 
-def _break_down(run, atlas_path, entry, scene, aovs) -> None:
-    """Split a LUT material's error against its model reference by cause, on the CPU.
+def _check_rebuilds(run, model, atlas_path, entry, scene, aovs) -> None:
+    """Measure the model's CPU rebuilds (:meth:`~atlasgen.models.base.Model.radiance_rebuilds`)
+    against the atlas image and the model reference, and the manifest's claims where it makes any.
 
-    ``table_float``: the model's float table at the texel centres, sampled bilinearly
-    (resolution and filtering only); ``table_8bit``: the baked slice decoded (adds the
-    8-bit quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
+    With a float rebuild the atlas's error splits by cause (:func:`_break_down`); with the
+    8-bit rebuild alone, that rebuild is reported as a reference of its own (``rebuild``).
+    """
+    from atlasgen.validate.metrics import compare_images
+    from atlasgen.validate.rebuild import rebuild_images
+
+    images = rebuild_images(model, entry, atlas_path, scene, aovs)
+    if "float" in images:
+        _break_down(run, entry, images["float"][0], images["8bit"][0], aovs)
+    else:
+        image, seconds, description = images["8bit"]
+        ref = ReferenceRender("rebuild", description, image, seconds, 1, "numpy")
+        ref.metrics = compare_images(image, _only_material(run.atlas_image, entry, aovs), run.exposure)
+        run.references["rebuild"] = ref
+    claimed = model.claimed_errors(entry)
+    if claimed is not None:
+        _check_claims(run, entry, claimed, images["8bit"][0], aovs)
+
+
+def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
+    """Split the atlas's error against its model reference by cause, on the CPU.
+
+    ``table_float``: the model's float data sampled as the renderer does (resolution and
+    filtering only); ``table_8bit``: the atlas's 8-bit texels (adds the 8-bit
+    quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
     renderer's own precision, half-float output, f32 filtering).
     """
     from atlasgen.validate.metrics import compare_images
-    from atlasgen.validate.rebuild import lut_tables, rebuild_lut_image
 
     model_image = _only_material(run.references["model"].image, entry, aovs)
     atlas_image = _only_material(run.atlas_image, entry, aovs)
-    tables = lut_tables(atlas_path, entry)
-    images = {k: rebuild_lut_image(entry, t, scene, aovs) for k, t in tables.items()}
     out = {}
-    for key, image in (("table_float", images["float"]), ("table_8bit", images["8bit"])):
+    for key, image in (("table_float", table_float), ("table_8bit", table_8bit)):
         m = compare_images(model_image, image, run.exposure)
         out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": m.flip, "linear_relative_rms": m.linear_relative_rms}
-    m = compare_images(images["8bit"], atlas_image, run.exposure, with_flip=False)
+    m = compare_images(table_8bit, atlas_image, run.exposure, with_flip=False)
     out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
     run.breakdown = out
 
 
 def _only_material(image, entry, aovs) -> np.ndarray:
     """``image`` with every pixel not covered by ``entry``'s slices set to 0 (the CPU rebuilds cover only those)."""
-    ids = np.asarray(aovs["id"]).astype(np.int64)
-    mask = (ids >= entry["first_slice"]) & (ids < entry["first_slice"] + entry["slice_count"])
-    return np.where(mask[..., None], image, 0.0).astype(np.float32)
+    from atlasgen.validate.rebuild import material_mask
+
+    return np.where(material_mask(entry, aovs)[..., None], image, 0.0).astype(np.float32)
 
 
 def _finite_or_none(x: float):
     return x if math.isfinite(x) else None
 
 
-def _check_separable(run, atlas_path, entry, scene, aovs) -> None:
+def _check_claims(run, entry, claimed, rebuild, aovs) -> None:
     """Set the manifest's claims beside what the scene measures, and split the gap."""
-    from atlasgen.validate.metrics import compare_images, relative_rms
-    from atlasgen.validate.rebuild import rebuild_separable_image
+    from atlasgen.validate.metrics import relative_rms
 
-    image, seconds = rebuild_separable_image(atlas_path, entry, scene, aovs)
-    ref = ReferenceRender("rebuild", "the include's rebuild in float64 on the CPU (atlasgen.separable)", image,
-                          seconds, 1, "numpy")  # fmt: skip
-    ref.metrics = compare_images(image, _only_material(run.atlas_image, entry, aovs), run.exposure)
-    run.references["rebuild"] = ref
     source = _only_material(run.references["model"].image, entry, aovs)
-    in_scene = relative_rms(source, image)
-    claimed = (entry.get("errors_8bit") or {}).get("relative_rms")
-    claimed_float = ((entry.get("errors") or {}).get("float") or {}).get("relative_rms")
+    atlas = _only_material(run.atlas_image, entry, aovs)
+    in_scene = relative_rms(source, rebuild)
+    gpu = relative_rms(rebuild, atlas)
     run.claimed = {
-        "relative_rms_8bit": claimed,
-        "relative_rms_float": claimed_float,
-        "terms": entry.get("terms"),
+        **claimed,
         "measured_relative_rms_rebuild_vs_source": in_scene,
-        "measured_relative_rms_atlas_vs_source": relative_rms(source, _only_material(run.atlas_image, entry, aovs)),
-        "measured_relative_rms_atlas_vs_rebuild": ref.metrics.linear_relative_rms,
+        "measured_relative_rms_atlas_vs_source": relative_rms(source, atlas),
+        "measured_relative_rms_atlas_vs_rebuild": gpu,
     }
-    if claimed is not None:
+    if claimed.get("relative_rms_8bit") is not None:
         run.notes.append(
-            f"manifest claims relative RMS {claimed:.4f} (8-bit; f cos over uniform (l, v) pairs); in this scene the "
-            f"rebuild differs from the source BSDF by {in_scene:.4f} (radiance-weighted), and the GPU image from the "
-            f"rebuild by {ref.metrics.linear_relative_rms:.4f}"
+            f"manifest claims relative RMS {claimed['relative_rms_8bit']:.4f} (8-bit; f cos over uniform (l, v) pairs); "
+            f"in this scene the rebuild differs from the source BSDF by {in_scene:.4f} (radiance-weighted), and the GPU "
+            f"image from the rebuild by {gpu:.4f}"
         )
-
-
-def _describe_model(entry) -> str:
-    if entry["type"] == "separable":
-        src = entry["params"].get("source")
-        return f"source BSDF ({src})" + (f": {entry['params'].get('bsdf')}" if src == "mitsuba" else "")
-    return f"{entry['type']} model, exact, in the renderer's equation"
 
 
 def register_references_for_variant(mi) -> None:
     """atlasgen's Python plugins for the current variant (Mitsuba registers per variant)."""
     from atlasgen.validate.mitsuba_scene import register_direct_integrator
-    from atlasgen.validate.physical import register_physical
     from atlasgen.validate.references import register_references
 
     register_references(mi)
-    register_physical(mi)
     register_direct_integrator(mi)
 
 
-def _render_physical(mi, scene, entry, manifest, physical_spp, spp) -> ReferenceRender:
-    """The physical reference of ``entry`` on ``scene``. Objects of other materials keep
+def _plane_stand_in(entry, albedo) -> dict:
+    """A diffuse plane (the material's ``colour``, if it has one) for references whose material needs a closed surface."""
+    colour = np.asarray(entry.params.get("colour", (1.0, 1.0, 1.0))) * np.asarray(albedo)
+    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": colour.tolist()}}
+
+
+def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -> ReferenceRender:
+    """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
     plugins only."""
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
-    from atlasgen.validate.physical import describe_physical, plane_stand_in
     from atlasgen.validate.references import model_reference, physical_reference
 
-    _, extras = physical_reference(entry)
-    if extras.get("builtin_only"):
+    if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
         # live instance, and NumPy cannot run on symbolic arrays.
         gc.collect()
-    variant = extras.get("variant", "llvm_ad_rgb")
+    variant = reference.variant
+    closed = reference.interior is not None
     mi.set_variant(variant)
     register_references_for_variant(mi)
     bsdfs, interiors = [], []
     for o, e in zip(scene.objects, _object_entries(scene, entry, manifest)):
-        mine = e["name"] == entry["name"]
-        if mine and not (o.shape == "plane" and "interior" in extras):
-            bsdf, ex = physical_reference(entry, o.albedo, o.gloss)
-            bsdfs.append(bsdf)
-            interiors.append(ex.get("interior"))
+        mine = e.name == entry.name
+        if mine and not (o.shape == "plane" and closed):
+            own = physical_reference(entry, o.albedo, o.gloss)
+            bsdfs.append(own.bsdf)
+            interiors.append(own.interior)
         else:
             # A medium needs a closed surface: an open plane keeps a diffuse stand-in, as
             # do other materials' objects where only built-in plugins may run, or where
             # the variant is spectral (the model references are RGB).
-            stand_in = extras.get("builtin_only") or "interior" in extras or variant != "llvm_ad_rgb"
-            bsdfs.append(plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss))
+            stand_in = reference.builtin_only or closed or variant != "llvm_ad_rgb"
+            bsdfs.append(_plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss).bsdf)
             interiors.append(None)
-    n = physical_spp if extras.get("stochastic") else spp
-    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, extras.get("integrator"), interiors)
-    image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not extras.get("builtin_only", False))
+    n = physical_spp if reference.stochastic else spp
+    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, reference.integrator, interiors)
+    image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
     del mi_scene
     mi.set_variant("llvm_ad_rgb")
-    return ReferenceRender("physical", describe_physical(entry), image, seconds, n, variant)
+    return ReferenceRender("physical", reference.description, image, seconds, n, variant)
 
 
 def write_validation(run: ValidationRun, out_dir) -> dict:

@@ -1,37 +1,19 @@
-"""Fresnel: exact dielectric reflectance against the sine/tangent form, Schlick, and the A convention."""
+"""The fresnel model: its ends, the A convention and the coupled energy (the equations: tests/optics)."""
 
 import numpy as np
 import pytest
+from fresnel_reference import fresnel_by_angles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from atlasgen.contract import texel_grid
 from atlasgen.models import get_model
-from atlasgen.models.fresnel import fresnel_dielectric, fresnel_schlick, hemispherical_average, normal_reflectance
+from atlasgen.optics.fresnel import normal_reflectance
 from atlasgen.materials.params import validate_params
 
 MODEL = get_model("fresnel")
 DEFAULTS = validate_params(MODEL.params, {}, "test")
-
-
-def fresnel_by_angles(theta_i, n):
-    """Fresnel's original form: r_s = -sin(ti - tt)/sin(ti + tt), r_p = tan(ti - tt)/tan(ti + tt)."""
-    theta_t = np.arcsin(np.sin(theta_i) / n)
-    r_s = -np.sin(theta_i - theta_t) / np.sin(theta_i + theta_t)
-    r_p = np.tan(theta_i - theta_t) / np.tan(theta_i + theta_t)
-    return 0.5 * (r_s**2 + r_p**2)
-
-
-@given(theta=st.floats(0.01, np.pi / 2 - 0.01), n=st.floats(1.01, 4.0))
-def test_exact_fresnel_matches_the_angle_form(theta, n):
-    np.testing.assert_allclose(fresnel_dielectric(np.cos(theta), n), fresnel_by_angles(theta, n), rtol=1e-10)
-
-
-def test_published_values_at_60_degrees():
-    # facts.md: n = 1.5 at 60 degrees, Schlick 0.070 vs exact 0.089.
-    assert fresnel_schlick(0.5, normal_reflectance(1.5)) == pytest.approx(0.070, abs=5e-4)
-    assert fresnel_dielectric(0.5, 1.5) == pytest.approx(0.089, abs=5e-4)
 
 
 @pytest.mark.parametrize("kind", ["exact", "schlick"])
@@ -50,14 +32,6 @@ def test_alpha_is_f_by_default_and_f_over_f0_when_normalised(kind):
     np.testing.assert_allclose(gain, 0.5 * a / 0.04, rtol=1e-12)
     np.testing.assert_allclose(gain[0], 0.5 * 25.0, rtol=1e-12)  # row 0 is N.V = 0: F/F0 = 25
     np.testing.assert_allclose(gain[-1], 0.5, rtol=1e-12)
-
-
-def test_hemispherical_average_matches_adaptive_quadrature():
-    for n in (1.01, 1.33, 1.5, 2.4, 4.0):
-        expected = quad(lambda c: 2 * c * fresnel_by_angles(np.arccos(c), n), 0, 1, epsabs=1e-14, limit=200)[0]
-        assert hemispherical_average(lambda c: fresnel_dielectric(c, n)) == pytest.approx(expected, rel=1e-10)
-    # n = 1.5: the albedo of a glass surface under uniform light is about 9.2%.
-    assert hemispherical_average(lambda c: fresnel_dielectric(c, 1.5)) == pytest.approx(0.0918, abs=5e-4)
 
 
 def test_coupled_energy_is_two_way_transmission_renormalised():

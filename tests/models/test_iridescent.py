@@ -9,7 +9,7 @@ from scipy.integrate import quad
 from atlasgen.contract import texel_grid
 from atlasgen.models import get_model
 from atlasgen.models.backlit import translucency
-from atlasgen.models.fresnel import fresnel_dielectric
+from atlasgen.optics.fresnel import fresnel_dielectric
 from atlasgen.models.iridescent import (
     MIN_SAMPLES,
     XYZ_TO_LINEAR_SRGB,

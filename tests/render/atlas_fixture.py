@@ -12,6 +12,7 @@ import numpy as np
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
 from atlasgen.bake.include import render_include
 from atlasgen.bake.mips import build_array_mips
+from atlasgen.io.manifest import Dimensions, Manifest, MaterialEntry
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.render.atlas_texture import RenderAtlas
 
@@ -47,16 +48,12 @@ def build_fixture_atlas() -> RenderAtlas:
     entries = []
     for name, slot, outline in (("lambert", LAMBERT, False), ("glossy", GLOSSY, False), ("toon", TOON, True),
                                 ("mips", MIPS, False), ("plain", PLAIN, False)):  # fmt: skip
-        entries.append({
-            "name": name, "id": slot, "constant": f"MATERIAL_{name.upper()}", "first_slice": slot, "slice_count": 1,
-            "type": "lambert", "flags": {"outline": outline},
-            "scale": [list(scales[slot])], "bias": [[0.0, 0.0]],
-        })  # fmt: skip
-    manifest = {
-        "format_version": 1, "encoding": "srgb", "layout": "array",
-        "dimensions": {"width": WIDTH, "height": HEIGHT, "layers": LAYERS, "mip_count": len(levels)},
-        "materials": entries,
-    }  # fmt: skip
+        entries.append(MaterialEntry(
+            name=name, id=slot, constant=f"MATERIAL_{name.upper()}", first_slice=slot, type="lambert",
+            flags={"outline": outline}, scale=[scales[slot].tolist()], bias=[[0.0, 0.0]],
+        ))  # fmt: skip
+    manifest = Manifest(dimensions=Dimensions(width=WIDTH, height=HEIGHT, layers=LAYERS, mip_count=len(levels)),
+                        encoding="srgb", dxgi_format=29, layout="array", materials=entries)  # fmt: skip
     include = render_include(manifest, scales, np.zeros((LAYERS, 2)))
     return RenderAtlas(levels, True, manifest, include, "fixture-atlas")
 
@@ -64,8 +61,7 @@ def build_fixture_atlas() -> RenderAtlas:
 def decoded_slice(atlas: RenderAtlas, slot: int, level: int = 0) -> np.ndarray:
     """Linear RGBA of one slice as the sampler returns it, with the slice's scale applied."""
     rgba = dequantize_rgba(atlas.levels[level][slot], atlas.srgb)
-    entry = next(m for m in atlas.manifest["materials"] if m["first_slice"] == slot)
-    scale = entry["scale"][0]
+    scale = atlas.manifest.by_slice(slot).scale[0]
     rgba[..., :3] *= scale[0]
     rgba[..., 3] *= scale[1]
     return rgba
@@ -83,6 +79,17 @@ def sample_bilinear(table: np.ndarray, n_dot_l, n_dot_v) -> np.ndarray:
     t = table
     return ((t[y0, x0] * (1 - fx) + t[y0, x0 + 1] * fx) * (1 - fy)
             + (t[y0 + 1, x0] * (1 - fx) + t[y0 + 1, x0 + 1] * fx) * fy)  # fmt: skip
+
+
+def light_at(light, world: np.ndarray):
+    """``(unit l, irradiance E)`` of a scene light at points ``world`` (..., 3): E = colour * I / d^2
+    towards a point light, colour * E along a directional one."""
+    radiant = np.asarray(light.colour) * light.intensity
+    if light.type == "point":
+        d = np.asarray(light.position) - world
+        d2 = np.sum(d * d, -1, keepdims=True)
+        return d / np.sqrt(d2), radiant / d2
+    return np.broadcast_to(-np.asarray(light.direction), world.shape), np.broadcast_to(radiant, world.shape)
 
 
 def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.ndarray:
@@ -107,14 +114,7 @@ def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.nd
         table = decoded_slice(atlas, int(slot))
         mask = ids == slot
         for light in scene.lights:
-            if light.type == "point":
-                d = np.asarray(light.position) - world
-                d2 = np.sum(d * d, -1)
-                l = d / np.sqrt(d2)[..., None]
-                e = np.asarray(light.colour) * light.intensity / d2[..., None]
-            else:
-                l = np.broadcast_to(-np.asarray(light.direction), n.shape)
-                e = np.asarray(light.colour) * light.intensity
+            l, e = light_at(light, world)
             n_dot_l = np.sum(n * l, -1)
             a = sample_bilinear(table, n_dot_l, n_dot_v)
             h = l + v

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from atlasgen.render.camera import pixel_rays
-from atlasgen.render.lighting import pack_lights, specular_exponent, specular_normalisation
+from atlasgen.optics.specular import specular_exponent, specular_normalisation
+from atlasgen.render.lighting import pack_lights
 from atlasgen.materials.scene import Light
 from atlasgen.optics.srgb import decode_srgb
 

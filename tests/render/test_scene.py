@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.errors import InputError, SceneError
+from atlasgen.io.manifest import Dimensions, Manifest, MaterialEntry
 from atlasgen.materials.scene import MAX_LIGHTS, SceneObject, object_matrix, read_scene, resolve_materials
 
 MINIMAL = """
@@ -103,13 +104,15 @@ def test_read_scene_errors(tmp_path):
 
 def test_unknown_material_lists_known_names(scene_from):
     scene = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'golld'\n", path="s.toml")
-    manifest = {"materials": [{"name": "gold", "first_slice": 3}, {"name": "skin", "first_slice": 4}]}
+    entries = [MaterialEntry(name=n, id=i, constant=n.upper(), first_slice=i, type="lambert") for n, i in (("gold", 3), ("skin", 4))]
+    manifest = Manifest(dimensions=Dimensions(width=64, height=32, layers=256, mip_count=7), encoding="srgb",
+                        dxgi_format=29, materials=entries)  # fmt: skip
     with pytest.raises(SceneError) as info:
         resolve_materials(scene, manifest, "build/atlas.dds")
     assert "objects[0].material" in str(info.value) and "'golld'" in str(info.value)
     assert "gold, skin" in str(info.value)
     ok = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'skin'\n")
-    assert resolve_materials(ok, manifest)[0]["first_slice"] == 4
+    assert resolve_materials(ok, manifest)[0].first_slice == 4
 
 
 @settings(max_examples=50, deadline=None)

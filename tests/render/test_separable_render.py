@@ -11,7 +11,7 @@ from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import Renderer
 
-from render.atlas_fixture import interior
+from render.atlas_fixture import interior, light_at
 
 pytestmark = pytest.mark.gpu
 
@@ -58,7 +58,7 @@ def test_separable_material_matches_numpy_rebuild(gpu_device, write_material, tm
     renderer = Renderer(atlas, gpu_device)
     scene = scene_from(SCENE)
     result = renderer.render(scene, outlines=False)
-    metal = next(m["first_slice"] for m in atlas.manifest["materials"] if m["name"] == "metal")
+    metal = atlas.manifest.entry_named("metal").first_slice
     mask = interior(result.aov("id")) & (result.aov("id") == metal)
     assert mask.sum() > 200
     n = result.aov("normal")[mask].astype(np.float64)
@@ -67,13 +67,7 @@ def test_separable_material_matches_numpy_rebuild(gpu_device, write_material, tm
     v = -rays / np.linalg.norm(rays, axis=-1, keepdims=True)
     expected = np.zeros_like(n)
     for light in scene.lights:
-        if light.type == "point":
-            d = np.asarray(light.position) - world
-            e = np.asarray(light.colour) * light.intensity / np.sum(d * d, -1, keepdims=True)
-            l = d / np.linalg.norm(d, axis=-1, keepdims=True)
-        else:
-            e = np.asarray(light.colour) * light.intensity
-            l = np.broadcast_to(-np.asarray(light.direction), n.shape)
+        l, e = light_at(light, world)
         expected += e * np.asarray([0.9, 0.8, 0.7]) * evaluate_separable(path, "metal", n, l, v, cosine=True)
     got = result.radiance[mask]
     floor = 0.02 * expected.max()

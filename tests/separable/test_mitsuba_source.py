@@ -89,13 +89,13 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
     mi.register_bsdf("atlasgen_test_broken", lambda props: BrokenBSDF(props))
     write_material("broken", 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n')
     result = bake_atlas(read_materials([tmp_path / "materials"]))
-    entry = result.manifest["materials"][0]
+    entry = result.manifest.materials[0].factors
     from atlasgen.separable.parametrization import get_parametrization
 
-    l, v = (d.astype(np.float32) for d in get_parametrization("half_diff").grid_directions(entry["sampling_grid"], lift=True))
+    l, v = (d.astype(np.float32) for d in get_parametrization("half_diff").grid_directions(entry.sampling_grid, lift=True))
     bad = (l[..., 0] > 0.9) | (v[..., 1] > 0.95)
-    assert entry["nonfinite_samples"] == 3 * int(bad.sum()) > 0
+    assert entry.nonfinite_samples == 3 * int(bad.sum()) > 0
     pl, pv = (d.astype(np.float32) for d in sample_hemisphere_pairs())
-    assert entry["nonfinite_reference"] == 3 * int(((pl[:, 0] > 0.9) | (pv[:, 1] > 0.95)).sum()) > 0
+    assert entry.nonfinite_reference == 3 * int(((pl[:, 0] > 0.9) | (pv[:, 1] > 0.95)).sum()) > 0
     assert all(np.all(np.isfinite(level)) for level in result.levels)
-    assert np.isfinite(entry["errors"]["float"]["relative_rms"]) and np.isfinite(entry["errors_8bit"]["relative_rms"])
+    assert np.isfinite(entry.errors.float_error.relative_rms) and np.isfinite(entry.errors_8bit.relative_rms)

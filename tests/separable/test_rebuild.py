@@ -1,42 +1,17 @@
-"""Rebuild: GPU-style interpolation, and f read back from an atlas file independently of the bake."""
+"""Rebuild: f read back from an atlas file independently of the bake (the filtering: tests/optics)."""
 
 import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 from separable_helpers import random_frames
 
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
 from atlasgen.separable import evaluate_separable, read_separable_factors
 from atlasgen.separable.error import measure_errors, sample_hemisphere_pairs
-from atlasgen.separable.rebuild import _read_dds_levels, interpolate_1d, interpolate_2d
+from atlasgen.separable.rebuild import _read_dds_levels
 from atlasgen.separable.source import make_source
-
-
-@given(a=st.floats(-5, 5), b=st.floats(-5, 5), c=st.floats(-5, 5),
-       x=st.lists(st.floats(-3, 40), min_size=1, max_size=20), y=st.lists(st.floats(-3, 40), min_size=1, max_size=20))
-@settings(max_examples=100, deadline=None)
-def test_interpolation_is_exact_for_linear_tables_and_clamps(a, b, c, x, y):
-    n = 32
-    k = min(len(x), len(y))
-    x = np.array(x[:k])
-    y = np.array(y[:k])
-    idx = np.arange(n)
-    t1 = a + b * idx
-    t2 = a + b * idx[None, :] + c * idx[:, None]
-    cx, cy = np.clip(x, 0, n - 1), np.clip(y, 0, n - 1)
-    np.testing.assert_allclose(interpolate_1d(t1, x), a + b * cx, atol=1e-9)
-    np.testing.assert_allclose(interpolate_2d(t2, x, y), a + b * cx + c * cy, atol=1e-9)
-
-
-def test_interpolation_hits_texels_at_centres():
-    rng = np.random.default_rng(0)
-    t = rng.random((2, 3, 32, 32))
-    i = np.arange(32, dtype=float)
-    np.testing.assert_array_equal(interpolate_2d(t, i, i[::-1]), t[..., i[::-1].astype(int), i.astype(int)])
 
 
 def test_atlas_rebuild_reproduces_the_manifest_8bit_errors(separable_atlas):

@@ -3,6 +3,7 @@
 import numpy as np
 from separable_helpers import random_frames
 
+from atlasgen.io.manifest import MaterialEntry, SeparableFactors
 from atlasgen.separable import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.shader import separable_wgsl, wgsl_function_name
@@ -31,8 +32,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 def _entry(name, parametrization, target, first=0, terms=2):
     scale = [[[1.5, 1.0, 0.5], [2.0, 2.0, 2.0]]] * terms
     bias = [[[0.0, 0.0, 0.0], [-0.5, -0.25, 0.0]]] * terms
-    return {"name": name, "type": "separable", "first_slice": first, "slice_count": terms, "parametrization": parametrization,
-            "target": target, "factor_scale": scale, "factor_bias": bias}
+    factors = SeparableFactors(parametrization=parametrization, target=target, factor_scale=scale, factor_bias=bias)
+    return MaterialEntry(name=name, id=first, constant=name.upper(), first_slice=first, slice_count=terms, type="separable",
+                         factors=factors)  # fmt: skip
 
 
 def test_include_names_and_dispatch():
@@ -106,16 +108,16 @@ def test_gpu_rebuild_matches_the_python_rebuild(gpu_device, separable_atlas):
     level0 = np.asarray(dds.levels[0])
     n, l, v = random_frames(3000, seed=11)
     # Keep away from exact grazing, where f32 and f64 angles may pick different texels.
-    for entry in result.manifest["materials"]:
-        if entry["type"] != "separable":
+    for entry in result.manifest.materials:
+        if entry.factors is None:
             continue
-        gpu = _run(gpu_device, level0, dds.dxgi_format == 29, result.include, n, l, v, entry["first_slice"])
-        cpu = evaluate_separable(path, entry["name"], n, l, v, cosine=True)
+        gpu = _run(gpu_device, level0, dds.dxgi_format == 29, result.include, n, l, v, entry.first_slice)
+        cpu = evaluate_separable(path, entry.name, n, l, v, cosine=True)
         scale = np.abs(cpu).max()
         # GPUs filter with 8-bit weight fractions (D3D: >= 8 bits of sub-texel precision):
         # allow 1% of the largest value (measured: 0.3-0.4%), the bulk far tighter.
         diff = np.abs(gpu - cpu)
-        assert diff.max() <= 0.01 * scale, (entry["name"], diff.max(), scale)
+        assert diff.max() <= 0.01 * scale, (entry.name, diff.max(), scale)
         assert np.median(diff) <= 2e-4 * scale
         assert np.corrcoef(gpu.ravel(), cpu.ravel())[0, 1] > 0.999
     assert gpu_device.take_errors() == []

@@ -68,6 +68,7 @@ def test_direct_integrator_has_no_shadows_and_lights_back_faces_through_the_bsdf
     """A light below an opaque plane still reaches a BSDF that transmits (no visibility test)."""
     import tomllib
 
+    from atlasgen.io.manifest import MaterialEntry
     from atlasgen.materials.scene import parse_scene
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
     from atlasgen.validate.references import model_reference, register_references
@@ -76,10 +77,10 @@ def test_direct_integrator_has_no_shadows_and_lights_back_faces_through_the_bsdf
     register_references(mi)
     text = SCENE.replace('direction = [0.3, -1.0, -0.2]', 'direction = [0.0, 1.0, 0.0]').replace("intensity = 3.0", "intensity = 0.0")
     scene = parse_scene(tomllib.loads(text), "below.toml")
-    leaf = {"name": "leaf", "type": "backlit", "params": {
+    leaf = MaterialEntry(name="leaf", id=0, constant="MATERIAL_LEAF", first_slice=0, type="backlit", params={
         "colour": [0.0, 0.0, 0.0], "transmission_colour": [1.0, 1.0, 1.0], "distortion": 0.0, "power": 1.0,
-        "scale": 0.0, "ambient": 1.0, "view": "average", "specular": 0.0}}  # fmt: skip
-    mi_scene = build_mitsuba_scene(mi, scene, [model_reference(leaf)])
+        "scale": 0.0, "ambient": 1.0, "view": "average", "specular": 0.0})  # fmt: skip
+    mi_scene = build_mitsuba_scene(mi, scene, [model_reference(leaf).bsdf])
     image, _ = render_mitsuba(mi, mi_scene)
     # backlit with ambient = 1 and nothing else: RGB = transmission_colour for every N.L, so
     # L = albedo (1) * 1 / pi * E, with E = 2 * colour: light from below, through the plane.

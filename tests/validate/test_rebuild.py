@@ -31,7 +31,8 @@ def test_separable_results_carry_the_manifest_claims_and_the_measured_figures(va
 
 def test_rebuild_leaves_other_materials_pixels_black(validation_run, validation_atlas):
     from atlasgen.io.atlas import read_atlas
-    from atlasgen.validate.rebuild import rebuild_separable_image
+    from atlasgen.models import get_model
+    from atlasgen.validate.rebuild import rebuild_image
     from atlasgen.validate.scenes import bind_material, load_validation_scene
 
     entry = read_atlas(validation_atlas).material("gloss")
@@ -39,33 +40,9 @@ def test_rebuild_leaves_other_materials_pixels_black(validation_run, validation_
     scene = bind_material(scene, "matte")
     ids = np.full((scene.height, scene.width), 0xFFFF, dtype=np.uint16)
     aovs = {"id": ids, "normal": np.zeros(ids.shape + (3,)), "depth": np.full(ids.shape, np.inf), "albedo": np.zeros(ids.shape + (3,))}
-    image, _ = rebuild_separable_image(validation_atlas, entry, scene, aovs)
+    (rebuild,) = get_model(entry.type).radiance_rebuilds(entry, validation_atlas).values()
+    image = rebuild_image(rebuild, entry, scene, aovs)
     assert image.shape == (scene.height, scene.width, 3) and not image.any()
-
-
-def test_sample_table_hits_texel_centres_exactly_and_interpolates_linearly_between():
-    from hypothesis import given, settings
-    from hypothesis import strategies as st
-
-    from atlasgen.contract import texel_centres
-    from atlasgen.validate.rebuild import sample_table
-
-    rng = np.random.default_rng(4)
-    table = rng.random((32, 64, 4))
-    nl, nv = texel_centres()
-    grid_l, grid_v = np.meshgrid(nl, nv)
-    np.testing.assert_allclose(sample_table(table, grid_l, grid_v), table, atol=1e-12)
-
-    @settings(max_examples=50, deadline=None)
-    @given(st.integers(0, 62), st.integers(0, 31), st.floats(0.0, 1.0))
-    def halfway(i, j, t):
-        # Along N.L between texel centres i and i+1 (fixed row j): linear in t.
-        got = sample_table(table, np.array([nl[i] + t * (nl[i + 1] - nl[i])]), np.array([nv[j]]))[0]
-        np.testing.assert_allclose(got, (1 - t) * table[j, i] + t * table[j, i + 1], atol=1e-9)
-
-    halfway()
-    # Clamp to edge outside the domain, as the sampler's addressing mode does.
-    np.testing.assert_allclose(sample_table(table, np.array([-3.0, 3.0]), np.array([-1.0, 2.0])), table[[0, -1], [0, -1]])
 
 
 def test_error_breakdown_separates_resolution_quantization_and_the_gpu(validation_run):

@@ -1,4 +1,5 @@
-"""Model references: the renderer's equation without the atlas, as NumPy and as a Mitsuba BSDF."""
+"""Model references: the renderer's equation without the atlas, as NumPy and as a Mitsuba BSDF;
+and validation asking each model for its references."""
 
 from __future__ import annotations
 
@@ -8,16 +9,24 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import InputError
-from atlasgen.models import get_model
-from atlasgen.validate.references import (
-    LUT_TYPES,
-    model_reference,
-    physical_reference,
-    renderer_f_cos,
-)
+from atlasgen.io.manifest import MaterialEntry
+from atlasgen.models import get_model, model_types
+from atlasgen.models.base import Model
+from atlasgen.validate.references import model_reference, physical_reference
+
+#: The shipped models whose slice is an (N.L, N.V) table.
+TABLE_TYPES = ("lambert", "fresnel", "iridescent", "sss", "backlit", "toon")
 
 
-class _SpecularOnly:
+def _entry(type_name: str, params: dict, name: str = "m") -> MaterialEntry:
+    return MaterialEntry(name=name, id=0, constant="MATERIAL_M", first_slice=0, type=type_name, params=params)
+
+
+def _defaults(type_name: str) -> dict:
+    return {p.name: p.default for p in get_model(type_name).params}
+
+
+class _SpecularOnly(Model):
     """A stand-in model: RGB 0, A = 1 everywhere (isolates the specular lobe)."""
 
     def evaluate(self, values, n_dot_l, n_dot_v):
@@ -40,7 +49,7 @@ def _hemisphere(n=400):
 def test_lambert_reference_is_albedo_times_colour_over_pi_times_cos():
     values = {"colour": (0.8, 0.5, 0.3)}
     nl = np.linspace(-1, 1, 9)
-    got = renderer_f_cos(get_model("lambert"), values, (0.5, 1.0, 0.25), 0.7, nl, np.full(9, 0.6), np.full(9, 0.9))
+    got = get_model("lambert").renderer_f_cos(values, (0.5, 1.0, 0.25), 0.7, nl, np.full(9, 0.6), np.full(9, 0.9))
     expected = np.array([0.4, 0.5, 0.075]) / np.pi * np.maximum(nl, 0.0)[:, None]
     np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
 
@@ -52,37 +61,51 @@ def test_specular_lobe_has_directional_albedo_one_at_normal_view(gloss):
     v = np.array([0.0, 0.0, 1.0])
     h = l + v
     nh = h[:, 2] / np.linalg.norm(h, axis=1)
-    f_cos = renderer_f_cos(_SpecularOnly(), {}, (1, 1, 1), gloss, l[:, 2], np.ones(len(l)), nh)
+    f_cos = _SpecularOnly().renderer_f_cos({}, (1, 1, 1), gloss, l[:, 2], np.ones(len(l)), nh)
     assert (f_cos[:, 0] * w).sum() == pytest.approx(1.0, rel=2e-3)
 
 
 def test_specular_is_zero_below_the_horizon_and_for_degenerate_half_vectors():
-    f = renderer_f_cos(_SpecularOnly(), {}, (1, 1, 1), 0.5, np.array([-0.2, 0.5]), np.array([0.5, 0.5]),
-                       np.array([1.0, 1.0]), lv_degenerate=np.array([False, True]))  # fmt: skip
+    f = _SpecularOnly().renderer_f_cos({}, (1, 1, 1), 0.5, np.array([-0.2, 0.5]), np.array([0.5, 0.5]),
+                                       np.array([1.0, 1.0]), lv_degenerate=np.array([False, True]))  # fmt: skip
     assert np.all(f == 0.0)
 
 
-def test_every_lut_type_and_separable_has_a_model_reference_and_unknown_types_do_not():
-    for kind in LUT_TYPES:
-        ref = model_reference({"name": "m", "type": kind, "params": {}})
-        assert ref["type"] == "atlasgen_model" and json.loads(ref["material"])["type"] == kind
-    sep = model_reference({"name": "s", "type": "separable", "params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}}, (0.5, 1, 1))
-    assert sep["type"] == "atlasgen_brdf"
-    assert json.loads(sep["material"]) == {"params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "albedo": [0.5, 1.0, 1.0]}
+def test_every_table_type_and_separable_has_a_model_reference_and_unknown_types_do_not():
+    assert set(TABLE_TYPES) | {"separable"} <= set(model_types())
+    for kind in TABLE_TYPES:
+        ref = model_reference(_entry(kind, {}), (0.5, 1, 1), 0.25)
+        assert ref.bsdf["type"] == "atlasgen_model"
+        assert json.loads(ref.bsdf["material"]) == {"type": kind, "params": {}, "albedo": [0.5, 1.0, 1.0], "gloss": 0.25}
+        assert ref.description == f"{kind} model, exact, in the renderer's equation"
+    sep = model_reference(_entry("separable", {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "s"), (0.5, 1, 1))
+    assert sep.bsdf["type"] == "atlasgen_brdf"
+    assert json.loads(sep.bsdf["material"]) == {"params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "albedo": [0.5, 1.0, 1.0]}
+    assert sep.description == "source BSDF (mitsuba): {'type': 'diffuse'}"
     with pytest.raises(InputError, match="'mystery'.*no reference for model type 'hologram'"):
-        model_reference({"name": "mystery", "type": "hologram", "params": {}})
+        model_reference(_entry("hologram", {}, "mystery"))
+
+
+def test_a_model_without_a_model_reference_is_refused(monkeypatch):
+    monkeypatch.setattr(type(get_model("toon")), "model_reference", lambda self, values, albedo=None, gloss=None: None)
+    with pytest.raises(InputError, match="'m'.*'toon' model has no model reference"):
+        model_reference(_entry("toon", _defaults("toon")))
 
 
 def test_physical_references_exist_only_where_physics_does():
-    params = {"colour": (0.5, 0.5, 0.5), "ior": 1.5, "specular": 1.0, "radius": 10.0,
-              "thickness": 300.0, "film_ior": 1.33, "base_ior": 1.5, "base_k": 0.0}  # fmt: skip
-    for kind in ("backlit", "toon"):
-        assert physical_reference({"type": kind, "params": params}) is None
-    bsdf, _ = physical_reference({"type": "lambert", "params": {"colour": (0.8, 0.5, 0.3)}}, albedo=(0.5, 1, 1))
-    assert bsdf == {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}}
-    assert physical_reference({"type": "fresnel", "params": params})[0]["type"] == "roughplastic"
-    assert physical_reference({"type": "sss", "params": params})[1]["integrator"]["type"] == "volpath"
-    assert physical_reference({"type": "iridescent", "params": params})[1]["variant"] == "llvm_ad_spectral"
+    for kind in ("backlit", "toon", "separable"):
+        assert physical_reference(_entry(kind, _defaults(kind))) is None
+    ref = physical_reference(_entry("lambert", {"colour": (0.8, 0.5, 0.3)}), albedo=(0.5, 1, 1))
+    assert ref.bsdf == {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}}
+    assert (ref.variant, ref.integrator, ref.interior, ref.stochastic) == ("llvm_ad_rgb", None, None, False)
+    fresnel = physical_reference(_entry("fresnel", _defaults("fresnel")), gloss=0.5)
+    assert fresnel.bsdf["type"] == "roughplastic" and fresnel.bsdf["alpha"] == pytest.approx(np.sqrt(2 / (2**7 + 2)))
+    sss = physical_reference(_entry("sss", _defaults("sss")))
+    assert sss.integrator["type"] == "volpath" and sss.interior["type"] == "homogeneous"
+    assert sss.stochastic and sss.builtin_only
+    film = physical_reference(_entry("iridescent", {**_defaults("iridescent"), "colour": (0.5, 0.5, 0.5)}), albedo=(0.5, 1, 1))
+    assert film.variant == "llvm_ad_spectral" and film.bsdf["type"] == "atlasgen_thinfilm"
+    assert (film.bsdf["colour_r"], film.bsdf["colour_g"]) == (0.25, 0.5)
 
 
 def _interaction(mi, dr, wi, n_geo):
@@ -109,7 +132,7 @@ def test_mitsuba_model_reference_evaluates_the_numpy_equation(mitsuba_rgb):
     mi = mitsuba_rgb
     register_references(mi)
     values = {"colour": (0.2, 0.35, 0.6), "fresnel": "exact", "ior": 1.5, "specular": 1.0, "normalise": True, "energy": "coupled"}
-    bsdf = mi.load_dict(model_reference({"name": "coat", "type": "fresnel", "params": values}, (0.9, 0.8, 0.7), 0.4))
+    bsdf = mi.load_dict(model_reference(_entry("fresnel", values, "coat"), (0.9, 0.8, 0.7), 0.4).bsdf)
     rng = np.random.default_rng(5)
     wi, wo = _random_directions(rng, 256), _random_directions(rng, 256, upper=False)
     with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
@@ -118,7 +141,7 @@ def test_mitsuba_model_reference_evaluates_the_numpy_equation(mitsuba_rgb):
     got = np.stack([np.asarray(c) for c in (got.x, got.y, got.z)], -1)
     h = wi + wo
     nh = h[:, 2] / np.linalg.norm(h, axis=1)
-    expected = renderer_f_cos(get_model("fresnel"), values, (0.9, 0.8, 0.7), 0.4, wo[:, 2], wi[:, 2], nh)
+    expected = get_model("fresnel").renderer_f_cos(values, (0.9, 0.8, 0.7), 0.4, wo[:, 2], wi[:, 2], nh)
     np.testing.assert_allclose(got, expected, rtol=2e-4, atol=2e-5)
 
 
@@ -130,7 +153,7 @@ def test_mitsuba_model_reference_of_lambert_equals_mitsubas_own_diffuse(mitsuba_
 
     mi = mitsuba_rgb
     register_references(mi)
-    ours = mi.load_dict(model_reference({"name": "m", "type": "lambert", "params": {"colour": [0.8, 0.5, 0.3]}}, (0.5, 1, 1), 0.5))
+    ours = mi.load_dict(model_reference(_entry("lambert", {"colour": [0.8, 0.5, 0.3]}), (0.5, 1, 1), 0.5).bsdf)
     theirs = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}})
     rng = np.random.default_rng(9)
     wi, wo = _random_directions(rng, 128), _random_directions(rng, 128)
@@ -149,7 +172,7 @@ def test_back_faces_are_shaded_with_the_flipped_normal_like_the_gbuffer(mitsuba_
 
     mi = mitsuba_rgb
     register_references(mi)
-    bsdf = mi.load_dict(model_reference({"name": "m", "type": "lambert", "params": {"colour": [1, 1, 1]}}))
+    bsdf = mi.load_dict(model_reference(_entry("lambert", {"colour": [1, 1, 1]})).bsdf)
     wi = np.array([[0.0, 0.6, -0.8]])
     wo = mi.Vector3f(0.0, 0.0, -1.0)
     with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):

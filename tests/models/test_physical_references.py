@@ -1,11 +1,14 @@
-"""Physical references: the thin-film BSDF against Mitsuba's own microfacet at zero film thickness; skin scaling."""
+"""Physical references of the models: the thin-film BSDF against Mitsuba's own microfacet at zero
+film thickness; skin scaling; which models have one."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from atlasgen.validate.physical import SKIN1_SIGMA_A, SKIN1_SIGMA_S_REDUCED, skin_medium, thin_film_f_cos
+from atlasgen.models import get_model
+from atlasgen.models.sss import SKIN1_SIGMA_A, SKIN1_SIGMA_S_REDUCED, skin_medium
+from atlasgen.models.thin_film import thin_film_f_cos
 
 
 def _dirs(rng, n):
@@ -14,12 +17,12 @@ def _dirs(rng, n):
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def test_thin_film_without_film_is_mitsubas_rough_dielectric_reflection(mitsuba_rgb):
+def test_thin_film_without_film_is_mitsubas_rough_dielectric_reflection(mitsuba_llvm):
     """At d = 0 the Airy reflectance is the bare base's Fresnel (Belcour & Barla 2017), so the
     lobe must equal Mitsuba's ``roughdielectric`` reflection with the same Beckmann alpha."""
     import drjit as dr
 
-    mi = mitsuba_rgb
+    mi = mitsuba_llvm
     alpha, ior = 0.2, 1.5
     rng = np.random.default_rng(11)
     wi, wo = _dirs(rng, 300), _dirs(rng, 300)
@@ -42,7 +45,7 @@ def test_thin_film_without_film_is_mitsubas_rough_dielectric_reflection(mitsuba_
 
 def test_skin_medium_is_scaled_to_the_curvature_radius():
     for radius in (2.0, 10.0):
-        medium, ior = skin_medium({"params": {"radius": radius}}, object_radius=0.5)
+        medium, ior = skin_medium(radius, object_radius=0.5)
         t = np.asarray(medium["sigma_t"]["value"]) * medium["scale"]
         expected = (np.asarray(SKIN1_SIGMA_S_REDUCED) + np.asarray(SKIN1_SIGMA_A)) * radius / 0.5
         np.testing.assert_allclose(t, expected, rtol=1e-12)

@@ -1,0 +1,83 @@
+"""Image files: 8-bit PNG and float OpenEXR, both encoded by OpenImageIO.
+
+One writer per format, arguments in one order, ``write_*(path, pixels)``, as every writer
+in :mod:`atlasgen.io` takes them. PNG takes 8-bit codes only: turning floats into codes
+(rounding, sRGB encoding, tone mapping) is :mod:`atlasgen.optics.quantize` and
+:mod:`atlasgen.optics.display`, not a file format's business. Files are replaced
+atomically (:mod:`atlasgen.io.atomic`); the ``encode_*`` functions return the bytes for
+callers that write several files all-or-nothing.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from atlasgen.errors import OutputError
+from atlasgen.io.atomic import write_file_atomically
+
+__all__ = ["encode_png", "encode_exr", "write_png", "write_exr"]
+
+
+def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None) -> bytes:
+    """The bytes of ``pixels`` ``(h, w, c)`` as an OpenImageIO-written file of format ``suffix``.
+
+    OpenImageIO writes to a path, so the file is made in a private temporary folder and
+    read back.
+    """
+    import OpenImageIO as oiio
+
+    h, w, c = pixels.shape
+    spec = oiio.ImageSpec(w, h, c, pixel_type)
+    if channel_names is not None:
+        spec.channelnames = tuple(channel_names)
+    if suffix == ".exr":
+        spec.attribute("compression", "zip")
+    for name, value in (attributes or {}).items():
+        spec.attribute(name, value)
+    with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
+        path = str(Path(folder) / f"image{suffix}")
+        out = oiio.ImageOutput.create(path)
+        if out is None or not out.open(path, spec):
+            raise OutputError(f"cannot encode a {suffix} image ({oiio.geterror() or 'unknown format'})")
+        ok = out.write_image(np.ascontiguousarray(pixels))
+        error = out.geterror()
+        out.close()
+        if not ok:
+            raise OutputError(f"cannot encode a {suffix} image ({error})")
+        return Path(path).read_bytes()
+
+
+def encode_png(codes: np.ndarray) -> bytes:
+    """PNG bytes of 8-bit codes ``(h, w, c)``: c = 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA).
+
+    The codes are stored as given, alpha straight (not premultiplied), as PNG defines it;
+    the PNG carries no colour profile, so viewers read the colour as sRGB.
+    """
+    codes = np.asarray(codes)
+    if codes.dtype != np.uint8 or codes.ndim != 3 or not 1 <= codes.shape[2] <= 4:
+        raise TypeError(f"expected 8-bit codes shaped (h, w, 1..4), got {codes.dtype} {codes.shape}")
+    # PNG's alpha is straight; OpenImageIO would otherwise take the codes as premultiplied
+    # and divide the colour by alpha.
+    straight = {"oiio:UnassociatedAlpha": 1} if codes.shape[2] in (2, 4) else None
+    return _encode(codes, "uint8", ".png", attributes=straight)
+
+
+def encode_exr(pixels: np.ndarray, channel_names=("R", "G", "B")) -> bytes:
+    """OpenEXR bytes of ``(h, w, c)`` pixels as float32, ZIP-compressed, with the given channel names."""
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.ndim != 3 or pixels.shape[2] != len(channel_names):
+        raise ValueError(f"expected pixels shaped (h, w, {len(channel_names)}) for channels {tuple(channel_names)}, got {pixels.shape}")
+    return _encode(pixels, "float", ".exr", channel_names)
+
+
+def write_png(path, codes: np.ndarray) -> None:
+    """Write 8-bit codes as a PNG (:func:`encode_png`), replacing ``path`` atomically."""
+    write_file_atomically(path, encode_png(codes))
+
+
+def write_exr(path, pixels: np.ndarray, channel_names=("R", "G", "B")) -> None:
+    """Write float pixels as a float32 OpenEXR (:func:`encode_exr`), replacing ``path`` atomically."""
+    write_file_atomically(path, encode_exr(pixels, channel_names))

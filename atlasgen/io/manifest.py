@@ -1,0 +1,646 @@
+"""The atlas manifest (``X.json``) as typed records, with its one reader and its one writer.
+
+The bake builds a :class:`Manifest` and writes it with :func:`format_manifest` (one material
+per line: readable in a diff, and fast to write); everything else reads it with
+:func:`read_manifest`, which checks the format version and every field, and refuses a file
+it cannot read with one line naming the file and the field::
+
+    build/atlas.json: field 'materials[3].first_slice': expected an integer >= 0, got -1
+
+A material entry holds the fields every model writes (:class:`MaterialEntry`) and, chosen by
+the JSON keys present (never by the model's type name), typed model-specific parts:
+``representation`` (how an error budget was met: :class:`LutRepresentation` or
+:class:`SeparableRepresentation`) and ``factors`` (:class:`SeparableFactors`, how a separable
+BRDF's factors are stored in its slices). Keys of no typed part stay in ``extra``, in order.
+Serialising writes the keys in the bake's order, so ``format_manifest(read_manifest(p))``
+reproduces the file's bytes.
+
+The JSON Schema ``atlasgen/schemas/manifest.schema.json`` describes the same format for
+other tools; the checks here do not depend on it. The format itself is docs/atlas-format.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+
+from atlasgen import __version__
+from atlasgen.contract import FORMAT_VERSION, MAPPING
+from atlasgen.errors import ManifestError
+from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.text import read_input_text
+
+__all__ = [
+    "Manifest",
+    "MaterialEntry",
+    "Dimensions",
+    "ErrorSummary",
+    "VolumeBleed",
+    "BrdfError",
+    "SeparableErrors",
+    "SeparableFactors",
+    "LutRepresentation",
+    "SeparableRepresentation",
+    "read_manifest",
+    "parse_manifest",
+    "format_manifest",
+    "write_manifest",
+    "COMMON_KEYS",
+]
+
+_MISSING = object()
+_ENCODINGS = {"srgb": 29, "linear": 28}  # encoding -> its DXGI format (docs/atlas-format.md)
+_LAYOUTS = ("array", "volume")
+
+
+# ---- checking one JSON object ---------------------------------------------------------------------
+
+
+def _describe(value) -> str:
+    """A short, one-line rendering of a refused value."""
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "an object"
+    if isinstance(value, list):
+        return f"a list of {len(value)}" if value else "an empty list"
+    text = json.dumps(value) if isinstance(value, str) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_finite(value) -> bool:
+    return _is_number(value) and math.isfinite(value)
+
+
+class _Fields:
+    """One JSON object being read: each accessor checks a field and names it in a refusal.
+
+    Values are returned as parsed (an integer stays an integer where a number is
+    expected), so writing them back gives the same JSON text.
+    """
+
+    def __init__(self, shown: str, where: str, data):
+        if not isinstance(data, dict):
+            what = "a JSON object" if where else "an atlas manifest (a JSON object)"
+            raise ManifestError(shown, where or None, f"expected {what}, got {_describe(data)}")
+        self.shown, self.where, self.data = shown, where, data
+
+    def name(self, key: str) -> str:
+        return f"{self.where}.{key}" if self.where else key
+
+    def fail(self, key: str, expected: str, value=_MISSING):
+        if value is _MISSING:
+            raise ManifestError(self.shown, self.name(key), f"missing; expected {expected}")
+        raise ManifestError(self.shown, self.name(key), f"expected {expected}, got {_describe(value)}")
+
+    def take(self, key: str, expected: str, ok, optional: bool = False, nullable: bool = False):
+        if key not in self.data:
+            if optional:
+                return None
+            self.fail(key, expected)
+        value = self.data[key]
+        if (value is None and nullable) or ok(value):
+            return value
+        self.fail(key, expected + (" or null" if nullable else ""), value)
+
+    def integer(self, key, minimum: int = 0, optional=False):
+        return self.take(key, f"an integer >= {minimum}", lambda v: _is_int(v) and v >= minimum, optional)
+
+    def number(self, key, optional=False, nullable=False, minimum=None):
+        if minimum is None:
+            return self.take(key, "a number", _is_number, optional, nullable)
+        return self.take(key, f"a number >= {minimum}", lambda v: _is_number(v) and v >= minimum, optional, nullable)
+
+    def string(self, key, optional=False, choices=None):
+        if choices is not None:
+            return self.take(key, "one of " + ", ".join(repr(c) for c in choices), lambda v: v in choices, optional)
+        return self.take(key, "a string", lambda v: isinstance(v, str), optional)
+
+    def nonempty(self, key):
+        return self.take(key, "a non-empty string", lambda v: isinstance(v, str) and v != "")
+
+    def boolean(self, key, optional=False, nullable=False):
+        return self.take(key, "true or false", lambda v: isinstance(v, bool), optional, nullable)
+
+    def mapping(self, key, optional=False, values=None, expected="an object"):
+        ok = (lambda v: isinstance(v, dict)) if values is None else (lambda v: isinstance(v, dict) and all(values(x) for x in v.values()))
+        return self.take(key, expected, ok, optional)
+
+    def array(self, key, expected="a list", item=None, length=None, optional=False):
+        """A list (of ``length`` items); ``item`` = (check, description) of each item."""
+        value = self.take(key, expected, lambda v: isinstance(v, list) and (length is None or len(v) == length), optional)
+        for i, x in enumerate(value or []):
+            if item is not None and not item[0](x):
+                self.fail(f"{key}[{i}]", item[1], x)
+        return value
+
+    def child(self, key, optional=False) -> "_Fields | None":
+        if key not in self.data and optional:
+            return None
+        self.take(key, "an object", lambda v: isinstance(v, dict))
+        return _Fields(self.shown, self.name(key), self.data[key])
+
+
+def _to_json(record) -> dict:
+    """A record's fields as JSON, in field order; ``None`` left out where the field says so."""
+    out = {}
+    for f in fields(record):
+        value = getattr(record, f.name)
+        if value is None and f.metadata.get("omit_none"):
+            continue
+        out[f.metadata.get("key", f.name)] = _plain(value)
+    return out
+
+
+def _plain(value):
+    if is_dataclass(value):
+        return value.to_json()
+    if isinstance(value, list):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+_OPTIONAL = {"omit_none": True}
+_OBJECT = (lambda v: isinstance(v, dict), "an object")
+
+
+class _Record:
+    """A manifest record: its JSON is its fields in order (``metadata["key"]`` renames one)."""
+
+    def to_json(self) -> dict:
+        return _to_json(self)
+
+
+# ---- records ------------------------------------------------------------------------------------
+
+
+@dataclass(kw_only=True)
+class Dimensions(_Record):
+    """The texture's size: ``width`` x ``height`` texels, ``layers`` slices, ``mip_count`` levels."""
+
+    width: int
+    height: int
+    layers: int
+    mip_count: int
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "Dimensions":
+        return cls(width=f.integer("width", 1), height=f.integer("height", 1), layers=f.integer("layers", 1),
+                   mip_count=f.integer("mip_count", 1))  # fmt: skip
+
+
+@dataclass(kw_only=True)
+class ErrorSummary(_Record):
+    """Largest and RMS absolute error, linear units (``quantization_error``)."""
+
+    max: float
+    rms: float
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "ErrorSummary":
+        return cls(max=f.number("max", minimum=0), rms=f.number("rms", minimum=0))
+
+
+@dataclass(kw_only=True)
+class VolumeBleed(_Record):
+    """How far volume mip ``level`` is from each material's own 2D mip (linear units)."""
+
+    level: int
+    max: float
+    rms: float
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "VolumeBleed":
+        return cls(level=f.integer("level", 1), max=f.number("max", minimum=0), rms=f.number("rms", minimum=0))
+
+
+@dataclass(kw_only=True)
+class BrdfError(_Record):
+    """A BRDF approximation's error over the sampled (l, v) pairs (docs/separable.md, "Error")."""
+
+    relative_rms: float
+    log_error: float
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "BrdfError":
+        return cls(relative_rms=f.number("relative_rms"), log_error=f.number("log_error"))
+
+
+def _lists_of_objects(v) -> bool:
+    return isinstance(v, list) and all(isinstance(x, dict) for x in v)
+
+
+def _lists_of_numbers(v) -> bool:
+    return isinstance(v, list) and all(_is_number(x) for x in v)
+
+
+@dataclass(kw_only=True)
+class SeparableErrors(_Record):
+    """A separable material's float errors: ``float`` (JSON key) at the chosen term count, and
+    per target the curves against the term count (float, estimated 8-bit, on the grid)."""
+
+    pairs: int
+    seed: int
+    float_error: BrdfError = field(metadata={"key": "float"})
+    float_by_terms: dict  # target -> [{"terms", "relative_rms", "log_error"}]
+    estimated_8bit_srgb_by_terms: dict  # target -> [{"terms", "relative_rms"}]
+    grid_by_terms: dict  # target -> [relative RMS on the sampling grid, K = 1, 2, ...]
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "SeparableErrors":
+        curves = "an object of lists of {terms, relative_rms, ...} per target"
+        return cls(
+            pairs=f.integer("pairs", 1),
+            seed=f.integer("seed", 0),
+            float_error=BrdfError.from_json(f.child("float")),
+            float_by_terms=f.mapping("float_by_terms", values=_lists_of_objects, expected=curves),
+            estimated_8bit_srgb_by_terms=f.mapping("estimated_8bit_srgb_by_terms", values=_lists_of_objects, expected=curves),
+            grid_by_terms=f.mapping("grid_by_terms", values=_lists_of_numbers, expected="an object of lists of numbers per target"),
+        )
+
+
+def _factor_table(v) -> bool:
+    """``[[r, g, b], [r, g, b]]``: one value per colour channel of the g and the h factor."""
+    return (isinstance(v, list) and len(v) == 2
+            and all(isinstance(c, list) and len(c) == 3 and all(_is_finite(x) for x in c) for c in v))  # fmt: skip
+
+
+@dataclass(kw_only=True)
+class SeparableFactors(_Record):
+    """How a separable BRDF's factors are stored in its slices (docs/separable.md, "Storage").
+
+    Slice k holds term k: g_k left, h_k right; a factor's value is
+    ``stored * factor_scale[k][f][c] + factor_bias[k][f][c]`` (f = 0 for g, 1 for h, c the
+    colour channel). ``target`` names what the terms hold (``f_cos``: f cos(theta_l);
+    ``f_proxy``: f times the proxy cosine). Fields the bake always writes but a rebuild
+    does not need are optional here (``None``: absent from the JSON).
+    """
+
+    parametrization: str
+    factorization: str | None = field(default=None, metadata=_OPTIONAL)
+    target: str = "f_cos"
+    terms: int | None = field(default=None, metadata=_OPTIONAL)
+    sampling_grid: int | None = field(default=None, metadata=_OPTIONAL)
+    factor_resolution: int | None = field(default=None, metadata=_OPTIONAL)
+    channel_layout: str | None = field(default=None, metadata=_OPTIONAL)
+    factor_scale: list
+    factor_bias: list
+    nonfinite_samples: int | None = field(default=None, metadata=_OPTIONAL)
+    nonfinite_reference: int | None = field(default=None, metadata=_OPTIONAL)
+    errors: SeparableErrors | None = field(default=None, metadata=_OPTIONAL)
+    max_error: float | None = field(default=None, metadata=_OPTIONAL)
+    max_error_met: bool | None = field(default=None, metadata=_OPTIONAL)
+    errors_8bit: BrdfError | None = field(default=None, metadata=_OPTIONAL)
+
+    @classmethod
+    def keys(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_json(cls, f: _Fields, slice_count: int) -> "SeparableFactors":
+        table = f"a list of {slice_count} (one per term)"
+        cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values")
+        errors = f.child("errors", optional=True)
+        errors_8bit = f.child("errors_8bit", optional=True)
+        return cls(
+            parametrization=f.nonempty("parametrization"),
+            factorization=f.string("factorization", optional=True),
+            target=f.string("target", optional=True) or "f_cos",
+            terms=f.integer("terms", 1, optional=True),
+            sampling_grid=f.integer("sampling_grid", 1, optional=True),
+            factor_resolution=f.integer("factor_resolution", 1, optional=True),
+            channel_layout=f.string("channel_layout", optional=True),
+            factor_scale=f.array("factor_scale", table, cell, slice_count),
+            factor_bias=f.array("factor_bias", table, cell, slice_count),
+            nonfinite_samples=f.integer("nonfinite_samples", 0, optional=True),
+            nonfinite_reference=f.integer("nonfinite_reference", 0, optional=True),
+            errors=None if errors is None else SeparableErrors.from_json(errors),
+            max_error=f.number("max_error", optional=True),
+            max_error_met=f.boolean("max_error_met", optional=True),
+            errors_8bit=None if errors_8bit is None else BrdfError.from_json(errors_8bit),
+        )
+
+
+@dataclass(kw_only=True)
+class LutRepresentation(_Record):
+    """A LUT material baked within an ``error_budget``: the supersampling that met it
+    (:mod:`atlasgen.bake.adaptive`) and every factor tried."""
+
+    kind: str = "lut"
+    supersampling: int
+    error_budget: float
+    reconstruction_error: float
+    meets_budget: bool
+    candidates: list  # [{"supersampling", "error"}]
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "LutRepresentation":
+        return cls(kind=f.string("kind"), supersampling=f.integer("supersampling", 1),
+                   error_budget=f.number("error_budget"), reconstruction_error=f.number("reconstruction_error"),
+                   meets_budget=f.boolean("meets_budget"), candidates=f.array("candidates", "a list of objects", _OBJECT))  # fmt: skip
+
+
+@dataclass(kw_only=True)
+class SeparableRepresentation(_Record):
+    """A separable material's chosen term count and sampling grid, and the candidates tried."""
+
+    kind: str = "separable"
+    terms: int
+    sampling_grid: int
+    target: str
+    error_budget: float | None
+    estimated_error_8bit: float
+    meets_budget: bool | None
+    candidates: list  # [{"grid", "target", "relative_rms_by_terms"}]
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "SeparableRepresentation":
+        return cls(kind=f.string("kind"), terms=f.integer("terms", 1), sampling_grid=f.integer("sampling_grid", 1),
+                   target=f.string("target"), error_budget=f.number("error_budget", nullable=True),
+                   estimated_error_8bit=f.number("estimated_error_8bit"), meets_budget=f.boolean("meets_budget", nullable=True),
+                   candidates=f.array("candidates", "a list of objects", _OBJECT))  # fmt: skip
+
+
+def _read_representation(f: _Fields):
+    if "supersampling" in f.data:
+        return LutRepresentation.from_json(f)
+    if "estimated_error_8bit" in f.data:
+        return SeparableRepresentation.from_json(f)
+    raise ManifestError(f.shown, f.where, "expected a LUT representation (with 'supersampling') or a separable one "
+                                          "(with 'estimated_error_8bit')")  # fmt: skip
+
+
+def _scale_pair(v) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(_is_finite(x) for x in v)
+
+
+#: The fields every material entry has, in the order the bake writes them.
+COMMON_KEYS = ("name", "id", "constant", "first_slice", "slice_count", "type", "source", "content_hash",
+               "description", "params", "scale", "bias", "flags", "clamped_fraction", "quantization_error")  # fmt: skip
+
+
+@dataclass(kw_only=True)
+class MaterialEntry:
+    """One material of the atlas: where its slices are, how to decode them, what it was baked from.
+
+    The linear value of slice ``first_slice + k`` is ``texel * scale[k] + bias[k]``, with
+    ``(rgb, alpha)`` pairs. ``source`` is the material file as given to the bake (a
+    separable model writes its BRDF source there instead: ``ggx``, ``mitsuba``, ...).
+    ``params`` are the model's parameter values (defaults filled in), ``flags`` its
+    render-time requests (``outline``, ``nearest``).
+
+    Model-specific parts, each ``None`` when the entry has none of its keys:
+    ``representation`` (how an ``error_budget`` was met) and ``factors`` (a separable
+    BRDF's factor storage). ``extra`` holds any other key, in order.
+    """
+
+    name: str
+    id: int
+    constant: str
+    first_slice: int
+    slice_count: int = 1
+    type: str
+    source: str = ""
+    content_hash: str = ""
+    description: str = ""
+    params: dict = field(default_factory=dict)
+    scale: list = field(default_factory=list)  # per slice [rgb_scale, alpha_scale]; [] -> all 1
+    bias: list = field(default_factory=list)  # per slice [rgb_bias, alpha_bias]; [] -> all 0
+    flags: dict = field(default_factory=dict)
+    clamped_fraction: float = 0.0
+    quantization_error: ErrorSummary = field(default_factory=lambda: ErrorSummary(max=0.0, rms=0.0))
+    representation: LutRepresentation | SeparableRepresentation | None = None
+    factors: SeparableFactors | None = None
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not self.scale:
+            self.scale = [[1.0, 1.0] for _ in range(self.slice_count)]
+        if not self.bias:
+            self.bias = [[0.0, 0.0] for _ in range(self.slice_count)]
+
+    @property
+    def slices(self) -> range:
+        """The atlas slices this material occupies."""
+        return range(self.first_slice, self.first_slice + self.slice_count)
+
+    def flag(self, name: str) -> bool:
+        """Whether the model asked for render-time behaviour ``name`` (``outline``, ``nearest``)."""
+        return bool(self.flags.get(name, False))
+
+    def to_json(self) -> dict:
+        """The entry as the bake writes it: common fields, the separable storage fields,
+        ``representation``, then ``errors_8bit`` (measured last, on the 8-bit result)."""
+        out = {key: _plain(getattr(self, key)) for key in COMMON_KEYS}
+        factors = self.factors.to_json() if self.factors is not None else {}
+        errors_8bit = factors.pop("errors_8bit", None)
+        out.update(factors)
+        if self.representation is not None:
+            out["representation"] = self.representation.to_json()
+        if errors_8bit is not None:
+            out["errors_8bit"] = errors_8bit
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_json(cls, data, shown: str = "<manifest>", where: str = "") -> "MaterialEntry":
+        """Parse one entry; :class:`ManifestError` names ``shown`` and the field (``where.key``)."""
+        f = _Fields(shown, where, data)
+        slice_count = f.integer("slice_count", 1)
+        pairs = f"a list of {slice_count} (one per slice)"
+        pair = (_scale_pair, "an [rgb, alpha] pair of finite numbers")
+        first = f.integer("first_slice", 0)
+        entry_id = f.integer("id", 0)
+        if entry_id != first:
+            f.fail("id", f"the entry's first_slice ({first})", entry_id)
+        representation = f.child("representation", optional=True)
+        has_factors = any(k in data for k in SeparableFactors.keys())
+        known = set(COMMON_KEYS) | {"representation"} | set(SeparableFactors.keys())
+        return cls(
+            name=f.nonempty("name"),
+            id=entry_id,
+            constant=f.nonempty("constant"),
+            first_slice=first,
+            slice_count=slice_count,
+            type=f.nonempty("type"),
+            source=f.string("source"),
+            content_hash=f.string("content_hash"),
+            description=f.string("description"),
+            params=f.mapping("params"),
+            scale=f.array("scale", pairs, pair, slice_count),
+            bias=f.array("bias", pairs, pair, slice_count),
+            flags=f.mapping("flags", values=lambda v: isinstance(v, bool), expected="an object of true/false flags"),
+            clamped_fraction=f.take("clamped_fraction", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
+            quantization_error=ErrorSummary.from_json(f.child("quantization_error")),
+            representation=None if representation is None else _read_representation(representation),
+            factors=SeparableFactors.from_json(f, slice_count) if has_factors else None,
+            extra={k: v for k, v in data.items() if k not in known},
+        )
+
+    def with_fields(self, model_fields: dict, shown: str = "<manifest>") -> "MaterialEntry":
+        """This entry with ``model_fields`` (a model's manifest fields, JSON values) merged in
+        and parsed into the typed parts; a key naming a common field replaces it in place.
+
+        Raises :class:`ManifestError` (naming ``shown`` and ``<name>.<key>``) for a field
+        the manifest cannot hold."""
+        return MaterialEntry.from_json({**self.to_json(), **model_fields}, shown, self.name)
+
+
+@dataclass(kw_only=True)
+class Manifest(_Record):
+    """The atlas manifest: texture format, the (N.L, N.V) mapping, and every material.
+
+    ``materials`` are in slice order as baked; ``volume_bleed`` is present for volume
+    layouts only (how far each mip level blends neighbouring materials).
+    """
+
+    format_version: int = FORMAT_VERSION
+    generator: str = f"atlasgen {__version__}"
+    dimensions: Dimensions
+    encoding: str
+    dxgi_format: int
+    layout: str = "array"
+    mapping: dict = field(default_factory=lambda: dict(MAPPING))
+    materials: list[MaterialEntry] = field(default_factory=list)
+    volume_bleed: list[VolumeBleed] | None = field(default=None, metadata=_OPTIONAL)
+
+    @property
+    def srgb(self) -> bool:
+        """Whether RGB is stored sRGB-encoded (a sampler decodes it to linear)."""
+        return self.encoding == "srgb"
+
+    @property
+    def names(self) -> list[str]:
+        return [m.name for m in self.materials]
+
+    @property
+    def slices_used(self) -> int:
+        return sum(m.slice_count for m in self.materials)
+
+    def entry_named(self, name: str) -> MaterialEntry | None:
+        """The entry of material ``name``, or ``None``."""
+        return next((m for m in self.materials if m.name == name), None)
+
+    def by_slice(self, index: int) -> MaterialEntry | None:
+        """The entry whose slices include ``index``, or ``None`` for an unused slice."""
+        return next((m for m in self.materials if index in m.slices), None)
+
+    @classmethod
+    def from_json(cls, data, shown: str = "<manifest>") -> "Manifest":
+        """Check and parse a manifest's JSON value; :class:`ManifestError` on the first fault.
+
+        The format version is checked first: a newer file may be laid out differently.
+        """
+        f = _Fields(shown, "", data)
+        version = f.take("format_version", f"format version {FORMAT_VERSION} (an integer)", lambda v: _is_int(v) and v >= 1)
+        if version > FORMAT_VERSION:
+            f.fail("format_version", f"format version {FORMAT_VERSION} or older (the file is newer than this atlasgen: "
+                                     "upgrade atlasgen, or re-bake the atlas)", version)  # fmt: skip
+        known = [x.name for x in fields(cls)]
+        unknown = [k for k in data if k not in known]
+        if unknown:
+            raise ManifestError(shown, unknown[0], f"unknown field; expected only {', '.join(known)}")
+        dimensions = Dimensions.from_json(f.child("dimensions"))
+        encoding = f.string("encoding", choices=tuple(_ENCODINGS))
+        dxgi = f.integer("dxgi_format")
+        if dxgi != _ENCODINGS[encoding]:
+            f.fail("dxgi_format", f"{_ENCODINGS[encoding]} (the DXGI format of {encoding} encoding)", dxgi)
+        f.array("materials", "a list of material objects")  # each checked below, by index
+        materials = [MaterialEntry.from_json(m, shown, f"materials[{i}]") for i, m in enumerate(data["materials"])]
+        _check_slices(shown, materials, dimensions.layers)
+        bleed = f.array("volume_bleed", "a list of {level, max, rms} objects", optional=True)
+        return cls(
+            format_version=version,
+            generator=f.string("generator"),
+            dimensions=dimensions,
+            encoding=encoding,
+            dxgi_format=dxgi,
+            layout=f.string("layout", choices=_LAYOUTS),
+            mapping=f.mapping("mapping", values=lambda v: isinstance(v, str), expected="an object of strings"),
+            materials=materials,
+            volume_bleed=None if bleed is None else [
+                VolumeBleed.from_json(_Fields(shown, f"volume_bleed[{i}]", b)) for i, b in enumerate(bleed)],
+        )  # fmt: skip
+
+
+def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> None:
+    """Every material inside the atlas, none sharing a slice or a name with another."""
+    owner: dict[int, str] = {}
+    names: set[str] = set()
+    for i, m in enumerate(materials):
+        where = f"materials[{i}]"
+        if m.name in names:
+            raise ManifestError(shown, f"{where}.name", f"expected a unique name, got {m.name!r} twice")
+        names.add(m.name)
+        if m.first_slice + m.slice_count > layers:
+            raise ManifestError(shown, f"{where}.slice_count", f"expected slices {m.first_slice}..{m.first_slice + m.slice_count - 1} "
+                                                              f"within the atlas's {layers} layers")  # fmt: skip
+        for s in m.slices:
+            if s in owner:
+                raise ManifestError(shown, f"{where}.first_slice", f"expected free slices, got slice {s}, also {owner[s]!r}'s")
+            owner[s] = m.name
+
+
+# ---- reading and writing -------------------------------------------------------------------------
+
+
+def parse_manifest(text: str, shown: str = "<manifest>") -> Manifest:
+    """A manifest from its JSON text; ``shown`` names the file in refusals."""
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise ManifestError(shown, None, f"expected an atlas manifest (JSON), got malformed JSON ({exc})") from None
+    return Manifest.from_json(data, shown)
+
+
+def read_manifest(path) -> Manifest:
+    """Read and check the manifest at ``path`` (``X.json`` beside ``X.dds``).
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable.
+    ManifestError
+        It is not JSON, not an object, of another format version, or a field is wrong.
+    """
+    text = read_input_text(path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
+    return parse_manifest(text, Path(path).as_posix())
+
+
+def format_manifest(manifest: Manifest) -> str:
+    """Manifest JSON with one material per line: readable in a diff, and fast to write.
+
+    (``json.dumps(indent=...)`` falls back to the pure-Python encoder, which costs
+    more than the rest of a 256-material bake.)
+    """
+    lines = ["{"]
+    items = list(manifest.to_json().items())
+    for i, (key, value) in enumerate(items):
+        comma = "," if i < len(items) - 1 else ""
+        if key in ("materials", "volume_bleed") and value:
+            lines.append(f"  {json.dumps(key)}: [")
+            lines += [f"    {json.dumps(v)}{',' if j < len(value) - 1 else ''}" for j, v in enumerate(value)]
+            lines.append(f"  ]{comma}")
+        else:
+            lines.append(f"  {json.dumps(key)}: {json.dumps(value)}{comma}")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def write_manifest(manifest: Manifest, path) -> Path:
+    """Write ``manifest`` to ``path`` atomically; return the path."""
+    path = Path(path)
+    write_file_atomically(path, format_manifest(manifest).encode())
+    return path

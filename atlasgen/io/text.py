@@ -1,0 +1,34 @@
+"""Reading a user-named input file as text, with the one-line refusals every reader shares."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from atlasgen.errors import FieldError, InputError
+
+__all__ = ["read_input_text"]
+
+
+def read_input_text(path, missing: str, expected: str, error: type[FieldError]) -> str:
+    """The UTF-8 text of ``path``.
+
+    Raises
+    ------
+    InputError
+        ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
+        system refuses it.
+    FieldError
+        ``error`` (e.g. :class:`~atlasgen.errors.SceneError`), ``path: expected {expected}``,
+        when it is a directory or not UTF-8.
+    """
+    shown = Path(path).as_posix()
+    try:
+        return Path(path).read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{shown}: {missing}") from None
+    except IsADirectoryError:
+        raise error(shown, None, f"expected {expected}, got a directory") from None
+    except UnicodeDecodeError:
+        raise error(shown, None, f"expected {expected}, got bytes that are not UTF-8") from None
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None

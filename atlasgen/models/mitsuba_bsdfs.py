@@ -1,0 +1,194 @@
+"""atlasgen's Mitsuba 3 BSDF plugins: the references models return from their hooks.
+
+``atlasgen_model`` (:data:`MODEL_REFERENCE`)
+    The renderer's shading equation with the atlas lookup replaced by the exact model the
+    slice was baked from (:meth:`atlasgen.models.base.Model.renderer_f_cos`). As a BSDF,
+    eval(w_i, w_o) must return f cos(theta_o), which is what that equation gives: A.rgb
+    already holds the cosine fall-off and the specular lobe is a BRDF times max(N.L, 0)
+    (:mod:`atlasgen.optics.specular`). N.L = cos(theta_o) and N.V = cos(theta_i). Like
+    the renderer's g-buffer, a back face is shaded with the flipped normal.
+``atlasgen_brdf`` (:data:`BRDF_REFERENCE`)
+    A separable material's source BSDF times the object's albedo, f cos for the full
+    (w_i, w_o): the analytic source, or the Mitsuba BSDF given in the material.
+``atlasgen_thinfilm`` (:data:`THIN_FILM_REFERENCE`)
+    The iridescent model's physical reference, a thin-film microfacet BSDF evaluated per
+    wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
+
+Each is a Python plugin (Mitsuba runs those in the ``llvm_ad_*`` variants only) that
+evaluates in NumPy and samples the cosine-weighted hemisphere. mitsuba and drjit are
+imported by the caller and handed in as ``mi``.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from atlasgen.models import get_model
+from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE
+from atlasgen.models.thin_film import thin_film_f_cos
+from atlasgen.separable.source import make_source
+
+__all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "register_bsdfs"]
+
+_registered: set = set()
+
+
+def _local_arrays(dr, si, wo):
+    """(w_i, w_o, side) as NumPy: side = -1 on back faces, where the renderer flips n."""
+    back = dr.dot(si.n, si.to_world(si.wi)) < 0.0
+    side = np.where(np.asarray(back.numpy(), dtype=bool), -1.0, 1.0)
+    wi = np.stack([np.asarray(c.numpy(), dtype=np.float64) for c in (si.wi.x, si.wi.y, si.wi.z)], -1)
+    w = np.stack([np.asarray(c.numpy(), dtype=np.float64) for c in (wo.x, wo.y, wo.z)], -1)
+    return wi, w, side
+
+
+def _colour(mi, rgb: np.ndarray):
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    return mi.Color3f(mi.Float(rgb[:, 0].copy()), mi.Float(rgb[:, 1].copy()), mi.Float(rgb[:, 2].copy()))
+
+
+def register_bsdfs(mi) -> None:
+    """Register ``atlasgen_model``, ``atlasgen_brdf`` and ``atlasgen_thinfilm`` (``mi.register_bsdf``)
+    for the current variant; Mitsuba keeps plugins per variant, so call it after each ``set_variant``."""
+    variant = mi.variant()
+    if variant in _registered:
+        return
+    import drjit as dr
+
+    flags = (
+        mi.BSDFFlags.DiffuseReflection
+        | mi.BSDFFlags.GlossyReflection
+        | mi.BSDFFlags.DiffuseTransmission
+        | mi.BSDFFlags.FrontSide
+        | mi.BSDFFlags.BackSide
+    )
+
+    class _NumpyBSDF(mi.BSDF):
+        """Evaluates f cos in NumPy; samples the cosine-weighted hemisphere of w_i's side."""
+
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            self.m_flags = flags
+            self.m_components = [flags]
+
+        def f_cos(self, wi, wo, side):  # (N, 3) arrays -> (N, 3)
+            raise NotImplementedError
+
+        def eval(self, ctx, si, wo, active=True):
+            wi_np, wo_np, side = _local_arrays(dr, si, wo)
+            if wi_np.shape[0] == 0:
+                return mi.Color3f(0.0)
+            value = np.nan_to_num(self.f_cos(wi_np, wo_np, side), nan=0.0, posinf=0.0, neginf=0.0)
+            return dr.select(active, _colour(mi, value), 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            cos = dr.abs(wo.z)
+            return dr.select(active & (wo.z * si.wi.z > 0), cos / dr.pi, 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            wo = mi.Vector3f(wo.x, wo.y, dr.select(si.wi.z < 0, -wo.z, wo.z))
+            bs = mi.BSDFSample3f()
+            bs.wo = wo
+            bs.pdf = dr.abs(wo.z) / dr.pi
+            bs.eta = 1.0
+            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DiffuseReflection)
+            bs.sampled_component = 0
+            value = self.eval(ctx, si, wo, active)
+            return bs, dr.select(active & (bs.pdf > 0), value / bs.pdf, 0.0)
+
+    class ModelReference(_NumpyBSDF):
+        """The renderer's equation with the exact atlasgen model in place of the atlas."""
+
+        def __init__(self, props):
+            _NumpyBSDF.__init__(self, props)
+            spec = json.loads(props["material"])
+            self.model = get_model(spec["type"])
+            self.values = spec["params"]
+            self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
+            self.gloss = float(spec.get("gloss", 0.5))
+
+        def f_cos(self, wi, wo, side):
+            h = wi + wo
+            h2 = (h * h).sum(-1)
+            nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12) * side
+            return self.model.renderer_f_cos(self.values, self.albedo, self.gloss,
+                                             wo[:, 2] * side, wi[:, 2] * side, nh, lv_degenerate=h2 < 1e-12)  # fmt: skip
+
+        def to_string(self):
+            return f"ModelReference[{self.model.type_name}]"
+
+    class BrdfReference(_NumpyBSDF):
+        """A separable material's source BSDF times the object's albedo, f cos(theta_o) for the full (w_i, w_o)."""
+
+        def __init__(self, props):
+            _NumpyBSDF.__init__(self, props)
+            spec = json.loads(props["material"])
+            self.source = make_source(spec["params"])
+            self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
+
+        def f_cos(self, wi, wo, side):
+            l, v = wo * side[:, None], wi * side[:, None]
+            value = self.source.f_cos(l, v) * self.albedo
+            return np.where((l[:, 2:3] > 0.0) & (v[:, 2:3] > 0.0), value, 0.0)
+
+        def to_string(self):
+            return f"BrdfReference[{self.source.kind}]"
+
+    film_flags = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+
+    class ThinFilm(mi.BSDF):
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            self.m_flags = film_flags
+            self.m_components = [film_flags]
+            self.film = json.loads(props["film"])
+            self.alpha = float(props["alpha"])
+            self.base = mi.load_dict({"type": "diffuse", "reflectance": {
+                "type": "rgb", "value": [props["colour_r"], props["colour_g"], props["colour_b"]]}})  # fmt: skip
+
+        def eval(self, ctx, si, wo, active=True):
+            wi_np = np.stack([np.asarray(c.numpy(), np.float64) for c in (si.wi.x, si.wi.y, si.wi.z)], -1)
+            if wi_np.shape[0] == 0:
+                return mi.Spectrum(0.0)
+            wo_np = np.stack([np.asarray(c.numpy(), np.float64) for c in (wo.x, wo.y, wo.z)], -1)
+            if mi.is_spectral:
+                lam = np.stack([np.asarray(si.wavelengths[k].numpy(), np.float64) for k in range(len(si.wavelengths))], -1)
+            else:  # RGB variants: the film at representative wavelengths of R, G, B
+                lam = np.broadcast_to(np.array([610.0, 550.0, 465.0]), (wi_np.shape[0], 3))
+            # The base's reflectance spectrum: Mitsuba's diffuse eval is albedo/pi cos.
+            unit = mi.Vector3f(0.0, 0.0, 1.0)
+            base = self.base.eval(ctx, si, unit, active)
+            base_np = np.stack([np.asarray(base[k].numpy(), np.float64) for k in range(lam.shape[1])], -1) * np.pi
+            value = thin_film_f_cos(wi_np, wo_np, lam, self.film, self.alpha, base_np)
+            value = np.ascontiguousarray(np.nan_to_num(value), dtype=np.float32)
+            out = mi.Spectrum(*[mi.Float(value[:, k].copy()) for k in range(value.shape[1])])
+            return dr.select(active, out, 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            return dr.select(active & (wo.z > 0), wo.z / dr.pi, 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            bs = mi.BSDFSample3f()
+            bs.wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            bs.pdf = bs.wo.z / dr.pi
+            bs.eta = 1.0
+            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DiffuseReflection)
+            bs.sampled_component = 0
+            return bs, dr.select(active & (bs.pdf > 0), self.eval(ctx, si, bs.wo, active) / bs.pdf, 0.0)
+
+        def to_string(self):
+            return "ThinFilm[]"
+
+    mi.register_bsdf(MODEL_REFERENCE, lambda props: ModelReference(props))
+    mi.register_bsdf(BRDF_REFERENCE, lambda props: BrdfReference(props))
+    mi.register_bsdf(THIN_FILM_REFERENCE, lambda props: ThinFilm(props))
+    _registered.add(variant)

@@ -1,0 +1,104 @@
+"""PNG and EXR files: written by atlasgen.io.images, read back by OpenImageIO and by a PNG reader of our own."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import OutputError
+from atlasgen.io.images import encode_exr, encode_png, write_exr, write_png
+
+
+def read(path):
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(str(path))
+    return buf.get_pixels(oiio.FLOAT if str(path).endswith(".exr") else oiio.UINT8), buf.spec()
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """8-bit, non-interlaced PNG to (h, w, c) codes (PNG spec, ISO/IEC 15948: chunks, zlib, per-row filters)."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, header = 8, b"", None
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + length]
+        assert zlib.crc32(kind + body) == struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])[0]
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    w, h, depth, colour, _, _, interlace = header
+    assert depth == 8 and interlace == 0
+    c = {0: 1, 4: 2, 2: 3, 6: 4}[colour]
+    raw = zlib.decompress(idat)
+    out = np.zeros((h, w * c), dtype=np.int64)
+    stride = w * c + 1
+    for y in range(h):
+        kind, row = raw[y * stride], np.frombuffer(raw[y * stride + 1 : (y + 1) * stride], np.uint8).astype(np.int64)
+        up = out[y - 1] if y else np.zeros(w * c, np.int64)
+        cur = np.zeros(w * c, np.int64)
+        for x in range(w * c):
+            left = cur[x - c] if x >= c else 0
+            ul = up[x - c] if x >= c else 0
+            if kind == 0:
+                pred = 0
+            elif kind == 1:
+                pred = left
+            elif kind == 2:
+                pred = up[x]
+            elif kind == 3:
+                pred = (left + up[x]) // 2
+            else:  # Paeth
+                p = left + up[x] - ul
+                pa, pb, pc = abs(p - left), abs(p - up[x]), abs(p - ul)
+                pred = left if pa <= pb and pa <= pc else (up[x] if pb <= pc else ul)
+            cur[x] = (row[x] + pred) & 0xFF
+        out[y] = cur
+    return out.reshape(h, w, c).astype(np.uint8)
+
+
+@pytest.mark.parametrize("channels", [1, 3, 4])
+def test_png_holds_the_codes_exactly(tmp_path, channels):
+    codes = np.random.default_rng(channels).integers(0, 256, (9, 13, channels), dtype=np.uint8)
+    write_png(tmp_path / "a.png", codes)
+    data = (tmp_path / "a.png").read_bytes()
+    np.testing.assert_array_equal(decode_png(data), codes)
+    if channels != 4:  # OpenImageIO's reader premultiplies alpha unless told otherwise
+        np.testing.assert_array_equal(read(tmp_path / "a.png")[0].reshape(codes.shape), codes)
+    assert encode_png(codes) == data  # same codes, same bytes
+
+
+def test_png_takes_8_bit_codes_only():
+    with pytest.raises(TypeError, match="8-bit codes"):
+        encode_png(np.zeros((2, 2, 3)))
+    with pytest.raises(TypeError, match="8-bit codes"):
+        encode_png(np.zeros((2, 2, 5), np.uint8))
+
+
+def test_exr_round_trips_linear_floats_with_their_channel_names(tmp_path):
+    rng = np.random.default_rng(1)
+    radiance = (rng.random((5, 7, 3)) * 40).astype(np.float32)
+    radiance[0, 0] = (np.inf, 0.0, 1e-30)
+    write_exr(tmp_path / "a.exr", radiance)
+    pixels, spec = read(tmp_path / "a.exr")
+    np.testing.assert_array_equal(pixels, radiance)
+    assert list(spec.channelnames) == ["R", "G", "B"]
+    assert spec.get_string_attribute("compression") == "zip"
+    write_exr(tmp_path / "z.exr", radiance[..., :1], ("Z",))
+    pixels, spec = read(tmp_path / "z.exr")
+    assert list(spec.channelnames) == ["Z"]
+    np.testing.assert_array_equal(pixels, radiance[..., :1])
+    with pytest.raises(ValueError, match="channels"):
+        encode_exr(radiance, ("R", "G"))
+
+
+def test_writes_are_atomic_and_report_the_folder(tmp_path):
+    (tmp_path / "blocker").write_text("")
+    with pytest.raises(OutputError, match="cannot write output folder"):
+        write_png(tmp_path / "blocker" / "a.png", np.zeros((1, 1, 3), np.uint8))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]
