@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from atlasgen.render.layout import FRAME, LIGHT, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
 from atlasgen.render.shaders import assemble_shader, fill_declarations, read_shader
+from atlasgen.separable.parametrization import Parametrization, Warp
 from atlasgen.wgsl import (
     F32,
     I32,
@@ -276,10 +277,33 @@ def _leaves(t, expr: str, value):
         yield expr, np.asarray(value, dtype=t.dtype).view("<u4")
 
 
-def _read_on_gpu(ctx, t, value, space: str, declarations: str):
-    """Bind ``t.encode(value)`` as ``space``; a compute shader copies every scalar out in order."""
+def _run_compute(ctx, code: str, src: bytes, uniform: bool, out_words: int) -> np.ndarray:
+    """Run ``main`` of ``code`` once with ``src`` at binding 0 and return binding 1's u32 words."""
     import wgpu
 
+    device = ctx.device
+    usage = wgpu.BufferUsage.UNIFORM if uniform else wgpu.BufferUsage.STORAGE
+    src_buffer = device.create_buffer_with_data(data=src, usage=usage)
+    dst = device.create_buffer(size=4 * out_words, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    pipeline = device.create_compute_pipeline(
+        layout="auto", compute={"module": device.create_shader_module(code=code), "entry_point": "main"}
+    )
+    group = device.create_bind_group(
+        layout=pipeline.get_bind_group_layout(0),
+        entries=[{"binding": 0, "resource": {"buffer": src_buffer}}, {"binding": 1, "resource": {"buffer": dst}}],
+    )
+    encoder = device.create_command_encoder()
+    compute = encoder.begin_compute_pass()
+    compute.set_pipeline(pipeline)
+    compute.set_bind_group(0, group)
+    compute.dispatch_workgroups(1)
+    compute.end()
+    device.queue.submit([encoder.finish()])
+    return np.frombuffer(device.queue.read_buffer(dst), dtype="<u4")
+
+
+def _read_on_gpu(ctx, t, value, space: str, declarations: str):
+    """Bind ``t.encode(value)`` as ``space``; a compute shader copies every scalar out in order."""
     leaves = list(_leaves(t, "src", value))
     body = "\n".join(f"    dst[{i}] = bitcast<u32>({expr});" for i, (expr, _) in enumerate(leaves))
     var = "var<uniform>" if space == "uniform" else "var<storage, read>"
@@ -289,25 +313,7 @@ def _read_on_gpu(ctx, t, value, space: str, declarations: str):
         "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
         f"@compute @workgroup_size(1)\nfn main() {{\n{body}\n}}\n"
     )
-    device = ctx.device
-    usage = wgpu.BufferUsage.UNIFORM if space == "uniform" else wgpu.BufferUsage.STORAGE
-    src = device.create_buffer_with_data(data=t.encode(value), usage=usage)
-    dst = device.create_buffer(size=4 * len(leaves), usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
-    pipeline = device.create_compute_pipeline(
-        layout="auto", compute={"module": device.create_shader_module(code=code), "entry_point": "main"}
-    )
-    group = device.create_bind_group(
-        layout=pipeline.get_bind_group_layout(0),
-        entries=[{"binding": 0, "resource": {"buffer": src}}, {"binding": 1, "resource": {"buffer": dst}}],
-    )
-    encoder = device.create_command_encoder()
-    compute = encoder.begin_compute_pass()
-    compute.set_pipeline(pipeline)
-    compute.set_bind_group(0, group)
-    compute.dispatch_workgroups(1)
-    compute.end()
-    device.queue.submit([encoder.finish()])
-    got = np.frombuffer(device.queue.read_buffer(dst), dtype="<u4")
+    got = _run_compute(ctx, code, t.encode(value), space == "uniform", len(leaves))
     return got, np.array([bits for _, bits in leaves], dtype="<u4"), [expr for expr, _ in leaves]
 
 
@@ -360,3 +366,40 @@ def test_gpu_agrees_on_uniform_rules(gpu_device):
     gpu_device.take_errors()
     assert [v[1] for v in verdicts] == [v[2] for v in verdicts], verdicts
     assert [v[2] for v in verdicts] == [False, False, False, True, True, True]
+
+
+# ---- enumerations shared with WGSL ------------------------------------------------------
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("warp", list(Warp), ids=lambda w: w.name)
+def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device, no_gpu_errors):
+    # The include's separable_unwarp, called with Warp's code, against the numpy texel mapping.
+    from atlasgen.separable.shader import _UNWARP
+
+    lo, hi = 0.0, 0.5 * np.pi
+    angles = np.linspace(-0.1, hi + 0.1, 41, dtype=np.float32)
+    lines = "\n".join(f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], {lo!r}, {hi!r}, {int(warp)}));" for i in range(41))
+    code = (
+        f"{_UNWARP}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
+        "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
+        f"@compute @workgroup_size(1)\nfn main() {{\n{lines}\n}}\n"
+    )
+    got = _run_compute(gpu_device, code, angles.tobytes(), False, 41).view(np.float32)
+    expected = Parametrization("t", "half_diff", "theta_h", (("theta_h", warp.name.lower()),)).texel_of("theta_h", angles, 2)
+    np.testing.assert_allclose(got, expected, atol=2e-6)
+
+
+def test_material_flags_are_the_include_bits():
+    from atlasgen.bake.include import MaterialFlag, render_include
+
+    manifest = {"layout": "array", "encoding": "srgb", "format_version": 1, "dimensions": {"mip_count": 7},
+                "materials": [{"constant": "MATERIAL_A", "first_slice": 0, "slice_count": 1, "type": "lambert",
+                               "flags": {"outline": True, "nearest": True}},
+                              {"constant": "MATERIAL_B", "first_slice": 1, "slice_count": 2, "type": "lambert",
+                               "flags": {"nearest": True}}]}  # fmt: skip
+    text = render_include(manifest, np.ones((256, 2)), np.zeros((256, 2)))
+    assert wgsl_constants(MaterialFlag, "ATLAS_FLAG_") in text
+    assert "const ATLAS_FLAG_OUTLINE: u32 = 1u;\nconst ATLAS_FLAG_NEAREST: u32 = 2u;" in text
+    assert "case 0u: { return 3u; }" in text  # OUTLINE | NEAREST
+    assert "case 1u: { return 2u; }" in text and "case 2u: { return 2u; }" in text
