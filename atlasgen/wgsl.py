@@ -144,49 +144,6 @@ def vec4(scalar: Scalar = F32) -> Vector:
 
 
 @dataclass(frozen=True)
-class Matrix:
-    """``matCxR<f32>``: C columns, each a ``vecR<f32>`` padded to its alignment."""
-
-    columns: int
-    rows: int
-
-    @property
-    def name(self) -> str:
-        return f"mat{self.columns}x{self.rows}<f32>"
-
-    @property
-    def column(self) -> Vector:
-        return Vector(self.rows, F32)
-
-    @property
-    def align(self) -> int:
-        return self.column.align
-
-    @property
-    def column_stride(self) -> int:
-        return round_up(self.column.align, self.column.size)
-
-    @property
-    def size(self) -> int:
-        return self.columns * self.column_stride
-
-    def encode(self, value) -> bytes:
-        """``value[row, col]`` (maths convention) written column by column."""
-        m = F32.array(value, (self.rows, self.columns))
-        pad = bytes(self.column_stride - self.column.size)
-        return b"".join(self.column.encode(m[:, c]) + pad for c in range(self.columns))
-
-    def decode(self, data: bytes) -> np.ndarray:
-        stride = self.column_stride
-        cols = [self.column.decode(data[c * stride : c * stride + self.column.size]) for c in range(self.columns)]
-        return np.stack(cols, axis=1)
-
-
-mat3x3 = Matrix(3, 3)
-mat4x4 = Matrix(4, 4)
-
-
-@dataclass(frozen=True)
 class Array:
     """``array<E, N>``: N elements of type E, each padded to the element's alignment."""
 
@@ -218,6 +175,41 @@ class Array:
     def decode(self, data: bytes):
         items = [self.element.decode(data[i * self.stride : i * self.stride + self.element.size]) for i in range(self.count)]
         return items if isinstance(self.element, Struct) else np.stack(items)
+
+
+@dataclass(frozen=True)
+class Matrix:
+    """``matCxR<f32>``: C columns of ``vecR<f32>``, laid out exactly as ``array<vecR<f32>, C>``."""
+
+    columns: int
+    rows: int
+
+    @property
+    def name(self) -> str:
+        return f"mat{self.columns}x{self.rows}<f32>"
+
+    @property
+    def as_array(self) -> Array:
+        return Array(Vector(self.rows, F32), self.columns)
+
+    @property
+    def align(self) -> int:
+        return self.as_array.align
+
+    @property
+    def size(self) -> int:
+        return self.as_array.size
+
+    def encode(self, value) -> bytes:
+        """``value[row, col]`` (maths convention) written column by column."""
+        return self.as_array.encode(F32.array(value, (self.rows, self.columns)).T)
+
+    def decode(self, data: bytes) -> np.ndarray:
+        return self.as_array.decode(data).T
+
+
+mat3x3 = Matrix(3, 3)
+mat4x4 = Matrix(4, 4)
 
 
 @dataclass(frozen=True)
