@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+import enum
+
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.manifest import Manifest
+from atlasgen.wgsl import wgsl_constants
 
-__all__ = ["render_include"]
+__all__ = ["render_include", "MaterialFlag"]
+
+
+class MaterialFlag(enum.IntFlag):
+    """Bits of ``ATLAS_FLAGS`` and ``atlas_material_flags``: one per manifest ``flags`` key."""
+
+    OUTLINE = 1  # toon outlines around the material (outline.wgsl)
+    NEAREST = 2  # read the one nearest texel: hard toon steps
 
 
 def _f32(x: float) -> str:
@@ -33,14 +43,13 @@ def render_include(manifest: Manifest, scales: np.ndarray, biases: np.ndarray) -
         f"const ATLAS_HEIGHT: u32 = {HEIGHT}u;",
         f"const ATLAS_LAYERS: u32 = {LAYERS}u;",
         f"const ATLAS_MIP_COUNT: u32 = {manifest.dimensions.mip_count}u;",
-        "const ATLAS_FLAG_OUTLINE: u32 = 1u;",
-        "const ATLAS_FLAG_NEAREST: u32 = 2u;",
+        *wgsl_constants(MaterialFlag, "ATLAS_FLAG_").splitlines(),
         "",
     ]
     flags = [0] * LAYERS
     for m in manifest.materials:
         lines.append(f"const {m.constant}: u32 = {m.first_slice}u;  // {m.type}, {m.slice_count} slice(s)")
-        bits = (1 if m.flag("outline") else 0) | (2 if m.flag("nearest") else 0)
+        bits = sum(int(flag) for flag in MaterialFlag if m.flag(flag.name.lower()))
         for s in m.slices:
             flags[s] = bits
     lines.append("")

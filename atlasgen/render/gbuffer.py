@@ -22,13 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
 from atlasgen.render.shaders import assemble_shader
 
-__all__ = ["GBuffer", "GBufferPass", "NO_MATERIAL", "OBJECT_UNIFORM_STRIDE", "pack_object"]
+__all__ = ["GBuffer", "GBufferPass", "pack_object"]
 
-NO_MATERIAL = 0xFFFF
-#: Bytes per object in the dynamic-offset uniform buffer (the WebGPU offset alignment).
-OBJECT_UNIFORM_STRIDE = 256
 #: Depth cleared into ``normal_depth.w`` where nothing is drawn.
 FAR_DEPTH = 3.0e38
 
@@ -75,18 +73,14 @@ class GBuffer:
 
 
 def pack_object(model: np.ndarray, albedo, gloss: float, material_id: int) -> bytes:
-    """The ``Object`` uniform of gbuffer.wgsl, padded to :data:`OBJECT_UNIFORM_STRIDE`.
+    """The ``Object`` uniform (:data:`~atlasgen.render.layout.OBJECT`), padded to its dynamic-offset stride.
 
     The normal matrix is the inverse transpose of the model matrix's linear part, which
     keeps normals perpendicular to surfaces under non-uniform scale.
     """
     normal = np.eye(4)
     normal[:3, :3] = np.linalg.inv(model[:3, :3]).T
-    floats = np.concatenate([
-        model.T.ravel(), normal.T.ravel(), np.array([*albedo, gloss]),
-    ]).astype(np.float32)  # fmt: skip  (WGSL matrices are column-major)
-    ids = np.array([material_id, 0, 0, 0], dtype=np.uint32)
-    data = floats.tobytes() + ids.tobytes()
+    data = OBJECT.pack(model=model, normal_matrix=normal, albedo_gloss=[*albedo, gloss], material=[material_id, 0, 0, 0])
     return data + bytes(OBJECT_UNIFORM_STRIDE - len(data))
 
 
@@ -107,7 +101,7 @@ class GBufferPass:
             entries=[{
                 "binding": 0,
                 "visibility": wgpu.ShaderStage.VERTEX | wgpu.ShaderStage.FRAGMENT,
-                "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": 160},
+                "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": OBJECT.size},
             }],
         )  # fmt: skip
         layout = device.create_pipeline_layout(bind_group_layouts=[frame_layout, self.object_layout])

@@ -24,6 +24,7 @@ import numpy as np
 
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
+from atlasgen.render.layout import LIGHT, LightType
 from atlasgen.render.shaders import assemble_shader
 
 __all__ = [
@@ -33,8 +34,8 @@ __all__ = [
     "LIGHT_STRIDE",
 ]
 
-#: Bytes per light in the storage buffer: position/direction vec4, radiant vec4.
-LIGHT_STRIDE = 32
+#: Bytes per light in the storage buffer.
+LIGHT_STRIDE = LIGHT.size
 
 
 def material_dispatch_wgsl(manifest: Manifest, only_ids=None) -> str:
@@ -63,16 +64,21 @@ def material_dispatch_wgsl(manifest: Manifest, only_ids=None) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: What an empty scene's light buffer holds: WebGPU rejects zero-size buffers.
+_NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0)}
+
+
 def pack_lights(lights) -> bytes:
-    """The ``Light`` array of lighting.wgsl; never empty (WebGPU rejects zero-size buffers)."""
-    data = np.zeros((max(1, len(lights)), 8), dtype=np.float32)
-    for i, light in enumerate(lights):
-        if light.type == "point":
-            data[i, :4] = (*light.position, 1.0)
-        else:
-            data[i, :4] = (*light.direction, 0.0)
-        data[i, 4:7] = np.asarray(light.colour) * light.intensity
-    return data.tobytes()
+    """The ``Light`` array (:data:`~atlasgen.render.layout.LIGHT`) of a scene's lights; never empty."""
+    items = [
+        {
+            "position": light.position if light.type == "point" else light.direction,
+            "kind": LightType[light.type.upper()],
+            "radiant": np.asarray(light.colour, dtype=np.float64) * light.intensity,
+        }
+        for light in lights
+    ]
+    return LIGHT.pack_array(items or [_NO_LIGHT])
 
 
 class LightingPass:

@@ -19,7 +19,8 @@ from atlasgen.errors import BackendError, SceneError
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
-from atlasgen.render.gbuffer import NO_MATERIAL, OBJECT_UNIFORM_STRIDE, GBuffer, GBufferPass, pack_object
+from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
+from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
 from atlasgen.render.lighting import LightingPass, pack_lights
 from atlasgen.render.meshes import build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
@@ -30,7 +31,6 @@ __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
 
 #: G-buffer layers ``--aov`` can dump.
 AOVS = ("normal", "depth", "id", "albedo")
-FRAME_UNIFORM_SIZE = 64 + 10 * 16
 
 
 @dataclass
@@ -68,7 +68,7 @@ class _GpuMesh:
 
 
 def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None) -> bytes:
-    """The ``Frame`` uniform of common.wgsl for ``scene`` (see that file for the layout)."""
+    """The ``Frame`` uniform for ``scene`` (declared as :data:`atlasgen.render.layout.FRAME`)."""
     cam, w, h = scene.camera, scene.width, scene.height
     right, up, forward = camera_basis(cam)
     tan_x, tan_y = tangents(cam, w, h)
@@ -76,16 +76,19 @@ def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None) -> 
     s = scene.settings
     depth_threshold, normal_cos = outline_parameters(s)
     bias = s.mip_bias if mip_bias is None else mip_bias
-    floats = np.concatenate([
-        view_proj.T.ravel(),
-        [*cam.position, 1.0], [*forward, tan_x], [*right, tan_y], [*up, 0.0],
-        [w, h, 1.0 / w, 1.0 / h], [*scene.background, 1.0], [bias, s.mip_distance, mip_levels - 1, 0.0],
-    ]).astype(np.float32)  # fmt: skip
-    counts = np.array([len(scene.lights), 0, 0, 0], dtype=np.uint32)
-    tail = np.array([*s.outline_colour, 1.0, depth_threshold, normal_cos, 0.0, 0.0], dtype=np.float32)
-    data = floats.tobytes() + counts.tobytes() + tail.tobytes()
-    assert len(data) == FRAME_UNIFORM_SIZE
-    return data
+    return FRAME.pack(
+        view_proj=view_proj,
+        eye=[*cam.position, 1.0],
+        forward=[*forward, tan_x],
+        right=[*right, tan_y],
+        up=[*up, 0.0],
+        viewport=[w, h, 1.0 / w, 1.0 / h],
+        background=[*scene.background, 1.0],
+        mip=[bias, s.mip_distance, mip_levels - 1, 0.0],
+        counts=[len(scene.lights), 0, 0, 0],
+        outline_colour=[*s.outline_colour, 1.0],
+        outline=[depth_threshold, normal_cos, 0.0, 0.0],
+    )
 
 
 class Renderer:
@@ -200,7 +203,7 @@ class Renderer:
         )
         object_group = device.create_bind_group(
             layout=self.gbuffer_pass.object_layout,
-            entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": 160}}],
+            entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": OBJECT.size}}],
         )
         lighting_pass = self.lighting_pass_for(e.first_slice for e in entries if get_model(e.type).custom_lighting)
         lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)

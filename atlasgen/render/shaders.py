@@ -2,16 +2,30 @@
 
 from __future__ import annotations
 
+import re
 from functools import cache
 from importlib import resources
 
-__all__ = ["read_shader", "assemble_shader"]
+from atlasgen.render.layout import declaration_wgsl
+
+__all__ = ["read_shader", "fill_declarations", "assemble_shader"]
+
+_DECLARE = re.compile(r"^// @declare (\w+)[ \t]*$", re.MULTILINE)
 
 
 @cache
 def read_shader(name: str) -> str:
-    """The text of ``atlasgen/shaders/<name>``."""
+    """The text of ``atlasgen/shaders/<name>``, as shipped (``// @declare`` lines unfilled)."""
     return resources.files("atlasgen").joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def fill_declarations(text: str) -> str:
+    """Replace each ``// @declare NAME`` line with the generated WGSL of ``NAME``.
+
+    Structs and constants shared with the CPU are declared once, in
+    :mod:`atlasgen.render.layout`; the shader files only say where they go.
+    """
+    return _DECLARE.sub(lambda m: declaration_wgsl(m[1]).rstrip("\n"), text)
 
 
 def assemble_shader(*parts: str, include: str | None = None) -> str:
@@ -21,5 +35,5 @@ def assemble_shader(*parts: str, include: str | None = None) -> str:
     the (N.L, N.V) mapping and scale/bias tables exist in exactly one place.
     """
     texts = [] if include is None else [f"// ---- generated atlas include ----\n{include}"]
-    texts += [f"// ---- {name} ----\n{read_shader(name)}" for name in parts]
+    texts += [f"// ---- {name} ----\n{fill_declarations(read_shader(name))}" for name in parts]
     return "\n".join(texts)

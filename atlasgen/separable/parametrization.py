@@ -27,6 +27,7 @@ uniformly in the cosine (like the atlas's N.L, N.V axes).
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,7 @@ import numpy as np
 __all__ = [
     "ANGLE_RANGES",
     "Parametrization",
+    "Warp",
     "PARAMETRIZATIONS",
     "DEFAULT_PARAMETRIZATION",
     "get_parametrization",
@@ -67,33 +69,48 @@ SYSTEM_ANGLES = {
 _TINY = 1e-12
 
 
-def _warp(t, kind):
-    if kind == "cos":  # texels uniform in cos(angle), for angles in [0, pi/2]
+class Warp(enum.IntEnum):
+    """Texel spacing along a factor axis (module docstring); the value is the code the
+    generated WGSL's ``separable_unwarp`` takes (:mod:`atlasgen.separable.shader`)."""
+
+    LINEAR = 0
+    SQRT = 1
+    SQRT_HI = 2
+    COS = 3
+
+    @classmethod
+    def of(cls, kind) -> "Warp":
+        """A member from itself or its name in any case (``"sqrt_hi"``)."""
+        return kind if isinstance(kind, cls) else cls[str(kind).upper()]
+
+
+def _warp(t, kind: Warp):
+    if kind is Warp.COS:  # texels uniform in cos(angle), for angles in [0, pi/2]
         return np.arccos(np.clip(1.0 - t, -1.0, 1.0)) / HALF_PI
-    if kind == "sqrt":
+    if kind is Warp.SQRT:
         return t * t
-    if kind == "sqrt_hi":
+    if kind is Warp.SQRT_HI:
         return 1.0 - (1.0 - t) * (1.0 - t)
     return t
 
 
-def _unwarp(s, kind):
+def _unwarp(s, kind: Warp):
     s = np.clip(s, 0.0, 1.0)
-    if kind == "cos":
+    if kind is Warp.COS:
         return 1.0 - np.cos(s * HALF_PI)
-    if kind == "sqrt":
+    if kind is Warp.SQRT:
         return np.sqrt(s)
-    if kind == "sqrt_hi":
+    if kind is Warp.SQRT_HI:
         return 1.0 - np.sqrt(1.0 - s)
     return s
 
 
-def _warp_slope(t, kind):
-    if kind == "cos":
+def _warp_slope(t, kind: Warp):
+    if kind is Warp.COS:
         return 1.0 / (HALF_PI * np.sqrt(np.maximum(t * (2.0 - t), 1e-12)))
-    if kind == "sqrt":
+    if kind is Warp.SQRT:
         return 2.0 * t
-    if kind == "sqrt_hi":
+    if kind is Warp.SQRT_HI:
         return 2.0 * (1.0 - t)
     return np.ones_like(t)
 
@@ -111,7 +128,7 @@ class Parametrization:
     single : str
         The angle of the 1D factor g(pi1); the other two, in system order, are
         pi2 = (x axis, y axis) of the 2D factor h.
-    warps : tuple of (angle, "linear"|"sqrt") pairs
+    warps : tuple of (angle, Warp or its name) pairs
         Non-linear texel spacing per angle; unnamed angles are linear.
     """
 
@@ -124,8 +141,11 @@ class Parametrization:
     def pair(self) -> tuple[str, str]:
         return tuple(a for a in SYSTEM_ANGLES[self.system] if a != self.single)
 
-    def warp_of(self, angle: str) -> str:
-        return dict(self.warps).get(angle, "linear")
+    def __post_init__(self):
+        object.__setattr__(self, "warps", tuple((angle, Warp.of(kind)) for angle, kind in self.warps))
+
+    def warp_of(self, angle: str) -> Warp:
+        return dict(self.warps).get(angle, Warp.LINEAR)
 
     def angle_at(self, angle: str, t):
         """The angle at normalised texel position t in [0, 1]."""

@@ -8,14 +8,15 @@ mapping inside each 32x32 half, same scale and bias, same clamp at 0.
 from __future__ import annotations
 
 import re
+from string import Template
 
 from atlasgen.io.manifest import MaterialEntry
-from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, get_parametrization
+from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
 
 __all__ = ["separable_wgsl", "wgsl_function_name"]
 
-_HEADER = """\
+_HEADER = Template("""\
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
@@ -51,21 +52,7 @@ fn separable_angles_in_out(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32
     return vec3<f32>(atan2(length(lt), nl), atan2(length(vt), nv), separable_azimuth(lt, vt));
 }
 
-// Normalised position in [0, 1] of an angle on a warped axis (0 linear, 1 sqrt, 2 sqrt_hi, 3 cos).
-fn separable_unwarp(angle: f32, lo: f32, hi: f32, warp: i32) -> f32 {
-    let s = clamp((angle - lo) / (hi - lo), 0.0, 1.0);
-    if (warp == 3) {
-        return 1.0 - cos(s * 1.5707963267948966);
-    }
-    if (warp == 1) {
-        return sqrt(s);
-    }
-    if (warp == 2) {
-        return 1.0 - sqrt(1.0 - s);
-    }
-    return s;
-}
-
+$unwarp
 // Texel centres of a 32x32 half: texel i at (0.5 + i) / 64 (+ 0.5 for the right half).
 fn separable_uv_g(x: f32) -> vec2<f32> {
     return vec2<f32>((0.5 + x) / 64.0, 0.5 / 32.0);
@@ -74,9 +61,26 @@ fn separable_uv_g(x: f32) -> vec2<f32> {
 fn separable_uv_h(xy: vec2<f32>) -> vec2<f32> {
     return vec2<f32>((32.5 + xy.x) / 64.0, (0.5 + xy.y) / 32.0);
 }
-"""
+""")
 
-_WARP_CODE = {"linear": 0, "sqrt": 1, "sqrt_hi": 2, "cos": 3}
+# The warp codes come from Warp, the one definition the numpy rebuild also uses.
+_WARP_LEGEND = ", ".join(f"{int(w)} {w.name.lower()}" for w in Warp)
+_UNWARP = f"""\
+// Normalised position in [0, 1] of an angle on a warped axis ({_WARP_LEGEND}).
+fn separable_unwarp(angle: f32, lo: f32, hi: f32, warp: i32) -> f32 {{
+    let s = clamp((angle - lo) / (hi - lo), 0.0, 1.0);
+    if (warp == {int(Warp.COS)}) {{
+        return 1.0 - cos(s * 1.5707963267948966);
+    }}
+    if (warp == {int(Warp.SQRT)}) {{
+        return sqrt(s);
+    }}
+    if (warp == {int(Warp.SQRT_HI)}) {{
+        return 1.0 - sqrt(1.0 - s);
+    }}
+    return s;
+}}
+"""
 
 
 def wgsl_function_name(name: str) -> str:
@@ -106,7 +110,7 @@ def _coords_function(name: str) -> str:
 
     def axis(angle):
         lo, hi = ANGLE_RANGES[angle]
-        return f"separable_unwarp(a.{index[angle]}, {_f(lo)}, {_f(hi)}, {_WARP_CODE[p.warp_of(angle)]}) * {_f(last)}"
+        return f"separable_unwarp(a.{index[angle]}, {_f(lo)}, {_f(hi)}, {int(p.warp_of(angle))}) * {_f(last)}"
 
     return (
         f"// Texel coordinates (g: x, h: yz) of parametrization '{name}', from its angles.\n"
@@ -174,7 +178,7 @@ def separable_wgsl(entries: list[MaterialEntry]) -> str:
     if not entries:
         return ""
     used = sorted({e.factors.parametrization for e in entries})
-    parts = [_HEADER] + [_coords_function(name) for name in used]
+    parts = [_HEADER.substitute(unwarp=_UNWARP)] + [_coords_function(name) for name in used]
     parts += [_material_function(e) for e in entries]
     cases = "\n".join(
         f"        case {e.first_slice}u: {{ return separable_f_cos_{wgsl_function_name(e.name)}(atlas, samp, n, l, v); }}"

@@ -2,12 +2,7 @@
 // the material ID. Depth-stencil state (z-writes, stencil marking of translucent
 // objects) is set by the pipeline, not here. Prepended by common.wgsl.
 
-struct Object {
-    model: mat4x4<f32>,
-    normal_matrix: mat4x4<f32>,  // inverse transpose of the model matrix's 3x3 part
-    albedo_gloss: vec4<f32>,     // linear albedo, gloss in [0, 1]
-    material: vec4<u32>,         // x: atlas slice (material ID)
-};
+// @declare Object
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var<uniform> object: Object;

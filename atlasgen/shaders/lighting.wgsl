@@ -25,10 +25,8 @@
 @group(0) @binding(5) var atlas: texture_2d_array<f32>;
 @group(0) @binding(6) var atlas_sampler: sampler;
 
-struct Light {
-    position: vec4<f32>,  // w = 1: point at xyz; w = 0: directional travelling along xyz
-    radiant: vec4<f32>,   // colour * intensity: I in W/sr (point) or E in W/m^2 (directional)
-};
+// @declare Light
+// @declare LightType
 
 // gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal.
 fn specular_exponent(gloss: f32) -> f32 {
@@ -92,10 +90,10 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     var radiance = vec3<f32>(0.0);
     for (var i = 0u; i < frame.counts.x; i = i + 1u) {
         let light = lights[i];
-        var l = -light.position.xyz;
-        var irradiance = light.radiant.rgb;
-        if (light.position.w > 0.5) {
-            let d = light.position.xyz - world;
+        var l = -light.position;
+        var irradiance = light.radiant;
+        if (light.kind == LIGHT_POINT) {
+            let d = light.position - world;
             let d2 = max(dot(d, d), 1e-12);
             l = d * inverseSqrt(d2);
             irradiance = irradiance / d2;

@@ -144,10 +144,15 @@ def test_mip_bias_changes_the_level(renderer, scene_from, no_gpu_errors):
 def test_pack_lights_layout():
     lights = [Light("point", (1.0, 0.5, 0.25), 4.0, position=(1.0, 2.0, 3.0)),
               Light("directional", (1.0, 1.0, 1.0), 2.0, direction=(0.0, -1.0, 0.0))]  # fmt: skip
-    data = np.frombuffer(pack_lights(lights), dtype=np.float32).reshape(2, 8)
-    np.testing.assert_array_equal(data[0], [1, 2, 3, 1, 4, 2, 1, 0])
-    np.testing.assert_array_equal(data[1], [0, -1, 0, 0, 2, 2, 2, 0])
-    assert len(pack_lights([])) == 32  # never a zero-size buffer
+    # WGSL layout of struct { position: vec3<f32>, kind: u32, radiant: vec3<f32> }: kind
+    # fills the vec3's last 4 bytes, radiant aligns to 16, the size rounds up to 32.
+    light = np.dtype({"names": ["position", "kind", "radiant"], "formats": [("<f4", 3), "<u4", ("<f4", 3)],
+                      "offsets": [0, 12, 16], "itemsize": 32})  # fmt: skip
+    data = np.frombuffer(pack_lights(lights), dtype=light)
+    np.testing.assert_array_equal(data["position"], [[1, 2, 3], [0, -1, 0]])
+    assert data["kind"].tolist() == [1, 0]  # LIGHT_POINT, LIGHT_DIRECTIONAL
+    np.testing.assert_array_equal(data["radiant"], [[4, 2, 1], [2, 2, 2]])
+    assert pack_lights([]) == bytes(32)  # never a zero-size buffer
 
 
 def test_specular_lobe_is_energy_normalised():

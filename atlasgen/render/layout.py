@@ -1,0 +1,100 @@
+"""The renderer's CPU/GPU shared declarations: uniform and storage structs, constants.
+
+Each struct a pass binds is declared here once (:class:`atlasgen.wgsl.Struct`); the
+shader files name it with a ``// @declare NAME`` line, which
+:func:`atlasgen.render.shaders.assemble_shader` replaces with the generated WGSL, and
+the ``pack_*`` functions of the passes fill it through the same declaration.
+"""
+
+from __future__ import annotations
+
+import enum
+
+from atlasgen.wgsl import U32, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
+
+__all__ = [
+    "FRAME",
+    "OBJECT",
+    "LIGHT",
+    "LightType",
+    "NO_MATERIAL",
+    "UNIFORM_OFFSET_ALIGNMENT",
+    "OBJECT_UNIFORM_STRIDE",
+    "declaration_wgsl",
+]
+
+#: Material-ID target value of pixels that no object covers (cleared, never written).
+NO_MATERIAL = 0xFFFF
+
+#: WebGPU's default ``minUniformBufferOffsetAlignment``: dynamic uniform offsets are multiples of it.
+UNIFORM_OFFSET_ALIGNMENT = 256
+
+
+class LightType(enum.IntEnum):
+    """``Light.kind``: how ``Light.position`` is read."""
+
+    DIRECTIONAL = 0  # position is the direction the light travels; radiant is an irradiance E
+    POINT = 1  # position is a point; radiant is a radiant intensity I
+
+
+FRAME = Struct(
+    "Frame",
+    [
+        Field("view_proj", mat4x4),
+        Field("eye", vec4(), "camera position; w unused"),
+        Field("forward", vec4(), "unit view direction; w = tan(horizontal half field of view)"),
+        Field("right", vec4(), "unit image-x direction; w = tan(vertical half field of view)"),
+        Field("up", vec4(), "unit image-up direction (image y runs along -up)"),
+        Field("viewport", vec4(), "width, height, 1 / width, 1 / height"),
+        Field("background", vec4(), "radiance of pixels no object covers"),
+        Field("mip", vec4(), "x: bias, y: reference distance, z: last mip level"),
+        Field("counts", vec4(U32), "x: number of lights"),
+        Field("outline_colour", vec4(), "radiance written on outline pixels"),
+        Field("outline", vec4(), "x: relative inverse-depth threshold, y: cos(normal threshold)"),
+    ],
+    address_space="uniform",
+    doc="Per frame, bound by every pass (pack_frame in atlasgen/render/renderer.py).",
+)
+
+OBJECT = Struct(
+    "Object",
+    [
+        Field("model", mat4x4),
+        Field("normal_matrix", mat4x4, "inverse transpose of the model matrix's 3x3 part"),
+        Field("albedo_gloss", vec4(), "linear albedo, gloss in [0, 1]"),
+        Field("material", vec4(U32), "x: atlas slice (material ID)"),
+    ],
+    address_space="uniform",
+    doc="Per object, at a dynamic offset (pack_object in atlasgen/render/gbuffer.py).",
+)
+
+#: Bytes per object in the dynamic-offset uniform buffer.
+OBJECT_UNIFORM_STRIDE = round_up(UNIFORM_OFFSET_ALIGNMENT, OBJECT.size)
+
+LIGHT = Struct(
+    "Light",
+    [
+        Field("position", vec3(), "LIGHT_POINT: the position; LIGHT_DIRECTIONAL: the direction of travel"),
+        Field("kind", U32, "a LIGHT_* constant"),
+        Field("radiant", vec3(), "colour * intensity: I in W/sr (point) or E in W/m^2 (directional)"),
+    ],
+    doc="One element of the lights storage array (pack_lights in atlasgen/render/lighting.py).",
+)
+
+_DECLARATIONS = {
+    "Frame": FRAME.wgsl,
+    "Object": OBJECT.wgsl,
+    "Light": LIGHT.wgsl,
+    "LightType": lambda: wgsl_constants(LightType, "LIGHT_"),
+    "NO_MATERIAL": lambda: wgsl_constant(
+        "NO_MATERIAL", U32, NO_MATERIAL, "Material-ID target value of pixels that no object covers (cleared, never written)."
+    ),
+}
+
+
+def declaration_wgsl(name: str) -> str:
+    """The generated WGSL of a shared declaration, by the name shader files give it."""
+    try:
+        return _DECLARATIONS[name]()
+    except KeyError:
+        raise ValueError(f"no shared WGSL declaration {name!r}; known: {', '.join(sorted(_DECLARATIONS))}") from None
