@@ -27,8 +27,8 @@ CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
 BAKE_CODE := $(sort $(wildcard atlasgen/models/*.py atlasgen/separable/*.py)) atlasgen/materials/params.py atlasgen/contract.py atlasgen/bake/adaptive.py atlasgen/__init__.py
 ASSEMBLY_CODE := $(sort $(wildcard atlasgen/*.py atlasgen/io/*.py atlasgen/optics/*.py atlasgen/materials/*.py atlasgen/bake/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
-# mips, DDS, the include, reading the atlas back and the CPU sampler.
-SLICE_CODE := atlasgen/bake/pipeline.py atlasgen/optics/quantize.py atlasgen/optics/srgb.py atlasgen/bake/mips.py atlasgen/io/dds.py atlasgen/bake/include.py atlasgen/io/atlas.py atlasgen/optics/interpolation.py
+# mips, DDS/KTX2, the include, reading the atlas back and the CPU sampler.
+SLICE_CODE := atlasgen/bake/pipeline.py atlasgen/optics/quantize.py atlasgen/optics/srgb.py atlasgen/bake/mips.py atlasgen/io/dds.py atlasgen/io/ktx2.py atlasgen/bake/include.py atlasgen/io/atlas.py atlasgen/optics/interpolation.py
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))

@@ -1,4 +1,4 @@
-"""Reading a baked atlas back: the DDS, its manifest, and linear slices as a renderer sees them."""
+"""Reading a baked atlas back: the DDS or KTX2, its manifest, and linear slices as a renderer sees them."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
+from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.errors import InputError
 from atlasgen.optics.quantize import dequantize_rgba
 
@@ -17,10 +18,10 @@ __all__ = ["Atlas", "read_atlas", "summarize_atlas"]
 
 @dataclass
 class Atlas:
-    """A baked atlas: its DDS image and its manifest (``None`` if there is none beside it)."""
+    """A baked atlas: its DDS or KTX2 image and its manifest (``None`` if there is none beside it)."""
 
     path: Path
-    image: DDSImage
+    image: DDSImage | KTX2Image
     manifest: dict | None
 
     @property
@@ -53,11 +54,11 @@ class Atlas:
 
 
 def read_atlas(path) -> Atlas:
-    """Read ``X.dds`` and, if present, its manifest ``X.json``."""
+    """Read ``X.dds`` (or ``X.ktx2``) and, if present, its manifest ``X.json``."""
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path.as_posix()}: no such atlas")
-    image = read_dds(path)
+    image = read_ktx2(path) if path.suffix.lower() == ".ktx2" else read_dds(path)
     manifest_path = path.with_suffix(".json")
     manifest = None
     if manifest_path.exists():
@@ -73,13 +74,16 @@ def summarize_atlas(path) -> dict:
     atlas = read_atlas(path)
     img = atlas.image
     out = {
-        "line": describe_dds(img, path),
+        "line": describe_dds(img, path) if isinstance(img, DDSImage) else describe_ktx2(
+            path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout, img.supercompression),
         "header": {
             "width": img.width, "height": img.height, "layers": img.layers, "mip_count": img.mip_count,
             "dxgi_format": img.dxgi_format, "format_name": img.format_name, "layout": img.layout,
             "bytes": Path(path).stat().st_size,
         },
     }  # fmt: skip
+    if isinstance(img, KTX2Image):
+        out["header"].update(container="ktx2", vk_format=img.vk_format, supercompression=img.supercompression_name)
     if atlas.manifest is not None:
         m = atlas.manifest
         out["manifest"] = {
