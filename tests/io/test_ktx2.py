@@ -312,6 +312,23 @@ def test_damaged_files_are_refused_with_one_line(case, tmp_path):
     assert expected in message, message
 
 
+@pytest.mark.parametrize("content_size", [False, True], ids=["unsized", "sized"])
+def test_a_zstd_bomb_is_refused_without_inflating_it(content_size, tmp_path):
+    """A 10 MB frame in place of a 96-byte level: the reader stops one byte past what the index allows."""
+    import tracemalloc
+
+    path = tmp_path / "bomb.ktx2"
+    path.write_bytes(_bomb(content_size))
+    tracemalloc.start()
+    try:
+        with pytest.raises(InputError, match="inflates to more than"):
+            read_ktx2(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1_000_000
+
+
 def test_a_missing_file_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="cannot read"):
         read_ktx2(tmp_path / "none.ktx2")
