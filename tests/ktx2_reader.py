@@ -10,7 +10,6 @@ every field, so tests can compare them with the spec's constants.
 from __future__ import annotations
 
 import math
-import struct
 
 import numpy as np
 
