@@ -30,7 +30,7 @@ BAKE_CODE := $(BELOW_BAKE) atlasgen/bake/adaptive.py
 # Assembling the atlas from cached slices: everything up to and including bake/.
 ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
-# mips, DDS, the include, reading the atlas back and the CPU sampler: the same layers.
+# mips, DDS/KTX2, the include, reading the atlas back and the CPU sampler: the same layers.
 SLICE_CODE := $(ASSEMBLY_CODE)
 REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py))
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.

@@ -79,10 +79,11 @@ def app():
 @app.command()
 @click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/atlas.dds"), show_default=True,
-              help="DDS to write; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.")
+              help="Atlas to write, X.dds or X.ktx2; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.")
 @click.option("--layout", type=click.Choice(["array", "volume"]), default="array", show_default=True,
               help="Texture2DArray (a mip chain per material) or Texture3D (mips blend neighbouring materials).")
-@click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28) instead of sRGB (DXGI 29).")
+@click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28, VK 37) instead of sRGB (DXGI 29, VK 43).")
+@click.option("--zstd", is_flag=True, help="Supercompress each mip level with Zstandard (needs -o X.ktx2).")
 @click.option("--preview", type=click.Path(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
 @click.option("--scene", type=click.Path(path_type=Path), default=None,
               help="Bake only the materials this scene references.")
@@ -95,11 +96,13 @@ def app():
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
 @fail_on_errors
-def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
+def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
     from atlasgen.materials.material import read_materials, select_scene_materials
 
+    if zstd and output.suffix.lower() != ".ktx2":
+        raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     materials = read_materials(paths or [Path("materials")])
     if scene is not None:
         materials = select_scene_materials(materials, scene)
@@ -118,7 +121,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
-    write_bake(result, output, preview)
+    write_bake(result, output, preview, zstd)
     if depfile is not None:
         from atlasgen.bake.cache import cache_path
         from atlasgen.io.depfile import write_depfile
@@ -130,7 +133,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     if not quiet:
         for warning in result.warnings:
             click.echo(f"atlasgen: warning: {warning}", err=True)
-        click.echo(result.describe(output))
+        click.echo(result.describe(output, zstd))
 
 
 @app.command()
@@ -138,7 +141,7 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @fail_on_errors
 def info(atlas, fmt):
-    """Print an atlas's DDS header and a summary of its manifest.
+    """Print an atlas's DDS or KTX2 header and a summary of its manifest.
 
     With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
     (and the manifest itself atlasgen/schemas/manifest.schema.json).

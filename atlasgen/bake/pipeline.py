@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -12,13 +13,14 @@ import numpy as np
 from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
+from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
-from atlasgen.errors import MaterialError
+from atlasgen.errors import MaterialError, OutputError
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.bake.slots import assign_slices
 
-__all__ = ["BakeResult", "bake_atlas", "bake_material", "read_previous_slots", "sibling_paths", "write_bake"]
+__all__ = ["BakeResult", "bake_atlas", "bake_material", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture"]
 
 
 @dataclass
@@ -33,14 +35,24 @@ class BakeResult:
     timings: dict
     warnings: list = field(default_factory=list)
 
-    def describe(self, dds_path) -> str:
-        """The texconv-style line for this atlas written to ``dds_path``."""
+    def describe(self, dds_path, zstd: bool = False) -> str:
+        """The texconv-style line for this atlas written to ``dds_path`` (``.dds`` or ``.ktx2``)."""
+        if Path(dds_path).suffix.lower() == ".ktx2":
+            vk_format = VK_FORMAT_R8G8B8A8_SRGB if self.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB else VK_FORMAT_R8G8B8A8_UNORM
+            scheme = SUPERCOMPRESSION_ZSTD if zstd else SUPERCOMPRESSION_NONE
+            return describe_ktx2(dds_path, WIDTH, HEIGHT, LAYERS, len(self.levels), vk_format, self.layout, scheme)
         return describe_texture(dds_path, WIDTH, HEIGHT, LAYERS, len(self.levels), self.dxgi_format, self.layout)
 
 
+#: The atlas containers, chosen by the output's suffix.
+ATLAS_SUFFIXES = (".dds", ".ktx2")
+
+
 def sibling_paths(dds_path) -> dict:
-    """The files written beside ``X.dds``: manifest, include and timings."""
+    """The files written beside ``X.dds`` (or ``X.ktx2``, kept under the key ``"dds"``): manifest, include and timings."""
     p = Path(dds_path)
+    if p.suffix.lower() not in ATLAS_SUFFIXES:
+        raise OutputError(f"{p.as_posix()}: unknown atlas container {p.suffix or '(no suffix)'!r}; expected .dds or .ktx2")
     stem = p.with_suffix("")
     return {
         "dds": p,
@@ -258,14 +270,32 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings)
 
 
-def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
-    """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths."""
+def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:
+    """The atlas texture in the container ``path``'s suffix names: DDS, or KTX2 (optionally Zstandard).
+
+    The KTX2 key/value data names the writer and holds ``atlasgen.manifest_sha256``, the
+    SHA-256 of the manifest written beside it, so a loader can tell the pair belongs together.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".ktx2":
+        key_values = {"KTXwriter": f"atlasgen {__version__}",
+                      "atlasgen.manifest_sha256": hashlib.sha256(manifest_bytes).hexdigest()}  # fmt: skip
+        srgb = result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
+        return encode_ktx2(result.levels, result.layout, srgb, key_values, zstd)
+    if zstd:
+        raise OutputError(f"{path.as_posix()}: Zstandard supercompression needs a .ktx2 atlas, not DDS")
+    return encode_dds(result.levels, result.layout, result.dxgi_format)
+
+
+def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False) -> dict:
+    """Write the atlas (DDS or KTX2, by suffix), manifest, include, timings (and preview) all-or-nothing; return the paths."""
     from atlasgen.io.atomic import write_files_atomically
 
     paths = sibling_paths(dds_path)
+    manifest_bytes = format_manifest(result.manifest).encode()
     contents = {
-        paths["dds"]: encode_dds(result.levels, result.layout, result.dxgi_format),
-        paths["manifest"]: format_manifest(result.manifest).encode(),
+        paths["dds"]: encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd),
+        paths["manifest"]: manifest_bytes,
         paths["include"]: result.include.encode(),
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }

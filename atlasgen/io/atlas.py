@@ -1,4 +1,4 @@
-"""Reading a baked atlas back: the DDS, its manifest, and linear slices as a renderer sees them."""
+"""Reading a baked atlas back: the DDS or KTX2, its manifest, and linear slices as a renderer sees them."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
+from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, read_manifest
 from atlasgen.errors import InputError
 from atlasgen.optics.quantize import dequantize_rgba
@@ -17,10 +18,10 @@ __all__ = ["Atlas", "read_atlas", "summarize_atlas", "describe_atlas"]
 
 @dataclass
 class Atlas:
-    """A baked atlas: its DDS image and its manifest (``None`` if there is none beside it)."""
+    """A baked atlas: its DDS or KTX2 image and its manifest (``None`` if there is none beside it)."""
 
     path: Path
-    image: DDSImage
+    image: DDSImage | KTX2Image
     manifest: Manifest | None
 
     @property
@@ -50,11 +51,11 @@ class Atlas:
 
 
 def read_atlas(path) -> Atlas:
-    """Read ``X.dds`` and, if present, its manifest ``X.json`` (checked: :func:`read_manifest`)."""
+    """Read ``X.dds`` (or ``X.ktx2``) and, if present, its manifest ``X.json`` (checked: :func:`read_manifest`)."""
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path.as_posix()}: no such atlas")
-    image = read_dds(path)
+    image = read_ktx2(path) if path.suffix.lower() == ".ktx2" else read_dds(path)
     manifest_path = path.with_suffix(".json")
     manifest = read_manifest(manifest_path) if manifest_path.exists() else None
     return Atlas(path, image, manifest)
@@ -69,8 +70,15 @@ def describe_atlas(path) -> str:
     """What ``atlasgen info`` prints: the texconv-style line, the header, one line per material."""
     atlas = read_atlas(path)
     img = atlas.image
-    lines = [describe_dds(img, path),
-             f"  format {img.dxgi_format} ({img.format_name}), layout {img.layout}, "
+    if isinstance(img, KTX2Image):
+        first = describe_ktx2(path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout,
+                              img.supercompression)
+        fmt_code = f"vkFormat {img.vk_format}"
+        supercompressed = f", {img.supercompression_name} supercompressed" if img.supercompression_name != "none" else ""
+    else:
+        first, fmt_code, supercompressed = describe_dds(img, path), f"format {img.dxgi_format}", ""
+    lines = [first,
+             f"  {fmt_code} ({img.format_name}){supercompressed}, layout {img.layout}, "
              f"{img.width}x{img.height}, {img.layers} layers, {img.mip_count} mips"]  # fmt: skip
     manifest = atlas.manifest
     if manifest is None:
@@ -88,13 +96,16 @@ def summarize_atlas(path) -> dict:
     atlas = read_atlas(path)
     img = atlas.image
     out = {
-        "line": describe_dds(img, path),
+        "line": describe_dds(img, path) if isinstance(img, DDSImage) else describe_ktx2(
+            path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout, img.supercompression),
         "header": {
             "width": img.width, "height": img.height, "layers": img.layers, "mip_count": img.mip_count,
             "dxgi_format": img.dxgi_format, "format_name": img.format_name, "layout": img.layout,
             "bytes": Path(path).stat().st_size,
         },
     }  # fmt: skip
+    if isinstance(img, KTX2Image):
+        out["header"].update(container="ktx2", vk_format=img.vk_format, supercompression=img.supercompression_name)
     if atlas.manifest is not None:
         manifest = atlas.manifest
         out["manifest"] = {
