@@ -33,7 +33,7 @@ SLICE_CODE := atlasgen/bake/pipeline.py atlasgen/optics/quantize.py atlasgen/opt
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
-VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE)
+VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py atlasgen/data/validation/*.toml)) $(RENDER_CODE)
 VALIDATION := $(BUILD)/validation
 VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
