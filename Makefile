@@ -92,6 +92,11 @@ $(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wi
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
 validate: $(VALIDATION)/report.json
+# STRICT=1 (for CI): fail with exit code 6 when a validation goal is missed (docs/cli.md). The
+# check is this phony target's recipe, so every run checks again, not only the one that merged.
+ifneq ($(STRICT),)
+	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q --strict
+endif
 
 # $(call prune,FOLDER,STEMS): remove FOLDER's per-material subfolders whose material file is gone.
 # Run by the merges, which wait for every per-material job, so nothing is writing there.

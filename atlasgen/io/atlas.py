@@ -92,6 +92,7 @@ def summarize_atlas(path) -> dict:
                     "slice_count": e["slice_count"],
                     "scale": "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in e["scale"][:1]),
                     "qerr_max": e["quantization_error"]["max"],
+                    "description": e.get("description", ""), "source": e.get("source", ""),
                 }
                 for e in m["materials"]
             ],
