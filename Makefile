@@ -37,7 +37,7 @@ REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py))
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
-VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py scenes/validation/*.toml)) $(RENDER_CODE) $(REPORT_CODE)
+VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py atlasgen/data/validation/*.toml)) $(RENDER_CODE) $(REPORT_CODE)
 VALIDATION := $(BUILD)/validation
 VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
@@ -96,6 +96,11 @@ $(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wi
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
 validate: $(VALIDATION)/report.json
+# STRICT=1 (for CI): fail with exit code 6 when a validation goal is missed (docs/cli.md). The
+# check is this phony target's recipe, so every run checks again, not only the one that merged.
+ifneq ($(STRICT),)
+	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q --strict
+endif
 
 # $(call prune,FOLDER,STEMS): remove FOLDER's per-material subfolders whose material file is gone.
 # Run by the merges, which wait for every per-material job, so nothing is writing there.

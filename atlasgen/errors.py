@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import difflib
+
 __all__ = [
     "AtlasgenError",
     "InputError",
@@ -11,6 +13,8 @@ __all__ = [
     "ManifestError",
     "OutputError",
     "BackendError",
+    "GoalsMissed",
+    "did_you_mean",
 ]
 
 
@@ -73,3 +77,18 @@ class BackendError(AtlasgenError):
     """An optional backend (Mitsuba's LLVM variant, a GPU adapter) is missing."""
 
     exit_code = 5
+
+
+class GoalsMissed(AtlasgenError):
+    """``validate --strict``: a material missed a validation goal (the report is still written)."""
+
+    exit_code = 6
+
+
+def did_you_mean(word: str, known) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` to a mistyped ``word``, else ``""``.
+
+    Closeness is :func:`difflib.get_close_matches` (Ratcliff/Obershelp similarity >= 0.6).
+    """
+    close = difflib.get_close_matches(word, list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""

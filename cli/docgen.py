@@ -22,8 +22,32 @@ EXIT_CODES = """\
 | 3 | bad input: a material or scene file, a missing path; the message names the file, the field and what was expected |
 | 4 | an output file or folder cannot be written; existing outputs are left untouched |
 | 5 | a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU adapter (`apt-get install mesa-vulkan-drivers`) |
+| 6 | `validate --strict` only: a validation goal was missed; the report is written all the same, and the message lists each miss |
 
 Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, `info`) go to stdout.
+Every command takes `-q` (errors only, or as its help says) and `-v` (more detail).
+"""
+
+USAGE = """\
+## Running it
+
+`atlasgen` is installed as a script; `python -m atlasgen` runs the same command line. Bare
+`atlasgen` prints the help above. The material library shipped with atlasgen is installed with
+it: `atlasgen bake --library` bakes it, and `atlasgen report separable --library` picks from it,
+from any folder.
+
+## Shell completion
+
+click completes commands, options and file names. Add one line to your shell's start-up file:
+
+| shell | line |
+|---|---|
+| bash (`~/.bashrc`) | `eval "$(_ATLASGEN_COMPLETE=bash_source atlasgen)"` |
+| zsh (`~/.zshrc`) | `eval "$(_ATLASGEN_COMPLETE=zsh_source atlasgen)"` |
+| fish (`~/.config/fish/completions/atlasgen.fish`) | `_ATLASGEN_COMPLETE=fish_source atlasgen \\| source` |
+
+Running `atlasgen` at every shell start costs its start-up time; to avoid it, write the script
+once (`_ATLASGEN_COMPLETE=bash_source atlasgen > ~/.atlasgen-complete.bash`) and source that file.
 """
 
 
@@ -50,6 +74,7 @@ def render_cli_reference() -> str:
         "```",
         "",
         EXIT_CODES,
+        USAGE,
     ]
     for name in app.list_commands(ctx):
         command = app.get_command(ctx, name)

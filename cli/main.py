@@ -2,7 +2,8 @@
 
 Exit codes (docs/cli.md): 0 success, 1 internal error, 2 usage error (click),
 3 bad input (material, scene, missing path), 4 output cannot be written,
-5 a backend is missing (Mitsuba's LLVM variant, a GPU adapter).
+5 a backend is missing (Mitsuba's LLVM variant, a GPU adapter), 6 ``validate --strict``:
+a validation goal was missed.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import click
 
 from atlasgen import __version__
+from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
 from atlasgen.errors import AtlasgenError
 
 __all__ = ["app", "main", "fail_on_errors"]
@@ -70,10 +72,13 @@ def fail_on_errors(func):
     return wrapper
 
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, invoke_without_command=True, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="atlasgen")
-def app():
+@click.pass_context
+def app(ctx):
     """atlasgen: bake BRDF materials into a 64x32x256 atlas for fully deferred renderers."""
+    if ctx.invoked_subcommand is None:  # bare `atlasgen`: the help, and success
+        click.echo(ctx.get_help())
 
 
 @app.command()
@@ -94,16 +99,20 @@ def app():
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option("--depfile", type=click.Path(path_type=Path), default=None,
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
-@click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
+@click.option("--library", is_flag=True,
+              help="Also bake the material library installed with atlasgen (alone when no PATHS are given).")
+@verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
-def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
+def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, library, verbosity):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
+    from atlasgen.io.package_data import shipped_library
     from atlasgen.materials.material import read_materials, select_scene_materials
 
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
-    materials = read_materials(paths or [Path("materials")])
+    sources = list(paths) + ([shipped_library()] if library else [])
+    materials = read_materials(sources or [Path("materials")])
     if scene is not None:
         materials = select_scene_materials(materials, scene)
     if cache_only:
@@ -111,11 +120,14 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
             raise click.UsageError("--cache-only needs --cache DIR")
         from atlasgen.bake.cache import fill_cache
 
-        fill_cache(cache_dir, materials)
+        filled = fill_cache(cache_dir, materials)
+        if verbosity == VERBOSE:
+            click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
+                       f"up to date {', '.join(filled['hits']) or 'none'}", err=True)  # fmt: skip
         return
     previous = read_previous_slots(ids_from) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
-    show_bar = not quiet and sys.stderr.isatty()
+    show_bar = verbosity == NORMAL and sys.stderr.isatty()
     if show_bar:
         with click.progressbar(length=len(materials), label="baking", file=sys.stderr) as bar:
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
@@ -130,17 +142,35 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
         write_depfile(depfile, output, inputs)
-    if not quiet:
+    if verbosity == VERBOSE:
+        for line in _describe_materials(result):
+            click.echo(line, err=True)
+    if verbosity != QUIET:
         for warning in result.warnings:
             click.echo(f"atlasgen: warning: {warning}", err=True)
         click.echo(result.describe(output, zstd))
 
 
+def _describe_materials(result) -> list[str]:
+    """One line per baked material: its slices and whether it was baked or loaded from the cache."""
+    cached = set(result.timings.get("cache", {}).get("hits", []))
+    lines = []
+    for entry in result.manifest.materials:
+        first, count = entry.first_slice, entry.slice_count
+        slices = f"slice {first}" if count == 1 else f"slices {first}-{first + count - 1}"
+        how = "loaded from the cache" if entry.name in cached else \
+            f"baked in {result.timings['materials'][entry.name].get('bake_s', 0.0):.3f} s"
+        lines.append(f"  {entry.name}: {entry.type}, {slices}, {how}")
+    return lines
+
+
 @app.command()
 @click.argument("atlas", type=click.Path(path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@verbosity_options(quiet="Print only the one-line description (text format).",
+                   verbose="Also print each material's description and source file (text format).")  # fmt: skip
 @fail_on_errors
-def info(atlas, fmt):
+def info(atlas, fmt, verbosity):
     """Print an atlas's DDS or KTX2 header and a summary of its manifest.
 
     With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
@@ -151,7 +181,7 @@ def info(atlas, fmt):
     if fmt == "json":
         click.echo(json.dumps(summarize_atlas(atlas), indent=2))
     else:
-        click.echo(describe_atlas(atlas))
+        click.echo(describe_atlas(atlas, verbose=verbosity == VERBOSE, quiet=verbosity == QUIET))
 
 
 def main(argv=None):

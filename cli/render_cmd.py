@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 
 __all__ = ["render"]
 
@@ -23,11 +24,20 @@ AOVS = ("normal", "depth", "id", "albedo")
               help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip
 @click.option("--mip-bias", type=float, default=None, help="Added to the depth-chosen mip level (overrides the scene).")
 @click.option("--no-outlines", is_flag=True, help="Skip the toon-outline pass.")
+@verbosity_options(verbose="Also print the scene's size, objects, lights and materials before rendering.")
 @fail_on_errors
-def render(scene, atlas, output, aov, mip_bias, no_outlines):
+def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
     from atlasgen.render import render_scene_file
 
+    if verbosity == VERBOSE:
+        from atlasgen.materials.scene import read_scene
+
+        s = read_scene(scene)
+        materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"
+        click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {len(s.objects)} objects, {len(s.lights)} lights; "
+                   f"materials {materials}", err=True)  # fmt: skip
     written = render_scene_file(scene, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
-    for path in written:
-        click.echo(f"wrote {path.as_posix()}")
+    if verbosity != QUIET:
+        for path in written:
+            click.echo(f"wrote {path.as_posix()}")

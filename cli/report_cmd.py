@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 
 __all__ = ["report", "library", "separable"]
 
@@ -20,6 +21,8 @@ def report():
 @click.argument("names", nargs=-1)
 @click.option("-m", "--materials", "materials_dir", type=click.Path(path_type=Path), default=Path("materials"),
               show_default=True, help="Folder (or TOML file) of materials to pick from.")
+@click.option("--library", is_flag=True,
+              help="Pick from the material library installed with atlasgen instead of --materials.")
 @click.option("--atlas", type=click.Path(path_type=Path), default=None,
               help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report/separable"), show_default=True,
@@ -27,8 +30,9 @@ def report():
 @click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True, help="Timing repeats (median).")
 @click.option("--merge", is_flag=True,
               help="Measure nothing: merge earlier reports, the folders given as arguments, into one OUTPUT.")
+@verbosity_options(verbose="Also print the plots written for each material.")
 @fail_on_errors
-def separable(names, materials_dir, atlas, output, repeats, merge):
+def separable(names, materials_dir, library, atlas, output, repeats, merge, verbosity):
     """Error against K, grid, 8 bits and time for separable MATERIAL names (default: all separable ones).
 
     NAMES are material names (picked from --materials) or material files (X.toml).
@@ -36,13 +40,18 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
     without measuring again.
     """
     from atlasgen.errors import InputError
+    from atlasgen.io.package_data import shipped_library
     from atlasgen.materials.material import read_materials
     from atlasgen.reports.separable_merge import merge_separable_reports
     from atlasgen.reports.separable import write_separable_report
 
     if merge:
-        click.echo(merge_separable_reports([Path(n) for n in names], output)["markdown"].as_posix())
+        merged = merge_separable_reports([Path(n) for n in names], output)["markdown"]
+        if verbosity != QUIET:
+            click.echo(merged.as_posix())
         return
+    if library:
+        materials_dir = shipped_library()
 
     files = [Path(n) for n in names if n.endswith(".toml")]
     wanted = [n for n in names if not n.endswith(".toml")]
@@ -53,8 +62,13 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
         raise InputError(f"{materials_dir.as_posix()}: no material named {', '.join(missing)}")
     if files:
         chosen += read_materials(files)
-    written = write_separable_report(chosen, output, atlas, repeats=repeats)
-    click.echo(written["markdown"].as_posix())
+    with MaterialProgress("studied", verbosity) as on_material:
+        written = write_separable_report(chosen, output, atlas, repeats=repeats, on_material=on_material)
+    if verbosity == VERBOSE:
+        for name, plots in written["plots"].items():
+            click.echo(f"  {name}: {', '.join(p.as_posix() for p in plots.values())}", err=True)
+    if verbosity != QUIET:
+        click.echo(written["markdown"].as_posix())
 
 
 @report.command("library")
@@ -66,9 +80,16 @@ def separable(names, materials_dir, atlas, output, repeats, merge):
               show_default=True, help="Folder of `atlasgen report separable`, linked when present.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report"), show_default=True,
               help="Folder for index.html, slice previews and the speed-against-error plot.")
+@verbosity_options(verbose="Also print which of the validation and separable reports were found.")
 @fail_on_errors
-def library(atlas, validation, separable_dir, output):
+def library(atlas, validation, separable_dir, output, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews."""
     from atlasgen.reports.library import write_library_report
 
-    click.echo(write_library_report(atlas, output, validation, separable_dir).as_posix())
+    page = write_library_report(atlas, output, validation, separable_dir)
+    if verbosity == VERBOSE:
+        inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.md"))
+        for what, path in inputs:
+            click.echo(f"  {what}: {path.as_posix()} ({'used' if path.is_file() else 'absent'})", err=True)
+    if verbosity != QUIET:
+        click.echo(page.as_posix())

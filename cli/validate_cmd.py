@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 
 __all__ = ["validate"]
 
@@ -41,9 +42,12 @@ def _resolution(ctx, param, value):
 @click.option("--merge", is_flag=True,
               help="Render nothing: merge the report.json of earlier runs, the folders given as arguments, "
                    "into one OUTPUT/index.html, report.json and plot.")  # fmt: skip
-@click.option("-q", "--quiet", is_flag=True, help="Print only errors and the summary line.")
+@click.option("--strict", is_flag=True,
+              help="Exit with code 6 when a goal is missed (the report is still written): for CI.")
+@verbosity_options(quiet="Print only errors and the final summary line.",
+                   verbose="Print a line after every render instead of one per material.")  # fmt: skip
 @fail_on_errors
-def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, merge, quiet):
+def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity):
     """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
 
     Each material is rendered on each validation scene by the bundled deferred
@@ -54,6 +58,11 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
     A MATERIAL is a name in the atlas or a material file (X.toml, which must be the
     file the atlas was baked from). With --merge the arguments are folders of earlier
     runs (e.g. one per material) whose reports are combined without rendering.
+
+    Prints one line per material naming what was measured against which goal, then
+    the summary line. The goals: each LUT material's image against its model
+    reference on every scene (PSNR and mean FLIP); each separable material's claimed
+    error against its error_budget, where it has one.
     """
     if merge:
         from atlasgen.reports.validation import merge_validation_reports
@@ -63,12 +72,21 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
         from atlasgen.validate.run import validate_atlas, write_validation
 
         def progress(text):
-            if not quiet:
+            if verbosity == VERBOSE:
                 click.echo(text, err=True)
 
-        run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
-                             resolution=resolution, physical=not no_physical, progress=progress)  # fmt: skip
+        with MaterialProgress("validated", verbosity) as on_material:
+            run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
+                                 resolution=resolution, physical=not no_physical, progress=progress,
+                                 on_material=on_material)  # fmt: skip
         written = write_validation(run, output)
-    from atlasgen.reports.validation import summary_line
+    from atlasgen.errors import GoalsMissed
+    from atlasgen.reports.validation import describe_materials, missed_goals, summary_line
 
+    if verbosity != QUIET:
+        for line in describe_materials(written["data"]):
+            click.echo(line)
     click.echo(summary_line(written["data"], written["html"]))
+    missed = missed_goals(written["data"])
+    if strict and missed:
+        raise GoalsMissed(f"{Path(written['html']).as_posix()}: {len(missed)} goal(s) missed: {'; '.join(missed)}")

@@ -69,3 +69,24 @@ def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, writ
     # One link per material that has its own page (both scenes share it); snow has none.
     assert sorted(parser.links) == ["../validation/index.html", "../validation/materials/clay/index.html"]
     assert not list((tmp_path / "report").rglob(".*.tmp"))
+
+
+def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, write_material):
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "build" / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    (tmp_path / "v").mkdir()
+    (tmp_path / "v" / "report.json").write_text(json.dumps({"results": []}))
+    args = ["report", "library", "--atlas", str(atlas), "--validation", str(tmp_path / "v"),
+            "--separable", str(tmp_path / "s"), "-o", str(tmp_path / "r")]  # fmt: skip
+    runner = CliRunner()
+    assert runner.invoke(app, [*args, "-q"]).output == ""
+    res = runner.invoke(app, [*args, "-v"])
+    assert res.exit_code == 0, res.output
+    assert res.stdout == f"{(tmp_path / 'r' / 'index.html').as_posix()}\n"
+    assert res.stderr.splitlines() == [f"  validation report: {(tmp_path / 'v' / 'report.json').as_posix()} (used)",
+                                       f"  separable report: {(tmp_path / 's' / 'index.md').as_posix()} (absent)"]  # fmt: skip

@@ -156,6 +156,15 @@ def test_a_removed_material_re_merges_without_revalidating(tree):
     assert "materials/clay" not in merge and "build/validation/materials/snow" in merge
 
 
+def test_strict_checks_the_merged_goals_on_every_run(tree):
+    # Up to date: without STRICT nothing runs; with it the check runs all the same, so a
+    # second `make validate STRICT=1` fails again rather than passing on a stale merge.
+    assert _commands(tree, "validate") == []
+    [check] = _commands(tree, "validate", "STRICT=1")
+    assert check.split()[1:3] == ["validate", "--merge"] and check.endswith(" -o build/validation -q --strict")
+    assert all(f"build/validation/materials/{m}" in check for m in MATERIALS)
+
+
 FAKE_ATLASGEN = """#!/bin/sh
 # Stands in for atlasgen: only touches what the real command writes for its -o.
 out=""; prev=""

@@ -66,8 +66,9 @@ def _scale_text(entry: MaterialEntry) -> str:
     return "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in entry.scale[:1])
 
 
-def describe_atlas(path) -> str:
-    """What ``atlasgen info`` prints: the texconv-style line, the header, one line per material."""
+def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
+    """What ``atlasgen info`` prints: the texconv-style line (alone when ``quiet``), the header, one
+    line per material (and, when ``verbose``, its description and file)."""
     atlas = read_atlas(path)
     img = atlas.image
     if isinstance(img, KTX2Image):
@@ -77,6 +78,8 @@ def describe_atlas(path) -> str:
         supercompressed = f", {img.supercompression_name} supercompressed" if img.supercompression_name != "none" else ""
     else:
         first, fmt_code, supercompressed = describe_dds(img, path), f"format {img.dxgi_format}", ""
+    if quiet:
+        return first
     lines = [first,
              f"  {fmt_code} ({img.format_name}){supercompressed}, layout {img.layout}, "
              f"{img.width}x{img.height}, {img.layers} layers, {img.mip_count} mips"]  # fmt: skip
@@ -85,8 +88,11 @@ def describe_atlas(path) -> str:
         return "\n".join(lines + ["  no manifest beside it"])
     lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, {len(manifest.materials)} materials, "
                  f"{manifest.slices_used} slices used")  # fmt: skip
-    lines += [f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
-              f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}" for e in manifest.materials]  # fmt: skip
+    for e in manifest.materials:
+        lines.append(f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
+                     f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}")
+        if verbose:
+            lines.append(f"         {e.description or '(no description)'}; from {e.source}")
     return "\n".join(lines)
 
 
@@ -115,8 +121,9 @@ def summarize_atlas(path) -> dict:
             "materials": [
                 {
                     "name": e.name, "type": e.type, "first_slice": e.first_slice, "slice_count": e.slice_count,
-                    "scale": _scale_text(e),
+                    "scale": [list(s) for s in e.scale],
                     "qerr_max": e.quantization_error.max,
+                    "description": e.description, "source": e.source,
                 }
                 for e in manifest.materials
             ],

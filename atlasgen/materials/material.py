@@ -10,7 +10,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from atlasgen.errors import InputError, MaterialError
+from atlasgen.errors import InputError, MaterialError, did_you_mean
 from atlasgen.models import get_model, model_types
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
@@ -185,5 +185,5 @@ def select_scene_materials(materials: list[Material], scene_path) -> list[Materi
         if obj.material not in by_name:
             known = ", ".join(sorted(by_name)) or "none"
             raise SceneError(Path(scene_path).as_posix(), f"objects[{index}].material",
-                             f"unknown material {obj.material!r}; known: {known}")
+                             f"unknown material {obj.material!r}{did_you_mean(obj.material, by_name)}; known: {known}")
     return [m for m in materials if m.name in wanted]

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from atlasgen.errors import MaterialError
+from atlasgen.errors import MaterialError, did_you_mean
 from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = ["Param", "validate_params", "parse_colour"]
@@ -124,12 +124,8 @@ def validate_params(schema: tuple[Param, ...], raw: dict, path) -> dict:
     known = {p.name: p for p in schema}
     for key in raw:
         if key not in known:
-            import difflib
-
-            close = difflib.get_close_matches(key, known, n=1)
-            hint = f" (did you mean '{close[0]}'?)" if close else ""
             names = ", ".join(sorted(known)) or "none"
-            raise MaterialError(path, key, f"unknown key{hint}; expected one of: {names}")
+            raise MaterialError(path, key, f"unknown key{did_you_mean(key, known)}; expected one of: {names}")
     out = {}
     for p in schema:
         if p.name in raw:

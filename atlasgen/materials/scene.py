@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import SceneError
+from atlasgen.errors import InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
 
@@ -130,7 +130,8 @@ class _Reader:
         for key in raw:
             if key not in allowed:
                 where = f"{name}.{key}" if name else key
-                raise SceneError(self.path, where, "unknown key; expected one of " + ", ".join(allowed))
+                hint = did_you_mean(key, allowed)
+                raise SceneError(self.path, where, f"unknown key{hint}; expected one of " + ", ".join(allowed))
         return raw
 
     def number(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, lo_open=False):
@@ -319,10 +320,10 @@ def resolve_materials(scene: Scene, manifest: Manifest, atlas_name: str = "atlas
     for obj in scene.objects:
         entry = by_name.get(obj.material)
         if entry is None:
-            known = ", ".join(sorted(by_name)) or "none"
+            known, hint = ", ".join(sorted(by_name)) or "none", did_you_mean(obj.material, by_name)
             raise SceneError(
                 scene.path, f"objects[{obj.index}].material",
-                f"unknown material {obj.material!r}; expected one of the names in {atlas_name}: {known}",
+                f"unknown material {obj.material!r}{hint}; expected one of the names in {atlas_name}: {known}",
             )  # fmt: skip
         out.append(entry)
     return out

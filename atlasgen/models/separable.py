@@ -314,6 +314,7 @@ class Separable(Model):
             "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
             "relative_rms_float": None if factors.errors is None else factors.errors.float_error.relative_rms,
             "terms": factors.terms,
+            "error_budget": getattr(entry.representation, "error_budget", None),
         }
 
     # -- reports ----------------------------------------------------------------------------------

@@ -273,11 +273,12 @@ def format_separable_report(studies: list, plots: dict) -> str:
 
 
 def write_separable_report(materials, output, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
-                           parametrizations=tuple(PARAMETRIZATIONS)) -> dict:
+                           parametrizations=tuple(PARAMETRIZATIONS), on_material=None) -> dict:
     """Study each separable material and write ``index.md``, ``report.json`` and PNG plots into ``output``.
 
     The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
-    written paths. Raises :class:`InputError` when no material is separable,
+    written paths. ``on_material(name, done, total)``, when given, is called after each
+    material's study. Raises :class:`InputError` when no material is separable,
     :class:`OutputError` when the folder cannot be written.
     """
     import json
@@ -288,7 +289,11 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
     if not materials:
         raise InputError(f"no separable materials to report on; expected TOML files with type = \"{Separable.type_name}\"")
     folder = Path(output)
-    studies = [study_material(m, atlas_path, resolutions, repeats, parametrizations) for m in materials]
+    studies = []
+    for done, m in enumerate(materials, 1):
+        studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations))
+        if on_material is not None:
+            on_material(m.name, done, len(materials))
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
     with staged_folder(folder) as staging:

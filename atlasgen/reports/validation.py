@@ -33,6 +33,8 @@ __all__ = [
     "image_name",
     "merge_validation_reports",
     "summary_line",
+    "describe_materials",
+    "missed_goals",
 ]
 
 _KIND_LABEL = {
@@ -123,8 +125,86 @@ def _summary(rows: list) -> dict:
 def summary_line(data: dict, html_path) -> str:
     """The one line ``atlasgen validate`` prints: where the page is and how many results meet the goals."""
     s = data["summary"]
+    goals = f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" if s["lut_results"] else "no LUT goals apply"
     return (f"{Path(html_path).as_posix()} ({len(data['results'])} material/scene results, "
-            f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
+            f"{goals}, {data['total_seconds']:.1f} s)")  # fmt: skip
+
+
+def _rows_by_material(data: dict) -> dict:
+    """``material -> [rows]`` in the report's order."""
+    out = {}
+    for row in data["results"]:
+        out.setdefault(row["material"], []).append(row)
+    return out
+
+
+def _goals_text(goals: dict) -> str:
+    return f"PSNR >= {goals['psnr_db']:g} dB, FLIP <= {goals['flip']:g}"
+
+
+def _psnr_text(psnr) -> str:
+    return "inf" if psnr is None else f"{psnr:.1f}"
+
+
+def _separable_figures(rows: list) -> tuple:
+    """``(claimed 8-bit error, budget, worst measured atlas-against-source error)`` of a separable material."""
+    claims = [row.get("claimed_errors") or {} for row in rows]
+    measured = [c["measured_relative_rms_atlas_vs_source"] for c in claims
+                if c.get("measured_relative_rms_atlas_vs_source") is not None]  # fmt: skip
+    return claims[0].get("relative_rms_8bit"), claims[0].get("error_budget"), max(measured, default=None)
+
+
+def describe_materials(data: dict) -> list[str]:
+    """One line per material: what was measured, against which goal.
+
+    A LUT material counts its results (one per scene) meeting the goals against the
+    model reference, e.g. ``terracotta: 2/2 LUT goals met (PSNR >= 45 dB, FLIP <= 0.01);
+    worst PSNR 52.1 dB, FLIP 0.0031``. No LUT goal applies to a separable material: its
+    line gives the error its manifest claims (relative RMS of f cos at 8 bits, the figure
+    its ``error_budget`` bounds), the budget, and the worst error measured in the scenes.
+    """
+    goals = data["settings"]["goals"]
+    lines = []
+    for name, rows in _rows_by_material(data).items():
+        models = [row["references"]["model"] for row in rows if "model" in row["references"]]
+        checked = [m for m in models if m.get("meets_goal") is not None]
+        if checked:
+            psnrs = [m["psnr_db"] for m in checked if m["psnr_db"] is not None]
+            worst_psnr = min(psnrs) if psnrs else None
+            lines.append(f"{name}: {sum(1 for m in checked if m['meets_goal'])}/{len(checked)} LUT goals met "
+                         f"({_goals_text(goals)}); worst PSNR {_psnr_text(worst_psnr)} dB, "
+                         f"FLIP {max(m['flip'] for m in checked):.4f}")  # fmt: skip
+            continue
+        claimed, budget, measured = _separable_figures(rows)
+        if claimed is None:
+            lines.append(f"{name}: no goals apply ({rows[0]['type']})")
+            continue
+        verdict = "none" if budget is None else f"{budget:.2%}, {'met' if claimed <= budget else 'missed'}"
+        line = f"{name}: no LUT goals apply; separable error {claimed:.2%} (8-bit, claimed; budget {verdict})"
+        if measured is not None:
+            line += f", {measured:.2%} measured in the scenes (worst, atlas against source)"
+        lines.append(line)
+    return lines
+
+
+def missed_goals(data: dict) -> list[str]:
+    """Each goal a report misses, one short text each; empty when all are met.
+
+    A LUT result misses when its model-reference PSNR or mean FLIP misses the goals; a
+    separable material misses when the error its manifest claims exceeds its budget.
+    """
+    goals = data["settings"]["goals"]
+    missed = []
+    for name, rows in _rows_by_material(data).items():
+        for row in rows:
+            model = row["references"].get("model") or {}
+            if model.get("meets_goal") is False:
+                missed.append(f"{name} on {row['scene']}: PSNR {_psnr_text(model['psnr_db'])} dB, "
+                              f"FLIP {model['flip']:.4f} ({_goals_text(goals)})")  # fmt: skip
+        claimed, budget, _ = _separable_figures(rows)
+        if claimed is not None and budget is not None and claimed > budget:
+            missed.append(f"{name}: separable error {claimed:.2%} over its budget {budget:.2%}")
+    return missed
 
 
 def plot_speed_error(data: dict) -> bytes:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import BackendError, InputError, SceneError
+from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest
 
 __all__ = [
@@ -116,7 +116,8 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
     for name in names:
         if name not in entries_by_name:
             known = ", ".join(sorted(entries_by_name)) or "none"
-            raise InputError(f"{atlas_path.as_posix()}: no material {name!r}; known: {known}")
+            hint = did_you_mean(name, entries_by_name)
+            raise InputError(f"{atlas_path.as_posix()}: no material {name!r}{hint}; known: {known}")
         entry = entries_by_name[name]
         model_reference(entry)  # raises InputError when no reference is possible
         _check_params_current(atlas_path, entry)
@@ -132,7 +133,8 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
             if obj.material != MATERIAL_PLACEHOLDER and obj.material not in entries_by_name:
                 known = ", ".join(sorted(entries_by_name)) or "none"
                 raise SceneError(scene.path, f"objects[{obj.index}].material",
-                                 f"unknown material {obj.material!r}; expected one of the names in {atlas_path.as_posix()}: {known}")  # fmt: skip
+                                 f"unknown material {obj.material!r}{did_you_mean(obj.material, entries_by_name)}; "
+                                 f"expected one of the names in {atlas_path.as_posix()}: {known}")  # fmt: skip
             if obj.material != MATERIAL_PLACEHOLDER:
                 model_reference(entries_by_name[obj.material])
         loaded.append((name, scene))
@@ -210,7 +212,7 @@ def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
 
 
 def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = 64,
-                   resolution=None, physical: bool = True, progress=None) -> ValidationRun:  # fmt: skip
+                   resolution=None, physical: bool = True, progress=None, on_material=None) -> ValidationRun:  # fmt: skip
     """Render every material on every scene, through the atlas and with Mitsuba; measure.
 
     Parameters
@@ -234,6 +236,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         Also render physical references where they exist.
     progress
         Called with a short text after each render.
+    on_material
+        Called as ``on_material(name, done, total)`` when a material has been rendered
+        and measured on every scene (``done`` of ``total`` materials).
 
     Raises
     ------
@@ -263,7 +268,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     say = progress or (lambda text: None)
 
     runs = []
-    for entry in plan.entries:
+    for done, entry in enumerate(plan.entries, 1):
         model = get_model(entry.type)
         for scene_name, scene in plan.scenes:
             bound = bind_material(scene, entry.name)
@@ -289,6 +294,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                 run.references["physical"] = ref
                 say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
             runs.append(run)
+        if on_material is not None:
+            on_material(entry.name, done, len(plan.entries))
 
     errors = renderer.ctx.errors[errors_before:]
     if errors:

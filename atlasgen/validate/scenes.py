@@ -2,9 +2,9 @@
 
 A validation scene is an ordinary renderer scene (docs/scenes.md) in which every
 object whose material is :data:`MATERIAL_PLACEHOLDER` takes the material being
-validated. The standard ones live in ``scenes/validation/`` (``front``: a sphere on
-a plane lit from the front; ``back``: the same lit from behind); any other TOML path
-works too.
+validated. The standard ones are installed with the package, in
+``atlasgen/data/validation/`` (``front``: a sphere on a plane lit from the front;
+``back``: the same lit from behind); any other TOML path works too.
 """
 
 from __future__ import annotations
@@ -13,11 +13,12 @@ import dataclasses
 from pathlib import Path
 
 from atlasgen.errors import InputError, SceneError
+from atlasgen.io.package_data import package_data_path
 
 __all__ = ["MATERIAL_PLACEHOLDER", "STANDARD_SCENES", "scene_folder", "load_validation_scene", "bind_material", "resize_scene"]
 
 MATERIAL_PLACEHOLDER = "$material"
-#: Standard scene name -> one-line description (files: ``scenes/validation/<name>.toml``).
+#: Standard scene name -> one-line description (files: ``atlasgen/data/validation/<name>.toml``).
 STANDARD_SCENES = {
     "front": "a sphere on a plane, lit from the front (point key light, directional fill)",
     "back": "the same sphere and plane, lit from behind (point and directional lights)",
@@ -25,8 +26,8 @@ STANDARD_SCENES = {
 
 
 def scene_folder() -> Path:
-    """``scenes/validation`` of the source tree (atlasgen is installed editable from it)."""
-    return Path(__file__).resolve().parents[2] / "scenes" / "validation"
+    """The installed folder of the standard validation scenes (package data)."""
+    return package_data_path("validation")
 
 
 def load_validation_scene(name_or_path):

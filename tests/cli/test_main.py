@@ -1,8 +1,10 @@
 """The CLI: exit codes, messages on stderr, untouched outputs on failure, and the summary line."""
 
+import hashlib
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -132,3 +134,49 @@ def test_cli_reference_is_generated_from_the_app():
     assert "## `atlasgen bake`" in text and "--layout [array|volume]" in text
     stale = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
     assert stale.read_text() == text, "docs/cli.md is stale: run python -m atlasgen.cli.docgen"
+
+
+@pytest.mark.parametrize("argv", [["-m", "atlasgen"], ["-c", "from atlasgen.cli.main import main; main([])"]],
+                         ids=["python -m atlasgen", "bare atlasgen"])
+def test_bare_atlasgen_and_python_m_print_the_help_and_succeed(argv):
+    out = subprocess.run([sys.executable, *argv], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stderr == ""
+    assert out.stdout.startswith("Usage: atlasgen [OPTIONS] [COMMAND] [ARGS]...") and "validate" in out.stdout
+
+
+def test_bake_verbose_says_what_each_material_took(runner, library, tmp_path):
+    args = ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--cache", str(tmp_path / "cache"), "-v"]
+    first = runner.invoke(app, args)
+    assert first.exit_code == 0, first.output
+    lines = first.stderr.splitlines()
+    assert [line.split(", baked in ")[0] for line in lines] == ["  clay: lambert, slice 0", "  snow: lambert, slice 9"]
+    again = runner.invoke(app, args)
+    assert again.stderr.splitlines() == ["  clay: lambert, slice 0, loaded from the cache",
+                                         "  snow: lambert, slice 9, loaded from the cache"]  # fmt: skip
+    assert again.stdout == first.stdout and again.stdout.startswith(f"{(tmp_path / 'a.dds').as_posix()} (64x32")
+
+
+def test_bake_library_bakes_the_installed_library(runner, tmp_path, monkeypatch):
+    from atlasgen.io.package_data import shipped_library
+
+    monkeypatch.chdir(tmp_path)  # no materials/ here: the library is found in the package
+    res = runner.invoke(app, ["bake", "--library", "--layout", "volume", "-q"])
+    assert res.exit_code == 0, res.output
+    manifest = json.loads((tmp_path / "build" / "atlas.json").read_text())
+    shipped = sorted(shipped_library().glob("*.toml"))
+    assert [m["name"] for m in manifest["materials"]] == [p.stem for p in shipped]
+    assert [m["content_hash"] for m in manifest["materials"]] == [hashlib.sha256(p.read_bytes()).hexdigest() for p in shipped]
+    # The repository's materials/ is that library (atlasgen/data/materials links to it).
+    root = Path(__file__).resolve().parents[2]
+    assert [p.read_bytes() for p in shipped] == [p.read_bytes() for p in sorted((root / "materials").glob("*.toml"))]
+
+
+def test_info_quiet_and_verbose(runner, library, tmp_path):
+    out = tmp_path / "a.dds"
+    runner.invoke(app, ["bake", str(library), "-o", str(out), "-q"])
+    normal = runner.invoke(app, ["info", str(out)]).stdout.splitlines()
+    assert runner.invoke(app, ["info", str(out), "-q"]).stdout.splitlines() == normal[:1]
+    verbose = runner.invoke(app, ["info", str(out), "-v"]).stdout.splitlines()
+    assert verbose[: len(normal) - 2] == normal[:-2]
+    assert verbose[-1].strip() == f"(no description); from {(library / 'snow.toml').as_posix()}"
+    assert len(verbose) == len(normal) + 2

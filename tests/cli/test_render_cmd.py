@@ -106,3 +106,19 @@ def test_missing_atlas(tmp_path):
     scene = write_scene(tmp_path, SCENE.format(material="clay"))
     res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(tmp_path / "x.dds"), "-o", str(tmp_path / "o.exr")])
     assert res.exit_code == 3 and "no such atlas" in res.stderr
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("flag", ["-q", "-v"])
+def test_quiet_prints_nothing_and_verbose_describes_the_scene(gpu_device, atlas, tmp_path, flag):
+    scene = write_scene(tmp_path, SCENE.format(material="snow"))
+    out = tmp_path / "out.exr"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out), flag])
+    assert res.exit_code == 0, res.output
+    assert out.exists() and out.with_suffix(".png").exists()
+    if flag == "-q":
+        assert res.output == ""
+    else:
+        assert res.stderr == f"{scene.as_posix()}: 40x30, 1 objects, 1 lights; materials snow\n"
+        assert res.stdout.splitlines() == [f"wrote {out.as_posix()}", f"wrote {out.with_suffix('.png').as_posix()}"]
+    assert gpu_device.take_errors() == []

@@ -57,6 +57,16 @@ def test_scene_with_an_unknown_material_is_refused(tmp_path, write_material):
     assert not (tmp_path / "a.dds").exists()
 
 
+def test_a_misspelt_material_gets_the_closest_library_name(tmp_path, write_material):
+    for name in ("alpha", "bravo"):
+        write_material(name, 'type = "lambert"\n')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(first="alpha", second="brava"))
+    res = _bake(tmp_path / "materials", "--scene", scene, "-o", tmp_path / "a.dds")
+    assert res.exit_code == 3
+    assert "unknown material 'brava' (did you mean 'bravo'?); known: alpha, bravo" in res.stderr
+
+
 def test_the_depfile_names_exactly_the_scene_materials_and_their_cache_entries(tmp_path, write_material):
     for name in ("alpha", "bravo", "charlie"):
         write_material(name, 'type = "lambert"\n')

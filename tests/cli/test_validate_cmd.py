@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from click.testing import CliRunner
@@ -27,6 +28,7 @@ def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, t
     "args, code, message",
     [
         (["nosuch"], 3, "no material 'nosuch'; known:"),
+        (["mate"], 3, "no material 'mate' (did you mean 'matte'?); known:"),
         (["matte", "--scene", "sideways"], 3, "unknown validation scene; expected one of front, back"),
         (["matte", "--resolution", "big"], 2, "expected WIDTHxHEIGHT"),
         (["matte", "--spp", "0"], 2, "--spp"),
@@ -69,8 +71,10 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
     data = json.loads((tmp_path / "all" / "report.json").read_text())
     assert [r["material"] for r in data["results"]] == ["matte", "coat"]
     s = data["summary"]
-    assert result.output.strip() == (f"{(tmp_path / 'all' / 'index.html').as_posix()} (2 material/scene results, "
-                                     f"{s['lut_meeting_goals']}/2 LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
+    lines = result.output.strip().splitlines()
+    assert [line.split(":")[0] for line in lines[:-1]] == ["matte", "coat"]
+    assert lines[-1] == (f"{(tmp_path / 'all' / 'index.html').as_posix()} (2 material/scene results, "
+                         f"{s['lut_meeting_goals']}/2 LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
     assert gpu_device.take_errors() == []
 
 
@@ -101,6 +105,98 @@ def test_merge_of_a_folder_without_a_report_names_it(tmp_path):
     assert result.output.strip() == (f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: no such "
                                      f"validation report; run atlasgen validate -o {(tmp_path / 'none').as_posix()} first")  # fmt: skip
     assert not (tmp_path / "v").exists()
+
+
+TINY_RUN = ["--scene", "front", "--resolution", "24x18", "--no-physical"]
+
+
+def _goals(monkeypatch, psnr_db, flip):
+    """Set the LUT goals a run records (atlasgen.validate.run reads them when it runs)."""
+    import atlasgen.validate.run as run
+
+    monkeypatch.setattr(run, "GOAL_PSNR_DB", psnr_db)
+    monkeypatch.setattr(run, "GOAL_FLIP", flip)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize("strict", [False, True])
+def test_strict_exits_6_when_a_goal_is_missed_and_still_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device,  # noqa: F811
+                                                                          tmp_path, monkeypatch, strict):  # fmt: skip
+    _goals(monkeypatch, psnr_db=1000.0, flip=0.01)  # no image reaches 1000 dB
+    out = tmp_path / "v"
+    args = ["validate", "matte", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out)] + (["--strict"] if strict else [])
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == (6 if strict else 0), result.output
+    psnr = json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]["psnr_db"]
+    assert result.stdout.splitlines()[0] == (f"matte: 0/1 LUT goals met (PSNR >= 1000 dB, FLIP <= 0.01); worst PSNR "
+                                             f"{psnr:.1f} dB, FLIP {_flip(out):.4f}")  # fmt: skip
+    if strict:
+        progress, message = result.stderr.strip().splitlines()
+        assert progress == "validated matte (1/1)"
+        assert message == (f"atlasgen: error: {(out / 'index.html').as_posix()}: 1 goal(s) missed: matte on front: PSNR "
+                           f"{psnr:.1f} dB, FLIP {_flip(out):.4f} (PSNR >= 1000 dB, FLIP <= 0.01)")  # fmt: skip
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.mitsuba
+def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_atlas, mitsuba_rgb, gpu_device,  # noqa: F811
+                                                                     tmp_path, monkeypatch):  # fmt: skip
+    _goals(monkeypatch, psnr_db=0.0, flip=1.0)  # every image meets these
+    runner = CliRunner()
+    for material in ("matte", "coat"):
+        result = runner.invoke(app, ["validate", material, *TINY_RUN, "--atlas", str(validation_atlas),
+                                     "-o", str(tmp_path / material), "--strict"])  # fmt: skip
+        assert result.exit_code == 0, result.output
+        assert result.stdout.startswith(f"{material}: 1/1 LUT goals met (PSNR >= 0 dB, FLIP <= 1);")
+    merge = ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all"), "--strict"]
+    assert runner.invoke(app, merge).exit_code == 0
+    # The merge judges the goals the runs recorded: a stricter record fails it.
+    report = tmp_path / "coat" / "report.json"
+    data = json.loads(report.read_text())
+    data["results"][0]["references"]["model"]["meets_goal"] = False
+    report.write_text(json.dumps(data))
+    result = runner.invoke(app, merge)
+    assert result.exit_code == 6 and "1 goal(s) missed: coat on front: PSNR" in result.stderr
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.mitsuba
+def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    out = tmp_path / "v"
+    result = CliRunner().invoke(app, ["validate", "gloss", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out), "--strict"])
+    assert result.exit_code == 0, result.output
+    claimed = json.loads((out / "report.json").read_text())["results"][0]["claimed_errors"]
+    first, last = result.stdout.strip().splitlines()
+    assert first == (f"gloss: no LUT goals apply; separable error {claimed['relative_rms_8bit']:.2%} (8-bit, claimed; "
+                     f"budget none), {claimed['measured_relative_rms_atlas_vs_source']:.2%} measured in the scenes "
+                     f"(worst, atlas against source)")  # fmt: skip
+    assert "no LUT goals apply" in last and "0/0" not in result.output
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize(
+    "flag, expected",
+    [
+        ([], ["validated matte (1/2)", "validated coat (2/2)"]),
+        (["-q"], []),
+        (["-v"], ["matte / front: atlas", "matte / front: model reference", "validated matte (1/2)",
+                  "coat / front: atlas", "coat / front: model reference", "validated coat (2/2)"]),
+    ],
+    ids=["default", "quiet", "verbose"],
+)
+def test_progress_is_one_line_per_material_on_stderr(validation_atlas, mitsuba_rgb, gpu_device, tmp_path, flag, expected):  # noqa: F811
+    result = CliRunner().invoke(app, ["validate", "matte", "coat", *TINY_RUN, "--atlas", str(validation_atlas),
+                                      "-o", str(tmp_path / "v"), *flag])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    # Timings and errors vary: compare each line up to its first figure.
+    assert [re.sub(r" [0-9.]+ .*", "", line) for line in result.stderr.splitlines()] == expected
+    assert len(result.stdout.splitlines()) == (1 if flag == ["-q"] else 3)
+    assert gpu_device.take_errors() == []
+
+
+def _flip(out):
+    return json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]["flip"]
 
 
 def _write(path, text):

@@ -193,8 +193,13 @@ def test_info_json_of_the_golden_atlases_validates_against_its_schema(variant, t
 
 
 def test_the_schemas_are_package_data():
-    text = (Path(__file__).resolve().parents[2] / "pyproject.toml").read_text(encoding="utf-8")
-    assert '"schemas/*.schema.json"' in text
+    import fnmatch
+    import tomllib
+
+    config = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text(encoding="utf-8"))
+    patterns = config["tool"]["setuptools"]["package-data"]["atlasgen"]
+    for name in ("info.schema.json", "manifest.schema.json"):
+        assert any(fnmatch.fnmatch(f"schemas/{name}", pattern) for pattern in patterns), name
     assert sorted(p.name for p in (files("atlasgen") / "schemas").iterdir() if p.name.endswith(".json")) == [
         "info.schema.json", "manifest.schema.json"]
 

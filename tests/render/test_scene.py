@@ -81,6 +81,23 @@ def test_bad_fields_name_file_field_and_expectation(scene_from, extra, field, wo
     assert words in message and "\n" not in message
 
 
+@pytest.mark.parametrize(
+    "text, field, hint",
+    [
+        (MINIMAL + "[[objcts]]\nshape = 'sphere'\n", "objcts", " (did you mean 'objects'?)"),
+        (MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ntranslat = [0, 0, 1]\n", "objects[0].translat",
+         " (did you mean 'translate'?)"),
+        ("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfvo = 30\n", "camera.fvo", " (did you mean 'fov'?)"),
+        (MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'a'\nwobble = 1\n", "objects[0].wobble", ""),
+    ],
+    ids=["top-level", "object", "camera", "nothing-close"],
+)
+def test_an_unknown_field_suggests_the_closest_known_one(scene_from, text, field, hint):
+    with pytest.raises(SceneError) as info:
+        scene_from(text, path="x.toml")
+    assert str(info.value).startswith(f"x.toml: field '{field}': unknown key{hint}; expected one of ")
+
+
 def test_camera_must_not_look_along_up(scene_from):
     with pytest.raises(SceneError, match="camera.up"):
         scene_from("[camera]\nposition = [0, 5, 0]\ntarget = [0, 0, 0]\n")
@@ -110,7 +127,7 @@ def test_unknown_material_lists_known_names(scene_from):
     with pytest.raises(SceneError) as info:
         resolve_materials(scene, manifest, "build/atlas.dds")
     assert "objects[0].material" in str(info.value) and "'golld'" in str(info.value)
-    assert "gold, skin" in str(info.value)
+    assert "gold, skin" in str(info.value) and "(did you mean 'gold'?)" in str(info.value)
     ok = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'skin'\n")
     assert resolve_materials(ok, manifest)[0].first_slice == 4
 

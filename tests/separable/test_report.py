@@ -50,3 +50,41 @@ def test_cli_maps_errors_to_messages(write_material, tmp_path):
     assert res.exit_code == 3 and "no material named nope" in res.output
     res = runner.invoke(report, ["separable", "-m", str(tmp_path / "materials"), "-o", str(tmp_path / "r")])
     assert res.exit_code == 3 and "no separable materials" in res.output
+
+
+@pytest.mark.parametrize("flag", [None, "-q", "-v"])
+def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch, flag):
+    import functools
+
+    import atlasgen.reports.separable as module
+    from atlasgen.cli.main import app
+
+    # The study's sweeps, cut down to keep the test quick; the CLI passes everything else.
+    monkeypatch.setattr(module, "write_separable_report", functools.partial(
+        module.write_separable_report, resolutions=(8,), parametrizations=("half_diff",)))  # fmt: skip
+    for name in ("lobe", "wide"):
+        write_material(name, 'type = "separable"\nsource = "blinn_phong"\nexponent = 20.0\nterms = 1\n')
+    out = tmp_path / "r"
+    res = CliRunner().invoke(app, ["report", "separable", "-m", str(tmp_path / "materials"), "--repeats", "1",
+                                   "-o", str(out), *([flag] if flag else [])])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    if flag == "-q":
+        assert res.output == ""
+        return
+    assert res.stdout == f"{(out / 'index.md').as_posix()}\n"
+    lines = res.stderr.splitlines()
+    assert lines[:2] == ["studied lobe (1/2)", "studied wide (2/2)"]
+    if flag == "-v":
+        assert [line.split(":")[0] for line in lines[2:]] == ["  lobe", "  wide"]
+        assert (out / "lobe-terms.png").as_posix() in lines[2].split(": ", 1)[1].split(", ")
+    else:
+        assert lines[2:] == []
+
+
+def test_cli_library_picks_from_the_installed_library(tmp_path):
+    from atlasgen.cli.main import app
+    from atlasgen.io.package_data import shipped_library
+
+    res = CliRunner().invoke(app, ["report", "separable", "nope", "--library", "-o", str(tmp_path / "r")])
+    assert res.exit_code == 3
+    assert res.stderr.strip() == f"atlasgen: error: {shipped_library().as_posix()}: no material named nope"

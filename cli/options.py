@@ -1,0 +1,67 @@
+"""Options and output helpers every command shares: ``-q``/``-v`` and per-material progress."""
+
+from __future__ import annotations
+
+import functools
+import sys
+
+import click
+
+__all__ = ["QUIET", "NORMAL", "VERBOSE", "verbosity_options", "MaterialProgress"]
+
+QUIET, NORMAL, VERBOSE = -1, 0, 1
+
+
+def verbosity_options(quiet: str = "Print only errors.", verbose: str = "Print more detail."):
+    """``-q/--quiet`` and ``-v/--verbose``, passed to the command as one ``verbosity``.
+
+    ``verbosity`` is :data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`; of ``-q`` and
+    ``-v`` the last one given wins. ``quiet`` and ``verbose`` are the command's help
+    texts, which say what it prints then.
+    """
+
+    def decorate(func):
+        @functools.wraps(func)
+        def wrapper(*args, verbosity=None, **kwargs):
+            return func(*args, verbosity=NORMAL if verbosity is None else verbosity, **kwargs)
+
+        wrapper = click.option("-v", "--verbose", "verbosity", flag_value=VERBOSE, type=int, help=verbose)(wrapper)
+        return click.option("-q", "--quiet", "verbosity", flag_value=QUIET, type=int, help=quiet)(wrapper)
+
+    return decorate
+
+
+class MaterialProgress:
+    """A ``(name, done, total)`` callback that reports each finished material on stderr.
+
+    A progress bar when stderr is a terminal, else one plain line per material
+    (``validated skin (3/12)``), so that logs of ``make -j`` stay readable; nothing
+    with ``-q``. With ``-v`` the plain lines are used, since the command prints its own
+    detail between them. Use it as a context manager, which closes the bar.
+    """
+
+    def __init__(self, verb: str, verbosity: int):
+        self.verb = verb
+        self.verbosity = verbosity
+        self.bar = None
+
+    def __call__(self, name: str, done: int, total: int) -> None:
+        if self.verbosity == QUIET:
+            return
+        if self.verbosity == NORMAL and sys.stderr.isatty():
+            if self.bar is None:
+                # The total is known only once the library has checked its inputs.
+                self.bar = click.progressbar(length=total, label=self.verb, file=sys.stderr,
+                                             item_show_func=lambda item: item)  # fmt: skip
+                self.bar.__enter__()
+            self.bar.update(1, name)
+            return
+        click.echo(f"{self.verb} {name} ({done}/{total})", err=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        if self.bar is not None:
+            self.bar.__exit__(*exc_info)
+            self.bar = None
