@@ -277,13 +277,22 @@ def format_manifest(manifest: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
-    """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths."""
+def write_bake(result: BakeResult, dds_path, preview_path=None, extra_files=None) -> dict:
+    """Write the DDS, manifest, include, timings (and preview) all-or-nothing; return the paths.
+
+    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The DDS,
+    which the Makefile's rules target, is renamed into place last
+    (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
+    stale, so ``make`` bakes again.
+    """
     from atlasgen.io.atomic import write_files_atomically
 
     paths = sibling_paths(dds_path)
+    dds_bytes = encode_dds(result.levels, result.layout, result.dxgi_format)
+    # Hook for pairing the files: once the typed manifest carries the DDS's content hash
+    # (atlasgen/io/manifest.py), it is set here from ``dds_bytes`` before the manifest is encoded.
     contents = {
-        paths["dds"]: encode_dds(result.levels, result.layout, result.dxgi_format),
+        paths["dds"]: dds_bytes,
         paths["manifest"]: format_manifest(result.manifest).encode(),
         paths["include"]: result.include.encode(),
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
@@ -293,5 +302,7 @@ def write_bake(result: BakeResult, dds_path, preview_path=None) -> dict:
 
         paths["preview"] = Path(preview_path)
         contents[paths["preview"]] = render_contact_sheet(result, paths["preview"])
-    write_files_atomically(contents)
+    for path, data in (extra_files or {}).items():
+        contents[Path(path)] = data
+    write_files_atomically(contents, primary=paths["dds"])
     return paths

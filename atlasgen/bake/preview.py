@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import tempfile
 from pathlib import Path
 
@@ -45,27 +44,25 @@ def encode_png(image: np.ndarray, zoom: int = 1) -> bytes:
 def _png_bytes(buf, target_path=None) -> bytes:
     """8-bit PNG bytes of an OIIO ImageBuf.
 
-    OIIO writes to files only: through a private temporary file (beside ``target_path``
-    when given, so a full disk is reported for the output's own folder), so callers can
-    place the bytes atomically.
+    OIIO writes to files only: through a private scratch folder (beside ``target_path``
+    when given, so a full disk is reported for the output's own folder, and named so that
+    the next write of ``target_path`` removes it if this process is killed), so callers
+    can place the bytes atomically.
     """
     import OpenImageIO as oiio
 
-    folder = Path(target_path).parent if target_path is not None else None
-    try:
-        if folder is not None:
-            folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".atlasgen-png.", suffix=".png", dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{(folder or Path(tempfile.gettempdir())).as_posix()}: cannot write output folder ({exc.strerror})") from None
-    os.close(fd)
-    try:
+    from atlasgen.io.atomic import scratch_folder
+
+    if target_path is None:
+        folder = tempfile.TemporaryDirectory(prefix="atlasgen-png-")
+    else:
+        folder = scratch_folder(target_path)
+    with folder as scratch:
+        tmp = str(Path(scratch) / "image.png")
         if not buf.write(tmp, oiio.UINT8):
             name = Path(target_path).as_posix() if target_path is not None else tmp
             raise OutputError(f"{name}: cannot write PNG ({oiio.geterror()})")
         return Path(tmp).read_bytes()
-    finally:
-        os.unlink(tmp)
 
 
 def write_png(image: np.ndarray, path, zoom: int = 1) -> None:

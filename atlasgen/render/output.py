@@ -1,7 +1,8 @@
 """Writing renders: a linear float EXR and a tone-mapped sRGB PNG, both through OpenImageIO.
 
 Files are replaced atomically (:mod:`atlasgen.io.atomic`): a failed write never leaves a
-half-written image or an EXR without its PNG.
+half-written image or an EXR without its PNG. Radiance is made finite before it is
+written (:func:`finite_radiance`), so no render ever holds a NaN or infinite pixel.
 """
 
 from __future__ import annotations
@@ -13,7 +14,22 @@ import numpy as np
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.errors import OutputError
 
-__all__ = ["tone_map", "encode_image", "write_exr", "write_png", "write_render", "write_aov", "aov_channels"]
+__all__ = ["finite_radiance", "tone_map", "encode_image", "write_exr", "write_png", "write_render", "write_aov", "aov_channels"]
+
+
+#: The largest value of the renderer's ``rgba16float`` HDR target (IEEE half).
+HDR_MAX = 65504.0
+
+
+def finite_radiance(radiance) -> np.ndarray:
+    """float32 radiance with NaN as 0 and everything else clamped to [-HDR_MAX, HDR_MAX].
+
+    Lights or materials far beyond the HDR target's range overflow it to infinity, and
+    infinity times zero is NaN; clamping to the half-float range is what the target does
+    where it saturates instead, so such pixels are as bright as it can hold.
+    """
+    values = np.asarray(radiance, dtype=np.float32)
+    return np.clip(np.nan_to_num(values, nan=0.0, posinf=HDR_MAX, neginf=-HDR_MAX), -HDR_MAX, HDR_MAX)
 
 
 def tone_map(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
@@ -45,6 +61,9 @@ def encode_image(pixels: np.ndarray, channel_names, pixel_type: str, suffix: str
     spec.channelnames = tuple(channel_names)
     if suffix == ".exr":
         spec.attribute("compression", "zip")
+        # OpenImageIO stamps EXRs with the current time unless DateTime is set; an empty
+        # value writes none, so the same render gives the same bytes.
+        spec.attribute("DateTime", "")
     with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
         path = str(Path(folder) / f"image{suffix}")
         out = oiio.ImageOutput.create(path)
@@ -59,11 +78,11 @@ def encode_image(pixels: np.ndarray, channel_names, pixel_type: str, suffix: str
 
 
 def _exr_bytes(radiance) -> bytes:
-    return encode_image(np.asarray(radiance, dtype=np.float32), ("R", "G", "B"), "float", ".exr")
+    return encode_image(finite_radiance(radiance), ("R", "G", "B"), "float", ".exr")
 
 
 def _png_bytes(radiance, exposure) -> bytes:
-    return encode_image(tone_map(radiance, exposure), ("R", "G", "B"), "uint8", ".png")
+    return encode_image(tone_map(finite_radiance(radiance), exposure), ("R", "G", "B"), "uint8", ".png")
 
 
 def write_exr(path, radiance: np.ndarray) -> None:
@@ -77,10 +96,14 @@ def write_png(path, radiance: np.ndarray, exposure: float = 1.0) -> None:
 
 
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
-    """The EXR and, beside it, the PNG (same stem): both replaced, or neither."""
+    """The EXR and, beside it, the PNG (same stem): both replaced, or neither.
+
+    The PNG is renamed into place last: it is what the Makefile's render rule targets,
+    so a run killed between the two renames is run again.
+    """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
-    write_files_atomically({exr_path: _exr_bytes(radiance), png_path: _png_bytes(radiance, exposure)})
+    write_files_atomically({exr_path: _exr_bytes(radiance), png_path: _png_bytes(radiance, exposure)}, primary=png_path)
     return [exr_path, png_path]
 
 
