@@ -93,19 +93,23 @@ def app():
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option("--depfile", type=click.Path(path_type=Path), default=None,
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
+@click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
 @fail_on_errors
-def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, quiet):
+def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cache_only, depfile, allow_empty, quiet):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
+    from atlasgen.bake.outputs import check_bake_outputs
     from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
     from atlasgen.materials.material import read_materials, select_scene_materials
 
+    if cache_only and cache_dir is None:
+        raise click.UsageError("--cache-only needs --cache DIR")
     materials = read_materials(paths or [Path("materials")])
     if scene is not None:
         materials = select_scene_materials(materials, scene)
+    # Every output path is checked before anything (the cache included) is written.
+    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only)
     if cache_only:
-        if cache_dir is None:
-            raise click.UsageError("--cache-only needs --cache DIR")
         from atlasgen.bake.cache import fill_cache
 
         fill_cache(cache_dir, materials)
@@ -118,15 +122,18 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
-    write_bake(result, output, preview)
+    extra_files = {}
     if depfile is not None:
+        # Written in the same commit as the atlas: a depfile that cannot be written fails
+        # the bake before the atlas is replaced.
         from atlasgen.bake.cache import cache_path
-        from atlasgen.io.depfile import write_depfile
+        from atlasgen.io.depfile import format_depfile
 
         inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
-        write_depfile(depfile, output, inputs)
+        extra_files[depfile] = format_depfile(output, inputs).encode()
+    write_bake(result, output, preview, extra_files)
     if not quiet:
         for warning in result.warnings:
             click.echo(f"atlasgen: warning: {warning}", err=True)
