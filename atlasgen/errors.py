@@ -1,4 +1,8 @@
-"""Typed errors raised by the library; the CLI maps each to a message and an exit code."""
+"""Typed errors raised by the library; the CLI maps each to a message and an exit code.
+
+:data:`EXIT_CODES` is the one list of the CLI's exit statuses: docs/cli.md's table is
+generated from it, and the tests reach every one of them.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +13,12 @@ __all__ = [
     "SceneError",
     "OutputError",
     "BackendError",
+    "EXIT_OK",
+    "EXIT_INTERNAL",
+    "EXIT_USAGE",
+    "EXIT_INTERRUPTED",
+    "EXIT_CODES",
+    "REPORT_BUGS_TO",
 ]
 
 
@@ -63,3 +73,30 @@ class BackendError(AtlasgenError):
     """An optional backend (Mitsuba's LLVM variant, a GPU adapter) is missing."""
 
     exit_code = 5
+
+
+EXIT_OK = 0
+#: An exception atlasgen did not raise on purpose: a bug.
+EXIT_INTERNAL = 1
+#: click's status for a bad command line.
+EXIT_USAGE = 2
+#: 128 + SIGINT, as a shell reports a process that Ctrl-C ended.
+EXIT_INTERRUPTED = 130
+
+#: Where the internal-error message asks users to report the bug.
+REPORT_BUGS_TO = "the atlasgen maintainers (README.md)"
+
+#: ``(status, meaning)`` of every exit status the CLI uses, in order.
+EXIT_CODES = (
+    (EXIT_OK, "success"),
+    (EXIT_INTERNAL, "internal error (a bug): one line names the exception; `atlasgen --debug ...` or "
+                    "`ATLASGEN_DEBUG=1` shows the traceback to report"),
+    (EXIT_USAGE, "usage error: an unknown option or a bad option value"),
+    (InputError.exit_code, "bad input: a material, scene, atlas or cache file, a missing path; the message names the "
+                           "file, the field and what was expected"),
+    (OutputError.exit_code, "an output cannot be written, or would overwrite an input, another output or a folder; "
+                            "existing outputs are left untouched"),
+    (BackendError.exit_code, "a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU "
+                             "adapter (`apt-get install mesa-vulkan-drivers`)"),
+    (EXIT_INTERRUPTED, "interrupted (Ctrl-C); outputs are replaced whole or not at all"),
+)

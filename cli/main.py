@@ -1,24 +1,31 @@
 """The ``atlasgen`` command line: a thin click layer over the library.
 
-Exit codes (docs/cli.md): 0 success, 1 internal error, 2 usage error (click),
-3 bad input (material, scene, missing path), 4 output cannot be written,
-5 a backend is missing (Mitsuba's LLVM variant, a GPU adapter).
+Exit codes: :data:`atlasgen.errors.EXIT_CODES` (the table in docs/cli.md). Whatever the
+input, a failure is one line on stderr: the library's typed errors and click's usage
+errors as ``atlasgen: error: ...``, Ctrl-C as ``atlasgen: interrupted``, and any other
+exception (a bug) as ``atlasgen: internal error: ...``; ``--debug`` or
+``ATLASGEN_DEBUG=1`` adds the traceback (and Python's warnings, otherwise silent).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import json
+import math
+import os
 import sys
+import traceback
+import warnings
 from pathlib import Path
 
 import click
 
 from atlasgen import __version__
-from atlasgen.errors import AtlasgenError
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
 
-__all__ = ["app", "main", "fail_on_errors"]
+__all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
 
 #: Subcommands that live in their own module, imported only when invoked, so that
 #: ``atlasgen --help`` never pays for the renderer's or the reports' imports.
@@ -29,7 +36,70 @@ LAZY_COMMANDS = {
 }
 
 
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange, less NaN (which every comparison lets through)."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
+
+
+def _debugging() -> bool:
+    """``--debug`` on the command line, or ``ATLASGEN_DEBUG`` set (to anything but 0)."""
+    if os.environ.get("ATLASGEN_DEBUG", "").strip() not in ("", "0"):
+        return True
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.find_root().params.get("debug"))
+
+
+def _one_line(text) -> str:
+    return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
+def exit_for(exc: BaseException):
+    """Print the one line for an exception that ended a command, and exit with its status."""
+    if isinstance(exc, AtlasgenError):
+        click.echo(f"atlasgen: error: {_one_line(exc)}", err=True)
+        sys.exit(exc.exit_code)
+    if isinstance(exc, KeyboardInterrupt):
+        click.echo("atlasgen: interrupted", err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    if isinstance(exc, click.ClickException):
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        click.echo(f"atlasgen: error: {_one_line(exc.format_message())}{hint}", err=True)
+        sys.exit(exc.exit_code)
+    if _debugging():
+        traceback.print_exception(exc)
+    detail = _one_line(exc)
+    detail = f"{type(exc).__name__}: {detail[:200]}" if detail else type(exc).__name__
+    click.echo(f"atlasgen: internal error ({detail}); this is a bug: please report it to {REPORT_BUGS_TO} "
+               "with the traceback that ATLASGEN_DEBUG=1 adds", err=True)  # fmt: skip
+    sys.exit(EXIT_INTERNAL)
+
+
+def _guarded(call):
+    """Run ``call()``; any exception but click's own exits goes through :func:`exit_for`."""
+    try:
+        with warnings.catch_warnings():
+            # The library's numerics are checked on their results, not by warnings; a
+            # user sees a warning only in the one-line form the commands print.
+            if not _debugging():
+                warnings.simplefilter("ignore")
+            return call()
+    except (SystemExit, click.exceptions.Exit, click.Abort):
+        raise
+    except BaseException as exc:  # noqa: BLE001 - every exception ends in one line
+        exit_for(exc)
+
+
 class LazyGroup(click.Group):
+    def invoke(self, ctx):
+        # The sub-command's arguments are parsed and its module imported in here too.
+        return _guarded(lambda: click.Group.invoke(self, ctx))
+
     def list_commands(self, ctx):
         available = [n for n, (mod, _, _) in LAZY_COMMANDS.items() if importlib.util.find_spec(mod) is not None]
         return sorted(set(super().list_commands(ctx)) | set(available))
@@ -56,23 +126,19 @@ class LazyGroup(click.Group):
 
 
 def fail_on_errors(func):
-    """Map library errors to a one-line message on stderr and the error's exit code."""
-    import functools
+    """Map every exception to a one-line message on stderr and its exit code (:func:`exit_for`)."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except AtlasgenError as exc:
-            click.echo(f"atlasgen: error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+        return _guarded(lambda: func(*args, **kwargs))
 
     return wrapper
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="atlasgen")
-def app():
+@click.option("--debug", is_flag=True, help="On an internal error, also print the traceback (as ATLASGEN_DEBUG=1 does).")
+def app(debug):
     """atlasgen: bake BRDF materials into a 64x32x256 atlas for fully deferred renderers."""
 
 
@@ -112,7 +178,10 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
     if cache_only:
         from atlasgen.bake.cache import fill_cache
 
-        fill_cache(cache_dir, materials)
+        filled = fill_cache(cache_dir, materials)
+        if not quiet:
+            for warning in filled["warnings"]:
+                click.echo(f"atlasgen: warning: {warning}", err=True)
         return
     previous = read_previous_slots(ids_from) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
@@ -168,7 +237,17 @@ def info(atlas, fmt):
 
 
 def main(argv=None):
-    app.main(args=argv, prog_name="atlasgen")
+    # Not click's standalone mode, so that what ends the run outside a command (a Ctrl-C
+    # while the arguments are parsed, an unknown top-level option) is one line too.
+    try:
+        status = app.main(args=argv, prog_name="atlasgen", standalone_mode=False)
+    except click.Abort as exc:  # click's form of a KeyboardInterrupt
+        exit_for(KeyboardInterrupt() if isinstance(exc.__context__, KeyboardInterrupt) else exc)
+    except (SystemExit, click.exceptions.Exit):
+        raise
+    except BaseException as exc:  # noqa: BLE001
+        exit_for(exc)
+    sys.exit(status if isinstance(status, int) else 0)
 
 
 if __name__ == "__main__":

@@ -103,6 +103,23 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
     return bleed
 
 
+def _check_encoded(material, encoded) -> None:
+    """Refuse slices whose scale, bias or stored values float32 cannot hold (the include's
+    constants, the shader's arithmetic): texels too large, or infinite, for the atlas."""
+    from atlasgen.materials.params import FLOAT32_MAX
+
+    numbers = {"scale": encoded.scale, "bias": encoded.bias, "stored texels": encoded.stored}
+    numbers.update({k: v for k, v in (encoded.extra or {}).items() if k.startswith("factor_")})
+    for what, value in numbers.items():
+        array = np.asarray(value, dtype=np.float64)
+        if not (np.isfinite(array).all() and (np.abs(array) <= FLOAT32_MAX).all()):
+            raise MaterialError(
+                material.source, None,
+                f"material {material.name!r}: model '{material.type}' produced a slice {what} that float32 cannot hold; "
+                "expected texels within float32's range (check its parameters)",
+            )
+
+
 def bake_material(material):
     """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
     from atlasgen.models.base import Model
@@ -144,10 +161,10 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     srgb = not linear
     baked = []
     timings = {"materials": {}}
-    cache_hits, baked_names = [], []
+    cache_hits, baked_names, cache_warnings = [], [], []
     for material in materials:
         model = material.model
-        slices, hit = load_or_bake(cache_dir, material)
+        slices, hit = load_or_bake(cache_dir, material, cache_warnings)
         (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
@@ -156,10 +173,12 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         if bad.any():
             raise MaterialError(
                 material.source, None,
-                f"model '{material.type}' produced {int(bad.sum())} non-finite texels; expected finite values (check the parameters)",
+                f"material {material.name!r}: model '{material.type}' produced {int(bad.sum())} non-finite texels; "
+                "expected finite values (check its parameters)",
             )
         t_encode = time.perf_counter()
         encoded = model.encode(material.params, slices, material.rgb_scale, material.alpha_scale)
+        _check_encoded(material, encoded)
         baked.append((material, slices, values, encoded))
         # bake_s is the model's bake as measured when it ran, also for cache hits.
         timings["materials"][material.name] = {**slices.timings, "encode_s": time.perf_counter() - t_encode}
@@ -193,7 +212,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     timings["mips_and_quantize_s"] = time.perf_counter() - t0
 
     decoded0 = dequantize_rgba(levels[0], srgb)
-    warnings = []
+    warnings = list(cache_warnings)
     entries = []
     for material, slices, values, encoded in baked:
         first = slots[material.name]
