@@ -1,4 +1,8 @@
-"""Typed errors raised by the library; the CLI maps each to a message and an exit code."""
+"""Typed errors raised by the library; the CLI maps each to a message and an exit code.
+
+:data:`EXIT_CODES` is the one list of the CLI's exit statuses: docs/cli.md's table is
+generated from it, and the tests reach every one of them.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +19,12 @@ __all__ = [
     "BackendError",
     "GoalsMissed",
     "did_you_mean",
+    "EXIT_OK",
+    "EXIT_INTERNAL",
+    "EXIT_USAGE",
+    "EXIT_INTERRUPTED",
+    "EXIT_CODES",
+    "REPORT_BUGS_TO",
 ]
 
 
@@ -92,3 +102,31 @@ def did_you_mean(word: str, known) -> str:
     """
     close = difflib.get_close_matches(word, list(known), n=1)
     return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+EXIT_OK = 0
+#: An exception atlasgen did not raise on purpose: a bug.
+EXIT_INTERNAL = 1
+#: click's status for a bad command line.
+EXIT_USAGE = 2
+#: 128 + SIGINT, as a shell reports a process that Ctrl-C ended.
+EXIT_INTERRUPTED = 130
+
+#: Where the internal-error message asks users to report the bug.
+REPORT_BUGS_TO = "the atlasgen maintainers (README.md)"
+
+#: ``(status, meaning)`` of every exit status the CLI uses, in order.
+EXIT_CODES = (
+    (EXIT_OK, "success"),
+    (EXIT_INTERNAL, "internal error (a bug): one line names the exception; `atlasgen --debug ...` or "
+                    "`ATLASGEN_DEBUG=1` shows the traceback to report"),
+    (EXIT_USAGE, "usage error: an unknown option or a bad option value"),
+    (InputError.exit_code, "bad input: a material, scene, atlas or cache file, a missing path; the message names the "
+                           "file, the field and what was expected"),
+    (OutputError.exit_code, "an output cannot be written, or would overwrite an input, another output or a folder; "
+                            "existing outputs are left untouched"),
+    (BackendError.exit_code, "a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU "
+                             "adapter (`apt-get install mesa-vulkan-drivers`)"),
+    (GoalsMissed.exit_code, "validate --strict: a material missed a validation goal (the report is still written)"),
+    (EXIT_INTERRUPTED, "interrupted (Ctrl-C); outputs are replaced whole or not at all"),
+)

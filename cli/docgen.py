@@ -5,28 +5,29 @@ from __future__ import annotations
 import click
 
 from atlasgen.cli.main import app
+from atlasgen.errors import EXIT_CODES
 
-__all__ = ["render_cli_reference"]
+__all__ = ["render_cli_reference", "render_exit_codes"]
 
 #: Fixed, so the file does not depend on the terminal it was generated in.
 WIDTH = 100
 
-EXIT_CODES = """\
-## Exit codes
+def render_exit_codes() -> str:
+    """The exit-code table, from :data:`atlasgen.errors.EXIT_CODES`."""
+    rows = [f"| {code} | {meaning} |" for code, meaning in EXIT_CODES]
+    return "\n".join([
+        "## Exit codes",
+        "",
+        "| code | meaning |",
+        "|---|---|",
+        *rows,
+        "",
+        "Every failure is one line on stderr (`atlasgen: error: ...`, `atlasgen: interrupted`, `atlasgen: internal "
+        "error: ...`). Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, "
+        "`info`) go to stdout.",
+        "",
+    ])
 
-| code | meaning |
-|---|---|
-| 0 | success |
-| 1 | internal error (a bug: please report it with the traceback) |
-| 2 | usage error: an unknown option or a bad option value (click) |
-| 3 | bad input: a material or scene file, a missing path; the message names the file, the field and what was expected |
-| 4 | an output file or folder cannot be written; existing outputs are left untouched |
-| 5 | a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU adapter (`apt-get install mesa-vulkan-drivers`) |
-| 6 | `validate --strict` only: a validation goal was missed; the report is written all the same, and the message lists each miss |
-
-Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, `info`) go to stdout.
-Every command takes `-q` (errors only, or as its help says) and `-v` (more detail).
-"""
 
 USAGE = """\
 ## Running it
@@ -73,7 +74,7 @@ def render_cli_reference() -> str:
         app.get_help(ctx).rstrip(),
         "```",
         "",
-        EXIT_CODES,
+        render_exit_codes(),
         USAGE,
     ]
     for name in app.list_commands(ctx):

@@ -1,26 +1,32 @@
 """The ``atlasgen`` command line: a thin click layer over the library.
 
-Exit codes (docs/cli.md): 0 success, 1 internal error, 2 usage error (click),
-3 bad input (material, scene, missing path), 4 output cannot be written,
-5 a backend is missing (Mitsuba's LLVM variant, a GPU adapter), 6 ``validate --strict``:
-a validation goal was missed.
+Exit codes: :data:`atlasgen.errors.EXIT_CODES` (the table in docs/cli.md). Whatever the
+input, a failure is one line on stderr: the library's typed errors and click's usage
+errors as ``atlasgen: error: ...``, Ctrl-C as ``atlasgen: interrupted``, and any other
+exception (a bug) as ``atlasgen: internal error: ...``; ``--debug`` or
+``ATLASGEN_DEBUG=1`` adds the traceback (and Python's warnings, otherwise silent).
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.util
 import json
+import math
+import os
 import sys
+import traceback
+import warnings
 from pathlib import Path
 
 import click
 
 from atlasgen import __version__
 from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
-from atlasgen.errors import AtlasgenError
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
 
-__all__ = ["app", "main", "fail_on_errors"]
+__all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
 
 #: Subcommands that live in their own module, imported only when invoked, so that
 #: ``atlasgen --help`` never pays for the renderer's or the reports' imports.
@@ -31,7 +37,70 @@ LAZY_COMMANDS = {
 }
 
 
+class FiniteFloatRange(click.FloatRange):
+    """click's FloatRange, less NaN (which every comparison lets through)."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
+
+
+def _debugging() -> bool:
+    """``--debug`` on the command line, or ``ATLASGEN_DEBUG`` set (to anything but 0)."""
+    if os.environ.get("ATLASGEN_DEBUG", "").strip() not in ("", "0"):
+        return True
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx is not None and ctx.find_root().params.get("debug"))
+
+
+def _one_line(text) -> str:
+    return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
+def exit_for(exc: BaseException):
+    """Print the one line for an exception that ended a command, and exit with its status."""
+    if isinstance(exc, AtlasgenError):
+        click.echo(f"atlasgen: error: {_one_line(exc)}", err=True)
+        sys.exit(exc.exit_code)
+    if isinstance(exc, KeyboardInterrupt):
+        click.echo("atlasgen: interrupted", err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    if isinstance(exc, click.ClickException):
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        click.echo(f"atlasgen: error: {_one_line(exc.format_message())}{hint}", err=True)
+        sys.exit(exc.exit_code)
+    if _debugging():
+        traceback.print_exception(exc)
+    detail = _one_line(exc)
+    detail = f"{type(exc).__name__}: {detail[:200]}" if detail else type(exc).__name__
+    click.echo(f"atlasgen: internal error ({detail}); this is a bug: please report it to {REPORT_BUGS_TO} "
+               "with the traceback that ATLASGEN_DEBUG=1 adds", err=True)  # fmt: skip
+    sys.exit(EXIT_INTERNAL)
+
+
+def _guarded(call):
+    """Run ``call()``; any exception but click's own exits goes through :func:`exit_for`."""
+    try:
+        with warnings.catch_warnings():
+            # The library's numerics are checked on their results, not by warnings; a
+            # user sees a warning only in the one-line form the commands print.
+            if not _debugging():
+                warnings.simplefilter("ignore")
+            return call()
+    except (SystemExit, click.exceptions.Exit, click.Abort):
+        raise
+    except BaseException as exc:  # noqa: BLE001 - every exception ends in one line
+        exit_for(exc)
+
+
 class LazyGroup(click.Group):
+    def invoke(self, ctx):
+        # The sub-command's arguments are parsed and its module imported in here too.
+        return _guarded(lambda: click.Group.invoke(self, ctx))
+
     def list_commands(self, ctx):
         available = [n for n, (mod, _, _) in LAZY_COMMANDS.items() if importlib.util.find_spec(mod) is not None]
         return sorted(set(super().list_commands(ctx)) | set(available))
@@ -58,24 +127,20 @@ class LazyGroup(click.Group):
 
 
 def fail_on_errors(func):
-    """Map library errors to a one-line message on stderr and the error's exit code."""
-    import functools
+    """Map every exception to a one-line message on stderr and its exit code (:func:`exit_for`)."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except AtlasgenError as exc:
-            click.echo(f"atlasgen: error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+        return _guarded(lambda: func(*args, **kwargs))
 
     return wrapper
 
 
 @click.group(cls=LazyGroup, invoke_without_command=True, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="atlasgen")
+@click.option("--debug", is_flag=True, help="On an internal error, also print the traceback (as ATLASGEN_DEBUG=1 does).")
 @click.pass_context
-def app(ctx):
+def app(ctx, debug):
     """atlasgen: bake BRDF materials into a 64x32x256 atlas for fully deferred renderers."""
     if ctx.invoked_subcommand is None:  # bare `atlasgen`: the help, and success
         click.echo(ctx.get_help())
@@ -101,29 +166,37 @@ def app(ctx):
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
 @click.option("--library", is_flag=True,
               help="Also bake the material library installed with atlasgen (alone when no PATHS are given).")
+@click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
-def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, library, verbosity):
+def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, library, allow_empty,
+         verbosity):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
+    from atlasgen.bake.outputs import check_bake_outputs
     from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
     from atlasgen.io.package_data import shipped_library
     from atlasgen.materials.material import read_materials, select_scene_materials
 
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
+    if cache_only and cache_dir is None:
+        raise click.UsageError("--cache-only needs --cache DIR")
     sources = list(paths) + ([shipped_library()] if library else [])
     materials = read_materials(sources or [Path("materials")])
     if scene is not None:
         materials = select_scene_materials(materials, scene)
+    # Every output path is checked before anything (the cache included) is written.
+    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only)
     if cache_only:
-        if cache_dir is None:
-            raise click.UsageError("--cache-only needs --cache DIR")
         from atlasgen.bake.cache import fill_cache
 
         filled = fill_cache(cache_dir, materials)
         if verbosity == VERBOSE:
             click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
                        f"up to date {', '.join(filled['hits']) or 'none'}", err=True)  # fmt: skip
+        if verbosity != QUIET:
+            for warning in filled["warnings"]:
+                click.echo(f"atlasgen: warning: {warning}", err=True)
         return
     previous = read_previous_slots(ids_from) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
@@ -133,15 +206,18 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
-    write_bake(result, output, preview, zstd)
+    extra_files = {}
     if depfile is not None:
+        # Written in the same commit as the atlas: a depfile that cannot be written fails
+        # the bake before the atlas is replaced.
         from atlasgen.bake.cache import cache_path
-        from atlasgen.io.depfile import write_depfile
+        from atlasgen.io.depfile import format_depfile
 
         inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
-        write_depfile(depfile, output, inputs)
+        extra_files[depfile] = format_depfile(output, inputs).encode()
+    write_bake(result, output, preview, zstd, extra_files)
     if verbosity == VERBOSE:
         for line in _describe_materials(result):
             click.echo(line, err=True)
@@ -185,7 +261,17 @@ def info(atlas, fmt, verbosity):
 
 
 def main(argv=None):
-    app.main(args=argv, prog_name="atlasgen")
+    # Not click's standalone mode, so that what ends the run outside a command (a Ctrl-C
+    # while the arguments are parsed, an unknown top-level option) is one line too.
+    try:
+        status = app.main(args=argv, prog_name="atlasgen", standalone_mode=False)
+    except click.Abort as exc:  # click's form of a KeyboardInterrupt
+        exit_for(KeyboardInterrupt() if isinstance(exc.__context__, KeyboardInterrupt) else exc)
+    except (SystemExit, click.exceptions.Exit):
+        raise
+    except BaseException as exc:  # noqa: BLE001
+        exit_for(exc)
+    sys.exit(status if isinstance(status, int) else 0)
 
 
 if __name__ == "__main__":

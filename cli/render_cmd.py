@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 
 __all__ = ["render"]
@@ -22,7 +22,8 @@ AOVS = ("normal", "depth", "id", "albedo")
               help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip
 @click.option("--aov", type=click.Choice(AOVS), default=None,
               help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip
-@click.option("--mip-bias", type=float, default=None, help="Added to the depth-chosen mip level (overrides the scene).")
+@click.option("--mip-bias", type=FiniteFloatRange(-16.0, 16.0), default=None, metavar="FLOAT",
+              help="Added to the depth-chosen mip level (overrides the scene).")  # fmt: skip
 @click.option("--no-outlines", is_flag=True, help="Skip the toon-outline pass.")
 @verbosity_options(verbose="Also print the scene's size, objects, lights and materials before rendering.")
 @fail_on_errors

@@ -11,6 +11,9 @@ from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_opt
 
 __all__ = ["validate"]
 
+#: Mitsuba's sample count is a 32-bit integer; far more than a validation ever needs.
+MAX_SPP = 65536
+
 
 def _resolution(ctx, param, value):
     if value is None:
@@ -28,9 +31,9 @@ def _resolution(ctx, param, value):
 @click.argument("materials", nargs=-1)
 @click.option("--scene", "scenes", multiple=True, default=("front", "back"), show_default=True,
               help="Validation scene: a standard name (front, back) or a scene TOML with material = \"$material\". Repeatable.")  # fmt: skip
-@click.option("--spp", type=click.IntRange(min=1), default=1, show_default=True,
+@click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
-@click.option("--physical-spp", type=click.IntRange(min=1), default=64, show_default=True,
+@click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpath).")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip

@@ -42,3 +42,35 @@ def test_allocation_never_overlaps_and_respects_previous(counts, rnd):
     again = assign_slices([req(n, c) for n, c in zip(names, counts) if n in keep] + [req("new", 2)],
                           previous={n: first[n] for n in names})
     assert all(again[n] == first[n] for n in keep)
+
+
+@given(st.lists(st.tuples(st.integers(1, 4), st.one_of(st.none(), st.integers(0, 250))), min_size=1, max_size=30),
+       st.randoms(use_true_random=False))  # fmt: skip
+def test_slices_do_not_depend_on_the_order_materials_are_given(specs, rnd):
+    requests, taken = [], set()
+    for i, (count, explicit) in enumerate(specs):
+        span = set(range(explicit, explicit + count)) if explicit is not None else set()
+        if explicit is not None and (span & taken or explicit + count > 256):
+            explicit, span = None, set()
+        taken |= span
+        requests.append(req(f"m{i:02d}", count, explicit))
+    shuffled = rnd.sample(requests, k=len(requests))
+    assert assign_slices(shuffled) == assign_slices(requests)
+    previous = {name: slot for name, slot in assign_slices(requests).items() if rnd.random() < 0.5}
+    fewer = [r for r in requests if r != shuffled[0]] + [req("new", 3)]  # one gone, one added
+    assert assign_slices(rnd.sample(fewer, k=len(fewer)), previous) == assign_slices(fewer, previous)
+
+
+def test_a_bake_is_the_same_whatever_the_argument_order(tmp_path, write_material):
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    paths = [str(write_material(name, 'type = "lambert"\n')) for name in ("zinc", "amber", "moss")]
+    outputs = []
+    for order, args in (("given", paths), ("reversed", paths[::-1])):
+        out = tmp_path / order / "atlas.dds"
+        assert CliRunner().invoke(app, ["bake", *args, "-o", str(out), "-q"]).exit_code == 0
+        outputs.append([out.read_bytes(), out.with_suffix(".json").read_bytes(), out.with_suffix(".wgsl").read_bytes()])
+    assert outputs[0] == outputs[1]
+    assert b'"name": "amber", "id": 0' in outputs[0][1]

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen import __version__
+from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.models.base import SliceSet
 
 __all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
@@ -54,17 +55,43 @@ def cache_path(cache_dir, material) -> Path:
     return Path(cache_dir) / f"{Path(material.source).stem}.npz"
 
 
-def load_cached(cache_dir, material) -> SliceSet | None:
-    """The cached slices of ``material``, or None when absent, stale or unreadable."""
+def _check_entry(values: np.ndarray, meta) -> None:
+    """Raise ValueError unless the stored slices look like a model's: (n, H, W, 4), finite."""
+    if not isinstance(meta, dict) or not isinstance(meta.get("extra"), dict) or not isinstance(meta.get("timings"), dict):
+        raise ValueError("malformed metadata")
+    if values.dtype.kind != "f" or values.ndim != 4 or values.shape[0] < 1 or values.shape[1:] != (HEIGHT, WIDTH, 4):
+        raise ValueError(f"slices of shape {values.shape} {values.dtype}")
+    if not np.isfinite(values).all():
+        raise ValueError("non-finite slices")
+
+
+def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
+    """The cached slices of ``material``, or None when absent, stale or unreadable.
+
+    An entry that cannot be read (truncated, overwritten, not an ``.npz``, slices of the
+    wrong shape) is as good as absent: the material is baked again and the entry
+    replaced. That case, unlike an absent or stale entry, appends a line to ``warnings``.
+    """
     path = cache_path(cache_dir, material)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            if meta.get("key") != cache_key(material):
-                return None
-            return SliceSet(np.array(data["values"]), extra=meta["extra"], timings=meta["timings"])
-    except (OSError, ValueError, KeyError):
+    if not path.is_file():
         return None
+    try:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise ValueError("not an .npz archive")
+        with loaded as data:
+            meta = json.loads(str(data["meta"]))
+            if isinstance(meta, dict) and meta.get("key") != cache_key(material):
+                return None
+            values = np.array(data["values"])
+        _check_entry(values, meta)
+    except Exception as exc:  # noqa: BLE001 - zipfile, numpy and json raise many types for a damaged file
+        if warnings is not None:
+            reason = str(exc).splitlines()[0][:80] if str(exc) else ""
+            warnings.append(f"{path.as_posix()}: unreadable cache entry ({type(exc).__name__}"
+                            f"{': ' + reason if reason else ''}); baking material {material.name!r} again")  # fmt: skip
+        return None
+    return SliceSet(values, extra=meta["extra"], timings=meta["timings"])
 
 
 def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> Path:
@@ -84,18 +111,19 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     return path
 
 
-def load_or_bake(cache_dir, material) -> tuple[SliceSet, bool]:
+def load_or_bake(cache_dir, material, warnings=None) -> tuple[SliceSet, bool]:
     """The material's slices and whether they came from the cache.
 
-    A missing or stale entry is baked (``timings["bake_s"]`` set) and, with a
-    ``cache_dir``, stored; ``cache_dir = None`` always bakes.
+    A missing, stale or unreadable entry is baked (``timings["bake_s"]`` set) and, with a
+    ``cache_dir``, stored; ``cache_dir = None`` always bakes. An unreadable entry adds a
+    line to ``warnings`` (:func:`load_cached`).
     """
     import time
 
     from atlasgen.bake.pipeline import bake_material
 
     t0 = time.perf_counter()
-    slices = load_cached(cache_dir, material) if cache_dir is not None else None
+    slices = load_cached(cache_dir, material, warnings) if cache_dir is not None else None
     if slices is not None:
         slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
         return slices, True
@@ -111,14 +139,15 @@ def fill_cache(cache_dir, materials) -> dict:
 
     An up-to-date entry has its time stamp refreshed, so that ``make``, which asked for
     it because the material file is newer, does not ask again. Returns
-    ``{"baked": [names], "hits": [names]}``.
+    ``{"baked": [names], "hits": [names], "warnings": [lines]}``, the warnings naming
+    unreadable entries that were baked again.
     """
     import os
 
-    baked, hits = [], []
+    baked, hits, warnings = [], [], []
     for material in materials:
-        _, hit = load_or_bake(cache_dir, material)
+        _, hit = load_or_bake(cache_dir, material, warnings)
         if hit:
             os.utime(cache_path(cache_dir, material))
         (hits if hit else baked).append(material.name)
-    return {"baked": baked, "hits": hits}
+    return {"baked": baked, "hits": hits, "warnings": warnings}

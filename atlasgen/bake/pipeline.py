@@ -16,6 +16,7 @@ from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNO
 from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
 from atlasgen.errors import MaterialError, OutputError
+from atlasgen.io.output_paths import check_suffix
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.bake.slots import assign_slices
@@ -45,14 +46,16 @@ class BakeResult:
 
 
 #: The atlas containers, chosen by the output's suffix.
+
+
+#: What ``-o`` may name: the atlas's container formats.
 ATLAS_SUFFIXES = (".dds", ".ktx2")
 
 
 def sibling_paths(dds_path) -> dict:
     """The files written beside ``X.dds`` (or ``X.ktx2``, kept under the key ``"dds"``): manifest, include and timings."""
     p = Path(dds_path)
-    if p.suffix.lower() not in ATLAS_SUFFIXES:
-        raise OutputError(f"{p.as_posix()}: unknown atlas container {p.suffix or '(no suffix)'!r}; expected .dds or .ktx2")
+    check_suffix(p, "the atlas (-o)", ATLAS_SUFFIXES)
     stem = p.with_suffix("")
     return {
         "dds": p,
@@ -113,6 +116,23 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
     return bleed
 
 
+def _check_encoded(material, encoded) -> None:
+    """Refuse slices whose scale, bias or stored values float32 cannot hold (the include's
+    constants, the shader's arithmetic): texels too large, or infinite, for the atlas."""
+    from atlasgen.materials.params import FLOAT32_MAX
+
+    numbers = {"scale": encoded.scale, "bias": encoded.bias, "stored texels": encoded.stored}
+    numbers.update({k: v for k, v in (encoded.extra or {}).items() if k.startswith("factor_")})
+    for what, value in numbers.items():
+        array = np.asarray(value, dtype=np.float64)
+        if not (np.isfinite(array).all() and (np.abs(array) <= FLOAT32_MAX).all()):
+            raise MaterialError(
+                material.source, None,
+                f"material {material.name!r}: model '{material.type}' produced a slice {what} that float32 cannot hold; "
+                "expected texels within float32's range (check its parameters)",
+            )
+
+
 def bake_material(material):
     """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
     from atlasgen.models.base import Model
@@ -154,10 +174,10 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     srgb = not linear
     baked = []
     timings = {"materials": {}}
-    cache_hits, baked_names = [], []
+    cache_hits, baked_names, cache_warnings = [], [], []
     for material in materials:
         model = material.model
-        slices, hit = load_or_bake(cache_dir, material)
+        slices, hit = load_or_bake(cache_dir, material, cache_warnings)
         (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
@@ -166,10 +186,12 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         if bad.any():
             raise MaterialError(
                 material.source, None,
-                f"model '{material.type}' produced {int(bad.sum())} non-finite texels; expected finite values (check the parameters)",
+                f"material {material.name!r}: model '{material.type}' produced {int(bad.sum())} non-finite texels; "
+                "expected finite values (check its parameters)",
             )
         t_encode = time.perf_counter()
         encoded = model.encode(material.params, slices, material.rgb_scale, material.alpha_scale)
+        _check_encoded(material, encoded)
         baked.append((material, slices, values, encoded))
         # bake_s is the model's bake as measured when it ran, also for cache hits.
         timings["materials"][material.name] = {**slices.timings, "encode_s": time.perf_counter() - t_encode}
@@ -203,7 +225,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
     timings["mips_and_quantize_s"] = time.perf_counter() - t0
 
     decoded0 = dequantize_rgba(levels[0], srgb)
-    warnings = []
+    warnings = list(cache_warnings)
     entries = []
     for material, slices, values, encoded in baked:
         first = slots[material.name]
@@ -287,8 +309,14 @@ def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: 
     return encode_dds(result.levels, result.layout, result.dxgi_format)
 
 
-def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False) -> dict:
-    """Write the atlas (DDS or KTX2, by suffix), manifest, include, timings (and preview) all-or-nothing; return the paths."""
+def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, extra_files=None) -> dict:
+    """Write the atlas (DDS or KTX2, by suffix), manifest, include, timings (and preview) all-or-nothing; return the paths.
+
+    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
+    texture, which the Makefile's rules target, is renamed into place last
+    (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
+    stale, so ``make`` bakes again.
+    """
     from atlasgen.io.atomic import write_files_atomically
 
     paths = sibling_paths(dds_path)
@@ -304,5 +332,7 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
 
         paths["preview"] = Path(preview_path)
         contents[paths["preview"]] = render_contact_sheet(result)
-    write_files_atomically(contents)
+    for path, data in (extra_files or {}).items():
+        contents[Path(path)] = data
+    write_files_atomically(contents, primary=paths["dds"])
     return paths

@@ -18,7 +18,8 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
     Parameters
     ----------
     requests
-        ``(name, slice_count, explicit_id_or_None, source_path)`` per material, in bake order.
+        ``(name, slice_count, explicit_id_or_None, source_path)`` per material, in any order:
+        new slices are handed out in name order.
     previous
         ``name -> first_slice`` from the previous manifest, if any.
 
@@ -34,6 +35,9 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
         On a conflict, or when the materials need more slices than the atlas has.
     """
     previous = previous or {}
+    # By name, not by bake order: the same materials get the same slices however they
+    # were listed on the command line (names are unique: check_unique_names).
+    requests = sorted(requests, key=lambda request: request[0])
     owner: dict[int, str] = {}
     first: dict[str, int] = {}
     sources = {name: src for name, _, _, src in requests}

@@ -120,31 +120,56 @@ def write_dds(path, levels, layout: str, dxgi_format: int) -> None:
 
 
 def read_dds(path) -> DDSImage:
-    """Parse an RGBA8 DX10 DDS written by :func:`write_dds` (2D array or volume)."""
+    """Parse an RGBA8 DX10 DDS written by :func:`write_dds` (2D array or volume).
+
+    The file is untrusted: every size field of the header (width, height, depth,
+    arraySize, mipMapCount) is checked against the others and against the file's length
+    before anything is allocated, and any mismatch is an :class:`InputError` naming the
+    file and the field.
+    """
     path = Path(path)
+    shown = path.as_posix()
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
     if len(data) < 148 or data[:4] != MAGIC:
-        raise InputError(f"{path.as_posix()}: not a DDS file (bad magic or truncated header)")
+        raise InputError(f"{shown}: not a DDS file (bad magic or truncated header)")
     size, flags, height, width, _pitch, depth, mip_count = struct.unpack_from("<7I", data, 4)
     fourcc = data[84:88]  # ddspf.fourCC: header offset 72 + 8, after the 4-byte magic
     caps2 = struct.unpack_from("<I", data, 4 + 108)[0]
     if size != 124 or fourcc != b"DX10":
-        raise InputError(f"{path.as_posix()}: expected a DDS with a DX10 header")
+        raise InputError(f"{shown}: expected a DDS with a DX10 header")
     dxgi_format, dimension, _misc, array_size, _misc2 = struct.unpack_from("<5I", data, 128)
     if dxgi_format not in DXGI_NAMES:
-        raise InputError(f"{path.as_posix()}: DXGI format {dxgi_format} is not RGBA8")
+        raise InputError(f"{shown}: DXGI format {dxgi_format} is not RGBA8")
     volume = dimension == DIMENSION_TEXTURE3D and bool(caps2 & DDSCAPS2_VOLUME)
     mip_count = max(1, mip_count if flags & DDSD_MIPMAPCOUNT else 1)
+
+    def bad(field, value, expected):
+        raise InputError(f"{shown}: header field {field} is {value}; expected {expected}")
+
+    if width < 1:
+        bad("width", width, "at least 1")
+    if height < 1:
+        bad("height", height, "at least 1")
+    if volume and depth < 1:
+        bad("depth", depth, "at least 1 in a volume")
+    if not volume and array_size < 1:
+        bad("arraySize", array_size, "at least 1 in an array")
+    # A chain ends at 1x1(x1): one level per halving of the largest dimension, plus one.
+    longest = max(width, height, depth if volume else 1)
+    if mip_count > longest.bit_length():
+        bad("mipMapCount", mip_count, f"at most {longest.bit_length()} for {width}x{height}" + (f"x{depth}" if volume else ""))
     shapes = []
     for k in range(mip_count):
         n = max(1, depth >> k) if volume else array_size
         shapes.append((n, max(1, height >> k), max(1, width >> k), 4))
-    expected = 148 + sum(int(np.prod(s)) for s in shapes)
+    # Python integers: no overflow, and nothing is allocated by this sum.
+    expected = 148 + sum(a * b * c * d for a, b, c, d in shapes)
     if len(data) != expected:
-        raise InputError(f"{path.as_posix()}: expected {expected} bytes for its header, found {len(data)}")
+        fields = "width, height, " + ("depth" if volume else "arraySize") + " and mipMapCount"
+        raise InputError(f"{shown}: header fields {fields} describe {expected} bytes, the file has {len(data)}")
     body = np.frombuffer(data, dtype=np.uint8, offset=148)
     levels = []
     if volume:

@@ -35,6 +35,9 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
         spec.channelnames = tuple(channel_names)
     if suffix == ".exr":
         spec.attribute("compression", "zip")
+        # OpenImageIO stamps EXRs with the current time unless DateTime is set; an empty
+        # value writes none, so the same pixels give the same bytes.
+        spec.attribute("DateTime", "")
     for name, value in (attributes or {}).items():
         spec.attribute(name, value)
     with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import re
 import tomllib
@@ -11,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import InputError, MaterialError, did_you_mean
+from atlasgen.materials.params import fits_float32, shown as short, to_float32, validate_params
 from atlasgen.models import get_model, model_types
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
@@ -51,13 +51,18 @@ class Material:
         return "MATERIAL_" + re.sub(r"[^A-Z0-9]", "_", self.name.upper())
 
 
-def _scale_field(raw, key, path):
-    value = raw.get(key, "auto")
-    if value == "auto":
-        return value
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise MaterialError(path, key, f"expected \"auto\" or a finite number > 0, got {value!r}")
+def _positive_float32(raw, key, path, expected):
+    """A number > 0 that stays finite and > 0 in float32 (the include's constants)."""
+    value = raw.get(key)
+    if not fits_float32(value) or value <= 0 or to_float32(value) <= 0:
+        raise MaterialError(path, key, f"expected {expected}, got {short(value)}")
     return float(value)
+
+
+def _scale_field(raw, key, path):
+    if raw.get(key, "auto") == "auto":
+        return "auto"
+    return _positive_float32(raw, key, path, "\"auto\" or a finite number > 0 (in float32)")
 
 
 def read_material(path) -> Material:
@@ -90,32 +95,27 @@ def read_material(path) -> Material:
     known = model_types()
     if type_name is None:
         raise MaterialError(shown, "type", "missing; expected one of " + ", ".join(known))
-    if type_name not in known:
-        raise MaterialError(shown, "type", f"unknown model {type_name!r}; expected one of " + ", ".join(known))
+    if not isinstance(type_name, str) or type_name not in known:
+        raise MaterialError(shown, "type", f"unknown model {short(type_name)}; expected one of " + ", ".join(known))
 
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not NAME_PATTERN.match(name):
-        raise MaterialError(shown, "name", f"expected a letter then letters, digits, '-' or '_' (at most 63), got {name!r}")
+        raise MaterialError(shown, "name", f"expected a letter then letters, digits, '-' or '_' (at most 63), got {short(name)}")
 
     material_id = raw.get("id")
     if material_id is not None and (isinstance(material_id, bool) or not isinstance(material_id, int) or not 0 <= material_id < 256):
-        raise MaterialError(shown, "id", f"expected an integer slice index in [0, 255], got {material_id!r}")
+        raise MaterialError(shown, "id", f"expected an integer slice index in [0, 255], got {short(material_id)}")
 
     description = raw.get("description", "")
     if not isinstance(description, str):
-        raise MaterialError(shown, "description", f"expected a string, got {description!r}")
+        raise MaterialError(shown, "description", f"expected a string, got {short(description)}")
 
     error_budget = raw.get("error_budget")
-    if error_budget is not None and (
-        isinstance(error_budget, bool) or not isinstance(error_budget, (int, float))
-        or not math.isfinite(error_budget) or error_budget <= 0
-    ):
-        raise MaterialError(shown, "error_budget", f"expected a finite number > 0 (linear RMS), got {error_budget!r}")
+    if error_budget is not None:
+        error_budget = _positive_float32(raw, "error_budget", shown, "a finite number > 0 (linear RMS)")
 
     model = get_model(type_name)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
-    from atlasgen.materials.params import validate_params
-
     params = validate_params(model.params, model_raw, shown)
     model.check(params, shown)
     if error_budget is not None:

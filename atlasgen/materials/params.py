@@ -1,9 +1,16 @@
-"""Typed, validated material parameters: the schema each model declares for its TOML keys."""
+"""Typed, validated material parameters: the schema each model declares for its TOML keys.
+
+Every number crosses into float32 (the atlas's scales, the include's constants, the
+shaders), so a parameter must be finite there too, and keep its bounds once rounded to
+float32: ``rgb_scale = 1e300`` or ``alpha = 1e-50`` would become infinity or zero there.
+Integers must fit a shader's ``i32``.
+"""
 
 from __future__ import annotations
 
 import math
 import string
+import struct
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -12,7 +19,32 @@ import numpy as np
 from atlasgen.errors import MaterialError, did_you_mean
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Param", "validate_params", "parse_colour"]
+__all__ = ["Param", "validate_params", "parse_colour", "FLOAT32_MAX", "INT32_MAX", "fits_float32", "to_float32", "shown"]
+
+#: The largest finite float32, 3.4028235e38 (IEEE 754 binary32).
+FLOAT32_MAX = struct.unpack("<f", b"\xff\xff\x7f\x7f")[0]
+#: The largest i32, what WGSL integer constants hold.
+INT32_MAX = 2**31 - 1
+
+
+def fits_float32(value) -> bool:
+    """True for an int or float (not a bool) that float32 holds finitely: abs(x) <= FLOAT32_MAX."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    if isinstance(value, int):
+        return abs(value) <= FLOAT32_MAX  # compared exactly: a 400-digit integer is no float
+    return math.isfinite(value) and abs(value) <= FLOAT32_MAX
+
+
+def to_float32(value) -> float:
+    """``value`` rounded to the nearest float32 (``value`` must satisfy :func:`fits_float32`)."""
+    return struct.unpack("<f", struct.pack("<f", float(value)))[0]
+
+
+def shown(value, limit: int = 80) -> str:
+    """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 12]}... ({len(text)} characters)"
 
 
 def parse_colour(value, path, name):
@@ -26,13 +58,13 @@ def parse_colour(value, path, name):
         if len(text) == 7 and text[0] == "#" and all(c in string.hexdigits for c in text[1:]):
             codes = np.frombuffer(bytes.fromhex(text[1:]), dtype=np.uint8)
             return tuple(float(c) for c in dequantize_rgba(codes, srgb=True))
-        raise MaterialError(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {value!r}")
+        raise MaterialError(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {shown(value)}")
     if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 numbers in [0, 1], got {value!r}")
+        raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 numbers in [0, 1], got {shown(value)}")
     out = []
     for c in value:
-        if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c) or not 0.0 <= c <= 1.0:
-            raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 finite numbers in [0, 1], got {value!r}")
+        if not fits_float32(c) or not 0.0 <= c <= 1.0:
+            raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 finite numbers in [0, 1], got {shown(value)}")
         out.append(float(c))
     return tuple(out)
 
@@ -74,18 +106,34 @@ class Param:
         )
         return noun + (" " + " and ".join(parts) if parts else "")
 
+    def _out_of_bounds(self, value, in_float32=False) -> bool:
+        """Outside the bounds; ``in_float32``: the value and the bounds rounded to float32."""
+        lo, hi = self.lo, self.hi
+        if in_float32:
+            value = to_float32(value)
+            lo = None if lo is None else to_float32(lo)
+            hi = None if hi is None else to_float32(hi)
+        lo_bad = lo is not None and (value <= lo if self.lo_open else value < lo)
+        hi_bad = hi is not None and (value >= hi if self.hi_open else value > hi)
+        return lo_bad or hi_bad
+
     def _check_number(self, value, path, name, integer=False):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {value!r}")
-        if integer and not isinstance(value, int):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {value!r}")
-        if not math.isfinite(value):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {value}")
-        lo_bad = self.lo is not None and (value <= self.lo if self.lo_open else value < self.lo)
-        hi_bad = self.hi is not None and (value >= self.hi if self.hi_open else value > self.hi)
-        if lo_bad or hi_bad:
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {value!r}")
-        return int(value) if integer else float(value)
+        """A number within the bounds, in float32 too (ints: within i32)."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
+            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+        if integer:
+            if abs(value) > INT32_MAX or self._out_of_bounds(value):
+                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            return int(value)
+        if not fits_float32(value):
+            what = "beyond float32's range" if isinstance(value, int) or math.isfinite(value) else "not finite"
+            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)} ({what})")
+        if self._out_of_bounds(value):
+            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+        if self._out_of_bounds(value, in_float32=True):
+            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)} "
+                                            f"({to_float32(value):g} in float32)")  # fmt: skip
+        return float(value)
 
     def coerce(self, value, path):
         """Check ``value`` against this schema; return it normalised (floats, tuples)."""
@@ -96,25 +144,25 @@ class Param:
             return self._check_number(value, path, name, integer=True)
         if self.kind == "bool":
             if not isinstance(value, bool):
-                raise MaterialError(path, name, f"expected true or false, got {value!r}")
+                raise MaterialError(path, name, f"expected true or false, got {shown(value)}")
             return value
         if self.kind == "colour":
             return parse_colour(value, path, name)
         if self.kind == "choice":
             if value not in self.choices:
-                raise MaterialError(path, name, f"expected {self.expectation()}, got {value!r}")
+                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
             return value
         if self.kind == "float_list":
             if not isinstance(value, list):
-                raise MaterialError(path, name, f"expected {self.expectation()}, got {value!r}")
+                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
             return tuple(self._check_number(v, path, f"{name}[{i}]") for i, v in enumerate(value))
         if self.kind == "colour_list":
             if not isinstance(value, list) or not value:
-                raise MaterialError(path, name, f"expected a non-empty list of colours, got {value!r}")
+                raise MaterialError(path, name, f"expected a non-empty list of colours, got {shown(value)}")
             return tuple(parse_colour(v, path, f"{name}[{i}]") for i, v in enumerate(value))
         if self.kind == "table":
             if not isinstance(value, dict):
-                raise MaterialError(path, name, f"expected a table, got {value!r}")
+                raise MaterialError(path, name, f"expected a table, got {shown(value)}")
             return value
         raise AssertionError(f"unknown parameter kind {self.kind}")
 

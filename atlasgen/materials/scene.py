@@ -18,6 +18,7 @@ import numpy as np
 from atlasgen.errors import InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
+from atlasgen.materials.params import FLOAT32_MAX, fits_float32, shown
 
 __all__ = [
     "Camera",
@@ -122,7 +123,7 @@ class _Reader:
         self.path = path
 
     def fail(self, name, expected, value):
-        raise SceneError(self.path, name, f"expected {expected}, got {value!r}")
+        raise SceneError(self.path, name, f"expected {expected}, got {shown(value)}")
 
     def table(self, raw, name, allowed):
         if not isinstance(raw, dict):
@@ -138,7 +139,8 @@ class _Reader:
         value = raw.get(key, default)
         if value is None:
             raise SceneError(self.path, name, "missing; expected a number")
-        ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+        # Every number reaches the GPU as float32: it must be finite there too.
+        ok = fits_float32(value)
         if ok:
             ok = (value > lo if lo_open else value >= lo) and value <= hi
         if not ok:
@@ -147,7 +149,7 @@ class _Reader:
                 bound.append(f"{'>' if lo_open else '>='} {lo:g}")
             if hi < math.inf:
                 bound.append(f"<= {hi:g}")
-            self.fail(name, "a finite number" + (" " + " and ".join(bound) if bound else ""), value)
+            self.fail(name, "a finite float32 number" + (" " + " and ".join(bound) if bound else ""), value)
         return float(value)
 
     def integer(self, raw, key, name, default, lo, hi):
@@ -162,13 +164,11 @@ class _Reader:
             raise SceneError(self.path, name, "missing; expected [x, y, z]")
         if isinstance(value, (int, float)) and not isinstance(value, bool) and key == "scale":
             value = [value] * 3
-        ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(
-            not isinstance(c, bool) and isinstance(c, (int, float)) and math.isfinite(c) and lo <= c <= hi for c in value
-        )
+        ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(fits_float32(c) and lo <= c <= hi for c in value)
         if ok and nonzero:
             ok = any(c != 0 for c in value)
         if not ok:
-            what = "[x, y, z] of 3 finite numbers"
+            what = "[x, y, z] of 3 finite float32 numbers"
             if lo > -math.inf or hi < math.inf:
                 what += f" in [{lo:g}, {hi:g}]"
             if nonzero:
@@ -185,6 +185,8 @@ def _read_camera(r: _Reader, raw) -> Camera:
     if np.allclose(position, target):
         raise SceneError(r.path, "camera.target", "expected a point different from camera.position")
     forward = np.subtract(target, position)
+    if np.abs(forward).max() > FLOAT32_MAX:
+        raise SceneError(r.path, "camera.target", "expected a point whose offset from camera.position float32 can hold")
     if np.linalg.norm(np.cross(forward, up)) < 1e-9 * np.linalg.norm(forward) * np.linalg.norm(up):
         raise SceneError(r.path, "camera.up", "expected a direction not parallel to target - position")
     fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=0.0, hi=179.0, lo_open=True)
@@ -228,7 +230,11 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
         if not isinstance(text, str) or not text:
             r.fail(f"{name}.file", "a path to an OBJ or PLY mesh", text)
         file = Path(text) if Path(text).is_absolute() else base / text
-        if not file.is_file():
+        try:
+            exists = file.is_file()
+        except (OSError, ValueError):  # a NUL character, a name too long
+            exists = False
+        if not exists:
             raise SceneError(r.path, f"{name}.file", f"no such mesh file {file.as_posix()!r}; expected an OBJ or PLY file")
         if file.suffix.lower() not in (".obj", ".ply"):
             raise SceneError(r.path, f"{name}.file", f"expected an .obj or .ply file, got {file.name!r}")

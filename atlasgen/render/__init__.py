@@ -40,6 +40,7 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     if output_path.suffix.lower() != ".exr":
         raise OutputError(f"{output_path.as_posix()}: expected an .exr output path")
     scene = read_scene(scene_path)
+    _check_render_outputs(output_path, aov, scene, atlas_path)
     atlas = read_render_atlas(atlas_path)
     resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU
     result = Renderer(atlas).render(scene, mip_bias=mip_bias, outlines=outlines, aovs=aov is not None)
@@ -47,3 +48,18 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
         write_aov(output_path, aov, result.aov(aov))
         return [output_path]
     return write_render(output_path, result.radiance, scene.settings.exposure)
+
+
+def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
+    """Refuse outputs that would overwrite an input (the scene, the atlas and the files
+    beside it, a mesh) or a folder, before anything is rendered."""
+    from atlasgen.io.output_paths import check_output_paths
+
+    atlas_path = Path(atlas_path)
+    outputs = [(output_path, "the render (-o)")]
+    if aov is None:
+        outputs.append((output_path.with_suffix(".png"), "the PNG written beside the render"))
+    inputs = [(scene.path, "the scene"), (atlas_path, "the atlas (--atlas)"),
+              (atlas_path.with_suffix(".json"), "the atlas's manifest"), (atlas_path.with_suffix(".wgsl"), "the atlas's include")]
+    inputs += [(obj.file, f"the mesh of objects[{obj.index}]") for obj in scene.objects if obj.file is not None]
+    check_output_paths(outputs, inputs)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import SceneError
+from atlasgen.materials.params import FLOAT32_MAX
 
 __all__ = [
     "Mesh",
@@ -118,7 +119,9 @@ def make_torus(minor_radius: float = 0.25, segments: int = 64) -> Mesh:
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     """Read an OBJ or PLY file with trimesh; vertex normals from the file, else area-weighted.
 
-    Raises :class:`SceneError` when the file is missing, unreadable or has no triangles.
+    Raises :class:`SceneError` (naming ``scene_path`` and ``field``) when the file is
+    missing, unreadable, has no triangles, has a vertex that is not finite in float32 (the
+    vertex buffer's type) or a face that names a vertex it does not have.
     """
     import trimesh
 
@@ -133,6 +136,14 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     if faces.size == 0:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has no triangles; expected a triangle mesh")
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has faces that are not triangles of its vertices")
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(vertices) <= FLOAT32_MAX)  # NaN compares False
+    if bad.any():
+        row = int(np.argwhere(bad)[0][0])
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: vertex {row + 1} is {vertices[row].tolist()}; "
+                                            "expected finite float32 coordinates")  # fmt: skip
     # trimesh computes area-weighted vertex normals when the file has none; zero-area
     # faces contribute nothing, and a vertex used only by them gets a zero normal.
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -140,8 +151,9 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     return _mesh(vertices, normals, faces)
 
 
-def build_mesh(obj) -> Mesh:
-    """The object-space mesh of a :class:`~atlasgen.materials.scene.SceneObject`."""
+def build_mesh(obj, scene_path="<scene>") -> Mesh:
+    """The object-space mesh of a :class:`~atlasgen.materials.scene.SceneObject`;
+    ``scene_path`` is the scene file that errors name."""
     if obj.shape == "sphere":
         return make_sphere(obj.segments)
     if obj.shape == "plane":
@@ -150,4 +162,4 @@ def build_mesh(obj) -> Mesh:
         return make_box()
     if obj.shape == "torus":
         return make_torus(obj.minor_radius, obj.segments)
-    return read_mesh(obj.file, field=f"objects[{obj.index}].file")
+    return read_mesh(obj.file, scene_path, field=f"objects[{obj.index}].file")

@@ -2,7 +2,8 @@
 
 The files are encoded by :mod:`atlasgen.io.images` and replaced atomically
 (:mod:`atlasgen.io.atomic`): a failed write never leaves a half-written image or an EXR
-without its PNG.
+without its PNG. Radiance is made finite before it is
+written (:func:`finite_radiance`), so no render ever holds a NaN or infinite pixel.
 """
 
 from __future__ import annotations
@@ -16,19 +17,38 @@ from atlasgen.io.images import encode_exr, encode_png, write_exr
 from atlasgen.optics.display import display_aces
 from atlasgen.optics.quantize import quantize_rgba
 
-__all__ = ["render_png", "write_render", "write_aov", "aov_channels"]
+__all__ = ["finite_radiance", "render_png", "write_render", "write_aov", "aov_channels"]
+
+#: The largest value of the renderer's ``rgba16float`` HDR target (IEEE half).
+HDR_MAX = 65504.0
+
+
+def finite_radiance(radiance) -> np.ndarray:
+    """float32 radiance with NaN as 0 and everything else clamped to [-HDR_MAX, HDR_MAX].
+
+    Lights or materials far beyond the HDR target's range overflow it to infinity, and
+    infinity times zero is NaN; clamping to the half-float range is what the target does
+    where it saturates instead, so such pixels are as bright as it can hold.
+    """
+    values = np.asarray(radiance, dtype=np.float32)
+    return np.clip(np.nan_to_num(values, nan=0.0, posinf=HDR_MAX, neginf=-HDR_MAX), -HDR_MAX, HDR_MAX)
 
 
 def render_png(radiance: np.ndarray, exposure: float = 1.0) -> bytes:
     """PNG bytes of ``(h, w, 3)`` linear radiance for viewing: :func:`~atlasgen.optics.display.display_aces`, 8 bits."""
-    return encode_png(quantize_rgba(display_aces(radiance, exposure), srgb=False))
+    return encode_png(quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False))
 
 
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
-    """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither."""
+    """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither.
+
+    The PNG is renamed into place last: it is what the Makefile's render rule targets,
+    so a run killed between the two renames is run again.
+    """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
-    write_files_atomically({exr_path: encode_exr(radiance), png_path: render_png(radiance, exposure)})
+    write_files_atomically({exr_path: encode_exr(finite_radiance(radiance)), png_path: render_png(radiance, exposure)},
+                           primary=png_path)
     return [exr_path, png_path]
 
 

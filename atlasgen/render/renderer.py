@@ -143,12 +143,12 @@ class Renderer:
             self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, key)
         return self._lighting_passes[key]
 
-    def _mesh(self, obj) -> _GpuMesh:
+    def _mesh(self, obj, scene_path="<scene>") -> _GpuMesh:
         key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
         if key not in self._meshes:
             import wgpu
 
-            mesh = build_mesh(obj)
+            mesh = build_mesh(obj, scene_path)
             usage = wgpu.BufferUsage.COPY_DST
             vertices = self.device.create_buffer_with_data(data=mesh.interleaved(), usage=wgpu.BufferUsage.VERTEX | usage)
             indices = self.device.create_buffer_with_data(data=mesh.indices.ravel(), usage=wgpu.BufferUsage.INDEX | usage)
@@ -187,7 +187,7 @@ class Renderer:
         draws, centres, rectangles = [], [], []
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
         for obj, entry in zip(scene.objects, entries):
-            mesh = self._mesh(obj)
+            mesh = self._mesh(obj, scene.path)
             model = object_matrix(obj)
             object_data += pack_object(model, obj.albedo, obj.gloss, entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])

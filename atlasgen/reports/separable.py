@@ -296,7 +296,7 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
             on_material(m.name, done, len(materials))
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
-    with staged_folder(folder) as staging:
+    with staged_folder(folder, primary="report.json") as staging:
         plots = {s.name: _plots(s, staging) for s in studies}
         (staging / "index.md").write_text(format_separable_report(studies, plots))
         (staging / "report.json").write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from atlasgen.errors import BackendError
+from atlasgen.interrupts import deferred_interrupts
 
 __all__ = ["load_mitsuba", "LLVM_HINT"]
 
@@ -27,17 +28,20 @@ def load_mitsuba(variant: str = "llvm_ad_rgb"):
     """
     if not variant.startswith("llvm_ad_"):
         raise ValueError(f"expected an llvm_ad_* variant, got {variant!r}")
-    try:
-        import drjit as dr
-        import mitsuba as mi
-    except ImportError as exc:
-        raise BackendError(f"Mitsuba 3 is not installed ({exc}); install it with pip install 'atlasgen[mitsuba]'") from None
-    if not dr.has_backend(dr.JitBackend.LLVM):
-        raise BackendError(LLVM_HINT)
-    if variant not in mi.variants():
-        raise BackendError(f"this Mitsuba build has no variant {variant!r}; it has: {', '.join(mi.variants())}")
-    try:
-        mi.set_variant(variant)
-    except (ImportError, RuntimeError) as exc:
-        raise BackendError(f"{LLVM_HINT} ({str(exc).splitlines()[0]})") from None
+    # A Ctrl-C during start-up is raised as KeyboardInterrupt once it is over, never as
+    # the failure it would cause inside it (see atlasgen.interrupts).
+    with deferred_interrupts():
+        try:
+            import drjit as dr
+            import mitsuba as mi
+        except ImportError as exc:
+            raise BackendError(f"Mitsuba 3 is not installed ({exc}); install it with pip install 'atlasgen[mitsuba]'") from None
+        if not dr.has_backend(dr.JitBackend.LLVM):
+            raise BackendError(LLVM_HINT)
+        if variant not in mi.variants():
+            raise BackendError(f"this Mitsuba build has no variant {variant!r}; it has: {', '.join(mi.variants())}")
+        try:
+            mi.set_variant(variant)
+        except (ImportError, RuntimeError) as exc:
+            raise BackendError(f"{LLVM_HINT} ({str(exc).splitlines()[0]})") from None
     return mi

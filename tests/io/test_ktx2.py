@@ -370,7 +370,7 @@ def test_cli_refuses_other_suffixes_and_zstd_dds(library, tmp_path):
     runner = CliRunner()
     res = runner.invoke(app, ["bake", str(library), "-o", str(tmp_path / "atlas.png")])
     assert res.exit_code == OutputError.exit_code
-    assert res.stderr.strip() == f"atlasgen: error: {(tmp_path / 'atlas.png').as_posix()}: unknown atlas container '.png'; expected .dds or .ktx2"
+    assert res.stderr.strip() == f"atlasgen: error: {(tmp_path / 'atlas.png').as_posix()}: the atlas (-o) must end in .dds or .ktx2, not '.png'"
     res = runner.invoke(app, ["bake", str(library), "-o", str(tmp_path / "atlas.dds"), "--zstd"])
     assert res.exit_code == 2 and "--zstd needs a KTX2 output" in res.stderr
     assert not list(tmp_path.glob("atlas.*"))

@@ -99,7 +99,7 @@ params_strategy = st.fixed_dictionaries(
         "colour": st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
         "transmission_colour": st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
         "distortion": st.floats(0.0, 1.0),
-        "power": st.floats(0.0, 64.0, exclude_min=True),
+        "power": st.floats(0.0, 64.0, exclude_min=True, width=32),  # valid: > 0 in float32 too
         "scale": st.floats(0.0, 16.0),
         "ambient": st.floats(0.0, 1.0),
         "view": st.sampled_from(["average", "coplanar"]),

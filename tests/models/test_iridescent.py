@@ -257,7 +257,7 @@ params_strategy = st.fixed_dictionaries(
         "backlight": st.floats(0.0, 16.0),
         "backlight_colour": st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
         "backlight_distortion": st.floats(0.0, 1.0),
-        "backlight_power": st.floats(0.0, 64.0, exclude_min=True),
+        "backlight_power": st.floats(0.0, 64.0, exclude_min=True, width=32),  # valid: > 0 in float32 too
         "backlight_view": st.sampled_from(["average", "coplanar"]),
     }
 )

@@ -48,3 +48,23 @@ def test_write_render_writes_both_or_neither(tmp_path):
     with pytest.raises(OutputError):
         write_render(tmp_path / "blocker" / "frame.exr", radiance)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker", "out"]
+
+
+def test_written_radiance_is_finite_and_the_exr_carries_no_time_stamp(tmp_path):
+    from atlasgen.render.output import HDR_MAX
+
+    radiance = np.array([[[np.nan, np.inf, -np.inf], [1e30, 2.0, 0.0]]], dtype=np.float32)
+    write_render(tmp_path / "a.exr", radiance)
+    pixels, spec = read(tmp_path / "a.exr")
+    np.testing.assert_array_equal(pixels, [[[0.0, HDR_MAX, -HDR_MAX], [HDR_MAX, 2.0, 0.0]]])
+    # OpenImageIO stamps the time unless told not to: the same render would differ by the clock.
+    assert spec.getattribute("DateTime") is None and b"DateTime" not in (tmp_path / "a.exr").read_bytes()
+
+
+def test_the_png_the_makefile_targets_is_renamed_last(tmp_path, monkeypatch):
+    from atlasgen.io import atomic
+
+    renames = []
+    monkeypatch.setattr(atomic, "commit_hook", lambda step, path: renames.append(path.name) if step == "rename" else None)
+    write_render(tmp_path / "a.exr", np.zeros((2, 2, 3), np.float32))
+    assert renames == ["a.exr", "a.png"]

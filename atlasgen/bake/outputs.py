@@ -1,0 +1,62 @@
+"""A bake's output paths, checked before anything is baked or written."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_paths
+from atlasgen.errors import OutputError
+from atlasgen.io.output_paths import check_output_paths, check_suffix
+
+__all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
+
+
+
+def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,
+                       allow_empty=False, cache_only=False) -> None:  # fmt: skip
+    """Refuse a bake whose outputs clash with its inputs or each other, or would empty an atlas.
+
+    Checked: the atlas's extension (:data:`ATLAS_SUFFIXES`) and the preview's (``.png``);
+    no output (atlas, manifest, include, timings, preview, depfile, cache entries) is a
+    folder, lies under a file, names an input (a material or scene file, ``--ids-from``)
+    or another output; and an atlas whose manifest lists materials is not replaced by an
+    empty one unless ``allow_empty``. With ``cache_only`` only the cache entries are written,
+    and checked.
+
+    Raises
+    ------
+    OutputError
+        The first problem found, on one line.
+    """
+    paths = sibling_paths(dds_path)
+    outputs = []
+    if not cache_only:
+        check_suffix(dds_path, "the atlas (-o)", ATLAS_SUFFIXES)
+        if preview is not None:
+            check_suffix(preview, "--preview", (".png",))
+        outputs += [
+            (paths["dds"], "the atlas (-o)"),
+            (paths["manifest"], "the manifest written beside the atlas"),
+            (paths["include"], "the include written beside the atlas"),
+            (paths["timings"], "the timings written beside the atlas"),
+        ]
+        if preview is not None:
+            outputs.append((preview, "--preview"))
+        if depfile is not None:
+            outputs.append((depfile, "--depfile"))
+    if cache_dir is not None:
+        from atlasgen.bake.cache import cache_path
+
+        outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
+    inputs = [(m.source, f"the material file of {m.name!r}") for m in materials]
+    if scene is not None:
+        inputs.append((scene, "the scene (--scene)"))
+    if ids_from is not None and Path(ids_from).resolve() != paths["manifest"].resolve():
+        inputs.append((ids_from, "--ids-from"))
+    check_output_paths(outputs, inputs)
+    if not materials and not allow_empty and not cache_only:
+        existing = read_previous_slots(paths["manifest"])
+        if existing or (paths["dds"].exists() and not paths["manifest"].exists()):
+            what = f"{len(existing)} materials" if existing else "materials"
+            raise OutputError(f"{paths['dds'].as_posix()}: no materials to bake would replace an atlas of {what} "
+                              "with an empty one; expected material files (or --allow-empty)")  # fmt: skip

@@ -1,0 +1,39 @@
+"""Holding Ctrl-C while native libraries start up."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+__all__ = ["deferred_interrupts"]
+
+
+@contextlib.contextmanager
+def deferred_interrupts():
+    """Hold SIGINT until the block ends, then raise :class:`KeyboardInterrupt`.
+
+    Mitsuba's and Dr.Jit's start-up (their C++ modules' initialisation, the LLVM
+    backend's) does not survive an exception raised in the middle of it: interrupted
+    there, it fails with ``SystemError``, ``NameError`` or a crash, which would read as a
+    missing backend. Inside the block a Ctrl-C is only noted; it is raised once the block
+    is done, or instead of whatever exception the block ends with. Outside the main
+    thread, or where SIGINT is ignored, the block runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
+        signal.SIG_IGN, None
+    ):
+        yield
+        return
+    pending = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    try:
+        yield
+    except BaseException:
+        if pending:
+            raise KeyboardInterrupt from None
+        raise
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pending:
+        raise KeyboardInterrupt

@@ -1,0 +1,81 @@
+"""Checking a command's output paths before anything is written.
+
+An output that is also an input (``atlasgen bake m.toml -o m.toml``), two outputs on one
+path, an output that is a folder, or one under a file: each is refused with one line,
+before any work, so that a failing command never replaces anything.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from atlasgen.errors import OutputError
+
+__all__ = ["check_output_paths", "check_suffix"]
+
+
+def _key(path: Path) -> str:
+    return os.path.realpath(path)
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if _key(a) == _key(b):
+        return True
+    try:
+        return os.path.samefile(a, b)  # hard links
+    except OSError:
+        return False
+
+
+def _blocking_file(path: Path) -> Path | None:
+    """The nearest existing ancestor of ``path`` when it is not a folder, else None."""
+    for parent in path.absolute().parents:
+        if parent.exists():
+            return None if parent.is_dir() else parent
+    return None
+
+
+def check_output_paths(outputs, inputs=()) -> None:
+    """Refuse outputs that would overwrite an input, each other, or a folder.
+
+    Parameters
+    ----------
+    outputs
+        ``(path, role)`` pairs, ``role`` saying what the path is in the message
+        (``"the manifest"``, ``"--preview"``).
+    inputs
+        ``(path, role)`` pairs of files the command reads.
+
+    Raises
+    ------
+    OutputError
+        On the first clash, naming the path and both roles, on one line.
+    """
+    outputs = [(Path(p), role) for p, role in outputs]
+    inputs = [(Path(p), role) for p, role in inputs]
+    seen: dict[str, tuple[Path, str]] = {}
+    for path, role in outputs:
+        shown = path.as_posix()
+        if path.is_dir():
+            raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
+        blocker = _blocking_file(path)
+        if blocker is not None:
+            raise OutputError(f"{path.parent.as_posix()}: cannot write output folder ({blocker.as_posix()} is a file)")
+        key = _key(path)
+        if key in seen:
+            other, other_role = seen[key]
+            raise OutputError(f"{shown}: both {other_role} and {role}; expected a different path for each output")
+        seen[key] = (path, role)
+        for source, source_role in inputs:
+            if _same_file(path, source):
+                raise OutputError(f"{shown}: {role} would overwrite {source_role} ({source.as_posix()}); "
+                                  "expected an output path that is not an input")  # fmt: skip
+
+
+def check_suffix(path, role: str, suffixes) -> None:
+    """Refuse an output whose extension is not one of ``suffixes`` (case-insensitive)."""
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        expected = " or ".join(suffixes)
+        raise OutputError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")

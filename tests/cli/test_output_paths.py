@@ -1,0 +1,126 @@
+"""Output paths are checked before anything is baked or written: an output may not be an
+input, another output or a folder, must have the right extension, and an atlas is not
+emptied by accident."""
+
+from __future__ import annotations
+
+import hashlib
+
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+
+
+@pytest.fixture
+def library(write_material, tmp_path):
+    write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
+    write_material("snow", 'type = "lambert"\n')
+    return tmp_path / "materials"
+
+
+def _tree_hash(root) -> dict:
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+            for p in sorted(root.rglob("*"))}  # fmt: skip
+
+
+def _refused(tmp_path, args, expected, code=4):
+    """Run ``args``; it must fail with ``code`` and one line containing ``expected``, and
+    leave every file under ``tmp_path`` as it was."""
+    before = _tree_hash(tmp_path)
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == code, res.output
+    lines = res.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("atlasgen: error: ") and expected in lines[0], res.stderr
+    assert _tree_hash(tmp_path) == before
+    return lines[0]
+
+
+def _bake(tmp_path, library, *extra):
+    res = CliRunner().invoke(app, ["bake", str(library), "-o", str(tmp_path / "build" / "atlas.dds"), "-q", *extra])
+    assert res.exit_code == 0, res.output
+
+
+def test_an_output_may_not_be_an_input(tmp_path, library):
+    material = library / "clay.toml"
+    _refused(tmp_path, ["bake", str(material), "-o", str(material)], "must end in .dds or .ktx2, not '.toml'")
+    line = _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--depfile", str(material)],
+                    "--depfile would overwrite the material file of 'clay'")  # fmt: skip
+    assert material.as_posix() in line
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    _refused(tmp_path, ["bake", str(library), "--scene", str(scene), "-o", str(tmp_path / "a.dds"), "--depfile", str(scene)],
+             "--depfile would overwrite the scene (--scene)")  # fmt: skip
+
+
+def test_two_outputs_may_not_share_a_path(tmp_path, library):
+    out = tmp_path / "build" / "atlas.dds"
+    _refused(tmp_path, ["bake", str(library), "-o", str(out), "--depfile", str(out.with_suffix(".json"))],
+             "both the manifest written beside the atlas and --depfile")  # fmt: skip
+    _refused(tmp_path, ["bake", str(library), "-o", str(out), "--depfile", str(tmp_path / "p.png"), "--preview",
+                        str(tmp_path / "p.png")], "both --preview and --depfile")  # fmt: skip
+    # The cache is an output too.
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "clay.dds"), "--cache", str(tmp_path),
+                        "--depfile", str(tmp_path / "clay.npz")], "both --depfile and the cache entry of 'clay'")  # fmt: skip
+
+
+def test_an_output_may_not_be_a_folder(tmp_path, library):
+    (tmp_path / "out.dds").mkdir()
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "out.dds")], "the atlas (-o) is an existing folder")
+    (tmp_path / "a.wgsl").mkdir()
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds")], "the include written beside the atlas is an existing folder")
+
+
+def test_the_atlas_extension_must_match(tmp_path, library):
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x.json")], "the atlas (-o) must end in .dds or .ktx2")
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x")], "not 'no extension'")
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x.dds"), "--preview", str(tmp_path / "p.jpg")],
+             "--preview must end in .png")  # fmt: skip
+
+
+def test_an_empty_folder_does_not_empty_an_atlas_without_allow_empty(tmp_path, library):
+    _bake(tmp_path, library)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    out = tmp_path / "build" / "atlas.dds"
+    _refused(tmp_path, ["bake", str(empty), "-o", str(out)], "would replace an atlas of 2 materials with an empty one")
+    res = CliRunner().invoke(app, ["bake", str(empty), "-o", str(out), "--allow-empty", "-q"])
+    assert res.exit_code == 0 and '"materials": []' in out.with_suffix(".json").read_text()
+    # An empty atlas may be re-baked empty, and a new one made empty, without the flag.
+    assert CliRunner().invoke(app, ["bake", str(empty), "-o", str(out), "-q"]).exit_code == 0
+    assert CliRunner().invoke(app, ["bake", str(empty), "-o", str(tmp_path / "new.dds"), "-q"]).exit_code == 0
+
+
+def test_a_depfile_under_a_file_fails_before_the_atlas_is_replaced(tmp_path, library):
+    _bake(tmp_path, library)
+    (tmp_path / "blocker").write_text("a file")
+    (library / "snow.toml").write_text('type = "lambert"\ncolour = [0.1, 0.1, 0.1]\n')
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "build" / "atlas.dds"), "--depfile",
+                        str(tmp_path / "blocker" / "atlas.d")], "cannot write output folder")  # fmt: skip
+
+
+def test_a_depfile_that_fails_while_written_leaves_the_atlas(tmp_path, library, monkeypatch):
+    from atlasgen.errors import OutputError
+    from atlasgen.io import atomic
+
+    _bake(tmp_path, library)
+    (library / "snow.toml").write_text('type = "lambert"\ncolour = [0.1, 0.1, 0.1]\n')
+
+    def full_disk(step, path):
+        if path.suffix == ".d":
+            raise OutputError(f"{path.as_posix()}: cannot write (No space left on device)")
+
+    monkeypatch.setattr(atomic, "commit_hook", full_disk)
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "build" / "atlas.dds"), "--depfile",
+                        str(tmp_path / "build" / "atlas.d")], "No space left on device")  # fmt: skip
+
+
+def test_a_render_may_not_write_over_a_folder(tmp_path, library):
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    (tmp_path / "r.png").mkdir()
+    # Refused before the atlas (missing here) is read or anything is rendered.
+    _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "a.dds"), "-o", str(tmp_path / "r.exr")],
+             "the PNG written beside the render is an existing folder")  # fmt: skip
+    _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "a.dds"), "-o", str(tmp_path / "r.exr"),
+                        "--aov", "depth"], "no such atlas", code=3)  # fmt: skip

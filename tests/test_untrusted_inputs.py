@@ -1,0 +1,134 @@
+"""Binary inputs are untrusted: a DDS header is checked against the file before anything
+is allocated, and a damaged cache entry is baked again with a warning."""
+
+from __future__ import annotations
+
+import json
+import struct
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+
+from atlasgen.bake.cache import cache_key, cache_path, fill_cache, load_cached
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.errors import InputError
+from atlasgen.io.dds import read_dds
+from atlasgen.materials.material import read_materials
+
+#: Byte offsets of the DDS header fields (after the 4-byte magic; DirectXTex DDS.h).
+FIELDS = {"height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "arraySize": 140}
+
+
+@pytest.fixture(scope="module")
+def atlases(tmp_path_factory):
+    """A baked array atlas and a volume one, as bytes."""
+    root = tmp_path_factory.mktemp("atlases")
+    (root / "clay.toml").write_text('type = "lambert"\n')
+    materials = read_materials([root / "clay.toml"])
+    out = {}
+    for layout in ("array", "volume"):
+        write_bake(bake_atlas(materials, layout), root / f"{layout}.dds")
+        out[layout] = (root / f"{layout}.dds").read_bytes()
+    return out
+
+
+def _patched(data: bytes, field: str, value: int) -> bytes:
+    out = bytearray(data)
+    struct.pack_into("<I", out, FIELDS[field], value)
+    return bytes(out)
+
+
+CASES = [
+    ("array", "mipMapCount", 0xFFFFFFFF, "header field mipMapCount is 4294967295; expected at most 7"),
+    ("array", "mipMapCount", 8, "header field mipMapCount is 8; expected at most 7 for 64x32"),
+    ("array", "width", 0, "header field width is 0; expected at least 1"),
+    ("array", "height", 0, "header field height is 0"),
+    ("array", "arraySize", 0, "header field arraySize is 0"),
+    ("array", "width", 0xFFFFFFFF, "header fields width, height, arraySize and mipMapCount describe"),
+    ("array", "height", 0x7FFFFFFF, "header fields width, height, arraySize and mipMapCount describe"),
+    ("array", "arraySize", 0xFFFFFFFF, "describe 4"),
+    ("volume", "depth", 0xFFFFFFFF, "header fields width, height, depth and mipMapCount describe"),
+    ("volume", "depth", 0, "header field depth is 0"),
+    ("volume", "mipMapCount", 0xFFFFFFFF, "expected at most 9 for 64x32x256"),
+]
+
+
+@pytest.mark.parametrize("layout,field,value,expected", CASES)
+def test_every_dds_size_field_is_checked_before_allocating(tmp_path, atlases, layout, field, value, expected):
+    path = tmp_path / "bad.dds"
+    path.write_bytes(_patched(atlases[layout], field, value))
+    with pytest.raises(InputError) as info:
+        read_dds(path)
+    message = str(info.value)
+    assert message.startswith(f"{path.as_posix()}: ") and expected in message and "\n" not in message
+
+
+def test_a_huge_mip_count_fails_at_once_under_a_memory_limit(tmp_path, atlases):
+    """``atlasgen info`` on a 0xFFFFFFFF mip count, in a process allowed 2 GiB more than it
+    starts with: any allocation sized by the header would end in MemoryError (exit 1)."""
+    path = tmp_path / "bad.dds"
+    path.write_bytes(_patched(atlases["array"], "mipMapCount", 0xFFFFFFFF))
+    code = (
+        "import resource, sys\n"
+        "from atlasgen.cli.main import main\n"
+        "used = int(open('/proc/self/statm').read().split()[0]) * resource.getpagesize()\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (used + (2 << 30), resource.RLIM_INFINITY))\n"
+        f"main(['info', {str(path)!r}])\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 3, result.stderr
+    assert result.stderr.strip().endswith("header field mipMapCount is 4294967295; expected at most 7 for 64x32")
+
+
+@pytest.mark.parametrize("length", [148, 149, 1000, -1])
+def test_a_truncated_dds_names_its_length(tmp_path, atlases, length):
+    path = tmp_path / "short.dds"
+    path.write_bytes(atlases["array"][:length])
+    with pytest.raises(InputError, match=r"describe \d+ bytes, the file has"):
+        read_dds(path)
+
+
+def _damaged(data: bytes, key: str) -> dict:
+    """Ways a cache entry breaks: truncation, garbage, another file type, wrong contents."""
+    import io
+
+    wrong_shape = io.BytesIO()
+    meta = json.dumps({"key": key, "extra": {}, "timings": {}})
+    np.savez(wrong_shape, values=np.zeros((1, 2, 2, 4)), meta=np.array(meta))
+    npy = io.BytesIO()
+    np.save(npy, np.zeros(3))
+    return {
+        "truncated": data[: len(data) // 2],
+        "empty": b"",
+        "garbage": b"PK\x03\x04" + b"\xff" * 100,
+        "npy": npy.getvalue(),
+        "wrong shape": wrong_shape.getvalue(),
+    }
+
+
+def test_a_damaged_cache_entry_is_baked_again_with_a_warning(tmp_path, write_material):
+    write_material("a", 'type = "lambert"\ncolour = [0.2, 0.4, 0.6]\n')
+    materials = read_materials([tmp_path / "materials"])
+    cache = tmp_path / "cache"
+    reference = bake_atlas(materials, cache_dir=cache)
+    entry = cache_path(cache, materials[0])
+    good = entry.read_bytes()
+    for name, data in _damaged(good, cache_key(materials[0])).items():
+        entry.write_bytes(data)
+        warnings = []
+        assert load_cached(cache, materials[0], warnings) is None, name
+        assert len(warnings) == 1 and warnings[0].startswith(f"{entry.as_posix()}: unreadable cache entry"), name
+        result = bake_atlas(materials, cache_dir=cache)
+        assert result.timings["cache"]["baked"] == ["a"], name
+        assert any("unreadable cache entry" in w for w in result.warnings), name
+        assert all(np.array_equal(x, y) for x, y in zip(result.levels, reference.levels)), name
+        # The entry was replaced by a good one: the next bake loads it, silently.
+        assert load_cached(cache, materials[0], warnings) is not None and len(warnings) == 1, name
+    entry.write_bytes(good[:100])
+    filled = fill_cache(cache, materials)
+    assert filled["baked"] == ["a"] and len(filled["warnings"]) == 1
+    with zipfile.ZipFile(entry) as archive:  # a whole .npz again
+        assert sorted(archive.namelist()) == ["meta.npy", "values.npy"]
