@@ -3,14 +3,10 @@
 from __future__ import annotations
 
 import os
-import sys
 import textwrap
 from pathlib import Path
 
 import pytest
-
-# Test helpers (the independent DDS reader) import as top-level modules.
-sys.path.insert(0, str(Path(__file__).parent))
 
 os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp/atlasgen-xdg-%d" % os.getuid())
 os.makedirs(os.environ["XDG_RUNTIME_DIR"], mode=0o700, exist_ok=True)

@@ -11,7 +11,7 @@ from atlasgen.errors import InputError, MaterialError
 from atlasgen.materials.material import read_materials
 from atlasgen.models.base import SliceSet
 
-from dds_reader import parse, srgb_to_linear
+from tests.dds_reader import parse, srgb_to_linear
 
 
 def bake_folder(folder, **options):

@@ -2,11 +2,11 @@
 
 import json
 
-from html_links import PageLinks
-
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.reports.library import write_library_report
 from atlasgen.materials.material import read_materials
+
+from tests.html_links import PageLinks
 
 
 def read_json(path):

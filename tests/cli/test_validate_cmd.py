@@ -6,9 +6,10 @@ import json
 
 import pytest
 from click.testing import CliRunner
-from validate.validation_fixtures import mitsuba_rgb, validation_atlas  # noqa: F401  (shared fixtures)
 
 from atlasgen.cli.main import app
+
+from tests.validate.validation_fixtures import mitsuba_rgb, validation_atlas  # noqa: F401  (shared fixtures)
 
 
 def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811

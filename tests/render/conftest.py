@@ -14,7 +14,7 @@ import pytest
 
 @pytest.fixture(scope="session")
 def fixture_atlas():
-    from render.atlas_fixture import build_fixture_atlas
+    from tests.render.atlas_fixture import build_fixture_atlas
 
     return build_fixture_atlas()
 

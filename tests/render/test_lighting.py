@@ -10,7 +10,8 @@ from atlasgen.render.lighting import pack_lights, specular_exponent, specular_no
 from atlasgen.materials.scene import Light
 from atlasgen.optics.srgb import decode_srgb
 
-from render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
+from tests.render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
+
 
 pytestmark = pytest.mark.gpu
 

@@ -56,7 +56,7 @@ segments = 256
     depth = ray_sphere_depth(scene.camera.position, rays, (0.2, -0.1, 0.3), 1.1)
     ids = result.aov("id")
     # Coverage equals the analytic disc except along its rim (tessellation, sampling).
-    from render.atlas_fixture import interior
+    from tests.render.atlas_fixture import interior
 
     inside = interior(ids, margin=2)
     assert (np.isfinite(depth) == (ids != 0xFFFF)).mean() > 0.97

@@ -11,7 +11,8 @@ from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import Renderer
 
-from render.atlas_fixture import interior
+from tests.render.atlas_fixture import interior
+
 
 pytestmark = pytest.mark.gpu
 

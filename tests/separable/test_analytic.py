@@ -17,7 +17,8 @@ from atlasgen.separable.analytic import (
     smith_g1_ggx,
     ward_brdf,
 )
-from separable_helpers import ANALYTIC_DEFAULTS
+
+from tests.separable.separable_helpers import ANALYTIC_DEFAULTS
 
 
 def _hemisphere_integral(fn, n=4000):

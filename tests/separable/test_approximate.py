@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import GRID_RESOLUTIONS, _choose, approximate_brdf
+
+from tests.separable.separable_helpers import analytic
 
 errors = st.floats(min_value=1e-4, max_value=1.0)
 

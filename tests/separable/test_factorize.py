@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.factorize import (
@@ -17,6 +16,8 @@ from atlasgen.separable.factorize import (
 )
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrix
+
+from tests.separable.separable_helpers import analytic
 
 
 def _setup(source, name="half_diff", n=32, target="f_cos"):

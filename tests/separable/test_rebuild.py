@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from separable_helpers import random_frames
 
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
@@ -14,6 +13,8 @@ from atlasgen.separable import evaluate_separable, read_separable_factors
 from atlasgen.separable.error import measure_errors, sample_hemisphere_pairs
 from atlasgen.separable.rebuild import interpolate_1d, interpolate_2d
 from atlasgen.separable.source import make_source
+
+from tests.separable.separable_helpers import random_frames
 
 
 @given(a=st.floats(-5, 5), b=st.floats(-5, 5), c=st.floats(-5, 5),

@@ -1,11 +1,12 @@
 """The WGSL include: it compiles, and on a GPU it returns what the Python rebuild returns."""
 
 import numpy as np
-from separable_helpers import random_frames
 
 from atlasgen.separable import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.shader import separable_wgsl, wgsl_function_name
+
+from tests.separable.separable_helpers import random_frames
 
 COMPUTE = """
 @group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;

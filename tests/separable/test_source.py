@@ -1,11 +1,12 @@
 """Sources and sampling: the grid is the BRDF, non-finite samples are masked and counted."""
 
 import numpy as np
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrices
+
+from tests.separable.separable_helpers import analytic
 
 
 def test_matrix_entries_are_the_brdf_at_the_grid_directions():
