@@ -20,18 +20,10 @@ def fixture_atlas():
 
 
 @pytest.fixture(scope="session")
-def renderer(gpu_device, fixture_atlas):
+def renderer(gpu_context, fixture_atlas):
     from atlasgen.render.renderer import Renderer
 
-    return Renderer(fixture_atlas, gpu_device)
-
-
-@pytest.fixture
-def no_gpu_errors(gpu_device):
-    """Fails the test if the device reported any error while it ran."""
-    gpu_device.take_errors()
-    yield
-    assert gpu_device.take_errors() == []
+    return Renderer(fixture_atlas, gpu_context)
 
 
 @pytest.fixture

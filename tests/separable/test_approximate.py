@@ -51,6 +51,7 @@ def sharp():
     return approximate_brdf(analytic("ggx", alpha=0.05), terms=4, target="f_proxy", grids=(16, 32, 48))
 
 
+@pytest.mark.slow
 def test_every_grid_is_measured_on_the_stored_resolution(sharp):
     assert sharp.factors.resolution == 32 and sharp.terms == 4
     assert sorted(c["grid"] for c in sharp.candidates) == [16, 32, 48]
@@ -66,6 +67,7 @@ def test_a_fixed_k_takes_the_grid_with_the_least_error(sharp):
     assert at_k[48] < at_k[32] < at_k[16]
 
 
+@pytest.mark.slow
 def test_the_search_stops_at_a_grid_that_meets_the_budget_with_one_term():
     broad = analytic("lambert", diffuse=(0.6, 0.5, 0.4))
     result = approximate_brdf(broad, max_error=0.05, grids=GRID_RESOLUTIONS)

@@ -27,6 +27,7 @@ def _setup(source, name="half_diff", n=32, target="f_cos"):
     return p, m, w1, w2
 
 
+@pytest.mark.slow
 def test_svd_matches_numpy_full_svd():
     """Independent computation: the rank-K sum equals the truncated numpy SVD of the weighted matrix."""
     p, m, w1, w2 = _setup(analytic("ggx", alpha=0.3, f0=(0.9, 0.6, 0.2)))
@@ -106,6 +107,7 @@ def test_two_dimensional_product_on_the_half_diff_grid_is_rank_one():
     np.testing.assert_allclose(f.h[0, 1].ravel() / f.h[0, 1].ravel()[0], h / h[0], rtol=1e-10)
 
 
+@pytest.mark.slow
 @given(alpha=st.floats(0.03, 1.0), f0=st.floats(0.02, 1.0), source=st.sampled_from(["ggx", "beckmann", "ward", "blinn_phong"]),
        name=st.sampled_from(["half_diff", "in_out"]), target=st.sampled_from(["f_cos", "f_proxy"]))
 @settings(max_examples=25, deadline=None)
@@ -118,6 +120,7 @@ def test_error_never_grows_with_terms(alpha, f0, source, name, target):
     assert errors[0] <= 1.0 + 1e-12
 
 
+@pytest.mark.slow
 def test_reported_error_by_terms_is_monotone_for_the_goal_materials():
     """The interpolated error at random pairs follows the grid residual; it may only wiggle by interpolation noise."""
     for alpha in (0.05, 0.2, 0.5):

@@ -24,6 +24,7 @@ def test_interpolation_is_the_gpu_filter_at_the_target_texels(source, target):
     np.testing.assert_allclose(interpolation_matrix(source, target) @ table, interpolate_1d(table, x), atol=1e-12)
 
 
+@pytest.mark.slow
 @given(grids, grids, st.floats(-3, 3), st.floats(-3, 3))
 def test_a_linear_ramp_survives_any_resampling(source, target, a, b):
     ramp = a + b * np.linspace(0.0, 1.0, source)
