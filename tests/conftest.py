@@ -109,10 +109,11 @@ FIXTURE_MARKERS = {
     "gpu_context": "gpu",
     "mitsuba_llvm": "mitsuba",
     "mitsuba_rgb": "mitsuba",
-    # Session fixtures that cost seconds (2 cores): a Mitsuba and GPU run of every test
-    # material; a bake of four separable materials.
+    # Session fixtures that cost a second or more (2 cores): a Mitsuba and GPU run of every
+    # test material; a bake of four separable materials; the renderer's pipelines.
     "validation_run": "slow",
     "separable_atlas": "slow",
+    "renderer": "slow",
 }
 
 

@@ -63,6 +63,7 @@ def _entry(result, name):
     return next(m for m in result.manifest["materials"] if m["name"] == name)
 
 
+@pytest.mark.slow
 def test_terms_fill_consecutive_slices_with_the_manifest_fields(bake_folder):
     result = bake_folder({
         "a": 'type = "lambert"\nid = 0\n',
@@ -129,6 +130,7 @@ def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(least, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_without_a_budget_the_grid_is_the_stored_one(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n'}), "g")
     assert e["sampling_grid"] == 32 and {c["grid"] for c in e["representation"]["candidates"]} == {32}
@@ -142,12 +144,14 @@ def test_a_loose_budget_met_by_one_term_on_the_coarse_grid_samples_nothing_finer
     assert e["errors_8bit"]["relative_rms"] <= 0.05
 
 
+@pytest.mark.slow
 def test_a_fixed_grid_is_the_only_one_sampled(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\ngrid = 24\n'}), "g")
     assert e["sampling_grid"] == 24 and e["factor_resolution"] == 32
     assert {c["grid"] for c in e["representation"]["candidates"]} == {24}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("alpha", [0.005, 1.0])
 def test_near_delta_and_very_rough_ggx_stay_finite_and_report_their_error(bake_folder, alpha):
     result = bake_folder({"g": f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nterms = 4\n'})

@@ -33,6 +33,7 @@ def test_a_tighter_budget_never_yields_a_larger_error(table, a, b):
     assert _chosen_error(table, tight) <= _chosen_error(table, loose)
 
 
+@pytest.mark.slow
 @given(candidate_tables(), errors)
 def test_the_choice_is_the_cheapest_meeting_the_budget_else_the_least_error(table, budget):
     i, k, met = _choose(table, None, budget)
@@ -58,6 +59,7 @@ def test_every_grid_is_measured_on_the_stored_resolution(sharp):
     assert all(len(c["relative_rms_by_terms"]) == 4 for c in sharp.candidates)
 
 
+@pytest.mark.slow
 def test_a_fixed_k_takes_the_grid_with_the_least_error(sharp):
     at_k = {c["grid"]: c["relative_rms_by_terms"][3] for c in sharp.candidates}
     assert sharp.grid == min(at_k, key=at_k.get)
@@ -78,6 +80,7 @@ def test_the_search_stops_at_a_grid_that_meets_the_budget_with_one_term():
     assert {c["grid"] for c in tight.candidates} == set(GRID_RESOLUTIONS)
 
 
+@pytest.mark.slow
 def test_one_grid_by_default_keeps_the_stored_resolution():
     result = approximate_brdf(analytic("beckmann", alpha=0.4), terms=2)
     assert result.grid == 32 and [c["grid"] for c in result.candidates] == [32, 32]

@@ -42,6 +42,7 @@ def test_svd_matches_numpy_full_svd():
         np.testing.assert_allclose(f.singular_values[c], s[:4], rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_lambert_is_rank_one():
     """f cos of Lambert is colour/pi * cos(theta_l): one term reproduces it exactly."""
     colour = (0.8, 0.5, 0.2)
@@ -74,6 +75,7 @@ def _product_source(name, use_y=True):
     return BrdfSource("product", evaluate_f=f)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["in_out", "half_diff"])
 def test_product_form_is_recovered_at_rank_one(name):
     # h varies along pi2's first axis only: the grid continues texels below the horizon

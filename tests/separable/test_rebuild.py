@@ -17,6 +17,7 @@ from atlasgen.separable.source import make_source
 from tests.separable.separable_helpers import random_frames
 
 
+@pytest.mark.slow
 @given(a=st.floats(-5, 5), b=st.floats(-5, 5), c=st.floats(-5, 5),
        x=st.lists(st.floats(-3, 40), min_size=1, max_size=20), y=st.lists(st.floats(-3, 40), min_size=1, max_size=20))
 @settings(max_examples=100, deadline=None)

@@ -1,6 +1,7 @@
 """Sources and sampling: the grid is the BRDF, non-finite samples are masked and counted."""
 
 import numpy as np
+import pytest
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.parametrization import get_parametrization
@@ -30,6 +31,7 @@ def _poison(l, v):
     return bad
 
 
+@pytest.mark.slow
 def test_nonfinite_samples_are_masked_counted_and_reported():
     base = analytic("ggx", alpha=0.3)
 

@@ -35,6 +35,7 @@ def test_tonemap_is_the_srgb_oetf_of_the_clipped_exposed_value():
     np.testing.assert_allclose(got, expected, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_flip_is_zero_for_identical_images_and_grows_with_the_error():
     rng = np.random.default_rng(7)
     ref = rng.uniform(0.2, 0.8, (32, 32, 3))
@@ -46,6 +47,7 @@ def test_flip_is_zero_for_identical_images_and_grows_with_the_error():
     assert 0.0 < small < large <= 1.0
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None)
 @given(st.floats(0.001, 0.2))
 def test_compare_images_measures_the_tone_mapped_pair(offset):

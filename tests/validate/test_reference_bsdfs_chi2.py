@@ -2,7 +2,7 @@
 
 Each BSDF's ``sample`` must draw directions with the density its ``pdf`` reports, or a
 path tracer weighting by ``f / pdf`` is biased. Mitsuba's own test (``mitsuba.chi2``,
-as used by its ``src/bsdfs/tests``) histograms a million samples on the sphere, integrates
+as used by its ``src/bsdfs/tests``) histograms samples on the sphere (200,000 here), integrates
 ``pdf`` over the same cells and runs Pearson's chi-square test on the two. Custom Python
 BSDFs need a vectorised variant: ``llvm_ad_rgb``.
 """
