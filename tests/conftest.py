@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import os
-import sys
 import textwrap
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
-# Test helpers (the independent DDS reader) import as top-level modules.
-sys.path.insert(0, str(Path(__file__).parent))
+# No timed assertions (developers' guide): Hypothesis's per-example deadline is one, and it
+# fails tests at random on a loaded machine.
+settings.register_profile("atlasgen", deadline=None)
+settings.load_profile("atlasgen")
 
 # Hypothesis's per-example deadline is a timed assertion: on a loaded machine it fails
 # tests whose results are right. Examples are bounded by their own size instead.
@@ -64,12 +66,12 @@ def write_material(tmp_path):
 
 
 @pytest.fixture(scope="session")
-def gpu_device():
+def gpu_context():
     """The shared WebGPU context (lavapipe here); skips when wgpu or an adapter is missing.
 
-    Tests using it should end with ``assert gpu_device.take_errors() == []``-style
-    checks (see ``tests/render``): the context collects every validation error the
-    device reports.
+    For session-scoped fixtures that render; tests request :func:`gpu_device`. Any test
+    with this fixture in its closure is marked ``gpu`` and checked by :func:`gpu_device`
+    (see :func:`pytest_collection_modifyitems` and :func:`_gpu_error_check`).
     """
     from atlasgen.errors import BackendError
 
@@ -79,6 +81,54 @@ def gpu_device():
         return get_device()
     except BackendError as exc:
         pytest.skip(str(exc))
+
+
+def _assert_no_gpu_errors(context, when: str) -> None:
+    errors = context.take_errors()
+    assert not errors, f"the GPU device reported {len(errors)} error(s) {when}:\n" + "\n".join(errors)
+
+
+@pytest.fixture
+def gpu_device(gpu_context):
+    """The shared WebGPU context, checked: the test errors if the device reported any error.
+
+    The context collects every error wgpu reports (atlasgen/render/device.py: raised
+    validation errors and the ones only logged, e.g. at submit). Errors found on the way
+    in came from a session fixture or an earlier test; errors found on the way out, from
+    this test.
+    """
+    _assert_no_gpu_errors(gpu_context, "before this test (in a session fixture or an earlier test)")
+    yield gpu_context
+    _assert_no_gpu_errors(gpu_context, "during this test")
+
+
+@pytest.fixture(autouse=True)
+def _gpu_error_check(request):
+    """Every test that reaches the GPU through any fixture (a renderer, a validation run) gets
+    :func:`gpu_device`'s check, whether or not it asks for the device itself."""
+    if "gpu_context" in request.fixturenames:
+        request.getfixturevalue("gpu_device")
+
+
+#: Markers implied by a fixture anywhere in a test's fixture closure, so that a new test
+#: using one of them is marked without saying so.
+FIXTURE_MARKERS = {
+    "gpu_context": "gpu",
+    "mitsuba_llvm": "mitsuba",
+    "mitsuba_rgb": "mitsuba",
+    # Session fixtures that cost a second or more (2 cores): a Mitsuba and GPU run of every
+    # test material; a bake of four separable materials; the renderer's pipelines.
+    "validation_run": "slow",
+    "separable_atlas": "slow",
+    "renderer": "slow",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        for fixture, marker in FIXTURE_MARKERS.items():
+            if fixture in getattr(item, "fixturenames", ()):
+                item.add_marker(marker)
 
 
 @pytest.fixture(scope="session")

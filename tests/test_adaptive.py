@@ -44,6 +44,7 @@ def test_bands_need_prefiltering_and_it_helps():
     assert errors[-1] < errors[0]
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None)
 @given(st.floats(-0.9, 0.9), st.floats(1e-4, 0.2), st.floats(0.05, 1.0))
 def test_a_tighter_budget_never_yields_a_larger_error(threshold, tight, ratio):

@@ -10,7 +10,7 @@ from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
 from atlasgen.models.base import SliceSet
 
-from dds_reader import parse, srgb_to_linear
+from tests.dds_reader import parse, srgb_to_linear
 
 
 def bake_folder(folder, **options):

@@ -7,7 +7,7 @@ from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
 
-from dds_reader import linear_to_srgb, parse, srgb_to_linear
+from tests.dds_reader import linear_to_srgb, parse, srgb_to_linear
 
 
 @pytest.fixture

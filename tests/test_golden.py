@@ -27,6 +27,8 @@ def _golden_name(variant: str, suffix: str) -> str:
     return f"{variant}{suffix}.gz" if suffix == ".dds" else f"{variant}{suffix}"
 
 
+@pytest.mark.slow
+@pytest.mark.usefixtures("mitsuba_llvm")  # materials/separable-gold.toml has a Mitsuba source
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
 def test_the_shipped_library_bakes_to_the_golden_bytes(variant, tmp_path, monkeypatch):
     # The manifest names material files as given, so bake from the repository root.

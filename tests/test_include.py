@@ -5,23 +5,8 @@ import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.contract import atlas_uv, texel_centres
-from atlasgen.errors import BackendError
 from atlasgen.materials.material import read_materials
 from atlasgen.optics.quantize import dequantize_rgba
-
-
-@pytest.fixture
-def gpu():
-    pytest.importorskip("wgpu")
-    from atlasgen.render.device import get_device
-
-    try:
-        ctx = get_device()
-    except BackendError as exc:
-        pytest.skip(str(exc))
-    ctx.take_errors()
-    yield ctx
-    assert ctx.take_errors() == []
 
 
 @pytest.fixture
@@ -51,7 +36,7 @@ def bilinear(texels, u, v):
     return ((1 - fy) * ((1 - fx) * texels[y0, x0] + fx * texels[y0, x1]) + fy * ((1 - fx) * texels[y1, x0] + fx * texels[y1, x1]))
 
 
-def test_atlas_sample_on_the_gpu_matches_the_contract(gpu, atlas):
+def test_atlas_sample_on_the_gpu_matches_the_contract(gpu_device, atlas):
     import wgpu
 
     from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
@@ -76,8 +61,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     out[gid.x] = atlas_sample(atlas_tex, atlas_smp, u32(p.z), p.x, p.y, 0.0);
 }
 """
-    device = gpu.device
-    texture = upload_atlas(gpu, RenderAtlas(result.levels, True, result.manifest, include))
+    device = gpu_device.device
+    texture = upload_atlas(gpu_device, RenderAtlas(result.levels, True, result.manifest, include))
     sampler = device.create_sampler(mag_filter="linear", min_filter="linear", mipmap_filter="linear",
                                     address_mode_u="clamp-to-edge", address_mode_v="clamp-to-edge")
     pbuf = device.create_buffer_with_data(data=points.tobytes(), usage=wgpu.BufferUsage.STORAGE)

@@ -2,17 +2,20 @@
 
 import json
 
-from html_links import PageLinks
+import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.reports.library import write_library_report
 from atlasgen.materials.material import read_materials
+
+from tests.html_links import PageLinks
 
 
 def read_json(path):
     return json.loads(path.read_text())
 
 
+@pytest.mark.slow
 def test_every_referenced_image_exists(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n')
     write_material("snow", 'type = "lambert"\nerror_budget = 0.01\n')
@@ -51,6 +54,7 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     assert "../validation/index.html" in parser.links
 
 
+@pytest.mark.slow
 def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\n')
     write_material("snow", 'type = "lambert"\n')

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, read_dds
 from atlasgen.io.manifest import read_manifest
 from atlasgen.optics.interpolation import linear_stencil
 from atlasgen.optics.quantize import dequantize_rgba
@@ -174,24 +175,8 @@ def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, 
 
 def _read_dds_levels(path: Path):
     """Level 0 of a DDS 2D array or volume as ``(layers, h, w, 4)`` uint8, and whether it is sRGB."""
-    try:
-        from atlasgen.io.dds import read_dds  # the library reader, when present
-    except ImportError:
-        read_dds = None
-    if read_dds is not None:
-        dds = read_dds(path)
-        level = np.asarray(dds.levels[0])
-        return level, int(dds.dxgi_format) == 29
-    data = path.read_bytes()  # minimal fallback: DX10 header, element-major arrays
-    if data[:4] != b"DDS " or data[84:88] != b"DX10":
-        raise InputError(f"{path.as_posix()}: not a DDS file with a DX10 header")
-    height, width = np.frombuffer(data, "<u4", 2, 12)
-    mips = max(1, int(np.frombuffer(data, "<u4", 1, 28)[0]))
-    fmt, _dim, _misc, layers = np.frombuffer(data, "<u4", 4, 128)
-    per_layer = sum(max(1, int(width) >> k) * max(1, int(height) >> k) * 4 for k in range(mips))
-    texels = np.frombuffer(data, np.uint8, per_layer * int(layers), 148).reshape(int(layers), per_layer)
-    level0 = texels[:, : int(width) * int(height) * 4].reshape(int(layers), int(height), int(width), 4)
-    return level0, int(fmt) == 29
+    dds = read_dds(path)
+    return np.asarray(dds.levels[0]), dds.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 
 
 def read_separable_factors(atlas_path, material: str) -> Factors:

@@ -85,6 +85,7 @@ def test_bad_material_fails_cleanly_and_leaves_outputs_untouched(runner, library
     assert {p.name: p.read_bytes() for p in out.parent.iterdir()} == before
 
 
+@pytest.mark.slow
 def test_more_materials_than_slices(runner, tmp_path):
     folder = tmp_path / "many"
     folder.mkdir()

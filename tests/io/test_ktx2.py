@@ -23,8 +23,8 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.ktx2 import encode_ktx2, read_ktx2
 from atlasgen.materials.material import read_materials
 
-import dds_reader
-import ktx2_reader
+from tests import dds_reader
+from tests import ktx2_reader
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "resources" / "ktx2"

@@ -32,6 +32,7 @@ def talk_formula(n_dot_l, n_dot_v, phi, distortion, power):
 cosines = st.tuples(st.floats(-1.0, 1.0), st.floats(0.0, 1.0))
 
 
+@pytest.mark.slow
 @given(c=cosines, distortion=st.floats(0.0, 1.0), power=st.one_of(st.floats(0.3, 64.0), st.integers(1, 64).map(float)))
 @settings(max_examples=80, deadline=None)
 def test_azimuth_average_matches_a_dense_average_of_the_vector_formula(c, distortion, power):

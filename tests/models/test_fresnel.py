@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from fresnel_reference import fresnel_by_angles
+from tests.fresnel_reference import fresnel_by_angles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad

@@ -64,6 +64,7 @@ def _entry(result, name):
     return result.manifest.entry_named(name).to_json()
 
 
+@pytest.mark.slow
 def test_terms_fill_consecutive_slices_with_the_manifest_fields(bake_folder):
     result = bake_folder({
         "a": 'type = "lambert"\nid = 0\n',
@@ -87,6 +88,7 @@ def test_terms_fill_consecutive_slices_with_the_manifest_fields(bake_folder):
     assert "fn separable_f_cos_glossy(" in result.include
 
 
+@pytest.mark.slow
 def test_rebake_is_byte_identical(bake_folder, tmp_path):
     files = {"g": 'type = "separable"\nsource = "beckmann"\nalpha = 0.3\nmax_error = 0.05\n'}
     a = bake_folder(files)
@@ -97,6 +99,7 @@ def test_rebake_is_byte_identical(bake_folder, tmp_path):
     assert a.include == b.include
 
 
+@pytest.mark.slow
 def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     result = bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nmax_error = 0.03\n'})
     e = _entry(result, "g")
@@ -118,6 +121,7 @@ def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(by_k[k - 1], rel=1e-3)
 
 
+@pytest.mark.slow
 def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.01\nmax_error = 1e-6\n'}), "g")
     rep = e["representation"]
@@ -127,11 +131,13 @@ def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(least, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_without_a_budget_the_grid_is_the_stored_one(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n'}), "g")
     assert e["sampling_grid"] == 32 and {c["grid"] for c in e["representation"]["candidates"]} == {32}
 
 
+@pytest.mark.slow
 def test_a_loose_budget_met_by_one_term_on_the_coarse_grid_samples_nothing_finer(bake_folder):
     e = _entry(bake_folder({"d": 'type = "separable"\nsource = "lambert"\ndiffuse = [0.5, 0.4, 0.3]\nmax_error = 0.05\n'}), "d")
     assert (e["terms"], e["sampling_grid"]) == (1, 16)
@@ -139,12 +145,14 @@ def test_a_loose_budget_met_by_one_term_on_the_coarse_grid_samples_nothing_finer
     assert e["errors_8bit"]["relative_rms"] <= 0.05
 
 
+@pytest.mark.slow
 def test_a_fixed_grid_is_the_only_one_sampled(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\ngrid = 24\n'}), "g")
     assert e["sampling_grid"] == 24 and e["factor_resolution"] == 32
     assert {c["grid"] for c in e["representation"]["candidates"]} == {24}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("alpha", [0.005, 1.0])
 def test_near_delta_and_very_rough_ggx_stay_finite_and_report_their_error(bake_folder, alpha):
     result = bake_folder({"g": f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nterms = 4\n'})
@@ -175,12 +183,14 @@ def _fragmented(write_material, terms=32):
         write_material("wide", f'type = "separable"\nsource = "ggx"\nalpha = 0.3\ntarget = "f_cos"\nterms = {terms}\n')
 
 
+@pytest.mark.slow
 def test_more_terms_than_free_slices_is_an_error(write_material, tmp_path):
     _fragmented(write_material)
     with pytest.raises(MaterialError, match="32 consecutive free slices"):
         bake_atlas(read_materials([tmp_path / "materials"]))
 
 
+@pytest.mark.slow
 def test_cli_leaves_the_atlas_untouched_when_terms_do_not_fit(write_material, tmp_path):
     from click.testing import CliRunner
 

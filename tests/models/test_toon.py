@@ -95,6 +95,7 @@ def params_strategy(draw):
     }
 
 
+@pytest.mark.slow
 @given(raw=params_strategy())
 @settings(max_examples=50, deadline=None)
 def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slice):

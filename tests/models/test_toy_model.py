@@ -162,7 +162,7 @@ def test_the_bake_stores_the_toys_closed_form_and_its_include(toy_atlas):
 
 def _closed_form(scene, result, entry, albedo):
     """sum over lights of E * albedo * colour * wrap(N.L) / pi at the g-buffer's pixels of ``entry``."""
-    from render.atlas_fixture import light_at
+    from tests.render.atlas_fixture import light_at
 
     from atlasgen.render.camera import pixel_rays
 

@@ -14,24 +14,16 @@ import pytest
 
 @pytest.fixture(scope="session")
 def fixture_atlas():
-    from render.atlas_fixture import build_fixture_atlas
+    from tests.render.atlas_fixture import build_fixture_atlas
 
     return build_fixture_atlas()
 
 
 @pytest.fixture(scope="session")
-def renderer(gpu_device, fixture_atlas):
+def renderer(gpu_context, fixture_atlas):
     from atlasgen.render.renderer import Renderer
 
-    return Renderer(fixture_atlas, gpu_device)
-
-
-@pytest.fixture
-def no_gpu_errors(gpu_device):
-    """Fails the test if the device reported any error while it ran."""
-    gpu_device.take_errors()
-    yield
-    assert gpu_device.take_errors() == []
+    return Renderer(fixture_atlas, gpu_context)
 
 
 @pytest.fixture

@@ -31,7 +31,6 @@ def test_adapter_failure_is_a_backend_error(monkeypatch):
         device_module.create_device()
 
 
-@pytest.mark.gpu
 def test_shared_device_collects_logged_errors(gpu_device):
     assert device_module.get_device() is gpu_device
     assert gpu_device.name and gpu_device.adapter.info["adapter_type"]
@@ -41,7 +40,6 @@ def test_shared_device_collects_logged_errors(gpu_device):
     assert gpu_device.take_errors() == []
 
 
-@pytest.mark.gpu
 def test_validation_errors_raise(gpu_device):
     import wgpu
 

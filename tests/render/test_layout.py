@@ -330,7 +330,7 @@ CASES = {
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_gpu_reads_what_was_packed(case, gpu_device, no_gpu_errors):
+def test_gpu_reads_what_was_packed(case, gpu_device):
     t, space, structs = CASES[case]
     value = _random_value(t, np.random.default_rng(11))
     declarations = "".join(s.wgsl() for s in structs)
@@ -375,7 +375,7 @@ def test_gpu_agrees_on_uniform_rules(gpu_device):
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("warp", list(Warp), ids=lambda w: w.name)
-def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device, no_gpu_errors):
+def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
     # The include's separable_unwarp, called with Warp's code, against the numpy texel mapping.
     from atlasgen.separable.shader import _UNWARP
 

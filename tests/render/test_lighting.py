@@ -11,9 +11,8 @@ from atlasgen.render.lighting import pack_lights
 from atlasgen.materials.scene import Light
 from atlasgen.optics.srgb import decode_srgb
 
-from render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
+from tests.render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
 
-pytestmark = pytest.mark.gpu
 
 SPHERE = """
 [camera]
@@ -64,7 +63,7 @@ def relative_error(got, ref):
 
 
 @pytest.mark.parametrize("material, gloss", [("glossy", 0.3), ("glossy", 0.6), ("plain", 0.5)])
-def test_shading_equation_matches_numpy(renderer, fixture_atlas, scene_from, no_gpu_errors, material, gloss):
+def test_shading_equation_matches_numpy(renderer, fixture_atlas, scene_from, material, gloss):
     scene = scene_from(SPHERE.format(lights=LIGHTS, material=material, gloss=gloss))
     result = renderer.render(scene, outlines=False)
     rays = pixel_rays(scene.camera, scene.width, scene.height)
@@ -81,7 +80,7 @@ def test_shading_equation_matches_numpy(renderer, fixture_atlas, scene_from, no_
         assert relative_error(result.radiance[inside], diffuse_only[inside]).max() > 0.1
 
 
-def test_lambert_slice_reproduces_cosine_at_texel_centres(renderer, scene_from, no_gpu_errors):
+def test_lambert_slice_reproduces_cosine_at_texel_centres(renderer, scene_from):
     # E = pi and albedo 1 make the radiance equal to the slice value A.rgb = max(N.L, 0).
     lights = '[[lights]]\ntype = "directional"\ndirection = [-0.8, -0.1, -0.5]\nintensity = 3.141592653589793\n'
     scene = scene_from(SPHERE.format(lights=lights, material="lambert", gloss=0.5).replace("[0.7, 0.5, 0.9]", "[1, 1, 1]"))
@@ -101,7 +100,7 @@ def test_lambert_slice_reproduces_cosine_at_texel_centres(renderer, scene_from, 
     assert np.abs(got - shifted)[away_from_kink & (n_dot_l > 0)].max() > quantization
 
 
-def test_sixty_four_lights_add_linearly(renderer, scene_from, no_gpu_errors):
+def test_sixty_four_lights_add_linearly(renderer, scene_from):
     one = '[[lights]]\ntype = "directional"\ndirection = [0.2, -0.5, -1]\nintensity = 6.4\n'
     many = "".join(
         f'[[lights]]\ntype = "directional"\ndirection = [0.2, -0.5, -1]\nintensity = {6.4 / 64!r}\n' for _ in range(64)
@@ -112,7 +111,7 @@ def test_sixty_four_lights_add_linearly(renderer, scene_from, no_gpu_errors):
     np.testing.assert_allclose(summed.radiance, single.radiance, rtol=2e-3, atol=2e-3)
 
 
-def test_mip_bias_changes_the_level(renderer, scene_from, no_gpu_errors):
+def test_mip_bias_changes_the_level(renderer, scene_from):
     # The "mips" slice is a constant grey per level, different at every level.
     lights = '[[lights]]\ntype = "directional"\ndirection = [0, 0, -1]\nintensity = 3.141592653589793\n'
     text = SPHERE.format(lights=lights, material="mips", gloss=0.5).replace("[0.7, 0.5, 0.9]", "[1, 1, 1]")

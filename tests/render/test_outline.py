@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.gpu
 
 SCENE = """
 [camera]
@@ -42,7 +41,7 @@ def distance_to_silhouette(covered: np.ndarray) -> np.ndarray:
     return distance_transform_cdt(covered, metric="taxicab")
 
 
-def test_outline_follows_sphere_silhouette_and_nothing_inside(renderer, scene_from, no_gpu_errors):
+def test_outline_follows_sphere_silhouette_and_nothing_inside(renderer, scene_from):
     result = renderer.render(scene_from(SCENE.format(shape="sphere", material="toon")))
     covered = result.aov("id") != 0xFFFF
     outline = outline_pixels(result)
@@ -55,7 +54,7 @@ def test_outline_follows_sphere_silhouette_and_nothing_inside(renderer, scene_fr
     assert not (outline & ~covered & (outside > 1)).any()
 
 
-def test_outline_marks_box_creases(renderer, scene_from, no_gpu_errors):
+def test_outline_marks_box_creases(renderer, scene_from):
     result = renderer.render(scene_from(SCENE.format(shape="box", material="toon").replace("segments = 128\n", "")))
     covered = result.aov("id") != 0xFFFF
     outline = outline_pixels(result)
@@ -65,11 +64,11 @@ def test_outline_marks_box_creases(renderer, scene_from, no_gpu_errors):
 
 
 @pytest.mark.parametrize("material", ["lambert", "glossy"])
-def test_no_outline_for_materials_that_do_not_ask(renderer, scene_from, no_gpu_errors, material):
+def test_no_outline_for_materials_that_do_not_ask(renderer, scene_from, material):
     result = renderer.render(scene_from(SCENE.format(shape="sphere", material=material)))
     assert not outline_pixels(result).any()
 
 
-def test_outlines_can_be_switched_off(renderer, scene_from, no_gpu_errors):
+def test_outlines_can_be_switched_off(renderer, scene_from):
     result = renderer.render(scene_from(SCENE.format(shape="sphere", material="toon")), outlines=False)
     assert not outline_pixels(result).any()

@@ -9,7 +9,6 @@ from atlasgen.errors import SceneError
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import pack_frame
 
-pytestmark = pytest.mark.gpu
 
 SCENE = """
 [camera]
@@ -40,7 +39,7 @@ def ray_sphere_depth(eye, rays, centre, radius):
     return np.where(disc > 0, t, np.inf)
 
 
-def test_gbuffer_matches_ray_traced_sphere(renderer, scene_from, no_gpu_errors):
+def test_gbuffer_matches_ray_traced_sphere(renderer, scene_from):
     scene = scene_from(SCENE + """
 [[objects]]
 shape = "sphere"
@@ -56,7 +55,7 @@ segments = 256
     depth = ray_sphere_depth(scene.camera.position, rays, (0.2, -0.1, 0.3), 1.1)
     ids = result.aov("id")
     # Coverage equals the analytic disc except along its rim (tessellation, sampling).
-    from render.atlas_fixture import interior
+    from tests.render.atlas_fixture import interior
 
     inside = interior(ids, margin=2)
     assert (np.isfinite(depth) == (ids != 0xFFFF)).mean() > 0.97
@@ -72,7 +71,7 @@ segments = 256
     assert np.isinf(result.aov("depth")[ids == 0xFFFF]).all()
 
 
-def test_degenerate_meshes_give_no_nan(renderer, scene_from, tmp_path, no_gpu_errors):
+def test_degenerate_meshes_give_no_nan(renderer, scene_from, tmp_path):
     # Zero-area triangles (repeated and collinear vertices) and all-zero normals.
     lines = ["v -1 -1 0", "v 1 -1 0", "v -1 1 0", "v 1 1 0", "v 0 0 0", "v 0.5 0.5 0", "v 2 2 0", "vn 0 0 0"]
     faces = ["f 1//1 2//1 3//1", "f 3//1 2//1 4//1", "f 5//1 5//1 5//1", "f 5//1 6//1 7//1", "f 1//1 1//1 2//1"]
@@ -110,7 +109,7 @@ def test_unknown_material_is_a_scene_error(renderer, scene_from):
     assert "glossy, lambert, mips, plain, toon" in str(info.value)
 
 
-def test_empty_scene_is_background(renderer, scene_from, no_gpu_errors):
+def test_empty_scene_is_background(renderer, scene_from):
     scene = scene_from(SCENE.replace("[render]", "[render]\n") + "")
     result = renderer.render(scene)
     assert (result.radiance == 0).all() and (result.aov("id") == 0xFFFF).all()

@@ -9,7 +9,6 @@ from atlasgen.render.camera import Camera
 from atlasgen.materials.scene import SceneObject
 from atlasgen.render.translucency import sort_back_to_front
 
-pytestmark = pytest.mark.gpu
 
 HEADER = """
 [camera]
@@ -75,7 +74,7 @@ opacity = 0.7
 ]
 
 
-def test_image_does_not_depend_on_listing_order(renderer, scene_from, no_gpu_errors):
+def test_image_does_not_depend_on_listing_order(renderer, scene_from):
     forward = scene_from(HEADER + BACKDROP + "".join(GLASS))
     backward = scene_from(HEADER + "".join(reversed(GLASS)) + BACKDROP)
     shuffled = scene_from(HEADER + GLASS[1] + BACKDROP + GLASS[2] + GLASS[0])
@@ -89,7 +88,7 @@ def test_image_does_not_depend_on_listing_order(renderer, scene_from, no_gpu_err
     assert np.abs(a - opaque_only).max() > 0.05
 
 
-def test_opaque_object_in_front_hides_translucent_one(renderer, scene_from, no_gpu_errors):
+def test_opaque_object_in_front_hides_translucent_one(renderer, scene_from):
     blocker = """
 [[objects]]
 shape = "sphere"
@@ -106,7 +105,7 @@ scale = 0.5
     assert np.abs(with_glass.radiance - without.radiance)[~hidden].max() > 0.05
 
 
-def test_lighting_is_confined_to_stencil_marked_pixels(renderer, scene_from, no_gpu_errors):
+def test_lighting_is_confined_to_stencil_marked_pixels(renderer, scene_from):
     scene = scene_from(HEADER + BACKDROP + "".join(GLASS))
     result = renderer.render(scene, trace=True, outlines=False)
     assert [s.object_index for s in result.steps] == result.draw_order[1:]
@@ -120,7 +119,7 @@ def test_lighting_is_confined_to_stencil_marked_pixels(renderer, scene_from, no_
     np.testing.assert_array_equal(before, result.radiance)
 
 
-def test_blend_uses_opacity_and_nearest_surface(renderer, scene_from, no_gpu_errors):
+def test_blend_uses_opacity_and_nearest_surface(renderer, scene_from):
     # frame = opacity * lit + (1 - opacity) * behind, where lit is the object rendered opaque.
     glass = GLASS[0]
     solid = glass.replace("opacity = 0.5", "opacity = 1.0")

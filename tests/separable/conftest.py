@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))  # separable_helpers
 
 @pytest.fixture(scope="session")
 def separable_atlas(tmp_path_factory):

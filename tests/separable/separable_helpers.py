@@ -1,4 +1,4 @@
-"""Helpers shared by the separable-BRDF tests (imported by name; conftest puts this folder on sys.path)."""
+"""Helpers shared by the separable-BRDF tests (``from tests.separable.separable_helpers import ...``)."""
 
 from __future__ import annotations
 

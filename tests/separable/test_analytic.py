@@ -6,7 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.separable.analytic import blinn_phong_brdf, evaluate_analytic, lambert_brdf, microfacet_brdf, ward_brdf
-from separable_helpers import ANALYTIC_DEFAULTS
+
+from tests.separable.separable_helpers import ANALYTIC_DEFAULTS
 
 
 def _hemisphere_integral(fn, n=4000):

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import GRID_RESOLUTIONS, _choose, approximate_brdf
+
+from tests.separable.separable_helpers import analytic
 
 errors = st.floats(min_value=1e-4, max_value=1.0)
 
@@ -32,6 +33,7 @@ def test_a_tighter_budget_never_yields_a_larger_error(table, a, b):
     assert _chosen_error(table, tight) <= _chosen_error(table, loose)
 
 
+@pytest.mark.slow
 @given(candidate_tables(), errors)
 def test_the_choice_is_the_cheapest_meeting_the_budget_else_the_least_error(table, budget):
     i, k, met = _choose(table, None, budget)
@@ -50,12 +52,14 @@ def sharp():
     return approximate_brdf(analytic("ggx", alpha=0.05), terms=4, target="f_proxy", grids=(16, 32, 48))
 
 
+@pytest.mark.slow
 def test_every_grid_is_measured_on_the_stored_resolution(sharp):
     assert sharp.factors.resolution == 32 and sharp.terms == 4
     assert sorted(c["grid"] for c in sharp.candidates) == [16, 32, 48]
     assert all(len(c["relative_rms_by_terms"]) == 4 for c in sharp.candidates)
 
 
+@pytest.mark.slow
 def test_a_fixed_k_takes_the_grid_with_the_least_error(sharp):
     at_k = {c["grid"]: c["relative_rms_by_terms"][3] for c in sharp.candidates}
     assert sharp.grid == min(at_k, key=at_k.get)
@@ -65,6 +69,7 @@ def test_a_fixed_k_takes_the_grid_with_the_least_error(sharp):
     assert at_k[48] < at_k[32] < at_k[16]
 
 
+@pytest.mark.slow
 def test_the_search_stops_at_a_grid_that_meets_the_budget_with_one_term():
     broad = analytic("lambert", diffuse=(0.6, 0.5, 0.4))
     result = approximate_brdf(broad, max_error=0.05, grids=GRID_RESOLUTIONS)
@@ -75,6 +80,7 @@ def test_the_search_stops_at_a_grid_that_meets_the_budget_with_one_term():
     assert {c["grid"] for c in tight.candidates} == set(GRID_RESOLUTIONS)
 
 
+@pytest.mark.slow
 def test_one_grid_by_default_keeps_the_stored_resolution():
     result = approximate_brdf(analytic("beckmann", alpha=0.4), terms=2)
     assert result.grid == 32 and [c["grid"] for c in result.candidates] == [32, 32]

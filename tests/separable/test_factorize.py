@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.factorize import (
@@ -18,6 +17,8 @@ from atlasgen.separable.factorize import (
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrix
 
+from tests.separable.separable_helpers import analytic
+
 
 def _setup(source, name="half_diff", n=32, target="f_cos"):
     p = get_parametrization(name)
@@ -26,6 +27,7 @@ def _setup(source, name="half_diff", n=32, target="f_cos"):
     return p, m, w1, w2
 
 
+@pytest.mark.slow
 def test_svd_matches_numpy_full_svd():
     """Independent computation: the rank-K sum equals the truncated numpy SVD of the weighted matrix."""
     p, m, w1, w2 = _setup(analytic("ggx", alpha=0.3, f0=(0.9, 0.6, 0.2)))
@@ -40,6 +42,7 @@ def test_svd_matches_numpy_full_svd():
         np.testing.assert_allclose(f.singular_values[c], s[:4], rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_lambert_is_rank_one():
     """f cos of Lambert is colour/pi * cos(theta_l): one term reproduces it exactly."""
     colour = (0.8, 0.5, 0.2)
@@ -72,6 +75,7 @@ def _product_source(name, use_y=True):
     return BrdfSource("product", evaluate_f=f)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["in_out", "half_diff"])
 def test_product_form_is_recovered_at_rank_one(name):
     # h varies along pi2's first axis only: the grid continues texels below the horizon
@@ -105,6 +109,7 @@ def test_two_dimensional_product_on_the_half_diff_grid_is_rank_one():
     np.testing.assert_allclose(f.h[0, 1].ravel() / f.h[0, 1].ravel()[0], h / h[0], rtol=1e-10)
 
 
+@pytest.mark.slow
 @given(alpha=st.floats(0.03, 1.0), f0=st.floats(0.02, 1.0), source=st.sampled_from(["ggx", "beckmann", "ward", "blinn_phong"]),
        name=st.sampled_from(["half_diff", "in_out"]), target=st.sampled_from(["f_cos", "f_proxy"]))
 @settings(max_examples=25, deadline=None)
@@ -117,6 +122,7 @@ def test_error_never_grows_with_terms(alpha, f0, source, name, target):
     assert errors[0] <= 1.0 + 1e-12
 
 
+@pytest.mark.slow
 def test_reported_error_by_terms_is_monotone_for_the_goal_materials():
     """The interpolated error at random pairs follows the grid residual; it may only wiggle by interpolation noise."""
     for alpha in (0.05, 0.2, 0.5):

@@ -33,6 +33,7 @@ def reports(tmp_path_factory):
     return root / "out", folders
 
 
+@pytest.mark.slow
 def test_merging_one_report_reproduces_it_byte_for_byte(reports, tmp_path):
     # The studies survive the JSON round trip: the study's own writer, fed from JSON,
     # writes the same Markdown the measuring run wrote.
@@ -42,6 +43,7 @@ def test_merging_one_report_reproduces_it_byte_for_byte(reports, tmp_path):
         assert (tmp_path / name).read_bytes() == (folders["lobe"] / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports):
     out, folders = reports
     written = merge_separable_reports([folders["lobe"], folders["sheen"]], out)
@@ -58,6 +60,7 @@ def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports)
         assert f"{100 * study['chosen']['float']['relative_rms']:.2f}%" in text
 
 
+@pytest.mark.slow
 def test_bad_sources_are_refused_and_nothing_is_written(reports, tmp_path):
     _, folders = reports
     out = tmp_path / "merged"
@@ -107,6 +110,7 @@ def test_staged_folder_replaces_files_only_on_success(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "out"]
 
 
+@pytest.mark.slow
 def test_cli_merge_prints_the_merged_markdown_and_names_a_bad_source(reports, tmp_path):
     from click.testing import CliRunner
 

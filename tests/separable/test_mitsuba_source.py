@@ -2,12 +2,13 @@
 
 import numpy as np
 import pytest
-from separable_helpers import analytic
 
 from atlasgen.errors import MaterialError
 from atlasgen.separable.error import sample_hemisphere_pairs
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 from atlasgen.separable.source import make_source
+
+from tests.separable.separable_helpers import analytic
 
 
 @pytest.mark.parametrize("distribution", ["ggx", "beckmann"])

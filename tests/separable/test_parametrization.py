@@ -18,6 +18,7 @@ from atlasgen.separable.parametrization import (
 Z = np.array([0.0, 0.0, 1.0])
 
 
+@pytest.mark.slow
 @given(
     th=st.floats(0.01, 1.5), td=st.floats(0.01, 1.5), pd=st.floats(0.01, 3.13),
 )

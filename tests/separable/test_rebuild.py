@@ -4,14 +4,14 @@ import json
 
 import numpy as np
 import pytest
-from separable_helpers import random_frames
 
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
 from atlasgen.separable import evaluate_separable, read_separable_factors
 from atlasgen.separable.error import measure_errors, sample_hemisphere_pairs
-from atlasgen.separable.rebuild import _read_dds_levels
 from atlasgen.separable.source import make_source
+
+from tests.separable.separable_helpers import random_frames
 
 
 def test_atlas_rebuild_reproduces_the_manifest_8bit_errors(separable_atlas):
@@ -59,16 +59,6 @@ def test_rebuild_in_any_frame_matches_the_local_frame(separable_atlas):
         np.testing.assert_allclose(world, local, rtol=1e-6, atol=1e-9)
         below = (np.sum(n * l, 1) <= 0) | (np.sum(n * v, 1) <= 0)
         assert below.any() and not world[below].any()
-
-
-def test_dds_fallback_reader_matches_the_library_reader(separable_atlas):
-    from atlasgen.io.dds import read_dds
-
-    path, _ = separable_atlas
-    level0, srgb = _read_dds_levels(path)
-    lib = read_dds(path)
-    np.testing.assert_array_equal(level0, np.asarray(lib.levels[0]))
-    assert srgb == (lib.dxgi_format == 29)
 
 
 def test_unknown_or_non_separable_material_is_an_input_error(separable_atlas):

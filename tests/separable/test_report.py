@@ -10,6 +10,7 @@ from atlasgen.materials.material import read_material
 from atlasgen.reports.separable import write_separable_report
 
 
+@pytest.mark.slow
 def test_report_writes_markdown_json_and_the_plots(write_material, tmp_path, separable_atlas):
     atlas, _ = separable_atlas
     material = read_material(write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n'))

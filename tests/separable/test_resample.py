@@ -25,6 +25,7 @@ def test_interpolation_is_the_gpu_filter_at_the_target_texels(source, target):
 
 
 @settings(deadline=None)  # the first call of a pair computes a pseudo-inverse: no timed assertions
+@pytest.mark.slow
 @given(grids, grids, st.floats(-3, 3), st.floats(-3, 3))
 def test_a_linear_ramp_survives_any_resampling(source, target, a, b):
     ramp = a + b * np.linspace(0.0, 1.0, source)

@@ -1,11 +1,13 @@
 """Sources and sampling: the grid is the BRDF, non-finite samples are masked and counted."""
 
 import numpy as np
-from separable_helpers import analytic
+import pytest
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrices
+
+from tests.separable.separable_helpers import analytic
 
 
 def test_matrix_entries_are_the_brdf_at_the_grid_directions():
@@ -29,6 +31,7 @@ def _poison(l, v):
     return bad
 
 
+@pytest.mark.slow
 def test_nonfinite_samples_are_masked_counted_and_reported():
     base = analytic("ggx", alpha=0.3)
 

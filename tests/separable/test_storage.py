@@ -2,12 +2,13 @@
 
 import numpy as np
 import pytest
-from separable_helpers import analytic
 
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.rebuild import factors_from_slices
 from atlasgen.separable.storage import encode_factor_slices, factors_to_slices, quantize_factors
+
+from tests.separable.separable_helpers import analytic
 
 
 def _factors(k=3, seed=0):

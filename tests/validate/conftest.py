@@ -2,4 +2,4 @@
 
 from __future__ import annotations
 
-from validate.validation_fixtures import mitsuba_rgb, validation_atlas, validation_run  # noqa: F401
+from tests.validate.validation_fixtures import mitsuba_rgb, validation_atlas, validation_run  # noqa: F401

@@ -7,9 +7,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from html_links import PageLinks
 
 from atlasgen.errors import InputError
+
+from tests.html_links import PageLinks
 
 
 def _split(run):

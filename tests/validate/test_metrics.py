@@ -38,6 +38,7 @@ def test_flip_is_zero_for_identical_images_and_grows_with_the_error():
     assert 0.0 < small < large <= 1.0
 
 
+@pytest.mark.slow
 @settings(max_examples=10, deadline=None)
 @given(st.floats(0.001, 0.2))
 def test_compare_images_measures_the_tone_mapped_pair(offset):

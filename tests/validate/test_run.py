@@ -79,6 +79,7 @@ def test_unknown_scene_and_scene_without_placeholder(validation_atlas, tmp_path)
         plan_validation(validation_atlas, ["matte"], [str(path)])
 
 
+@pytest.mark.mitsuba  # needs drjit
 def test_missing_llvm_backend_names_libllvm19(monkeypatch):
     dr = pytest.importorskip("drjit")
 

@@ -1,0 +1,1 @@
+"""atlasgen tests (a package, so helpers import as ``tests.<module>``)."""
