@@ -21,7 +21,7 @@ __all__ = [
     "atlas_uv",
 ]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # v2: a separable entry's BRDF source moved from 'source' to 'brdf_source'
 WIDTH = 64  # u: N.L in [-1, 1]
 HEIGHT = 32  # v: N.V in [0, 1]
 LAYERS = 256

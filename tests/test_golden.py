@@ -7,13 +7,16 @@ tests/test_golden.py`` and says why in the commit; an accidental one fails here.
 from __future__ import annotations
 
 import gzip
+import hashlib
 import os
+import tomllib
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
+from atlasgen.io.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "resources" / "golden"
@@ -47,3 +50,20 @@ def test_the_shipped_library_bakes_to_the_golden_bytes(variant, tmp_path, monkey
         if suffix == ".dds":
             expected = gzip.decompress(expected)
         assert produced == expected, f"{variant}{suffix} differs from {golden.relative_to(ROOT)}"
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_every_entry_keeps_its_material_file_in_source(variant):
+    # Format v2: a model's own fields never replace the entry's `source`; a separable
+    # entry's factored BRDF is `brdf_source` (v1 let it overwrite `source`).
+    manifest = read_manifest(GOLDEN / f"{variant}.json")
+    for entry in manifest.materials:
+        path = ROOT / entry.source
+        assert path.is_file() and path.suffix == ".toml", (entry.name, entry.source)
+        assert path.parent == ROOT / "materials" and path.stem == entry.name, (entry.name, entry.source)
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == entry.content_hash, entry.name
+        if entry.factors is not None:
+            toml = tomllib.loads(path.read_text(encoding="utf-8"))
+            assert entry.factors.brdf_source == toml.get("source", "ggx"), entry.name
+            assert "source" not in entry.extra
+    assert sum(e.factors is not None for e in manifest.materials) == 4

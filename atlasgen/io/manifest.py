@@ -286,8 +286,11 @@ class SeparableFactors(_Record):
     colour channel). ``target`` names what the terms hold (``f_cos``: f cos(theta_l);
     ``f_proxy``: f times the proxy cosine). Fields the bake always writes but a rebuild
     does not need are optional here (``None``: absent from the JSON).
+    ``brdf_source`` is the BRDF that was factored (``ggx``, ``mitsuba``, ...); the entry's
+    own ``source`` stays the material file.
     """
 
+    brdf_source: str | None = field(default=None, metadata=_OPTIONAL)
     parametrization: str
     factorization: str | None = field(default=None, metadata=_OPTIONAL)
     target: str = "f_cos"
@@ -315,6 +318,7 @@ class SeparableFactors(_Record):
         errors = f.child("errors", optional=True)
         errors_8bit = f.child("errors_8bit", optional=True)
         return cls(
+            brdf_source=f.string("brdf_source", optional=True),
             parametrization=f.nonempty("parametrization"),
             factorization=f.string("factorization", optional=True),
             target=f.string("target", optional=True) or "f_cos",
@@ -396,8 +400,8 @@ class MaterialEntry:
     """One material of the atlas: where its slices are, how to decode them, what it was baked from.
 
     The linear value of slice ``first_slice + k`` is ``texel * scale[k] + bias[k]``, with
-    ``(rgb, alpha)`` pairs. ``source`` is the material file as given to the bake (a
-    separable model writes its BRDF source there instead: ``ggx``, ``mitsuba``, ...).
+    ``(rgb, alpha)`` pairs. ``source`` is the material file as given to the bake (a separable
+    BRDF's own source, ``ggx``, ``mitsuba``, ..., is ``factors.brdf_source``).
     ``params`` are the model's parameter values (defaults filled in), ``flags`` its
     render-time requests (``outline``, ``nearest``).
 
@@ -541,12 +545,16 @@ class Manifest(_Record):
     def from_json(cls, data, shown: str = "<manifest>") -> "Manifest":
         """Check and parse a manifest's JSON value; :class:`ManifestError` on the first fault.
 
-        The format version is checked first: a newer file may be laid out differently.
+        The format version is checked first: another version may be laid out differently,
+        so only the current one is read (an older atlas is re-baked, not converted).
         """
         f = _Fields(shown, "", data)
         version = f.take("format_version", f"format version {FORMAT_VERSION} (an integer)", lambda v: _is_int(v) and v >= 1)
+        if version < FORMAT_VERSION:
+            f.fail("format_version", f"format version {FORMAT_VERSION} (the file is from an older atlasgen: "
+                                     "re-bake the atlas with this one)", version)  # fmt: skip
         if version > FORMAT_VERSION:
-            f.fail("format_version", f"format version {FORMAT_VERSION} or older (the file is newer than this atlasgen: "
+            f.fail("format_version", f"format version {FORMAT_VERSION} (the file is newer than this atlasgen: "
                                      "upgrade atlasgen, or re-bake the atlas)", version)  # fmt: skip
         known = [x.name for x in fields(cls)]
         unknown = [k for k in data if k not in known]

@@ -162,7 +162,7 @@ class Separable(Model):
         timings["quantize_s"] = time.perf_counter() - t0
 
         extra = {
-            "source": values["source"],
+            "brdf_source": values["source"],
             "parametrization": result.factors.parametrization,
             "factorization": method,
             "target": result.target,

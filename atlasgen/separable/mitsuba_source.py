@@ -5,14 +5,50 @@ Mitsuba and Dr.Jit are imported here only, inside functions: a LUT-only bake nev
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
-from atlasgen.errors import BackendError, MaterialError
+from atlasgen.errors import BackendError, MaterialError, did_you_mean
 from atlasgen.interrupts import deferred_interrupts
 
-__all__ = ["VARIANT", "load_mitsuba_bsdf", "evaluate_mitsuba_f_cos"]
+__all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos"]
 
 VARIANT = "llvm_ad_rgb"
+
+_IOR = ("int_ior", "ext_ior")
+_ROUGH = ("distribution", "alpha", "alpha_u", "alpha_v", "sample_visible")
+#: Mitsuba 3's BSDF plugins and their named properties (Mitsuba 3 docs, "Plugin reference: BSDFs");
+#: used only to suggest a spelling when Mitsuba reports an unreferenced property. Nested BSDFs
+#: (``twosided``, ``blendbsdf``, ``mask``, ...) take them under any key.
+BSDF_PROPERTIES = {
+    "diffuse": ("reflectance",),
+    "conductor": ("material", "eta", "k", "specular_reflectance"),
+    "roughconductor": ("material", "eta", "k", "specular_reflectance", *_ROUGH),
+    "dielectric": (*_IOR, "specular_reflectance", "specular_transmittance"),
+    "thindielectric": (*_IOR, "specular_reflectance", "specular_transmittance"),
+    "roughdielectric": (*_IOR, "specular_reflectance", "specular_transmittance", *_ROUGH),
+    "plastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "nonlinear"),
+    "roughplastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "nonlinear", "distribution", "alpha",
+                     "sample_visible"),  # fmt: skip
+    "principled": ("base_color", "roughness", "anisotropic", "metallic", "spec_trans", "eta", "specular",
+                   "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat", "clearcoat_gloss"),  # fmt: skip
+    "principledthin": ("base_color", "roughness", "anisotropic", "spec_trans", "eta", "spec_tint", "sheen",
+                       "sheen_tint", "flatness", "diff_trans"),  # fmt: skip
+    "twosided": (),
+    "blendbsdf": ("weight",),
+    "mask": ("opacity",),
+    "bumpmap": (),
+    "normalmap": (),
+    "null": (),
+    "pplastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "alpha"),
+    "hair": ("eumelanin", "pheomelanin", "sigma_a", "reflectance", "int_ior", "longitudinal_roughness",
+             "azimuthal_roughness", "scale_tilt"),  # fmt: skip
+    "measured": ("filename",),
+}
+_COLOUR = 'expected {type = "rgb", value = [r, g, b]}, a spectrum or a number'
+_PROPERTY_TYPES = {"vector": "a list", "string": "a string", "boolean": "true/false", "float": "a number",
+                   "integer": "an integer"}  # fmt: skip
 
 
 def _mitsuba():
@@ -31,8 +67,68 @@ def _mitsuba():
     return mi
 
 
-def _one_line(text: str) -> str:
-    return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+def _nodes(spec: dict, prefix: str):
+    """``(mitsuba node name, dotted field, dict)`` for ``spec`` and every table nested in it;
+    Mitsuba names a node by its key, and the top one ``root``."""
+    yield "root", prefix, spec
+    stack = [(prefix, spec)]
+    while stack:
+        where, node = stack.pop(0)
+        for key, value in node.items():
+            if isinstance(value, dict):
+                yield key, f"{where}.{key}", value
+                stack.append((f"{where}.{key}", value))
+
+
+def _node(spec: dict, field: str, name: str | None) -> tuple[str, dict]:
+    return next(((where, node) for key, where, node in _nodes(spec, field) if key == name), (field, spec))
+
+
+def _shown(value) -> str:
+    return "true" if value is True else "false" if value is False else repr(value) if isinstance(value, str) else str(value)
+
+
+def explain_mitsuba_error(message: str, spec: dict, field: str = "bsdf") -> tuple[str, str]:
+    """The offending key (a dotted field under ``field``) and a one-line explanation of an
+    error ``mi.load_dict(spec)`` raised.
+
+    Mitsuba names the dict node (``At dictionary node "reflectance"``, ``root`` for the top)
+    and, where it can, the property (``The property "alpha" has the wrong type``,
+    ``unreferenced property ... "alhpa"``); both are looked up in ``spec``. Mitsuba's own text
+    follows in parentheses, without its source-file tags, on one line.
+    """
+    text = "; ".join(part.strip(" -") for part in str(message).splitlines() if part.strip(" -"))
+    plain = re.sub(r"\[[\w.]+(?::\d+)?\]\s*", "", text).strip()
+    node_name = re.search(r'dictionary node "([^"]+)"', text)
+    where, node = _node(spec, field, node_name.group(1) if node_name else None)
+    mitsuba = f"(Mitsuba: {plain})"
+    if m := re.search(r'Plugin "([^"]+)" not found', text):
+        return f"{where}.type", (f"expected a Mitsuba BSDF plugin such as {', '.join(sorted(BSDF_PROPERTIES)[:6])}, ..., "
+                                 f"got {m.group(1)!r}{did_you_mean(m.group(1), BSDF_PROPERTIES)} {mitsuba}")  # fmt: skip
+    if m := re.search(r'unreferenced propert\w+ in \w+ plugin of type "([^"]+)":;\s*\S+ "([^"]+)"', text):
+        plugin, key = m.groups()
+        known = BSDF_PROPERTIES.get(plugin, ())
+        listed = f"one of {', '.join(known)}" if known else "a property it takes"
+        return f"{where}.{key}", f"unknown property of a {plugin!r} BSDF; expected {listed}{did_you_mean(key, known)} {mitsuba}"
+    if m := re.search(r'The property "([^"]+)" has the wrong type \(expected ([^,)]+)[^)]*, got (\w+)\)', text):
+        key, expected, got = m.groups()
+        value = _shown(node.get(key, got))
+        if "color" in expected or "spectrum" in expected:
+            return f"{where}.{key}", f"{_COLOUR}, got {value} {mitsuba}"
+        return f"{where}.{key}", f"expected {_PROPERTY_TYPES.get(expected, expected)}, got {value} {mitsuba}"
+    if m := re.search(r'\[(\w+)\] could not interpret "([^"]*)" as a color', text):
+        key = m.group(1)
+        where = next((w for k, w, _ in _nodes(spec, field) if k == key), f"{field}.{key}")
+        return where, f'expected {{type = "rgb", value = [r, g, b]}} (three numbers), got value = {m.group(2)} {mitsuba}'
+    # Otherwise the message quotes the bad value (an IOR name, a distribution): name its key.
+    quoted = set(re.findall(r'"([^"]+)"', text))
+    for w, n in [(where, node)] + [(w, n) for _, w, n in _nodes(spec, field)]:
+        key = next((k for k, v in n.items() if isinstance(v, str) and k != "type" and v in quoted), None)
+        if key is None and isinstance(n.get("material"), str) and f"/{n['material']}." in text:
+            key = "material"  # a conductor's unknown material: Mitsuba quotes the file it looked for
+        if key is not None:
+            return f"{w}.{key}", f"Mitsuba rejected {_shown(n[key])} {mitsuba}"
+    return where, f"Mitsuba rejected the BSDF {node.get('type')!r} {mitsuba}"
 
 
 #: Microfacet roughness keys and the range a bake accepts for them (the ``alpha`` of the
@@ -76,9 +172,9 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf"):
     Raises
     ------
     MaterialError
-        The dict is not a BSDF Mitsuba accepts, or not one a bake can tabulate; the
-        message quotes Mitsuba's own complaint (an unknown plugin, an unreferenced
-        parameter, a bad value) where there is one, and names the file and the field.
+        The dict is not a BSDF Mitsuba accepts: one line naming the file and the
+        offending key (``bsdf.reflectance``), what was expected, and Mitsuba's own
+        complaint (:func:`explain_mitsuba_error`).
     BackendError
         Mitsuba or its ``llvm_ad_rgb`` variant is missing.
     """
@@ -91,7 +187,7 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf"):
     try:
         obj = mi.load_dict(dict(spec))
     except Exception as exc:
-        raise MaterialError(path, field, f"Mitsuba rejected the BSDF {spec.get('type')!r}: {_one_line(exc)}") from None
+        raise MaterialError(path, *explain_mitsuba_error(str(exc), spec, field)) from None
     if not isinstance(obj, mi.BSDF):
         raise MaterialError(path, field, f"expected a Mitsuba BSDF plugin, got a {type(obj).__name__} ({spec.get('type')!r})")
     flags = obj.flags()

@@ -239,10 +239,13 @@ def _set(path, value):
 
 REFUSED = {
     "a list": ([], None, "expected an atlas manifest (a JSON object), got an empty list"),
-    "empty object": ({}, "format_version", "missing; expected format version 1"),
-    "materials not a list": ({"format_version": 1, "materials": 5}, "dimensions", "missing"),
+    "empty object": ({}, "format_version", f"missing; expected format version {FORMAT_VERSION}"),
+    "materials not a list": ({"format_version": FORMAT_VERSION, "materials": 5}, "dimensions", "missing"),
     "newer version": (_with(_set(["format_version"], FORMAT_VERSION + 1)), "format_version", "the file is newer than this atlasgen"),
-    "version 0": (_with(_set(["format_version"], 0)), "format_version", "expected format version 1 (an integer), got 0"),
+    "older version": (_with(_set(["format_version"], FORMAT_VERSION - 1)), "format_version",
+                      f"expected format version {FORMAT_VERSION} (the file is from an older atlasgen: re-bake the atlas "
+                      f"with this one), got {FORMAT_VERSION - 1}"),
+    "version 0": (_with(_set(["format_version"], 0)), "format_version", f"expected format version {FORMAT_VERSION} (an integer), got 0"),
     "version string": (_with(_set(["format_version"], "1")), "format_version", 'got "1"'),
     "unknown top-level": (_with(_set(["extras"], 1)), "extras", "unknown field"),
     "materials a number": (_with(_set(["materials"], 5)), "materials", "expected a list of material objects, got 5"),
@@ -302,7 +305,7 @@ def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
 def test_info_refuses_a_corrupt_manifest_beside_the_atlas_in_one_line(tmp_path):
     dds = tmp_path / "atlas.dds"
     dds.write_bytes(gzip.decompress((GOLDEN / "array-srgb.dds.gz").read_bytes()))
-    (tmp_path / "atlas.json").write_text(json.dumps(_with(_set(["format_version"], 2))))
+    (tmp_path / "atlas.json").write_text(json.dumps(_with(_set(["format_version"], FORMAT_VERSION + 1))))
     res = CliRunner().invoke(app, ["info", str(dds)])
     assert res.exit_code == InputError.exit_code
     lines = res.output.strip().splitlines()

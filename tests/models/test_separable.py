@@ -38,15 +38,16 @@ def test_bad_parameters_are_one_line_errors(expect_rejected, body, field, expect
 
 
 @pytest.mark.parametrize(
-    "bsdf, quoted",
+    "bsdf, field, quoted",
     [
-        ('{ type = "plasticky" }', 'Plugin "plasticky" not found'),
-        ('{ type = "roughconductor", alhpa = 0.2 }', "unreferenced property"),
+        ('{ type = "plasticky" }', "bsdf.type", 'Plugin "plasticky" not found'),
+        ('{ type = "roughconductor", alhpa = 0.2 }', "bsdf.alhpa", "unreferenced property"),
+        ('{ type = "diffuse", reflectance = [0.5, 0.2, 0.1] }', "bsdf.reflectance", 'expected {type = "rgb", value = [r, g, b]}'),
     ],
 )
-def test_bad_mitsuba_dicts_quote_mitsuba(mitsuba_llvm, expect_rejected, bsdf, quoted):
-    message = expect_rejected("separable", f'source = "mitsuba"\nbsdf = {bsdf}', "bsdf", quoted)
-    assert "Mitsuba rejected" in message
+def test_bad_mitsuba_dicts_name_the_key_and_quote_mitsuba(mitsuba_llvm, expect_rejected, bsdf, field, quoted):
+    message = expect_rejected("separable", f'source = "mitsuba"\nbsdf = {bsdf}', field, quoted)
+    assert "(Mitsuba: " in message
 
 
 @pytest.fixture
