@@ -96,6 +96,8 @@ def app(ctx):
               help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).")
 @click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
               help="Per-material cache folder: unchanged materials are loaded, not re-baked.")
+@click.option("--include", "include_languages", default="wgsl,glsl,hlsl", show_default=True, metavar="LANGS",
+              help="Shader includes to write beside the atlas, comma-separated: wgsl, glsl, hlsl.")
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option("--depfile", type=click.Path(path_type=Path), default=None,
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
@@ -103,7 +105,8 @@ def app(ctx):
               help="Also bake the material library installed with atlasgen (alone when no PATHS are given).")
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
-def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, library, verbosity):
+def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, include_languages, cache_only, depfile, library,
+         verbosity):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
     from atlasgen.io.package_data import shipped_library
@@ -111,6 +114,10 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
 
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
+    languages = tuple(dict.fromkeys(lang.strip().lower() for lang in include_languages.split(",") if lang.strip()))
+    unknown = [lang for lang in languages if lang not in ("wgsl", "glsl", "hlsl")]
+    if unknown:
+        raise click.UsageError(f"--include: unknown language {unknown[0]!r}; expected wgsl, glsl or hlsl, comma-separated")
     sources = list(paths) + ([shipped_library()] if library else [])
     materials = read_materials(sources or [Path("materials")])
     if scene is not None:
@@ -133,7 +140,7 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
-    write_bake(result, output, preview, zstd)
+    write_bake(result, output, preview, zstd, languages)
     if depfile is not None:
         from atlasgen.bake.cache import cache_path
         from atlasgen.io.depfile import write_depfile
