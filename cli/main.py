@@ -161,6 +161,8 @@ def app(ctx, debug):
               help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).")
 @click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
               help="Per-material cache folder: unchanged materials are loaded, not re-baked.")
+@click.option("--include", "include_languages", default="wgsl,glsl,hlsl", show_default=True, metavar="LANGS",
+              help="Shader includes to write beside the atlas, comma-separated: wgsl, glsl, hlsl.")
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option("--depfile", type=click.Path(path_type=Path), default=None,
               help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
@@ -169,7 +171,8 @@ def app(ctx, debug):
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
-def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, cache_only, depfile, library, allow_empty,
+def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, include_languages, cache_only, depfile, library,
+         allow_empty,
          verbosity):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     from atlasgen.bake.outputs import check_bake_outputs
@@ -181,6 +184,10 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     if cache_only and cache_dir is None:
         raise click.UsageError("--cache-only needs --cache DIR")
+    languages = tuple(dict.fromkeys(lang.strip().lower() for lang in include_languages.split(",") if lang.strip()))
+    unknown = [lang for lang in languages if lang not in ("wgsl", "glsl", "hlsl")]
+    if unknown:
+        raise click.UsageError(f"--include: unknown language {unknown[0]!r}; expected wgsl, glsl or hlsl, comma-separated")
     sources = list(paths) + ([shipped_library()] if library else [])
     materials = read_materials(sources or [Path("materials")])
     if scene is not None:
@@ -217,7 +224,7 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
         extra_files[depfile] = format_depfile(output, inputs).encode()
-    write_bake(result, output, preview, zstd, extra_files)
+    write_bake(result, output, preview, zstd, languages, extra_files)
     if verbosity == VERBOSE:
         for line in _describe_materials(result):
             click.echo(line, err=True)

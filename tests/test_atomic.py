@@ -17,9 +17,9 @@ from atlasgen.io import atomic
 from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_files_atomically
 
 ROOT = Path(__file__).resolve().parents[1]
-OUTPUTS = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.timings.json", "atlas-preview.png")
+OUTPUTS = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl", "atlas.timings.json", "atlas-preview.png")
 #: Outputs whose bytes depend only on the inputs (timings hold measured seconds).
-DETERMINISTIC = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas-preview.png")
+DETERMINISTIC = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl", "atlas-preview.png")
 
 #: Runs ``atlasgen`` with a commit hook that records each step and kills the process,
 #: as SIGKILL would (no clean-up, no finally), at step ATLASGEN_TEST_KILL_AT.

@@ -39,8 +39,8 @@ def test_the_shipped_library_bakes_to_the_golden_bytes(variant, tmp_path, monkey
     out = tmp_path / f"{variant}.dds"
     res = CliRunner().invoke(app, ["bake", "materials", "-o", str(out), "-q", *VARIANTS[variant]])
     assert res.exit_code == 0, res.output
-    for suffix in (".dds", ".json", ".wgsl"):
-        produced = out.with_suffix(suffix).read_bytes()
+    for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl", ".separable.bin"):
+        produced = out.with_name(out.stem + suffix).read_bytes()
         golden = GOLDEN / _golden_name(variant, suffix)
         if REGENERATE:
             GOLDEN.mkdir(parents=True, exist_ok=True)

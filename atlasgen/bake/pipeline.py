@@ -32,9 +32,13 @@ class BakeResult:
     layout: str
     dxgi_format: int
     manifest: Manifest
-    include: str
+    include: str  # WGSL
     timings: dict
     warnings: list = field(default_factory=list)
+    #: ``{"glsl": text, "hlsl": text}``: the include in the other languages (WGSL is ``include``).
+    includes: dict = field(default_factory=dict)
+    #: ``X.separable.bin``: the separable rebuild's data table (atlasgen.separable.shader); b"" for none.
+    separable_data: bytes = b""
 
     def describe(self, dds_path, zstd: bool = False) -> str:
         """The texconv-style line for this atlas written to ``dds_path`` (``.dds`` or ``.ktx2``)."""
@@ -61,6 +65,9 @@ def sibling_paths(dds_path) -> dict:
         "dds": p,
         "manifest": stem.with_suffix(".json"),
         "include": stem.with_suffix(".wgsl"),
+        "glsl": stem.with_suffix(".glsl"),
+        "hlsl": stem.with_suffix(".hlsl"),
+        "separable": stem.with_suffix(".separable.bin"),
         "timings": Path(str(stem) + ".timings.json"),
     }
 
@@ -284,12 +291,14 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
             "sample level 0 only, or use --layout array"
         )
 
-    from atlasgen.bake.include import render_include
+    from atlasgen.bake.include import render_include_data, render_includes
 
-    include = render_include(manifest, scales, biases)
+    includes = render_includes(manifest, scales, biases)
+    include = includes.pop("wgsl")
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
     timings["total_s"] = time.perf_counter() - t_start
-    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings)
+    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes,
+                      render_include_data(manifest))
 
 
 def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:
@@ -309,8 +318,10 @@ def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: 
     return encode_dds(result.levels, result.layout, result.dxgi_format)
 
 
-def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, extra_files=None) -> dict:
-    """Write the atlas (DDS or KTX2, by suffix), manifest, include, timings (and preview) all-or-nothing; return the paths.
+def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, languages=("wgsl", "glsl", "hlsl"),
+               extra_files=None) -> dict:
+    """Write the atlas (DDS or KTX2, by suffix), manifest, the include in each of ``languages``,
+    the separable side-car, timings (and preview) all-or-nothing; return the paths written.
 
     ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
     texture, which the Makefile's rules target, is renamed into place last
@@ -320,13 +331,21 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
     from atlasgen.io.atomic import write_files_atomically
 
     paths = sibling_paths(dds_path)
+    texts = {"include": result.include, "glsl": result.includes.get("glsl"), "hlsl": result.includes.get("hlsl")}
+    for key, lang in (("include", "wgsl"), ("glsl", "glsl"), ("hlsl", "hlsl")):
+        if lang not in languages or texts[key] is None:
+            del paths[key]
     manifest_bytes = format_manifest(result.manifest).encode()
     contents = {
         paths["dds"]: encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd),
         paths["manifest"]: manifest_bytes,
-        paths["include"]: result.include.encode(),
+        **{paths[key]: texts[key].encode() for key in ("include", "glsl", "hlsl") if key in paths},
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }
+    if result.separable_data:
+        contents[paths["separable"]] = result.separable_data
+    else:
+        del paths["separable"]
     if preview_path is not None:
         from atlasgen.bake.preview import render_contact_sheet
 

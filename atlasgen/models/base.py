@@ -178,8 +178,20 @@ class Model:
     # -- shader -----------------------------------------------------------------------------------
     @classmethod
     def include_wgsl(cls, entries: list[MaterialEntry]) -> str:
-        """WGSL this model type adds to the shader include, given its manifest entries."""
+        """WGSL only this model type adds to the WGSL include, given its manifest entries."""
         return ""
+
+    @classmethod
+    def include_declarations(cls, entries: list[MaterialEntry]) -> list:
+        """Shader declarations (:mod:`atlasgen.shaderlang`) this model type adds to every
+        include language (WGSL, GLSL, HLSL), given its manifest entries."""
+        return []
+
+    @classmethod
+    def include_data(cls, entries: list[MaterialEntry]) -> bytes:
+        """The binary side-car this model type writes beside the atlas (the separable model:
+        ``X.separable.bin``, its rebuild's data table), or ``b""`` for none."""
+        return b""
 
     @classmethod
     def lighting_wgsl(cls, entry: MaterialEntry) -> str:

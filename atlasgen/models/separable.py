@@ -272,18 +272,23 @@ class Separable(Model):
 
     # -- shader -----------------------------------------------------------------------------------
     @classmethod
-    def include_wgsl(cls, entries: list) -> str:
-        """WGSL that rebuilds f cos(theta_l) of each separable material from the atlas."""
-        from atlasgen.separable.shader import separable_wgsl
+    def include_declarations(cls, entries: list) -> list:
+        """The generic rebuild of f cos(theta_l) and its data table (every include language)."""
+        from atlasgen.separable.shader import separable_declarations
 
-        return separable_wgsl(entries)
+        return separable_declarations(entries)
+
+    @classmethod
+    def include_data(cls, entries: list) -> bytes:
+        """``X.separable.bin``: the include's ``SEPARABLE_TABLE`` for engines that upload it as a buffer."""
+        from atlasgen.separable.shader import separable_table_bytes
+
+        return separable_table_bytes(entries)
 
     @classmethod
     def lighting_wgsl(cls, entry) -> str:
-        """The include's ``separable_f_cos_NAME``: f cos rebuilt from the factors at mip level 0, in 1/sr."""
-        from atlasgen.separable.shader import wgsl_function_name
-
-        return f"separable_f_cos_{wgsl_function_name(entry.name)}(atlas, samp, n, l, v)"
+        """The include's generic ``separable_f_cos`` at mip level 0, in 1/sr, for this material's ID."""
+        return f"separable_f_cos(atlas, samp, {entry.first_slice}u, n, l, v)"
 
     # -- references and validation -------------------------------------------------------------
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):

@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from atlasgen.shaderlang import Function, If, Let, Return, float_literal
+
 __all__ = [
     "specular_exponent",
     "specular_normalisation",
     "blinn_phong_alpha",
     "specular_f_cos",
     "renderer_f_cos",
+    "specular_declarations",
 ]
 
 
@@ -78,3 +81,32 @@ def renderer_f_cos(rgba, albedo, gloss: float, n_dot_l, n_dot_h, lv_degenerate=N
     m = np.asarray(rgba, dtype=np.float64)
     lobe = specular_f_cos(gloss, n_dot_l, n_dot_h, lv_degenerate)
     return np.asarray(albedo, dtype=np.float64) * m[..., :3] / np.pi + (m[..., 3] * lobe)[..., None]
+
+
+def specular_declarations() -> list:
+    """The lobe above as shader declarations (:mod:`atlasgen.shaderlang`): the one shader statement of it.
+
+    ``specular_exponent(gloss)``, ``specular_normalisation(s)`` and
+    ``specular(n, l, v, s, k)`` = k max(N.H, 0)^s N.L (0 where N.L <= 0 or l + v
+    is degenerate). k(s) = 1 / (2 pi int_0^{pi/2} cos^s(theta/2) cos(theta) sin(theta) dtheta),
+    which integrates in closed form with x = cos(theta/2); for large s it tends to the
+    familiar (s + 8) / (8 pi) (Akenine-Moeller et al., Real-Time Rendering, 3rd ed., 2008),
+    which overshoots 1 for small s.
+    """
+    pi = float_literal(np.pi)
+    return [
+        Function("specular_exponent", "f32", (("gloss", "f32"),), (Return("exp2(1.0 + 12.0 * gloss)"),),
+                 "gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal."),
+        Function("specular_normalisation", "f32", (("s", "f32"),),
+                 (Return(f"(s + 2.0) * (s + 4.0) / (8.0 * {pi} * (s + exp2(-0.5 * s)))"),),
+                 "k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))): directional albedo exactly 1 at normal view."),
+        Function("specular", "f32", (("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("s", "f32"), ("k", "f32")), (
+            Let("f32", "n_dot_l", "dot(n, l)"),
+            Let("vec3", "hv", "l + v"),
+            Let("f32", "hv2", "dot(hv, hv)"),
+            If("n_dot_l <= 0.0 || hv2 < 1e-12", (Return("0.0"),)),
+            Let("f32", "n_dot_h", "max(dot(n, hv * inverseSqrt(hv2)), 0.0)"),
+            Return("k * pow(n_dot_h, s) * n_dot_l"),
+        ), "Energy-normalised Blinn-Phong lobe times the cosine (Blinn 1977): k max(N.H, 0)^s max(N.L, 0).\n"
+           "s and k depend on the pixel only: computed once, outside the light loop."),
+    ]  # fmt: skip

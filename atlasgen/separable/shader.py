@@ -1,4 +1,4 @@
-"""WGSL that rebuilds separable BRDFs from the atlas, generated from the manifest entries.
+"""Shader code that rebuilds separable BRDFs from the atlas: one generic function and a data table.
 
 The generated code mirrors :mod:`atlasgen.separable.rebuild` line by line: same
 angles (atan2 of tangential length and cosine), same warps, same texel-centre
@@ -8,188 +8,193 @@ mapping inside each 32x32 half, same scale and bias, same clamp at 0.
 from __future__ import annotations
 
 import re
-from string import Template
+import struct
+
+import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
+from atlasgen.shaderlang import Array, Assign, Comment, Const, For, Function, If, Let, Return, Var, emit, float_literal
 
-__all__ = ["separable_wgsl", "wgsl_function_name"]
+__all__ = [
+    "separable_declarations",
+    "separable_table",
+    "separable_table_bytes",
+    "separable_wgsl",
+    "wgsl_function_name",
+    "SIDECAR_MAGIC",
+    "SIDECAR_VERSION",
+    "SYSTEMS",
+    "UNWARP",
+    "TARGETS",
+]
 
-_HEADER = Template("""\
-// ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
-// f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
-// g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
-// Bind the atlas as texture_2d_array<f32> with a linear, clamp-to-edge sampler.
+#: Codes of the angle systems and targets in the table.
+SYSTEMS = tuple(SYSTEM_ANGLES)  # ("half_diff", "in_out")
+TARGETS = ("f_cos", "f_proxy")
+#: First 16 bytes of ``X.separable.bin``: magic, version, row count, reserved (all little-endian u32 after the magic).
+SIDECAR_MAGIC = b"ASEP"
+SIDECAR_VERSION = 1
+#: Rows of a material's block before its terms: head, then the axes g, h.x, h.y.
+_HEAD_ROWS = 4
+#: Rows per term: g scale, g bias, h scale, h bias (RGB; w unused).
+_TERM_ROWS = 4
 
-fn separable_azimuth(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    let la = length(a);
-    let lb = length(b);
-    if (la <= 1e-6 || lb <= 1e-6) {
-        return 0.0;
-    }
-    return acos(clamp(dot(a, b) / (la * lb), -1.0, 1.0));
-}
-
-// (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
-fn separable_angles_half_diff(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let hs = l + v;
-    let hl = length(hs);
-    let h = select(n, hs / max(hl, 1e-30), hl > 1e-6);
-    let nh = dot(n, h);
-    let lh = dot(l, h);
-    let t = n - nh * h;
-    let p = l - lh * h;
-    return vec3<f32>(atan2(length(t), nh), atan2(length(p), lh), separable_azimuth(t, p));
-}
-
-// (theta_l, theta_v, phi).
-fn separable_angles_in_out(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let nl = dot(n, l);
-    let nv = dot(n, v);
-    let lt = l - nl * n;
-    let vt = v - nv * n;
-    return vec3<f32>(atan2(length(lt), nl), atan2(length(vt), nv), separable_azimuth(lt, vt));
-}
-
-$unwarp
-// Texel centres of a 32x32 half: texel i at (0.5 + i) / 64 (+ 0.5 for the right half).
-fn separable_uv_g(x: f32) -> vec2<f32> {
-    return vec2<f32>((0.5 + x) / 64.0, 0.5 / 32.0);
-}
-
-fn separable_uv_h(xy: vec2<f32>) -> vec2<f32> {
-    return vec2<f32>((32.5 + xy.x) / 64.0, (0.5 + xy.y) / 32.0);
-}
-""")
-
-# The warp codes come from Warp, the one definition the numpy rebuild also uses.
 _WARP_LEGEND = ", ".join(f"{int(w)} {w.name.lower()}" for w in Warp)
-_UNWARP = f"""\
-// Normalised position in [0, 1] of an angle on a warped axis ({_WARP_LEGEND}).
-fn separable_unwarp(angle: f32, lo: f32, hi: f32, warp: i32) -> f32 {{
-    let s = clamp((angle - lo) / (hi - lo), 0.0, 1.0);
-    if (warp == {int(Warp.COS)}) {{
-        return 1.0 - cos(s * 1.5707963267948966);
-    }}
-    if (warp == {int(Warp.SQRT)}) {{
-        return sqrt(s);
-    }}
-    if (warp == {int(Warp.SQRT_HI)}) {{
-        return 1.0 - sqrt(1.0 - s);
-    }}
-    return s;
-}}
-"""
+
+
+#: The one shader statement of the warps (their codes are Warp's, shared with the numpy rebuild).
+UNWARP = Function("separable_unwarp", "f32", (("angle", "f32"), ("axis", "vec4")), (
+        Let("f32", "s", "clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0)"),
+        Let("i32", "warp", "i32(axis.w)"),
+        If(f"warp == {int(Warp.COS)}", (Return("1.0 - cos(s * 1.5707963267948966)"),)),
+        If(f"warp == {int(Warp.SQRT)}", (Return("sqrt(s)"),)),
+        If(f"warp == {int(Warp.SQRT_HI)}", (Return("1.0 - sqrt(1.0 - s)"),)),
+        Return("s"),
+    ), f"Normalised position in [0, 1] of an angle on an axis (angle component, lo, hi, warp: {_WARP_LEGEND}).")  # fmt: skip
 
 
 def wgsl_function_name(name: str) -> str:
-    """``gold-film`` -> ``gold_film``: the suffix of the material's WGSL functions."""
+    """``gold-film`` -> ``gold_film``: a material name as a shader identifier."""
     return re.sub(r"[^a-z0-9_]", "_", name.lower())
 
 
-def _f(x: float) -> str:
-    text = repr(float(x))
-    if "e" in text or "E" in text:
-        mantissa, exponent = text.lower().split("e")
-        if "." not in mantissa:
-            mantissa += ".0"
-        return f"{mantissa}e{int(exponent)}"
-    return text if "." in text or "inf" in text or "nan" in text else text + ".0"
+def _separable(entries) -> list[MaterialEntry]:
+    return sorted((e for e in entries if e.factors is not None), key=lambda e: e.first_slice)
 
 
-def _vec3(values) -> str:
-    return "vec3<f32>(" + ", ".join(_f(v) for v in values) + ")"
+def separable_table(entries: list[MaterialEntry]) -> np.ndarray:
+    """The data the generic rebuild reads, ``(rows, 4)`` float32 (docs/engine-integration.md).
+
+    Row 0: (M materials, rows, factor resolution, table version). Rows 1..M, one per
+    material in first-slice order: (first slice, row of its block, K terms, 0). A block:
+    (system, target, proxy angle component, proxy floor); then per axis g, h.x, h.y
+    (angle component, lo, hi, warp); then per term k: g scale, g bias, h scale, h bias
+    (RGB, w = 0). Every integer is below 2^24, so float32 holds it exactly.
+    """
+    entries = _separable(entries)
+    directory, blocks = [], []
+    row = 1 + len(entries)
+    for e in entries:
+        factors = e.factors
+        p = get_parametrization(factors.parametrization)
+        axes = SYSTEM_ANGLES[p.system]
+        scale = np.asarray(factors.factor_scale, dtype=np.float64)
+        bias = np.asarray(factors.factor_bias, dtype=np.float64)
+        k = len(scale)
+        directory.append((e.first_slice, row, k, 0))
+        proxy = axes.index(p.proxy_angle) if factors.target == "f_proxy" else 0
+        block = [(SYSTEMS.index(p.system), TARGETS.index(factors.target), proxy, PROXY_FLOOR)]
+        for angle in (p.single, *p.pair):
+            block.append((axes.index(angle), *ANGLE_RANGES[angle], int(p.warp_of(angle))))
+        for t in range(k):
+            block += [(*scale[t, 0], 0.0), (*bias[t, 0], 0.0), (*scale[t, 1], 0.0), (*bias[t, 1], 0.0)]
+        blocks += block
+        row += len(block)
+    table = [(len(entries), row, FACTOR_RESOLUTION, SIDECAR_VERSION), *directory, *blocks]
+    return np.asarray(table, dtype=np.float32).reshape(-1, 4)
 
 
-def _coords_function(name: str) -> str:
-    p = get_parametrization(name)
-    axes = SYSTEM_ANGLES[p.system]
-    index = {a: "xyz"[i] for i, a in enumerate(axes)}
-    last = FACTOR_RESOLUTION - 1
-
-    def axis(angle):
-        lo, hi = ANGLE_RANGES[angle]
-        return f"separable_unwarp(a.{index[angle]}, {_f(lo)}, {_f(hi)}, {int(p.warp_of(angle))}) * {_f(last)}"
-
-    return (
-        f"// Texel coordinates (g: x, h: yz) of parametrization '{name}', from its angles.\n"
-        f"fn separable_texels_{name}(a: vec3<f32>) -> vec3<f32> {{\n"
-        f"    return vec3<f32>({axis(p.single)}, {axis(p.pair[0])}, {axis(p.pair[1])});\n"
-        f"}}\n"
-    )
+def separable_table_bytes(entries: list[MaterialEntry]) -> bytes:
+    """``X.separable.bin``: 16-byte header (b"ASEP", u32 version, u32 rows, u32 0), then the
+    :func:`separable_table` rows as little-endian float32, 16 bytes a row."""
+    table = separable_table(entries)
+    return SIDECAR_MAGIC + struct.pack("<3I", SIDECAR_VERSION, table.shape[0], 0) + table.astype("<f4").tobytes()
 
 
-def _material_function(entry: MaterialEntry) -> str:
-    fn = wgsl_function_name(entry.name)
-    first = entry.first_slice
-    factors = entry.factors
-    p = get_parametrization(factors.parametrization)
-    target = factors.target
-    scale = factors.factor_scale
-    bias = factors.factor_bias
-    lines = [
-        f"// Material '{entry.name}': {len(scale)} term(s), slices {first}..{first + len(scale) - 1}, "
-        f"parametrization '{factors.parametrization}'.",
-        f"const SEPARABLE_{fn.upper()}_FIRST_SLICE: u32 = {first}u;",
-        f"fn separable_f_cos_{fn}(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {{",
-        "    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {",
-        "        return vec3<f32>(0.0);",
-        "    }",
-        f"    let a = separable_angles_{p.system}(n, l, v);",
-        f"    let c = separable_texels_{p.name}(a);",
-        "    let ug = separable_uv_g(c.x);",
-        "    let uh = separable_uv_h(c.yz);",
-        "    var sum = vec3<f32>(0.0);",
-    ]
-    for k in range(len(scale)):
-        layer = first + k
-        lines.append(
-            f"    sum += (textureSampleLevel(atlas, samp, ug, {layer}, 0.0).rgb * {_vec3(scale[k][0])} + {_vec3(bias[k][0])})"
-            f" * (textureSampleLevel(atlas, samp, uh, {layer}, 0.0).rgb * {_vec3(scale[k][1])} + {_vec3(bias[k][1])});"
-        )
-    if target == "f_proxy":
-        component = "xyz"[SYSTEM_ANGLES[p.system].index(p.proxy_angle)]
-        result = f"max(sum, vec3<f32>(0.0)) * (dot(n, l) / max(cos(a.{component}), {_f(PROXY_FLOOR)}))"
-        comment = f"    // Target f_proxy: the terms hold f * max(cos({p.proxy_angle}), {PROXY_FLOOR:g})."
-    else:
-        result = "max(sum, vec3<f32>(0.0))"
-        comment = "    // Target f_cos: the terms hold f cos(theta_l)."
-    lines += [
-        comment,
-        f"    return {result};",
-        "}",
-        f"fn separable_f_{fn}(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {{",
-        f"    return separable_f_cos_{fn}(atlas, samp, n, l, v) / max(dot(n, l), 1e-4);",
-        "}",
-    ]
-    return "\n".join(lines) + "\n"
+def _vec4(row) -> str:
+    return f"vec4({', '.join(float_literal(x) for x in row)})"
+
+
+def separable_declarations(entries: list[MaterialEntry]) -> list:
+    """The generic rebuild of every separable material among ``entries``, and its data table.
+
+    ``separable_f_cos(atlas, samp, material, n, l, v)`` (f cos(theta_l), RGB, 0 for IDs
+    that are not separable) and ``separable_f`` (f): one function for every material,
+    reading terms, axes, warps and factor scales from ``SEPARABLE_TABLE``
+    (:func:`separable_table`), so a re-bake changes data, not code.
+    """
+    entries = _separable(entries)
+    if not entries:
+        return []
+    table = separable_table(entries)
+    last = float_literal(FACTOR_RESOLUTION - 1)
+    sample = "sample_array(atlas, samp, {uv}, first + k, 0.0).rgb * SEPARABLE_TABLE[r + {s}u].xyz + SEPARABLE_TABLE[r + {b}u].xyz"
+    three = (("n", "vec3"), ("l", "vec3"), ("v", "vec3"))
+    return [
+        Comment("---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----\n"
+                "f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:\n"
+                "g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.\n"
+                "Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data\n"
+                "(SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md."),
+        Array("SEPARABLE_TABLE", "vec4", tuple(_vec4(r) for r in table)),
+        Function("separable_azimuth", "f32", (("a", "vec3"), ("b", "vec3")), (
+            Let("f32", "la", "length(a)"),
+            Let("f32", "lb", "length(b)"),
+            If("la <= 1e-6 || lb <= 1e-6", (Return("0.0"),)),
+            Return("acos(clamp(dot(a, b) / (la * lb), -1.0, 1.0))"),
+        )),
+        Function("separable_angles_half_diff", "vec3", three, (
+            Let("vec3", "hs", "l + v"),
+            Let("f32", "hl", "length(hs)"),
+            Var("vec3", "h", "n"),
+            If("hl > 1e-6", (Assign("h", "hs / max(hl, 1e-30)"),)),
+            Let("f32", "nh", "dot(n, h)"),
+            Let("f32", "lh", "dot(l, h)"),
+            Let("vec3", "t", "n - nh * h"),
+            Let("vec3", "p", "l - lh * h"),
+            Return("vec3(atan2(length(t), nh), atan2(length(p), lh), separable_azimuth(t, p))"),
+        ), "(theta_h, theta_d, phi_d), Rusinkiewicz 1998."),
+        Function("separable_angles_in_out", "vec3", three, (
+            Let("f32", "nl", "dot(n, l)"),
+            Let("f32", "nv", "dot(n, v)"),
+            Let("vec3", "lt", "l - nl * n"),
+            Let("vec3", "vt", "v - nv * n"),
+            Return("vec3(atan2(length(lt), nl), atan2(length(vt), nv), separable_azimuth(lt, vt))"),
+        ), "(theta_l, theta_v, phi)."),
+        UNWARP,
+        Function("separable_f_cos", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"), *three), (
+            Var("u32", "block", "0u"),
+            Var("u32", "terms", "0u"),
+            For("i", "0u", "u32(SEPARABLE_TABLE[0].x)", (
+                Let("vec4", "d", "SEPARABLE_TABLE[1u + i]"),
+                If("u32(d.x) == material", (Assign("block", "u32(d.y)"), Assign("terms", "u32(d.z)"))),
+            )),
+            If("terms == 0u || dot(n, l) <= 0.0 || dot(n, v) <= 0.0", (Return("splat3(0.0)"),)),
+            Let("vec4", "head", "SEPARABLE_TABLE[block]"),
+            Var("vec3", "a", "separable_angles_half_diff(n, l, v)"),
+            If("head.x > 0.5", (Assign("a", "separable_angles_in_out(n, l, v)"),)),
+            Let("vec4", "ag", "SEPARABLE_TABLE[block + 1u]"),
+            Let("vec4", "ahx", "SEPARABLE_TABLE[block + 2u]"),
+            Let("vec4", "ahy", "SEPARABLE_TABLE[block + 3u]"),
+            Comment("Texel centres of a 32x32 half: texel i at (0.5 + i) / 64 (+ 0.5 for the right half)."),
+            Let("f32", "cg", f"separable_unwarp(a[u32(ag.x)], ag) * {last}"),
+            Let("vec2", "ch", f"vec2(separable_unwarp(a[u32(ahx.x)], ahx), separable_unwarp(a[u32(ahy.x)], ahy)) * {last}"),
+            Let("vec2", "ug", "vec2((0.5 + cg) / 64.0, 0.5 / 32.0)"),
+            Let("vec2", "uh", "vec2((32.5 + ch.x) / 64.0, (0.5 + ch.y) / 32.0)"),
+            Let("u32", "first", "material"),
+            Var("vec3", "sum", "splat3(0.0)"),
+            For("k", "0u", "terms", (
+                Let("u32", "r", f"block + {_HEAD_ROWS}u + {_TERM_ROWS}u * k"),
+                Let("vec3", "g", sample.format(uv="ug", s=0, b=1)),
+                Let("vec3", "h", sample.format(uv="uh", s=2, b=3)),
+                Assign("sum", "g * h", "+="),
+            )),
+            Var("vec3", "result", "max(sum, splat3(0.0))"),
+            If("head.y > 0.5", (
+                Comment("Target f_proxy: the terms hold f * max(cos(proxy angle), proxy floor)."),
+                Assign("result", "result * (dot(n, l) / max(cos(a[u32(head.z)]), head.w))"),
+            )),
+            Return("result"),
+        ), "f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;\n"
+           "0 for other IDs and below the horizon."),
+        Function("separable_f", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"), *three),
+                 (Return("separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4)"),), "f, in 1/sr."),
+    ]  # fmt: skip
 
 
 def separable_wgsl(entries: list[MaterialEntry]) -> str:
-    """The WGSL include for the entries among ``entries`` that store separable factors.
-
-    Per material ``NAME``: ``separable_f_cos_NAME(atlas, samp, n, l, v)`` (f cos(theta_l),
-    RGB, what a light's irradiance multiplies) and ``separable_f_NAME`` (f). And
-    ``separable_f_cos(atlas, samp, material, n, l, v)``, which dispatches on the
-    material's first slice (its g-buffer ID), 0 for other IDs.
-    """
-    entries = sorted((e for e in entries if e.factors is not None), key=lambda e: e.first_slice)
-    if not entries:
-        return ""
-    used = sorted({e.factors.parametrization for e in entries})
-    parts = [_HEADER.substitute(unwarp=_UNWARP)] + [_coords_function(name) for name in used]
-    parts += [_material_function(e) for e in entries]
-    cases = "\n".join(
-        f"        case {e.first_slice}u: {{ return separable_f_cos_{wgsl_function_name(e.name)}(atlas, samp, n, l, v); }}"
-        for e in entries
-    )
-    parts.append(
-        "fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {\n"
-        "    switch material {\n"
-        f"{cases}\n"
-        "        default: { return vec3<f32>(0.0); }\n"
-        "    }\n"
-        "}\n"
-    )
-    return "\n".join(parts)
+    """:func:`separable_declarations` in WGSL ("" without separable entries)."""
+    decls = separable_declarations(entries)
+    return emit("wgsl", decls) if decls else ""

@@ -28,34 +28,8 @@
 // @declare Light
 // @declare LightType
 
-// gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal.
-fn specular_exponent(gloss: f32) -> f32 {
-    return exp2(1.0 + 12.0 * gloss);
-}
-
-// Energy-normalised Blinn-Phong lobe times the cosine (Blinn 1977):
-//     f_s cos = k(s) * max(N.H, 0)^s * max(N.L, 0),   k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2)))
-// k(s) makes the lobe's directional albedo exactly 1 at normal view (v = n), and it
-// only falls off towards grazing views, so a white specular never creates energy:
-// with v = n, h lies halfway to l, and 1/k(s) = 2 pi int cos^s(theta/2) cos(theta) sin(theta) dtheta
-// over [0, pi/2], which integrates in closed form (x = cos(theta/2)). For large s it
-// tends to the familiar (s + 8) / (8 pi) approximation (Akenine-Moeller et al.,
-// Real-Time Rendering, 3rd ed., 2008), which overshoots 1 for small s.
-fn specular_normalisation(s: f32) -> f32 {
-    return (s + 2.0) * (s + 4.0) / (8.0 * PI * (s + exp2(-0.5 * s)));
-}
-
-// s and k = specular_normalisation(s) depend on the pixel only: computed once, outside the light loop.
-fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, s: f32, k: f32) -> f32 {
-    let n_dot_l = dot(n, l);
-    let hv = l + v;
-    let hv2 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
-        return 0.0;
-    }
-    let n_dot_h = max(dot(n, hv * inverseSqrt(hv2)), 0.0);
-    return k * pow(n_dot_h, s) * n_dot_l;
-}
+// specular_exponent, specular_normalisation and specular come with the include
+// (generated from atlasgen/optics/specular.py).
 
 // Mip level from view depth, as the talk suggests: level 0 up to the reference
 // distance, one level more per doubling of depth beyond it, then the bias.

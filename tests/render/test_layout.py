@@ -377,13 +377,14 @@ def test_gpu_agrees_on_uniform_rules(gpu_device):
 @pytest.mark.parametrize("warp", list(Warp), ids=lambda w: w.name)
 def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
     # The include's separable_unwarp, called with Warp's code, against the numpy texel mapping.
-    from atlasgen.separable.shader import _UNWARP
+    from atlasgen.separable.shader import UNWARP
+    from atlasgen.shaderlang import emit
 
     lo, hi = 0.0, 0.5 * np.pi
     angles = np.linspace(-0.1, hi + 0.1, 41, dtype=np.float32)
-    lines = "\n".join(f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], {lo!r}, {hi!r}, {int(warp)}));" for i in range(41))
+    lines = "\n".join(f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], vec4<f32>(0.0, {lo!r}, {hi!r}, {int(warp)}.0)));" for i in range(41))
     code = (
-        f"{_UNWARP}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
+        f"{emit('wgsl', [UNWARP])}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
         "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
         f"@compute @workgroup_size(1)\nfn main() {{\n{lines}\n}}\n"
     )

@@ -5,7 +5,7 @@ import numpy as np
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
 from atlasgen.separable import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
-from atlasgen.separable.shader import separable_wgsl, wgsl_function_name
+from atlasgen.separable.shader import separable_table, separable_wgsl, wgsl_function_name
 
 from tests.separable.separable_helpers import random_frames
 
@@ -38,12 +38,20 @@ def _entry(name, parametrization, target, first=0, terms=2):
                          factors=factors)  # fmt: skip
 
 
-def test_include_names_and_dispatch():
-    text = separable_wgsl([_entry("gold-film", "half_diff", "f_cos", 4), _entry("b", "in_out", "f_proxy", 9, 1)])
-    assert "fn separable_f_cos_gold_film(" in text and "fn separable_f_gold_film(" in text
-    assert "case 4u: { return separable_f_cos_gold_film(" in text and "case 9u:" in text
-    # One textureSampleLevel pair per term, on the term's own layer.
-    assert text.count(", 4, 0.0)") == 2 and text.count(", 5, 0.0)") == 2 and text.count(", 9, 0.0)") == 2
+def test_include_is_one_generic_function_over_a_data_table():
+    entries = [_entry("gold-film", "half_diff", "f_cos", 4), _entry("b", "in_out", "f_proxy", 9, 1)]
+    text = separable_wgsl(entries)
+    assert text.count("fn separable_f_cos(") == 1 and "gold" not in text and "textureSampleLevel" in text
+    table = separable_table(entries)
+    # Directory: (first slice, block row, terms); blocks: head, 3 axes, 4 rows per term.
+    assert table[0].tolist() == [2, 1 + 2 + (4 + 4 * 2) + (4 + 4 * 1), 32, 1]
+    assert table[1].tolist() == [4, 3, 2, 0] and table[2].tolist() == [9, 3 + 12, 1, 0]
+    assert table[3, :2].tolist() == [0, 0] and table[15, :2].tolist() == [1, 1]  # (system, target)
+    np.testing.assert_array_equal(table[7:11, :3], np.float32([[1.5, 1.0, 0.5], [0, 0, 0], [2, 2, 2], [-0.5, -0.25, 0]]))
+    # The data changes with a re-bake; the code does not.
+    other = [_entry("gold-film", "in_out", "f_proxy", 4, 3)]
+    assert separable_wgsl(other).split("var<private> SEPARABLE_TABLE")[0] == text.split("var<private> SEPARABLE_TABLE")[0]
+    assert separable_wgsl(other).split("\n);\n", 1)[1] == text.split("\n);\n", 1)[1]
     assert separable_wgsl([]) == "" and wgsl_function_name("A-b c") == "a_b_c"
 
 

@@ -8,6 +8,8 @@ const ATLAS_MIP_COUNT: u32 = 9u;
 const ATLAS_FLAG_OUTLINE: u32 = 1u;
 const ATLAS_FLAG_NEAREST: u32 = 2u;
 
+// Material IDs: the first slice of each material.
+
 const MATERIAL_BEETLE_SHELL: u32 = 0u;  // iridescent, 1 slice(s)
 const MATERIAL_GLAZED_CERAMIC: u32 = 1u;  // fresnel, 1 slice(s)
 const MATERIAL_IRIDESCENT_BACKLIT: u32 = 2u;  // iridescent, 1 slice(s)
@@ -22,6 +24,7 @@ const MATERIAL_TERRACOTTA: u32 = 21u;  // lambert, 1 slice(s)
 const MATERIAL_TOON_HERO: u32 = 22u;  // toon, 1 slice(s)
 
 // Per slice: (rgb_scale, alpha_scale, rgb_bias, alpha_bias); linear = texel * scale + bias.
+
 var<private> ATLAS_SCALE_BIAS: array<vec4<f32>, 256> = array<vec4<f32>, 256>(
     vec4<f32>(1.05, 1.0, 0.0, 0.0),
     vec4<f32>(1.0, 1.0, 0.0, 0.0),
@@ -280,6 +283,7 @@ var<private> ATLAS_SCALE_BIAS: array<vec4<f32>, 256> = array<vec4<f32>, 256>(
     vec4<f32>(1.0, 1.0, 0.0, 0.0),
     vec4<f32>(1.0, 1.0, 0.0, 0.0),
 );
+
 var<private> ATLAS_FLAGS: array<u32, 256> = array<u32, 256>(
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 3u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
@@ -302,12 +306,12 @@ fn atlas_scale_bias(material_id: u32) -> vec4<f32> {
 
 // Texel centres sit at N.L = -1 + 2i/63 and N.V = j/31, so both range ends are exact.
 fn atlas_uv(n_dot_l: f32, n_dot_v: f32) -> vec2<f32> {
-    let nl = clamp(n_dot_l, -1.0, 1.0);
-    let nv = clamp(n_dot_v, 0.0, 1.0);
-    return vec2<f32>((0.5 + f32(ATLAS_WIDTH - 1u) * (nl + 1.0) * 0.5) / f32(ATLAS_WIDTH),
-                     (0.5 + f32(ATLAS_HEIGHT - 1u) * nv) / f32(ATLAS_HEIGHT));
+    let nl: f32 = clamp(n_dot_l, -1.0, 1.0);
+    let nv: f32 = clamp(n_dot_v, 0.0, 1.0);
+    return vec2<f32>((0.5 + f32(ATLAS_WIDTH - 1u) * (nl + 1.0) * 0.5) / f32(ATLAS_WIDTH), (0.5 + f32(ATLAS_HEIGHT - 1u) * nv) / f32(ATLAS_HEIGHT));
 }
 
+// ATLAS_FLAGS[material_id].
 fn atlas_material_flags(material_id: u32) -> u32 {
     switch material_id {
         case 22u: { return 3u; }
@@ -316,29 +320,135 @@ fn atlas_material_flags(material_id: u32) -> u32 {
 }
 
 // Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale.
-fn atlas_sample(atlas: texture_3d<f32>, atlas_sampler: sampler, material_id: u32,
-                n_dot_l: f32, n_dot_v: f32, lod: f32) -> vec4<f32> {
-    var uv = atlas_uv(n_dot_l, n_dot_v);
+fn atlas_sample(atlas: texture_3d<f32>, atlas_sampler: sampler, material_id: u32, n_dot_l: f32, n_dot_v: f32, lod: f32) -> vec4<f32> {
+    var uv: vec2<f32> = atlas_uv(n_dot_l, n_dot_v);
     if ((atlas_material_flags(material_id) & ATLAS_FLAG_NEAREST) != 0u) {
         // Step functions (toon bands) are baked with their edges on texel boundaries:
         // read the one texel, so the steps stay hard instead of ramping over a texel.
-        let size = vec2<f32>(f32(ATLAS_WIDTH), f32(ATLAS_HEIGHT));
+        let size: vec2<f32> = vec2<f32>(f32(ATLAS_WIDTH), f32(ATLAS_HEIGHT));
         uv = (floor(uv * size) + 0.5) / size;
     }
-    let texel = textureSampleLevel(atlas, atlas_sampler, vec3<f32>(uv, (f32(material_id) + 0.5) / f32(ATLAS_LAYERS)), lod);
-    let sb = atlas_scale_bias(material_id);
+    let texel: vec4<f32> = textureSampleLevel(atlas, atlas_sampler, vec3<f32>(uv, (f32(material_id) + 0.5) / f32(ATLAS_LAYERS)), lod);
+    let sb: vec4<f32> = atlas_scale_bias(material_id);
     return vec4<f32>(texel.rgb * sb.x + vec3<f32>(sb.z), texel.a * sb.y + sb.w);
 }
 
-// ---- separable ----
+// gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal.
+fn specular_exponent(gloss: f32) -> f32 {
+    return exp2(1.0 + 12.0 * gloss);
+}
+
+// k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))): directional albedo exactly 1 at normal view.
+fn specular_normalisation(s: f32) -> f32 {
+    return (s + 2.0) * (s + 4.0) / (8.0 * 3.141592653589793 * (s + exp2(-0.5 * s)));
+}
+
+// Energy-normalised Blinn-Phong lobe times the cosine (Blinn 1977): k max(N.H, 0)^s max(N.L, 0).
+// s and k depend on the pixel only: computed once, outside the light loop.
+fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, s: f32, k: f32) -> f32 {
+    let n_dot_l: f32 = dot(n, l);
+    let hv: vec3<f32> = l + v;
+    let hv2: f32 = dot(hv, hv);
+    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+        return 0.0;
+    }
+    let n_dot_h: f32 = max(dot(n, hv * inverseSqrt(hv2)), 0.0);
+    return k * pow(n_dot_h, s) * n_dot_l;
+}
+
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
-// Bind the atlas as texture_2d_array<f32> with a linear, clamp-to-edge sampler.
+// Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
+// (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
+
+var<private> SEPARABLE_TABLE: array<vec4<f32>, 81> = array<vec4<f32>, 81>(
+    vec4<f32>(4.0, 81.0, 32.0, 1.0),
+    vec4<f32>(5.0, 5.0, 4.0, 0.0),
+    vec4<f32>(9.0, 25.0, 3.0, 0.0),
+    vec4<f32>(12.0, 41.0, 4.0, 0.0),
+    vec4<f32>(16.0, 61.0, 4.0, 0.0),
+    vec4<f32>(0.0, 1.0, 1.0, 0.0010000000474974513),
+    vec4<f32>(0.0, 0.0, 1.5707963705062866, 1.0),
+    vec4<f32>(1.0, 0.0, 1.5707963705062866, 2.0),
+    vec4<f32>(2.0, 0.0, 3.1415927410125732, 0.0),
+    vec4<f32>(6.12177038192749, 5.678443431854248, 4.206081390380859, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(1.2287991046905518, 1.2322803735733032, 1.2870255708694458, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(0.9245739579200745, 0.8506081700325012, 0.5665609836578369, 0.0),
+    vec4<f32>(-0.22147433459758759, -0.20214352011680603, -0.1259300261735916, 0.0),
+    vec4<f32>(0.7532038688659668, 0.709665060043335, 0.5299670100212097, 0.0),
+    vec4<f32>(-0.4855034053325653, -0.4633336365222931, -0.36659616231918335, 0.0),
+    vec4<f32>(0.9982795119285583, 0.9541347622871399, 0.8394293785095215, 0.0),
+    vec4<f32>(-0.7157090306282043, -0.6853234171867371, -0.6051666736602783, 0.0),
+    vec4<f32>(0.7792242765426636, 0.7566274404525757, 0.660211443901062, 0.0),
+    vec4<f32>(-0.45843029022216797, -0.44795146584510803, -0.3907473385334015, 0.0),
+    vec4<f32>(1.0067851543426514, 0.9471158981323242, 0.7353712320327759, 0.0),
+    vec4<f32>(-0.7153699398040771, -0.672435462474823, -0.522152304649353, 0.0),
+    vec4<f32>(0.497663289308548, 0.47536033391952515, 0.39144623279571533, 0.0),
+    vec4<f32>(-0.13701625168323517, -0.13199792802333832, -0.11633894592523575, 0.0),
+    vec4<f32>(0.0, 1.0, 1.0, 0.0010000000474974513),
+    vec4<f32>(0.0, 0.0, 1.5707963705062866, 1.0),
+    vec4<f32>(1.0, 0.0, 1.5707963705062866, 2.0),
+    vec4<f32>(2.0, 0.0, 3.1415927410125732, 0.0),
+    vec4<f32>(11.272866249084473, 11.385760307312012, 11.386276245117188, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(3.9363362789154053, 4.005989074707031, 4.006545066833496, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(1.9515550136566162, 1.8787144422531128, 2.562767744064331, 0.0),
+    vec4<f32>(-1.5939247608184814, -1.3277345895767212, -1.8326154947280884, 0.0),
+    vec4<f32>(1.2827404737472534, 1.5545328855514526, 1.8594951629638672, 0.0),
+    vec4<f32>(-0.821314811706543, -0.950908362865448, -1.0340174436569214, 0.0),
+    vec4<f32>(2.6996641159057617, 2.033970355987549, 1.2720698118209839, 0.0),
+    vec4<f32>(-1.9383530616760254, -0.5356279611587524, -0.3590381145477295, 0.0),
+    vec4<f32>(1.8621513843536377, 1.079986572265625, 0.6157100796699524, 0.0),
+    vec4<f32>(-0.9841572642326355, -0.6590064764022827, -0.48700079321861267, 0.0),
+    vec4<f32>(0.0, 1.0, 1.0, 0.0010000000474974513),
+    vec4<f32>(0.0, 0.0, 1.5707963705062866, 1.0),
+    vec4<f32>(1.0, 0.0, 1.5707963705062866, 2.0),
+    vec4<f32>(2.0, 0.0, 3.1415927410125732, 0.0),
+    vec4<f32>(0.946738064289093, 0.9532943367958069, 0.9598143100738525, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(0.6691282987594604, 0.6695331931114197, 0.6704824566841125, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(0.46527063846588135, 0.46812018752098083, 0.4709542393684387, 0.0),
+    vec4<f32>(-0.2727953791618347, -0.27435389161109924, -0.2759058177471161, 0.0),
+    vec4<f32>(0.4942901134490967, 0.4964091181755066, 0.4985029995441437, 0.0),
+    vec4<f32>(-0.2902972400188446, -0.2908225655555725, -0.2913343608379364, 0.0),
+    vec4<f32>(0.4092056155204773, 0.4119895398616791, 0.41475561261177063, 0.0),
+    vec4<f32>(-0.14364777505397797, -0.14467301964759827, -0.1456907093524933, 0.0),
+    vec4<f32>(0.2787500023841858, 0.2810141146183014, 0.28325873613357544, 0.0),
+    vec4<f32>(-0.21235907077789307, -0.2141573578119278, -0.21593889594078064, 0.0),
+    vec4<f32>(0.2692447900772095, 0.27078884840011597, 0.27232563495635986, 0.0),
+    vec4<f32>(-0.1026260033249855, -0.10312452912330627, -0.10361985862255096, 0.0),
+    vec4<f32>(0.25660771131515503, 0.2582305669784546, 0.2598366141319275, 0.0),
+    vec4<f32>(-0.14747358858585358, -0.14840498566627502, -0.14932642877101898, 0.0),
+    vec4<f32>(0.0, 1.0, 1.0, 0.0010000000474974513),
+    vec4<f32>(0.0, 0.0, 1.5707963705062866, 1.0),
+    vec4<f32>(1.0, 0.0, 1.5707963705062866, 2.0),
+    vec4<f32>(2.0, 0.0, 3.1415927410125732, 0.0),
+    vec4<f32>(39.87784194946289, 39.87784194946289, 39.87784194946289, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(10.921795845031738, 10.921795845031738, 10.921795845031738, 0.0),
+    vec4<f32>(0.0, 0.0, 0.0, 0.0),
+    vec4<f32>(9.257755279541016, 9.257755279541016, 9.257755279541016, 0.0),
+    vec4<f32>(-6.80169677734375, -6.80169677734375, -6.80169677734375, 0.0),
+    vec4<f32>(5.5063557624816895, 5.5063557624816895, 5.5063557624816895, 0.0),
+    vec4<f32>(-2.691420078277588, -2.691420078277588, -2.691420078277588, 0.0),
+    vec4<f32>(6.825768947601318, 6.825768947601318, 6.825768947601318, 0.0),
+    vec4<f32>(-2.0078296661376953, -2.0078296661376953, -2.0078296661376953, 0.0),
+    vec4<f32>(3.9149889945983887, 3.9149889945983887, 3.9149889945983887, 0.0),
+    vec4<f32>(-2.8636815547943115, -2.8636815547943115, -2.8636815547943115, 0.0),
+    vec4<f32>(4.711094856262207, 4.711094856262207, 4.711094856262207, 0.0),
+    vec4<f32>(-1.630025029182434, -1.630025029182434, -1.630025029182434, 0.0),
+    vec4<f32>(3.6058499813079834, 3.6058499813079834, 3.6058499813079834, 0.0),
+    vec4<f32>(-2.3837954998016357, -2.3837954998016357, -2.3837954998016357, 0.0),
+);
 
 fn separable_azimuth(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    let la = length(a);
-    let lb = length(b);
+    let la: f32 = length(a);
+    let lb: f32 = length(b);
     if (la <= 1e-6 || lb <= 1e-6) {
         return 0.0;
     }
@@ -347,28 +457,32 @@ fn separable_azimuth(a: vec3<f32>, b: vec3<f32>) -> f32 {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 fn separable_angles_half_diff(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let hs = l + v;
-    let hl = length(hs);
-    let h = select(n, hs / max(hl, 1e-30), hl > 1e-6);
-    let nh = dot(n, h);
-    let lh = dot(l, h);
-    let t = n - nh * h;
-    let p = l - lh * h;
+    let hs: vec3<f32> = l + v;
+    let hl: f32 = length(hs);
+    var h: vec3<f32> = n;
+    if (hl > 1e-6) {
+        h = hs / max(hl, 1e-30);
+    }
+    let nh: f32 = dot(n, h);
+    let lh: f32 = dot(l, h);
+    let t: vec3<f32> = n - nh * h;
+    let p: vec3<f32> = l - lh * h;
     return vec3<f32>(atan2(length(t), nh), atan2(length(p), lh), separable_azimuth(t, p));
 }
 
 // (theta_l, theta_v, phi).
 fn separable_angles_in_out(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let nl = dot(n, l);
-    let nv = dot(n, v);
-    let lt = l - nl * n;
-    let vt = v - nv * n;
+    let nl: f32 = dot(n, l);
+    let nv: f32 = dot(n, v);
+    let lt: vec3<f32> = l - nl * n;
+    let vt: vec3<f32> = v - nv * n;
     return vec3<f32>(atan2(length(lt), nl), atan2(length(vt), nv), separable_azimuth(lt, vt));
 }
 
-// Normalised position in [0, 1] of an angle on a warped axis (0 linear, 1 sqrt, 2 sqrt_hi, 3 cos).
-fn separable_unwarp(angle: f32, lo: f32, hi: f32, warp: i32) -> f32 {
-    let s = clamp((angle - lo) / (hi - lo), 0.0, 1.0);
+// Normalised position in [0, 1] of an angle on an axis (angle component, lo, hi, warp: 0 linear, 1 sqrt, 2 sqrt_hi, 3 cos).
+fn separable_unwarp(angle: f32, axis: vec4<f32>) -> f32 {
+    let s: f32 = clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0);
+    let warp: i32 = i32(axis.w);
     if (warp == 3) {
         return 1.0 - cos(s * 1.5707963267948966);
     }
@@ -381,113 +495,51 @@ fn separable_unwarp(angle: f32, lo: f32, hi: f32, warp: i32) -> f32 {
     return s;
 }
 
-// Texel centres of a 32x32 half: texel i at (0.5 + i) / 64 (+ 0.5 for the right half).
-fn separable_uv_g(x: f32) -> vec2<f32> {
-    return vec2<f32>((0.5 + x) / 64.0, 0.5 / 32.0);
-}
-
-fn separable_uv_h(xy: vec2<f32>) -> vec2<f32> {
-    return vec2<f32>((32.5 + xy.x) / 64.0, (0.5 + xy.y) / 32.0);
-}
-
-// Texel coordinates (g: x, h: yz) of parametrization 'half_diff', from its angles.
-fn separable_texels_half_diff(a: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(separable_unwarp(a.x, 0.0, 1.5707963267948966, 1) * 31.0, separable_unwarp(a.y, 0.0, 1.5707963267948966, 2) * 31.0, separable_unwarp(a.z, 0.0, 3.141592653589793, 0) * 31.0);
-}
-
-// Material 'separable-gold': 4 term(s), slices 5..8, parametrization 'half_diff'.
-const SEPARABLE_SEPARABLE_GOLD_FIRST_SLICE: u32 = 5u;
-fn separable_f_cos_separable_gold(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let a = separable_angles_half_diff(n, l, v);
-    let c = separable_texels_half_diff(a);
-    let ug = separable_uv_g(c.x);
-    let uh = separable_uv_h(c.yz);
-    var sum = vec3<f32>(0.0);
-    sum += (textureSampleLevel(atlas, samp, ug, 5, 0.0).rgb * vec3<f32>(6.12177038192749, 5.678443431854248, 4.206081390380859) + vec3<f32>(0.0, 0.0, 0.0)) * (textureSampleLevel(atlas, samp, uh, 5, 0.0).rgb * vec3<f32>(1.2287991046905518, 1.2322803735733032, 1.2870255708694458) + vec3<f32>(0.0, 0.0, 0.0));
-    sum += (textureSampleLevel(atlas, samp, ug, 6, 0.0).rgb * vec3<f32>(0.9245739579200745, 0.8506081700325012, 0.5665609836578369) + vec3<f32>(-0.22147433459758759, -0.20214352011680603, -0.1259300261735916)) * (textureSampleLevel(atlas, samp, uh, 6, 0.0).rgb * vec3<f32>(0.7532038688659668, 0.709665060043335, 0.5299670100212097) + vec3<f32>(-0.4855034053325653, -0.4633336365222931, -0.36659616231918335));
-    sum += (textureSampleLevel(atlas, samp, ug, 7, 0.0).rgb * vec3<f32>(0.9982795119285583, 0.9541347622871399, 0.8394293785095215) + vec3<f32>(-0.7157090306282043, -0.6853234171867371, -0.6051666736602783)) * (textureSampleLevel(atlas, samp, uh, 7, 0.0).rgb * vec3<f32>(0.7792242765426636, 0.7566274404525757, 0.660211443901062) + vec3<f32>(-0.45843029022216797, -0.44795146584510803, -0.3907473385334015));
-    sum += (textureSampleLevel(atlas, samp, ug, 8, 0.0).rgb * vec3<f32>(1.0067851543426514, 0.9471158981323242, 0.7353712320327759) + vec3<f32>(-0.7153699398040771, -0.672435462474823, -0.522152304649353)) * (textureSampleLevel(atlas, samp, uh, 8, 0.0).rgb * vec3<f32>(0.497663289308548, 0.47536033391952515, 0.39144623279571533) + vec3<f32>(-0.13701625168323517, -0.13199792802333832, -0.11633894592523575));
-    // Target f_proxy: the terms hold f * max(cos(theta_d), 0.001).
-    return max(sum, vec3<f32>(0.0)) * (dot(n, l) / max(cos(a.y), 0.001));
-}
-fn separable_f_separable_gold(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    return separable_f_cos_separable_gold(atlas, samp, n, l, v) / max(dot(n, l), 1e-4);
-}
-
-// Material 'separable-plastic': 3 term(s), slices 9..11, parametrization 'half_diff'.
-const SEPARABLE_SEPARABLE_PLASTIC_FIRST_SLICE: u32 = 9u;
-fn separable_f_cos_separable_plastic(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let a = separable_angles_half_diff(n, l, v);
-    let c = separable_texels_half_diff(a);
-    let ug = separable_uv_g(c.x);
-    let uh = separable_uv_h(c.yz);
-    var sum = vec3<f32>(0.0);
-    sum += (textureSampleLevel(atlas, samp, ug, 9, 0.0).rgb * vec3<f32>(11.272866249084473, 11.385760307312012, 11.386276245117188) + vec3<f32>(0.0, 0.0, 0.0)) * (textureSampleLevel(atlas, samp, uh, 9, 0.0).rgb * vec3<f32>(3.9363362789154053, 4.005989074707031, 4.006545066833496) + vec3<f32>(0.0, 0.0, 0.0));
-    sum += (textureSampleLevel(atlas, samp, ug, 10, 0.0).rgb * vec3<f32>(1.9515550136566162, 1.8787144422531128, 2.562767744064331) + vec3<f32>(-1.5939247608184814, -1.3277345895767212, -1.8326154947280884)) * (textureSampleLevel(atlas, samp, uh, 10, 0.0).rgb * vec3<f32>(1.2827404737472534, 1.5545328855514526, 1.8594951629638672) + vec3<f32>(-0.821314811706543, -0.950908362865448, -1.0340174436569214));
-    sum += (textureSampleLevel(atlas, samp, ug, 11, 0.0).rgb * vec3<f32>(2.6996641159057617, 2.033970355987549, 1.2720698118209839) + vec3<f32>(-1.9383530616760254, -0.5356279611587524, -0.3590381145477295)) * (textureSampleLevel(atlas, samp, uh, 11, 0.0).rgb * vec3<f32>(1.8621513843536377, 1.079986572265625, 0.6157100796699524) + vec3<f32>(-0.9841572642326355, -0.6590064764022827, -0.48700079321861267));
-    // Target f_proxy: the terms hold f * max(cos(theta_d), 0.001).
-    return max(sum, vec3<f32>(0.0)) * (dot(n, l) / max(cos(a.y), 0.001));
-}
-fn separable_f_separable_plastic(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    return separable_f_cos_separable_plastic(atlas, samp, n, l, v) / max(dot(n, l), 1e-4);
-}
-
-// Material 'separable-rough-metal': 4 term(s), slices 12..15, parametrization 'half_diff'.
-const SEPARABLE_SEPARABLE_ROUGH_METAL_FIRST_SLICE: u32 = 12u;
-fn separable_f_cos_separable_rough_metal(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let a = separable_angles_half_diff(n, l, v);
-    let c = separable_texels_half_diff(a);
-    let ug = separable_uv_g(c.x);
-    let uh = separable_uv_h(c.yz);
-    var sum = vec3<f32>(0.0);
-    sum += (textureSampleLevel(atlas, samp, ug, 12, 0.0).rgb * vec3<f32>(0.946738064289093, 0.9532943367958069, 0.9598143100738525) + vec3<f32>(0.0, 0.0, 0.0)) * (textureSampleLevel(atlas, samp, uh, 12, 0.0).rgb * vec3<f32>(0.6691282987594604, 0.6695331931114197, 0.6704824566841125) + vec3<f32>(0.0, 0.0, 0.0));
-    sum += (textureSampleLevel(atlas, samp, ug, 13, 0.0).rgb * vec3<f32>(0.46527063846588135, 0.46812018752098083, 0.4709542393684387) + vec3<f32>(-0.2727953791618347, -0.27435389161109924, -0.2759058177471161)) * (textureSampleLevel(atlas, samp, uh, 13, 0.0).rgb * vec3<f32>(0.4942901134490967, 0.4964091181755066, 0.4985029995441437) + vec3<f32>(-0.2902972400188446, -0.2908225655555725, -0.2913343608379364));
-    sum += (textureSampleLevel(atlas, samp, ug, 14, 0.0).rgb * vec3<f32>(0.4092056155204773, 0.4119895398616791, 0.41475561261177063) + vec3<f32>(-0.14364777505397797, -0.14467301964759827, -0.1456907093524933)) * (textureSampleLevel(atlas, samp, uh, 14, 0.0).rgb * vec3<f32>(0.2787500023841858, 0.2810141146183014, 0.28325873613357544) + vec3<f32>(-0.21235907077789307, -0.2141573578119278, -0.21593889594078064));
-    sum += (textureSampleLevel(atlas, samp, ug, 15, 0.0).rgb * vec3<f32>(0.2692447900772095, 0.27078884840011597, 0.27232563495635986) + vec3<f32>(-0.1026260033249855, -0.10312452912330627, -0.10361985862255096)) * (textureSampleLevel(atlas, samp, uh, 15, 0.0).rgb * vec3<f32>(0.25660771131515503, 0.2582305669784546, 0.2598366141319275) + vec3<f32>(-0.14747358858585358, -0.14840498566627502, -0.14932642877101898));
-    // Target f_proxy: the terms hold f * max(cos(theta_d), 0.001).
-    return max(sum, vec3<f32>(0.0)) * (dot(n, l) / max(cos(a.y), 0.001));
-}
-fn separable_f_separable_rough_metal(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    return separable_f_cos_separable_rough_metal(atlas, samp, n, l, v) / max(dot(n, l), 1e-4);
-}
-
-// Material 'separable-sharp': 4 term(s), slices 16..19, parametrization 'half_diff'.
-const SEPARABLE_SEPARABLE_SHARP_FIRST_SLICE: u32 = 16u;
-fn separable_f_cos_separable_sharp(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    if (dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {
-        return vec3<f32>(0.0);
-    }
-    let a = separable_angles_half_diff(n, l, v);
-    let c = separable_texels_half_diff(a);
-    let ug = separable_uv_g(c.x);
-    let uh = separable_uv_h(c.yz);
-    var sum = vec3<f32>(0.0);
-    sum += (textureSampleLevel(atlas, samp, ug, 16, 0.0).rgb * vec3<f32>(39.87784194946289, 39.87784194946289, 39.87784194946289) + vec3<f32>(0.0, 0.0, 0.0)) * (textureSampleLevel(atlas, samp, uh, 16, 0.0).rgb * vec3<f32>(10.921795845031738, 10.921795845031738, 10.921795845031738) + vec3<f32>(0.0, 0.0, 0.0));
-    sum += (textureSampleLevel(atlas, samp, ug, 17, 0.0).rgb * vec3<f32>(9.257755279541016, 9.257755279541016, 9.257755279541016) + vec3<f32>(-6.80169677734375, -6.80169677734375, -6.80169677734375)) * (textureSampleLevel(atlas, samp, uh, 17, 0.0).rgb * vec3<f32>(5.5063557624816895, 5.5063557624816895, 5.5063557624816895) + vec3<f32>(-2.691420078277588, -2.691420078277588, -2.691420078277588));
-    sum += (textureSampleLevel(atlas, samp, ug, 18, 0.0).rgb * vec3<f32>(6.825768947601318, 6.825768947601318, 6.825768947601318) + vec3<f32>(-2.0078296661376953, -2.0078296661376953, -2.0078296661376953)) * (textureSampleLevel(atlas, samp, uh, 18, 0.0).rgb * vec3<f32>(3.9149889945983887, 3.9149889945983887, 3.9149889945983887) + vec3<f32>(-2.8636815547943115, -2.8636815547943115, -2.8636815547943115));
-    sum += (textureSampleLevel(atlas, samp, ug, 19, 0.0).rgb * vec3<f32>(4.711094856262207, 4.711094856262207, 4.711094856262207) + vec3<f32>(-1.630025029182434, -1.630025029182434, -1.630025029182434)) * (textureSampleLevel(atlas, samp, uh, 19, 0.0).rgb * vec3<f32>(3.6058499813079834, 3.6058499813079834, 3.6058499813079834) + vec3<f32>(-2.3837954998016357, -2.3837954998016357, -2.3837954998016357));
-    // Target f_proxy: the terms hold f * max(cos(theta_d), 0.001).
-    return max(sum, vec3<f32>(0.0)) * (dot(n, l) / max(cos(a.y), 0.001));
-}
-fn separable_f_separable_sharp(atlas: texture_2d_array<f32>, samp: sampler, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    return separable_f_cos_separable_sharp(atlas, samp, n, l, v) / max(dot(n, l), 1e-4);
-}
-
+// f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;
+// 0 for other IDs and below the horizon.
 fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    switch material {
-        case 5u: { return separable_f_cos_separable_gold(atlas, samp, n, l, v); }
-        case 9u: { return separable_f_cos_separable_plastic(atlas, samp, n, l, v); }
-        case 12u: { return separable_f_cos_separable_rough_metal(atlas, samp, n, l, v); }
-        case 16u: { return separable_f_cos_separable_sharp(atlas, samp, n, l, v); }
-        default: { return vec3<f32>(0.0); }
+    var block: u32 = 0u;
+    var terms: u32 = 0u;
+    for (var i: u32 = 0u; i < u32(SEPARABLE_TABLE[0].x); i = i + 1u) {
+        let d: vec4<f32> = SEPARABLE_TABLE[1u + i];
+        if (u32(d.x) == material) {
+            block = u32(d.y);
+            terms = u32(d.z);
+        }
     }
+    if (terms == 0u || dot(n, l) <= 0.0 || dot(n, v) <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let head: vec4<f32> = SEPARABLE_TABLE[block];
+    var a: vec3<f32> = separable_angles_half_diff(n, l, v);
+    if (head.x > 0.5) {
+        a = separable_angles_in_out(n, l, v);
+    }
+    let ag: vec4<f32> = SEPARABLE_TABLE[block + 1u];
+    let ahx: vec4<f32> = SEPARABLE_TABLE[block + 2u];
+    let ahy: vec4<f32> = SEPARABLE_TABLE[block + 3u];
+    // Texel centres of a 32x32 half: texel i at (0.5 + i) / 64 (+ 0.5 for the right half).
+    let cg: f32 = separable_unwarp(a[u32(ag.x)], ag) * 31.0;
+    let ch: vec2<f32> = vec2<f32>(separable_unwarp(a[u32(ahx.x)], ahx), separable_unwarp(a[u32(ahy.x)], ahy)) * 31.0;
+    let ug: vec2<f32> = vec2<f32>((0.5 + cg) / 64.0, 0.5 / 32.0);
+    let uh: vec2<f32> = vec2<f32>((32.5 + ch.x) / 64.0, (0.5 + ch.y) / 32.0);
+    let first: u32 = material;
+    var sum: vec3<f32> = vec3<f32>(0.0);
+    for (var k: u32 = 0u; k < terms; k = k + 1u) {
+        let r: u32 = block + 4u + 4u * k;
+        let g: vec3<f32> = textureSampleLevel(atlas, samp, ug, first + k, 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
+        let h: vec3<f32> = textureSampleLevel(atlas, samp, uh, first + k, 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
+        sum += g * h;
+    }
+    var result: vec3<f32> = max(sum, vec3<f32>(0.0));
+    if (head.y > 0.5) {
+        // Target f_proxy: the terms hold f * max(cos(proxy angle), proxy floor).
+        result = result * (dot(n, l) / max(cos(a[u32(head.z)]), head.w));
+    }
+    return result;
+}
+
+// f, in 1/sr.
+fn separable_f(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    return separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4);
 }

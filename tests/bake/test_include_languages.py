@@ -1,0 +1,248 @@
+"""The include in WGSL, GLSL and HLSL: one description, each compiles, each samples what the CPU samples.
+
+GLSL and HLSL are compiled to SPIR-V with glslang and run through wgpu (lavapipe) next
+to the WGSL, on a small baked library (a lambert, a toon with hard steps, a separable).
+"""
+
+import shutil
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.materials.material import read_materials
+from atlasgen.optics.interpolation import sample_slice
+from atlasgen.separable import evaluate_separable
+from atlasgen.separable.shader import SIDECAR_MAGIC, separable_table
+from atlasgen.shaderlang import LANGUAGES
+
+ROOT = Path(__file__).resolve().parents[2]
+GLSLANG = shutil.which("glslangValidator")
+needs_glslang = pytest.mark.skipif(GLSLANG is None, reason="glslangValidator (Debian glslang-tools) is not installed")
+
+# Query i: q[3i] = (n, material), q[3i+1] = (l, mode), q[3i+2] = (v, 0). Mode 0: atlas_sample at
+# (N.L, N.V) = (n.x, n.y); mode 1: separable_f_cos(n, l, v).
+SHADERS = {
+    "wgsl": """
+@group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
+@group(0) @binding(1) var atlas_samp: sampler;
+@group(0) @binding(2) var<storage, read> q: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> r: array<vec4<f32>>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= arrayLength(&r)) { return; }
+    let a = q[3u * i]; let b = q[3u * i + 1u]; let c = q[3u * i + 2u];
+    let m = u32(a.w);
+    if (b.w > 0.5) { r[i] = vec4<f32>(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
+}
+""",
+    "glsl": """#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "atlas.glsl"
+layout(set = 0, binding = 0) uniform texture2DArray atlas_tex;
+layout(set = 0, binding = 1) uniform sampler atlas_samp;
+layout(std430, set = 0, binding = 2) readonly buffer Queries { vec4 q[]; };
+layout(std430, set = 0, binding = 3) buffer Results { vec4 r[]; };
+layout(local_size_x = 64) in;
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= uint(r.length())) { return; }
+    vec4 a = q[3u * i]; vec4 b = q[3u * i + 1u]; vec4 c = q[3u * i + 2u];
+    uint m = uint(a.w);
+    if (b.w > 0.5) { r[i] = vec4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
+}
+""",
+    "hlsl": """#include "atlas.hlsl"
+[[vk::binding(0, 0)]] Texture2DArray<float4> atlas_tex;
+[[vk::binding(1, 0)]] SamplerState atlas_samp;
+[[vk::binding(2, 0)]] StructuredBuffer<float4> q;
+[[vk::binding(3, 0)]] RWStructuredBuffer<float4> r;
+[numthreads(64, 1, 1)]
+void main(uint3 gid : SV_DispatchThreadID) {
+    uint i = gid.x;
+    uint count, stride;
+    r.GetDimensions(count, stride);
+    if (i >= count) { return; }
+    float4 a = q[3u * i]; float4 b = q[3u * i + 1u]; float4 c = q[3u * i + 2u];
+    uint m = uint(a.w);
+    if (b.w > 0.5) { r[i] = float4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
+}
+""",
+}
+
+
+@pytest.fixture(scope="module")
+def small_atlas(tmp_path_factory):
+    """A linear (UNORM) atlas of a lambert, a toon and a separable material, written to disk."""
+    folder = tmp_path_factory.mktemp("languages")
+    names = ("terracotta", "toon-hero", "separable-plastic")
+    materials = read_materials([ROOT / "materials" / f"{n}.toml" for n in names])
+    result = bake_atlas(materials, "array", True, {})
+    paths = write_bake(result, folder / "atlas.dds")
+    return result, paths
+
+
+def _spirv(lang: str, folder: Path) -> bytes:
+    source = folder / f"test.{lang}.comp"
+    source.write_text(SHADERS[lang])
+    out = folder / f"test.{lang}.spv"
+    args = ["-V", "-S", "comp"] if lang == "glsl" else ["-D", "-V", "-S", "comp", "-e", "main"]
+    run = subprocess.run([GLSLANG, *args, str(source), "-o", str(out)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+    return out.read_bytes()
+
+
+def test_every_language_comes_from_the_one_description(small_atlas):
+    result, paths = small_atlas
+    texts = {"wgsl": result.include, **result.includes}
+    assert sorted(texts) == sorted(LANGUAGES)
+    for key in ("include", "glsl", "hlsl"):
+        assert paths[key].read_text() == texts["wgsl" if key == "include" else key]
+    # The same functions, constants and table rows in each language.
+    for name in ("atlas_uv", "atlas_sample", "atlas_scale_bias", "specular_normalisation", "separable_f_cos",
+                 "MATERIAL_TERRACOTTA", "SEPARABLE_TABLE", "ATLAS_FLAG_NEAREST"):
+        assert all(name in text for text in texts.values()), name
+    spelling = {"wgsl": "vec4<f32>(", "glsl": "vec4(", "hlsl": "float4("}
+    rows = {lang: text.count(spelling[lang]) for lang, text in texts.items()}
+    assert len(set(rows.values())) == 1, rows
+
+
+def test_sidecar_is_the_include_table_little_endian(small_atlas):
+    result, paths = small_atlas
+    data = paths["separable"].read_bytes()
+    magic, (version, rows, reserved) = data[:4], struct.unpack("<3I", data[4:16])
+    assert magic == SIDECAR_MAGIC and version == 1 and reserved == 0 and len(data) == 16 + 16 * rows
+    table = np.frombuffer(data[16:], "<f4").reshape(rows, 4)
+    np.testing.assert_array_equal(table, separable_table(result.manifest.materials))
+    entry = next(m for m in result.manifest.materials if m.factors is not None)
+    assert table[0, 0] == 1 and table[1, 0] == entry.first_slice and table[1, 2] == len(entry.factors.factor_scale)
+
+
+@needs_glslang
+@pytest.mark.parametrize("lang", ["glsl", "hlsl"])
+def test_glslang_compiles_the_include(lang, small_atlas):
+    _, paths = small_atlas
+    spirv = _spirv(lang, paths["dds"].parent)
+    assert spirv[:4] == struct.pack("<I", 0x07230203)
+
+
+def _queries(result, rng):
+    """Random (N.L, N.V) points on the LUT materials and random frames on the separable one."""
+    lut = [m for m in result.manifest.materials if m.factors is None]
+    sep = [m for m in result.manifest.materials if m.factors is not None]
+    rows, expected_kind = [], []
+    for m in lut:
+        nl, nv = rng.uniform(-1.0, 1.0, 400), rng.uniform(0.0, 1.0, 400)
+        for s in m.slices:
+            for a, b in zip(nl, nv):
+                rows += [(a, b, 0.0, s), (0, 0, 0, 0.0), (0, 0, 0, 0)]
+            expected_kind.append(("lut", m, s, nl, nv))
+    n, l, v = _random_frames(rng, 1500)
+    for m in sep:
+        for i in range(len(n)):
+            rows += [(*n[i], m.first_slice), (*l[i], 1.0), (*v[i], 0.0)]
+        expected_kind.append(("sep", m, m.first_slice, (n, l, v), None))
+    return np.asarray(rows, np.float32), expected_kind
+
+
+def _random_frames(rng, count):
+    """Unit n, and l, v above its horizon (cosines >= 0.02: away from grazing, where f32 and f64 angles
+    may pick different texels)."""
+    def unit(x):
+        return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+    n = unit(rng.normal(size=(count, 3)))
+    out = []
+    for _ in range(2):
+        d = unit(rng.normal(size=(count, 3)))
+        d = np.where((d * n).sum(1, keepdims=True) < 0.0, -d, d)
+        out.append(unit(d + 0.02 * n))
+    return n, out[0], out[1]
+
+
+def _dispatch(ctx, level0, queries, lang, code):
+    import wgpu
+
+    device = ctx.device
+    layers = level0.shape[0]
+    texture = device.create_texture(size=(64, 32, layers), format=wgpu.TextureFormat.rgba8unorm, dimension="2d",
+                                    usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)  # fmt: skip
+    device.queue.write_texture({"texture": texture, "origin": (0, 0, 0)}, np.ascontiguousarray(level0).tobytes(),
+                               {"bytes_per_row": 64 * 4, "rows_per_image": 32}, (64, 32, layers))  # fmt: skip
+    sampler = device.create_sampler(mag_filter="linear", min_filter="linear", address_mode_u="clamp-to-edge",
+                                    address_mode_v="clamp-to-edge")  # fmt: skip
+    count = len(queries) // 3
+    q_buf = device.create_buffer_with_data(data=queries.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    r_buf = device.create_buffer(size=count * 16, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    module = device.create_shader_module(label=f"include-{lang}", code=code)
+    pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
+    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
+        {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
+        {"binding": 1, "resource": sampler},
+        {"binding": 2, "resource": {"buffer": q_buf, "offset": 0, "size": q_buf.size}},
+        {"binding": 3, "resource": {"buffer": r_buf, "offset": 0, "size": r_buf.size}},
+    ])  # fmt: skip
+    encoder = device.create_command_encoder()
+    compute = encoder.begin_compute_pass()
+    compute.set_pipeline(pipeline)
+    compute.set_bind_group(0, bind)
+    compute.dispatch_workgroups((count + 63) // 64)
+    compute.end()
+    device.queue.submit([encoder.finish()])
+    return np.frombuffer(device.queue.read_buffer(r_buf), np.float32).reshape(count, 4)
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_each_language_samples_what_the_cpu_samples(lang, small_atlas, gpu_device):
+    from atlasgen.io.dds import read_dds
+
+    result, paths = small_atlas
+    if lang == "wgsl":
+        code = result.include + SHADERS["wgsl"]
+    else:
+        if GLSLANG is None:
+            pytest.skip("glslangValidator (Debian glslang-tools) is not installed")
+        code = _spirv(lang, paths["dds"].parent)
+    dds = read_dds(paths["dds"])
+    level0 = np.asarray(dds.levels[0])
+    queries, kinds = _queries(result, np.random.default_rng(3))
+    got = _dispatch(gpu_device, level0, queries, lang, code)
+    assert gpu_device.take_errors() == []
+    row = 0
+    for kind, m, s, a, b in kinds:
+        if kind == "lut":
+            count = len(a)
+            table = level0[s].astype(np.float64) / 255.0
+            texel = sample_slice(table, a, b, nearest=bool(m.flag("nearest")))
+            gpu = got[row : row + count]
+            # The GPU result is texel * scale + bias; undo it with the include's own constants.
+            sb = np.asarray(_scale_bias(result.include, s))
+            gpu_texel = np.concatenate([(gpu[:, :3] - sb[2]) / sb[0], ((gpu[:, 3] - sb[3]) / sb[1])[:, None]], axis=1)
+            assert np.abs(gpu_texel - texel).max() <= 1.0 / 255.0, (lang, m.name, s)
+        else:
+            count = len(a[0])
+            gpu = got[row : row + count, :3]
+            cpu = evaluate_separable(paths["dds"], m.name, *a, cosine=True)
+            scale = np.abs(cpu).max()
+            diff = np.abs(gpu - cpu)
+            # GPUs filter with 8-bit weight fractions: 1.5% of the largest value at worst (measured 1.1%,
+            # identical in the three languages), the bulk far tighter.
+            assert diff.max() <= 0.015 * scale, (lang, m.name, diff.max(), scale)
+            assert np.median(diff) <= 2e-4 * scale, (lang, m.name)
+        row += count
+    assert row == len(got)
+
+
+def _scale_bias(include: str, s: int):
+    import re
+
+    match = re.search(rf"case {s}u: {{ return vec4<f32>\(([^)]*)\); }}", include)
+    return [float(x) for x in match.group(1).split(",")] if match else [1.0, 1.0, 0.0, 0.0]
