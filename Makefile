@@ -5,8 +5,9 @@ VENV := .venv
 PY := $(VENV)/bin/python
 ATLASGEN := $(VENV)/bin/atlasgen
 BUILD := build
-# Debian packages: LLVM >= 16 for Mitsuba's llvm variants, lavapipe for wgpu, and EGL/GL for completeness.
-APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri
+# Debian packages: LLVM >= 16 for Mitsuba's llvm variants, lavapipe for wgpu, EGL/GL for completeness,
+# and headless Chromium with its driver for the reports' browser test (tests/reports/test_browser.py).
+APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
 .PHONY: setup apt demo test bench clean atlas render validate report
