@@ -96,8 +96,10 @@ def pareto_front(points) -> list[int]:
 
 
 def label_points(ax, xy, labels) -> None:
-    """Label points with text of the plot's smallest size, alternately above and below, so
-    that neighbours along a front do not overlap."""
+    """Label points (in order of increasing x) with text of the plot's smallest size,
+    alternately above and below, so that neighbours along a front do not overlap; the
+    last one's label reads leftwards, so that it stays inside the axes."""
     for n, ((x, y), label) in enumerate(zip(xy, labels)):
-        ax.annotate(label, (x, y), fontsize=MIN_FONT_PT, xytext=(5, 6 if n % 2 == 0 else -14),
-                    textcoords="offset points")
+        last = n == len(labels) - 1 and n > 0
+        ax.annotate(label, (x, y), fontsize=MIN_FONT_PT, xytext=(-5 if last else 5, 6 if n % 2 == 0 else -14),
+                    textcoords="offset points", ha="right" if last else "left")

@@ -268,7 +268,8 @@ def _figures(row: dict, size: tuple) -> list[dict]:
     for kind in _FIGURE_KINDS:
         ref = row["references"].get(kind)
         if ref is None:
-            figures += [{"src": None, "caption": f"no {_KIND_LABEL[kind]}", "width": width, "height": height}] * 2
+            figures += [{"src": None, "caption": f"no {_KIND_LABEL[kind]}", "width": width, "height": height},
+                        {"src": None, "caption": f"no FLIP map against a {kind} reference", "width": width, "height": height}]
             continue
         figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}",
                         "width": width, "height": height})  # fmt: skip
