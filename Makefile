@@ -33,7 +33,7 @@ ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
 # mips, DDS/KTX2, the include, reading the atlas back and the CPU sampler: the same layers.
 SLICE_CODE := $(ASSEMBLY_CODE)
-REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py))
+REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py atlasgen/reports/templates/*))
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
