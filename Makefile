@@ -5,9 +5,10 @@ VENV := .venv
 PY := $(VENV)/bin/python
 ATLASGEN := $(VENV)/bin/atlasgen
 BUILD := build
-# Debian packages: LLVM >= 16 for Mitsuba's llvm variants, lavapipe for wgpu, EGL/GL for completeness, and
-# glslang (glslangValidator) to compile the GLSL and HLSL includes in the tests.
-APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools
+# Debian packages: LLVM >= 16 for Mitsuba's llvm variants, lavapipe for wgpu, EGL/GL for completeness,
+# glslang (glslangValidator) to compile the GLSL and HLSL includes in the tests, and headless
+# Chromium with its driver for the reports' browser test (tests/reports/test_browser.py).
+APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
 .PHONY: setup apt demo test bench clean atlas render validate report
@@ -33,7 +34,7 @@ ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))
 # What lies between a material's cached float slices and what is measured of them: encoding,
 # mips, DDS/KTX2, the include, reading the atlas back and the CPU sampler: the same layers.
 SLICE_CODE := $(ASSEMBLY_CODE)
-REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py))
+REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py atlasgen/reports/templates/*))
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.
 SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))

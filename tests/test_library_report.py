@@ -49,7 +49,8 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     ]}))
     index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
     text = index.read_text()
-    assert "front/model: PSNR 61.2 dB, FLIP 0.0043, atlas 3.5x faster" in text
+    # One row per reference: PSNR (dB), FLIP, and how many times faster the atlas frame is.
+    assert '<td class="l nowrap">front/model</td><td>61.2</td><td>0.0043</td><td>3.5x</td>' in text
     parser = PageLinks(text)
     assert "../validation/index.html" in parser.links
 
@@ -94,3 +95,16 @@ def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, wri
     assert res.stdout == f"{(tmp_path / 'r' / 'index.html').as_posix()}\n"
     assert res.stderr.splitlines() == [f"  validation report: {(tmp_path / 'v' / 'report.json').as_posix()} (used)",
                                        f"  separable report: {(tmp_path / 's' / 'index.md').as_posix()} (absent)"]  # fmt: skip
+
+
+def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    sep = tmp_path / "separable"
+    sep.mkdir()
+    (sep / "index.md").write_text("# text summary")
+    assert "../separable/index.html" not in PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep).read_text()).links
+    (sep / "index.html").write_text("<html></html>")
+    links = PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep).read_text()).links
+    assert links == ["../separable/index.html"]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import html
-import io
 import json
 import os
 from pathlib import Path
@@ -11,8 +9,13 @@ from pathlib import Path
 from atlasgen.errors import InputError
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models import get_model
+from atlasgen.reports.html import plot_width, render_page
 
 __all__ = ["write_library_report"]
+
+#: The speed/error plot: its file and its size in inches (shown at 100 CSS px per inch).
+_PLOT = "speed-vs-error.png"
+_PLOT_SIZE = (7.0, 4.5)
 
 
 def _read_json(path):
@@ -96,73 +99,54 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     points = [p for p in points if p[2] is not None]
     plot = None
     if points:
-        import matplotlib
+        files[out_dir / _PLOT] = _plot_speed_error(points, y_label, validation is not None)
+        plot = {"src": _PLOT, "width": plot_width(_PLOT_SIZE[0])}
+    # Previews and plot first, all-or-nothing; the page that links them replaces the old one last.
+    write_files_atomically(files)
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+    def rel(target) -> str | None:
+        return os.path.relpath(target, out_dir) if target is not None and Path(target).exists() else None
 
-        fig, ax = plt.subplots(figsize=(7, 4.5), dpi=100)
+    links = [{"href": href, "label": label} for href, label in (
+        (rel(Path(validation_dir) / "index.html") if validation_dir else None, "validation report"),
+        (rel(Path(separable_dir) / "index.html") if separable_dir else None, "separable factorisation report"),
+    ) if href]  # fmt: skip
+    page_rows = []
+    for entry, previews, bake_s, refs, pages in rows:
+        q = entry.quantization_error
+        own = [rel(Path(validation_dir) / page) for page in pages] if validation_dir else []
+        page_rows.append({
+            "first_slice": entry.first_slice, "name": entry.name, "type": entry.type,
+            "representation": get_model(entry.type).describe_representation(entry),
+            "bake_ms": _fmt(None if bake_s is None else bake_s * 1e3, ".2f"), "quantisation": f"{q.max:.4f} / {q.rms:.4f}",
+            "refs": [{"reference": r["reference"], "psnr": _fmt(r["psnr"], ".1f"), "flip": _fmt(r["flip"], ".4f"),
+                      "speed": _fmt(r["speed_ratio"], ".1f") + "x"} for r in refs],
+            "pages": [p for p in own if p], "previews": previews,
+        })  # fmt: skip
+    index = out_dir / "index.html"
+    write_file_atomically(index, render_page(
+        "library.html.j2", atlas=Path(atlas_path).as_posix(), encoding=atlas.manifest.encoding,
+        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows))
+    return index
+
+
+def _plot_speed_error(points, y_label: str, validated: bool) -> bytes:
+    """Bake time against error, one point per material ``(name, seconds, error, type)``; the
+    Pareto front (no material both faster and closer) is labelled, the table lists all."""
+    from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
+
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         for kind in sorted({p[3] for p in points}):
             sel = [p for p in points if p[3] == kind]
             ax.scatter([p[1] * 1e3 for p in sel], [p[2] for p in sel], label=kind)
-            for p in sel:
-                ax.annotate(p[0], (p[1] * 1e3, p[2]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        front = [points[i] for i in pareto_front([(p[1], p[2]) for p in points])]
+        label_points(ax, [(p[1] * 1e3, p[2]) for p in front], [p[0] for p in front])
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("bake time per material (ms)")
         ax.set_ylabel(y_label)
-        ax.set_title("Speed against error" + (" (validation, front scene)" if validation is not None else " (level 0)"))
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        buffer = io.BytesIO()
-        fig.savefig(buffer, format="png")
-        plt.close(fig)
-        plot = "speed-vs-error.png"
-        files[out_dir / plot] = buffer.getvalue()
-    # Previews and plot first, all-or-nothing; the page that links them replaces the old one last.
-    write_files_atomically(files)
-
-    def link(target: Path | None, label: str) -> str:
-        if target is None or not Path(target).exists():
-            return ""
-        rel = os.path.relpath(target, out_dir)
-        return f'<a href="{html.escape(rel)}">{html.escape(label)}</a>'
-
-    e = html.escape
-    parts = [
-        "<!doctype html><html><head><meta charset='utf-8'><title>atlasgen library report</title>",
-        "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-        "td,th{border:1px solid #ccc;padding:4px 8px;vertical-align:top;font-size:90%}img{image-rendering:pixelated}</style>",
-        "</head><body>",
-        f"<h1>Material library: {e(Path(atlas_path).as_posix())}</h1>",
-        f"<p>{len(rows)} materials, {e(atlas.manifest.encoding)} encoding, {e(atlas.manifest.layout)} layout. "
-        "Every figure is read from the bake's manifest and timings, and from validation's report.json.</p>",
-    ]
-    links = [link(Path(validation_dir) / "index.html" if validation_dir else None, "validation report"),
-             link(Path(separable_dir) / "index.md" if separable_dir else None, "separable factorisation report")]
-    if any(links):
-        parts.append("<p>" + " · ".join(x for x in links if x) + "</p>")
-    if plot:
-        parts.append(f'<p><img src="{plot}" alt="speed against error"></p>')
-    parts.append("<table><tr><th>ID</th><th>material</th><th>type</th><th>representation</th><th>bake (ms)</th>"
-                 "<th>quantisation error (max / RMS)</th><th>errors against references</th><th>slices (RGB | A)</th></tr>")
-    for entry, previews, bake_s, refs, pages in rows:
-        q = entry.quantization_error
-        ref_text = "<br>".join(
-            f"{e(r['reference'])}: PSNR {_fmt(r['psnr'], '.1f')} dB, FLIP {_fmt(r['flip'], '.4f')}, "
-            f"atlas {_fmt(r['speed_ratio'], '.1f')}x faster"
-            for r in refs
-        ) or "not validated"
-        own = [link(Path(validation_dir) / page, "validation page") for page in pages] if validation_dir else []
-        if any(own):
-            ref_text += "<br>" + " · ".join(x for x in own if x)
-        imgs = " ".join(f'<img src="{e(p)}" alt="{e(entry.name)} slice">' for p in previews)
-        parts.append(
-            f"<tr><td>{entry.first_slice}</td><td>{e(entry.name)}</td><td>{e(entry.type)}</td>"
-            f"<td>{e(get_model(entry.type).describe_representation(entry))}</td><td>{_fmt(None if bake_s is None else bake_s * 1e3, '.2f')}</td>"
-            f"<td>{q.max:.4f} / {q.rms:.4f}</td><td>{ref_text}</td><td>{imgs}</td></tr>"
-        )
-    parts.append("</table></body></html>")
-    index = out_dir / "index.html"
-    write_file_atomically(index, "\n".join(parts).encode())
-    return index
+        ax.set_title("Speed against error" + (" (validation, front scene)" if validated else " (level 0)")
+                     + "; labelled: the Pareto front")
+        ax.legend()
+        return figure_png(fig)

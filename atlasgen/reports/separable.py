@@ -1,4 +1,4 @@
-"""``atlasgen report separable``: Markdown and PNG plots of error against terms, grid, bits and time.
+"""``atlasgen report separable``: an HTML page, a Markdown summary and PNG plots of error against terms, grid, bits and time.
 
 Every figure is measured here, by the running code, at the fixed error pairs
 (:func:`atlasgen.separable.error.sample_hemisphere_pairs`). matplotlib is imported
@@ -22,7 +22,7 @@ from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametriza
 from atlasgen.separable.source import make_source, sample_matrices
 from atlasgen.separable.storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
 
-__all__ = ["MaterialStudy", "study_material", "format_separable_report", "write_separable_report", "RESOLUTIONS"]
+__all__ = ["MaterialStudy", "study_material", "format_separable_report", "format_separable_html", "write_separable_report", "RESOLUTIONS"]
 
 #: Sampling grids of the resolution study (texels per factor axis; the atlas stores 32).
 RESOLUTIONS = (8, 12, 16, 24, 32, 48, 64)
@@ -161,11 +161,12 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     )
 
 
-def _plots(study: MaterialStudy, folder: Path) -> dict:
-    import matplotlib
+#: Figure size of every plot in inches (shown at 100 CSS px per inch: two side by side on the page).
+_PLOT_SIZE = (5.8, 3.9)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def _plots(study: MaterialStudy, folder: Path) -> dict:
+    from atlasgen.reports.html import figure_png, label_points, plot_style
 
     paths = {}
     ks = np.arange(1, MAX_AUTO_TERMS + 1)
@@ -175,43 +176,40 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
         ax.set_ylabel(ylabel)
         ax.set_title(f"{study.name}: {title}")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-        # No "Software" metadata: the PNG bytes then depend only on the figures.
+        ax.legend()
         paths[kind] = folder / f"{study.name}-{kind}.png"
-        fig.tight_layout()
-        fig.savefig(paths[kind], dpi=110, metadata={"Software": None})
-        plt.close(fig)
+        paths[kind].write_bytes(figure_png(fig))
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for target, curves in study.by_terms.items():
-        ax.semilogy(ks, curves["float"], "o-", label=f"SVD {target}, float")
-        ax.semilogy(ks, curves["8bit"], "s--", label=f"SVD {target}, 8-bit sRGB")
-    ax.semilogy([e["terms"] for e in study.nonnegative["nmf"]], [e["relative_rms"] for e in study.nonnegative["nmf"]],
-                "^:", label="NMF, float")
-    ax.semilogy([1], [study.nonnegative["nd"]["relative_rms"]], "kx", markersize=9, label="Kautz-McCool ND, float")
-    save(fig, ax, "terms", "terms K (atlas slices)", "relative RMS of f cos (1e5 pairs)", "error against K; float against 8-bit")
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
+        for target, curves in study.by_terms.items():
+            ax.semilogy(ks, curves["float"], "o-", label=f"SVD {target}, float")
+            ax.semilogy(ks, curves["8bit"], "s--", label=f"SVD {target}, 8-bit sRGB")
+        ax.semilogy([e["terms"] for e in study.nonnegative["nmf"]], [e["relative_rms"] for e in study.nonnegative["nmf"]],
+                    "^:", label="NMF, float")
+        ax.semilogy([1], [study.nonnegative["nd"]["relative_rms"]], "kx", markersize=9, label="Kautz-McCool ND, float")
+        save(fig, ax, "terms", "terms K (atlas slices)", "relative RMS of f cos", "error against K")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for k in (1, 2, 4, 8):
-        rows = [r for r in study.by_resolution if r["terms"] == k]
-        ax.semilogy([r["resolution"] for r in rows], [r["relative_rms"] for r in rows], "o-", label=f"K = {k}")
-    ax.axvline(FACTOR_RESOLUTION, color="grey", ls=":", label="stored grid (32)")
-    save(fig, ax, "resolution", "sampling grid, texels per factor axis", "relative RMS of f cos (float)", "error against grid resolution")
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
+        for k in (1, 2, 4, 8):
+            rows = [r for r in study.by_resolution if r["terms"] == k]
+            ax.semilogy([r["resolution"] for r in rows], [r["relative_rms"] for r in rows], "o-", label=f"K = {k}")
+        ax.axvline(FACTOR_RESOLUTION, color="grey", ls=":", label="stored grid (32)")
+        save(fig, ax, "resolution", "sampling grid, texels per factor axis", "relative RMS of f cos (float)", "error against grid")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    xs = [r["seconds"] * 1e3 for r in study.by_resolution]
-    ys = [r["relative_rms"] for r in study.by_resolution]
-    ax.loglog(xs, ys, "o", alpha=0.4, label="(grid, K) configurations")
-    ax.loglog([p["seconds"] * 1e3 for p in study.pareto], [p["relative_rms"] for p in study.pareto], "r-o",
-              label="Pareto front")
-    for p in study.pareto:
-        ax.annotate(f"{p['resolution']}/K{p['terms']}", (p["seconds"] * 1e3, p["relative_rms"]), fontsize=6)
-    save(fig, ax, "pareto", "sampling + SVD time (ms, median)", "relative RMS of f cos (float)", "error against time")
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
+        xs = [r["seconds"] * 1e3 for r in study.by_resolution]
+        ys = [r["relative_rms"] for r in study.by_resolution]
+        ax.loglog(xs, ys, "o", alpha=0.4, label="(grid, K): table below")
+        front = [(p["seconds"] * 1e3, p["relative_rms"]) for p in study.pareto]
+        ax.loglog([x for x, _ in front], [y for _, y in front], "r-o", label="Pareto front")
+        label_points(ax, front, [f"{p['resolution']}/K{p['terms']}" for p in study.pareto])
+        save(fig, ax, "pareto", "sampling + SVD time (ms, median)", "relative RMS of f cos (float)", "error against time")
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for name, curve in study.by_parametrization.items():
-        ax.semilogy(ks, curve, "o-" if name in ("half_diff", "in_out") else ".:", label=name)
-    save(fig, ax, "parametrization", "terms K", "relative RMS of f cos (float, best target)", "parametrizations, same 32-texel grid")
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
+        for name, curve in study.by_parametrization.items():
+            ax.semilogy(ks, curve, "o-" if name in ("half_diff", "in_out") else ".:", label=name)
+        save(fig, ax, "parametrization", "terms K", "relative RMS (float, best target)", "parametrizations, 32-texel grid")
     return paths
 
 
@@ -231,13 +229,7 @@ def format_separable_report(studies: list, plots: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in studies:
-        t = s.timings
-        atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
-        lines.append(
-            f"| {s.name} | {s.chosen['parametrization']} | {s.chosen['target']} | {s.chosen['terms']} | {s.chosen['grid']} | "
-            f"{_pct(s.chosen['float']['relative_rms'])} | {_pct(s.chosen['8bit_srgb']['relative_rms'])} | "
-            f"{s.chosen['float']['log_error']:.4g} | {1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f} | {atlas} |"
-        )
+        lines.append("| " + " | ".join(str(c) for c in _summary_cells(s)) + " |")
     for s in studies:
         lines += ["", f"## {s.name}", "", f"Source file: `{s.source}`.", ""]
         lines += ["### Error against K (float and 8-bit), SVD against NMF and ND", "",
@@ -266,15 +258,69 @@ def format_separable_report(studies: list, plots: dict) -> str:
                   "| parametrization | K=1 | K=2 | K=4 | K=8 |", "|---|---|---|---|---|"]
         for name, curve in s.by_parametrization.items():
             lines.append(f"| {name} | " + " | ".join(_pct(curve[k - 1]) for k in (1, 2, 4, 8)) + " |")
-        t = s.timings
-        lines += ["", f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, SVD {1e3 * t['svd_s']:.1f} ms, "
-                      f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms.", ""]
+        lines += ["", _timings_text(s), ""]
     return "\n".join(lines) + "\n"
+
+
+def _summary_cells(s: MaterialStudy) -> list:
+    t = s.timings
+    atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
+    return [s.name, s.chosen["parametrization"], s.chosen["target"], s.chosen["terms"], s.chosen["grid"],
+            _pct(s.chosen["float"]["relative_rms"]), _pct(s.chosen["8bit_srgb"]["relative_rms"]),
+            f"{s.chosen['float']['log_error']:.4g}", f"{1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f}", atlas]
+
+
+def _timings_text(s: MaterialStudy) -> str:
+    t = s.timings
+    return (f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, SVD {1e3 * t['svd_s']:.1f} ms, "
+            f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms.")
+
+
+def _html_blocks(s: MaterialStudy, plots: dict) -> list[dict]:
+    """Per plot of one study: its title, its file, a line of text and the table of its figures."""
+    nmf = ", ".join(f"K={e['terms']}: {_pct(e['relative_rms'])} float / {_pct(e['relative_rms_8bit'])} 8-bit"
+                    for e in s.nonnegative["nmf"])  # fmt: skip
+    nd = s.nonnegative["nd"]
+    front = {(p["resolution"], p["terms"]) for p in s.pareto}
+    grids = sorted({r["resolution"] for r in s.by_resolution})
+    by_grid = {res: {r["terms"]: r for r in s.by_resolution if r["resolution"] == res} for res in grids}
+    return [
+        {"title": "Error against K (float and 8-bit), SVD against NMF and ND", "plot": plots["terms"].name,
+         "text": f"Non-negative alternatives (no bias, full 8-bit range): NMF {nmf}; Kautz-McCool ND (K=1): "
+                 f"{_pct(nd['relative_rms'])} float / {_pct(nd['relative_rms_8bit'])} 8-bit.",
+         "header": ["K", *(f"{t} {b}" for t in s.by_terms for b in ("float", "8-bit"))],
+         "rows": [{"cells": [k + 1, *(v for c in s.by_terms.values() for v in (_pct(c["float"][k]), _pct(c["8bit"][k])))]}
+                  for k in range(MAX_AUTO_TERMS)]},
+        {"title": "Error against the sampling grid", "plot": plots["resolution"].name, "text": "",
+         "header": ["grid", "K=1", "K=2", "K=4", "K=8", "sample + SVD (ms)"],
+         "rows": [{"cells": [res, *(_pct(by_grid[res][k]["relative_rms"]) for k in (1, 2, 4, 8)),
+                             f"{1e3 * by_grid[res][1]['seconds']:.1f}"]} for res in grids]},
+        {"title": "Error against time (Pareto front)", "plot": plots["pareto"].name,
+         "text": "The plot labels the front (grid/K); every (grid, K) configuration is listed here, the front in bold.",
+         "header": ["grid", "K", "sample + SVD (ms)", "float rel. RMS", "on the front"],
+         "rows": [{"front": (r["resolution"], r["terms"]) in front,
+                   "cells": [r["resolution"], r["terms"], f"{1e3 * r['seconds']:.1f}", _pct(r["relative_rms"]),
+                             "yes" if (r["resolution"], r["terms"]) in front else ""]}
+                  for r in sorted(s.by_resolution, key=lambda r: (r["seconds"], r["relative_rms"]))]},
+        {"title": "Parametrizations (same 32-texel grid, same K)", "plot": plots["parametrization"].name, "text": "",
+         "header": ["parametrization", "K=1", "K=2", "K=4", "K=8"],
+         "rows": [{"cells": [name, *(_pct(curve[k - 1]) for k in (1, 2, 4, 8))]} for name, curve in s.by_parametrization.items()]},
+    ]  # fmt: skip
+
+
+def format_separable_html(studies: list, plots: dict) -> bytes:
+    """The report as one HTML page (UTF-8 bytes), the plots beside it: the figures of
+    :func:`format_separable_report`, with a table under each plot."""
+    from atlasgen.reports.html import plot_width, render_page
+
+    pages = [{"name": s.name, "anchor": "material-" + s.name, "source": s.source, "summary": _summary_cells(s),
+              "blocks": _html_blocks(s, plots[s.name]), "timings": _timings_text(s)} for s in studies]  # fmt: skip
+    return render_page("separable.html.j2", studies=pages, plot_width=plot_width(_PLOT_SIZE[0]))
 
 
 def write_separable_report(materials, output, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
                            parametrizations=tuple(PARAMETRIZATIONS), on_material=None) -> dict:
-    """Study each separable material and write ``index.md``, ``report.json`` and PNG plots into ``output``.
+    """Study each separable material and write ``index.html``, ``index.md``, ``report.json`` and PNG plots into ``output``.
 
     The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
     written paths. ``on_material(name, done, total)``, when given, is called after each
@@ -299,6 +345,7 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
     with staged_folder(folder, primary="report.json") as staging:
         plots = {s.name: _plots(s, staging) for s in studies}
         (staging / "index.md").write_text(format_separable_report(studies, plots))
+        (staging / "index.html").write_bytes(format_separable_html(studies, plots))
         (staging / "report.json").write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")
     plots = {name: {kind: folder / path.name for kind, path in kinds.items()} for name, kinds in plots.items()}
-    return {"markdown": folder / "index.md", "json": folder / "report.json", "plots": plots}
+    return {"markdown": folder / "index.md", "html": folder / "index.html", "json": folder / "report.json", "plots": plots}

@@ -43,7 +43,7 @@ def _read_studies(path: Path) -> list:
 
 
 def merge_separable_reports(sources, output) -> dict:
-    """Merge per-material separable reports into one ``index.md``, ``report.json`` and plots.
+    """Merge per-material separable reports into one ``index.html``, ``index.md``, ``report.json`` and plots.
 
     Nothing is measured again: the studies are read from each source's ``report.json``
     and the Markdown is written by the study's own writer, so the merged report reads
@@ -62,7 +62,7 @@ def merge_separable_reports(sources, output) -> dict:
     Returns
     -------
     dict
-        ``{"markdown", "json", "plots"}``: the written paths.
+        ``{"markdown", "html", "json", "plots"}``: the written paths.
 
     Raises
     ------
@@ -73,7 +73,7 @@ def merge_separable_reports(sources, output) -> dict:
         The merged files cannot be written (nothing is written then).
     """
     from atlasgen.io.atomic import write_files_atomically
-    from atlasgen.reports.separable import format_separable_report
+    from atlasgen.reports.separable import format_separable_html, format_separable_report
 
     output = Path(output)
     paths = report_json_paths(sources, "separable", "atlasgen report separable")
@@ -93,7 +93,8 @@ def merge_separable_reports(sources, output) -> dict:
                 plots[study.name][kind] = output / png.name
             studies.append(study)
     files[output / "index.md"] = format_separable_report(studies, plots).encode()
+    files[output / "index.html"] = format_separable_html(studies, plots)
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     write_files_atomically(files, primary=output / "index.md")  # the Makefile's target
-    return {"markdown": output / "index.md", "json": output / "report.json", "plots": plots}
+    return {"markdown": output / "index.md", "html": output / "index.html", "json": output / "report.json", "plots": plots}

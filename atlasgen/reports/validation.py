@@ -11,8 +11,6 @@ one process per material) into one page without rendering anything again.
 
 from __future__ import annotations
 
-import html
-import io
 import json
 import math
 import os
@@ -36,6 +34,9 @@ __all__ = [
     "describe_materials",
     "missed_goals",
 ]
+
+#: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
+_PLOT_SIZE = (7.5, 5.0)
 
 _KIND_LABEL = {
     "atlas": "atlas (deferred renderer)",
@@ -213,130 +214,114 @@ def plot_speed_error(data: dict) -> bytes:
 
     ``data`` is a report dict (:func:`report_dict`, or a merged one): the plot reads only
     its measured ``speed_ratio`` and ``flip`` figures."""
-    import matplotlib
+    from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 5.0), dpi=100)
-    markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
-    for kind, (marker, colour) in markers.items():
-        xs, ys, labels = [], [], []
-        for row in data["results"]:
-            ref = row["references"].get(kind)
-            # No ratio where the atlas frame took no measurable time (report_dict stores None).
-            if ref is None or ref["speed_ratio"] is None:
-                continue
-            xs.append(ref["speed_ratio"])
-            ys.append(max(ref["flip"], 1e-4))  # log axis: a perfect match still gets a point
-            labels.append(f"{row['material']}/{row['scene']}")
-        if xs:
-            ax.scatter(xs, ys, marker=marker, color=colour, label=f"atlas vs {kind} reference", alpha=0.8)
-            for x, y, label in zip(xs, ys, labels):
-                ax.annotate(label, (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
-    goal = data["settings"]["goals"]["flip"]
-    ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("speed-up: Mitsuba render time / atlas frame time")
-    ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
-    ax.set_title("atlasgen validate: speed against error")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png")
-    plt.close(fig)
-    return buffer.getvalue()
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
+        markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
+        points = []
+        for kind, (marker, colour) in markers.items():
+            xs, ys = [], []
+            for row in data["results"]:
+                ref = row["references"].get(kind)
+                # No ratio where the atlas frame took no measurable time (report_dict stores None).
+                if ref is None or ref["speed_ratio"] is None:
+                    continue
+                xs.append(ref["speed_ratio"])
+                ys.append(max(ref["flip"], 1e-4))  # log axis: a perfect match still gets a point
+                points.append((-xs[-1], ys[-1], f"{row['material']}/{row['scene']}"))
+            if xs:
+                ax.scatter(xs, ys, marker=marker, color=colour, label=f"atlas vs {kind} reference", alpha=0.8)
+        # Only the front (no result both faster and closer) is labelled; the metrics table lists every result.
+        front = [points[i] for i in pareto_front([p[:2] for p in points])]
+        label_points(ax, [(-p[0], p[1]) for p in front], [p[2] for p in front])
+        goal = data["settings"]["goals"]["flip"]
+        ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("speed-up: Mitsuba render time / atlas frame time")
+        ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
+        ax.set_title("Speed against error (labelled: the Pareto front)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+        return figure_png(fig)
 
 
 def _fmt(x, spec):
     return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
-def _html(data: dict) -> str:
-    e = html.escape
-    s = data["settings"]
-    out = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8"><title>atlasgen validation</title>',
-        "<style>body{font-family:sans-serif;margin:1.5em;max-width:1400px}table{border-collapse:collapse}"
-        "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px;text-align:right}th{background:#eee}"
-        "td.l{text-align:left}.pass{background:#dfd}.fail{background:#fdd}"
-        "figure{display:inline-block;margin:4px;text-align:center}figure img{width:256px;image-rendering:pixelated}"
-        "figcaption{font-size:12px}</style></head><body>",
-        "<h1>atlasgen validation</h1>",
-        f"<p>Atlas <code>{e(data['atlas'])}</code>; GPU: {e(data['environment']['gpu'])}; Mitsuba {e(str(data['environment']['mitsuba']))}; "
-        f"{s['spp']} spp (model references), {s['physical_spp']} spp (stochastic physical references); "
-        f"total {data['total_seconds']:.1f} s{' (the sum of the merged runs)' if 'merged_from' in data else ''}.</p>",
-        f"<p>Timing: atlas = {e(data['environment']['atlas_timing'])}; Mitsuba = {e(data['environment']['mitsuba_timing'])}. "
-        f"Metrics compare the tone-mapped sRGB images (exposure from the scene): RMSE and PSNR over [0, 1], mean LDR FLIP. "
-        f"Goals for LUT materials against the model reference: PSNR &ge; {s['goals']['psnr_db']} dB and mean FLIP &le; {s['goals']['flip']}. "
-        "Conventions and the limits of each reference: docs/validation.md.</p>",
-        *([f"<p>Merged from {len(data['merged_from'])} per-material runs (<code>atlasgen validate --merge</code>); "
-           "each material also has its own page, linked from its images below.</p>"] if "merged_from" in data else []),
-        "<h2>Summary</h2>",
-        f"<p>{data['summary']['lut_meeting_goals']} of {data['summary']['lut_results']} LUT material/scene results meet the goals; "
-        f"worst PSNR {_fmt(data['summary']['worst_lut_psnr_db'], '.2f')} dB, worst mean FLIP {_fmt(data['summary']['worst_lut_flip'], '.4f')}.</p>",
-        '<p><img src="speed_error.png" alt="speed against error" width="750"></p>',
-        "<h2>Metrics</h2>",
-        "<table><tr><th>material</th><th>type</th><th>scene</th><th>atlas ms</th><th>reference</th><th>reference s</th>"
-        "<th>speed-up</th><th>RMSE</th><th>PSNR dB</th><th>mean FLIP</th><th>goal</th><th>claimed (manifest)</th></tr>",
-    ]
-    for row in data["results"]:
-        for kind, ref in row["references"].items():
-            goal = ref["meets_goal"]
-            cls = "" if goal is None else (' class="pass"' if goal else ' class="fail"')
-            claimed = ""
-            if kind == "model" and row.get("claimed_errors"):
-                c = row["claimed_errors"]
-                claimed = (f"claimed rel. RMS {_fmt(c['relative_rms_8bit'], '.4f')} (8-bit, K={c['terms']}); "
-                           f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
-            out.append(
-                f"<tr><td class=l>{e(row['material'])}</td><td class=l>{e(row['type'])}</td><td class=l>{e(row['scene'])}</td>"
-                f"<td>{1000 * row['atlas_seconds']:.1f}</td><td class=l>{e(kind)}</td><td>{ref['seconds']:.3f}</td>"
-                f"<td>{_fmt(ref['speed_ratio'], '.1f')}</td><td>{ref['rmse']:.5f}</td><td>{_fmt(ref['psnr_db'], '.2f')}</td>"
-                f"<td>{ref['flip']:.4f}</td><td{cls}>{'' if goal is None else ('met' if goal else 'missed')}</td>"
-                f"<td class=l>{e(claimed)}</td></tr>"
-            )
-    out.append("</table>")
-    out += [
-        "<h2>Where the atlas's error comes from (LUT materials)</h2>",
-        "<p>The renderer's equation evaluated on the CPU at the g-buffer's pixels, with the slice sampled "
-        "bilinearly from (a) the model's float table at the texel centres: resolution and filtering only; "
-        "(b) the baked 8-bit slice: adds quantization. Both against the model reference. (c) The GPU image "
-        "against (b): the renderer's own precision.</p>",
-        "<table><tr><th>material</th><th>scene</th><th>(a) float table PSNR</th><th>(a) FLIP</th>"
-        "<th>(b) 8-bit table PSNR</th><th>(b) FLIP</th><th>GPU atlas PSNR</th><th>GPU FLIP</th><th>(c) GPU vs (b) PSNR</th></tr>",
-    ]
-    for row in data["results"]:
-        b = row.get("error_breakdown")
-        if not b:
+#: The figures of every result, in this order, whatever references a material has.
+_FIGURE_KINDS = ("model", "physical", "rebuild")
+
+
+def _anchor(material: str) -> str:
+    """The HTML id of a material's section."""
+    return "material-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in material)
+
+
+def _figures(row: dict, size: tuple) -> list[dict]:
+    """The fixed row of figures of one result: the atlas, then per reference kind its
+    image and its FLIP map, or an empty place where the material has no such reference."""
+    width, height = size
+    figures = [{"src": row["atlas_image"], "caption": _KIND_LABEL["atlas"], "width": width, "height": height}]
+    for kind in _FIGURE_KINDS:
+        ref = row["references"].get(kind)
+        if ref is None:
+            figures += [{"src": None, "caption": f"no {_KIND_LABEL[kind]}", "width": width, "height": height},
+                        {"src": None, "caption": f"no FLIP map against a {kind} reference", "width": width, "height": height}]
             continue
-        model = row["references"]["model"]
-        out.append(
-            f"<tr><td class=l>{e(row['material'])}</td><td class=l>{e(row['scene'])}</td>"
-            f"<td>{_fmt(b['table_float']['psnr_db'], '.2f')}</td><td>{b['table_float']['flip']:.4f}</td>"
-            f"<td>{_fmt(b['table_8bit']['psnr_db'], '.2f')}</td><td>{b['table_8bit']['flip']:.4f}</td>"
-            f"<td>{_fmt(model['psnr_db'], '.2f')}</td><td>{model['flip']:.4f}</td>"
-            f"<td>{_fmt(b['gpu_vs_8bit']['psnr_db'], '.2f')}</td></tr>"
-        )
-    out.append("</table>")
-    out.append("<h2>Images</h2><p>Tone-mapped sRGB; FLIP heat maps in magma (black = no visible difference).</p>")
+        figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}",
+                        "width": width, "height": height})  # fmt: skip
+        figures.append({"src": ref["images"]["flip"], "caption": f"FLIP atlas vs {kind}: {ref['flip']:.4f}",
+                        "width": width, "height": height})  # fmt: skip
+    return figures
+
+
+def _claimed_text(kind: str, row: dict) -> str:
+    c = row.get("claimed_errors")
+    if kind != "model" or not c:
+        return ""
+    return (f"claimed rel. RMS {_fmt(c['relative_rms_8bit'], '.4f')} (8-bit, K={c['terms']}); "
+            f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
+
+
+def _html(data: dict) -> bytes:
+    from atlasgen.reports.html import plot_width, render_page
+
+    s = data["settings"]
+    sizes = {sc["name"]: (sc.get("width"), sc.get("height")) for sc in s.get("scenes", [])}
+    metric_rows, breakdown, materials = [], [], []
     for row in data["results"]:
-        page = f' <a href="{e(row["page"])}">(its own page)</a>' if "page" in row else ""
-        out.append(f"<h3>{e(row['material'])} ({e(row['type'])}), scene {e(row['scene'])}{page}</h3><div>")
-        figures = [(row["atlas_image"], _KIND_LABEL["atlas"])]
         for kind, ref in row["references"].items():
-            figures.append((ref["images"]["reference"], f"{_KIND_LABEL[kind]}: {ref['description']}"))
-            figures.append((ref["images"]["flip"], f"FLIP atlas vs {kind}: {ref['flip']:.4f}"))
-        for src, caption in figures:
-            out.append(f'<figure><img src="{e(src)}" alt="{e(caption)}"><figcaption>{e(caption)}</figcaption></figure>')
-        for note in row["notes"]:
-            out.append(f"<p><em>{e(note)}</em></p>")
-        out.append("</div>")
-    out.append("</body></html>")
-    return "\n".join(out) + "\n"
+            metric_rows.append({
+                "material": row["material"], "anchor": _anchor(row["material"]), "type": row["type"],
+                "scene": row["scene"], "atlas_ms": f"{1000 * row['atlas_seconds']:.1f}", "kind": kind,
+                "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": f"{ref['rmse']:.5f}",
+                "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": f"{ref['flip']:.4f}", "goal": ref["meets_goal"],
+                "claimed": _claimed_text(kind, row),
+            })  # fmt: skip
+        b = row.get("error_breakdown")
+        if b:
+            model = row["references"]["model"]
+            breakdown.append({"material": row["material"], "scene": row["scene"], "figures": [
+                _fmt(b["table_float"]["psnr_db"], ".2f"), f"{b['table_float']['flip']:.4f}",
+                _fmt(b["table_8bit"]["psnr_db"], ".2f"), f"{b['table_8bit']['flip']:.4f}",
+                _fmt(model["psnr_db"], ".2f"), f"{model['flip']:.4f}", _fmt(b["gpu_vs_8bit"]["psnr_db"], ".2f")]})
+    for name, rows in _rows_by_material(data).items():
+        materials.append({
+            "name": name, "type": rows[0]["type"], "anchor": _anchor(name),
+            "page": next((r["page"] for r in rows if "page" in r), None),
+            "results": [{"scene": r["scene"], "figures": _figures(r, sizes.get(r["scene"], (None, None))),
+                         "notes": r["notes"]} for r in rows],
+        })  # fmt: skip
+    columns = [_KIND_LABEL["atlas"]] + [f"{_KIND_LABEL[k]} and its FLIP map" for k in _FIGURE_KINDS]
+    return render_page(
+        "validation.html.j2", data=data, settings=s, merged="merged_from" in data, goals_text=_goals_text(s["goals"]),
+        worst_psnr=_fmt(data["summary"]["worst_lut_psnr_db"], ".2f"), worst_flip=_fmt(data["summary"]["worst_lut_flip"], ".4f"),
+        material_lines=describe_materials(data), plot_width=plot_width(_PLOT_SIZE[0]), metric_rows=metric_rows,
+        breakdown=breakdown, materials=materials, columns=columns,
+    )
 
 
 def build_report(run, out_dir) -> dict:
@@ -359,7 +344,7 @@ def _page_files(data: dict, out_dir: Path) -> dict:
     return {
         out_dir / "speed_error.png": plot_speed_error(data),
         out_dir / "report.json": (json.dumps(data, indent=2, allow_nan=False) + "\n").encode(),
-        out_dir / "index.html": _html(data).encode(),
+        out_dir / "index.html": _html(data),
     }
 
 

@@ -6,6 +6,7 @@ import json
 import re
 
 import pytest
+from tests.html_links import PageLinks
 
 from atlasgen.errors import InputError, OutputError
 from atlasgen.materials.material import read_material
@@ -39,7 +40,7 @@ def test_merging_one_report_reproduces_it_byte_for_byte(reports, tmp_path):
     # writes the same Markdown the measuring run wrote.
     _, folders = reports
     merge_separable_reports([folders["lobe"]], tmp_path)
-    for name in ("index.md", "report.json", *(f"lobe-{kind}.png" for kind in PLOT_KINDS)):
+    for name in ("index.md", "index.html", "report.json", *(f"lobe-{kind}.png" for kind in PLOT_KINDS)):
         assert (tmp_path / name).read_bytes() == (folders["lobe"] / name).read_bytes(), name
 
 
@@ -54,6 +55,13 @@ def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports)
     assert len(links) == 2 * len(PLOT_KINDS)
     for link in links:
         assert "/" not in link and (out / link).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # The HTML page shows every plot beside it, and links only files beside it or its own sections.
+    page = written["html"].read_text()
+    parser = PageLinks(page)
+    assert sorted(parser.images) == sorted(links)
+    for link in parser.links:
+        assert (f'id="{link[1:]}"' in page) if link.startswith("#") else (out / link).is_file(), link
+    assert {"#material-lobe", "#material-sheen", "index.md"} <= set(parser.links)
     # One summary row per material, with its measured error.
     for study in merged:
         assert f"| {study['name']} | " in text

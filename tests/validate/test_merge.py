@@ -59,7 +59,8 @@ def test_merged_entries_equal_a_single_runs(merged, validation_run):
 
 def test_every_image_and_page_the_merged_html_links_exists(merged):
     out, parts, _ = merged
-    parser = PageLinks((out / "index.html").read_text(encoding="utf-8"))
+    text = (out / "index.html").read_text(encoding="utf-8")
+    parser = PageLinks(text)
     assert "speed_error.png" in parser.images
     assert (out / "speed_error.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     for src in parser.images:
@@ -68,8 +69,16 @@ def test_every_image_and_page_the_merged_html_links_exists(merged):
     # Every result's images live in its material's folder, and its own page is linked.
     assert {p for p in parser.images if p != "speed_error.png"} <= {
         p for m in parts for p in (str(q.relative_to(out)) for q in (out / "materials" / m / "images").iterdir())}
-    assert sorted(set(parser.links)) == sorted(f"materials/{m}/index.html" for m in parts)
-    assert f"{len(parts)} per-material runs" in (out / "index.html").read_text()
+    pages = {link for link in parser.links if link.endswith(".html")}
+    assert sorted(pages) == sorted(f"materials/{m}/index.html" for m in parts)
+    # The other links: a zoomable image's own file, or a section of the page (the contents).
+    for link in set(parser.links) - pages:
+        if link.startswith("#"):
+            assert f'id="{link[1:]}"' in text, link
+        else:
+            assert link in parser.images, link
+    assert {f"#material-{m}" for m in parts} <= set(parser.links)
+    assert f"{len(parts)} per-material runs" in text
 
 
 def test_the_plot_is_made_from_report_dicts(validation_run):

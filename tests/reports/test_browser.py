@@ -1,0 +1,137 @@
+"""Every report page, opened in headless Chromium at 1280 px: images load, nothing overflows, no console errors.
+
+Needs Debian's ``chromium`` and ``chromium-driver`` (``make setup`` installs them) and
+selenium; skips cleanly without them. Full-page screenshots land in
+``build/screenshots/`` for a person to look at.
+"""
+
+from __future__ import annotations
+
+import base64
+import shutil
+import textwrap
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+WIDTH = 1280
+SCREENSHOTS = Path(__file__).resolve().parents[2] / "build" / "screenshots"
+#: A lambert and a separable material: one LUT page row, one factor-slice row and a separable study.
+MATERIALS = {
+    "clay": 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n',
+    "gloss": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n',
+}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """A headless Chromium at 1280 CSS px wide, through chromedriver."""
+    webdriver = pytest.importorskip("selenium.webdriver")
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver_path = shutil.which("chromedriver")
+    if chromium is None or driver_path is None:
+        pytest.skip("chromium and chromium-driver are not installed (make setup installs them)")
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = chromium
+    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                "--allow-file-access-from-files", f"--window-size={WIDTH},900", "--force-device-scale-factor=1"):
+        options.add_argument(arg)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    # The layout viewport, whatever the window decorations take: exactly WIDTH CSS px.
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": WIDTH, "height": 900, "deviceScaleFactor": 1, "mobile": False})
+    yield driver
+    driver.quit()
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """A baked atlas of :data:`MATERIALS` and its materials folder."""
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
+
+    root = tmp_path_factory.mktemp("browser")
+    (root / "materials").mkdir()
+    for name, text in MATERIALS.items():
+        (root / "materials" / f"{name}.toml").write_text(textwrap.dedent(text))
+    atlas = root / "build" / "atlas.dds"
+    write_bake(bake_atlas(read_materials([root / "materials"])), atlas)
+    return root, atlas
+
+
+def check_page(driver, page: Path, shot: str) -> dict:
+    """Open ``page``, assert what every report page must satisfy, save a full-page screenshot."""
+    driver.get_log("browser")  # drop what earlier pages logged
+    driver.get(page.resolve().as_uri())
+    driver.execute_script("return document.readyState")
+    images = driver.execute_script(
+        "return Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, i.naturalWidth]);")
+    assert images, f"{page}: no images"
+    broken = [src for src, complete, width in images if not complete or width == 0]
+    assert broken == [], f"{page}: images that did not load: {broken}"
+    severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    assert severe == [], f"{page}: console errors: {severe}"
+    scroll_width = driver.execute_script("return document.documentElement.scrollWidth")
+    assert scroll_width <= WIDTH, f"{page}: {scroll_width} px wide, over {WIDTH}"
+    height = driver.execute_script("return document.documentElement.scrollHeight")
+    shot_data = driver.execute_cdp_cmd("Page.captureScreenshot", {
+        "format": "png", "captureBeyondViewport": True,
+        "clip": {"x": 0, "y": 0, "width": WIDTH, "height": height, "scale": 1}})  # fmt: skip
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    (SCREENSHOTS / f"{shot}.png").write_bytes(base64.b64decode(shot_data["data"]))
+    return {"images": images, "height": height}
+
+
+def test_library_and_separable_pages(browser, library, tmp_path):
+    from atlasgen.materials.material import read_material
+    from atlasgen.reports.library import write_library_report
+    from atlasgen.reports.separable import write_separable_report
+
+    root, atlas = library
+    separable = write_separable_report([read_material(root / "materials" / "gloss.toml")], root / "build" / "separable",
+                                       atlas_path=atlas, resolutions=(8, 16), repeats=1,
+                                       parametrizations=("half_diff", "in_out"))  # fmt: skip
+    check_page(browser, separable["html"], "separable")
+    index = write_library_report(atlas, root / "build" / "report", separable_dir=separable["html"].parent)
+    shown = check_page(browser, index, "library")
+    # The library page links the separable report's HTML page, which the check above opened.
+    assert browser.execute_script("return Array.from(document.links).some(a => a.href.endsWith('/separable/index.html'))")
+    assert len(shown["images"]) >= 2
+
+
+@pytest.mark.mitsuba
+@pytest.mark.gpu
+def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
+    from atlasgen.reports.validation import merge_validation_reports
+    from atlasgen.validate.run import validate_atlas, write_validation
+
+    root, atlas = library
+    out = root / "build" / "validation"
+    for name in MATERIALS:
+        run = validate_atlas(atlas, [name], scenes=["front"], resolution=(48, 36), physical_spp=4)
+        write_validation(run, out / "materials" / name)
+    merge_validation_reports([out / "materials" / name for name in MATERIALS], out)
+    shown = check_page(browser, out / "index.html", "validation")
+    for name in MATERIALS:
+        check_page(browser, out / "materials" / name / "index.html", f"validation-{name}")
+    # Images at their native size (the default view), pixel for pixel.
+    sizes = browser.execute_script(
+        "return Array.from(document.querySelectorAll('.figures img')).map(i => [i.naturalWidth, i.naturalHeight, i.width, i.height]);")
+    assert sizes and all(s == [48, 36, 48, 36] for s in sizes), sizes
+    # Every material shows the same figures in the same order: the captions differ only in the material's numbers.
+    rows = browser.execute_script(
+        "return Array.from(document.querySelectorAll('.figures')).map(f => f.querySelectorAll('figure').length);")
+    assert len(set(rows)) == 1 and rows[0] == 7, rows
+    # The zoom is a whole factor and keeps pixels square.
+    browser.execute_script("document.getElementById('zoom3').click()")
+    zoomed = browser.execute_script(
+        "const i = document.querySelector('.figures img'); const r = i.getBoundingClientRect();"
+        "return [r.width, r.height, getComputedStyle(i).imageRendering];")
+    assert zoomed == [144, 108, "pixelated"]
+    assert browser.execute_script("return document.documentElement.scrollWidth") <= WIDTH
+    assert shown["height"] > 0
