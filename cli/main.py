@@ -25,6 +25,14 @@ import click
 from atlasgen import __version__
 from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
+from atlasgen.bake.outputs import check_bake_outputs
+from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
+from atlasgen.io.package_data import shipped_library
+from atlasgen.materials.material import read_materials, select_scene_materials
+from atlasgen.io.atlas import describe_atlas, summarize_atlas
+from atlasgen.bake.cache import fill_cache
+from atlasgen.bake.cache import cache_path
+from atlasgen.io.depfile import format_depfile
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
 
@@ -175,11 +183,6 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
          allow_empty,
          verbosity):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
-    from atlasgen.bake.outputs import check_bake_outputs
-    from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
-    from atlasgen.io.package_data import shipped_library
-    from atlasgen.materials.material import read_materials, select_scene_materials
-
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     if cache_only and cache_dir is None:
@@ -195,8 +198,6 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
     # Every output path is checked before anything (the cache included) is written.
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only)
     if cache_only:
-        from atlasgen.bake.cache import fill_cache
-
         filled = fill_cache(cache_dir, materials)
         if verbosity == VERBOSE:
             click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
@@ -217,8 +218,6 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
     if depfile is not None:
         # Written in the same commit as the atlas: a depfile that cannot be written fails
         # the bake before the atlas is replaced.
-        from atlasgen.bake.cache import cache_path
-        from atlasgen.io.depfile import format_depfile
 
         inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
         if cache_dir is not None:
@@ -259,8 +258,6 @@ def info(atlas, fmt, verbosity):
     With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
     (and the manifest itself atlasgen/schemas/manifest.schema.json).
     """
-    from atlasgen.io.atlas import describe_atlas, summarize_atlas
-
     if fmt == "json":
         click.echo(json.dumps(summarize_atlas(atlas), indent=2))
     else:

@@ -8,6 +8,8 @@ import click
 
 from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
+from atlasgen.render import render_scene_file
+from atlasgen.materials.scene import read_scene
 
 __all__ = ["render"]
 
@@ -29,11 +31,7 @@ AOVS = ("normal", "depth", "id", "albedo")
 @fail_on_errors
 def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
-    from atlasgen.render import render_scene_file
-
     if verbosity == VERBOSE:
-        from atlasgen.materials.scene import read_scene
-
         s = read_scene(scene)
         materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"
         click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {len(s.objects)} objects, {len(s.lights)} lights; "

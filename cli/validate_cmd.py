@@ -8,6 +8,15 @@ import click
 
 from atlasgen.cli.main import fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.errors import GoalsMissed
+from atlasgen.reports.validation import (
+    describe_materials,
+    merge_validation_reports,
+    missed_goals,
+    summary_line,
+    write_validation,
+)
+from atlasgen.validate.run import validate_atlas
 
 __all__ = ["validate"]
 
@@ -68,12 +77,8 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
     error against its error_budget, where it has one.
     """
     if merge:
-        from atlasgen.reports.validation import merge_validation_reports
-
         written = merge_validation_reports([Path(m) for m in materials], output)
     else:
-        from atlasgen.validate.run import validate_atlas, write_validation
-
         def progress(text):
             if verbosity == VERBOSE:
                 click.echo(text, err=True)
@@ -83,8 +88,6 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
                                  resolution=resolution, physical=not no_physical, progress=progress,
                                  on_material=on_material)  # fmt: skip
         written = write_validation(run, output)
-    from atlasgen.errors import GoalsMissed
-    from atlasgen.reports.validation import describe_materials, missed_goals, summary_line
 
     if verbosity != QUIET:
         for line in describe_materials(written["data"]):

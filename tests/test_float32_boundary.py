@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from atlasgen.errors import MaterialError, SceneError
-from atlasgen.materials.params import FLOAT32_MAX, Param, fits_float32, to_float32
+from atlasgen.io.fields import FLOAT32_MAX, Param, fits_float32, to_float32
 
 HUGE_INT = "1" + "0" * 400
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
-from atlasgen.models.base import SliceSet
+from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
 
-__all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget"]
+__all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget", "bake_material"]
 
 #: Sub-samples per texel axis, cheapest first.
 SUPERSAMPLING_FACTORS = (1, 2, 4, 8)
@@ -80,3 +80,11 @@ def bake_within_budget(model, values: dict, budget: float) -> SliceSet:
         "candidates": measured,
     }
     return SliceSet(rgba[None], extra={"representation": representation})
+
+
+def bake_material(material):
+    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
+    model = material.model
+    if material.error_budget is not None and type(model).bake is Model.bake:
+        return bake_within_budget(model, material.params, material.error_budget)
+    return model.bake(material.params)

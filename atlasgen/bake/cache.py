@@ -13,6 +13,10 @@ import numpy as np
 from atlasgen import __version__
 from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.models.base import SliceSet
+from atlasgen.io.atomic import write_file_atomically
+import time
+from atlasgen.bake.adaptive import bake_material
+import os
 
 __all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
 
@@ -100,8 +104,6 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     ``bake_seconds`` is what the bake cost when it ran, so reports built from the cache
     still show the real bake time, not the time to load it.
     """
-    from atlasgen.io.atomic import write_file_atomically
-
     timings = {**slices.timings, "bake_s": bake_seconds}
     meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": timings}
     buffer = io.BytesIO()
@@ -118,9 +120,6 @@ def load_or_bake(cache_dir, material, warnings=None) -> tuple[SliceSet, bool]:
     ``cache_dir``, stored; ``cache_dir = None`` always bakes. An unreadable entry adds a
     line to ``warnings`` (:func:`load_cached`).
     """
-    import time
-
-    from atlasgen.bake.pipeline import bake_material
 
     t0 = time.perf_counter()
     slices = load_cached(cache_dir, material, warnings) if cache_dir is not None else None
@@ -142,8 +141,6 @@ def fill_cache(cache_dir, materials) -> dict:
     ``{"baked": [names], "hits": [names], "warnings": [lines]}``, the warnings naming
     unreadable entries that were baked again.
     """
-    import os
-
     baked, hits, warnings = [], [], []
     for material in materials:
         _, hit = load_or_bake(cache_dir, material, warnings)

@@ -10,6 +10,7 @@ from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.manifest import Manifest
 from atlasgen.optics.specular import specular_declarations
 from atlasgen.shaderlang import LANGUAGES, Array, Assign, Comment, Const, Function, If, Let, Return, Switch, Var, emit, float_literal
+from atlasgen.models import get_model
 
 __all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "MaterialFlag"]
 
@@ -30,8 +31,6 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     specular lobe (:func:`atlasgen.optics.specular.specular_declarations`) and what
     each model adds (:meth:`atlasgen.models.base.Model.include_declarations`).
     """
-    from atlasgen.models import get_model
-
     f = float_literal
     volume = manifest.layout == "volume"
     decls: list = [
@@ -106,8 +105,6 @@ def render_include(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, l
     Every language is emitted from the same :func:`include_declarations`; WGSL also
     gets what models add as WGSL only (:meth:`~atlasgen.models.base.Model.include_wgsl`).
     """
-    from atlasgen.models import get_model
-
     text = emit(language, include_declarations(manifest, scales, biases))
     if language == "wgsl":
         for type_name in sorted({m.type for m in manifest.materials}):
@@ -124,7 +121,5 @@ def render_includes(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, 
 
 def render_include_data(manifest: Manifest) -> bytes:
     """The side-car the models of ``manifest`` write beside the include (``X.separable.bin``), b"" for none."""
-    from atlasgen.models import get_model
-
     return b"".join(get_model(t).include_data([m for m in manifest.materials if m.type == t])
                     for t in sorted({m.type for m in manifest.materials}))  # fmt: skip

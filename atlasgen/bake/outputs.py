@@ -7,6 +7,7 @@ from pathlib import Path
 from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_paths
 from atlasgen.errors import OutputError
 from atlasgen.io.output_paths import check_output_paths, check_suffix
+from atlasgen.bake.cache import cache_path
 
 __all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
 
@@ -45,8 +46,6 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         if depfile is not None:
             outputs.append((depfile, "--depfile"))
     if cache_dir is not None:
-        from atlasgen.bake.cache import cache_path
-
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
     inputs = [(m.source, f"the material file of {m.name!r}") for m in materials]
     if scene is not None:

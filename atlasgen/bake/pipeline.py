@@ -20,8 +20,13 @@ from atlasgen.io.output_paths import check_suffix
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.bake.slots import assign_slices
+from atlasgen.io.fields import FLOAT32_MAX
+from atlasgen.bake.cache import load_or_bake
+from atlasgen.bake.include import render_include_data, render_includes
+from atlasgen.io.atomic import write_files_atomically
+from atlasgen.bake.preview import render_contact_sheet
 
-__all__ = ["BakeResult", "bake_atlas", "bake_material", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture"]
+__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture"]
 
 
 @dataclass
@@ -126,8 +131,6 @@ def _measure_volume_bleed(float_levels, materials_slots, scales):
 def _check_encoded(material, encoded) -> None:
     """Refuse slices whose scale, bias or stored values float32 cannot hold (the include's
     constants, the shader's arithmetic): texels too large, or infinite, for the atlas."""
-    from atlasgen.materials.params import FLOAT32_MAX
-
     numbers = {"scale": encoded.scale, "bias": encoded.bias, "stored texels": encoded.stored}
     numbers.update({k: v for k, v in (encoded.extra or {}).items() if k.startswith("factor_")})
     for what, value in numbers.items():
@@ -138,18 +141,6 @@ def _check_encoded(material, encoded) -> None:
                 f"material {material.name!r}: model '{material.type}' produced a slice {what} that float32 cannot hold; "
                 "expected texels within float32's range (check its parameters)",
             )
-
-
-def bake_material(material):
-    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
-    from atlasgen.models.base import Model
-
-    model = material.model
-    if material.error_budget is not None and type(model).bake is Model.bake:
-        from atlasgen.bake.adaptive import bake_within_budget
-
-        return bake_within_budget(model, material.params, material.error_budget)
-    return model.bake(material.params)
 
 
 def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None,
@@ -173,8 +164,6 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         Folder of per-material float slices (:mod:`atlasgen.bake.cache`); materials whose
         file and bake code are unchanged are loaded instead of baked.
     """
-    from atlasgen.bake.cache import load_or_bake
-
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
     t_start = time.perf_counter()
@@ -291,7 +280,6 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
             "sample level 0 only, or use --layout array"
         )
 
-    from atlasgen.bake.include import render_include_data, render_includes
 
     includes = render_includes(manifest, scales, biases)
     include = includes.pop("wgsl")
@@ -328,8 +316,6 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
     (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
     stale, so ``make`` bakes again.
     """
-    from atlasgen.io.atomic import write_files_atomically
-
     paths = sibling_paths(dds_path)
     texts = {"include": result.include, "glsl": result.includes.get("glsl"), "hlsl": result.includes.get("hlsl")}
     for key, lang in (("include", "wgsl"), ("glsl", "glsl"), ("hlsl", "hlsl")):
@@ -347,8 +333,6 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
     else:
         del paths["separable"]
     if preview_path is not None:
-        from atlasgen.bake.preview import render_contact_sheet
-
         paths["preview"] = Path(preview_path)
         contents[paths["preview"]] = render_contact_sheet(result)
     for path, data in (extra_files or {}).items():

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.atomic import write_file_atomically
 
 __all__ = [
     "DXGI_FORMAT_R8G8B8A8_UNORM",
@@ -114,8 +115,6 @@ def encode_dds(levels: list[np.ndarray], layout: str, dxgi_format: int) -> bytes
 
 def write_dds(path, levels, layout: str, dxgi_format: int) -> None:
     """Write :func:`encode_dds` output atomically to ``path``."""
-    from atlasgen.io.atomic import write_file_atomically
-
     write_file_atomically(path, encode_dds(levels, layout, dxgi_format))
 
 

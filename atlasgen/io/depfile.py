@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from atlasgen.io.atomic import write_file_atomically
 
 __all__ = ["format_depfile", "write_depfile"]
 
@@ -28,7 +29,5 @@ def format_depfile(target, prerequisites) -> str:
 
 def write_depfile(path, target, prerequisites) -> Path:
     """Write :func:`format_depfile` to ``path`` atomically; returns the path."""
-    from atlasgen.io.atomic import write_file_atomically
-
     write_file_atomically(path, format_depfile(target, prerequisites).encode())
     return Path(path)

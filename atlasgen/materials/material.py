@@ -10,8 +10,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import InputError, MaterialError, did_you_mean
-from atlasgen.materials.params import fits_float32, shown as short, to_float32, validate_params
+from atlasgen.io.fields import fits_float32, shown as short, to_float32, validate_params
 from atlasgen.models import get_model, model_types
+from atlasgen.errors import SceneError
+from atlasgen.materials.scene import read_scene
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
@@ -175,9 +177,6 @@ def select_scene_materials(materials: list[Material], scene_path) -> list[Materi
     SceneError
         The scene names a material the library does not have (the message lists them).
     """
-    from atlasgen.errors import SceneError
-    from atlasgen.materials.scene import read_scene
-
     scene = read_scene(scene_path)
     wanted = {obj.material for obj in scene.objects}
     by_name = {m.name: m for m in materials}

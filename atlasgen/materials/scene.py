@@ -18,7 +18,7 @@ import numpy as np
 from atlasgen.errors import InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
-from atlasgen.materials.params import FLOAT32_MAX, fits_float32, shown
+from atlasgen.io.fields import FLOAT32_MAX, fits_float32, shown
 
 __all__ = [
     "Camera",

@@ -10,7 +10,7 @@ from functools import cache
 
 import numpy as np
 
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.base import Model
 from atlasgen.optics.quadrature import gauss_legendre_rule
 

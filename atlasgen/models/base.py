@@ -11,7 +11,7 @@ import numpy as np
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import LutRepresentation, MaterialEntry
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import renderer_f_cos
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference
 from atlasgen.optics.fresnel import fresnel_dielectric, fresnel_schlick, normal_reflectance
 from atlasgen.optics.quadrature import hemispherical_average

@@ -14,7 +14,7 @@ from functools import cache
 import numpy as np
 
 from atlasgen.errors import MaterialError
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
 from atlasgen.models.base import THIN_FILM_REFERENCE, Model, Reference
 from atlasgen.optics.specular import blinn_phong_alpha

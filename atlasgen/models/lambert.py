@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference
 
 __all__ = ["Lambert"]

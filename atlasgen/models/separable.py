@@ -14,8 +14,24 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.errors import MaterialError
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.base import BRDF_REFERENCE, EncodedSlices, Model, RadianceRebuild, Reference, SliceSet
+from atlasgen.separable.parametrization import PARAMETRIZATIONS
+from atlasgen.separable.error import sample_hemisphere_pairs
+from atlasgen.separable.approximate import reference_values
+from atlasgen.separable.error import ERROR_SEED
+from atlasgen.separable.source import make_source
+from atlasgen.separable.approximate import approximate_brdf
+from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
+from atlasgen.separable.approximate import GRID_RESOLUTIONS
+from atlasgen.separable.storage import FACTOR_RESOLUTION
+from atlasgen.separable.storage import encode_factor_slices
+from atlasgen.separable.error import measure_errors
+from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices
+from atlasgen.separable.shader import separable_declarations
+from atlasgen.separable.shader import separable_table_bytes
+from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
+from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
 
 __all__ = ["Separable", "MAX_AUTO_TERMS"]
 
@@ -27,28 +43,20 @@ SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba")
 
 
 def _parametrization_names():
-    from atlasgen.separable.parametrization import PARAMETRIZATIONS
-
     return tuple(PARAMETRIZATIONS)
 
 
 @lru_cache(maxsize=1)
 def _error_pairs():
-    from atlasgen.separable.error import sample_hemisphere_pairs
-
     return sample_hemisphere_pairs()
 
 
 def _reference(source):
     """f cos at the fixed error pairs, with non-finite values masked (and counted)."""
-    from atlasgen.separable.approximate import reference_values
-
     return reference_values(source, _error_pairs())
 
 
 def _error_seed():
-    from atlasgen.separable.error import ERROR_SEED
-
     return ERROR_SEED
 
 
@@ -93,7 +101,6 @@ class Separable(Model):
         if values["source"] == "mitsuba":
             if values["bsdf"] is None:
                 raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'")
-            from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
 
             load_mitsuba_bsdf(values["bsdf"], path)
         elif values["bsdf"] is not None:
@@ -114,8 +121,6 @@ class Separable(Model):
         A separable material has no single (N.L, N.V) table; this in-plane cut is what a
         preview can show. The atlas slices themselves hold the factors (see :meth:`bake`).
         """
-        from atlasgen.separable.source import make_source
-
         nl = np.asarray(n_dot_l, dtype=np.float64)
         nv = np.asarray(n_dot_v, dtype=np.float64)
         nl, nv = np.broadcast_arrays(nl, nv)
@@ -136,10 +141,6 @@ class Separable(Model):
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
-        from atlasgen.separable.approximate import approximate_brdf
-        from atlasgen.separable.source import make_source
-        from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
-
         source = make_source(values)
         method = values["factorization"]
         reference, ref_nonfinite = _reference(source)
@@ -209,9 +210,6 @@ class Separable(Model):
         """The sampling grids the bake tries: ``grid`` if given; with a budget the
         candidates of :data:`~atlasgen.separable.approximate.GRID_RESOLUTIONS`; else
         the stored resolution."""
-        from atlasgen.separable.approximate import GRID_RESOLUTIONS
-        from atlasgen.separable.storage import FACTOR_RESOLUTION
-
         if values["grid"] is not None:
             return (values["grid"],)
         return GRID_RESOLUTIONS if values["terms"] is None else (FACTOR_RESOLUTION,)
@@ -223,8 +221,6 @@ class Separable(Model):
         bias that fit it exactly. The generic (K, 2) ``scale``/``bias`` are 1 and 0; the
         real ones are ``factor_scale``/``factor_bias`` in the manifest entry.
         """
-        from atlasgen.separable.storage import encode_factor_slices
-
         cached = getattr(slices, "_separable", None)
         if cached is None or cached["stored"].shape != slices.values.shape:
             stored, scale, bias, clamped = encode_factor_slices(slices.values)
@@ -241,10 +237,6 @@ class Separable(Model):
 
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
-        from atlasgen.separable.error import measure_errors
-        from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices
-        from atlasgen.separable.source import make_source
-
         cached = getattr(slices, "_separable", None)
         if cached is not None:
             reference, name, target = cached["reference"], cached["parametrization"], cached["target"]
@@ -274,15 +266,11 @@ class Separable(Model):
     @classmethod
     def include_declarations(cls, entries: list) -> list:
         """The generic rebuild of f cos(theta_l) and its data table (every include language)."""
-        from atlasgen.separable.shader import separable_declarations
-
         return separable_declarations(entries)
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:
         """``X.separable.bin``: the include's ``SEPARABLE_TABLE`` for engines that upload it as a buffer."""
-        from atlasgen.separable.shader import separable_table_bytes
-
         return separable_table_bytes(entries)
 
     @classmethod
@@ -303,8 +291,6 @@ class Separable(Model):
         """``"8bit"``: the include's sum over the 8-bit factors in float64
         (:func:`atlasgen.separable.rebuild.evaluate_factors`), L = E albedo f cos. The float
         factors are not in the atlas, so there is no ``"float"`` rebuild."""
-        from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
-
         factors = read_separable_factors(atlas_path, entry.name)
 
         def radiance(n, l, v, albedo, gloss, irradiance):

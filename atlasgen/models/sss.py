@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.errors import MaterialError
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference
 from atlasgen.optics.quadrature import integrate_gauss_legendre
 

@@ -8,6 +8,12 @@ imported inside the functions that need them.
 from __future__ import annotations
 
 from pathlib import Path
+from atlasgen.errors import OutputError
+from atlasgen.render.atlas_texture import read_render_atlas
+from atlasgen.render.output import write_aov, write_render
+from atlasgen.render.renderer import AOVS, Renderer
+from atlasgen.materials.scene import read_scene, resolve_materials
+from atlasgen.io.output_paths import check_output_paths
 
 __all__ = ["render_scene_file"]
 
@@ -28,12 +34,6 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     OutputError
         The output cannot be written.
     """
-    from atlasgen.errors import OutputError
-    from atlasgen.render.atlas_texture import read_render_atlas
-    from atlasgen.render.output import write_aov, write_render
-    from atlasgen.render.renderer import AOVS, Renderer
-    from atlasgen.materials.scene import read_scene, resolve_materials
-
     output_path = Path(output_path)
     if aov is not None and aov not in AOVS:
         raise ValueError(f"aov must be one of {AOVS}, not {aov!r}")
@@ -53,8 +53,6 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
 def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
     """Refuse outputs that would overwrite an input (the scene, the atlas and the files
     beside it, a mesh) or a folder, before anything is rendered."""
-    from atlasgen.io.output_paths import check_output_paths
-
     atlas_path = Path(atlas_path)
     outputs = [(output_path, "the render (-o)")]
     if aov is None:

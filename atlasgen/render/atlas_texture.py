@@ -14,6 +14,7 @@ import numpy as np
 
 from atlasgen.errors import InputError
 from atlasgen.io.manifest import Manifest
+from atlasgen.io.atlas import read_atlas
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 
@@ -46,8 +47,6 @@ def read_render_atlas(dds_path) -> RenderAtlas:
     Raises :class:`InputError` when one of the three is missing or the atlas is a volume:
     the renderer samples a 2D texture array, whose layer is never filtered.
     """
-    from atlasgen.io.atlas import read_atlas
-
     dds_path = Path(dds_path)
     atlas = read_atlas(dds_path)
     shown = dds_path.as_posix()

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import SceneError
-from atlasgen.materials.params import FLOAT32_MAX
+from atlasgen.io.fields import FLOAT32_MAX
 
 __all__ = [
     "Mesh",

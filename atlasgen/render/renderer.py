@@ -26,6 +26,8 @@ from atlasgen.render.meshes import build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials
 from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
+from atlasgen.render.device import get_device
+from atlasgen.render.shaders import assemble_shader
 
 __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
 
@@ -105,7 +107,6 @@ class Renderer:
     def __init__(self, atlas: RenderAtlas, ctx=None):
         import wgpu
 
-        from atlasgen.render.device import get_device
 
         self.ctx = ctx or get_device()
         self.atlas = atlas
@@ -366,7 +367,6 @@ class _Tracer:
     def __init__(self, renderer: Renderer, frame: _PreparedFrame):
         import wgpu
 
-        from atlasgen.render.shaders import assemble_shader
 
         self.renderer, self.frame = renderer, frame
         device = renderer.device

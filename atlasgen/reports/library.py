@@ -10,6 +10,10 @@ from atlasgen.errors import InputError
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models import get_model
 from atlasgen.reports.html import plot_width, render_page
+from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atomic import write_file_atomically, write_files_atomically
+from atlasgen.bake.preview import slice_png
+from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
 
 __all__ = ["write_library_report"]
 
@@ -69,9 +73,6 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     also links each material's own validation page). Every file is replaced atomically.
     """
 
-    from atlasgen.io.atlas import read_atlas
-    from atlasgen.io.atomic import write_file_atomically, write_files_atomically
-    from atlasgen.bake.preview import slice_png
 
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
@@ -133,8 +134,6 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
 def _plot_speed_error(points, y_label: str, validated: bool) -> bytes:
     """Bake time against error, one point per material ``(name, seconds, error, type)``; the
     Pareto front (no material both faster and closer) is labelled, the table lists all."""
-    from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
-
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         for kind in sorted({p[3] for p in points}):

@@ -21,6 +21,12 @@ from atlasgen.separable.factorize import factorize
 from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
 from atlasgen.separable.source import make_source, sample_matrices
 from atlasgen.separable.storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
+from atlasgen.reports.html import figure_png, label_points, plot_style
+from atlasgen.reports.html import plot_width, render_page
+import json
+from atlasgen.io.atomic import staged_folder
+from atlasgen.separable.rebuild import evaluate_separable
+from atlasgen.separable.error import measure_errors
 
 __all__ = ["MaterialStudy", "study_material", "format_separable_report", "format_separable_html", "write_separable_report", "RESOLUTIONS"]
 
@@ -128,9 +134,6 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
 
     atlas = None
     if atlas_path is not None:
-        from atlasgen.separable.rebuild import evaluate_separable
-        from atlasgen.separable.error import measure_errors
-
         try:
             got = evaluate_separable(atlas_path, material.name, np.array([0.0, 0.0, 1.0]), l, v, cosine=True)
             atlas = {"path": Path(atlas_path).as_posix(), **measure_errors(reference, got)}
@@ -166,8 +169,6 @@ _PLOT_SIZE = (5.8, 3.9)
 
 
 def _plots(study: MaterialStudy, folder: Path) -> dict:
-    from atlasgen.reports.html import figure_png, label_points, plot_style
-
     paths = {}
     ks = np.arange(1, MAX_AUTO_TERMS + 1)
 
@@ -311,8 +312,6 @@ def _html_blocks(s: MaterialStudy, plots: dict) -> list[dict]:
 def format_separable_html(studies: list, plots: dict) -> bytes:
     """The report as one HTML page (UTF-8 bytes), the plots beside it: the figures of
     :func:`format_separable_report`, with a table under each plot."""
-    from atlasgen.reports.html import plot_width, render_page
-
     pages = [{"name": s.name, "anchor": "material-" + s.name, "source": s.source, "summary": _summary_cells(s),
               "blocks": _html_blocks(s, plots[s.name]), "timings": _timings_text(s)} for s in studies]  # fmt: skip
     return render_page("separable.html.j2", studies=pages, plot_width=plot_width(_PLOT_SIZE[0]))
@@ -327,9 +326,6 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
     material's study. Raises :class:`InputError` when no material is separable,
     :class:`OutputError` when the folder cannot be written.
     """
-    import json
-
-    from atlasgen.io.atomic import staged_folder
 
     materials = [m for m in materials if isinstance(m.model, Separable)]
     if not materials:

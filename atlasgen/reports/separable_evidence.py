@@ -17,6 +17,7 @@ from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
 from atlasgen.separable.factorize import Factors, _top_singular, fix_signs, single_blas_thread
 from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
 from atlasgen.separable.source import make_source, sample_matrices
+from atlasgen.separable.factorize import factorize_svd
 
 __all__ = ["EVIDENCE_MATERIALS", "factorize_shared_g", "parametrization_table", "channel_table", "target_table", "main"]
 
@@ -95,7 +96,6 @@ def channel_table(ks=(1, 2, 4), include_mitsuba=True) -> str:
     w1, w2 = _weights(p.name, 32)
     lines = ["| material (f cos target) | " + " | ".join(f"per-channel K={k} | lum+colour K={k}" for k in ks) + " |",
              "|---|" + "---|---|" * len(ks)]
-    from atlasgen.separable.factorize import factorize_svd
 
     for name, src in _sources(include_mitsuba).items():
         ref, _ = reference_values(src, pairs)

@@ -17,6 +17,9 @@ from pathlib import Path
 
 from atlasgen.errors import InputError
 from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.reports.separable import MaterialStudy
+from atlasgen.io.atomic import write_files_atomically
+from atlasgen.reports.separable import format_separable_html, format_separable_report
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
@@ -25,8 +28,6 @@ PLOT_KINDS = ("terms", "resolution", "pareto", "parametrization")
 
 
 def _read_studies(path: Path) -> list:
-    from atlasgen.reports.separable import MaterialStudy
-
     data = read_report_json(path, "separable", "atlasgen report separable")
     known = {f.name for f in fields(MaterialStudy)}
     required = {f.name for f in fields(MaterialStudy) if f.default is MISSING and f.default_factory is MISSING}
@@ -72,9 +73,6 @@ def merge_separable_reports(sources, output) -> dict:
     OutputError
         The merged files cannot be written (nothing is written then).
     """
-    from atlasgen.io.atomic import write_files_atomically
-    from atlasgen.reports.separable import format_separable_html, format_separable_report
-
     output = Path(output)
     paths = report_json_paths(sources, "separable", "atlasgen report separable")
     studies, files, seen, plots = [], {}, {}, {}

@@ -23,8 +23,12 @@ from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
+from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
+from atlasgen.reports.html import plot_width, render_page
+from atlasgen.validate.metrics import flip_heatmap
+from atlasgen.io.atomic import write_files_atomically
 
-__all__ = [
+__all__ = ["write_validation", 
     "build_report",
     "report_dict",
     "plot_speed_error",
@@ -214,8 +218,6 @@ def plot_speed_error(data: dict) -> bytes:
 
     ``data`` is a report dict (:func:`report_dict`, or a merged one): the plot reads only
     its measured ``speed_ratio`` and ``flip`` figures."""
-    from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
-
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
@@ -287,8 +289,6 @@ def _claimed_text(kind: str, row: dict) -> str:
 
 
 def _html(data: dict) -> bytes:
-    from atlasgen.reports.html import plot_width, render_page
-
     s = data["settings"]
     sizes = {sc["name"]: (sc.get("width"), sc.get("height")) for sc in s.get("scenes", [])}
     metric_rows, breakdown, materials = [], [], []
@@ -326,8 +326,6 @@ def _html(data: dict) -> bytes:
 
 def build_report(run, out_dir) -> dict:
     """``{path: bytes}`` of every report file under ``out_dir``."""
-    from atlasgen.validate.metrics import flip_heatmap
-
     out_dir = Path(out_dir)
     files = {}
     for r in run.runs:
@@ -396,8 +394,6 @@ def merge_validation_reports(sources, out_dir) -> dict:
     OutputError
         The merged files cannot be written (nothing is written then).
     """
-    from atlasgen.io.atomic import write_files_atomically
-
     out_dir = Path(out_dir)
     paths = report_json_paths(sources, "validation", "atlasgen validate")
     reports = [_read_report(p) for p in paths]
@@ -433,4 +429,16 @@ def merge_validation_reports(sources, out_dir) -> dict:
     }
     files = _page_files(data, out_dir)
     write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
+    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
+
+
+def write_validation(run, out_dir) -> dict:
+    """Write ``index.html``, ``report.json``, the images and the plot, all-or-nothing.
+
+    Returns ``{"html", "json", "files", "data"}``: the written paths and the report dict.
+    """
+    out_dir = Path(out_dir)
+    files = build_report(run, out_dir)
+    write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
+    data = json.loads(files[out_dir / "report.json"])
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}

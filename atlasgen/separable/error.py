@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from atlasgen.separable.rebuild import sample_factors
+from atlasgen.separable.parametrization import get_parametrization
+from atlasgen.separable.rebuild import cached_on_pairs
 
 __all__ = [
     "ERROR_PAIRS",
@@ -81,8 +84,6 @@ def errors_by_terms(factors, reference: np.ndarray, l: np.ndarray, v: np.ndarray
     (a running sum over terms). Each dict also holds its ``terms``; ``log=False``
     leaves out ``log_error`` (the costlier measure, not needed to rank candidates).
     """
-    from atlasgen.separable.rebuild import sample_factors
-
     wanted = sorted(set(range(1, factors.terms + 1) if terms is None else terms))
     if not wanted:
         return []
@@ -117,8 +118,6 @@ def _pair_weights(parametrization: str, target: str, valid, l, v) -> np.ndarray:
     """What multiplies the clamped sum at each pair: 0 where invalid, n.l / proxy for f_proxy, else 1."""
     if target != "f_proxy":
         return valid.astype(np.float64)
-    from atlasgen.separable.parametrization import get_parametrization
-    from atlasgen.separable.rebuild import cached_on_pairs
 
     def make():
         proxy = get_parametrization(parametrization).proxy_at(np.array([0.0, 0.0, 1.0]), l, v)

@@ -9,10 +9,10 @@ measures, so the rank-K SVD minimises (up to interpolation) the reported error.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 __all__ = ["single_blas_thread", "matrix_errors", "Factors", "factorize", "factorize_svd", "factorize_nmf", "factorize_nd", "fix_signs", "FACTORIZATIONS"]
 
@@ -60,15 +60,11 @@ def fix_signs(u: np.ndarray, vt: np.ndarray):
 
 
 def single_blas_thread():
-    """A context that runs BLAS/LAPACK on one thread (threadpoolctl), if that is installed.
+    """A context that runs BLAS/LAPACK on one thread (threadpoolctl).
 
     The matrices here are tiny (32 x 1024); OpenBLAS's worker threads cost far more
     than they save, up to 100x on a loaded 2-core machine.
     """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional: results are identical, only slower
-        return contextlib.nullcontext()
     return threadpool_limits(1, user_api="blas")
 
 

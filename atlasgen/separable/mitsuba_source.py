@@ -11,6 +11,8 @@ import numpy as np
 
 from atlasgen.errors import BackendError, MaterialError, did_you_mean
 from atlasgen.interrupts import deferred_interrupts
+from atlasgen.io.fields import fits_float32, shown
+from atlasgen.io.fields import shown
 
 __all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos"]
 
@@ -140,8 +142,6 @@ ROUGHNESS_RANGES = {"alpha": (0.0, 4.0), "alpha_u": (0.0, 4.0), "alpha_v": (0.0,
 def _check_bsdf_values(spec: dict, path, field: str) -> None:
     """Every number of the (nested) BSDF table finite in float32, every roughness in range,
     every ``type`` a plugin name: one-line errors naming ``bsdf.key``."""
-    from atlasgen.materials.params import fits_float32, shown
-
     plugin = spec.get("type")
     if not isinstance(plugin, str) or not plugin:
         raise MaterialError(path, f"{field}.type", f"expected a Mitsuba plugin name (a string), got {shown(plugin)}")
@@ -179,8 +179,6 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf"):
         Mitsuba or its ``llvm_ad_rgb`` variant is missing.
     """
     if not isinstance(spec, dict) or "type" not in spec:
-        from atlasgen.materials.params import shown
-
         raise MaterialError(path, field, f"expected a Mitsuba BSDF table with a 'type' key, got {shown(spec)}")
     _check_bsdf_values(spec, path, field)
     mi = _mitsuba()

@@ -19,6 +19,7 @@ from atlasgen.optics.interpolation import linear_stencil
 from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
+from scipy.sparse import csr_matrix
 
 __all__ = [
     "sample_factors",
@@ -39,8 +40,6 @@ class _Stencil:
     """
 
     def __init__(self, resolution: int, x1, x2, y2, valid):
-        from scipy.sparse import csr_matrix
-
         n = resolution
         self.valid = valid
         count = np.size(valid)

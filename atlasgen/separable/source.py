@@ -7,6 +7,8 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.separable.analytic import evaluate_analytic
+from atlasgen.separable.parametrization import HORIZON_COS
+from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix"]
 
@@ -45,7 +47,6 @@ class BrdfSource:
         v = np.asarray(v, dtype=np.float64)
         if self._f is not None:
             return self._shape(l, self._f(l, v))
-        from atlasgen.separable.parametrization import HORIZON_COS
 
         return self._shape(l, self._f_cos(l, v)) / np.maximum(l[..., 2], HORIZON_COS)[..., None]
 
@@ -53,8 +54,6 @@ class BrdfSource:
 def make_source(params: dict, path="<material>") -> BrdfSource:
     """The source a separable material's params describe (Mitsuba loaded lazily)."""
     if params["source"] == "mitsuba":
-        from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
-
         bsdf = load_mitsuba_bsdf(params["bsdf"], path)
         return BrdfSource("mitsuba", evaluate_f_cos=lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v), zero_on_horizon=True)
     snapshot = dict(params)

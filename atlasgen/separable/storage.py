@@ -20,6 +20,7 @@ import numpy as np
 
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.separable.factorize import Factors
+from atlasgen.separable.rebuild import factors_from_slices
 
 __all__ = ["FACTOR_RESOLUTION", "CHANNEL_LAYOUT", "factors_to_slices", "encode_factor_slices", "quantize_factors"]
 
@@ -88,8 +89,6 @@ def quantize_factors(factors: Factors, srgb: bool = True) -> Factors:
     :func:`atlasgen.optics.quantize.quantize_rgba` as the bake does; used to judge
     candidates on what is actually stored.
     """
-    from atlasgen.separable.rebuild import factors_from_slices
-
     stored, scale, bias, _ = encode_factor_slices(factors_to_slices(factors))
     decoded = dequantize_rgba(quantize_rgba(stored, srgb), srgb)
     return factors_from_slices(decoded, scale, bias, factors.parametrization, factors.target)

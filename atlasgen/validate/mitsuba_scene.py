@@ -27,6 +27,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from atlasgen.render.meshes import build_mesh
+from atlasgen.materials.scene import object_matrix
 
 __all__ = [
     "DIRECT_INTEGRATOR",
@@ -135,9 +137,6 @@ def emitter_dicts(scene) -> dict:
 
 def world_mesh_arrays(obj):
     """World-space positions, normals (inverse transpose, not renormalised) and faces of ``obj``."""
-    from atlasgen.render.meshes import build_mesh
-    from atlasgen.materials.scene import object_matrix
-
     mesh = build_mesh(obj)
     m = object_matrix(obj)
     normal_matrix = np.linalg.inv(m[:3, :3]).T

@@ -22,6 +22,7 @@ import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models.base import RadianceRebuild
+from atlasgen.render.camera import pixel_rays
 
 __all__ = ["rebuild_images", "rebuild_image", "material_mask"]
 
@@ -33,8 +34,6 @@ def material_mask(entry: MaterialEntry, aovs: dict) -> np.ndarray:
 
 
 def _pixel_geometry(scene, aovs, mask):
-    from atlasgen.render.camera import pixel_rays
-
     rays = pixel_rays(scene.camera, scene.width, scene.height)[mask]
     depth = np.asarray(aovs["depth"], dtype=np.float64)[mask]
     n = np.asarray(aovs["normal"], dtype=np.float64)[mask]

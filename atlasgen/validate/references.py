@@ -36,14 +36,13 @@ from atlasgen.errors import InputError
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models import get_model, model_types
 from atlasgen.models.base import Reference
+from atlasgen.models.mitsuba_bsdfs import register_bsdfs
 
 __all__ = ["register_references", "model_reference", "physical_reference"]
 
 
 def register_references(mi) -> None:
     """Register atlasgen's BSDF plugins for Mitsuba's current variant (``mi.register_bsdf``)."""
-    from atlasgen.models.mitsuba_bsdfs import register_bsdfs
-
     register_bsdfs(mi)
 
 

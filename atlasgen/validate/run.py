@@ -7,7 +7,7 @@ For each material and validation scene:
 2. Mitsuba 3 renders the *model reference* (:mod:`.references`) in ``llvm_ad_rgb``;
 3. where one exists, Mitsuba renders the *physical reference*.
 
-Images stay in memory; :func:`write_validation` writes the report all-or-nothing.
+Images stay in memory; :func:`atlasgen.reports.validation.write_validation` writes the report all-or-nothing.
 Everything that can be checked before rendering is checked first (materials,
 references, scenes, Mitsuba, the GPU), so bad input fails fast and writes nothing.
 """
@@ -26,6 +26,24 @@ import numpy as np
 
 from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest
+from atlasgen.io.atlas import read_atlas
+from atlasgen.validate.references import model_reference
+from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
+from atlasgen.materials.material import read_material
+from atlasgen.models import get_model
+from atlasgen.render.atlas_texture import read_render_atlas
+from atlasgen.render.renderer import Renderer
+from atlasgen.validate.backend import load_mitsuba
+from atlasgen.validate.metrics import compare_images
+from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
+from atlasgen.validate.references import model_reference, physical_reference, register_references
+from atlasgen.validate.scenes import bind_material
+from atlasgen.validate.rebuild import rebuild_images
+from atlasgen.validate.rebuild import material_mask
+from atlasgen.validate.metrics import relative_rms
+from atlasgen.validate.mitsuba_scene import register_direct_integrator
+from atlasgen.validate.references import register_references
+from atlasgen.validate.references import model_reference, physical_reference
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -38,7 +56,6 @@ __all__ = [
     "is_material_file",
     "plan_validation",
     "validate_atlas",
-    "write_validation",
 ]
 
 DEFAULT_SCENES = ("front", "back")
@@ -97,10 +114,6 @@ class _Plan:
 
 def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None) -> _Plan:
     """Check every input before anything renders: atlas, materials, references and scenes."""
-    from atlasgen.io.atlas import read_atlas
-    from atlasgen.validate.references import model_reference
-    from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
-
     atlas_path = Path(atlas_path)
     if not atlas_path.exists():
         raise InputError(f"{atlas_path.as_posix()}: no such atlas; bake one first (atlasgen bake -o {atlas_path.as_posix()})")
@@ -154,8 +167,6 @@ def _material_name(item, atlas_path, entries_by_name) -> str:
     """The material name of a ``materials`` item: a name as it is, a material file by its
     ``name`` field. A file must be the one the atlas was baked from (same content hash),
     or the atlas's slices would not be what the file describes."""
-    from atlasgen.materials.material import read_material
-
     if not is_material_file(item):
         return str(item)
     material = read_material(item)  # InputError / MaterialError naming the file
@@ -173,8 +184,6 @@ def _material_name(item, atlas_path, entries_by_name) -> str:
 def _check_params_current(atlas_path, entry) -> None:
     """The model reference evaluates today's model code with the manifest's parameters:
     refuse an atlas whose parameter set no longer matches (baked by another version)."""
-    from atlasgen.models import get_model
-
     expected = {p.name for p in get_model(entry.type).params}
     got = set(entry.params)
     if got != expected:
@@ -195,8 +204,6 @@ def _object_entries(scene, entry, manifest) -> list:
 
 def _object_bsdfs(scene, entry, manifest):
     """Per object: its material's model reference, with the object's albedo and gloss."""
-    from atlasgen.validate.references import model_reference
-
     return [model_reference(e, o.albedo, o.gloss).bsdf for o, e in zip(scene.objects, _object_entries(scene, entry, manifest))]
 
 
@@ -248,15 +255,6 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     BackendError
         Mitsuba's LLVM backend or a GPU adapter is missing.
     """
-    from atlasgen.models import get_model
-    from atlasgen.render.atlas_texture import read_render_atlas
-    from atlasgen.render.renderer import Renderer
-    from atlasgen.validate.backend import load_mitsuba
-    from atlasgen.validate.metrics import compare_images
-    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
-    from atlasgen.validate.references import model_reference, physical_reference, register_references
-    from atlasgen.validate.scenes import bind_material
-
     if spp < 1 or physical_spp < 1:
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
     t_start = time.perf_counter()
@@ -322,9 +320,6 @@ def _check_rebuilds(run, model, atlas_path, entry, scene, aovs) -> None:
     With a float rebuild the atlas's error splits by cause (:func:`_break_down`); with the
     8-bit rebuild alone, that rebuild is reported as a reference of its own (``rebuild``).
     """
-    from atlasgen.validate.metrics import compare_images
-    from atlasgen.validate.rebuild import rebuild_images
-
     images = rebuild_images(model, entry, atlas_path, scene, aovs)
     if "float" in images:
         _break_down(run, entry, images["float"][0], images["8bit"][0], aovs)
@@ -346,8 +341,6 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
     quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
     renderer's own precision, half-float output, f32 filtering).
     """
-    from atlasgen.validate.metrics import compare_images
-
     model_image = _only_material(run.references["model"].image, entry, aovs)
     atlas_image = _only_material(run.atlas_image, entry, aovs)
     out = {}
@@ -361,8 +354,6 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
 
 def _only_material(image, entry, aovs) -> np.ndarray:
     """``image`` with every pixel not covered by ``entry``'s slices set to 0 (the CPU rebuilds cover only those)."""
-    from atlasgen.validate.rebuild import material_mask
-
     return np.where(material_mask(entry, aovs)[..., None], image, 0.0).astype(np.float32)
 
 
@@ -372,8 +363,6 @@ def _finite_or_none(x: float):
 
 def _check_claims(run, entry, claimed, rebuild, aovs) -> None:
     """Set the manifest's claims beside what the scene measures, and split the gap."""
-    from atlasgen.validate.metrics import relative_rms
-
     source = _only_material(run.references["model"].image, entry, aovs)
     atlas = _only_material(run.atlas_image, entry, aovs)
     in_scene = relative_rms(source, rebuild)
@@ -394,9 +383,6 @@ def _check_claims(run, entry, claimed, rebuild, aovs) -> None:
 
 def register_references_for_variant(mi) -> None:
     """atlasgen's Python plugins for the current variant (Mitsuba registers per variant)."""
-    from atlasgen.validate.mitsuba_scene import register_direct_integrator
-    from atlasgen.validate.references import register_references
-
     register_references(mi)
     register_direct_integrator(mi)
 
@@ -411,9 +397,6 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
     plugins only."""
-    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
-    from atlasgen.validate.references import model_reference, physical_reference
-
     if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
         # live instance, and NumPy cannot run on symbolic arrays.
@@ -442,21 +425,6 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
     del mi_scene
     mi.set_variant("llvm_ad_rgb")
     return ReferenceRender("physical", reference.description, image, seconds, n, variant)
-
-
-def write_validation(run: ValidationRun, out_dir) -> dict:
-    """Write ``index.html``, ``report.json``, the images and the plot, all-or-nothing.
-
-    Returns ``{"html", "json", "files", "data"}``: the written paths and the report dict.
-    """
-    from atlasgen.io.atomic import write_files_atomically
-    from atlasgen.reports.validation import build_report
-
-    out_dir = Path(out_dir)
-    files = build_report(run, out_dir)
-    write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
-    data = json.loads(files[out_dir / "report.json"])
-    return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 
 
 def speed_ratio(reference_seconds: float, atlas_seconds: float) -> float:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from atlasgen.errors import InputError, SceneError
 from atlasgen.io.package_data import package_data_path
+from atlasgen.materials.scene import read_scene
 
 __all__ = ["MATERIAL_PLACEHOLDER", "STANDARD_SCENES", "scene_folder", "load_validation_scene", "bind_material", "resize_scene"]
 
@@ -40,8 +41,6 @@ def load_validation_scene(name_or_path):
     SceneError
         The file is not a valid scene, or no object uses ``"$material"``.
     """
-    from atlasgen.materials.scene import read_scene
-
     text = str(name_or_path)
     if text in STANDARD_SCENES:
         path, name = scene_folder() / f"{text}.toml", text

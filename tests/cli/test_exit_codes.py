@@ -35,7 +35,7 @@ def _run(tmp_path, library, monkeypatch, code):
     out = str(tmp_path / "a.dds")
     args = ["bake", str(library), "-o", out]
     if code == 1:
-        monkeypatch.setattr("atlasgen.bake.pipeline.bake_atlas", _boom)
+        monkeypatch.setattr("atlasgen.cli.main.bake_atlas", _boom)
     elif code == 2:
         args = ["bake", str(library), "--layout", "spiral"]
     elif code == 3:
@@ -48,7 +48,7 @@ def _run(tmp_path, library, monkeypatch, code):
         def no_adapter(*a, **k):
             raise BackendError("no WebGPU adapter")
 
-        monkeypatch.setattr("atlasgen.render.device.get_device", no_adapter)
+        monkeypatch.setattr("atlasgen.render.renderer.get_device", no_adapter)
         (tmp_path / "s.toml").write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n')
         assert CliRunner().invoke(app, args).exit_code == 0
         args = ["render", str(tmp_path / "s.toml"), "--atlas", out, "-o", str(tmp_path / "r.exr")]
@@ -56,13 +56,13 @@ def _run(tmp_path, library, monkeypatch, code):
         # The merge of earlier runs, here a stand-in whose report misses a goal; the real
         # strict runs are in tests/cli/test_validate_cmd.py (they need Mitsuba).
         written = {"data": {"materials": []}, "html": str(tmp_path / "v" / "index.html")}
-        monkeypatch.setattr("atlasgen.reports.validation.merge_validation_reports", lambda *a, **k: written)
-        monkeypatch.setattr("atlasgen.reports.validation.describe_materials", lambda data: [])
-        monkeypatch.setattr("atlasgen.reports.validation.summary_line", lambda data, html: "summary")
-        monkeypatch.setattr("atlasgen.reports.validation.missed_goals", lambda data: ["clay: PSNR 40 dB < 45 dB"])
+        monkeypatch.setattr("atlasgen.cli.validate_cmd.merge_validation_reports", lambda *a, **k: written)
+        monkeypatch.setattr("atlasgen.cli.validate_cmd.describe_materials", lambda data: [])
+        monkeypatch.setattr("atlasgen.cli.validate_cmd.summary_line", lambda data, html: "summary")
+        monkeypatch.setattr("atlasgen.cli.validate_cmd.missed_goals", lambda data: ["clay: PSNR 40 dB < 45 dB"])
         args = ["validate", "--merge", str(tmp_path), "-o", str(tmp_path / "v"), "--strict"]
     elif code == 130:
-        monkeypatch.setattr("atlasgen.materials.material.read_materials", _interrupt)
+        monkeypatch.setattr("atlasgen.cli.main.read_materials", _interrupt)
     return CliRunner().invoke(app, args)
 
 
@@ -82,7 +82,7 @@ def test_every_documented_exit_code_is_reached_with_one_line(tmp_path, library, 
 
 
 def test_debug_shows_the_traceback_of_an_internal_error(tmp_path, library, monkeypatch):
-    monkeypatch.setattr("atlasgen.bake.pipeline.bake_atlas", _boom)
+    monkeypatch.setattr("atlasgen.cli.main.bake_atlas", _boom)
     args = ["bake", str(library), "-o", str(tmp_path / "a.dds")]
     for extra, env in ((["--debug"], {}), ([], {"ATLASGEN_DEBUG": "1"})):
         res = CliRunner(env=env).invoke(app, extra + args)

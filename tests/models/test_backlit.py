@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from atlasgen.contract import texel_grid
 from atlasgen.models import get_model
 from atlasgen.models.backlit import translucency
-from atlasgen.materials.params import validate_params
+from atlasgen.io.fields import validate_params
 
 MODEL = get_model("backlit")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

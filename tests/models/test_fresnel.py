@@ -10,7 +10,7 @@ from scipy.integrate import quad
 from atlasgen.contract import texel_grid
 from atlasgen.models import get_model
 from atlasgen.optics.fresnel import normal_reflectance
-from atlasgen.materials.params import validate_params
+from atlasgen.io.fields import validate_params
 
 MODEL = get_model("fresnel")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

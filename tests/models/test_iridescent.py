@@ -20,7 +20,7 @@ from atlasgen.models.iridescent import (
     spectral_samples,
     spectrum_to_rgb,
 )
-from atlasgen.materials.params import validate_params
+from atlasgen.io.fields import validate_params
 
 MODEL = get_model("iridescent")
 WAVELENGTHS = spectral_grid(MIN_SAMPLES)[0]

@@ -10,7 +10,7 @@ from atlasgen.contract import texel_grid
 from atlasgen.errors import MaterialError
 from atlasgen.models import get_model
 from atlasgen.models.sss import SKIN_VARIANCES, SKIN_WEIGHTS, preintegrate_ring
-from atlasgen.materials.params import validate_params
+from atlasgen.io.fields import validate_params
 
 MODEL = get_model("sss")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from atlasgen.contract import texel_centres
 from atlasgen.models import get_model
-from atlasgen.materials.params import validate_params
+from atlasgen.io.fields import validate_params
 
 MODEL = get_model("toon")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

@@ -19,7 +19,7 @@ import pytest
 
 from atlasgen.contract import texel_centres
 from atlasgen.errors import MaterialError
-from atlasgen.materials.params import Param
+from atlasgen.io.fields import Param
 from atlasgen.models import get_model, model_types, register_model, unregister_model
 from atlasgen.models.base import Model
 

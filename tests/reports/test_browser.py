@@ -108,7 +108,8 @@ def test_library_and_separable_pages(browser, library, tmp_path):
 @pytest.mark.gpu
 def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
     from atlasgen.reports.validation import merge_validation_reports
-    from atlasgen.validate.run import validate_atlas, write_validation
+    from atlasgen.reports.validation import write_validation
+    from atlasgen.validate.run import validate_atlas
 
     root, atlas = library
     out = root / "build" / "validation"

@@ -23,7 +23,7 @@ def _split(run):
 @pytest.fixture(scope="module")
 def merged(validation_run, tmp_path_factory):
     from atlasgen.reports.validation import merge_validation_reports
-    from atlasgen.validate.run import write_validation
+    from atlasgen.reports.validation import write_validation
 
     out = tmp_path_factory.mktemp("merge") / "validation"
     parts = _split(validation_run)

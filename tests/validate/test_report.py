@@ -23,7 +23,7 @@ class _Sources(HTMLParser):
 
 @pytest.fixture(scope="module")
 def written(validation_run, tmp_path_factory):
-    from atlasgen.validate.run import write_validation
+    from atlasgen.reports.validation import write_validation
 
     out = tmp_path_factory.mktemp("report") / "validation"
     return out, write_validation(validation_run, out)
@@ -61,7 +61,7 @@ def test_json_holds_the_measured_metrics_of_every_result(written, validation_run
 
 
 def test_report_files_are_written_all_or_nothing(validation_run, tmp_path):
-    from atlasgen.validate.run import write_validation
+    from atlasgen.reports.validation import write_validation
 
     blocker = tmp_path / "validation"
     blocker.write_text("a file where the output folder should be")
