@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from atlasgen.errors import MaterialError, did_you_mean
+from atlasgen.errors import FieldError, MaterialError, did_you_mean
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Param", "validate_params", "parse_colour", "FLOAT32_MAX", "INT32_MAX", "fits_float32", "to_float32", "shown"]
+__all__ = ["Param", "check_keys", "validate_params", "parse_colour", "FLOAT32_MAX", "INT32_MAX", "fits_float32", "to_float32", "shown"]
 
 #: The largest finite float32, 3.4028235e38 (IEEE 754 binary32).
 FLOAT32_MAX = struct.unpack("<f", b"\xff\xff\x7f\x7f")[0]
@@ -47,7 +47,7 @@ def shown(value, limit: int = 80) -> str:
     return text if len(text) <= limit else f"{text[: limit - 12]}... ({len(text)} characters)"
 
 
-def parse_colour(value, path, name):
+def parse_colour(value, path, name, error: type[FieldError] = MaterialError):
     """A colour as ``[r, g, b]`` linear floats in [0, 1], or an sRGB hex string ``"#rrggbb"``.
 
     Hex colours are what artists copy from a picker, so they are decoded from sRGB
@@ -58,13 +58,13 @@ def parse_colour(value, path, name):
         if len(text) == 7 and text[0] == "#" and all(c in string.hexdigits for c in text[1:]):
             codes = np.frombuffer(bytes.fromhex(text[1:]), dtype=np.uint8)
             return tuple(float(c) for c in dequantize_rgba(codes, srgb=True))
-        raise MaterialError(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {shown(value)}")
+        raise error(path, name, f"expected a colour [r, g, b] or '#rrggbb', got {shown(value)}")
     if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 numbers in [0, 1], got {shown(value)}")
+        raise error(path, name, f"expected a colour [r, g, b] of 3 numbers in [0, 1], got {shown(value)}")
     out = []
     for c in value:
         if not fits_float32(c) or not 0.0 <= c <= 1.0:
-            raise MaterialError(path, name, f"expected a colour [r, g, b] of 3 finite numbers in [0, 1], got {shown(value)}")
+            raise error(path, name, f"expected a colour [r, g, b] of 3 finite numbers in [0, 1], got {shown(value)}")
         out.append(float(c))
     return tuple(out)
 
@@ -73,9 +73,12 @@ def parse_colour(value, path, name):
 class Param:
     """One model parameter.
 
-    ``kind`` is one of ``float``, ``int``, ``bool``, ``colour``, ``choice``,
+    ``kind`` is one of ``float``, ``int``, ``bool``, ``colour``, ``choice``, ``vec3``,
     ``float_list``, ``colour_list``, ``table`` (a free-form TOML table the model checks itself).
-    Bounds are inclusive unless ``lo_open`` / ``hi_open``.
+    Bounds are inclusive unless ``lo_open`` / ``hi_open``; a ``vec3``'s bounds hold per component.
+
+    Material parameters and scene fields alike are checked by :meth:`coerce`, which raises
+    ``error`` (:class:`~atlasgen.errors.MaterialError` or :class:`~atlasgen.errors.SceneError`).
     """
 
     name: str
@@ -88,6 +91,7 @@ class Param:
     choices: tuple = ()
     doc: str = ""
     required: bool = False
+    nonzero: bool = False  # vec3: not all components zero
 
     def expectation(self) -> str:
         if self.kind == "choice":
@@ -101,10 +105,10 @@ class Param:
             parts.append(f"{'>' if self.lo_open else '>='} {self.lo:g}")
         if self.hi is not None:
             parts.append(f"{'<' if self.hi_open else '<='} {self.hi:g}")
-        noun = {"int": "an integer", "float_list": "a list of finite numbers", "colour_list": "a list of colours"}.get(
-            self.kind, "a finite number"
-        )
-        return noun + (" " + " and ".join(parts) if parts else "")
+        noun = {"int": "an integer", "float_list": "a list of finite numbers", "colour_list": "a list of colours",
+                "vec3": "[x, y, z] of 3 finite float32 numbers"}.get(self.kind, "a finite number")  # fmt: skip
+        text = noun + (" " + " and ".join(parts) if parts else "")
+        return text + (", not all zero" if self.nonzero else "")
 
     def _out_of_bounds(self, value, in_float32=False) -> bool:
         """Outside the bounds; ``in_float32``: the value and the bounds rounded to float32."""
@@ -117,63 +121,84 @@ class Param:
         hi_bad = hi is not None and (value >= hi if self.hi_open else value > hi)
         return lo_bad or hi_bad
 
-    def _check_number(self, value, path, name, integer=False):
+    def _check_number(self, value, path, name, integer=False, error: type[FieldError] = MaterialError):
         """A number within the bounds, in float32 too (ints: within i32)."""
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
         if integer:
             if abs(value) > INT32_MAX or self._out_of_bounds(value):
-                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
             return int(value)
         if not fits_float32(value):
             what = "beyond float32's range" if isinstance(value, int) or math.isfinite(value) else "not finite"
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)} ({what})")
+            raise error(path, name, f"expected {self.expectation()}, got {shown(value)} ({what})")
         if self._out_of_bounds(value):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
         if self._out_of_bounds(value, in_float32=True):
-            raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)} "
+            raise error(path, name, f"expected {self.expectation()}, got {shown(value)} "
                                             f"({to_float32(value):g} in float32)")  # fmt: skip
         return float(value)
 
-    def coerce(self, value, path):
-        """Check ``value`` against this schema; return it normalised (floats, tuples)."""
-        name = self.name
+    def coerce(self, value, path, error: type[FieldError] = MaterialError, name: str | None = None):
+        """Check ``value`` against this schema; return it normalised (floats, tuples).
+
+        ``name`` is the field as the message shows it (default: the parameter's name).
+        """
+        name = self.name if name is None else name
+        if self.kind == "vec3":
+            parts = value if isinstance(value, (list, tuple)) else None
+            if parts is None or len(parts) != 3:
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            scalar = Param(name, None, "float", self.lo, self.hi, self.lo_open, self.hi_open)
+            try:
+                out = tuple(scalar._check_number(c, path, name, error=error) for c in parts)
+            except FieldError:
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}") from None
+            if self.nonzero and not any(out):
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            return out
         if self.kind == "float":
-            return self._check_number(value, path, name)
+            return self._check_number(value, path, name, error=error)
         if self.kind == "int":
-            return self._check_number(value, path, name, integer=True)
+            return self._check_number(value, path, name, integer=True, error=error)
         if self.kind == "bool":
             if not isinstance(value, bool):
-                raise MaterialError(path, name, f"expected true or false, got {shown(value)}")
+                raise error(path, name, f"expected true or false, got {shown(value)}")
             return value
         if self.kind == "colour":
-            return parse_colour(value, path, name)
+            return parse_colour(value, path, name, error)
         if self.kind == "choice":
             if value not in self.choices:
-                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
             return value
         if self.kind == "float_list":
             if not isinstance(value, list):
-                raise MaterialError(path, name, f"expected {self.expectation()}, got {shown(value)}")
-            return tuple(self._check_number(v, path, f"{name}[{i}]") for i, v in enumerate(value))
+                raise error(path, name, f"expected {self.expectation()}, got {shown(value)}")
+            return tuple(self._check_number(v, path, f"{name}[{i}]", error=error) for i, v in enumerate(value))
         if self.kind == "colour_list":
             if not isinstance(value, list) or not value:
-                raise MaterialError(path, name, f"expected a non-empty list of colours, got {shown(value)}")
-            return tuple(parse_colour(v, path, f"{name}[{i}]") for i, v in enumerate(value))
+                raise error(path, name, f"expected a non-empty list of colours, got {shown(value)}")
+            return tuple(parse_colour(v, path, f"{name}[{i}]", error) for i, v in enumerate(value))
         if self.kind == "table":
             if not isinstance(value, dict):
-                raise MaterialError(path, name, f"expected a table, got {shown(value)}")
+                raise error(path, name, f"expected a table, got {shown(value)}")
             return value
         raise AssertionError(f"unknown parameter kind {self.kind}")
+
+
+def check_keys(raw: dict, allowed, path, prefix: str = "", error: type[FieldError] = MaterialError) -> None:
+    """Refuse a key of the table ``raw`` not in ``allowed`` (usually a typo), suggesting the closest."""
+    for key in raw:
+        if key not in allowed:
+            names = ", ".join(sorted(allowed)) or "none"
+            where = f"{prefix}.{key}" if prefix else key
+            raise error(path, where, f"unknown key{did_you_mean(key, allowed)}; expected one of: {names}")
 
 
 def validate_params(schema: tuple[Param, ...], raw: dict, path) -> dict:
     """Fill defaults and validate every key; unknown keys are errors (they are usually typos)."""
     known = {p.name: p for p in schema}
-    for key in raw:
-        if key not in known:
-            names = ", ".join(sorted(known)) or "none"
-            raise MaterialError(path, key, f"unknown key{did_you_mean(key, known)}; expected one of: {names}")
+    check_keys(raw, known, path)
     out = {}
     for p in schema:
         if p.name in raw:

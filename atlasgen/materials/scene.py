@@ -18,7 +18,7 @@ import numpy as np
 from atlasgen.errors import InputError, SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
-from atlasgen.io.fields import FLOAT32_MAX, fits_float32, shown
+from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 
 __all__ = [
     "Camera",
@@ -117,7 +117,8 @@ class Scene:
 
 
 class _Reader:
-    """Typed field access with one-line errors naming file and field."""
+    """Scene fields through the one field validator (:class:`atlasgen.io.fields.Param`), with
+    :class:`~atlasgen.errors.SceneError` naming the scene file and the field."""
 
     def __init__(self, path: str):
         self.path = path
@@ -128,53 +129,33 @@ class _Reader:
     def table(self, raw, name, allowed):
         if not isinstance(raw, dict):
             self.fail(name, "a table", raw)
-        for key in raw:
-            if key not in allowed:
-                where = f"{name}.{key}" if name else key
-                hint = did_you_mean(key, allowed)
-                raise SceneError(self.path, where, f"unknown key{hint}; expected one of " + ", ".join(allowed))
+        check_keys(raw, allowed, self.path, name, SceneError)
         return raw
 
-    def number(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, lo_open=False):
+    def _field(self, raw, key, name, default, param: Param, what: str):
         value = raw.get(key, default)
         if value is None:
-            raise SceneError(self.path, name, "missing; expected a number")
-        # Every number reaches the GPU as float32: it must be finite there too.
-        ok = fits_float32(value)
-        if ok:
-            ok = (value > lo if lo_open else value >= lo) and value <= hi
-        if not ok:
-            bound = []
-            if lo > -math.inf:
-                bound.append(f"{'>' if lo_open else '>='} {lo:g}")
-            if hi < math.inf:
-                bound.append(f"<= {hi:g}")
-            self.fail(name, "a finite float32 number" + (" " + " and ".join(bound) if bound else ""), value)
-        return float(value)
+            raise SceneError(self.path, name, f"missing; expected {what}")
+        return param.coerce(value, self.path, SceneError, name)
+
+    def number(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, lo_open=False):
+        # Every number reaches the GPU as float32: the validator checks it is finite there too.
+        param = Param(name, default, "float", _bound(lo), _bound(hi), lo_open)
+        return self._field(raw, key, name, default, param, "a number")
 
     def integer(self, raw, key, name, default, lo, hi):
-        value = raw.get(key, default)
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            self.fail(name, f"an integer in [{lo}, {hi}]", value)
-        return value
+        return self._field(raw, key, name, default, Param(name, default, "int", lo, hi), "an integer")
 
     def vec3(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, nonzero=False):
         value = raw.get(key, default)
-        if value is None:
-            raise SceneError(self.path, name, "missing; expected [x, y, z]")
         if isinstance(value, (int, float)) and not isinstance(value, bool) and key == "scale":
             value = [value] * 3
-        ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(fits_float32(c) and lo <= c <= hi for c in value)
-        if ok and nonzero:
-            ok = any(c != 0 for c in value)
-        if not ok:
-            what = "[x, y, z] of 3 finite float32 numbers"
-            if lo > -math.inf or hi < math.inf:
-                what += f" in [{lo:g}, {hi:g}]"
-            if nonzero:
-                what += ", not all zero"
-            self.fail(name, what, value)
-        return tuple(float(c) for c in value)
+        param = Param(name, default, "vec3", _bound(lo), _bound(hi), nonzero=nonzero)
+        return self._field({key: value}, key, name, None, param, "[x, y, z]")
+
+
+def _bound(x: float) -> float | None:
+    return None if math.isinf(x) else x
 
 
 def _read_camera(r: _Reader, raw) -> Camera:

@@ -69,7 +69,7 @@ opacity = 0.25
         ("[[lights]]\ntype = 'spot'\nintensity = 1\n", "lights[0].type", "'point' or 'directional'"),
         ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
         ("[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, 0]\n", "lights[0].direction", "not all zero"),
-        ("[image]\nwidth = 0\n", "image.width", "integer in [1, 8192]"),
+        ("[image]\nwidth = 0\n", "image.width", "an integer >= 1 and <= 8192"),
         ("[render]\nmip_distance = 0\n", "render.mip_distance", "> 0"),
     ],
 )
@@ -95,7 +95,7 @@ def test_bad_fields_name_file_field_and_expectation(scene_from, extra, field, wo
 def test_an_unknown_field_suggests_the_closest_known_one(scene_from, text, field, hint):
     with pytest.raises(SceneError) as info:
         scene_from(text, path="x.toml")
-    assert str(info.value).startswith(f"x.toml: field '{field}': unknown key{hint}; expected one of ")
+    assert str(info.value).startswith(f"x.toml: field '{field}': unknown key{hint}; expected one of: ")
 
 
 def test_camera_must_not_look_along_up(scene_from):
