@@ -92,6 +92,7 @@ class Param:
     doc: str = ""
     required: bool = False
     nonzero: bool = False  # vec3: not all components zero
+    alternative: str | None = None  # a word accepted as well, e.g. "auto"
 
     def expectation(self) -> str:
         if self.kind == "choice":
@@ -108,7 +109,8 @@ class Param:
         noun = {"int": "an integer", "float_list": "a list of finite numbers", "colour_list": "a list of colours",
                 "vec3": "[x, y, z] of 3 finite float32 numbers"}.get(self.kind, "a finite number")  # fmt: skip
         text = noun + (" " + " and ".join(parts) if parts else "")
-        return text + (", not all zero" if self.nonzero else "")
+        text += ", not all zero" if self.nonzero else ""
+        return f'"{self.alternative}" or {text}' if self.alternative is not None else text
 
     def _out_of_bounds(self, value, in_float32=False) -> bool:
         """Outside the bounds; ``in_float32``: the value and the bounds rounded to float32."""
@@ -145,6 +147,8 @@ class Param:
         ``name`` is the field as the message shows it (default: the parameter's name).
         """
         name = self.name if name is None else name
+        if self.alternative is not None and value == self.alternative:
+            return value
         if self.kind == "vec3":
             parts = value if isinstance(value, (list, tuple)) else None
             if parts is None or len(parts) != 3:

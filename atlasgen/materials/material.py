@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import InputError, MaterialError, did_you_mean
-from atlasgen.io.fields import fits_float32, shown as short, to_float32, validate_params
+from atlasgen.io.fields import Param, shown as short, validate_params
 from atlasgen.models import get_model, model_types
 from atlasgen.errors import SceneError
 from atlasgen.materials.scene import read_scene
@@ -53,18 +53,15 @@ class Material:
         return "MATERIAL_" + re.sub(r"[^A-Z0-9]", "_", self.name.upper())
 
 
-def _positive_float32(raw, key, path, expected):
-    """A number > 0 that stays finite and > 0 in float32 (the include's constants)."""
-    value = raw.get(key)
-    if not fits_float32(value) or value <= 0 or to_float32(value) <= 0:
-        raise MaterialError(path, key, f"expected {expected}, got {short(value)}")
-    return float(value)
+#: The keys every material file may have besides its model's, checked by the one field validator.
+_ID = Param("id", None, "int", 0, 255, doc="slice index")
+#: Numbers > 0 that stay finite and > 0 in float32 (the include's constants).
+_POSITIVE = Param("", None, "float", 0.0, lo_open=True)
+_SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
 
 
 def _scale_field(raw, key, path):
-    if raw.get(key, "auto") == "auto":
-        return "auto"
-    return _positive_float32(raw, key, path, "\"auto\" or a finite number > 0 (in float32)")
+    return _SCALE.coerce(raw.get(key, "auto"), path, name=key)
 
 
 def read_material(path) -> Material:
@@ -105,8 +102,8 @@ def read_material(path) -> Material:
         raise MaterialError(shown, "name", f"expected a letter then letters, digits, '-' or '_' (at most 63), got {short(name)}")
 
     material_id = raw.get("id")
-    if material_id is not None and (isinstance(material_id, bool) or not isinstance(material_id, int) or not 0 <= material_id < 256):
-        raise MaterialError(shown, "id", f"expected an integer slice index in [0, 255], got {short(material_id)}")
+    if material_id is not None:
+        material_id = _ID.coerce(material_id, shown)
 
     description = raw.get("description", "")
     if not isinstance(description, str):
@@ -114,7 +111,7 @@ def read_material(path) -> Material:
 
     error_budget = raw.get("error_budget")
     if error_budget is not None:
-        error_budget = _positive_float32(raw, "error_budget", shown, "a finite number > 0 (linear RMS)")
+        error_budget = _POSITIVE.coerce(error_budget, shown, name="error_budget")
 
     model = get_model(type_name)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
