@@ -32,7 +32,7 @@ def report():
 @click.option("--atlas", type=click.Path(path_type=Path), default=None,
               help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report/separable"), show_default=True,
-              help="Folder for index.md, report.json and the PNG plots.")
+              help="Folder for index.html (with its plots), index.md (a text summary) and report.json.")
 @click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True, help="Timing repeats (median).")
 @click.option("--merge", is_flag=True,
               help="Measure nothing: merge earlier reports, the folders given as arguments, into one OUTPUT.")
@@ -46,7 +46,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     without measuring again.
     """
     if merge:
-        merged = merge_separable_reports([Path(n) for n in names], output)["markdown"]
+        merged = merge_separable_reports([Path(n) for n in names], output)["html"]
         if verbosity != QUIET:
             click.echo(merged.as_posix())
         return
@@ -68,7 +68,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
         for name, plots in written["plots"].items():
             click.echo(f"  {name}: {', '.join(p.as_posix() for p in plots.values())}", err=True)
     if verbosity != QUIET:
-        click.echo(written["markdown"].as_posix())
+        click.echo(written["html"].as_posix())
 
 
 @report.command("library")
@@ -86,7 +86,7 @@ def library(atlas, validation, separable_dir, output, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews."""
     page = write_library_report(atlas, output, validation, separable_dir)
     if verbosity == VERBOSE:
-        inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.md"))
+        inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))
         for what, path in inputs:
             click.echo(f"  {what}: {path.as_posix()} ({'used' if path.is_file() else 'absent'})", err=True)
     if verbosity != QUIET:

@@ -94,7 +94,7 @@ def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, wri
     assert res.exit_code == 0, res.output
     assert res.stdout == f"{(tmp_path / 'r' / 'index.html').as_posix()}\n"
     assert res.stderr.splitlines() == [f"  validation report: {(tmp_path / 'v' / 'report.json').as_posix()} (used)",
-                                       f"  separable report: {(tmp_path / 's' / 'index.md').as_posix()} (absent)"]  # fmt: skip
+                                       f"  separable report: {(tmp_path / 's' / 'index.html').as_posix()} (absent)"]  # fmt: skip
 
 
 def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material):

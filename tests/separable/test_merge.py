@@ -128,7 +128,7 @@ def test_cli_merge_prints_the_merged_markdown_and_names_a_bad_source(reports, tm
     runner = CliRunner()
     res = runner.invoke(app, ["report", "separable", "--merge", str(folders["lobe"]), str(folders["sheen"]), "-o", str(tmp_path / "m")])
     assert res.exit_code == 0, res.output
-    assert res.output.strip() == (tmp_path / "m" / "index.md").as_posix()
+    assert res.output.strip() == (tmp_path / "m" / "index.html").as_posix()
     res = runner.invoke(app, ["report", "separable", "--merge", str(tmp_path / "none"), "-o", str(tmp_path / "n")])
     assert res.exit_code == 3
     assert res.output.startswith(f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: ") and res.output.count("\n") == 1

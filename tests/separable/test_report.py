@@ -72,7 +72,7 @@ def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch
     if flag == "-q":
         assert res.output == ""
         return
-    assert res.stdout == f"{(out / 'index.md').as_posix()}\n"
+    assert res.stdout == f"{(out / 'index.html').as_posix()}\n"
     lines = res.stderr.splitlines()
     assert lines[:2] == ["studied lobe (1/2)", "studied wide (2/2)"]
     if flag == "-v":
