@@ -52,7 +52,11 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
     inputs = [(m.source, f"the material file of {m.name!r}") for m in materials]
     if scene is not None:
+        from atlasgen.materials.scene import read_scene
+
         inputs.append((scene, "the scene (--scene)"))
+        inputs += [(obj.file, f"the mesh of the scene's objects[{obj.index}]")
+                   for obj in read_scene(scene).objects if obj.file is not None]  # fmt: skip
     if ids_from is not None and Path(ids_from).resolve() != paths["manifest"].resolve():
         inputs.append((ids_from, "--ids-from"))
     check_output_paths(outputs, inputs)
