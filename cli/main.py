@@ -170,11 +170,10 @@ def bake(paths, output, layout, linear, preview, scene, ids_from, cache_dir, cac
 
     if cache_only and cache_dir is None:
         raise click.UsageError("--cache-only needs --cache DIR")
-    materials = read_materials(paths or [Path("materials")])
-    if scene is not None:
-        materials = select_scene_materials(materials, scene)
+    library = read_materials(paths or [Path("materials")])
+    materials = select_scene_materials(library, scene) if scene is not None else library
     # Every output path is checked before anything (the cache included) is written.
-    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only)
+    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, library)
     if cache_only:
         from atlasgen.bake.cache import fill_cache
 

@@ -15,7 +15,7 @@ ATLAS_SUFFIXES = (".dds", ".ktx2")
 
 
 def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,
-                       allow_empty=False, cache_only=False) -> None:  # fmt: skip
+                       allow_empty=False, cache_only=False, library=None) -> None:  # fmt: skip
     """Refuse a bake whose outputs clash with its inputs or each other, or would empty an atlas.
 
     Checked: the atlas's extension (:data:`ATLAS_SUFFIXES`) and the preview's (``.png``);
@@ -23,7 +23,8 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     folder, lies under a file, names an input (a material or scene file, ``--ids-from``)
     or another output; and an atlas whose manifest lists materials is not replaced by an
     empty one unless ``allow_empty``. With ``cache_only`` only the cache entries are written,
-    and checked.
+    and checked. ``library`` is every material read (``materials`` being those a scene
+    selected from it): all of their files are inputs.
 
     Raises
     ------
@@ -50,7 +51,7 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         from atlasgen.bake.cache import cache_path
 
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
-    inputs = [(m.source, f"the material file of {m.name!r}") for m in materials]
+    inputs = [(m.source, f"the material file of {m.name!r}") for m in (materials if library is None else library)]
     if scene is not None:
         from atlasgen.materials.scene import read_scene
 

@@ -57,7 +57,8 @@ def test_output_paths_are_checked_before_anything_is_written(args):
         root = Path(tmp)
         _tree(root)
         before = tree_hash(root)
-        # What the command reads: the materials, and the scene and its mesh with --scene.
+        # What the command reads: the materials (all of them, also with --scene), and the
+        # scene and its mesh with --scene.
         read = ("materials/", "scene.toml", "mesh.obj") if "--scene" in args else ("materials/",)
         inputs = {p: h for p, h in before.items() if p.startswith(read) and p.endswith((".toml", ".obj"))}
         absolute = [str(root / a) if not a.startswith("-") and a != "bake" else a for a in args]
