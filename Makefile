@@ -11,7 +11,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test bench clean atlas render validate report
+.PHONY: setup apt demo test fuzz bench clean atlas render validate report
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -153,6 +153,12 @@ demo: setup
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(PY) -m pytest -q
+
+# The fuzz suite (tests/fuzz) with its deep, random "fuzz" profile; `make test` runs its
+# quick, fixed "ci" profile. Failing examples are kept in .hypothesis/ and replayed first.
+fuzz: setup
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	ATLASGEN_FUZZ_PROFILE=fuzz $(PY) -m pytest -q tests/fuzz --hypothesis-show-statistics
 
 bench: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)

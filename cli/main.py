@@ -192,11 +192,10 @@ def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_di
     if unknown:
         raise click.UsageError(f"--include: unknown language {unknown[0]!r}; expected wgsl, glsl or hlsl, comma-separated")
     sources = list(paths) + ([shipped_library()] if library else [])
-    materials = read_materials(sources or [Path("materials")])
-    if scene is not None:
-        materials = select_scene_materials(materials, scene)
+    every_material = read_materials(sources or [Path("materials")])
+    materials = select_scene_materials(every_material, scene) if scene is not None else every_material
     # Every output path is checked before anything (the cache included) is written.
-    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only)
+    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)
     if cache_only:
         filled = fill_cache(cache_dir, materials)
         if verbosity == VERBOSE:

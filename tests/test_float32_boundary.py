@@ -248,3 +248,26 @@ def test_adversarial_scenes_render_only_finite_pixels(tmp_path, gpu_device):
         assert res.exit_code == 0, (name, res.output)
         pixels = oiio.ImageBuf(str(out)).get_pixels(oiio.FLOAT)
         assert pixels.shape == (16, 24, 3) and np.isfinite(pixels).all(), name
+
+
+@pytest.mark.parametrize("key,value", [("up", "[0, 0, 3.9e-232]"), ("up", "[1e38, 3e38, 0]")])
+def test_camera_directions_of_any_magnitude_give_a_unit_up(tmp_path, key, value):
+    """Found by the fuzz suite: an ``up`` of 1e-232 passed as not parallel, then its norm
+    underflowed to 0 and the camera frame was NaN."""
+    from atlasgen.materials.scene import read_scene
+    from atlasgen.render.camera import camera_basis
+
+    path = tmp_path / "s.toml"
+    path.write_text(f"[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\n{key} = {value}\n")
+    camera = read_scene(path).camera
+    assert np.isclose(np.linalg.norm(camera.up), 1.0)
+    assert all(np.isfinite(v).all() and np.isclose(np.linalg.norm(v), 1.0) for v in camera_basis(camera))
+
+
+def test_a_tiny_light_direction_is_normalised(tmp_path):
+    from atlasgen.materials.scene import read_scene
+
+    path = tmp_path / "s.toml"
+    path.write_text('[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\n'
+                    '[[lights]]\ntype = "directional"\ndirection = [0, -1e-300, 0]\nintensity = 1\n')  # fmt: skip
+    assert read_scene(path).lights[0].direction == (0.0, -1.0, 0.0)

@@ -8,13 +8,14 @@ from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_
 from atlasgen.errors import OutputError
 from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.bake.cache import cache_path
+from atlasgen.materials.scene import read_scene
 
 __all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
 
 
 
 def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,
-                       allow_empty=False, cache_only=False) -> None:  # fmt: skip
+                       allow_empty=False, cache_only=False, library=None) -> None:  # fmt: skip
     """Refuse a bake whose outputs clash with its inputs or each other, or would empty an atlas.
 
     Checked: the atlas's extension (:data:`ATLAS_SUFFIXES`) and the preview's (``.png``);
@@ -22,7 +23,8 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     folder, lies under a file, names an input (a material or scene file, ``--ids-from``)
     or another output; and an atlas whose manifest lists materials is not replaced by an
     empty one unless ``allow_empty``. With ``cache_only`` only the cache entries are written,
-    and checked.
+    and checked. ``library`` is every material read (``materials`` being those a scene
+    selected from it): all of their files are inputs.
 
     Raises
     ------
@@ -47,9 +49,11 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
             outputs.append((depfile, "--depfile"))
     if cache_dir is not None:
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
-    inputs = [(m.source, f"the material file of {m.name!r}") for m in materials]
+    inputs = [(m.source, f"the material file of {m.name!r}") for m in (materials if library is None else library)]
     if scene is not None:
         inputs.append((scene, "the scene (--scene)"))
+        inputs += [(obj.file, f"the mesh of the scene's objects[{obj.index}]")
+                   for obj in read_scene(scene).objects if obj.file is not None]  # fmt: skip
     if ids_from is not None and Path(ids_from).resolve() != paths["manifest"].resolve():
         inputs.append((ids_from, "--ids-from"))
     check_output_paths(outputs, inputs)

@@ -41,7 +41,8 @@ SHAPES = ("sphere", "plane", "box", "torus", "mesh")
 
 @dataclass(frozen=True)
 class Camera:
-    """A look-at pinhole camera; ``fov`` is the horizontal field of view in degrees."""
+    """A look-at pinhole camera; ``fov`` is the horizontal field of view in degrees, ``up`` a
+    unit vector (scenes are read with it normalised)."""
 
     position: tuple
     target: tuple
@@ -158,6 +159,14 @@ def _bound(x: float) -> float | None:
     return None if math.isinf(x) else x
 
 
+def _direction(vector) -> np.ndarray:
+    """``vector`` (not all zero) at unit length, scaled first so that tiny or huge components
+    (1e-232, 3e38) neither underflow nor overflow in the norm."""
+    v = np.asarray(vector, dtype=np.float64)
+    v = v / np.abs(v).max()
+    return v / np.linalg.norm(v)
+
+
 def _read_camera(r: _Reader, raw) -> Camera:
     r.table(raw, "camera", ("position", "target", "up", "fov", "near", "far"))
     position = r.vec3(raw, "position", "camera.position")
@@ -168,7 +177,10 @@ def _read_camera(r: _Reader, raw) -> Camera:
     forward = np.subtract(target, position)
     if np.abs(forward).max() > FLOAT32_MAX:
         raise SceneError(r.path, "camera.target", "expected a point whose offset from camera.position float32 can hold")
-    if np.linalg.norm(np.cross(forward, up)) < 1e-9 * np.linalg.norm(forward) * np.linalg.norm(up):
+    # Compared as unit vectors, to float32's precision: the renderer and Mitsuba build
+    # their frames from these in float32.
+    up = tuple(float(c) for c in _direction(up))
+    if np.linalg.norm(np.cross(_direction(forward), up)) < 1e-6:
         raise SceneError(r.path, "camera.up", "expected a direction not parallel to target - position")
     fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=0.0, hi=179.0, lo_open=True)
     near = r.number(raw, "near", "camera.near", default=0.05, lo=0.0, lo_open=True)
@@ -191,7 +203,7 @@ def _read_light(r: _Reader, raw, i) -> Light:
     if "position" in raw:
         raise SceneError(r.path, f"{name}.position", "not used by a directional light; expected 'direction'")
     direction = np.asarray(r.vec3(raw, "direction", f"{name}.direction", nonzero=True))
-    return Light("directional", colour, intensity, direction=tuple(direction / np.linalg.norm(direction)))
+    return Light("directional", colour, intensity, direction=tuple(float(c) for c in _direction(direction)))
 
 
 def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:

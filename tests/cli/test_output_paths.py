@@ -124,3 +124,12 @@ def test_a_render_may_not_write_over_a_folder(tmp_path, library):
              "the PNG written beside the render is an existing folder")  # fmt: skip
     _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "a.dds"), "-o", str(tmp_path / "r.exr"),
                         "--aov", "depth"], "no such atlas", code=3)  # fmt: skip
+
+
+def test_a_material_the_scene_does_not_use_is_still_an_input(tmp_path, library):
+    """Found by the fuzz suite: with --scene, only the selected materials counted as inputs,
+    so a depfile could overwrite another material file of the folder that was read."""
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "snow"\n')
+    _refused(tmp_path, ["bake", str(library), "--scene", str(scene), "-o", str(tmp_path / "a.dds"), "--depfile",
+                        str(library / "clay.toml")], "--depfile would overwrite the material file of 'clay'")  # fmt: skip
