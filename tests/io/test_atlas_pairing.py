@@ -146,3 +146,14 @@ def test_decoded_slices_of_a_matching_pair_are_the_bake(tmp_path):
     clay = atlas.material("clay")
     rgba = atlas.decode_slice(clay.first_slice)
     np.testing.assert_allclose(rgba[..., :3].max(axis=(0, 1)), [0.2, 0.3, 0.4], atol=0.01)
+
+
+def test_the_separable_rebuild_reads_through_the_pair_check(tmp_path):
+    from atlasgen.separable.rebuild import read_separable_factors
+
+    out = _bake(tmp_path, "build")
+    with pytest.raises(InputError, match="'clay' is 'lambert', not 'separable'"):
+        read_separable_factors(out, "clay")
+    shutil.copy(_bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]"), out)
+    with pytest.raises(InputError, match=r"field 'atlas_sha256': does not match .*re-run atlasgen bake$"):
+        read_separable_factors(out, "clay")
