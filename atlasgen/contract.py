@@ -21,7 +21,8 @@ __all__ = [
     "atlas_uv",
 ]
 
-FORMAT_VERSION = 2  # v2: a separable entry's BRDF source moved from 'source' to 'brdf_source'
+FORMAT_VERSION = 3  # v3: atlas_sha256 pairs the manifest with its texture; sources relative to the manifest
+# v2: a separable entry's BRDF source moved from 'source' to 'brdf_source'
 WIDTH = 64  # u: N.L in [-1, 1]
 HEIGHT = 32  # v: N.V in [0, 1]
 LAYERS = 256

@@ -13,8 +13,11 @@ from pathlib import Path
 
 import pytest
 
+from atlasgen.errors import InputError
 from atlasgen.io import atomic
+from atlasgen.io.atlas import RERUN
 from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_files_atomically
+from atlasgen.render.atlas_texture import read_render_atlas
 
 ROOT = Path(__file__).resolve().parents[1]
 OUTPUTS = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl", "atlas.timings.json", "atlas-preview.png")
@@ -119,6 +122,23 @@ def _temporaries(build: Path) -> list[str]:
     return sorted(p.name for p in build.iterdir() if p.name.endswith(TEMP_SUFFIX))
 
 
+#: The files a reader uses together: texture, manifest, include.
+PAIRED = ("atlas.dds", "atlas.json", "atlas.wgsl")
+
+
+def _read_as_the_renderer(build: Path, old: dict, new: dict) -> str:
+    """What a reader makes of ``build`` now: ``"ok"`` only for the texture, manifest and
+    include of one bake; otherwise a one-line refusal that says to re-run the bake."""
+    try:
+        read_render_atlas(build / "atlas.dds")
+    except InputError as exc:
+        assert "\n" not in str(exc) and str(exc).endswith(RERUN), str(exc)
+        return "refused"
+    now = [(build / name).read_bytes() for name in PAIRED]
+    assert now in ([old[n] for n in PAIRED], [new[n] for n in PAIRED]), "a mismatched generation was accepted"
+    return "ok"
+
+
 def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_the_next_run_repairs_it(tmp_path):
     library = _library(tmp_path, "[0.2, 0.3, 0.4]")
     build = tmp_path / "build"
@@ -131,6 +151,7 @@ def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_the_next_run_repa
     assert old["atlas.dds"] != new["atlas.dds"] and old["atlas.json"] != new["atlas.json"]
     # Five files: five writes, then five renames; the DDS last.
     steps = 2 * len(OUTPUTS)
+    seen = []
     for k in range(steps):
         env = {**os.environ, "ATLASGEN_TEST_KILL_AT": str(k)}
         inodes = {name: (build / name).stat().st_ino for name in OUTPUTS}
@@ -141,6 +162,8 @@ def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_the_next_run_repa
         assert all(now[name] in (old[name], new[name]) for name in DETERMINISTIC), k
         json.loads(now["atlas.timings.json"])
         assert now["atlas.dds"] == old["atlas.dds"], k
+        # A reader sees the old generation, or refuses the mix (a new manifest beside the old DDS).
+        seen.append(_read_as_the_renderer(build, old, new))
         renamed = sorted(name for name in OUTPUTS if (build / name).stat().st_ino != inodes[name])
         assert len(renamed) == max(0, k - len(OUTPUTS)), (k, renamed)
         n = len(OUTPUTS)
@@ -154,6 +177,11 @@ def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_the_next_run_repa
             (build / name).write_bytes(data)
     killed = subprocess.run(_bake_command(library, build), env={**os.environ, "ATLASGEN_TEST_KILL_AT": str(steps)})
     assert killed.returncode == 0  # there is no step after the last rename
+    # Before the manifest's rename the old pair is whole; from it until the DDS's, a mix, refused.
+    renames = [name for name in OUTPUTS if name != "atlas.dds"] + ["atlas.dds"]
+    first_refused = len(OUTPUTS) + renames.index("atlas.json") + 1
+    assert seen == ["ok"] * first_refused + ["refused"] * (steps - first_refused), seen
+    assert _read_as_the_renderer(build, old, new) == "ok"
 
 
 MAKE_ATLASGEN = "#!{python}\n" + KILLING_ATLASGEN

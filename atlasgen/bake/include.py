@@ -7,12 +7,14 @@ import enum
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
+from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
 from atlasgen.io.manifest import Manifest
 from atlasgen.optics.specular import specular_declarations
 from atlasgen.shaderlang import LANGUAGES, Array, Assign, Comment, Const, Function, If, Let, Return, Switch, Var, emit, float_literal
 from atlasgen.models import get_model
 
-__all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "MaterialFlag"]
+__all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "stamp_include",
+           "MaterialFlag"]
 
 
 class MaterialFlag(enum.IntFlag):
@@ -123,3 +125,10 @@ def render_include_data(manifest: Manifest) -> bytes:
     """The side-car the models of ``manifest`` write beside the include (``X.separable.bin``), b"" for none."""
     return b"".join(get_model(t).include_data([m for m in manifest.materials if m.type == t])
                     for t in sorted({m.type for m in manifest.materials}))  # fmt: skip
+
+
+def stamp_include(text: str, manifest_sha256: bytes) -> str:
+    """``text`` (an include in any language) with a first line recording the SHA-256 of the
+    manifest written with it: ``// atlasgen manifest sha256: <hex>``. A loader compares it
+    with the manifest beside it (:func:`atlasgen.io.atlas.check_include`)."""
+    return f"{INCLUDE_HASH_PREFIX}{manifest_sha256.hex()}\n{text}"

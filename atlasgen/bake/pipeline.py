@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +26,11 @@ from atlasgen.bake.cache import load_or_bake
 from atlasgen.bake.include import render_include_data, render_includes
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.bake.preview import render_contact_sheet
+from atlasgen.bake.include import stamp_include
+from atlasgen.separable.shader import stamp_sidecar
 
-__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture"]
+__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture",
+           "pair_outputs", "relative_source"]
 
 
 @dataclass
@@ -289,27 +293,49 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
                       render_include_data(manifest))
 
 
-def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:
+def encode_atlas_texture(result: BakeResult, path, zstd: bool = False) -> bytes:
     """The atlas texture in the container ``path``'s suffix names: DDS, or KTX2 (optionally Zstandard).
 
-    The KTX2 key/value data names the writer and holds ``atlasgen.manifest_sha256``, the
-    SHA-256 of the manifest written beside it, so a loader can tell the pair belongs together.
+    The KTX2 key/value data names the writer. The pair is tied the other way round: the
+    manifest records the texture's SHA-256 (``atlas_sha256``), so the texture itself holds
+    nothing of the manifest (a hash each way could not both be right).
     """
     path = Path(path)
     if path.suffix.lower() == ".ktx2":
-        key_values = {"KTXwriter": f"atlasgen {__version__}",
-                      "atlasgen.manifest_sha256": hashlib.sha256(manifest_bytes).hexdigest()}  # fmt: skip
         srgb = result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
-        return encode_ktx2(result.levels, result.layout, srgb, key_values, zstd)
+        return encode_ktx2(result.levels, result.layout, srgb, {"KTXwriter": f"atlasgen {__version__}"}, zstd)
     if zstd:
         raise OutputError(f"{path.as_posix()}: Zstandard supercompression needs a .ktx2 atlas, not DDS")
     return encode_dds(result.levels, result.layout, result.dxgi_format)
+
+
+def relative_source(source: str, manifest_dir) -> str:
+    """A material file as the manifest stores it: relative to the manifest's folder, with
+    forward slashes, so the manifest's bytes do not depend on the working directory (or
+    leak an absolute path); :meth:`atlasgen.io.atlas.Atlas.source_path` resolves it back."""
+    return Path(os.path.relpath(os.path.abspath(source), os.path.abspath(manifest_dir))).as_posix()
+
+
+def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[bytes, Manifest, bytes]:
+    """The texture, the manifest that records its hash (``atlas_sha256``, entries' ``source``
+    relative to the manifest's folder) and that manifest's bytes, for the files ``paths`` names."""
+    manifest_dir = paths["manifest"].parent
+    texture = encode_atlas_texture(result, paths["dds"], zstd)
+    materials = [replace(e, source=relative_source(e.source, manifest_dir)) for e in result.manifest.materials]
+    manifest = replace(result.manifest, materials=materials, atlas_sha256=hashlib.sha256(texture).hexdigest())
+    return texture, manifest, format_manifest(manifest).encode()
 
 
 def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, languages=("wgsl", "glsl", "hlsl"),
                extra_files=None) -> dict:
     """Write the atlas (DDS or KTX2, by suffix), manifest, the include in each of ``languages``,
     the separable side-car, timings (and preview) all-or-nothing; return the paths written.
+
+    The files are tied into one generation by hashes: the manifest records the texture's
+    SHA-256, and every include and the side-car record the manifest's
+    (:func:`atlasgen.io.atlas.read_atlas` and the renderer refuse a pair that does not
+    match). ``result`` is left as it is (its manifest as baked: no texture hash, sources as
+    given), so it can be written to other paths too.
 
     ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
     texture, which the Makefile's rules target, is renamed into place last
@@ -321,15 +347,16 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
     for key, lang in (("include", "wgsl"), ("glsl", "glsl"), ("hlsl", "hlsl")):
         if lang not in languages or texts[key] is None:
             del paths[key]
-    manifest_bytes = format_manifest(result.manifest).encode()
+    texture, _, manifest_bytes = pair_outputs(result, paths, zstd)
+    manifest_sha256 = hashlib.sha256(manifest_bytes).digest()
     contents = {
-        paths["dds"]: encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd),
+        paths["dds"]: texture,
         paths["manifest"]: manifest_bytes,
-        **{paths[key]: texts[key].encode() for key in ("include", "glsl", "hlsl") if key in paths},
+        **{paths[key]: stamp_include(texts[key], manifest_sha256).encode() for key in ("include", "glsl", "hlsl") if key in paths},
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }
     if result.separable_data:
-        contents[paths["separable"]] = result.separable_data
+        contents[paths["separable"]] = stamp_sidecar(result.separable_data, manifest_sha256)
     else:
         del paths["separable"]
     if preview_path is not None:

@@ -1,7 +1,19 @@
-"""Reading a baked atlas back: the DDS or KTX2, its manifest, and linear slices as a renderer sees them."""
+"""Reading a baked atlas back: the DDS or KTX2, its manifest, and linear slices as a renderer sees them.
+
+A bake's files are one generation, tied by hashes: the manifest records the texture's
+SHA-256 (``atlas_sha256``), every include (and the separable side-car) the manifest's.
+:func:`read_atlas` is the one reader of the pair; it refuses a texture that does not hash
+to what its manifest records, or whose header disagrees with what the manifest claims
+(size, layers, mip count, layout, encoding), with one line naming both files and saying
+to re-run the bake::
+
+    build/atlas.json: field 'atlas_sha256': does not match build/atlas.dds (the two are from different bakes); re-run atlasgen bake
+"""
 
 from __future__ import annotations
 
+import hashlib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -9,11 +21,19 @@ import numpy as np
 
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
-from atlasgen.io.manifest import Manifest, MaterialEntry, read_manifest
-from atlasgen.errors import InputError
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH
+from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
+from atlasgen.io.text import read_input_text
+from atlasgen.errors import InputError, ManifestError
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Atlas", "read_atlas", "summarize_atlas", "describe_atlas"]
+__all__ = ["Atlas", "read_atlas", "check_include", "include_manifest_sha256", "summarize_atlas", "describe_atlas",
+           "INCLUDE_HASH_PREFIX", "RERUN"]
+
+#: The first line of every include: this, then the SHA-256 (hex) of the manifest written with it.
+INCLUDE_HASH_PREFIX = "// atlasgen manifest sha256: "
+#: How every refusal of a mismatched generation ends.
+RERUN = "re-run atlasgen bake"
 
 
 @dataclass
@@ -23,10 +43,20 @@ class Atlas:
     path: Path
     image: DDSImage | KTX2Image
     manifest: Manifest | None
+    #: SHA-256 (hex) of the manifest's bytes as read ("" without a manifest): what an include must record.
+    manifest_sha256: str = ""
 
     @property
     def srgb(self) -> bool:
         return self.image.dxgi_format == 29
+
+    @property
+    def manifest_path(self) -> Path:
+        return self.path.with_suffix(".json")
+
+    def source_path(self, entry: MaterialEntry) -> Path:
+        """The material file of ``entry``: its ``source`` is relative to the manifest's folder."""
+        return Path(os.path.normpath(self.manifest_path.parent / entry.source))
 
     def material(self, name: str) -> MaterialEntry:
         """The manifest entry of ``name``; InputError listing the known names otherwise."""
@@ -40,6 +70,10 @@ class Atlas:
         """Linear RGBA ``(h, w, 4)`` of one array slice: what the include's ``atlas_sample`` returns."""
         if self.image.layout != "array":
             raise InputError(f"{self.path.as_posix()}: decode_slice needs a 2D-array atlas")
+        if not 0 <= level < len(self.image.levels):
+            raise InputError(f"{self.path.as_posix()}: no mip level {level}; the atlas has {len(self.image.levels)}")
+        if not 0 <= slice_index < self.image.layers:
+            raise InputError(f"{self.path.as_posix()}: no slice {slice_index}; the atlas has slices 0..{self.image.layers - 1}")
         rgba = dequantize_rgba(self.image.levels[level][slice_index], self.srgb)
         entry = self.manifest.by_slice(slice_index) if apply_scale and self.manifest is not None else None
         if entry is not None:
@@ -51,14 +85,79 @@ class Atlas:
 
 
 def read_atlas(path) -> Atlas:
-    """Read ``X.dds`` (or ``X.ktx2``) and, if present, its manifest ``X.json`` (checked: :func:`read_manifest`)."""
+    """Read ``X.dds`` (or ``X.ktx2``) and, if present, its manifest ``X.json``, checked as a pair.
+
+    The manifest is checked field by field (:func:`atlasgen.io.manifest.parse_manifest`),
+    then against the texture: the header's width, height, layers, mip count, layout and
+    encoding must be what the manifest claims (and the atlas contract's 64x32x256), and
+    the texture's bytes must hash to the manifest's ``atlas_sha256``. Each file is read once.
+
+    Raises
+    ------
+    InputError
+        The texture is missing, unreadable or malformed; or the pair does not match (one
+        line naming both files, ending "re-run atlasgen bake").
+    ManifestError
+        The manifest is not a valid manifest.
+    """
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path.as_posix()}: no such atlas")
-    image = read_ktx2(path) if path.suffix.lower() == ".ktx2" else read_dds(path)
+    try:
+        data = path.read_bytes()
+    except IsADirectoryError:
+        raise InputError(f"{path.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory") from None
+    except OSError as exc:
+        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+    image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
-    manifest = read_manifest(manifest_path) if manifest_path.exists() else None
-    return Atlas(path, image, manifest)
+    if not manifest_path.exists():
+        return Atlas(path, image, None)
+    text = read_input_text(manifest_path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
+    manifest = parse_manifest(text, manifest_path.as_posix())
+    _check_pair(path, image, hashlib.sha256(data).hexdigest(), manifest_path, manifest)
+    return Atlas(path, image, manifest, hashlib.sha256(text.encode("utf-8")).hexdigest())
+
+
+def _check_pair(path: Path, image, texture_sha256: str, manifest_path: Path, manifest: Manifest) -> None:
+    """Refuse a texture whose header or bytes are not what its manifest says."""
+    shown, shown_manifest = path.as_posix(), manifest_path.as_posix()
+
+    def refuse(key: str, problem: str):
+        raise InputError(f"{shown_manifest}: field {key!r}: {problem}; {RERUN}")
+
+    dims = manifest.dimensions
+    for key, claimed, contract in (("width", dims.width, WIDTH), ("height", dims.height, HEIGHT), ("layers", dims.layers, LAYERS)):
+        if claimed != contract:
+            refuse(f"dimensions.{key}", f"expected the atlas contract's {contract}, got {claimed}")
+    claims = [("dimensions.width", dims.width, image.width), ("dimensions.height", dims.height, image.height),
+              ("dimensions.layers", dims.layers, image.layers), ("dimensions.mip_count", dims.mip_count, image.mip_count),
+              ("layout", manifest.layout, image.layout),
+              ("encoding", manifest.encoding, "srgb" if image.dxgi_format == 29 else "linear")]  # fmt: skip
+    for key, claimed, actual in claims:
+        if claimed != actual:
+            refuse(key, f"says {claimed}, but {shown} has {actual} (the two are from different bakes)")
+    if manifest.atlas_sha256 != texture_sha256:
+        refuse("atlas_sha256", f"does not match {shown} (the two are from different bakes)")
+
+
+def include_manifest_sha256(text: str) -> str | None:
+    """The manifest SHA-256 an include's first line records (``// atlasgen manifest sha256: ...``), or ``None``."""
+    first = text.split("\n", 1)[0].strip()
+    return first[len(INCLUDE_HASH_PREFIX):].strip() if first.startswith(INCLUDE_HASH_PREFIX.strip()) else None
+
+
+def check_include(atlas: Atlas, include_path, text: str) -> None:
+    """Refuse an include (WGSL, GLSL or HLSL text read from ``include_path``) that was not
+    written with ``atlas``'s manifest: its first line must record the manifest's SHA-256."""
+    include_path = Path(include_path)
+    recorded = include_manifest_sha256(text)
+    if recorded is None:
+        raise InputError(f"{include_path.as_posix()}: expected a first line '{INCLUDE_HASH_PREFIX}...' "
+                         f"(an include written by atlasgen bake); {RERUN}")  # fmt: skip
+    if recorded != atlas.manifest_sha256:
+        raise InputError(f"{include_path.as_posix()}: its manifest sha256 does not match {atlas.manifest_path.as_posix()} "
+                         f"(the two are from different bakes); {RERUN}")  # fmt: skip
 
 
 def _scale_text(entry: MaterialEntry) -> str:
@@ -92,7 +191,7 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
         lines.append(f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
                      f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}")
         if verbose:
-            lines.append(f"         {e.description or '(no description)'}; from {e.source}")
+            lines.append(f"         {e.description or '(no description)'}; from {atlas.source_path(e).as_posix()}")
     return "\n".join(lines)
 
 

@@ -118,20 +118,21 @@ def write_dds(path, levels, layout: str, dxgi_format: int) -> None:
     write_file_atomically(path, encode_dds(levels, layout, dxgi_format))
 
 
-def read_dds(path) -> DDSImage:
+def read_dds(path, data: bytes | None = None) -> DDSImage:
     """Parse an RGBA8 DX10 DDS written by :func:`write_dds` (2D array or volume).
 
     The file is untrusted: every size field of the header (width, height, depth,
     arraySize, mipMapCount) is checked against the others and against the file's length
     before anything is allocated, and any mismatch is an :class:`InputError` naming the
-    file and the field.
+    file and the field. ``data``: the file's bytes, when the caller has read them already.
     """
     path = Path(path)
     shown = path.as_posix()
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    if data is None:
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
     if len(data) < 148 or data[:4] != MAGIC:
         raise InputError(f"{shown}: not a DDS file (bad magic or truncated header)")
     size, flags, height, width, _pitch, depth, mip_count = struct.unpack_from("<7I", data, 4)

@@ -270,17 +270,19 @@ def _inflate(path: Path, level: int, frame: bytes, expected: int) -> bytes:
     return bytes(out)
 
 
-def read_ktx2(path) -> KTX2Image:
+def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
     """Parse an RGBA8 KTX2 2D array or 3D texture, uncompressed or Zstandard-supercompressed.
 
     Every offset and length is checked against the file before anything is sliced or
     inflated; a bad one raises a one-line :class:`InputError` naming the file and field.
+    ``data``: the file's bytes, when the caller has read them already.
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+    if data is None:
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
     size = len(data)
     if size < HEADER.size or data[:12] != KTX2_IDENTIFIER:
         raise InputError(f"{path.as_posix()}: not a KTX2 file (bad identifier or truncated header)")

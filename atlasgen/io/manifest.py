@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 
@@ -53,6 +54,12 @@ __all__ = [
 _MISSING = object()
 _ENCODINGS = {"srgb": 29, "linear": 28}  # encoding -> its DXGI format (docs/atlas-format.md)
 _LAYOUTS = ("array", "volume")
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+
+
+def _is_sha256(value) -> bool:
+    """A SHA-256 digest as lowercase hex."""
+    return isinstance(value, str) and _SHA256.fullmatch(value) is not None
 
 
 # ---- checking one JSON object ---------------------------------------------------------------------
@@ -508,10 +515,14 @@ class Manifest(_Record):
 
     ``materials`` are in slice order as baked; ``volume_bleed`` is present for volume
     layouts only (how far each mip level blends neighbouring materials).
+    ``atlas_sha256`` is the SHA-256 of the texture file (DDS or KTX2) written with this
+    manifest: readers refuse a pair whose texture does not hash to it (the two are from
+    different bakes). The bake fills it in as it writes the pair; ``""`` until then.
     """
 
     format_version: int = FORMAT_VERSION
     generator: str = f"atlasgen {__version__}"
+    atlas_sha256: str = ""
     dimensions: Dimensions
     encoding: str
     dxgi_format: int
@@ -572,6 +583,7 @@ class Manifest(_Record):
         return cls(
             format_version=version,
             generator=f.string("generator"),
+            atlas_sha256=f.take("atlas_sha256", "the SHA-256 of the atlas texture (64 lowercase hex digits)", _is_sha256),
             dimensions=dimensions,
             encoding=encoding,
             dxgi_format=dxgi,

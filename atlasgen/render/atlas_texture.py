@@ -12,9 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import InputError
+from atlasgen.errors import FieldError, InputError
+from atlasgen.io.text import read_input_text
 from atlasgen.io.manifest import Manifest
 from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atlas import check_include, read_atlas
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 
@@ -44,8 +46,10 @@ class RenderAtlas:
 def read_render_atlas(dds_path) -> RenderAtlas:
     """Read ``X.dds`` with its manifest ``X.json`` and include ``X.wgsl`` (all written by the bake).
 
-    Raises :class:`InputError` when one of the three is missing or the atlas is a volume:
-    the renderer samples a 2D texture array, whose layer is never filtered.
+    Raises :class:`InputError` when one of the three is missing, when they are not one
+    bake's files (:func:`atlasgen.io.atlas.read_atlas` checks the texture against the
+    manifest, :func:`~atlasgen.io.atlas.check_include` the include), or when the atlas is a
+    volume: the renderer samples a 2D texture array, whose layer is never filtered.
     """
     dds_path = Path(dds_path)
     atlas = read_atlas(dds_path)
@@ -55,10 +59,9 @@ def read_render_atlas(dds_path) -> RenderAtlas:
     if atlas.image.layout != "array":
         raise InputError(f"{shown}: the renderer needs a 2D-array atlas (bake with --layout array), got a {atlas.image.layout}")
     include_path = dds_path.with_suffix(".wgsl")
-    try:
-        include = include_path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{include_path.as_posix()}: no shader include beside the atlas; re-run atlasgen bake") from None
+    include = read_input_text(include_path, "no shader include beside the atlas; re-run atlasgen bake",
+                              "a WGSL include (UTF-8 text)", FieldError)
+    check_include(atlas, include_path, include)
     return RenderAtlas(list(atlas.image.levels), atlas.srgb, atlas.manifest, include, shown)
 
 

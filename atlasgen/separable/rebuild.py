@@ -13,8 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
-from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, read_dds
-from atlasgen.io.manifest import read_manifest
+from atlasgen.io.atlas import read_atlas
 from atlasgen.optics.interpolation import linear_stencil
 from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
@@ -172,38 +171,32 @@ def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, 
     return Factors(g, h, parametrization, np.zeros((3, decoded.shape[0])), target)
 
 
-def _read_dds_levels(path: Path):
-    """Level 0 of a DDS 2D array or volume as ``(layers, h, w, 4)`` uint8, and whether it is sRGB."""
-    dds = read_dds(path)
-    return np.asarray(dds.levels[0]), dds.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
-
-
 def read_separable_factors(atlas_path, material: str) -> Factors:
     """The 8-bit factors of a separable material, decoded from an atlas file and its manifest.
 
-    Reads ``X.dds`` and ``X.json`` beside it; sRGB RGB is decoded as the GPU does.
+    Reads ``X.dds`` (or ``X.ktx2``) and ``X.json`` beside it through
+    :func:`atlasgen.io.atlas.read_atlas`, which refuses a pair from different bakes; sRGB
+    RGB is decoded as the GPU does.
 
     Raises
     ------
     InputError
-        The atlas or manifest is missing, or has no separable material of that name.
+        The atlas or manifest is missing, the two do not match, or there is no separable
+        material of that name.
     """
     path = Path(atlas_path)
+    atlas = read_atlas(path)
     manifest_path = path.with_suffix(".json")
-    if not manifest_path.exists():
-        raise InputError(f"{manifest_path.as_posix()}: no such file (the manifest beside the atlas)")
-    manifest = read_manifest(manifest_path)
+    if atlas.manifest is None:
+        raise InputError(f"{manifest_path.as_posix()}: no such file (the manifest beside the atlas); re-run atlasgen bake")
+    manifest = atlas.manifest
     entry = manifest.entry_named(material)
     if entry is None or entry.factors is None:
         names = ", ".join(m.name for m in manifest.materials if m.factors is not None) or "none"
         what = f"no material {material!r}" if entry is None else f"material {material!r} is {entry.type!r}, not 'separable'"
         raise InputError(f"{manifest_path.as_posix()}: {what}; separable materials: {names}")
-    try:
-        level0, srgb_format = _read_dds_levels(path)
-    except FileNotFoundError:
-        raise InputError(f"{path.as_posix()}: no such file") from None
-    texels = level0[entry.first_slice : entry.first_slice + entry.slice_count]
-    decoded = dequantize_rgba(texels, srgb_format or manifest.srgb)
+    texels = np.asarray(atlas.image.levels[0])[entry.first_slice : entry.first_slice + entry.slice_count]
+    decoded = dequantize_rgba(texels, atlas.srgb)
     factors = entry.factors
     return factors_from_slices(decoded, factors.factor_scale, factors.factor_bias, factors.parametrization, factors.target)
 

@@ -21,10 +21,13 @@ __all__ = [
     "separable_declarations",
     "separable_table",
     "separable_table_bytes",
+    "stamp_sidecar",
+    "sidecar_manifest_sha256",
     "separable_wgsl",
     "wgsl_function_name",
     "SIDECAR_MAGIC",
     "SIDECAR_VERSION",
+    "SIDECAR_HEADER_SIZE",
     "SYSTEMS",
     "UNWARP",
     "TARGETS",
@@ -33,8 +36,12 @@ __all__ = [
 #: Codes of the angle systems and targets in the table.
 SYSTEMS = tuple(SYSTEM_ANGLES)  # ("half_diff", "in_out")
 TARGETS = ("f_cos", "f_proxy")
-#: First 16 bytes of ``X.separable.bin``: magic, version, row count, reserved (all little-endian u32 after the magic).
+#: The header of ``X.separable.bin``: magic, then little-endian u32 file version, row count and
+#: digest length (32), then the SHA-256 of the manifest written with it; the rows follow.
 SIDECAR_MAGIC = b"ASEP"
+SIDECAR_FILE_VERSION = 2  # 2: the manifest's SHA-256 in the header (1: a 16-byte header)
+SIDECAR_HEADER_SIZE = 48
+#: The table layout's version (row 0 of the table, also in the include's SEPARABLE_TABLE).
 SIDECAR_VERSION = 1
 #: Rows of a material's block before its terms: head, then the axes g, h.x, h.y.
 _HEAD_ROWS = 4
@@ -96,11 +103,29 @@ def separable_table(entries: list[MaterialEntry]) -> np.ndarray:
     return np.asarray(table, dtype=np.float32).reshape(-1, 4)
 
 
-def separable_table_bytes(entries: list[MaterialEntry]) -> bytes:
-    """``X.separable.bin``: 16-byte header (b"ASEP", u32 version, u32 rows, u32 0), then the
-    :func:`separable_table` rows as little-endian float32, 16 bytes a row."""
+def separable_table_bytes(entries: list[MaterialEntry], manifest_sha256: bytes = bytes(32)) -> bytes:
+    """``X.separable.bin``: 48-byte header (b"ASEP", u32 file version 2, u32 rows, u32 32, the
+    manifest's SHA-256), then the :func:`separable_table` rows as little-endian float32, 16
+    bytes a row. The bake writes zeros for the digest and stamps it (:func:`stamp_sidecar`)
+    once the manifest's bytes are known."""
     table = separable_table(entries)
-    return SIDECAR_MAGIC + struct.pack("<3I", SIDECAR_VERSION, table.shape[0], 0) + table.astype("<f4").tobytes()
+    header = SIDECAR_MAGIC + struct.pack("<3I", SIDECAR_FILE_VERSION, table.shape[0], 32) + manifest_sha256
+    return header + table.astype("<f4").tobytes()
+
+
+def stamp_sidecar(data: bytes, manifest_sha256: bytes) -> bytes:
+    """``data`` (:func:`separable_table_bytes`) recording ``manifest_sha256`` (32 bytes) in its header."""
+    if len(manifest_sha256) != 32 or data[:4] != SIDECAR_MAGIC:
+        raise ValueError("expected a separable side-car and a 32-byte SHA-256")
+    return data[:16] + manifest_sha256 + data[SIDECAR_HEADER_SIZE:]
+
+
+def sidecar_manifest_sha256(data: bytes) -> str | None:
+    """The manifest SHA-256 (hex) a side-car's header records; ``None`` if it is not a version-2 side-car."""
+    if len(data) < SIDECAR_HEADER_SIZE or data[:4] != SIDECAR_MAGIC:
+        return None
+    version, _rows, length = struct.unpack_from("<3I", data, 4)
+    return data[16:48].hex() if version == SIDECAR_FILE_VERSION and length == 32 else None
 
 
 def _vec4(row) -> str:

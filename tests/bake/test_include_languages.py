@@ -5,6 +5,7 @@ to the WGSL, on a small baked library (a lambert, a toon with hard steps, a sepa
 """
 
 import shutil
+import hashlib
 import struct
 import subprocess
 from pathlib import Path
@@ -104,7 +105,9 @@ def test_every_language_comes_from_the_one_description(small_atlas):
     texts = {"wgsl": result.include, **result.includes}
     assert sorted(texts) == sorted(LANGUAGES)
     for key in ("include", "glsl", "hlsl"):
-        assert paths[key].read_text() == texts["wgsl" if key == "include" else key]
+        first, rest = paths[key].read_text().split("\n", 1)
+        assert rest == texts["wgsl" if key == "include" else key]
+        assert first == "// atlasgen manifest sha256: " + hashlib.sha256(paths["manifest"].read_bytes()).hexdigest()
     # The same functions, constants and table rows in each language.
     for name in ("atlas_uv", "atlas_sample", "atlas_scale_bias", "specular_normalisation", "separable_f_cos",
                  "MATERIAL_TERRACOTTA", "SEPARABLE_TABLE", "ATLAS_FLAG_NEAREST"):
@@ -117,9 +120,10 @@ def test_every_language_comes_from_the_one_description(small_atlas):
 def test_sidecar_is_the_include_table_little_endian(small_atlas):
     result, paths = small_atlas
     data = paths["separable"].read_bytes()
-    magic, (version, rows, reserved) = data[:4], struct.unpack("<3I", data[4:16])
-    assert magic == SIDECAR_MAGIC and version == 1 and reserved == 0 and len(data) == 16 + 16 * rows
-    table = np.frombuffer(data[16:], "<f4").reshape(rows, 4)
+    magic, (version, rows, digest_length) = data[:4], struct.unpack("<3I", data[4:16])
+    assert magic == SIDECAR_MAGIC and version == 2 and digest_length == 32 and len(data) == 48 + 16 * rows
+    assert data[16:48] == hashlib.sha256(paths["manifest"].read_bytes()).digest()
+    table = np.frombuffer(data[48:], "<f4").reshape(rows, 4)
     np.testing.assert_array_equal(table, separable_table(result.manifest.materials))
     entry = next(m for m in result.manifest.materials if m.factors is not None)
     assert table[0, 0] == 1 and table[1, 0] == entry.first_slice and table[1, 2] == len(entry.factors.factor_scale)

@@ -67,5 +67,5 @@ def test_unknown_or_non_separable_material_is_an_input_error(separable_atlas):
         read_separable_factors(path, "nope")
     with pytest.raises(InputError, match="not 'separable'"):
         read_separable_factors(path, "lut")
-    with pytest.raises(InputError, match="no such file"):
+    with pytest.raises(InputError, match="missing.dds: no such atlas"):
         read_separable_factors(path.with_name("missing.dds"), "sharp")

@@ -1,0 +1,71 @@
+"""The same material files bake to the same bytes from any working directory, with relative or
+absolute arguments in any order: the manifest stores each material file relative to its own
+folder, and no absolute path leaks in."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+from atlasgen.io.atlas import describe_atlas, read_atlas
+
+SUFFIXES = (".dds", ".json", ".wgsl", ".glsl", ".hlsl")
+NAMES = ("zinc", "amber", "moss")
+
+
+def _bake(cwd: Path, args: list[str], monkeypatch) -> None:
+    monkeypatch.chdir(cwd)
+    res = CliRunner().invoke(app, ["bake", *args, "-q"])
+    assert res.exit_code == 0, res.output
+
+
+def test_the_bytes_depend_on_neither_the_working_directory_nor_the_arguments(tmp_path, monkeypatch):
+    project = tmp_path / "project"
+    (project / "materials").mkdir(parents=True)
+    for name in NAMES:
+        (project / "materials" / f"{name}.toml").write_text('type = "lambert"\ncolour = [0.3, 0.4, 0.5]\n')
+    (tmp_path / "elsewhere" / "deeper").mkdir(parents=True)
+    relative = [f"materials/{n}.toml" for n in NAMES]
+    runs = {
+        "from the project, relative": (project, [*relative, "-o", "build-a/atlas.dds"]),
+        "from its parent, a folder": (tmp_path, ["project/materials", "-o", "project/build-b/atlas.dds"]),
+        "from elsewhere, absolute, reversed": (tmp_path / "elsewhere" / "deeper",
+                                               [*(str(project / p) for p in relative[::-1]), "-o", str(project / "build-c" / "atlas.dds")]),
+        "from elsewhere, relative with ..": (tmp_path / "elsewhere", [*(f"../project/{p}" for p in relative[1:] + relative[:1]),
+                                                                       "-o", "../project/build-d/atlas.dds"]),
+    }  # fmt: skip
+    outputs = {}
+    for what, (cwd, args) in runs.items():
+        _bake(cwd, args, monkeypatch)
+        out = Path(os.path.normpath(cwd / args[-1]))
+        outputs[what] = [out.with_suffix(s).read_bytes() for s in SUFFIXES]
+    first = next(iter(outputs.values()))
+    for what, files in outputs.items():
+        assert files == first, what
+    manifest = json.loads(first[1])
+    assert [m["source"] for m in manifest["materials"]] == [f"../materials/{n}.toml" for n in sorted(NAMES)]
+    assert str(tmp_path).encode() not in b"".join(first)
+    # IDs follow the names, not the order given.
+    assert [(m["name"], m["id"]) for m in manifest["materials"]] == [("amber", 0), ("moss", 1), ("zinc", 2)]
+
+
+def test_readers_resolve_sources_against_the_manifests_folder(tmp_path, monkeypatch):
+    project = tmp_path / "project"
+    (project / "materials").mkdir(parents=True)
+    (project / "materials" / "clay.toml").write_text('type = "lambert"\n')
+    _bake(project, ["materials/clay.toml", "-o", "build/atlas.dds"], monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    atlas = read_atlas("project/build/atlas.dds")
+    entry = atlas.material("clay")
+    assert entry.source == "../materials/clay.toml"
+    assert atlas.source_path(entry) == Path("project/materials/clay.toml") and atlas.source_path(entry).is_file()
+    assert "from project/materials/clay.toml" in describe_atlas("project/build/atlas.dds", verbose=True)
+    # A material file named on the command line is matched by its content hash.
+    res = CliRunner().invoke(app, ["validate", "project/materials/clay.toml", "--atlas", "project/build/atlas.dds",
+                                   "--scene", "nonexistent", "-o", "out"])  # fmt: skip
+    assert "changed since" not in res.output and "is not in" not in res.output, res.output
+    assert res.exit_code != 0 and "nonexistent" in res.output, res.output  # it got as far as the scenes

@@ -1,0 +1,159 @@
+"""One generation at a time: a bake's texture, manifest and includes are tied by hashes, and
+every reader refuses files from different bakes (or a texture whose header is not what the
+manifest claims) with one line naming both files and saying to re-run the bake."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.errors import InputError
+from atlasgen.io.atlas import RERUN, read_atlas
+from atlasgen.io.dds import encode_dds, read_dds
+from atlasgen.materials.material import read_materials
+from atlasgen.render.atlas_texture import read_render_atlas
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _bake(tmp_path: Path, folder: str, colour: str = "[0.2, 0.3, 0.4]", linear: bool = False, suffix: str = ".dds") -> Path:
+    """Bake two lambert materials from ``tmp_path/materials`` into ``tmp_path/folder/atlas<suffix>``."""
+    materials = tmp_path / "materials"
+    materials.mkdir(exist_ok=True)
+    (materials / "clay.toml").write_text(f'type = "lambert"\ncolour = {colour}\n')
+    (materials / "moss.toml").write_text('type = "lambert"\ncolour = [0.1, 0.5, 0.1]\n')
+    out = tmp_path / folder / f"atlas{suffix}"
+    write_bake(bake_atlas(read_materials([materials]), linear=linear), out)
+    return out
+
+
+def _refusal(path) -> str:
+    with pytest.raises(InputError) as info:
+        read_atlas(path)
+    message = str(info.value)
+    assert "\n" not in message and message.endswith(RERUN), message
+    return message
+
+
+@pytest.mark.parametrize("suffix", [".dds", ".ktx2"])
+def test_a_bake_writes_a_pair_that_reads_back(tmp_path, suffix):
+    out = _bake(tmp_path, "build", suffix=suffix)
+    manifest = json.loads(out.with_suffix(".json").read_text())
+    assert manifest["atlas_sha256"] == hashlib.sha256(out.read_bytes()).hexdigest()
+    atlas = read_atlas(out)
+    digest = hashlib.sha256(out.with_suffix(".json").read_bytes()).hexdigest()
+    assert atlas.manifest_sha256 == digest
+    for lang in ("wgsl", "glsl", "hlsl"):
+        first = out.with_suffix(f".{lang}").read_text().split("\n", 1)[0]
+        assert first == f"// atlasgen manifest sha256: {digest}", lang
+    assert read_render_atlas(out).manifest == atlas.manifest
+
+
+def test_a_texture_from_another_bake_is_refused_naming_both_files(tmp_path):
+    out = _bake(tmp_path, "build")
+    other = _bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]")
+    shutil.copy(other, out)  # a new texture beside an old manifest: the header agrees, the bytes do not
+    message = _refusal(out)
+    assert message.startswith(f"{out.with_suffix('.json').as_posix()}: field 'atlas_sha256': does not match {out.as_posix()}")
+    assert "different bakes" in message
+
+
+def test_a_linear_texture_with_an_srgb_manifest_is_refused(tmp_path):
+    out = _bake(tmp_path, "build")
+    shutil.copy(_bake(tmp_path, "linear", linear=True), out)
+    message = _refusal(out)
+    assert "field 'encoding': says srgb, but" in message and out.as_posix() in message and "has linear" in message
+
+
+@pytest.mark.parametrize("what, levels, field", [
+    ("one layer", lambda lv: [x[:1] for x in lv], "dimensions.layers"),
+    ("fewer mips", lambda lv: lv[:3], "dimensions.mip_count"),
+])  # fmt: skip
+def test_a_texture_whose_header_is_not_what_the_manifest_claims_is_refused(tmp_path, what, levels, field):
+    out = _bake(tmp_path, "build")
+    image = read_dds(out)
+    out.write_bytes(encode_dds(levels(image.levels), "array", image.dxgi_format))
+    message = _refusal(out)
+    assert f"field '{field}': says " in message and out.as_posix() in message, what
+
+
+def test_a_volume_texture_with_an_array_manifest_is_refused(tmp_path):
+    out = _bake(tmp_path, "build")
+    materials = read_materials([tmp_path / "materials"])
+    volume = tmp_path / "volume" / "atlas.dds"
+    write_bake(bake_atlas(materials, layout="volume"), volume)
+    shutil.copy(volume, out)
+    assert "(the two are from different bakes)" in _refusal(out)
+
+
+def test_a_slice_past_the_end_is_one_line(tmp_path):
+    atlas = read_atlas(_bake(tmp_path, "build"))
+    for index in (256, -1, 10**9):
+        with pytest.raises(InputError, match=r"no slice .*; the atlas has slices 0\.\.255$"):
+            atlas.decode_slice(index)
+    with pytest.raises(InputError, match="no mip level 7"):
+        atlas.decode_slice(0, level=7)
+
+
+def test_the_renderer_refuses_an_include_from_another_bake(tmp_path):
+    out = _bake(tmp_path, "build")
+    other = _bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]")
+    shutil.copy(other.with_suffix(".wgsl"), out.with_suffix(".wgsl"))
+    with pytest.raises(InputError, match=r"atlas\.wgsl: its manifest sha256 does not match .*atlas\.json .*re-run atlasgen bake$"):
+        read_render_atlas(out)
+    text = other.with_suffix(".wgsl").read_text().split("\n", 1)[1]  # an include without its first line
+    out.with_suffix(".wgsl").write_text(text)
+    with pytest.raises(InputError, match="expected a first line '// atlasgen manifest sha256: ...'"):
+        read_render_atlas(out)
+
+
+def test_an_edited_manifest_no_longer_matches_its_include(tmp_path):
+    out = _bake(tmp_path, "build")
+    manifest = out.with_suffix(".json")
+    manifest.write_text(manifest.read_text().replace('"generator": "atlasgen', '"generator": "edited atlasgen'))
+    read_atlas(out)  # the texture still matches the manifest
+    with pytest.raises(InputError, match="does not match"):
+        read_render_atlas(out)
+
+
+@pytest.mark.parametrize("command", [
+    ["info", "{atlas}"],
+    ["render", str(ROOT / "scenes" / "demo.toml"), "--atlas", "{atlas}", "-o", "{tmp}/out.exr"],
+    ["validate", "--atlas", "{atlas}", "-o", "{tmp}/validation"],
+])  # fmt: skip
+def test_every_command_refuses_a_mismatched_pair_with_one_line(tmp_path, command):
+    out = _bake(tmp_path, "build")
+    shutil.copy(_bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]"), out)
+    args = [a.format(atlas=out, tmp=tmp_path) for a in command]
+    res = subprocess.run([sys.executable, "-m", "atlasgen", *args], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 3, (res.returncode, res.stderr)
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "atlas_sha256" in lines[0] and lines[0].endswith(RERUN), res.stderr
+    assert not (tmp_path / "out.exr").exists() and not (tmp_path / "validation").exists()
+
+
+def test_decoded_slices_of_a_matching_pair_are_the_bake(tmp_path):
+    out = _bake(tmp_path, "build")
+    atlas = read_atlas(out)
+    clay = atlas.material("clay")
+    rgba = atlas.decode_slice(clay.first_slice)
+    np.testing.assert_allclose(rgba[..., :3].max(axis=(0, 1)), [0.2, 0.3, 0.4], atol=0.01)
+
+
+def test_the_separable_rebuild_reads_through_the_pair_check(tmp_path):
+    from atlasgen.separable.rebuild import read_separable_factors
+
+    out = _bake(tmp_path, "build")
+    with pytest.raises(InputError, match="'clay' is 'lambert', not 'separable'"):
+        read_separable_factors(out, "clay")
+    shutil.copy(_bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]"), out)
+    with pytest.raises(InputError, match=r"field 'atlas_sha256': does not match .*re-run atlasgen bake$"):
+        read_separable_factors(out, "clay")
