@@ -16,13 +16,18 @@ __all__ = [
     "ARRAY_MIP_COUNT",
     "VOLUME_MIP_COUNT",
     "MAPPING",
+    "SPECULAR_ALPHA_MIN",
+    "SPECULAR_LOBE",
     "texel_centres",
     "texel_grid",
     "atlas_uv",
 ]
 
-FORMAT_VERSION = 3  # v3: atlas_sha256 pairs the manifest with its texture; sources relative to the manifest
-# v2: a separable entry's BRDF source moved from 'source' to 'brdf_source'
+# v2: a separable entry's BRDF source moved from 'source' to 'brdf_source'.
+# v3: atlas_sha256 pairs the manifest with its texture; sources relative to the manifest.
+# v4: the renderer's specular lobe became GGX with height-correlated Smith visibility
+#     (``specular_lobe``); slices baked for the Blinn-Phong lobe mean something else.
+FORMAT_VERSION = 4
 WIDTH = 64  # u: N.L in [-1, 1]
 HEIGHT = 32  # v: N.V in [0, 1]
 LAYERS = 256
@@ -36,6 +41,20 @@ MAPPING = {
     "v": "v = (0.5 + 31*N.V) / 32",
     "layer": "array: layer = material_id; volume: w = (material_id + 0.5) / 256",
     "value": "linear = texel * scale + bias, per slice: (rgb_scale, rgb_bias) for RGB, (alpha_scale, alpha_bias) for A",
+}
+
+#: Smallest GGX roughness the renderer uses: keeps D's peak 1 / (pi alpha^2) finite in f32
+#: and the highlight of a gloss-1 object at least a few texels of a 16-bit g-buffer wide.
+SPECULAR_ALPHA_MIN = 0.002
+
+#: The specular lobe the slices are made for (manifest ``specular_lobe``; docs/atlas-format.md).
+#: An engine needs it to shade with A correctly: A scales exactly this f_s cos.
+SPECULAR_LOBE = {
+    "name": "ggx-smith-height-correlated",
+    "equation": "f_s cos = D(N.H) V(N.L, N.V) max(N.L, 0), scaled by A",
+    "distribution": "D = alpha^2 / (pi ((N.H)^2 (alpha^2 - 1) + 1)^2)",
+    "visibility": "V = 0.5 / (N.L sqrt((N.V)^2 (1 - alpha^2) + alpha^2) + N.V sqrt((N.L)^2 (1 - alpha^2) + alpha^2))",
+    "roughness": f"alpha = max((1 - gloss)^2, {SPECULAR_ALPHA_MIN})",
 }
 
 

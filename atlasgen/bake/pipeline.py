@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, WIDTH
+from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
@@ -273,6 +273,7 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         dxgi_format=DXGI_FORMAT_R8G8B8A8_UNORM_SRGB if srgb else DXGI_FORMAT_R8G8B8A8_UNORM,
         layout=layout,
         mapping=dict(MAPPING),
+        specular_lobe=dict(SPECULAR_LOBE),
         materials=entries,
     )
     if layout == "volume":

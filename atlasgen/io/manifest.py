@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, MAPPING
+from atlasgen.contract import FORMAT_VERSION, MAPPING, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.text import read_input_text
@@ -518,6 +518,10 @@ class Manifest(_Record):
     ``atlas_sha256`` is the SHA-256 of the texture file (DDS or KTX2) written with this
     manifest: readers refuse a pair whose texture does not hash to it (the two are from
     different bakes). The bake fills it in as it writes the pair; ``""`` until then.
+
+    ``specular_lobe`` names the specular lobe the slices' A was made for, with its
+    equation and roughness mapping (:data:`atlasgen.contract.SPECULAR_LOBE`): an engine
+    must shade A with exactly that lobe.
     """
 
     format_version: int = FORMAT_VERSION
@@ -528,6 +532,7 @@ class Manifest(_Record):
     dxgi_format: int
     layout: str = "array"
     mapping: dict = field(default_factory=lambda: dict(MAPPING))
+    specular_lobe: dict = field(default_factory=lambda: dict(SPECULAR_LOBE))
     materials: list[MaterialEntry] = field(default_factory=list)
     volume_bleed: list[VolumeBleed] | None = field(default=None, metadata=_OPTIONAL)
 
@@ -579,6 +584,10 @@ class Manifest(_Record):
         f.array("materials", "a list of material objects")  # each checked below, by index
         materials = [MaterialEntry.from_json(m, shown, f"materials[{i}]") for i, m in enumerate(data["materials"])]
         _check_slices(shown, materials, dimensions.layers)
+        lobe = f.mapping("specular_lobe", values=lambda v: isinstance(v, str), expected="an object of strings")
+        if lobe.get("name") != SPECULAR_LOBE["name"]:
+            # A was made for one lobe; shading it with another gives other materials.
+            f.fail("specular_lobe.name", f"{SPECULAR_LOBE['name']!r} (the lobe this atlasgen renders with)", lobe.get("name", _MISSING))
         bleed = f.array("volume_bleed", "a list of {level, max, rms} objects", optional=True)
         return cls(
             format_version=version,
@@ -589,6 +598,7 @@ class Manifest(_Record):
             dxgi_format=dxgi,
             layout=f.string("layout", choices=_LAYOUTS),
             mapping=f.mapping("mapping", values=lambda v: isinstance(v, str), expected="an object of strings"),
+            specular_lobe=lobe,
             materials=materials,
             volume_bleed=None if bleed is None else [
                 VolumeBleed.from_json(_Fields(shown, f"volume_bleed[{i}]", b)) for i, b in enumerate(bleed)],

@@ -208,15 +208,15 @@ class Model:
     def renderer_f_cos(self, values: dict, albedo, gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None):
         """f cos(theta_l) of the renderer's equation with this model's exact values in place of the atlas.
 
-        f cos = albedo * M.rgb / pi + M.a * k(s) max(N.H, 0)^s max(N.L, 0)
-        (:func:`atlasgen.optics.specular.renderer_f_cos`), with
+        f cos = albedo * M.rgb / pi + M.a * D(N.H) V(N.L, N.V) max(N.L, 0), the GGX lobe of
+        roughness alpha(gloss) (:func:`atlasgen.optics.specular.renderer_f_cos`), with
         M = ``evaluate(values, clamp(N.L, -1, 1), clamp(N.V, 0, 1))``: the clamp is the
         sampler's clamp-to-edge addressing. Returns ``(..., 3)``.
         """
         nl = np.asarray(n_dot_l, dtype=np.float64)
         nv = np.asarray(n_dot_v, dtype=np.float64)
         m = self.evaluate(values, np.clip(nl, -1.0, 1.0), np.clip(nv, 0.0, 1.0))
-        return renderer_f_cos(m, albedo, gloss, nl, n_dot_h, lv_degenerate)
+        return renderer_f_cos(m, albedo, gloss, nl, nv, n_dot_h, lv_degenerate)
 
     def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference | None:
         """The Mitsuba reference of what the atlas approximates: for a table model the renderer's
@@ -287,7 +287,7 @@ def _table_radiance(model: Model):
         nh = np.divide((n * h).sum(1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
         nl, nv = (n * l).sum(1), (n * v).sum(1)
         out = np.zeros((len(n), 3))
-        for g in np.unique(gloss):  # renderer_f_cos takes one gloss (one exponent): group the pixels by it
+        for g in np.unique(gloss):  # renderer_f_cos takes one gloss (one roughness): group the pixels by it
             sel = gloss == g
             f = model.renderer_f_cos({}, albedo[sel], float(g), nl[sel], nv[sel], nh[sel], lv_degenerate=h2[sel] < 1e-12)
             out[sel] = irradiance[sel] * f

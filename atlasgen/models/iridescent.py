@@ -17,9 +17,9 @@ from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
 from atlasgen.models.base import THIN_FILM_REFERENCE, Model, Reference
-from atlasgen.optics.specular import blinn_phong_alpha
 from atlasgen.optics.fresnel import normal_reflectance
 from atlasgen.optics.quadrature import cosine_rule
+from atlasgen.optics.specular import specular_alpha, specular_fresnel_cosine
 
 __all__ = [
     "Iridescent",
@@ -227,8 +227,12 @@ class Iridescent(Model):
     With s = ``film_split`` and k = ``film_strength``,
 
         RGB = max(N.L, 0) [colour T + k s R_rgb(N.V)] + backlight B (1 - R_rgb(N.V)) t(N.L, N.V)
-        A   = k (1 - s) Y(N.V)          (normalise = false)
-        A   = k (1 - s) Y(N.V) / F0     (normalise = true; F0 = the bare base's normal reflectance)
+        A   = k (1 - s) Y(c)            (normalise = false)
+        A   = k (1 - s) Y(c) / F0       (normalise = true; F0 = the bare base's normal reflectance)
+
+    with c = :func:`atlasgen.optics.specular.specular_fresnel_cosine` (N.L, N.V), L.H where
+    the renderer's GGX lobe peaks for this (N.L, N.V): A stands for the film's F(L.H) in
+    the microfacet lobe, as in the ``fresnel`` model (whose docstring has the derivation).
 
     T = (1 - R_rgb(N.L)) (1 - R_rgb(N.V)) / (1 - R_avg), R_avg = 2 int_0^1 R_rgb(c) c dc,
     when ``energy = "coupled"`` (as in the ``fresnel`` model), else 1.
@@ -237,10 +241,10 @@ class Iridescent(Model):
     ride on A. The film's reflection is therefore split: a fraction s goes into RGB as
     its colour times the cosine (the rough limit of a coloured lobe; the renderer's
     albedo * RGB / pi then reflects R_rgb(N.V) in total), the rest into A as the white
-    highlight's luminance. The split keeps the film's energy counted once; k scales it.
+    highlight's luminance, evaluated at c. The split keeps the film's energy counted once; k scales it.
     The optional back-lighting is the Barré-Brisebois & Bouchard term t (shared with the
     ``backlit`` model), seen through the film, hence (1 - R_rgb). At zero thickness (or
-    film_ior = 1) R_rgb = F(N.V) (1, 1, 1) and Y = F(N.V) exactly, so with s = 0 and
+    film_ior = 1) R_rgb = F (1, 1, 1) and Y = F exactly, so with s = 0 and
     k = 1 the model equals ``fresnel`` (exact) with ior = base_ior.
     """
 
@@ -301,12 +305,16 @@ class Iridescent(Model):
         shape = np.broadcast_shapes(nl.shape, nv.shape)
         lit = np.maximum(nl, 0.0)
         coupled = values["energy"] == "coupled"
-        # One spectral pass for every cosine needed: N.V, and for the coupled diffuse N.L and
-        # the nodes of R_avg = 2 int_0^1 R_rgb(c) c dc (the rule the fresnel model uses).
+        # One spectral pass for every cosine needed: N.V, the lobe's L.H (for A), and for the
+        # coupled diffuse N.L and the nodes of R_avg = 2 int_0^1 R_rgb(c) c dc (the rule the
+        # fresnel model uses).
         nodes, node_weights = cosine_rule()
-        cosines = [nv.ravel(), lit.ravel(), nodes] if coupled else [nv.ravel()]
+        peak = specular_fresnel_cosine(lit, nv)
+        cosines = [peak.ravel(), nv.ravel(), lit.ravel(), nodes] if coupled else [peak.ravel(), nv.ravel()]
         rgb_all, lum_all = self.film_colour(values, np.concatenate(cosines))
-        rgb_v, lum_v = rgb_all[: nv.size].reshape(nv.shape + (3,)), lum_all[: nv.size].reshape(nv.shape)
+        lum_peak = lum_all[: peak.size].reshape(peak.shape)
+        rgb_all, lum_all = rgb_all[peak.size :], lum_all[peak.size :]
+        rgb_v = rgb_all[: nv.size].reshape(nv.shape + (3,))
         colour = np.asarray(values["colour"], dtype=np.float64)
         transmit_v = np.maximum(1.0 - rgb_v, 0.0)
         if coupled:
@@ -320,24 +328,24 @@ class Iridescent(Model):
         if values["backlight"] > 0.0:
             t = translucency(nl, nv, values["backlight_distortion"], values["backlight_power"], values["backlight_view"])
             out[..., :3] += (values["backlight"] * t)[..., None] * np.asarray(values["backlight_colour"]) * transmit_v
-        alpha = strength * (1.0 - split) * lum_v
+        alpha = strength * (1.0 - split) * lum_peak
         if values["normalise"]:
             alpha = alpha / float(normal_reflectance(values["base_ior"], values["base_k"]))
         out[..., 3] = alpha
         return out
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: a Beckmann microfacet BSDF of the renderer's
-        lobe width whose Fresnel term is the film stack's Airy reflectance per wavelength, over
+        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: a GGX microfacet BSDF of the renderer's
+        roughness whose Fresnel term is the film stack's Airy reflectance per wavelength, over
         the base colour (:mod:`atlasgen.models.thin_film`)."""
         film = {k: values[k] for k in ("thickness", "film_ior", "base_ior", "base_k")}
         return Reference({
             "type": THIN_FILM_REFERENCE,
             "film": json.dumps(film, sort_keys=True),
-            "alpha": blinn_phong_alpha(gloss),
+            "alpha": float(specular_alpha(gloss)),
             "colour_r": float(values["colour"][0] * albedo[0]),
             "colour_g": float(values["colour"][1] * albedo[1]),
             "colour_b": float(values["colour"][2] * albedo[2]),
-        }, "thin-film Beckmann microfacet, Airy reflectance per wavelength (llvm_ad_spectral)",
+        }, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral)",
             variant="llvm_ad_spectral")  # fmt: skip
 

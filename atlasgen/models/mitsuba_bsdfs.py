@@ -6,7 +6,10 @@
     eval(w_i, w_o) must return f cos(theta_o), which is what that equation gives: A.rgb
     already holds the cosine fall-off and the specular lobe is a BRDF times max(N.L, 0)
     (:mod:`atlasgen.optics.specular`). N.L = cos(theta_o) and N.V = cos(theta_i). Like
-    the renderer's g-buffer, a back face is shaded with the flipped normal.
+    the renderer's g-buffer, a back face is shaded with the flipped normal. It samples
+    the renderer's GGX lobe (D cos theta_m, reflected about m; Walter et al. 2007,
+    section 5.3) with probability 1/2 and the cosine-weighted hemisphere otherwise,
+    with the mixture's pdf.
 ``atlasgen_brdf`` (:data:`BRDF_REFERENCE`)
     A separable material's source BSDF times the object's albedo, f cos for the full
     (w_i, w_o): the analytic source, or the Mitsuba BSDF given in the material.
@@ -15,7 +18,7 @@
     wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
 
 Each is a Python plugin (Mitsuba runs those in the ``llvm_ad_*`` variants only) that
-evaluates in NumPy and samples the cosine-weighted hemisphere. mitsuba and drjit are
+evaluates in NumPy; all but ``atlasgen_model`` sample the cosine-weighted hemisphere. mitsuba and drjit are
 imported by the caller and handed in as ``mi``.
 """
 
@@ -28,11 +31,14 @@ import numpy as np
 from atlasgen.models import get_model
 from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE
 from atlasgen.models.thin_film import thin_film_f_cos
+from atlasgen.optics.specular import specular_alpha
 from atlasgen.separable.source import make_source
 
-__all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "register_bsdfs"]
+__all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "LOBE_SAMPLING_PROBABILITY", "register_bsdfs"]
 
 _registered: set = set()
+#: How often ``atlasgen_model`` samples its specular lobe rather than the cosine-weighted hemisphere.
+LOBE_SAMPLING_PROBABILITY = 0.5
 
 
 def _local_arrays(dr, si, wo):
@@ -112,6 +118,7 @@ def register_bsdfs(mi) -> None:
             self.values = spec["params"]
             self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
             self.gloss = float(spec.get("gloss", 0.5))
+            self.distribution = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, float(specular_alpha(self.gloss)), False)
 
         def f_cos(self, wi, wo, side):
             h = wi + wo
@@ -119,6 +126,38 @@ def register_bsdfs(mi) -> None:
             nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12) * side
             return self.model.renderer_f_cos(self.values, self.albedo, self.gloss,
                                              wo[:, 2] * side, wi[:, 2] * side, nh, lv_degenerate=h2 < 1e-12)  # fmt: skip
+
+        @staticmethod
+        def _upper(si, wo):
+            """(w_i, w_o) mirrored onto the side where w_i lies above the (flipped) normal, and the flip."""
+            flip = dr.select(si.wi.z < 0, -1.0, 1.0)
+            return mi.Vector3f(si.wi.x, si.wi.y, si.wi.z * flip), mi.Vector3f(wo.x, wo.y, wo.z * flip), flip
+
+        def pdf(self, ctx, si, wo, active=True):
+            wi_up, wo_up, _ = self._upper(si, wo)
+            m = dr.normalize(wi_up + wo_up)
+            o_dot_m = dr.dot(wo_up, m)
+            # D(m) cos(theta_m) per microfacet normal; reflection maps d omega_m to d omega_o / (4 o.m).
+            lobe = dr.select(o_dot_m > 0, self.distribution.pdf(wi_up, m) / (4.0 * dr.maximum(o_dot_m, 1e-12)), 0.0)
+            p = LOBE_SAMPLING_PROBABILITY
+            mixed = (1.0 - p) * wo_up.z / dr.pi + p * lobe
+            return dr.select(active & (wo_up.z > 0) & (wi_up.z > 0), mixed, 0.0)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            wi_up, _, flip = self._upper(si, si.wi)
+            m, _ = self.distribution.sample(wi_up, sample2)
+            mirrored = 2.0 * dr.dot(wi_up, m) * m - wi_up
+            lobe = sample1 < LOBE_SAMPLING_PROBABILITY
+            wo_up = dr.select(lobe, mirrored, mi.warp.square_to_cosine_hemisphere(sample2))
+            bs = mi.BSDFSample3f()
+            bs.wo = mi.Vector3f(wo_up.x, wo_up.y, wo_up.z * flip)
+            bs.pdf = self.pdf(ctx, si, bs.wo, active)
+            bs.eta = 1.0
+            bs.sampled_type = dr.select(lobe, mi.UInt32(+mi.BSDFFlags.GlossyReflection),
+                                        mi.UInt32(+mi.BSDFFlags.DiffuseReflection))  # fmt: skip
+            bs.sampled_component = 0
+            value = self.eval(ctx, si, bs.wo, active)
+            return bs, dr.select(active & (bs.pdf > 0), value / bs.pdf, 0.0)
 
         def to_string(self):
             return f"ModelReference[{self.model.type_name}]"

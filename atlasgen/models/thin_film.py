@@ -1,6 +1,7 @@
 """The iridescent model's physical reference in NumPy: a thin-film microfacet BSDF.
 
-A Beckmann microfacet BSDF whose Fresnel term is the film stack's exact Airy reflectance
+A GGX microfacet BSDF (height-correlated Smith visibility, the renderer's lobe:
+:mod:`atlasgen.optics.specular`) whose Fresnel term is the film stack's exact Airy reflectance
 per wavelength (Belcour & Barla, "A Practical Extension to Microfacet Theory for the
 Modeling of Varying Iridescence", SIGGRAPH 2017, eq. 2, without their Fourier-space
 approximation), over a Lambertian base weighted by the transmission (1 - R(N.L)) (1 - R(N.V)).
@@ -16,7 +17,7 @@ import numpy as np
 
 from atlasgen.models.iridescent import film_reflectance
 from atlasgen.optics.interpolation import interpolate_2d
-from atlasgen.optics.microfacet import beckmann_distribution, smith_g2_separable_over_cos
+from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 
 __all__ = ["film_table", "thin_film_f_cos"]
 
@@ -40,8 +41,9 @@ def _lookup(table_set, cos, lam):
 def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum):
     """f cos(theta_o) of the thin-film microfacet BSDF, per lane and wavelength.
 
-    f = D(h) G(wi, wo) R(wi.h, lambda) / (4 cos_i cos_o) + base(lambda) (1 - R(cos_o)) (1 - R(cos_i)) / pi
-    (Cook & Torrance 1982; Walter et al. 2007; Belcour & Barla 2017).
+    f = D(h) V(wi, wo) R(wi.h, lambda) + base(lambda) (1 - R(cos_o)) (1 - R(cos_i)) / pi, D GGX
+    and V = G2 / (4 cos_i cos_o) height-correlated Smith (Cook & Torrance 1982; Walter et al.
+    2007; Heitz 2014; Belcour & Barla 2017).
     ``wi``, ``wo``: (N, 3) local; ``lam``: (N, S) nm; ``base_rgb_spectrum``: (N, S).
     """
     table = film_table(film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
@@ -50,10 +52,11 @@ def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum):
     h = wi + wo
     h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
     cos_d = np.clip((wi * h).sum(1), 0.0, 1.0)
-    d = beckmann_distribution(h[:, 2], alpha)
-    # f cos_o = D (G2 / (cos_i cos_o)) R cos_o / 4: no division by a grazing cosine.
-    g_over = smith_g2_separable_over_cos(ci, co, alpha, "beckmann")
-    spec = (0.25 * d * g_over * co)[:, None] * _lookup(table, cos_d[:, None], lam)
+    d = ggx_distribution(h[:, 2], alpha)
+    # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked below.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vis = smith_visibility_correlated_ggx(ci, co, alpha)
+    spec = np.nan_to_num(d * vis * np.maximum(co, 0.0))[:, None] * _lookup(table, cos_d[:, None], lam)
     r_o = _lookup(table, co[:, None], lam)
     r_i = _lookup(table, ci[:, None], lam)
     diffuse = base_rgb_spectrum * (1.0 - r_o) * (1.0 - r_i) / np.pi * np.maximum(co, 0.0)[:, None]

@@ -22,6 +22,7 @@ __all__ = [
     "smith_g1_beckmann",
     "smith_g1_over_cos_beckmann",
     "smith_g2_separable_over_cos",
+    "smith_visibility_correlated_ggx",
 ]
 
 #: Smallest cosine used in a denominator (about 0.0057 degrees from the horizon).
@@ -106,3 +107,18 @@ def smith_g2_separable_over_cos(cos_i, cos_o, alpha, distribution: str):
     if distribution == "beckmann":
         return smith_g1_over_cos_beckmann(cos_i, alpha) * smith_g1_over_cos_beckmann(cos_o, alpha)
     raise ValueError(f"unknown microfacet distribution {distribution!r}; expected one of {DISTRIBUTIONS}")
+
+
+def smith_visibility_correlated_ggx(cos_i, cos_o, alpha):
+    """V = G2 / (4 cos_i cos_o) for GGX's height-correlated Smith masking-shadowing.
+
+    V = 0.5 / (c_i sqrt(c_o^2 (1 - alpha^2) + alpha^2) + c_o sqrt(c_i^2 (1 - alpha^2) + alpha^2)),
+    cosines clamped to [0, 1] (Heitz, "Understanding the Masking-Shadowing Function in
+    Microfacet-Based BRDFs", JCGT 3(2), 2014, eq. 99 with GGX's Lambda). Finite where one
+    cosine is 0 (alpha > 0); f = D F V. V(1, 1) = 1/4; at alpha -> 0 it tends to
+    1 / (4 c_i c_o), the mirror limit.
+    """
+    ci = np.clip(np.asarray(cos_i, dtype=np.float64), 0.0, 1.0)
+    co = np.clip(np.asarray(cos_o, dtype=np.float64), 0.0, 1.0)
+    a2 = alpha * alpha
+    return 0.5 / (ci * np.sqrt(co * co * (1.0 - a2) + a2) + co * np.sqrt(ci * ci * (1.0 - a2) + a2))

@@ -1,77 +1,96 @@
-"""The renderer's specular lobe and shading equation, in NumPy (the twin of lighting.wgsl).
+"""The renderer's specular lobe and shading equation, in NumPy and as shader declarations (the one statement of both).
 
 Per light, with E the irradiance normal to the light direction, the deferred renderer adds
 
     L += E (albedo * A.rgb / pi + A.a * f_s cos),
-    f_s cos = k(s) max(N.H, 0)^s max(N.L, 0),   s = 2^(1 + 12 gloss),
-    k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))),
+    f_s cos = D(N.H) V(N.L, N.V) max(N.L, 0),
+    D = alpha^2 / (pi ((N.H)^2 (alpha^2 - 1) + 1)^2),
+    V = 0.5 / (N.L sqrt((N.V)^2 (1 - alpha^2) + alpha^2) + N.V sqrt((N.L)^2 (1 - alpha^2) + alpha^2)),
+    alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN),
 
-where A is the material's (N.L, N.V) slice. k(s) gives the Blinn-Phong lobe (Blinn,
-"Models of Light Reflection for Computer Synthesized Pictures", SIGGRAPH 1977)
-directional albedo exactly 1 at normal view; the derivation is in lighting.wgsl.
-Validation evaluates the same equation on the CPU, with the exact model or a sampled
-table in place of the atlas, so these functions are the single NumPy statement of it.
+where A is the material's (N.L, N.V) slice: the GGX / Trowbridge-Reitz distribution
+(Walter et al., "Microfacet Models for Refraction through Rough Surfaces", EGSR 2007,
+eq. 33) with its height-correlated Smith visibility V = G2 / (4 N.L N.V) (Heitz,
+"Understanding the Masking-Shadowing Function in Microfacet-Based BRDFs", JCGT 3(2),
+2014). f_s is a microfacet BRDF with Fresnel 1; A carries the Fresnel reflectance and
+whatever else the lobe cannot express as a function of (N.L, N.V). The roughness
+mapping alpha = (1 - gloss)^2 is the usual "perceptual roughness squared" (Burley,
+"Physically-Based Shading at Disney", SIGGRAPH 2012 course). N.V is clamped to [0, 1]
+as the atlas lookup clamps it. The lobe never creates energy: int f_s cos d omega <= 1
+for every alpha and view (tests/optics/test_specular.py).
+
+The renderer (lighting.wgsl, through the generated include), the WGSL/GLSL/HLSL includes
+(:func:`specular_declarations`), the CPU rebuild and the Mitsuba model references
+(:func:`renderer_f_cos`) all take the lobe from here. The equation is documented once,
+in docs/atlas-format.md, and recorded in each manifest as ``specular_lobe``
+(:data:`atlasgen.contract.SPECULAR_LOBE`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from atlasgen.contract import SPECULAR_ALPHA_MIN
+from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.shaderlang import Function, If, Let, Return, float_literal
 
 __all__ = [
-    "specular_exponent",
-    "specular_normalisation",
-    "blinn_phong_alpha",
+    "specular_alpha",
+    "specular_fresnel_cosine",
     "specular_f_cos",
     "renderer_f_cos",
     "specular_declarations",
 ]
 
 
-def specular_exponent(gloss):
-    """Blinn-Phong exponent s = 2^(1 + 12 gloss), from 2 (gloss 0) to 8192 (gloss 1).
+def specular_alpha(gloss):
+    """GGX roughness of a g-buffer gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN), gloss clamped to [0, 1].
 
-    Log-uniform in gloss, so equal gloss steps look equal (lighting.wgsl ``specular_exponent``).
+    gloss 0 gives alpha 1 (a very rough lobe), gloss 0.5 gives 0.25, gloss 1 the floor
+    :data:`atlasgen.contract.SPECULAR_ALPHA_MIN` (lighting.wgsl ``specular_alpha``).
     """
-    return np.exp2(1.0 + 12.0 * np.asarray(gloss, dtype=np.float64))
+    r = 1.0 - np.clip(np.asarray(gloss, dtype=np.float64), 0.0, 1.0)
+    return np.maximum(r * r, SPECULAR_ALPHA_MIN)
 
 
-def specular_normalisation(s):
-    """k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))).
+def specular_fresnel_cosine(n_dot_l, n_dot_v):
+    """The cosine L.H at which a table model evaluates the Fresnel factor it puts in A.
 
-    1 / the integral of cos^s(theta/2) cos(theta) over the hemisphere: the lobe's
-    directional albedo at normal view is exactly 1 (lighting.wgsl ``specular_normalisation``).
+    For fixed (N.L, N.V) the half vector is closest to N, so D and the lobe are largest,
+    where l and v lie in one plane on opposite sides of N (azimuth pi); there
+    L.H = cos((theta_l + theta_v) / 2) = sqrt((1 + N.L N.V - sin theta_l sin theta_v) / 2).
+    A is baked before the g-buffer's roughness is known, so it cannot be the projection
+    for one alpha; F at this cosine is exact at the mirror configuration N.L = N.V (where
+    it is N.V) and at every lobe's peak, symmetric in l and v as F(L.H) is, and within
+    11% (mean 2-4%) of the lobe-weighted least-squares projection of F(L.H) over azimuth
+    for alpha <= 0.3, where F(N.V) is off by up to 10x away from the mirror
+    (tests/models/test_fresnel.py).
+    Cosines are clamped to [0, 1].
     """
-    s = np.asarray(s, dtype=np.float64)
-    return (s + 2.0) * (s + 4.0) / (8.0 * np.pi * (s + np.exp2(-0.5 * s)))
+    cl = np.clip(np.asarray(n_dot_l, dtype=np.float64), 0.0, 1.0)
+    cv = np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0)
+    sines = np.sqrt((1.0 - cl * cl) * (1.0 - cv * cv))
+    return np.sqrt(np.clip(0.5 * (1.0 + cl * cv - sines), 0.0, 1.0))
 
 
-def blinn_phong_alpha(gloss: float) -> float:
-    """Beckmann roughness of the same width as the renderer's Blinn-Phong exponent.
+def specular_f_cos(gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None) -> np.ndarray:
+    """The renderer's specular lobe times the cosine, f_s cos = D(N.H) V(N.L, N.V) max(N.L, 0).
 
-    alpha = sqrt(2 / (s + 2)), s = :func:`specular_exponent` (Walter et al., "Microfacet
-    Models for Refraction through Rough Surfaces", EGSR 2007, section 5.2).
-    """
-    return float(np.sqrt(2.0 / (float(specular_exponent(gloss)) + 2.0)))
-
-
-def specular_f_cos(gloss: float, n_dot_l, n_dot_h, lv_degenerate=None) -> np.ndarray:
-    """The renderer's specular lobe times the cosine, f_s cos = k(s) max(N.H, 0)^s max(N.L, 0).
-
-    0 where N.L <= 0 or where l + v is degenerate (``lv_degenerate``), as in the shader.
+    alpha = :func:`specular_alpha` (gloss); 0 where N.L <= 0, N.H <= 0 or where l + v is
+    degenerate (``lv_degenerate``), as in the shader. N.V is clamped to [0, 1].
     """
     nl = np.asarray(n_dot_l, dtype=np.float64)
-    nh = np.asarray(n_dot_h, dtype=np.float64)
-    s = float(specular_exponent(gloss))
-    lobe = float(specular_normalisation(s)) * np.power(np.maximum(nh, 0.0), s) * np.maximum(nl, 0.0)
+    alpha = float(specular_alpha(gloss))
+    lit = np.clip(nl, 0.0, 1.0)
+    with np.errstate(divide="ignore"):  # V is infinite only where N.L = N.V = 0, masked below
+        lobe = ggx_distribution(n_dot_h, alpha) * smith_visibility_correlated_ggx(lit, n_dot_v, alpha) * lit
     lobe = np.where(nl > 0.0, lobe, 0.0)
     if lv_degenerate is not None:
         lobe = np.where(lv_degenerate, 0.0, lobe)
     return lobe
 
 
-def renderer_f_cos(rgba, albedo, gloss: float, n_dot_l, n_dot_h, lv_degenerate=None) -> np.ndarray:
+def renderer_f_cos(rgba, albedo, gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None) -> np.ndarray:
     """f cos(theta_l) of the renderer's equation for a slice value A = ``rgba``.
 
     f cos = albedo * A.rgb / pi + A.a * f_s cos (:func:`specular_f_cos`); ``rgba`` is
@@ -79,34 +98,40 @@ def renderer_f_cos(rgba, albedo, gloss: float, n_dot_l, n_dot_h, lv_degenerate=N
     (N.L, N.V). Returns ``(..., 3)``.
     """
     m = np.asarray(rgba, dtype=np.float64)
-    lobe = specular_f_cos(gloss, n_dot_l, n_dot_h, lv_degenerate)
+    lobe = specular_f_cos(gloss, n_dot_l, n_dot_v, n_dot_h, lv_degenerate)
     return np.asarray(albedo, dtype=np.float64) * m[..., :3] / np.pi + (m[..., 3] * lobe)[..., None]
 
 
 def specular_declarations() -> list:
     """The lobe above as shader declarations (:mod:`atlasgen.shaderlang`): the one shader statement of it.
 
-    ``specular_exponent(gloss)``, ``specular_normalisation(s)`` and
-    ``specular(n, l, v, s, k)`` = k max(N.H, 0)^s N.L (0 where N.L <= 0 or l + v
-    is degenerate). k(s) = 1 / (2 pi int_0^{pi/2} cos^s(theta/2) cos(theta) sin(theta) dtheta),
-    which integrates in closed form with x = cos(theta/2); for large s it tends to the
-    familiar (s + 8) / (8 pi) (Akenine-Moeller et al., Real-Time Rendering, 3rd ed., 2008),
-    which overshoots 1 for small s.
+    ``specular_alpha(gloss)`` and ``specular(n, l, v, alpha)`` = D V max(N.L, 0) (0 where
+    N.L <= 0, N.H <= 0 or l + v is degenerate). In f32, (N.H)^2 (alpha^2 - 1) + 1 loses
+    every digit of alpha^2 near N.H = 1 for small alpha, so it is written
+    |N x H|^2 + (N.H alpha)^2, the same number without the cancellation (as Filament does).
     """
     pi = float_literal(np.pi)
     return [
-        Function("specular_exponent", "f32", (("gloss", "f32"),), (Return("exp2(1.0 + 12.0 * gloss)"),),
-                 "gloss 0..1 -> Blinn-Phong exponent 2..8192, log-uniform so equal gloss steps look equal."),
-        Function("specular_normalisation", "f32", (("s", "f32"),),
-                 (Return(f"(s + 2.0) * (s + 4.0) / (8.0 * {pi} * (s + exp2(-0.5 * s)))"),),
-                 "k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))): directional albedo exactly 1 at normal view."),
-        Function("specular", "f32", (("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("s", "f32"), ("k", "f32")), (
+        Function("specular_alpha", "f32", (("gloss", "f32"),), (
+            Let("f32", "r", "1.0 - clamp(gloss, 0.0, 1.0)"),
+            Return(f"max(r * r, {float_literal(SPECULAR_ALPHA_MIN)})"),
+        ), "GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN)."),
+        Function("specular", "f32", (("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("alpha", "f32")), (
             Let("f32", "n_dot_l", "dot(n, l)"),
             Let("vec3", "hv", "l + v"),
             Let("f32", "hv2", "dot(hv, hv)"),
             If("n_dot_l <= 0.0 || hv2 < 1e-12", (Return("0.0"),)),
-            Let("f32", "n_dot_h", "max(dot(n, hv * inverseSqrt(hv2)), 0.0)"),
-            Return("k * pow(n_dot_h, s) * n_dot_l"),
-        ), "Energy-normalised Blinn-Phong lobe times the cosine (Blinn 1977): k max(N.H, 0)^s max(N.L, 0).\n"
-           "s and k depend on the pixel only: computed once, outside the light loop."),
+            Let("vec3", "h", "hv * inverseSqrt(hv2)"),
+            Let("f32", "n_dot_h", "dot(n, h)"),
+            If("n_dot_h <= 0.0", (Return("0.0"),)),
+            Let("vec3", "n_x_h", "cross(n, h)"),
+            Let("f32", "a2", "alpha * alpha"),
+            Let("f32", "t", "dot(n_x_h, n_x_h) + n_dot_h * n_dot_h * a2"),
+            Let("f32", "nl", "min(n_dot_l, 1.0)"),
+            Let("f32", "nv", "clamp(dot(n, v), 0.0, 1.0)"),
+            Let("f32", "vis", "0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2))"),
+            Return(f"a2 / ({pi} * t * t) * vis * nl"),
+        ), "GGX lobe with height-correlated Smith visibility, times the cosine (Walter et al. 2007; Heitz 2014):\n"
+           "D(N.H) V(N.L, N.V) max(N.L, 0), a microfacet BRDF with Fresnel 1 (A carries F).\n"
+           "alpha depends on the pixel only: computed once, outside the light loop."),
     ]  # fmt: skip

@@ -3,15 +3,15 @@
 For every pixel and light, with E the irradiance normal to the light direction
 (I / d^2 for a point light of intensity I, E for a directional light):
 
-    L += E * (albedo * A.rgb / pi + A.a * k(s) * max(N.H, 0)^s * max(N.L, 0))
+    L += E * (albedo * A.rgb / pi + A.a * D(N.H) V(N.L, N.V) max(N.L, 0))
 
-where A = atlas_sample(material, N.L, N.V, lod) from the generated include,
-s = 2^(1 + 12 gloss) and k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))), the exact
-normalisation that gives the Blinn-Phong lobe directional albedo 1 at normal view
-(and less elsewhere; derivation in lighting.wgsl; the NumPy twin is
-:mod:`atlasgen.optics.specular`). These are Mitsuba 3's units: a ``lambert`` slice (A.rgb =
-colour * max(N.L, 0), A.a = 0) gives L = albedo * colour / pi * E * cos, which is
-Mitsuba's ``diffuse`` BSDF with reflectance albedo * colour under the same emitter.
+where A = atlas_sample(material, N.L, N.V, lod) from the generated include and
+D V max(N.L, 0) is the GGX lobe with height-correlated Smith visibility of roughness
+alpha = max((1 - gloss)^2, 0.002) (the one statement of it, NumPy and shader forms, is
+:mod:`atlasgen.optics.specular`; the equation is docs/atlas-format.md). These are
+Mitsuba 3's units: a ``lambert`` slice (A.rgb = colour * max(N.L, 0), A.a = 0) gives
+L = albedo * colour / pi * E * cos, which is Mitsuba's ``diffuse`` BSDF with
+reflectance albedo * colour under the same emitter.
 
 A material whose model sets ``custom_lighting`` (the separable model) is shaded by its
 model's own WGSL instead (:meth:`atlasgen.models.base.Model.lighting_wgsl`):

@@ -6,12 +6,14 @@
 //
 // Per light, with E the irradiance normal to the light direction at the surface:
 //
-//     L += E * (albedo * A.rgb / pi + A.a * spec(n, l, v, gloss))
+//     L += E * (albedo * A.rgb / pi + A.a * specular(n, l, v, alpha))
 //
 // A = atlas_sample(material, N.L, N.V, lod) is the material's slice with its scale and
 // bias applied. A.rgb already holds the cosine fall-off (a lambert slice stores
 // colour * max(N.L, 0)), so albedo * A.rgb / pi is a Lambertian BRDF times cos and
-// the 1/pi lives here, in the renderer. spec is a BRDF times cos as well.
+// the 1/pi lives here, in the renderer. specular is a BRDF times cos as well: the GGX
+// lobe D(N.H) V(N.L, N.V) N.L with height-correlated Smith visibility and
+// alpha = max((1 - gloss)^2, 0.002) (docs/atlas-format.md, "The shading equation").
 //
 // Materials whose model shades them itself return f cos from material_f_cos, in 1/sr
 // (separable BRDFs rebuild it from their factors at mip level 0, Kautz & McCool 1999):
@@ -28,8 +30,8 @@
 // @declare Light
 // @declare LightType
 
-// specular_exponent, specular_normalisation and specular come with the include
-// (generated from atlasgen/optics/specular.py).
+// specular_alpha and specular come with the include (generated from
+// atlasgen/optics/specular.py).
 
 // Mip level from view depth, as the talk suggests: level 0 up to the reference
 // distance, one level more per doubling of depth beyond it, then the bias.
@@ -58,8 +60,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     let n_dot_v = dot(n, v);
     let lod = atlas_lod(depth);
     let custom = material_has_shader(material);
-    let s = specular_exponent(albedo_gloss.a);
-    let k = specular_normalisation(s);
+    let alpha = specular_alpha(albedo_gloss.a);
 
     var radiance = vec3<f32>(0.0);
     for (var i = 0u; i < frame.counts.x; i = i + 1u) {
@@ -77,7 +78,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
             radiance += irradiance * albedo_gloss.rgb * material_f_cos(atlas, atlas_sampler, material, n, l, v);
         } else {
             let a = atlas_sample(atlas, atlas_sampler, material, dot(n, l), n_dot_v, lod);
-            radiance += irradiance * (albedo_gloss.rgb * a.rgb / PI + a.a * specular(n, l, v, s, k));
+            radiance += irradiance * (albedo_gloss.rgb * a.rgb / PI + a.a * specular(n, l, v, alpha));
         }
     }
     return vec4<f32>(radiance, 1.0);

@@ -16,6 +16,7 @@ import pytest
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.materials.material import read_materials
 from atlasgen.optics.interpolation import sample_slice
+from atlasgen.optics.specular import specular_f_cos
 from atlasgen.separable import evaluate_separable
 from atlasgen.separable.shader import SIDECAR_MAGIC, separable_table
 from atlasgen.shaderlang import LANGUAGES
@@ -24,8 +25,9 @@ ROOT = Path(__file__).resolve().parents[2]
 GLSLANG = shutil.which("glslangValidator")
 needs_glslang = pytest.mark.skipif(GLSLANG is None, reason="glslangValidator (Debian glslang-tools) is not installed")
 
-# Query i: q[3i] = (n, material), q[3i+1] = (l, mode), q[3i+2] = (v, 0). Mode 0: atlas_sample at
-# (N.L, N.V) = (n.x, n.y); mode 1: separable_f_cos(n, l, v).
+# Query i: q[3i] = (n, material), q[3i+1] = (l, mode), q[3i+2] = (v, gloss). Mode 0: atlas_sample at
+# (N.L, N.V) = (n.x, n.y); mode 1: separable_f_cos(n, l, v); mode 2: the renderer's specular lobe,
+# specular(n, l, v, specular_alpha(gloss)).
 SHADERS = {
     "wgsl": """
 @group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
@@ -38,7 +40,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (i >= arrayLength(&r)) { return; }
     let a = q[3u * i]; let b = q[3u * i + 1u]; let c = q[3u * i + 2u];
     let m = u32(a.w);
-    if (b.w > 0.5) { r[i] = vec4<f32>(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    if (b.w > 1.5) { r[i] = vec4<f32>(specular(a.xyz, b.xyz, c.xyz, specular_alpha(c.w)), 0.0, 0.0, 0.0); }
+    else if (b.w > 0.5) { r[i] = vec4<f32>(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
     else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
 }
 """,
@@ -55,7 +58,8 @@ void main() {
     if (i >= uint(r.length())) { return; }
     vec4 a = q[3u * i]; vec4 b = q[3u * i + 1u]; vec4 c = q[3u * i + 2u];
     uint m = uint(a.w);
-    if (b.w > 0.5) { r[i] = vec4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    if (b.w > 1.5) { r[i] = vec4(specular(a.xyz, b.xyz, c.xyz, specular_alpha(c.w)), 0.0, 0.0, 0.0); }
+    else if (b.w > 0.5) { r[i] = vec4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
     else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
 }
 """,
@@ -72,7 +76,8 @@ void main(uint3 gid : SV_DispatchThreadID) {
     if (i >= count) { return; }
     float4 a = q[3u * i]; float4 b = q[3u * i + 1u]; float4 c = q[3u * i + 2u];
     uint m = uint(a.w);
-    if (b.w > 0.5) { r[i] = float4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
+    if (b.w > 1.5) { r[i] = float4(specular(a.xyz, b.xyz, c.xyz, specular_alpha(c.w)), 0.0, 0.0, 0.0); }
+    else if (b.w > 0.5) { r[i] = float4(separable_f_cos(atlas_tex, atlas_samp, m, a.xyz, b.xyz, c.xyz), 0.0); }
     else { r[i] = atlas_sample(atlas_tex, atlas_samp, m, a.x, a.y, 0.0); }
 }
 """,
@@ -109,7 +114,7 @@ def test_every_language_comes_from_the_one_description(small_atlas):
         assert rest == texts["wgsl" if key == "include" else key]
         assert first == "// atlasgen manifest sha256: " + hashlib.sha256(paths["manifest"].read_bytes()).hexdigest()
     # The same functions, constants and table rows in each language.
-    for name in ("atlas_uv", "atlas_sample", "atlas_scale_bias", "specular_normalisation", "separable_f_cos",
+    for name in ("atlas_uv", "atlas_sample", "atlas_scale_bias", "specular_alpha", "separable_f_cos",
                  "MATERIAL_TERRACOTTA", "SEPARABLE_TABLE", "ATLAS_FLAG_NEAREST"):
         assert all(name in text for text in texts.values()), name
     spelling = {"wgsl": "vec4<f32>(", "glsl": "vec4(", "hlsl": "float4("}
@@ -153,6 +158,15 @@ def _queries(result, rng):
         for i in range(len(n)):
             rows += [(*n[i], m.first_slice), (*l[i], 1.0), (*v[i], 0.0)]
         expected_kind.append(("sep", m, m.first_slice, (n, l, v), None))
+    # The specular lobe from rough to the roughness floor, on random frames and on mirror
+    # configurations (l the reflection of v, nudged), where a narrow lobe peaks.
+    n, l, v = _random_frames(rng, 1200)
+    mirror = 2.0 * (n * v).sum(1, keepdims=True) * n - v + 0.01 * rng.normal(size=v.shape)
+    l[:600] = mirror[:600] / np.linalg.norm(mirror[:600], axis=1, keepdims=True)
+    gloss = rng.choice([0.0, 0.3, 0.5, 0.7, 0.9, 1.0], len(n))
+    for i in range(len(n)):
+        rows += [(*n[i], 0.0), (*l[i], 2.0), (*v[i], gloss[i])]
+    expected_kind.append(("spec", None, None, (n, l, v), gloss))
     return np.asarray(rows, np.float32), expected_kind
 
 
@@ -222,6 +236,23 @@ def test_each_language_samples_what_the_cpu_samples(lang, small_atlas, gpu_devic
     assert gpu_device.take_errors() == []
     row = 0
     for kind, m, s, a, b in kinds:
+        if kind == "spec":
+            count = len(b)
+            # The same f32 vectors the GPU read, in float64, through the NumPy lobe.
+            q = queries.reshape(-1, 3, 4)[row : row + count].astype(np.float64)
+            n, l, v = q[:, 0, :3], q[:, 1, :3], q[:, 2, :3]
+            h = l + v
+            nh = (n * h).sum(1) / np.linalg.norm(h, axis=1)
+            cpu = np.array([specular_f_cos(g, nl, nv, x) for g, nl, nv, x in zip(q[:, 2, 3], (n * l).sum(1), (n * v).sum(1), nh)])
+            gpu = got[row : row + count, 0]
+            assert cpu.max() > 1000.0  # the floor's peak is 1 / (pi alpha^2) V N.L: the narrow lobes were hit
+            # At the roughness floor (alpha^2 = 4e-6) an f32 unit vector's own rounding (|n|^2 = 1 +- 1e-7)
+            # moves D by a few percent near its peak; elsewhere the shader is the NumPy lobe to 0.5%.
+            floor = q[:, 2, 3] == 1.0
+            np.testing.assert_allclose(gpu[~floor], cpu[~floor], rtol=5e-3, atol=1e-5 * cpu.max(), err_msg=lang)
+            np.testing.assert_allclose(gpu[floor], cpu[floor], rtol=5e-2, atol=1e-5 * cpu.max(), err_msg=lang)
+            row += count
+            continue
         if kind == "lut":
             count = len(a)
             table = level0[s].astype(np.float64) / 255.0

@@ -240,7 +240,10 @@ def test_rgb_and_alpha_follow_the_documented_formula():
     diffuse = (0.2, 0.1, 0.05) * (1 - rgb_l) * (1 - rgb_v) / (1 - np.array(rgb_avg))
     expected = lit * (diffuse + 3.0 * 0.25 * rgb_v) + 2.0 * t * (0.3, 1.0, 0.6) * (1 - rgb_v)
     np.testing.assert_allclose(out[..., :3], expected, rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(out[..., 3], 3.0 * 0.75 * lum_v / 0.04, rtol=1e-12)
+    # A: the film's luminance at L.H where the renderer's lobe peaks, cos((theta_l + theta_v) / 2).
+    peak = np.cos(0.5 * (np.arccos(np.clip(nl, 0, 1)) + np.arccos(nv)))
+    _, lum_peak = MODEL.film_colour(params, peak)
+    np.testing.assert_allclose(out[..., 3], 3.0 * 0.75 * lum_peak / 0.04, rtol=1e-9)
 
 
 params_strategy = st.fixed_dictionaries(

@@ -95,9 +95,11 @@ def light_at(light, world: np.ndarray):
 def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.ndarray:
     """The lighting equation evaluated in float64 numpy from the g-buffer read back.
 
-    L = sum_lights E (albedo A.rgb / pi + A.a k(s) max(N.H, 0)^s max(N.L, 0)),
-    k(s) = (s + 2)(s + 4) / (8 pi (s + 2^(-s/2))),
-    E = I / d^2 (point) or E (directional), s = 2^(1 + 12 gloss), A bilinear at lod 0.
+    L = sum_lights E (albedo A.rgb / pi + A.a D V max(N.L, 0)), the GGX lobe written out
+    here from docs/atlas-format.md (not taken from atlasgen.optics.specular):
+    D = a^2 / (pi ((N.H)^2 (a^2 - 1) + 1)^2), V = 1 / (2 (N.L sqrt(N.V^2 (1 - a^2) + a^2) +
+    N.V sqrt(N.L^2 (1 - a^2) + a^2))), a = max((1 - gloss)^2, 0.002), N.V clamped to [0, 1],
+    E = I / d^2 (point) or E (directional), A bilinear at lod 0.
     """
     n = aovs["normal"].astype(np.float64)
     depth = aovs["depth"].astype(np.float64)
@@ -109,7 +111,8 @@ def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.nd
     v = -rays / np.linalg.norm(rays, axis=-1, keepdims=True)
     n_dot_v = np.sum(n * v, -1)
     out = np.zeros(n.shape)
-    s = np.exp2(1.0 + 12.0 * gloss)
+    a2 = np.maximum((1.0 - gloss) ** 2, 0.002) ** 2
+    nv = np.clip(n_dot_v, 0.0, 1.0)
     for slot in np.unique(ids[covered]):
         table = decoded_slice(atlas, int(slot))
         mask = ids == slot
@@ -119,8 +122,11 @@ def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.nd
             a = sample_bilinear(table, n_dot_l, n_dot_v)
             h = l + v
             h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-            n_dot_h = np.maximum(np.sum(n * h, -1), 0.0)
-            spec = np.where(n_dot_l > 0, (s + 2) * (s + 4) / (8 * np.pi * (s + np.exp2(-s / 2))) * n_dot_h**s * np.maximum(n_dot_l, 0.0), 0.0)
+            n_dot_h = np.sum(n * h, -1)
+            nl = np.clip(n_dot_l, 0.0, 1.0)
+            d = a2 / (np.pi * (n_dot_h**2 * (a2 - 1.0) + 1.0) ** 2)
+            vis = 0.5 / (nl * np.sqrt(nv * nv * (1.0 - a2) + a2) + nv * np.sqrt(nl * nl * (1.0 - a2) + a2))
+            spec = np.where((n_dot_l > 0) & (n_dot_h > 0), d * vis * nl, 0.0)
             contrib = e * (albedo * a[..., :3] / np.pi + (a[..., 3] * spec * specular)[..., None])
             out[mask] += contrib[mask]
     out[~covered] = scene.background

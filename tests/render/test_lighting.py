@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from atlasgen.render.camera import pixel_rays
-from atlasgen.optics.specular import specular_exponent, specular_normalisation
 from atlasgen.render.lighting import pack_lights
 from atlasgen.materials.scene import Light
 from atlasgen.optics.srgb import decode_srgb
@@ -152,27 +151,3 @@ def test_pack_lights_layout():
     assert data["kind"].tolist() == [1, 0]  # LIGHT_POINT, LIGHT_DIRECTIONAL
     np.testing.assert_array_equal(data["radiant"], [[4, 2, 1], [2, 2, 2]])
     assert pack_lights([]) == bytes(32)  # never a zero-size buffer
-
-
-def test_specular_lobe_is_energy_normalised():
-    # Directional albedo of k(s) (N.H)^s cos(theta_l), integrated numerically over the
-    # hemisphere of l: exactly 1 at normal view, below 1 at oblique views.
-    for gloss in (0.0, 0.2, 0.4):
-        s = float(specular_exponent(gloss))
-        k = float(specular_normalisation(s))
-        albedos = []
-        for view_angle in (0.0, 30.0, 60.0, 85.0):
-            t = np.radians(view_angle)
-            v = np.array([np.sin(t), 0.0, np.cos(t)])
-            theta = (np.arange(400) + 0.5) / 400 * np.pi / 2
-            phi = (np.arange(400) + 0.5) / 400 * 2 * np.pi
-            th, ph = np.meshgrid(theta, phi, indexing="ij")
-            l = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
-            h = l + v
-            h /= np.linalg.norm(h, axis=-1, keepdims=True)
-            f = k * np.maximum(h[..., 2], 0) ** s * l[..., 2] * np.sin(th)
-            albedos.append(f.sum() * (np.pi / 2 / 400) * (2 * np.pi / 400))
-        assert albedos[0] == pytest.approx(1.0, abs=2e-3)
-        assert all(a < 1.0 for a in albedos[1:])
-    # The (s + 8) / (8 pi) approximation it replaces overshoots for small s.
-    assert 10 / (8 * np.pi) > specular_normalisation(2.0)
