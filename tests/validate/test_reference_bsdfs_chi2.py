@@ -9,6 +9,8 @@ BSDFs need a vectorised variant: ``llvm_ad_rgb``.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -21,11 +23,9 @@ pytestmark = pytest.mark.slow
 
 def register(mi) -> None:
     """Register atlasgen's reference BSDFs for ``mi``'s variant (the one place this file imports them from)."""
-    from atlasgen.validate.physical import register_physical
     from atlasgen.validate.references import register_references
 
     register_references(mi)
-    register_physical(mi)
 
 
 def _direction(theta_degrees: float, below: bool = False) -> list:
@@ -49,9 +49,9 @@ def mi(mitsuba_rgb, tmp_path, monkeypatch):
 def entry(write_material):
     """The manifest entry (name, type, resolved params) of a material written from TOML text."""
 
-    def make(name: str, text: str) -> dict:
+    def make(name: str, text: str) -> SimpleNamespace:
         material = read_material(write_material(name, text))
-        return {"name": material.name, "type": material.type, "params": material.params}
+        return SimpleNamespace(name=material.name, type=material.type, params=material.params)
 
     return make
 
@@ -95,19 +95,26 @@ def assert_sampling_matches_pdf(mi, bsdf: dict, wi: list) -> None:
 @pytest.mark.parametrize("gloss", [0.2, 0.8])
 def test_model_reference_samples_its_pdf(mi, entry, wi, gloss):
     coat = entry("coat", 'type = "fresnel"\ncolour = [0.2, 0.35, 0.6]\nior = 1.5\n')
-    assert_sampling_matches_pdf(mi, model_reference(coat, (0.9, 0.8, 0.7), gloss), wi)
+    assert_sampling_matches_pdf(mi, model_reference(coat, (0.9, 0.8, 0.7), gloss).bsdf, wi)
 
 
 @pytest.mark.parametrize("wi", [NORMAL, GRAZING, BELOW], ids=["normal", "grazing", "below"])
 @pytest.mark.parametrize("alpha", [0.1, 0.5])
 def test_brdf_reference_samples_its_pdf(mi, entry, wi, alpha):
     gloss = entry("gloss", f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nterms = 2\ndiffuse = [0.2, 0.2, 0.2]\n')
-    assert_sampling_matches_pdf(mi, model_reference(gloss, (0.9, 0.8, 0.7)), wi)
+    assert_sampling_matches_pdf(mi, model_reference(gloss, (0.9, 0.8, 0.7)).bsdf, wi)
 
 
 @pytest.mark.parametrize("wi", [NORMAL, GRAZING], ids=["normal", "grazing"])
 @pytest.mark.parametrize("gloss", [0.2, 0.8])
 def test_thin_film_reference_samples_its_pdf(mi, entry, wi, gloss):
     film = entry("film", 'type = "iridescent"\ncolour = [0.3, 0.2, 0.1]\nthickness = 420.0\n')
-    bsdf, _ = physical_reference(film, (0.9, 0.8, 0.7), gloss)
-    assert_sampling_matches_pdf(mi, bsdf, wi)
+    assert_sampling_matches_pdf(mi, physical_reference(film, (0.9, 0.8, 0.7), gloss).bsdf, wi)
+
+
+@pytest.mark.parametrize("wi", [NORMAL, GRAZING, BELOW], ids=["normal", "grazing", "below"])
+@pytest.mark.parametrize("colour", ["[0.6, 0.5, 0.4]", "[0.05, 0.1, 0.02]"], ids=["reflective", "transmissive"])
+def test_thin_sheet_reference_samples_its_pdf(mi, entry, wi, colour):
+    """The backlit reference samples both hemispheres: reflection on w_i's side, transmission through the sheet."""
+    sheet = entry("sheet", f'type = "backlit"\ncolour = {colour}\nscale = 2.0\nspecular = 0.1\n')
+    assert_sampling_matches_pdf(mi, physical_reference(sheet, (0.9, 0.8, 0.7), 0.5).bsdf, wi)
