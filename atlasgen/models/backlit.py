@@ -11,10 +11,11 @@ from functools import cache
 import numpy as np
 
 from atlasgen.io.fields import Param
-from atlasgen.models.base import Model
+from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, Reference
 from atlasgen.optics.quadrature import gauss_legendre_rule
+from atlasgen.optics.specular import specular_alpha
 
-__all__ = ["Backlit", "translucency", "VIEW_MODES"]
+__all__ = ["Backlit", "translucency", "transmitted_albedo", "VIEW_MODES"]
 
 #: How the view term V.(-L) is reduced to (N.L, N.V); see :func:`translucency`.
 VIEW_MODES = ("average", "coplanar")
@@ -90,6 +91,17 @@ def translucency(n_dot_l, n_dot_v, distortion: float, power: float, view: str = 
     return np.sqrt(1.0 + c0) * (f @ h) / np.pi
 
 
+def transmitted_albedo(distortion: float, power: float) -> float:
+    """2 int_0^1 t(-1, c) c dc: the share of light arriving along -N that the term sends out through the front.
+
+    At N.L = -1 the term has no azimuth (b = 0) and t = saturate(c (1 - delta))^p with
+    c = N.V, so the cosine-weighted integral over the viewing hemisphere is
+    2 (1 - delta)^p / (p + 2) (delta <= 1): the directional transmittance a diffuse sheet
+    must have to pass the same energy.
+    """
+    return 2.0 * (1.0 - float(distortion)) ** float(power) / (float(power) + 2.0)
+
+
 class Backlit(Model):
     """A thin, semi-transparent surface: diffuse in front, transmitted light from behind.
 
@@ -124,3 +136,22 @@ class Backlit(Model):
         out[..., :3] += (values["scale"] * t + values["ambient"])[..., None] * np.asarray(values["transmission_colour"])
         out[..., 3] = values["specular"]
         return out
+
+    physical_omissions = {
+        "view": "how the model reduces its lobe's azimuth to (N.L, N.V); the sheet transmits diffusely, "
+                "with no azimuth, and takes the lobe's energy (transmitted_albedo), the same in both modes",
+    }
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """``atlasgen_thinsheet``: a thin sheet with diffuse reflection ``colour``, diffuse transmission
+        T = transmission_colour (scale 2 (1 - delta)^p / (p + 2) + ambient) (:func:`transmitted_albedo`:
+        the energy the model's term passes for light from behind along -N) and a Beckmann coat of
+        constant reflectance ``specular`` at the renderer's lobe width."""
+        a = np.asarray(albedo, dtype=np.float64)
+        reflectance = np.asarray(values["colour"], dtype=np.float64) * a
+        gain = values["scale"] * transmitted_albedo(values["distortion"], values["power"]) + values["ambient"]
+        transmittance = np.asarray(values["transmission_colour"], dtype=np.float64) * gain * a
+        bsdf = {"type": THIN_SHEET_REFERENCE, "specular": float(values["specular"]), "alpha": float(specular_alpha(gloss))}
+        bsdf.update({f"reflectance_{c}": float(v) for c, v in zip("rgb", reflectance)})
+        bsdf.update({f"transmittance_{c}": float(v) for c, v in zip("rgb", transmittance)})
+        return Reference(bsdf, "thin sheet: diffuse reflection, diffuse transmission of the model's energy, Beckmann coat")

@@ -16,7 +16,7 @@ from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import renderer_f_cos
 
 __all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "encode_scaled",
-           "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE"]  # fmt: skip
+           "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE"]  # fmt: skip
 
 # Names of atlasgen's Mitsuba BSDF plugins (:mod:`atlasgen.models.mitsuba_bsdfs` registers them).
 #: The renderer's equation with the exact model in place of the atlas.
@@ -25,6 +25,8 @@ MODEL_REFERENCE = "atlasgen_model"
 BRDF_REFERENCE = "atlasgen_brdf"
 #: The iridescent model's thin-film microfacet BSDF.
 THIN_FILM_REFERENCE = "atlasgen_thinfilm"
+#: The backlit model's thin sheet: diffuse reflection and diffuse transmission.
+THIN_SHEET_REFERENCE = "atlasgen_thinsheet"
 
 
 @dataclass
@@ -129,6 +131,12 @@ class Model:
     #: (:data:`atlasgen.validate.run.GOAL_PSNR_DB`); models whose error is claimed in the
     #: manifest instead (:meth:`claimed_errors`) set False.
     validation_goals: ClassVar[bool] = True
+    #: Parameters the physical reference deliberately does not reproduce, each with the reason
+    #: (docs/validation.md lists them too). Every other parameter must change the reference
+    #: (tests/models/test_physical_coverage.py).
+    physical_omissions: ClassVar[dict[str, str]] = {}
+    #: Why :meth:`physical_reference` returns ``None`` for this model ("" for a model that has one).
+    no_physical_reference: ClassVar[str] = ""
 
     def check(self, values: dict, path) -> None:
         """Cross-parameter checks beyond each parameter's own range; raise MaterialError."""
@@ -229,7 +237,12 @@ class Model:
                          f"{self.type_name} model, exact, in the renderer's equation")  # fmt: skip
 
     def physical_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference | None:
-        """A physically based Mitsuba reference, where the model has one; ``None`` otherwise."""
+        """A physically based Mitsuba reference, where the model has one; ``None`` otherwise
+        (``no_physical_reference`` then says why).
+
+        It describes the same material as ``values``: every parameter has a counterpart in it,
+        except those in ``physical_omissions``.
+        """
         return None
 
     def radiance_rebuilds(self, entry: MaterialEntry, atlas_path) -> dict[str, RadianceRebuild]:

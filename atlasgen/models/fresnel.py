@@ -60,6 +60,14 @@ class Fresnel(Model):
         Param("energy", "coupled", "choice", choices=("coupled", "none"), doc="diffuse weighted by (1-F(N.L))(1-F(N.V))/(1-F_avg), or not"),
     )
 
+    physical_omissions = {
+        "fresnel": "Schlick's approximation stands in for the exact Fresnel equations, which the reference uses",
+        "normalise": "an encoding for engines whose specular term already carries F0 (A = F/F0); the physical "
+                     "highlight is F, and the report measures the 1/F0 gap",
+        "energy": "a physical coat always couples its diffuse base to what it reflects: the reference is "
+                  "roughplastic's coupled diffuse term whatever the setting",
+    }
+
     @staticmethod
     def reflectance(values, cos_i):
         """F(cos_i) for the material's ``fresnel`` and ``ior``."""
@@ -96,6 +104,7 @@ class Fresnel(Model):
             "int_ior": float(values["ior"]),
             "ext_ior": 1.0,
             "diffuse_reflectance": {"type": "rgb", "value": colour.tolist()},
-            "specular_reflectance": {"type": "rgb", "value": [min(1.0, float(values["specular"]))] * 3},
+            # uniform, not rgb: an RGB reflectance must lie in [0, 1], and specular may exceed 1.
+            "specular_reflectance": {"type": "uniform", "value": float(values["specular"])},
             "nonlinear": False,
         }, "Mitsuba roughplastic: exact Fresnel, GGX lobe of the renderer's roughness")  # fmt: skip

@@ -334,18 +334,33 @@ class Iridescent(Model):
         out[..., 3] = alpha
         return out
 
+    physical_omissions = {
+        "normalise": "an encoding for engines whose specular term already carries F0 (A = k(1-s)Y/F0); "
+                     "the physical highlight is the film's own reflectance, and the report measures the 1/F0 gap",
+        "backlight_view": "how the model reduces the back-light's azimuth to (N.L, N.V); the reference "
+                          "evaluates the term at the true azimuth, which both modes approximate",
+    }
+
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: a GGX microfacet BSDF of the renderer's
-        roughness whose Fresnel term is the film stack's Airy reflectance per wavelength, over
-        the base colour (:mod:`atlasgen.models.thin_film`)."""
-        film = {k: values[k] for k in ("thickness", "film_ior", "base_ior", "base_k")}
+        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: the film stack's Airy reflectance per
+        wavelength on the renderer's GGX lobe (its roughness) and on a rough part, split and
+        scaled as the model splits and scales it, over the base colour, with the back-light as
+        a transmission lobe (:func:`atlasgen.models.thin_film.thin_film_f_cos`).
+
+        Stochastic: Mitsuba samples the wavelengths per sample, so the render converges
+        with ``--physical-spp``.
+        """
+        keys = ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy",
+                "backlight", "backlight_distortion", "backlight_power")  # fmt: skip
+        film = {k: values[k] for k in keys}
+        colour = np.asarray(values["colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        back = np.asarray(values["backlight_colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
         return Reference({
             "type": THIN_FILM_REFERENCE,
             "film": json.dumps(film, sort_keys=True),
             "alpha": float(specular_alpha(gloss)),
-            "colour_r": float(values["colour"][0] * albedo[0]),
-            "colour_g": float(values["colour"][1] * albedo[1]),
-            "colour_b": float(values["colour"][2] * albedo[2]),
-        }, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral)",
-            variant="llvm_ad_spectral")  # fmt: skip
-
+            "colour_r": float(colour[0]), "colour_g": float(colour[1]), "colour_b": float(colour[2]),
+            "backlight_r": float(back[0]), "backlight_g": float(back[1]), "backlight_b": float(back[2]),
+        }, "thin-film GGX microfacet, Airy reflectance per wavelength, the model's split, strength and "
+           "back-light (llvm_ad_spectral, wavelengths sampled per sample)",
+            variant="llvm_ad_spectral", stochastic=True)  # fmt: skip

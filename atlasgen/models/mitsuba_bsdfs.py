@@ -16,6 +16,10 @@
 ``atlasgen_thinfilm`` (:data:`THIN_FILM_REFERENCE`)
     The iridescent model's physical reference, a thin-film microfacet BSDF evaluated per
     wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
+``atlasgen_thinsheet`` (:data:`THIN_SHEET_REFERENCE`)
+    The backlit model's physical reference: a thin sheet that reflects diffusely, transmits
+    diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`thin_sheet_f_cos`).
+    It samples both hemispheres (reflection and transmission), each cosine-weighted.
 
 Each is a Python plugin (Mitsuba runs those in the ``llvm_ad_*`` variants only) that
 evaluates in NumPy; all but ``atlasgen_model`` sample the cosine-weighted hemisphere. mitsuba and drjit are
@@ -29,12 +33,14 @@ import json
 import numpy as np
 
 from atlasgen.models import get_model
-from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE
+from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
 from atlasgen.models.thin_film import thin_film_f_cos
+from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.specular import specular_alpha
 from atlasgen.separable.source import make_source
 
-__all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "LOBE_SAMPLING_PROBABILITY", "register_bsdfs"]
+__all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE", "LOBE_SAMPLING_PROBABILITY",
+           "register_bsdfs", "thin_sheet_f_cos", "reflection_probability"]  # fmt: skip
 
 _registered: set = set()
 #: How often ``atlasgen_model`` samples its specular lobe rather than the cosine-weighted hemisphere.
@@ -55,8 +61,41 @@ def _colour(mi, rgb: np.ndarray):
     return mi.Color3f(mi.Float(rgb[:, 0].copy()), mi.Float(rgb[:, 1].copy()), mi.Float(rgb[:, 2].copy()))
 
 
+def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha: float):
+    """f |cos(theta_o)| of a thin diffuse sheet with a specular coat, ``(N, 3)`` RGB.
+
+    With w_i and w_o in the sheet's local frame (either side),
+
+        f = R / pi + specular D(h) V(w_i, w_o)                     w_o on w_i's side (reflection)
+        f = T / pi                                                 w_o on the other side (transmission)
+
+    D is GGX and V the height-correlated Smith visibility, the renderer's lobe (Walter et al.
+    2007; Heitz 2014), with the normal flipped to w_i's side; a
+    sheet with R + T <= 1 and no coat neither creates nor loses energy beyond absorption.
+    """
+    ci, co = wi[:, 2], wo[:, 2]
+    side = np.where(ci < 0.0, -1.0, 1.0)
+    ci, co = ci * side, co * side
+    same = co > 0.0
+    h = wi + wo
+    h2 = (h * h).sum(1)
+    nh = np.divide(h[:, 2] * side, np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lobe = np.nan_to_num(ggx_distribution(nh, alpha) * smith_visibility_correlated_ggx(ci, np.abs(co), alpha))
+    reflected = np.asarray(reflectance) / np.pi + (specular * lobe)[:, None]
+    value = np.where(same[:, None], reflected, np.asarray(transmittance) / np.pi) * np.abs(co)[:, None]
+    return np.where((ci > 0.0)[:, None], value, 0.0)
+
+
+def reflection_probability(reflectance, transmittance) -> float:
+    """The share of samples a thin sheet draws on w_i's side: its reflectance's part of R + T
+    (mean over RGB), kept within [0.1, 0.9] so neither side goes unsampled."""
+    r, t = float(np.mean(reflectance)), float(np.mean(transmittance))
+    return 0.5 if r + t <= 0.0 else min(0.9, max(0.1, r / (r + t)))
+
+
 def register_bsdfs(mi) -> None:
-    """Register ``atlasgen_model``, ``atlasgen_brdf`` and ``atlasgen_thinfilm`` (``mi.register_bsdf``)
+    """Register ``atlasgen_model``, ``atlasgen_brdf``, ``atlasgen_thinfilm`` and ``atlasgen_thinsheet`` (``mi.register_bsdf``)
     for the current variant; Mitsuba keeps plugins per variant, so call it after each ``set_variant``."""
     variant = mi.variant()
     if variant in _registered:
@@ -179,7 +218,50 @@ def register_bsdfs(mi) -> None:
         def to_string(self):
             return f"BrdfReference[{self.source.kind}]"
 
-    film_flags = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+    class ThinSheet(_NumpyBSDF):
+        """A thin sheet: diffuse reflection, diffuse transmission, a GGX coat (:func:`thin_sheet_f_cos`)."""
+
+        def __init__(self, props):
+            _NumpyBSDF.__init__(self, props)
+            self.reflectance = np.array([props[f"reflectance_{c}"] for c in "rgb"], dtype=np.float64)
+            self.transmittance = np.array([props[f"transmittance_{c}"] for c in "rgb"], dtype=np.float64)
+            self.specular = float(props["specular"])
+            self.alpha = float(props["alpha"])
+            self.p_reflect = reflection_probability(self.reflectance, self.transmittance)
+
+        def eval(self, ctx, si, wo, active=True):
+            wi_np = np.stack([np.asarray(c.numpy(), np.float64) for c in (si.wi.x, si.wi.y, si.wi.z)], -1)
+            if wi_np.shape[0] == 0:
+                return mi.Color3f(0.0)
+            wo_np = np.stack([np.asarray(c.numpy(), np.float64) for c in (wo.x, wo.y, wo.z)], -1)
+            value = thin_sheet_f_cos(wi_np, wo_np, self.reflectance, self.transmittance, self.specular, self.alpha)
+            return dr.select(active, _colour(mi, np.nan_to_num(value)), 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            same = wo.z * si.wi.z > 0
+            side = dr.select(same, self.p_reflect, 1.0 - self.p_reflect)
+            return dr.select(active & (si.wi.z != 0), side * dr.abs(wo.z) / dr.pi, 0.0)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            reflect = sample1 < self.p_reflect
+            wo = mi.warp.square_to_cosine_hemisphere(sample2)
+            below = dr.select(reflect, si.wi.z < 0, si.wi.z >= 0)
+            wo = mi.Vector3f(wo.x, wo.y, dr.select(below, -wo.z, wo.z))
+            bs = mi.BSDFSample3f()
+            bs.wo = wo
+            bs.pdf = self.pdf(ctx, si, wo, active)
+            bs.eta = 1.0
+            bs.sampled_type = dr.select(reflect, mi.UInt32(+mi.BSDFFlags.DiffuseReflection),
+                                        mi.UInt32(+mi.BSDFFlags.DiffuseTransmission))  # fmt: skip
+            bs.sampled_component = 0
+            value = self.eval(ctx, si, wo, active)
+            return bs, dr.select(active & (bs.pdf > 0), value / bs.pdf, 0.0)
+
+        def to_string(self):
+            return "ThinSheet[]"
+
+    film_flags = (mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.DiffuseTransmission
+                  | mi.BSDFFlags.FrontSide)  # fmt: skip
 
     class ThinFilm(mi.BSDF):
         def __init__(self, props):
@@ -188,8 +270,19 @@ def register_bsdfs(mi) -> None:
             self.m_components = [film_flags]
             self.film = json.loads(props["film"])
             self.alpha = float(props["alpha"])
-            self.base = mi.load_dict({"type": "diffuse", "reflectance": {
-                "type": "rgb", "value": [props["colour_r"], props["colour_g"], props["colour_b"]]}})  # fmt: skip
+            self.base = self._spectrum(props, "colour")
+            self.backlight = self._spectrum(props, "backlight") if "backlight_r" in props else None
+
+        @staticmethod
+        def _spectrum(props, name):
+            """A diffuse BSDF whose eval carries the RGB colour ``name`` as Mitsuba upsamples it per wavelength."""
+            return mi.load_dict({"type": "diffuse", "reflectance": {
+                "type": "rgb", "value": [props[f"{name}_r"], props[f"{name}_g"], props[f"{name}_b"]]}})  # fmt: skip
+
+        def _reflectance(self, plugin, ctx, si, active, count):
+            """The plugin's reflectance at each lane's wavelengths, ``(N, count)`` (diffuse eval is R/pi cos)."""
+            value = plugin.eval(ctx, si, mi.Vector3f(0.0, 0.0, 1.0), active)
+            return np.stack([np.asarray(value[k].numpy(), np.float64) for k in range(count)], -1) * np.pi
 
         def eval(self, ctx, si, wo, active=True):
             wi_np = np.stack([np.asarray(c.numpy(), np.float64) for c in (si.wi.x, si.wi.y, si.wi.z)], -1)
@@ -200,11 +293,10 @@ def register_bsdfs(mi) -> None:
                 lam = np.stack([np.asarray(si.wavelengths[k].numpy(), np.float64) for k in range(len(si.wavelengths))], -1)
             else:  # RGB variants: the film at representative wavelengths of R, G, B
                 lam = np.broadcast_to(np.array([610.0, 550.0, 465.0]), (wi_np.shape[0], 3))
-            # The base's reflectance spectrum: Mitsuba's diffuse eval is albedo/pi cos.
-            unit = mi.Vector3f(0.0, 0.0, 1.0)
-            base = self.base.eval(ctx, si, unit, active)
-            base_np = np.stack([np.asarray(base[k].numpy(), np.float64) for k in range(lam.shape[1])], -1) * np.pi
-            value = thin_film_f_cos(wi_np, wo_np, lam, self.film, self.alpha, base_np)
+            # Lanes with wi below the surface get 0 from the diffuse plugin, and from thin_film_f_cos too.
+            base_np = self._reflectance(self.base, ctx, si, active, lam.shape[1])
+            back_np = None if self.backlight is None else self._reflectance(self.backlight, ctx, si, active, lam.shape[1])
+            value = thin_film_f_cos(wi_np, wo_np, lam, self.film, self.alpha, base_np, back_np)
             value = np.ascontiguousarray(np.nan_to_num(value), dtype=np.float32)
             out = mi.Spectrum(*[mi.Float(value[:, k].copy()) for k in range(value.shape[1])])
             return dr.select(active, out, 0.0)
@@ -230,4 +322,5 @@ def register_bsdfs(mi) -> None:
     mi.register_bsdf(MODEL_REFERENCE, lambda props: ModelReference(props))
     mi.register_bsdf(BRDF_REFERENCE, lambda props: BrdfReference(props))
     mi.register_bsdf(THIN_FILM_REFERENCE, lambda props: ThinFilm(props))
+    mi.register_bsdf(THIN_SHEET_REFERENCE, lambda props: ThinSheet(props))
     _registered.add(variant)

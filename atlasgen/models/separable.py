@@ -279,6 +279,9 @@ class Separable(Model):
         return f"separable_f_cos(atlas, samp, {entry.first_slice}u, n, l, v)"
 
     # -- references and validation -------------------------------------------------------------
+    no_physical_reference = ("its model reference is already the source BSDF itself (analytic or Mitsuba's), "
+                             "the physical material the factors approximate")
+
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """The source BSDF itself times the albedo (``atlasgen_brdf``), f cos for the full (w_i, w_o):
         the renderer adds L += E albedo f cos with f rebuilt from the factors."""

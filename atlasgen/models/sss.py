@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+from scipy.optimize import brentq
 
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference
-from atlasgen.optics.quadrature import integrate_gauss_legendre
+from atlasgen.optics.quadrature import gauss_legendre_rule, integrate_gauss_legendre
 
-__all__ = ["Subsurface", "preintegrate_ring", "skin_medium", "SKIN_VARIANCES", "SKIN_WEIGHTS",
-           "SKIN1_SIGMA_S_REDUCED", "SKIN1_SIGMA_A", "SKIN1_IOR"]  # fmt: skip
+__all__ = ["Subsurface", "preintegrate_ring", "skin_medium", "chandrasekhar_h", "diffuse_albedo",
+           "single_scattering_albedo", "SKIN_VARIANCES", "SKIN_WEIGHTS", "SKIN1_SIGMA_S_REDUCED",
+           "SKIN1_SIGMA_A", "SKIN1_IOR"]  # fmt: skip
 
 #: d'Eon & Luebke, "Advanced Techniques for Realistic Real-Time Skin Rendering",
 #: GPU Gems 3 ch. 14 (2007), the six-Gaussian skin fit: variances in mm^2 ...
@@ -134,6 +138,51 @@ def preintegrate_ring(cos_theta, radius: float, variances=SKIN_VARIANCES, weight
     return out[inverse].reshape(c.shape + (3,))
 
 
+_H_NODES = 48
+
+
+def chandrasekhar_h(albedo: float, nodes: int = _H_NODES):
+    """Chandrasekhar's H function of isotropic scattering at Gauss-Legendre nodes on (0, 1):
+    ``(mu, weights, H(mu))``.
+
+    Solves 1 / H(mu) = sqrt(1 - w) + (w / 2) int_0^1 mu' H(mu') / (mu + mu') dmu'
+    (Chandrasekhar, Radiative Transfer, 1950, ch. V, eq. 39) by fixed-point iteration,
+    w the single-scattering albedo in [0, 1].
+    """
+    x, weights = gauss_legendre_rule(nodes)
+    mu, weights = 0.5 * (x + 1.0), 0.5 * weights
+    w = float(albedo)
+    kernel = 0.5 * w * weights * mu / (mu[:, None] + mu[None, :])
+    h = np.ones(nodes)
+    for _ in range(2000):
+        new = 1.0 / (np.sqrt(max(1.0 - w, 0.0)) + kernel @ h)
+        if np.max(np.abs(new - h)) < 1e-13:
+            return mu, weights, new
+        h = new
+    return mu, weights, h
+
+
+@lru_cache(maxsize=256)
+def diffuse_albedo(albedo: float) -> float:
+    """Bi-hemispherical reflectance of a semi-infinite, index-matched, isotropically scattering medium.
+
+    The plane albedo for light arriving at cos(theta) = mu is 1 - sqrt(1 - w) H(mu)
+    (Chandrasekhar 1950, ch. VI); averaged over a cosine-weighted hemisphere,
+    A = 1 - 2 sqrt(1 - w) int_0^1 H(mu) mu dmu. A = 0 at w = 0 and 1 at w = 1.
+    """
+    mu, weights, h = chandrasekhar_h(albedo)
+    return float(1.0 - 2.0 * np.sqrt(max(1.0 - float(albedo), 0.0)) * np.sum(weights * mu * h))
+
+
+def single_scattering_albedo(colour) -> np.ndarray:
+    """Per channel, the single-scattering albedo w whose medium reflects ``colour``: the inverse of
+    :func:`diffuse_albedo` (monotone), found by Brent's method; colours clamp to [0, 0.999]."""
+    out = []
+    for c in np.clip(np.asarray(colour, dtype=np.float64), 0.0, 0.999):
+        out.append(0.0 if c <= 0.0 else brentq(lambda w: diffuse_albedo(w) - c, 0.0, 1.0, xtol=1e-12))
+    return np.asarray(out)
+
+
 class Subsurface(Model):
     """Pre-integrated skin: RGB = colour * D(acos(N.L), radius), A = specular.
 
@@ -176,14 +225,27 @@ class Subsurface(Model):
         out[..., 3] = values["specular"]
         return out
 
-    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """Light transport through measured skin inside the sphere (:func:`skin_medium`), by ``volpath``.
+    physical_omissions = {
+        "variances": "the diffusion profile's shape: in the reference it follows from the medium (Jensen's Skin1 "
+                     "mean free paths); no homogeneous medium scatters exactly as a sum of Gaussians",
+        "weights": "the diffusion profile's shape per channel, as for variances",
+        "specular": "the reference's boundary is index-matched (Mitsuba null) so that next-event estimation "
+                    "reaches the point lights; it reflects nothing, so the skin's specular highlight is missing there",
+    }
 
-        The boundary is index-matched (Mitsuba ``null``): next-event estimation cannot pass
-        a smooth dielectric to reach a point light, so a dielectric sphere would be lit only
-        indirectly. The interface's Fresnel reflection is the price (docs/validation.md).
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """Light transport through skin inside the sphere (:func:`skin_medium`), by ``volpath``.
+
+        The medium has Jensen's Skin1 extinction, scaled to the curvature radius, and the
+        single-scattering albedo whose diffuse reflectance is the model's ``colour`` times
+        the object's albedo (:func:`single_scattering_albedo`), so both describe a skin of
+        the same colour. The boundary is index-matched (Mitsuba ``null``): next-event
+        estimation cannot pass a smooth dielectric to reach a point light, so a dielectric
+        sphere would be lit only indirectly. The interface's Fresnel reflection is the price
+        (docs/validation.md).
         """
-        medium, _ = skin_medium(values["radius"])
+        colour = np.asarray(values["colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        medium, _ = skin_medium(values["radius"], colour=colour)
         return Reference(
             {"type": "null"},
             "volpath through Jensen 2001 Skin1 inside the sphere, index-matched boundary (plane: diffuse stand-in)",
@@ -194,18 +256,20 @@ class Subsurface(Model):
         )
 
 
-def skin_medium(radius_mm: float, object_radius: float = _SPHERE_RADIUS):
+def skin_medium(radius_mm: float, object_radius: float = _SPHERE_RADIUS, colour=None):
     """``(homogeneous medium dict, ior)``: Jensen et al.'s Skin1 scaled to a curvature radius.
 
     The reduced scattering coefficient with an isotropic phase function (the similarity
     relation). Coefficients per scene unit are the per-mm ones times
     (radius_mm / object_radius), so an object of ``object_radius`` is as large, in mean
     free paths, as a ``radius_mm`` ball of skin: the scale Penner's pre-integration assumes.
+    With ``colour`` the extinction stays Skin1's and the single-scattering albedo is the one
+    whose diffuse reflectance is ``colour`` (:func:`single_scattering_albedo`); without it,
+    Skin1's own.
     """
     mm_per_unit = float(radius_mm) / float(object_radius)
-    s = np.asarray(SKIN1_SIGMA_S_REDUCED) * mm_per_unit
-    a = np.asarray(SKIN1_SIGMA_A) * mm_per_unit
-    t = s + a
+    t = (np.asarray(SKIN1_SIGMA_S_REDUCED) + np.asarray(SKIN1_SIGMA_A)) * mm_per_unit
+    s = t * single_scattering_albedo(colour) if colour is not None else np.asarray(SKIN1_SIGMA_S_REDUCED) * mm_per_unit
     medium = {
         "type": "homogeneous",
         # RGB values must lie in [0, 1]: the largest coefficient goes into ``scale``.

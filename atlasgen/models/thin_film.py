@@ -4,7 +4,8 @@ A GGX microfacet BSDF (height-correlated Smith visibility, the renderer's lobe:
 :mod:`atlasgen.optics.specular`) whose Fresnel term is the film stack's exact Airy reflectance
 per wavelength (Belcour & Barla, "A Practical Extension to Microfacet Theory for the
 Modeling of Varying Iridescence", SIGGRAPH 2017, eq. 2, without their Fourier-space
-approximation), over a Lambertian base weighted by the transmission (1 - R(N.L)) (1 - R(N.V)).
+approximation), over a Lambertian base weighted by the transmission (1 - R(N.L)) (1 - R(N.V)),
+with the model's film strength and split, and its back-light as a transmission lobe.
 Mitsuba evaluates it per wavelength in ``llvm_ad_spectral`` through the ``atlasgen_thinfilm``
 plugin (:mod:`atlasgen.models.mitsuba_bsdfs`).
 """
@@ -19,7 +20,12 @@ from atlasgen.models.iridescent import film_reflectance
 from atlasgen.optics.interpolation import interpolate_2d
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 
-__all__ = ["film_table", "thin_film_f_cos"]
+__all__ = ["film_table", "film_average", "thin_film_f_cos", "FILM_DEFAULTS"]
+
+#: The iridescent model's film parameters beyond the stack itself, at values that make the
+#: BSDF the plain thin-film microfacet (full strength, all of it in the lobe, no back-light).
+FILM_DEFAULTS = {"film_strength": 1.0, "film_split": 0.0, "energy": "none", "backlight": 0.0,
+                 "backlight_distortion": 0.2, "backlight_power": 4.0}  # fmt: skip
 
 
 @lru_cache(maxsize=16)
@@ -32,32 +38,69 @@ def film_table(thickness: float, film_ior: float, base_ior: float, base_k: float
     return cos, lam, table
 
 
+@lru_cache(maxsize=16)
+def film_average(thickness: float, film_ior: float, base_ior: float, base_k: float):
+    """(wavelengths, R_avg): R_avg(lambda) = 2 int_0^1 R(c, lambda) c dc, by the trapezoid rule on the table."""
+    cos, lam, table = film_table(thickness, film_ior, base_ior, base_k)
+    average = 2.0 * np.trapezoid(table * cos[:, None], cos, axis=0)
+    average.setflags(write=False)
+    return lam, average
+
+
 def _lookup(table_set, cos, lam):
     """Bilinear R at (cos, lambda), elementwise: the table's cosine axis is filtered first."""
     grid_c, grid_l, table = table_set
     return interpolate_2d(table.T, cos * (len(grid_c) - 1), (lam - grid_l[0]) / (grid_l[1] - grid_l[0]))
 
 
-def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum):
-    """f cos(theta_o) of the thin-film microfacet BSDF, per lane and wavelength.
+def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spectrum=None):
+    """f cos(theta_o) of the thin-film BSDF, per lane and wavelength.
 
-    f = D(h) V(wi, wo) R(wi.h, lambda) + base(lambda) (1 - R(cos_o)) (1 - R(cos_i)) / pi, D GGX
-    and V = G2 / (4 cos_i cos_o) height-correlated Smith (Cook & Torrance 1982; Walter et al.
-    2007; Heitz 2014; Belcour & Barla 2017).
-    ``wi``, ``wo``: (N, 3) local; ``lam``: (N, S) nm; ``base_rgb_spectrum``: (N, S).
+    With R the film's Airy reflectance, k = ``film_strength``, s = ``film_split`` and
+    c_i = cos(theta_i) the view side (the model's N.V), c_o the light side (N.L):
+
+        f = k (1 - s) D(h) V(wi, wo) R(wi.h)                      the lobe: GGX D, height-correlated Smith V = G2 / (4 c_i c_o)
+                                                                   (Cook & Torrance 1982; Walter et al. 2007; Heitz 2014)
+          + k s R(c_i) / pi                                        the film's rough part
+          + base (1 - R(c_o)) (1 - R(c_i)) / (1 - R_avg) / pi      energy = "coupled" (else base / pi)
+          + B colour_B t(wi, wo) (1 - R(c_i)) / (pi |c_o|)         light from behind (c_o < 0)
+
+    per wavelength, R_avg = 2 int R(c) c dc. The film's reflection is split between a
+    lobe of the renderer's width and a rough (Lambertian-like) part as the model splits it
+    between A and RGB: a surface whose micro-roughness is bimodal. The back-light is the
+    Barré-Brisebois & Bouchard term t = saturate(V.-(L + delta N))^p at the true azimuth
+    (the model bakes its azimuth average), seen through the film. ``wi``, ``wo``: (N, 3)
+    local; ``lam``: (N, S) nm; ``base_rgb_spectrum``, ``backlight_spectrum``: (N, S);
+    ``film``: the stack (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) and any of
+    :data:`FILM_DEFAULTS`.
     """
-    table = film_table(film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
+    film = {**FILM_DEFAULTS, **film}
+    stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
+    table = film_table(*stack)
     ci, co = wi[:, 2], wo[:, 2]
     valid = (ci > 0) & (co > 0)
     h = wi + wo
     h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
     cos_d = np.clip((wi * h).sum(1), 0.0, 1.0)
     d = ggx_distribution(h[:, 2], alpha)
+    strength, split = float(film["film_strength"]), float(film["film_split"])
     # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked below.
     with np.errstate(divide="ignore", invalid="ignore"):
-        vis = smith_visibility_correlated_ggx(ci, co, alpha)
-    spec = np.nan_to_num(d * vis * np.maximum(co, 0.0))[:, None] * _lookup(table, cos_d[:, None], lam)
-    r_o = _lookup(table, co[:, None], lam)
-    r_i = _lookup(table, ci[:, None], lam)
-    diffuse = base_rgb_spectrum * (1.0 - r_o) * (1.0 - r_i) / np.pi * np.maximum(co, 0.0)[:, None]
-    return np.where(valid[:, None], spec + diffuse, 0.0)
+        vis = np.nan_to_num(smith_visibility_correlated_ggx(ci, co, alpha))
+    r_i = _lookup(table, np.clip(ci, 0.0, 1.0)[:, None], lam)
+    r_o = _lookup(table, np.clip(co, 0.0, 1.0)[:, None], lam)
+    lit = np.maximum(co, 0.0)[:, None]
+    spec = (strength * (1.0 - split)) * (d * vis * np.maximum(co, 0.0))[:, None] * _lookup(table, cos_d[:, None], lam)
+    rough = (strength * split / np.pi) * r_i * lit
+    weight = (1.0 - r_o) * (1.0 - r_i)
+    if film["energy"] == "coupled":
+        grid, average = film_average(*stack)
+        weight = weight / np.maximum(1.0 - np.interp(lam, grid, average), 1e-6)
+    front = np.where(valid[:, None], spec + rough + base_rgb_spectrum * weight / np.pi * lit, 0.0)
+    if film["backlight"] <= 0.0 or backlight_spectrum is None:
+        return front
+    # V.-(L + delta N) with V = wi, L = wo (towards the light) and N = +z.
+    x = -(wi * wo).sum(1) - float(film["backlight_distortion"]) * ci
+    t = np.clip(x, 0.0, 1.0) ** float(film["backlight_power"])
+    back = (float(film["backlight"]) / np.pi) * (t * (co < 0.0))[:, None] * backlight_spectrum * (1.0 - r_i)
+    return front + np.where((ci > 0)[:, None], back, 0.0)

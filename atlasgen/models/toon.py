@@ -57,6 +57,9 @@ class Toon(Model):
               doc="nearest: steps snap to texel boundaries and stay hard; linear: steps blur over a texel"),
     )
 
+    no_physical_reference = ("an artistic model: cel bands, a silhouette band and outlines describe a look, "
+                             "not a material, so no physical counterpart exists; it is validated against its model reference only")
+
     def check(self, values, path):
         thresholds, colours = values["thresholds"], values["colours"]
         if any(b <= a for a, b in zip(thresholds, thresholds[1:])):

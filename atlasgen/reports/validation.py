@@ -37,6 +37,7 @@ __all__ = ["write_validation",
     "summary_line",
     "describe_materials",
     "missed_goals",
+    "noise_floor_failures",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -90,6 +91,13 @@ def report_dict(run) -> dict:
                 "images": {"reference": image_name(r.material, r.scene, kind),
                            "flip": image_name(r.material, r.scene, f"flip-{kind}")},  # fmt: skip
             }
+            floor = getattr(ref, "noise_floor_db", None)
+            if floor is not None:  # a stochastic reference: two seeds against each other
+                refs[kind]["noise_floor_db"] = _finite(floor)
+                refs[kind]["noise_floor_ok"] = ref.noise_floor_ok
+            if getattr(ref, "mask", None) is not None:
+                refs[kind]["masked_fraction"] = ref.masked_fraction
+                refs[kind]["masked"] = ref.masked
         row = {
             "material": r.material,
             "type": r.type,
@@ -192,14 +200,29 @@ def describe_materials(data: dict) -> list[str]:
     return lines
 
 
+def noise_floor_failures(data: dict) -> list[str]:
+    """One text per comparison whose stochastic reference is too noisy to measure its error:
+    ``noise_floor_ok`` false (the floor is not 10 dB above the PSNR measured against it)."""
+    out = []
+    for row in data.get("results", []):
+        for kind, ref in row["references"].items():
+            if ref.get("noise_floor_ok") is False:
+                out.append(f"{row['material']} on {row['scene']}: the {kind} reference's noise floor "
+                           f"{_psnr_text(ref['noise_floor_db'])} dB is not 10 dB above the PSNR it measures "
+                           f"({_psnr_text(ref['psnr_db'])} dB); raise --physical-spp")  # fmt: skip
+    return out
+
+
 def missed_goals(data: dict) -> list[str]:
     """Each goal a report misses, one short text each; empty when all are met.
 
     A LUT result misses when its model-reference PSNR or mean FLIP misses the goals; a
-    separable material misses when the error its manifest claims exceeds its budget.
+    separable material misses when the error its manifest claims exceeds its budget; any
+    comparison misses when its stochastic reference's noise floor is not 10 dB above the
+    error it measures (:func:`noise_floor_failures`).
     """
     goals = data["settings"]["goals"]
-    missed = []
+    missed = noise_floor_failures(data)
     for name, rows in _rows_by_material(data).items():
         for row in rows:
             model = row["references"].get("model") or {}
@@ -299,6 +322,9 @@ def _html(data: dict) -> bytes:
                 "scene": row["scene"], "atlas_ms": f"{1000 * row['atlas_seconds']:.1f}", "kind": kind,
                 "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": f"{ref['rmse']:.5f}",
                 "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": f"{ref['flip']:.4f}", "goal": ref["meets_goal"],
+                "floor": _fmt(ref.get("noise_floor_db"), ".1f") if "noise_floor_db" in ref else "",
+                "floor_ok": ref.get("noise_floor_ok"),
+                "masked": f"{ref['masked_fraction']:.1%} ({ref['masked']})" if "masked_fraction" in ref else "",
                 "claimed": _claimed_text(kind, row),
             })  # fmt: skip
         b = row.get("error_breakdown")

@@ -14,7 +14,11 @@ import numpy as np
 
 from atlasgen.optics.display import display_clip
 
-__all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images"]
+__all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images", "noise_floor",
+           "NOISE_FLOOR_MARGIN_DB"]  # fmt: skip
+
+#: A stochastic reference's noise floor must lie this far above the PSNR it measures.
+NOISE_FLOOR_MARGIN_DB = 10.0
 
 
 def rmse(reference, test) -> float:
@@ -92,10 +96,31 @@ class ImageMetrics:
         }
 
 
-def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True) -> ImageMetrics:
-    """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS."""
+def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True, mask=None) -> ImageMetrics:
+    """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS.
+
+    ``mask`` (``(h, w)`` bool, True = excluded) leaves pixels out of every figure: FLIP is
+    computed on the whole image (it looks at neighbourhoods) and averaged over the kept
+    pixels only; the map stays whole.
+    """
+    keep = (slice(None),) if mask is None else (~np.asarray(mask, dtype=bool),)
     ref_ldr = display_clip(reference, exposure)
     test_ldr = display_clip(test, exposure)
     error_map, mean = flip(ref_ldr, test_ldr) if with_flip else (None, math.nan)
-    return ImageMetrics(rmse(ref_ldr, test_ldr), psnr(ref_ldr, test_ldr), mean, rmse(reference, test),
-                        relative_rms(reference, test), error_map)  # fmt: skip
+    if error_map is not None and mask is not None:
+        mean = float(error_map[keep].mean()) if np.any(keep[0]) else math.nan
+    reference, test = np.asarray(reference)[keep], np.asarray(test)[keep]
+    return ImageMetrics(rmse(ref_ldr[keep], test_ldr[keep]), psnr(ref_ldr[keep], test_ldr[keep]), mean,
+                        rmse(reference, test), relative_rms(reference, test), error_map)  # fmt: skip
+
+
+def noise_floor(render_a, render_b, exposure: float = 1.0, mask=None) -> float:
+    """A stochastic reference's noise floor: the PSNR in dB between two renders with different seeds.
+
+    Compared as :func:`compare_images` compares (display images, ``mask`` excluded). The two
+    renders differ by twice one render's noise variance, so one render lies about 3 dB
+    closer to the converged image than this figure; an error measured against the reference
+    is noise-limited where it comes within :data:`NOISE_FLOOR_MARGIN_DB` of it.
+    """
+    keep = (slice(None),) if mask is None else (~np.asarray(mask, dtype=bool),)
+    return psnr(display_clip(render_a, exposure)[keep], display_clip(render_b, exposure)[keep])

@@ -8,7 +8,10 @@ What is kept identical, so that only the shading differs:
 - **Sampling.** A ``stratified`` sampler without jitter and a ``box`` reconstruction
   filter: with one sample per pixel the ray goes through the pixel centre, as the
   rasteriser's g-buffer sample does. With N = k^2 samples they sit at the centres of a
-  k x k grid and the box filter averages them (an anti-aliased reference).
+  k x k grid and the box filter averages them (an anti-aliased reference). Stochastic
+  references (``volpath``, and spectral ones, whose wavelengths are drawn from the sampler
+  per sample) use the ``independent`` sampler, so every sample draws its own paths and
+  wavelengths, and two seeds give independent renders (their noise floor).
 - **Geometry.** The renderer's own triangle meshes (:func:`atlasgen.render.meshes.build_mesh`)
   in world space, with the renderer's normal transform (inverse transpose, not
   renormalised per vertex), so interpolated shading normals match the g-buffer's.
@@ -32,7 +35,10 @@ from atlasgen.materials.scene import object_matrix
 
 __all__ = [
     "DIRECT_INTEGRATOR",
+    "SHADOW_INTEGRATOR",
     "register_direct_integrator",
+    "register_shadow_integrator",
+    "cast_shadow_mask",
     "sensor_dict",
     "emitter_dicts",
     "mitsuba_mesh",
@@ -41,6 +47,7 @@ __all__ = [
 ]
 
 DIRECT_INTEGRATOR = "atlasgen_direct"
+SHADOW_INTEGRATOR = "atlasgen_cast_shadow"
 _registered: set = set()
 
 
@@ -95,8 +102,59 @@ def register_direct_integrator(mi) -> str:
     return DIRECT_INTEGRATOR
 
 
-def sensor_dict(mi, scene, spp: int = 1) -> dict:
-    """Mitsuba ``perspective`` sensor matching the renderer's camera and image size."""
+def register_shadow_integrator(mi) -> str:
+    """Register ``atlasgen_cast_shadow`` for the current variant; return its name.
+
+    Per pixel (one ray through its centre) it returns 1 where the visible point is in the
+    cast shadow of *another* shape for at least one emitter, else 0: what a renderer with
+    shadows shows and the deferred renderer cannot. A shape's shadow on itself (a sphere's
+    far side) is not counted: transport through the object is what a volumetric reference
+    is for.
+    """
+    variant = mi.variant()
+    if (variant, SHADOW_INTEGRATOR) in _registered:
+        return SHADOW_INTEGRATOR
+    import drjit as dr
+
+    class CastShadow(mi.SamplingIntegrator):
+        def sample(self, scene, sampler, ray, medium=None, active=True):
+            si = scene.ray_intersect(ray, active)
+            hit = si.is_valid()
+            shadowed = mi.Bool(False)
+            for emitter in scene.emitters():
+                ds, _ = emitter.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
+                blocker = scene.ray_intersect(si.spawn_ray_to(ds.p), hit & (ds.pdf > 0))
+                shadowed |= blocker.is_valid() & (blocker.shape != si.shape)
+            return mi.Spectrum(dr.select(hit & shadowed, 1.0, 0.0)), hit, []
+
+        def aov_names(self):
+            return []
+
+        def to_string(self):
+            return "CastShadow[]"
+
+    mi.register_integrator(SHADOW_INTEGRATOR, lambda props: CastShadow(props))
+    _registered.add((variant, SHADOW_INTEGRATOR))
+    return SHADOW_INTEGRATOR
+
+
+def cast_shadow_mask(mi, scene) -> np.ndarray:
+    """``(h, w)`` bool: pixels in another object's cast shadow (:func:`register_shadow_integrator`).
+
+    Rendered in ``llvm_ad_rgb`` with diffuse stand-ins (shadows do not depend on the BSDFs).
+    """
+    mi.set_variant("llvm_ad_rgb")
+    integrator = {"type": register_shadow_integrator(mi)}
+    mi_scene = build_mitsuba_scene(mi, scene, [{"type": "diffuse"}] * len(scene.objects), 1, integrator)
+    image, _ = render_mitsuba(mi, mi_scene, 1, python_plugins=False)
+    return image[..., 0] > 0.5
+
+
+def sensor_dict(mi, scene, spp: int = 1, stochastic: bool = False) -> dict:
+    """Mitsuba ``perspective`` sensor matching the renderer's camera and image size.
+
+    ``stochastic`` picks the ``independent`` sampler (random samples, a seed per render)
+    instead of the pixel-centre grid."""
     cam = scene.camera
     return {
         "type": "perspective",
@@ -115,7 +173,8 @@ def sensor_dict(mi, scene, spp: int = 1) -> dict:
             "pixel_format": "rgb",
             "component_format": "float32",
         },
-        "sampler": {"type": "stratified", "sample_count": int(spp), "jitter": False},
+        "sampler": {"type": "independent", "sample_count": int(spp)} if stochastic
+        else {"type": "stratified", "sample_count": int(spp), "jitter": False},
     }
 
 
@@ -171,7 +230,8 @@ def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None):
     return mesh
 
 
-def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None = None, interiors=None):
+def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None = None, interiors=None,
+                       stochastic: bool = False):
     """Load the Mitsuba twin of ``scene``.
 
     Parameters
@@ -186,12 +246,14 @@ def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None 
         Defaults to ``atlasgen_direct`` with the scene's background.
     interiors
         Optional per-object interior media (``None`` entries for none).
+    stochastic
+        Sample with the ``independent`` sampler (:func:`sensor_dict`).
     """
     if integrator is None:
         register_direct_integrator(mi)
         bg = [float(c) for c in scene.background]
         integrator = {"type": DIRECT_INTEGRATOR, "background_r": bg[0], "background_g": bg[1], "background_b": bg[2]}
-    d = {"type": "scene", "integrator": integrator, "sensor": sensor_dict(mi, scene, spp)}
+    d = {"type": "scene", "integrator": integrator, "sensor": sensor_dict(mi, scene, spp, stochastic)}
     d.update(emitter_dicts(scene))
     interiors = interiors or [None] * len(scene.objects)
     for obj, bsdf, interior in zip(scene.objects, bsdfs, interiors):

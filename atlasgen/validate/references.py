@@ -22,10 +22,12 @@ Model reference
     full (w_i, w_o), times the albedo.
 
 Physical references
-    A physically based render where the model has a counterpart (``lambert``: Mitsuba's
-    ``diffuse``, the consistency gate; ``fresnel``: ``roughplastic``; ``sss``: ``volpath``
-    through measured skin; ``iridescent``: a thin-film microfacet BSDF in
-    ``llvm_ad_spectral``). Artistic models have none.
+    A physically based render of the same material (``lambert``: Mitsuba's ``diffuse``,
+    the consistency gate; ``fresnel``: ``roughplastic``; ``sss``: ``volpath`` through skin
+    of the material's colour; ``iridescent``: a thin-film microfacet BSDF in
+    ``llvm_ad_spectral``; ``backlit``: a thin diffuse sheet). Every model parameter reaches
+    it except the model's ``physical_omissions``; ``toon`` has none
+    (``Model.no_physical_reference`` says why).
 
 The Python BSDF plugins live in :mod:`atlasgen.models.mitsuba_bsdfs`.
 """

@@ -44,6 +44,9 @@ from atlasgen.validate.metrics import relative_rms
 from atlasgen.validate.mitsuba_scene import register_direct_integrator
 from atlasgen.validate.references import register_references
 from atlasgen.validate.references import model_reference, physical_reference
+from atlasgen.validate.metrics import compare_images, noise_floor
+from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, cast_shadow_mask, render_mitsuba
+from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -76,6 +79,22 @@ class ReferenceRender:
     spp: int
     variant: str
     metrics: object = None  # ImageMetrics
+    second_image: np.ndarray | None = None  # a stochastic reference rendered again with another seed
+    noise_floor_db: float | None = None  # PSNR between the two seeds (:func:`~atlasgen.validate.metrics.noise_floor`)
+    mask: np.ndarray | None = None  # (h, w) True where the comparison leaves pixels out
+    masked: str | None = None  # what the mask removes, for the report
+
+    @property
+    def masked_fraction(self) -> float | None:
+        return None if self.mask is None else float(np.mean(self.mask))
+
+    @property
+    def noise_floor_ok(self) -> bool | None:
+        """Whether the noise floor lies :data:`NOISE_FLOOR_MARGIN_DB` above the PSNR measured against
+        this reference (``None`` for a deterministic reference)."""
+        if self.noise_floor_db is None or self.metrics is None:
+            return None
+        return bool(self.noise_floor_db >= self.metrics.psnr + NOISE_FLOOR_MARGIN_DB)
 
 
 @dataclass
@@ -236,7 +255,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         Mitsuba samples per pixel of the model references (1 = the pixel centre, what
         the rasteriser samples; a square number k^2 averages a k x k grid).
     physical_spp
-        Samples per pixel of the stochastic physical references (``volpath``).
+        Samples per pixel of the stochastic physical references (``volpath``, spectral
+        ones). Each is rendered twice, with seeds 0 and 1, for its noise floor.
     resolution
         ``(width, height)`` overriding the scenes' image size.
     physical
@@ -288,9 +308,13 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             phys = physical_reference(entry) if physical else None
             if phys is not None:
                 ref = _render_physical(mi, bound, entry, phys, plan.manifest, physical_spp, spp)
-                ref.metrics = compare_images(ref.image, atlas_image, run.exposure)
+                ref.metrics = compare_images(ref.image, atlas_image, run.exposure, mask=ref.mask)
+                if ref.second_image is not None:
+                    ref.noise_floor_db = noise_floor(ref.image, ref.second_image, run.exposure, ref.mask)
+                    ref.second_image = None
                 run.references["physical"] = ref
-                say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+                say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
+                    + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else ""))
             runs.append(run)
         if on_material is not None:
             on_material(entry.name, done, len(plan.entries))
@@ -393,10 +417,19 @@ def _plane_stand_in(entry, albedo) -> dict:
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": colour.tolist()}}
 
 
+#: What the physical comparison leaves out where the reference's integrator traces visibility.
+CAST_SHADOW_NOTE = "cast shadows of other objects (the deferred renderer has none); inter-reflection is not masked"
+
+
 def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
-    plugins only."""
+    plugins only.
+
+    A stochastic reference is rendered with seeds 0 and 1 (the second for its noise floor).
+    Where the reference's integrator traces visibility (``volpath``), the pixels in another
+    object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`).
+    """
     if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
         # live instance, and NumPy cannot run on symbolic arrays.
@@ -420,11 +453,17 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
             bsdfs.append(_plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss).bsdf)
             interiors.append(None)
     n = physical_spp if reference.stochastic else spp
-    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, reference.integrator, interiors)
+    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, reference.integrator, interiors, stochastic=reference.stochastic)
     image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
+    second = None
+    if reference.stochastic:
+        second, _ = render_mitsuba(mi, mi_scene, n, seed=1, python_plugins=not reference.builtin_only)
     del mi_scene
+    ref = ReferenceRender("physical", reference.description, image, seconds, n, variant, second_image=second)
+    if reference.integrator is not None:  # an integrator of its own traces shadow rays
+        ref.mask, ref.masked = cast_shadow_mask(mi, scene), CAST_SHADOW_NOTE
     mi.set_variant("llvm_ad_rgb")
-    return ReferenceRender("physical", reference.description, image, seconds, n, variant)
+    return ref
 
 
 def speed_ratio(reference_seconds: float, atlas_seconds: float) -> float:

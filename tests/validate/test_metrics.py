@@ -57,3 +57,19 @@ def test_relative_rms_of_a_scaled_image_is_the_scale_error(k):
     ref = np.random.default_rng(2).uniform(0.0, 1.0, (6, 7, 3))
     assert relative_rms(ref, ref * k) == pytest.approx(abs(1.0 - k), abs=1e-12)
     assert relative_rms(np.zeros((2, 2, 3)), np.zeros((2, 2, 3))) == 0.0
+
+
+def test_masked_pixels_are_left_out_of_every_figure():
+    from atlasgen.validate.metrics import compare_images, noise_floor
+
+    rng = np.random.default_rng(2)
+    a = rng.uniform(0.1, 0.6, size=(24, 32, 3)).astype(np.float32)
+    b = a.copy()
+    mask = np.zeros((24, 32), dtype=bool)
+    mask[4:9, 10:20] = True
+    b[mask] += 0.3  # differs only where masked
+    whole, masked = compare_images(a, b), compare_images(a, b, mask=mask)
+    assert np.isfinite(whole.psnr) and whole.flip > 0
+    assert masked.psnr == np.inf and masked.rmse == 0.0 and masked.linear_relative_rms == 0.0
+    assert masked.flip == pytest.approx(float(whole.flip_map[~mask].mean()))
+    assert noise_floor(a, b, mask=mask) == np.inf and noise_floor(a, b) == pytest.approx(whole.psnr)

@@ -9,6 +9,7 @@ BSDFs need a vectorised variant: ``llvm_ad_rgb``.
 
 from __future__ import annotations
 
+
 import numpy as np
 import pytest
 
@@ -112,3 +113,11 @@ def test_brdf_reference_samples_its_pdf(mi, entry, wi, alpha):
 def test_thin_film_reference_samples_its_pdf(mi, entry, wi, gloss):
     film = entry("film", 'type = "iridescent"\ncolour = [0.3, 0.2, 0.1]\nthickness = 420.0\n')
     assert_sampling_matches_pdf(mi, physical_reference(film, (0.9, 0.8, 0.7), gloss).bsdf, wi)
+
+
+@pytest.mark.parametrize("wi", [NORMAL, GRAZING, BELOW], ids=["normal", "grazing", "below"])
+@pytest.mark.parametrize("colour", ["[0.6, 0.5, 0.4]", "[0.05, 0.1, 0.02]"], ids=["reflective", "transmissive"])
+def test_thin_sheet_reference_samples_its_pdf(mi, entry, wi, colour):
+    """The backlit reference samples both hemispheres: reflection on w_i's side, transmission through the sheet."""
+    sheet = entry("sheet", f'type = "backlit"\ncolour = {colour}\nscale = 2.0\nspecular = 0.1\n')
+    assert_sampling_matches_pdf(mi, physical_reference(sheet, (0.9, 0.8, 0.7), 0.5).bsdf, wi)

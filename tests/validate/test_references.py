@@ -98,8 +98,9 @@ def test_a_model_without_a_model_reference_is_refused(monkeypatch):
 
 
 def test_physical_references_exist_only_where_physics_does():
-    for kind in ("backlit", "toon", "separable"):
+    for kind in ("toon", "separable"):
         assert physical_reference(_entry(kind, _defaults(kind))) is None
+        assert get_model(kind).no_physical_reference
     ref = physical_reference(_entry("lambert", {"colour": (0.8, 0.5, 0.3)}), albedo=(0.5, 1, 1))
     assert ref.bsdf == {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.4, 0.5, 0.3]}}
     assert (ref.variant, ref.integrator, ref.interior, ref.stochastic) == ("llvm_ad_rgb", None, None, False)
@@ -111,7 +112,11 @@ def test_physical_references_exist_only_where_physics_does():
     assert sss.stochastic and sss.builtin_only
     film = physical_reference(_entry("iridescent", {**_defaults("iridescent"), "colour": (0.5, 0.5, 0.5)}), albedo=(0.5, 1, 1))
     assert film.variant == "llvm_ad_spectral" and film.bsdf["type"] == "atlasgen_thinfilm"
+    assert film.stochastic  # wavelengths are sampled per sample
     assert (film.bsdf["colour_r"], film.bsdf["colour_g"]) == (0.25, 0.5)
+    sheet = physical_reference(_entry("backlit", {**_defaults("backlit"), "colour": (0.4, 0.2, 0.1)}), albedo=(0.5, 1, 1))
+    assert sheet.bsdf["type"] == "atlasgen_thinsheet" and not sheet.stochastic
+    assert (sheet.bsdf["reflectance_r"], sheet.bsdf["reflectance_g"]) == (0.2, 0.2)
 
 
 def _interaction(mi, dr, wi, n_geo):

@@ -69,3 +69,30 @@ def test_report_files_are_written_all_or_nothing(validation_run, tmp_path):
         write_validation(validation_run, blocker / "sub")
     assert blocker.read_text() == "a file where the output folder should be"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["validation"]
+
+
+def test_json_and_html_carry_noise_floors_and_masks_and_strict_flags_a_noisy_floor(written, validation_run):
+    from atlasgen.reports.validation import missed_goals, noise_floor_failures
+
+    out, _ = written
+    data = json.loads((out / "report.json").read_text())
+    for row, run in zip(data["results"], validation_run.runs):
+        for kind, ref in run.references.items():
+            got = row["references"][kind]
+            if getattr(ref, "noise_floor_db", None) is None:
+                assert "noise_floor_db" not in got
+            else:
+                assert got["noise_floor_db"] == pytest.approx(ref.noise_floor_db)
+                assert got["noise_floor_ok"] == ref.noise_floor_ok
+            if getattr(ref, "mask", None) is not None:
+                assert got["masked_fraction"] == pytest.approx(ref.masked_fraction) and got["masked"]
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "noise floor dB" in html and "cast shadows" in html
+    # Flag one comparison as too noisy: it is listed, and --strict counts it as missed.
+    row = next(r for r in data["results"] if "noise_floor_db" in r["references"].get("physical", {}))
+    row["references"]["physical"].update(noise_floor_db=20.0, psnr_db=15.0, noise_floor_ok=False)
+    (failure,) = [f for f in noise_floor_failures(data) if f.startswith(f"{row['material']} on {row['scene']}:")]
+    assert "20.0 dB is not 10 dB above the PSNR it measures (15.0 dB)" in failure
+    assert failure in missed_goals(data)
+    row["references"]["physical"]["noise_floor_ok"] = True
+    assert failure not in noise_floor_failures(data)

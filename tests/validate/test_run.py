@@ -42,9 +42,9 @@ def test_toon_steps_are_softened_by_filtering_and_measured_not_hidden(validation
 
 def test_physical_references_render_where_they_exist(validation_run):
     kinds = {(r.material, r.scene): set(r.references) for r in validation_run.runs}
-    for material in ("matte", "coat", "film", "skin"):
+    for material in ("matte", "coat", "film", "skin", "leaf"):
         assert kinds[(material, "front")] == {"model", "physical"}
-    for material in ("leaf", "cel"):
+    for material in ("cel",):
         assert kinds[(material, "front")] == {"model"}
     _, film = _result(validation_run, "film", "front", "physical")
     assert film.variant == "llvm_ad_spectral" and np.isfinite(film.image).all() and film.image.max() > 0
@@ -119,3 +119,24 @@ def test_custom_scene_objects_with_fixed_materials_must_exist_in_the_atlas(valid
     assert [o.material for o in plan.scenes[0][1].objects] == ["$material", "matte"]
     with pytest.raises(SceneError, match=r"bad.toml: field 'objects\[1\].material': unknown material 'marble'; .*coat"):
         plan_validation(validation_atlas, ["coat"], [str(bad)])
+
+
+def test_stochastic_references_report_their_noise_floor(validation_run):
+    """volpath and spectral references render twice (two seeds); deterministic ones have no floor."""
+    for material in ("skin", "film"):
+        _, ref = _result(validation_run, material, "front", "physical")
+        assert ref.noise_floor_db is not None and 0.0 < ref.noise_floor_db < 80.0
+        assert ref.noise_floor_ok == (ref.noise_floor_db >= ref.metrics.psnr + 10.0)
+    for material in ("matte", "leaf"):
+        _, ref = _result(validation_run, material, "front", "physical")
+        assert ref.noise_floor_db is None and ref.noise_floor_ok is None
+
+
+def test_volpath_comparison_masks_cast_shadows_which_the_atlas_lacks(validation_run):
+    r, ref = _result(validation_run, "skin", "back", "physical")
+    assert ref.mask is not None and 0.0 < ref.masked_fraction < 0.5 and "cast shadows" in ref.masked
+    # The masked pixels are the reference's shadows: darker there than the (shadowless) atlas image.
+    lum = lambda image: image[ref.mask].sum(-1).mean()  # noqa: E731
+    assert lum(ref.image) < 0.5 * lum(r.atlas_image)
+    for material in ("matte", "film"):  # atlasgen_direct traces no shadow rays: nothing to mask
+        assert _result(validation_run, material, "back", "physical")[1].mask is None
