@@ -195,7 +195,10 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf", reflection_only: bo
     if not isinstance(obj, mi.BSDF):
         raise MaterialError(path, field, f"expected a Mitsuba BSDF plugin, got a {type(obj).__name__} ({spec.get('type')!r})")
     flags = obj.flags()
-    if reflection_only is False and mi.has_flag(flags, mi.BSDFFlags.Transmission):
+    # Mitsuba's Transmission mask includes Null: a thin dielectric's straight-through transmission
+    # is flagged Null alone. The null BSDF (Null and no reflection) is refused below instead.
+    if (reflection_only is False and mi.has_flag(flags, mi.BSDFFlags.Transmission)
+            and mi.has_flag(flags, mi.BSDFFlags.Reflection)):  # fmt: skip
         raise MaterialError(path, f"{field}.type", f"a {spec['type']!r} BSDF transmits light, which a separable slice "
                                                    "cannot hold; set reflection_only = true to bake its reflection alone")  # fmt: skip
     if not (mi.has_flag(flags, mi.BSDFFlags.GlossyReflection) or mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection)):
