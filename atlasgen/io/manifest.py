@@ -235,14 +235,19 @@ class VolumeBleed(_Record):
 
 @dataclass(kw_only=True)
 class BrdfError(_Record):
-    """A BRDF approximation's error over the sampled (l, v) pairs (docs/separable.md, "Error")."""
+    """A BRDF approximation's error over the sampled (l, v) pairs, each estimate with its
+    standard error (``_se``; absent in manifests written before estimates carried one)
+    (docs/separable.md, "Error")."""
 
     relative_rms: float
+    relative_rms_se: float | None = field(default=None, metadata=_OPTIONAL)
     log_error: float
+    log_error_se: float | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
     def from_json(cls, f: _Fields) -> "BrdfError":
-        return cls(relative_rms=f.number("relative_rms"), log_error=f.number("log_error"))
+        return cls(relative_rms=f.number("relative_rms"), relative_rms_se=f.number("relative_rms_se", optional=True, minimum=0),
+                   log_error=f.number("log_error"), log_error_se=f.number("log_error_se", optional=True, minimum=0))  # fmt: skip
 
 
 def _lists_of_objects(v) -> bool:
@@ -256,10 +261,22 @@ def _lists_of_numbers(v) -> bool:
 @dataclass(kw_only=True)
 class SeparableErrors(_Record):
     """A separable material's float errors: ``float`` (JSON key) at the chosen term count, and
-    per target the curves against the term count (float, estimated 8-bit, on the grid)."""
+    per target the curves against the term count (float, estimated 8-bit, on the grid).
 
+    Every figure is estimated on ``pairs`` (l, v) pairs drawn with ``seed`` by the
+    ``estimator`` (``defensive-ggx-mixture``: lobes of width ``lobe_alpha`` around the
+    mirror direction; ``uniform``), independent of the ``selection_pairs`` drawn with
+    ``selection_seed`` that chose K, the grid and the target. A budget counts as met when
+    estimate + ``met_sigmas`` standard errors is within it (docs/separable.md, "Error").
+    """
+
+    estimator: str | None = field(default=None, metadata=_OPTIONAL)
     pairs: int
     seed: int
+    selection_pairs: int | None = field(default=None, metadata=_OPTIONAL)
+    selection_seed: int | None = field(default=None, metadata=_OPTIONAL)
+    lobe_alpha: float | None = field(default=None, metadata=_OPTIONAL)
+    met_sigmas: float | None = field(default=None, metadata=_OPTIONAL)
     float_error: BrdfError = field(metadata={"key": "float"})
     float_by_terms: dict  # target -> [{"terms", "relative_rms", "log_error"}]
     estimated_8bit_srgb_by_terms: dict  # target -> [{"terms", "relative_rms"}]
@@ -269,13 +286,22 @@ class SeparableErrors(_Record):
     def from_json(cls, f: _Fields) -> "SeparableErrors":
         curves = "an object of lists of {terms, relative_rms, ...} per target"
         return cls(
+            estimator=f.string("estimator", optional=True),
             pairs=f.integer("pairs", 1),
             seed=f.integer("seed", 0),
+            selection_pairs=f.integer("selection_pairs", 1, optional=True),
+            selection_seed=f.integer("selection_seed", 0, optional=True),
+            lobe_alpha=f.number("lobe_alpha", optional=True, minimum=0),
+            met_sigmas=f.number("met_sigmas", optional=True, minimum=0),
             float_error=BrdfError.from_json(f.child("float")),
             float_by_terms=f.mapping("float_by_terms", values=_lists_of_objects, expected=curves),
             estimated_8bit_srgb_by_terms=f.mapping("estimated_8bit_srgb_by_terms", values=_lists_of_objects, expected=curves),
             grid_by_terms=f.mapping("grid_by_terms", values=_lists_of_numbers, expected="an object of lists of numbers per target"),
         )
+
+
+_VIEW_FRACTION = (lambda v: isinstance(v, dict) and _is_finite(v.get("view_deg")) and _is_finite(v.get("fraction"))
+                  and 0 <= v["fraction"] <= 1, "{view_deg, fraction} with the fraction in [0, 1]")  # fmt: skip
 
 
 def _factor_table(v) -> bool:
@@ -294,7 +320,9 @@ class SeparableFactors(_Record):
     ``f_proxy``: f times the proxy cosine). Fields the bake always writes but a rebuild
     does not need are optional here (``None``: absent from the JSON).
     ``brdf_source`` is the BRDF that was factored (``ggx``, ``mitsuba``, ...); the entry's
-    own ``source`` stays the material file.
+    own ``source`` stays the material file. ``transmitted_fraction`` (``reflection_only``
+    materials) is the share of a transmissive BSDF's response the slices drop, T / (R + T),
+    at a few view angles.
     """
 
     brdf_source: str | None = field(default=None, metadata=_OPTIONAL)
@@ -310,6 +338,7 @@ class SeparableFactors(_Record):
     nonfinite_samples: int | None = field(default=None, metadata=_OPTIONAL)
     nonfinite_reference: int | None = field(default=None, metadata=_OPTIONAL)
     errors: SeparableErrors | None = field(default=None, metadata=_OPTIONAL)
+    transmitted_fraction: list | None = field(default=None, metadata=_OPTIONAL)  # [{"view_deg", "fraction"}]
     max_error: float | None = field(default=None, metadata=_OPTIONAL)
     max_error_met: bool | None = field(default=None, metadata=_OPTIONAL)
     errors_8bit: BrdfError | None = field(default=None, metadata=_OPTIONAL)
@@ -338,6 +367,7 @@ class SeparableFactors(_Record):
             nonfinite_samples=f.integer("nonfinite_samples", 0, optional=True),
             nonfinite_reference=f.integer("nonfinite_reference", 0, optional=True),
             errors=None if errors is None else SeparableErrors.from_json(errors),
+            transmitted_fraction=f.array("transmitted_fraction", "a list of {view_deg, fraction}", _VIEW_FRACTION, optional=True),
             max_error=f.number("max_error", optional=True),
             max_error_met=f.boolean("max_error_met", optional=True),
             errors_8bit=None if errors_8bit is None else BrdfError.from_json(errors_8bit),
@@ -373,14 +403,16 @@ class SeparableRepresentation(_Record):
     target: str
     error_budget: float | None
     estimated_error_8bit: float
+    estimated_error_8bit_se: float | None = field(default=None, metadata=_OPTIONAL)
     meets_budget: bool | None
-    candidates: list  # [{"grid", "target", "relative_rms_by_terms"}]
+    candidates: list  # [{"grid", "target", "relative_rms_by_terms", "relative_rms_se_by_terms"}]
 
     @classmethod
     def from_json(cls, f: _Fields) -> "SeparableRepresentation":
         return cls(kind=f.string("kind"), terms=f.integer("terms", 1), sampling_grid=f.integer("sampling_grid", 1),
                    target=f.string("target"), error_budget=f.number("error_budget", nullable=True),
-                   estimated_error_8bit=f.number("estimated_error_8bit"), meets_budget=f.boolean("meets_budget", nullable=True),
+                   estimated_error_8bit=f.number("estimated_error_8bit"),
+                   estimated_error_8bit_se=f.number("estimated_error_8bit_se", optional=True, minimum=0), meets_budget=f.boolean("meets_budget", nullable=True),
                    candidates=f.array("candidates", "a list of objects", _OBJECT))  # fmt: skip
 
 

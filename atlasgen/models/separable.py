@@ -9,29 +9,27 @@ from __future__ import annotations
 
 import time
 import json
-from functools import lru_cache
 
 import numpy as np
 
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.base import BRDF_REFERENCE, EncodedSlices, Model, RadianceRebuild, Reference, SliceSet
+from atlasgen.separable.approximate import approximate_brdf, GRID_RESOLUTIONS, reference_values
+from atlasgen.separable.error import (
+    error_sample_for,
+    ERROR_SEED,
+    measure_errors,
+    MET_SIGMAS,
+    sample_hemisphere_pairs,
+    SELECTION_SEED,
+)
+from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fractions
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
-from atlasgen.separable.error import sample_hemisphere_pairs
-from atlasgen.separable.approximate import reference_values
-from atlasgen.separable.error import ERROR_SEED
+from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices, read_separable_factors
+from atlasgen.separable.shader import separable_declarations, separable_table_bytes
 from atlasgen.separable.source import make_source
-from atlasgen.separable.approximate import approximate_brdf
-from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
-from atlasgen.separable.approximate import GRID_RESOLUTIONS
-from atlasgen.separable.storage import FACTOR_RESOLUTION
-from atlasgen.separable.storage import encode_factor_slices
-from atlasgen.separable.error import measure_errors
-from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices
-from atlasgen.separable.shader import separable_declarations
-from atlasgen.separable.shader import separable_table_bytes
-from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
-from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
+from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
 
 __all__ = ["Separable", "MAX_AUTO_TERMS"]
 
@@ -46,18 +44,14 @@ def _parametrization_names():
     return tuple(PARAMETRIZATIONS)
 
 
-@lru_cache(maxsize=1)
-def _error_pairs():
-    return sample_hemisphere_pairs()
+def _error_samples(source):
+    """The selection sample and the independent report sample for one source (atlasgen.separable.error)."""
+    return error_sample_for(source, SELECTION_SEED), error_sample_for(source, ERROR_SEED)
 
 
-def _reference(source):
-    """f cos at the fixed error pairs, with non-finite values masked (and counted)."""
-    return reference_values(source, _error_pairs())
-
-
-def _error_seed():
-    return ERROR_SEED
+def _reference(source, sample):
+    """f cos at a sample's pairs, with non-finite values masked (and counted)."""
+    return reference_values(source, sample)
 
 
 class Separable(Model):
@@ -90,6 +84,7 @@ class Separable(Model):
         Param("parametrization", "half_diff", "choice", choices=_parametrization_names(), doc="pi1 / pi2 split"),
         Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
         Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
+        Param("reflection_only", False, "bool", doc="bake only the reflection of a transmissive Mitsuba BSDF (the dropped fraction is recorded)"),
     )
 
     # -- validation ---------------------------------------------------------------------------
@@ -102,9 +97,12 @@ class Separable(Model):
             if values["bsdf"] is None:
                 raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'")
 
-            load_mitsuba_bsdf(values["bsdf"], path)
+            load_mitsuba_bsdf(values["bsdf"], path, reflection_only=values["reflection_only"])
         elif values["bsdf"] is not None:
             raise MaterialError(path, "bsdf", f"only used with source = 'mitsuba', but source is {values['source']!r}")
+        if values["reflection_only"] and values["source"] != "mitsuba":
+            raise MaterialError(path, "reflection_only", f"only used with source = 'mitsuba' (a transmissive BSDF), "
+                                                         f"but source is {values['source']!r}")  # fmt: skip
 
     # -- LUT-style evaluation (previews) ---------------------------------------------------------
     def apply_budget(self, values: dict, budget: float, path) -> dict:
@@ -143,7 +141,8 @@ class Separable(Model):
     def bake(self, values: dict) -> SliceSet:
         source = make_source(values)
         method = values["factorization"]
-        reference, ref_nonfinite = _reference(source)
+        selection, report = _error_samples(source)
+        reference, ref_nonfinite = _reference(source, report)
         result = approximate_brdf(
             source,
             values["parametrization"],
@@ -153,8 +152,10 @@ class Separable(Model):
             target=values["target"],
             resolution=FACTOR_RESOLUTION,
             grids=self.sampling_grids(values),
-            reference=reference,
-            pairs=_error_pairs(),
+            reference=_reference(source, selection)[0],
+            pairs=selection,
+            report=report,
+            report_reference=reference,
         )
         timings = dict(result.timings)
         t0 = time.perf_counter()
@@ -176,14 +177,21 @@ class Separable(Model):
             "nonfinite_samples": result.nonfinite_samples,
             "nonfinite_reference": ref_nonfinite,
             "errors": {
-                "pairs": int(_error_pairs()[0].shape[0]),
-                "seed": _error_seed(),
+                "estimator": report.estimator,
+                "pairs": report.count,
+                "seed": report.seed,
+                "selection_pairs": selection.count,
+                "selection_seed": selection.seed,
+                **({} if report.lobe_alpha is None else {"lobe_alpha": report.lobe_alpha}),
+                "met_sigmas": MET_SIGMAS,
                 "float": result.errors,
                 "float_by_terms": result.errors_by_terms,
                 "estimated_8bit_srgb_by_terms": result.errors_8bit_by_terms,
                 "grid_by_terms": result.matrix_errors_by_terms,
             },
         }
+        if values["reflection_only"]:
+            extra["transmitted_fraction"] = transmitted_fractions(values["bsdf"])
         if result.max_error_met is not None:
             extra["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
             extra["max_error_met"] = result.max_error_met
@@ -195,13 +203,14 @@ class Separable(Model):
             "target": result.target,
             "error_budget": extra.get("max_error"),
             "estimated_error_8bit": chosen_8bit["relative_rms"],
+            "estimated_error_8bit_se": chosen_8bit["relative_rms_se"],
             "meets_budget": result.max_error_met,
             "candidates": result.candidates,
         }
         out = SliceSet(slices, extra, timings)
         # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
         out._separable = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,
-                          "reference": reference, "parametrization": result.factors.parametrization,
+                          "reference": reference, "sample": report, "parametrization": result.factors.parametrization,
                           "target": result.target}
         return out
 
@@ -239,17 +248,19 @@ class Separable(Model):
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
         cached = getattr(slices, "_separable", None)
         if cached is not None:
-            reference, name, target = cached["reference"], cached["parametrization"], cached["target"]
+            reference, sample = cached["reference"], cached["sample"]
+            name, target = cached["parametrization"], cached["target"]
         else:  # slices from the bake cache: only the manifest fields survive
-            reference, _ = _reference(make_source(values))
+            source = make_source(values)
+            sample = _error_samples(source)[1]
+            reference, _ = _reference(source, sample)
             name = slices.extra.get("parametrization", values["parametrization"])
             target = slices.extra.get("target", "f_cos")
         extra = getattr(encoded, "extra", None) or {}
         scale = np.asarray(extra.get("factor_scale"), dtype=np.float64)
         bias = np.asarray(extra.get("factor_bias"), dtype=np.float64)
         factors = factors_from_slices(decoded, scale, bias, name, target)
-        l, v = _error_pairs()
-        approx = evaluate_factors(factors, None, l, v, cosine=True)
+        approx = evaluate_factors(factors, None, sample.l, sample.v, cosine=True)
         # The generic quantization error assumes one (rgb, a) scale per slice; with
         # per-factor scale and bias it is measured here, in factor units.
         half = decoded.shape[2] // 2
@@ -258,7 +269,7 @@ class Separable(Model):
         rebuilt[:, :, half:] = decoded[:, :, half:, :3] * scale[:, None, None, 1] + bias[:, None, None, 1]
         err = np.abs(rebuilt - np.asarray(slices.values)[..., :3])
         return {
-            "errors_8bit": measure_errors(reference, approx),
+            "errors_8bit": measure_errors(reference, approx, sample.weight),
             "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))},
         }
 

@@ -8,7 +8,15 @@ from functools import lru_cache
 
 import numpy as np
 
-from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
+from atlasgen.separable.error import (
+    ERROR_SEED,
+    SELECTION_SEED,
+    ErrorSample,
+    error_sample_for,
+    errors_by_terms,
+    sample_hemisphere_pairs,
+    upper_bound,
+)
 from atlasgen.separable.factorize import Factors, factorize, matrix_errors
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.resample import resample_factors
@@ -33,10 +41,11 @@ class Approximation:
     """The chosen factors and the evidence for them.
 
     ``errors_by_terms[target]`` lists, for K = 1 .. the largest K tried, the float
-    errors at the fixed (l, v) pairs, ``errors_8bit_by_terms`` the same after 8-bit
-    quantization (relative RMS only), ``matrix_errors_by_terms`` the weighted residual
-    on the sampled grid (:func:`matrix_errors`), all on the chosen sampling ``grid``;
-    ``candidates`` holds the 8-bit relative RMS by K of every (grid, target) tried.
+    errors and their standard errors on the ``report`` sample, ``errors_8bit_by_terms``
+    the same after 8-bit quantization (relative RMS only), ``matrix_errors_by_terms`` the
+    weighted residual on the sampled grid (:func:`matrix_errors`), all on the chosen
+    sampling ``grid``; ``candidates`` holds the 8-bit relative RMS by K of every (grid,
+    target) tried, on the ``selection`` sample that chose among them.
     ``factors`` is truncated to the chosen ``terms`` and stored on ``resolution`` texels.
     """
 
@@ -52,6 +61,8 @@ class Approximation:
     max_error_met: bool | None = None
     grid: int = 32
     candidates: list = field(default_factory=list)
+    selection: ErrorSample | None = None
+    report: ErrorSample | None = None
 
     @property
     def errors(self) -> dict:
@@ -64,9 +75,20 @@ def _weights(name: str, resolution: int):
     return get_parametrization(name).quadrature_weights(resolution)
 
 
+def _as_sample(pairs, seed: int = ERROR_SEED) -> ErrorSample:
+    """An :class:`ErrorSample`; a bare (l, v) tuple is taken as uniform pairs (weight 1)."""
+    if isinstance(pairs, ErrorSample):
+        return pairs
+    l, v = pairs
+    return ErrorSample(l, v, np.ones(l.shape[0]), seed, None, "uniform")
+
+
 def reference_values(source: BrdfSource, pairs=None):
-    """f cos at the error pairs, non-finite values set to 0; returns (values, count of non-finite)."""
-    l, v = pairs if pairs is not None else sample_hemisphere_pairs()
+    """f cos at the error pairs (an :class:`ErrorSample` or an (l, v) tuple), non-finite
+    values set to 0; returns (values, count of non-finite)."""
+    if pairs is None:
+        pairs = sample_hemisphere_pairs()
+    l, v = pairs.pairs if isinstance(pairs, ErrorSample) else pairs
     ref = source.f_cos(l, v)
     finite = np.isfinite(ref)
     return np.where(finite, ref, 0.0), int(np.count_nonzero(~finite))
@@ -82,17 +104,19 @@ def _choose(candidates: list[dict], terms, max_error):
     Fixed K: the least error at K. A budget: candidates in a fixed order of cost, fewer
     terms (atlas slices and texture reads per pixel) before a coarser sampling grid
     (BRDF evaluations at bake time), then lower error; the first that meets the
-    budget wins. If none does, the least error of all is kept. Because the order
-    does not depend on the budget, a tighter budget never yields a larger error.
+    budget within its uncertainty (:func:`~atlasgen.separable.error.upper_bound`,
+    estimate + 2 SE) wins. If none does, the least error of all is kept. Because the
+    order does not depend on the budget, a tighter budget never yields a larger error.
     """
     if terms is not None:
         best = min(range(len(candidates)), key=lambda i: (_at(candidates[i]["errors"], terms)["relative_rms"], i))
         return best, terms, None
-    ranked = sorted((e["terms"], c["grid"], e["relative_rms"], i) for i, c in enumerate(candidates) for e in c["errors"])
-    for k, _, error, i in ranked:
-        if error <= max_error:
+    ranked = sorted((e["terms"], c["grid"], e["relative_rms"], i, upper_bound(e))
+                    for i, c in enumerate(candidates) for e in c["errors"])  # fmt: skip
+    for k, _, _, i, bound in ranked:
+        if bound <= max_error:
             return i, k, True
-    k, _, _, i = min(ranked, key=lambda r: (r[2], r[0], r[1], r[3]))
+    k, _, _, i, _ = min(ranked, key=lambda r: (r[2], r[0], r[1], r[3]))
     return i, k, False
 
 
@@ -109,6 +133,8 @@ def approximate_brdf(
     srgb: bool = True,
     measure_8bit: bool = True,
     grids=None,
+    report=None,
+    report_reference=None,
 ) -> Approximation:
     """Factor one BRDF (Kautz & McCool 1999) and measure every candidate.
 
@@ -137,8 +163,17 @@ def approximate_brdf(
     measure_8bit
         False skips the 8-bit estimate (then candidates are judged on float errors and
         ``errors_8bit_by_terms`` is empty); for studies that only compare float errors.
-    reference, pairs
-        f cos at the error pairs and the pairs themselves, if already computed.
+    pairs, reference
+        The sample the candidates are judged and chosen on (an
+        :class:`~atlasgen.separable.error.ErrorSample`, or an (l, v) tuple of uniform pairs)
+        and f cos there, if already computed. Default: the source's lobe-sampled pairs with
+        :data:`~atlasgen.separable.error.SELECTION_SEED`.
+    report, report_reference
+        The independent sample every reported figure (``errors_by_terms``,
+        ``errors_8bit_by_terms``, ``max_error_met``) is measured on, and f cos there.
+        Default: the source's lobe-sampled pairs with :data:`~atlasgen.separable.error.ERROR_SEED`
+        when ``pairs`` is defaulted too; otherwise ``pairs`` itself (a study that passes one
+        sample chooses and reports on it).
     """
     if terms is None and max_error is None:
         max_error = 0.02
@@ -148,13 +183,17 @@ def approximate_brdf(
     most = 1 if method == "nd" else (terms or MAX_AUTO_TERMS)
     # K = 1 .. 8 for the curves, and the fixed K itself when it is larger.
     wanted = sorted(set(range(1, min(most, MAX_AUTO_TERMS) + 1)) | {most})
-    if pairs is None:
-        pairs = sample_hemisphere_pairs()
+    if report is None:
+        report = error_sample_for(source, ERROR_SEED) if pairs is None else pairs
+        report_reference = report_reference if report_reference is not None else (reference if pairs is not None else None)
+    selection = _as_sample(error_sample_for(source, SELECTION_SEED) if pairs is None else pairs)
+    report = _as_sample(report)
+    ref_nonfinite = 0
     if reference is None:
-        reference, ref_nonfinite = reference_values(source, pairs)
-    else:
-        ref_nonfinite = 0
-    l, v = pairs
+        reference, _ = reference_values(source, selection)
+    if report_reference is None:
+        report_reference, ref_nonfinite = reference_values(source, report)
+    l, v = selection.pairs
 
     timings = {"sample_s": 0.0, "svd_s": 0.0, "error_s": 0.0}
     candidates = []
@@ -172,23 +211,29 @@ def approximate_brdf(
             stored = resample_factors(sampled[name], resolution)
             # Each term has its own scale and bias, so quantizing all K terms once gives
             # the 8-bit error of every prefix K in one more pass.
-            judged = (errors_by_terms(quantize_factors(stored, srgb=srgb), reference, l, v, wanted, log=False)
-                      if measure_8bit else errors_by_terms(stored, reference, l, v, wanted))  # fmt: skip
+            judged_factors = quantize_factors(stored, srgb=srgb) if measure_8bit else stored
+            judged = errors_by_terms(judged_factors, reference, l, v, wanted, log=not measure_8bit, weight=selection.weight)
             candidates.append({"grid": grid, "target": name, "factors": stored, "sampled": sampled[name],
-                               "matrix": matrices[name], "weights": (w1, w2), "nonfinite": nonfinite, "errors": judged})  # fmt: skip
+                               "judged": judged_factors, "matrix": matrices[name], "weights": (w1, w2),
+                               "nonfinite": nonfinite, "errors": judged})  # fmt: skip
         timings["sample_s"] += t1 - t0
         timings["svd_s"] += t2 - t1
         timings["error_s"] += time.perf_counter() - t2
-        if terms is None and any(c["errors"][0]["relative_rms"] <= max_error for c in candidates):
+        if terms is None and any(upper_bound(c["errors"][0]) <= max_error for c in candidates):
             break  # one term on the coarsest grid so far: no later grid can be cheaper
 
     t3 = time.perf_counter()
     index, k, met = _choose(candidates, most if terms else None, max_error)
     chosen = candidates[index]
     on_grid = [c for c in candidates if c["grid"] == chosen["grid"]]
-    errors = {c["target"]: (errors_by_terms(c["factors"], reference, l, v, wanted) if measure_8bit else c["errors"])
-              for c in on_grid}  # fmt: skip
-    errors_8bit = {c["target"]: c["errors"] for c in on_grid} if measure_8bit else {}
+    # Every reported figure is measured again, on the independent report sample.
+    rl, rv, rw = report.l, report.v, report.weight
+    errors = {c["target"]: errors_by_terms(c["factors"], report_reference, rl, rv, wanted, weight=rw) for c in on_grid}
+    errors_8bit = ({c["target"]: errors_by_terms(c["judged"], report_reference, rl, rv, wanted, log=False, weight=rw)
+                    for c in on_grid} if measure_8bit else {})  # fmt: skip
+    if met is not None:
+        reported = (errors_8bit or errors)[chosen["target"]]
+        met = bool(upper_bound(_at(reported, k)) <= max_error)
     grid_errors = {
         c["target"]: [float(f"{e:.6g}") for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))]
         for c in on_grid
@@ -207,5 +252,8 @@ def approximate_brdf(
         max_error_met=met,
         grid=chosen["grid"],
         candidates=[{"grid": c["grid"], "target": c["target"],
-                     "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]]} for c in candidates],  # fmt: skip
+                     "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]],
+                     "relative_rms_se_by_terms": [e["relative_rms_se"] for e in c["errors"]]} for c in candidates],  # fmt: skip
+        selection=selection,
+        report=report,
     )

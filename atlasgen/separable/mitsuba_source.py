@@ -14,7 +14,8 @@ from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, shown
 from atlasgen.io.fields import shown
 
-__all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos"]
+__all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos",
+           "bsdf_alpha", "transmitted_fractions", "TRANSMISSION_VIEWS"]
 
 VARIANT = "llvm_ad_rgb"
 
@@ -162,12 +163,15 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
                 raise MaterialError(path, where, f"expected a roughness {bounds}, got {shown(value)}")
 
 
-def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf"):
+def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf", reflection_only: bool | None = None):
     """Instantiate a Mitsuba BSDF from a dict (``mi.load_dict``).
 
     The table is checked first (numbers finite in float32, roughness in range, ``type``
     a name); the BSDF must reflect light diffusely or glossily, since smooth (delta)
     lobes and the ``null`` BSDF evaluate to zero everywhere and leave nothing to factor.
+    With ``reflection_only = False`` a BSDF that transmits light (``roughdielectric``,
+    ``dielectric``, ``thindielectric``, ...) is refused, since a slice holds reflection
+    only; ``True`` accepts it, ``None`` (the default) does not check.
 
     Raises
     ------
@@ -189,6 +193,12 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf"):
     if not isinstance(obj, mi.BSDF):
         raise MaterialError(path, field, f"expected a Mitsuba BSDF plugin, got a {type(obj).__name__} ({spec.get('type')!r})")
     flags = obj.flags()
+    # Mitsuba's Transmission mask includes Null: a thin dielectric's straight-through transmission
+    # is flagged Null alone. The null BSDF (Null and no reflection) is refused below instead.
+    if (reflection_only is False and mi.has_flag(flags, mi.BSDFFlags.Transmission)
+            and mi.has_flag(flags, mi.BSDFFlags.Reflection)):  # fmt: skip
+        raise MaterialError(path, f"{field}.type", f"a {spec['type']!r} BSDF transmits light, which a separable slice "
+                                                   "cannot hold; set reflection_only = true to bake its reflection alone")  # fmt: skip
     if not (mi.has_flag(flags, mi.BSDFFlags.GlossyReflection) or mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection)):
         raise MaterialError(path, f"{field}.type", f"expected a BSDF with a diffuse or glossy reflection, got {spec['type']!r}, "
                                                    "which has none (smooth and null lobes evaluate to zero)")  # fmt: skip
@@ -215,3 +225,57 @@ def evaluate_mitsuba_f_cos(bsdf, l, v) -> np.ndarray:
     value = bsdf.eval(mi.BSDFContext(), si, mi.Vector3f(l[:, 0], l[:, 1], l[:, 2]))
     out = np.asarray(value, dtype=np.float64)
     return out.T.reshape(count, 3)
+
+
+def bsdf_alpha(spec: dict) -> float | None:
+    """The smallest microfacet roughness in a (nested) Mitsuba BSDF dict: ``alpha``,
+    ``alpha_u``/``alpha_v``, or the principled BSDFs' ``roughness`` r as alpha = r^2
+    (Mitsuba 3 docs, "principled"). None when the dict gives none (the estimator then
+    measures the lobe from f, :func:`atlasgen.separable.source.measure_lobe_alpha`)."""
+    found = []
+    for _, _, node in _nodes(spec, "bsdf"):
+        for key in ("alpha", "alpha_u", "alpha_v"):
+            if isinstance(node.get(key), (int, float)) and not isinstance(node.get(key), bool):
+                found.append(float(node[key]))
+        if node.get("type") in ("principled", "principledthin") and isinstance(node.get("roughness"), (int, float)):
+            found.append(max(float(node["roughness"]) ** 2, 1e-3))
+    return min(found) if found else None
+
+
+#: View angles (degrees from the normal) at which :func:`transmitted_fractions` measures.
+TRANSMISSION_VIEWS = (0.0, 30.0, 60.0, 80.0)
+_TRANSMISSION_SAMPLES = 1 << 16
+_TRANSMISSION_SEED = 7
+
+
+def transmitted_fractions(spec: dict, views=TRANSMISSION_VIEWS, samples: int = _TRANSMISSION_SAMPLES) -> list[dict]:
+    """The fraction of a BSDF's response that is transmitted, T / (R + T), at each view angle.
+
+    R and T are the directional albedos of the reflected and transmitted halves, each the
+    mean of Mitsuba's ``BSDF.sample`` weight (f cos / pdf) over the samples whose
+    direction leaves on that side (Mitsuba 3 docs, "BSDF.sample"), averaged over RGB.
+    ``samples`` stratified-by-seed uniform numbers per angle (numpy PCG64, fixed seed), so
+    the figure is deterministic. Returns ``[{"view_deg", "fraction"}, ...]``.
+    """
+    mi = _mitsuba()
+    import drjit as dr
+
+    bsdf = load_mitsuba_bsdf(spec, "<transmitted_fractions>")
+    rng = np.random.default_rng(_TRANSMISSION_SEED)
+    out = []
+    for degrees in views:
+        theta = np.radians(degrees)
+        xi = rng.random((3, samples)).astype(np.float32)
+        si = dr.zeros(mi.SurfaceInteraction3f, samples)
+        si.wi = mi.Vector3f(np.full(samples, np.sin(theta), np.float32), np.zeros(samples, np.float32),
+                            np.full(samples, np.cos(theta), np.float32))  # fmt: skip
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
+        si.uv = mi.Point2f(0.5, 0.5)
+        bs, weight = bsdf.sample(mi.BSDFContext(), si, mi.Float(xi[0]), mi.Point2f(xi[1], xi[2]))
+        w = np.asarray(weight, dtype=np.float64).reshape(3, -1).mean(axis=0)
+        w = np.where(np.isfinite(w), w, 0.0)
+        down = np.asarray(bs.wo.z, dtype=np.float64) < 0.0
+        total = float(np.sum(w))
+        fraction = float(np.sum(w[down]) / total) if total > 0.0 else 0.0
+        out.append({"view_deg": float(degrees), "fraction": float(f"{fraction:.4g}")})
+    return out

@@ -9,8 +9,9 @@ import numpy as np
 from atlasgen.separable.analytic import evaluate_analytic
 from atlasgen.separable.parametrization import HORIZON_COS
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
-__all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix"]
+__all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
 
 
 class BrdfSource:
@@ -22,7 +23,8 @@ class BrdfSource:
     mask them (:func:`sample_matrix`).
     """
 
-    def __init__(self, kind: str, evaluate_f=None, evaluate_f_cos=None, zero_on_horizon: bool = False):
+    def __init__(self, kind: str, evaluate_f=None, evaluate_f_cos=None, zero_on_horizon: bool = False,
+                 alpha: float | None = None):
         if (evaluate_f is None) == (evaluate_f_cos is None):
             raise ValueError("give exactly one of evaluate_f, evaluate_f_cos")
         self.kind = kind
@@ -30,6 +32,8 @@ class BrdfSource:
         self._f_cos = evaluate_f_cos
         # Mitsuba returns 0 at cos = 0 exactly; the sampling grid then avoids the horizon.
         self.zero_on_horizon = zero_on_horizon
+        # The lobe's roughness where the parameters say it (None: measured from f, see lobe_alpha).
+        self.alpha = alpha
 
     def _shape(self, l, values):
         return np.asarray(values, dtype=np.float64).reshape(np.shape(l)[:-1] + (3,))
@@ -55,9 +59,59 @@ def make_source(params: dict, path="<material>") -> BrdfSource:
     """The source a separable material's params describe (Mitsuba loaded lazily)."""
     if params["source"] == "mitsuba":
         bsdf = load_mitsuba_bsdf(params["bsdf"], path)
-        return BrdfSource("mitsuba", evaluate_f_cos=lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v), zero_on_horizon=True)
+        return BrdfSource("mitsuba", evaluate_f_cos=lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v), zero_on_horizon=True,
+                          alpha=bsdf_alpha(params["bsdf"]))  # fmt: skip
     snapshot = dict(params)
-    return BrdfSource(params["source"], evaluate_f=lambda l, v: evaluate_analytic(snapshot, l, v))
+    return BrdfSource(params["source"], evaluate_f=lambda l, v: evaluate_analytic(snapshot, l, v),
+                      alpha=_analytic_alpha(snapshot))  # fmt: skip
+
+
+def _analytic_alpha(params: dict) -> float | None:
+    """The roughness of an analytic lobe; Blinn-Phong's exponent m as the Beckmann alpha
+    sqrt(2 / (m + 2)) (Walter et al. 2007, eq. 33); None for a Lambertian."""
+    if params["source"] in ("ggx", "beckmann", "ward"):
+        return float(params["alpha"])
+    if params["source"] == "blinn_phong":
+        return float(np.sqrt(2.0 / (float(params["exponent"]) + 2.0)))
+    return None
+
+
+def lobe_alpha(source: BrdfSource) -> float | None:
+    """The width the error estimator's lobe samples use: the source's roughness if it has
+    one, else :func:`measure_lobe_alpha`; None when f has no lobe around the mirror direction."""
+    return source.alpha if source.alpha is not None else measure_lobe_alpha(source)
+
+
+#: View elevations (degrees from the normal) at which :func:`measure_lobe_alpha` looks for a lobe.
+_PROBE_VIEWS = (0.0, 30.0, 60.0)
+
+
+def measure_lobe_alpha(source: BrdfSource) -> float | None:
+    """A roughness found from the sampled f: the narrowest lobe around the mirror direction.
+
+    For each view in :data:`_PROBE_VIEWS`, f cos is sampled at angles t from the mirror
+    direction r, out of the plane of incidence (so l stays above the horizon), on a log
+    grid from 1e-3 to 1.2 rad. A microfacet lobe falls as exp(-t^2 / (4 alpha^2))
+    (Beckmann D with theta_h ~ t / 2), to exp(-1/2) of its height above the far value at
+    t = sqrt(2) alpha; that t / sqrt(2) is the alpha returned, the smallest over the views.
+    None if f cos at r is within 5% of its far value at every view (no lobe: Lambertian).
+    """
+    t = np.concatenate([[0.0], np.geomspace(1e-3, 1.2, 64)])
+    found = []
+    for degrees in _PROBE_VIEWS:
+        theta = np.radians(degrees)
+        v = np.array([np.sin(theta), 0.0, np.cos(theta)])
+        r = np.array([-np.sin(theta), 0.0, np.cos(theta)])
+        l = np.cos(t)[:, None] * r + np.sin(t)[:, None] * np.array([0.0, 1.0, 0.0])
+        value = np.mean(source.f_cos(l, np.broadcast_to(v, l.shape)), axis=-1)
+        value = np.where(np.isfinite(value), value, 0.0)
+        peak, far = value[0], value[-1]
+        if not peak > 1.05 * far:
+            continue
+        below = np.nonzero(value - far < (peak - far) * np.exp(-0.5))[0]
+        if below.size:
+            found.append(t[below[0]] / np.sqrt(2.0))
+    return float(min(found)) if found else None
 
 
 @lru_cache(maxsize=32)

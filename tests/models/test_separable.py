@@ -110,16 +110,23 @@ def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     assert rep["kind"] == "separable" and (rep["terms"], rep["sampling_grid"]) == (k, grid)
     assert {c["grid"] for c in rep["candidates"]} == {16, 32}
     assert {c["target"] for c in rep["candidates"]} == {"f_cos", "f_proxy"}
-    # Fewer terms never meet the budget, on any grid or target...
+    # On the selection sample, a candidate meets the budget when estimate + 2 SE is within it.
+    # Fewer terms never do, on any grid or target...
+    def bound(c, i):
+        return c["relative_rms_by_terms"][i] + 2 * c["relative_rms_se_by_terms"][i]
+
     for c in rep["candidates"]:
-        assert all(x > 0.03 for x in c["relative_rms_by_terms"][: k - 1]), c
+        assert all(bound(c, i) > 0.03 for i in range(k - 1)), c
     # ...and at K, no coarser grid does.
     for c in rep["candidates"]:
         if c["grid"] < grid:
-            assert c["relative_rms_by_terms"][k - 1] > 0.03, c
+            assert bound(c, k - 1) > 0.03, c
+    # The reported figure is measured again, on the independent report sample, and judged the same way.
+    assert e["errors"]["seed"] != e["errors"]["selection_seed"]
     by_k = [x["relative_rms"] for x in e["errors"]["estimated_8bit_srgb_by_terms"][e["target"]]]
-    assert by_k[k - 1] == rep["estimated_error_8bit"] <= 0.03
-    assert e["max_error_met"] is True and rep["meets_budget"] is True and e["slice_count"] == k
+    assert by_k[k - 1] == rep["estimated_error_8bit"]
+    met = rep["estimated_error_8bit"] + e["errors"]["met_sigmas"] * rep["estimated_error_8bit_se"] <= 0.03
+    assert e["max_error_met"] is met and rep["meets_budget"] is met and e["slice_count"] == k
     # The estimate is the real 8-bit atlas (sRGB, the default) to rounding.
     assert e["errors_8bit"]["relative_rms"] == pytest.approx(by_k[k - 1], rel=1e-3)
 
@@ -129,9 +136,13 @@ def test_unreachable_budget_keeps_the_least_error_and_says_so(bake_folder):
     e = _entry(bake_folder({"g": 'type = "separable"\nsource = "ggx"\nalpha = 0.01\nmax_error = 1e-6\n'}), "g")
     rep = e["representation"]
     assert e["max_error_met"] is False and rep["meets_budget"] is False
+    # The least error on the selection sample is chosen; the figure reported for it is measured
+    # again on the independent report sample, so it agrees within its uncertainty, not exactly.
     least = min(x for c in rep["candidates"] for x in c["relative_rms_by_terms"])
-    assert rep["estimated_error_8bit"] == least
-    assert e["errors_8bit"]["relative_rms"] == pytest.approx(least, rel=1e-3)
+    chosen = next(c for c in rep["candidates"] if c["grid"] == rep["sampling_grid"] and c["target"] == rep["target"])
+    assert chosen["relative_rms_by_terms"][rep["terms"] - 1] == least
+    assert abs(rep["estimated_error_8bit"] - least) < 4 * rep["estimated_error_8bit_se"] * np.sqrt(2)
+    assert e["errors_8bit"]["relative_rms"] == pytest.approx(rep["estimated_error_8bit"], rel=1e-3)
 
 
 @pytest.mark.slow
@@ -164,8 +175,9 @@ def test_near_delta_and_very_rough_ggx_stay_finite_and_report_their_error(bake_f
         assert np.isfinite(errs["relative_rms"]) and np.isfinite(errs["log_error"])
     assert np.isfinite(np.asarray(e["factor_scale"])).all() and np.isfinite(np.asarray(e["factor_bias"])).all()
     if alpha < 0.01:
-        # A 32-texel grid cannot hold a 0.3-degree lobe: the error says so rather than hiding it.
-        assert e["errors"]["float"]["relative_rms"] > 0.2
+        # A 32-texel grid cannot hold a 0.3-degree lobe: the error says so rather than hiding it
+        # (a converged estimate of this K = 4 error is 17%).
+        assert e["errors"]["float"]["relative_rms"] > 0.1
     else:
         assert e["errors"]["float"]["relative_rms"] < 0.05
 

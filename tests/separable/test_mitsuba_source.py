@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import MaterialError
-from atlasgen.separable.error import sample_hemisphere_pairs
+from atlasgen.separable.error import sample_error_pairs, sample_hemisphere_pairs
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 from atlasgen.separable.source import make_source
 
@@ -138,7 +138,9 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
     l, v = (d.astype(np.float32) for d in get_parametrization("half_diff").grid_directions(entry.sampling_grid, lift=True))
     bad = (l[..., 0] > 0.9) | (v[..., 1] > 0.95)
     assert entry.nonfinite_samples == 3 * int(bad.sum()) > 0
-    pl, pv = (d.astype(np.float32) for d in sample_hemisphere_pairs())
+    # The manifest names the report sample exactly: its size, seed and lobe width.
+    sample = sample_error_pairs(entry.errors.pairs, entry.errors.seed, entry.errors.lobe_alpha)
+    pl, pv = (d.astype(np.float32) for d in sample.pairs)
     assert entry.nonfinite_reference == 3 * int(((pl[:, 0] > 0.9) | (pv[:, 1] > 0.95)).sum()) > 0
     assert all(np.all(np.isfinite(level)) for level in result.levels)
     assert np.isfinite(entry.errors.float_error.relative_rms) and np.isfinite(entry.errors_8bit.relative_rms)
@@ -153,3 +155,39 @@ def test_every_bsdf_example_in_the_docs_loads(mitsuba_llvm):
     assert len(examples) >= 7
     for spec in examples:
         load_mitsuba_bsdf(spec, "docs/separable.md")
+
+
+@pytest.mark.parametrize("plugin", ["roughdielectric", "dielectric", "thindielectric"])
+def test_a_transmissive_bsdf_is_refused_naming_bsdf_type(mitsuba_llvm, expect_rejected, plugin):
+    message = expect_rejected("separable", f'source = "mitsuba"\nbsdf = {{ type = "{plugin}" }}\nterms = 1',
+                              "bsdf.type", f"a '{plugin}' BSDF transmits light")  # fmt: skip
+    assert "reflection_only = true" in message
+
+
+def test_reflection_only_is_only_for_mitsuba(expect_rejected):
+    expect_rejected("separable", 'source = "ggx"\nreflection_only = true', "reflection_only", "only used with source = 'mitsuba'")
+
+
+def test_reflection_only_bakes_the_reflection_and_records_the_dropped_fraction(mitsuba_llvm, write_material, tmp_path):
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+
+    write_material("glass", 'type = "separable"\nsource = "mitsuba"\nreflection_only = true\nterms = 2\n'
+                            'bsdf = { type = "roughdielectric", alpha = 0.2, int_ior = 1.5, ext_ior = 1.0 }\n')  # fmt: skip
+    entry = bake_atlas(read_materials([tmp_path / "materials"])).manifest.materials[0].factors
+    fractions = {row["view_deg"]: row["fraction"] for row in entry.transmitted_fraction}
+    assert sorted(fractions) == [0.0, 30.0, 60.0, 80.0]
+    # At normal view: R = F(0) = 0.04, T = (1 - F) / n^2 in radiance units (Mitsuba's
+    # roughdielectric scales transmitted radiance by 1/eta^2), so T / (R + T) = 0.9142; the
+    # rough surface moves it a little. Grazing views reflect more, so the fraction falls.
+    t = 0.96 / 1.5**2
+    assert fractions[0.0] == pytest.approx(t / (t + 0.04), abs=0.01)
+    assert fractions[0.0] > fractions[60.0] > fractions[80.0] > 0.2
+    assert np.isfinite(entry.errors_8bit.relative_rms)
+
+
+def test_an_opaque_bsdf_records_no_dropped_fraction(mitsuba_llvm):
+    from atlasgen.separable.mitsuba_source import transmitted_fractions
+
+    rows = transmitted_fractions({"type": "roughconductor", "alpha": 0.1, "material": "Cu"})
+    assert [r["fraction"] for r in rows] == [0.0] * 4

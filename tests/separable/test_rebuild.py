@@ -8,7 +8,7 @@ import pytest
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
 from atlasgen.separable import evaluate_separable, read_separable_factors
-from atlasgen.separable.error import measure_errors, sample_hemisphere_pairs
+from atlasgen.separable.error import measure_errors, sample_error_pairs
 from atlasgen.separable.source import make_source
 
 from tests.separable.separable_helpers import random_frames
@@ -18,16 +18,21 @@ def test_atlas_rebuild_reproduces_the_manifest_8bit_errors(separable_atlas):
     """Read the DDS + JSON back and measure the error ourselves: it matches what the bake recorded."""
     path, result = separable_atlas
     manifest = json.loads(path.with_suffix(".json").read_text())
-    l, v = sample_hemisphere_pairs()
-    n = np.broadcast_to([0.0, 0.0, 1.0], l.shape)
     mats = {m["name"]: m for m in manifest["materials"]}
     folder = path.parent / "materials"
     for name in ("sharp", "plastic", "phong"):
         entry = mats[name]
+        # The report sample, rebuilt from what the manifest records about it.
+        errors = entry["errors"]
+        sample = sample_error_pairs(errors["pairs"], errors["seed"], errors.get("lobe_alpha"))
+        assert errors["estimator"] == sample.estimator == "defensive-ggx-mixture"
+        l, v = sample.pairs
+        n = np.broadcast_to([0.0, 0.0, 1.0], l.shape)
         ref = make_source(read_material(folder / f"{name}.toml").params).f_cos(l, v)
         got = evaluate_separable(path, name, n, l, v, cosine=True)
         assert np.all(np.isfinite(got))
-        ours = measure_errors(ref, got)
+        ours = measure_errors(ref, got, sample.weight)
+        assert ours["relative_rms_se"] == pytest.approx(entry["errors_8bit"]["relative_rms_se"], rel=1e-2)
         assert ours["relative_rms"] == pytest.approx(entry["errors_8bit"]["relative_rms"], rel=1e-4)
         assert ours["log_error"] == pytest.approx(entry["errors_8bit"]["log_error"], rel=1e-4)
         # And 8 bits cost little on top of the float factors.
