@@ -141,10 +141,15 @@ def _check_encoded(material, encoded) -> None:
 
 
 def bake_material(material):
-    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
+    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling;
+    ``from = "physical"`` fits the slice to the model's physical reference."""
     from atlasgen.models.base import Model
 
     model = material.model
+    if material.fit_from == "physical":
+        from atlasgen.models.physical_fit import bake_from_physics
+
+        return bake_from_physics(model, material.params, material.source)
     if material.error_budget is not None and type(model).bake is Model.bake:
         from atlasgen.bake.adaptive import bake_within_budget
 
