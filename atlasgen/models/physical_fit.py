@@ -28,7 +28,7 @@ from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 
-__all__ = ["AZIMUTHS", "FIT_GLOSS", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
+__all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
            "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos"]  # fmt: skip
 
 #: Azimuth samples per texel.
@@ -37,6 +37,8 @@ AZIMUTHS = 128
 FIT_GLOSS = 0.5
 #: Glosses tried when a fit chooses its own (``type = "bsdf"`` without ``gloss``).
 GLOSS_CANDIDATES = tuple(np.linspace(0.0, 1.0, 33).tolist())
+#: N.V at which the N.V = 0 texel row is sampled (see :func:`fit_slice`).
+GRAZING_N_DOT_V = 1e-3
 #: Quantiles of the fitted A tried as its cap (1 = no cap): see :func:`fit_slice`.
 A_CAP_QUANTILES = (1.0, 0.999, 0.995, 0.99, 0.98, 0.95)
 
@@ -90,7 +92,9 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     every texel with the RGB and A rounded to 8 bits as stored.
     """
     nl, nv = texel_centres(WIDTH, HEIGHT)
-    l, v, nh, degenerate = azimuth_pairs(nl, nv, azimuths)
+    # The N.V = 0 row is the limit of grazing views: BSDFs return 0 for a view in the
+    # tangent plane itself, which the bilinear filter would spread over the first texel.
+    l, v, nh, degenerate = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), azimuths)
     target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
     target = np.where(np.isfinite(target), target, 0.0)
     weights = np.full(l.shape[:-1], 1.0 / azimuths)
