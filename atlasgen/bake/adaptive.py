@@ -6,6 +6,7 @@ import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.models.base import Model, SliceSet
+from atlasgen.models.physical_fit import bake_from_physics
 from atlasgen.optics.interpolation import sample_slice
 
 __all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget", "bake_material"]
@@ -83,8 +84,11 @@ def bake_within_budget(model, values: dict, budget: float) -> SliceSet:
 
 
 def bake_material(material):
-    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling."""
+    """Float slices of one material; LUT models with an ``error_budget`` pick their supersampling;
+    ``from = "physical"`` fits the slice to the model's physical reference."""
     model = material.model
+    if material.fit_from == "physical":
+        return bake_from_physics(model, material.params, material.source)
     if material.error_budget is not None and type(model).bake is Model.bake:
         return bake_within_budget(model, material.params, material.error_budget)
     return model.bake(material.params)

@@ -14,13 +14,17 @@ from atlasgen.io.fields import Param, shown as short, validate_params
 from atlasgen.models import get_model, model_types
 from atlasgen.errors import SceneError
 from atlasgen.materials.scene import read_scene
+from atlasgen.models.physical_fit import check_physical_fit
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
-COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget")
+COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from")
+#: Values of ``from``: the model's closed form, or a fit to its physical reference
+#: (:mod:`atlasgen.models.physical_fit`).
+FIT_SOURCES = ("model", "physical")
 
 
 @dataclass
@@ -37,6 +41,7 @@ class Material:
     rgb_scale: object = "auto"
     alpha_scale: object = "auto"
     error_budget: float | None = None
+    fit_from: str = "model"  # the file's ``from``
     extra: dict = field(default_factory=dict)
 
     @property
@@ -119,6 +124,13 @@ def read_material(path) -> Material:
     model.check(params, shown)
     if error_budget is not None:
         params = model.apply_budget(params, float(error_budget), shown)
+    fit_from = raw.get("from", "model")
+    if fit_from not in FIT_SOURCES:
+        raise MaterialError(shown, "from", f"expected one of {', '.join(repr(s) for s in FIT_SOURCES)}, got {short(fit_from)}")
+    if fit_from == "physical":
+        if error_budget is not None:
+            raise MaterialError(shown, "error_budget", "expected no error budget with from = 'physical' (a fitted slice has no supersampling)")
+        check_physical_fit(model, params, shown)
     return Material(
         name=name,
         type=type_name,
@@ -130,6 +142,7 @@ def read_material(path) -> Material:
         rgb_scale=_scale_field(raw, "rgb_scale", shown),
         alpha_scale=_scale_field(raw, "alpha_scale", shown),
         error_budget=None if error_budget is None else float(error_budget),
+        fit_from=fit_from,
     )
 
 

@@ -24,6 +24,7 @@ MODEL_TYPES: dict[str, str | type[Model]] = {
     "backlit": "backlit:Backlit",
     "toon": "toon:Toon",
     "separable": "separable:Separable",
+    "bsdf": "bsdf:Bsdf",
 }
 
 _cache: dict[str, Model] = {}

@@ -18,7 +18,8 @@ from atlasgen.optics.quadrature import gauss_legendre_rule
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "validation.md"
 #: Bases for the perturbations where the defaults switch a feature off (a back-light of 0).
-_BASES = {"iridescent": {"backlight": 1.0, "colour": (0.2, 0.1, 0.3)}}
+_BASES = {"iridescent": {"backlight": 1.0, "colour": (0.2, 0.1, 0.3)},
+          "bsdf": {"bsdf": {"type": "roughplastic", "alpha": 0.2}, "gloss": 0.5}}
 
 
 def _values(type_name: str) -> dict:
@@ -33,6 +34,8 @@ def _perturbed(param, value):
         return next(c for c in param.choices if c != value)
     if param.kind == "colour":
         return tuple(0.5 * c + 0.25 for c in value) if tuple(value) != (0.5, 0.5, 0.5) else (0.3, 0.2, 0.1)
+    if param.kind == "table":  # a Mitsuba BSDF dict: another roughness
+        return {**value, "alpha": 0.5 * (value.get("alpha", 0.1) + 1.0)}
     if param.kind in ("float_list", "colour_list"):
         return type(value)(np.asarray(value, dtype=np.float64)[::-1].tolist())
     hi = param.hi if param.hi is not None else 2.0 * abs(value) + 1.0

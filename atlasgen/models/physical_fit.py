@@ -1,0 +1,182 @@
+"""Slices fitted to a physical BSDF: sample it per texel over the azimuth, project it onto the renderer's equation.
+
+For each texel centre (N.L, N.V) of the slice, l and v are placed at the texel's polar
+angles with S stratified azimuths phi_s = 2 pi (s + 1/2) / S between them, the BSDF's
+f cos(theta_l) is evaluated there, and :func:`atlasgen.optics.projection.project_slice_texels`
+finds the non-negative (A.rgb, A.a) whose renderer radiance is closest in the uniform
+azimuth measure. Uniform texels times uniform azimuths sample (l, v) pairs uniformly over
+the hemisphere pair (N.L and N.V are uniform in cos theta), so the summed residual is the
+squared error of f cos over uniform (l, v) pairs, the measure the separable model reports.
+
+The renderer's bases come from :meth:`atlasgen.models.base.Model.renderer_f_cos` (the
+renderer's equation as :mod:`atlasgen.optics.specular` states it), so the fit follows any
+change of the lobe. Then the RGB is rounded as the atlas stores it (per-slice scale,
+sRGB 8-bit) and A re-fitted against the rounded RGB, then capped at the quantile of
+:data:`A_CAP_QUANTILES` whose 8-bit A (one linear scale per slice) errs least.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+
+import numpy as np
+
+from atlasgen.contract import HEIGHT, WIDTH, texel_centres
+from atlasgen.errors import MaterialError
+from atlasgen.models.base import Model, SliceSet
+from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+
+__all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
+           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos"]  # fmt: skip
+
+#: Azimuth samples per texel.
+AZIMUTHS = 128
+#: The g-buffer gloss a ``from = "physical"`` slice is fitted for: a scene object's default.
+FIT_GLOSS = 0.5
+#: Glosses tried when a fit chooses its own (``type = "bsdf"`` without ``gloss``).
+GLOSS_CANDIDATES = tuple(np.linspace(0.0, 1.0, 33).tolist())
+#: N.V at which the N.V = 0 texel row is sampled (see :func:`fit_slice`).
+GRAZING_N_DOT_V = 1e-3
+#: Quantiles of the fitted A tried as its cap (1 = no cap): see :func:`fit_slice`.
+A_CAP_QUANTILES = (1.0, 0.999, 0.995, 0.99, 0.98, 0.95)
+
+
+def azimuth_pairs(n_dot_l, n_dot_v, azimuths: int = AZIMUTHS):
+    """Unit l, v ``(H, W, S, 3)`` and n.h ``(H, W, S)`` for the texel grid ``n_dot_l`` (W,) x ``n_dot_v`` (H,).
+
+    v lies in the xz plane; l at azimuth phi_s = 2 pi (s + 1/2) / S from it (n = +z).
+    Returns ``l, v, n_dot_h, degenerate`` (l + v = 0).
+    """
+    nl = np.asarray(n_dot_l, dtype=np.float64)[None, :, None]
+    nv = np.asarray(n_dot_v, dtype=np.float64)[:, None, None]
+    phi = 2.0 * np.pi * (np.arange(azimuths) + 0.5) / azimuths
+    sl = np.sqrt(np.maximum(1.0 - nl * nl, 0.0))
+    sv = np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
+    shape = (len(np.atleast_1d(n_dot_v)), len(np.atleast_1d(n_dot_l)), azimuths)
+    l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
+    v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
+    h = l + v
+    h2 = (h * h).sum(-1)
+    n_dot_h = np.divide(h[..., 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+    return l, v, n_dot_h, h2 <= 1e-12
+
+
+class _Constant(Model):
+    """A slice equal to one RGBA everywhere: the renderer's equation for it is one basis function."""
+
+    def __init__(self, rgba):
+        self.rgba = np.asarray(rgba, dtype=np.float64)
+
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        shape = np.broadcast_shapes(np.shape(n_dot_l), np.shape(n_dot_v))
+        return np.broadcast_to(self.rgba, shape + (4,))
+
+
+def renderer_bases(gloss: float, l, v, n_dot_h, degenerate):
+    """The renderer's f cos at (l, v) per unit A.rgb (``(..., 3)``) and per unit A (``(..., 3)``), albedo 1."""
+    nl, nv = l[..., 2], v[..., 2]
+    ones = np.ones(nl.shape + (3,))
+    diffuse = _Constant((1.0, 1.0, 1.0, 0.0)).renderer_f_cos({}, ones, gloss, nl, nv, n_dot_h, degenerate)
+    lobe = _Constant((0.0, 0.0, 0.0, 1.0)).renderer_f_cos({}, ones, gloss, nl, nv, n_dot_h, degenerate)
+    return np.asarray(diffuse, dtype=np.float64), np.asarray(lobe, dtype=np.float64)
+
+
+def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = True):
+    """The slice (``(H, W, 4)``) fitted to ``f_cos(l, v) -> (N, 3)``, and a dict describing the fit.
+
+    ``gloss`` is the renderer gloss the slice is made for, or ``None`` to choose the one of
+    :data:`GLOSS_CANDIDATES` with the least residual. The dict holds ``gloss``,
+    ``azimuths``, ``alpha_cap`` and ``relative_rms``: sqrt(residual / sum w t^2) over
+    every texel with the RGB and A rounded to 8 bits as stored.
+    """
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    # The N.V = 0 row is the limit of grazing views: BSDFs return 0 for a view in the
+    # tangent plane itself, which the bilinear filter would spread over the first texel.
+    l, v, nh, degenerate = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), azimuths)
+    target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
+    target = np.where(np.isfinite(target), target, 0.0)
+    weights = np.full(l.shape[:-1], 1.0 / azimuths)
+    energy = float((weights[..., None] * target * target).sum())
+    best = None
+    for g in (GLOSS_CANDIDATES if gloss is None else (float(gloss),)):
+        diffuse, lobe = renderer_bases(g, l, v, nh, degenerate)
+        rgba = project_slice_texels(target, diffuse, lobe, weights)
+        residual = float(weighted_residual(target, diffuse, lobe, weights, rgba).sum())
+        if best is None or residual < best[0]:
+            best = (residual, g, rgba, diffuse, lobe)
+    _, g, rgba, diffuse, lobe = best
+    # Round the RGB as the atlas will store it (encode_scaled's per-slice scale, then 8 bits),
+    # and give A the best value against what is stored.
+    scale = max(1.0, float(rgba[..., :3].max()))
+    codes = quantize_rgba(np.concatenate([rgba[..., :3] / scale, np.zeros(rgba.shape[:-1] + (1,))], -1), srgb)
+    rgba[..., :3] = dequantize_rgba(codes, srgb)[..., :3] * scale
+    a = refine_specular_scale(target, diffuse, lobe, weights, rgba[..., :3])
+    # A shares one 8-bit scale per slice: a few texels with a huge A (where the lobe is
+    # nearly zero) would coarsen every other texel's step. Cap A where that errs least.
+    best = None
+    positive = a[a > 0.0] if (a > 0.0).any() else np.zeros(1)
+    for cap in sorted({float(np.quantile(positive, q)) for q in A_CAP_QUANTILES}, reverse=True):
+        scale_a = max(1.0, cap)
+        stored = np.rint(np.clip(np.minimum(a, cap) / scale_a, 0.0, 1.0) * 255.0) / 255.0 * scale_a
+        rgba[..., 3] = stored
+        residual = float(weighted_residual(target, diffuse, lobe, weights, rgba).sum())
+        if best is None or residual < best[0]:
+            best = (residual, cap)
+    residual, cap = best
+    rgba[..., 3] = np.minimum(a, cap)
+    info = {"gloss": float(g), "azimuths": int(azimuths), "alpha_cap": cap,
+            "relative_rms": float(np.sqrt(residual / energy)) if energy > 0 else 0.0}  # fmt: skip
+    return rgba, info
+
+
+def plain_bsdf_reference(model: Model, values: dict):
+    """The model's physical reference if it is one BSDF evaluated in ``llvm_ad_rgb`` with the
+    default integrator (what a projection can sample), else a reason why not (a string)."""
+    ref = model.physical_reference(values)
+    if ref is None:
+        return f"model '{model.type_name}' has no physical reference"
+    if ref.integrator is not None or ref.interior is not None or ref.stochastic:
+        return f"model '{model.type_name}''s physical reference is a volume render ({ref.description}), not a BSDF to project"
+    if ref.variant != "llvm_ad_rgb":
+        return f"model '{model.type_name}''s physical reference needs {ref.variant} ({ref.description}), not an RGB BSDF"
+    if ref.bsdf.get("type", "").startswith("atlasgen_"):
+        return f"model '{model.type_name}''s physical reference is atlasgen's own plugin ({ref.description})"
+    return ref
+
+
+def check_physical_fit(model: Model, values: dict, path) -> None:
+    """Raise :class:`MaterialError` naming ``from`` unless the model's physical reference can be projected."""
+    ref = plain_bsdf_reference(model, values)
+    if isinstance(ref, str):
+        raise MaterialError(path, "from", f"expected \"model\" for this material: {ref}")
+
+
+def mitsuba_f_cos(bsdf_dict: dict, path="<bsdf>", field: str = "bsdf"):
+    """f cos(theta_l) of a Mitsuba BSDF dict as a NumPy function of unit (l, v) ``(N, 3)``."""
+    bsdf = load_mitsuba_bsdf(bsdf_dict, path, field)
+    return lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v)
+
+
+@lru_cache(maxsize=32)
+def _fitted(bsdf_json: str, gloss_json: str):
+    rgba, info = fit_slice(mitsuba_f_cos(json.loads(bsdf_json)), json.loads(gloss_json))
+    rgba.setflags(write=False)
+    return rgba, info
+
+
+def fitted_bsdf_slice(bsdf_dict: dict, gloss=None):
+    """The (cached) slice fitted to a Mitsuba BSDF dict and its fit description (:func:`fit_slice`)."""
+    return _fitted(json.dumps(bsdf_dict, sort_keys=True), json.dumps(gloss))
+
+
+def bake_from_physics(model: Model, values: dict, path="<material>") -> SliceSet:
+    """One slice fitted to ``model``'s physical reference at :data:`FIT_GLOSS` (``from = "physical"``)."""
+    ref = plain_bsdf_reference(model, values)
+    if isinstance(ref, str):
+        raise MaterialError(path, "from", f"expected \"model\" for this material: {ref}")
+    rgba, info = fitted_bsdf_slice(ref.bsdf, FIT_GLOSS)
+    fit = {"from": "physical", "reference": ref.description, **info}
+    return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})

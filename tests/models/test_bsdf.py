@@ -1,0 +1,70 @@
+"""type = "bsdf" and from = "physical": slices fitted to Mitsuba BSDFs by projection."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from atlasgen.bake.adaptive import bake_material
+from atlasgen.contract import texel_centres
+from atlasgen.errors import MaterialError
+from atlasgen.materials.material import read_material
+from atlasgen.models.physical_fit import azimuth_pairs
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "bsdf-roughplastic.toml"
+
+
+def test_bsdf_roughplastic_bakes_and_recovers_its_diffuse_part(mitsuba_llvm):
+    """roughplastic's diffuse term depends on (N.L, N.V) only, so the slice's RGB should be
+    it: pi f_d cos, read from the same BSDF with its specular reflectance set to 0."""
+    from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+
+    material = read_material(EXAMPLE)
+    slices = bake_material(material)
+    table = slices.values[0]
+    assert table.shape == (32, 64, 4) and np.isfinite(table).all() and (table >= 0.0).all()
+    fit = slices.extra["fit"]
+    assert fit["from"] == "bsdf" and 0.0 <= fit["gloss"] <= 1.0 and fit["relative_rms"] < 0.2
+
+    diffuse_only = dict(material.params["bsdf"], specular_reflectance={"type": "rgb", "value": [0.0, 0.0, 0.0]})
+    nl, nv = texel_centres()
+    l, v, _, _ = azimuth_pairs(nl, nv, 1)
+    truth = np.pi * evaluate_mitsuba_f_cos(load_mitsuba_bsdf(diffuse_only, "test"), l.reshape(-1, 3), v.reshape(-1, 3))
+    truth = truth.reshape(table.shape[:2] + (3,))
+    inside = (nl[None, :] >= 0.3) & (nv[:, None] >= 0.3)
+    relative = np.abs(table[..., :3] - truth)[inside] / truth[inside].max(axis=-1, keepdims=True)
+    assert np.median(relative) < 0.05 and np.quantile(relative, 0.9) < 0.1
+    assert table[..., 3].max() > 0.1  # the specular lobe went to A
+
+
+def test_from_physical_lambert_gives_back_the_lambertian_slice(mitsuba_llvm, write_material):
+    material = read_material(write_material("m", 'type = "lambert"\ncolour = [0.8, 0.4, 0.1]\nfrom = "physical"\n'))
+    slices = bake_material(material)
+    nl, _ = texel_centres()
+    expected = np.maximum(nl, 0.0)[None, :, None] * np.array([0.8, 0.4, 0.1])
+    np.testing.assert_allclose(slices.values[0, :, :, :3], np.broadcast_to(expected, (32, 64, 3)), atol=4e-3)
+    assert slices.extra["fit"]["from"] == "physical" and slices.extra["fit"]["gloss"] == 0.5
+
+
+def test_from_physical_fresnel_bakes_from_roughplastic(mitsuba_llvm, write_material):
+    material = read_material(write_material("m", 'type = "fresnel"\ncolour = [0.6, 0.1, 0.1]\nfrom = "physical"\n'))
+    table = bake_material(material).values[0]
+    assert np.isfinite(table).all() and (table >= 0.0).all() and table[..., 3].max() > 0.0
+
+
+@pytest.mark.parametrize("type_name", ["sss", "iridescent", "toon", "backlit"])
+def test_from_physical_refused_where_the_reference_is_no_plain_bsdf(write_material, type_name):
+    with pytest.raises(MaterialError, match=r"\bfrom\b"):
+        read_material(write_material("m", f'type = "{type_name}"\nfrom = "physical"\n'))
+
+
+def test_from_must_be_model_or_physical(write_material):
+    with pytest.raises(MaterialError, match="from.*expected one of 'model', 'physical'"):
+        read_material(write_material("m", 'type = "lambert"\nfrom = "closed-form"\n'))
+
+
+def test_bsdf_needs_its_dict(write_material):
+    with pytest.raises(MaterialError, match="bsdf.*missing"):
+        read_material(write_material("m", 'type = "bsdf"\n'))

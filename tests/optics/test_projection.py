@@ -1,0 +1,128 @@
+"""The least-squares projection onto the renderer's equation (atlasgen.optics.projection):
+closed-form round trips, an independent NNLS solver, and monotonicity in the weights."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import nnls
+
+from atlasgen.contract import texel_centres
+from atlasgen.models.physical_fit import azimuth_pairs, fit_slice, renderer_bases
+from atlasgen.optics.projection import (project_slice_texels, refine_specular_scale, solve_nonnegative_least_squares,
+                                        weighted_residual)  # fmt: skip
+from atlasgen.optics.srgb import encode_srgb
+
+AZIMUTHS = 64
+
+
+@pytest.fixture(scope="module")
+def texels():
+    """Every texel's azimuth samples and the renderer's bases there, at gloss 0.5."""
+    nl, nv = texel_centres()
+    l, v, nh, degenerate = azimuth_pairs(nl, nv, AZIMUTHS)
+    diffuse, lobe = renderer_bases(0.5, l, v, nh, degenerate)
+    weights = np.full(l.shape[:-1], 1.0 / AZIMUTHS)
+    return nl, nv, l, v, diffuse, lobe, weights
+
+
+def test_lambertian_projects_onto_itself(texels):
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    colour = np.array([0.8, 0.4, 0.1])
+    target = colour * np.maximum(l[..., 2:3], 0.0) / np.pi
+    rgba = project_slice_texels(target, diffuse, lobe, weights)
+    expected = np.maximum(nl, 0.0)[None, :, None] * colour
+    np.testing.assert_allclose(rgba[..., :3], np.broadcast_to(expected, rgba[..., :3].shape), atol=1e-5)
+    assert np.abs(rgba[..., 3]).max() < 1e-5
+
+
+def test_diffuse_plus_renderer_lobe_with_constant_fresnel_projects_onto_itself(texels):
+    """A BSDF the slice holds exactly: any RGB of (N.L, N.V) plus c(N.L, N.V) times the renderer's lobe."""
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    lit = np.maximum(nl, 0.0)[None, :]
+    rgb = np.stack(np.broadcast_arrays(0.6 * lit * (1.0 - 0.3 * nv[:, None]), 0.2 * lit, 0.05 * lit + 0.1 * nv[:, None]), -1)
+    fresnel = 0.04 + 0.96 * (1.0 - nv[:, None]) ** 5 + 0.0 * nl[None, :]  # Schlick's F(N.V), constant over azimuth
+    target = diffuse * rgb[..., None, :] + lobe * fresnel[..., None, None]
+    rgba = project_slice_texels(target, diffuse, lobe, weights)
+    # At N.L = 1 or N.V = 1 every azimuth gives the same pair: the lobe is a constant there,
+    # which the diffuse term holds as well, and the ridge gives it to the diffuse term. At
+    # N.V = 0 the GGX lobe barely varies with azimuth, so the split is as ill-conditioned.
+    rgba, rgb, fresnel, target, diffuse, lobe, weights = (x[1:-1, :-1] for x in (rgba, rgb, fresnel, target, diffuse, lobe, weights))
+    np.testing.assert_allclose(rgba[..., :3], rgb, atol=1e-4)
+    # The ridge (1e-6 of the diffuse Gram entry, 3/pi^2) leaves A exact to 1e-3 where the lobe carries more than 1e-3.
+    has_lobe = (weights[..., None] * lobe**2).sum(axis=(-2, -1)) > 1e-3
+    np.testing.assert_allclose(rgba[..., 3][has_lobe], fresnel[has_lobe], rtol=1e-3)
+    assert weighted_residual(target, diffuse, lobe, weights, rgba).sum() < 1e-6 * (weights[..., None] * target**2).sum()
+
+
+def _random_problem(rng, samples=24):
+    diffuse = np.full((samples, 3), 1.0 / np.pi) * rng.uniform(0.5, 1.5, 3)
+    lobe = np.repeat(rng.gamma(0.5, 2.0, (samples, 1)), 3, axis=1)
+    target = rng.normal(0.1, 0.4, (samples, 3)) + lobe * rng.uniform(-1.0, 1.0)
+    weights = rng.uniform(0.1, 1.0, samples)
+    return target, diffuse, lobe, weights
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_projection_matches_an_independent_nnls_solver(seed):
+    """scipy.optimize.nnls (Lawson-Hanson active set) on the same weighted problem."""
+    target, diffuse, lobe, weights = _random_problem(np.random.default_rng(seed))
+    design = np.zeros((len(target), 3, 4))
+    for c in range(3):
+        design[:, c, c] = diffuse[:, c]
+    design[:, :, 3] = lobe
+    root_w = np.sqrt(weights)[:, None, None]
+    expected, _ = nnls((root_w * design).reshape(-1, 4), (root_w[..., 0] * target).reshape(-1))
+    got = project_slice_texels(target, diffuse, lobe, weights, ridge=0.0)
+    assert (got >= 0.0).all()
+    np.testing.assert_allclose(got, expected, atol=1e-7)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_more_weight_on_a_sample_never_increases_its_residual(seed):
+    rng = np.random.default_rng(seed)
+    target, diffuse, lobe, weights = _random_problem(rng)
+    k = int(rng.integers(len(target)))
+
+    def residual_at_k(w):
+        rgba = project_slice_texels(target, diffuse, lobe, w)
+        one = np.zeros_like(w)
+        one[k] = 1.0
+        return float(weighted_residual(target, diffuse, lobe, one, rgba))
+
+    before = residual_at_k(weights)
+    for factor in (1.5, 4.0, 50.0):
+        heavier = weights.copy()
+        heavier[k] *= factor
+        after = residual_at_k(heavier)
+        assert after <= before + 1e-10 * max(before, 1e-12)
+        before = after
+
+
+def test_nonnegative_even_when_the_target_pulls_negative():
+    rng = np.random.default_rng(7)
+    target, diffuse, lobe, weights = _random_problem(rng)
+    target = target - 2.0 * lobe  # wants a negative A and negative colours
+    rgba = project_slice_texels(target, diffuse, lobe, weights)
+    assert (rgba >= 0.0).all() and rgba[3] == 0.0
+    assert (refine_specular_scale(target, diffuse, lobe, weights, rgba[:3]) == 0.0).all()
+
+
+def test_solver_takes_the_unconstrained_minimum_when_it_is_feasible():
+    rng = np.random.default_rng(3)
+    b = rng.uniform(0.0, 1.0, (10, 3))
+    x = np.array([0.5, 1.0, 2.0])
+    gram, rhs = b.T @ b, b.T @ (b @ x)
+    np.testing.assert_allclose(solve_nonnegative_least_squares(gram, rhs), x, rtol=1e-8)
+
+
+def test_fitted_lambertian_slice_holds_the_colour_to_one_srgb_step():
+    """fit_slice rounds RGB as the atlas stores it (sRGB 8-bit, per-slice scale) and refits A."""
+    colour = np.array([0.8, 0.4, 0.1])
+    rgba, info = fit_slice(lambda l, v: colour * np.maximum(l[:, 2:3], 0.0) / np.pi, gloss=0.5, azimuths=16)
+    nl, _ = texel_centres()
+    expected = np.maximum(nl, 0.0)[None, :, None] * colour
+    # The peak is below 1, so the slice's scale is 1: the stored code is encode_srgb(value).
+    step = np.abs(encode_srgb(rgba[..., :3]) - encode_srgb(np.broadcast_to(expected, rgba[..., :3].shape)))
+    assert step.max() <= 0.5 / 255 + 1e-9
+    assert info["gloss"] == 0.5 and info["relative_rms"] < 0.01
