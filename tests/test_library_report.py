@@ -25,7 +25,9 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     index = write_library_report(atlas, tmp_path / "build" / "report")
     parser = PageLinks(index.read_text())
     terms = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")["terms"]
-    assert len(parser.images) == 3 + terms  # the plot and one preview per slice
+    # The library's cost plot, one cost plot and one preview per slice of each material.
+    assert len(parser.images) == 1 + 3 + 2 + terms
+    assert "cost-vs-error.png" in parser.images and "cost/gloss.png" in parser.images
     for src in parser.images + parser.links:
         assert (index.parent / src).is_file(), src
     text = index.read_text()
@@ -33,6 +35,16 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     gloss = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")
     grid = gloss["sampling_grid"]
     assert f"separable, {terms} term(s), half_diff, sampled on {grid}x{grid} (budget 0.05)" in text
+    # Every K the separable material could have been baked with, its cost from the shipped table;
+    # the chosen K in bold.
+    from atlasgen.separable.auto import read_lighting_cost
+
+    table = read_lighting_cost()
+    assert table.device in text
+    for k in range(1, 9):
+        assert f"separable:{k}" in text
+    assert f"<b>separable:{terms}</b></td><td>{table.cost(f'separable:{terms}'):.3g}</td>" in text
+    assert f"<b>lut</b></td><td>{table.cost('lut'):.3g}</td>" in text
 
 
 def test_validation_figures_are_read_from_report_json(tmp_path, write_material):

@@ -44,6 +44,7 @@ __all__ = [
     "SeparableFactors",
     "LutRepresentation",
     "SeparableRepresentation",
+    "AnalyticRepresentation",
     "read_manifest",
     "parse_manifest",
     "format_manifest",
@@ -406,6 +407,8 @@ class SeparableRepresentation(_Record):
     estimated_error_8bit_se: float | None = field(default=None, metadata=_OPTIONAL)
     meets_budget: bool | None
     candidates: list  # [{"grid", "target", "relative_rms_by_terms", "relative_rms_se_by_terms"}]
+    #: ``representation = "auto"``: the choice by run-time cost (see :class:`AnalyticRepresentation`).
+    auto: dict | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
     def from_json(cls, f: _Fields) -> "SeparableRepresentation":
@@ -413,10 +416,49 @@ class SeparableRepresentation(_Record):
                    target=f.string("target"), error_budget=f.number("error_budget", nullable=True),
                    estimated_error_8bit=f.number("estimated_error_8bit"),
                    estimated_error_8bit_se=f.number("estimated_error_8bit_se", optional=True, minimum=0), meets_budget=f.boolean("meets_budget", nullable=True),
-                   candidates=f.array("candidates", "a list of objects", _OBJECT))  # fmt: skip
+                   candidates=f.array("candidates", "a list of objects", _OBJECT),
+                   auto=f.mapping("auto", optional=True))  # fmt: skip
+
+
+
+@dataclass(kw_only=True)
+class AnalyticRepresentation(_Record):
+    """A BRDF drawn by direct evaluation of its closed form in the lighting shader, no atlas.
+
+    The parameters are the small table the shader call takes: ``distribution`` (``ggx``,
+    ``beckmann`` or ``lambert`` for none), roughness ``alpha``, ``fresnel`` (``schlick``
+    with RGB ``f0``, ``exact`` dielectric of index ``ior``, or ``none``), the lobe's
+    RGB ``specular`` factor and the Lambertian ``diffuse`` colour. ``auto`` holds the
+    run-time choice (``representation = "auto"``): ``{"error_budget", "cost_device",
+    "cost_unit", "chosen", "candidates": [{"representation", "cost", "error", "meets_budget"}]}``.
+    """
+
+    kind: str = "analytic"
+    distribution: str
+    alpha: float
+    fresnel: str
+    f0: list
+    ior: float
+    specular: list
+    diffuse: list
+    auto: dict | None = field(default=None, metadata=_OPTIONAL)
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "AnalyticRepresentation":
+        return cls(kind=f.string("kind"), distribution=f.nonempty("distribution"), alpha=f.number("alpha"),
+                   fresnel=f.nonempty("fresnel"), f0=_rgb(f, "f0"),
+                   ior=f.number("ior"), specular=_rgb(f, "specular"), diffuse=_rgb(f, "diffuse"),
+                   auto=f.mapping("auto", optional=True))  # fmt: skip
+
+
+def _rgb(f: _Fields, key: str) -> list:
+    return f.take(key, "an RGB triple of finite numbers",
+                  lambda v: isinstance(v, list) and len(v) == 3 and all(_is_finite(x) for x in v))
 
 
 def _read_representation(f: _Fields):
+    if f.data.get("kind") == "analytic":
+        return AnalyticRepresentation.from_json(f)
     if "supersampling" in f.data:
         return LutRepresentation.from_json(f)
     if "estimated_error_8bit" in f.data:
@@ -464,7 +506,7 @@ class MaterialEntry:
     flags: dict = field(default_factory=dict)
     clamped_fraction: float = 0.0
     quantization_error: ErrorSummary = field(default_factory=lambda: ErrorSummary(max=0.0, rms=0.0))
-    representation: LutRepresentation | SeparableRepresentation | None = None
+    representation: LutRepresentation | SeparableRepresentation | AnalyticRepresentation | None = None
     factors: SeparableFactors | None = None
     extra: dict = field(default_factory=dict)
 

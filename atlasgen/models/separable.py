@@ -14,8 +14,20 @@ import numpy as np
 
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
-from atlasgen.models.base import BRDF_REFERENCE, EncodedSlices, Model, RadianceRebuild, Reference, SliceSet
+from atlasgen.io.manifest import AnalyticRepresentation
+from atlasgen.models.base import (
+    BRDF_REFERENCE,
+    encode_scaled,
+    EncodedSlices,
+    Model,
+    RadianceRebuild,
+    Reference,
+    SliceSet,
+)
+from atlasgen.separable.analytic import analytic_f_cos_world
+from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
 from atlasgen.separable.approximate import approximate_brdf, GRID_RESOLUTIONS, reference_values
+from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
 from atlasgen.separable.error import (
     error_sample_for,
     ERROR_SEED,
@@ -31,13 +43,18 @@ from atlasgen.separable.shader import separable_declarations, separable_table_by
 from atlasgen.separable.source import make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
 
-__all__ = ["Separable", "MAX_AUTO_TERMS"]
+__all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "analytic_params"]
 
 MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
+#: ``representation = "auto"`` without an ``error_budget``: the separable default budget.
+DEFAULT_BUDGET = 0.02
 #: Largest fixed ``terms``: the rank of a 32 x 1024 factor matrix.
 MAX_TERMS = 32
 
 SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba")
+#: Sources the lighting shader can evaluate in closed form (``representation = "analytic"``).
+ANALYTIC_SHADER_SOURCES = ("ggx", "beckmann", "lambert")
+REPRESENTATIONS = ("separable", "analytic", "auto")
 
 
 def _parametrization_names():
@@ -85,6 +102,9 @@ class Separable(Model):
         Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
         Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
         Param("reflection_only", False, "bool", doc="bake only the reflection of a transmissive Mitsuba BSDF (the dropped fraction is recorded)"),
+        Param("representation", "separable", "choice", choices=REPRESENTATIONS,
+              doc="K separable terms; 'analytic': the closed form evaluated in the lighting shader (ggx, beckmann, lambert); "
+                  "'auto': the cheapest in run-time cost meeting error_budget"),
     )
 
     # -- validation ---------------------------------------------------------------------------
@@ -103,6 +123,11 @@ class Separable(Model):
         if values["reflection_only"] and values["source"] != "mitsuba":
             raise MaterialError(path, "reflection_only", f"only used with source = 'mitsuba' (a transmissive BSDF), "
                                                          f"but source is {values['source']!r}")  # fmt: skip
+        if values["representation"] == "analytic" and values["source"] not in ANALYTIC_SHADER_SOURCES:
+            raise MaterialError(path, "representation", f"'analytic' needs a source the shader evaluates "
+                                f"({', '.join(ANALYTIC_SHADER_SOURCES)}), got source = {values['source']!r}")
+        if values["representation"] == "auto" and values["terms"] is not None:
+            raise MaterialError(path, "representation", "'auto' chooses the representation and K; expected no 'terms'")
 
     # -- LUT-style evaluation (previews) ---------------------------------------------------------
     def apply_budget(self, values: dict, budget: float, path) -> dict:
@@ -139,6 +164,56 @@ class Separable(Model):
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
+        """K factor slices (``representation = "separable"``), one preview slice for the closed form
+        (``"analytic"``), or whichever of them is cheapest within the budget (``"auto"``)."""
+        if values["representation"] == "analytic":
+            return self._bake_analytic(values)
+        if values["representation"] == "auto":
+            return self._bake_auto(values)
+        return self._bake_separable(values)
+
+    def _bake_analytic(self, values: dict, auto: dict | None = None) -> SliceSet:
+        """The in-plane cut of f cos as the one slice (previews only: the shader reads no texel of it)
+        and the BRDF's parameters, the table the lighting shader evaluates."""
+        out = Model.bake(self, values)
+        rep = {"kind": "analytic", "distribution": values["source"], "alpha": _f32(values["alpha"]),
+               "fresnel": values["fresnel"], "f0": _rounded(values["f0"]), "ior": _f32(values["ior"]),
+               "specular": _rounded(values["specular"]), "diffuse": _rounded(values["diffuse"])}  # fmt: skip
+        if auto is not None:
+            rep["auto"] = auto
+        out.extra = {"representation": rep}
+        return out
+
+    def _bake_auto(self, values: dict) -> SliceSet:
+        """The cheapest candidate in run-time cost (:func:`atlasgen.separable.auto.read_lighting_cost`)
+        whose error meets the budget: the closed form (exact: it is the source itself) where the
+        shader has it, else K = 1..8 separable terms with their estimated 8-bit error."""
+        budget = values["max_error"] if values["max_error"] is not None else DEFAULT_BUDGET
+        table = read_lighting_cost()
+        separable = self._bake_separable({**values, "max_error": budget})
+        rep = separable.extra["representation"]
+        by_terms = {e["terms"]: e["relative_rms"] for e in separable.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]}
+        candidates = []
+        if values["source"] in ANALYTIC_SHADER_SOURCES:
+            key = cost_key("analytic", values["source"])
+            candidates.append({"representation": key, "cost": table.cost(key), "error": 0.0,
+                               "error_kind": "exact: the source's own closed form"})  # fmt: skip
+        for k in sorted(by_terms):
+            key = cost_key("separable", k)
+            candidates.append({"representation": key, "cost": table.cost(key), "error": by_terms[k],
+                               "error_kind": "estimated relative RMS of f cos, 8-bit"})  # fmt: skip
+        best, annotated = choose_representation(candidates, budget)
+        auto = {"error_budget": budget, "cost_device": table.device, "cost_unit": table.unit,
+                "chosen": annotated[best]["representation"], "candidates": annotated}  # fmt: skip
+        if annotated[best]["representation"].startswith("analytic"):
+            return self._bake_analytic(values, auto)
+        terms = int(annotated[best]["representation"].split(":")[1])
+        if terms != rep["terms"]:
+            separable = self._bake_separable({**values, "terms": terms, "max_error": None, "grid": rep["sampling_grid"]})
+        separable.extra["representation"].update(error_budget=budget, meets_budget=annotated[best]["meets_budget"], auto=auto)
+        return separable
+
+    def _bake_separable(self, values: dict) -> SliceSet:
         source = make_source(values)
         method = values["factorization"]
         selection, report = _error_samples(source)
@@ -230,6 +305,8 @@ class Separable(Model):
         bias that fit it exactly. The generic (K, 2) ``scale``/``bias`` are 1 and 0; the
         real ones are ``factor_scale``/``factor_bias`` in the manifest entry.
         """
+        if _is_analytic(slices):
+            return encode_scaled(slices.values, rgb_scale, alpha_scale)
         cached = getattr(slices, "_separable", None)
         if cached is None or cached["stored"].shape != slices.values.shape:
             stored, scale, bias, clamped = encode_factor_slices(slices.values)
@@ -246,6 +323,8 @@ class Separable(Model):
 
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
+        if _is_analytic(slices):
+            return {}  # the shader reads no texel: nothing was quantized that it uses
         cached = getattr(slices, "_separable", None)
         if cached is not None:
             reference, sample = cached["reference"], cached["sample"]
@@ -277,7 +356,8 @@ class Separable(Model):
     @classmethod
     def include_declarations(cls, entries: list) -> list:
         """The generic rebuild of f cos(theta_l) and its data table (every include language)."""
-        return separable_declarations(entries)
+        analytic = any(isinstance(e.representation, AnalyticRepresentation) for e in entries)
+        return separable_declarations(entries) + (analytic_declarations() if analytic else [])
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:
@@ -286,7 +366,10 @@ class Separable(Model):
 
     @classmethod
     def lighting_wgsl(cls, entry) -> str:
-        """The include's generic ``separable_f_cos`` at mip level 0, in 1/sr, for this material's ID."""
+        """The include's generic ``separable_f_cos`` at mip level 0, in 1/sr, for this material's ID;
+        for an analytic representation, ``analytic_f_cos`` with its parameters."""
+        if isinstance(entry.representation, AnalyticRepresentation):
+            return analytic_call(entry.representation)
         return f"separable_f_cos(atlas, samp, {entry.first_slice}u, n, l, v)"
 
     # -- references and validation -------------------------------------------------------------
@@ -305,6 +388,9 @@ class Separable(Model):
         """``"8bit"``: the include's sum over the 8-bit factors in float64
         (:func:`atlasgen.separable.rebuild.evaluate_factors`), L = E albedo f cos. The float
         factors are not in the atlas, so there is no ``"float"`` rebuild."""
+        if isinstance(entry.representation, AnalyticRepresentation):
+            return {"8bit": RadianceRebuild("the closed form in float64 (atlasgen.separable.analytic), as the shader evaluates it",
+                                            _analytic_radiance(entry.representation))}  # fmt: skip
         factors = read_separable_factors(atlas_path, entry.name)
 
         def radiance(n, l, v, albedo, gloss, irradiance):
@@ -314,6 +400,8 @@ class Separable(Model):
 
     def claimed_errors(self, entry):
         """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K."""
+        if isinstance(entry.representation, AnalyticRepresentation):
+            return None  # the closed form itself: nothing approximated
         factors = entry.factors
         return {
             "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
@@ -325,12 +413,38 @@ class Separable(Model):
     # -- reports ----------------------------------------------------------------------------------
     def describe_representation(self, entry) -> str:
         factors, rep = entry.factors, entry.representation
+        if isinstance(rep, AnalyticRepresentation):
+            how = f", chosen by run-time cost (budget {rep.auto['error_budget']:g})" if rep.auto else ""
+            return f"analytic {rep.distribution} evaluated in the lighting shader, no atlas data{how}"
         terms = factors.terms if factors.terms is not None else entry.slice_count
         param = factors.parametrization
         grid = factors.sampling_grid
         budget = getattr(rep, "error_budget", None)
         return (f"separable, {terms} term(s){', ' + param if param else ''}"
                 f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
+
+
+def analytic_params(rep: AnalyticRepresentation) -> dict:
+    """The :func:`atlasgen.separable.analytic.evaluate_analytic` parameters of an analytic representation."""
+    return {"source": rep.distribution, "alpha": rep.alpha, "fresnel": rep.fresnel, "f0": rep.f0, "ior": rep.ior,
+            "specular": rep.specular, "diffuse": rep.diffuse}
+
+
+def _analytic_radiance(rep: AnalyticRepresentation):
+    params = analytic_params(rep)
+
+    def radiance(n, l, v, albedo, gloss, irradiance):
+        return irradiance * albedo * analytic_f_cos_world(params, n, l, v)
+
+    return radiance
+
+
+def _f32(x) -> float:
+    return float(np.float32(x))
+
+
+def _is_analytic(slices: SliceSet) -> bool:
+    return (slices.extra.get("representation") or {}).get("kind") == "analytic"
 
 
 def _rounded(array) -> list:

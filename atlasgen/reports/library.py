@@ -1,4 +1,4 @@
-"""One HTML page over the whole material library: representation, errors, bake time, previews."""
+"""One HTML page over the whole material library: representation, errors, run-time cost against error, bake time, previews."""
 
 from __future__ import annotations
 
@@ -6,20 +6,56 @@ import json
 import os
 from pathlib import Path
 
+from atlasgen.bake.preview import slice_png
 from atlasgen.errors import InputError
-from atlasgen.io.manifest import MaterialEntry
-from atlasgen.models import get_model
-from atlasgen.reports.html import plot_width, render_page
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_file_atomically, write_files_atomically
-from atlasgen.bake.preview import slice_png
-from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
+from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
+from atlasgen.models import get_model
+from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
+from atlasgen.separable.auto import cost_key, read_lighting_cost
 
 __all__ = ["write_library_report"]
 
-#: The speed/error plot: its file and its size in inches (shown at 100 CSS px per inch).
-_PLOT = "speed-vs-error.png"
+#: The library's cost/error plot: its file and its size in inches (shown at 100 CSS px per inch).
+_PLOT = "cost-vs-error.png"
 _PLOT_SIZE = (7.0, 4.5)
+_SMALL_PLOT_SIZE = (4.2, 3.0)
+
+
+def _cost_key(entry: MaterialEntry, terms=None) -> str:
+    """The run-time cost table's key of ``entry``'s representation (with ``terms`` for a K)."""
+    rep = entry.representation
+    if isinstance(rep, AnalyticRepresentation):
+        return cost_key("analytic", rep.distribution)
+    if entry.factors is not None:
+        return cost_key("separable", terms if terms is not None else (entry.factors.terms or entry.slice_count))
+    return cost_key("lut")
+
+
+def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
+    """What ``entry`` could be drawn as, each ``{"representation", "cost", "error", "chosen"}``:
+    the ``auto`` choice's candidates as recorded; a separable material's K = 1..8 at its grid
+    and target (estimated 8-bit relative RMS of f cos); else the one representation baked, its
+    error the manifest's (quantisation RMS for a LUT, 0 for a closed form)."""
+    rep = entry.representation
+    chosen = _cost_key(entry)
+    if getattr(rep, "auto", None):
+        return [{"representation": c["representation"], "cost": c["cost"], "error": c["error"],
+                 "chosen": c["representation"] == rep.auto["chosen"]} for c in rep.auto["candidates"]]  # fmt: skip
+    if isinstance(rep, SeparableRepresentation):
+        curve = next((c.get("relative_rms_by_terms") for c in rep.candidates
+                      if c.get("grid") == rep.sampling_grid and c.get("target") == rep.target), None)  # fmt: skip
+        if curve:
+            return [{"representation": _cost_key(entry, k + 1), "cost": table.costs.get(_cost_key(entry, k + 1)),
+                     "error": e, "chosen": k + 1 == rep.terms} for k, e in enumerate(curve)]  # fmt: skip
+    if isinstance(rep, AnalyticRepresentation):
+        error = 0.0
+    elif entry.factors is not None and entry.factors.errors_8bit is not None:
+        error = entry.factors.errors_8bit.relative_rms
+    else:
+        error = entry.quantization_error.rms
+    return [{"representation": chosen, "cost": table.costs.get(chosen), "error": error, "chosen": True}]
 
 
 def _read_json(path):
@@ -51,15 +87,6 @@ def _validation_pages(validation: dict | None, name: str) -> list[str]:
     return list(dict.fromkeys(pages))
 
 
-def _plotted_error(entry: MaterialEntry, refs: list[dict], validated: bool):
-    """One error per material on one scale: validation's linear RMSE against the model
-    reference when there is a validation run, else the manifest's quantisation RMS."""
-    if validated:
-        front = [r for r in refs if r["reference"] == "front/model" and r.get("linear_rmse") is not None]
-        return max(front[0]["linear_rmse"], 1e-7) if front else None
-    return max(entry.quantization_error.rms, 1e-7)
-
-
 def _fmt(x, spec=".3g"):
     return "–" if x is None else format(x, spec)
 
@@ -81,8 +108,10 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
     out_dir = Path(out_dir)
 
-    rows, points, files = [], [], {}
+    rows, files = [], {}
+    table = read_lighting_cost()
     srgb = atlas.manifest.srgb
+    chosen_points = []
     for entry in atlas.manifest.materials:
         name = entry.name
         previews = []
@@ -92,17 +121,20 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
             previews.append(rel)
         bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
         refs = _validation_rows(validation, name)
-        rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name)))
-        if bake_s is not None:
-            points.append((name, bake_s, _plotted_error(entry, refs, validation is not None), entry.type))
+        candidates = [c for c in _runtime_candidates(entry, table) if c["cost"] is not None]
+        chart = None
+        if candidates:
+            chart = f"cost/{name}.png"
+            files[out_dir / chart] = _plot_cost_error({name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error")
+            chosen_points += [(name, c) for c in candidates if c["chosen"]]
+        rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
-    y_label = ("linear RMSE vs model reference" if validation is not None else "RMS quantisation error, linear")
-    points = [p for p in points if p[2] is not None]
     plot = None
-    if points:
-        files[out_dir / _PLOT] = _plot_speed_error(points, y_label, validation is not None)
+    if chosen_points:
+        files[out_dir / _PLOT] = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
+                                                  "Library: run-time cost against error", label_all=True)  # fmt: skip
         plot = {"src": _PLOT, "width": plot_width(_PLOT_SIZE[0])}
-    # Previews and plot first, all-or-nothing; the page that links them replaces the old one last.
+    # Previews and plots first, all-or-nothing; the page that links them replaces the old one last.
     write_files_atomically(files)
 
     def rel(target) -> str | None:
@@ -113,7 +145,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         (rel(Path(separable_dir) / "index.html") if separable_dir else None, "separable factorisation report"),
     ) if href]  # fmt: skip
     page_rows = []
-    for entry, previews, bake_s, refs, pages in rows:
+    for entry, previews, bake_s, refs, pages, candidates, chart in rows:
         q = entry.quantization_error
         own = [rel(Path(validation_dir) / page) for page in pages] if validation_dir else []
         page_rows.append({
@@ -122,30 +154,39 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
             "bake_ms": _fmt(None if bake_s is None else bake_s * 1e3, ".2f"), "quantisation": f"{q.max:.4f} / {q.rms:.4f}",
             "refs": [{"reference": r["reference"], "psnr": _fmt(r["psnr"], ".1f"), "flip": _fmt(r["flip"], ".4f"),
                       "speed": _fmt(r["speed_ratio"], ".1f") + "x"} for r in refs],
-            "pages": [p for p in own if p], "previews": previews,
+            "pages": [p for p in own if p], "previews": previews, "chart": chart,
+            "runtime": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".3g"),
+                         "chosen": c["chosen"]} for c in candidates],
         })  # fmt: skip
     index = out_dir / "index.html"
     write_file_atomically(index, render_page(
         "library.html.j2", atlas=Path(atlas_path).as_posix(), encoding=atlas.manifest.encoding,
-        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows))
+        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows,
+        cost_device=table.device, cost_unit=table.unit, chart_width=plot_width(_SMALL_PLOT_SIZE[0])))
     return index
 
 
-def _plot_speed_error(points, y_label: str, validated: bool) -> bytes:
-    """Bake time against error, one point per material ``(name, seconds, error, type)``; the
-    Pareto front (no material both faster and closer) is labelled, the table lists all."""
+def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = False) -> bytes:
+    """Run-time cost (the shipped cost table, :func:`atlasgen.separable.auto.read_lighting_cost`)
+    against error, one marker per candidate; the chosen representation is filled, the Pareto
+    front (nothing both cheaper and closer) labelled."""
+    floor = 1e-6  # a closed form's error is 0: drawn on the axis's floor
     with plot_style() as plt:
-        fig, ax = plt.subplots(figsize=_PLOT_SIZE)
-        for kind in sorted({p[3] for p in points}):
-            sel = [p for p in points if p[3] == kind]
-            ax.scatter([p[1] * 1e3 for p in sel], [p[2] for p in sel], label=kind)
-        front = [points[i] for i in pareto_front([(p[1], p[2]) for p in points])]
-        label_points(ax, [(p[1] * 1e3, p[2]) for p in front], [p[0] for p in front])
+        fig, ax = plt.subplots(figsize=size)
+        points = []
+        for name, candidates in series.items():
+            xs = [c["cost"] for c in candidates]
+            ys = [max(c["error"], floor) for c in candidates]
+            ax.scatter(xs, ys, label=name if label_all else None, facecolors=["C0" if c["chosen"] else "none" for c in candidates]
+                       if not label_all else None, edgecolors="C0" if not label_all else None)  # fmt: skip
+            points += [(x, y, name if label_all else c["representation"]) for x, y, c in zip(xs, ys, candidates)]
+        front = [points[i] for i in pareto_front([(p[0], p[1]) for p in points])]
+        label_points(ax, [(p[0], p[1]) for p in front], [p[2] for p in front])
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("bake time per material (ms)")
-        ax.set_ylabel(y_label)
-        ax.set_title("Speed against error" + (" (validation, front scene)" if validated else " (level 0)")
-                     + "; labelled: the Pareto front")
-        ax.legend()
+        ax.set_xlabel(f"lighting cost ({table.unit}), {table.device}")
+        ax.set_ylabel("error (rel. RMS of f cos; LUT: quantisation RMS)")
+        ax.set_title(title, fontsize="medium")
+        if label_all and len(series) <= 12:
+            ax.legend(fontsize="small")
         return figure_png(fig)

@@ -21,6 +21,8 @@ __all__ = [
     "ward_brdf",
     "lambert_brdf",
     "evaluate_analytic",
+    "to_local_frame",
+    "analytic_f_cos_world",
 ]
 
 ANALYTIC_SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert")
@@ -115,3 +117,24 @@ def evaluate_analytic(params: dict, l, v):
     else:
         raise ValueError(f"unknown analytic source {source!r}")
     return out + lobe
+
+
+def to_local_frame(n, d):
+    """Directions ``d`` in a frame whose +z is the unit normal ``n`` (both ``(..., 3)``).
+
+    The tangent is any unit vector orthogonal to ``n``: every analytic source here is
+    isotropic, so the azimuth of the frame does not matter.
+    """
+    n = np.asarray(n, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    helper = np.where((np.abs(n[..., :1]) > 0.9), np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]))
+    t = np.cross(helper, n)
+    t = t / np.linalg.norm(t, axis=-1, keepdims=True)
+    b = np.cross(n, t)
+    return np.stack([(d * t).sum(-1), (d * b).sum(-1), (d * n).sum(-1)], axis=-1)
+
+
+def analytic_f_cos_world(params: dict, n, l, v):
+    """f cos(theta_l) of :func:`evaluate_analytic` for world-space unit ``n``, ``l``, ``v`` ``(N, 3)``."""
+    ll, lv = to_local_frame(n, l), to_local_frame(n, v)
+    return evaluate_analytic(params, ll, lv) * np.maximum(ll[..., 2], 0.0)[..., None]
