@@ -14,6 +14,7 @@ import numpy as np
 from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
+from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
 from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
 from atlasgen.errors import MaterialError, OutputError
@@ -294,17 +295,18 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
                       render_include_data(manifest))
 
 
-def encode_atlas_texture(result: BakeResult, path, zstd: bool = False) -> bytes:
+def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:
     """The atlas texture in the container ``path``'s suffix names: DDS, or KTX2 (optionally Zstandard).
 
-    The KTX2 key/value data names the writer. The pair is tied the other way round: the
-    manifest records the texture's SHA-256 (``atlas_sha256``), so the texture itself holds
-    nothing of the manifest (a hash each way could not both be right).
+    The KTX2 key/value data names the writer and records the SHA-256 of the manifest
+    written beside it (``atlasgen.manifest_sha256``). That is no circle: the manifest
+    records the hash of the texels (:func:`atlasgen.io.atlas.texel_sha256`), not of the file.
     """
     path = Path(path)
     if path.suffix.lower() == ".ktx2":
         srgb = result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
-        return encode_ktx2(result.levels, result.layout, srgb, {"KTXwriter": f"atlasgen {__version__}"}, zstd)
+        key_values = {"KTXwriter": f"atlasgen {__version__}", KTX2_MANIFEST_KEY: hashlib.sha256(manifest_bytes).hexdigest()}
+        return encode_ktx2(result.levels, result.layout, srgb, key_values, zstd)
     if zstd:
         raise OutputError(f"{path.as_posix()}: Zstandard supercompression needs a .ktx2 atlas, not DDS")
     return encode_dds(result.levels, result.layout, result.dxgi_format)
@@ -321,10 +323,10 @@ def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[b
     """The texture, the manifest that records its hash (``atlas_sha256``, entries' ``source``
     relative to the manifest's folder) and that manifest's bytes, for the files ``paths`` names."""
     manifest_dir = paths["manifest"].parent
-    texture = encode_atlas_texture(result, paths["dds"], zstd)
     materials = [replace(e, source=relative_source(e.source, manifest_dir)) for e in result.manifest.materials]
-    manifest = replace(result.manifest, materials=materials, atlas_sha256=hashlib.sha256(texture).hexdigest())
-    return texture, manifest, format_manifest(manifest).encode()
+    manifest = replace(result.manifest, materials=materials, atlas_sha256=texel_sha256(result.levels))
+    manifest_bytes = format_manifest(manifest).encode()
+    return encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd), manifest, manifest_bytes
 
 
 def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, languages=("wgsl", "glsl", "hlsl"),

@@ -27,11 +27,13 @@ from atlasgen.io.text import read_input_text
 from atlasgen.errors import InputError, ManifestError
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Atlas", "read_atlas", "check_include", "include_manifest_sha256", "summarize_atlas", "describe_atlas",
+__all__ = ["Atlas", "read_atlas", "check_include", "include_manifest_sha256", "texel_sha256", "KTX2_MANIFEST_KEY", "summarize_atlas", "describe_atlas",
            "INCLUDE_HASH_PREFIX", "RERUN"]
 
 #: The first line of every include: this, then the SHA-256 (hex) of the manifest written with it.
 INCLUDE_HASH_PREFIX = "// atlasgen manifest sha256: "
+#: The KTX2 key/value entry that records the SHA-256 of the manifest written beside it.
+KTX2_MANIFEST_KEY = "atlasgen.manifest_sha256"
 #: How every refusal of a mismatched generation ends.
 RERUN = "re-run atlasgen bake"
 
@@ -90,7 +92,8 @@ def read_atlas(path) -> Atlas:
     The manifest is checked field by field (:func:`atlasgen.io.manifest.parse_manifest`),
     then against the texture: the header's width, height, layers, mip count, layout and
     encoding must be what the manifest claims (and the atlas contract's 64x32x256), and
-    the texture's bytes must hash to the manifest's ``atlas_sha256``. Each file is read once.
+    the texture's texels must hash to the manifest's ``atlas_sha256`` (:func:`texel_sha256`),
+    and a KTX2's recorded manifest hash must be this manifest's. Each file is read once.
 
     Raises
     ------
@@ -115,12 +118,24 @@ def read_atlas(path) -> Atlas:
         return Atlas(path, image, None)
     text = read_input_text(manifest_path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
     manifest = parse_manifest(text, manifest_path.as_posix())
-    _check_pair(path, image, hashlib.sha256(data).hexdigest(), manifest_path, manifest)
-    return Atlas(path, image, manifest, hashlib.sha256(text.encode("utf-8")).hexdigest())
+    manifest_sha256 = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    _check_pair(path, image, manifest_path, manifest, manifest_sha256)
+    return Atlas(path, image, manifest, manifest_sha256)
 
 
-def _check_pair(path: Path, image, texture_sha256: str, manifest_path: Path, manifest: Manifest) -> None:
-    """Refuse a texture whose header or bytes are not what its manifest says."""
+def texel_sha256(levels) -> str:
+    """SHA-256 of an atlas's texels: every mip level's uint8 RGBA, level 0 first, each as
+    ``(layers or depth, height, width, 4)`` in C order. The same for the DDS and the KTX2
+    (plain or supercompressed) of one bake, so a KTX2 can also carry the manifest's hash."""
+    digest = hashlib.sha256()
+    for level in levels:
+        digest.update(np.ascontiguousarray(level, dtype=np.uint8).tobytes())
+    return digest.hexdigest()
+
+
+def _check_pair(path: Path, image, manifest_path: Path, manifest: Manifest, manifest_sha256: str) -> None:
+    """Refuse a texture whose header or texels are not what its manifest says (or, for a KTX2,
+    whose recorded manifest hash is another manifest's)."""
     shown, shown_manifest = path.as_posix(), manifest_path.as_posix()
 
     def refuse(key: str, problem: str):
@@ -137,8 +152,12 @@ def _check_pair(path: Path, image, texture_sha256: str, manifest_path: Path, man
     for key, claimed, actual in claims:
         if claimed != actual:
             refuse(key, f"says {claimed}, but {shown} has {actual} (the two are from different bakes)")
-    if manifest.atlas_sha256 != texture_sha256:
+    if manifest.atlas_sha256 != texel_sha256(image.levels):
         refuse("atlas_sha256", f"does not match {shown} (the two are from different bakes)")
+    recorded = getattr(image, "key_values", {}).get(KTX2_MANIFEST_KEY)
+    if recorded is not None and recorded.rstrip(b"\0").decode("ascii", "replace") != manifest_sha256:
+        raise InputError(f"{shown}: KTX2 key {KTX2_MANIFEST_KEY!r}: does not match {shown_manifest} "
+                         f"(the two are from different bakes); {RERUN}")
 
 
 def include_manifest_sha256(text: str) -> str | None:

@@ -589,7 +589,7 @@ class Manifest(_Record):
 
     ``materials`` are in slice order as baked; ``volume_bleed`` is present for volume
     layouts only (how far each mip level blends neighbouring materials).
-    ``atlas_sha256`` is the SHA-256 of the texture file (DDS or KTX2) written with this
+    ``atlas_sha256`` is the SHA-256 of the texels (:func:`atlasgen.io.atlas.texel_sha256`) written with this
     manifest: readers refuse a pair whose texture does not hash to it (the two are from
     different bakes). The bake fills it in as it writes the pair; ``""`` until then.
 
@@ -666,7 +666,7 @@ class Manifest(_Record):
         return cls(
             format_version=version,
             generator=f.string("generator"),
-            atlas_sha256=f.take("atlas_sha256", "the SHA-256 of the atlas texture (64 lowercase hex digits)", _is_sha256),
+            atlas_sha256=f.take("atlas_sha256", "the SHA-256 of the atlas texels (64 lowercase hex digits)", _is_sha256),
             dimensions=dimensions,
             encoding=encoding,
             dxgi_format=dxgi,

@@ -37,14 +37,13 @@ __all__ = [
 # ---- profiles ------------------------------------------------------------------------------
 # "ci" (the default) keeps the whole suite well under two minutes and draws the same
 # examples every run; "fuzz" (``make fuzz``) draws many more, at random, for as long as it takes.
-settings.register_profile(
-    "ci", max_examples=30, deadline=None, derandomize=True, database=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
-)  # fmt: skip
-settings.register_profile(
-    "fuzz", max_examples=2000, deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
-)  # fmt: skip
+# The GPU error check (tests/conftest.py gpu_device) is function-scoped on purpose: it checks
+# the device before and after the whole test, every example included.
+_SUPPRESSED = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much,
+               HealthCheck.function_scoped_fixture]  # fmt: skip
+settings.register_profile("ci", max_examples=30, deadline=None, derandomize=True, database=None,
+                          suppress_health_check=_SUPPRESSED)  # fmt: skip
+settings.register_profile("fuzz", max_examples=2000, deadline=None, suppress_health_check=_SUPPRESSED)
 #: The profile the fuzz tests run under: ATLASGEN_FUZZ_PROFILE, else "ci".
 FUZZ = settings.get_profile(os.environ.get("ATLASGEN_FUZZ_PROFILE", "ci"))
 

@@ -20,6 +20,7 @@ from atlasgen.io.atlas import RERUN, read_atlas
 from atlasgen.io.dds import encode_dds, read_dds
 from atlasgen.materials.material import read_materials
 from atlasgen.render.atlas_texture import read_render_atlas
+from tests import dds_reader, ktx2_reader
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -47,9 +48,14 @@ def _refusal(path) -> str:
 def test_a_bake_writes_a_pair_that_reads_back(tmp_path, suffix):
     out = _bake(tmp_path, "build", suffix=suffix)
     manifest = json.loads(out.with_suffix(".json").read_text())
-    assert manifest["atlas_sha256"] == hashlib.sha256(out.read_bytes()).hexdigest()
+    # The texels' hash, from the independent readers: every level's bytes, level 0 first.
+    parse = ktx2_reader.parse if suffix == ".ktx2" else dds_reader.parse
+    texels = hashlib.sha256(b"".join(np.ascontiguousarray(lv).tobytes() for lv in parse(out.read_bytes())["levels"]))
+    assert manifest["atlas_sha256"] == texels.hexdigest()
     atlas = read_atlas(out)
     digest = hashlib.sha256(out.with_suffix(".json").read_bytes()).hexdigest()
+    if suffix == ".ktx2":
+        assert ktx2_reader.kvd_dict(ktx2_reader.parse(out.read_bytes()))["atlasgen.manifest_sha256"] == digest.encode()
     assert atlas.manifest_sha256 == digest
     for lang in ("wgsl", "glsl", "hlsl"):
         first = out.with_suffix(f".{lang}").read_text().split("\n", 1)[0]
@@ -157,3 +163,14 @@ def test_the_separable_rebuild_reads_through_the_pair_check(tmp_path):
     shutil.copy(_bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]"), out)
     with pytest.raises(InputError, match=r"field 'atlas_sha256': does not match .*re-run atlasgen bake$"):
         read_separable_factors(out, "clay")
+
+
+def test_a_ktx2_refuses_a_manifest_other_than_the_one_it_records(tmp_path):
+    # Same texels, another manifest (its description edited): the texels still hash to
+    # atlas_sha256, but the KTX2's recorded manifest hash names the manifest it was written with.
+    out = _bake(tmp_path, "build", suffix=".ktx2")
+    manifest = out.with_suffix(".json")
+    manifest.write_text(manifest.read_text().replace('"description": ""', '"description": "edited"', 1))
+    message = _refusal(out)
+    assert message.startswith(f"{out.as_posix()}: KTX2 key 'atlasgen.manifest_sha256': does not match {manifest.as_posix()}")
+    assert message.endswith(RERUN) and "\n" not in message
