@@ -139,6 +139,7 @@ def _read_as_the_renderer(build: Path, old: dict, new: dict) -> str:
     return "ok"
 
 
+@pytest.mark.slow
 def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_the_next_run_repairs_it(tmp_path):
     library = _library(tmp_path, "[0.2, 0.3, 0.4]")
     build = tmp_path / "build"

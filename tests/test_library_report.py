@@ -47,6 +47,7 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     assert f"<b>lut</b></td><td>{table.cost('lut'):.3g}</td>" in text
 
 
+@pytest.mark.slow
 def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     import json
 
@@ -88,6 +89,7 @@ def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, writ
     assert not list((tmp_path / "report").rglob(".*.tmp"))
 
 
+@pytest.mark.slow
 def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, write_material):
     from click.testing import CliRunner
 
@@ -109,6 +111,7 @@ def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, wri
                                        f"  separable report: {(tmp_path / 's' / 'index.html').as_posix()} (absent)"]  # fmt: skip
 
 
+@pytest.mark.slow
 def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\n')
     atlas = tmp_path / "atlas.dds"

@@ -46,6 +46,7 @@ def test_allocation_never_overlaps_and_respects_previous(counts, rnd):
 
 @given(st.lists(st.tuples(st.integers(1, 4), st.one_of(st.none(), st.integers(0, 250))), min_size=1, max_size=30),
        st.randoms(use_true_random=False))  # fmt: skip
+@pytest.mark.slow
 def test_slices_do_not_depend_on_the_order_materials_are_given(specs, rnd):
     requests, taken = [], set()
     for i, (count, explicit) in enumerate(specs):

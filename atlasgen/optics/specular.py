@@ -69,8 +69,9 @@ def specular_fresnel_cosine(n_dot_l, n_dot_v):
     """
     cl = np.clip(np.asarray(n_dot_l, dtype=np.float64), 0.0, 1.0)
     cv = np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0)
-    sines = np.sqrt((1.0 - cl * cl) * (1.0 - cv * cv))
-    return np.sqrt(np.clip(0.5 * (1.0 + cl * cv - sines), 0.0, 1.0))
+    # The angle form keeps its precision at grazing cosines, where the algebraic one
+    # (1 + c_l c_v - s_l s_v) / 2 cancels to 0.
+    return np.cos(0.5 * (np.arccos(cl) + np.arccos(cv)))
 
 
 def specular_f_cos(gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None) -> np.ndarray:

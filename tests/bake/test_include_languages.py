@@ -105,6 +105,7 @@ def _spirv(lang: str, folder: Path) -> bytes:
     return out.read_bytes()
 
 
+@pytest.mark.slow
 def test_every_language_comes_from_the_one_description(small_atlas):
     result, paths = small_atlas
     texts = {"wgsl": result.include, **result.includes}
@@ -219,6 +220,7 @@ def _dispatch(ctx, level0, queries, lang, code):
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("lang", LANGUAGES)
+@pytest.mark.slow
 def test_each_language_samples_what_the_cpu_samples(lang, small_atlas, gpu_device):
     from atlasgen.io.dds import read_dds
 

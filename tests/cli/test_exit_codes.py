@@ -101,6 +101,7 @@ def test_the_exit_code_table_is_generated_from_errors():
         assert f"| {code} | {meaning} |" in table
 
 
+@pytest.mark.slow
 def test_usage_errors_outside_a_command_are_one_line():
     code = "from atlasgen.cli.main import main; main(['--no-such-option'])"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -109,6 +109,7 @@ def test_unwritable_output_folder(runner, library, tmp_path):
     assert blocker.read_text() == "not a folder"
 
 
+@pytest.mark.slow
 def test_lut_bake_imports_no_heavy_backend(library, tmp_path):
     code = (
         "import sys; from atlasgen.cli.main import main\n"
@@ -139,6 +140,7 @@ def test_cli_reference_is_generated_from_the_app():
 
 @pytest.mark.parametrize("argv", [["-m", "atlasgen"], ["-c", "from atlasgen.cli.main import main; main([])"]],
                          ids=["python -m atlasgen", "bare atlasgen"])
+@pytest.mark.slow
 def test_bare_atlasgen_and_python_m_print_the_help_and_succeed(argv):
     out = subprocess.run([sys.executable, *argv], capture_output=True, text=True)
     assert out.returncode == 0 and out.stderr == ""
@@ -157,6 +159,7 @@ def test_bake_verbose_says_what_each_material_took(runner, library, tmp_path):
     assert again.stdout == first.stdout and again.stdout.startswith(f"{(tmp_path / 'a.dds').as_posix()} (64x32")
 
 
+@pytest.mark.slow
 def test_bake_library_bakes_the_installed_library(runner, tmp_path, monkeypatch):
     from atlasgen.io.package_data import shipped_library
 

@@ -109,6 +109,7 @@ def test_missing_atlas(tmp_path):
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("flag", ["-q", "-v"])
+@pytest.mark.slow
 def test_quiet_prints_nothing_and_verbose_describes_the_scene(gpu_device, atlas, tmp_path, flag):
     scene = write_scene(tmp_path, SCENE.format(material="snow"))
     out = tmp_path / "out.exr"

@@ -123,6 +123,7 @@ def _goals(monkeypatch, psnr_db, flip):
 
 @pytest.mark.mitsuba
 @pytest.mark.parametrize("strict", [False, True])
+@pytest.mark.slow
 def test_strict_exits_6_when_a_goal_is_missed_and_still_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device,  # noqa: F811
                                                                           tmp_path, monkeypatch, strict):  # fmt: skip
     _goals(monkeypatch, psnr_db=1000.0, flip=0.01)  # no image reaches 1000 dB
@@ -142,6 +143,7 @@ def test_strict_exits_6_when_a_goal_is_missed_and_still_writes_the_report(valida
 
 
 @pytest.mark.mitsuba
+@pytest.mark.slow
 def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_atlas, mitsuba_rgb, gpu_device,  # noqa: F811
                                                                      tmp_path, monkeypatch):  # fmt: skip
     _goals(monkeypatch, psnr_db=0.0, flip=1.0)  # every image meets these
@@ -164,6 +166,7 @@ def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_
 
 
 @pytest.mark.mitsuba
+@pytest.mark.slow
 def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
     out = tmp_path / "v"
     result = CliRunner().invoke(app, ["validate", "gloss", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out), "--strict"])
@@ -188,6 +191,7 @@ def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(valida
     ],
     ids=["default", "quiet", "verbose"],
 )
+@pytest.mark.slow
 def test_progress_is_one_line_per_material_on_stderr(validation_atlas, mitsuba_rgb, gpu_device, tmp_path, flag, expected):  # noqa: F811
     result = CliRunner().invoke(app, ["validate", "matte", "coat", *TINY_RUN, "--atlas", str(validation_atlas),
                                       "-o", str(tmp_path / "v"), *flag])  # fmt: skip

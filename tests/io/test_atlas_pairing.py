@@ -135,6 +135,7 @@ def test_an_edited_manifest_no_longer_matches_its_include(tmp_path):
     ["render", str(ROOT / "scenes" / "demo.toml"), "--atlas", "{atlas}", "-o", "{tmp}/out.exr"],
     ["validate", "--atlas", "{atlas}", "-o", "{tmp}/validation"],
 ])  # fmt: skip
+@pytest.mark.slow
 def test_every_command_refuses_a_mismatched_pair_with_one_line(tmp_path, command):
     out = _bake(tmp_path, "build")
     shutil.copy(_bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]"), out)

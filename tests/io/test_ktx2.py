@@ -62,6 +62,7 @@ VARIANTS = [("array", False), ("array", True), ("volume", True)]
 
 @pytest.mark.parametrize("zstd", [False, True], ids=["plain", "zstd"])
 @pytest.mark.parametrize("layout,linear", VARIANTS, ids=[f"{lay}-{'linear' if lin else 'srgb'}" for lay, lin in VARIANTS])
+@pytest.mark.slow
 def test_every_layer_and_level_matches_the_dds(tmp_path, layout, linear, zstd):
     dds_path, ktx2_path = _write(tmp_path, layout, linear, zstd)
     data = ktx2_path.read_bytes()

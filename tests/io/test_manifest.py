@@ -150,6 +150,7 @@ def _manifests(draw):
 
 @settings(max_examples=60, deadline=None)
 @given(_manifests())
+@pytest.mark.slow
 def test_any_manifest_round_trips_through_its_text(manifest):
     text = format_manifest(manifest)
     back = parse_manifest(text)

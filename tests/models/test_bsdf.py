@@ -16,6 +16,7 @@ from atlasgen.models.physical_fit import azimuth_pairs
 EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "bsdf-roughplastic.toml"
 
 
+@pytest.mark.slow
 def test_bsdf_roughplastic_bakes_and_recovers_its_diffuse_part(mitsuba_llvm):
     """roughplastic's diffuse term depends on (N.L, N.V) only, so the slice's RGB should be
     it: pi f_d cos, read from the same BSDF with its specular reflectance set to 0."""

@@ -105,6 +105,7 @@ def _specular_albedo(params, cos_v, gloss, n=400):
 @given(ior=st.floats(1.01, 4.0), kind=st.sampled_from(["exact", "schlick"]), n_dot_v=st.floats(0.05, 1.0),
        gloss=st.sampled_from([0.0, 0.5, 0.9, 1.0]))  # fmt: skip
 @settings(max_examples=25, deadline=None)
+@pytest.mark.slow
 def test_white_coupled_coat_never_creates_energy_in_the_renderer(ior, kind, n_dot_v, gloss):
     # The renderer adds albedo * RGB / pi + A * lobe. Over all light directions (d omega =
     # 2 pi dc, by symmetry in azimuth) the diffuse term reflects 2 int_0^1 RGB(c) dc =

@@ -230,6 +230,7 @@ def test_evaluate_is_the_in_plane_cut(load):
     assert not out[:, 3].any()
 
 
+@pytest.mark.slow
 def test_lut_only_bake_imports_no_separable_model_nor_heavy_backends(write_material, tmp_path):
     # The separable maths package (NumPy only) is part of the bake's write path (its side-car
     # stamp); the separable model and Mitsuba, Dr.Jit and matplotlib are not loaded.

@@ -95,6 +95,7 @@ def test_directional_albedo_agrees_with_the_textbook_masking_function(gloss, cos
 
 
 @pytest.mark.parametrize("gloss", GLOSSES)
+@pytest.mark.slow
 def test_white_furnace_the_lobe_never_creates_energy(gloss):
     """int D V N.L d omega <= 1 for every roughness and view, with two closed forms: a near-mirror
     keeps everything at normal view, and at alpha = 1 (D = 1 / pi, V = 0.5 / (N.L + 1) at

@@ -32,6 +32,7 @@ def test_auto_picks_the_cheapest_candidate_meeting_the_budget(table, budget):
 
 
 @given(_tables, st.floats(1e-4, 1.0), st.floats(1e-4, 1.0))
+@pytest.mark.slow
 def test_a_tighter_budget_never_yields_a_larger_error(table, a, b):
     tight, loose = sorted((a, b))
     candidates = _candidates(table)

@@ -96,6 +96,7 @@ def test_the_estimator_is_unbiased_within_its_standard_error_across_seeds(sharp_
     assert 0.6 < z.std(ddof=1) < 1.5, z
 
 
+@pytest.mark.slow
 def test_uniform_pairs_miss_the_lobe_the_estimator_sees(sharp_copper):
     """The old estimator (10^5 uniform pairs) on an alpha 0.02 lobe is off by far more than the
     new one's reported uncertainty."""

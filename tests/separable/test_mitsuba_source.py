@@ -97,6 +97,7 @@ def test_a_non_bsdf_plugin_is_rejected(mitsuba_llvm):
         load_mitsuba_bsdf({"type": "point"}, "m.toml")
 
 
+@pytest.mark.slow
 def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba_llvm, write_material, tmp_path):
     """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others."""
     import drjit as dr
@@ -168,6 +169,7 @@ def test_reflection_only_is_only_for_mitsuba(expect_rejected):
     expect_rejected("separable", 'source = "ggx"\nreflection_only = true', "reflection_only", "only used with source = 'mitsuba'")
 
 
+@pytest.mark.slow
 def test_reflection_only_bakes_the_reflection_and_records_the_dropped_fraction(mitsuba_llvm, write_material, tmp_path):
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_materials

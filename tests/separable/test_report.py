@@ -54,6 +54,7 @@ def test_cli_maps_errors_to_messages(write_material, tmp_path):
 
 
 @pytest.mark.parametrize("flag", [None, "-q", "-v"])
+@pytest.mark.slow
 def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch, flag):
     import functools
 
