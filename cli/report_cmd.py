@@ -7,13 +7,14 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.cli.options import MaterialProgress, QUIET, VERBOSE, verbosity_options
 from atlasgen.errors import InputError
+from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials
-from atlasgen.reports.separable_merge import merge_separable_reports
-from atlasgen.reports.separable import write_separable_report
 from atlasgen.reports.library import write_library_report
+from atlasgen.reports.separable import write_separable_report
+from atlasgen.reports.separable_merge import merge_separable_reports
 
 __all__ = ["report", "library", "separable"]
 
@@ -45,6 +46,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     With --merge they are folders of earlier reports (e.g. one per material), combined
     without measuring again.
     """
+    check_output_folder(output, "the report folder (-o)")
     if merge:
         merged = merge_separable_reports([Path(n) for n in names], output)["html"]
         if verbosity != QUIET:
@@ -84,6 +86,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 @fail_on_errors
 def library(atlas, validation, separable_dir, output, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews."""
+    check_output_folder(output, "the report folder (-o)")
     page = write_library_report(atlas, output, validation, separable_dir)
     if verbosity == VERBOSE:
         inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))

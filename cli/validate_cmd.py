@@ -7,17 +7,18 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.cli.options import MaterialProgress, QUIET, VERBOSE, verbosity_options
 from atlasgen.errors import GoalsMissed
+from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.validation import (
     describe_materials,
     merge_validation_reports,
     missed_goals,
+    noise_floor_failures,
     summary_line,
     write_validation,
 )
 from atlasgen.validate.run import validate_atlas
-from atlasgen.reports.validation import describe_materials, missed_goals, noise_floor_failures, summary_line
 
 __all__ = ["validate"]
 
@@ -77,6 +78,7 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
     reference on every scene (PSNR and mean FLIP); each separable material's claimed
     error against its error_budget, where it has one.
     """
+    check_output_folder(output, "the report folder (-o)")
     if merge:
         written = merge_validation_reports([Path(m) for m in materials], output)
     else:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from atlasgen.errors import OutputError
 
-__all__ = ["check_output_paths", "check_suffix"]
+__all__ = ["check_output_folder", "check_output_paths", "check_suffix"]
 
 
 def _key(path: Path) -> str:
@@ -79,3 +79,14 @@ def check_suffix(path, role: str, suffixes) -> None:
     if path.suffix.lower() not in suffixes:
         expected = " or ".join(suffixes)
         raise OutputError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")
+
+
+def check_output_folder(path, role: str) -> None:
+    """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one,
+    before the command renders or measures anything."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{path.as_posix()}: {role} is an existing file; expected a folder path")
+    blocker = _blocking_file(path)
+    if blocker is not None:
+        raise OutputError(f"{path.as_posix()}: cannot write output folder ({blocker.as_posix()} is a file)")

@@ -133,3 +133,14 @@ def test_a_material_the_scene_does_not_use_is_still_an_input(tmp_path, library):
     scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "snow"\n')
     _refused(tmp_path, ["bake", str(library), "--scene", str(scene), "-o", str(tmp_path / "a.dds"), "--depfile",
                         str(library / "clay.toml")], "--depfile would overwrite the material file of 'clay'")  # fmt: skip
+
+
+@pytest.mark.parametrize("command", [["validate", "--merge"], ["report", "library"], ["report", "separable", "--merge"]])
+def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, command):
+    blocker = tmp_path / "report"
+    blocker.write_text("not a folder")
+    if command[0] == "validate":  # click's own check: a usage error, one line
+        _refused(tmp_path, [*command, "-o", str(blocker)], "is a file", code=2)
+    else:
+        _refused(tmp_path, [*command, "-o", str(blocker)], "the report folder (-o) is an existing file; expected a folder path")
+    _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
