@@ -28,7 +28,7 @@ from atlasgen.bake.include import render_include_data, render_includes
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.bake.preview import render_contact_sheet
 from atlasgen.bake.include import stamp_include
-from atlasgen.separable.shader import stamp_sidecar
+from atlasgen.io.sidecar import stamp_sidecar
 
 __all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture",
            "pair_outputs", "relative_source"]

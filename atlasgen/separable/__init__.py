@@ -3,11 +3,7 @@
 One module per concept: :mod:`.parametrization` (pi1, pi2), :mod:`.analytic` and
 :mod:`.mitsuba_source` (BRDF sources), :mod:`.source` (sampling), :mod:`.factorize`
 (SVD / NMF / ND), :mod:`.storage` (8-bit layout), :mod:`.rebuild` (f from an atlas),
-:mod:`.error` (error measures), :mod:`.report` (Markdown and plots).
+:mod:`.error` (error measures). The report on them lives in :mod:`atlasgen.reports.separable`.
+Nothing is imported here, so a module of the package loads only what it needs (a LUT-only
+bake never pays for SciPy's sparse matrices, which the rebuild uses).
 """
-
-from __future__ import annotations
-
-from atlasgen.separable.rebuild import evaluate_separable, read_separable_factors
-
-__all__ = ["evaluate_separable", "read_separable_factors"]

@@ -13,6 +13,7 @@ import struct
 import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
+from atlasgen.io.sidecar import SIDECAR_FILE_VERSION, SIDECAR_MAGIC
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
 from atlasgen.shaderlang import Array, Assign, Comment, Const, For, Function, If, Let, Return, Var, emit, float_literal
@@ -21,13 +22,9 @@ __all__ = [
     "separable_declarations",
     "separable_table",
     "separable_table_bytes",
-    "stamp_sidecar",
-    "sidecar_manifest_sha256",
     "separable_wgsl",
     "wgsl_function_name",
-    "SIDECAR_MAGIC",
     "SIDECAR_VERSION",
-    "SIDECAR_HEADER_SIZE",
     "SYSTEMS",
     "UNWARP",
     "TARGETS",
@@ -36,11 +33,6 @@ __all__ = [
 #: Codes of the angle systems and targets in the table.
 SYSTEMS = tuple(SYSTEM_ANGLES)  # ("half_diff", "in_out")
 TARGETS = ("f_cos", "f_proxy")
-#: The header of ``X.separable.bin``: magic, then little-endian u32 file version, row count and
-#: digest length (32), then the SHA-256 of the manifest written with it; the rows follow.
-SIDECAR_MAGIC = b"ASEP"
-SIDECAR_FILE_VERSION = 2  # 2: the manifest's SHA-256 in the header (1: a 16-byte header)
-SIDECAR_HEADER_SIZE = 48
 #: The table layout's version (row 0 of the table, also in the include's SEPARABLE_TABLE).
 SIDECAR_VERSION = 1
 #: Rows of a material's block before its terms: head, then the axes g, h.x, h.y.
@@ -111,21 +103,6 @@ def separable_table_bytes(entries: list[MaterialEntry], manifest_sha256: bytes =
     table = separable_table(entries)
     header = SIDECAR_MAGIC + struct.pack("<3I", SIDECAR_FILE_VERSION, table.shape[0], 32) + manifest_sha256
     return header + table.astype("<f4").tobytes()
-
-
-def stamp_sidecar(data: bytes, manifest_sha256: bytes) -> bytes:
-    """``data`` (:func:`separable_table_bytes`) recording ``manifest_sha256`` (32 bytes) in its header."""
-    if len(manifest_sha256) != 32 or data[:4] != SIDECAR_MAGIC:
-        raise ValueError("expected a separable side-car and a 32-byte SHA-256")
-    return data[:16] + manifest_sha256 + data[SIDECAR_HEADER_SIZE:]
-
-
-def sidecar_manifest_sha256(data: bytes) -> str | None:
-    """The manifest SHA-256 (hex) a side-car's header records; ``None`` if it is not a version-2 side-car."""
-    if len(data) < SIDECAR_HEADER_SIZE or data[:4] != SIDECAR_MAGIC:
-        return None
-    version, _rows, length = struct.unpack_from("<3I", data, 4)
-    return data[16:48].hex() if version == SIDECAR_FILE_VERSION and length == 32 else None
 
 
 def _vec4(row) -> str:

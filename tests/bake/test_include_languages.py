@@ -17,8 +17,9 @@ from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.materials.material import read_materials
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
-from atlasgen.separable import evaluate_separable
-from atlasgen.separable.shader import SIDECAR_MAGIC, separable_table
+from atlasgen.separable.rebuild import evaluate_separable
+from atlasgen.io.sidecar import SIDECAR_MAGIC
+from atlasgen.separable.shader import separable_table
 from atlasgen.shaderlang import LANGUAGES
 
 ROOT = Path(__file__).resolve().parents[2]

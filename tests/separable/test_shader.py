@@ -3,7 +3,7 @@
 import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
-from atlasgen.separable import evaluate_separable
+from atlasgen.separable.rebuild import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.shader import separable_table, separable_wgsl, wgsl_function_name
 
