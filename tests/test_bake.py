@@ -1,5 +1,7 @@
 """The bake pipeline: closed-form slices, scales, clamping, stable IDs and determinism."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -133,3 +135,30 @@ def test_corrupt_previous_manifest_is_an_input_error(tmp_path):
     bad.write_text("{not json")
     with pytest.raises(InputError, match="atlas.json"):
         read_previous_slots(bad)
+
+
+def test_a_manifest_from_an_older_atlasgen_keeps_its_ids_and_does_not_stop_the_bake(tmp_path, write_material):
+    # A version-1 manifest (atlasgen 0.1.0) beside the output: read_manifest refuses it, but
+    # the bake that replaces it takes its names and slices, and writes the current format.
+    write_material("clay", 'type = "lambert"\n')
+    write_material("moss", 'type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    out.parent.mkdir()
+    old = {"format_version": 1, "materials": [{"name": "moss", "first_slice": 7}, {"name": "clay", "first_slice": 3}]}
+    out.with_suffix(".json").write_text(json.dumps(old))
+    assert read_previous_slots(out.with_suffix(".json")) == {"moss": 7, "clay": 3}
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"]), previous_slots=read_previous_slots(out.with_suffix(".json"))), out)
+    written = json.loads(out.with_suffix(".json").read_text())
+    assert written["format_version"] > 1
+    assert {m["name"]: m["first_slice"] for m in written["materials"]} == {"moss": 7, "clay": 3}
+
+
+@pytest.mark.parametrize("text", ['[]', '{"materials": 5}', '{"materials": [{"name": "a"}]}', "not json"])
+def test_unreadable_previous_slots_are_one_line_naming_the_file(tmp_path, text):
+    from atlasgen.errors import ManifestError
+
+    path = tmp_path / "atlas.json"
+    path.write_text(text)
+    with pytest.raises(ManifestError) as info:
+        read_previous_slots(path)
+    assert str(info.value).startswith(path.as_posix() + ": ") and "\n" not in str(info.value)

@@ -16,7 +16,7 @@ from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
 from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
-from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_manifest
+from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
 from atlasgen.errors import MaterialError, OutputError
 from atlasgen.io.output_paths import check_suffix
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
@@ -83,15 +83,14 @@ def sibling_paths(dds_path) -> dict:
 
 
 def read_previous_slots(manifest_path) -> dict[str, int]:
-    """``name -> first_slice`` from an existing manifest, so re-bakes keep IDs stable.
+    """``name -> first_slice`` from an existing manifest of any format version, so re-bakes
+    keep IDs stable (:func:`atlasgen.io.manifest.read_slots`).
 
     Raises :class:`~atlasgen.errors.ManifestError` (naming the file and the field) for a
-    manifest that cannot be read; deleting it re-numbers every material.
+    manifest whose names and slices cannot be read; deleting it re-numbers every material.
     """
     path = Path(manifest_path)
-    if not path.exists():
-        return {}
-    return {m.name: m.first_slice for m in read_manifest(path).materials}
+    return read_slots(path) if path.exists() else {}
 
 
 def _jsonable(value):

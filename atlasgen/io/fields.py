@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import string
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np

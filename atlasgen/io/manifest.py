@@ -34,6 +34,7 @@ from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.text import read_input_text
 
 __all__ = [
+    "read_slots",
     "Manifest",
     "MaterialEntry",
     "Dimensions",
@@ -721,6 +722,30 @@ def read_manifest(path) -> Manifest:
     """
     text = read_input_text(path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
     return parse_manifest(text, Path(path).as_posix())
+
+
+def read_slots(path) -> dict[str, int]:
+    """``name -> first_slice`` of a manifest of any format version, for keeping slice IDs
+    stable across a re-bake: an atlas written by an older atlasgen must not stop the bake
+    that replaces it. Only the names and first slices are read, and checked.
+    """
+    shown = Path(path).as_posix()
+    text = read_input_text(path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise ManifestError(shown, None, f"expected an atlas manifest (JSON), got malformed JSON ({exc})") from None
+    materials = data.get("materials") if isinstance(data, dict) else None
+    if not isinstance(materials, list):
+        raise ManifestError(shown, "materials", f"expected a list of materials, got {_describe(materials)}")
+    slots = {}
+    for i, entry in enumerate(materials):
+        name = entry.get("name") if isinstance(entry, dict) else None
+        first = entry.get("first_slice") if isinstance(entry, dict) else None
+        if not isinstance(name, str) or not _is_int(first) or first < 0:
+            raise ManifestError(shown, f"materials[{i}]", "expected an object with a 'name' and a 'first_slice' >= 0")
+        slots[name] = first
+    return slots
 
 
 def format_manifest(manifest: Manifest) -> str:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import InputError, SceneError, did_you_mean
+from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
 from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown

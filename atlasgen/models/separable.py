@@ -33,7 +33,6 @@ from atlasgen.separable.error import (
     ERROR_SEED,
     measure_errors,
     MET_SIGMAS,
-    sample_hemisphere_pairs,
     SELECTION_SEED,
 )
 from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fractions

@@ -13,10 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
-from atlasgen.io.text import read_input_text
-from atlasgen.io.manifest import Manifest
-from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atlas import check_include, read_atlas
+from atlasgen.io.manifest import Manifest
+from atlasgen.io.text import read_input_text
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 

@@ -9,10 +9,9 @@ import re
 
 import numpy as np
 
-from atlasgen.errors import BackendError, MaterialError, did_you_mean
+from atlasgen.errors import BackendError, did_you_mean, MaterialError
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, shown
-from atlasgen.io.fields import shown
 
 __all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos",
            "bsdf_alpha", "transmitted_fractions", "TRANSMISSION_VIEWS"]
@@ -52,6 +51,12 @@ BSDF_PROPERTIES = {
 _COLOUR = 'expected {type = "rgb", value = [r, g, b]}, a spectrum or a number'
 _PROPERTY_TYPES = {"vector": "a list", "string": "a string", "boolean": "true/false", "float": "a number",
                    "integer": "an integer"}  # fmt: skip
+
+
+def _one_line(message) -> str:
+    """Mitsuba's message on one line, without its source-file tags (``[parser.cpp:123]``)."""
+    parts = (re.sub(r"\[[\w.]+(?::\d+)?\]\s*", "", part).strip(" -") for part in str(message).splitlines())
+    return "; ".join(part for part in parts if part)
 
 
 def _mitsuba():
@@ -101,7 +106,7 @@ def explain_mitsuba_error(message: str, spec: dict, field: str = "bsdf") -> tupl
     follows in parentheses, without its source-file tags, on one line.
     """
     text = "; ".join(part.strip(" -") for part in str(message).splitlines() if part.strip(" -"))
-    plain = re.sub(r"\[[\w.]+(?::\d+)?\]\s*", "", text).strip()
+    plain = _one_line(message)
     node_name = re.search(r'dictionary node "([^"]+)"', text)
     where, node = _node(spec, field, node_name.group(1) if node_name else None)
     mitsuba = f"(Mitsuba: {plain})"

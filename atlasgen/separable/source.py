@@ -7,9 +7,8 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.separable.analytic import evaluate_analytic
-from atlasgen.separable.parametrization import HORIZON_COS
-from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+from atlasgen.separable.parametrization import HORIZON_COS
 
 __all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
 

@@ -15,7 +15,6 @@ references, scenes, Mitsuba, the GPU), so bad input fails fast and writes nothin
 from __future__ import annotations
 
 import gc
-import json
 import math
 import statistics
 import time
@@ -24,29 +23,24 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
-from atlasgen.io.manifest import Manifest
+from atlasgen.errors import BackendError, did_you_mean, InputError, SceneError
 from atlasgen.io.atlas import read_atlas
-from atlasgen.validate.references import model_reference
-from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, load_validation_scene, resize_scene
+from atlasgen.io.manifest import Manifest
 from atlasgen.materials.material import read_material
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
-from atlasgen.validate.metrics import compare_images
-from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
+from atlasgen.validate.metrics import compare_images, noise_floor, NOISE_FLOOR_MARGIN_DB, relative_rms
+from atlasgen.validate.mitsuba_scene import (
+    build_mitsuba_scene,
+    cast_shadow_mask,
+    register_direct_integrator,
+    render_mitsuba,
+)
+from atlasgen.validate.rebuild import material_mask, rebuild_images
 from atlasgen.validate.references import model_reference, physical_reference, register_references
-from atlasgen.validate.scenes import bind_material
-from atlasgen.validate.rebuild import rebuild_images
-from atlasgen.validate.rebuild import material_mask
-from atlasgen.validate.metrics import relative_rms
-from atlasgen.validate.mitsuba_scene import register_direct_integrator
-from atlasgen.validate.references import register_references
-from atlasgen.validate.references import model_reference, physical_reference
-from atlasgen.validate.metrics import compare_images, noise_floor
-from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, cast_shadow_mask, render_mitsuba
-from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB
+from atlasgen.validate.scenes import bind_material, load_validation_scene, MATERIAL_PLACEHOLDER, resize_scene
 
 __all__ = [
     "DEFAULT_SCENES",

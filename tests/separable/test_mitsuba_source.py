@@ -193,3 +193,19 @@ def test_an_opaque_bsdf_records_no_dropped_fraction(mitsuba_llvm):
 
     rows = transmitted_fractions({"type": "roughconductor", "alpha": 0.1, "material": "Cu"})
     assert [r["fraction"] for r in rows] == [0.0] * 4
+
+
+def test_an_unavailable_variant_is_one_backend_error_line(mitsuba_llvm, monkeypatch):
+    from atlasgen.errors import BackendError
+    from atlasgen.separable import mitsuba_source
+
+    def refuse(variant):
+        raise RuntimeError("[jit_init] cannot load LLVM\n  [llvm.cpp:42] - libLLVM.so not found")
+
+    monkeypatch.setattr(mitsuba_llvm, "variant", lambda: "scalar_rgb")
+    monkeypatch.setattr(mitsuba_llvm, "set_variant", refuse)
+    with pytest.raises(BackendError) as info:
+        mitsuba_source.load_mitsuba_bsdf({"type": "diffuse"}, "m.toml")
+    message = str(info.value)
+    assert "\n" not in message and "[llvm.cpp:42]" not in message
+    assert message == "Mitsuba variant 'llvm_ad_rgb' is unavailable: cannot load LLVM; libLLVM.so not found"
