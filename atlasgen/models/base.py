@@ -245,6 +245,26 @@ class Model:
         """
         return None
 
+    def fit_physical(self, values: dict, gloss: float) -> SliceSet | None:
+        """The slice fitted to this model's physical reference for the renderer gloss ``gloss``
+        (``from = "physical"``), where the model fits it itself; ``None`` (the default) where
+        its physical reference is one plain Mitsuba BSDF, which
+        :func:`atlasgen.models.physical_fit.bake_from_physics` projects onto the renderer's
+        equation. An override also answers :meth:`physical_fit_problem` with ``None``.
+
+        The returned ``SliceSet.extra["fit"]`` describes the fit: at least ``from``
+        (``"physical"``), ``reference`` (a description) and ``gloss``.
+        """
+        return None
+
+    def physical_fit_problem(self, values: dict) -> str | None:
+        """Why ``from = "physical"`` cannot bake this material (one clause), or ``None`` where it can.
+
+        The default: a model with its own :meth:`fit_physical` can; any other needs a physical
+        reference that is one plain BSDF (:func:`atlasgen.models.physical_fit.plain_bsdf_reference`).
+        """
+        return None
+
     def radiance_rebuilds(self, entry: MaterialEntry, atlas_path) -> dict[str, RadianceRebuild]:
         """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
         atlas's stored texels (what the GPU samples) and, where it can be computed,

@@ -148,10 +148,20 @@ def plain_bsdf_reference(model: Model, values: dict):
 
 
 def check_physical_fit(model: Model, values: dict, path) -> None:
-    """Raise :class:`MaterialError` naming ``from`` unless the model's physical reference can be projected."""
-    ref = plain_bsdf_reference(model, values)
-    if isinstance(ref, str):
-        raise MaterialError(path, "from", f"expected \"model\" for this material: {ref}")
+    """Raise :class:`MaterialError` naming ``from`` unless ``from = "physical"`` can bake the material:
+    the model fits its physical reference itself (:meth:`~atlasgen.models.base.Model.fit_physical`)
+    and sees no problem, or that reference is one plain BSDF to project."""
+    if _fits_itself(model):
+        problem = model.physical_fit_problem(values)
+    else:
+        ref = plain_bsdf_reference(model, values)
+        problem = ref if isinstance(ref, str) else None
+    if problem is not None:
+        raise MaterialError(path, "from", f"expected \"model\" for this material: {problem}")
+
+
+def _fits_itself(model: Model) -> bool:
+    return type(model).fit_physical is not Model.fit_physical
 
 
 def mitsuba_f_cos(bsdf_dict: dict, path="<bsdf>", field: str = "bsdf"):
@@ -172,11 +182,16 @@ def fitted_bsdf_slice(bsdf_dict: dict, gloss=None):
     return _fitted(json.dumps(bsdf_dict, sort_keys=True), json.dumps(gloss))
 
 
-def bake_from_physics(model: Model, values: dict, path="<material>") -> SliceSet:
-    """One slice fitted to ``model``'s physical reference at :data:`FIT_GLOSS` (``from = "physical"``)."""
+def bake_from_physics(model: Model, values: dict, path="<material>", gloss: float = FIT_GLOSS) -> SliceSet:
+    """One slice fitted to ``model``'s physical reference for the renderer gloss ``gloss`` (``from = "physical"``).
+
+    A model that fits its reference itself (:meth:`~atlasgen.models.base.Model.fit_physical`)
+    does; any other's reference is one plain BSDF, projected by :func:`fit_slice`.
+    """
+    check_physical_fit(model, values, path)
+    if _fits_itself(model):
+        return model.fit_physical(values, float(gloss))
     ref = plain_bsdf_reference(model, values)
-    if isinstance(ref, str):
-        raise MaterialError(path, "from", f"expected \"model\" for this material: {ref}")
-    rgba, info = fitted_bsdf_slice(ref.bsdf, FIT_GLOSS)
+    rgba, info = fitted_bsdf_slice(ref.bsdf, float(gloss))
     fit = {"from": "physical", "reference": ref.description, **info}
     return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
