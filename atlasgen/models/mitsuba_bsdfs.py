@@ -33,6 +33,7 @@ import json
 import numpy as np
 
 from atlasgen.models import get_model
+from atlasgen.models.physical_fit import FittedSlice
 from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
 from atlasgen.models.thin_film import thin_film_f_cos
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
@@ -154,6 +155,8 @@ def register_bsdfs(mi) -> None:
             _NumpyBSDF.__init__(self, props)
             spec = json.loads(props["material"])
             self.model = get_model(spec["type"])
+            if "fit_gloss" in spec:  # a from = "physical" material: its slice is the fit
+                self.model = FittedSlice(self.model, spec["fit_gloss"])
             self.values = spec["params"]
             self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
             self.gloss = float(spec.get("gloss", 0.5))

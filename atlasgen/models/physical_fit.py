@@ -25,12 +25,13 @@ import numpy as np
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.models.base import Model, SliceSet
+from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
-           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos"]  # fmt: skip
+           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice"]  # fmt: skip
 
 #: Azimuth samples per texel.
 AZIMUTHS = 128
@@ -132,10 +133,11 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     return rgba, info
 
 
-def plain_bsdf_reference(model: Model, values: dict):
-    """The model's physical reference if it is one BSDF evaluated in ``llvm_ad_rgb`` with the
-    default integrator (what a projection can sample), else a reason why not (a string)."""
-    ref = model.physical_reference(values)
+def plain_bsdf_reference(model: Model, values: dict, gloss: float = FIT_GLOSS):
+    """The model's physical reference for an object of albedo 1 and renderer gloss ``gloss``
+    if it is one BSDF evaluated in ``llvm_ad_rgb`` with the default integrator (what a
+    projection can sample), else a reason why not (a string)."""
+    ref = model.physical_reference(values, (1.0, 1.0, 1.0), gloss)
     if ref is None:
         return f"model '{model.type_name}' has no physical reference"
     if ref.integrator is not None or ref.interior is not None or ref.stochastic:
@@ -191,7 +193,47 @@ def bake_from_physics(model: Model, values: dict, path="<material>", gloss: floa
     check_physical_fit(model, values, path)
     if _fits_itself(model):
         return model.fit_physical(values, float(gloss))
-    ref = plain_bsdf_reference(model, values)
+    # The reference at the fit's gloss: a model whose roughness is the g-buffer's (fresnel)
+    # describes a different BSDF at each gloss.
+    ref = plain_bsdf_reference(model, values, float(gloss))
     rgba, info = fitted_bsdf_slice(ref.bsdf, float(gloss))
     fit = {"from": "physical", "reference": ref.description, **info}
     return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
+
+
+class FittedSlice(Model):
+    """A ``from = "physical"`` material as validation sees it: its slice is the fit, not the closed form.
+
+    :meth:`evaluate` samples the float slice fitted for renderer gloss ``gloss`` as the
+    renderer does, so the model reference (the renderer's equation with the exact slice)
+    and the float rebuild measure what the atlas costs against the fit; the physical
+    reference is the wrapped model's, the material the fit reproduces.
+    """
+
+    def __init__(self, model: Model, gloss: float):
+        self.model, self.gloss = model, float(gloss)
+        self.type_name, self.params, self.reference = model.type_name, model.params, model.reference
+        self.physical_omissions, self.validation_goals = model.physical_omissions, model.validation_goals
+        self._tables: dict[str, np.ndarray] = {}
+
+    def bake(self, values: dict) -> SliceSet:
+        return bake_from_physics(self.model, values, gloss=self.gloss)
+
+    def _table(self, values: dict) -> np.ndarray:
+        key = json.dumps(values, sort_keys=True, default=str)
+        if key not in self._tables:
+            self._tables[key] = np.asarray(self.bake(values).values[0], dtype=np.float64)
+        return self._tables[key]
+
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        nl, nv = np.broadcast_arrays(np.asarray(n_dot_l, dtype=np.float64), np.asarray(n_dot_v, dtype=np.float64))
+        return sample_slice(self._table(values), nl, nv)
+
+    def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
+        ref = Model.model_reference(self, values, albedo, gloss)
+        material = {**json.loads(ref.bsdf["material"]), "fit_gloss": self.gloss}
+        return type(ref)({**ref.bsdf, "material": json.dumps(material, sort_keys=True)},
+                         f"{self.type_name} slice fitted from physics (gloss {self.gloss:g}), exact, in the renderer's equation")
+
+    def physical_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
+        return self.model.physical_reference(values, albedo, gloss)
