@@ -15,7 +15,7 @@ import traceback
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTIONS = ["bake", "models", "separable", "render", "cost"]
+SECTIONS = ["bake", "models", "separable", "render", "cost", "physical"]
 
 
 def main(argv=None) -> int:
