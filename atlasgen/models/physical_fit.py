@@ -31,7 +31,8 @@ from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
-           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice"]  # fmt: skip
+           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice",
+           "slice_relative_rms", "fit_to_reference"]  # fmt: skip
 
 #: Azimuth samples per texel.
 AZIMUTHS = 128
@@ -164,6 +165,54 @@ def _refine_gloss(residual, lo: float, hi: float, tolerance: float = GLOSS_TOLER
             a, c, fc = c, d, fd
             d = a + ratio * (b - a)
             fd = residual(d)
+
+
+def slice_relative_rms(rgba, f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS) -> float:
+    """Relative RMS of the renderer's f cos with slice ``rgba`` (``(H, W, 4)``, at the texel
+    centres) against ``f_cos(l, v) -> (N, 3)``: sqrt(sum w (t - fit)^2 / sum w t^2) over the
+    same (l, v) pairs and weights as :func:`fit_slice`, at renderer gloss ``gloss``."""
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    l, v, nh, degenerate = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), azimuths)
+    target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
+    target = np.where(np.isfinite(target), target, 0.0)
+    weights = np.full(l.shape[:-1], 1.0 / azimuths)
+    diffuse, lobe = renderer_bases(float(gloss), l, v, nh, degenerate)
+    residual = float(weighted_residual(target, diffuse, lobe, weights, np.asarray(rgba, dtype=np.float64)).sum())
+    energy = float((weights[..., None] * target * target).sum())
+    return float(np.sqrt(residual / energy)) if energy > 0 else 0.0
+
+
+def _remember_last(f_cos):
+    """``f_cos`` that returns its last result again for the same (l, v): a spectral reference
+    costs seconds per slice of pairs."""
+    last = {}
+
+    def remembered(l, v):
+        if "t" not in last or not (np.array_equal(last["l"], l) and np.array_equal(last["v"], v)):
+            last.update(l=np.array(l), v=np.array(v), t=np.asarray(f_cos(l, v), dtype=np.float64))
+        return last["t"]
+
+    return remembered
+
+
+def fit_to_reference(model: Model, values: dict, f_cos, reference: str, gloss: float = FIT_GLOSS, **extra) -> SliceSet:
+    """One slice fitted by :func:`fit_slice` to a model's physical reference given as NumPy
+    ``f_cos(l, v) -> (N, 3)``, for the renderer gloss ``gloss`` (a model's
+    :meth:`~atlasgen.models.base.Model.fit_physical`).
+
+    ``extra["fit"]`` holds ``from`` ("physical"), ``reference``, the fit's own description
+    (``gloss``, ``azimuths``, ``alpha_cap``, ``relative_rms``: 8-bit RGB and A), ``extra`` and
+    ``model_relative_rms``: the model's own float slice (``from = "model"``, at the texel
+    centres, not rounded) against the same reference in the same measure, so the manifest
+    says what fitting to physics gained.
+    """
+    f_cos = _remember_last(f_cos)  # the fit and the model's measure sample the same pairs
+    rgba, info = fit_slice(f_cos, float(gloss))
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    own = np.broadcast_to(np.asarray(model.evaluate(values, nl[None, :], nv[:, None]), dtype=np.float64), rgba.shape)
+    fit = {"from": "physical", "reference": reference, **info, **extra,
+           "model_relative_rms": slice_relative_rms(own, f_cos, float(gloss), info["azimuths"])}  # fmt: skip
+    return SliceSet(rgba.reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
 
 
 def plain_bsdf_reference(model: Model, values: dict, gloss: float = FIT_GLOSS):

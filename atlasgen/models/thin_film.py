@@ -16,16 +16,19 @@ from functools import lru_cache
 
 import numpy as np
 
-from atlasgen.models.iridescent import film_reflectance
+from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
 from atlasgen.optics.interpolation import interpolate_2d
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 
-__all__ = ["film_table", "film_average", "thin_film_f_cos", "FILM_DEFAULTS"]
+__all__ = ["film_table", "film_average", "thin_film_terms", "thin_film_f_cos", "thin_film_rgb_f_cos", "FILM_DEFAULTS",
+           "FIT_CHUNK"]  # fmt: skip
 
 #: The iridescent model's film parameters beyond the stack itself, at values that make the
 #: BSDF the plain thin-film microfacet (full strength, all of it in the lobe, no back-light).
 FILM_DEFAULTS = {"film_strength": 1.0, "film_split": 0.0, "energy": "none", "backlight": 0.0,
                  "backlight_distortion": 0.2, "backlight_power": 4.0}  # fmt: skip
+#: (l, v) pairs per pass of :func:`thin_film_rgb_f_cos`: bounds its (pairs x wavelengths) arrays.
+FIT_CHUNK = 8192
 
 
 @lru_cache(maxsize=16)
@@ -53,26 +56,19 @@ def _lookup(table_set, cos, lam):
     return interpolate_2d(table.T, cos * (len(grid_c) - 1), (lam - grid_l[0]) / (grid_l[1] - grid_l[0]))
 
 
-def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spectrum=None):
-    """f cos(theta_o) of the thin-film BSDF, per lane and wavelength.
+def thin_film_terms(wi, wo, lam, film, alpha):
+    """The thin-film BSDF's f cos(theta_o) split by what it multiplies, per lane and wavelength.
 
-    With R the film's Airy reflectance, k = ``film_strength``, s = ``film_split`` and
-    c_i = cos(theta_i) the view side (the model's N.V), c_o the light side (N.L):
+    Returns ``(own, base_weight, back_weight)``, each ``(N, S)``, with
 
-        f = k (1 - s) D(h) V(wi, wo) R(wi.h)                      the lobe: GGX D, height-correlated Smith V = G2 / (4 c_i c_o)
-                                                                   (Cook & Torrance 1982; Walter et al. 2007; Heitz 2014)
-          + k s R(c_i) / pi                                        the film's rough part
-          + base (1 - R(c_o)) (1 - R(c_i)) / (1 - R_avg) / pi      energy = "coupled" (else base / pi)
-          + B colour_B t(wi, wo) (1 - R(c_i)) / (pi |c_o|)         light from behind (c_o < 0)
+        f cos = own + base(lambda) * base_weight + colour_B(lambda) * back_weight
 
-    per wavelength, R_avg = 2 int R(c) c dc. The film's reflection is split between a
-    lobe of the renderer's width and a rough (Lambertian-like) part as the model splits it
-    between A and RGB: a surface whose micro-roughness is bimodal. The back-light is the
-    Barré-Brisebois & Bouchard term t = saturate(V.-(L + delta N))^p at the true azimuth
-    (the model bakes its azimuth average), seen through the film. ``wi``, ``wo``: (N, 3)
-    local; ``lam``: (N, S) nm; ``base_rgb_spectrum``, ``backlight_spectrum``: (N, S);
-    ``film``: the stack (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) and any of
-    :data:`FILM_DEFAULTS`.
+    ``own`` the film's lobe and rough part, ``base_weight`` the base's transmission weight
+    times cos(theta_o) / pi and ``back_weight`` the back-light's B t (1 - R(c_i)) / pi (0 where
+    ``backlight`` is 0): the terms of :func:`thin_film_f_cos`.
+    f cos is linear in the two RGB-upsampled spectra, so one evaluation of the film serves
+    both the per-wavelength plugin (:func:`thin_film_f_cos`) and the RGB integral of a fit
+    (:func:`thin_film_rgb_f_cos`).
     """
     film = {**FILM_DEFAULTS, **film}
     stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
@@ -96,11 +92,75 @@ def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spect
     if film["energy"] == "coupled":
         grid, average = film_average(*stack)
         weight = weight / np.maximum(1.0 - np.interp(lam, grid, average), 1e-6)
-    front = np.where(valid[:, None], spec + rough + base_rgb_spectrum * weight / np.pi * lit, 0.0)
-    if film["backlight"] <= 0.0 or backlight_spectrum is None:
-        return front
+    own = np.where(valid[:, None], spec + rough, 0.0)
+    base_weight = np.where(valid[:, None], weight / np.pi * lit, 0.0)
+    if film["backlight"] <= 0.0:
+        return own, base_weight, np.zeros_like(own)
     # V.-(L + delta N) with V = wi, L = wo (towards the light) and N = +z.
     x = -(wi * wo).sum(1) - float(film["backlight_distortion"]) * ci
     t = np.clip(x, 0.0, 1.0) ** float(film["backlight_power"])
-    back = (float(film["backlight"]) / np.pi) * (t * (co < 0.0))[:, None] * backlight_spectrum * (1.0 - r_i)
-    return front + np.where((ci > 0)[:, None], back, 0.0)
+    back = (float(film["backlight"]) / np.pi) * (t * (co < 0.0))[:, None] * (1.0 - r_i)
+    return own, base_weight, np.where((ci > 0)[:, None], back, 0.0)
+
+
+def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spectrum=None):
+    """f cos(theta_o) of the thin-film BSDF, per lane and wavelength.
+
+    With R the film's Airy reflectance, k = ``film_strength``, s = ``film_split`` and
+    c_i = cos(theta_i) the view side (the model's N.V), c_o the light side (N.L):
+
+        f = k (1 - s) D(h) V(wi, wo) R(wi.h)                      the lobe: GGX D, height-correlated Smith V = G2 / (4 c_i c_o)
+                                                                   (Cook & Torrance 1982; Walter et al. 2007; Heitz 2014)
+          + k s R(c_i) / pi                                        the film's rough part
+          + base (1 - R(c_o)) (1 - R(c_i)) / (1 - R_avg) / pi      energy = "coupled" (else base / pi)
+          + B colour_B t(wi, wo) (1 - R(c_i)) / (pi |c_o|)         light from behind (c_o < 0)
+
+    per wavelength, R_avg = 2 int R(c) c dc. The film's reflection is split between a
+    lobe of the renderer's width and a rough (Lambertian-like) part as the model splits it
+    between A and RGB: a surface whose micro-roughness is bimodal. The back-light is the
+    Barré-Brisebois & Bouchard term t = saturate(V.-(L + delta N))^p at the true azimuth
+    (the model bakes its azimuth average), seen through the film. ``wi``, ``wo``: (N, 3)
+    local; ``lam``: (N, S) nm; ``base_rgb_spectrum``, ``backlight_spectrum``: (N, S);
+    ``film``: the stack (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) and any of
+    :data:`FILM_DEFAULTS`. The terms come from :func:`thin_film_terms`.
+    """
+    own, base_weight, back_weight = thin_film_terms(wi, wo, lam, film, alpha)
+    value = own + base_rgb_spectrum * base_weight
+    if backlight_spectrum is None:
+        return value
+    return value + backlight_spectrum * back_weight
+
+
+def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chunk: int = FIT_CHUNK):
+    """Linear sRGB f cos(theta_o) of the thin-film BSDF lit by white light, ``(N, 3)``.
+
+    The per-wavelength f cos of :func:`thin_film_f_cos` integrated over 360-830 nm with the
+    iridescent model's own colour integral (:func:`atlasgen.optics.film.spectrum_to_rgb`:
+    CIE 1931 colour matching functions to XYZ to linear sRGB, each channel normalised so a
+    spectrally flat response of 1 gives (1, 1, 1)), on the model's wavenumber grid
+    (:func:`~atlasgen.optics.film.spectral_samples` resolves the film's fringes).
+
+    Approximations against Mitsuba's ``llvm_ad_spectral`` render of ``atlasgen_thinfilm``:
+    the scene's RGB lights are upsampled to spectra there (for a white light D65, which the
+    sRGB white balances to (1, 1, 1); here the equal-energy white, balanced by the diagonal
+    normalisation), and the RGB ``colour`` and ``backlight_colour`` are upsampled to smooth
+    spectra there, while here f cos, linear in each, takes them per channel:
+    RGB(base(lambda) w(lambda)) ~ colour * RGB(w). Both are exact for spectrally flat
+    lights and colours; the film's own interference colours are integrated exactly.
+    """
+    film = {**FILM_DEFAULTS, **film}
+    samples = spectral_samples(film["thickness"], film["film_ior"])
+    grid, _ = spectral_grid(samples)
+    colour = np.asarray(colour, dtype=np.float64)
+    back = np.zeros(3) if backlight_colour is None else np.asarray(backlight_colour, dtype=np.float64)
+    wi = np.asarray(wi, dtype=np.float64)
+    wo = np.asarray(wo, dtype=np.float64)
+    out = np.empty((len(wi), 3))
+    for start in range(0, len(wi), chunk):
+        part = slice(start, start + chunk)
+        lam = np.broadcast_to(grid, (len(wi[part]), samples))
+        own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], lam, film, alpha)
+        out[part] = spectrum_to_rgb(own, samples)[0] + colour * spectrum_to_rgb(base_weight, samples)[0]
+        if backlight_colour is not None:
+            out[part] += back * spectrum_to_rgb(back_weight, samples)[0]
+    return out
