@@ -18,7 +18,7 @@
     wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
 ``atlasgen_thinsheet`` (:data:`THIN_SHEET_REFERENCE`)
     The backlit model's physical reference: a thin sheet that reflects diffusely, transmits
-    diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`thin_sheet_f_cos`).
+    diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`atlasgen.models.backlit.thin_sheet_f_cos`).
     It samples both hemispheres (reflection and transmission), each cosine-weighted.
 
 Each is a Python plugin (Mitsuba runs those in the ``llvm_ad_*`` variants only) that
@@ -196,7 +196,7 @@ def register_bsdfs(mi) -> None:
             return f"BrdfReference[{self.source.kind}]"
 
     class ThinSheet(_NumpyBSDF):
-        """A thin sheet: diffuse reflection, diffuse transmission, a GGX coat (:func:`thin_sheet_f_cos`)."""
+        """A thin sheet: diffuse reflection, diffuse transmission, a GGX coat (:func:`atlasgen.models.backlit.thin_sheet_f_cos`)."""
 
         def __init__(self, props):
             _NumpyBSDF.__init__(self, props)
