@@ -18,13 +18,13 @@ from atlasgen.io.fields import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
 from atlasgen.models.base import THIN_FILM_REFERENCE, Model, Reference, SliceSet
 from atlasgen.models.physical_fit import fit_to_reference
-from atlasgen.models.thin_film import thin_film_rgb_f_cos
 from atlasgen.optics.film import (MAX_PHASE_STEP, MIN_SAMPLES, VISIBLE_NM, XYZ_TO_LINEAR_SRGB, cie_xyz_cmfs,
                                   film_reflectance, film_reflectance_on_grid, spectral_grid, spectral_samples,
                                   spectrum_to_rgb)  # fmt: skip
 from atlasgen.optics.fresnel import normal_reflectance
 from atlasgen.optics.quadrature import cosine_rule
 from atlasgen.optics.specular import specular_alpha, specular_fresnel_cosine
+from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 
 __all__ = [
     "Iridescent",
@@ -170,7 +170,7 @@ class Iridescent(Model):
         """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: the film stack's Airy reflectance per
         wavelength on the renderer's GGX lobe (its roughness) and on a rough part, split and
         scaled as the model splits and scales it, over the base colour, with the back-light as
-        a transmission lobe (:func:`atlasgen.models.thin_film.thin_film_f_cos`).
+        a transmission lobe (:func:`atlasgen.optics.thin_film.thin_film_f_cos`).
 
         Stochastic: Mitsuba samples the wavelengths per sample, so the render converges
         with ``--physical-spp``.
@@ -200,8 +200,8 @@ class Iridescent(Model):
     def fit_physical(self, values, gloss) -> SliceSet:
         """The slice fitted to :meth:`physical_reference` at the renderer gloss ``gloss``
         (:func:`atlasgen.models.physical_fit.fit_to_reference`), from
-        :func:`atlasgen.models.thin_film.thin_film_rgb_f_cos`: the per-wavelength f cos the
-        ``atlasgen_thinfilm`` plugin evaluates (:func:`~atlasgen.models.thin_film.thin_film_terms`),
+        :func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`: the per-wavelength f cos the
+        ``atlasgen_thinfilm`` plugin evaluates (:func:`~atlasgen.optics.thin_film.thin_film_terms`),
         integrated to linear sRGB for white light. No Mitsuba is needed; the approximations
         against Mitsuba's spectral render (white light, RGB colours taken per channel) are
         that function's.

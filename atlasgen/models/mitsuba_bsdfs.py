@@ -15,7 +15,7 @@
     (w_i, w_o): the analytic source, or the Mitsuba BSDF given in the material.
 ``atlasgen_thinfilm`` (:data:`THIN_FILM_REFERENCE`)
     The iridescent model's physical reference, a thin-film microfacet BSDF evaluated per
-    wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
+    wavelength (:mod:`atlasgen.optics.thin_film`), meant for ``llvm_ad_spectral``.
 ``atlasgen_thinsheet`` (:data:`THIN_SHEET_REFERENCE`)
     The backlit model's physical reference: a thin sheet that reflects diffusely, transmits
     diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`atlasgen.models.backlit.thin_sheet_f_cos`).
@@ -36,7 +36,7 @@ from atlasgen.models import get_model
 from atlasgen.models.physical_fit import FittedSlice
 from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
 from atlasgen.models.backlit import thin_sheet_f_cos
-from atlasgen.models.thin_film import thin_film_f_cos
+from atlasgen.optics.thin_film import thin_film_f_cos
 from atlasgen.optics.specular import specular_alpha
 from atlasgen.separable.source import make_source
 

@@ -5,7 +5,7 @@ Belcour & Barla, "A Practical Extension to Microfacet Theory for the Modeling of
 Varying Iridescence", ACM TOG 36(4), 2017. The spectral integral is a quadrature over
 wavelength, with a step fine enough for the film's fringes, not the paper's Fourier-space
 approximation, so the film-free limit is exact. The iridescent model
-(:mod:`atlasgen.models.iridescent`) and its physical reference (:mod:`atlasgen.models.thin_film`)
+(:mod:`atlasgen.models.iridescent`) and its physical reference (:mod:`atlasgen.optics.thin_film`)
 share it.
 """
 
@@ -16,7 +16,7 @@ from functools import cache
 import numpy as np
 
 __all__ = ["film_reflectance", "film_reflectance_on_grid", "spectrum_to_rgb", "cie_xyz_cmfs", "spectral_samples",
-           "spectral_grid", "XYZ_TO_LINEAR_SRGB", "VISIBLE_NM", "MIN_SAMPLES", "MAX_PHASE_STEP"]  # fmt: skip
+           "spectral_grid", "XYZ_TO_LINEAR_SRGB", "D65_5NM", "d65", "ILLUMINANTS", "VISIBLE_NM", "MIN_SAMPLES", "MAX_PHASE_STEP"]  # fmt: skip
 
 #: The visible range integrated over, in nm (the CIE 1931 tabulation range).
 VISIBLE_NM = (360.0, 830.0)
@@ -78,19 +78,53 @@ def spectral_samples(thickness: float, film_ior: float) -> int:
     return -(-count // _SAMPLE_QUANTUM) * _SAMPLE_QUANTUM
 
 
+#: CIE standard illuminant D65, relative spectral power at 360, 365, ..., 830 nm, 100 at 560 nm
+#: (CIE S 014-2/E:2006, ISO 11664-2; the 5 nm table, as Mitsuba 3's ``cie_d65`` tabulates it,
+#: rescaled to 100 at 560 nm). Mitsuba's spectral variants upsample an RGB light to this
+#: spectrum times a smooth reflectance curve (flat for white).
+D65_5NM = (
+    46.6383, 49.3637, 52.0891, 51.0323, 49.9755, 52.3118, 54.6482, 68.7015, 82.7549, 87.1204,
+    91.486, 92.4589, 93.4318, 90.057, 86.6823, 95.7736, 104.865, 110.936, 117.008, 117.41,
+    117.812, 116.336, 114.861, 115.392, 115.923, 112.367, 108.811, 109.082, 109.354, 108.578,
+    107.802, 106.296, 104.79, 106.239, 107.689, 106.047, 104.405, 104.225, 104.046, 102.023,
+    100, 98.1671, 96.3342, 96.0611, 95.788, 92.2368, 88.6856, 89.3459, 90.0062, 89.8026,
+    89.5991, 88.6489, 87.6987, 85.4936, 83.2886, 83.4939, 83.6992, 81.863, 80.0268, 80.1207,
+    80.2146, 81.2462, 82.2778, 80.281, 78.2842, 74.0027, 69.7213, 70.6652, 71.6091, 72.979,
+    74.349, 67.9765, 61.604, 65.7448, 69.8856, 72.4863, 75.087, 69.3398, 63.5927, 55.0054,
+    46.4182, 56.6118, 66.8054, 65.0941, 63.3828, 63.8434, 64.304, 61.8779, 59.4519, 55.7054,
+    51.959, 54.6998, 57.4406, 58.8765, 60.3125,
+)
+
+
+def d65(wavelengths):
+    """D65's relative power at ``wavelengths`` (nm): :data:`D65_5NM`, linearly interpolated (0 outside 360-830 nm)."""
+    grid = np.arange(len(D65_5NM)) * 5.0 + 360.0
+    return np.interp(np.asarray(wavelengths, dtype=np.float64), grid, np.asarray(D65_5NM), left=0.0, right=0.0)
+
+
+#: Illuminants a colour integral can weight by: the equal-energy E (the iridescent model's own
+#: colours) and D65 (white light in Mitsuba's spectral render).
+ILLUMINANTS = ("E", "D65")
+
+
 @cache
-def spectral_grid(samples: int):
+def spectral_grid(samples: int, illuminant: str = "E"):
     """Wavelengths (nm), uniform in wavenumber over 360-830 nm, and (R, G, B, Y) weights on them.
 
-    The integral int f(lambda) dlambda becomes int f(1/s) / s^2 ds, so each sample's
-    colour-matching values carry the Jacobian lambda^2. Each weight row is normalised to
-    sum to 1, so a spectrally flat reflectance of 1 maps exactly to RGB (1, 1, 1) and
-    Y = 1: the equal-energy illuminant E is white-balanced to the sRGB white by a
-    diagonal scaling of the linear channels.
+    The integral int f(lambda) S(lambda) dlambda, S the illuminant, becomes
+    int f(1/s) S(1/s) / s^2 ds, so each sample's colour-matching values carry S and the
+    Jacobian lambda^2. Each weight row is normalised to sum to 1, so a spectrally flat
+    reflectance of 1 maps exactly to RGB (1, 1, 1) and Y = 1: the illuminant is
+    white-balanced to the sRGB white by a diagonal scaling of the linear channels (for D65,
+    sRGB's own white, that scaling is the identity up to the CMF fit's error).
     """
+    if illuminant not in ILLUMINANTS:
+        raise ValueError(f"illuminant must be one of {ILLUMINANTS}, got {illuminant!r}")
     wavenumbers = np.linspace(1.0 / VISIBLE_NM[1], 1.0 / VISIBLE_NM[0], samples)
     wavelengths = 1.0 / wavenumbers
     xyz = cie_xyz_cmfs(wavelengths) * wavelengths**2
+    if illuminant == "D65":
+        xyz = xyz * d65(wavelengths)
     rows = np.vstack([XYZ_TO_LINEAR_SRGB @ xyz, xyz[1:2]])
     weights = rows / rows.sum(axis=1, keepdims=True)
     wavelengths.setflags(write=False)
@@ -98,14 +132,15 @@ def spectral_grid(samples: int):
     return wavelengths, weights
 
 
-def spectrum_to_rgb(reflectance, samples: int = MIN_SAMPLES):
-    """Linear sRGB and luminance Y of reflectance spectra sampled on ``spectral_grid(samples)``.
+def spectrum_to_rgb(reflectance, samples: int = MIN_SAMPLES, illuminant: str = "E"):
+    """Linear sRGB and luminance Y of reflectance spectra sampled on ``spectral_grid(samples)``,
+    lit by ``illuminant`` (:data:`ILLUMINANTS`).
 
     ``reflectance`` has shape (..., samples); returns (..., 3) RGB and (...) Y. RGB is
     the XYZ integral (Wyman et al. CMFs) through the sRGB matrix, normalised so that a
     flat spectrum of 1 gives (1, 1, 1); out-of-gamut negatives are not clipped here.
     """
-    _, weights = spectral_grid(samples)
+    _, weights = spectral_grid(samples, illuminant)
     out = np.asarray(reflectance, dtype=np.float64) @ weights.T
     return out[..., :3], out[..., 3]
 

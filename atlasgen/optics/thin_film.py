@@ -1,4 +1,5 @@
-"""The iridescent model's physical reference in NumPy: a thin-film microfacet BSDF.
+"""The iridescent model's physical reference in NumPy: a thin-film microfacet BSDF (also the
+separable model's ``source = "thin_film"``).
 
 A GGX microfacet BSDF (height-correlated Smith visibility, the renderer's lobe:
 :mod:`atlasgen.optics.specular`) whose Fresnel term is the film stack's exact Airy reflectance
@@ -134,19 +135,21 @@ def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spect
 def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chunk: int = FIT_CHUNK):
     """Linear sRGB f cos(theta_o) of the thin-film BSDF lit by white light, ``(N, 3)``.
 
-    The per-wavelength f cos of :func:`thin_film_f_cos` integrated over 360-830 nm with the
-    iridescent model's own colour integral (:func:`atlasgen.optics.film.spectrum_to_rgb`:
-    CIE 1931 colour matching functions to XYZ to linear sRGB, each channel normalised so a
-    spectrally flat response of 1 gives (1, 1, 1)), on the model's wavenumber grid
-    (:func:`~atlasgen.optics.film.spectral_samples` resolves the film's fringes).
+    The per-wavelength f cos of :func:`thin_film_f_cos` integrated over 360-830 nm as
+    Mitsuba's ``llvm_ad_spectral`` render of ``atlasgen_thinfilm`` integrates it under a white
+    RGB light, which Mitsuba upsamples to the D65 spectrum: CIE 1931 colour matching functions
+    (Wyman et al.'s fit, :func:`atlasgen.optics.film.cie_xyz_cmfs`) times D65 to XYZ to linear
+    sRGB, each channel normalised so a spectrally flat response of 1 gives (1, 1, 1)
+    (:func:`atlasgen.optics.film.spectrum_to_rgb` with ``illuminant = "D65"``), on the
+    iridescent model's wavenumber grid (:func:`~atlasgen.optics.film.spectral_samples` resolves
+    the film's fringes).
 
-    Approximations against Mitsuba's ``llvm_ad_spectral`` render of ``atlasgen_thinfilm``:
-    the scene's RGB lights are upsampled to spectra there (for a white light D65, which the
-    sRGB white balances to (1, 1, 1); here the equal-energy white, balanced by the diagonal
-    normalisation), and the RGB ``colour`` and ``backlight_colour`` are upsampled to smooth
-    spectra there, while here f cos, linear in each, takes them per channel:
-    RGB(base(lambda) w(lambda)) ~ colour * RGB(w). Both are exact for spectrally flat
-    lights and colours; the film's own interference colours are integrated exactly.
+    Approximations against that render: the CMF fit (a few 1e-3 of f cos against CIE's
+    tables), lights of any other colour (taken as white: their upsampled spectra are not flat),
+    and the RGB ``colour`` and ``backlight_colour``, which Mitsuba upsamples to smooth spectra
+    while here f cos, linear in each, takes them per channel: RGB(base(lambda) w(lambda)) ~
+    colour * RGB(w). All are exact for spectrally flat colours; the film's own interference
+    colours are integrated, not approximated.
     """
     film = {**FILM_DEFAULTS, **film}
     samples = spectral_samples(film["thickness"], film["film_ior"])
@@ -160,7 +163,7 @@ def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chun
         part = slice(start, start + chunk)
         lam = np.broadcast_to(grid, (len(wi[part]), samples))
         own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], lam, film, alpha)
-        out[part] = spectrum_to_rgb(own, samples)[0] + colour * spectrum_to_rgb(base_weight, samples)[0]
+        out[part] = spectrum_to_rgb(own, samples, "D65")[0] + colour * spectrum_to_rgb(base_weight, samples, "D65")[0]
         if backlight_colour is not None:
-            out[part] += back * spectrum_to_rgb(back_weight, samples)[0]
+            out[part] += back * spectrum_to_rgb(back_weight, samples, "D65")[0]
     return out
