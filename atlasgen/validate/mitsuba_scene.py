@@ -11,7 +11,9 @@ What is kept identical, so that only the shading differs:
   k x k grid and the box filter averages them (an anti-aliased reference). Stochastic
   references (``volpath``, and spectral ones, whose wavelengths are drawn from the sampler
   per sample) use the ``independent`` sampler, so every sample draws its own paths and
-  wavelengths, and two seeds give independent renders (their noise floor).
+  wavelengths, and two seeds give independent renders (their noise floor); they are
+  rendered by :func:`render_pixel_centres`, every camera ray through its pixel's centre,
+  so that their many samples do not antialias what the one-sample rasteriser shows.
 - **Geometry.** The renderer's own triangle meshes (:func:`atlasgen.render.meshes.build_mesh`)
   in world space, with the renderer's normal transform (inverse transpose, not
   renormalised per vertex), so interpolated shading normals match the g-buffer's.
@@ -34,6 +36,7 @@ from atlasgen.render.meshes import build_mesh
 from atlasgen.materials.scene import object_matrix
 
 __all__ = [
+    "render_pixel_centres",
     "DIRECT_INTEGRATOR",
     "SHADOW_INTEGRATOR",
     "register_direct_integrator",
@@ -278,3 +281,49 @@ def render_mitsuba(mi, mi_scene, spp: int = 1, seed: int = 0, python_plugins: bo
     if rgb.ndim == 3 and rgb.shape[2] > 3:
         rgb = rgb[..., :3]
     return rgb, seconds
+
+
+#: Samples per pixel traced in one pass of :func:`render_pixel_centres` (bounds its memory).
+CENTRE_PASS_SPP = 64
+
+
+def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True) -> tuple[np.ndarray, float]:
+    """Render with every sample's camera ray through its pixel's centre: ``(linear RGB (h, w, 3), seconds)``.
+
+    A stochastic reference needs many samples per pixel (paths, wavelengths), but the
+    deferred renderer shades one point per pixel, its centre. ``mi.render`` spreads the
+    samples over the pixel's footprint, which antialiases silhouettes and thin highlights
+    the atlas image cannot: that difference would count as the material's error. So the
+    scene's integrator is called directly here, ``spp`` times per pixel, on rays through
+    the pixel centres; only the rest of each path (and the wavelengths, in a spectral
+    variant) is random. Samples are averaged with equal weights, as the box filter does
+    within a pixel; a spectral variant converts each sample to linear sRGB with its
+    wavelengths (``mi.spectrum_to_srgb``), as the film does.
+    """
+    import drjit as dr
+
+    t0 = time.perf_counter()
+    sensor = mi_scene.sensors()[0]
+    width, height = (int(c) for c in sensor.film().crop_size())
+    integrator = mi_scene.integrator()
+    total = np.zeros((height * width, 3), dtype=np.float64)
+    done = 0
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, not python_plugins):
+        while done < spp:
+            batch = min(CENTRE_PASS_SPP, spp - done)
+            count = width * height * batch
+            sampler = sensor.sampler().clone()
+            sampler.set_sample_count(batch)
+            # One seed per pass and render: passes must not repeat each other's samples.
+            sampler.seed(int(seed) * 1_000_003 + done, count)
+            pixel = dr.arange(mi.UInt32, count) // batch
+            centre = mi.Point2f((mi.Float(pixel % width) + 0.5) / width, (mi.Float(pixel // width) + 0.5) / height)
+            ray, weight = sensor.sample_ray_differential(0.0, sampler.next_1d(), centre, mi.Point2f(0.5, 0.5))
+            radiance, _, _ = integrator.sample(mi_scene, sampler, ray, None, True)
+            value = weight * radiance
+            rgb = mi.spectrum_to_srgb(value, ray.wavelengths) if mi.is_spectral else value
+            samples = np.stack([np.array(rgb[k], dtype=np.float64) for k in range(3)], axis=-1)
+            total += samples.reshape(height * width, batch, 3).sum(axis=1)
+            done += batch
+    image = (total / spp).reshape(height, width, 3).astype(np.float32)
+    return image, time.perf_counter() - t0

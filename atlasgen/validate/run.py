@@ -38,6 +38,7 @@ from atlasgen.validate.mitsuba_scene import (
     cast_shadow_mask,
     register_direct_integrator,
     render_mitsuba,
+    render_pixel_centres,
 )
 from atlasgen.validate.rebuild import material_mask, rebuild_images
 from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
@@ -452,10 +453,14 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
             interiors.append(None)
     n = physical_spp if reference.stochastic else spp
     mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, reference.integrator, interiors, stochastic=reference.stochastic)
-    image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
     second = None
     if reference.stochastic:
-        second, _ = render_mitsuba(mi, mi_scene, n, seed=1, python_plugins=not reference.builtin_only)
+        # Every sample through the pixel centre, as the rasteriser shades: many samples
+        # converge the paths and wavelengths without antialiasing what the atlas cannot.
+        image, seconds = render_pixel_centres(mi, mi_scene, n, python_plugins=not reference.builtin_only)
+        second, _ = render_pixel_centres(mi, mi_scene, n, seed=1, python_plugins=not reference.builtin_only)
+    else:
+        image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
     del mi_scene
     ref = ReferenceRender("physical", reference.description, image, seconds, n, variant, second_image=second)
     if reference.integrator is not None:  # an integrator of its own traces shadow rays

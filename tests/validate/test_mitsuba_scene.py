@@ -86,3 +86,26 @@ def test_direct_integrator_has_no_shadows_and_lights_back_faces_through_the_bsdf
     # L = albedo (1) * 1 / pi * E, with E = 2 * colour: light from below, through the plane.
     expected = 2.0 * np.array([1.0, 0.5, 0.25]) / np.pi
     np.testing.assert_allclose(image[9, 12], expected, rtol=1e-5)
+
+
+def test_stochastic_references_trace_every_sample_through_the_pixel_centre(mitsuba_rgb):
+    """render_pixel_centres with the independent sampler gives the pixel-centre image (what the
+    rasteriser shades) of a deterministic scene exactly, silhouette pixels included, where
+    mi.render's samples spread over each pixel and antialias the sphere's edge."""
+    import tomllib
+
+    from atlasgen.materials.scene import parse_scene
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba, render_pixel_centres
+
+    mi = mitsuba_rgb
+    text = SCENE.replace('shape = "plane"', 'shape = "sphere"').replace("scale = 4.0", "scale = 0.6")
+    scene = parse_scene(tomllib.loads(text), "sphere.toml")
+    diffuse = [{"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.7, 0.6, 0.5]}}]
+    centres, _ = render_mitsuba(mi, build_mitsuba_scene(mi, scene, diffuse, spp=1))
+    stochastic = build_mitsuba_scene(mi, scene, diffuse, spp=16, stochastic=True)
+    mine, seconds = render_pixel_centres(mi, stochastic, 16, seed=3)
+    assert mine.shape == centres.shape and seconds > 0
+    np.testing.assert_allclose(mine, centres, rtol=1e-5, atol=1e-6)
+    footprint, _ = render_mitsuba(mi, stochastic, 16)
+    edge = np.abs(footprint - centres).max(-1) > 0.05
+    assert edge.sum() >= 10  # the antialiased silhouette

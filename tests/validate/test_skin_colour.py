@@ -35,7 +35,7 @@ def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
 
     mi = mitsuba_llvm
     material = read_material(SKIN)
-    entry = SimpleNamespace(name=material.name, type=material.type, params=material.params)
+    entry = SimpleNamespace(name=material.name, type=material.type, params=material.params, fit=None)
     _, scene = load_validation_scene("front")
     scene = bind_material(resize_scene(scene, 64, 48), entry.name)
     register_references(mi)
