@@ -18,6 +18,7 @@ sRGB 8-bit) and A re-fitted against the rounded RGB, then capped at the quantile
 from __future__ import annotations
 
 import json
+from typing import ClassVar
 from functools import lru_cache
 
 import numpy as np
@@ -296,16 +297,19 @@ class FittedSlice(Model):
         self.model, self.gloss = model, float(gloss)
         self.type_name, self.params, self.reference = model.type_name, model.params, model.reference
         self.physical_omissions, self.validation_goals = model.physical_omissions, model.validation_goals
-        self._tables: dict[str, np.ndarray] = {}
 
     def bake(self, values: dict) -> SliceSet:
         return bake_from_physics(self.model, values, gloss=self.gloss)
 
+    #: Fitted slices by (type, values, gloss), shared by every instance: validation makes one
+    #: per Mitsuba plugin instance, and a fit can take seconds (a spectral or volume reference).
+    _tables: ClassVar[dict] = {}
+
     def _table(self, values: dict) -> np.ndarray:
-        key = json.dumps(values, sort_keys=True, default=str)
-        if key not in self._tables:
-            self._tables[key] = np.asarray(self.bake(values).values[0], dtype=np.float64)
-        return self._tables[key]
+        key = (self.type_name, json.dumps(values, sort_keys=True, default=str), self.gloss)
+        if key not in FittedSlice._tables:
+            FittedSlice._tables[key] = np.asarray(self.bake(values).values[0], dtype=np.float64)
+        return FittedSlice._tables[key]
 
     def evaluate(self, values, n_dot_l, n_dot_v):
         nl, nv = np.broadcast_arrays(np.asarray(n_dot_l, dtype=np.float64), np.asarray(n_dot_v, dtype=np.float64))

@@ -49,7 +49,10 @@ def test_physical_references_render_where_they_exist(validation_run):
     _, film = _result(validation_run, "film", "front", "physical")
     assert film.variant == "llvm_ad_spectral" and np.isfinite(film.image).all() and film.image.max() > 0
     _, skin = _result(validation_run, "skin", "front", "physical")
-    assert skin.spp == 4 and np.isfinite(skin.image).all()
+    # Rendered at 4 spp, then at 4x the samples while the noise floor is within 10 dB of the
+    # error, up to 16x: it stops converged or at the cap.
+    assert skin.spp in (4, 16, 64) and np.isfinite(skin.image).all()
+    assert skin.noise_floor_ok or skin.spp == 64
 
 
 def test_unknown_material_and_material_without_reference_fail_before_rendering(validation_atlas, tmp_path):
