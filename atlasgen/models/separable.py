@@ -375,6 +375,11 @@ class Separable(Model):
     no_physical_reference = ("its model reference is already the source BSDF itself (analytic or Mitsuba's), "
                              "the physical material the factors approximate")
 
+    def physical_brdf_source(self, values: dict):
+        """The source itself is the physical material the factors approximate."""
+        src = values["source"]
+        return dict(values), f"source BRDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else "")
+
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """The source BSDF itself times the albedo (``atlasgen_brdf``), f cos for the full (w_i, w_o):
         the renderer adds L += E albedo f cos with f rebuilt from the factors."""
