@@ -28,36 +28,26 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from atlasgen.io.fields import validate_params
-from atlasgen.models.base import encode_scaled, Model
-from atlasgen.models.physical_fit import fit_slice, plain_bsdf_reference
+from atlasgen.models.base import Model
+from atlasgen.models.physical_fit import plain_bsdf_reference
+from atlasgen.models.physical_lut import fit_lut, lut_errors, pair_geometry, stored_slice
 from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable
-from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
-from atlasgen.optics.specular import renderer_f_cos
 from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
-from atlasgen.separable.error import ERROR_SEED, error_sample_for, measure_errors, MET_SIGMAS, SELECTION_SEED
+from atlasgen.separable.error import ERROR_SEED, error_sample_for, measure_errors, MET_SIGMAS
 from atlasgen.separable.source import make_source
 
 __all__ = [
-    "LUT_GLOSSES",
     "PhysicalBrdf",
     "physical_brdf",
-    "slice_f_cos",
-    "stored_slice",
-    "fit_lut",
-    "lut_errors",
     "physical_candidates",
     "candidates_key",
 ]
 
-#: Renderer glosses a LUT fitted from physics chooses among (on the fit's own grid).
-LUT_GLOSSES = (0.0, 0.25, 0.5, 0.625, 0.75, 0.8125, 0.875, 0.9375, 1.0)
 #: Version of the candidate list's content: part of the report cache's key.
 CANDIDATES_VERSION = 1
 
@@ -90,81 +80,8 @@ def physical_brdf(model: Model, values: dict):
     return PhysicalBrdf(params, ref.description)
 
 
-def _geometry(l, v):
-    nl, nv = l[:, 2], v[:, 2]
-    h = l + v
-    h2 = np.sum(h * h, axis=-1)
-    nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-    return nl, nv, nh, h2 <= 1e-12
-
-
-def slice_f_cos(rgba: np.ndarray, gloss: float, l: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The renderer's f cos(theta_l) (``(N, 3)``) drawing the slice ``rgba`` ``(H, W, 4)`` at renderer gloss ``gloss``.
-
-    f cos = A.rgb / pi + A.a D(N.H) V(N.L, N.V) max(N.L, 0) with A read bilinearly at
-    (N.L, N.V) (:func:`~atlasgen.optics.interpolation.sample_slice`), albedo 1.
-    """
-    nl, nv, nh, degenerate = _geometry(l, v)
-    m = sample_slice(np.asarray(rgba, dtype=np.float64), np.clip(nl, -1.0, 1.0), np.clip(nv, 0.0, 1.0))
-    return renderer_f_cos(m, 1.0, gloss, nl, nv, nh, degenerate)
-
-
-def stored_slice(rgba: np.ndarray, srgb: bool = True) -> np.ndarray:
-    """``rgba`` as the atlas stores and the sampler returns it: per-slice scale
-    (:func:`~atlasgen.models.base.encode_scaled`), 8 bits (sRGB RGB, linear A), decoded and rescaled."""
-    enc = encode_scaled(np.asarray(rgba, dtype=np.float64)[None])
-    decoded = dequantize_rgba(quantize_rgba(enc.stored, srgb), srgb)
-    return decoded[0] * enc.scale[0][[0, 0, 0, 1]]
-
-
-class _Memo:
-    """f cos evaluated once: :func:`fit_slice` asks for the same pairs at every gloss."""
-
-    def __init__(self, f_cos):
-        self.f_cos, self.last = f_cos, None
-
-    def __call__(self, l, v):
-        if self.last is None or self.last[0].shape != l.shape or not (np.array_equal(self.last[0], l) and np.array_equal(self.last[1], v)):
-            self.last = (l.copy(), v.copy(), self.f_cos(l, v))
-        return self.last[2]
-
-
-@lru_cache(maxsize=32)
-def _fit_lut(params_json: str, glosses: tuple, srgb: bool):
-    source = make_source(json.loads(params_json))
-    memo = _Memo(source.f_cos)
-    selection = error_sample_for(source, SELECTION_SEED)
-    reference, _ = reference_values(source, selection)
-    best = None
-    for g in glosses:
-        rgba, info = fit_slice(memo, float(g), srgb=srgb)
-        error = lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)["relative_rms"]
-        if best is None or error < best[2]:
-            best = (rgba, info, error)
-    rgba, info, error = best
-    rgba.setflags(write=False)
-    return rgba, {**info, "selection_relative_rms": error, "selection_seed": selection.seed}
-
-
-def fit_lut(brdf: PhysicalBrdf, glosses=LUT_GLOSSES, srgb: bool = True):
-    """The slice fitted from physics (:func:`~atlasgen.models.physical_fit.fit_slice`) for the renderer
-    gloss of ``glosses`` whose 8-bit slice errs least on the *selection* sample
-    (:data:`~atlasgen.separable.error.SELECTION_SEED`), and its fit description.
-
-    The fit's own texel grid with 128 azimuths undersamples a sharp lobe, so the gloss is judged on
-    the importance-sampled selection pairs instead; never on the sample the figures are reported on.
-    """
-    return _fit_lut(json.dumps(brdf.params, sort_keys=True), tuple(float(g) for g in glosses), bool(srgb))
-
-
-def lut_errors(rgba: np.ndarray, gloss: float, reference: np.ndarray, sample) -> dict:
-    """Relative RMS of f cos (and log error) with standard errors of the slice drawn at ``gloss``,
-    against ``reference`` (f cos at ``sample``'s pairs)."""
-    return measure_errors(reference, slice_f_cos(rgba, gloss, sample.l, sample.v), sample.weight)
-
-
 def _model_f_cos(model: Model, values: dict, gloss: float, l, v):
-    nl, nv, nh, degenerate = _geometry(l, v)
+    nl, nv, nh, degenerate = pair_geometry(l, v)
     return model.renderer_f_cos(values, 1.0, gloss, nl, nv, nh, degenerate)
 
 
@@ -205,7 +122,7 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     source = brdf.source()
     sample = error_sample_for(source, ERROR_SEED)
     reference, _ = reference_values(source, sample)
-    fitted, info = fit_lut(brdf, srgb=srgb)
+    fitted, info = fit_lut(brdf.params, srgb=srgb)
     gloss = float(info["gloss"])
     lut = cost_key("lut")
     out = []
