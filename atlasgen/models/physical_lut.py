@@ -29,7 +29,7 @@ from atlasgen.separable.source import make_source
 __all__ = ["LUT_GLOSSES", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
 
 #: Renderer glosses a LUT fitted from physics chooses among (on the selection sample).
-LUT_GLOSSES = (0.0, 0.25, 0.5, 0.625, 0.75, 0.8125, 0.875, 0.9375, 1.0)
+LUT_GLOSSES = (0.0, 0.25, 0.5, 0.625, 0.75, 0.875)
 
 
 def pair_geometry(l, v):
