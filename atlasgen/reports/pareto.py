@@ -19,7 +19,9 @@ and closer) as a line, the representation the material is baked as highlighted.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from atlasgen.bake.adaptive import bake_supersampled
@@ -94,9 +96,6 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
     jobs = max(1, min(int(jobs), len(todo), os.cpu_count() or 1))
     work = [(e.type, e.params) for e, _ in todo]
     if jobs > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
         # spawn: a forked Mitsuba/LLVM runtime is not safe to reuse.
         with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
             results = list(pool.map(_compute, work))
