@@ -46,9 +46,11 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
     error the manifest's (quantisation RMS for a LUT, 0 for a closed form)."""
     rep = entry.representation
     chosen = _cost_key(entry)
-    if getattr(rep, "auto", None):
+    # A LUT chosen by ``representation = "auto"`` records the choice beside its LUT representation.
+    auto = getattr(rep, "auto", None) or entry.extra.get("auto")
+    if auto:
         return [{"representation": c["representation"], "cost": c["cost"], "error": c["error"],
-                 "chosen": c["representation"] == rep.auto["chosen"]} for c in rep.auto["candidates"]]  # fmt: skip
+                 "chosen": c["representation"] == auto["chosen"]} for c in auto["candidates"]]  # fmt: skip
     if isinstance(rep, SeparableRepresentation):
         curve = next((c.get("relative_rms_by_terms") for c in rep.candidates
                       if c.get("grid") == rep.sampling_grid and c.get("target") == rep.target), None)  # fmt: skip
