@@ -160,9 +160,11 @@ def test_pareto_charts_against_the_physical_reference(tmp_path, write_material, 
     names = ("pareto.png", "pareto/sheen.png", "pareto/sheen.json", "pareto/metal.png", "pareto/hero.json", "index.html")
     first = {name: (tmp_path / "r" / name).read_bytes() for name in names}
     # Computed afresh elsewhere, in two processes: byte for byte the same.
+    monkeypatch.setattr(pareto, "_MEMO", {})
     write_library_report(atlas, tmp_path / "r2", jobs=2)
     assert {name: (tmp_path / "r2" / name).read_bytes() for name in names} == first
     # Again in the same folder: from the cache (nothing recomputed), the same bytes.
+    monkeypatch.setattr(pareto, "_MEMO", {})
     monkeypatch.setattr(pareto, "physical_candidates", lambda *a, **k: pytest.fail("recomputed a cached material"))
     write_library_report(atlas, tmp_path / "r", jobs=1)
     assert {name: (tmp_path / "r" / name).read_bytes() for name in names} == first

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from atlasgen.bake.adaptive import bake_supersampled
 from atlasgen.errors import AtlasgenError
+from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
 from atlasgen.models import get_model
 from atlasgen.models.physical_error import candidates_key, physical_candidates
@@ -58,10 +59,22 @@ def baked_candidate(entry: MaterialEntry, result: dict) -> str | None:
     return next((w for w in wanted if w in labels), None)
 
 
+#: Candidate lists computed in this process, by key: a process that writes several reports
+#: (tests, a fuzzer) measures each material once.
+_MEMO: dict = {}
+
+
 def _compute(job):
     type_name, params = job
     try:
-        return physical_candidates(get_model(type_name), params, bake_supersampled)
+        model = get_model(type_name)
+        # The manifest's params are the model's values as baked; checked again, so a damaged
+        # manifest is named in one line rather than failing deep inside a BRDF.
+        unset = {p.name for p in model.params if p.default is None}  # written as null, given as absent
+        values = validate_params(model.params, {k: v for k, v in params.items() if not (v is None and k in unset)},
+                                 "<manifest params>")  # fmt: skip
+        model.check(values, "<manifest params>")
+        return physical_candidates(model, values, bake_supersampled)
     except AtlasgenError as exc:  # e.g. Mitsuba missing: the page says so, and nothing is cached
         return {"reference": None, "reason": f"not measured: {exc}", "transient": True}
 
@@ -89,7 +102,9 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
                 cached = json.loads(_cache_path(cache_dir, entry.name).read_text(encoding="utf-8"))
             except ValueError:
                 cached = None
-        if isinstance(cached, dict) and cached.get("key") == key:
+        if key in _MEMO:
+            out[entry.name] = _MEMO[key]
+        elif isinstance(cached, dict) and cached.get("key") == key:
             out[entry.name] = cached
         else:
             todo.append((entry, key))
@@ -103,6 +118,8 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
         results = [_compute(w) for w in work]
     for (entry, key), result in zip(todo, results):
         out[entry.name] = {"key": key, **result}
+        if not result.get("transient"):
+            _MEMO[key] = out[entry.name]
     return {e.name: out[e.name] for e in entries}
 
 
