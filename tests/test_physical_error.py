@@ -138,3 +138,29 @@ def test_auto_lut_is_drawn_as_a_plain_slice_at_the_fitted_gloss(tmp_path, write_
     table = read_atlas(path).decode_slice(0)
     expected = albedo * slice_f_cos(table, entry["fit"]["gloss"], l, v)
     np.testing.assert_allclose(a, expected, rtol=1e-12)
+
+
+def test_analytic_twin_of_a_mitsuba_bsdf():
+    from atlasgen.models.physical_error import analytic_twin
+
+    diffuse = {"source": "mitsuba", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.3, 0.4]}}}
+    twin = analytic_twin(diffuse)
+    assert twin["source"] == "lambert" and list(twin["diffuse"]) == [0.2, 0.3, 0.4]
+    assert list(analytic_twin({"source": "mitsuba", "bsdf": {"type": "diffuse"}})["diffuse"]) == [0.5, 0.5, 0.5]
+    assert analytic_twin({"source": "mitsuba", "bsdf": {"type": "roughplastic"}}) is None
+    assert analytic_twin({"source": "ggx"}) is None
+
+
+@pytest.mark.slow
+def test_a_lambert_material_is_exact_as_its_model_and_its_analytic_twin(mitsuba_llvm):
+    """terracotta's physical reference is Mitsuba's diffuse: the model's closed form and the shader's
+    Lambert match it to rounding; its 8-bit slices do not (the quantisation's error)."""
+    from atlasgen.bake.adaptive import bake_supersampled
+
+    lambert = get_model("lambert")
+    values = validate_params(lambert.params, {"colour": [0.7, 0.4, 0.2]}, "<test>")
+    result = physical_candidates(lambert, values, bake_supersampled)
+    by = {c["representation"]: c for c in result["candidates"]}
+    assert by["lut: model closed form (no texels)"]["error"] < 1e-5
+    assert by["analytic:lambert"]["error"] < 1e-5 and by["analytic:lambert"]["cost"] == read_lighting_cost().cost("analytic:lambert")
+    assert 1e-3 < by["lut: model, point-sampled, 8-bit"]["error"] < 1e-2

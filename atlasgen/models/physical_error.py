@@ -44,12 +44,13 @@ from atlasgen.separable.source import make_source
 __all__ = [
     "PhysicalBrdf",
     "physical_brdf",
+    "analytic_twin",
     "physical_candidates",
     "candidates_key",
 ]
 
 #: Version of the candidate list's content: part of the report cache's key.
-CANDIDATES_VERSION = 1
+CANDIDATES_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,19 @@ def physical_brdf(model: Model, values: dict):
         return ref
     params = validate_params(Separable.params, {"source": "mitsuba", "bsdf": ref.bsdf}, "<physical>")
     return PhysicalBrdf(params, ref.description)
+
+
+def analytic_twin(params: dict) -> dict | None:
+    """Separable-source parameters of the lighting shader's closed form equal to a Mitsuba BSDF, where one
+    is: ``diffuse`` with an RGB or uniform reflectance rho is Lambert's rho / pi; ``None`` otherwise."""
+    if params.get("source") != "mitsuba":
+        return None
+    bsdf = params.get("bsdf") or {}
+    reflectance = bsdf.get("reflectance", {"type": "uniform", "value": 0.5})
+    if bsdf.get("type") != "diffuse" or not isinstance(reflectance, dict) or reflectance.get("type") not in ("rgb", "uniform"):
+        return None
+    rho = np.broadcast_to(np.asarray(reflectance.get("value"), dtype=np.float64), (3,))
+    return validate_params(Separable.params, {"source": "lambert", "diffuse": [float(x) for x in rho]}, "<analytic twin>")
 
 
 def _model_f_cos(model: Model, values: dict, gloss: float, l, v):
@@ -113,7 +127,8 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     - the slice fitted from physics (:func:`fit_lut`), in float and after 8-bit storage;
     - K = 1 .. 8 separable terms of the physical BRDF (8-bit estimate, grid and target chosen on the
       selection sample: :meth:`atlasgen.models.separable.Separable.bake` with a budget no K meets);
-    - the analytic shader where the physical BRDF is a closed form it evaluates (exact: error 0).
+    - the analytic shader where the physical BRDF is a closed form it evaluates (exact: error 0), or a
+      Mitsuba BSDF it has in closed form (:func:`analytic_twin`; its error measured like the others').
     """
     brdf = physical_brdf(model, values)
     if isinstance(brdf, str):
@@ -150,6 +165,12 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     if brdf.params["source"] in ANALYTIC_SHADER_SOURCES:
         key = cost_key("analytic", brdf.params["source"])
         out.append(_entry(key, key, {"relative_rms": 0.0, "relative_rms_se": 0.0}, table, "analytic"))
+    else:
+        twin = analytic_twin(brdf.params)
+        if twin is not None:  # a Mitsuba BSDF the shader has in closed form: measured, not assumed exact
+            key = cost_key("analytic", twin["source"])
+            measured = measure_errors(reference, make_source(twin).f_cos(sample.l, sample.v), sample.weight)
+            out.append(_entry(key, key, measured, table, "analytic"))
     return {"reference": brdf.description, "estimator": sample.estimator, "pairs": sample.count, "seed": sample.seed,
             "cost_device": table.device, "cost_unit": table.unit, "gloss": gloss, "candidates": out}  # fmt: skip
 
