@@ -6,10 +6,11 @@ every representation it could be baked as (:func:`atlasgen.models.physical_error
 LUT slices, separable K = 1..8, the analytic shader), each with the lighting pass's cost per
 pixel per light on the device of the shipped cost table and its relative RMS of f cos against
 the physical reference with its standard error. The figures are cached as JSON beside the
-report, keyed by a digest of the material's parameters, the cost table and the candidates'
-version, so a second report over the same library recomputes nothing; missing ones are
-computed in up to :data:`MAX_JOBS` worker processes (each candidate list depends only on its
-material, so the order of completion changes no byte).
+report, keyed by a digest of the material's parameters, the cost table, the candidates'
+version and the code they come from (the bake cache's fingerprint), so a second report over
+the same library recomputes nothing; missing ones are computed in up to :data:`MAX_JOBS`
+worker processes (each candidate list depends only on its material, so the order of
+completion changes no byte).
 
 :func:`plot_material` draws one material's Pareto chart, :func:`plot_library` the library's:
 cost (x) against error (y, log) with 1-SE error bars, the Pareto front (nothing both cheaper
@@ -18,6 +19,7 @@ and closer) as a line, the representation the material is baked as highlighted.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import multiprocessing
 import os
@@ -25,6 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from atlasgen.bake.adaptive import bake_supersampled
+from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.errors import AtlasgenError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
@@ -95,7 +98,8 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
     cache_dir = None if cache_dir is None else Path(cache_dir)
     out, todo = {}, []
     for entry in entries:
-        key = candidates_key(get_model(entry.type), entry.params)
+        # The code below bake/ (the bake cache's fingerprint) decides the figures as much as the params.
+        key = hashlib.sha256(f"{candidates_key(get_model(entry.type), entry.params)}:{tool_fingerprint()}".encode()).hexdigest()
         cached = None
         if cache_dir is not None and _cache_path(cache_dir, entry.name).exists():
             try:
