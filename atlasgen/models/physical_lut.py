@@ -18,7 +18,7 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.models.base import encode_scaled
-from atlasgen.models.physical_fit import fit_slice
+from atlasgen.models.physical_fit import AZIMUTHS, fit_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import renderer_f_cos
@@ -26,8 +26,11 @@ from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.error import error_sample_for, measure_errors, SELECTION_SEED
 from atlasgen.separable.source import make_source
 
-__all__ = ["LUT_GLOSSES", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
+__all__ = ["LUT_GLOSSES", "SELECTION_AZIMUTHS", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
 
+#: Azimuths per texel of the slices the gloss is chosen with (the chosen one is fitted with
+#: :data:`~atlasgen.models.physical_fit.AZIMUTHS`).
+SELECTION_AZIMUTHS = 32
 #: Renderer glosses a LUT fitted from physics chooses among (on the selection sample).
 LUT_GLOSSES = (0.0, 0.25, 0.5, 0.625, 0.75, 0.875)
 
@@ -75,16 +78,20 @@ class _Memo:
 @lru_cache(maxsize=32)
 def _fit_lut(params_json: str, glosses: tuple, srgb: bool):
     source = make_source(json.loads(params_json))
-    memo = _Memo(source.f_cos)
     selection = error_sample_for(source, SELECTION_SEED)
     reference, _ = reference_values(source, selection)
+    # The gloss is chosen on slices fitted with SELECTION_AZIMUTHS azimuths (a quarter of the
+    # cost); the chosen one is then fitted with the full AZIMUTHS.
+    coarse = _Memo(source.f_cos)
     best = None
     for g in glosses:
-        rgba, info = fit_slice(memo, float(g), srgb=srgb)
+        rgba, _ = fit_slice(coarse, float(g), azimuths=SELECTION_AZIMUTHS, srgb=srgb)
         error = lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)["relative_rms"]
-        if best is None or error < best[2]:
-            best = (rgba, info, error)
-    rgba, info, error = best
+        if best is None or error < best[1]:
+            best = (float(g), error)
+    gloss, _ = best
+    rgba, info = fit_slice(source.f_cos, gloss, azimuths=AZIMUTHS, srgb=srgb)
+    error = lut_errors(stored_slice(rgba, srgb), gloss, reference, selection)["relative_rms"]
     rgba.setflags(write=False)
     return rgba, {**info, "selection_relative_rms": error, "selection_seed": selection.seed}
 
