@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: Version of the candidate list's content: part of the report cache's key.
-CANDIDATES_VERSION = 3
+CANDIDATES_VERSION = 4
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from atlasgen.separable.source import make_source
 
 __all__ = ["LUT_GLOSSES", "SELECTION_AZIMUTHS", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
 
-#: Azimuths per texel of the slices the gloss is chosen with (the chosen one is fitted with
+#: Azimuths per texel of the slices the glosses are screened with (the best two are fitted with
 #: :data:`~atlasgen.models.physical_fit.AZIMUTHS`).
 SELECTION_AZIMUTHS = 32
 #: Renderer glosses a LUT fitted from physics chooses among (on the selection sample).
@@ -80,18 +80,21 @@ def _fit_lut(params_json: str, glosses: tuple, srgb: bool):
     source = make_source(json.loads(params_json))
     selection = error_sample_for(source, SELECTION_SEED)
     reference, _ = reference_values(source, selection)
-    # The gloss is chosen on slices fitted with SELECTION_AZIMUTHS azimuths (a quarter of the
-    # cost); the chosen one is then fitted with the full AZIMUTHS.
+    # The glosses are screened on slices fitted with SELECTION_AZIMUTHS azimuths (a quarter of
+    # the cost); the best two are fitted with the full AZIMUTHS and the better one kept.
     coarse = _Memo(source.f_cos)
-    best = None
+    screened = []
     for g in glosses:
         rgba, _ = fit_slice(coarse, float(g), azimuths=SELECTION_AZIMUTHS, srgb=srgb)
-        error = lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)["relative_rms"]
-        if best is None or error < best[1]:
-            best = (float(g), error)
-    gloss, _ = best
-    rgba, info = fit_slice(source.f_cos, gloss, azimuths=AZIMUTHS, srgb=srgb)
-    error = lut_errors(stored_slice(rgba, srgb), gloss, reference, selection)["relative_rms"]
+        screened.append((lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)["relative_rms"], float(g)))
+    fine = _Memo(source.f_cos)
+    best = None
+    for _, g in sorted(screened)[:2]:
+        rgba, info = fit_slice(fine, g, azimuths=AZIMUTHS, srgb=srgb)
+        error = lut_errors(stored_slice(rgba, srgb), g, reference, selection)["relative_rms"]
+        if best is None or error < best[2]:
+            best = (rgba, info, error)
+    rgba, info, error = best
     rgba.setflags(write=False)
     return rgba, {**info, "selection_relative_rms": error, "selection_seed": selection.seed}
 
