@@ -30,7 +30,8 @@ def run() -> dict:
     for path in find_material_files([shipped_library()]):
         material = read_material(path)
         t0 = time.perf_counter()
-        result = physical_candidates(material.model, material.params, bake_supersampled)
+        gloss = material.fit_gloss if material.fit_from == "physical" else None  # drawn at its fit gloss
+        result = physical_candidates(material.model, material.params, bake_supersampled, gloss=gloss)
         seconds = time.perf_counter() - t0
         if not result.get("candidates"):
             without.append(f"- {material.name}: {result['reason']}")

@@ -88,7 +88,7 @@ def bake_material(material):
     ``from = "physical"`` fits the slice to the model's physical reference."""
     model = material.model
     if material.fit_from == "physical":
-        return bake_from_physics(model, material.params, material.source)
+        return bake_from_physics(model, material.params, material.source, material.fit_gloss)
     if material.error_budget is not None and type(model).bake is Model.bake:
         return bake_within_budget(model, material.params, material.error_budget)
     return model.bake(material.params)

@@ -46,6 +46,7 @@ __all__ = [
     "LutRepresentation",
     "SeparableRepresentation",
     "AnalyticRepresentation",
+    "Fit",
     "read_manifest",
     "parse_manifest",
     "format_manifest",
@@ -457,6 +458,33 @@ def _rgb(f: _Fields, key: str) -> list:
                   lambda v: isinstance(v, list) and len(v) == 3 and all(_is_finite(x) for x in v))
 
 
+@dataclass(kw_only=True)
+class Fit:
+    """How a slice was fitted to a physical BSDF rather than baked from a closed form.
+
+    ``source`` (JSON ``from``) is ``"physical"`` (a model's ``from = "physical"``) or
+    ``"bsdf"`` (the ``bsdf`` model); ``gloss`` is the renderer gloss the slice was fitted
+    for. The slice reproduces the physical material only under that lobe, so every object
+    showing it is shaded with this gloss (docs/materials.md). ``details`` holds every key as
+    written, in order (the fit's own figures: ``reference``, ``azimuths``, ``relative_rms``...).
+    """
+
+    source: str
+    gloss: float
+    details: dict
+
+    def to_json(self) -> dict:
+        out = dict(self.details)
+        out["from"], out["gloss"] = self.source, self.gloss
+        return out
+
+    @classmethod
+    def from_json(cls, f: _Fields) -> "Fit":
+        return cls(source=f.string("from", choices=("physical", "bsdf")),
+                   gloss=f.take("gloss", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
+                   details=dict(f.data))  # fmt: skip
+
+
 def _read_representation(f: _Fields):
     if f.data.get("kind") == "analytic":
         return AnalyticRepresentation.from_json(f)
@@ -509,6 +537,7 @@ class MaterialEntry:
     quantization_error: ErrorSummary = field(default_factory=lambda: ErrorSummary(max=0.0, rms=0.0))
     representation: LutRepresentation | SeparableRepresentation | AnalyticRepresentation | None = None
     factors: SeparableFactors | None = None
+    fit: Fit | None = None
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -537,6 +566,8 @@ class MaterialEntry:
             out["representation"] = self.representation.to_json()
         if errors_8bit is not None:
             out["errors_8bit"] = errors_8bit
+        if self.fit is not None:
+            out["fit"] = self.fit.to_json()
         out.update(self.extra)
         return out
 
@@ -552,8 +583,9 @@ class MaterialEntry:
         if entry_id != first:
             f.fail("id", f"the entry's first_slice ({first})", entry_id)
         representation = f.child("representation", optional=True)
+        fit = f.child("fit", optional=True)
         has_factors = any(k in data for k in SeparableFactors.keys())
-        known = set(COMMON_KEYS) | {"representation"} | set(SeparableFactors.keys())
+        known = set(COMMON_KEYS) | {"representation", "fit"} | set(SeparableFactors.keys())
         return cls(
             name=f.nonempty("name"),
             id=entry_id,
@@ -572,6 +604,7 @@ class MaterialEntry:
             quantization_error=ErrorSummary.from_json(f.child("quantization_error")),
             representation=None if representation is None else _read_representation(representation),
             factors=SeparableFactors.from_json(f, slice_count) if has_factors else None,
+            fit=None if fit is None else Fit.from_json(fit),
             extra={k: v for k, v in data.items() if k not in known},
         )
 

@@ -13,14 +13,14 @@ from atlasgen.io.fields import Param, shown as short, validate_params
 from atlasgen.models import get_model, model_types
 from atlasgen.errors import SceneError
 from atlasgen.materials.scene import read_scene
-from atlasgen.models.physical_fit import check_physical_fit
+from atlasgen.models.physical_fit import check_physical_fit, FIT_GLOSS
 
 __all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
 
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
-COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from")
+COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from", "fit_gloss")
 #: Values of ``from``: the model's closed form, or a fit to its physical reference
 #: (:mod:`atlasgen.models.physical_fit`).
 FIT_SOURCES = ("model", "physical")
@@ -41,6 +41,7 @@ class Material:
     alpha_scale: object = "auto"
     error_budget: float | None = None
     fit_from: str = "model"  # the file's ``from``
+    fit_gloss: float | None = None  # with from = "physical": the renderer gloss the slice is fitted for
     extra: dict = field(default_factory=dict)
 
     @property
@@ -61,6 +62,7 @@ class Material:
 _ID = Param("id", None, "int", 0, 255, doc="slice index")
 #: Numbers > 0 that stay finite and > 0 in float32 (the include's constants).
 _POSITIVE = Param("", None, "float", 0.0, lo_open=True)
+_FIT_GLOSS = Param("fit_gloss", FIT_GLOSS, "float", 0.0, 1.0, doc="renderer gloss a from = 'physical' slice is fitted for")
 _SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
 
 
@@ -130,6 +132,11 @@ def read_material(path) -> Material:
         if error_budget is not None:
             raise MaterialError(shown, "error_budget", "expected no error budget with from = 'physical' (a fitted slice has no supersampling)")
         check_physical_fit(model, params, shown)
+        fit_gloss = float(_FIT_GLOSS.coerce(raw.get("fit_gloss", FIT_GLOSS), shown))
+    elif "fit_gloss" in raw:
+        raise MaterialError(shown, "fit_gloss", "expected no fit_gloss without from = 'physical' (it is the gloss a physical fit is made for)")
+    else:
+        fit_gloss = None
     return Material(
         name=name,
         type=type_name,
@@ -142,6 +149,7 @@ def read_material(path) -> Material:
         alpha_scale=_scale_field(raw, "alpha_scale", shown),
         error_budget=None if error_budget is None else float(error_budget),
         fit_from=fit_from,
+        fit_gloss=fit_gloss,
     )
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +32,7 @@ __all__ = [
     "parse_scene",
     "resolve_materials",
     "object_matrix",
+    "with_fitted_surfaces",
 ]
 
 #: Lights one frame can take; they live in one storage buffer read by one lighting pass.
@@ -339,3 +340,21 @@ def object_matrix(obj: SceneObject) -> np.ndarray:
     m[:3, :3] = rot_z @ rot_y @ rot_x @ np.diag(obj.scale)
     m[:3, 3] = obj.translate
     return m
+
+
+def with_fitted_surfaces(scene: Scene, entries) -> Scene:
+    """A copy of ``scene`` whose objects showing a fitted material (``entries``: name ->
+    :class:`~atlasgen.io.manifest.MaterialEntry` with a ``fit``) have its gloss and albedo 1.
+
+    A slice fitted to a physical BSDF (``from = "physical"``, the ``bsdf`` model) reproduces
+    that BSDF only under the lobe of the gloss it was fitted for, and holds the BSDF's own
+    colour, so an albedo would tint it away from the physical material. The renderer applies
+    the gloss to every such object whatever the scene says; validation applies both.
+    """
+    objects = []
+    for o in scene.objects:
+        entry = entries.get(o.material)
+        if entry is not None and entry.fit is not None:
+            o = replace(o, gloss=float(entry.fit.gloss), albedo=(1.0, 1.0, 1.0))
+        objects.append(o)
+    return replace(scene, objects=objects)

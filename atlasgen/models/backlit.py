@@ -11,11 +11,13 @@ from functools import cache
 import numpy as np
 
 from atlasgen.io.fields import Param
-from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, Reference
+from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, Reference, SliceSet
+from atlasgen.models.physical_fit import fit_to_reference
+from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.quadrature import gauss_legendre_rule
 from atlasgen.optics.specular import specular_alpha
 
-__all__ = ["Backlit", "translucency", "transmitted_albedo", "VIEW_MODES"]
+__all__ = ["Backlit", "translucency", "transmitted_albedo", "thin_sheet_f_cos", "VIEW_MODES"]
 
 #: How the view term V.(-L) is reduced to (N.L, N.V); see :func:`translucency`.
 VIEW_MODES = ("average", "coplanar")
@@ -102,6 +104,33 @@ def transmitted_albedo(distortion: float, power: float) -> float:
     return 2.0 * (1.0 - float(distortion)) ** float(power) / (float(power) + 2.0)
 
 
+def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha: float):
+    """f |cos(theta_o)| of a thin diffuse sheet with a specular coat, ``(N, 3)`` RGB.
+
+    With w_i and w_o in the sheet's local frame (either side),
+
+        f = R / pi + specular D(h) V(w_i, w_o)                     w_o on w_i's side (reflection)
+        f = T / pi                                                 w_o on the other side (transmission)
+
+    D is GGX and V the height-correlated Smith visibility, the renderer's lobe (Walter et al.
+    2007; Heitz 2014), with the normal flipped to w_i's side; a
+    sheet with R + T <= 1 and no coat neither creates nor loses energy beyond absorption.
+    """
+    ci, co = wi[:, 2], wo[:, 2]
+    side = np.where(ci < 0.0, -1.0, 1.0)
+    ci, co = ci * side, co * side
+    same = co > 0.0
+    h = wi + wo
+    h2 = (h * h).sum(1)
+    nh = np.divide(h[:, 2] * side, np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lobe = np.nan_to_num(ggx_distribution(nh, alpha) * smith_visibility_correlated_ggx(ci, np.abs(co), alpha))
+    reflected = np.asarray(reflectance) / np.pi + (specular * lobe)[:, None]
+    value = np.where(same[:, None], reflected, np.asarray(transmittance) / np.pi) * np.abs(co)[:, None]
+    return np.where((ci > 0.0)[:, None], value, 0.0)
+
+
+
 class Backlit(Model):
     """A thin, semi-transparent surface: diffuse in front, transmitted light from behind.
 
@@ -145,8 +174,8 @@ class Backlit(Model):
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """``atlasgen_thinsheet``: a thin sheet with diffuse reflection ``colour``, diffuse transmission
         T = transmission_colour (scale 2 (1 - delta)^p / (p + 2) + ambient) (:func:`transmitted_albedo`:
-        the energy the model's term passes for light from behind along -N) and a Beckmann coat of
-        constant reflectance ``specular`` at the renderer's lobe width."""
+        the energy the model's term passes for light from behind along -N) and a GGX coat of
+        constant reflectance ``specular``: the renderer's lobe at its width."""
         a = np.asarray(albedo, dtype=np.float64)
         reflectance = np.asarray(values["colour"], dtype=np.float64) * a
         gain = values["scale"] * transmitted_albedo(values["distortion"], values["power"]) + values["ambient"]
@@ -154,4 +183,25 @@ class Backlit(Model):
         bsdf = {"type": THIN_SHEET_REFERENCE, "specular": float(values["specular"]), "alpha": float(specular_alpha(gloss))}
         bsdf.update({f"reflectance_{c}": float(v) for c, v in zip("rgb", reflectance)})
         bsdf.update({f"transmittance_{c}": float(v) for c, v in zip("rgb", transmittance)})
-        return Reference(bsdf, "thin sheet: diffuse reflection, diffuse transmission of the model's energy, Beckmann coat")
+        return Reference(bsdf, "thin sheet: diffuse reflection, diffuse transmission of the model's energy, GGX coat")
+
+    def fit_physical(self, values, gloss) -> SliceSet:
+        """The slice fitted to :meth:`physical_reference` at the renderer gloss ``gloss``
+        (:func:`atlasgen.models.physical_fit.fit_to_reference`), from :func:`thin_sheet_f_cos`,
+        the NumPy function the ``atlasgen_thinsheet`` plugin evaluates: no Mitsuba needed.
+
+        The renderer's equation holds the sheet exactly at texel centres: its transmission
+        T |N.L| / pi (N.L < 0) is the diffuse term RGB / pi with RGB = T |N.L|, its reflection
+        R N.L / pi likewise, and its coat is the renderer's lobe at this gloss, A = ``specular``;
+        what is left is the 8-bit rounding and the bilinear filter.
+        """
+        ref = self.physical_reference(values, gloss=gloss)
+        bsdf = ref.bsdf
+        reflectance = np.array([bsdf[f"reflectance_{c}"] for c in "rgb"])
+        transmittance = np.array([bsdf[f"transmittance_{c}"] for c in "rgb"])
+
+        def f_cos(l, v):  # the plugin's w_i is the view, w_o the light
+            return thin_sheet_f_cos(v, l, reflectance, transmittance, bsdf["specular"], bsdf["alpha"])
+
+        return fit_to_reference(self, values, f_cos, ref.description, gloss)
+

@@ -15,10 +15,10 @@
     (w_i, w_o): the analytic source, or the Mitsuba BSDF given in the material.
 ``atlasgen_thinfilm`` (:data:`THIN_FILM_REFERENCE`)
     The iridescent model's physical reference, a thin-film microfacet BSDF evaluated per
-    wavelength (:mod:`atlasgen.models.thin_film`), meant for ``llvm_ad_spectral``.
+    wavelength (:mod:`atlasgen.optics.thin_film`), meant for ``llvm_ad_spectral``.
 ``atlasgen_thinsheet`` (:data:`THIN_SHEET_REFERENCE`)
     The backlit model's physical reference: a thin sheet that reflects diffusely, transmits
-    diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`thin_sheet_f_cos`).
+    diffusely and has a GGX specular lobe (the renderer's) of constant reflectance (:func:`atlasgen.models.backlit.thin_sheet_f_cos`).
     It samples both hemispheres (reflection and transmission), each cosine-weighted.
 
 Each is a Python plugin (Mitsuba runs those in the ``llvm_ad_*`` variants only) that
@@ -33,9 +33,10 @@ import json
 import numpy as np
 
 from atlasgen.models import get_model
+from atlasgen.models.physical_fit import FittedSlice
 from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
-from atlasgen.models.thin_film import thin_film_f_cos
-from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
+from atlasgen.models.backlit import thin_sheet_f_cos
+from atlasgen.optics.thin_film import thin_film_f_cos
 from atlasgen.optics.specular import specular_alpha
 from atlasgen.separable.source import make_source
 
@@ -59,32 +60,6 @@ def _local_arrays(dr, si, wo):
 def _colour(mi, rgb: np.ndarray):
     rgb = np.ascontiguousarray(rgb, dtype=np.float32)
     return mi.Color3f(mi.Float(rgb[:, 0].copy()), mi.Float(rgb[:, 1].copy()), mi.Float(rgb[:, 2].copy()))
-
-
-def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha: float):
-    """f |cos(theta_o)| of a thin diffuse sheet with a specular coat, ``(N, 3)`` RGB.
-
-    With w_i and w_o in the sheet's local frame (either side),
-
-        f = R / pi + specular D(h) V(w_i, w_o)                     w_o on w_i's side (reflection)
-        f = T / pi                                                 w_o on the other side (transmission)
-
-    D is GGX and V the height-correlated Smith visibility, the renderer's lobe (Walter et al.
-    2007; Heitz 2014), with the normal flipped to w_i's side; a
-    sheet with R + T <= 1 and no coat neither creates nor loses energy beyond absorption.
-    """
-    ci, co = wi[:, 2], wo[:, 2]
-    side = np.where(ci < 0.0, -1.0, 1.0)
-    ci, co = ci * side, co * side
-    same = co > 0.0
-    h = wi + wo
-    h2 = (h * h).sum(1)
-    nh = np.divide(h[:, 2] * side, np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lobe = np.nan_to_num(ggx_distribution(nh, alpha) * smith_visibility_correlated_ggx(ci, np.abs(co), alpha))
-    reflected = np.asarray(reflectance) / np.pi + (specular * lobe)[:, None]
-    value = np.where(same[:, None], reflected, np.asarray(transmittance) / np.pi) * np.abs(co)[:, None]
-    return np.where((ci > 0.0)[:, None], value, 0.0)
 
 
 def reflection_probability(reflectance, transmittance) -> float:
@@ -154,6 +129,8 @@ def register_bsdfs(mi) -> None:
             _NumpyBSDF.__init__(self, props)
             spec = json.loads(props["material"])
             self.model = get_model(spec["type"])
+            if "fit_gloss" in spec:  # a from = "physical" material: its slice is the fit
+                self.model = FittedSlice(self.model, spec["fit_gloss"])
             self.values = spec["params"]
             self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
             self.gloss = float(spec.get("gloss", 0.5))
@@ -219,7 +196,7 @@ def register_bsdfs(mi) -> None:
             return f"BrdfReference[{self.source.kind}]"
 
     class ThinSheet(_NumpyBSDF):
-        """A thin sheet: diffuse reflection, diffuse transmission, a GGX coat (:func:`thin_sheet_f_cos`)."""
+        """A thin sheet: diffuse reflection, diffuse transmission, a GGX coat (:func:`atlasgen.models.backlit.thin_sheet_f_cos`)."""
 
         def __init__(self, props):
             _NumpyBSDF.__init__(self, props)

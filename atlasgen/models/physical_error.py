@@ -33,8 +33,8 @@ import numpy as np
 
 from atlasgen.io.fields import validate_params
 from atlasgen.models.base import Model
-from atlasgen.models.physical_fit import plain_bsdf_reference
-from atlasgen.models.physical_lut import fit_lut, lut_errors, pair_geometry, stored_slice
+from atlasgen.models.physical_fit import FIT_GLOSS, plain_bsdf_reference
+from atlasgen.models.physical_lut import fit_lut, LUT_GLOSSES, lut_errors, pair_geometry, stored_slice
 from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable
 from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: Version of the candidate list's content: part of the report cache's key.
-CANDIDATES_VERSION = 4
+CANDIDATES_VERSION = 5
 
 
 @dataclass(frozen=True)
@@ -64,17 +64,18 @@ class PhysicalBrdf:
         return make_source(self.params)
 
 
-def physical_brdf(model: Model, values: dict):
+def physical_brdf(model: Model, values: dict, gloss: float = FIT_GLOSS):
     """The physical reference of ``model`` with ``values`` as a :class:`PhysicalBrdf`, or why there is none (a string).
 
     A model that is its own physical material (:meth:`~atlasgen.models.base.Model.physical_brdf_source`)
-    gives its source; any other needs a plain Mitsuba BSDF (:func:`plain_bsdf_reference`).
+    gives its source; any other needs a plain Mitsuba BSDF (:func:`plain_bsdf_reference`) for an object
+    of renderer gloss ``gloss`` (a table model's physical coat has the renderer's roughness).
     """
     own = model.physical_brdf_source(values)
     if own is not None:
         params, description = own  # already the model's validated parameters
         return PhysicalBrdf(dict(params), description)
-    ref = plain_bsdf_reference(model, values)
+    ref = plain_bsdf_reference(model, values, gloss)
     if isinstance(ref, str):
         return ref
     params = validate_params(Separable.params, {"source": "mitsuba", "bsdf": ref.bsdf}, "<physical>")
@@ -104,21 +105,25 @@ def _entry(label: str, key: str, errors: dict, table, kind: str, **more) -> dict
             "error_se": errors.get("relative_rms_se", 0.0), "kind": kind, **more}  # fmt: skip
 
 
-def candidates_key(model: Model, values: dict) -> str:
+def candidates_key(model: Model, values: dict, gloss: float | None = None) -> str:
     """A digest of what :func:`physical_candidates` depends on (for a report's cache)."""
     table = read_lighting_cost()
-    text = json.dumps({"type": model.type_name, "values": values, "version": CANDIDATES_VERSION,
+    text = json.dumps({"type": model.type_name, "values": values, "gloss": gloss, "version": CANDIDATES_VERSION,
                        "costs": table.costs, "device": table.device}, sort_keys=True, default=str)  # fmt: skip
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
-def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool = True) -> dict:
+def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool = True, gloss: float | None = None) -> dict:
     """Every representation ``values`` could be baked as, with its run-time cost and its error against
     the physical reference (relative RMS of f cos, standard error), or why there is no reference.
 
     Returns ``{"reference", "estimator", "pairs", "seed", "cost_device", "cost_unit", "gloss",
     "candidates": [{"representation", "cost_key", "cost", "error", "error_se", "kind", ...}]}`` or
-    ``{"reference": None, "reason": ...}``. Candidates:
+    ``{"reference": None, "reason": ...}``. ``gloss`` is the renderer gloss the material is drawn
+    with (a material fitted from physics: its ``fit.gloss``): the physical reference's and every
+    LUT candidate's. Without it, a table model's is :data:`~atlasgen.models.physical_fit.FIT_GLOSS`,
+    and a BRDF that is its own physical material (separable) lets the fitted slice choose among
+    :data:`~atlasgen.models.physical_lut.LUT_GLOSSES`. Candidates:
 
     - for a table model (one (N.L, N.V) slice): its closed form drawn by the renderer at the fitted
       gloss with no texels (the limit of a finer table), its point-sampled slice after 8-bit storage,
@@ -130,14 +135,16 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     - the analytic shader where the physical BRDF is a closed form it evaluates (exact: error 0), or a
       Mitsuba BSDF it has in closed form (:func:`analytic_twin`; its error measured like the others').
     """
-    brdf = physical_brdf(model, values)
+    own = model.physical_brdf_source(values) is not None
+    drawn = FIT_GLOSS if gloss is None else float(gloss)
+    brdf = physical_brdf(model, values, drawn)
     if isinstance(brdf, str):
         return {"reference": None, "reason": brdf}
     table = read_lighting_cost()
     source = brdf.source()
     sample = error_sample_for(source, ERROR_SEED)
     reference, _ = reference_values(source, sample)
-    fitted, info = fit_lut(brdf.params, srgb=srgb)
+    fitted, info = fit_lut(brdf.params, LUT_GLOSSES if gloss is None and own else (drawn,), srgb=srgb)
     gloss = float(info["gloss"])
     lut = cost_key("lut")
     out = []

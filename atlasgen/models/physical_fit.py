@@ -25,12 +25,14 @@ import numpy as np
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.models.base import Model, SliceSet
+from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
-           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos"]  # fmt: skip
+           "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice",
+           "slice_relative_rms", "fit_to_reference"]  # fmt: skip
 
 #: Azimuth samples per texel.
 AZIMUTHS = 128
@@ -38,6 +40,8 @@ AZIMUTHS = 128
 FIT_GLOSS = 0.5
 #: Glosses tried when a fit chooses its own (``type = "bsdf"`` without ``gloss``).
 GLOSS_CANDIDATES = tuple(np.linspace(0.0, 1.0, 33).tolist())
+#: Width in gloss at which a chosen gloss stops being refined (:func:`fit_slice`).
+GLOSS_TOLERANCE = 2e-4
 #: N.V at which the N.V = 0 texel row is sampled (see :func:`fit_slice`).
 GRAZING_N_DOT_V = 1e-3
 #: Quantiles of the fitted A tried as its cap (1 = no cap): see :func:`fit_slice`.
@@ -88,7 +92,8 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     """The slice (``(H, W, 4)``) fitted to ``f_cos(l, v) -> (N, 3)``, and a dict describing the fit.
 
     ``gloss`` is the renderer gloss the slice is made for, or ``None`` to choose the one of
-    :data:`GLOSS_CANDIDATES` with the least residual. The dict holds ``gloss``,
+    least residual: the best of :data:`GLOSS_CANDIDATES`, refined by golden-section search
+    within one grid step to :data:`GLOSS_TOLERANCE`. The dict holds ``gloss``,
     ``azimuths``, ``alpha_cap`` and ``relative_rms``: sqrt(residual / sum w t^2) over
     every texel with the RGB and A rounded to 8 bits as stored.
     """
@@ -100,14 +105,22 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     target = np.where(np.isfinite(target), target, 0.0)
     weights = np.full(l.shape[:-1], 1.0 / azimuths)
     energy = float((weights[..., None] * target * target).sum())
-    best = None
-    for g in (GLOSS_CANDIDATES if gloss is None else (float(gloss),)):
-        diffuse, lobe = renderer_bases(g, l, v, nh, degenerate)
-        rgba = project_slice_texels(target, diffuse, lobe, weights)
-        residual = float(weighted_residual(target, diffuse, lobe, weights, rgba).sum())
-        if best is None or residual < best[0]:
-            best = (residual, g, rgba, diffuse, lobe)
-    _, g, rgba, diffuse, lobe = best
+    fits = {}
+
+    def fit_at(g):
+        if g not in fits:
+            diffuse, lobe = renderer_bases(g, l, v, nh, degenerate)
+            rgba = project_slice_texels(target, diffuse, lobe, weights)
+            fits[g] = (float(weighted_residual(target, diffuse, lobe, weights, rgba).sum()), g, rgba, diffuse, lobe)
+        return fits[g]
+
+    if gloss is None:
+        coarse = min((fit_at(g) for g in GLOSS_CANDIDATES), key=lambda fit: fit[0])[1]
+        step = GLOSS_CANDIDATES[1] - GLOSS_CANDIDATES[0]
+        _refine_gloss(lambda g: fit_at(g)[0], max(0.0, coarse - step), min(1.0, coarse + step))
+    else:
+        fit_at(float(gloss))
+    _, g, rgba, diffuse, lobe = min(fits.values(), key=lambda fit: (fit[0], fit[1]))
     # Round the RGB as the atlas will store it (encode_scaled's per-slice scale, then 8 bits),
     # and give A the best value against what is stored.
     scale = max(1.0, float(rgba[..., :3].max()))
@@ -132,10 +145,81 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     return rgba, info
 
 
-def plain_bsdf_reference(model: Model, values: dict):
-    """The model's physical reference if it is one BSDF evaluated in ``llvm_ad_rgb`` with the
-    default integrator (what a projection can sample), else a reason why not (a string)."""
-    ref = model.physical_reference(values)
+def _refine_gloss(residual, lo: float, hi: float, tolerance: float = GLOSS_TOLERANCE) -> None:
+    """Golden-section search for the gloss of least ``residual`` in [lo, hi] (Kiefer 1953).
+
+    The coarse grid's step (1/32 in gloss) is about 6% in alpha near gloss 0.7, enough to
+    cost a sharp lobe several dB where its peak is bright: the residual is smooth and
+    unimodal around the grid's best, so a bracketing search recovers the BSDF's own width.
+    """
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = lo, hi
+    c, d = b - ratio * (b - a), a + ratio * (b - a)
+    fc, fd = residual(c), residual(d)
+    while b - a > tolerance:
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - ratio * (b - a)
+            fc = residual(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + ratio * (b - a)
+            fd = residual(d)
+
+
+def slice_relative_rms(rgba, f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS) -> float:
+    """Relative RMS of the renderer's f cos with slice ``rgba`` (``(H, W, 4)``, at the texel
+    centres) against ``f_cos(l, v) -> (N, 3)``: sqrt(sum w (t - fit)^2 / sum w t^2) over the
+    same (l, v) pairs and weights as :func:`fit_slice`, at renderer gloss ``gloss``."""
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    l, v, nh, degenerate = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), azimuths)
+    target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
+    target = np.where(np.isfinite(target), target, 0.0)
+    weights = np.full(l.shape[:-1], 1.0 / azimuths)
+    diffuse, lobe = renderer_bases(float(gloss), l, v, nh, degenerate)
+    residual = float(weighted_residual(target, diffuse, lobe, weights, np.asarray(rgba, dtype=np.float64)).sum())
+    energy = float((weights[..., None] * target * target).sum())
+    return float(np.sqrt(residual / energy)) if energy > 0 else 0.0
+
+
+def _remember_last(f_cos):
+    """``f_cos`` that returns its last result again for the same (l, v): a spectral reference
+    costs seconds per slice of pairs."""
+    last = {}
+
+    def remembered(l, v):
+        if "t" not in last or not (np.array_equal(last["l"], l) and np.array_equal(last["v"], v)):
+            last.update(l=np.array(l), v=np.array(v), t=np.asarray(f_cos(l, v), dtype=np.float64))
+        return last["t"]
+
+    return remembered
+
+
+def fit_to_reference(model: Model, values: dict, f_cos, reference: str, gloss: float = FIT_GLOSS, **extra) -> SliceSet:
+    """One slice fitted by :func:`fit_slice` to a model's physical reference given as NumPy
+    ``f_cos(l, v) -> (N, 3)``, for the renderer gloss ``gloss`` (a model's
+    :meth:`~atlasgen.models.base.Model.fit_physical`).
+
+    ``extra["fit"]`` holds ``from`` ("physical"), ``reference``, the fit's own description
+    (``gloss``, ``azimuths``, ``alpha_cap``, ``relative_rms``: 8-bit RGB and A), ``extra`` and
+    ``model_relative_rms``: the model's own float slice (``from = "model"``, at the texel
+    centres, not rounded) against the same reference in the same measure, so the manifest
+    says what fitting to physics gained.
+    """
+    f_cos = _remember_last(f_cos)  # the fit and the model's measure sample the same pairs
+    rgba, info = fit_slice(f_cos, float(gloss))
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    own = np.broadcast_to(np.asarray(model.evaluate(values, nl[None, :], nv[:, None]), dtype=np.float64), rgba.shape)
+    fit = {"from": "physical", "reference": reference, **info, **extra,
+           "model_relative_rms": slice_relative_rms(own, f_cos, float(gloss), info["azimuths"])}  # fmt: skip
+    return SliceSet(rgba.reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
+
+
+def plain_bsdf_reference(model: Model, values: dict, gloss: float = FIT_GLOSS):
+    """The model's physical reference for an object of albedo 1 and renderer gloss ``gloss``
+    if it is one BSDF evaluated in ``llvm_ad_rgb`` with the default integrator (what a
+    projection can sample), else a reason why not (a string)."""
+    ref = model.physical_reference(values, (1.0, 1.0, 1.0), gloss)
     if ref is None:
         return f"model '{model.type_name}' has no physical reference"
     if ref.integrator is not None or ref.interior is not None or ref.stochastic:
@@ -191,7 +275,47 @@ def bake_from_physics(model: Model, values: dict, path="<material>", gloss: floa
     check_physical_fit(model, values, path)
     if _fits_itself(model):
         return model.fit_physical(values, float(gloss))
-    ref = plain_bsdf_reference(model, values)
+    # The reference at the fit's gloss: a model whose roughness is the g-buffer's (fresnel)
+    # describes a different BSDF at each gloss.
+    ref = plain_bsdf_reference(model, values, float(gloss))
     rgba, info = fitted_bsdf_slice(ref.bsdf, float(gloss))
     fit = {"from": "physical", "reference": ref.description, **info}
     return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
+
+
+class FittedSlice(Model):
+    """A ``from = "physical"`` material as validation sees it: its slice is the fit, not the closed form.
+
+    :meth:`evaluate` samples the float slice fitted for renderer gloss ``gloss`` as the
+    renderer does, so the model reference (the renderer's equation with the exact slice)
+    and the float rebuild measure what the atlas costs against the fit; the physical
+    reference is the wrapped model's, the material the fit reproduces.
+    """
+
+    def __init__(self, model: Model, gloss: float):
+        self.model, self.gloss = model, float(gloss)
+        self.type_name, self.params, self.reference = model.type_name, model.params, model.reference
+        self.physical_omissions, self.validation_goals = model.physical_omissions, model.validation_goals
+        self._tables: dict[str, np.ndarray] = {}
+
+    def bake(self, values: dict) -> SliceSet:
+        return bake_from_physics(self.model, values, gloss=self.gloss)
+
+    def _table(self, values: dict) -> np.ndarray:
+        key = json.dumps(values, sort_keys=True, default=str)
+        if key not in self._tables:
+            self._tables[key] = np.asarray(self.bake(values).values[0], dtype=np.float64)
+        return self._tables[key]
+
+    def evaluate(self, values, n_dot_l, n_dot_v):
+        nl, nv = np.broadcast_arrays(np.asarray(n_dot_l, dtype=np.float64), np.asarray(n_dot_v, dtype=np.float64))
+        return sample_slice(self._table(values), nl, nv)
+
+    def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
+        ref = Model.model_reference(self, values, albedo, gloss)
+        material = {**json.loads(ref.bsdf["material"]), "fit_gloss": self.gloss}
+        return type(ref)({**ref.bsdf, "material": json.dumps(material, sort_keys=True)},
+                         f"{self.type_name} slice fitted from physics (gloss {self.gloss:g}), exact, in the renderer's equation")
+
+    def physical_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
+        return self.model.physical_reference(values, albedo, gloss)

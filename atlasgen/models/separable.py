@@ -18,6 +18,7 @@ from atlasgen.io.fields import Param
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
 from atlasgen.models.base import (
     BRDF_REFERENCE,
+    THIN_FILM_REFERENCE,
     encode_scaled,
     EncodedSlices,
     Model,
@@ -25,9 +26,11 @@ from atlasgen.models.base import (
     Reference,
     SliceSet,
 )
+from atlasgen.models.iridescent import Iridescent
 from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import renderer_f_cos
+from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
 from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
 from atlasgen.separable.approximate import approximate_brdf, GRID_RESOLUTIONS, reference_values
@@ -47,7 +50,8 @@ from atlasgen.shaderlang import Function, Let, Return, float_literal
 from atlasgen.separable.source import make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
 
-__all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss"]
+__all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
+           "check_film"]  # fmt: skip
 
 MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
 #: ``representation = "auto"`` without an ``error_budget``: the separable default budget.
@@ -55,10 +59,35 @@ DEFAULT_BUDGET = 0.02
 #: Largest fixed ``terms``: the rank of a 32 x 1024 factor matrix.
 MAX_TERMS = 32
 
-SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba")
+SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba", "thin_film")
 #: Sources the lighting shader can evaluate in closed form (``representation = "analytic"``).
 ANALYTIC_SHADER_SOURCES = ("ggx", "beckmann", "lambert")
 REPRESENTATIONS = ("separable", "analytic", "auto")
+
+
+#: Keys of a ``source = "thin_film"`` material's ``film`` table (the iridescent model's parameters
+#: of the same names and ranges); the first three are required.
+FILM_KEYS = ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy")
+
+
+def check_film(film, path) -> dict:
+    """A ``film`` table checked against the iridescent model's parameters of the same names:
+    the stack (``thickness``, ``film_ior``, ``base_ior`` required, ``base_k``) and how the
+    film's reflection splits (``film_strength``, ``film_split``, ``energy``); returns it with
+    the defaults filled in. The back-light is not a key: a slice holds reflection only."""
+    if not isinstance(film, dict):
+        raise MaterialError(path, "film", f"expected a table such as {{thickness = 420.0, film_ior = 1.45, base_ior = 1.8}}, got {film!r}")
+    params = {p.name: p for p in Iridescent.params if p.name in FILM_KEYS}
+    for key in film:
+        if key not in params:
+            raise MaterialError(path, f"film.{key}", f"unknown; expected one of {', '.join(FILM_KEYS)}")
+    for key in FILM_KEYS[:3]:
+        if key not in film:
+            raise MaterialError(path, f"film.{key}", "missing; the film stack needs thickness, film_ior and base_ior")
+    out = {key: params[key].coerce(film[key], path, name=f"film.{key}") if key in film else params[key].default
+           for key in FILM_KEYS}  # fmt: skip
+    Iridescent().check(out, path)  # the base must reflect
+    return out
 
 
 def _parametrization_names():
@@ -99,6 +128,7 @@ class Separable(Model):
         Param("diffuse", (0.0, 0.0, 0.0), "colour", doc="Lambertian colour added (the whole BRDF for 'lambert')"),
         Param("exponent", 100.0, "float", lo=0.0, hi=1e6, lo_open=True, doc="Blinn-Phong exponent"),
         Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
+        Param("film", None, "table", doc="the film stack and split, as the iridescent model names them (source = 'thin_film')"),
         Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
         Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: the cheapest K <= 8 and grid meeting it"),
         Param("grid", None, "int", lo=4, hi=128, doc="fixed sampling grid, texels per factor axis (default: 32, or 16 or 32 chosen by the budget)"),
@@ -124,6 +154,13 @@ class Separable(Model):
             load_mitsuba_bsdf(values["bsdf"], path, reflection_only=values["reflection_only"])
         elif values["bsdf"] is not None:
             raise MaterialError(path, "bsdf", f"only used with source = 'mitsuba', but source is {values['source']!r}")
+        if values["source"] == "thin_film":
+            if values["film"] is None:
+                raise MaterialError(path, "film", "missing; expected a table such as {thickness = 420.0, film_ior = 1.45, "
+                                                  "base_ior = 1.8} with source = 'thin_film'")  # fmt: skip
+            check_film(values["film"], path)
+        elif values["film"] is not None:
+            raise MaterialError(path, "film", f"only used with source = 'thin_film', but source is {values['source']!r}")
         if values["reflection_only"] and values["source"] != "mitsuba":
             raise MaterialError(path, "reflection_only", f"only used with source = 'mitsuba' (a transmissive BSDF), "
                                                          f"but source is {values['source']!r}")  # fmt: skip
@@ -409,11 +446,29 @@ class Separable(Model):
 
     # -- references and validation -------------------------------------------------------------
     no_physical_reference = ("its model reference is already the source BSDF itself (analytic or Mitsuba's), "
-                             "the physical material the factors approximate")
+                             "the physical material the factors approximate; source = 'thin_film' has the spectral thin film")
+
+    def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
+        """For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
+        in ``llvm_ad_spectral``, wavelengths sampled per sample) with this material's film, ``alpha``
+        and base colour ``diffuse`` times the albedo, no back-light: the film the source integrates
+        to RGB for white light (:func:`atlasgen.separable.source.thin_film_source`). Other sources:
+        ``None`` (their model reference is the source itself)."""
+        if values["source"] != "thin_film":
+            return None
+        film = {**FILM_DEFAULTS, **values["film"]}
+        colour = np.asarray(values["diffuse"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        bsdf = {"type": THIN_FILM_REFERENCE, "film": json.dumps(film, sort_keys=True), "alpha": float(values["alpha"])}
+        bsdf.update({f"colour_{c}": float(x) for c, x in zip("rgb", colour)})
+        return Reference(bsdf, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral, "
+                               "wavelengths sampled per sample)", variant="llvm_ad_spectral", stochastic=True)  # fmt: skip
 
     def physical_brdf_source(self, values: dict):
-        """The source itself is the physical material the factors approximate."""
+        """The source itself is the physical material the factors approximate, except a thin film
+        (its physical material is the spectral film of :meth:`physical_reference`)."""
         src = values["source"]
+        if src == "thin_film":
+            return None
         return dict(values), f"source BRDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else "")
 
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
@@ -484,7 +539,7 @@ LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("s
 
 def fit_gloss(entry) -> float:
     """The renderer gloss a slice fitted from physics was made for (the manifest's ``fit.gloss``)."""
-    return float((entry.extra.get("fit") or {}).get("gloss", 0.5))
+    return float(entry.fit.gloss) if entry.fit is not None else 0.5
 
 
 def _lut_radiance(table, gloss: float):

@@ -190,7 +190,9 @@ class Renderer:
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj, scene.path)
             model = object_matrix(obj)
-            object_data += pack_object(model, obj.albedo, obj.gloss, entry.first_slice)
+            # A slice fitted to a physical BSDF holds it only under the lobe it was fitted for.
+            gloss = obj.gloss if entry.fit is None else entry.fit.gloss
+            object_data += pack_object(model, obj.albedo, gloss, entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
             centres.append(0.5 * (world.min(0) + world.max(0)))

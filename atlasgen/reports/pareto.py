@@ -48,7 +48,7 @@ def baked_candidate(entry: MaterialEntry, result: dict) -> str | None:
     """The candidate of ``result`` that ``entry`` is baked as (its ``representation`` label)."""
     labels = [c["representation"] for c in result.get("candidates", [])]
     rep = entry.representation
-    fit = entry.extra.get("fit") or {}
+    fit = entry.fit.to_json() if entry.fit is not None else {}
     if isinstance(rep, AnalyticRepresentation):
         wanted = [f"analytic:{rep.distribution}"]
     elif entry.factors is not None:
@@ -68,7 +68,7 @@ _MEMO: dict = {}
 
 
 def _compute(job):
-    type_name, params = job
+    type_name, params, gloss = job
     try:
         model = get_model(type_name)
         # The manifest's params are the model's values as baked; checked again, so a damaged
@@ -77,9 +77,14 @@ def _compute(job):
         values = validate_params(model.params, {k: v for k, v in params.items() if not (v is None and k in unset)},
                                  "<manifest params>")  # fmt: skip
         model.check(values, "<manifest params>")
-        return physical_candidates(model, values, bake_supersampled)
+        return physical_candidates(model, values, bake_supersampled, gloss=gloss)
     except AtlasgenError as exc:  # e.g. Mitsuba missing: the page says so, and nothing is cached
         return {"reference": None, "reason": f"not measured: {exc}", "transient": True}
+
+
+def _gloss(entry: MaterialEntry) -> float | None:
+    """The renderer gloss a material fitted from physics is drawn with (every object showing it), else None."""
+    return None if entry.fit is None else float(entry.fit.gloss)
 
 
 def _cache_path(cache_dir: Path, name: str) -> Path:
@@ -99,7 +104,7 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
     out, todo = {}, []
     for entry in entries:
         # The code below bake/ (the bake cache's fingerprint) decides the figures as much as the params.
-        key = hashlib.sha256(f"{candidates_key(get_model(entry.type), entry.params)}:{tool_fingerprint()}".encode()).hexdigest()
+        key = hashlib.sha256(f"{candidates_key(get_model(entry.type), entry.params, _gloss(entry))}:{tool_fingerprint()}".encode()).hexdigest()
         cached = None
         if cache_dir is not None and _cache_path(cache_dir, entry.name).exists():
             try:
@@ -113,7 +118,7 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
         else:
             todo.append((entry, key))
     jobs = max(1, min(int(jobs), len(todo), os.cpu_count() or 1))
-    work = [(e.type, e.params) for e, _ in todo]
+    work = [(e.type, e.params, _gloss(e)) for e, _ in todo]
     if jobs > 1:
         # spawn: a forked Mitsuba/LLVM runtime is not safe to reuse.
         with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:

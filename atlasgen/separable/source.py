@@ -8,9 +8,10 @@ import numpy as np
 
 from atlasgen.separable.analytic import evaluate_analytic
 from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos, load_mitsuba_bsdf
+from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 from atlasgen.separable.parametrization import HORIZON_COS
 
-__all__ = ["BrdfSource", "make_source", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
+__all__ = ["BrdfSource", "make_source", "thin_film_source", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
 
 
 class BrdfSource:
@@ -54,8 +55,29 @@ class BrdfSource:
         return self._shape(l, self._f_cos(l, v)) / np.maximum(l[..., 2], HORIZON_COS)[..., None]
 
 
+def thin_film_source(film: dict, alpha: float, diffuse) -> BrdfSource:
+    """The thin-film microfacet BSDF (:func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`, the
+    iridescent model's physical reference integrated to linear sRGB for white light) as a source:
+    the film stack and split ``film``, GGX roughness ``alpha``, base colour ``diffuse``; f cos on
+    the upper hemispheres only (a slice holds reflection), 0 at the horizon like Mitsuba's."""
+    film = dict(film)
+    alpha = float(alpha)
+    diffuse = np.asarray(diffuse, dtype=np.float64)
+
+    def f_cos(l, v):
+        shape = np.shape(l)
+        l2 = np.asarray(l, dtype=np.float64).reshape(-1, 3)
+        v2 = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+        value = thin_film_rgb_f_cos(v2, l2, film, alpha, diffuse)  # w_i is the view, w_o the light
+        return np.where((l2[:, 2:3] > 0.0) & (v2[:, 2:3] > 0.0), value, 0.0).reshape(shape)
+
+    return BrdfSource("thin_film", evaluate_f_cos=f_cos, zero_on_horizon=True, alpha=alpha)
+
+
 def make_source(params: dict, path="<material>") -> BrdfSource:
     """The source a separable material's params describe (Mitsuba loaded lazily)."""
+    if params["source"] == "thin_film":
+        return thin_film_source(params["film"], params["alpha"], params["diffuse"])
     if params["source"] == "mitsuba":
         bsdf = load_mitsuba_bsdf(params["bsdf"], path)
         return BrdfSource("mitsuba", evaluate_f_cos=lambda l, v: evaluate_mitsuba_f_cos(bsdf, l, v), zero_on_horizon=True,

@@ -39,13 +39,26 @@ from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models import get_model, model_types
 from atlasgen.models.base import Reference
 from atlasgen.models.mitsuba_bsdfs import register_bsdfs
+from atlasgen.models.physical_fit import FittedSlice
 
-__all__ = ["register_references", "model_reference", "physical_reference"]
+__all__ = ["register_references", "entry_model", "model_reference", "physical_reference"]
 
 
 def register_references(mi) -> None:
     """Register atlasgen's BSDF plugins for Mitsuba's current variant (``mi.register_bsdf``)."""
     register_bsdfs(mi)
+
+
+def entry_model(entry: MaterialEntry):
+    """The model a manifest entry's slices were baked from: its registered model, or for a
+    ``from = "physical"`` entry that model's fitted slice (:class:`FittedSlice`), so that the
+    model reference and the rebuilds measure the atlas against what was baked.
+
+    Raises :class:`KeyError` for an unknown type."""
+    model = get_model(entry.type)
+    if entry.fit is not None and entry.fit.source == "physical":
+        return FittedSlice(model, entry.fit.gloss)
+    return model
 
 
 def model_reference(entry: MaterialEntry, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference:
@@ -55,7 +68,7 @@ def model_reference(entry: MaterialEntry, albedo=(1.0, 1.0, 1.0), gloss: float =
     type, or a model without one).
     """
     try:
-        model = get_model(entry.type)
+        model = entry_model(entry)
     except KeyError:
         raise InputError(f"material {entry.name!r}: no reference for model type {entry.type!r}; "
                          f"expected one of {', '.join(model_types())}") from None  # fmt: skip
@@ -67,4 +80,4 @@ def model_reference(entry: MaterialEntry, albedo=(1.0, 1.0, 1.0), gloss: float =
 
 def physical_reference(entry: MaterialEntry, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5) -> Reference | None:
     """The physical reference of a manifest entry, or ``None`` where its model has none."""
-    return get_model(entry.type).physical_reference(entry.params, albedo, gloss)
+    return entry_model(entry).physical_reference(entry.params, albedo, gloss)

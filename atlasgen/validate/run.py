@@ -27,6 +27,7 @@ from atlasgen.errors import BackendError, did_you_mean, InputError, SceneError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.materials.material import read_material
+from atlasgen.materials.scene import with_fitted_surfaces
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
@@ -39,7 +40,7 @@ from atlasgen.validate.mitsuba_scene import (
     render_mitsuba,
 )
 from atlasgen.validate.rebuild import material_mask, rebuild_images
-from atlasgen.validate.references import model_reference, physical_reference, register_references
+from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
 from atlasgen.validate.scenes import bind_material, load_validation_scene, MATERIAL_PLACEHOLDER, resize_scene
 
 __all__ = [
@@ -281,12 +282,15 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
     runs = []
     for done, entry in enumerate(plan.entries, 1):
-        model = get_model(entry.type)
+        model = entry_model(entry)
         for scene_name, scene in plan.scenes:
-            bound = bind_material(scene, entry.name)
+            bound = with_fitted_surfaces(bind_material(scene, entry.name), {e.name: e for e in plan.manifest.materials})
             atlas_image, atlas_s, aovs = _time_atlas(renderer, bound)
             run = MaterialRun(entry.name, entry.type, scene_name, atlas_image, atlas_s, bound.settings.exposure,
                               goals=model.validation_goals)  # fmt: skip
+            if entry.fit is not None:
+                run.notes.append(f"fitted to a physical BSDF for gloss {entry.fit.gloss:g}: the objects showing it are "
+                                 f"shaded with that gloss and albedo 1, whatever the scene sets")  # fmt: skip
             say(f"{entry.name} / {scene_name}: atlas {1000 * atlas_s:.1f} ms")
 
             mi.set_variant("llvm_ad_rgb")

@@ -22,7 +22,7 @@ from atlasgen.cli.main import app
 from atlasgen.contract import FORMAT_VERSION
 from atlasgen.errors import InputError, ManifestError
 from atlasgen.io.manifest import (
-    BrdfError, Dimensions, ErrorSummary, LutRepresentation, Manifest, MaterialEntry, SeparableFactors, VolumeBleed,
+    BrdfError, Dimensions, ErrorSummary, Fit, LutRepresentation, Manifest, MaterialEntry, SeparableFactors, VolumeBleed,
     format_manifest, parse_manifest, read_manifest, write_manifest,
 )  # fmt: skip
 
@@ -113,6 +113,17 @@ def test_model_fields_merge_in_place_and_become_typed():
     assert merged.quantization_error == ErrorSummary(max=0.5, rms=0.25)
     keys = list(merged.to_json())
     assert keys.index("quantization_error") == keys.index("clamped_fraction") + 1 and keys[-1] == "representation"
+
+
+def test_a_fit_description_becomes_typed_and_round_trips_in_order():
+    fit = {"from": "physical", "reference": "roughplastic", "gloss": 0.45, "azimuths": 128, "relative_rms": 0.02}
+    merged = _lut_entry().with_fields({"fit": fit})
+    assert merged.fit == Fit(source="physical", gloss=0.45, details=fit) and merged.extra == {}
+    assert merged.to_json()["fit"] == fit and list(merged.to_json()["fit"]) == list(fit)
+    written = _manifest(merged, atlas_sha256="0" * 64).to_json()
+    assert list(_schema("manifest").iter_errors(written)) == []
+    written["materials"][0]["fit"]["gloss"] = 2.0
+    assert list(_schema("manifest").iter_errors(written)) != []
 
 
 _numbers = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False) | st.integers(-1000, 1000)
@@ -260,6 +271,10 @@ REFUSED = {
     "factor table": (_with(_set(["materials", 5, "factor_bias"], [[0, 0]] * 4)), "materials[5].factor_bias[0]", "[[r, g, b], [r, g, b]]"),
     "factors without scale": (_with(lambda d: d["materials"][5].pop("factor_scale")), "materials[5].factor_scale", "missing"),
     "bad representation": (_with(_set(["materials", 5, "representation"], {"kind": "x"})), "materials[5].representation", "expected a LUT"),
+    "fit gloss": (_with(_set(["materials", 0, "fit"], {"from": "physical", "gloss": 1.5})), "materials[0].fit.gloss",
+                  "expected a number in [0, 1], got 1.5"),
+    "fit source": (_with(_set(["materials", 0, "fit"], {"from": "closed-form", "gloss": 0.5})), "materials[0].fit.from",
+                   "one of 'physical', 'bsdf'"),
     "encoding": (_with(_set(["encoding"], "hdr")), "encoding", "one of 'srgb', 'linear'"),
     "dxgi mismatch": (_with(_set(["dxgi_format"], 28)), "dxgi_format", "29 (the DXGI format of srgb encoding), got 28"),
 }

@@ -49,13 +49,33 @@ def test_from_physical_lambert_gives_back_the_lambertian_slice(mitsuba_llvm, wri
     assert slices.extra["fit"]["from"] == "physical" and slices.extra["fit"]["gloss"] == 0.5
 
 
+def test_fit_gloss_sets_the_gloss_a_physical_fit_is_made_for(mitsuba_llvm, write_material):
+    text = 'type = "fresnel"\ncolour = [0.6, 0.1, 0.1]\nfrom = "physical"\n'
+    default = read_material(write_material("a", text))
+    chosen = read_material(write_material("b", text + "fit_gloss = 0.3\n"))
+    assert (default.fit_gloss, chosen.fit_gloss) == (0.5, 0.3)
+    fit = bake_material(chosen).extra["fit"]
+    # The roughplastic reference is the one of the fit's gloss (alpha (1 - 0.3)^2 = 0.49).
+    assert fit["gloss"] == 0.3 and "alpha" not in fit
+    assert not np.allclose(bake_material(default).values, bake_material(chosen).values, atol=1e-3)
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('type = "fresnel"\nfit_gloss = 0.3\n', "fit_gloss.*expected no fit_gloss without from = 'physical'"),
+    ('type = "lambert"\nfrom = "physical"\nfit_gloss = 1.5\n', "fit_gloss.*expected a finite number >= 0 and <= 1, got 1.5"),
+])  # fmt: skip
+def test_fit_gloss_is_checked(write_material, text, expected):
+    with pytest.raises(MaterialError, match=expected):
+        read_material(write_material("m", text))
+
+
 def test_from_physical_fresnel_bakes_from_roughplastic(mitsuba_llvm, write_material):
     material = read_material(write_material("m", 'type = "fresnel"\ncolour = [0.6, 0.1, 0.1]\nfrom = "physical"\n'))
     table = bake_material(material).values[0]
     assert np.isfinite(table).all() and (table >= 0.0).all() and table[..., 3].max() > 0.0
 
 
-@pytest.mark.parametrize("type_name", ["sss", "iridescent", "toon", "backlit"])
+@pytest.mark.parametrize("type_name", ["sss", "toon"])
 def test_from_physical_refused_where_the_reference_is_no_plain_bsdf(write_material, type_name):
     with pytest.raises(MaterialError, match=r"\bfrom\b"):
         read_material(write_material("m", f'type = "{type_name}"\nfrom = "physical"\n'))

@@ -13,7 +13,7 @@ import pytest
 
 from atlasgen.models import get_model, model_types
 from atlasgen.models.backlit import translucency, transmitted_albedo
-from atlasgen.models.thin_film import film_average, film_table, thin_film_f_cos
+from atlasgen.optics.thin_film import film_average, film_table, thin_film_f_cos
 from atlasgen.optics.quadrature import gauss_legendre_rule
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "validation.md"
@@ -112,7 +112,7 @@ def test_film_strength_scales_the_film_and_split_moves_it_into_a_rough_part():
     np.testing.assert_allclose(strong, 3.0 * plain, rtol=1e-12)
     wi, wo, lam, rough = _film_f_cos(film_split=1.0)
     table = film_table(*_FILM.values())
-    from atlasgen.models.thin_film import _lookup
+    from atlasgen.optics.thin_film import _lookup
 
     expected = _lookup(table, wi[:, 2:3], lam) / np.pi * wo[:, 2:3]
     np.testing.assert_allclose(rough, expected, rtol=1e-12)
@@ -139,7 +139,7 @@ def test_the_backlight_transmits_from_behind_through_the_film():
     assert np.all(dark == 0.0)  # backlight 0: no transmission
     *_, lit = _film_f_cos(wo_below=True, back=0.7, backlight=2.0, backlight_distortion=0.3, backlight_power=3.0)
     t = np.clip(-(wi * wo).sum(1) - 0.3 * wi[:, 2], 0.0, 1.0) ** 3.0
-    from atlasgen.models.thin_film import _lookup
+    from atlasgen.optics.thin_film import _lookup
 
     expected = 2.0 * 0.7 / np.pi * t[:, None] * (1.0 - _lookup(film_table(*_FILM.values()), wi[:, 2:3], lam))
     np.testing.assert_allclose(lit, expected, rtol=1e-12)

@@ -126,3 +126,21 @@ def test_fitted_lambertian_slice_holds_the_colour_to_one_srgb_step():
     step = np.abs(encode_srgb(rgba[..., :3]) - encode_srgb(np.broadcast_to(expected, rgba[..., :3].shape)))
     assert step.max() <= 0.5 / 255 + 1e-9
     assert info["gloss"] == 0.5 and info["relative_rms"] < 0.01
+
+
+def test_a_fit_choosing_its_gloss_finds_the_lobe_width_between_grid_points():
+    """A diffuse colour plus 0.3 times the renderer's own lobe at a gloss off the 1/32 grid:
+    the slice holds it exactly at that gloss only, and the refined search lands on it."""
+    truth = 0.6123
+    assert min(abs(truth - k / 32) for k in range(33)) > 0.005
+
+    def f_cos(l, v):
+        h = l + v
+        h2 = (h * h).sum(-1)
+        nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+        diffuse, lobe = renderer_bases(truth, l[:, None], v[:, None], nh[:, None], (h2 <= 1e-12)[:, None])
+        return (diffuse * np.array([0.5, 0.3, 0.2]) + 0.3 * lobe)[:, 0]
+
+    _, info = fit_slice(f_cos, gloss=None, azimuths=32)
+    assert abs(info["gloss"] - truth) < 1e-3, info
+    assert info["relative_rms"] < 0.01, info

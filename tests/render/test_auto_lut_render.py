@@ -52,7 +52,7 @@ def test_auto_lut_material_matches_its_rebuild_at_the_fitted_gloss(gpu_device, w
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), path)
     atlas = read_render_atlas(path)
     entry = atlas.manifest.entry_named("sheen")
-    assert entry.representation.kind == "lut" and entry.extra["fit"]["gloss"] < 0.9  # not the object's 0.95
+    assert entry.representation.kind == "lut" and entry.fit.gloss < 0.9  # not the object's 0.95
     scene = scene_from(SCENE)
     result = Renderer(atlas, gpu_device).render(scene, outlines=False)
     ids = result.aov("id")

@@ -1,0 +1,169 @@
+"""The iridescent model's physical reference in NumPy: a thin-film microfacet BSDF (also the
+separable model's ``source = "thin_film"``).
+
+A GGX microfacet BSDF (height-correlated Smith visibility, the renderer's lobe:
+:mod:`atlasgen.optics.specular`) whose Fresnel term is the film stack's exact Airy reflectance
+per wavelength (Belcour & Barla, "A Practical Extension to Microfacet Theory for the
+Modeling of Varying Iridescence", SIGGRAPH 2017, eq. 2, without their Fourier-space
+approximation), over a Lambertian base weighted by the transmission (1 - R(N.L)) (1 - R(N.V)),
+with the model's film strength and split, and its back-light as a transmission lobe.
+Mitsuba evaluates it per wavelength in ``llvm_ad_spectral`` through the ``atlasgen_thinfilm``
+plugin (:mod:`atlasgen.models.mitsuba_bsdfs`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
+from atlasgen.optics.interpolation import interpolate_2d
+from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
+
+__all__ = ["film_table", "film_average", "thin_film_terms", "thin_film_f_cos", "thin_film_rgb_f_cos", "FILM_DEFAULTS",
+           "FIT_CHUNK"]  # fmt: skip
+
+#: The iridescent model's film parameters beyond the stack itself, at values that make the
+#: BSDF the plain thin-film microfacet (full strength, all of it in the lobe, no back-light).
+FILM_DEFAULTS = {"film_strength": 1.0, "film_split": 0.0, "energy": "none", "backlight": 0.0,
+                 "backlight_distortion": 0.2, "backlight_power": 4.0}  # fmt: skip
+#: (l, v) pairs per pass of :func:`thin_film_rgb_f_cos`: bounds its (pairs x wavelengths) arrays.
+FIT_CHUNK = 8192
+
+
+@lru_cache(maxsize=16)
+def film_table(thickness: float, film_ior: float, base_ior: float, base_k: float):
+    """Film reflectance R(cos, lambda) on a grid: cosines 0..1 (1025), wavelengths 360..830 nm (1 nm)."""
+    cos = np.linspace(0.0, 1.0, 1025)
+    lam = np.arange(360.0, 831.0, 1.0)
+    table = film_reflectance(cos, lam, thickness, film_ior, base_ior, base_k)
+    table.setflags(write=False)
+    return cos, lam, table
+
+
+@lru_cache(maxsize=16)
+def film_average(thickness: float, film_ior: float, base_ior: float, base_k: float):
+    """(wavelengths, R_avg): R_avg(lambda) = 2 int_0^1 R(c, lambda) c dc, by the trapezoid rule on the table."""
+    cos, lam, table = film_table(thickness, film_ior, base_ior, base_k)
+    average = 2.0 * np.trapezoid(table * cos[:, None], cos, axis=0)
+    average.setflags(write=False)
+    return lam, average
+
+
+def _lookup(table_set, cos, lam):
+    """Bilinear R at (cos, lambda), elementwise: the table's cosine axis is filtered first."""
+    grid_c, grid_l, table = table_set
+    return interpolate_2d(table.T, cos * (len(grid_c) - 1), (lam - grid_l[0]) / (grid_l[1] - grid_l[0]))
+
+
+def thin_film_terms(wi, wo, lam, film, alpha):
+    """The thin-film BSDF's f cos(theta_o) split by what it multiplies, per lane and wavelength.
+
+    Returns ``(own, base_weight, back_weight)``, each ``(N, S)``, with
+
+        f cos = own + base(lambda) * base_weight + colour_B(lambda) * back_weight
+
+    ``own`` the film's lobe and rough part, ``base_weight`` the base's transmission weight
+    times cos(theta_o) / pi and ``back_weight`` the back-light's B t (1 - R(c_i)) / pi (0 where
+    ``backlight`` is 0): the terms of :func:`thin_film_f_cos`.
+    f cos is linear in the two RGB-upsampled spectra, so one evaluation of the film serves
+    both the per-wavelength plugin (:func:`thin_film_f_cos`) and the RGB integral of a fit
+    (:func:`thin_film_rgb_f_cos`).
+    """
+    film = {**FILM_DEFAULTS, **film}
+    stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
+    table = film_table(*stack)
+    ci, co = wi[:, 2], wo[:, 2]
+    valid = (ci > 0) & (co > 0)
+    h = wi + wo
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    cos_d = np.clip((wi * h).sum(1), 0.0, 1.0)
+    d = ggx_distribution(h[:, 2], alpha)
+    strength, split = float(film["film_strength"]), float(film["film_split"])
+    # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked below.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vis = np.nan_to_num(smith_visibility_correlated_ggx(ci, co, alpha))
+    r_i = _lookup(table, np.clip(ci, 0.0, 1.0)[:, None], lam)
+    r_o = _lookup(table, np.clip(co, 0.0, 1.0)[:, None], lam)
+    lit = np.maximum(co, 0.0)[:, None]
+    spec = (strength * (1.0 - split)) * (d * vis * np.maximum(co, 0.0))[:, None] * _lookup(table, cos_d[:, None], lam)
+    rough = (strength * split / np.pi) * r_i * lit
+    weight = (1.0 - r_o) * (1.0 - r_i)
+    if film["energy"] == "coupled":
+        grid, average = film_average(*stack)
+        weight = weight / np.maximum(1.0 - np.interp(lam, grid, average), 1e-6)
+    own = np.where(valid[:, None], spec + rough, 0.0)
+    base_weight = np.where(valid[:, None], weight / np.pi * lit, 0.0)
+    if film["backlight"] <= 0.0:
+        return own, base_weight, np.zeros_like(own)
+    # V.-(L + delta N) with V = wi, L = wo (towards the light) and N = +z.
+    x = -(wi * wo).sum(1) - float(film["backlight_distortion"]) * ci
+    t = np.clip(x, 0.0, 1.0) ** float(film["backlight_power"])
+    back = (float(film["backlight"]) / np.pi) * (t * (co < 0.0))[:, None] * (1.0 - r_i)
+    return own, base_weight, np.where((ci > 0)[:, None], back, 0.0)
+
+
+def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spectrum=None):
+    """f cos(theta_o) of the thin-film BSDF, per lane and wavelength.
+
+    With R the film's Airy reflectance, k = ``film_strength``, s = ``film_split`` and
+    c_i = cos(theta_i) the view side (the model's N.V), c_o the light side (N.L):
+
+        f = k (1 - s) D(h) V(wi, wo) R(wi.h)                      the lobe: GGX D, height-correlated Smith V = G2 / (4 c_i c_o)
+                                                                   (Cook & Torrance 1982; Walter et al. 2007; Heitz 2014)
+          + k s R(c_i) / pi                                        the film's rough part
+          + base (1 - R(c_o)) (1 - R(c_i)) / (1 - R_avg) / pi      energy = "coupled" (else base / pi)
+          + B colour_B t(wi, wo) (1 - R(c_i)) / (pi |c_o|)         light from behind (c_o < 0)
+
+    per wavelength, R_avg = 2 int R(c) c dc. The film's reflection is split between a
+    lobe of the renderer's width and a rough (Lambertian-like) part as the model splits it
+    between A and RGB: a surface whose micro-roughness is bimodal. The back-light is the
+    Barré-Brisebois & Bouchard term t = saturate(V.-(L + delta N))^p at the true azimuth
+    (the model bakes its azimuth average), seen through the film. ``wi``, ``wo``: (N, 3)
+    local; ``lam``: (N, S) nm; ``base_rgb_spectrum``, ``backlight_spectrum``: (N, S);
+    ``film``: the stack (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) and any of
+    :data:`FILM_DEFAULTS`. The terms come from :func:`thin_film_terms`.
+    """
+    own, base_weight, back_weight = thin_film_terms(wi, wo, lam, film, alpha)
+    value = own + base_rgb_spectrum * base_weight
+    if backlight_spectrum is None:
+        return value
+    return value + backlight_spectrum * back_weight
+
+
+def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chunk: int = FIT_CHUNK):
+    """Linear sRGB f cos(theta_o) of the thin-film BSDF lit by white light, ``(N, 3)``.
+
+    The per-wavelength f cos of :func:`thin_film_f_cos` integrated over 360-830 nm as
+    Mitsuba's ``llvm_ad_spectral`` render of ``atlasgen_thinfilm`` integrates it under a white
+    RGB light, which Mitsuba upsamples to the D65 spectrum: CIE 1931 colour matching functions
+    (Wyman et al.'s fit, :func:`atlasgen.optics.film.cie_xyz_cmfs`) times D65 to XYZ to linear
+    sRGB, each channel normalised so a spectrally flat response of 1 gives (1, 1, 1)
+    (:func:`atlasgen.optics.film.spectrum_to_rgb` with ``illuminant = "D65"``), on the
+    iridescent model's wavenumber grid (:func:`~atlasgen.optics.film.spectral_samples` resolves
+    the film's fringes).
+
+    Approximations against that render: the CMF fit (a few 1e-3 of f cos against CIE's
+    tables), lights of any other colour (taken as white: their upsampled spectra are not flat),
+    and the RGB ``colour`` and ``backlight_colour``, which Mitsuba upsamples to smooth spectra
+    while here f cos, linear in each, takes them per channel: RGB(base(lambda) w(lambda)) ~
+    colour * RGB(w). All are exact for spectrally flat colours; the film's own interference
+    colours are integrated, not approximated.
+    """
+    film = {**FILM_DEFAULTS, **film}
+    samples = spectral_samples(film["thickness"], film["film_ior"])
+    grid, _ = spectral_grid(samples)
+    colour = np.asarray(colour, dtype=np.float64)
+    back = np.zeros(3) if backlight_colour is None else np.asarray(backlight_colour, dtype=np.float64)
+    wi = np.asarray(wi, dtype=np.float64)
+    wo = np.asarray(wo, dtype=np.float64)
+    out = np.empty((len(wi), 3))
+    for start in range(0, len(wi), chunk):
+        part = slice(start, start + chunk)
+        lam = np.broadcast_to(grid, (len(wi[part]), samples))
+        own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], lam, film, alpha)
+        out[part] = spectrum_to_rgb(own, samples, "D65")[0] + colour * spectrum_to_rgb(base_weight, samples, "D65")[0]
+        if backlight_colour is not None:
+            out[part] += back * spectrum_to_rgb(back_weight, samples, "D65")[0]
+    return out
