@@ -15,7 +15,30 @@ import traceback
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTIONS = ["bake", "models", "separable", "render", "cost", "physical"]
+SECTIONS = ["bake", "models", "separable", "render", "cost", "physical", "pareto"]
+
+
+#: Each section's text in BENCHMARKS.md starts with this marker, so one section can be re-run alone.
+_MARK = "<!-- bench section: {} -->"
+
+
+def _update(names, results, parts) -> int:
+    """``bench/run.py NAME...``: replace those sections of BENCHMARKS.md and BENCHMARKS.json (a section
+    without a marker yet is appended), keeping every other section as the last full run wrote it."""
+    import re
+
+    md_path, json_path = ROOT / "BENCHMARKS.md", ROOT / "BENCHMARKS.json"
+    text = md_path.read_text() if md_path.exists() else "# Benchmarks\n"
+    data = json.loads(json_path.read_text()) if json_path.exists() else {}
+    for name, part in zip(names, parts):
+        block = f"{_MARK.format(name)}\n{part}\n"
+        pattern = re.compile(re.escape(_MARK.format(name)) + r"\n.*?(?=<!-- bench section: |\Z)", re.S)
+        text = pattern.sub(lambda _: block, text) if pattern.search(text) else text.rstrip("\n") + "\n\n" + block
+        data[name] = results[name]
+    md_path.write_text(text)
+    json_path.write_text(json.dumps(data, indent=2) + "\n")
+    print(f"bench: updated {', '.join(names)} in BENCHMARKS.md and BENCHMARKS.json", file=sys.stderr)
+    return 0 if all("error" not in results[n] for n in names) else 1
 
 
 def main(argv=None) -> int:
@@ -32,6 +55,8 @@ def main(argv=None) -> int:
         except Exception as exc:  # report, don't hide, a broken section
             results[name] = {"error": repr(exc)}
             parts.append(f"## {name}\n\nFailed: `{exc!r}`\n\n```\n{traceback.format_exc()}```\n")
+    if argv is not None or sys.argv[1:]:
+        return _update(names, results, parts)
     header = [
         "# Benchmarks",
         "",
@@ -39,6 +64,7 @@ def main(argv=None) -> int:
         f"Python {platform.python_version()}. Every figure below is measured by `bench/*.py` in that run.",
         "",
     ]
+    parts = [f"{_MARK.format(name)}\n{part}" for name, part in zip(names, parts)]
     (ROOT / "BENCHMARKS.md").write_text("\n".join(header + parts) + "\n")
     (ROOT / "BENCHMARKS.json").write_text(json.dumps(results, indent=2) + "\n")
     print("bench: wrote BENCHMARKS.md and BENCHMARKS.json", file=sys.stderr)

@@ -81,13 +81,17 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 @click.option("--separable", "separable_dir", type=click.Path(path_type=Path), default=Path("build/report/separable"),
               show_default=True, help="Folder of `atlasgen report separable`, linked when present.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report"), show_default=True,
-              help="Folder for index.html, slice previews and the speed-against-error plot.")
+              help="Folder for index.html, slice previews, the cost plots and the Pareto charts (their candidates "
+                   "cached in OUTPUT/pareto).")
+@click.option("--no-physical", is_flag=True,
+              help="Skip the Pareto charts against the physical reference (they evaluate Mitsuba BSDFs).")
 @verbosity_options(verbose="Also print which of the validation and separable reports were found.")
 @fail_on_errors
-def library(atlas, validation, separable_dir, output, verbosity):
-    """One HTML page over the whole library: representation, errors, bake time, slice previews."""
+def library(atlas, validation, separable_dir, output, no_physical, verbosity):
+    """One HTML page over the whole library: representation, errors, bake time, slice previews, and Pareto
+    charts of run-time cost against error versus the physical reference."""
     check_output_folder(output, "the report folder (-o)")
-    page = write_library_report(atlas, output, validation, separable_dir)
+    page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical)
     if verbosity == VERBOSE:
         inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))
         for what, path in inputs:

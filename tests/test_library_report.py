@@ -22,7 +22,7 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     write_material("gloss", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nerror_budget = 0.05\n')
     atlas = tmp_path / "build" / "atlas.dds"
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
-    index = write_library_report(atlas, tmp_path / "build" / "report")
+    index = write_library_report(atlas, tmp_path / "build" / "report", physical=False)
     parser = PageLinks(index.read_text())
     terms = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")["terms"]
     # The library's cost plot, one cost plot and one preview per slice of each material.
@@ -60,7 +60,7 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     (vdir / "report.json").write_text(json.dumps({"results": [
         {"material": "clay", "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.00425, "speed_ratio": 3.5}}},
     ]}))
-    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
+    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir, physical=False)
     text = index.read_text()
     # One row per reference: PSNR (dB), FLIP, and how many times faster the atlas frame is.
     assert '<td class="l nowrap">front/model</td><td>61.2</td><td>0.0043</td><td>3.5x</td>' in text
@@ -82,7 +82,7 @@ def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, writ
     (vdir / "report.json").write_text(json.dumps({"results": [
         {"material": "clay", "scene": s, "references": {"model": model}, "page": "materials/clay/index.html"}
         for s in ("front", "back")]}))  # fmt: skip
-    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir)
+    index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir, physical=False)
     parser = PageLinks(index.read_text())
     # One link per material that has its own page (both scenes share it); snow has none.
     assert sorted(parser.links) == ["../validation/index.html", "../validation/materials/clay/index.html"]
@@ -119,7 +119,52 @@ def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material
     sep = tmp_path / "separable"
     sep.mkdir()
     (sep / "index.md").write_text("# text summary")
-    assert "../separable/index.html" not in PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep).read_text()).links
+    assert "../separable/index.html" not in PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
     (sep / "index.html").write_text("<html></html>")
-    links = PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep).read_text()).links
+    links = PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
     assert links == ["../separable/index.html"]
+
+
+@pytest.mark.slow
+def test_pareto_charts_against_the_physical_reference(tmp_path, write_material, monkeypatch):
+    """One chart per material with a projectable reference and one over the library, every candidate
+    listed with its SE, one line for a material without such a reference; same inputs, same bytes."""
+    from atlasgen.models import get_model
+    from atlasgen.models.physical_error import physical_candidates
+    from atlasgen.reports import pareto
+
+    write_material("sheen", 'type = "separable"\nsource = "blinn_phong"\nexponent = 4.0\nspecular = [0.2, 0.2, 0.2]\n'
+                            'diffuse = [0.5, 0.35, 0.25]\nterms = 2\n')  # fmt: skip
+    write_material("metal", 'type = "separable"\nsource = "ggx"\nalpha = 0.5\nterms = 1\n')
+    write_material("hero", 'type = "toon"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    index = write_library_report(atlas, tmp_path / "r", jobs=1)
+    text = index.read_text()
+    parser = PageLinks(text)
+    assert "pareto.png" in parser.images and "pareto/sheen.png" in parser.images
+    assert "pareto/hero.png" not in parser.images
+    for src in parser.images + parser.links:
+        assert (index.parent / src).is_file(), src
+    entry = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "sheen")
+    expected = physical_candidates(get_model("separable"), entry["params"])
+    assert len(expected["candidates"]) == 10  # two fitted LUTs, K = 1..8
+    for c in expected["candidates"]:
+        assert f"{c['representation']}" in text
+        assert f"<td>{c['error']:.4g}</td><td>{c['error_se']:.2g}</td>" in text
+    assert "<b>separable:2</b> (baked)" in text
+    from atlasgen.separable.auto import read_lighting_cost
+
+    assert read_lighting_cost().device in text
+    assert "<li>hero: model &#39;toon&#39; has no physical reference</li>" in text
+    names = ("pareto.png", "pareto/sheen.png", "pareto/sheen.json", "pareto/metal.png", "pareto/hero.json", "index.html")
+    first = {name: (tmp_path / "r" / name).read_bytes() for name in names}
+    # Computed afresh elsewhere, in two processes: byte for byte the same.
+    monkeypatch.setattr(pareto, "_MEMO", {})
+    write_library_report(atlas, tmp_path / "r2", jobs=2)
+    assert {name: (tmp_path / "r2" / name).read_bytes() for name in names} == first
+    # Again in the same folder: from the cache (nothing recomputed), the same bytes.
+    monkeypatch.setattr(pareto, "_MEMO", {})
+    monkeypatch.setattr(pareto, "physical_candidates", lambda *a, **k: pytest.fail("recomputed a cached material"))
+    write_library_report(atlas, tmp_path / "r", jobs=1)
+    assert {name: (tmp_path / "r" / name).read_bytes() for name in names} == first

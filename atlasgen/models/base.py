@@ -245,6 +245,12 @@ class Model:
         """
         return None
 
+    def physical_brdf_source(self, values: dict):
+        """``(params, description)`` where this material *is* its physical BRDF: the separable model's
+        source parameters (``source``, ``alpha``, ``bsdf``, ...) of it; ``None`` (the default) where the
+        physical reference is :meth:`physical_reference` (:mod:`atlasgen.models.physical_error`)."""
+        return None
+
     def fit_physical(self, values: dict, gloss: float) -> SliceSet | None:
         """The slice fitted to this model's physical reference for the renderer gloss ``gloss``
         (``from = "physical"``), where the model fits it itself; ``None`` (the default) where

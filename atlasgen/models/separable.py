@@ -13,8 +13,9 @@ import json
 import numpy as np
 
 from atlasgen.errors import MaterialError
+from atlasgen.io.atlas import read_atlas
 from atlasgen.io.fields import Param
-from atlasgen.io.manifest import AnalyticRepresentation
+from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
 from atlasgen.models.base import (
     BRDF_REFERENCE,
     THIN_FILM_REFERENCE,
@@ -26,6 +27,9 @@ from atlasgen.models.base import (
     SliceSet,
 )
 from atlasgen.models.iridescent import Iridescent
+from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
+from atlasgen.optics.interpolation import sample_slice
+from atlasgen.optics.specular import renderer_f_cos
 from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
 from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
@@ -42,10 +46,12 @@ from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fra
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices, read_separable_factors
 from atlasgen.separable.shader import separable_declarations, separable_table_bytes
+from atlasgen.shaderlang import Function, Let, Return, float_literal
 from atlasgen.separable.source import make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
 
-__all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "analytic_params", "FILM_KEYS", "check_film"]
+__all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
+           "check_film"]  # fmt: skip
 
 MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
 #: ``representation = "auto"`` without an ``error_budget``: the separable default budget.
@@ -221,32 +227,58 @@ class Separable(Model):
 
     def _bake_auto(self, values: dict) -> SliceSet:
         """The cheapest candidate in run-time cost (:func:`atlasgen.separable.auto.read_lighting_cost`)
-        whose error meets the budget: the closed form (exact: it is the source itself) where the
-        shader has it, else K = 1..8 separable terms with their estimated 8-bit error."""
+        whose error meets the budget: one LUT slice fitted from physics
+        (:func:`atlasgen.models.physical_lut.fit_lut`), the closed form (exact: it is the source
+        itself) where the shader has it, or K = 1..8 separable terms. Every error is the relative
+        RMS of f cos against the source (the physical material) on the report sample of
+        :mod:`atlasgen.separable.error`, 8-bit, with its standard error."""
         budget = values["max_error"] if values["max_error"] is not None else DEFAULT_BUDGET
         table = read_lighting_cost()
         separable = self._bake_separable({**values, "max_error": budget})
         rep = separable.extra["representation"]
-        by_terms = {e["terms"]: e["relative_rms"] for e in separable.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]}
-        candidates = []
+        by_terms = {e["terms"]: e for e in separable.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]}
+        cached = separable._separable
+        lut, fit = fit_lut(values)
+        lut_error = lut_errors(stored_slice(lut), fit["gloss"], cached["reference"], cached["sample"])
+        lut_key = cost_key("lut")
+        candidates = [{"representation": lut_key, "cost": table.cost(lut_key), "error": lut_error["relative_rms"],
+                       "error_se": lut_error["relative_rms_se"], "gloss": fit["gloss"],
+                       "error_kind": "relative RMS of f cos, one 8-bit slice fitted from physics"}]  # fmt: skip
         if values["source"] in ANALYTIC_SHADER_SOURCES:
             key = cost_key("analytic", values["source"])
-            candidates.append({"representation": key, "cost": table.cost(key), "error": 0.0,
+            candidates.append({"representation": key, "cost": table.cost(key), "error": 0.0, "error_se": 0.0,
                                "error_kind": "exact: the source's own closed form"})  # fmt: skip
         for k in sorted(by_terms):
             key = cost_key("separable", k)
-            candidates.append({"representation": key, "cost": table.cost(key), "error": by_terms[k],
+            candidates.append({"representation": key, "cost": table.cost(key), "error": by_terms[k]["relative_rms"],
+                               "error_se": by_terms[k]["relative_rms_se"],
                                "error_kind": "estimated relative RMS of f cos, 8-bit"})  # fmt: skip
         best, annotated = choose_representation(candidates, budget)
+        sample = cached["sample"]
         auto = {"error_budget": budget, "cost_device": table.device, "cost_unit": table.unit,
+                "estimator": sample.estimator, "pairs": sample.count, "seed": sample.seed,
                 "chosen": annotated[best]["representation"], "candidates": annotated}  # fmt: skip
-        if annotated[best]["representation"].startswith("analytic"):
+        chosen = annotated[best]["representation"]
+        if chosen == lut_key:
+            return self._bake_lut(values, lut, fit, annotated[best], auto)
+        if chosen.startswith("analytic"):
             return self._bake_analytic(values, auto)
-        terms = int(annotated[best]["representation"].split(":")[1])
+        terms = int(chosen.split(":")[1])
         if terms != rep["terms"]:
             separable = self._bake_separable({**values, "terms": terms, "max_error": None, "grid": rep["sampling_grid"]})
         separable.extra["representation"].update(error_budget=budget, meets_budget=annotated[best]["meets_budget"], auto=auto)
         return separable
+
+    def _bake_lut(self, values: dict, rgba, fit: dict, chosen: dict, auto: dict) -> SliceSet:
+        """One slice fitted from physics, drawn by the renderer's equation at the fitted gloss
+        (:meth:`lighting_wgsl`); ``fit`` goes to the manifest as ``bake_from_physics`` writes it."""
+        source = values["source"]
+        reference = f"source BRDF ({source})" + (f": {values.get('bsdf')}" if source == "mitsuba" else "")
+        rep = {"kind": "lut", "supersampling": 1, "error_budget": auto["error_budget"],
+               "reconstruction_error": chosen["error"], "meets_budget": chosen["meets_budget"],
+               "candidates": auto["candidates"]}  # fmt: skip
+        fit_info = {"from": "physical", "reference": reference, **{k: v for k, v in fit.items()}}
+        return SliceSet(np.array(rgba).reshape(1, *np.shape(rgba)), extra={"representation": rep, "auto": auto, "fit": fit_info})
 
     def _bake_separable(self, values: dict) -> SliceSet:
         source = make_source(values)
@@ -340,7 +372,7 @@ class Separable(Model):
         bias that fit it exactly. The generic (K, 2) ``scale``/``bias`` are 1 and 0; the
         real ones are ``factor_scale``/``factor_bias`` in the manifest entry.
         """
-        if _is_analytic(slices):
+        if _kind(slices) in ("analytic", "lut"):
             return encode_scaled(slices.values, rgb_scale, alpha_scale)
         cached = getattr(slices, "_separable", None)
         if cached is None or cached["stored"].shape != slices.values.shape:
@@ -358,8 +390,10 @@ class Separable(Model):
 
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
-        if _is_analytic(slices):
+        if _kind(slices) == "analytic":
             return {}  # the shader reads no texel: nothing was quantized that it uses
+        if _kind(slices) == "lut":
+            return {}  # a plain slice: the generic quantization error covers it
         cached = getattr(slices, "_separable", None)
         if cached is not None:
             reference, sample = cached["reference"], cached["sample"]
@@ -392,7 +426,8 @@ class Separable(Model):
     def include_declarations(cls, entries: list) -> list:
         """The generic rebuild of f cos(theta_l) and its data table (every include language)."""
         analytic = any(isinstance(e.representation, AnalyticRepresentation) for e in entries)
-        return separable_declarations(entries) + (analytic_declarations() if analytic else [])
+        lut = any(isinstance(e.representation, LutRepresentation) for e in entries)
+        return separable_declarations(entries) + (analytic_declarations() if analytic else []) + ([LUT_F_COS] if lut else [])
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:
@@ -405,6 +440,8 @@ class Separable(Model):
         for an analytic representation, ``analytic_f_cos`` with its parameters."""
         if isinstance(entry.representation, AnalyticRepresentation):
             return analytic_call(entry.representation)
+        if isinstance(entry.representation, LutRepresentation):
+            return f"lut_slice_f_cos(atlas, samp, {entry.first_slice}u, n, l, v, {float_literal(fit_gloss(entry))})"
         return f"separable_f_cos(atlas, samp, {entry.first_slice}u, n, l, v)"
 
     # -- references and validation -------------------------------------------------------------
@@ -426,6 +463,14 @@ class Separable(Model):
         return Reference(bsdf, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral, "
                                "wavelengths sampled per sample)", variant="llvm_ad_spectral", stochastic=True)  # fmt: skip
 
+    def physical_brdf_source(self, values: dict):
+        """The source itself is the physical material the factors approximate, except a thin film
+        (its physical material is the spectral film of :meth:`physical_reference`)."""
+        src = values["source"]
+        if src == "thin_film":
+            return None
+        return dict(values), f"source BRDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else "")
+
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """The source BSDF itself times the albedo (``atlasgen_brdf``), f cos for the full (w_i, w_o):
         the renderer adds L += E albedo f cos with f rebuilt from the factors."""
@@ -441,6 +486,9 @@ class Separable(Model):
         if isinstance(entry.representation, AnalyticRepresentation):
             return {"8bit": RadianceRebuild("the closed form in float64 (atlasgen.separable.analytic), as the shader evaluates it",
                                             _analytic_radiance(entry.representation))}  # fmt: skip
+        if isinstance(entry.representation, LutRepresentation):
+            return {"8bit": RadianceRebuild("the baked 8-bit slice in the renderer's equation at the fitted gloss, times the albedo",
+                                            _lut_radiance(read_atlas(atlas_path).decode_slice(entry.first_slice), fit_gloss(entry)))}
         factors = read_separable_factors(atlas_path, entry.name)
 
         def radiance(n, l, v, albedo, gloss, irradiance):
@@ -452,6 +500,9 @@ class Separable(Model):
         """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K."""
         if isinstance(entry.representation, AnalyticRepresentation):
             return None  # the closed form itself: nothing approximated
+        if isinstance(entry.representation, LutRepresentation):
+            return {"relative_rms_8bit": entry.representation.reconstruction_error, "relative_rms_float": None, "terms": None,
+                    "error_budget": entry.representation.error_budget}  # fmt: skip
         factors = entry.factors
         return {
             "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
@@ -466,12 +517,44 @@ class Separable(Model):
         if isinstance(rep, AnalyticRepresentation):
             how = f", chosen by run-time cost (budget {rep.auto['error_budget']:g})" if rep.auto else ""
             return f"analytic {rep.distribution} evaluated in the lighting shader, no atlas data{how}"
+        if isinstance(rep, LutRepresentation):
+            return (f"one LUT slice fitted from physics, drawn at gloss {fit_gloss(entry):g}, "
+                    f"chosen by run-time cost (budget {rep.error_budget:g})")
         terms = factors.terms if factors.terms is not None else entry.slice_count
         param = factors.parametrization
         grid = factors.sampling_grid
         budget = getattr(rep, "error_budget", None)
         return (f"separable, {terms} term(s){', ' + param if param else ''}"
                 f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
+
+
+#: The renderer's equation for a LUT slice at a fixed gloss, as f cos in 1/sr (the separable
+#: path multiplies by the albedo): f cos = A.rgb / pi + A.a D(N.H) V(N.L, N.V) max(N.L, 0).
+LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"),
+                                                 ("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("gloss", "f32")), (
+    Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
+    Return("a.rgb * 0.3183098861837907 + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
+), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
+
+
+def fit_gloss(entry) -> float:
+    """The renderer gloss a slice fitted from physics was made for (the manifest's ``fit.gloss``)."""
+    return float(entry.fit.gloss) if entry.fit is not None else 0.5
+
+
+def _lut_radiance(table, gloss: float):
+    table = np.asarray(table, dtype=np.float64)
+
+    def radiance(n, l, v, albedo, _gloss, irradiance):
+        n, l, v = (np.asarray(x, dtype=np.float64) for x in (n, l, v))
+        nl, nv = np.sum(n * l, axis=-1), np.sum(n * v, axis=-1)
+        h = l + v
+        h2 = np.sum(h * h, axis=-1)
+        nh = np.divide(np.sum(n * h, axis=-1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+        m = sample_slice(table, np.clip(nl, -1.0, 1.0), np.clip(nv, 0.0, 1.0))
+        return irradiance * albedo * renderer_f_cos(m, 1.0, gloss, nl, nv, nh, h2 <= 1e-12)
+
+    return radiance
 
 
 def analytic_params(rep: AnalyticRepresentation) -> dict:
@@ -493,8 +576,8 @@ def _f32(x) -> float:
     return float(np.float32(x))
 
 
-def _is_analytic(slices: SliceSet) -> bool:
-    return (slices.extra.get("representation") or {}).get("kind") == "analytic"
+def _kind(slices: SliceSet) -> str | None:
+    return (slices.extra.get("representation") or {}).get("kind")
 
 
 def _rounded(array) -> list:

@@ -13,6 +13,7 @@ from atlasgen.io.atomic import write_file_atomically, write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.models import get_model
 from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
+from atlasgen.reports.pareto import baked_candidate, cache_files, front_flags, library_candidates, MAX_JOBS, plot_library, plot_material
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 
 __all__ = ["write_library_report"]
@@ -21,6 +22,11 @@ __all__ = ["write_library_report"]
 _PLOT = "cost-vs-error.png"
 _PLOT_SIZE = (7.0, 4.5)
 _SMALL_PLOT_SIZE = (4.2, 3.0)
+#: The Pareto charts against the physical reference: the library's, and one per material under ``pareto/``.
+_PARETO_PLOT = "pareto.png"
+_PARETO_DIR = "pareto"
+_PARETO_SIZE = (7.5, 5.0)
+_PARETO_SMALL_SIZE = (5.0, 3.6)
 
 
 def _cost_key(entry: MaterialEntry, terms=None) -> str:
@@ -40,9 +46,11 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
     error the manifest's (quantisation RMS for a LUT, 0 for a closed form)."""
     rep = entry.representation
     chosen = _cost_key(entry)
-    if getattr(rep, "auto", None):
+    # A LUT chosen by ``representation = "auto"`` records the choice beside its LUT representation.
+    auto = getattr(rep, "auto", None) or entry.extra.get("auto")
+    if auto:
         return [{"representation": c["representation"], "cost": c["cost"], "error": c["error"],
-                 "chosen": c["representation"] == rep.auto["chosen"]} for c in rep.auto["candidates"]]  # fmt: skip
+                 "chosen": c["representation"] == auto["chosen"]} for c in auto["candidates"]]  # fmt: skip
     if isinstance(rep, SeparableRepresentation):
         curve = next((c.get("relative_rms_by_terms") for c in rep.candidates
                       if c.get("grid") == rep.sampling_grid and c.get("target") == rep.target), None)  # fmt: skip
@@ -91,13 +99,51 @@ def _fmt(x, spec=".3g"):
     return "–" if x is None else format(x, spec)
 
 
-def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir=None) -> Path:
+def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
+    """The Pareto charts against the physical reference (:mod:`atlasgen.reports.pareto`): the library's
+    chart, one per material with a projectable reference, every candidate in a table, and one line
+    for each material without such a reference. Adds the charts and the candidate cache to ``files``."""
+    cache = out_dir / _PARETO_DIR
+    results = library_candidates(entries, cache, jobs)
+    files.update(cache_files(results, cache))
+    chosen = {e.name: baked_candidate(e, results[e.name]) for e in entries}
+    materials, without = [], []
+    for entry in entries:
+        result = results[entry.name]
+        if not result.get("candidates"):
+            without.append({"name": entry.name, "reason": result.get("reason", "no physical reference")})
+            continue
+        chart = f"{_PARETO_DIR}/{entry.name}.png"
+        files[out_dir / chart] = plot_material(entry.name, result, chosen[entry.name], _PARETO_SMALL_SIZE)
+        front = front_flags(result["candidates"])
+        materials.append({
+            "name": entry.name, "chart": chart, "reference": result["reference"], "gloss": f"{result['gloss']:g}",
+            "candidates": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".4g"),
+                            "error_se": _fmt(c.get("error_se"), ".2g"), "front": on_front,
+                            "chosen": c["representation"] == chosen[entry.name]}
+                           for c, on_front in zip(result["candidates"], front)],
+        })  # fmt: skip
+    plot = None
+    if materials:
+        files[out_dir / _PARETO_PLOT] = plot_library({m["name"]: results[m["name"]] for m in materials}, chosen, _PARETO_SIZE)
+        plot = {"src": _PARETO_PLOT, "width": plot_width(_PARETO_SIZE[0])}
+    first = next((results[m["name"]] for m in materials), None)
+    sample = None if first is None else {"estimator": first["estimator"], "pairs": first["pairs"], "seed": first["seed"]}
+    return {"plot": plot, "materials": materials, "without": without, "sample": sample,
+            "chart_width": plot_width(_PARETO_SMALL_SIZE[0])}
+
+
+def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True,
+                         jobs: int = MAX_JOBS) -> Path:
     """Write ``out_dir/index.html`` (+ slice previews and a speed-against-error plot).
 
     Every figure on the page is read from files the toolchain measured: the manifest
     (errors, representation), the timings file (bake time), and, when present,
     ``validation_dir/report.json`` (errors against Mitsuba references; a merged report
-    also links each material's own validation page). Every file is replaced atomically.
+    also links each material's own validation page). With ``physical``, the Pareto charts of
+    run-time cost against error versus the physical reference (:mod:`atlasgen.reports.pareto`),
+    their candidates cached under ``out_dir/pareto`` and computed in up to ``jobs`` processes.
+    Every file is replaced atomically.
     """
 
 
@@ -129,6 +175,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
             chosen_points += [(name, c) for c in candidates if c["chosen"]]
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
+    physical_section = _physical_section(atlas.manifest.materials, out_dir, files, jobs) if physical else None
     plot = None
     if chosen_points:
         files[out_dir / _PLOT] = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
@@ -161,7 +208,7 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     index = out_dir / "index.html"
     write_file_atomically(index, render_page(
         "library.html.j2", atlas=Path(atlas_path).as_posix(), encoding=atlas.manifest.encoding,
-        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows,
+        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows, physical=physical_section,
         cost_device=table.device, cost_unit=table.unit, chart_width=plot_width(_SMALL_PLOT_SIZE[0])))
     return index
 

@@ -236,11 +236,13 @@ def missed_goals(data: dict) -> list[str]:
 
 
 def plot_speed_error(data: dict) -> bytes:
-    """One PNG plot: speed-up of the atlas frame over each reference render (x, log) against
+    """One PNG plot: the *reference render cost*, how many atlas frames one reference render costs (x, log), against
     the atlas image's mean FLIP against that reference (y, log), one point per material and scene.
 
     ``data`` is a report dict (:func:`report_dict`, or a merged one): the plot reads only
-    its measured ``speed_ratio`` and ``flip`` figures."""
+    its measured ``speed_ratio`` and ``flip`` figures. This is not the run-time cost of a
+    representation: that is the lighting pass's time per pixel per light, set against the error
+    versus the physical reference in the library report's Pareto charts (:mod:`atlasgen.reports.pareto`)."""
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         markers = {"model": ("o", "tab:blue"), "physical": ("s", "tab:orange")}
@@ -264,9 +266,10 @@ def plot_speed_error(data: dict) -> bytes:
         ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel("speed-up: Mitsuba render time / atlas frame time")
+        ax.set_xlabel("reference render cost: Mitsuba render time / atlas frame time")
         ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
-        ax.set_title("Speed against error (labelled: the Pareto front)")
+        ax.set_title("Reference render cost against error (labelled: the front)\n"
+                     "run-time cost vs error: the library report's Pareto charts", fontsize="medium")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
         return figure_png(fig)

@@ -1,0 +1,183 @@
+"""Error against the physical reference of every representation a material could be baked as.
+
+A material's *physical* reference is one BRDF f_p: a separable material's source (its
+closed form or Mitsuba BSDF is the physical material the factors approximate), or a LUT
+model's plain Mitsuba BSDF (:func:`atlasgen.models.physical_fit.plain_bsdf_reference`).
+Each candidate representation r is drawn by the renderer as some f_r cos(theta_l), and its
+error is the same figure the separable model reports (:mod:`atlasgen.separable.error`):
+
+    e_r^2 = int int |f_r cos - f_p cos|^2 dw_l dw_v / int int |f_p cos|^2 dw_l dw_v,
+
+estimated on the importance-sampled pairs of :func:`atlasgen.separable.error.error_sample_for`
+(seed :data:`~atlasgen.separable.error.ERROR_SEED`) with its delta-method standard error
+(Owen 2013, sec. 9.2). Every parameter of a candidate (a LUT's renderer gloss, a
+separable material's grid and target) is chosen on another sample (the fit's texel grid
+with stratified azimuths, or the seed :data:`~atlasgen.separable.error.SELECTION_SEED`),
+so the reported error is not biased down by the choice.
+
+The LUT of the renderer's equation (docs/atlas-format.md) is
+
+    f_r cos = A.rgb / pi + A.a * D(N.H) V(N.L, N.V) max(N.L, 0),   A = the slice at (N.L, N.V),
+
+(albedo 1: the physical reference carries the colour), with A read bilinearly as the
+atlas sampler reads it (:func:`atlasgen.optics.interpolation.sample_slice`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from atlasgen.io.fields import validate_params
+from atlasgen.models.base import Model
+from atlasgen.models.physical_fit import FIT_GLOSS, plain_bsdf_reference
+from atlasgen.models.physical_lut import fit_lut, LUT_GLOSSES, lut_errors, pair_geometry, stored_slice
+from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable
+from atlasgen.separable.approximate import reference_values
+from atlasgen.separable.auto import cost_key, read_lighting_cost
+from atlasgen.separable.error import ERROR_SEED, error_sample_for, measure_errors, MET_SIGMAS
+from atlasgen.separable.source import make_source
+
+__all__ = [
+    "PhysicalBrdf",
+    "physical_brdf",
+    "analytic_twin",
+    "physical_candidates",
+    "candidates_key",
+]
+
+#: Version of the candidate list's content: part of the report cache's key.
+CANDIDATES_VERSION = 5
+
+
+@dataclass(frozen=True)
+class PhysicalBrdf:
+    """A material's physical reference as separable-model source parameters (``params``), and its description."""
+
+    params: dict
+    description: str
+
+    def source(self):
+        return make_source(self.params)
+
+
+def physical_brdf(model: Model, values: dict, gloss: float = FIT_GLOSS):
+    """The physical reference of ``model`` with ``values`` as a :class:`PhysicalBrdf`, or why there is none (a string).
+
+    A model that is its own physical material (:meth:`~atlasgen.models.base.Model.physical_brdf_source`)
+    gives its source; any other needs a plain Mitsuba BSDF (:func:`plain_bsdf_reference`) for an object
+    of renderer gloss ``gloss`` (a table model's physical coat has the renderer's roughness).
+    """
+    own = model.physical_brdf_source(values)
+    if own is not None:
+        params, description = own  # already the model's validated parameters
+        return PhysicalBrdf(dict(params), description)
+    ref = plain_bsdf_reference(model, values, gloss)
+    if isinstance(ref, str):
+        return ref
+    params = validate_params(Separable.params, {"source": "mitsuba", "bsdf": ref.bsdf}, "<physical>")
+    return PhysicalBrdf(params, ref.description)
+
+
+def analytic_twin(params: dict) -> dict | None:
+    """Separable-source parameters of the lighting shader's closed form equal to a Mitsuba BSDF, where one
+    is: ``diffuse`` with an RGB or uniform reflectance rho is Lambert's rho / pi; ``None`` otherwise."""
+    if params.get("source") != "mitsuba":
+        return None
+    bsdf = params.get("bsdf") or {}
+    reflectance = bsdf.get("reflectance", {"type": "uniform", "value": 0.5})
+    if bsdf.get("type") != "diffuse" or not isinstance(reflectance, dict) or reflectance.get("type") not in ("rgb", "uniform"):
+        return None
+    rho = np.broadcast_to(np.asarray(reflectance.get("value"), dtype=np.float64), (3,))
+    return validate_params(Separable.params, {"source": "lambert", "diffuse": [float(x) for x in rho]}, "<analytic twin>")
+
+
+def _model_f_cos(model: Model, values: dict, gloss: float, l, v):
+    nl, nv, nh, degenerate = pair_geometry(l, v)
+    return model.renderer_f_cos(values, 1.0, gloss, nl, nv, nh, degenerate)
+
+
+def _entry(label: str, key: str, errors: dict, table, kind: str, **more) -> dict:
+    return {"representation": label, "cost_key": key, "cost": table.cost(key), "error": errors["relative_rms"],
+            "error_se": errors.get("relative_rms_se", 0.0), "kind": kind, **more}  # fmt: skip
+
+
+def candidates_key(model: Model, values: dict, gloss: float | None = None) -> str:
+    """A digest of what :func:`physical_candidates` depends on (for a report's cache)."""
+    table = read_lighting_cost()
+    text = json.dumps({"type": model.type_name, "values": values, "gloss": gloss, "version": CANDIDATES_VERSION,
+                       "costs": table.costs, "device": table.device}, sort_keys=True, default=str)  # fmt: skip
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool = True, gloss: float | None = None) -> dict:
+    """Every representation ``values`` could be baked as, with its run-time cost and its error against
+    the physical reference (relative RMS of f cos, standard error), or why there is no reference.
+
+    Returns ``{"reference", "estimator", "pairs", "seed", "cost_device", "cost_unit", "gloss",
+    "candidates": [{"representation", "cost_key", "cost", "error", "error_se", "kind", ...}]}`` or
+    ``{"reference": None, "reason": ...}``. ``gloss`` is the renderer gloss the material is drawn
+    with (a material fitted from physics: its ``fit.gloss``): the physical reference's and every
+    LUT candidate's. Without it, a table model's is :data:`~atlasgen.models.physical_fit.FIT_GLOSS`,
+    and a BRDF that is its own physical material (separable) lets the fitted slice choose among
+    :data:`~atlasgen.models.physical_lut.LUT_GLOSSES`. Candidates:
+
+    - for a table model (one (N.L, N.V) slice): its closed form drawn by the renderer at the fitted
+      gloss with no texels (the limit of a finer table), its point-sampled slice after 8-bit storage,
+      and with ``supersample(model, values, factor)`` given (:func:`atlasgen.bake.adaptive.bake_supersampled`)
+      the 4x4-supersampled slice where it differs from the point-sampled one by more than 2 SE;
+    - the slice fitted from physics (:func:`fit_lut`), in float and after 8-bit storage;
+    - K = 1 .. 8 separable terms of the physical BRDF (8-bit estimate, grid and target chosen on the
+      selection sample: :meth:`atlasgen.models.separable.Separable.bake` with a budget no K meets);
+    - the analytic shader where the physical BRDF is a closed form it evaluates (exact: error 0), or a
+      Mitsuba BSDF it has in closed form (:func:`analytic_twin`; its error measured like the others').
+    """
+    own = model.physical_brdf_source(values) is not None
+    drawn = FIT_GLOSS if gloss is None else float(gloss)
+    brdf = physical_brdf(model, values, drawn)
+    if isinstance(brdf, str):
+        return {"reference": None, "reason": brdf}
+    table = read_lighting_cost()
+    source = brdf.source()
+    sample = error_sample_for(source, ERROR_SEED)
+    reference, _ = reference_values(source, sample)
+    fitted, info = fit_lut(brdf.params, LUT_GLOSSES if gloss is None and own else (drawn,), srgb=srgb)
+    gloss = float(info["gloss"])
+    lut = cost_key("lut")
+    out = []
+    if not model.custom_lighting:
+        exact = measure_errors(reference, _model_f_cos(model, values, gloss, sample.l, sample.v), sample.weight)
+        out.append(_entry("lut: model closed form (no texels)", lut, exact, table, "lut-model-exact", gloss=gloss))
+        point = stored_slice(model.bake(values).values[0], srgb)
+        point_errors = lut_errors(point, gloss, reference, sample)
+        out.append(_entry("lut: model, point-sampled, 8-bit", lut, point_errors, table, "lut-model-point", gloss=gloss))
+        if supersample is not None:
+            sup = lut_errors(stored_slice(supersample(model, values, 4), srgb), gloss, reference, sample)
+            se = np.hypot(sup["relative_rms_se"], point_errors["relative_rms_se"])
+            if abs(sup["relative_rms"] - point_errors["relative_rms"]) > MET_SIGMAS * se:
+                out.append(_entry("lut: model, 4x4 supersampled, 8-bit", lut, sup, table, "lut-model-supersampled", gloss=gloss))
+    out.append(_entry("lut: fitted from physics", lut, lut_errors(fitted, gloss, reference, sample), table, "lut-physical-float",
+                      gloss=gloss))  # fmt: skip
+    out.append(_entry("lut: fitted from physics, 8-bit", lut, lut_errors(stored_slice(fitted, srgb), gloss, reference, sample),
+                      table, "lut-physical", gloss=gloss))  # fmt: skip
+    baked = Separable().bake({**brdf.params, "terms": None, "max_error": 1e-9, "representation": "separable"})
+    rep = baked.extra["representation"]
+    for e in baked.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]:
+        if e["terms"] <= MAX_AUTO_TERMS:
+            key = cost_key("separable", e["terms"])
+            out.append(_entry(key, key, e, table, "separable", grid=rep["sampling_grid"], target=rep["target"]))
+    if brdf.params["source"] in ANALYTIC_SHADER_SOURCES:
+        key = cost_key("analytic", brdf.params["source"])
+        out.append(_entry(key, key, {"relative_rms": 0.0, "relative_rms_se": 0.0}, table, "analytic"))
+    else:
+        twin = analytic_twin(brdf.params)
+        if twin is not None:  # a Mitsuba BSDF the shader has in closed form: measured, not assumed exact
+            key = cost_key("analytic", twin["source"])
+            measured = measure_errors(reference, make_source(twin).f_cos(sample.l, sample.v), sample.weight)
+            out.append(_entry(key, key, measured, table, "analytic"))
+    return {"reference": brdf.description, "estimator": sample.estimator, "pairs": sample.count, "seed": sample.seed,
+            "cost_device": table.device, "cost_unit": table.unit, "gloss": gloss, "candidates": out}  # fmt: skip
+
