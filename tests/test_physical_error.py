@@ -84,13 +84,14 @@ def _auto(budget: float):
 def test_auto_bakes_a_broad_brdf_as_one_lut_slice_within_a_loose_budget():
     loose = _auto(0.05)
     assert loose.values.shape[0] == 1
-    rep, auto, fit = loose.extra["representation"], loose.extra["auto"], loose.extra["fit"]
+    rep, fit = loose.extra["representation"], loose.extra["fit"]
+    auto = rep["auto"]
     assert rep["kind"] == "lut" and rep["meets_budget"] and auto["chosen"] == "lut"
     lut = next(c for c in auto["candidates"] if c["representation"] == "lut")
     assert lut["error"] <= 0.05 and lut["error_se"] > 0.0 and rep["reconstruction_error"] == lut["error"]
     assert auto["cost_device"] == read_lighting_cost().device and auto["cost_unit"] == read_lighting_cost().unit
     assert {c["representation"] for c in auto["candidates"]} == {"lut", *[f"separable:{k}" for k in range(1, 9)]}
-    assert fit["from"] == "physical" and fit["gloss"] == lut["gloss"]
+    assert fit["from"] == "auto" and fit["gloss"] == lut["gloss"]
     # The slice is the fitted one; a tight budget picks a costlier, closer candidate.
     tight = _auto(lut["error"] / 2)
     chosen = tight.extra["representation"]["auto"]["chosen"]
@@ -116,7 +117,7 @@ def test_auto_lut_is_drawn_as_a_plain_slice_at_the_fitted_gloss(tmp_path, write_
     manifest = json.loads(path.with_suffix(".json").read_text())
     entry = manifest["materials"][0]
     assert entry["slice_count"] == 1 and entry["representation"]["kind"] == "lut"
-    assert entry["auto"]["chosen"] == "lut" and "gloss" in entry["fit"]
+    assert entry["representation"]["auto"]["chosen"] == "lut" and entry["fit"]["from"] == "auto" and "gloss" in entry["fit"]
     from atlasgen.io.manifest import read_manifest
 
     typed = read_manifest(path.with_suffix(".json")).materials[0]

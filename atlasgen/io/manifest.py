@@ -388,12 +388,16 @@ class LutRepresentation(_Record):
     reconstruction_error: float
     meets_budget: bool
     candidates: list  # [{"supersampling", "error"}]
+    #: A separable material's ``representation = "auto"`` that chose one fitted slice: the choice
+    #: by run-time cost (see :class:`AnalyticRepresentation`).
+    auto: dict | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
     def from_json(cls, f: _Fields) -> "LutRepresentation":
         return cls(kind=f.string("kind"), supersampling=f.integer("supersampling", 1),
                    error_budget=f.number("error_budget"), reconstruction_error=f.number("reconstruction_error"),
-                   meets_budget=f.boolean("meets_budget"), candidates=f.array("candidates", "a list of objects", _OBJECT))  # fmt: skip
+                   meets_budget=f.boolean("meets_budget"), candidates=f.array("candidates", "a list of objects", _OBJECT),
+                   auto=f.mapping("auto", optional=True))  # fmt: skip
 
 
 @dataclass(kw_only=True)
@@ -462,8 +466,9 @@ def _rgb(f: _Fields, key: str) -> list:
 class Fit:
     """How a slice was fitted to a physical BSDF rather than baked from a closed form.
 
-    ``source`` (JSON ``from``) is ``"physical"`` (a model's ``from = "physical"``) or
-    ``"bsdf"`` (the ``bsdf`` model); ``gloss`` is the renderer gloss the slice was fitted
+    ``source`` (JSON ``from``) is ``"physical"`` (a model's ``from = "physical"``),
+    ``"bsdf"`` (the ``bsdf`` model) or ``"auto"`` (a separable material whose
+    ``representation = "auto"`` chose one slice fitted to its source BRDF); ``gloss`` is the renderer gloss the slice was fitted
     for. The slice reproduces the physical material only under that lobe, so every object
     showing it is shaded with this gloss (docs/materials.md). ``details`` holds every key as
     written, in order (the fit's own figures: ``reference``, ``azimuths``, ``relative_rms``...).
@@ -480,7 +485,7 @@ class Fit:
 
     @classmethod
     def from_json(cls, f: _Fields) -> "Fit":
-        return cls(source=f.string("from", choices=("physical", "bsdf")),
+        return cls(source=f.string("from", choices=("physical", "bsdf", "auto")),
                    gloss=f.take("gloss", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
                    details=dict(f.data))  # fmt: skip
 

@@ -276,9 +276,11 @@ class Separable(Model):
         reference = f"source BRDF ({source})" + (f": {values.get('bsdf')}" if source == "mitsuba" else "")
         rep = {"kind": "lut", "supersampling": 1, "error_budget": auto["error_budget"],
                "reconstruction_error": chosen["error"], "meets_budget": chosen["meets_budget"],
-               "candidates": auto["candidates"]}  # fmt: skip
-        fit_info = {"from": "physical", "reference": reference, **{k: v for k, v in fit.items()}}
-        return SliceSet(np.array(rgba).reshape(1, *np.shape(rgba)), extra={"representation": rep, "auto": auto, "fit": fit_info})
+               "candidates": auto["candidates"], "auto": auto}  # fmt: skip
+        # "auto": the slice is fitted to this material's own source BRDF, which stays its model
+        # reference (validation wraps only "physical" fits of a closed form).
+        fit_info = {"from": "auto", "reference": reference, **{k: v for k, v in fit.items()}}
+        return SliceSet(np.array(rgba).reshape(1, *np.shape(rgba)), extra={"representation": rep, "fit": fit_info})
 
     def _bake_separable(self, values: dict) -> SliceSet:
         source = make_source(values)

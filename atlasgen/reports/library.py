@@ -47,7 +47,7 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
     rep = entry.representation
     chosen = _cost_key(entry)
     # A LUT chosen by ``representation = "auto"`` records the choice beside its LUT representation.
-    auto = getattr(rep, "auto", None) or entry.extra.get("auto")
+    auto = getattr(rep, "auto", None)
     if auto:
         return [{"representation": c["representation"], "cost": c["cost"], "error": c["error"],
                  "chosen": c["representation"] == auto["chosen"]} for c in auto["candidates"]]  # fmt: skip

@@ -274,7 +274,7 @@ REFUSED = {
     "fit gloss": (_with(_set(["materials", 0, "fit"], {"from": "physical", "gloss": 1.5})), "materials[0].fit.gloss",
                   "expected a number in [0, 1], got 1.5"),
     "fit source": (_with(_set(["materials", 0, "fit"], {"from": "closed-form", "gloss": 0.5})), "materials[0].fit.from",
-                   "one of 'physical', 'bsdf'"),
+                   "one of 'physical', 'bsdf', 'auto'"),
     "encoding": (_with(_set(["encoding"], "hdr")), "encoding", "one of 'srgb', 'linear'"),
     "dxgi mismatch": (_with(_set(["dxgi_format"], 28)), "dxgi_format", "29 (the DXGI format of srgb encoding), got 28"),
 }
