@@ -9,6 +9,7 @@ import numpy as np
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference, SliceSet
+from atlasgen.models.sss_fit import fitted_sss_slice
 from atlasgen.optics.quadrature import gauss_legendre_rule, integrate_gauss_legendre
 
 __all__ = ["Subsurface", "preintegrate_ring", "skin_medium", "chandrasekhar_h", "diffuse_albedo",
@@ -271,8 +272,6 @@ class Subsurface(Model):
         spectral MIS over the channel that samples distances, the same expectation with far
         less noise in the red channel (whose extinction differs most from the others).
         """
-        from atlasgen.models.sss_fit import fitted_sss_slice
-
         ref = self.physical_reference(values)
         integrator = dict(ref.integrator, type="volpathmis")
         rgba, info, seconds = fitted_sss_slice(ref.interior, integrator, float(values["specular"]), float(gloss))

@@ -57,6 +57,7 @@ from atlasgen.contract import HEIGHT, WIDTH, atlas_uv
 from atlasgen.errors import BackendError
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.optics.interpolation import linear_stencil
+from atlasgen.optics.specular import specular_f_cos
 
 __all__ = ["FIT_STRATA", "FIT_PASSES", "FIT_SEEDS", "GEOMETRY_SEED", "MIN_N_DOT_V", "SMOOTHNESS", "OBJECT_RADIUS",
            "sample_configurations", "local_directions", "sphere_rays", "bilinear_stencil", "fit_texels",
@@ -131,17 +132,54 @@ def bilinear_stencil(n_dot_l, n_dot_v, width: int = WIDTH, height: int = HEIGHT)
     return index, weight
 
 
-def _second_differences(width: int, height: int):
-    """D^T D of the second differences of a ``(height, width)`` grid along both axes (sparse CSR)."""
-    from scipy import sparse
-
+def _second_differences(width: int, height: int) -> np.ndarray:
+    """D^T D ``(k, k)`` of the second differences of a ``(height, width)`` grid along both axes."""
     k = width * height
     grid = np.arange(k).reshape(height, width)
     triples = np.concatenate([np.stack([grid[:, :-2], grid[:, 1:-1], grid[:, 2:]], -1).reshape(-1, 3),
                               np.stack([grid[:-2], grid[1:-1], grid[2:]], -1).reshape(-1, 3)])  # fmt: skip
-    rows = np.repeat(np.arange(len(triples)), 3)
-    d = sparse.csr_matrix((np.tile([1.0, -2.0, 1.0], len(triples)), (rows, triples.ravel())), shape=(len(triples), k))
-    return (d.T @ d).tocsr()
+    coef = (1.0, -2.0, 1.0)
+    dtd = np.zeros((k, k))
+    for i in range(3):
+        for j in range(3):
+            np.add.at(dtd, (triples[:, i], triples[:, j]), coef[i] * coef[j])
+    return dtd
+
+
+def _banded_cholesky(a: np.ndarray):
+    """``(L, p)``: a = L L^T for ``a`` symmetric positive definite and banded, p its half-bandwidth.
+
+    Column by column (Golub & Van Loan, Matrix Computations, 4th ed., alg. 4.3.5), touching
+    only the band of half-width p (the farthest non-zero from the diagonal): n p^2 work
+    instead of the n^3 / 3 of a dense factorisation. The slice's normal matrix has p = 2 W
+    (the second differences along N.V). Only L's lower band is meaningful.
+    """
+    n = len(a)
+    rows, cols = np.nonzero(a)
+    p = int(np.max(np.abs(rows - cols))) if len(rows) else 0
+    low = a.copy()
+    for j in range(n):
+        end = min(n, j + p + 1)
+        d = np.sqrt(low[j, j])
+        low[j, j] = d
+        column = low[j + 1 : end, j] / d
+        low[j + 1 : end, j] = column
+        low[j + 1 : end, j + 1 : end] -= column[:, None] * column[None, :]
+    return low, p
+
+
+def _banded_solve(low: np.ndarray, p: int, b: np.ndarray) -> np.ndarray:
+    """x with L L^T x = b (:func:`_banded_cholesky`): L z = b forwards, then L^T x = z backwards."""
+    n = len(b)
+    z = np.empty(n)
+    for j in range(n):
+        start = max(0, j - p)
+        z[j] = (b[j] - low[j, start:j] @ z[start:j]) / low[j, j]
+    x = np.empty(n)
+    for j in range(n - 1, -1, -1):
+        end = min(n, j + p + 1)
+        x[j] = (z[j] - low[j + 1 : end, j] @ x[j + 1 : end]) / low[j, j]
+    return x
 
 
 def fit_texels(n_dot_l, n_dot_v, y, smoothness: float = SMOOTHNESS, width: int = WIDTH, height: int = HEIGHT):
@@ -149,28 +187,41 @@ def fit_texels(n_dot_l, n_dot_v, y, smoothness: float = SMOOTHNESS, width: int =
 
     Minimises sum_s (y_s - sum_k w_sk x_k)^2 + lambda |D x|^2 per channel, w_sk the bilinear
     weights of sample s (:func:`bilinear_stencil`), D the second differences along both slice
-    axes and lambda = ``smoothness`` * N / (width * height), subject to x >= 0: the (sparse)
-    normal equations are solved on the free texels, texels that come out negative are fixed
-    at 0, and the solve repeated until none is negative (an active-set scheme that only ever
-    adds constraints). With samples of a bilinear function of (N.L, N.V) the penalty is 0 at
-    the truth, so it is returned exactly.
+    axes and lambda = ``smoothness`` * N / (width * height), subject to x >= 0: the normal
+    equations (2048 unknowns, banded: :func:`_banded_cholesky`) are solved on the free texels, texels that come out
+    negative are fixed at 0, and the solve repeated until none is negative (an active-set
+    scheme that only ever adds constraints). With samples of a bilinear function of
+    (N.L, N.V) the penalty is 0 at the truth, so it is returned exactly.
     """
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
     y = np.asarray(y, dtype=np.float64)
     y = y[:, None] if y.ndim == 1 else y
     index, weight = bilinear_stencil(n_dot_l, n_dot_v, width, height)
     k = width * height
-    design = sparse.csr_matrix((weight.ravel(), (np.repeat(np.arange(len(y)), 4), index.ravel())), shape=(len(y), k))
-    normal = (design.T @ design + smoothness * len(y) / k * _second_differences(width, height)).tocsc()
-    rhs_all = design.T @ y
+    # A sample's four texels are its first one plus fixed offsets (0, 1, W, W + 1), so the
+    # normal matrix gathers per first texel: 16 bincounts of length k, not of length k^2.
+    base = index[:, 0]
+    offsets = index[0] - index[0, 0]
+    normal = smoothness * len(y) / k * _second_differences(width, height)
+    rows = np.arange(k)
+    for i in range(4):
+        for j in range(4):
+            total = np.bincount(base, weight[:, i] * weight[:, j], minlength=k)
+            reached = rows[total != 0.0]
+            normal[reached + offsets[i], reached + offsets[j]] += total[reached]
+    rhs_all = np.zeros((k, y.shape[1]))
+    for i in range(4):
+        for c in range(y.shape[1]):
+            rhs_all[:, c] += np.bincount(index[:, i], weight[:, i] * y[:, c], minlength=k)
     out = np.zeros((k, y.shape[1]))
+    factors = {}  # free set -> Cholesky factor: channels (and fits) with the same free set share it
     for c in range(y.shape[1]):
         free = np.ones(k, dtype=bool)
         while True:
+            key = free.tobytes()
+            if key not in factors:
+                factors[key] = _banded_cholesky(normal[np.ix_(free, free)])
             x = np.zeros(k)
-            x[free] = spsolve(normal[free][:, free], rhs_all[free, c])
+            x[free] = _banded_solve(*factors[key], rhs_all[free, c])
             negative = x < 0.0
             if not negative.any():
                 break
@@ -234,19 +285,18 @@ def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float,
     dict describing the fit (module docstring): ``spp`` (renders per configuration and seed),
     ``rays``, ``light_directions``, ``seeds``, ``relative_rms``, ``seed_disagreement_relative_rms``,
     ``noise_relative_rms``; and the renders' wall seconds (not part of the slice: timings vary)."""
-    from atlasgen.models.physical_fit import renderer_bases
-
     nl, nv, phi = sample_configurations(passes)
     origins, directions = sphere_rays(nl, nv, phi)
     l, v, nh, degenerate = local_directions(nl, nv, phi)
-    _, lobe = renderer_bases(gloss, l, v, nh, degenerate)
+    lobe = specular_f_cos(gloss, l[:, 2], v[:, 2], nh, degenerate)[:, None]  # the renderer's f_s cos
     t0 = time.perf_counter()
     renders = [render_sphere_samples(medium, integrator, origins, directions, s) for s in FIT_SEEDS]
     seconds = time.perf_counter() - t0
     # y = pi (L - A f_s cos): the diffuse part the slice's RGB must supply.
     ys = [np.pi * (r - float(specular) * lobe) for r in renders]
-    rgb = fit_texels(nl, nv, 0.5 * (ys[0] + ys[1]))
-    single = [fit_texels(nl, nv, y) for y in ys]
+    # The three fits share their normal matrix (same configurations): one call, nine columns.
+    fits = fit_texels(nl, nv, np.concatenate([0.5 * (ys[0] + ys[1]), ys[0], ys[1]], axis=1))
+    rgb, single = fits[..., :3], (fits[..., 3:6], fits[..., 6:])
     stencil = bilinear_stencil(nl, nv)
     index, weight = stencil
     looked_up = (rgb.reshape(-1, 3)[index] * weight[..., None]).sum(1)

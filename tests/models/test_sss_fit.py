@@ -112,30 +112,61 @@ def test_sss_from_physical_is_accepted(write_material):
     assert material.fit_from == "physical"
 
 
-def test_fit_is_deterministic_and_reports_its_noise(mitsuba_llvm):
+def _skin_reference():
     from atlasgen.models import get_model
 
     model = get_model("sss")
-    values = {p.name: p.default for p in model.params}
-    ref = model.physical_reference(values)
-    integrator = dict(ref.integrator, type="volpathmis")
-    a, info, _ = sss_fit.fit_sss_slice(ref.interior, integrator, 0.028, 0.5, passes=1)
-    b, again, _ = sss_fit.fit_sss_slice(ref.interior, integrator, 0.028, 0.5, passes=1)
+    ref = model.physical_reference({p.name: p.default for p in model.params})
+    return ref.interior, dict(ref.integrator, type="volpathmis")
+
+
+def test_sphere_renders_are_deterministic_and_lit_from_the_light(mitsuba_llvm):
+    medium, integrator = _skin_reference()
+    nl = np.repeat([1.0, -1.0], 2048)
+    nv, phi = np.full(4096, 1.0), np.zeros(4096)
+    origins, directions = sphere_rays(nl, nv, phi)
+    a = sss_fit.render_sphere_samples(medium, integrator, origins, directions, seed=0)
+    assert a.tobytes() == sss_fit.render_sphere_samples(medium, integrator, origins, directions, seed=0).tobytes()
+    other = sss_fit.render_sphere_samples(medium, integrator, origins, directions, seed=1)
+    assert not np.array_equal(a, other)
+    # Head-on, white skin returns a good part of the light; through a 10 mm ball almost none.
+    front, back = a[:2048].mean(0), a[2048:].mean(0)
+    assert (front > 0.1).all() and (back < 0.1 * front).all() and (a >= 0.0).all()
+
+
+@pytest.mark.slow
+def test_fit_is_deterministic_and_reports_its_noise(mitsuba_llvm):
+    medium, integrator = _skin_reference()
+    a, info, _ = sss_fit.fit_sss_slice(medium, integrator, 0.028, 0.5, passes=1)
+    b, again, _ = sss_fit.fit_sss_slice(medium, integrator, 0.028, 0.5, passes=1)
     assert a.tobytes() == b.tobytes() and info == again
     assert a.shape == (HEIGHT, WIDTH, 4) and (a >= 0.0).all() and np.all(a[..., 3] == 0.028)
     assert info["rays"] == np.prod(FIT_STRATA) and info["light_directions"] == 1
     assert 0.0 < info["noise_relative_rms"] < info["seed_disagreement_relative_rms"]
     # Skin lit head-on returns light (a few tenths of its colour), and almost none from behind.
-    nl_c, _ = texel_centres()
     assert a[HEIGHT // 2, -1, 0] > 0.2 and a[HEIGHT // 2, 0, :3].max() < 0.05
 
 
 SKIN = 'type = "sss"\nradius = 12.0\ncolour = [0.625, 0.385, 0.241]\n'
 
 
+def _sphere_only(scene: str, folder):
+    """The standard validation scene without its plane (the reference shows a diffuse stand-in
+    there, which no sphere fit is meant to match)."""
+    from importlib.resources import files
+
+    text = (files("atlasgen") / "data" / "validation" / f"{scene}.toml").read_text()
+    path = folder / f"{scene}-sphere.toml"
+    path.write_text(text[: text.rindex("[[objects]]")])
+    assert text.count("[[objects]]") == 2 and 'shape = "plane"' in text[text.rindex("[[objects]]") :]
+    return str(path)
+
+
 @pytest.mark.slow
 def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_context, tmp_path):
-    """Both slices of the shipped skin in the validation scenes, against the volpath reference."""
+    """The shipped skin's two slices on the validation sphere, against the volpath reference."""
+    import json
+
     from atlasgen.bake.pipeline import bake_atlas, write_bake
     from atlasgen.materials.material import read_materials
     from atlasgen.validate.run import validate_atlas
@@ -145,18 +176,14 @@ def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_con
     (folder / "closed.toml").write_text(SKIN)
     (folder / "fitted.toml").write_text(SKIN + 'from = "physical"\n')
     dds = tmp_path / "atlas.dds"
-    baked = bake_atlas(read_materials([folder]))
-    write_bake(baked, dds)
-    run = validate_atlas(dds, scenes=["front", "back"], resolution=(64, 48), physical_spp=64)
+    write_bake(bake_atlas(read_materials([folder])), dds)
+    scenes = [_sphere_only(s, tmp_path) for s in ("front", "back")]
+    run = validate_atlas(dds, scenes=scenes, resolution=(64, 48), physical_spp=256)
     psnr = {(r.material, r.scene): r.references["physical"].metrics.psnr for r in run.runs}
-    for scene in ("front", "back"):
-        assert psnr[("fitted", scene)] > psnr[("closed", scene)] + 3.0, psnr
-    fit = next(r for r in run.runs if r.material == "fitted")
-    assert fit is not None
-    import json
-
-    manifest = json.loads(dds.with_suffix(".json").read_text())
-    entries = manifest["materials"]
+    for scene in {r.scene for r in run.runs}:
+        # With the reference's own noise in both (a floor near 35 dB at this spp).
+        assert psnr[("fitted", scene)] >= 30.0 and psnr[("fitted", scene)] > psnr[("closed", scene)] + 1.0, psnr
+    entries = json.loads(dds.with_suffix(".json").read_text())["materials"]
     entry = next(e for e in (entries if isinstance(entries, list) else entries.values()) if e["name"] == "fitted")
     info = entry["fit"]
     assert info["from"] == "physical" and info["gloss"] == 0.5 and info["spp"] == 1
