@@ -274,7 +274,9 @@ class Subsurface(Model):
         """
         ref = self.physical_reference(values)
         integrator = dict(ref.integrator, type="volpathmis")
-        rgba, info, seconds = fitted_sss_slice(ref.interior, integrator, float(values["specular"]), float(gloss))
+        own = self.bake(values).values[0, ..., :3]  # the closed form, to report what the fit gained
+        rgba, info, seconds = fitted_sss_slice(ref.interior, integrator, float(values["specular"]), float(gloss),
+                                               model_rgb=own)  # fmt: skip
         fit = {"from": "physical", "reference": ref.description, "gloss": float(gloss),
                "integrator": "volpathmis", "specular": float(values["specular"]), **info}  # fmt: skip
         return SliceSet(np.array(rgba).reshape(1, *rgba.shape), extra={"fit": fit}, timings={"physical_renders": seconds})

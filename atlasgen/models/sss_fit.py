@@ -280,11 +280,14 @@ def _relative_rms_between(a, b, stencil) -> float:
     return float(np.sqrt(np.mean((la - lb) ** 2) / np.mean(lb * lb)))
 
 
-def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES):
+def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES,
+                  model_rgb=None):
     """The ``(HEIGHT, WIDTH, 4)`` slice fitted to volpath renders of the sphere of ``medium``, and a
     dict describing the fit (module docstring): ``spp`` (renders per configuration and seed),
     ``rays``, ``light_directions``, ``seeds``, ``relative_rms``, ``seed_disagreement_relative_rms``,
-    ``noise_relative_rms``; and the renders' wall seconds (not part of the slice: timings vary)."""
+    ``noise_relative_rms``, and with ``model_rgb`` (the closed form's ``(HEIGHT, WIDTH, 3)`` slice)
+    ``model_relative_rms``, that slice's error measured as the fit's; and the renders' wall
+    seconds (not part of the slice: timings vary)."""
     nl, nv, phi = sample_configurations(passes)
     origins, directions = sphere_rays(nl, nv, phi)
     l, v, nh, degenerate = local_directions(nl, nv, phi)
@@ -299,8 +302,14 @@ def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float,
     rgb, single = fits[..., :3], (fits[..., 3:6], fits[..., 6:])
     stencil = bilinear_stencil(nl, nv)
     index, weight = stencil
-    looked_up = (rgb.reshape(-1, 3)[index] * weight[..., None]).sum(1)
-    r0, r1 = ys[0] - looked_up, ys[1] - looked_up
+
+    def error(slice_rgb) -> float:
+        # The residuals of the two seeds' renders of the same rays: their noise is
+        # independent, so it averages out of their product.
+        looked_up = (np.asarray(slice_rgb).reshape(-1, 3)[index] * weight[..., None]).sum(1)
+        r0, r1 = ys[0] - looked_up, ys[1] - looked_up
+        return float(np.sqrt(max(np.mean(r0 * r1), 0.0) / np.mean(ys[0] * ys[1])))
+
     disagreement = _relative_rms_between(single[0], single[1], stencil) / np.sqrt(2.0)
     rgba = np.concatenate([rgb, np.full((HEIGHT, WIDTH, 1), float(specular))], -1)
     info = {
@@ -309,25 +318,31 @@ def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float,
         "rays": int(len(nl)),
         "light_directions": 1,
         "seeds": list(FIT_SEEDS),
-        "relative_rms": float(np.sqrt(max(np.mean(r0 * r1), 0.0) / np.mean(ys[0] * ys[1]))),
+        "relative_rms": error(rgb),
         # Two slices differing by independent noise: their RMS difference over sqrt(2) is
         # one slice's noise, and the slice fitted to both has half their variance.
         "seed_disagreement_relative_rms": float(np.sqrt(2.0) * disagreement),
         "noise_relative_rms": float(disagreement / np.sqrt(2.0)),
     }
+    if model_rgb is not None:
+        info["model_relative_rms"] = error(model_rgb)
     return rgba, info, seconds
 
 
 @lru_cache(maxsize=8)
 def _cached(key: str):
     args = json.loads(key)
-    rgba, info, seconds = fit_sss_slice(args["medium"], args["integrator"], args["specular"], args["gloss"], args["passes"])
+    model_rgb = None if args["model_rgb"] is None else np.asarray(args["model_rgb"], dtype=np.float64)
+    rgba, info, seconds = fit_sss_slice(args["medium"], args["integrator"], args["specular"], args["gloss"], args["passes"],
+                                        model_rgb)  # fmt: skip
     rgba.setflags(write=False)
     return rgba, info, seconds
 
 
-def fitted_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES):
+def fitted_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES,
+                     model_rgb=None):
     """:func:`fit_sss_slice`, cached per arguments (the renders cost tens of seconds)."""
+    model = None if model_rgb is None else np.asarray(model_rgb, dtype=np.float64).tolist()
     key = json.dumps({"medium": medium, "integrator": integrator, "specular": float(specular), "gloss": float(gloss),
-                      "passes": int(passes)}, sort_keys=True)  # fmt: skip
+                      "passes": int(passes), "model_rgb": model}, sort_keys=True)  # fmt: skip
     return _cached(key)

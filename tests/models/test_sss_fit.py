@@ -188,4 +188,4 @@ def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_con
     info = entry["fit"]
     assert info["from"] == "physical" and info["gloss"] == 0.5 and info["spp"] == 1
     # The fit's noise is well below its error (10 dB: a factor sqrt(10) in RMS).
-    assert info["noise_relative_rms"] * np.sqrt(10.0) < info["relative_rms"]
+    assert info["noise_relative_rms"] * np.sqrt(10.0) < info["relative_rms"] < info["model_relative_rms"]
