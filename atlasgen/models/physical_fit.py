@@ -316,6 +316,9 @@ class FittedSlice(Model):
         return sample_slice(self._table(values), nl, nv)
 
     def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
+        # Fit now, before any Mitsuba scene holds the reference's plugin: a fit that renders
+        # (sss) cannot run inside the render that evaluates it, nor beside live Python plugins.
+        self._table(values)
         ref = Model.model_reference(self, values, albedo, gloss)
         material = {**json.loads(ref.bsdf["material"]), "fit_gloss": self.gloss}
         return type(ref)({**ref.bsdf, "material": json.dumps(material, sort_keys=True)},
