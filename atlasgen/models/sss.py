@@ -260,7 +260,6 @@ class Subsurface(Model):
             builtin_only=True,
         )
 
-
     def fit_physical(self, values, gloss):
         """The slice fitted to volpath renders of a sphere of this skin (:mod:`atlasgen.models.sss_fit`).
 
