@@ -37,6 +37,7 @@ from atlasgen.materials.scene import object_matrix
 
 __all__ = [
     "render_pixel_centres",
+    "object_mask",
     "DIRECT_INTEGRATOR",
     "SHADOW_INTEGRATOR",
     "register_direct_integrator",
@@ -153,6 +154,22 @@ def cast_shadow_mask(mi, scene) -> np.ndarray:
     return image[..., 0] > 0.5
 
 
+def object_mask(mi, scene, indices) -> np.ndarray:
+    """``(h, w)`` bool: pixels whose pixel-centre ray first meets one of the objects ``indices``.
+
+    Those objects glow (a unit ``area`` emitter), every object is black, and a one-bounce
+    ``path`` render at pixel centres sees the glow exactly where they are visible.
+    """
+    mi.set_variant("llvm_ad_rgb")
+    black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+    d = {"type": "scene", "integrator": {"type": "path", "max_depth": 1}, "sensor": sensor_dict(mi, scene, 1)}
+    for obj in scene.objects:
+        emitter = {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}} if obj.index in indices else None
+        d[f"object_{obj.index:04d}"] = mitsuba_mesh(mi, obj, black, emitter=emitter)
+    image, _ = render_mitsuba(mi, mi.load_dict(d), 1, python_plugins=False)
+    return image[..., 0] > 0.5
+
+
 def sensor_dict(mi, scene, spp: int = 1, stochastic: bool = False) -> dict:
     """Mitsuba ``perspective`` sensor matching the renderer's camera and image size.
 
@@ -207,7 +224,7 @@ def world_mesh_arrays(obj):
     return positions, normals, mesh.indices
 
 
-def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None):
+def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None, emitter=None):
     """A Mitsuba ``Mesh`` holding exactly the renderer's triangles for ``obj``.
 
     ``bsdf`` is a BSDF instance or dict; ``interior`` an optional medium (instance or
@@ -221,6 +238,8 @@ def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None):
         props["bsdf"] = bsdf if not isinstance(bsdf, dict) else mi.load_dict(bsdf)
     if interior is not None:
         props["interior"] = interior if not isinstance(interior, dict) else mi.load_dict(interior)
+    if emitter is not None:
+        props["emitter"] = mi.load_dict(emitter)
     mesh = mi.Mesh(name or f"object_{obj.index}", len(positions), len(faces), props, has_vertex_normals=True)
     params = mi.traverse(mesh)
     f32 = [np.ascontiguousarray(positions[:, k], dtype=np.float32) for k in range(3)]

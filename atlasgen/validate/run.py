@@ -36,6 +36,7 @@ from atlasgen.validate.metrics import compare_images, noise_floor, NOISE_FLOOR_M
 from atlasgen.validate.mitsuba_scene import (
     build_mitsuba_scene,
     cast_shadow_mask,
+    object_mask,
     register_direct_integrator,
     render_mitsuba,
     render_pixel_centres,
@@ -442,6 +443,10 @@ def _plane_stand_in(entry, albedo) -> dict:
 CAST_SHADOW_NOTE = "cast shadows of other objects (the deferred renderer has none); inter-reflection is not masked"
 
 
+#: What the physical comparison leaves out where the material's own reference cannot cover an object.
+STAND_IN_NOTE = "open surfaces showing the material (a medium needs a closed surface: the reference has a diffuse stand-in there)"
+
+
 def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
@@ -449,7 +454,9 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
 
     A stochastic reference is rendered with seeds 0 and 1 (the second for its noise floor).
     Where the reference's integrator traces visibility (``volpath``), the pixels in another
-    object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`).
+    object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`),
+    and where its material lives in a medium, the open surfaces showing it (a diffuse stand-in
+    in the reference) are masked too (:func:`~atlasgen.validate.mitsuba_scene.object_mask`).
     """
     if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
@@ -459,9 +466,11 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
     closed = reference.interior is not None
     mi.set_variant(variant)
     register_references_for_variant(mi)
-    bsdfs, interiors = [], []
+    bsdfs, interiors, not_the_material = [], [], []
     for o, e in zip(scene.objects, _object_entries(scene, entry, manifest)):
         mine = e.name == entry.name
+        if mine and o.shape == "plane" and closed:
+            not_the_material.append(o.index)
         if mine and not (o.shape == "plane" and closed):
             own = physical_reference(entry, o.albedo, o.gloss)
             bsdfs.append(own.bsdf)
@@ -487,6 +496,12 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
     ref = ReferenceRender("physical", reference.description, image, seconds, n, variant, second_image=second)
     if reference.integrator is not None:  # an integrator of its own traces shadow rays
         ref.mask, ref.masked = cast_shadow_mask(mi, scene), CAST_SHADOW_NOTE
+    if not_the_material:
+        # The atlas shows the material there, the reference a diffuse stand-in: comparing
+        # them would measure the stand-in, not the material.
+        stand_ins = object_mask(mi, scene, not_the_material)
+        ref.mask = stand_ins if ref.mask is None else (ref.mask | stand_ins)
+        ref.masked = "; ".join(x for x in (ref.masked, STAND_IN_NOTE) if x)
     mi.set_variant("llvm_ad_rgb")
     return ref
 

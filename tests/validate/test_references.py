@@ -108,7 +108,7 @@ def test_physical_references_exist_only_where_physics_does():
     assert fresnel.bsdf["type"] == "roughplastic" and fresnel.bsdf["alpha"] == pytest.approx(0.25)
     assert fresnel.bsdf["distribution"] == "ggx"  # the renderer's lobe: GGX, alpha = (1 - gloss)^2
     sss = physical_reference(_entry("sss", _defaults("sss")))
-    assert sss.integrator["type"] == "volpath" and sss.interior["type"] == "homogeneous"
+    assert sss.integrator["type"] == "volpathmis" and sss.interior["type"] == "homogeneous"
     assert sss.stochastic and sss.builtin_only
     film = physical_reference(_entry("iridescent", {**_defaults("iridescent"), "colour": (0.5, 0.5, 0.5)}), albedo=(0.5, 1, 1))
     assert film.variant == "llvm_ad_spectral" and film.bsdf["type"] == "atlasgen_thinfilm"

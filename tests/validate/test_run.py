@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import BackendError, InputError, SceneError
+from tests.validate.validation_fixtures import TINY
 
 
 def _result(run, material, scene, kind="model"):
@@ -135,11 +136,24 @@ def test_stochastic_references_report_their_noise_floor(validation_run):
         assert ref.noise_floor_db is None and ref.noise_floor_ok is None
 
 
-def test_volpath_comparison_masks_cast_shadows_which_the_atlas_lacks(validation_run):
+def test_volpath_comparison_masks_cast_shadows_and_stand_ins(validation_run, mitsuba_rgb):
+    """The atlas has no cast shadows, and the reference's open plane is a diffuse stand-in (a
+    medium needs a closed surface): both are left out, and the report says so."""
+    from atlasgen.validate.mitsuba_scene import cast_shadow_mask, object_mask
+    from atlasgen.validate.scenes import bind_material, load_validation_scene, resize_scene
+
     r, ref = _result(validation_run, "skin", "back", "physical")
-    assert ref.mask is not None and 0.0 < ref.masked_fraction < 0.5 and "cast shadows" in ref.masked
-    # The masked pixels are the reference's shadows: darker there than the (shadowless) atlas image.
-    lum = lambda image: image[ref.mask].sum(-1).mean()  # noqa: E731
-    assert lum(ref.image) < 0.5 * lum(r.atlas_image)
+    assert "cast shadows" in ref.masked and "stand-in" in ref.masked
+    _, scene = load_validation_scene("back")
+    scene = bind_material(resize_scene(scene, *TINY), "skin")
+    shadows = cast_shadow_mask(mitsuba_rgb, scene)
+    plane = object_mask(mitsuba_rgb, scene, [o.index for o in scene.objects if o.shape == "plane"])
+    sphere = object_mask(mitsuba_rgb, scene, [o.index for o in scene.objects if o.shape == "sphere"])
+    np.testing.assert_array_equal(ref.mask, shadows | plane)
+    assert plane.mean() > 0.2 and sphere.mean() > 0.2 and not (plane & sphere).any()
+    # The shadows fall on the plane; what is left is the sphere the reference models as skin.
+    assert (~ref.mask & (sphere | plane)).sum() == (sphere & ~shadows).sum() > 0
+    lum = lambda image, where: image[where].sum(-1).mean()  # noqa: E731
+    assert lum(ref.image, shadows) < 0.5 * lum(r.atlas_image, shadows)
     for material in ("matte", "film"):  # atlasgen_direct traces no shadow rays: nothing to mask
         assert _result(validation_run, material, "back", "physical")[1].mask is None
