@@ -45,7 +45,7 @@ def _resolution(ctx, param, value):
 @click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
-              help="Samples per pixel for stochastic physical references (sss volpath, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and again with 4x the samples, up to 16x, while the floor is not 10 dB above the error it measures.")  # fmt: skip
+              help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and again with 4x the samples, up to 16x, while the floor is not 10 dB above the error it measures.")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
