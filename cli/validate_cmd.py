@@ -45,7 +45,9 @@ def _resolution(ctx, param, value):
 @click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
-              help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and again with 4x the samples, up to 16x, while the floor is not 10 dB above the error it measures.")  # fmt: skip
+              help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and again with 4x the samples, up to --max-physical-spp, while the floor is not 10 dB above the error it measures.")  # fmt: skip
+@click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,
+              help="The most samples per pixel a stochastic physical reference grows to.  [default: 16x --physical-spp]")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
@@ -61,7 +63,7 @@ def _resolution(ctx, param, value):
 @verbosity_options(quiet="Print only errors and the final summary line.",
                    verbose="Print a line after every render instead of one per material.")  # fmt: skip
 @fail_on_errors
-def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity):
+def validate(materials, scenes, spp, physical_spp, max_physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity):
     """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
 
     Each material is rendered on each validation scene by the bundled deferred
@@ -88,6 +90,7 @@ def validate(materials, scenes, spp, physical_spp, resolution, no_physical, atla
 
         with MaterialProgress("validated", verbosity) as on_material:
             run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
+                                 max_physical_spp=max_physical_spp,
                                  resolution=resolution, physical=not no_physical, progress=progress,
                                  on_material=on_material)  # fmt: skip
         written = write_validation(run, output)

@@ -239,7 +239,7 @@ def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
 
 
 def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = 64,
-                   resolution=None, physical: bool = True, progress=None, on_material=None) -> ValidationRun:  # fmt: skip
+                   max_physical_spp: int | None = None, resolution=None, physical: bool = True, progress=None, on_material=None) -> ValidationRun:  # fmt: skip
     """Render every material on every scene, through the atlas and with Mitsuba; measure.
 
     Parameters
@@ -255,6 +255,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     spp
         Mitsuba samples per pixel of the model references (1 = the pixel centre, what
         the rasteriser samples; a square number k^2 averages a k x k grid).
+    max_physical_spp
+        The most samples per pixel a stochastic reference grows to (default 16x ``physical_spp``).
     physical_spp
         Samples per pixel of the stochastic physical references (``volpath``, spectral
         ones). Each is rendered twice, with seeds 0 and 1, for its noise floor.
@@ -278,6 +280,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     """
     if spp < 1 or physical_spp < 1:
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
+    max_physical_spp = physical_spp * MAX_SPP_FACTOR if max_physical_spp is None else max(int(max_physical_spp), physical_spp)
     t_start = time.perf_counter()
     plan = plan_validation(atlas_path, materials, scenes, resolution)
     mi = load_mitsuba("llvm_ad_rgb")
@@ -311,7 +314,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
-                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, spp, atlas_image, run.exposure)
+                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                                          atlas_image, run.exposure)  # fmt: skip
                 run.references["physical"] = ref
                 say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
                     + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else ""))
@@ -331,20 +335,21 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     settings = {
         "spp": spp,
         "physical_spp": physical_spp,
+        "max_physical_spp": max_physical_spp,
         "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
         "goals": {"psnr_db": GOAL_PSNR_DB, "flip": GOAL_FLIP},
     }
     return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
 
 
-def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, spp, atlas_image, exposure) -> ReferenceRender:
+def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, atlas_image, exposure) -> ReferenceRender:
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
     A stochastic reference renders with seeds 0 and 1 at ``physical_spp`` samples per pixel;
     the image compared is their mean, and the PSNR between them is its noise floor. While the
     floor is not :data:`NOISE_FLOOR_MARGIN_DB` above the PSNR it measures, both renders are
-    made again with :data:`SPP_GROWTH` times the samples, up to :data:`MAX_SPP_FACTOR` times
-    ``physical_spp``: a reference is converged where the error needs it, and cheap elsewhere.
+    made again with :data:`SPP_GROWTH` times the samples, up to ``max_spp``: a reference is
+    converged where the error needs it, and cheap elsewhere.
     """
     n = physical_spp
     while True:
@@ -354,7 +359,7 @@ def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, spp
             ref.image = 0.5 * (ref.image + ref.second_image)
             ref.second_image = None
         ref.metrics = compare_images(ref.image, atlas_image, exposure, mask=ref.mask)
-        if ref.noise_floor_ok is not False or n * SPP_GROWTH > physical_spp * MAX_SPP_FACTOR:
+        if ref.noise_floor_ok is not False or n * SPP_GROWTH > max_spp:
             return ref
         n *= SPP_GROWTH
 

@@ -63,10 +63,12 @@ def test_auto_bake_records_its_choice_and_every_candidate(write_material, tmp_pa
     # A GGX source: its closed form is exact, and cheaper than any K in the shipped table.
     assert isinstance(metal, AnalyticRepresentation) and metal.auto["chosen"] == "analytic:ggx"
     assert metal.auto["cost_device"] == table.device
-    # A Mitsuba BSDF has no closed form in the shader: K separable terms, the cheapest meeting 5%.
+    # A Mitsuba BSDF has no closed form in the shader, and a coloured conductor's highlight is
+    # beyond one slice (A is a scalar): K separable terms, the cheapest meeting 5%.
     assert isinstance(gold, SeparableRepresentation) and gold.auto["chosen"] == f"separable:{gold.terms}"
     candidates = gold.auto["candidates"]
-    assert [c["representation"] for c in candidates] == [f"separable:{k}" for k in range(1, 9)]
+    assert [c["representation"] for c in candidates] == ["lut"] + [f"separable:{k}" for k in range(1, 9)]
+    assert not candidates[0]["meets_budget"]
     assert all(c["cost"] == table.cost(c["representation"]) for c in candidates)
     meeting = [c for c in candidates if c["meets_budget"]]
     assert meeting and gold.auto["chosen"] == min(meeting, key=lambda c: c["cost"])["representation"]
