@@ -18,7 +18,7 @@ import gc
 import math
 import statistics
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -449,7 +449,8 @@ CAST_SHADOW_NOTE = "cast shadows of other objects (the deferred renderer has non
 
 
 #: What the physical comparison leaves out where the material's own reference cannot cover an object.
-STAND_IN_NOTE = "open surfaces showing the material (a medium needs a closed surface: the reference has a diffuse stand-in there)"
+STAND_IN_NOTE = ("the open surfaces showing the material, where a medium's reference has a diffuse stand-in: masked, "
+                 "and left out of the reference, so they shadow and light nothing")
 
 
 def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -> ReferenceRender:
@@ -488,7 +489,13 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
             bsdfs.append(_plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss).bsdf)
             interiors.append(None)
     n = physical_spp if reference.stochastic else spp
-    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, n, reference.integrator, interiors, stochastic=reference.stochastic)
+    # Objects whose pixels are masked (stand-ins for the material) are left out of the render
+    # too: a stand-in would still light the material by inter-reflection, which the deferred
+    # renderer cannot show either.
+    keep = [i for i, o in enumerate(scene.objects) if o.index not in not_the_material]
+    shown = replace(scene, objects=[scene.objects[i] for i in keep])
+    mi_scene = build_mitsuba_scene(mi, shown, [bsdfs[i] for i in keep], n, reference.integrator, [interiors[i] for i in keep],
+                                   stochastic=reference.stochastic)  # fmt: skip
     second = None
     if reference.stochastic:
         # Every sample through the pixel centre, as the rasteriser shades: many samples

@@ -27,9 +27,9 @@ def test_the_shipped_skin_has_skin1s_colour():
 
 def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
     """Front scene, 64x48, masked as validation masks it (cast shadows, and the plane, where the
-    reference has a diffuse stand-in): over the sphere the mean linear RGB of the model
-    reference and of the volpath reference agree within 10% per channel (the pre-integrated
-    profile and the medium scatter differently, most in blue: measured 8%)."""
+    reference has a diffuse stand-in): over the sphere the mean linear RGB of the shipped
+    skin's model reference (its fitted slice in the renderer's equation) and of the volpath
+    reference agree within 7% per channel at 64 spp (the closed form's blue is 12% off: why it ships fitted)."""
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
     from atlasgen.validate.references import model_reference, physical_reference, register_references
     from atlasgen.validate.run import _render_physical
@@ -37,7 +37,12 @@ def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
 
     mi = mitsuba_llvm
     material = read_material(SKIN)
-    entry = SimpleNamespace(name=material.name, type=material.type, params=material.params, fit=None)
+    from atlasgen.io.manifest import Fit
+
+    # The shipped skin as baked: fitted to volpath renders of a sphere of itself.
+    assert material.fit_from == "physical"
+    entry = SimpleNamespace(name=material.name, type=material.type, params=material.params,
+                            fit=Fit(source="physical", gloss=material.fit_gloss, details={}))
     _, scene = load_validation_scene("front")
     scene = bind_material(resize_scene(scene, 64, 48), entry.name)
     register_references(mi)
@@ -48,4 +53,4 @@ def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
     ref = _render_physical(mi, scene, entry, physical_reference(entry), SimpleNamespace(materials=[entry]), 64, 1)
     keep = ~ref.mask
     assert 0.0 < ref.mask.mean() < 0.6  # cast shadows and the plane (a diffuse stand-in)
-    np.testing.assert_allclose(ref.image[keep].mean(0), model[keep].mean(0), rtol=0.10)
+    np.testing.assert_allclose(ref.image[keep].mean(0), model[keep].mean(0), rtol=0.07)
