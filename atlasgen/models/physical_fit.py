@@ -223,8 +223,10 @@ def plain_bsdf_reference(model: Model, values: dict, gloss: float = FIT_GLOSS):
     ref = model.physical_reference(values, (1.0, 1.0, 1.0), gloss)
     if ref is None:
         return f"model '{model.type_name}' has no physical reference"
-    if ref.integrator is not None or ref.interior is not None or ref.stochastic:
+    if ref.integrator is not None or ref.interior is not None:
         return f"model '{model.type_name}''s physical reference is a volume render ({ref.description}), not a BSDF to project"
+    if ref.stochastic:
+        return f"model '{model.type_name}''s physical reference is a stochastic render ({ref.description}), not an RGB BSDF to project"
     if ref.variant != "llvm_ad_rgb":
         return f"model '{model.type_name}''s physical reference needs {ref.variant} ({ref.description}), not an RGB BSDF"
     if ref.bsdf.get("type", "").startswith("atlasgen_"):
