@@ -209,7 +209,7 @@ def noise_floor_failures(data: dict) -> list[str]:
             if ref.get("noise_floor_ok") is False:
                 out.append(f"{row['material']} on {row['scene']}: the {kind} reference's noise floor "
                            f"{_psnr_text(ref['noise_floor_db'])} dB is not 10 dB above the PSNR it measures "
-                           f"({_psnr_text(ref['psnr_db'])} dB); raise --physical-spp")  # fmt: skip
+                           f"({_psnr_text(ref['psnr_db'])} dB) at {ref.get('spp')} spp; raise --max-physical-spp")  # fmt: skip
     return out
 
 
