@@ -97,8 +97,6 @@ def _cell(f: dict) -> str:
 
 
 def measure() -> dict:
-    from atlasgen.io.manifest import read_manifest  # noqa: F401  (the library must import)
-
     library = {p.stem: p.read_text() for p in sorted((ROOT / "materials").glob("*.toml"))}
     with tempfile.TemporaryDirectory() as tmp:
         fitted = _validate({k: v[0] for k, v in fitted_materials().items()}, Path(tmp) / "fitted")

@@ -15,7 +15,7 @@ from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, Reference, SliceSe
 from atlasgen.models.physical_fit import fit_to_reference
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.quadrature import gauss_legendre_rule
-from atlasgen.optics.specular import specular_alpha
+from atlasgen.optics.specular import half_vector_cosine, specular_alpha
 
 __all__ = ["Backlit", "translucency", "transmitted_albedo", "thin_sheet_f_cos", "VIEW_MODES"]
 
@@ -120,9 +120,7 @@ def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha:
     side = np.where(ci < 0.0, -1.0, 1.0)
     ci, co = ci * side, co * side
     same = co > 0.0
-    h = wi + wo
-    h2 = (h * h).sum(1)
-    nh = np.divide(h[:, 2] * side, np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+    nh = half_vector_cosine(wi, wo)[0] * side
     with np.errstate(divide="ignore", invalid="ignore"):
         lobe = np.nan_to_num(ggx_distribution(nh, alpha) * smith_visibility_correlated_ggx(ci, np.abs(co), alpha))
     reflected = np.asarray(reflectance) / np.pi + (specular * lobe)[:, None]

@@ -13,7 +13,7 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.io.fields import Param
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.specular import renderer_f_cos
+from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 
 __all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "encode_scaled",
            "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE"]  # fmt: skip
@@ -321,14 +321,12 @@ def _table_radiance(model: Model):
     """The radiance one light adds through the renderer's equation with ``model`` as the slice."""
 
     def radiance(n, l, v, albedo, gloss, irradiance):
-        h = l + v
-        h2 = (h * h).sum(1)
-        nh = np.divide((n * h).sum(1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+        nh, degenerate = half_vector_cosine(l, v, n)
         nl, nv = (n * l).sum(1), (n * v).sum(1)
         out = np.zeros((len(n), 3))
         for g in np.unique(gloss):  # renderer_f_cos takes one gloss (one roughness): group the pixels by it
             sel = gloss == g
-            f = model.renderer_f_cos({}, albedo[sel], float(g), nl[sel], nv[sel], nh[sel], lv_degenerate=h2[sel] < 1e-12)
+            f = model.renderer_f_cos({}, albedo[sel], float(g), nl[sel], nv[sel], nh[sel], lv_degenerate=degenerate[sel])
             out[sel] = irradiance[sel] * f
         return out
 

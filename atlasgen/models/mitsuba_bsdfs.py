@@ -37,7 +37,7 @@ from atlasgen.models.physical_fit import FittedSlice
 from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
 from atlasgen.models.backlit import thin_sheet_f_cos
 from atlasgen.optics.thin_film import thin_film_f_cos
-from atlasgen.optics.specular import specular_alpha
+from atlasgen.optics.specular import half_vector_cosine, specular_alpha
 from atlasgen.separable.source import make_source
 
 __all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE", "LOBE_SAMPLING_PROBABILITY",
@@ -137,11 +137,9 @@ def register_bsdfs(mi) -> None:
             self.distribution = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, float(specular_alpha(self.gloss)), False)
 
         def f_cos(self, wi, wo, side):
-            h = wi + wo
-            h2 = (h * h).sum(-1)
-            nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12) * side
+            nh, degenerate = half_vector_cosine(wi, wo)
             return self.model.renderer_f_cos(self.values, self.albedo, self.gloss,
-                                             wo[:, 2] * side, wi[:, 2] * side, nh, lv_degenerate=h2 < 1e-12)  # fmt: skip
+                                             wo[:, 2] * side, wi[:, 2] * side, nh * side, lv_degenerate=degenerate)  # fmt: skip
 
         @staticmethod
         def _upper(si, wo):

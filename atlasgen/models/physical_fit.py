@@ -29,6 +29,7 @@ from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.optics.specular import half_vector_cosine
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
@@ -63,10 +64,7 @@ def azimuth_pairs(n_dot_l, n_dot_v, azimuths: int = AZIMUTHS):
     shape = (len(np.atleast_1d(n_dot_v)), len(np.atleast_1d(n_dot_l)), azimuths)
     l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
     v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
-    h = l + v
-    h2 = (h * h).sum(-1)
-    n_dot_h = np.divide(h[..., 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-    return l, v, n_dot_h, h2 <= 1e-12
+    return (l, v, *half_vector_cosine(l, v))
 
 
 class _Constant(Model):

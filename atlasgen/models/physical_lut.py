@@ -21,7 +21,7 @@ from atlasgen.models.base import encode_scaled
 from atlasgen.models.physical_fit import AZIMUTHS, fit_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
-from atlasgen.optics.specular import renderer_f_cos
+from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.error import error_sample_for, measure_errors, SELECTION_SEED
 from atlasgen.separable.source import make_source
@@ -37,11 +37,7 @@ LUT_GLOSSES = (0.0, 0.25, 0.5, 0.625, 0.75, 0.875)
 
 def pair_geometry(l, v):
     """N.L, N.V, N.H and where l + v = 0, for unit (l, v) ``(N, 3)`` with n = +z."""
-    nl, nv = l[:, 2], v[:, 2]
-    h = l + v
-    h2 = np.sum(h * h, axis=-1)
-    nh = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-    return nl, nv, nh, h2 <= 1e-12
+    return (l[:, 2], v[:, 2], *half_vector_cosine(l, v))
 
 
 def slice_f_cos(rgba: np.ndarray, gloss: float, l: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from atlasgen.models.base import (
 from atlasgen.models.iridescent import Iridescent
 from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.specular import renderer_f_cos
+from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
 from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
@@ -550,11 +550,9 @@ def _lut_radiance(table, gloss: float):
     def radiance(n, l, v, albedo, _gloss, irradiance):
         n, l, v = (np.asarray(x, dtype=np.float64) for x in (n, l, v))
         nl, nv = np.sum(n * l, axis=-1), np.sum(n * v, axis=-1)
-        h = l + v
-        h2 = np.sum(h * h, axis=-1)
-        nh = np.divide(np.sum(n * h, axis=-1), np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
+        nh, degenerate = half_vector_cosine(l, v, n)
         m = sample_slice(table, np.clip(nl, -1.0, 1.0), np.clip(nv, 0.0, 1.0))
-        return irradiance * albedo * renderer_f_cos(m, 1.0, gloss, nl, nv, nh, h2 <= 1e-12)
+        return irradiance * albedo * renderer_f_cos(m, 1.0, gloss, nl, nv, nh, degenerate)
 
     return radiance
 

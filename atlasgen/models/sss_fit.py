@@ -57,7 +57,7 @@ from atlasgen.contract import HEIGHT, WIDTH, atlas_uv
 from atlasgen.errors import BackendError
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.optics.interpolation import linear_stencil
-from atlasgen.optics.specular import specular_f_cos
+from atlasgen.optics.specular import half_vector_cosine, specular_f_cos
 
 __all__ = ["FIT_STRATA", "FIT_PASSES", "FIT_SEEDS", "GEOMETRY_SEED", "MIN_N_DOT_V", "SMOOTHNESS", "OBJECT_RADIUS",
            "sample_configurations", "local_directions", "sphere_rays", "bilinear_stencil", "fit_texels",
@@ -101,10 +101,7 @@ def local_directions(n_dot_l, n_dot_v, phi):
     sl, sv = np.sqrt(np.maximum(1.0 - nl * nl, 0.0)), np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
     l = np.stack([sl, np.zeros_like(nl), nl], -1)
     v = np.stack([sv * np.cos(phi), sv * np.sin(phi), nv], -1)
-    h = l + v
-    h2 = (h * h).sum(-1)
-    n_dot_h = np.divide(h[:, 2], np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12)
-    return l, v, n_dot_h, h2 <= 1e-12
+    return (l, v, *half_vector_cosine(l, v))
 
 
 def sphere_rays(n_dot_l, n_dot_v, phi, radius: float = OBJECT_RADIUS):

@@ -35,6 +35,7 @@ from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correl
 from atlasgen.shaderlang import Function, If, Let, Return, float_literal
 
 __all__ = [
+    "half_vector_cosine",
     "specular_alpha",
     "specular_fresnel_cosine",
     "specular_f_cos",
@@ -72,6 +73,18 @@ def specular_fresnel_cosine(n_dot_l, n_dot_v):
     # The angle form keeps its precision at grazing cosines, where the algebraic one
     # (1 + c_l c_v - s_l s_v) / 2 cancels to 0.
     return np.cos(0.5 * (np.arccos(cl) + np.arccos(cv)))
+
+
+def half_vector_cosine(l, v, n=None):
+    """N.H of unit ``l``, ``v`` ``(..., 3)`` (``n`` per pair, or +z when ``None``), and where
+    l + v = 0, which has no half vector: N.H is 0 there (the lobe then adds nothing).
+
+    N.H = n . (l + v) / |l + v|.
+    """
+    h = np.asarray(l) + np.asarray(v)
+    h2 = np.sum(h * h, axis=-1)
+    along = h[..., 2] if n is None else np.sum(np.asarray(n) * h, axis=-1)
+    return np.divide(along, np.sqrt(h2), out=np.zeros_like(h2), where=h2 > 1e-12), h2 <= 1e-12
 
 
 def specular_f_cos(gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None) -> np.ndarray:

@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_LOBE
 from atlasgen.optics.microfacet import ggx_distribution
-from atlasgen.optics.specular import renderer_f_cos, specular_alpha, specular_f_cos, specular_fresnel_cosine
+from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos, specular_alpha, specular_f_cos, specular_fresnel_cosine
 
 #: Glosses of the albedo tests, and what specular_alpha gives them: alpha 1, 0.49, 0.25, 0.09, 0.01, the floor.
 GLOSSES = (0.0, 0.3, 0.5, 0.7, 0.9, 1.0)
@@ -139,3 +139,15 @@ def test_renderer_equation_splits_into_diffuse_over_pi_and_the_scaled_lobe():
     np.testing.assert_allclose(got, expected, rtol=1e-13)
     assert np.all(got[0] == np.array([0.2, 0.2, 0.15]) / np.pi)  # no lobe below the horizon
     assert np.isfinite(got[4]).all() and got[4, 0] > got[0, 0]  # finite at N.V = 0 (V = 0.5 / (N.L alpha))
+
+
+def test_half_vector_cosine_closed_forms():
+    """N.H = cos of the half angle: l at 60 degrees and v at 0 in one plane give cos 30 degrees;
+    l = v gives N.L; l = -v has no half vector (0, flagged); a per-pair normal is honoured."""
+    l = np.array([[np.sin(np.pi / 3), 0.0, np.cos(np.pi / 3)], [0.6, 0.0, 0.8], [0.6, 0.0, 0.8]])
+    v = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [-0.6, 0.0, -0.8]])
+    nh, degenerate = half_vector_cosine(l, v)
+    np.testing.assert_allclose(nh, [np.cos(np.pi / 6), 0.8, 0.0], atol=1e-12)
+    assert degenerate.tolist() == [False, False, True]
+    n = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(half_vector_cosine(l, v, n)[0], [np.cos(np.pi / 6), 0.6, 0.0], atol=1e-12)
