@@ -16,6 +16,7 @@ from atlasgen.models.physical_fit import fit_to_reference
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.quadrature import gauss_legendre_rule
 from atlasgen.optics.specular import half_vector_cosine, specular_alpha
+from atlasgen.optics.translucency import transmitted_albedo
 
 __all__ = ["Backlit", "translucency", "transmitted_albedo", "thin_sheet_f_cos", "VIEW_MODES"]
 
@@ -91,17 +92,6 @@ def translucency(n_dot_l, n_dot_v, distortion: float, power: float, view: str = 
     # the floor only guards 0/0 at that removable point.
     f = _power(np.clip(a[..., None] - b[..., None] * u, 0.0, 1.0), power) / np.sqrt(np.maximum(1.0 - u, 1e-300))
     return np.sqrt(1.0 + c0) * (f @ h) / np.pi
-
-
-def transmitted_albedo(distortion: float, power: float) -> float:
-    """2 int_0^1 t(-1, c) c dc: the share of light arriving along -N that the term sends out through the front.
-
-    At N.L = -1 the term has no azimuth (b = 0) and t = saturate(c (1 - delta))^p with
-    c = N.V, so the cosine-weighted integral over the viewing hemisphere is
-    2 (1 - delta)^p / (p + 2) (delta <= 1): the directional transmittance a diffuse sheet
-    must have to pass the same energy.
-    """
-    return 2.0 * (1.0 - float(distortion)) ** float(power) / (float(power) + 2.0)
 
 
 def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha: float):

@@ -162,15 +162,17 @@ class Iridescent(Model):
     physical_omissions = {
         "normalise": "an encoding for engines whose specular term already carries F0 (A = k(1-s)Y/F0); "
                      "the physical highlight is the film's own reflectance, and the report measures the 1/F0 gap",
-        "backlight_view": "how the model reduces the back-light's azimuth to (N.L, N.V); the reference "
-                          "evaluates the term at the true azimuth, which both modes approximate",
+        "backlight_view": "how the model reduces the back-light's azimuth to (N.L, N.V); the film transmits "
+                          "diffusely, with no azimuth, the energy of the model's term (transmitted_albedo), "
+                          "as the backlit model's thin sheet does, the same in both modes",
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: the film stack's Airy reflectance per
         wavelength on the renderer's GGX lobe (its roughness) and on a rough part, split and
         scaled as the model splits and scales it, over the base colour, with the back-light as
-        a transmission lobe (:func:`atlasgen.optics.thin_film.thin_film_f_cos`).
+        diffuse transmission of the energy of the model's term through the film
+        (:func:`atlasgen.optics.thin_film.thin_film_f_cos`).
 
         Stochastic: Mitsuba samples the wavelengths per sample, so the render converges
         with ``--physical-spp``.

@@ -6,7 +6,8 @@ A GGX microfacet BSDF (height-correlated Smith visibility, the renderer's lobe:
 per wavelength (Belcour & Barla, "A Practical Extension to Microfacet Theory for the
 Modeling of Varying Iridescence", SIGGRAPH 2017, eq. 2, without their Fourier-space
 approximation), over a Lambertian base weighted by the transmission (1 - R(N.L)) (1 - R(N.V)),
-with the model's film strength and split, and its back-light as a transmission lobe.
+with the model's film strength and split, and its back-light as diffuse transmission through
+the film.
 Mitsuba evaluates it per wavelength in ``llvm_ad_spectral`` through the ``atlasgen_thinfilm``
 plugin (:mod:`atlasgen.models.mitsuba_bsdfs`).
 """
@@ -20,6 +21,7 @@ import numpy as np
 from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
 from atlasgen.optics.interpolation import interpolate_2d
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
+from atlasgen.optics.translucency import transmitted_albedo
 
 __all__ = ["film_table", "film_average", "thin_film_terms", "thin_film_f_cos", "thin_film_rgb_f_cos", "FILM_DEFAULTS",
            "FIT_CHUNK"]  # fmt: skip
@@ -65,8 +67,8 @@ def thin_film_terms(wi, wo, lam, film, alpha):
         f cos = own + base(lambda) * base_weight + colour_B(lambda) * back_weight
 
     ``own`` the film's lobe and rough part, ``base_weight`` the base's transmission weight
-    times cos(theta_o) / pi and ``back_weight`` the back-light's B t (1 - R(c_i)) / pi (0 where
-    ``backlight`` is 0): the terms of :func:`thin_film_f_cos`.
+    times cos(theta_o) / pi and ``back_weight`` the back-light's B T_B (1 - R(c_i)) |c_o| / pi
+    (0 where ``backlight`` is 0): the terms of :func:`thin_film_f_cos`.
     f cos is linear in the two RGB-upsampled spectra, so one evaluation of the film serves
     both the per-wavelength plugin (:func:`thin_film_f_cos`) and the RGB integral of a fit
     (:func:`thin_film_rgb_f_cos`).
@@ -97,10 +99,8 @@ def thin_film_terms(wi, wo, lam, film, alpha):
     base_weight = np.where(valid[:, None], weight / np.pi * lit, 0.0)
     if film["backlight"] <= 0.0:
         return own, base_weight, np.zeros_like(own)
-    # V.-(L + delta N) with V = wi, L = wo (towards the light) and N = +z.
-    x = -(wi * wo).sum(1) - float(film["backlight_distortion"]) * ci
-    t = np.clip(x, 0.0, 1.0) ** float(film["backlight_power"])
-    back = (float(film["backlight"]) / np.pi) * (t * (co < 0.0))[:, None] * (1.0 - r_i)
+    gain = float(film["backlight"]) * transmitted_albedo(film["backlight_distortion"], film["backlight_power"])
+    back = (gain / np.pi) * np.where(co < 0.0, -co, 0.0)[:, None] * (1.0 - r_i)
     return own, base_weight, np.where((ci > 0)[:, None], back, 0.0)
 
 
@@ -114,13 +114,18 @@ def thin_film_f_cos(wi, wo, lam, film, alpha, base_rgb_spectrum, backlight_spect
                                                                    (Cook & Torrance 1982; Walter et al. 2007; Heitz 2014)
           + k s R(c_i) / pi                                        the film's rough part
           + base (1 - R(c_o)) (1 - R(c_i)) / (1 - R_avg) / pi      energy = "coupled" (else base / pi)
-          + B colour_B t(wi, wo) (1 - R(c_i)) / (pi |c_o|)         light from behind (c_o < 0)
+          + B T_B colour_B (1 - R(c_i)) / pi                        light from behind (c_o < 0)
 
     per wavelength, R_avg = 2 int R(c) c dc. The film's reflection is split between a
     lobe of the renderer's width and a rough (Lambertian-like) part as the model splits it
     between A and RGB: a surface whose micro-roughness is bimodal. The back-light is the
-    Barré-Brisebois & Bouchard term t = saturate(V.-(L + delta N))^p at the true azimuth
-    (the model bakes its azimuth average), seen through the film. ``wi``, ``wo``: (N, 3)
+    physical counterpart of the model's Barré-Brisebois & Bouchard term t = saturate(V.-(L +
+    delta N))^p, as for the ``backlit`` model's thin sheet: diffuse transmission with the
+    energy t passes for light from behind along -N, T_B = 2 (1 - delta)^p / (p + 2)
+    (:func:`atlasgen.optics.translucency.transmitted_albedo`), seen through the film. t itself
+    is a real-time stand-in for forward scattering, not a physical law: evaluated at the true
+    azimuth it peaks when looking into the light, which no (N.L, N.V) table can hold.
+    ``wi``, ``wo``: (N, 3)
     local; ``lam``: (N, S) nm; ``base_rgb_spectrum``, ``backlight_spectrum``: (N, S);
     ``film``: the stack (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) and any of
     :data:`FILM_DEFAULTS`. The terms come from :func:`thin_film_terms`.
