@@ -45,7 +45,7 @@ def _resolution(ctx, param, value):
 @click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
-              help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and again with 4x the samples, up to --max-physical-spp, while the floor is not 10 dB above the error it measures.")  # fmt: skip
+              help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
 @click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,
               help="The most samples per pixel a stochastic physical reference grows to.  [default: 16x --physical-spp]")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",

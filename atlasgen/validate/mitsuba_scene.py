@@ -306,7 +306,8 @@ def render_mitsuba(mi, mi_scene, spp: int = 1, seed: int = 0, python_plugins: bo
 CENTRE_PASS_SPP = 64
 
 
-def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True) -> tuple[np.ndarray, float]:
+def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True,
+                         first_sample: int = 0) -> tuple[np.ndarray, float]:
     """Render with every sample's camera ray through its pixel's centre: ``(linear RGB (h, w, 3), seconds)``.
 
     A stochastic reference needs many samples per pixel (paths, wavelengths), but the
@@ -318,6 +319,10 @@ def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: 
     variant) is random. Samples are averaged with equal weights, as the box filter does
     within a pixel; a spectral variant converts each sample to linear sRGB with its
     wavelengths (``mi.spectrum_to_srgb``), as the film does.
+
+    ``first_sample`` numbers the first of the ``spp`` samples: a render of samples
+    [n, n + m) draws none of [0, n)'s random numbers, so the two average, weighted n : m,
+    to the render of n + m samples.
     """
     import drjit as dr
 
@@ -326,10 +331,10 @@ def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: 
     width, height = (int(c) for c in sensor.film().crop_size())
     integrator = mi_scene.integrator()
     total = np.zeros((height * width, 3), dtype=np.float64)
-    done = 0
+    done, end = int(first_sample), int(first_sample) + int(spp)
     with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, not python_plugins):
-        while done < spp:
-            batch = min(CENTRE_PASS_SPP, spp - done)
+        while done < end:
+            batch = min(CENTRE_PASS_SPP, end - done)
             count = width * height * batch
             sampler = sensor.sampler().clone()
             sampler.set_sample_count(batch)

@@ -40,6 +40,7 @@ from atlasgen.validate.mitsuba_scene import (
     register_direct_integrator,
     render_mitsuba,
     render_pixel_centres,
+    CENTRE_PASS_SPP,
 )
 from atlasgen.validate.rebuild import material_mask, rebuild_images
 from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
@@ -59,10 +60,13 @@ __all__ = [
 ]
 
 DEFAULT_SCENES = ("front", "back")
-#: A stochastic reference whose noise floor is too close to the error is rendered again with
-#: this many times the samples, up to MAX_SPP_FACTOR times --physical-spp (:func:`_converged_physical`).
-SPP_GROWTH = 4
+#: A stochastic reference whose noise floor is too close to the error gets the samples the
+#: floor needs, at least this many times the last count, up to MAX_SPP_FACTOR times
+#: --physical-spp (:func:`_converged_physical`).
+MIN_SPP_GROWTH = 2
 MAX_SPP_FACTOR = 16
+#: dB the predicted floor aims above PSNR + margin: the PSNR rises as the reference's noise falls.
+FLOOR_HEADROOM_DB = 1.0
 ATLAS_TIMING_FRAMES = 3
 #: Goals against the model reference for shipped LUT materials (issue #5).
 GOAL_PSNR_DB = 45.0
@@ -347,21 +351,49 @@ def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max
 
     A stochastic reference renders with seeds 0 and 1 at ``physical_spp`` samples per pixel;
     the image compared is their mean, and the PSNR between them is its noise floor. While the
-    floor is not :data:`NOISE_FLOOR_MARGIN_DB` above the PSNR it measures, both renders are
-    made again with :data:`SPP_GROWTH` times the samples, up to ``max_spp``: a reference is
-    converged where the error needs it, and cheap elsewhere.
+    floor is not :data:`NOISE_FLOOR_MARGIN_DB` above the PSNR it measures, both renders get
+    more samples, up to ``max_spp`` in all: a reference is converged where the error needs it,
+    and cheap elsewhere.
+
+    Noise variance falls as 1/n, so n samples give a floor F(n) = F(n0) + 10 log10(n / n0).
+    The next total is the n at which F reaches the PSNR + margin + :data:`FLOOR_HEADROOM_DB`
+    (the PSNR itself rises a little as the reference's noise goes), at least
+    :data:`MIN_SPP_GROWTH` times the last, rounded up to whole passes. The new samples
+    continue the old ones (``first_sample``), so none is rendered twice.
     """
     n = physical_spp
+    ref = _render_physical(mi, scene, entry, reference, manifest, n, spp)
     while True:
-        ref = _render_physical(mi, scene, entry, reference, manifest, n, spp)
         if ref.second_image is not None:
             ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, ref.mask)
-            ref.image = 0.5 * (ref.image + ref.second_image)
-            ref.second_image = None
-        ref.metrics = compare_images(ref.image, atlas_image, exposure, mask=ref.mask)
-        if ref.noise_floor_ok is not False or n * SPP_GROWTH > max_spp:
-            return ref
-        n *= SPP_GROWTH
+        ref.metrics = compare_images(_mean_of_seeds(ref), atlas_image, exposure, mask=ref.mask)
+        target = _samples_for_floor(n, ref.noise_floor_db, None if ref.metrics is None else ref.metrics.psnr)
+        if ref.noise_floor_ok is not False or n >= max_spp or target is None:
+            break
+        more = min(target, max_spp) - n
+        extra = _render_physical(mi, scene, entry, reference, manifest, more, spp, first_sample=n)
+        ref.image = (n * ref.image + more * extra.image) / (n + more)
+        ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
+        ref.seconds += extra.seconds
+        n += more
+        ref.spp = n
+    ref.image, ref.second_image = _mean_of_seeds(ref), None
+    return ref
+
+
+def _mean_of_seeds(ref: ReferenceRender) -> np.ndarray:
+    return ref.image if ref.second_image is None else 0.5 * (ref.image + ref.second_image)
+
+
+def _samples_for_floor(n: int, floor_db: float | None, psnr_db: float | None) -> int | None:
+    """Samples per pixel (per seed) at which a floor of ``floor_db`` at ``n`` samples clears
+    ``psnr_db`` by the margin, by F(m) = F(n) + 10 log10(m / n); ``None`` when either figure
+    is not finite (identical seeds, a perfect match: more samples cannot settle it)."""
+    if floor_db is None or psnr_db is None or not (math.isfinite(floor_db) and math.isfinite(psnr_db)):
+        return None
+    needed = psnr_db + NOISE_FLOOR_MARGIN_DB + FLOOR_HEADROOM_DB - floor_db
+    wanted = max(n * MIN_SPP_GROWTH, n * 10.0 ** (needed / 10.0))
+    return int(math.ceil(wanted / CENTRE_PASS_SPP) * CENTRE_PASS_SPP) if wanted > CENTRE_PASS_SPP else int(math.ceil(wanted))
 
 
 def _check_rebuilds(run, model, atlas_path, entry, scene, aovs) -> None:
@@ -453,12 +485,13 @@ STAND_IN_NOTE = ("the open surfaces showing the material, where a medium's refer
                  "and left out of the reference, so they shadow and light nothing")
 
 
-def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -> ReferenceRender:
+def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, first_sample: int = 0) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
     plugins only.
 
-    A stochastic reference is rendered with seeds 0 and 1 (the second for its noise floor).
+    A stochastic reference is rendered with seeds 0 and 1 (the second for its noise floor),
+    samples [``first_sample``, ``first_sample`` + ``physical_spp``) of each.
     Where the reference's integrator traces visibility (``volpath``), the pixels in another
     object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`),
     and where its material lives in a medium, the open surfaces showing it (a diffuse stand-in
@@ -500,8 +533,9 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp) -
     if reference.stochastic:
         # Every sample through the pixel centre, as the rasteriser shades: many samples
         # converge the paths and wavelengths without antialiasing what the atlas cannot.
-        image, seconds = render_pixel_centres(mi, mi_scene, n, python_plugins=not reference.builtin_only)
-        second, _ = render_pixel_centres(mi, mi_scene, n, seed=1, python_plugins=not reference.builtin_only)
+        plugins = not reference.builtin_only
+        image, seconds = render_pixel_centres(mi, mi_scene, n, python_plugins=plugins, first_sample=first_sample)
+        second, _ = render_pixel_centres(mi, mi_scene, n, seed=1, python_plugins=plugins, first_sample=first_sample)
     else:
         image, seconds = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
     del mi_scene

@@ -109,3 +109,27 @@ def test_stochastic_references_trace_every_sample_through_the_pixel_centre(mitsu
     footprint, _ = render_mitsuba(mi, stochastic, 16)
     edge = np.abs(footprint - centres).max(-1) > 0.05
     assert edge.sum() >= 10  # the antialiased silhouette
+
+
+def test_a_render_continued_from_sample_n_averages_to_the_longer_render(mitsuba_rgb):
+    """Samples [0, 64) and [64, 192), weighted 64 : 128, are the render of samples [0, 192):
+    a reference that needs more samples continues its render instead of starting again."""
+    import tomllib
+
+    from atlasgen.materials.scene import parse_scene
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_pixel_centres
+
+    mi = mitsuba_rgb
+    sphere = SCENE.replace("scale = 4.0", "scale = 4.0\n[[objects]]\nshape = \"sphere\"\nmaterial = \"any\"\nscale = 0.5")
+    scene = parse_scene(tomllib.loads(sphere), "two.toml")
+    diffuse = [{"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.7, 0.6, 0.5]}}] * 2
+    # Path tracing with a bounce: the plane lights the sphere by inter-reflection, so every
+    # sample is random and a repeated or skipped sample would show.
+    mi_scene = build_mitsuba_scene(mi, scene, diffuse, spp=64, integrator={"type": "path", "max_depth": 3}, stochastic=True)
+    whole, _ = render_pixel_centres(mi, mi_scene, 192, seed=2)
+    first, _ = render_pixel_centres(mi, mi_scene, 64, seed=2)
+    rest, _ = render_pixel_centres(mi, mi_scene, 128, seed=2, first_sample=64)
+    np.testing.assert_allclose((64 * first + 128 * rest) / 192, whole, rtol=1e-5, atol=1e-6)
+    assert np.abs(first - rest).max() > 1e-3  # the two parts are different samples
+    again, _ = render_pixel_centres(mi, mi_scene, 128, seed=2, first_sample=0)
+    assert np.abs(again - rest).max() > 1e-3  # numbering matters
