@@ -86,6 +86,15 @@ class PhysicalBrdf:
         return "" if self.params is not None else (self.numpy.no_source or "no separable source holds this reference")
 
 
+#: The supersampled fits from physics (:func:`~atlasgen.models.physical_fit.fit_slice`'s ``footprint``):
+#: the centre fitted to f cos averaged over the texel's 4x4 footprint, and the texel fitted to f cos
+#: at pairs spread over it; each label, float then 8-bit.
+_SUPERSAMPLED_FITS = (
+    ("mean", f"lut: fitted from physics, {FIT_SUPERSAMPLING}x{FIT_SUPERSAMPLING} supersampled", "lut-physical-supersampled"),
+    ("fit", f"lut: fitted from physics over the {FIT_SUPERSAMPLING}x{FIT_SUPERSAMPLING} footprint", "lut-physical-footprint"),
+)
+
+
 def physical_brdf(model: Model, values: dict, gloss: float = FIT_GLOSS):
     """The physical reference of ``model`` with ``values`` as a :class:`PhysicalBrdf`, or why there is none (a string).
 
@@ -165,8 +174,9 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     - the slice fitted from physics, in float and after 8-bit storage: :func:`fit_lut` for a BRDF
       source, :func:`~atlasgen.models.physical_fit.fit_slice` of the model's own f cos (what its
       ``from = "physical"`` bake fits) otherwise;
-    - the slice fitted from physics *supersampled*: the same fit at the same gloss to f cos averaged
-      over each texel's 4x4 footprint (``fit_slice(..., supersampling=4)``), in float and 8-bit;
+    - the slice fitted from physics *supersampled*, at the same gloss, in float and 8-bit: each texel's
+      centre fitted to f cos averaged over its 4x4 footprint (``fit_slice(..., supersampling=4)``), and
+      each texel fitted to f cos at its pairs spread over that footprint (``footprint="fit"``);
     - K = 1 .. 8 separable terms of the physical BRDF (8-bit estimate, grid and target chosen on the
       selection sample: :meth:`atlasgen.models.separable.Separable.bake` with a budget no K meets),
       where a separable source holds the reference (else ``skipped`` says why);
@@ -204,13 +214,13 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
                       gloss=gloss))  # fmt: skip
     out.append(_entry("lut: fitted from physics, 8-bit", lut, lut_errors(stored_slice(fitted, srgb), gloss, reference, sample),
                       table, "lut-physical", gloss=gloss))  # fmt: skip
-    # The same fit at the same gloss (chosen on the selection sample) to the footprint-averaged target.
-    boxed, _ = fit_slice(source.f_cos, gloss, srgb=srgb, supersampling=FIT_SUPERSAMPLING)
-    label = f"lut: fitted from physics, {FIT_SUPERSAMPLING}x{FIT_SUPERSAMPLING} supersampled"
-    out.append(_entry(label, lut, lut_errors(boxed, gloss, reference, sample), table, "lut-physical-supersampled-float",
-                      gloss=gloss, supersampling=FIT_SUPERSAMPLING))  # fmt: skip
-    out.append(_entry(f"{label}, 8-bit", lut, lut_errors(stored_slice(boxed, srgb), gloss, reference, sample), table,
-                      "lut-physical-supersampled", gloss=gloss, supersampling=FIT_SUPERSAMPLING))  # fmt: skip
+    # The same fit at the same gloss (chosen on the selection sample) over each texel's footprint.
+    for footprint, label, kind in _SUPERSAMPLED_FITS:
+        boxed, _ = fit_slice(source.f_cos, gloss, srgb=srgb, supersampling=FIT_SUPERSAMPLING, footprint=footprint)
+        more = {"gloss": gloss, "supersampling": FIT_SUPERSAMPLING, "footprint": footprint}
+        out.append(_entry(label, lut, lut_errors(boxed, gloss, reference, sample), table, f"{kind}-float", **more))
+        out.append(_entry(f"{label}, 8-bit", lut, lut_errors(stored_slice(boxed, srgb), gloss, reference, sample), table,
+                          kind, **more))  # fmt: skip
     if brdf.params is None:
         skipped.append({"representation": "separable", "reason": brdf.no_source})
     else:

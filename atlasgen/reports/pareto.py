@@ -153,7 +153,9 @@ def _axis_label(result_or_table) -> str:
 _SHORT = {"lut: model closed form (no texels)": "LUT model, no texels", "lut: model, point-sampled, 8-bit": "LUT model",
           "lut: model, 4x4 supersampled, 8-bit": "LUT model 4x4", "lut: fitted from physics": "LUT fit, float",
           "lut: fitted from physics, 8-bit": "LUT fit", "lut: fitted from physics, 4x4 supersampled": "LUT fit 4x4, float",
-          "lut: fitted from physics, 4x4 supersampled, 8-bit": "LUT fit 4x4"}  # fmt: skip
+          "lut: fitted from physics, 4x4 supersampled, 8-bit": "LUT fit 4x4",
+          "lut: fitted from physics over the 4x4 footprint": "LUT fit footprint, float",
+          "lut: fitted from physics over the 4x4 footprint, 8-bit": "LUT fit footprint"}  # fmt: skip
 
 
 def short_label(representation: str) -> str:

@@ -64,3 +64,56 @@ def test_supersampled_fit_of_a_sharp_feature_is_closer_to_the_texel_mean():
     assert point_error.max() > 0.1  # the point fit misses the ridge's mass
     assert boxed_error.max() < 0.05 * point_error.max() + 2.0 / 255.0  # the footprint holds it, to about 8-bit rounding
     assert np.sum(boxed_error**2) < 0.1 * np.sum(point_error**2)
+
+
+def test_footprint_pairs_deal_the_point_fits_azimuths_over_the_footprint():
+    from atlasgen.models.physical_fit import AZIMUTHS, azimuth_pairs, footprint_pairs
+
+    l, v, _, _ = footprint_pairs(AZIMUTHS, 4)
+    nl, nv = texel_centres(WIDTH, HEIGHT)
+    centre, _, _, _ = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), AZIMUTHS)
+    # Every texel sees the point fit's S azimuth strata once each (as a set), at 16 sub-positions
+    # whose mean is the texel centre inside the slice.
+    # (inside columns: at N.L = +-1 l has no azimuth)
+    phi = np.sort(np.mod(np.arctan2(l[:, 1:-1, :, 1], l[:, 1:-1, :, 0]), 2 * np.pi), axis=-1)
+    np.testing.assert_allclose(phi, np.mod(np.arctan2(centre[:, 1:-1, :, 1], centre[:, 1:-1, :, 0]), 2 * np.pi), atol=1e-12)
+    np.testing.assert_allclose(l[1:-1, 1:-1, :, 2].mean(-1), nl[None, 1:-1].repeat(HEIGHT - 2, 0), atol=1e-13)
+    assert np.unique(l[5, 5, :, 2]).size == 4 and np.unique(v[5, 5, :, 2]).size == 4
+
+
+def test_footprint_fit_of_the_renderers_own_equation_is_exact_to_8_bits():
+    """f cos = c / pi + A0 D V max(N.L, 0) at the fit's gloss is the renderer's equation with one
+    constant texel value: fitted over the footprint, the slice reproduces it (at the footprint's pairs
+    and at the centres') as closely as the point fit does, to the 8-bit rounding of RGB and A."""
+    from atlasgen.models.physical_fit import renderer_bases, slice_relative_rms
+    from atlasgen.optics.specular import half_vector_cosine
+
+    c, a0 = np.array([0.4, 0.2, 0.1]), 0.3
+
+    def f_cos(l, v):
+        nh, degenerate = half_vector_cosine(l, v)
+        diffuse, lobe = renderer_bases(0.5, l, v, nh, degenerate)
+        return diffuse * c + lobe * a0
+
+    point, point_info = fit_slice(f_cos, 0.5)
+    fitted, info = fit_slice(f_cos, 0.5, supersampling=4, footprint="fit")
+    assert info["footprint"] == "fit" and info["supersampling"] == 4
+    assert point_info["relative_rms"] < 0.005 and info["relative_rms"] < 0.005
+    assert slice_relative_rms(fitted, f_cos, 0.5) < 0.005
+    # (A itself is loosely tied where the lobe is faint: the projection's ridge decides it there.)
+    np.testing.assert_allclose(np.median(fitted[2:-2, 2:-2, :3], axis=(0, 1)), c, rtol=0.01)
+
+
+def test_footprint_fit_of_a_sharp_feature_is_closer_to_the_texel_mean():
+    centre = -1.0 + 2.0 * 40.3 / (WIDTH - 1)
+
+    def ridge(nl, nv):
+        return 0.05 + 0.9 * np.exp(-0.5 * ((nl - centre) / 0.004) ** 2)
+
+    point, _ = fit_slice(_diffuse(ridge), 0.5)
+    fitted, _ = fit_slice(_diffuse(ridge), 0.5, supersampling=4, footprint="fit")
+    nl, _ = texel_centres(WIDTH, HEIGHT)
+    dense = (np.arange(400) + 0.5) / 400 - 0.5
+    mean = ridge(np.clip(nl[:, None] + dense * 2.0 / (WIDTH - 1), -1.0, 1.0), 0.5).mean(axis=1)
+    row = HEIGHT // 2
+    assert np.sum((fitted[row, :, 0] - mean) ** 2) < 0.1 * np.sum((point[row, :, 0] - mean) ** 2)
