@@ -40,15 +40,19 @@ def run() -> dict:
         from atlasgen.reports.pareto import front_flags
 
         front = front_flags(result["candidates"])
+        coverage = (" The reference transmits: l covers the whole sphere (estimator "
+                    f"`{result['estimator']}`)." if result.get("sphere") else "")  # fmt: skip
+        skipped = "".join(f" No {k['representation']} candidate: {k['reason']}." for k in result.get("skipped", []))
         lines += [f"### {material.name}", "", f"Physical reference: {result['reference']}. "
-                  f"LUT candidates drawn at renderer gloss {result['gloss']:g}; measured in {seconds:.1f} s.", "",
+                  f"LUT candidates drawn at renderer gloss {result['gloss']:g}; measured in {seconds:.1f} s.{coverage}{skipped}", "",
                   "| candidate | cost | error vs physical | ± SE |", "|---|---:|---:|---:|"]  # fmt: skip
         for c, on_front in zip(result["candidates"], front):
             name = f"**{c['representation']}**" if on_front else c["representation"]
             lines.append(f"| {name} | {c['cost']:.3g} | {c['error']:.4g} | {c['error_se']:.2g} |")
         lines.append("")
         data["materials"][material.name] = {"reference": result["reference"], "gloss": result["gloss"], "seconds": seconds,
+                                            "sphere": result.get("sphere", False), "skipped": result.get("skipped", []),
                                             "candidates": result["candidates"]}  # fmt: skip
     if without:
-        lines += ["Without a projectable physical reference:", "", *without, ""]
+        lines += ["Without a physical reference to measure against:", "", *without, ""]
     return {"markdown": "\n".join(lines), "data": data}

@@ -148,7 +148,7 @@ def test_pareto_charts_against_the_physical_reference(tmp_path, write_material, 
         assert (index.parent / src).is_file(), src
     entry = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "sheen")
     expected = physical_candidates(get_model("separable"), entry["params"])
-    assert len(expected["candidates"]) == 10  # two fitted LUTs, K = 1..8
+    assert len(expected["candidates"]) == 14  # six fitted LUTs, K = 1..8
     for c in expected["candidates"]:
         assert f"{c['representation']}" in text
         assert f"<td>{c['error']:.4g}</td><td>{c['error_se']:.2g}</td>" in text
@@ -168,3 +168,31 @@ def test_pareto_charts_against_the_physical_reference(tmp_path, write_material, 
     monkeypatch.setattr(pareto, "physical_candidates", lambda *a, **k: pytest.fail("recomputed a cached material"))
     write_library_report(atlas, tmp_path / "r", jobs=1)
     assert {name: (tmp_path / "r" / name).read_bytes() for name in names} == first
+
+
+@pytest.mark.slow
+def test_thin_sheet_and_thin_film_materials_get_pareto_charts(tmp_path, write_material):
+    """leaf (thin sheet) and beetle-shell (spectral thin film) are measured against their models'
+    NumPy references and charted; skin (a volume) is named, LUT only, with its reason."""
+    from pathlib import Path
+
+    from atlasgen.reports.pareto import library_candidates
+    from atlasgen.io.manifest import read_manifest
+
+    shipped = Path(__file__).resolve().parents[1] / "materials"
+    for name in ("leaf", "beetle-shell"):
+        write_material(name, (shipped / f"{name}.toml").read_text())
+    write_material("skin", 'type = "sss"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    results = library_candidates(read_manifest(atlas.with_suffix(".json")).materials, jobs=1)
+    assert results["leaf"]["sphere"] and not results["beetle-shell"]["sphere"]
+    assert any(c["representation"] == "separable:8" for c in results["beetle-shell"]["candidates"])
+    index = write_library_report(atlas, tmp_path / "r", jobs=1)
+    parser = PageLinks(index.read_text())
+    assert {"pareto.png", "pareto/leaf.png", "pareto/beetle-shell.png"} <= set(parser.images)
+    assert "pareto/skin.png" not in parser.images
+    text = index.read_text()
+    assert "<li>skin: LUT only, no chart: the reference is light transport" in text
+    assert "No separable candidate: no separable source holds a thin sheet" in text
+    assert "the error covers l over the whole sphere" in text

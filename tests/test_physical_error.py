@@ -24,6 +24,10 @@ from atlasgen.separable.error import sample_error_pairs, weighted_errors
 BROAD = {"source": "blinn_phong", "exponent": 4.0, "specular": [0.2, 0.2, 0.2], "diffuse": [0.5, 0.35, 0.25]}
 #: A rough Beckmann metal (the shipped separable-rough-metal).
 ROUGH_METAL = {"source": "beckmann", "alpha": 0.5, "fresnel": "schlick", "f0": [0.56, 0.57, 0.58], "terms": 4}
+#: The LUTs fitted from physics, in the candidates' order: point-sampled, the footprint's mean, fitted over the footprint.
+FITTED_LUTS = ("lut: fitted from physics", "lut: fitted from physics, 8-bit", "lut: fitted from physics, 4x4 supersampled",
+               "lut: fitted from physics, 4x4 supersampled, 8-bit", "lut: fitted from physics over the 4x4 footprint",
+               "lut: fitted from physics over the 4x4 footprint, 8-bit")  # fmt: skip
 
 
 def _values(raw: dict) -> dict:
@@ -53,8 +57,8 @@ def test_lut_error_agrees_with_a_dense_uniform_estimate(metal_candidates):
 @pytest.mark.slow
 def test_candidates_cover_every_representation(metal_candidates):
     labels = [c["representation"] for c in metal_candidates["candidates"]]
-    assert labels == ["lut: fitted from physics", "lut: fitted from physics, 8-bit",
-                      *[f"separable:{k}" for k in range(1, 9)], "analytic:beckmann"]  # fmt: skip
+    assert labels == [*FITTED_LUTS, *[f"separable:{k}" for k in range(1, 9)], "analytic:beckmann"]
+    assert metal_candidates["skipped"] == [] and metal_candidates["sphere"] is False
     table = read_lighting_cost()
     for c in metal_candidates["candidates"]:
         assert c["cost"] == table.cost(c["cost_key"])
@@ -165,3 +169,75 @@ def test_a_lambert_material_is_exact_as_its_model_and_its_analytic_twin(mitsuba_
     assert by["lut: model closed form (no texels)"]["error"] < 1e-5
     assert by["analytic:lambert"]["error"] < 1e-5 and by["analytic:lambert"]["cost"] == read_lighting_cost().cost("analytic:lambert")
     assert 1e-3 < by["lut: model, point-sampled, 8-bit"]["error"] < 1e-2
+
+
+def _leaf():
+    from atlasgen.materials.material import read_material
+    from tests.models.test_physical_fit_models import MATERIALS
+
+    material = read_material(MATERIALS / "leaf.toml")
+    return material.model, material.params
+
+
+@pytest.fixture(scope="module")
+def leaf_candidates():
+    from atlasgen.bake.adaptive import bake_supersampled
+
+    model, values = _leaf()
+    return physical_candidates(model, values, bake_supersampled, gloss=0.5)
+
+
+def test_a_thin_sheet_is_measured_over_the_sphere_with_no_separable_candidate(leaf_candidates):
+    """leaf's reference (the thin sheet) transmits: l covers the sphere; LUT candidates only, each
+    skipped representation with its reason; the fit from physics is the shipped bake's slice."""
+    result = leaf_candidates
+    assert result["sphere"] and result["estimator"] == "defensive-ggx-mixture-sphere" and result["gloss"] == 0.5
+    labels = [c["representation"] for c in result["candidates"]]
+    assert labels[:2] == ["lut: model closed form (no texels)", "lut: model, point-sampled, 8-bit"]
+    assert labels[2:] == list(FITTED_LUTS)
+    assert {k["representation"]: bool(k["reason"]) for k in result["skipped"]} == {"separable": True, "analytic": True}
+    by = {c["representation"]: c for c in result["candidates"]}
+    # The model's azimuth-dependent back-light against the sheet's diffuse transmission: far apart;
+    # the fit from physics within a few percent.
+    assert by["lut: fitted from physics, 8-bit"]["error"] < 0.1 < by["lut: model, point-sampled, 8-bit"]["error"]
+
+
+def test_the_sphere_estimate_of_a_transmitting_reference_agrees_with_a_dense_uniform_one(leaf_candidates):
+    """The importance-sampled error of leaf's 8-bit fitted slice (100 000 pairs over the sphere) against
+    1 000 000 uniform pairs (l uniform over the sphere), within 3 combined SE; the reflection-only
+    estimate (upper hemisphere) differs: light from behind is counted."""
+    from atlasgen.models.physical_fit import fit_slice
+
+    model, values = _leaf()
+    physical = model.physical_f_cos(values, 0.5)
+    rgba, _ = fit_slice(physical.f_cos, 0.5)
+    stored = stored_slice(rgba)
+    dense = sample_error_pairs(1_000_000, 7, None, sphere=True)
+    brute = weighted_errors(physical.f_cos(dense.l, dense.v), slice_f_cos(stored, 0.5, dense.l, dense.v), dense.weight, log=False)
+    got = next(c for c in leaf_candidates["candidates"] if c["representation"] == "lut: fitted from physics, 8-bit")
+    assert abs(got["error"] - brute["relative_rms"]) < 3.0 * np.hypot(got["error_se"], brute["relative_rms_se"])
+    upper = sample_error_pairs(1_000_000, 7, None)
+    reflection = weighted_errors(physical.f_cos(upper.l, upper.v), slice_f_cos(stored, 0.5, upper.l, upper.v), upper.weight, log=False)
+    assert abs(reflection["relative_rms"] - brute["relative_rms"]) > 3.0 * np.hypot(reflection["relative_rms_se"], brute["relative_rms_se"])
+
+
+def test_skin_says_plainly_it_is_lut_only():
+    model = get_model("sss")
+    values = validate_params(model.params, {}, "<test>")
+    result = physical_candidates(model, values)
+    assert result["reference"] is None and result["reason"].startswith("LUT only") and "not a BRDF" in result["reason"]
+
+
+@pytest.mark.slow
+def test_a_thin_film_without_back_light_has_separable_candidates():
+    """beetle-shell's reference is the separable thin_film source: K = 1..8 measured, on the upper hemisphere."""
+    from atlasgen.bake.adaptive import bake_supersampled
+    from atlasgen.materials.material import read_material
+    from tests.models.test_physical_fit_models import MATERIALS
+
+    material = read_material(MATERIALS / "beetle-shell.toml")
+    result = physical_candidates(material.model, material.params, bake_supersampled, gloss=0.5)
+    labels = [c["representation"] for c in result["candidates"]]
+    assert [f"separable:{k}" for k in range(1, 9)] == [x for x in labels if x.startswith("separable:")]
+    assert set(FITTED_LUTS) <= set(labels)
+    assert not result["sphere"] and [k["representation"] for k in result["skipped"]] == ["analytic"]

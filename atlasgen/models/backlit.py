@@ -11,7 +11,7 @@ from functools import cache
 import numpy as np
 
 from atlasgen.io.fields import Param
-from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, Reference, SliceSet
+from atlasgen.models.base import THIN_SHEET_REFERENCE, Model, PhysicalFCos, Reference, SliceSet
 from atlasgen.models.physical_fit import fit_to_reference
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.quadrature import gauss_legendre_rule
@@ -173,23 +173,33 @@ class Backlit(Model):
         bsdf.update({f"transmittance_{c}": float(v) for c, v in zip("rgb", transmittance)})
         return Reference(bsdf, "thin sheet: diffuse reflection, diffuse transmission of the model's energy, GGX coat")
 
+    def physical_f_cos(self, values, gloss) -> PhysicalFCos:
+        """:meth:`physical_reference` as NumPy: :func:`thin_sheet_f_cos`, the function the
+        ``atlasgen_thinsheet`` plugin evaluates, with its w_i the view and w_o the light. It
+        transmits (l below the surface) where T > 0. No separable source holds transmission."""
+        ref = self.physical_reference(values, gloss=gloss)
+        bsdf = ref.bsdf
+        reflectance = np.array([bsdf[f"reflectance_{c}"] for c in "rgb"])
+        transmittance = np.array([bsdf[f"transmittance_{c}"] for c in "rgb"])
+
+        def f_cos(l, v):
+            return thin_sheet_f_cos(v, l, reflectance, transmittance, bsdf["specular"], bsdf["alpha"])
+
+        return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"] if bsdf["specular"] > 0.0 else None,
+                            transmits=bool(np.any(transmittance > 0.0)),
+                            no_source="no separable source holds a thin sheet (its diffuse transmission, N.L < 0)")  # fmt: skip
+
     def fit_physical(self, values, gloss) -> SliceSet:
         """The slice fitted to :meth:`physical_reference` at the renderer gloss ``gloss``
-        (:func:`atlasgen.models.physical_fit.fit_to_reference`), from :func:`thin_sheet_f_cos`,
-        the NumPy function the ``atlasgen_thinsheet`` plugin evaluates: no Mitsuba needed.
+        (:func:`atlasgen.models.physical_fit.fit_to_reference`), from :meth:`physical_f_cos`
+        (:func:`thin_sheet_f_cos`, the NumPy function the ``atlasgen_thinsheet`` plugin evaluates):
+        no Mitsuba needed.
 
         The renderer's equation holds the sheet exactly at texel centres: its transmission
         T |N.L| / pi (N.L < 0) is the diffuse term RGB / pi with RGB = T |N.L|, its reflection
         R N.L / pi likewise, and its coat is the renderer's lobe at this gloss, A = ``specular``;
         what is left is the 8-bit rounding and the bilinear filter.
         """
-        ref = self.physical_reference(values, gloss=gloss)
-        bsdf = ref.bsdf
-        reflectance = np.array([bsdf[f"reflectance_{c}"] for c in "rgb"])
-        transmittance = np.array([bsdf[f"transmittance_{c}"] for c in "rgb"])
-
-        def f_cos(l, v):  # the plugin's w_i is the view, w_o the light
-            return thin_sheet_f_cos(v, l, reflectance, transmittance, bsdf["specular"], bsdf["alpha"])
-
-        return fit_to_reference(self, values, f_cos, ref.description, gloss)
+        physical = self.physical_f_cos(values, gloss)
+        return fit_to_reference(self, values, physical.f_cos, physical.description, gloss)
 

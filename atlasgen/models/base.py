@@ -15,7 +15,7 @@ from atlasgen.io.fields import Param
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 
-__all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "encode_scaled",
+__all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "PhysicalFCos", "encode_scaled",
            "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE"]  # fmt: skip
 
 # Names of atlasgen's Mitsuba BSDF plugins (:mod:`atlasgen.models.mitsuba_bsdfs` registers them).
@@ -87,6 +87,30 @@ class Reference:
     builtin_only: bool = False
 
 
+@dataclass(frozen=True)
+class PhysicalFCos:
+    """A model's physical reference as a NumPy function (:meth:`Model.physical_f_cos`).
+
+    ``f_cos(l, v)`` is f |cos(theta_l)| in linear RGB, ``(N, 3)``, at unit ``(N, 3)`` light and
+    view directions in the local frame (n = +z): v on the upper hemisphere, l on either side
+    (a transmitting reference is non-zero below). It is the function the model's
+    :meth:`Model.fit_physical` fits, so the error against it is the error against what the
+    ``from = "physical"`` slice was made for. ``alpha`` is its lobe's GGX roughness, where it
+    has one (the error sampler's lobe width; ``None``: measured, or no lobe); ``transmits``
+    whether f cos is non-zero for l below the surface (the error is then integrated over l in
+    the whole sphere, :func:`atlasgen.separable.error.sample_error_pairs`); ``source`` the
+    separable model's source parameters of the same BRDF (``source = "thin_film"``, ...),
+    where one exists, else ``no_source`` says why there is none (no separable candidates).
+    """
+
+    f_cos: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    description: str
+    alpha: float | None = None
+    transmits: bool = False
+    source: dict | None = None
+    no_source: str = ""
+
+
 def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
     """Divide each slice by a scale so it fits UNORM8; report what had to be clamped.
 
@@ -137,6 +161,9 @@ class Model:
     physical_omissions: ClassVar[dict[str, str]] = {}
     #: Why :meth:`physical_reference` returns ``None`` for this model ("" for a model that has one).
     no_physical_reference: ClassVar[str] = ""
+    #: Why a model with a physical reference that is not one plain BSDF has no :meth:`physical_f_cos`
+    #: ("" where it has one or needs none): the cost-against-error report says it for the material.
+    no_physical_f_cos: ClassVar[str] = ""
 
     def check(self, values: dict, path) -> None:
         """Cross-parameter checks beyond each parameter's own range; raise MaterialError."""
@@ -260,6 +287,18 @@ class Model:
 
         The returned ``SliceSet.extra["fit"]`` describes the fit: at least ``from``
         (``"physical"``), ``reference`` (a description) and ``gloss``.
+        """
+        return None
+
+    def physical_f_cos(self, values: dict, gloss: float) -> PhysicalFCos | None:
+        """This model's physical reference for an object of albedo 1 and renderer gloss ``gloss``
+        as NumPy f cos (:class:`PhysicalFCos`), where it is a BSDF evaluated outside Mitsuba's
+        own plugins (a spectral film, a thin sheet); ``None`` (the default) otherwise.
+
+        A reference that is one plain Mitsuba BSDF needs none: :mod:`atlasgen.models.physical_error`
+        evaluates it through Mitsuba (:func:`atlasgen.models.physical_fit.plain_bsdf_reference`).
+        A model that sets it fits the same function in :meth:`fit_physical`; a model whose
+        reference is no BSDF at all (a volume) sets ``no_physical_f_cos`` instead.
         """
         return None
 

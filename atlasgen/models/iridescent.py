@@ -16,7 +16,7 @@ import numpy as np
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
-from atlasgen.models.base import THIN_FILM_REFERENCE, Model, Reference, SliceSet
+from atlasgen.models.base import THIN_FILM_REFERENCE, Model, PhysicalFCos, Reference, SliceSet
 from atlasgen.models.physical_fit import fit_to_reference
 from atlasgen.optics.film import (MAX_PHASE_STEP, MIN_SAMPLES, VISIBLE_NM, XYZ_TO_LINEAR_SRGB, cie_xyz_cmfs,
                                   film_reflectance, film_reflectance_on_grid, spectral_grid, spectral_samples,
@@ -199,6 +199,28 @@ class Iridescent(Model):
             return "normalise = true divides A by F0 for another engine's lobe; a physical fit is for atlasgen's renderer"
         return None
 
+    def physical_f_cos(self, values, gloss) -> PhysicalFCos:
+        """:meth:`physical_reference` as NumPy: :func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`
+        (its w_i the view, w_o the light), the plugin's per-wavelength f cos integrated to linear
+        sRGB for white light, with that function's approximations against Mitsuba's spectral
+        render. It transmits where ``backlight`` > 0; without a back-light it is the separable
+        model's ``source = "thin_film"`` with this film, GGX alpha and base colour."""
+        ref = self.physical_reference(values, gloss=gloss)
+        bsdf = ref.bsdf
+        film = json.loads(bsdf["film"])
+        colour = [bsdf[f"colour_{c}"] for c in "rgb"]
+        back = [bsdf[f"backlight_{c}"] for c in "rgb"]
+
+        def f_cos(l, v):
+            return thin_film_rgb_f_cos(v, l, film, bsdf["alpha"], colour, back)
+
+        if values["backlight"] > 0.0:
+            return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], transmits=True,
+                                no_source="the separable thin_film source has no back-light (transmission, N.L < 0)")  # fmt: skip
+        stack = {k: film[k] for k in ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy")}
+        source = {"source": "thin_film", "film": stack, "alpha": bsdf["alpha"], "diffuse": colour}
+        return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], source=source)
+
     def fit_physical(self, values, gloss) -> SliceSet:
         """The slice fitted to :meth:`physical_reference` at the renderer gloss ``gloss``
         (:func:`atlasgen.models.physical_fit.fit_to_reference`), from
@@ -211,15 +233,7 @@ class Iridescent(Model):
         A is one scalar per texel: the lobe's colour (the film's R(l.h), which varies over the
         azimuth) goes into the slice only as its best grey fit, and RGB takes the rest.
         """
-        ref = self.physical_reference(values, gloss=gloss)
-        bsdf = ref.bsdf
-        film = json.loads(bsdf["film"])
-        colour = [bsdf[f"colour_{c}"] for c in "rgb"]
-        back = [bsdf[f"backlight_{c}"] for c in "rgb"]
-
-        def f_cos(l, v):  # the plugin's w_i is the view, w_o the light
-            return thin_film_rgb_f_cos(v, l, film, bsdf["alpha"], colour, back)
-
+        physical = self.physical_f_cos(values, gloss)
         samples = spectral_samples(values["thickness"], values["film_ior"])
-        return fit_to_reference(self, values, f_cos, ref.description, gloss, wavelengths=samples)
+        return fit_to_reference(self, values, physical.f_cos, physical.description, gloss, wavelengths=samples)
 

@@ -34,7 +34,7 @@ from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsu
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
            "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice",
-           "slice_relative_rms", "fit_to_reference"]  # fmt: skip
+           "slice_relative_rms", "fit_to_reference", "FIT_SUPERSAMPLING", "FOOTPRINTS", "footprint_f_cos", "footprint_pairs"]  # fmt: skip
 
 #: Azimuth samples per texel.
 AZIMUTHS = 128
@@ -48,6 +48,12 @@ GLOSS_TOLERANCE = 2e-4
 GRAZING_N_DOT_V = 1e-3
 #: Quantiles of the fitted A tried as its cap (1 = no cap): see :func:`fit_slice`.
 A_CAP_QUANTILES = (1.0, 0.999, 0.995, 0.99, 0.98, 0.95)
+#: Sub-positions per texel axis of a supersampled fit (:func:`footprint_pairs`): the 4 x 4 of the
+#: model's supersampled candidate (:func:`atlasgen.bake.adaptive.bake_supersampled`).
+FIT_SUPERSAMPLING = 4
+#: How a supersampled :func:`fit_slice` uses the footprint: ``"mean"`` fits the centre to f cos averaged
+#: over it (:func:`footprint_f_cos`), ``"fit"`` fits the texel to f cos at pairs spread over it (:func:`footprint_pairs`).
+FOOTPRINTS = ("mean", "fit")
 
 
 def azimuth_pairs(n_dot_l, n_dot_v, azimuths: int = AZIMUTHS):
@@ -65,6 +71,67 @@ def azimuth_pairs(n_dot_l, n_dot_v, azimuths: int = AZIMUTHS):
     l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
     v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
     return (l, v, *half_vector_cosine(l, v))
+
+
+def footprint_pairs(azimuths: int = AZIMUTHS, factor: int = FIT_SUPERSAMPLING):
+    """Unit l, v ``(H, W, S, 3)``, n.h and l + v = 0 (as :func:`azimuth_pairs`), the S = ``azimuths``
+    pairs of each texel dealt out over its footprint: the pairs of a footprint-fitted :func:`fit_slice`.
+
+    The footprint's f x f sub-positions are :func:`footprint_f_cos`' (the bake's box, clipped, N.V
+    at least :data:`GRAZING_N_DOT_V`); sub-position k = a f + b holds the azimuth strata
+    s = k + f^2 m, phi_s = 2 pi (s + 1/2) / S, so each sees S / f^2 azimuths around the whole
+    circle and the texel the point-sampled fit's S azimuths: stratified in (N.L, N.V, phi) at the
+    same cost (``azimuths`` a multiple of f^2).
+    """
+    f = int(factor)
+    per = int(azimuths) // (f * f)
+    if f < 1 or per * f * f != int(azimuths):
+        raise ValueError(f"azimuths ({azimuths}) must be a positive multiple of factor^2 ({f}^2)")
+    nl_c, nv_c = texel_centres(WIDTH, HEIGHT)
+    offsets = (np.arange(f) + 0.5) / f - 0.5
+    nl = np.clip(nl_c[:, None] + offsets * 2.0 / (WIDTH - 1), -1.0, 1.0)[None, :, :, None, None]  # (1, W, f, 1, 1)
+    nv = np.maximum(np.clip(nv_c[:, None] + offsets / (HEIGHT - 1), 0.0, 1.0), GRAZING_N_DOT_V)[:, None, None, :, None]
+    k = np.arange(f)[:, None] * f + np.arange(f)[None, :]
+    phi = (2.0 * np.pi * (k[..., None] + f * f * np.arange(per) + 0.5) / azimuths)[None, None]  # (1, 1, f, f, per)
+    shape = (HEIGHT, WIDTH, f, f, per)
+    sl, sv = np.sqrt(np.maximum(1.0 - nl * nl, 0.0)), np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
+    l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
+    v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
+    l, v = l.reshape(HEIGHT, WIDTH, f * f * per, 3), v.reshape(HEIGHT, WIDTH, f * f * per, 3)
+    return (l, v, *half_vector_cosine(l, v))
+
+
+def footprint_f_cos(f_cos, azimuths: int = AZIMUTHS, factor: int = FIT_SUPERSAMPLING) -> np.ndarray:
+    """``f_cos(l, v) -> (N, 3)`` averaged over each texel's footprint, ``(H, W, S, 3)``: the
+    box-filtered target of a supersampled :func:`fit_slice`, at :func:`azimuth_pairs`' strata.
+
+    The footprint is :func:`atlasgen.bake.adaptive.bake_supersampled`'s box, f = ``factor``
+    sub-positions per axis: sub-position (a, b) of the texel centred at (N.L_i, N.V_j) lies at
+    N.L_i + o_a 2 / (W - 1), N.V_j + o_b / (H - 1), o_k = (k + 1/2) / f - 1/2, clipped to
+    [-1, 1] and [0, 1] as the bake clips (then N.V to at least :data:`GRAZING_N_DOT_V`, as
+    :func:`fit_slice`). Its azimuth is jittered within the texel's azimuth stratum s,
+    phi = 2 pi (s + (a f + b + 1/2) / f^2) / S, so the mean over the f^2 sub-positions is a
+    stratified estimate of f cos's mean over the box in (N.L, N.V) times the stratum in phi:
+    for f cos linear over the box it is f cos at the centre (texels inside the slice).
+    Evaluates f^2 x the point-sampled fit's pairs, one sub-position at a time.
+    """
+    f = int(factor)
+    nl_c, nv_c = texel_centres(WIDTH, HEIGHT)
+    offsets = (np.arange(f) + 0.5) / f - 0.5
+    total = None
+    for a in range(f):
+        nl = np.clip(nl_c + offsets[a] * 2.0 / (WIDTH - 1), -1.0, 1.0)[None, :, None]
+        for b in range(f):
+            nv = np.maximum(np.clip(nv_c + offsets[b] / (HEIGHT - 1), 0.0, 1.0), GRAZING_N_DOT_V)[:, None, None]
+            phi = 2.0 * np.pi * (np.arange(azimuths) + (a * f + b + 0.5) / (f * f)) / azimuths
+            shape = (HEIGHT, WIDTH, azimuths)
+            sl, sv = np.sqrt(np.maximum(1.0 - nl * nl, 0.0)), np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
+            l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
+            v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
+            value = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
+            value = np.where(np.isfinite(value), value, 0.0)
+            total = value if total is None else total + value
+    return total / (f * f)
 
 
 class _Constant(Model):
@@ -87,7 +154,8 @@ def renderer_bases(gloss: float, l, v, n_dot_h, degenerate):
     return np.asarray(diffuse, dtype=np.float64), np.asarray(lobe, dtype=np.float64)
 
 
-def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = True):
+def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = True, supersampling: int = 1,
+              footprint: str = "mean"):
     """The slice (``(H, W, 4)``) fitted to ``f_cos(l, v) -> (N, 3)``, and a dict describing the fit.
 
     ``gloss`` is the renderer gloss the slice is made for, or ``None`` to choose the one of
@@ -95,13 +163,28 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     within one grid step to :data:`GLOSS_TOLERANCE`. The dict holds ``gloss``,
     ``azimuths``, ``alpha_cap`` and ``relative_rms``: sqrt(residual / sum w t^2) over
     every texel with the RGB and A rounded to 8 bits as stored.
+
+    ``supersampling`` f > 1 uses each texel's footprint in (N.L, N.V) (f x f sub-positions, the
+    box of the model's supersampled bake) rather than its centre. ``footprint = "mean"`` fits the
+    texel, at its centre, to f cos averaged over the footprint (:func:`footprint_f_cos`, f^2 x the
+    evaluations), as the bake box-filters a closed form; ``"fit"`` fits it, through the renderer's
+    equation at each pair, to f cos at the texel's S pairs spread over the footprint
+    (:func:`footprint_pairs`, the same evaluations): the texel value that best reproduces f cos
+    over the texel rather than at its centre. The dict then also holds ``supersampling`` and
+    ``footprint`` (``relative_rms`` is against that target).
     """
     nl, nv = texel_centres(WIDTH, HEIGHT)
     # The N.V = 0 row is the limit of grazing views: BSDFs return 0 for a view in the
     # tangent plane itself, which the bilinear filter would spread over the first texel.
     l, v, nh, degenerate = azimuth_pairs(nl, np.maximum(nv, GRAZING_N_DOT_V), azimuths)
+    if footprint not in FOOTPRINTS:
+        raise ValueError(f"footprint must be one of {FOOTPRINTS}, got {footprint!r}")
+    if supersampling > 1 and footprint == "fit":
+        l, v, nh, degenerate = footprint_pairs(azimuths, supersampling)
     target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
     target = np.where(np.isfinite(target), target, 0.0)
+    if supersampling > 1 and footprint == "mean":  # the box-filtered target, projected at the centres
+        target = footprint_f_cos(f_cos, azimuths, supersampling)
     weights = np.full(l.shape[:-1], 1.0 / azimuths)
     energy = float((weights[..., None] * target * target).sum())
     fits = {}
@@ -141,6 +224,8 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     rgba[..., 3] = np.minimum(a, cap)
     info = {"gloss": float(g), "azimuths": int(azimuths), "alpha_cap": cap,
             "relative_rms": float(np.sqrt(residual / energy)) if energy > 0 else 0.0}  # fmt: skip
+    if supersampling > 1:
+        info.update(supersampling=int(supersampling), footprint=footprint)
     return rgba, info
 
 

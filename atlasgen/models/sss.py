@@ -230,6 +230,13 @@ class Subsurface(Model):
         out[..., 3] = values["specular"]
         return out
 
+    no_physical_f_cos = (
+        "LUT only, no chart: the reference is light transport through a medium inside a sphere (volpathmis), "
+        "not a BRDF of (l, v); what leaves a point depends on the curvature and where the light entered, so there "
+        "is no f cos to sample on the (l, v) pairs every other chart is measured on. The fit's own renders "
+        "measure its slice (manifest fit.relative_rms, from two seeds); re-using them here would report the "
+        "fit on the sample it was fitted to, and fresh renders cost minutes per material"
+    )
     physical_omissions = {
         "variances": "the diffusion profile's shape: in the reference it follows from the medium (Jensen's Skin1 "
                      "mean free paths); no homogeneous medium scatters exactly as a sum of Gaussians",

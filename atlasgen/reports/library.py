@@ -118,6 +118,7 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
         front = front_flags(result["candidates"])
         materials.append({
             "name": entry.name, "chart": chart, "reference": result["reference"], "gloss": f"{result['gloss']:g}",
+            "sphere": bool(result.get("sphere")), "skipped": result.get("skipped", []),
             "candidates": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".4g"),
                             "error_se": _fmt(c.get("error_se"), ".2g"), "front": on_front,
                             "chosen": c["representation"] == chosen[entry.name]}

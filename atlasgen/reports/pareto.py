@@ -1,7 +1,8 @@
 """Run-time cost against error versus the physical reference: every candidate representation of each material.
 
 For each material of an atlas whose physical reference is one BRDF
-(:func:`atlasgen.models.physical_error.physical_brdf`), :func:`material_candidates` measures
+(:func:`atlasgen.models.physical_error.physical_brdf`: a plain Mitsuba BSDF, a separable source,
+or the model's own NumPy f cos such as the thin sheet and the spectral thin film), :func:`material_candidates` measures
 every representation it could be baked as (:func:`atlasgen.models.physical_error.physical_candidates`:
 LUT slices, separable K = 1..8, the analytic shader), each with the lighting pass's cost per
 pixel per light on the device of the shipped cost table and its relative RMS of f cos against
@@ -151,7 +152,10 @@ def _axis_label(result_or_table) -> str:
 
 _SHORT = {"lut: model closed form (no texels)": "LUT model, no texels", "lut: model, point-sampled, 8-bit": "LUT model",
           "lut: model, 4x4 supersampled, 8-bit": "LUT model 4x4", "lut: fitted from physics": "LUT fit, float",
-          "lut: fitted from physics, 8-bit": "LUT fit"}  # fmt: skip
+          "lut: fitted from physics, 8-bit": "LUT fit", "lut: fitted from physics, 4x4 supersampled": "LUT fit 4x4, float",
+          "lut: fitted from physics, 4x4 supersampled, 8-bit": "LUT fit 4x4",
+          "lut: fitted from physics over the 4x4 footprint": "LUT fit footprint, float",
+          "lut: fitted from physics over the 4x4 footprint, 8-bit": "LUT fit footprint"}  # fmt: skip
 
 
 def short_label(representation: str) -> str:

@@ -17,6 +17,14 @@ so sums of w g estimate the uniform-measure integrals without bias, and the vari
 never more than twice that of uniform sampling. The ratio's standard error is the delta
 method's (Owen, "Monte Carlo theory, methods and examples", 2013, sec. 9.2), the same
 formula as a self-normalised importance sampler's.
+
+A reference that transmits (a thin sheet, a back-lit film: f cos > 0 for l below the
+surface) is measured with l over the *whole sphere* (``sphere=True``): each pair of the
+mixture above has its l mirrored through the tangent plane with probability 1/2, so uniform
+l covers the lower hemisphere uniformly and a reflection lobe's mirror image lies around -v,
+where a transmission lobe peaks. The weight is then p_uniform / p_sample with p_uniform
+uniform over the sphere for l (see :func:`mixture_weights`); the integrals are over l in the
+sphere, which for a reflection-only f are the hemisphere's.
 """
 
 from __future__ import annotations
@@ -35,6 +43,7 @@ __all__ = [
     "ERROR_SEED",
     "SELECTION_SEED",
     "ESTIMATOR",
+    "SPHERE_SUFFIX",
     "MET_SIGMAS",
     "LOBE_SCALES",
     "ErrorSample",
@@ -64,6 +73,8 @@ MET_SIGMAS = 2.0
 LOBE_SCALES = (0.7, 2.0)
 #: Share of pairs whose l is uniform (the defensive part of the mixture).
 UNIFORM_SHARE = 0.5
+#: Appended to the estimator's name when l covers the whole sphere.
+SPHERE_SUFFIX = "-sphere"
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +93,8 @@ class ErrorSample:
     seed: int
     lobe_alpha: float | None
     estimator: str
+    #: l drawn over the whole sphere (transmission counted), not the upper hemisphere.
+    sphere: bool = False
 
     @property
     def count(self) -> int:
@@ -125,7 +138,10 @@ def _reflected_pdf(l, v, alpha):
     (Walter et al. 2007, eq. 14)."""
     h = l + v
     length = np.linalg.norm(h, axis=-1)
-    h = h / np.maximum(length, 1e-300)[:, None]
+    # Reflection about h and about -h give the same l, and h is drawn on the upper side:
+    # l + v points down when v.h < 0 (l then lies below the surface), so the h that made l
+    # is the upper one of +-(l + v) / |l + v|. Above the surface (l + v).z > 0: unchanged.
+    h = h * np.where(h[:, 2] < 0.0, -1.0, 1.0)[:, None] / np.maximum(length, 1e-300)[:, None]
     vh = np.abs(np.sum(v * h, axis=-1))
     return np.where(length > 1e-12, _ggx_pdf_h(h[:, 2], alpha) / np.maximum(4.0 * vh, 1e-300), 0.0)
 
@@ -134,13 +150,28 @@ def _lobe_alphas(lobe_alpha: float) -> np.ndarray:
     return np.clip(np.asarray(LOBE_SCALES) * lobe_alpha, 1e-4, 4.0)
 
 
-def mixture_weights(l, v, lobe_alpha: float | None) -> np.ndarray:
-    """w = p_uniform / p_mixture for pairs (l, v); 0 where l is below the horizon.
+def mixture_weights(l, v, lobe_alpha: float | None, sphere: bool = False) -> np.ndarray:
+    """w = p_uniform / p_mixture for pairs (l, v); 0 where l is below the horizon (``sphere=False``).
 
     p_mixture(l | v) = UNIFORM_SHARE / (2 pi) + sum_j s_j p_j(l | v), p_j the density of
     l reflected about a GGX normal of roughness LOBE_SCALES[j] * lobe_alpha, the lobe
     shares s_j splitting 1 - UNIFORM_SHARE equally; v is uniform in both parts.
+
+    ``sphere=True``: l is that mixture's draw q mirrored through the surface with probability
+    1/2, so p(l) = (q(l) + q(l'))/2, l' = (l_x, l_y, -l_z), against p_uniform = 1/(4 pi):
+
+        w = 1 / (UNIFORM_SHARE + 2 pi sum_j s_j (p_j(l) + p_j(l'))),
+
+    (q's uniform part is 1/(2 pi) on exactly one of l, l'); w = 1 without lobes.
     """
+    if sphere:
+        if lobe_alpha is None:
+            return np.ones(l.shape[0])
+        mirrored = l * np.array([1.0, 1.0, -1.0])
+        alphas = _lobe_alphas(lobe_alpha)
+        share = (1.0 - UNIFORM_SHARE) / len(alphas)
+        lobe = sum(share * (_reflected_pdf(l, v, a) + _reflected_pdf(mirrored, v, a)) for a in alphas)
+        return 1.0 / (UNIFORM_SHARE + 2.0 * np.pi * lobe)
     above = l[:, 2] > 0.0
     if lobe_alpha is None:
         return above.astype(np.float64)
@@ -151,13 +182,16 @@ def mixture_weights(l, v, lobe_alpha: float | None) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def sample_error_pairs(count: int = ERROR_PAIRS, seed: int = ERROR_SEED, lobe_alpha: float | None = None) -> ErrorSample:
+def sample_error_pairs(count: int = ERROR_PAIRS, seed: int = ERROR_SEED, lobe_alpha: float | None = None,
+                       sphere: bool = False) -> ErrorSample:
     """``count`` i.i.d. pairs from the defensive mixture (see the module docstring).
 
     v is uniform in solid angle on the upper hemisphere; l is uniform too with probability
-    UNIFORM_SHARE, else drawn around the mirror direction of v from one of the vMF lobes.
-    ``lobe_alpha = None`` draws uniform pairs only (w = 1). numpy's PCG64 with ``seed``:
-    the same arguments give the same pairs.
+    UNIFORM_SHARE, else drawn around the mirror direction of v from one of the GGX lobes.
+    ``lobe_alpha = None`` draws uniform pairs only (w = 1). ``sphere=True`` then mirrors
+    each l through the surface with probability 1/2 (the pairs' other draws are unchanged),
+    for references that transmit. numpy's PCG64 with ``seed``: the same arguments give the
+    same pairs.
     """
     rng = np.random.default_rng(seed)
     v = _uniform_hemisphere(rng, count)
@@ -171,17 +205,20 @@ def sample_error_pairs(count: int = ERROR_PAIRS, seed: int = ERROR_SEED, lobe_al
             pick = (u >= UNIFORM_SHARE) & (lobe == j)
             l[pick] = _sample_reflected(rng, v[pick], alpha)
         l /= np.linalg.norm(l, axis=-1, keepdims=True)
-    weight = mixture_weights(l, v, lobe_alpha)
+    if sphere:  # drawn after the hemisphere's pairs, which stay as they were
+        l[rng.random(count) < 0.5, 2] *= -1.0
+    weight = mixture_weights(l, v, lobe_alpha, sphere)
     for a in (l, v, weight):
         a.flags.writeable = False  # shared by every candidate's error measurement
-    name = ESTIMATOR if lobe_alpha is not None else "uniform"
-    return ErrorSample(l, v, weight, int(seed), None if lobe_alpha is None else float(lobe_alpha), name)
+    name = (ESTIMATOR if lobe_alpha is not None else "uniform") + (SPHERE_SUFFIX if sphere else "")
+    return ErrorSample(l, v, weight, int(seed), None if lobe_alpha is None else float(lobe_alpha), name, bool(sphere))
 
 
-def error_sample_for(source, seed: int = ERROR_SEED, count: int = ERROR_PAIRS) -> ErrorSample:
-    """The error sample for one BRDF source: lobes as wide as its :func:`lobe_alpha`."""
+def error_sample_for(source, seed: int = ERROR_SEED, count: int = ERROR_PAIRS, sphere: bool = False) -> ErrorSample:
+    """The error sample for one BRDF source: lobes as wide as its :func:`lobe_alpha`; l over the
+    whole sphere with ``sphere`` (a source that transmits)."""
     alpha = lobe_alpha(source)
-    return sample_error_pairs(count, seed, None if alpha is None else float(f"{alpha:.6g}"))
+    return sample_error_pairs(count, seed, None if alpha is None else float(f"{alpha:.6g}"), bool(sphere))
 
 
 def sample_hemisphere_pairs(count: int = ERROR_PAIRS, seed: int = ERROR_SEED):

@@ -270,3 +270,66 @@ def test_iridescent_from_physical_beats_the_model_against_the_thin_film(write_ma
 def test_iridescent_from_physical_refuses_normalise(write_material):
     with pytest.raises(MaterialError, match=r"\bfrom\b.*normalise"):
         read_material(write_material("m", 'type = "iridescent"\nnormalise = true\nfrom = "physical"\n'))
+
+
+@pytest.mark.parametrize("below", [False, True])
+def test_the_thin_sheet_physical_f_cos_is_the_plugin(mitsuba_llvm, below):
+    """The backlit model's physical_f_cos(l, v) is the atlasgen_thinsheet plugin's eval with w_i = v, w_o = l."""
+    import drjit as dr
+
+    from atlasgen.models.mitsuba_bsdfs import register_bsdfs
+
+    mi = mitsuba_llvm
+    register_bsdfs(mi)
+    model, values = _values("backlit", MATERIALS / "leaf.toml")
+    physical = model.physical_f_cos(values, 0.5)
+    assert physical.transmits and physical.source is None and "separable" in physical.no_source
+    assert physical.alpha == model.physical_reference(values, gloss=0.5).bsdf["alpha"]
+    rng = np.random.default_rng(5)
+    n = 200
+    v, l = _directions(rng, n), _directions(rng, n, below)
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = _vector(mi, v)
+    si.n = mi.Vector3f(0.0, 0.0, 1.0)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
+    value = mi.load_dict(model.physical_reference(values, gloss=0.5).bsdf).eval(mi.BSDFContext(), si, _vector(mi, l))
+    theirs = np.stack([np.asarray(value[k], np.float64) for k in range(3)], -1)
+    np.testing.assert_allclose(physical.f_cos(l, v), theirs, rtol=2e-5, atol=1e-7)
+
+
+def test_the_backlit_fit_fits_its_physical_f_cos():
+    """fit_physical projects exactly the function physical_f_cos returns (the report's reference)."""
+    from atlasgen.models.physical_fit import fit_slice
+
+    model, values = _values("backlit", MATERIALS / "leaf.toml")
+    baked = model.fit_physical(values, 0.5).values[0]
+    rgba, _ = fit_slice(model.physical_f_cos(values, 0.5).f_cos, 0.5)
+    np.testing.assert_array_equal(baked, rgba)
+
+
+@pytest.mark.parametrize("name", ["beetle-shell", "iridescent-backlit"])
+def test_the_iridescent_physical_f_cos_is_the_thin_film(name):
+    """physical_f_cos is thin_film_rgb_f_cos of the reference's parameters (w_i = v, w_o = l); without a
+    back-light it is also the separable thin_film source it names, and is 0 below the surface."""
+    from atlasgen.io.fields import validate_params
+    from atlasgen.models.separable import Separable
+    from atlasgen.separable.source import make_source
+
+    model, values = _values("iridescent", MATERIALS / f"{name}.toml")
+    ref = model.physical_reference(values, gloss=0.5)
+    physical = model.physical_f_cos(values, 0.5)
+    rng = np.random.default_rng(6)
+    v, l = _directions(rng, 64), np.concatenate([_directions(rng, 32), _directions(rng, 32, True)])
+    film = json.loads(ref.bsdf["film"])
+    colour = [ref.bsdf[f"colour_{c}"] for c in "rgb"]
+    back = [ref.bsdf[f"backlight_{c}"] for c in "rgb"]
+    got = physical.f_cos(l, v)
+    np.testing.assert_array_equal(got, thin_film_rgb_f_cos(v, l, film, ref.bsdf["alpha"], colour, back))
+    assert physical.alpha == ref.bsdf["alpha"]
+    if values["backlight"] > 0.0:
+        assert physical.transmits and physical.source is None and "back-light" in physical.no_source
+        assert (got[32:] > 0.0).any()
+    else:
+        assert not physical.transmits and (got[32:] == 0.0).all()
+        source = make_source(validate_params(Separable.params, physical.source, "<test>"))
+        np.testing.assert_allclose(source.f_cos(l, v), got, rtol=1e-12, atol=0.0)

@@ -154,3 +154,30 @@ def _full_factors(src, result, target):
     again = approximate_brdf(src, terms=max(e["terms"] for e in result.errors_by_terms[target]), target=target,
                              grids=(result.grid,), measure_8bit=False)  # fmt: skip
     return again.factors
+
+
+@pytest.mark.parametrize("alpha", [None, 0.05, 0.3])
+def test_sphere_pairs_integrate_closed_forms_without_bias(alpha):
+    """With l over the whole sphere, mean(w g) = (1/(4 pi)) (1/(2 pi)) int_sphere int_hemisphere g:
+    1 for g = 1, 1/4 for g = |cos theta_l| below the surface, 1/(2(n+1)) for the cosine lobes
+    max(l.r, 0)^n about the mirror direction r and max(-l.v, 0)^n about -v (a transmission lobe),
+    each within 4 SE. The lobe density of an l drawn below the surface (v.h < 0) must be counted."""
+    s = sample_error_pairs(400_000, 5, alpha, sphere=True)
+    l, v, w = s.l, s.v, s.weight
+    assert s.sphere and s.estimator.endswith("-sphere") and abs((l[:, 2] < 0).mean() - 0.5) < 0.005
+    r = v * np.array([-1.0, -1.0, 1.0])
+    n = 200
+    cases = [(np.ones(len(w)), 1.0), (np.where(l[:, 2] < 0, -l[:, 2], 0.0), 0.25),
+             (np.maximum((l * r).sum(1), 0.0) ** n, 0.5 / (n + 1)), (np.maximum(-(l * v).sum(1), 0.0) ** n, 0.5 / (n + 1))]
+    for g, exact in cases:
+        x = w * g
+        se = x.std() / np.sqrt(len(x))
+        assert abs(x.mean() - exact) <= 4.0 * se + 1e-12, (alpha, exact, x.mean(), se)
+
+
+def test_sphere_pairs_leave_the_hemisphere_sample_unchanged():
+    """The mirror draws come after the hemisphere's: the reported figures of reflecting materials do not move."""
+    a, b = sample_error_pairs(1000, 3, 0.1), sample_error_pairs(1000, 3, 0.1, sphere=True)
+    np.testing.assert_array_equal(np.abs(a.l), np.abs(b.l))
+    np.testing.assert_array_equal(a.v, b.v)
+    assert not a.sphere and a.estimator == "defensive-ggx-mixture"
