@@ -44,6 +44,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 
 #: 1 - cos^2 of the angle between a texel's diffuse and lobe samples below which the two are collinear.
 COLLINEAR_TOLERANCE = 1e-9
@@ -155,8 +156,6 @@ def continue_collinear_texels(rgba, diffuse, lobe, weights, tolerance: float = C
     collinear = collinear_texels(d, s, weights, tolerance)
     if not collinear.any() or collinear.all():
         return rgba
-    from scipy.ndimage import distance_transform_edt
-
     w = np.asarray(weights, dtype=np.float64)[..., None]
     k = (w * d * s).sum(axis=(-2, -1))[collinear] / (w * d * d).sum(axis=(-2, -1))[collinear]
     rows, cols = distance_transform_edt(collinear, return_distances=False, return_indices=True)
