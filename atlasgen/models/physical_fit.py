@@ -7,6 +7,9 @@ finds the non-negative (A.rgb, A.a) whose renderer radiance is closest in the un
 azimuth measure. Uniform texels times uniform azimuths sample (l, v) pairs uniformly over
 the hemisphere pair (N.L and N.V are uniform in cos theta), so the summed residual is the
 squared error of f cos over uniform (l, v) pairs, the measure the separable model reports.
+At N.L = 1 and N.V = 1 every azimuth is the same pair, so the samples cannot split the
+texel between A.rgb and A: :func:`atlasgen.optics.projection.continue_collinear_texels`
+holds A at its nearest separable texel's, which the bilinear filter needs for a sharp lobe.
 
 The renderer's bases come from :meth:`atlasgen.models.base.Model.renderer_f_cos` (the
 renderer's equation as :mod:`atlasgen.optics.specular` states it), so the fit follows any
@@ -27,7 +30,8 @@ from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.projection import project_slice_texels, refine_specular_scale, weighted_residual
+from atlasgen.optics.projection import (continue_collinear_texels, project_slice_texels, refine_specular_scale,
+                                        weighted_residual)  # fmt: skip
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
@@ -192,7 +196,8 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     def fit_at(g):
         if g not in fits:
             diffuse, lobe = renderer_bases(g, l, v, nh, degenerate)
-            rgba = project_slice_texels(target, diffuse, lobe, weights)
+            # Continue A into N.L = 1 and N.V = 1, where the samples leave the split free.
+            rgba = continue_collinear_texels(project_slice_texels(target, diffuse, lobe, weights), diffuse, lobe, weights)
             fits[g] = (float(weighted_residual(target, diffuse, lobe, weights, rgba).sum()), g, rgba, diffuse, lobe)
         return fits[g]
 

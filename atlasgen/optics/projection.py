@@ -27,6 +27,14 @@ and a huge A can buy a negligible gain. A ridge lambda A^2 with lambda = 1e-6 ma
 the diffuse term, as a Lambertian surface expects; elsewhere it moves the fit by about
 1e-6 relative.
 
+The ridge decides the split texel by texel, which suits a Lambertian surface but not a
+sharp lobe: at N.L = 1 and N.V = 1 a conductor's peak would go to the diffuse term, and
+the bilinear filter would spread that diffuse value over the half texel next to it, where
+the lobe has moved and the diffuse term cannot follow. :func:`continue_collinear_texels`
+therefore splits such a texel as its nearest separable texel does: A is held at that
+texel's A (the split is the one quantity the samples cannot see, so it is taken from where
+they can) and A.rgb takes the rest, which leaves the texel's own fit unchanged.
+
 Once ``r`` has been rounded to what the atlas stores, :func:`refine_specular_scale`
 re-fits A alone against it: A = max(0, sum w S . (t - D r_q) / sum w S . S).
 """
@@ -36,11 +44,15 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from scipy.ndimage import distance_transform_edt
 
+#: 1 - cos^2 of the angle between a texel's diffuse and lobe samples below which the two are collinear.
+COLLINEAR_TOLERANCE = 1e-9
 #: Relative Tikhonov weight: lambda = RIDGE * max_i G_ii per texel (see the module docstring).
 RIDGE = 1e-6
 
-__all__ = ["RIDGE", "solve_nonnegative_least_squares", "project_slice_texels", "refine_specular_scale", "weighted_residual"]
+__all__ = ["RIDGE", "COLLINEAR_TOLERANCE", "solve_nonnegative_least_squares", "project_slice_texels", "collinear_texels",
+           "continue_collinear_texels", "refine_specular_scale", "weighted_residual"]  # fmt: skip
 
 
 def solve_nonnegative_least_squares(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -111,6 +123,48 @@ def project_slice_texels(target, diffuse, lobe, weights, ridge: float = RIDGE) -
     rhs = np.einsum("...sci,...sc->...i", b * w, t)
     lam = ridge * np.diagonal(gram, axis1=-2, axis2=-1).max(axis=-1)
     return solve_nonnegative_least_squares(gram + lam[..., None, None] * np.diag([0.0, 0.0, 0.0, 1.0]), rhs)
+
+
+def collinear_texels(diffuse, lobe, weights, tolerance: float = COLLINEAR_TOLERANCE) -> np.ndarray:
+    """Texels whose samples cannot tell A.rgb from A: the lobe is a non-zero multiple of the diffuse term.
+
+    With g_dd = sum w D.D, g_ss = sum w S.S and g_ds = sum w D.S over a texel's samples and
+    channels, the two are collinear where g_ss > 0 and 1 - g_ds^2 / (g_dd g_ss) <= ``tolerance``
+    (Cauchy-Schwarz is an equality only for proportional vectors): N.L = 1 or N.V = 1, where
+    every azimuth gives the same pair. Shapes as :func:`project_slice_texels`; returns ``(...)`` bool.
+    """
+    d = np.asarray(diffuse, dtype=np.float64)
+    s = np.broadcast_to(np.asarray(lobe, dtype=np.float64), d.shape)
+    w = np.asarray(weights, dtype=np.float64)[..., None]
+    g_dd, g_ss, g_ds = ((w * a * b).sum(axis=(-2, -1)) for a, b in ((d, d), (s, s), (d, s)))
+    product = g_dd * g_ss
+    return (g_ss > 0.0) & (g_ds * g_ds >= (1.0 - tolerance) * product)
+
+
+def continue_collinear_texels(rgba, diffuse, lobe, weights, tolerance: float = COLLINEAR_TOLERANCE) -> np.ndarray:
+    """The slice ``rgba`` ``(H, W, 4)`` with each collinear texel (:func:`collinear_texels`) split as its nearest separable texel.
+
+    At a collinear texel S = k D per channel, with k = g_ds / g_dd, so the texel's fit
+    depends on r_c + k A alone. A becomes A' = min(A_n, min_c (r_c + k A) / k), A_n the A of
+    the nearest texel (Euclidean, in texels) that is not collinear, and r_c' = r_c + k (A - A'):
+    the fit at the texel's own samples is the same, and A continues into the row or column
+    where the samples cannot fix it. Other texels are returned as they are.
+    """
+    rgba = np.array(rgba, dtype=np.float64)
+    d = np.asarray(diffuse, dtype=np.float64)
+    s = np.broadcast_to(np.asarray(lobe, dtype=np.float64), d.shape)
+    collinear = collinear_texels(d, s, weights, tolerance)
+    if not collinear.any() or collinear.all():
+        return rgba
+    w = np.asarray(weights, dtype=np.float64)[..., None]
+    k = (w * d * s).sum(axis=(-2, -1))[collinear] / (w * d * d).sum(axis=(-2, -1))[collinear]
+    rows, cols = distance_transform_edt(collinear, return_distances=False, return_indices=True)
+    neighbour = rgba[rows[collinear], cols[collinear], 3]
+    total = rgba[collinear, :3] + (k * rgba[collinear, 3])[:, None]  # r_c + k A, what the samples fix
+    a = np.minimum(neighbour, total.min(axis=-1) / k)
+    rgba[collinear, 3] = a
+    rgba[collinear, :3] = np.maximum(total - (k * a)[:, None], 0.0)
+    return rgba
 
 
 def refine_specular_scale(target, diffuse, lobe, weights, rgb, ridge: float = RIDGE) -> np.ndarray:

@@ -9,7 +9,7 @@ from scipy.optimize import nnls
 
 from atlasgen.contract import texel_centres
 from atlasgen.models.physical_fit import azimuth_pairs, fit_slice, renderer_bases
-from atlasgen.optics.projection import (project_slice_texels, refine_specular_scale, solve_nonnegative_least_squares,
+from atlasgen.optics.projection import (collinear_texels, continue_collinear_texels, project_slice_texels, refine_specular_scale, solve_nonnegative_least_squares,
                                         weighted_residual)  # fmt: skip
 from atlasgen.optics.srgb import encode_srgb
 
@@ -144,3 +144,87 @@ def test_a_fit_choosing_its_gloss_finds_the_lobe_width_between_grid_points():
     _, info = fit_slice(f_cos, gloss=None, azimuths=32)
     assert abs(info["gloss"] - truth) < 1e-3, info
     assert info["relative_rms"] < 0.01, info
+
+
+def test_collinear_texels_are_the_normal_column_and_row_where_the_lobe_is_lit(texels):
+    """At N.L = 1 or N.V = 1 every azimuth gives the same (l, v): the lobe is a constant multiple
+    of the diffuse term there, and nowhere else (the lobe is zero where N.L <= 0)."""
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    expected = (nl[None, :] > 0.0) & ((nl[None, :] == 1.0) | (nv[:, None] == 1.0))
+    np.testing.assert_array_equal(collinear_texels(diffuse, lobe, weights), expected)
+
+
+def test_a_pure_lobe_stays_in_a_through_the_collinear_row_and_column(texels):
+    """A conductor-like target, c(N.L, N.V) times the renderer's lobe with no diffuse part: the
+    slice holds it with A.rgb = 0 at every separable texel, and at N.L = 1 and N.V = 1 A continues
+    the smooth c, so A.rgb there holds only c's change over one texel (A.rgb = k (c - A), k = S / D)."""
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    c = 0.9 + 0.05 * nl[None, :] - 0.04 * (1.0 - nv[:, None]) ** 2
+    target = lobe * c[..., None, None]
+    raw = project_slice_texels(target, diffuse, lobe, weights)
+    rgba = continue_collinear_texels(raw, diffuse, lobe, weights)
+    collinear = collinear_texels(diffuse, lobe, weights)
+    # The N.V = 0 row is left out: there the lobe barely varies with azimuth, ill-conditioned but not collinear.
+    inner = ~collinear & (nv[:, None] > 0.0)
+    np.testing.assert_allclose(rgba[inner][:, :3], 0.0, atol=1e-3 * c.max())  # the ridge, where the lobe is faint
+    step = 0.05 * 2.0 / 63 + 0.04 * 2.0 / 31  # c's largest change over one texel diagonal
+    # Where the lobe is faint (N.L near 0) the ridge leaves the neighbour's split, and so A, to the diffuse term.
+    has_lobe = (weights[..., None] * lobe**2).sum(axis=(-2, -1)) > 1e-3
+    firm = collinear & has_lobe
+    assert np.abs(rgba[..., 3] - c)[firm].max() <= step
+    k = lobe[..., 0, 0] / diffuse[..., 0, 0]
+    assert (rgba[firm][:, :3] <= (k * step)[firm][:, None]).all()
+    assert (rgba[firm][:, :3] < 0.1 * raw[firm][:, :3]).all()  # the ridge's split gave it all to A.rgb
+    # The split changed, the fit at each texel's own samples did not.
+    np.testing.assert_allclose(weighted_residual(target, diffuse, lobe, weights, rgba),
+                               weighted_residual(target, diffuse, lobe, weights, raw), atol=1e-12)  # fmt: skip
+
+
+def test_continuing_the_split_keeps_each_collinear_texels_fit_and_colours_non_negative(texels):
+    """A random split at every collinear texel: the continued slice gives the same radiance at
+    each of the texel's samples (r_c + k A is kept), never a negative colour, and A no larger
+    than the nearest separable texel's."""
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    rng = np.random.default_rng(11)
+    rgba = rng.uniform(0.0, 1.0, diffuse.shape[:2] + (4,))
+    out = continue_collinear_texels(rgba, diffuse, lobe, weights)
+    before = diffuse * rgba[..., None, :3] + lobe * rgba[..., None, 3:]
+    after = diffuse * out[..., None, :3] + lobe * out[..., None, 3:]
+    np.testing.assert_allclose(after, before, rtol=1e-12, atol=1e-12)
+    assert (out >= 0.0).all()
+    collinear = collinear_texels(diffuse, lobe, weights)
+    np.testing.assert_array_equal(out[~collinear], rgba[~collinear])
+    # Corner (N.L, N.V) = (1, 1): its nearest separable texel is the diagonal one.
+    assert out[-1, -1, 3] <= rgba[-2, -2, 3] + 1e-15
+
+
+def test_a_fitted_sharp_lobe_holds_between_the_last_texels_as_the_renderer_filters_it():
+    """fit_slice of 0.9 times the renderer's own sharp lobe (gloss 0.7, alpha 0.09), read as the
+    renderer reads it (bilinear A.rgb and A) at random pairs with N.L and N.V in the last texel
+    cells, near the mirror direction: the slice is A = 0.9 there too, so the error is 8-bit only.
+    Before the collinear texels were continued, the corner held the peak as a diffuse A.rgb of
+    about 23 that the filter spread over the highlight."""
+    from atlasgen.optics.interpolation import sample_slice
+    from atlasgen.optics.specular import half_vector_cosine
+
+    gloss = 0.7
+
+    def f_cos(l, v):
+        nh, degenerate = half_vector_cosine(l, v)
+        _, lobe = renderer_bases(gloss, l[:, None], v[:, None], nh[:, None], degenerate[:, None])
+        return 0.9 * lobe[:, 0]
+
+    rgba, _ = fit_slice(f_cos, gloss=gloss, azimuths=32)
+    rng = np.random.default_rng(5)
+    n = 4000
+    cos_l, cos_v = rng.uniform(1.0 - 1.0 / 31, 1.0, (2, n))
+    phi = np.pi + rng.uniform(-0.5, 0.5, n)  # l about opposite v in azimuth: the mirror lobe
+    sl, sv = np.sqrt(1.0 - cos_l**2), np.sqrt(1.0 - cos_v**2)
+    l = np.stack([sl * np.cos(phi), sl * np.sin(phi), cos_l], -1)
+    v = np.stack([sv, 0.0 * sv, cos_v], -1)
+    nh, degenerate = half_vector_cosine(l, v)
+    diffuse, lobe = renderer_bases(gloss, l, v, nh, degenerate)
+    texel = sample_slice(rgba, cos_l, cos_v)
+    shown = diffuse * texel[:, :3] + lobe * texel[:, 3:]
+    target = f_cos(l, v)
+    assert np.sqrt(((shown - target) ** 2).sum() / (target**2).sum()) < 0.01
