@@ -44,7 +44,6 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 #: 1 - cos^2 of the angle between a texel's diffuse and lobe samples below which the two are collinear.
 COLLINEAR_TOLERANCE = 1e-9
@@ -141,12 +140,25 @@ def collinear_texels(diffuse, lobe, weights, tolerance: float = COLLINEAR_TOLERA
     return (g_ss > 0.0) & (g_ds * g_ds >= (1.0 - tolerance) * product)
 
 
+def _nearest_separable(collinear: np.ndarray, separable: np.ndarray):
+    """(rows, cols) of the nearest ``separable`` texel (Euclidean, in texels; first in row-major
+    order on a tie) for each ``collinear`` texel, in row-major order. The collinear texels are
+    one row and one column of a 64x32 slice, so a brute-force search is cheap, and keeps SciPy
+    off the bake's import path."""
+    targets = np.argwhere(collinear)
+    sources = np.argwhere(separable)
+    d2 = ((targets[:, None, :] - sources[None, :, :]) ** 2).sum(-1)
+    nearest = sources[np.argmin(d2, axis=1)]
+    return nearest[:, 0], nearest[:, 1]
+
+
 def continue_collinear_texels(rgba, diffuse, lobe, weights, tolerance: float = COLLINEAR_TOLERANCE) -> np.ndarray:
     """The slice ``rgba`` ``(H, W, 4)`` with each collinear texel (:func:`collinear_texels`) split as its nearest separable texel.
 
     At a collinear texel S = k D per channel, with k = g_ds / g_dd, so the texel's fit
     depends on r_c + k A alone. A becomes A' = min(A_n, min_c (r_c + k A) / k), A_n the A of
-    the nearest texel (Euclidean, in texels) that is not collinear, and r_c' = r_c + k (A - A'):
+    the nearest texel (Euclidean, in texels) that is not collinear and has a lobe, and
+    r_c' = r_c + k (A - A'):
     the fit at the texel's own samples is the same, and A continues into the row or column
     where the samples cannot fix it. Other texels are returned as they are.
     """
@@ -154,12 +166,14 @@ def continue_collinear_texels(rgba, diffuse, lobe, weights, tolerance: float = C
     d = np.asarray(diffuse, dtype=np.float64)
     s = np.broadcast_to(np.asarray(lobe, dtype=np.float64), d.shape)
     collinear = collinear_texels(d, s, weights, tolerance)
-    if not collinear.any() or collinear.all():
-        return rgba
     w = np.asarray(weights, dtype=np.float64)[..., None]
+    # A texel without a lobe (the light below the horizon) has no A to continue from.
+    separable = ~collinear & ((w * s * s).sum(axis=(-2, -1)) > 0.0)
+    if not collinear.any() or not separable.any():
+        return rgba
     k = (w * d * s).sum(axis=(-2, -1))[collinear] / (w * d * d).sum(axis=(-2, -1))[collinear]
-    rows, cols = distance_transform_edt(collinear, return_distances=False, return_indices=True)
-    neighbour = rgba[rows[collinear], cols[collinear], 3]
+    rows, cols = _nearest_separable(collinear, separable)
+    neighbour = rgba[rows, cols, 3]
     total = rgba[collinear, :3] + (k * rgba[collinear, 3])[:, None]  # r_c + k A, what the samples fix
     a = np.minimum(neighbour, total.min(axis=-1) / k)
     rgba[collinear, 3] = a

@@ -228,3 +228,22 @@ def test_a_fitted_sharp_lobe_holds_between_the_last_texels_as_the_renderer_filte
     shown = diffuse * texel[:, :3] + lobe * texel[:, 3:]
     target = f_cos(l, v)
     assert np.sqrt(((shown - target) ** 2).sum() / (target**2).sum()) < 0.01
+
+
+def test_the_split_continues_from_a_texel_with_a_lobe_not_from_one_lit_from_below(texels):
+    """Where the light is below the horizon (N.L <= 0) the lobe is 0 and so is A: a collinear
+    texel must take its split from the nearest texel whose samples see a lobe, or it would hand
+    its whole lobe to A.rgb. Here the texel below the first lit one of the N.V = 1 row is made
+    lobe-less too, so both of that texel's nearest neighbours are, and the diagonal one must serve."""
+    nl, nv, l, v, diffuse, lobe, weights = texels
+    lobe = np.array(np.broadcast_to(lobe, diffuse.shape))
+    first_lit = int(np.argmax((weights[-1][..., None] * lobe[-1] ** 2).sum(axis=(-2, -1)) > 0.0))
+    lobe[-2, first_lit] = 0.0
+    has_lobe = (weights[..., None] * lobe**2).sum(axis=(-2, -1)) > 0.0
+    collinear = collinear_texels(diffuse, lobe, weights)
+    assert collinear[-1, first_lit] and not has_lobe[-1, first_lit - 1] and not has_lobe[-2, first_lit]
+    rgba = np.zeros(diffuse.shape[:2] + (4,))
+    rgba[..., 3] = np.where(has_lobe, 0.5, 0.0)
+    out = continue_collinear_texels(rgba, diffuse, lobe, weights)
+    np.testing.assert_allclose(out[collinear][:, 3], 0.5, rtol=1e-12)
+    np.testing.assert_allclose(out[collinear][:, :3], 0.0, atol=1e-12)
