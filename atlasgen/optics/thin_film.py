@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
-from atlasgen.optics.interpolation import interpolate_2d
+from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.translucency import transmitted_albedo
 
@@ -59,6 +59,21 @@ def _lookup(table_set, cos, lam):
     return interpolate_2d(table.T, cos * (len(grid_c) - 1), (lam - grid_l[0]) / (grid_l[1] - grid_l[0]))
 
 
+@lru_cache(maxsize=16)
+def _table_on_grid(stack: tuple, lam: tuple):
+    """:func:`film_table` of ``stack`` filtered along wavelength at ``lam``, ``(cosines, S)``.
+
+    A bilinear lookup at a wavelength grid shared by every lane is then linear along the
+    cosine alone: bilinear filtering is separable, so this equals :func:`_lookup` up to
+    rounding, and gathers one row per lane instead of four texels per lane and wavelength.
+    """
+    grid_c, grid_l, table = film_table(*stack)
+    on_grid = interpolate_1d(table.T, (np.asarray(lam) - grid_l[0]) / (grid_l[1] - grid_l[0])).T
+    on_grid = np.ascontiguousarray(on_grid)
+    on_grid.setflags(write=False)
+    return on_grid
+
+
 def thin_film_terms(wi, wo, lam, film, alpha):
     """The thin-film BSDF's f cos(theta_o) split by what it multiplies, per lane and wavelength.
 
@@ -71,7 +86,8 @@ def thin_film_terms(wi, wo, lam, film, alpha):
     (0 where ``backlight`` is 0): the terms of :func:`thin_film_f_cos`.
     f cos is linear in the two RGB-upsampled spectra, so one evaluation of the film serves
     both the per-wavelength plugin (:func:`thin_film_f_cos`) and the RGB integral of a fit
-    (:func:`thin_film_rgb_f_cos`).
+    (:func:`thin_film_rgb_f_cos`). ``lam`` is ``(N, S)`` nm, or ``(S,)`` for one grid shared by
+    every lane (the RGB integral's), which is looked up faster.
     """
     film = {**FILM_DEFAULTS, **film}
     stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
@@ -86,10 +102,20 @@ def thin_film_terms(wi, wo, lam, film, alpha):
     # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked below.
     with np.errstate(divide="ignore", invalid="ignore"):
         vis = np.nan_to_num(smith_visibility_correlated_ggx(ci, co, alpha))
-    r_i = _lookup(table, np.clip(ci, 0.0, 1.0)[:, None], lam)
-    r_o = _lookup(table, np.clip(co, 0.0, 1.0)[:, None], lam)
+    if np.ndim(lam) == 1:  # one grid for every lane
+        on_grid = _table_on_grid(stack, tuple(float(x) for x in lam))
+
+        def look(c):
+            return interpolate_1d(on_grid, c * (len(table[0]) - 1))
+    else:
+
+        def look(c):
+            return _lookup(table, c[:, None], lam)
+
+    r_i = look(np.clip(ci, 0.0, 1.0))
+    r_o = look(np.clip(co, 0.0, 1.0))
     lit = np.maximum(co, 0.0)[:, None]
-    spec = (strength * (1.0 - split)) * (d * vis * np.maximum(co, 0.0))[:, None] * _lookup(table, cos_d[:, None], lam)
+    spec = (strength * (1.0 - split)) * (d * vis * np.maximum(co, 0.0))[:, None] * look(cos_d)
     rough = (strength * split / np.pi) * r_i * lit
     weight = (1.0 - r_o) * (1.0 - r_i)
     if film["energy"] == "coupled":
@@ -166,8 +192,7 @@ def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chun
     out = np.empty((len(wi), 3))
     for start in range(0, len(wi), chunk):
         part = slice(start, start + chunk)
-        lam = np.broadcast_to(grid, (len(wi[part]), samples))
-        own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], lam, film, alpha)
+        own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], grid, film, alpha)
         out[part] = spectrum_to_rgb(own, samples, "D65")[0] + colour * spectrum_to_rgb(base_weight, samples, "D65")[0]
         if backlight_colour is not None:
             out[part] += back * spectrum_to_rgb(back_weight, samples, "D65")[0]
