@@ -106,7 +106,7 @@ def thin_film_terms(wi, wo, lam, film, alpha):
         on_grid = _table_on_grid(stack, tuple(float(x) for x in lam))
 
         def look(c):
-            return interpolate_1d(on_grid, c * (len(table[0]) - 1))
+            return interpolate_1d(on_grid, c * (len(on_grid) - 1))
     else:
 
         def look(c):

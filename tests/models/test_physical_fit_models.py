@@ -108,6 +108,7 @@ def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below
 
 @pytest.mark.parametrize("below", [False, True])
 def test_thin_sheet_plugin_eval_equals_the_numpy_function(mitsuba_llvm, below):
+    """The atlasgen_thinsheet plugin's eval is thin_sheet_f_cos, and the backlit model's physical_f_cos."""
     import drjit as dr
 
     from atlasgen.models.mitsuba_bsdfs import register_bsdfs
@@ -131,6 +132,11 @@ def test_thin_sheet_plugin_eval_equals_the_numpy_function(mitsuba_llvm, below):
     ours = thin_sheet_f_cos(wi, wo, np.array(r), np.array(t), ref.bsdf["specular"], ref.bsdf["alpha"])
     assert (theirs > 0.0).all()  # reflection and transmission are diffuse: every pair carries light
     np.testing.assert_allclose(theirs, ours, rtol=2e-5, atol=1e-7)
+    # The model's physical_f_cos(l, v) is the same plugin, with w_i = v and w_o = l.
+    physical = model.physical_f_cos(values, 0.5)
+    assert physical.transmits and physical.source is None and "separable" in physical.no_source
+    assert physical.alpha == ref.bsdf["alpha"]
+    np.testing.assert_allclose(physical.f_cos(wo, wi), theirs, rtol=2e-5, atol=1e-7)
 
 
 @pytest.mark.parametrize("illuminant", ["E", "D65"])
@@ -270,31 +276,6 @@ def test_iridescent_from_physical_beats_the_model_against_the_thin_film(write_ma
 def test_iridescent_from_physical_refuses_normalise(write_material):
     with pytest.raises(MaterialError, match=r"\bfrom\b.*normalise"):
         read_material(write_material("m", 'type = "iridescent"\nnormalise = true\nfrom = "physical"\n'))
-
-
-@pytest.mark.parametrize("below", [False, True])
-def test_the_thin_sheet_physical_f_cos_is_the_plugin(mitsuba_llvm, below):
-    """The backlit model's physical_f_cos(l, v) is the atlasgen_thinsheet plugin's eval with w_i = v, w_o = l."""
-    import drjit as dr
-
-    from atlasgen.models.mitsuba_bsdfs import register_bsdfs
-
-    mi = mitsuba_llvm
-    register_bsdfs(mi)
-    model, values = _values("backlit", MATERIALS / "leaf.toml")
-    physical = model.physical_f_cos(values, 0.5)
-    assert physical.transmits and physical.source is None and "separable" in physical.no_source
-    assert physical.alpha == model.physical_reference(values, gloss=0.5).bsdf["alpha"]
-    rng = np.random.default_rng(5)
-    n = 200
-    v, l = _directions(rng, n), _directions(rng, n, below)
-    si = dr.zeros(mi.SurfaceInteraction3f, n)
-    si.wi = _vector(mi, v)
-    si.n = mi.Vector3f(0.0, 0.0, 1.0)
-    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
-    value = mi.load_dict(model.physical_reference(values, gloss=0.5).bsdf).eval(mi.BSDFContext(), si, _vector(mi, l))
-    theirs = np.stack([np.asarray(value[k], np.float64) for k in range(3)], -1)
-    np.testing.assert_allclose(physical.f_cos(l, v), theirs, rtol=2e-5, atol=1e-7)
 
 
 def test_the_backlit_fit_fits_its_physical_f_cos():
