@@ -158,7 +158,7 @@ class Separable(Model):
             if values["film"] is None:
                 raise MaterialError(path, "film", "missing; expected a table such as {thickness = 420.0, film_ior = 1.45, "
                                                   "base_ior = 1.8} with source = 'thin_film'")  # fmt: skip
-            check_film(values["film"], path)
+            values["film"] = check_film(values["film"], path)  # the defaults filled in, as every user of it reads them
         elif values["film"] is not None:
             raise MaterialError(path, "film", f"only used with source = 'thin_film', but source is {values['source']!r}")
         if values["reflection_only"] and values["source"] != "mitsuba":

@@ -13,6 +13,7 @@ from atlasgen.errors import MaterialError
 from atlasgen.materials.material import read_material
 from atlasgen.models import get_model
 from atlasgen.models.physical_fit import fit_slice
+from atlasgen.models.separable import FILM_KEYS
 from atlasgen.optics.thin_film import FILM_DEFAULTS, thin_film_rgb_f_cos
 from atlasgen.separable.source import make_source
 
@@ -62,8 +63,10 @@ def test_the_physical_reference_is_the_spectral_thin_film(write_material):
     model = get_model("separable")
     ref = model.physical_reference(material.params, albedo=(0.5, 0.5, 0.5))
     assert ref.variant == "llvm_ad_spectral" and ref.stochastic and ref.bsdf["type"] == "atlasgen_thinfilm"
+    # Keys the table leaves out take the iridescent model's defaults (energy = "coupled").
     assert json.loads(ref.bsdf["film"]) == {**FILM_DEFAULTS, "thickness": 650.0, "film_ior": 1.56, "base_ior": 1.9,
-                                           "base_k": 1.2, "film_split": 0.0}  # fmt: skip
+                                           "base_k": 1.2, "film_split": 0.0, "film_strength": 1.0,
+                                           "energy": "coupled"}  # fmt: skip
     assert ref.bsdf["alpha"] == 0.3
     assert [ref.bsdf[f"colour_{c}"] for c in "rgb"] == pytest.approx([0.1, 0.05, 0.0])
     ggx = read_material(write_material("g", 'type = "separable"\nsource = "ggx"\nterms = 1\n'))
@@ -85,3 +88,17 @@ def test_separable_terms_carry_the_coloured_highlight_a_table_cannot(write_mater
     source = make_source(material.params)
     _, table = fit_slice(lambda l, v: source.f_cos(l, v), 0.5, azimuths=32)
     assert claimed < 0.5 * table["relative_rms"]
+
+
+def test_a_film_without_its_optional_keys_gets_the_iridescent_defaults(write_material):
+    """base_k, film_strength, film_split and energy may be left out; every user of the film (the
+    source, the reference, the manifest) then reads the iridescent model's defaults."""
+    material = read_material(write_material("f", 'type = "separable"\nsource = "thin_film"\nterms = 1\n'
+                                                 'film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8 }\n'))  # fmt: skip
+    film = material.params["film"]
+    defaults = {p.name: p.default for p in get_model("iridescent").params if p.name in FILM_KEYS}
+    assert film == {**defaults, "thickness": 420.0, "film_ior": 1.45, "base_ior": 1.8}
+    rng = np.random.default_rng(2)
+    l, v = _directions(rng, 16), _directions(rng, 16)
+    np.testing.assert_allclose(make_source(material.params).f_cos(l, v),
+                               thin_film_rgb_f_cos(v, l, FILM_DEFAULTS | film, 0.2, (0.0, 0.0, 0.0)), rtol=1e-12)
