@@ -247,6 +247,8 @@ def register_bsdfs(mi) -> None:
             self.alpha = float(props["alpha"])
             self.base = self._spectrum(props, "colour")
             self.backlight = self._spectrum(props, "backlight") if "backlight_r" in props else None
+            # A separable material's renderer draws albedo * f cos: its reference scales the whole film.
+            self.tint = self._spectrum(props, "tint") if "tint_r" in props else None
 
         @staticmethod
         def _spectrum(props, name):
@@ -272,6 +274,8 @@ def register_bsdfs(mi) -> None:
             base_np = self._reflectance(self.base, ctx, si, active, lam.shape[1])
             back_np = None if self.backlight is None else self._reflectance(self.backlight, ctx, si, active, lam.shape[1])
             value = thin_film_f_cos(wi_np, wo_np, lam, self.film, self.alpha, base_np, back_np)
+            if self.tint is not None:
+                value = value * self._reflectance(self.tint, ctx, si, active, lam.shape[1])
             value = np.ascontiguousarray(np.nan_to_num(value), dtype=np.float32)
             out = mi.Spectrum(*[mi.Float(value[:, k].copy()) for k in range(value.shape[1])])
             return dr.select(active, out, 0.0)

@@ -453,15 +453,17 @@ class Separable(Model):
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
         in ``llvm_ad_spectral``, wavelengths sampled per sample) with this material's film, ``alpha``
-        and base colour ``diffuse`` times the albedo, no back-light: the film the source integrates
+        and base colour ``diffuse``, the whole film tinted by the albedo as the renderer's
+        L += E albedo f cos is, no back-light: the film the source integrates
         to RGB for white light (:func:`atlasgen.separable.source.thin_film_source`). Other sources:
         ``None`` (their model reference is the source itself)."""
         if values["source"] != "thin_film":
             return None
         film = {**FILM_DEFAULTS, **values["film"]}
-        colour = np.asarray(values["diffuse"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
         bsdf = {"type": THIN_FILM_REFERENCE, "film": json.dumps(film, sort_keys=True), "alpha": float(values["alpha"])}
-        bsdf.update({f"colour_{c}": float(x) for c, x in zip("rgb", colour)})
+        bsdf.update({f"colour_{c}": float(x) for c, x in zip("rgb", values["diffuse"])})
+        # The renderer draws albedo * f cos (the model reference too): the whole film is tinted, not only its base.
+        bsdf.update({f"tint_{c}": float(x) for c, x in zip("rgb", albedo)})
         return Reference(bsdf, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral, "
                                "wavelengths sampled per sample)", variant="llvm_ad_spectral", stochastic=True)  # fmt: skip
 

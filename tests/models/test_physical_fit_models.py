@@ -67,11 +67,13 @@ def _vector(mi, a):
     return mi.Vector3f(*[mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(a.shape[1])])
 
 
+@pytest.mark.parametrize("tint", [None, (0.6, 0.3, 0.9)])
 @pytest.mark.parametrize("below", [False, True])
-def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below):
+def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below, tint):
     """The ``atlasgen_thinfilm`` plugin's eval at random (w_i, w_o) and wavelengths is
     :func:`thin_film_f_cos` with the colours upsampled as Mitsuba upsamples them (Jakob &
-    Hanika 2019's sigmoid polynomials); ``below`` puts the light behind the film (the back-light)."""
+    Hanika 2019's sigmoid polynomials); ``below`` puts the light behind the film (the back-light);
+    a ``tint`` (a separable material's albedo) scales all of it."""
     import drjit as dr
 
     from atlasgen.models.mitsuba_bsdfs import register_bsdfs
@@ -80,6 +82,8 @@ def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below
     register_bsdfs(mi)
     model, values = _values("iridescent", MATERIALS / "iridescent-backlit.toml")
     ref = model.physical_reference(values, gloss=0.5)
+    if tint is not None:
+        ref.bsdf.update({f"tint_{c}": t for c, t in zip("rgb", tint)})
     bsdf = mi.load_dict(ref.bsdf)
     rng = np.random.default_rng(3)
     n = 200
@@ -101,6 +105,8 @@ def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below
 
     ours = thin_film_f_cos(wi, wo, lam, json.loads(ref.bsdf["film"]), ref.bsdf["alpha"], upsampled("colour"),
                            upsampled("backlight"))  # fmt: skip
+    if tint is not None:
+        ours = ours * upsampled("tint")
     assert ours.shape == theirs.shape == (n, 4)
     assert (theirs > 1e-3).sum() > n  # most lanes carry light, above and below
     np.testing.assert_allclose(theirs, ours, rtol=2e-5, atol=1e-7)

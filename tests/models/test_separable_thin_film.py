@@ -68,7 +68,9 @@ def test_the_physical_reference_is_the_spectral_thin_film(write_material):
                                            "base_k": 1.2, "film_split": 0.0, "film_strength": 1.0,
                                            "energy": "coupled"}  # fmt: skip
     assert ref.bsdf["alpha"] == 0.3
-    assert [ref.bsdf[f"colour_{c}"] for c in "rgb"] == pytest.approx([0.1, 0.05, 0.0])
+    # The renderer draws albedo * f cos: the albedo tints the whole film, not only its base.
+    assert [ref.bsdf[f"colour_{c}"] for c in "rgb"] == pytest.approx([0.2, 0.1, 0.0])
+    assert [ref.bsdf[f"tint_{c}"] for c in "rgb"] == pytest.approx([0.5, 0.5, 0.5])
     ggx = read_material(write_material("g", 'type = "separable"\nsource = "ggx"\nterms = 1\n'))
     assert model.physical_reference(ggx.params) is None
 
