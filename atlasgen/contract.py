@@ -27,7 +27,9 @@ __all__ = [
 # v3: atlas_sha256 pairs the manifest with its texture; sources relative to the manifest.
 # v4: the renderer's specular lobe became GGX with height-correlated Smith visibility
 #     (``specular_lobe``); slices baked for the Blinn-Phong lobe mean something else.
-FORMAT_VERSION = 4
+# v5: a separable entry may end with a transmission slice (``transmission``; the separable
+#     table's directory row says so in w, table version 2), read where N.L <= 0.
+FORMAT_VERSION = 5
 WIDTH = 64  # u: N.L in [-1, 1]
 HEIGHT = 32  # v: N.V in [0, 1]
 LAYERS = 256

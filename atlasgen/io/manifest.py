@@ -43,6 +43,7 @@ __all__ = [
     "BrdfError",
     "SeparableErrors",
     "SeparableFactors",
+    "SeparableTransmission",
     "LutRepresentation",
     "SeparableRepresentation",
     "AnalyticRepresentation",
@@ -303,6 +304,34 @@ class SeparableErrors(_Record):
         )
 
 
+@dataclass(kw_only=True)
+class SeparableTransmission(_Record):
+    """A separable BRDF's light from below the surface (a back-light): one table slice after its
+    K terms, slice ``first_slice + slice`` (``slice`` = K), laid out as any slice of the atlas
+    (u = N.L, v = N.V, the atlas's per-slice scale and bias). Where N.L <= 0 < N.V the include
+    returns f cos = rgb / pi of it (docs/separable.md, "Light from behind").
+
+    ``errors_8bit_sphere`` is the relative RMS of the whole f cos the include rebuilds (the terms
+    above the surface, this slice below) against the source, with l over the whole sphere:
+    ``pairs`` pairs drawn with ``seed`` by ``estimator``.
+    """
+
+    slice: int
+    estimator: str | None = field(default=None, metadata=_OPTIONAL)
+    pairs: int | None = field(default=None, metadata=_OPTIONAL)
+    seed: int | None = field(default=None, metadata=_OPTIONAL)
+    errors_8bit_sphere: BrdfError | None = field(default=None, metadata=_OPTIONAL)
+
+    @classmethod
+    def from_json(cls, f: _Fields, slice_count: int) -> "SeparableTransmission":
+        offset = f.take("slice", f"{slice_count - 1} (the entry's last slice, after its terms)",
+                        lambda v: _is_int(v) and slice_count >= 2 and v == slice_count - 1)  # fmt: skip
+        errors = f.child("errors_8bit_sphere", optional=True)
+        return cls(slice=offset, estimator=f.string("estimator", optional=True), pairs=f.integer("pairs", 1, optional=True),
+                   seed=f.integer("seed", 0, optional=True),
+                   errors_8bit_sphere=None if errors is None else BrdfError.from_json(errors))  # fmt: skip
+
+
 _VIEW_FRACTION = (lambda v: isinstance(v, dict) and _is_finite(v.get("view_deg")) and _is_finite(v.get("fraction"))
                   and 0 <= v["fraction"] <= 1, "{view_deg, fraction} with the fraction in [0, 1]")  # fmt: skip
 
@@ -325,7 +354,8 @@ class SeparableFactors(_Record):
     ``brdf_source`` is the BRDF that was factored (``ggx``, ``mitsuba``, ...); the entry's
     own ``source`` stays the material file. ``transmitted_fraction`` (``reflection_only``
     materials) is the share of a transmissive BSDF's response the slices drop, T / (R + T),
-    at a few view angles.
+    at a few view angles. ``transmission`` (a thin film with a back-light): the entry's last
+    slice holds the light from below the surface, and the terms are the slices before it.
     """
 
     brdf_source: str | None = field(default=None, metadata=_OPTIONAL)
@@ -345,14 +375,23 @@ class SeparableFactors(_Record):
     max_error: float | None = field(default=None, metadata=_OPTIONAL)
     max_error_met: bool | None = field(default=None, metadata=_OPTIONAL)
     errors_8bit: BrdfError | None = field(default=None, metadata=_OPTIONAL)
+    transmission: SeparableTransmission | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
     def keys(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
 
+    @property
+    def term_slices(self) -> int:
+        """How many of the entry's slices hold terms (all but a transmission slice)."""
+        return len(self.factor_scale)
+
     @classmethod
     def from_json(cls, f: _Fields, slice_count: int) -> "SeparableFactors":
-        table = f"a list of {slice_count} (one per term)"
+        transmission = f.child("transmission", optional=True)
+        transmission = None if transmission is None else SeparableTransmission.from_json(transmission, slice_count)
+        terms = slice_count - (transmission is not None)
+        table = f"a list of {terms} (one per term)"
         cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values")
         errors = f.child("errors", optional=True)
         errors_8bit = f.child("errors_8bit", optional=True)
@@ -365,8 +404,8 @@ class SeparableFactors(_Record):
             sampling_grid=f.integer("sampling_grid", 1, optional=True),
             factor_resolution=f.integer("factor_resolution", 1, optional=True),
             channel_layout=f.string("channel_layout", optional=True),
-            factor_scale=f.array("factor_scale", table, cell, slice_count),
-            factor_bias=f.array("factor_bias", table, cell, slice_count),
+            factor_scale=f.array("factor_scale", table, cell, terms),
+            factor_bias=f.array("factor_bias", table, cell, terms),
             nonfinite_samples=f.integer("nonfinite_samples", 0, optional=True),
             nonfinite_reference=f.integer("nonfinite_reference", 0, optional=True),
             errors=None if errors is None else SeparableErrors.from_json(errors),
@@ -374,6 +413,7 @@ class SeparableFactors(_Record):
             max_error=f.number("max_error", optional=True),
             max_error_met=f.boolean("max_error_met", optional=True),
             errors_8bit=None if errors_8bit is None else BrdfError.from_json(errors_8bit),
+            transmission=transmission,
         )
 
 

@@ -203,8 +203,8 @@ class Iridescent(Model):
         """:meth:`physical_reference` as NumPy: :func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`
         (its w_i the view, w_o the light), the plugin's per-wavelength f cos integrated to linear
         sRGB for white light, with that function's approximations against Mitsuba's spectral
-        render. It transmits where ``backlight`` > 0; without a back-light it is the separable
-        model's ``source = "thin_film"`` with this film, GGX alpha and base colour."""
+        render. It transmits where ``backlight`` > 0. It is the separable model's
+        ``source = "thin_film"`` with this film (its back-light included), GGX alpha and base colour."""
         ref = self.physical_reference(values, gloss=gloss)
         bsdf = ref.bsdf
         film = json.loads(bsdf["film"])
@@ -214,12 +214,11 @@ class Iridescent(Model):
         def f_cos(l, v):
             return thin_film_rgb_f_cos(v, l, film, bsdf["alpha"], colour, back)
 
-        if values["backlight"] > 0.0:
-            return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], transmits=True,
-                                no_source="the separable thin_film source has no back-light (transmission, N.L < 0)")  # fmt: skip
-        stack = {k: film[k] for k in ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy")}
+        stack = {k: film[k] for k in ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy",
+                                      "backlight", "backlight_distortion", "backlight_power")}  # fmt: skip
+        stack["backlight_colour"] = back
         source = {"source": "thin_film", "film": stack, "alpha": bsdf["alpha"], "diffuse": colour}
-        return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], source=source)
+        return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], transmits=values["backlight"] > 0.0, source=source)
 
     def fit_physical(self, values, gloss) -> SliceSet:
         """The slice fitted to :meth:`physical_reference` at the renderer gloss ``gloss``

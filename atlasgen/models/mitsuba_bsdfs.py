@@ -188,7 +188,9 @@ def register_bsdfs(mi) -> None:
         def f_cos(self, wi, wo, side):
             l, v = wo * side[:, None], wi * side[:, None]
             value = self.source.f_cos(l, v) * self.albedo
-            return np.where((l[:, 2:3] > 0.0) & (v[:, 2:3] > 0.0), value, 0.0)
+            # A source that transmits (a film's back-light) sends light from below to the viewer too.
+            lit = (l[:, 2:3] > 0.0) | ((l[:, 2:3] < 0.0) & self.source.transmits)
+            return np.where(lit & (v[:, 2:3] > 0.0), value, 0.0)
 
         def to_string(self):
             return f"BrdfReference[{self.source.kind}]"

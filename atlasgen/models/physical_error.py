@@ -41,10 +41,11 @@ from atlasgen.io.fields import validate_params
 from atlasgen.models.base import Model, PhysicalFCos
 from atlasgen.models.physical_fit import FIT_GLOSS, FIT_SUPERSAMPLING, fit_slice, plain_bsdf_reference
 from atlasgen.models.physical_lut import fit_lut, LUT_GLOSSES, lut_errors, pair_geometry, stored_slice
-from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable
+from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable, stored_factors
 from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 from atlasgen.separable.error import ERROR_SEED, error_sample_for, measure_errors, MET_SIGMAS
+from atlasgen.separable.rebuild import evaluate_factors
 from atlasgen.separable.source import BrdfSource, make_source
 
 __all__ = [
@@ -56,7 +57,7 @@ __all__ = [
 ]
 
 #: Version of the candidate list's content: part of the report cache's key.
-CANDIDATES_VERSION = 6
+CANDIDATES_VERSION = 7
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,16 @@ def _entry(label: str, key: str, errors: dict, table, kind: str, **more) -> dict
             "error_se": errors.get("relative_rms_se", 0.0), "kind": kind, **more}  # fmt: skip
 
 
+def _sphere_errors_by_terms(factors, reference: np.ndarray, sample) -> list[dict]:
+    """8-bit errors of the first K terms (K = 1 .. all) with the transmission slice, at ``sample``'s
+    pairs (l over the whole sphere): the whole f cos the include rebuilds, against ``reference``."""
+    out = []
+    for k in range(1, min(factors.terms, MAX_AUTO_TERMS) + 1):
+        approx = evaluate_factors(factors.truncated(k), None, sample.l, sample.v, cosine=True)
+        out.append({"terms": k, **measure_errors(reference, approx, sample.weight)})
+    return out
+
+
 def candidates_key(model: Model, values: dict, gloss: float | None = None) -> str:
     """A digest of what :func:`physical_candidates` depends on (for a report's cache)."""
     table = read_lighting_cost()
@@ -179,7 +190,9 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
       each texel fitted to f cos at its pairs spread over that footprint (``footprint="fit"``);
     - K = 1 .. 8 separable terms of the physical BRDF (8-bit estimate, grid and target chosen on the
       selection sample: :meth:`atlasgen.models.separable.Separable.bake` with a budget no K meets),
-      where a separable source holds the reference (else ``skipped`` says why);
+      where a separable source holds the reference (else ``skipped`` says why). For a reference that
+      transmits, the bake adds a transmission slice, and each K is measured here with it on the
+      sphere's pairs (the first K of the terms chosen for K = 8, and the slice);
     - the analytic shader where the physical BRDF is a closed form it evaluates (exact: error 0), or a
       Mitsuba BSDF it has in closed form (:func:`analytic_twin`; its error measured like the others').
     """
@@ -226,7 +239,10 @@ def physical_candidates(model: Model, values: dict, supersample=None, srgb: bool
     else:
         baked = Separable().bake({**brdf.params, "terms": None, "max_error": 1e-9, "representation": "separable"})
         rep = baked.extra["representation"]
-        for e in baked.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]:
+        by_terms = baked.extra["errors"]["estimated_8bit_srgb_by_terms"][rep["target"]]
+        if brdf.transmits:  # the bake's figures cover the upper hemispheres: measure terms + transmission slice here
+            by_terms = _sphere_errors_by_terms(stored_factors(baked, srgb), reference, sample)
+        for e in by_terms:
             if e["terms"] <= MAX_AUTO_TERMS:
                 key = cost_key("separable", e["terms"])
                 out.append(_entry(key, key, e, table, "separable", grid=rep["sampling_grid"], target=rep["target"]))

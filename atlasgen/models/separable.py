@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from atlasgen.models.base import (
 from atlasgen.models.iridescent import Iridescent
 from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
 from atlasgen.optics.interpolation import sample_slice
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
@@ -49,9 +51,10 @@ from atlasgen.separable.shader import separable_declarations, separable_table_by
 from atlasgen.shaderlang import Function, Let, Return, float_literal
 from atlasgen.separable.source import make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
+from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
-           "check_film"]  # fmt: skip
+           "check_film", "stored_factors"]  # fmt: skip
 
 MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
 #: ``representation = "auto"`` without an ``error_budget``: the separable default budget.
@@ -67,14 +70,17 @@ REPRESENTATIONS = ("separable", "analytic", "auto")
 
 #: Keys of a ``source = "thin_film"`` material's ``film`` table (the iridescent model's parameters
 #: of the same names and ranges); the first three are required.
-FILM_KEYS = ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy")
+FILM_KEYS = ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy",
+             "backlight", "backlight_colour", "backlight_distortion", "backlight_power")  # fmt: skip
 
 
 def check_film(film, path) -> dict:
     """A ``film`` table checked against the iridescent model's parameters of the same names:
     the stack (``thickness``, ``film_ior``, ``base_ior`` required, ``base_k``) and how the
-    film's reflection splits (``film_strength``, ``film_split``, ``energy``); returns it with
-    the defaults filled in. The back-light is not a key: a slice holds reflection only."""
+    film's reflection splits (``film_strength``, ``film_split``, ``energy``) and the light it
+    transmits from behind (``backlight``, ``backlight_colour``, ``backlight_distortion``,
+    ``backlight_power``: a transmission slice after the terms); returns it with the defaults
+    filled in."""
     if not isinstance(film, dict):
         raise MaterialError(path, "film", f"expected a table such as {{thickness = 420.0, film_ior = 1.45, base_ior = 1.8}}, got {film!r}")
     params = {p.name: p for p in Iridescent.params if p.name in FILM_KEYS}
@@ -92,6 +98,12 @@ def check_film(film, path) -> dict:
 
 def _parametrization_names():
     return tuple(PARAMETRIZATIONS)
+
+
+def _transmits(values: dict) -> bool:
+    """Whether the material's source sends light through from behind (a thin film's back-light):
+    its slices are then K terms and one transmission slice."""
+    return values["source"] == "thin_film" and float((values["film"] or {}).get("backlight", 0.0)) > 0.0
 
 
 def _error_samples(source):
@@ -167,6 +179,9 @@ class Separable(Model):
         if values["representation"] == "analytic" and values["source"] not in ANALYTIC_SHADER_SOURCES:
             raise MaterialError(path, "representation", f"'analytic' needs a source the shader evaluates "
                                 f"({', '.join(ANALYTIC_SHADER_SOURCES)}), got source = {values['source']!r}")
+        if values["representation"] == "auto" and _transmits(values):
+            raise MaterialError(path, "representation", "'auto' weighs reflection only, but film.backlight > 0 "
+                                "transmits light from behind; give terms or max_error (K terms and a transmission slice)")
         if values["representation"] == "auto" and values["terms"] is not None:
             raise MaterialError(path, "representation", "'auto' chooses the representation and K; expected no 'terms'")
 
@@ -200,8 +215,10 @@ class Separable(Model):
         return out
 
     def slice_count(self, values: dict) -> int:
-        """K when fixed; with ``max_error`` only the bake knows (len of its slices)."""
-        return values["terms"] if values["terms"] is not None else MAX_AUTO_TERMS
+        """K when fixed (and one transmission slice for a back-light); with ``max_error`` only
+        the bake knows (len of its slices)."""
+        terms = values["terms"] if values["terms"] is not None else MAX_AUTO_TERMS
+        return terms + _transmits(values)
 
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
@@ -351,6 +368,11 @@ class Separable(Model):
             "meets_budget": result.max_error_met,
             "candidates": result.candidates,
         }
+        if source.transmits:
+            t0 = time.perf_counter()
+            slices = np.concatenate([slices, transmission_slice(source.f_cos)[None]])
+            extra["transmission"] = {"slice": int(result.terms)}
+            timings["transmission_s"] = time.perf_counter() - t0
         out = SliceSet(slices, extra, timings)
         # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
         out._separable = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,
@@ -376,19 +398,21 @@ class Separable(Model):
         """
         if _kind(slices) in ("analytic", "lut"):
             return encode_scaled(slices.values, rgb_scale, alpha_scale)
+        k = _term_slices(slices)
+        terms = slices.values[:k]
         cached = getattr(slices, "_separable", None)
-        if cached is None or cached["stored"].shape != slices.values.shape:
-            stored, scale, bias, clamped = encode_factor_slices(slices.values)
+        if cached is None or cached["stored"].shape != terms.shape:
+            stored, scale, bias, clamped = encode_factor_slices(terms)
         else:
             stored, scale, bias, clamped = cached["stored"], cached["scale"], cached["bias"], cached["clamped"]
-        k = stored.shape[0]
         extra = {"factor_scale": _rounded(scale), "factor_bias": _rounded(bias)}
-        try:
-            return EncodedSlices(stored, np.ones((k, 2)), np.zeros((k, 2)), clamped, extra=extra)
-        except TypeError:  # EncodedSlices without an ``extra`` field
-            encoded = EncodedSlices(stored, np.ones((k, 2)), np.zeros((k, 2)), clamped)
-            encoded.extra = extra
-            return encoded
+        slice_scale, slice_bias = np.ones((k, 2)), np.zeros((k, 2))
+        if k < slices.values.shape[0]:  # the transmission slice: a table slice with its own RGB scale
+            back, rgb_scale = encode_transmission_slice(slices.values[k])
+            stored = np.concatenate([stored, back[None]])
+            slice_scale = np.vstack([slice_scale, [[rgb_scale, 1.0]]])
+            slice_bias = np.vstack([slice_bias, [[0.0, 0.0]]])
+        return EncodedSlices(stored, slice_scale, slice_bias, clamped, extra=extra)
 
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """The 8-bit atlas's error: factors rebuilt from ``decoded`` exactly as the shader does."""
@@ -406,22 +430,25 @@ class Separable(Model):
             reference, _ = _reference(source, sample)
             name = slices.extra.get("parametrization", values["parametrization"])
             target = slices.extra.get("target", "f_cos")
-        extra = getattr(encoded, "extra", None) or {}
-        scale = np.asarray(extra.get("factor_scale"), dtype=np.float64)
-        bias = np.asarray(extra.get("factor_bias"), dtype=np.float64)
-        factors = factors_from_slices(decoded, scale, bias, name, target)
-        approx = evaluate_factors(factors, None, sample.l, sample.v, cosine=True)
+        scale = np.asarray(encoded.extra.get("factor_scale"), dtype=np.float64)
+        bias = np.asarray(encoded.extra.get("factor_bias"), dtype=np.float64)
+        k = _term_slices(slices)
+        factors = _decoded_factors(slices, encoded, decoded, name, target)
+        approx = evaluate_factors(replace(factors, transmission=None), None, sample.l, sample.v, cosine=True)
         # The generic quantization error assumes one (rgb, a) scale per slice; with
         # per-factor scale and bias it is measured here, in factor units.
         half = decoded.shape[2] // 2
-        rebuilt = np.empty(decoded.shape[:3] + (3,))
-        rebuilt[:, :, :half] = decoded[:, :, :half, :3] * scale[:, None, None, 0] + bias[:, None, None, 0]
-        rebuilt[:, :, half:] = decoded[:, :, half:, :3] * scale[:, None, None, 1] + bias[:, None, None, 1]
-        err = np.abs(rebuilt - np.asarray(slices.values)[..., :3])
-        return {
+        rebuilt = np.empty((k,) + decoded.shape[1:3] + (3,))
+        rebuilt[:, :, :half] = decoded[:k, :, :half, :3] * scale[:, None, None, 0] + bias[:, None, None, 0]
+        rebuilt[:, :, half:] = decoded[:k, :, half:, :3] * scale[:, None, None, 1] + bias[:, None, None, 1]
+        err = np.abs(rebuilt - np.asarray(slices.values)[:k, ..., :3])
+        out = {
             "errors_8bit": measure_errors(reference, approx, sample.weight),
             "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))},
         }
+        if factors.transmission is not None:
+            out["transmission"] = _transmission_errors(make_source(values), factors, k)
+        return out
 
     # -- shader -----------------------------------------------------------------------------------
     @classmethod
@@ -452,16 +479,19 @@ class Separable(Model):
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
-        in ``llvm_ad_spectral``, wavelengths sampled per sample) with this material's film, ``alpha``
-        and base colour ``diffuse``, the whole film tinted by the albedo as the renderer's
-        L += E albedo f cos is, no back-light: the film the source integrates
+        in ``llvm_ad_spectral``, wavelengths sampled per sample) with this material's film (its
+        back-light included), ``alpha`` and base colour ``diffuse``, the whole film tinted by the
+        albedo as the renderer's L += E albedo f cos is: the film the source integrates
         to RGB for white light (:func:`atlasgen.separable.source.thin_film_source`). Other sources:
         ``None`` (their model reference is the source itself)."""
         if values["source"] != "thin_film":
             return None
         film = {**FILM_DEFAULTS, **values["film"]}
+        back = film.pop("backlight_colour", (1.0, 1.0, 1.0))
         bsdf = {"type": THIN_FILM_REFERENCE, "film": json.dumps(film, sort_keys=True), "alpha": float(values["alpha"])}
         bsdf.update({f"colour_{c}": float(x) for c, x in zip("rgb", values["diffuse"])})
+        if _transmits(values):
+            bsdf.update({f"backlight_{c}": float(x) for c, x in zip("rgb", back)})
         # The renderer draws albedo * f cos (the model reference too): the whole film is tinted, not only its base.
         bsdf.update({f"tint_{c}": float(x) for c, x in zip("rgb", albedo)})
         return Reference(bsdf, "thin-film GGX microfacet, Airy reflectance per wavelength (llvm_ad_spectral, "
@@ -524,12 +554,13 @@ class Separable(Model):
         if isinstance(rep, LutRepresentation):
             return (f"one LUT slice fitted from physics, drawn at gloss {fit_gloss(entry):g}, "
                     f"chosen by run-time cost (budget {rep.error_budget:g})")
-        terms = factors.terms if factors.terms is not None else entry.slice_count
+        terms = factors.terms if factors.terms is not None else factors.term_slices
         param = factors.parametrization
         grid = factors.sampling_grid
         budget = getattr(rep, "error_budget", None)
+        back = " and a transmission slice for light from behind" if factors.transmission is not None else ""
         return (f"separable, {terms} term(s){', ' + param if param else ''}"
-                f"{f', sampled on {grid}x{grid}' if grid else ''}{f' (budget {budget:g})' if budget else ''}")
+                f"{f', sampled on {grid}x{grid}' if grid else ''}{back}{f' (budget {budget:g})' if budget else ''}")
 
 
 #: The renderer's equation for a LUT slice at a fixed gloss, as f cos in 1/sr (the separable
@@ -572,6 +603,42 @@ def _analytic_radiance(rep: AnalyticRepresentation):
         return irradiance * albedo * analytic_f_cos_world(params, n, l, v)
 
     return radiance
+
+
+def stored_factors(slices: SliceSet, srgb: bool = True):
+    """The factors of a separable bake (:meth:`Separable.bake`), with its transmission slice, as an
+    8-bit atlas returns them (:class:`~atlasgen.separable.factorize.Factors`)."""
+    encoded = Separable().encode({}, slices)
+    decoded = dequantize_rgba(quantize_rgba(encoded.stored, srgb), srgb)
+    return _decoded_factors(slices, encoded, decoded, slices.extra["parametrization"], slices.extra["target"])
+
+
+def _decoded_factors(slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray, parametrization: str, target: str):
+    """Factors from decoded slices: the terms by their factor scales, a transmission slice by its slice scale."""
+    k = _term_slices(slices)
+    scale = np.asarray(encoded.extra["factor_scale"], dtype=np.float64)
+    bias = np.asarray(encoded.extra["factor_bias"], dtype=np.float64)
+    back = None
+    if k < decoded.shape[0]:
+        back = decoded[k, :, :, :3] * encoded.scale[k][0] + encoded.bias[k][0]
+    return factors_from_slices(decoded[:k], scale, bias, parametrization, target, back)
+
+
+def _term_slices(slices: SliceSet) -> int:
+    """How many of a separable bake's slices hold terms (all but a transmission slice)."""
+    back = slices.extra.get("transmission")
+    return slices.values.shape[0] - (back is not None)
+
+
+def _transmission_errors(source, factors, offset: int) -> dict:
+    """The manifest's ``transmission``: the slice's offset and the relative RMS of the whole f cos the
+    include rebuilds (8-bit terms above the surface, the 8-bit slice below) against the source,
+    l over the whole sphere (:func:`atlasgen.separable.error.error_sample_for`, ``sphere=True``)."""
+    sample = error_sample_for(source, ERROR_SEED, sphere=True)
+    reference, _ = _reference(source, sample)
+    approx = evaluate_factors(factors, None, sample.l, sample.v, cosine=True)
+    return {"slice": offset, "estimator": sample.estimator, "pairs": sample.count, "seed": sample.seed,
+            "errors_8bit_sphere": measure_errors(reference, approx, sample.weight)}  # fmt: skip
 
 
 def _f32(x) -> float:

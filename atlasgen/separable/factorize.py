@@ -25,6 +25,8 @@ class Factors:
 
     ``g`` is ``(K, 3, n)`` (pi1 texels), ``h`` is ``(K, 3, n, n)`` indexed ``[y, x]``
     (pi2 texels), ``singular_values`` ``(3, K)`` (weighted; zeros for NMF/ND).
+    ``transmission``: for a BRDF that transmits (a back-light), the linear RGB of its table
+    slice ``(32, 64, 3)`` (u = N.L, v = N.V), f cos = rgb / pi where N.L <= 0 < N.V; else None.
     """
 
     g: np.ndarray
@@ -32,6 +34,7 @@ class Factors:
     parametrization: str
     singular_values: np.ndarray
     target: str = "f_cos"  # what sum_k g_k h_k approximates: "f_cos" or "f_proxy"
+    transmission: np.ndarray | None = None
 
     @property
     def terms(self) -> int:
@@ -42,7 +45,8 @@ class Factors:
         return self.g.shape[2]
 
     def truncated(self, terms: int) -> "Factors":
-        return Factors(self.g[:terms], self.h[:terms], self.parametrization, self.singular_values[:, :terms], self.target)
+        return Factors(self.g[:terms], self.h[:terms], self.parametrization, self.singular_values[:, :terms], self.target,
+                       self.transmission)  # fmt: skip
 
 
 def fix_signs(u: np.ndarray, vt: np.ndarray):

@@ -14,7 +14,7 @@ import numpy as np
 
 from atlasgen.errors import InputError
 from atlasgen.io.atlas import read_atlas
-from atlasgen.optics.interpolation import linear_stencil
+from atlasgen.optics.interpolation import linear_stencil, sample_slice
 from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
@@ -131,6 +131,8 @@ def evaluate_factors(factors: Factors, n, l, v, cosine: bool = True, clamp: bool
     n.l > 0 and n.v > 0, else 0 (a BRDF is never negative, so the shader clamps too),
     With ``"f_proxy"``: f cos = max(sum, 0) n.l / proxy, proxy = max(cos(proxy angle),
     1e-3) (:meth:`Parametrization.proxy_at`). Either way f = (f cos) / max(n.l, 1e-4).
+    With a ``transmission`` slice, f cos = rgb(N.L, N.V) / pi of it (bilinear, as
+    ``atlas_sample`` reads it) where n.l <= 0 < n.v.
     ``n = None`` means n = +z (directions in the local frame).
     """
     local = n is None  # n = +z, the local frame
@@ -150,17 +152,25 @@ def evaluate_factors(factors: Factors, n, l, v, cosine: bool = True, clamp: bool
     if factors.target == "f_proxy":
         proxy = get_parametrization(factors.parametrization).proxy_at(n, l, v).reshape(-1)
         total = total * (np.maximum(nl, 0.0) / proxy)[:, None]
+    if factors.transmission is not None:
+        nv = np.sum(np.asarray(n) * np.asarray(v), axis=-1).reshape(-1)
+        below = (nl <= 0.0) & (nv > 0.0)
+        if below.any():
+            rgb = sample_slice(factors.transmission, np.clip(nl[below], -1.0, 1.0), np.clip(nv[below], 0.0, 1.0))
+            total[below] = rgb / np.pi
     if not cosine:
         total = total / np.maximum(nl, 1e-4)[:, None]
     return total.reshape(shape + (3,))
 
 
-def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, target: str = "f_cos") -> Factors:
+def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, target: str = "f_cos",
+                        transmission: np.ndarray | None = None) -> Factors:
     """Factors from decoded atlas slices ``(K, 32, 64, 4)`` (what a sampler returns, linear).
 
     ``scale`` and ``bias`` are ``(K, 2, 3)``: per term, per factor (g, h), per channel;
     value = decoded * scale + bias. g is read from row 0 of the left half (every row
-    holds the same values), h is the right half.
+    holds the same values), h is the right half. ``transmission``: the linear RGB
+    ``(32, 64, 3)`` of a transmission slice (:attr:`Factors.transmission`), or None.
     """
     decoded = np.asarray(decoded, dtype=np.float64)
     scale = np.asarray(scale, dtype=np.float64)
@@ -168,7 +178,8 @@ def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, 
     half = decoded.shape[2] // 2
     g = decoded[:, 0, :half, :3].transpose(0, 2, 1) * scale[:, 0, :, None] + bias[:, 0, :, None]
     h = decoded[:, :, half:, :3].transpose(0, 3, 1, 2) * scale[:, 1, :, None, None] + bias[:, 1, :, None, None]
-    return Factors(g, h, parametrization, np.zeros((3, decoded.shape[0])), target)
+    back = None if transmission is None else np.asarray(transmission, dtype=np.float64)[..., :3]
+    return Factors(g, h, parametrization, np.zeros((3, decoded.shape[0])), target, back)
 
 
 def read_separable_factors(atlas_path, material: str) -> Factors:
@@ -198,7 +209,13 @@ def read_separable_factors(atlas_path, material: str) -> Factors:
     texels = np.asarray(atlas.image.levels[0])[entry.first_slice : entry.first_slice + entry.slice_count]
     decoded = dequantize_rgba(texels, atlas.srgb)
     factors = entry.factors
-    return factors_from_slices(decoded, factors.factor_scale, factors.factor_bias, factors.parametrization, factors.target)
+    terms = factors.term_slices
+    back = None
+    if factors.transmission is not None:  # the last slice, decoded as any table slice
+        (rgb_scale, _), (rgb_bias, _) = entry.scale[terms], entry.bias[terms]
+        back = decoded[terms, :, :, :3] * rgb_scale + rgb_bias
+    return factors_from_slices(decoded[:terms], factors.factor_scale, factors.factor_bias, factors.parametrization,
+                               factors.target, back)  # fmt: skip
 
 
 def evaluate_separable(atlas_path, material: str, n, l, v, cosine: bool = False) -> np.ndarray:

@@ -12,6 +12,7 @@ import struct
 
 import numpy as np
 
+from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.io.sidecar import SIDECAR_FILE_VERSION, SIDECAR_MAGIC
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
@@ -34,7 +35,8 @@ __all__ = [
 SYSTEMS = tuple(SYSTEM_ANGLES)  # ("half_diff", "in_out")
 TARGETS = ("f_cos", "f_proxy")
 #: The table layout's version (row 0 of the table, also in the include's SEPARABLE_TABLE).
-SIDECAR_VERSION = 1
+#: 2: a directory row's w is the RGB scale of the material's transmission slice (first + K), 0 for none.
+SIDECAR_VERSION = 2
 #: Rows of a material's block before its terms: head, then the axes g, h.x, h.y.
 _HEAD_ROWS = 4
 #: Rows per term: g scale, g bias, h scale, h bias (RGB; w unused).
@@ -63,11 +65,23 @@ def _separable(entries) -> list[MaterialEntry]:
     return sorted((e for e in entries if e.factors is not None), key=lambda e: e.first_slice)
 
 
+def _transmission_scale(entry: MaterialEntry) -> float:
+    """The RGB scale of an entry's transmission slice (its bias must be 0), or 0 without one."""
+    if entry.factors.transmission is None:
+        return 0.0
+    (rgb_scale, _), (rgb_bias, _) = entry.scale[entry.factors.term_slices], entry.bias[entry.factors.term_slices]
+    if rgb_bias != 0.0 or not rgb_scale > 0.0:
+        raise ValueError(f"{entry.name}: a transmission slice needs a positive RGB scale and bias 0, got {rgb_scale}, {rgb_bias}")
+    return float(rgb_scale)
+
+
 def separable_table(entries: list[MaterialEntry]) -> np.ndarray:
     """The data the generic rebuild reads, ``(rows, 4)`` float32 (docs/engine-integration.md).
 
     Row 0: (M materials, rows, factor resolution, table version). Rows 1..M, one per
-    material in first-slice order: (first slice, row of its block, K terms, 0). A block:
+    material in first-slice order: (first slice, row of its block, K terms, T), T the RGB
+    scale of its transmission slice first + K (light from below the surface: rgb = texel * T,
+    the slice's own scale with bias 0), 0 without one. A block:
     (system, target, proxy angle component, proxy floor); then per axis g, h.x, h.y
     (angle component, lo, hi, warp); then per term k: g scale, g bias, h scale, h bias
     (RGB, w = 0). Every integer is below 2^24, so float32 holds it exactly.
@@ -82,7 +96,7 @@ def separable_table(entries: list[MaterialEntry]) -> np.ndarray:
         scale = np.asarray(factors.factor_scale, dtype=np.float64)
         bias = np.asarray(factors.factor_bias, dtype=np.float64)
         k = len(scale)
-        directory.append((e.first_slice, row, k, 0))
+        directory.append((e.first_slice, row, k, _transmission_scale(e)))
         proxy = axes.index(p.proxy_angle) if factors.target == "f_proxy" else 0
         block = [(SYSTEMS.index(p.system), TARGETS.index(factors.target), proxy, PROXY_FLOOR)]
         for angle in (p.single, *p.pair):
@@ -159,11 +173,23 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
         Function("separable_f_cos", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"), *three), (
             Var("u32", "block", "0u"),
             Var("u32", "terms", "0u"),
+            Var("f32", "back", "0.0"),
             For("i", "0u", "u32(SEPARABLE_TABLE[0].x)", (
                 Let("vec4", "d", "SEPARABLE_TABLE[1u + i]"),
-                If("u32(d.x) == material", (Assign("block", "u32(d.y)"), Assign("terms", "u32(d.z)"))),
+                If("u32(d.x) == material", (Assign("block", "u32(d.y)"), Assign("terms", "u32(d.z)"),
+                                            Assign("back", "d.w"))),
             )),
-            If("terms == 0u || dot(n, l) <= 0.0 || dot(n, v) <= 0.0", (Return("splat3(0.0)"),)),
+            If("terms == 0u || dot(n, v) <= 0.0", (Return("splat3(0.0)"),)),
+            If("dot(n, l) <= 0.0", (
+                Comment("Light from below: the transmission slice after the terms, a table slice at the atlas's\n"
+                        "(N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi."),
+                If("back > 0.0", (
+                    Let("vec2", "ut", f"vec2((0.5 + {float_literal(WIDTH - 1)} * (max(dot(n, l), -1.0) + 1.0) * 0.5) / {float_literal(WIDTH)}, "
+                                      f"(0.5 + {float_literal(HEIGHT - 1)} * min(dot(n, v), 1.0)) / {float_literal(HEIGHT)})"),
+                    Return("sample_array(atlas, samp, ut, material + terms, 0.0).rgb * (back * 0.3183098861837907)"),
+                )),
+                Return("splat3(0.0)"),
+            )),
             Let("vec4", "head", "SEPARABLE_TABLE[block]"),
             Var("vec3", "a", "separable_angles_half_diff(n, l, v)"),
             If("head.x > 0.5", (Assign("a", "separable_angles_in_out(n, l, v)"),)),
@@ -190,7 +216,7 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
             )),
             Return("result"),
         ), "f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;\n"
-           "0 for other IDs and below the horizon."),
+           "0 for other IDs and below the horizon, except a transmission slice's light from below."),
         Function("separable_f", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"), *three),
                  (Return("separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4)"),), "f, in 1/sr."),
     ]  # fmt: skip

@@ -24,7 +24,7 @@ class BrdfSource:
     """
 
     def __init__(self, kind: str, evaluate_f=None, evaluate_f_cos=None, zero_on_horizon: bool = False,
-                 alpha: float | None = None):
+                 alpha: float | None = None, transmits: bool = False):
         if (evaluate_f is None) == (evaluate_f_cos is None):
             raise ValueError("give exactly one of evaluate_f, evaluate_f_cos")
         self.kind = kind
@@ -34,6 +34,9 @@ class BrdfSource:
         self.zero_on_horizon = zero_on_horizon
         # The lobe's roughness where the parameters say it (None: measured from f, see lobe_alpha).
         self.alpha = alpha
+        # f cos is non-zero for l below the surface (a back-light): the factors hold only the
+        # upper hemispheres, so the bake adds a transmission slice (docs/separable.md).
+        self.transmits = transmits
 
     def _shape(self, l, values):
         return np.asarray(values, dtype=np.float64).reshape(np.shape(l)[:-1] + (3,))
@@ -58,20 +61,26 @@ class BrdfSource:
 def thin_film_source(film: dict, alpha: float, diffuse) -> BrdfSource:
     """The thin-film microfacet BSDF (:func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`, the
     iridescent model's physical reference integrated to linear sRGB for white light) as a source:
-    the film stack and split ``film``, GGX roughness ``alpha``, base colour ``diffuse``; f cos on
-    the upper hemispheres only (a slice holds reflection), 0 at the horizon like Mitsuba's."""
+    the film stack, split and back-light ``film``, GGX roughness ``alpha``, base colour ``diffuse``.
+    f cos is the reflection where l and v are above the surface and, with ``film["backlight"]``
+    > 0, the back-light's diffuse transmission where l is below it (v above); 0 at the horizon
+    like Mitsuba's."""
     film = dict(film)
     alpha = float(alpha)
     diffuse = np.asarray(diffuse, dtype=np.float64)
+    transmits = float(film.get("backlight", 0.0)) > 0.0
+    back_colour = np.asarray(film.pop("backlight_colour", (1.0, 1.0, 1.0)), dtype=np.float64)
+    back = back_colour if transmits else None
 
     def f_cos(l, v):
         shape = np.shape(l)
         l2 = np.asarray(l, dtype=np.float64).reshape(-1, 3)
         v2 = np.asarray(v, dtype=np.float64).reshape(-1, 3)
-        value = thin_film_rgb_f_cos(v2, l2, film, alpha, diffuse)  # w_i is the view, w_o the light
-        return np.where((l2[:, 2:3] > 0.0) & (v2[:, 2:3] > 0.0), value, 0.0).reshape(shape)
+        value = thin_film_rgb_f_cos(v2, l2, film, alpha, diffuse, back)  # w_i is the view, w_o the light
+        lit = (l2[:, 2:3] > 0.0) | ((l2[:, 2:3] < 0.0) & transmits)
+        return np.where(lit & (v2[:, 2:3] > 0.0), value, 0.0).reshape(shape)
 
-    return BrdfSource("thin_film", evaluate_f_cos=f_cos, zero_on_horizon=True, alpha=alpha)
+    return BrdfSource("thin_film", evaluate_f_cos=f_cos, zero_on_horizon=True, alpha=alpha, transmits=transmits)
 
 
 def make_source(params: dict, path="<material>") -> BrdfSource:

@@ -275,6 +275,9 @@ REFUSED = {
                   "expected a number in [0, 1], got 1.5"),
     "fit source": (_with(_set(["materials", 0, "fit"], {"from": "closed-form", "gloss": 0.5})), "materials[0].fit.from",
                    "one of 'physical', 'bsdf', 'auto'"),
+    "transmission not an object": (_with(_set(["materials", 5, "transmission"], 3)), "materials[5].transmission", "an object"),
+    "transmission slice": (_with(_set(["materials", 5, "transmission"], {"slice": 1})), "materials[5].transmission.slice",
+                           "expected 3 (the entry's last slice, after its terms), got 1"),
     "encoding": (_with(_set(["encoding"], "hdr")), "encoding", "one of 'srgb', 'linear'"),
     "dxgi mismatch": (_with(_set(["dxgi_format"], 28)), "dxgi_format", "29 (the DXGI format of srgb encoding), got 28"),
 }
@@ -289,11 +292,32 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
     assert expected in message, message
 
 
-@pytest.mark.parametrize("case", sorted(set(REFUSED) - {"id not first slice", "dxgi mismatch"}))
+@pytest.mark.parametrize("case", sorted(set(REFUSED) - {"id not first slice", "dxgi mismatch", "transmission slice"}))
 def test_the_schema_refuses_what_the_reader_refuses(case):
-    # (id = first_slice and the DXGI/encoding pairing are beyond the schema; the reader checks them.)
+    # (id = first_slice, the DXGI/encoding pairing and the transmission slice's place are beyond
+    # the schema; the reader checks them.)
     content = REFUSED[case][0]
     assert list(_schema("manifest").iter_errors(content)) != []
+
+
+def test_a_transmission_slice_is_the_last_slice_and_the_terms_are_the_rest():
+    """With ``transmission``, factor_scale and factor_bias hold one entry per term: all slices but the last."""
+
+    def add(data):
+        entry = data["materials"][5]
+        entry["factor_scale"], entry["factor_bias"] = entry["factor_scale"][:-1], entry["factor_bias"][:-1]
+        entry["transmission"] = {"slice": entry["slice_count"] - 1, "pairs": 10, "seed": 1, "estimator": "x",
+                                 "errors_8bit_sphere": {"relative_rms": 0.1, "relative_rms_se": 0.01, "log_error": 0.2}}
+
+    data = _with(add)
+    entry = MaterialEntry.from_json(data["materials"][5])
+    assert entry.factors.term_slices == entry.slice_count - 1 == entry.factors.transmission.slice
+    assert entry.factors.transmission.errors_8bit_sphere.relative_rms == 0.1
+    assert entry.to_json() == data["materials"][5]
+    assert list(_schema("manifest").iter_errors(data)) == []
+    # Without the record the same scales are one short of the slices.
+    with pytest.raises(ManifestError, match=r"factor_scale.*a list of 4"):
+        MaterialEntry.from_json({k: v for k, v in data["materials"][5].items() if k != "transmission"})
 
 
 def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):

@@ -43,7 +43,8 @@ def test_the_source_is_the_thin_films_rgb_on_the_upper_hemispheres():
     [
         ("", "film", "missing"),
         ('film = { thickness = 420.0, film_ior = 1.45 }', "film.base_ior", "missing"),
-        ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = 1.0 }', "film.backlight", "unknown"),
+        ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight_view = "average" }', "film.backlight_view", "unknown"),
+        ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = -1.0 }', "film.backlight", "expected"),
         ('film = { thickness = 420.0, film_ior = 0.5, base_ior = 1.8 }', "film.film_ior", "expected"),
         ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, energy = "some" }', "film.energy", "expected one of"),
         ('film = 3.0', "film", "expected a table"),
@@ -104,3 +105,120 @@ def test_a_film_without_its_optional_keys_gets_the_iridescent_defaults(write_mat
     l, v = _directions(rng, 16), _directions(rng, 16)
     np.testing.assert_allclose(make_source(material.params).f_cos(l, v),
                                thin_film_rgb_f_cos(v, l, FILM_DEFAULTS | film, 0.2, (0.0, 0.0, 0.0)), rtol=1e-12)
+
+
+BACKLIT_FILM = ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, film_split = 0.8, backlight = 1.5, '
+                'backlight_colour = [0.55, 0.75, 1.0], backlight_distortion = 0.25, backlight_power = 3.0 }')
+
+
+@pytest.fixture(scope="module")
+def backlit_film_atlas(tmp_path_factory):
+    """A thin film with a back-light, K = 2 terms, baked and written (sRGB)."""
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
+
+    folder = tmp_path_factory.mktemp("backlit_film")
+    (folder / "m").mkdir()
+    (folder / "m" / "film.toml").write_text(f'type = "separable"\nsource = "thin_film"\nalpha = 0.25\n'
+                                            f'diffuse = [0.02, 0.01, 0.04]\nterms = 2\n{BACKLIT_FILM}\n')  # fmt: skip
+    result = bake_atlas(read_materials([folder / "m"]))
+    path = folder / "atlas.dds"
+    write_bake(result, path)
+    return path, result
+
+
+def _transmitted(film, v_cos, l_cos):
+    """The film's back-light in closed form: B T_B colour |N.L| (1 - R_rgb(N.V)) / pi, T_B = 2 (1 - delta)^p / (p + 2)."""
+    from atlasgen.models.iridescent import Iridescent
+
+    t_b = 2.0 * (1.0 - film["backlight_distortion"]) ** film["backlight_power"] / (film["backlight_power"] + 2.0)
+    r_rgb, _ = Iridescent.film_colour(film, v_cos)
+    return (film["backlight"] * t_b * np.asarray(film["backlight_colour"]) * (1.0 - r_rgb)
+            * np.abs(l_cos)[..., None] / np.pi)  # fmt: skip
+
+
+def test_a_back_light_bakes_a_transmission_slice_after_the_terms(backlit_film_atlas):
+    """K terms, then one table slice whose RGB / pi is the film's closed-form transmission at the texel
+    centres (to 8-bit); the manifest and the separable table say where it is and how it is scaled."""
+    from atlasgen.contract import texel_grid
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.optics.quantize import dequantize_rgba
+    from atlasgen.separable.shader import separable_table
+
+    path, result = backlit_film_atlas
+    entry = result.manifest.entry_named("film")
+    assert entry.slice_count == 3 and entry.factors.term_slices == 2 and entry.factors.transmission.slice == 2
+    assert len(entry.factors.factor_scale) == 2 and entry.bias[2] == [0.0, 0.0]
+    atlas = read_atlas(path)
+    decoded = dequantize_rgba(np.asarray(atlas.image.levels[0])[entry.first_slice + 2], atlas.srgb)
+    rgb = decoded[..., :3] * entry.scale[2][0]
+    nl, nv = texel_grid()
+    expected = np.pi * _transmitted(entry.params["film"], nv, np.minimum(nl, 0.0))
+    peak = expected.max()
+    assert abs(entry.scale[2][0] - peak) < 2e-3 * peak  # the slice's peak: every 8-bit code is used
+    np.testing.assert_allclose(rgb, expected, atol=0.01 * peak)  # sRGB codes near the peak are ~0.9% apart
+    assert (decoded[nl > 0.0] == 0.0).all()
+    directory = separable_table([entry])[1]
+    assert directory.tolist() == [entry.first_slice, 2.0, 2.0, np.float32(entry.scale[2][0])]
+
+
+def test_the_rebuild_reads_the_terms_above_and_the_transmission_slice_below(backlit_film_atlas):
+    """evaluate_separable from the files: light from below is the slice's bilinear rgb / pi, within a
+    few 8-bit steps of the film's closed form; from above, the terms alone (the slice changes nothing)."""
+    from dataclasses import replace
+
+    from atlasgen.separable.rebuild import evaluate_factors, evaluate_separable, read_separable_factors
+
+    path, result = backlit_film_atlas
+    entry = result.manifest.entry_named("film")
+    rng = np.random.default_rng(5)
+    v = _directions(rng, 400)
+    l = _directions(rng, 400) * np.array([1.0, 1.0, -1.0])
+    n = np.broadcast_to([0.0, 0.0, 1.0], v.shape)
+    below = evaluate_separable(path, "film", n, l, v, cosine=True)
+    expected = _transmitted(entry.params["film"], v[:, 2], l[:, 2])
+    assert np.abs(below - expected).max() < 0.02 * expected.max()
+    np.testing.assert_allclose(below, make_source(entry.params).f_cos(l, v), atol=0.02 * expected.max())
+    above = _directions(rng, 400)
+    factors = read_separable_factors(path, "film")
+    assert factors.transmission is not None
+    np.testing.assert_array_equal(evaluate_separable(path, "film", n, above, v, cosine=True),
+                                  evaluate_factors(replace(factors, transmission=None), n, above, v, cosine=True))
+    # The manifest's figure over the whole sphere: terms and slice against the film, with its SE.
+    sphere = entry.factors.transmission.errors_8bit_sphere
+    assert sphere.relative_rms_se > 0.0 and sphere.relative_rms < 0.5
+
+
+def test_auto_is_refused_with_a_back_light(expect_rejected):
+    expect_rejected("separable", f'source = "thin_film"\nrepresentation = "auto"\n{BACKLIT_FILM}', "representation",
+                    "film.backlight")
+
+
+def test_the_physical_reference_has_the_back_light_and_the_model_reference_transmits(write_material):
+    material = read_material(write_material("f", f'type = "separable"\nsource = "thin_film"\nterms = 1\n{BACKLIT_FILM}\n'))
+    ref = get_model("separable").physical_reference(material.params, albedo=(0.5, 0.5, 0.5))
+    assert [ref.bsdf[f"backlight_{c}"] for c in "rgb"] == [0.55, 0.75, 1.0]
+    assert json.loads(ref.bsdf["film"])["backlight"] == 1.5 and "backlight_colour" not in json.loads(ref.bsdf["film"])
+    assert get_model("separable").slice_count(material.params) == 2
+
+
+def test_the_gpu_include_reads_the_transmission_slice_as_the_rebuild_does(gpu_device, backlit_film_atlas):
+    """The generated include on lavapipe against evaluate_separable, with normals anywhere and l on
+    both sides: the terms above the surface and the transmission slice below agree to the GPU's
+    filtering precision (1% of the largest value, as for the terms alone)."""
+    from atlasgen.io.dds import read_dds
+    from atlasgen.separable.rebuild import evaluate_separable
+    from tests.separable.separable_helpers import random_frames
+    from tests.separable.test_shader import _run
+
+    path, result = backlit_film_atlas
+    dds = read_dds(path)
+    n, l, v = random_frames(3000, seed=12)
+    entry = result.manifest.entry_named("film")
+    gpu = _run(gpu_device, np.asarray(dds.levels[0]), dds.dxgi_format == 29, result.include, n, l, v, entry.first_slice)
+    cpu = evaluate_separable(path, "film", n, l, v, cosine=True)
+    below = (np.sum(n * l, 1) < -0.02) & (np.sum(n * v, 1) > 0.02)
+    assert below.sum() > 200 and (cpu[below] > 0.0).all()
+    scale = np.abs(cpu).max()
+    assert np.abs(gpu - cpu).max() <= 0.01 * scale
+    assert np.abs(gpu[below] - cpu[below]).max() <= 0.01 * np.abs(cpu[below]).max()

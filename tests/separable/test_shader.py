@@ -5,7 +5,7 @@ import numpy as np
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
 from atlasgen.separable.rebuild import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
-from atlasgen.separable.shader import separable_table, separable_wgsl, wgsl_function_name
+from atlasgen.separable.shader import SIDECAR_VERSION, separable_table, separable_wgsl, wgsl_function_name
 
 from tests.separable.separable_helpers import random_frames
 
@@ -44,7 +44,7 @@ def test_include_is_one_generic_function_over_a_data_table():
     assert text.count("fn separable_f_cos(") == 1 and "gold" not in text and "textureSampleLevel" in text
     table = separable_table(entries)
     # Directory: (first slice, block row, terms); blocks: head, 3 axes, 4 rows per term.
-    assert table[0].tolist() == [2, 1 + 2 + (4 + 4 * 2) + (4 + 4 * 1), 32, 1]
+    assert table[0].tolist() == [2, 1 + 2 + (4 + 4 * 2) + (4 + 4 * 1), 32, SIDECAR_VERSION]
     assert table[1].tolist() == [4, 3, 2, 0] and table[2].tolist() == [9, 3 + 12, 1, 0]
     assert table[3, :2].tolist() == [0, 0] and table[15, :2].tolist() == [1, 1]  # (system, target)
     np.testing.assert_array_equal(table[7:11, :3], np.float32([[1.5, 1.0, 0.5], [0, 0, 0], [2, 2, 2], [-0.5, -0.25, 0]]))
