@@ -7,6 +7,7 @@ import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.contract import texel_grid
+from atlasgen.optics.quantize import unorm_scale
 from atlasgen.errors import InputError, MaterialError
 from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
@@ -24,17 +25,21 @@ def test_lambert_slice_matches_closed_form_within_half_lsb(tmp_path, write_mater
     colour = (0.8, 0.5, 0.25)
     write_material("clay", f'type = "lambert"\ncolour = {list(colour)}\n')
     out = tmp_path / "a.dds"
-    write_bake(bake_folder(tmp_path / "materials", linear=linear), out)
+    result = bake_folder(tmp_path / "materials", linear=linear)
+    write_bake(result, out)
     texels = parse(out.read_bytes())["levels"][0][0].astype(np.float64) / 255
     nl, _ = texel_grid()
-    expected = np.maximum(nl, 0)[..., None] * np.array(colour)
+    # Stored over the slice's RGB peak, 0.8 (its scale): every code of the slice's range is used.
+    scale = result.manifest.materials[0].scale[0][0]
+    assert scale == unorm_scale(0.8) and abs(scale - 0.8) < 1e-7
+    expected = np.maximum(nl, 0)[..., None] * np.array(colour) / scale
     if linear:
         assert np.abs(texels[..., :3] - expected).max() <= 0.5 / 255 + 1e-12
     else:
         # Half an LSB in the stored (sRGB) code, which is what 8 bits can promise.
         code = np.where(expected <= 0.0031308, 12.92 * expected, 1.055 * expected ** (1 / 2.4) - 0.055)
         assert np.abs(texels[..., :3] - code).max() <= 0.5 / 255 + 1e-12
-        assert np.abs(srgb_to_linear(texels[..., :3]) - expected).max() < 0.0075
+        assert np.abs(srgb_to_linear(texels[..., :3]) - expected).max() < 0.0075 / scale
     assert np.all(texels[..., 3] == 0)
 
 
@@ -57,7 +62,7 @@ def test_values_above_one_get_a_slice_scale_and_nothing_clamps(tmp_path, write_m
     monkeypatch.setattr(Lambert, "bake", lambda self, v: SliceSet(values[None].copy()))
     result = bake_folder(tmp_path / "materials", linear=True)
     entry = result.manifest.materials[0]
-    assert entry.scale[0] == [1.0, 25.0]
+    assert entry.scale[0] == [0.5, 25.0]  # each at its peak: RGB 0.5 spends every code too
     assert entry.clamped_fraction == 0.0
     decoded = result.levels[0][0, ..., 3] / 255 * 25.0
     assert np.abs(decoded - values[..., 3]).max() <= 0.5 / 255 * 25 + 1e-9

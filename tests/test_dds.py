@@ -6,6 +6,7 @@ import pytest
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
+from atlasgen.optics.quantize import unorm_scale
 
 from tests.dds_reader import linear_to_srgb, parse, srgb_to_linear
 
@@ -64,7 +65,8 @@ def test_data_order_is_element_major(baked):
     f = parse(path.read_bytes())
     lv0 = f["levels"][0]
     facing = lv0[:, 31, 63, :3]  # N.V = 1, N.L = 1
-    assert np.all(facing[7] == np.rint(linear_to_srgb([0.9, 0.4, 0.1]) * 255))
+    # Stored over the slice's peak (its scale, 0.9): the colour's largest channel takes code 255.
+    assert np.all(facing[7] == np.rint(linear_to_srgb(np.array([0.9, 0.4, 0.1]) / unorm_scale(0.9)) * 255))
     assert np.all(facing[0] == 255)
     used = {0, 7}
     assert not any(facing[s].any() for s in range(256) if s not in used)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from atlasgen.optics.quantize import unorm_scale
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.contract import atlas_uv, texel_centres
 from atlasgen.materials.material import read_materials
@@ -84,10 +85,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     got = np.frombuffer(device.queue.read_buffer(obuf), np.float32).reshape(-1, 4)
 
     u, v = atlas_uv(nl, nv)
-    for material_id, scale in ((3, 1.0), (4, 0.5)):  # bilinear slices
+    for material_id in (3, 4):  # bilinear slices: the first at its peak's scale, the second at its TOML's 0.5
         sel = ids == material_id
+        (scale, alpha_scale), = next(e for e in result.manifest.materials if e.first_slice == material_id).scale
+        assert scale == (0.5 if material_id == 4 else unorm_scale(0.8))
         texels = dequantize_rgba(result.levels[0][material_id], srgb=True)
-        expected = bilinear(texels, u[sel], v[sel]) * np.array([scale, scale, scale, 1.0])
+        expected = bilinear(texels, u[sel], v[sel]) * np.array([scale, scale, scale, alpha_scale])
         # Filtering precision of an 8-bit sampler (8-bit fraction weights) bounds the match.
         np.testing.assert_allclose(got[sel], expected, atol=4e-3)
     # The toon slice is flagged nearest: the GPU reads one texel, so the bands stay hard

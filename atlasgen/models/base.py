@@ -13,6 +13,7 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.io.fields import Param
 from atlasgen.optics.interpolation import sample_slice
+from atlasgen.optics.quantize import unorm_scale
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 
 __all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "PhysicalFCos", "encode_scaled",
@@ -114,16 +115,17 @@ class PhysicalFCos:
 def encode_scaled(values: np.ndarray, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
     """Divide each slice by a scale so it fits UNORM8; report what had to be clamped.
 
-    With ``"auto"`` the scale is max(1, max value) of the slice's RGB (or A), so nothing
-    clamps; a fixed scale trades range for precision, and what exceeds it is clamped
-    and counted. Negative values (never produced by a valid LUT model) clamp to 0 and
-    are counted too.
+    With ``"auto"`` the scale is the peak of the slice's RGB (or A),
+    :func:`~atlasgen.optics.quantize.unorm_scale`: nothing clamps, and every slice spends all
+    256 codes on its own range (a dim specular A of 0.07 would otherwise get 18). A fixed
+    scale trades range for precision, and what exceeds it is clamped and counted. Negative
+    values (never produced by a valid LUT model) clamp to 0 and are counted too.
     """
     n = values.shape[0]
     peaks = np.stack([values[..., :3].max(axis=(1, 2, 3)), values[..., 3].max(axis=(1, 2))], axis=1)
     scale = np.empty((n, 2))
     for g, fixed in enumerate((rgb_scale, alpha_scale)):
-        scale[:, g] = np.maximum(1.0, peaks[:, g]) if fixed == "auto" else float(fixed)
+        scale[:, g] = [unorm_scale(p) for p in peaks[:, g]] if fixed == "auto" else float(fixed)
     scaled = values / scale[:, [0, 0, 0, 1]][:, None, None, :]
     out_of_range = (scaled > 1.0) | (scaled < 0.0)
     stored = np.clip(scaled, 0.0, 1.0)

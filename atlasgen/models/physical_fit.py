@@ -32,7 +32,7 @@ from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.projection import (continue_collinear_texels, project_slice_texels, refine_specular_scale,
                                         weighted_residual)  # fmt: skip
-from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba, unorm_scale
 from atlasgen.optics.specular import half_vector_cosine
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
@@ -211,7 +211,7 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     _, g, rgba, diffuse, lobe = min(fits.values(), key=lambda fit: (fit[0], fit[1]))
     # Round the RGB as the atlas will store it (encode_scaled's per-slice scale, then 8 bits),
     # and give A the best value against what is stored.
-    scale = max(1.0, float(rgba[..., :3].max()))
+    scale = unorm_scale(rgba[..., :3].max())
     codes = quantize_rgba(np.concatenate([rgba[..., :3] / scale, np.zeros(rgba.shape[:-1] + (1,))], -1), srgb)
     rgba[..., :3] = dequantize_rgba(codes, srgb)[..., :3] * scale
     a = refine_specular_scale(target, diffuse, lobe, weights, rgba[..., :3])
@@ -220,7 +220,7 @@ def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = Tru
     best = None
     positive = a[a > 0.0] if (a > 0.0).any() else np.zeros(1)
     for cap in sorted({float(np.quantile(positive, q)) for q in A_CAP_QUANTILES}, reverse=True):
-        scale_a = max(1.0, cap)
+        scale_a = unorm_scale(cap)
         stored = np.rint(np.clip(np.minimum(a, cap) / scale_a, 0.0, 1.0) * 255.0) / 255.0 * scale_a
         rgba[..., 3] = stored
         residual = float(weighted_residual(target, diffuse, lobe, weights, rgba).sum())

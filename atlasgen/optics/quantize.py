@@ -10,7 +10,20 @@ import numpy as np
 
 from atlasgen.optics.srgb import SRGB_DECODE_LUT, encode_srgb
 
-__all__ = ["quantize_rgba", "dequantize_rgba"]
+__all__ = ["quantize_rgba", "dequantize_rgba", "unorm_scale"]
+
+
+def unorm_scale(peak: float) -> float:
+    """The scale that maps [0, ``peak``] onto all of UNORM8's codes: the smallest float32 >= ``peak``
+    (the include's constants are f32, so stored * scale is what a shader computes, and nothing
+    reaches above 1), or 1 when ``peak`` is 0 (or not positive and finite)."""
+    peak = float(peak)
+    if not (peak > 0.0 and np.isfinite(peak)):
+        return 1.0
+    scale = np.float32(peak)
+    if float(scale) < peak:
+        scale = np.nextafter(scale, np.float32(np.inf))
+    return float(scale)
 
 
 def quantize_rgba(linear: np.ndarray, srgb: bool) -> np.ndarray:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import texel_grid
+from atlasgen.optics.quantize import unorm_scale
 
 __all__ = ["TRANSMISSION_AZIMUTHS", "transmission_slice", "encode_transmission_slice"]
 
@@ -46,11 +47,9 @@ def transmission_slice(f_cos) -> np.ndarray:
 def encode_transmission_slice(values: np.ndarray) -> tuple[np.ndarray, float]:
     """One transmission slice ``(32, 64, 4)`` for UNORM8: ``(stored in [0, 1], rgb_scale)``, RGB
     divided by its peak (float32, as the include's constants hold it), so a faint back-light
-    keeps all 256 codes, which a table slice's scale, max(1, peak), would not give it. A is 0."""
+    keeps all 256 codes (:func:`~atlasgen.optics.quantize.unorm_scale`, as for every table slice). A is 0."""
     values = np.asarray(values, dtype=np.float64)
-    peak = float(np.max(values[..., :3]))
-    scale = float(np.float32(peak)) if peak > 0.0 else 1.0
-    # float32 rounding may put the peak a hair above the scale: it clips to 1.
+    scale = unorm_scale(np.max(values[..., :3]))
     stored = np.zeros_like(values)
     stored[..., :3] = np.clip(values[..., :3] / scale, 0.0, 1.0)
     return stored, scale

@@ -50,3 +50,21 @@ def test_rgb_and_rgba_encode_their_colour_alike(dtype):
         np.testing.assert_array_equal(quantize_rgba(rgba[..., :3], srgb), quantize_rgba(rgba, srgb)[..., :3])
     # sRGB encodes the colour, never alpha: 0.5 is code 128 linear, 188 as sRGB.
     assert quantize_rgba(np.full(4, 0.5, dtype), srgb=True).tolist() == [188, 188, 188, 128]
+
+
+@pytest.mark.parametrize("peak", [0.0678, 0.9, 1.0, 25.0, 1e-6, 0.1 + 1e-9])
+def test_unorm_scale_is_the_smallest_float32_at_or_above_the_peak(peak):
+    """The scale maps the peak to at most code 255 in f32 (what the include multiplies by), and no
+    float32 below it would: every code is spent on the slice's own range, and nothing clamps."""
+    from atlasgen.optics.quantize import unorm_scale
+
+    scale = unorm_scale(peak)
+    assert scale == float(np.float32(scale)) and scale >= peak
+    assert float(np.nextafter(np.float32(scale), np.float32(0.0))) < peak
+    assert quantize_rgba(np.array([peak / scale] * 4), srgb=False)[3] == 255
+
+
+def test_unorm_scale_of_an_empty_slice_is_one():
+    from atlasgen.optics.quantize import unorm_scale
+
+    assert unorm_scale(0.0) == unorm_scale(-1.0) == unorm_scale(float("nan")) == 1.0

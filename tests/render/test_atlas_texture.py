@@ -9,6 +9,7 @@ from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_materials
 from atlasgen.render.atlas_texture import RenderAtlas, read_render_atlas
+from atlasgen.optics.quantize import unorm_scale
 from atlasgen.optics.srgb import decode_srgb
 
 
@@ -31,8 +32,11 @@ def test_reads_levels_manifest_and_include(baked):
     assert atlas.levels[0].shape == (256, 32, 64, 4) and atlas.levels[6].shape == (256, 1, 1, 4)
     assert atlas.material_names == ["warm", "white"]
     assert "fn atlas_sample(" in atlas.include and "MATERIAL_WARM: u32 = 7u" in atlas.include
-    # Slice 7 holds the warm colour's cosine ramp, sRGB-encoded: at N.L = 1 it is the colour.
-    np.testing.assert_allclose(decode_srgb(atlas.levels[0][7, -1, -1, :3] / 255), [0.9, 0.4, 0.1], atol=4e-3)
+    # Slice 7 holds the warm colour's cosine ramp over its peak (the slice's scale), sRGB-encoded:
+    # at N.L = 1, times the scale, it is the colour.
+    scale = atlas.manifest.entry_named("warm").scale[0][0]
+    assert scale == unorm_scale(0.9)
+    np.testing.assert_allclose(decode_srgb(atlas.levels[0][7, -1, -1, :3] / 255) * scale, [0.9, 0.4, 0.1], atol=4e-3)
 
 
 def test_missing_pieces(baked):
