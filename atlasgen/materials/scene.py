@@ -33,6 +33,7 @@ __all__ = [
     "resolve_materials",
     "object_matrix",
     "with_fitted_surfaces",
+    "shading_gloss",
 ]
 
 #: Lights one frame can take; they live in one storage buffer read by one lighting pass.
@@ -342,6 +343,13 @@ def object_matrix(obj: SceneObject) -> np.ndarray:
     return m
 
 
+def shading_gloss(gloss: float, entry) -> float:
+    """The gloss an object showing ``entry`` (a :class:`~atlasgen.io.manifest.MaterialEntry`) is shaded
+    with: a slice fitted to a physical BSDF holds it only under the lobe of the gloss it was fitted
+    for (its ``fit.gloss``), whatever the scene says; any other slice, the object's own ``gloss``."""
+    return float(gloss) if entry is None or entry.fit is None else float(entry.fit.gloss)
+
+
 def with_fitted_surfaces(scene: Scene, entries) -> Scene:
     """A copy of ``scene`` whose objects showing a fitted material (``entries``: name ->
     :class:`~atlasgen.io.manifest.MaterialEntry` with a ``fit``) have its gloss and albedo 1.
@@ -355,6 +363,6 @@ def with_fitted_surfaces(scene: Scene, entries) -> Scene:
     for o in scene.objects:
         entry = entries.get(o.material)
         if entry is not None and entry.fit is not None:
-            o = replace(o, gloss=float(entry.fit.gloss), albedo=(1.0, 1.0, 1.0))
+            o = replace(o, gloss=shading_gloss(o.gloss, entry), albedo=(1.0, 1.0, 1.0))
         objects.append(o)
     return replace(scene, objects=objects)

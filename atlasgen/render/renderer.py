@@ -24,7 +24,7 @@ from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_ST
 from atlasgen.render.lighting import LightingPass, pack_lights
 from atlasgen.render.meshes import build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
-from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials
+from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials, shading_gloss
 from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
 from atlasgen.render.device import get_device
 from atlasgen.render.shaders import assemble_shader
@@ -190,9 +190,7 @@ class Renderer:
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj, scene.path)
             model = object_matrix(obj)
-            # A slice fitted to a physical BSDF holds it only under the lobe it was fitted for.
-            gloss = obj.gloss if entry.fit is None else entry.fit.gloss
-            object_data += pack_object(model, obj.albedo, gloss, entry.first_slice)
+            object_data += pack_object(model, obj.albedo, shading_gloss(obj.gloss, entry), entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
             centres.append(0.5 * (world.min(0) + world.max(0)))

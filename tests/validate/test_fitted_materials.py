@@ -13,7 +13,7 @@ import tomllib
 import pytest
 
 from atlasgen.io.manifest import Fit, MaterialEntry
-from atlasgen.materials.scene import parse_scene, with_fitted_surfaces
+from atlasgen.materials.scene import parse_scene, shading_gloss, with_fitted_surfaces
 
 SCENE = """
 [camera]
@@ -48,6 +48,9 @@ def test_objects_showing_a_fitted_material_take_its_gloss_and_albedo_one():
     assert (sphere.gloss, sphere.albedo) == (0.45, (1.0, 1.0, 1.0))
     assert (plane.gloss, plane.albedo) == (0.3, (0.6, 0.6, 0.6))  # not fitted: as the scene says
     assert scene.objects[0].gloss == 0.9  # a copy: the scene itself is unchanged
+    # The renderer shades with the same rule (its g-buffer gloss; the albedo stays the scene's).
+    assert [shading_gloss(o.gloss, entries[o.material]) for o in scene.objects] == [0.45, 0.3]
+    assert shading_gloss(0.3, None) == 0.3
 
 
 COATS = {
