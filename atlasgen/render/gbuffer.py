@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from atlasgen.render.meshes import vertex_buffer_layout
 from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
 from atlasgen.render.shaders import assemble_shader
 
@@ -112,14 +113,7 @@ class GBufferPass:
             vertex={
                 "module": module,
                 "entry_point": "vs_main",
-                "buffers": [{
-                    "array_stride": 24,
-                    "step_mode": "vertex",
-                    "attributes": [
-                        {"format": "float32x3", "offset": 0, "shader_location": 0},
-                        {"format": "float32x3", "offset": 12, "shader_location": 1},
-                    ],
-                }],
+                "buffers": [vertex_buffer_layout()],
             },  # fmt: skip
             primitive={"topology": "triangle-list", "front_face": "ccw", "cull_mode": "none"},
             depth_stencil={

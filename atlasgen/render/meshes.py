@@ -24,7 +24,23 @@ __all__ = [
     "read_mesh",
     "build_mesh",
     "sanitize_normals",
+    "VERTEX_ATTRIBUTES",
+    "vertex_buffer_layout",
 ]
+
+#: The vertex buffer, declared once: (attribute, float32 components), interleaved in this order at
+#: shader locations 0, 1, ... :meth:`Mesh.interleaved` packs it and :func:`vertex_buffer_layout`
+#: describes it to the pipeline (gbuffer.wgsl's ``vs_main`` takes the same locations).
+VERTEX_ATTRIBUTES = (("positions", 3), ("normals", 3))
+
+
+def vertex_buffer_layout() -> dict:
+    """The wgpu vertex buffer layout of :data:`VERTEX_ATTRIBUTES`: stride, offsets and formats from it."""
+    attributes, offset = [], 0
+    for location, (_, components) in enumerate(VERTEX_ATTRIBUTES):
+        attributes.append({"format": f"float32x{components}", "offset": offset, "shader_location": location})
+        offset += 4 * components
+    return {"array_stride": offset, "step_mode": "vertex", "attributes": attributes}
 
 
 @dataclass
@@ -36,8 +52,9 @@ class Mesh:
     indices: np.ndarray
 
     def interleaved(self) -> np.ndarray:
-        """``(n, 6)`` float32 position-normal pairs, the vertex buffer layout."""
-        return np.ascontiguousarray(np.concatenate([self.positions, self.normals], axis=1), dtype=np.float32)
+        """``(n, 6)`` float32 rows in :data:`VERTEX_ATTRIBUTES`' order: the vertex buffer."""
+        columns = [np.asarray(getattr(self, name)).reshape(-1, components) for name, components in VERTEX_ATTRIBUTES]
+        return np.ascontiguousarray(np.concatenate(columns, axis=1), dtype=np.float32)
 
 
 def sanitize_normals(normals: np.ndarray) -> np.ndarray:

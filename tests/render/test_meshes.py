@@ -75,3 +75,22 @@ def test_bad_mesh_files(tmp_path):
     empty.write_text("# nothing\n")
     with pytest.raises(SceneError, match="objects\\[1\\].file"):
         read_mesh(empty, "s.toml", "objects[1].file")
+
+
+def test_the_vertex_buffer_layout_describes_the_interleaved_bytes():
+    """Stride and offsets come from the one declaration the packing uses: attribute k of vertex i sits at
+    i * stride + offset_k bytes."""
+    from atlasgen.render.meshes import VERTEX_ATTRIBUTES, vertex_buffer_layout
+
+    mesh = make_box()
+    data = mesh.interleaved()
+    layout = vertex_buffer_layout()
+    raw = data.tobytes()
+    assert layout["array_stride"] * len(mesh.positions) == len(raw)
+    for (name, components), attribute in zip(VERTEX_ATTRIBUTES, layout["attributes"]):
+        assert attribute["format"] == f"float32x{components}"
+        for i in (0, len(mesh.positions) - 1):
+            start = i * layout["array_stride"] + attribute["offset"]
+            got = np.frombuffer(raw[start : start + 4 * components], np.float32)
+            np.testing.assert_array_equal(got, getattr(mesh, name)[i])
+    assert [a["shader_location"] for a in layout["attributes"]] == [0, 1]
