@@ -35,7 +35,7 @@ def _cost_key(entry: MaterialEntry, terms=None) -> str:
     if isinstance(rep, AnalyticRepresentation):
         return cost_key("analytic", rep.distribution)
     if entry.factors is not None:
-        return cost_key("separable", terms if terms is not None else (entry.factors.terms or entry.slice_count))
+        return cost_key("separable", terms if terms is not None else (entry.factors.terms or entry.factors.term_slices))
     return cost_key("lut")
 
 

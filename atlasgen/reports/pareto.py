@@ -53,7 +53,7 @@ def baked_candidate(entry: MaterialEntry, result: dict) -> str | None:
     if isinstance(rep, AnalyticRepresentation):
         wanted = [f"analytic:{rep.distribution}"]
     elif entry.factors is not None:
-        wanted = [f"separable:{entry.factors.terms or entry.slice_count}"]
+        wanted = [f"separable:{entry.factors.terms or entry.factors.term_slices}"]
     elif fit.get("from") == "physical":
         wanted = ["lut: fitted from physics, 8-bit"]
     elif isinstance(rep, LutRepresentation) and rep.supersampling > 1:
