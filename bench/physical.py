@@ -32,6 +32,9 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))  # for tests.toml_text, which writes the TOML of generated materials
+
+from tests.toml_text import toml_document  # noqa: E402
 PHYSICAL_SPP = 64
 #: The cap a stochastic reference may grow to: high enough for skin's volpathmis reference to
 #: clear its error by 10 dB (the default cap, 16x, is for an interactive `atlasgen validate`).
@@ -71,16 +74,6 @@ def fitted_materials() -> dict:
     return out
 
 
-def _toml_value(value) -> str:
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    return repr(float(value))
-
-
 def iridescent_materials() -> dict:
     """name -> (TOML text, what it is): each shipped iridescent material's physical thin film, at the
     gloss its slice is fitted for, as a separable material of K = 8 terms (the error-budget cap)."""
@@ -91,9 +84,9 @@ def iridescent_materials() -> dict:
     for name in IRIDESCENT:
         material = read_material(ROOT / "materials" / f"{name}.toml")
         source = material.model.physical_f_cos(material.params, material.fit_gloss).source
-        text = "".join(f"{k} = {_toml_value(v)}\n" for k, v in source.items())
+        text = toml_document({"type": "separable", **source, "terms": MAX_AUTO_TERMS})
         back = " and a transmission slice (its back-light)" if source["film"]["backlight"] > 0 else ""
-        out[f"{name}-k{MAX_AUTO_TERMS}"] = (f'type = "separable"\n{text}terms = {MAX_AUTO_TERMS}\n',
+        out[f"{name}-k{MAX_AUTO_TERMS}"] = (text,
                                             f"separable K = {MAX_AUTO_TERMS}{back}: {name}'s thin film")  # fmt: skip
     return out
 

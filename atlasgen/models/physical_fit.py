@@ -30,8 +30,8 @@ from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.projection import (continue_collinear_texels, project_slice_texels, refine_specular_scale,
-                                        weighted_residual)  # fmt: skip
+from atlasgen.optics.projection import (continue_collinear_texels, pair_directions, project_slice_texels,
+                                        refine_specular_scale, weighted_residual)  # fmt: skip
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba, unorm_scale
 from atlasgen.optics.specular import half_vector_cosine
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
@@ -70,17 +70,8 @@ def azimuth_pairs(n_dot_l, n_dot_v, azimuths: int = AZIMUTHS):
     nv = np.asarray(n_dot_v, dtype=np.float64)[:, None, None]
     phi = 2.0 * np.pi * (np.arange(azimuths) + 0.5) / azimuths
     shape = (len(np.atleast_1d(n_dot_v)), len(np.atleast_1d(n_dot_l)), azimuths)
-    l, v = _pair_directions(nl, nv, phi, shape)
+    l, v = pair_directions(nl, nv, phi, shape)
     return (l, v, *half_vector_cosine(l, v))
-
-
-def _pair_directions(nl, nv, phi, shape):
-    """Unit l, v ``shape + (3,)`` from broadcastable cosines N.L, N.V and the azimuth phi of l
-    from v, with v in the xz plane (n = +z)."""
-    sl, sv = np.sqrt(np.maximum(1.0 - nl * nl, 0.0)), np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
-    l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
-    v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
-    return l, v
 
 
 def footprint_pairs(azimuths: int = AZIMUTHS, factor: int = FIT_SUPERSAMPLING):
@@ -103,7 +94,7 @@ def footprint_pairs(azimuths: int = AZIMUTHS, factor: int = FIT_SUPERSAMPLING):
     nv = np.maximum(np.clip(nv_c[:, None] + offsets / (HEIGHT - 1), 0.0, 1.0), GRAZING_N_DOT_V)[:, None, None, :, None]
     k = np.arange(f)[:, None] * f + np.arange(f)[None, :]
     phi = (2.0 * np.pi * (k[..., None] + f * f * np.arange(per) + 0.5) / azimuths)[None, None]  # (1, 1, f, f, per)
-    l, v = _pair_directions(nl, nv, phi, (HEIGHT, WIDTH, f, f, per))
+    l, v = pair_directions(nl, nv, phi, (HEIGHT, WIDTH, f, f, per))
     l, v = l.reshape(HEIGHT, WIDTH, f * f * per, 3), v.reshape(HEIGHT, WIDTH, f * f * per, 3)
     return (l, v, *half_vector_cosine(l, v))
 
@@ -131,7 +122,7 @@ def footprint_f_cos(f_cos, azimuths: int = AZIMUTHS, factor: int = FIT_SUPERSAMP
         for b in range(f):
             nv = np.maximum(np.clip(nv_c + offsets[b] / (HEIGHT - 1), 0.0, 1.0), GRAZING_N_DOT_V)[:, None, None]
             phi = 2.0 * np.pi * (np.arange(azimuths) + (a * f + b + 0.5) / (f * f)) / azimuths
-            l, v = _pair_directions(nl, nv, phi, (HEIGHT, WIDTH, azimuths))
+            l, v = pair_directions(nl, nv, phi, (HEIGHT, WIDTH, azimuths))
             value = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
             value = np.where(np.isfinite(value), value, 0.0)
             total = value if total is None else total + value

@@ -49,7 +49,7 @@ from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices, read_separable_factors
 from atlasgen.separable.shader import separable_declarations, separable_table_bytes
 from atlasgen.shaderlang import Function, Let, Return, float_literal
-from atlasgen.separable.source import make_source
+from atlasgen.separable.source import film_transmits, make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
 from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
 
@@ -103,7 +103,7 @@ def _parametrization_names():
 def _transmits(values: dict) -> bool:
     """Whether the material's source sends light through from behind (a thin film's back-light):
     its slices are then K terms and one transmission slice."""
-    return values["source"] == "thin_film" and float((values["film"] or {}).get("backlight", 0.0)) > 0.0
+    return values["source"] == "thin_film" and film_transmits(values["film"])
 
 
 def _error_samples(source):
@@ -430,18 +430,12 @@ class Separable(Model):
             reference, _ = _reference(source, sample)
             name = slices.extra.get("parametrization", values["parametrization"])
             target = slices.extra.get("target", "f_cos")
-        scale = np.asarray(encoded.extra.get("factor_scale"), dtype=np.float64)
-        bias = np.asarray(encoded.extra.get("factor_bias"), dtype=np.float64)
         k = _term_slices(slices)
         factors = _decoded_factors(slices, encoded, decoded, name, target)
         approx = evaluate_factors(replace(factors, transmission=None), None, sample.l, sample.v, cosine=True)
         # The generic quantization error assumes one (rgb, a) scale per slice; with
         # per-factor scale and bias it is measured here, in factor units.
-        half = decoded.shape[2] // 2
-        rebuilt = np.empty((k,) + decoded.shape[1:3] + (3,))
-        rebuilt[:, :, :half] = decoded[:k, :, :half, :3] * scale[:, None, None, 0] + bias[:, None, None, 0]
-        rebuilt[:, :, half:] = decoded[:k, :, half:, :3] * scale[:, None, None, 1] + bias[:, None, None, 1]
-        err = np.abs(rebuilt - np.asarray(slices.values)[:k, ..., :3])
+        err = np.abs(factors_to_slices(factors)[..., :3] - np.asarray(slices.values)[:k, ..., :3])
         out = {
             "errors_8bit": measure_errors(reference, approx, sample.weight),
             "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))},
@@ -616,12 +610,9 @@ def stored_factors(slices: SliceSet, srgb: bool = True):
 def _decoded_factors(slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray, parametrization: str, target: str):
     """Factors from decoded slices: the terms by their factor scales, a transmission slice by its slice scale."""
     k = _term_slices(slices)
-    scale = np.asarray(encoded.extra["factor_scale"], dtype=np.float64)
-    bias = np.asarray(encoded.extra["factor_bias"], dtype=np.float64)
-    back = None
-    if k < decoded.shape[0]:
-        back = decoded[k, :, :, :3] * encoded.scale[k][0] + encoded.bias[k][0]
-    return factors_from_slices(decoded[:k], scale, bias, parametrization, target, back)
+    pair = None if k == decoded.shape[0] else (encoded.scale[k][0], encoded.bias[k][0])
+    return factors_from_slices(decoded, encoded.extra["factor_scale"], encoded.extra["factor_bias"], parametrization,
+                               target, pair)  # fmt: skip
 
 
 def _term_slices(slices: SliceSet) -> int:

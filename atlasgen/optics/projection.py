@@ -50,8 +50,18 @@ COLLINEAR_TOLERANCE = 1e-9
 #: Relative Tikhonov weight: lambda = RIDGE * max_i G_ii per texel (see the module docstring).
 RIDGE = 1e-6
 
-__all__ = ["RIDGE", "COLLINEAR_TOLERANCE", "solve_nonnegative_least_squares", "project_slice_texels", "collinear_texels",
-           "continue_collinear_texels", "refine_specular_scale", "weighted_residual"]  # fmt: skip
+__all__ = ["RIDGE", "COLLINEAR_TOLERANCE", "pair_directions", "solve_nonnegative_least_squares", "project_slice_texels",
+           "collinear_texels", "continue_collinear_texels", "refine_specular_scale", "weighted_residual"]  # fmt: skip
+
+
+def pair_directions(n_dot_l, n_dot_v, phi, shape):
+    """Unit l, v ``shape + (3,)`` in the local frame (n = +z) from broadcastable cosines N.L, N.V
+    and the azimuth phi of l from v, v in the xz plane: the (l, v) pair of a texel's sample."""
+    nl, nv = np.asarray(n_dot_l, dtype=np.float64), np.asarray(n_dot_v, dtype=np.float64)
+    sl, sv = np.sqrt(np.maximum(1.0 - nl * nl, 0.0)), np.sqrt(np.maximum(1.0 - nv * nv, 0.0))
+    l = np.stack([np.broadcast_to(c, shape) for c in (sl * np.cos(phi), sl * np.sin(phi), nl)], axis=-1)
+    v = np.stack([np.broadcast_to(c, shape) for c in (sv, 0.0 * phi, nv)], axis=-1)
+    return l, v
 
 
 def solve_nonnegative_least_squares(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -164,22 +164,27 @@ def evaluate_factors(factors: Factors, n, l, v, cosine: bool = True, clamp: bool
 
 
 def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, target: str = "f_cos",
-                        transmission: np.ndarray | None = None) -> Factors:
+                        transmission_scale=None) -> Factors:
     """Factors from decoded atlas slices ``(K, 32, 64, 4)`` (what a sampler returns, linear).
 
     ``scale`` and ``bias`` are ``(K, 2, 3)``: per term, per factor (g, h), per channel;
     value = decoded * scale + bias. g is read from row 0 of the left half (every row
-    holds the same values), h is the right half. ``transmission``: the linear RGB
-    ``(32, 64, 3)`` of a transmission slice (:attr:`Factors.transmission`), or None.
+    holds the same values), h is the right half. With ``transmission_scale`` = (rgb_scale,
+    rgb_bias), ``decoded`` has one slice more, K + 1: a transmission slice, whose linear RGB
+    (texel * rgb_scale + rgb_bias) becomes :attr:`Factors.transmission`.
     """
     decoded = np.asarray(decoded, dtype=np.float64)
     scale = np.asarray(scale, dtype=np.float64)
     bias = np.asarray(bias, dtype=np.float64)
+    k = scale.shape[0]
     half = decoded.shape[2] // 2
-    g = decoded[:, 0, :half, :3].transpose(0, 2, 1) * scale[:, 0, :, None] + bias[:, 0, :, None]
-    h = decoded[:, :, half:, :3].transpose(0, 3, 1, 2) * scale[:, 1, :, None, None] + bias[:, 1, :, None, None]
-    back = None if transmission is None else np.asarray(transmission, dtype=np.float64)[..., :3]
-    return Factors(g, h, parametrization, np.zeros((3, decoded.shape[0])), target, back)
+    g = decoded[:k, 0, :half, :3].transpose(0, 2, 1) * scale[:, 0, :, None] + bias[:, 0, :, None]
+    h = decoded[:k, :, half:, :3].transpose(0, 3, 1, 2) * scale[:, 1, :, None, None] + bias[:, 1, :, None, None]
+    back = None
+    if transmission_scale is not None:
+        rgb_scale, rgb_bias = transmission_scale
+        back = decoded[k, :, :, :3] * rgb_scale + rgb_bias
+    return Factors(g, h, parametrization, np.zeros((3, k)), target, back)
 
 
 def read_separable_factors(atlas_path, material: str) -> Factors:
@@ -209,13 +214,10 @@ def read_separable_factors(atlas_path, material: str) -> Factors:
     texels = np.asarray(atlas.image.levels[0])[entry.first_slice : entry.first_slice + entry.slice_count]
     decoded = dequantize_rgba(texels, atlas.srgb)
     factors = entry.factors
-    terms = factors.term_slices
-    back = None
-    if factors.transmission is not None:  # the last slice, decoded as any table slice
-        (rgb_scale, _), (rgb_bias, _) = entry.scale[terms], entry.bias[terms]
-        back = decoded[terms, :, :, :3] * rgb_scale + rgb_bias
-    return factors_from_slices(decoded[:terms], factors.factor_scale, factors.factor_bias, factors.parametrization,
-                               factors.target, back)  # fmt: skip
+    back = factors.transmission  # the last slice, decoded with its slice's (rgb scale, rgb bias)
+    pair = None if back is None else (entry.scale[back.slice][0], entry.bias[back.slice][0])
+    return factors_from_slices(decoded, factors.factor_scale, factors.factor_bias, factors.parametrization,
+                               factors.target, pair)  # fmt: skip
 
 
 def evaluate_separable(atlas_path, material: str, n, l, v, cosine: bool = False) -> np.ndarray:

@@ -11,7 +11,7 @@ from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos
 from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 from atlasgen.separable.parametrization import HORIZON_COS
 
-__all__ = ["BrdfSource", "make_source", "thin_film_source", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
+__all__ = ["BrdfSource", "make_source", "thin_film_source", "film_transmits", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
 
 
 class BrdfSource:
@@ -58,6 +58,12 @@ class BrdfSource:
         return self._shape(l, self._f_cos(l, v)) / np.maximum(l[..., 2], HORIZON_COS)[..., None]
 
 
+def film_transmits(film: dict | None) -> bool:
+    """Whether a ``film`` table sends light through from behind (``backlight`` > 0): its source is
+    then non-zero for l below the surface, and a separable bake adds a transmission slice."""
+    return float((film or {}).get("backlight", 0.0)) > 0.0
+
+
 def thin_film_source(film: dict, alpha: float, diffuse) -> BrdfSource:
     """The thin-film microfacet BSDF (:func:`atlasgen.optics.thin_film.thin_film_rgb_f_cos`, the
     iridescent model's physical reference integrated to linear sRGB for white light) as a source:
@@ -68,7 +74,7 @@ def thin_film_source(film: dict, alpha: float, diffuse) -> BrdfSource:
     film = dict(film)
     alpha = float(alpha)
     diffuse = np.asarray(diffuse, dtype=np.float64)
-    transmits = float(film.get("backlight", 0.0)) > 0.0
+    transmits = film_transmits(film)
     back_colour = np.asarray(film.pop("backlight_colour", (1.0, 1.0, 1.0)), dtype=np.float64)
     back = back_colour if transmits else None
 

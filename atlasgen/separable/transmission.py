@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import texel_grid
+from atlasgen.optics.projection import pair_directions
 from atlasgen.optics.quantize import unorm_scale
 
 __all__ = ["TRANSMISSION_AZIMUTHS", "transmission_slice", "encode_transmission_slice"]
@@ -33,12 +34,10 @@ def transmission_slice(f_cos) -> np.ndarray:
     nl, nv = texel_grid()
     below = nl < 0.0
     phi = (np.arange(TRANSMISSION_AZIMUTHS) + 0.5) * np.pi / TRANSMISSION_AZIMUTHS
-    cl, cv = nl[below], nv[below]
-    sl, sv = np.sqrt(1.0 - cl * cl), np.sqrt(np.maximum(1.0 - cv * cv, 0.0))
-    l = np.stack([sl[:, None] * np.cos(phi), sl[:, None] * np.sin(phi), np.broadcast_to(cl[:, None], (cl.size, phi.size))], -1)
-    v = np.broadcast_to(np.stack([sv, np.zeros_like(sv), cv], -1)[:, None, :], l.shape)
-    value = np.asarray(f_cos(l.reshape(-1, 3), np.ascontiguousarray(v).reshape(-1, 3)), dtype=np.float64)
-    value = np.where(np.isfinite(value), value, 0.0).reshape(cl.size, phi.size, 3)
+    shape = (int(below.sum()), TRANSMISSION_AZIMUTHS)
+    l, v = pair_directions(nl[below][:, None], nv[below][:, None], phi, shape)
+    value = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64)
+    value = np.where(np.isfinite(value), value, 0.0).reshape(shape + (3,))
     out = np.zeros(nl.shape + (4,))
     out[below, :3] = np.pi * value.mean(axis=1)
     return out

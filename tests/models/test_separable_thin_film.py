@@ -194,7 +194,7 @@ def test_auto_is_refused_with_a_back_light(expect_rejected):
                     "film.backlight")
 
 
-def test_the_physical_reference_has_the_back_light_and_the_model_reference_transmits(write_material):
+def test_the_physical_reference_has_the_back_light_and_the_material_one_slice_more(write_material):
     material = read_material(write_material("f", f'type = "separable"\nsource = "thin_film"\nterms = 1\n{BACKLIT_FILM}\n'))
     ref = get_model("separable").physical_reference(material.params, albedo=(0.5, 0.5, 0.5))
     assert [ref.bsdf[f"backlight_{c}"] for c in "rgb"] == [0.55, 0.75, 1.0]
