@@ -11,7 +11,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test fuzz bench clean atlas render validate report
+.PHONY: setup apt demo test lint fuzz bench clean atlas render validate report pins
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -45,7 +45,7 @@ VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
 SEPARABLE_STUDIES := $(patsubst %,$(SEPARABLE_REPORT)/materials/%/report.json,$(SEPARABLE_STEMS))
 
-setup: apt $(VENV)/.stamp
+setup: apt $(VENV)/.stamp $(BUILD)/versions.txt
 
 # Installs only what is missing, as root via apt-get (sudo where we are not root).
 apt:
@@ -56,10 +56,33 @@ apt:
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 
-$(VENV)/.stamp: pyproject.toml
+# Every Python package, direct or transitive, is installed at the version constraints.txt pins: the
+# goldens' bytes and the reports' figures depend on Mitsuba, Dr.Jit, NumPy and the rest (README,
+# Development: "Pinned versions").
+EXTRAS := mitsuba,render,report,test,dev
+$(VENV)/.stamp: pyproject.toml $(wildcard constraints.txt)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q --disable-pip-version-check -e '.[mitsuba,render,report,test]'
+	$(PY) -m pip install -q --disable-pip-version-check -c constraints.txt -e '.[$(EXTRAS)]'
 	touch $@
+
+# What this set-up runs with: the Python packages (pip freeze) and the Debian packages that decide
+# numbers (LLVM for Dr.Jit's JIT, Mesa's lavapipe, glslang). .ci/run prints it.
+$(BUILD)/versions.txt: $(VENV)/.stamp
+	@mkdir -p $(@D)
+	@{ echo "# $$($(PY) --version)"; $(PY) -m pip freeze --all --exclude-editable --disable-pip-version-check; \
+	  dpkg-query -W -f '# debian $${Package}=$${Version}\n' $(APT_PACKAGES) 2>/dev/null || true; } > $@.tmp && mv -f $@.tmp $@
+
+# Moves every pin to the newest release that pyproject.toml allows, re-installs through the new
+# pins and regenerates the goldens, in one step. Review `git diff constraints.txt tests/resources`
+# and say in the commit why the bytes moved.
+pins: apt
+	rm -rf $(BUILD)/pins-venv && $(PYTHON) -m venv $(BUILD)/pins-venv
+	$(BUILD)/pins-venv/bin/pip install -q --disable-pip-version-check -U pip '.[$(EXTRAS)]'
+	{ sed -n '/^#/p' constraints.txt; $(BUILD)/pins-venv/bin/pip freeze --all --exclude-editable --disable-pip-version-check \
+	  | grep -v -e '^pip==' -e '^atlasgen[= @]'; } > constraints.txt.tmp && mv -f constraints.txt.tmp constraints.txt
+	rm -rf $(BUILD)/pins-venv $(VENV) && $(MAKE) setup
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	ATLASGEN_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -p no:xdist tests/test_golden.py tests/io/test_ktx2.py
 
 atlas: $(BUILD)/atlas.dds
 
@@ -150,9 +173,17 @@ demo: setup
 	$(MAKE) -j$(DEMO_JOBS) -Otarget atlas render validate report
 	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/scenes/*.png, build/validation/index.html, build/report/index.html"
 
+# PYTEST_ARGS selects a part of the suite (.ci/run runs the fast subset, then the rest).
+PYTEST_ARGS ?=
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+# ruff (lint and format) over the code, mypy over the typed packages (pyproject.toml [tool.mypy]).
+lint: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/mypy
 
 # The fuzz suite (tests/fuzz) with its deep, random "fuzz" profile; `make test` runs its
 # quick, fixed "ci" profile. Failing examples are kept in .hypothesis/ and replayed first.

@@ -118,15 +118,27 @@ REPORT_BUGS_TO = "the atlasgen maintainers (README.md)"
 #: ``(status, meaning)`` of every exit status the CLI uses, in order.
 EXIT_CODES = (
     (EXIT_OK, "success"),
-    (EXIT_INTERNAL, "internal error (a bug): one line names the exception; `atlasgen --debug ...` or "
-                    "`ATLASGEN_DEBUG=1` shows the traceback to report"),
+    (
+        EXIT_INTERNAL,
+        "internal error (a bug): one line names the exception; `atlasgen --debug ...` or "
+        "`ATLASGEN_DEBUG=1` shows the traceback to report",
+    ),
     (EXIT_USAGE, "usage error: an unknown option or a bad option value"),
-    (InputError.exit_code, "bad input: a material, scene, atlas or cache file, a missing path; the message names the "
-                           "file, the field and what was expected"),
-    (OutputError.exit_code, "an output cannot be written, or would overwrite an input, another output or a folder; "
-                            "existing outputs are left untouched"),
-    (BackendError.exit_code, "a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU "
-                             "adapter (`apt-get install mesa-vulkan-drivers`)"),
+    (
+        InputError.exit_code,
+        "bad input: a material, scene, atlas or cache file, a missing path; the message names the "
+        "file, the field and what was expected",
+    ),
+    (
+        OutputError.exit_code,
+        "an output cannot be written, or would overwrite an input, another output or a folder; "
+        "existing outputs are left untouched",
+    ),
+    (
+        BackendError.exit_code,
+        "a backend is missing: Mitsuba's LLVM variant (`apt-get install libllvm19`) or a WebGPU "
+        "adapter (`apt-get install mesa-vulkan-drivers`)",
+    ),
     (GoalsMissed.exit_code, "validate --strict: a material missed a validation goal (the report is still written)"),
     (EXIT_INTERRUPTED, "interrupted (Ctrl-C); outputs are replaced whole or not at all"),
 )

@@ -20,9 +20,7 @@ def deferred_interrupts():
     is done, or instead of whatever exception the block ends with. Outside the main
     thread, or where SIGINT is ignored, the block runs as it is.
     """
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (
-        signal.SIG_IGN, None
-    ):
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None):
         yield
         return
     pending = []

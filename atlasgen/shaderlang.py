@@ -233,11 +233,15 @@ def _statements(lang: str, body, indent: int) -> list[str]:
             lines.append(f"{pad}}}")
         elif isinstance(st, For):
             init = _decl(lang, "u32", st.var, True)
-            lines.append(f"{pad}for ({init} = {expr(lang, st.start)}; {st.var} < {expr(lang, st.end)}; {st.var} = {st.var} + 1u) {{")
+            lines.append(
+                f"{pad}for ({init} = {expr(lang, st.start)}; {st.var} < {expr(lang, st.end)}; {st.var} = {st.var} + 1u) {{"
+            )
             lines += _statements(lang, st.body, indent + 1)
             lines.append(f"{pad}}}")
         elif isinstance(st, Switch):
-            lines.append(f"{pad}switch {expr(lang, st.value)} {{" if lang == "wgsl" else f"{pad}switch ({expr(lang, st.value)}) {{")
+            lines.append(
+                f"{pad}switch {expr(lang, st.value)} {{" if lang == "wgsl" else f"{pad}switch ({expr(lang, st.value)}) {{"
+            )
             for label, case in st.cases:
                 inner = " ".join(line.strip() for line in _statements(lang, case, 0))
                 lines.append(f"{pad}    case {label}u: {{ {inner} }}")

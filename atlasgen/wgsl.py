@@ -33,8 +33,9 @@ WGSL stores them column by column, which :meth:`Matrix.encode` takes care of.
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -63,6 +64,19 @@ __all__ = [
 def round_up(k: int, n: int) -> int:
     """roundUp(k, n) of the WGSL specification: the smallest multiple of k that is >= n."""
     return -(-n // k) * k
+
+
+class WgslType(Protocol):
+    """What every type here provides: its WGSL name, alignment and size, and its byte encoding."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def align(self) -> int: ...
+    @property
+    def size(self) -> int: ...
+    def encode(self, value: Any) -> bytes: ...
+    def decode(self, data: bytes) -> Any: ...
 
 
 @dataclass(frozen=True)
@@ -147,7 +161,7 @@ def vec4(scalar: Scalar = F32) -> Vector:
 class Array:
     """``array<E, N>``: N elements of type E, each padded to the element's alignment."""
 
-    element: object
+    element: WgslType
     count: int
 
     @property
@@ -217,7 +231,7 @@ class Field:
     """One struct member: its name, WGSL type and a one-line comment for the WGSL text."""
 
     name: str
-    type: object
+    type: WgslType
     doc: str = ""
 
 

@@ -11,9 +11,9 @@ RUNS = 50
 
 
 def _cases():
+    from atlasgen.io.fields import validate_params
     from atlasgen.materials.material import read_materials
     from atlasgen.models import get_model, model_types
-    from atlasgen.io.fields import validate_params
 
     # The table models: the renderer samples their slice (the others shade with their own code).
     lut_models = [t for t in model_types() if not get_model(t).custom_lighting]

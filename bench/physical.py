@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # for tests.toml_text, which writes the TOML of generated materials
 
 from tests.toml_text import toml_document  # noqa: E402
+
 PHYSICAL_SPP = 64
 #: The cap a stochastic reference may grow to: high enough for skin's volpathmis reference to
 #: clear its error by 10 dB (the default cap, 16x, is for an interactive `atlasgen validate`).
@@ -60,17 +61,24 @@ def fitted_materials() -> dict:
     out = {}
     for a in ALPHAS:
         tag = f"{int(round(a * 10)):02d}"
-        out[f"fresnel-{tag}"] = (f'type = "fresnel"\ncolour = [0.6, 0.2, 0.1]\nior = 1.5\nfrom = "physical"\n'
-                                 f"fit_gloss = {_gloss(a)!r}\n", f"fresnel from roughplastic, alpha {a:g}")
-        out[f"plastic-{tag}"] = ('type = "bsdf"\nbsdf = { type = "roughplastic", distribution = "ggx", alpha = '
-                                 f'{a}, int_ior = 1.5, nonlinear = false, diffuse_reflectance = {{ type = "rgb", '
-                                 'value = [0.6, 0.2, 0.1] } }\n', f"bsdf: roughplastic, alpha {a:g}")
+        out[f"fresnel-{tag}"] = (
+            f'type = "fresnel"\ncolour = [0.6, 0.2, 0.1]\nior = 1.5\nfrom = "physical"\nfit_gloss = {_gloss(a)!r}\n',
+            f"fresnel from roughplastic, alpha {a:g}",
+        )
+        out[f"plastic-{tag}"] = (
+            'type = "bsdf"\nbsdf = { type = "roughplastic", distribution = "ggx", alpha = '
+            f'{a}, int_ior = 1.5, nonlinear = false, diffuse_reflectance = {{ type = "rgb", '
+            "value = [0.6, 0.2, 0.1] } }\n",
+            f"bsdf: roughplastic, alpha {a:g}",
+        )
         for metal in ("Al", "Au"):
             bsdf = f'{{ type = "roughconductor", distribution = "ggx", alpha = {a}, material = "{metal}" }}'
             out[f"{metal.lower()}-{tag}"] = (f'type = "bsdf"\nbsdf = {bsdf}\n', f"bsdf: roughconductor {metal}, alpha {a:g}")
             for k in separable_terms:
-                out[f"{metal.lower()}-{tag}-k{k}"] = (f'type = "separable"\nsource = "mitsuba"\nbsdf = {bsdf}\nterms = {k}\n',
-                                                      f"separable K = {k}: roughconductor {metal}, alpha {a:g}")
+                out[f"{metal.lower()}-{tag}-k{k}"] = (
+                    f'type = "separable"\nsource = "mitsuba"\nbsdf = {bsdf}\nterms = {k}\n',
+                    f"separable K = {k}: roughconductor {metal}, alpha {a:g}",
+                )
     return out
 
 
@@ -183,7 +191,7 @@ def markdown(data: dict) -> str:
         "Each shipped iridescent material's physical thin film (every parameter of its reference, at its fit gloss) "
         "baked as a separable material, against the same converged spectral reference as its LUT row above. "
         "A is a scalar, so the LUT draws the film's coloured highlight grey; the terms keep its colour, and a "
-        "transmission slice after them holds the back-light (docs/separable.md, \"Light from behind\").",
+        'transmission slice after them holds the back-light (docs/separable.md, "Light from behind").',
         "",
         "| material | what | front | back | goal met |",
         "|---|---|---|---|---|",

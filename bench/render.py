@@ -89,9 +89,9 @@ def time_ms(fn) -> tuple[float, float]:
 
 
 def run() -> dict:
-    from atlasgen.render.renderer import Renderer
-
     import os
+
+    from atlasgen.render.renderer import Renderer
 
     load, cpus = os.getloadavg()[0], os.cpu_count()
     atlas, atlas_source = load_atlas()
@@ -139,9 +139,20 @@ def run() -> dict:
     ]
     return {
         "markdown": "\n".join(md),
-        "data": {"device": device, "load_average": load, "cpus": cpus, "width": WIDTH, "height": HEIGHT, "warmup": WARMUP, "repeats": REPEATS,
-                 "atlas": atlas_source, "rows": rows, "goal_ms": GOAL_MS, "goal_met": met,
-                 "validation_errors": errors},  # fmt: skip
+        "data": {
+            "device": device,
+            "load_average": load,
+            "cpus": cpus,
+            "width": WIDTH,
+            "height": HEIGHT,
+            "warmup": WARMUP,
+            "repeats": REPEATS,
+            "atlas": atlas_source,
+            "rows": rows,
+            "goal_ms": GOAL_MS,
+            "goal_met": met,
+            "validation_errors": errors,
+        },  # fmt: skip
     }
 
 

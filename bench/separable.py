@@ -24,8 +24,9 @@ def _bake_factors(alpha: float, terms: int, tmp):
     from atlasgen.materials.material import read_material
 
     path = tmp / f"ggx-{int(alpha * 1000)}-{terms}.toml"
-    path.write_text(f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nfresnel = "schlick"\n'
-                    f"f0 = [0.04, 0.04, 0.04]\nterms = {terms}\n")
+    path.write_text(
+        f'type = "separable"\nsource = "ggx"\nalpha = {alpha}\nfresnel = "schlick"\nf0 = [0.04, 0.04, 0.04]\nterms = {terms}\n'
+    )
     return bake_atlas([read_material(path)]).manifest.materials[0].factors
 
 
@@ -35,8 +36,16 @@ def _stage_times(alpha: float, terms: int = 4, grids=None) -> list[dict]:
     from atlasgen.separable.source import make_source
     from atlasgen.separable.storage import encode_factor_slices, factors_to_slices
 
-    params = dict(source="ggx", alpha=alpha, fresnel="schlick", f0=(0.04,) * 3, ior=1.5,
-                  specular=(1.0,) * 3, diffuse=(0.0,) * 3, exponent=100.0)
+    params = dict(
+        source="ggx",
+        alpha=alpha,
+        fresnel="schlick",
+        f0=(0.04,) * 3,
+        ior=1.5,
+        specular=(1.0,) * 3,
+        diffuse=(0.0,) * 3,
+        exponent=100.0,
+    )
     out = []
     approximate_brdf(make_source(params), terms=terms, grids=grids)  # warm-up: caches of grid and weights
     for _ in range(REPEATS):
@@ -53,8 +62,10 @@ def run() -> dict:
     import tempfile
     from pathlib import Path
 
-    rows, data = [], {"alphas": {}, "goals": {"relative_rms": GOALS, "eight_bit_extra": EIGHT_BIT_GOAL,
-                                             "factorize_s": TIME_GOAL_S}}
+    rows, data = (
+        [],
+        {"alphas": {}, "goals": {"relative_rms": GOALS, "eight_bit_extra": EIGHT_BIT_GOAL, "factorize_s": TIME_GOAL_S}},
+    )
     met_all = True
     with tempfile.TemporaryDirectory() as tmp:
         for alpha in ALPHAS:
@@ -65,22 +76,36 @@ def run() -> dict:
                 bit = f.errors_8bit.relative_rms
                 ok = flt <= goal and bit - flt <= EIGHT_BIT_GOAL
                 met_all &= ok
-                data["alphas"][alpha][terms] = {"float": flt, "8bit": bit, "target": f.target,
-                                                "log_error_float": f.errors.float_error.log_error, "met": ok}
-                rows.append(f"| {alpha} | {terms} | {100 * flt:.2f}% | <= {100 * goal:.0f}% | {100 * bit:.2f}% | "
-                            f"{100 * (bit - flt):+.2f} pp | {f.target} | {'yes' if ok else '**no**'} |")
+                data["alphas"][alpha][terms] = {
+                    "float": flt,
+                    "8bit": bit,
+                    "target": f.target,
+                    "log_error_float": f.errors.float_error.log_error,
+                    "met": ok,
+                }
+                rows.append(
+                    f"| {alpha} | {terms} | {100 * flt:.2f}% | <= {100 * goal:.0f}% | {100 * bit:.2f}% | "
+                    f"{100 * (bit - flt):+.2f} pp | {f.target} | {'yes' if ok else '**no**'} |"
+                )
     stages = _stage_times(0.2)
     med = {k: statistics.median(s[k] for s in stages) for k in ("sample_s", "svd_s", "quantize_s", "factorize_s", "error_s")}
-    data["timing"] = {"material": "ggx alpha 0.2, K = 4, target auto", "repeats": REPEATS, "median": med,
-                      "min_factorize_s": min(s["factorize_s"] for s in stages),
-                      "max_factorize_s": max(s["factorize_s"] for s in stages)}
+    data["timing"] = {
+        "material": "ggx alpha 0.2, K = 4, target auto",
+        "repeats": REPEATS,
+        "median": med,
+        "min_factorize_s": min(s["factorize_s"] for s in stages),
+        "max_factorize_s": max(s["factorize_s"] for s in stages),
+    }
     time_ok = med["factorize_s"] <= TIME_GOAL_S
     from atlasgen.separable.approximate import GRID_RESOLUTIONS
 
     chosen = _stage_times(0.2, grids=GRID_RESOLUTIONS)
     med_grids = {k: statistics.median(s[k] for s in chosen) for k in ("factorize_s", "error_s")}
-    data["timing_grid_choice"] = {"grids": list(GRID_RESOLUTIONS), "median": med_grids,
-                                  "ratio_to_one_grid": {k: med_grids[k] / med[k] for k in med_grids}}
+    data["timing_grid_choice"] = {
+        "grids": list(GRID_RESOLUTIONS),
+        "median": med_grids,
+        "ratio_to_one_grid": {k: med_grids[k] / med[k] for k in med_grids},
+    }
     lines = [
         "## Separable BRDFs (Kautz-McCool SVD)",
         "",

@@ -12,21 +12,24 @@ __all__ = ["render_cli_reference", "render_exit_codes"]
 #: Fixed, so the file does not depend on the terminal it was generated in.
 WIDTH = 100
 
+
 def render_exit_codes() -> str:
     """The exit-code table, from :data:`atlasgen.errors.EXIT_CODES`."""
     rows = [f"| {code} | {meaning} |" for code, meaning in EXIT_CODES]
-    return "\n".join([
-        "## Exit codes",
-        "",
-        "| code | meaning |",
-        "|---|---|",
-        *rows,
-        "",
-        "Every failure is one line on stderr (`atlasgen: error: ...`, `atlasgen: interrupted`, `atlasgen: internal "
-        "error: ...`). Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, "
-        "`info`) go to stdout.",
-        "",
-    ])
+    return "\n".join(
+        [
+            "## Exit codes",
+            "",
+            "| code | meaning |",
+            "|---|---|",
+            *rows,
+            "",
+            "Every failure is one line on stderr (`atlasgen: error: ...`, `atlasgen: interrupted`, `atlasgen: internal "
+            "error: ...`). Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, "
+            "`info`) go to stdout.",
+            "",
+        ]
+    )
 
 
 USAGE = """\

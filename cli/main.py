@@ -23,16 +23,15 @@ from pathlib import Path
 import click
 
 from atlasgen import __version__
-from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
-from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
+from atlasgen.bake.cache import cache_path, fill_cache
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
+from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
+from atlasgen.io.atlas import describe_atlas, summarize_atlas
+from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
-from atlasgen.io.atlas import describe_atlas, summarize_atlas
-from atlasgen.bake.cache import fill_cache
-from atlasgen.bake.cache import cache_path
-from atlasgen.io.depfile import format_depfile
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
 
@@ -156,32 +155,76 @@ def app(ctx, debug):
 
 @app.command()
 @click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/atlas.dds"), show_default=True,
-              help="Atlas to write, X.dds or X.ktx2; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.")
-@click.option("--layout", type=click.Choice(["array", "volume"]), default="array", show_default=True,
-              help="Texture2DArray (a mip chain per material) or Texture3D (mips blend neighbouring materials).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=Path("build/atlas.dds"),
+    show_default=True,
+    help="Atlas to write, X.dds or X.ktx2; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.",
+)
+@click.option(
+    "--layout",
+    type=click.Choice(["array", "volume"]),
+    default="array",
+    show_default=True,
+    help="Texture2DArray (a mip chain per material) or Texture3D (mips blend neighbouring materials).",
+)
 @click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28, VK 37) instead of sRGB (DXGI 29, VK 43).")
 @click.option("--zstd", is_flag=True, help="Supercompress each mip level with Zstandard (needs -o X.ktx2).")
 @click.option("--preview", type=click.Path(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
-@click.option("--scene", type=click.Path(path_type=Path), default=None,
-              help="Bake only the materials this scene references.")
-@click.option("--ids-from", type=click.Path(path_type=Path), default=None,
-              help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).")
-@click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
-              help="Per-material cache folder: unchanged materials are loaded, not re-baked.")
-@click.option("--include", "include_languages", default="wgsl,glsl,hlsl", show_default=True, metavar="LANGS",
-              help="Shader includes to write beside the atlas, comma-separated: wgsl, glsl, hlsl.")
+@click.option("--scene", type=click.Path(path_type=Path), default=None, help="Bake only the materials this scene references.")
+@click.option(
+    "--ids-from",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).",
+)
+@click.option(
+    "--cache",
+    "cache_dir",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Per-material cache folder: unchanged materials are loaded, not re-baked.",
+)
+@click.option(
+    "--include",
+    "include_languages",
+    default="wgsl,glsl,hlsl",
+    show_default=True,
+    metavar="LANGS",
+    help="Shader includes to write beside the atlas, comma-separated: wgsl, glsl, hlsl.",
+)
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
-@click.option("--depfile", type=click.Path(path_type=Path), default=None,
-              help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).")
-@click.option("--library", is_flag=True,
-              help="Also bake the material library installed with atlasgen (alone when no PATHS are given).")
+@click.option(
+    "--depfile",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).",
+)
+@click.option(
+    "--library", is_flag=True, help="Also bake the material library installed with atlasgen (alone when no PATHS are given)."
+)
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
-def bake(paths, output, layout, linear, zstd, preview, scene, ids_from, cache_dir, include_languages, cache_only, depfile, library,
-         allow_empty,
-         verbosity):
+def bake(
+    paths,
+    output,
+    layout,
+    linear,
+    zstd,
+    preview,
+    scene,
+    ids_from,
+    cache_dir,
+    include_languages,
+    cache_only,
+    depfile,
+    library,
+    allow_empty,
+    verbosity,
+):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
@@ -239,8 +282,11 @@ def _describe_materials(result) -> list[str]:
     for entry in result.manifest.materials:
         first, count = entry.first_slice, entry.slice_count
         slices = f"slice {first}" if count == 1 else f"slices {first}-{first + count - 1}"
-        how = "loaded from the cache" if entry.name in cached else \
-            f"baked in {result.timings['materials'][entry.name].get('bake_s', 0.0):.3f} s"
+        how = (
+            "loaded from the cache"
+            if entry.name in cached
+            else f"baked in {result.timings['materials'][entry.name].get('bake_s', 0.0):.3f} s"
+        )
         lines.append(f"  {entry.name}: {entry.type}, {slices}, {how}")
     return lines
 

@@ -8,8 +8,8 @@ import click
 
 from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
-from atlasgen.render import render_scene_file
 from atlasgen.materials.scene import read_scene
+from atlasgen.render import render_scene_file
 
 __all__ = ["render"]
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import MaterialProgress, QUIET, VERBOSE, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
@@ -26,17 +26,34 @@ def report():
 
 @report.command("separable")
 @click.argument("names", nargs=-1)
-@click.option("-m", "--materials", "materials_dir", type=click.Path(path_type=Path), default=Path("materials"),
-              show_default=True, help="Folder (or TOML file) of materials to pick from.")
-@click.option("--library", is_flag=True,
-              help="Pick from the material library installed with atlasgen instead of --materials.")
-@click.option("--atlas", type=click.Path(path_type=Path), default=None,
-              help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).")
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report/separable"), show_default=True,
-              help="Folder for index.html (with its plots), index.md (a text summary) and report.json.")
+@click.option(
+    "-m",
+    "--materials",
+    "materials_dir",
+    type=click.Path(path_type=Path),
+    default=Path("materials"),
+    show_default=True,
+    help="Folder (or TOML file) of materials to pick from.",
+)
+@click.option("--library", is_flag=True, help="Pick from the material library installed with atlasgen instead of --materials.")
+@click.option(
+    "--atlas",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=Path("build/report/separable"),
+    show_default=True,
+    help="Folder for index.html (with its plots), index.md (a text summary) and report.json.",
+)
 @click.option("--repeats", type=click.IntRange(1, 50), default=5, show_default=True, help="Timing repeats (median).")
-@click.option("--merge", is_flag=True,
-              help="Measure nothing: merge earlier reports, the folders given as arguments, into one OUTPUT.")
+@click.option(
+    "--merge", is_flag=True, help="Measure nothing: merge earlier reports, the folders given as arguments, into one OUTPUT."
+)
 @verbosity_options(verbose="Also print the plots written for each material.")
 @fail_on_errors
 def separable(names, materials_dir, library, atlas, output, repeats, merge, verbosity):
@@ -74,17 +91,40 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 
 
 @report.command("library")
-@click.option("--atlas", type=click.Path(path_type=Path), default=Path("build/atlas.dds"), show_default=True,
-              help="Baked atlas (X.dds with X.json and X.timings.json beside it).")
-@click.option("--validation", type=click.Path(path_type=Path), default=Path("build/validation"), show_default=True,
-              help="Folder of `atlasgen validate` (report.json, index.html), used when present.")
-@click.option("--separable", "separable_dir", type=click.Path(path_type=Path), default=Path("build/report/separable"),
-              show_default=True, help="Folder of `atlasgen report separable`, linked when present.")
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("build/report"), show_default=True,
-              help="Folder for index.html, slice previews, the cost plots and the Pareto charts (their candidates "
-                   "cached in OUTPUT/pareto).")
-@click.option("--no-physical", is_flag=True,
-              help="Skip the Pareto charts against the physical reference (they evaluate Mitsuba BSDFs).")
+@click.option(
+    "--atlas",
+    type=click.Path(path_type=Path),
+    default=Path("build/atlas.dds"),
+    show_default=True,
+    help="Baked atlas (X.dds with X.json and X.timings.json beside it).",
+)
+@click.option(
+    "--validation",
+    type=click.Path(path_type=Path),
+    default=Path("build/validation"),
+    show_default=True,
+    help="Folder of `atlasgen validate` (report.json, index.html), used when present.",
+)
+@click.option(
+    "--separable",
+    "separable_dir",
+    type=click.Path(path_type=Path),
+    default=Path("build/report/separable"),
+    show_default=True,
+    help="Folder of `atlasgen report separable`, linked when present.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=Path("build/report"),
+    show_default=True,
+    help="Folder for index.html, slice previews, the cost plots and the Pareto charts (their candidates "
+    "cached in OUTPUT/pareto).",
+)
+@click.option(
+    "--no-physical", is_flag=True, help="Skip the Pareto charts against the physical reference (they evaluate Mitsuba BSDFs)."
+)
 @verbosity_options(verbose="Also print which of the validation and separable reports were found.")
 @fail_on_errors
 def library(atlas, validation, separable_dir, output, no_physical, verbosity):

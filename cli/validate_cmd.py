@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import MaterialProgress, QUIET, VERBOSE, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.validation import (
@@ -58,12 +58,13 @@ def _resolution(ctx, param, value):
 @click.option("--merge", is_flag=True,
               help="Render nothing: merge the report.json of earlier runs, the folders given as arguments, "
                    "into one OUTPUT/index.html, report.json and plot.")  # fmt: skip
-@click.option("--strict", is_flag=True,
-              help="Exit with code 6 when a goal is missed (the report is still written): for CI.")
+@click.option("--strict", is_flag=True, help="Exit with code 6 when a goal is missed (the report is still written): for CI.")
 @verbosity_options(quiet="Print only errors and the final summary line.",
                    verbose="Print a line after every render instead of one per material.")  # fmt: skip
 @fail_on_errors
-def validate(materials, scenes, spp, physical_spp, max_physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity):
+def validate(
+    materials, scenes, spp, physical_spp, max_physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity
+):
     """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
 
     Each material is rendered on each validation scene by the bundled deferred
@@ -84,6 +85,7 @@ def validate(materials, scenes, spp, physical_spp, max_physical_spp, resolution,
     if merge:
         written = merge_validation_reports([Path(m) for m in materials], output)
     else:
+
         def progress(text):
             if verbosity == VERBOSE:
                 click.echo(text, err=True)

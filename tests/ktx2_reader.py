@@ -135,8 +135,11 @@ def check_layout(f: dict, data: bytes) -> None:
     block = f["dfd"]["block"]["bytesPlane"][0]
     alignment = math.lcm(block, 4) if scheme == 0 else 1
     # Levels are stored from the smallest (p = n - 1) to the base (p = 0), each after its mipPadding.
-    end_of_metadata = (ix["sgdByteOffset"] + ix["sgdByteLength"]) if ix["sgdByteLength"] else (
-        ix["kvdByteOffset"] + ix["kvdByteLength"] if ix["kvdByteLength"] else ix["dfdByteOffset"] + ix["dfdByteLength"])
+    end_of_metadata = (
+        (ix["sgdByteOffset"] + ix["sgdByteLength"])
+        if ix["sgdByteLength"]
+        else (ix["kvdByteOffset"] + ix["kvdByteLength"] if ix["kvdByteLength"] else ix["dfdByteOffset"] + ix["dfdByteLength"])
+    )
     pos = end_of_metadata
     for p in reversed(range(n)):
         start = li[p]["byteOffset"]

@@ -39,8 +39,10 @@ def test_a_smooth_model_needs_no_supersampling():
 
 
 def test_bands_need_prefiltering_and_it_helps():
-    errors = [reconstruction_error(Bands(), {"threshold": 0.3}, bake_supersampled(Bands(), {"threshold": 0.3}, f))
-              for f in SUPERSAMPLING_FACTORS]
+    errors = [
+        reconstruction_error(Bands(), {"threshold": 0.3}, bake_supersampled(Bands(), {"threshold": 0.3}, f))
+        for f in SUPERSAMPLING_FACTORS
+    ]
     assert errors[-1] < errors[0]
 
 

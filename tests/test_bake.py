@@ -7,12 +7,11 @@ import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.contract import texel_grid
-from atlasgen.optics.quantize import unorm_scale
 from atlasgen.errors import InputError, MaterialError
 from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
 from atlasgen.models.base import SliceSet
-
+from atlasgen.optics.quantize import unorm_scale
 from tests.dds_reader import parse, srgb_to_linear
 
 
@@ -152,13 +151,15 @@ def test_a_manifest_from_an_older_atlasgen_keeps_its_ids_and_does_not_stop_the_b
     old = {"format_version": 1, "materials": [{"name": "moss", "first_slice": 7}, {"name": "clay", "first_slice": 3}]}
     out.with_suffix(".json").write_text(json.dumps(old))
     assert read_previous_slots(out.with_suffix(".json")) == {"moss": 7, "clay": 3}
-    write_bake(bake_atlas(read_materials([tmp_path / "materials"]), previous_slots=read_previous_slots(out.with_suffix(".json"))), out)
+    write_bake(
+        bake_atlas(read_materials([tmp_path / "materials"]), previous_slots=read_previous_slots(out.with_suffix(".json"))), out
+    )
     written = json.loads(out.with_suffix(".json").read_text())
     assert written["format_version"] > 1
     assert {m["name"]: m["first_slice"] for m in written["materials"]} == {"moss": 7, "clay": 3}
 
 
-@pytest.mark.parametrize("text", ['[]', '{"materials": 5}', '{"materials": [{"name": "a"}]}', "not json"])
+@pytest.mark.parametrize("text", ["[]", '{"materials": 5}', '{"materials": [{"name": "a"}]}', "not json"])
 def test_unreadable_previous_slots_are_one_line_naming_the_file(tmp_path, text):
     from atlasgen.errors import ManifestError
 

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from atlasgen.bake.pipeline import bake_atlas
 from atlasgen.bake.cache import cache_path, load_cached
+from atlasgen.bake.pipeline import bake_atlas
 from atlasgen.materials.material import read_materials
 
 

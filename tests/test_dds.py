@@ -7,7 +7,6 @@ from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
 from atlasgen.optics.quantize import unorm_scale
-
 from tests.dds_reader import linear_to_srgb, parse, srgb_to_linear
 
 

@@ -3,11 +3,10 @@
 import numpy as np
 import pytest
 
-from atlasgen.optics.quantize import unorm_scale
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.contract import atlas_uv, texel_centres
 from atlasgen.materials.material import read_materials
-from atlasgen.optics.quantize import dequantize_rgba
+from atlasgen.optics.quantize import dequantize_rgba, unorm_scale
 
 
 @pytest.fixture
@@ -34,7 +33,7 @@ def bilinear(texels, u, v):
     x0, y0 = np.clip(np.floor(x).astype(int), 0, w - 1), np.clip(np.floor(y).astype(int), 0, h - 1)
     x1, y1 = np.clip(x0 + 1, 0, w - 1), np.clip(y0 + 1, 0, h - 1)
     fx, fy = np.clip(x - x0, 0, 1)[:, None], np.clip(y - y0, 0, 1)[:, None]
-    return ((1 - fy) * ((1 - fx) * texels[y0, x0] + fx * texels[y0, x1]) + fy * ((1 - fx) * texels[y1, x0] + fx * texels[y1, x1]))
+    return (1 - fy) * ((1 - fx) * texels[y0, x0] + fx * texels[y0, x1]) + fy * ((1 - fx) * texels[y1, x0] + fx * texels[y1, x1])
 
 
 def test_atlas_sample_on_the_gpu_matches_the_contract(gpu_device, atlas):
@@ -51,7 +50,9 @@ def test_atlas_sample_on_the_gpu_matches_the_contract(gpu_device, atlas):
     ids = np.tile([3, 4, 5, 3], 32)
     points = np.stack([nl, nv, ids.astype(np.float64), np.zeros_like(nl)], axis=1).astype(np.float32)
 
-    shader = include + """
+    shader = (
+        include
+        + """
 @group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
 @group(0) @binding(1) var atlas_smp: sampler;
 @group(0) @binding(2) var<storage, read> points: array<vec4<f32>>;
@@ -62,19 +63,30 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     out[gid.x] = atlas_sample(atlas_tex, atlas_smp, u32(p.z), p.x, p.y, 0.0);
 }
 """
+    )
     device = gpu_device.device
     texture = upload_atlas(gpu_device, RenderAtlas(result.levels, True, result.manifest, include))
-    sampler = device.create_sampler(mag_filter="linear", min_filter="linear", mipmap_filter="linear",
-                                    address_mode_u="clamp-to-edge", address_mode_v="clamp-to-edge")
+    sampler = device.create_sampler(
+        mag_filter="linear",
+        min_filter="linear",
+        mipmap_filter="linear",
+        address_mode_u="clamp-to-edge",
+        address_mode_v="clamp-to-edge",
+    )
     pbuf = device.create_buffer_with_data(data=points.tobytes(), usage=wgpu.BufferUsage.STORAGE)
     obuf = device.create_buffer(size=points.nbytes, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
-    pipeline = device.create_compute_pipeline(layout="auto", compute={"module": device.create_shader_module(code=shader), "entry_point": "main"})
-    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
-        {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
-        {"binding": 1, "resource": sampler},
-        {"binding": 2, "resource": {"buffer": pbuf}},
-        {"binding": 3, "resource": {"buffer": obuf}},
-    ])
+    pipeline = device.create_compute_pipeline(
+        layout="auto", compute={"module": device.create_shader_module(code=shader), "entry_point": "main"}
+    )
+    bind = device.create_bind_group(
+        layout=pipeline.get_bind_group_layout(0),
+        entries=[
+            {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
+            {"binding": 1, "resource": sampler},
+            {"binding": 2, "resource": {"buffer": pbuf}},
+            {"binding": 3, "resource": {"buffer": obuf}},
+        ],
+    )
     enc = device.create_command_encoder()
     cp = enc.begin_compute_pass()
     cp.set_pipeline(pipeline)
@@ -87,7 +99,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     u, v = atlas_uv(nl, nv)
     for material_id in (3, 4):  # bilinear slices: the first at its peak's scale, the second at its TOML's 0.5
         sel = ids == material_id
-        (scale, alpha_scale), = next(e for e in result.manifest.materials if e.first_slice == material_id).scale
+        ((scale, alpha_scale),) = next(e for e in result.manifest.materials if e.first_slice == material_id).scale
         assert scale == (0.5 if material_id == 4 else unorm_scale(0.8))
         texels = dequantize_rgba(result.levels[0][material_id], srgb=True)
         expected = bilinear(texels, u[sel], v[sel]) * np.array([scale, scale, scale, alpha_scale])

@@ -110,8 +110,15 @@ def test_the_installed_package_is_imported_not_the_source_tree(installed, workdi
 
 
 def test_bake_library_from_an_empty_folder(baked):
-    assert [p.name for p in sorted(baked.parent.iterdir())] == ["atlas.dds", "atlas.glsl", "atlas.hlsl", "atlas.json",
-                                                              "atlas.separable.bin", "atlas.timings.json", "atlas.wgsl"]
+    assert [p.name for p in sorted(baked.parent.iterdir())] == [
+        "atlas.dds",
+        "atlas.glsl",
+        "atlas.hlsl",
+        "atlas.json",
+        "atlas.separable.bin",
+        "atlas.timings.json",
+        "atlas.wgsl",
+    ]
     assert "MATERIAL_TERRACOTTA" in baked.with_suffix(".wgsl").read_text()
 
 

@@ -21,7 +21,19 @@ LAYERS = ["atlasgen", "optics", "io", "separable", "models", "materials", "bake"
 
 #: Imported inside functions on purpose: each is heavy or optional (a GPU, a Mitsuba build,
 #: a plotting stack), and a LUT-only bake or ``--help`` must not pay for it.
-LAZY_OK = {"mitsuba", "drjit", "wgpu", "matplotlib", "flip_evaluator", "flip", "trimesh", "OpenImageIO", "PIL", "jinja2", "zstandard"}
+LAZY_OK = {
+    "mitsuba",
+    "drjit",
+    "wgpu",
+    "matplotlib",
+    "flip_evaluator",
+    "flip",
+    "trimesh",
+    "OpenImageIO",
+    "PIL",
+    "jinja2",
+    "zstandard",
+}
 
 #: (importing module, imported module) pairs allowed to break the rules above, with why.
 EXCEPTIONS: dict[tuple[str, str], str] = {
@@ -43,7 +55,11 @@ MODULES = dict(_module_files())
 
 def layer_of(module: str) -> int:
     parts = module.split(".")
-    if len(parts) >= 2 and parts[1] in LAYERS and (f"atlasgen.{parts[1]}" in MODULES and MODULES[f"atlasgen.{parts[1]}"].name == "__init__.py"):
+    if (
+        len(parts) >= 2
+        and parts[1] in LAYERS
+        and (f"atlasgen.{parts[1]}" in MODULES and MODULES[f"atlasgen.{parts[1]}"].name == "__init__.py")
+    ):
         return LAYERS.index(parts[1])
     return 0
 
@@ -108,7 +124,7 @@ def test_the_module_level_import_graph_is_acyclic():
         stack.append(m)
         for t in sorted(edges[m]):
             if state.get(t) == 1:
-                cycle = stack[stack.index(t):] + [t]
+                cycle = stack[stack.index(t) :] + [t]
                 pytest.fail("import cycle: " + " -> ".join(cycle))
             if t not in state:
                 visit(t)

@@ -5,9 +5,8 @@ import json
 import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
-from atlasgen.reports.library import write_library_report
 from atlasgen.materials.material import read_materials
-
+from atlasgen.reports.library import write_library_report
 from tests.html_links import PageLinks
 
 
@@ -57,9 +56,19 @@ def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     vdir = tmp_path / "validation"
     vdir.mkdir()
     (vdir / "index.html").write_text("<html></html>")
-    (vdir / "report.json").write_text(json.dumps({"results": [
-        {"material": "clay", "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.00425, "speed_ratio": 3.5}}},
-    ]}))
+    (vdir / "report.json").write_text(
+        json.dumps(
+            {
+                "results": [
+                    {
+                        "material": "clay",
+                        "scene": "front",
+                        "references": {"model": {"psnr_db": 61.25, "flip": 0.00425, "speed_ratio": 3.5}},
+                    },
+                ]
+            }
+        )
+    )
     index = write_library_report(atlas, tmp_path / "report", validation_dir=vdir, physical=False)
     text = index.read_text()
     # One row per reference: PSNR (dB), FLIP, and how many times faster the atlas frame is.
@@ -119,7 +128,10 @@ def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material
     sep = tmp_path / "separable"
     sep.mkdir()
     (sep / "index.md").write_text("# text summary")
-    assert "../separable/index.html" not in PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
+    assert (
+        "../separable/index.html"
+        not in PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
+    )
     (sep / "index.html").write_text("<html></html>")
     links = PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
     assert links == ["../separable/index.html"]
@@ -176,8 +188,8 @@ def test_thin_sheet_and_thin_film_materials_get_pareto_charts(tmp_path, write_ma
     NumPy references and charted; skin (a volume) is named, LUT only, with its reason."""
     from pathlib import Path
 
-    from atlasgen.reports.pareto import library_candidates
     from atlasgen.io.manifest import read_manifest
+    from atlasgen.reports.pareto import library_candidates
 
     shipped = Path(__file__).resolve().parents[1] / "materials"
     for name in ("leaf", "beetle-shell"):

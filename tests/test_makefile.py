@@ -117,7 +117,8 @@ def test_a_changed_material_revalidates_only_itself(tree):
     # combined validation page is merged again, and the library page re-assembled.
     assert sum(" -o build/atlas.dds" in c for c in commands) == 1
     assert commands.index(next(c for c in commands if " -o build/atlas.dds" in c)) < commands.index(
-        next(c for c in commands if "validate materials/snow.toml" in c))
+        next(c for c in commands if "validate materials/snow.toml" in c)
+    )
     assert sum("validate --merge" in c for c in commands) == 1
     assert sum("report library" in c for c in commands) == 1
     assert not any("report separable --merge" in c for c in commands)
@@ -227,7 +228,12 @@ def test_a_material_rebakes_and_rerenders_only_the_scenes_that_use_it(tree):
     _touch(tree / "build" / "cache" / "snow.npz")
     assert _scene_jobs(_commands(tree, "render")) == [("bake", "two"), ("render", "two")]
     _touch(tree / "build" / "cache" / "clay.npz")
-    assert sorted(_scene_jobs(_commands(tree, "render"))) == [("bake", "one"), ("bake", "two"), ("render", "one"), ("render", "two")]
+    assert sorted(_scene_jobs(_commands(tree, "render"))) == [
+        ("bake", "one"),
+        ("bake", "two"),
+        ("render", "one"),
+        ("render", "two"),
+    ]
 
 
 def test_a_changed_scene_rebakes_and_rerenders_only_itself(tree):

@@ -19,7 +19,7 @@ def test_defaults_are_filled_and_hex_colours_decoded(write_material):
     [
         ('type = "lambert"\ncolour = [1, 2', None, "malformed TOML"),
         ('type = "lambertian"\n', "type", "unknown model 'lambertian'; expected one of lambert"),
-        ('colour = [1, 1, 1]\n', "type", "missing"),
+        ("colour = [1, 1, 1]\n", "type", "missing"),
         ('type = "lambert"\ncolor = [1, 1, 1]\n', "color", "unknown key (did you mean 'colour'?)"),
         ('type = "lambert"\ncolour = [nan, 1, 1]\n', "colour", "finite numbers in [0, 1]"),
         ('type = "lambert"\ncolour = [inf, 1, 1]\n', "colour", "finite numbers in [0, 1]"),
@@ -28,8 +28,8 @@ def test_defaults_are_filled_and_hex_colours_decoded(write_material):
         ('type = "lambert"\nid = 256\n', "id", "expected an integer >= 0 and <= 255, got 256"),
         ('type = "lambert"\nid = 1.0\n', "id", "expected an integer >= 0 and <= 255, got 1.0"),
         ('type = "lambert"\nname = "9lives"\n', "name", "expected a letter"),
-        ('type = "lambert"\nrgb_scale = -1\n', "rgb_scale", "expected \"auto\" or a finite number > 0"),
-        ('type = "lambert"\nalpha_scale = nan\n', "alpha_scale", "expected \"auto\" or a finite number > 0"),
+        ('type = "lambert"\nrgb_scale = -1\n', "rgb_scale", 'expected "auto" or a finite number > 0'),
+        ('type = "lambert"\nalpha_scale = nan\n', "alpha_scale", 'expected "auto" or a finite number > 0'),
     ],
 )
 def test_bad_definitions(expect_rejected, text, field, expected):
@@ -57,6 +57,6 @@ def test_missing_path(tmp_path):
 
 def test_not_utf8(tmp_path):
     p = tmp_path / "x.toml"
-    p.write_bytes(b"type = \"lambert\"\n\xff\xfe")
+    p.write_bytes(b'type = "lambert"\n\xff\xfe')
     with pytest.raises(MaterialError, match="expected UTF-8"):
         read_material(p)

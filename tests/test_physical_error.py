@@ -167,7 +167,9 @@ def test_a_lambert_material_is_exact_as_its_model_and_its_analytic_twin(mitsuba_
     result = physical_candidates(lambert, values, bake_supersampled)
     by = {c["representation"]: c for c in result["candidates"]}
     assert by["lut: model closed form (no texels)"]["error"] < 1e-5
-    assert by["analytic:lambert"]["error"] < 1e-5 and by["analytic:lambert"]["cost"] == read_lighting_cost().cost("analytic:lambert")
+    assert by["analytic:lambert"]["error"] < 1e-5 and by["analytic:lambert"]["cost"] == read_lighting_cost().cost(
+        "analytic:lambert"
+    )
     assert 1e-3 < by["lut: model, point-sampled, 8-bit"]["error"] < 1e-2
 
 
@@ -220,8 +222,12 @@ def test_the_sphere_estimate_of_a_transmitting_reference_agrees_with_a_dense_uni
     own = stored_slice(model.bake(values).values[0])
     sphere = weighted_errors(physical.f_cos(dense.l, dense.v), slice_f_cos(own, 0.5, dense.l, dense.v), dense.weight, log=False)
     upper = sample_error_pairs(1_000_000, 7, None)
-    reflection = weighted_errors(physical.f_cos(upper.l, upper.v), slice_f_cos(own, 0.5, upper.l, upper.v), upper.weight, log=False)
-    assert abs(reflection["relative_rms"] - sphere["relative_rms"]) > 3.0 * np.hypot(reflection["relative_rms_se"], sphere["relative_rms_se"])
+    reflection = weighted_errors(
+        physical.f_cos(upper.l, upper.v), slice_f_cos(own, 0.5, upper.l, upper.v), upper.weight, log=False
+    )
+    assert abs(reflection["relative_rms"] - sphere["relative_rms"]) > 3.0 * np.hypot(
+        reflection["relative_rms_se"], sphere["relative_rms_se"]
+    )
 
 
 def test_skin_says_plainly_it_is_lut_only():

@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from atlasgen.errors import MaterialError
 from atlasgen.bake.slots import assign_slices
+from atlasgen.errors import MaterialError
 
 
 def req(name, count=1, explicit=None):
@@ -39,8 +39,9 @@ def test_allocation_never_overlaps_and_respects_previous(counts, rnd):
     used = [s for n, c in zip(names, counts) for s in range(first[n], first[n] + c)]
     assert len(used) == len(set(used)) and max(used) < 256
     keep = rnd.sample(names, k=len(names) // 2)
-    again = assign_slices([req(n, c) for n, c in zip(names, counts) if n in keep] + [req("new", 2)],
-                          previous={n: first[n] for n in names})
+    again = assign_slices(
+        [req(n, c) for n, c in zip(names, counts) if n in keep] + [req("new", 2)], previous={n: first[n] for n in names}
+    )
     assert all(again[n] == first[n] for n in keep)
 
 

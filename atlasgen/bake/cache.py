@@ -6,19 +6,29 @@ import functools
 import hashlib
 import io
 import json
+import os
+import time
 from pathlib import Path
 
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.contract import HEIGHT, WIDTH
-from atlasgen.models.base import SliceSet
-from atlasgen.io.atomic import write_file_atomically
-import time
 from atlasgen.bake.adaptive import bake_material
-import os
+from atlasgen.contract import HEIGHT, WIDTH
+from atlasgen.io.atomic import write_file_atomically
+from atlasgen.models.base import SliceSet
 
-__all__ = ["bake_relevant_files", "tool_fingerprint", "cache_key", "cache_path", "load_cached", "store_cached", "load_or_bake", "fill_cache", "BAKE_RELEVANT"]
+__all__ = [
+    "bake_relevant_files",
+    "tool_fingerprint",
+    "cache_key",
+    "cache_path",
+    "load_cached",
+    "store_cached",
+    "load_or_bake",
+    "fill_cache",
+    "BAKE_RELEVANT",
+]
 
 _PACKAGE = Path(__file__).resolve().parents[1]
 #: Code whose change can change a material's float slices: every layer below ``bake/`` (the

@@ -9,12 +9,25 @@ import numpy as np
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
 from atlasgen.io.manifest import Manifest
-from atlasgen.optics.specular import specular_declarations
-from atlasgen.shaderlang import LANGUAGES, Array, Assign, Comment, Const, Function, If, Let, Return, Switch, Var, emit, float_literal
 from atlasgen.models import get_model
+from atlasgen.optics.specular import specular_declarations
+from atlasgen.shaderlang import (
+    LANGUAGES,
+    Array,
+    Assign,
+    Comment,
+    Const,
+    Function,
+    If,
+    Let,
+    Return,
+    Switch,
+    Var,
+    emit,
+    float_literal,
+)
 
-__all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "stamp_include",
-           "MaterialFlag"]
+__all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "stamp_include", "MaterialFlag"]
 
 
 class MaterialFlag(enum.IntFlag):

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from atlasgen.bake.cache import cache_path
 from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_paths
 from atlasgen.errors import OutputError
 from atlasgen.io.output_paths import check_output_paths, check_suffix
-from atlasgen.bake.cache import cache_path
 from atlasgen.materials.scene import read_scene
 
 __all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
-
 
 
 def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,

@@ -12,26 +12,40 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
-from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
-from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
-from atlasgen.io.ktx2 import VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM, SUPERCOMPRESSION_NONE, SUPERCOMPRESSION_ZSTD, describe_ktx2, encode_ktx2
-from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
-from atlasgen.errors import MaterialError, OutputError
-from atlasgen.io.output_paths import check_suffix
-from atlasgen.bake.mips import build_array_mips, build_volume_mips
-from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
-from atlasgen.bake.slots import assign_slices
-from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.bake.cache import load_or_bake
-from atlasgen.bake.include import render_include_data, render_includes
-from atlasgen.io.atomic import write_files_atomically
+from atlasgen.bake.include import render_include_data, render_includes, stamp_include
+from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
-from atlasgen.bake.include import stamp_include
+from atlasgen.bake.slots import assign_slices
+from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
+from atlasgen.errors import MaterialError, OutputError
+from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
+from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
+from atlasgen.io.fields import FLOAT32_MAX
+from atlasgen.io.ktx2 import (
+    SUPERCOMPRESSION_NONE,
+    SUPERCOMPRESSION_ZSTD,
+    VK_FORMAT_R8G8B8A8_SRGB,
+    VK_FORMAT_R8G8B8A8_UNORM,
+    describe_ktx2,
+    encode_ktx2,
+)
+from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
+from atlasgen.io.output_paths import check_suffix
 from atlasgen.io.sidecar import stamp_sidecar
+from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 
-__all__ = ["BakeResult", "bake_atlas", "read_previous_slots", "sibling_paths", "write_bake", "encode_atlas_texture",
-           "pair_outputs", "relative_source"]
+__all__ = [
+    "BakeResult",
+    "bake_atlas",
+    "read_previous_slots",
+    "sibling_paths",
+    "write_bake",
+    "encode_atlas_texture",
+    "pair_outputs",
+    "relative_source",
+]
 
 
 @dataclass
@@ -53,7 +67,9 @@ class BakeResult:
     def describe(self, dds_path, zstd: bool = False) -> str:
         """The texconv-style line for this atlas written to ``dds_path`` (``.dds`` or ``.ktx2``)."""
         if Path(dds_path).suffix.lower() == ".ktx2":
-            vk_format = VK_FORMAT_R8G8B8A8_SRGB if self.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB else VK_FORMAT_R8G8B8A8_UNORM
+            vk_format = (
+                VK_FORMAT_R8G8B8A8_SRGB if self.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB else VK_FORMAT_R8G8B8A8_UNORM
+            )
             scheme = SUPERCOMPRESSION_ZSTD if zstd else SUPERCOMPRESSION_NONE
             return describe_ktx2(dds_path, WIDTH, HEIGHT, LAYERS, len(self.levels), vk_format, self.layout, scheme)
         return describe_texture(dds_path, WIDTH, HEIGHT, LAYERS, len(self.levels), self.dxgi_format, self.layout)
@@ -141,14 +157,16 @@ def _check_encoded(material, encoded) -> None:
         array = np.asarray(value, dtype=np.float64)
         if not (np.isfinite(array).all() and (np.abs(array) <= FLOAT32_MAX).all()):
             raise MaterialError(
-                material.source, None,
+                material.source,
+                None,
                 f"material {material.name!r}: model '{material.type}' produced a slice {what} that float32 cannot hold; "
                 "expected texels within float32's range (check its parameters)",
             )
 
 
-def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None,
-               cache_dir=None) -> BakeResult:
+def bake_atlas(
+    materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None, cache_dir=None
+) -> BakeResult:
     """Bake validated materials into an RGBA8 atlas.
 
     Parameters
@@ -181,11 +199,14 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
         (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
-            raise MaterialError(material.source, "type", f"model produced slices of shape {values.shape}; expected (n, {HEIGHT}, {WIDTH}, 4)")
+            raise MaterialError(
+                material.source, "type", f"model produced slices of shape {values.shape}; expected (n, {HEIGHT}, {WIDTH}, 4)"
+            )
         bad = ~np.isfinite(values)
         if bad.any():
             raise MaterialError(
-                material.source, None,
+                material.source,
+                None,
                 f"material {material.name!r}: model '{material.type}' produced {int(bad.sum())} non-finite texels; "
                 "expected finite values (check its parameters)",
             )
@@ -285,13 +306,13 @@ def bake_atlas(materials, layout: str = "array", linear: bool = False, previous_
             "sample level 0 only, or use --layout array"
         )
 
-
     includes = render_includes(manifest, scales, biases)
     include = includes.pop("wgsl")
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
     timings["total_s"] = time.perf_counter() - t_start
-    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes,
-                      render_include_data(manifest))
+    return BakeResult(
+        levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, render_include_data(manifest)
+    )
 
 
 def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:
@@ -328,8 +349,9 @@ def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[b
     return encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd), manifest, manifest_bytes
 
 
-def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = False, languages=("wgsl", "glsl", "hlsl"),
-               extra_files=None) -> dict:
+def write_bake(
+    result: BakeResult, dds_path, preview_path=None, zstd: bool = False, languages=("wgsl", "glsl", "hlsl"), extra_files=None
+) -> dict:
     """Write the atlas (DDS or KTX2, by suffix), manifest, the include in each of ``languages``,
     the separable side-car, timings (and preview) all-or-nothing; return the paths written.
 
@@ -354,7 +376,9 @@ def write_bake(result: BakeResult, dds_path, preview_path=None, zstd: bool = Fal
     contents = {
         paths["dds"]: texture,
         paths["manifest"]: manifest_bytes,
-        **{paths[key]: stamp_include(texts[key], manifest_sha256).encode() for key in ("include", "glsl", "hlsl") if key in paths},
+        **{
+            paths[key]: stamp_include(texts[key], manifest_sha256).encode() for key in ("include", "glsl", "hlsl") if key in paths
+        },
         paths["timings"]: (json.dumps(result.timings, indent=2) + "\n").encode(),
     }
     if result.separable_data:

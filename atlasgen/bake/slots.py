@@ -73,13 +73,14 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
             elif taken and owner[taken[0]] in explicit_names:
                 other = owner[taken[0]]
                 raise MaterialError(
-                    sources[other], "id",
+                    sources[other],
+                    "id",
                     f"explicit id takes slice {taken[0]}, which the previous manifest gives to {name!r} ({src}); "
                     "expected a free slice (or delete the old manifest to re-number)",
                 )
     # A material whose multi-slice run grew past its old place moves to the lowest free run.
     lowest_free = 0
-    for name, count, explicit, src in requests:
+    for name, count, _explicit, src in requests:
         if name in first:
             continue
         while lowest_free in owner:

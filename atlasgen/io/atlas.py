@@ -16,19 +16,30 @@ import hashlib
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH
+from atlasgen.errors import InputError, ManifestError
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
-from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
 from atlasgen.io.text import read_input_text
-from atlasgen.errors import InputError, ManifestError
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Atlas", "read_atlas", "check_include", "include_manifest_sha256", "texel_sha256", "KTX2_MANIFEST_KEY", "summarize_atlas", "describe_atlas",
-           "INCLUDE_HASH_PREFIX", "RERUN"]
+__all__ = [
+    "Atlas",
+    "read_atlas",
+    "check_include",
+    "include_manifest_sha256",
+    "texel_sha256",
+    "KTX2_MANIFEST_KEY",
+    "summarize_atlas",
+    "describe_atlas",
+    "INCLUDE_HASH_PREFIX",
+    "RERUN",
+]
 
 #: The first line of every include: this, then the SHA-256 (hex) of the manifest written with it.
 INCLUDE_HASH_PREFIX = "// atlasgen manifest sha256: "
@@ -142,28 +153,34 @@ def _check_pair(path: Path, image, manifest_path: Path, manifest: Manifest, mani
         raise InputError(f"{shown_manifest}: field {key!r}: {problem}; {RERUN}")
 
     dims = manifest.dimensions
-    for key, claimed, contract in (("width", dims.width, WIDTH), ("height", dims.height, HEIGHT), ("layers", dims.layers, LAYERS)):
+    for key, claimed, contract in (
+        ("width", dims.width, WIDTH),
+        ("height", dims.height, HEIGHT),
+        ("layers", dims.layers, LAYERS),
+    ):
         if claimed != contract:
             refuse(f"dimensions.{key}", f"expected the atlas contract's {contract}, got {claimed}")
-    claims = [("dimensions.width", dims.width, image.width), ("dimensions.height", dims.height, image.height),
+    claims: list[tuple[str, object, object]] = [("dimensions.width", dims.width, image.width), ("dimensions.height", dims.height, image.height),
               ("dimensions.layers", dims.layers, image.layers), ("dimensions.mip_count", dims.mip_count, image.mip_count),
               ("layout", manifest.layout, image.layout),
               ("encoding", manifest.encoding, "srgb" if image.dxgi_format == 29 else "linear")]  # fmt: skip
-    for key, claimed, actual in claims:
-        if claimed != actual:
-            refuse(key, f"says {claimed}, but {shown} has {actual} (the two are from different bakes)")
+    for key, said, actual in claims:
+        if said != actual:
+            refuse(key, f"says {said}, but {shown} has {actual} (the two are from different bakes)")
     if manifest.atlas_sha256 != texel_sha256(image.levels):
         refuse("atlas_sha256", f"does not match {shown} (the two are from different bakes)")
     recorded = getattr(image, "key_values", {}).get(KTX2_MANIFEST_KEY)
     if recorded is not None and recorded.rstrip(b"\0").decode("ascii", "replace") != manifest_sha256:
-        raise InputError(f"{shown}: KTX2 key {KTX2_MANIFEST_KEY!r}: does not match {shown_manifest} "
-                         f"(the two are from different bakes); {RERUN}")
+        raise InputError(
+            f"{shown}: KTX2 key {KTX2_MANIFEST_KEY!r}: does not match {shown_manifest} "
+            f"(the two are from different bakes); {RERUN}"
+        )
 
 
 def include_manifest_sha256(text: str) -> str | None:
     """The manifest SHA-256 an include's first line records (``// atlasgen manifest sha256: ...``), or ``None``."""
     first = text.split("\n", 1)[0].strip()
-    return first[len(INCLUDE_HASH_PREFIX):].strip() if first.startswith(INCLUDE_HASH_PREFIX.strip()) else None
+    return first[len(INCLUDE_HASH_PREFIX) :].strip() if first.startswith(INCLUDE_HASH_PREFIX.strip()) else None
 
 
 def check_include(atlas: Atlas, include_path, text: str) -> None:
@@ -190,8 +207,9 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
     atlas = read_atlas(path)
     img = atlas.image
     if isinstance(img, KTX2Image):
-        first = describe_ktx2(path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout,
-                              img.supercompression)
+        first = describe_ktx2(
+            path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout, img.supercompression
+        )
         fmt_code = f"vkFormat {img.vk_format}"
         supercompressed = f", {img.supercompression_name} supercompressed" if img.supercompression_name != "none" else ""
     else:
@@ -207,8 +225,10 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
     lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, {len(manifest.materials)} materials, "
                  f"{manifest.slices_used} slices used")  # fmt: skip
     for e in manifest.materials:
-        lines.append(f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
-                     f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}")
+        lines.append(
+            f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
+            f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}"
+        )
         if verbose:
             lines.append(f"         {e.description or '(no description)'}; from {atlas.source_path(e).as_posix()}")
     return "\n".join(lines)
@@ -219,7 +239,7 @@ def summarize_atlas(path) -> dict:
     (``atlasgen/schemas/info.schema.json``)."""
     atlas = read_atlas(path)
     img = atlas.image
-    out = {
+    out: dict[str, Any] = {
         "line": describe_dds(img, path) if isinstance(img, DDSImage) else describe_ktx2(
             path, img.width, img.height, img.layers, img.mip_count, img.vk_format, img.layout, img.supercompression),
         "header": {

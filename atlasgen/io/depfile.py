@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+
 from atlasgen.io.atomic import write_file_atomically
 
 __all__ = ["format_depfile", "write_depfile"]

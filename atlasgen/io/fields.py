@@ -19,7 +19,17 @@ import numpy as np
 from atlasgen.errors import FieldError, MaterialError, did_you_mean
 from atlasgen.optics.quantize import dequantize_rgba
 
-__all__ = ["Param", "check_keys", "validate_params", "parse_colour", "FLOAT32_MAX", "INT32_MAX", "fits_float32", "to_float32", "shown"]
+__all__ = [
+    "Param",
+    "check_keys",
+    "validate_params",
+    "parse_colour",
+    "FLOAT32_MAX",
+    "INT32_MAX",
+    "fits_float32",
+    "to_float32",
+    "shown",
+]
 
 #: The largest finite float32, 3.4028235e38 (IEEE 754 binary32).
 FLOAT32_MAX = struct.unpack("<f", b"\xff\xff\x7f\x7f")[0]

@@ -72,7 +72,9 @@ def encode_exr(pixels: np.ndarray, channel_names=("R", "G", "B")) -> bytes:
     """OpenEXR bytes of ``(h, w, c)`` pixels as float32, ZIP-compressed, with the given channel names."""
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim != 3 or pixels.shape[2] != len(channel_names):
-        raise ValueError(f"expected pixels shaped (h, w, {len(channel_names)}) for channels {tuple(channel_names)}, got {pixels.shape}")
+        raise ValueError(
+            f"expected pixels shaped (h, w, {len(channel_names)}) for channels {tuple(channel_names)}, got {pixels.shape}"
+        )
     return _encode(pixels, "float", ".exr", channel_names)
 
 

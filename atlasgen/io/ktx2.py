@@ -295,8 +295,12 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
     if face_count != 1:
         raise _field_error(path, "faceCount", f"{face_count}; expected 1 (no cubemaps)")
     if width == 0 or height == 0 or (depth == 0) == (layer_count == 0):
-        raise _field_error(path, "pixelDepth", f"{width}x{height}x{depth} with layerCount {layer_count}; "
-                           "expected a 2D array (pixelDepth 0, layerCount > 0) or a 3D texture (the reverse)")
+        raise _field_error(
+            path,
+            "pixelDepth",
+            f"{width}x{height}x{depth} with layerCount {layer_count}; "
+            "expected a 2D array (pixelDepth 0, layerCount > 0) or a 3D texture (the reverse)",
+        )
     volume = depth > 0
     max_levels = max(width, height, depth).bit_length()  # floor(log2(max)) + 1
     mip_count = max(1, level_count)
@@ -325,8 +329,12 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
         name = f"levels[{k}]"
         total += expected
         if total > MAX_UNCOMPRESSED_BYTES:
-            raise _field_error(path, "layerCount", f"{width}x{height}x{depth} with {layer_count} layers and "
-                                   f"{mip_count} levels exceeds the {MAX_UNCOMPRESSED_BYTES}-byte limit")
+            raise _field_error(
+                path,
+                "layerCount",
+                f"{width}x{height}x{depth} with {layer_count} layers and "
+                f"{mip_count} levels exceeds the {MAX_UNCOMPRESSED_BYTES}-byte limit",
+            )
         if uncompressed != expected:
             raise _field_error(path, f"{name}.uncompressedByteLength", f"{uncompressed}; expected {expected} for {shape}")
         _check_span(path, f"{name}.byteLength", offset, length, size)

@@ -26,6 +26,7 @@ import math
 import re
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
+from typing import Literal, TypeGuard, overload
 
 from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, MAPPING, SPECULAR_LOBE
@@ -81,7 +82,7 @@ def _describe(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _is_int(value) -> bool:
+def _is_int(value) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
@@ -144,7 +145,11 @@ class _Fields:
         return self.take(key, "true or false", lambda v: isinstance(v, bool), optional, nullable)
 
     def mapping(self, key, optional=False, values=None, expected="an object"):
-        ok = (lambda v: isinstance(v, dict)) if values is None else (lambda v: isinstance(v, dict) and all(values(x) for x in v.values()))
+        ok = (
+            (lambda v: isinstance(v, dict))
+            if values is None
+            else (lambda v: isinstance(v, dict) and all(values(x) for x in v.values()))
+        )
         return self.take(key, expected, ok, optional)
 
     def array(self, key, expected="a list", item=None, length=None, optional=False):
@@ -155,7 +160,11 @@ class _Fields:
                 self.fail(f"{key}[{i}]", item[1], x)
         return value
 
-    def child(self, key, optional=False) -> "_Fields | None":
+    @overload
+    def child(self, key: str, optional: Literal[False] = False) -> _Fields: ...
+    @overload
+    def child(self, key: str, optional: bool) -> _Fields | None: ...
+    def child(self, key, optional=False):
         if key not in self.data and optional:
             return None
         self.take(key, "an object", lambda v: isinstance(v, dict))
@@ -207,7 +216,7 @@ class Dimensions(_Record):
     mip_count: int
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "Dimensions":
+    def from_json(cls, f: _Fields) -> Dimensions:
         return cls(width=f.integer("width", 1), height=f.integer("height", 1), layers=f.integer("layers", 1),
                    mip_count=f.integer("mip_count", 1))  # fmt: skip
 
@@ -220,7 +229,7 @@ class ErrorSummary(_Record):
     rms: float
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "ErrorSummary":
+    def from_json(cls, f: _Fields) -> ErrorSummary:
         return cls(max=f.number("max", minimum=0), rms=f.number("rms", minimum=0))
 
 
@@ -233,7 +242,7 @@ class VolumeBleed(_Record):
     rms: float
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "VolumeBleed":
+    def from_json(cls, f: _Fields) -> VolumeBleed:
         return cls(level=f.integer("level", 1), max=f.number("max", minimum=0), rms=f.number("rms", minimum=0))
 
 
@@ -249,7 +258,7 @@ class BrdfError(_Record):
     log_error_se: float | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "BrdfError":
+    def from_json(cls, f: _Fields) -> BrdfError:
         return cls(relative_rms=f.number("relative_rms"), relative_rms_se=f.number("relative_rms_se", optional=True, minimum=0),
                    log_error=f.number("log_error"), log_error_se=f.number("log_error_se", optional=True, minimum=0))  # fmt: skip
 
@@ -287,7 +296,7 @@ class SeparableErrors(_Record):
     grid_by_terms: dict  # target -> [relative RMS on the sampling grid, K = 1, 2, ...]
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "SeparableErrors":
+    def from_json(cls, f: _Fields) -> SeparableErrors:
         curves = "an object of lists of {terms, relative_rms, ...} per target"
         return cls(
             estimator=f.string("estimator", optional=True),
@@ -300,7 +309,9 @@ class SeparableErrors(_Record):
             float_error=BrdfError.from_json(f.child("float")),
             float_by_terms=f.mapping("float_by_terms", values=_lists_of_objects, expected=curves),
             estimated_8bit_srgb_by_terms=f.mapping("estimated_8bit_srgb_by_terms", values=_lists_of_objects, expected=curves),
-            grid_by_terms=f.mapping("grid_by_terms", values=_lists_of_numbers, expected="an object of lists of numbers per target"),
+            grid_by_terms=f.mapping(
+                "grid_by_terms", values=_lists_of_numbers, expected="an object of lists of numbers per target"
+            ),
         )
 
 
@@ -323,7 +334,7 @@ class SeparableTransmission(_Record):
     errors_8bit_sphere: BrdfError | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
-    def from_json(cls, f: _Fields, slice_count: int) -> "SeparableTransmission":
+    def from_json(cls, f: _Fields, slice_count: int) -> SeparableTransmission:
         offset = f.take("slice", f"{slice_count - 1} (the entry's last slice, after its terms)",
                         lambda v: _is_int(v) and slice_count >= 2 and v == slice_count - 1)  # fmt: skip
         errors = f.child("errors_8bit_sphere", optional=True)
@@ -387,9 +398,9 @@ class SeparableFactors(_Record):
         return len(self.factor_scale)
 
     @classmethod
-    def from_json(cls, f: _Fields, slice_count: int) -> "SeparableFactors":
-        transmission = f.child("transmission", optional=True)
-        transmission = None if transmission is None else SeparableTransmission.from_json(transmission, slice_count)
+    def from_json(cls, f: _Fields, slice_count: int) -> SeparableFactors:
+        found = f.child("transmission", optional=True)
+        transmission = None if found is None else SeparableTransmission.from_json(found, slice_count)
         terms = slice_count - (transmission is not None)
         table = f"a list of {terms} (one per term)"
         cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values")
@@ -433,7 +444,7 @@ class LutRepresentation(_Record):
     auto: dict | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "LutRepresentation":
+    def from_json(cls, f: _Fields) -> LutRepresentation:
         return cls(kind=f.string("kind"), supersampling=f.integer("supersampling", 1),
                    error_budget=f.number("error_budget"), reconstruction_error=f.number("reconstruction_error"),
                    meets_budget=f.boolean("meets_budget"), candidates=f.array("candidates", "a list of objects", _OBJECT),
@@ -457,14 +468,13 @@ class SeparableRepresentation(_Record):
     auto: dict | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "SeparableRepresentation":
+    def from_json(cls, f: _Fields) -> SeparableRepresentation:
         return cls(kind=f.string("kind"), terms=f.integer("terms", 1), sampling_grid=f.integer("sampling_grid", 1),
                    target=f.string("target"), error_budget=f.number("error_budget", nullable=True),
                    estimated_error_8bit=f.number("estimated_error_8bit"),
                    estimated_error_8bit_se=f.number("estimated_error_8bit_se", optional=True, minimum=0), meets_budget=f.boolean("meets_budget", nullable=True),
                    candidates=f.array("candidates", "a list of objects", _OBJECT),
                    auto=f.mapping("auto", optional=True))  # fmt: skip
-
 
 
 @dataclass(kw_only=True)
@@ -490,7 +500,7 @@ class AnalyticRepresentation(_Record):
     auto: dict | None = field(default=None, metadata=_OPTIONAL)
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "AnalyticRepresentation":
+    def from_json(cls, f: _Fields) -> AnalyticRepresentation:
         return cls(kind=f.string("kind"), distribution=f.nonempty("distribution"), alpha=f.number("alpha"),
                    fresnel=f.nonempty("fresnel"), f0=_rgb(f, "f0"),
                    ior=f.number("ior"), specular=_rgb(f, "specular"), diffuse=_rgb(f, "diffuse"),
@@ -498,8 +508,9 @@ class AnalyticRepresentation(_Record):
 
 
 def _rgb(f: _Fields, key: str) -> list:
-    return f.take(key, "an RGB triple of finite numbers",
-                  lambda v: isinstance(v, list) and len(v) == 3 and all(_is_finite(x) for x in v))
+    return f.take(
+        key, "an RGB triple of finite numbers", lambda v: isinstance(v, list) and len(v) == 3 and all(_is_finite(x) for x in v)
+    )
 
 
 @dataclass(kw_only=True)
@@ -524,7 +535,7 @@ class Fit:
         return out
 
     @classmethod
-    def from_json(cls, f: _Fields) -> "Fit":
+    def from_json(cls, f: _Fields) -> Fit:
         return cls(source=f.string("from", choices=("physical", "bsdf", "auto")),
                    gloss=f.take("gloss", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
                    details=dict(f.data))  # fmt: skip
@@ -617,7 +628,7 @@ class MaterialEntry:
         return out
 
     @classmethod
-    def from_json(cls, data, shown: str = "<manifest>", where: str = "") -> "MaterialEntry":
+    def from_json(cls, data, shown: str = "<manifest>", where: str = "") -> MaterialEntry:
         """Parse one entry; :class:`ManifestError` names ``shown`` and the field (``where.key``)."""
         f = _Fields(shown, where, data)
         slice_count = f.integer("slice_count", 1)
@@ -653,7 +664,7 @@ class MaterialEntry:
             extra={k: v for k, v in data.items() if k not in known},
         )
 
-    def with_fields(self, model_fields: dict, shown: str = "<manifest>") -> "MaterialEntry":
+    def with_fields(self, model_fields: dict, shown: str = "<manifest>") -> MaterialEntry:
         """This entry with ``model_fields`` (a model's manifest fields, JSON values) merged in
         and parsed into the typed parts; a key naming a common field replaces it in place.
 
@@ -711,7 +722,7 @@ class Manifest(_Record):
         return next((m for m in self.materials if index in m.slices), None)
 
     @classmethod
-    def from_json(cls, data, shown: str = "<manifest>") -> "Manifest":
+    def from_json(cls, data, shown: str = "<manifest>") -> Manifest:
         """Check and parse a manifest's JSON value; :class:`ManifestError` on the first fault.
 
         The format version is checked first: another version may be laid out differently,
@@ -740,7 +751,11 @@ class Manifest(_Record):
         lobe = f.mapping("specular_lobe", values=lambda v: isinstance(v, str), expected="an object of strings")
         if lobe.get("name") != SPECULAR_LOBE["name"]:
             # A was made for one lobe; shading it with another gives other materials.
-            f.fail("specular_lobe.name", f"{SPECULAR_LOBE['name']!r} (the lobe this atlasgen renders with)", lobe.get("name", _MISSING))
+            f.fail(
+                "specular_lobe.name",
+                f"{SPECULAR_LOBE['name']!r} (the lobe this atlasgen renders with)",
+                lobe.get("name", _MISSING),
+            )
         bleed = f.array("volume_bleed", "a list of {level, max, rms} objects", optional=True)
         return cls(
             format_version=version,
@@ -816,7 +831,7 @@ def read_slots(path) -> dict[str, int]:
     materials = data.get("materials") if isinstance(data, dict) else None
     if not isinstance(materials, list):
         raise ManifestError(shown, "materials", f"expected a list of materials, got {_describe(materials)}")
-    slots = {}
+    slots: dict[str, int] = {}
     for i, entry in enumerate(materials):
         name = entry.get("name") if isinstance(entry, dict) else None
         first = entry.get("first_slice") if isinstance(entry, dict) else None

@@ -8,14 +8,22 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from atlasgen.errors import InputError, MaterialError, did_you_mean
-from atlasgen.io.fields import Param, shown as short, validate_params
-from atlasgen.models import get_model, model_types
-from atlasgen.errors import SceneError
+from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
+from atlasgen.io.fields import Param, validate_params
+from atlasgen.io.fields import shown as short
 from atlasgen.materials.scene import read_scene
-from atlasgen.models.physical_fit import check_physical_fit, FIT_GLOSS
+from atlasgen.models import get_model, model_types
+from atlasgen.models.physical_fit import FIT_GLOSS, check_physical_fit
 
-__all__ = ["Material", "read_material", "read_materials", "find_material_files", "check_unique_names", "select_scene_materials", "COMMON_KEYS"]
+__all__ = [
+    "Material",
+    "read_material",
+    "read_materials",
+    "find_material_files",
+    "check_unique_names",
+    "select_scene_materials",
+    "COMMON_KEYS",
+]
 
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
@@ -130,11 +138,15 @@ def read_material(path) -> Material:
         raise MaterialError(shown, "from", f"expected one of {', '.join(repr(s) for s in FIT_SOURCES)}, got {short(fit_from)}")
     if fit_from == "physical":
         if error_budget is not None:
-            raise MaterialError(shown, "error_budget", "expected no error budget with from = 'physical' (a fitted slice has no supersampling)")
+            raise MaterialError(
+                shown, "error_budget", "expected no error budget with from = 'physical' (a fitted slice has no supersampling)"
+            )
         check_physical_fit(model, params, shown)
         fit_gloss = float(_FIT_GLOSS.coerce(raw.get("fit_gloss", FIT_GLOSS), shown))
     elif "fit_gloss" in raw:
-        raise MaterialError(shown, "fit_gloss", "expected no fit_gloss without from = 'physical' (it is the gloss a physical fit is made for)")
+        raise MaterialError(
+            shown, "fit_gloss", "expected no fit_gloss without from = 'physical' (it is the gloss a physical fit is made for)"
+        )
     else:
         fit_gloss = None
     return Material(
@@ -200,6 +212,9 @@ def select_scene_materials(materials: list[Material], scene_path) -> list[Materi
     for index, obj in enumerate(scene.objects):
         if obj.material not in by_name:
             known = ", ".join(sorted(by_name)) or "none"
-            raise SceneError(Path(scene_path).as_posix(), f"objects[{index}].material",
-                             f"unknown material {obj.material!r}{did_you_mean(obj.material, by_name)}; known: {known}")
+            raise SceneError(
+                Path(scene_path).as_posix(),
+                f"objects[{index}].material",
+                f"unknown material {obj.material!r}{did_you_mean(obj.material, by_name)}; known: {known}",
+            )
     return [m for m in materials if m.name in wanted]

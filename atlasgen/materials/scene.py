@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import SceneError, did_you_mean
+from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
-from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 
 __all__ = [
     "Camera",
@@ -273,8 +273,9 @@ def parse_scene(data: dict, path="<scene>", base=None) -> Scene:
         mip_distance=r.number(rs, "mip_distance", "render.mip_distance", default=10.0, lo=0.0, lo_open=True),
         outline_colour=r.vec3(rs, "outline_colour", "render.outline_colour", default=(0.0, 0.0, 0.0), lo=0.0),
         outline_depth=r.number(rs, "outline_depth", "render.outline_depth", default=0.05, lo=0.0, lo_open=True),
-        outline_normal_degrees=r.number(rs, "outline_normal_degrees", "render.outline_normal_degrees",
-                                        default=35.0, lo=0.0, hi=180.0, lo_open=True),  # fmt: skip
+        outline_normal_degrees=r.number(
+            rs, "outline_normal_degrees", "render.outline_normal_degrees", default=35.0, lo=0.0, hi=180.0, lo_open=True
+        ),  # fmt: skip
         exposure=r.number(rs, "exposure", "render.exposure", default=1.0, lo=0.0, lo_open=True),
     )
     lights_raw = data.get("lights", [])

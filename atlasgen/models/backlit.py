@@ -118,7 +118,6 @@ def thin_sheet_f_cos(wi, wo, reflectance, transmittance, specular: float, alpha:
     return np.where((ci > 0.0)[:, None], value, 0.0)
 
 
-
 class Backlit(Model):
     """A thin, semi-transparent surface: diffuse in front, transmitted light from behind.
 
@@ -156,7 +155,7 @@ class Backlit(Model):
 
     physical_omissions = {
         "view": "how the model reduces its lobe's azimuth to (N.L, N.V); the sheet transmits diffusely, "
-                "with no azimuth, and takes the lobe's energy (transmitted_albedo), the same in both modes",
+        "with no azimuth, and takes the lobe's energy (transmitted_albedo), the same in both modes",
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
@@ -202,4 +201,3 @@ class Backlit(Model):
         """
         physical = self.physical_f_cos(values, gloss)
         return fit_to_reference(self, values, physical.f_cos, physical.description, gloss)
-

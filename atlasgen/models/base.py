@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.io.atlas import read_atlas
-from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.io.fields import Param
+from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import unorm_scale
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos

@@ -13,9 +13,9 @@ import numpy as np
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference, SliceSet
+from atlasgen.models.physical_fit import fitted_bsdf_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
-from atlasgen.models.physical_fit import fitted_bsdf_slice
 
 __all__ = ["Bsdf"]
 
@@ -37,13 +37,13 @@ class Bsdf(Model):
         "gloss": "the renderer gloss the slice is fitted for; the physical reference is the BSDF itself, with its own roughness",
     }
     params = (
-        Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict, e.g. {type = \"roughplastic\", alpha = 0.2}"),
+        Param("bsdf", None, "table", doc='a Mitsuba 3 BSDF dict, e.g. {type = "roughplastic", alpha = 0.2}'),
         Param("gloss", None, "float", lo=0.0, hi=1.0, doc="renderer gloss the slice is fitted for (default: the best fit)"),
     )
 
     def check(self, values: dict, path) -> None:
         if values["bsdf"] is None:
-            raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughplastic\"}")
+            raise MaterialError(path, "bsdf", 'missing; expected a Mitsuba BSDF table, e.g. {type = "roughplastic"}')
 
         load_mitsuba_bsdf(values["bsdf"], path)
 

@@ -53,19 +53,27 @@ class Fresnel(Model):
     reference = "Fresnel formulae (Born & Wolf, Principles of Optics, section 1.5.2); Schlick 1994"
     params = (
         Param("colour", (0.5, 0.5, 0.5), "colour", doc="diffuse colour under the coat, linear"),
-        Param("fresnel", "exact", "choice", choices=("exact", "schlick"), doc="exact dielectric Fresnel or Schlick's approximation"),
+        Param(
+            "fresnel", "exact", "choice", choices=("exact", "schlick"), doc="exact dielectric Fresnel or Schlick's approximation"
+        ),
         Param("ior", 1.5, lo=1.01, hi=4.0, doc="refractive index of the coat (from air)"),
         Param("specular", 1.0, lo=0.0, hi=16.0, doc="multiplier on A"),
         Param("normalise", False, "bool", doc="A = F (false) or A = F/F0 (true)"),
-        Param("energy", "coupled", "choice", choices=("coupled", "none"), doc="diffuse weighted by (1-F(N.L))(1-F(N.V))/(1-F_avg), or not"),
+        Param(
+            "energy",
+            "coupled",
+            "choice",
+            choices=("coupled", "none"),
+            doc="diffuse weighted by (1-F(N.L))(1-F(N.V))/(1-F_avg), or not",
+        ),
     )
 
     physical_omissions = {
         "fresnel": "Schlick's approximation stands in for the exact Fresnel equations, which the reference uses",
         "normalise": "an encoding for engines whose specular term already carries F0 (A = F/F0); the physical "
-                     "highlight is F, and the report measures the 1/F0 gap",
+        "highlight is F, and the report measures the 1/F0 gap",
         "energy": "a physical coat always couples its diffuse base to what it reflects: the reference is "
-                  "roughplastic's coupled diffuse term whatever the setting",
+        "roughplastic's coupled diffuse term whatever the setting",
     }
 
     @staticmethod

@@ -18,9 +18,18 @@ from atlasgen.io.fields import Param
 from atlasgen.models.backlit import VIEW_MODES, translucency
 from atlasgen.models.base import THIN_FILM_REFERENCE, Model, PhysicalFCos, Reference, SliceSet
 from atlasgen.models.physical_fit import fit_to_reference
-from atlasgen.optics.film import (MAX_PHASE_STEP, MIN_SAMPLES, VISIBLE_NM, XYZ_TO_LINEAR_SRGB, cie_xyz_cmfs,
-                                  film_reflectance, film_reflectance_on_grid, spectral_grid, spectral_samples,
-                                  spectrum_to_rgb)  # fmt: skip
+from atlasgen.optics.film import (
+    MAX_PHASE_STEP,
+    MIN_SAMPLES,
+    VISIBLE_NM,
+    XYZ_TO_LINEAR_SRGB,
+    cie_xyz_cmfs,
+    film_reflectance,
+    film_reflectance_on_grid,
+    spectral_grid,
+    spectral_samples,
+    spectrum_to_rgb,  # fmt: skip
+)
 from atlasgen.optics.fresnel import normal_reflectance
 from atlasgen.optics.quadrature import cosine_rule
 from atlasgen.optics.specular import specular_alpha, specular_fresnel_cosine
@@ -84,7 +93,13 @@ class Iridescent(Model):
         Param("film_strength", 1.0, lo=0.0, hi=64.0, doc="multiplier on the film's reflection"),
         Param("film_split", 0.5, lo=0.0, hi=1.0, doc="fraction of the film's reflection shown as colour in RGB; the rest is A"),
         Param("normalise", False, "bool", doc="A = k(1-s)Y (false) or k(1-s)Y/F0 (true)"),
-        Param("energy", "coupled", "choice", choices=("coupled", "none"), doc="diffuse weighted by (1-R(N.L))(1-R(N.V))/(1-R_avg), or not"),
+        Param(
+            "energy",
+            "coupled",
+            "choice",
+            choices=("coupled", "none"),
+            doc="diffuse weighted by (1-R(N.L))(1-R(N.V))/(1-R_avg), or not",
+        ),
         Param("backlight", 0.0, lo=0.0, hi=16.0, doc="strength of light transmitted from behind; 0 = off"),
         Param("backlight_colour", (1.0, 1.0, 1.0), "colour", doc="colour of the transmitted light"),
         Param("backlight_distortion", 0.2, lo=0.0, hi=1.0, doc="delta of the transmission term"),
@@ -161,10 +176,10 @@ class Iridescent(Model):
 
     physical_omissions = {
         "normalise": "an encoding for engines whose specular term already carries F0 (A = k(1-s)Y/F0); "
-                     "the physical highlight is the film's own reflectance, and the report measures the 1/F0 gap",
+        "the physical highlight is the film's own reflectance, and the report measures the 1/F0 gap",
         "backlight_view": "how the model reduces the back-light's azimuth to (N.L, N.V); the film transmits "
-                          "diffusely, with no azimuth, the energy of the model's term (transmitted_albedo), "
-                          "as the backlit model's thin sheet does, the same in both modes",
+        "diffusely, with no azimuth, the energy of the model's term (transmitted_albedo), "
+        "as the backlit model's thin sheet does, the same in both modes",
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
@@ -235,4 +250,3 @@ class Iridescent(Model):
         physical = self.physical_f_cos(values, gloss)
         samples = spectral_samples(values["thickness"], values["film_ior"])
         return fit_to_reference(self, values, physical.f_cos, physical.description, gloss, wavelengths=samples)
-

@@ -33,11 +33,11 @@ import json
 import numpy as np
 
 from atlasgen.models import get_model
-from atlasgen.models.physical_fit import FittedSlice
-from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
 from atlasgen.models.backlit import thin_sheet_f_cos
-from atlasgen.optics.thin_film import thin_film_f_cos
+from atlasgen.models.base import BRDF_REFERENCE, MODEL_REFERENCE, THIN_FILM_REFERENCE, THIN_SHEET_REFERENCE
+from atlasgen.models.physical_fit import FittedSlice
 from atlasgen.optics.specular import half_vector_cosine, specular_alpha
+from atlasgen.optics.thin_film import thin_film_f_cos
 from atlasgen.separable.source import make_source
 
 __all__ = ["MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE", "LOBE_SAMPLING_PROBABILITY",

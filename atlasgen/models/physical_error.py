@@ -40,11 +40,11 @@ import numpy as np
 from atlasgen.io.fields import validate_params
 from atlasgen.models.base import Model, PhysicalFCos
 from atlasgen.models.physical_fit import FIT_GLOSS, FIT_SUPERSAMPLING, fit_slice, plain_bsdf_reference
-from atlasgen.models.physical_lut import fit_lut, LUT_GLOSSES, lut_errors, pair_geometry, stored_slice
+from atlasgen.models.physical_lut import LUT_GLOSSES, fit_lut, lut_errors, pair_geometry, stored_slice
 from atlasgen.models.separable import ANALYTIC_SHADER_SOURCES, MAX_AUTO_TERMS, Separable, stored_factors
 from atlasgen.separable.approximate import reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
-from atlasgen.separable.error import ERROR_SEED, error_sample_for, measure_errors, MET_SIGMAS
+from atlasgen.separable.error import ERROR_SEED, MET_SIGMAS, error_sample_for, measure_errors
 from atlasgen.separable.rebuild import evaluate_factors
 from atlasgen.separable.source import BrdfSource, make_source
 

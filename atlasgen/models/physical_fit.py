@@ -21,8 +21,8 @@ sRGB 8-bit) and A re-fitted against the rounded RGB, then capped at the quantile
 from __future__ import annotations
 
 import json
-from typing import ClassVar
 from functools import lru_cache
+from typing import ClassVar
 
 import numpy as np
 
@@ -30,8 +30,13 @@ from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.optics.projection import (continue_collinear_texels, pair_directions, project_slice_texels,
-                                        refine_specular_scale, weighted_residual)  # fmt: skip
+from atlasgen.optics.projection import (
+    continue_collinear_texels,
+    pair_directions,
+    project_slice_texels,
+    refine_specular_scale,  # fmt: skip
+    weighted_residual,
+)
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba, unorm_scale
 from atlasgen.optics.specular import half_vector_cosine
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
@@ -149,8 +154,9 @@ def renderer_bases(gloss: float, l, v, n_dot_h, degenerate):
     return np.asarray(diffuse, dtype=np.float64), np.asarray(lobe, dtype=np.float64)
 
 
-def fit_slice(f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = True, supersampling: int = 1,
-              footprint: str = "mean"):
+def fit_slice(
+    f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS, srgb: bool = True, supersampling: int = 1, footprint: str = "mean"
+):
     """The slice (``(H, W, 4)``) fitted to ``f_cos(l, v) -> (N, 3)``, and a dict describing the fit.
 
     ``gloss`` is the renderer gloss the slice is made for, or ``None`` to choose the one of
@@ -324,7 +330,7 @@ def check_physical_fit(model: Model, values: dict, path) -> None:
         ref = plain_bsdf_reference(model, values)
         problem = ref if isinstance(ref, str) else None
     if problem is not None:
-        raise MaterialError(path, "from", f"expected \"model\" for this material: {problem}")
+        raise MaterialError(path, "from", f'expected "model" for this material: {problem}')
 
 
 def _fits_itself(model: Model) -> bool:
@@ -403,8 +409,10 @@ class FittedSlice(Model):
         self._table(values)
         ref = Model.model_reference(self, values, albedo, gloss)
         material = {**json.loads(ref.bsdf["material"]), "fit_gloss": self.gloss}
-        return type(ref)({**ref.bsdf, "material": json.dumps(material, sort_keys=True)},
-                         f"{self.type_name} slice fitted from physics (gloss {self.gloss:g}), exact, in the renderer's equation")
+        return type(ref)(
+            {**ref.bsdf, "material": json.dumps(material, sort_keys=True)},
+            f"{self.type_name} slice fitted from physics (gloss {self.gloss:g}), exact, in the renderer's equation",
+        )
 
     def physical_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
         return self.model.physical_reference(values, albedo, gloss)

@@ -23,7 +23,7 @@ from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.separable.approximate import reference_values
-from atlasgen.separable.error import error_sample_for, measure_errors, SELECTION_SEED
+from atlasgen.separable.error import SELECTION_SEED, error_sample_for, measure_errors
 from atlasgen.separable.source import make_source
 
 __all__ = ["LUT_GLOSSES", "SELECTION_AZIMUTHS", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
@@ -66,7 +66,11 @@ class _Memo:
         self.f_cos, self.last = f_cos, None
 
     def __call__(self, l, v):
-        if self.last is None or self.last[0].shape != l.shape or not (np.array_equal(self.last[0], l) and np.array_equal(self.last[1], v)):
+        if (
+            self.last is None
+            or self.last[0].shape != l.shape
+            or not (np.array_equal(self.last[0], l) and np.array_equal(self.last[1], v))
+        ):
             self.last = (l.copy(), v.copy(), self.f_cos(l, v))
         return self.last[2]
 

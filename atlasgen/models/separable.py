@@ -7,8 +7,8 @@ and the bake/encode/finalize hooks. Mitsuba is imported only for ``source = "mit
 
 from __future__ import annotations
 
-import time
 import json
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -20,12 +20,12 @@ from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
 from atlasgen.models.base import (
     BRDF_REFERENCE,
     THIN_FILM_REFERENCE,
-    encode_scaled,
     EncodedSlices,
     Model,
     RadianceRebuild,
     Reference,
     SliceSet,
+    encode_scaled,
 )
 from atlasgen.models.iridescent import Iridescent
 from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
@@ -35,23 +35,23 @@ from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
 from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
-from atlasgen.separable.approximate import approximate_brdf, GRID_RESOLUTIONS, reference_values
+from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values
 from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
 from atlasgen.separable.error import (
-    error_sample_for,
     ERROR_SEED,
-    measure_errors,
     MET_SIGMAS,
     SELECTION_SEED,
+    error_sample_for,
+    measure_errors,
 )
 from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fractions
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices, read_separable_factors
 from atlasgen.separable.shader import separable_declarations, separable_table_bytes
-from atlasgen.shaderlang import Function, Let, Return, float_literal
 from atlasgen.separable.source import film_transmits, make_source
-from atlasgen.separable.storage import CHANNEL_LAYOUT, encode_factor_slices, FACTOR_RESOLUTION, factors_to_slices
+from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
+from atlasgen.shaderlang import Function, Let, Return, float_literal
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
            "check_film", "stored_factors"]  # fmt: skip
@@ -82,7 +82,9 @@ def check_film(film, path) -> dict:
     ``backlight_power``: a transmission slice after the terms); returns it with the defaults
     filled in."""
     if not isinstance(film, dict):
-        raise MaterialError(path, "film", f"expected a table such as {{thickness = 420.0, film_ior = 1.45, base_ior = 1.8}}, got {film!r}")
+        raise MaterialError(
+            path, "film", f"expected a table such as {{thickness = 420.0, film_ior = 1.45, base_ior = 1.8}}, got {film!r}"
+        )
     params = {p.name: p for p in Iridescent.params if p.name in FILM_KEYS}
     for key in film:
         if key not in params:
@@ -142,15 +144,46 @@ class Separable(Model):
         Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
         Param("film", None, "table", doc="the film stack and split, as the iridescent model names them (source = 'thin_film')"),
         Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
-        Param("max_error", None, "float", lo=0.0, hi=10.0, lo_open=True, doc="relative RMS budget: the cheapest K <= 8 and grid meeting it"),
-        Param("grid", None, "int", lo=4, hi=128, doc="fixed sampling grid, texels per factor axis (default: 32, or 16 or 32 chosen by the budget)"),
+        Param(
+            "max_error",
+            None,
+            "float",
+            lo=0.0,
+            hi=10.0,
+            lo_open=True,
+            doc="relative RMS budget: the cheapest K <= 8 and grid meeting it",
+        ),
+        Param(
+            "grid",
+            None,
+            "int",
+            lo=4,
+            hi=128,
+            doc="fixed sampling grid, texels per factor axis (default: 32, or 16 or 32 chosen by the budget)",
+        ),
         Param("parametrization", "half_diff", "choice", choices=_parametrization_names(), doc="pi1 / pi2 split"),
         Param("factorization", "svd", "choice", choices=("svd", "nmf", "nd"), doc="SVD, NMF, or Kautz-McCool ND (1 term)"),
-        Param("target", "auto", "choice", choices=("auto", "f_cos", "f_proxy"), doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits"),
-        Param("reflection_only", False, "bool", doc="bake only the reflection of a transmissive Mitsuba BSDF (the dropped fraction is recorded)"),
-        Param("representation", "separable", "choice", choices=REPRESENTATIONS,
-              doc="K separable terms; 'analytic': the closed form evaluated in the lighting shader (ggx, beckmann, lambert); "
-                  "'auto': the cheapest in run-time cost meeting error_budget"),
+        Param(
+            "target",
+            "auto",
+            "choice",
+            choices=("auto", "f_cos", "f_proxy"),
+            doc="factor f cos, f times a cosine proxy, or whichever errs less in 8 bits",
+        ),
+        Param(
+            "reflection_only",
+            False,
+            "bool",
+            doc="bake only the reflection of a transmissive Mitsuba BSDF (the dropped fraction is recorded)",
+        ),
+        Param(
+            "representation",
+            "separable",
+            "choice",
+            choices=REPRESENTATIONS,
+            doc="K separable terms; 'analytic': the closed form evaluated in the lighting shader (ggx, beckmann, lambert); "
+            "'auto': the cheapest in run-time cost meeting error_budget",
+        ),
     )
 
     # -- validation ---------------------------------------------------------------------------
@@ -161,7 +194,11 @@ class Separable(Model):
             raise MaterialError(path, "terms", f"expected 1 with factorization = 'nd' (one term), got {values['terms']}")
         if values["source"] == "mitsuba":
             if values["bsdf"] is None:
-                raise MaterialError(path, "bsdf", "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'")
+                raise MaterialError(
+                    path,
+                    "bsdf",
+                    "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'",
+                )
 
             load_mitsuba_bsdf(values["bsdf"], path, reflection_only=values["reflection_only"])
         elif values["bsdf"] is not None:
@@ -177,11 +214,19 @@ class Separable(Model):
             raise MaterialError(path, "reflection_only", f"only used with source = 'mitsuba' (a transmissive BSDF), "
                                                          f"but source is {values['source']!r}")  # fmt: skip
         if values["representation"] == "analytic" and values["source"] not in ANALYTIC_SHADER_SOURCES:
-            raise MaterialError(path, "representation", f"'analytic' needs a source the shader evaluates "
-                                f"({', '.join(ANALYTIC_SHADER_SOURCES)}), got source = {values['source']!r}")
+            raise MaterialError(
+                path,
+                "representation",
+                f"'analytic' needs a source the shader evaluates "
+                f"({', '.join(ANALYTIC_SHADER_SOURCES)}), got source = {values['source']!r}",
+            )
         if values["representation"] == "auto" and _transmits(values):
-            raise MaterialError(path, "representation", "'auto' weighs reflection only, but film.backlight > 0 "
-                                "transmits light from behind; give terms or max_error (K terms and a transmission slice)")
+            raise MaterialError(
+                path,
+                "representation",
+                "'auto' weighs reflection only, but film.backlight > 0 "
+                "transmits light from behind; give terms or max_error (K terms and a transmission slice)",
+            )
         if values["representation"] == "auto" and values["terms"] is not None:
             raise MaterialError(path, "representation", "'auto' chooses the representation and K; expected no 'terms'")
 
@@ -375,9 +420,16 @@ class Separable(Model):
             timings["transmission_s"] = time.perf_counter() - t0
         out = SliceSet(slices, extra, timings)
         # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
-        out._separable = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,
-                          "reference": reference, "sample": report, "parametrization": result.factors.parametrization,
-                          "target": result.target}
+        out._separable = {
+            "stored": stored,
+            "scale": scale,
+            "bias": bias,
+            "clamped": clamped,
+            "reference": reference,
+            "sample": report,
+            "parametrization": result.factors.parametrization,
+            "target": result.target,
+        }
         return out
 
     @staticmethod
@@ -468,8 +520,10 @@ class Separable(Model):
         return f"separable_f_cos(atlas, samp, {entry.first_slice}u, n, l, v)"
 
     # -- references and validation -------------------------------------------------------------
-    no_physical_reference = ("its model reference is already the source BSDF itself (analytic or Mitsuba's), "
-                             "the physical material the factors approximate; source = 'thin_film' has the spectral thin film")
+    no_physical_reference = (
+        "its model reference is already the source BSDF itself (analytic or Mitsuba's), "
+        "the physical material the factors approximate; source = 'thin_film' has the spectral thin film"
+    )
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
@@ -515,8 +569,12 @@ class Separable(Model):
             return {"8bit": RadianceRebuild("the closed form in float64 (atlasgen.separable.analytic), as the shader evaluates it",
                                             _analytic_radiance(entry.representation))}  # fmt: skip
         if isinstance(entry.representation, LutRepresentation):
-            return {"8bit": RadianceRebuild("the baked 8-bit slice in the renderer's equation at the fitted gloss, times the albedo",
-                                            _lut_radiance(read_atlas(atlas_path).decode_slice(entry.first_slice), fit_gloss(entry)))}
+            return {
+                "8bit": RadianceRebuild(
+                    "the baked 8-bit slice in the renderer's equation at the fitted gloss, times the albedo",
+                    _lut_radiance(read_atlas(atlas_path).decode_slice(entry.first_slice), fit_gloss(entry)),
+                )
+            }
         factors = read_separable_factors(atlas_path, entry.name)
 
         def radiance(n, l, v, albedo, gloss, irradiance):
@@ -546,15 +604,19 @@ class Separable(Model):
             how = f", chosen by run-time cost (budget {rep.auto['error_budget']:g})" if rep.auto else ""
             return f"analytic {rep.distribution} evaluated in the lighting shader, no atlas data{how}"
         if isinstance(rep, LutRepresentation):
-            return (f"one LUT slice fitted from physics, drawn at gloss {fit_gloss(entry):g}, "
-                    f"chosen by run-time cost (budget {rep.error_budget:g})")
+            return (
+                f"one LUT slice fitted from physics, drawn at gloss {fit_gloss(entry):g}, "
+                f"chosen by run-time cost (budget {rep.error_budget:g})"
+            )
         terms = factors.terms if factors.terms is not None else factors.term_slices
         param = factors.parametrization
         grid = factors.sampling_grid
         budget = getattr(rep, "error_budget", None)
         back = " and a transmission slice for light from behind" if factors.transmission is not None else ""
-        return (f"separable, {terms} term(s){', ' + param if param else ''}"
-                f"{f', sampled on {grid}x{grid}' if grid else ''}{back}{f' (budget {budget:g})' if budget else ''}")
+        return (
+            f"separable, {terms} term(s){', ' + param if param else ''}"
+            f"{f', sampled on {grid}x{grid}' if grid else ''}{back}{f' (budget {budget:g})' if budget else ''}"
+        )
 
 
 #: The renderer's equation for a LUT slice at a fixed gloss, as f cos in 1/sr (the separable
@@ -586,8 +648,15 @@ def _lut_radiance(table, gloss: float):
 
 def analytic_params(rep: AnalyticRepresentation) -> dict:
     """The :func:`atlasgen.separable.analytic.evaluate_analytic` parameters of an analytic representation."""
-    return {"source": rep.distribution, "alpha": rep.alpha, "fresnel": rep.fresnel, "f0": rep.f0, "ior": rep.ior,
-            "specular": rep.specular, "diffuse": rep.diffuse}
+    return {
+        "source": rep.distribution,
+        "alpha": rep.alpha,
+        "fresnel": rep.fresnel,
+        "f0": rep.f0,
+        "ior": rep.ior,
+        "specular": rep.specular,
+        "diffuse": rep.diffuse,
+    }
 
 
 def _analytic_radiance(rep: AnalyticRepresentation):

@@ -212,9 +212,7 @@ class Subsurface(Model):
         if not 1 <= len(variances) <= 16:
             raise MaterialError(path, "variances", f"expected 1 to 16 variances, got {len(variances)}")
         if len(weights) != len(variances):
-            raise MaterialError(
-                path, "weights", f"expected one RGB weight per variance ({len(variances)}), got {len(weights)}"
-            )
+            raise MaterialError(path, "weights", f"expected one RGB weight per variance ({len(variances)}), got {len(weights)}")
         totals = np.sum(np.asarray(weights, dtype=np.float64), axis=0)
         if np.any(totals <= 0.0):
             channel = "RGB"[int(np.argmin(totals))]
@@ -239,10 +237,10 @@ class Subsurface(Model):
     )
     physical_omissions = {
         "variances": "the diffusion profile's shape: in the reference it follows from the medium (Jensen's Skin1 "
-                     "mean free paths); no homogeneous medium scatters exactly as a sum of Gaussians",
+        "mean free paths); no homogeneous medium scatters exactly as a sum of Gaussians",
         "weights": "the diffusion profile's shape per channel, as for variances",
         "specular": "the reference's boundary is index-matched (Mitsuba null) so that next-event estimation "
-                    "reaches the point lights; it reflects nothing, so the skin's specular highlight is missing there",
+        "reaches the point lights; it reflects nothing, so the skin's specular highlight is missing there",
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
@@ -317,4 +315,3 @@ def skin_medium(radius_mm: float, object_radius: float = _SPHERE_RADIUS, colour=
         "sample_emitters": True,
     }
     return medium, SKIN1_IOR
-

@@ -277,8 +277,7 @@ def _relative_rms_between(a, b, stencil) -> float:
     return float(np.sqrt(np.mean((la - lb) ** 2) / np.mean(lb * lb)))
 
 
-def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES,
-                  model_rgb=None):
+def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES, model_rgb=None):
     """The ``(HEIGHT, WIDTH, 4)`` slice fitted to volpath renders of the sphere of ``medium``, and a
     dict describing the fit (module docstring): ``spp`` (renders per configuration and seed),
     ``rays``, ``light_directions``, ``seeds``, ``relative_rms``, ``seed_disagreement_relative_rms``,
@@ -336,8 +335,7 @@ def _cached(key: str):
     return rgba, info, seconds
 
 
-def fitted_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES,
-                     model_rgb=None):
+def fitted_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES, model_rgb=None):
     """:func:`fit_sss_slice`, cached per arguments (the renders cost tens of seconds)."""
     model = None if model_rgb is None else np.asarray(model_rgb, dtype=np.float64).tolist()
     key = json.dumps({"medium": medium, "integrator": integrator, "specular": float(specular), "gloss": float(gloss),

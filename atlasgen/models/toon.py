@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
-from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.models.base import Model
 
 __all__ = ["Toon"]
@@ -53,12 +53,19 @@ class Toon(Model):
         Param("specular", 1.0, lo=0.0, hi=16.0, doc="A where the highlight is allowed"),
         Param("specular_threshold", 0.8, lo=-1.0, hi=1.0, doc="N.L from which the highlight is allowed"),
         Param("outline", False, "bool", doc="ask the renderer for screen-space outlines"),
-        Param("sampling", "nearest", "choice", choices=("nearest", "linear"),
-              doc="nearest: steps snap to texel boundaries and stay hard; linear: steps blur over a texel"),
+        Param(
+            "sampling",
+            "nearest",
+            "choice",
+            choices=("nearest", "linear"),
+            doc="nearest: steps snap to texel boundaries and stay hard; linear: steps blur over a texel",
+        ),
     )
 
-    no_physical_reference = ("an artistic model: cel bands, a silhouette band and outlines describe a look, "
-                             "not a material, so no physical counterpart exists; it is validated against its model reference only")
+    no_physical_reference = (
+        "an artistic model: cel bands, a silhouette band and outlines describe a look, "
+        "not a material, so no physical counterpart exists; it is validated against its model reference only"
+    )
 
     def check(self, values, path):
         thresholds, colours = values["thresholds"], values["colours"]

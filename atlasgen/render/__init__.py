@@ -8,12 +8,13 @@ imported inside the functions that need them.
 from __future__ import annotations
 
 from pathlib import Path
+
 from atlasgen.errors import OutputError
+from atlasgen.io.output_paths import check_output_paths
+from atlasgen.materials.scene import read_scene, resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.output import write_aov, write_render
 from atlasgen.render.renderer import AOVS, Renderer
-from atlasgen.materials.scene import read_scene, resolve_materials
-from atlasgen.io.output_paths import check_output_paths
 
 __all__ = ["render_scene_file"]
 
@@ -57,7 +58,11 @@ def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
     outputs = [(output_path, "the render (-o)")]
     if aov is None:
         outputs.append((output_path.with_suffix(".png"), "the PNG written beside the render"))
-    inputs = [(scene.path, "the scene"), (atlas_path, "the atlas (--atlas)"),
-              (atlas_path.with_suffix(".json"), "the atlas's manifest"), (atlas_path.with_suffix(".wgsl"), "the atlas's include")]
+    inputs = [
+        (scene.path, "the scene"),
+        (atlas_path, "the atlas (--atlas)"),
+        (atlas_path.with_suffix(".json"), "the atlas's manifest"),
+        (atlas_path.with_suffix(".wgsl"), "the atlas's include"),
+    ]
     inputs += [(obj.file, f"the mesh of objects[{obj.index}]") for obj in scene.objects if obj.file is not None]
     check_output_paths(outputs, inputs)

@@ -54,12 +54,15 @@ def read_render_atlas(dds_path) -> RenderAtlas:
     atlas = read_atlas(dds_path)
     shown = dds_path.as_posix()
     if atlas.manifest is None:
-        raise InputError(f"{shown}: no manifest {dds_path.with_suffix('.json').as_posix()} beside the atlas; re-run atlasgen bake")
+        raise InputError(
+            f"{shown}: no manifest {dds_path.with_suffix('.json').as_posix()} beside the atlas; re-run atlasgen bake"
+        )
     if atlas.image.layout != "array":
         raise InputError(f"{shown}: the renderer needs a 2D-array atlas (bake with --layout array), got a {atlas.image.layout}")
     include_path = dds_path.with_suffix(".wgsl")
-    include = read_input_text(include_path, "no shader include beside the atlas; re-run atlasgen bake",
-                              "a WGSL include (UTF-8 text)", FieldError)
+    include = read_input_text(
+        include_path, "no shader include beside the atlas; re-run atlasgen bake", "a WGSL include (UTF-8 text)", FieldError
+    )
     check_include(atlas, include_path, include)
     return RenderAtlas(list(atlas.image.levels), atlas.srgb, atlas.manifest, include, shown)
 

@@ -15,9 +15,11 @@ import statistics
 import time
 import tomllib
 from dataclasses import dataclass
-from atlasgen.materials.scene import parse_scene
+
 import numpy as np
+
 from atlasgen.errors import BackendError
+from atlasgen.materials.scene import parse_scene
 
 __all__ = ["LightingCost", "measure_lighting_cost", "time_runs", "cost_per_pixel_per_light", "coverage_scene",
            "relative_costs"]  # fmt: skip

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from atlasgen.render.meshes import vertex_buffer_layout
 from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
+from atlasgen.render.meshes import vertex_buffer_layout
 from atlasgen.render.shaders import assemble_shader
 
 __all__ = ["GBuffer", "GBufferPass", "pack_object"]
@@ -44,7 +44,7 @@ class GBuffer:
     depth_stencil: object
 
     @classmethod
-    def create(cls, device, width: int, height: int) -> "GBuffer":
+    def create(cls, device, width: int, height: int) -> GBuffer:
         import wgpu
 
         usage = wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_SRC
@@ -58,18 +58,29 @@ class GBuffer:
             make("albedo_gloss", wgpu.TextureFormat.rgba16float),
             make("normal_depth", wgpu.TextureFormat.rgba32float),
             make("material", wgpu.TextureFormat.r16uint),
-            make("depth_stencil", wgpu.TextureFormat.depth24plus_stencil8,
-                 wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC),  # fmt: skip
+            make(
+                "depth_stencil",
+                wgpu.TextureFormat.depth24plus_stencil8,
+                wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC,
+            ),  # fmt: skip
         )
 
     def colour_attachments(self, clear: bool) -> list[dict]:
         op = "clear" if clear else "load"
         return [
             {"view": self.albedo_gloss.create_view(), "load_op": op, "store_op": "store", "clear_value": (0, 0, 0, 0)},
-            {"view": self.normal_depth.create_view(), "load_op": op, "store_op": "store",
-             "clear_value": (0, 0, 0, FAR_DEPTH)},  # fmt: skip
-            {"view": self.material.create_view(), "load_op": op, "store_op": "store",
-             "clear_value": (NO_MATERIAL, 0, 0, 0)},  # fmt: skip
+            {
+                "view": self.normal_depth.create_view(),
+                "load_op": op,
+                "store_op": "store",
+                "clear_value": (0, 0, 0, FAR_DEPTH),
+            },  # fmt: skip
+            {
+                "view": self.material.create_view(),
+                "load_op": op,
+                "store_op": "store",
+                "clear_value": (NO_MATERIAL, 0, 0, 0),
+            },  # fmt: skip
         ]
 
 

@@ -47,8 +47,9 @@ def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[
     """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
-    write_files_atomically({exr_path: encode_exr(finite_radiance(radiance)), png_path: render_png(radiance, exposure)},
-                           primary=png_path)
+    write_files_atomically(
+        {exr_path: encode_exr(finite_radiance(radiance)), png_path: render_png(radiance, exposure)}, primary=png_path
+    )
     return [exr_path, png_path]
 
 

@@ -16,18 +16,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from atlasgen.errors import BackendError, SceneError
+from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials, shading_gloss
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
+from atlasgen.render.device import get_device
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
 from atlasgen.render.lighting import LightingPass, pack_lights
 from atlasgen.render.meshes import build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
-from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials, shading_gloss
-from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
-from atlasgen.render.device import get_device
 from atlasgen.render.shaders import assemble_shader
+from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
 
 __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
 
@@ -107,7 +107,6 @@ class Renderer:
     def __init__(self, atlas: RenderAtlas, ctx=None):
         import wgpu
 
-
         self.ctx = ctx or get_device()
         self.atlas = atlas
         device = self.ctx.device
@@ -171,7 +170,7 @@ class Renderer:
             self._gbuffers = {key: (GBuffer.create(self.device, width, height), hdr)}  # keep one size only
         return self._gbuffers[key]
 
-    def prepare(self, scene: Scene, mip_bias: float | None = None) -> "_PreparedFrame":
+    def prepare(self, scene: Scene, mip_bias: float | None = None) -> _PreparedFrame:
         """Upload everything a frame of ``scene`` needs; raise SceneError for what the atlas lacks."""
         import wgpu
 
@@ -219,7 +218,7 @@ class Renderer:
 
     # ---- encoding ----------------------------------------------------------------------
 
-    def encode_frame(self, frame: "_PreparedFrame", outlines: bool = True, trace=None):
+    def encode_frame(self, frame: _PreparedFrame, outlines: bool = True, trace=None):
         """Command buffers for one whole frame (several when tracing, to read in between)."""
         buffers = []
         encoder = self.device.create_command_encoder()
@@ -245,7 +244,7 @@ class Renderer:
         buffers.append(encoder.finish())
         return buffers
 
-    def encode_lighting(self, frame: "_PreparedFrame"):
+    def encode_lighting(self, frame: _PreparedFrame):
         """One command buffer holding only the opaque lighting pass (for benchmarks)."""
         encoder = self.device.create_command_encoder()
         frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
@@ -299,8 +298,7 @@ class Renderer:
         if tracer is not None:
             result.opaque_radiance = tracer.frames[0]
             result.steps = [
-                TranslucentStep(i, mask, rad)
-                for i, mask, rad in zip(frame.translucent, tracer.masks, tracer.frames[1:])
+                TranslucentStep(i, mask, rad) for i, mask, rad in zip(frame.translucent, tracer.masks, tracer.frames[1:])
             ]
         if aovs:
             result.aovs = self.read_aovs(frame)
@@ -366,7 +364,6 @@ class _Tracer:
 
     def __init__(self, renderer: Renderer, frame: _PreparedFrame):
         import wgpu
-
 
         self.renderer, self.frame = renderer, frame
         device = renderer.device

@@ -16,7 +16,17 @@ from __future__ import annotations
 import contextlib
 import io
 
-__all__ = ["CSS_PX_PER_INCH", "PLOT_DPI", "MIN_FONT_PT", "render_page", "plot_style", "figure_png", "plot_width", "pareto_front", "label_points"]
+__all__ = [
+    "CSS_PX_PER_INCH",
+    "PLOT_DPI",
+    "MIN_FONT_PT",
+    "render_page",
+    "plot_style",
+    "figure_png",
+    "plot_width",
+    "pareto_front",
+    "label_points",
+]
 
 #: CSS pixels per figure inch on every report page.
 CSS_PX_PER_INCH = 100
@@ -101,5 +111,11 @@ def label_points(ax, xy, labels) -> None:
     last one's label reads leftwards, so that it stays inside the axes."""
     for n, ((x, y), label) in enumerate(zip(xy, labels)):
         last = n == len(labels) - 1 and n > 0
-        ax.annotate(label, (x, y), fontsize=MIN_FONT_PT, xytext=(-5 if last else 5, 6 if n % 2 == 0 else -14),
-                    textcoords="offset points", ha="right" if last else "left")
+        ax.annotate(
+            label,
+            (x, y),
+            fontsize=MIN_FONT_PT,
+            xytext=(-5 if last else 5, 6 if n % 2 == 0 else -14),
+            textcoords="offset points",
+            ha="right" if last else "left",
+        )

@@ -13,7 +13,15 @@ from atlasgen.io.atomic import write_file_atomically, write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.models import get_model
 from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
-from atlasgen.reports.pareto import baked_candidate, cache_files, front_flags, library_candidates, MAX_JOBS, plot_library, plot_material
+from atlasgen.reports.pareto import (
+    MAX_JOBS,
+    baked_candidate,
+    cache_files,
+    front_flags,
+    library_candidates,
+    plot_library,
+    plot_material,
+)
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 
 __all__ = ["write_library_report"]
@@ -82,9 +90,15 @@ def _validation_rows(validation: dict | None, name: str) -> list[dict]:
     for result in (validation or {}).get("results", []):
         if result.get("material") == name:
             for kind, ref in result.get("references", {}).items():
-                rows.append({"reference": f"{result.get('scene', '?')}/{kind}", "psnr": ref.get("psnr_db"),
-                             "flip": ref.get("flip"), "speed_ratio": ref.get("speed_ratio"),
-                             "linear_rmse": ref.get("linear_rmse")})
+                rows.append(
+                    {
+                        "reference": f"{result.get('scene', '?')}/{kind}",
+                        "psnr": ref.get("psnr_db"),
+                        "flip": ref.get("flip"),
+                        "speed_ratio": ref.get("speed_ratio"),
+                        "linear_rmse": ref.get("linear_rmse"),
+                    }
+                )
     return rows
 
 
@@ -130,12 +144,18 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
         plot = {"src": _PARETO_PLOT, "width": plot_width(_PARETO_SIZE[0])}
     first = next((results[m["name"]] for m in materials), None)
     sample = None if first is None else {"estimator": first["estimator"], "pairs": first["pairs"], "seed": first["seed"]}
-    return {"plot": plot, "materials": materials, "without": without, "sample": sample,
-            "chart_width": plot_width(_PARETO_SMALL_SIZE[0])}
+    return {
+        "plot": plot,
+        "materials": materials,
+        "without": without,
+        "sample": sample,
+        "chart_width": plot_width(_PARETO_SMALL_SIZE[0]),
+    }
 
 
-def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True,
-                         jobs: int = MAX_JOBS) -> Path:
+def write_library_report(
+    atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True, jobs: int = MAX_JOBS
+) -> Path:
     """Write ``out_dir/index.html`` (+ slice previews and a speed-against-error plot).
 
     Every figure on the page is read from files the toolchain measured: the manifest
@@ -146,7 +166,6 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
     their candidates cached under ``out_dir/pareto`` and computed in up to ``jobs`` processes.
     Every file is replaced atomically.
     """
-
 
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
@@ -172,7 +191,9 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
         chart = None
         if candidates:
             chart = f"cost/{name}.png"
-            files[out_dir / chart] = _plot_cost_error({name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error")
+            files[out_dir / chart] = _plot_cost_error(
+                {name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error"
+            )
             chosen_points += [(name, c) for c in candidates if c["chosen"]]
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
@@ -207,10 +228,22 @@ def write_library_report(atlas_path, out_dir, validation_dir=None, separable_dir
                          "chosen": c["chosen"]} for c in candidates],
         })  # fmt: skip
     index = out_dir / "index.html"
-    write_file_atomically(index, render_page(
-        "library.html.j2", atlas=Path(atlas_path).as_posix(), encoding=atlas.manifest.encoding,
-        layout=atlas.manifest.layout, links=links, plot=plot, rows=page_rows, physical=physical_section,
-        cost_device=table.device, cost_unit=table.unit, chart_width=plot_width(_SMALL_PLOT_SIZE[0])))
+    write_file_atomically(
+        index,
+        render_page(
+            "library.html.j2",
+            atlas=Path(atlas_path).as_posix(),
+            encoding=atlas.manifest.encoding,
+            layout=atlas.manifest.layout,
+            links=links,
+            plot=plot,
+            rows=page_rows,
+            physical=physical_section,
+            cost_device=table.device,
+            cost_unit=table.unit,
+            chart_width=plot_width(_SMALL_PLOT_SIZE[0]),
+        ),
+    )
     return index
 
 

@@ -105,7 +105,9 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
     out, todo = {}, []
     for entry in entries:
         # The code below bake/ (the bake cache's fingerprint) decides the figures as much as the params.
-        key = hashlib.sha256(f"{candidates_key(get_model(entry.type), entry.params, _gloss(entry))}:{tool_fingerprint()}".encode()).hexdigest()
+        key = hashlib.sha256(
+            f"{candidates_key(get_model(entry.type), entry.params, _gloss(entry))}:{tool_fingerprint()}".encode()
+        ).hexdigest()
         cached = None
         if cache_dir is not None and _cache_path(cache_dir, entry.name).exists():
             try:

@@ -7,6 +7,7 @@ lazily (Agg backend), inside :func:`write_separable_report`.
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,22 +15,26 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.atomic import staged_folder
 from atlasgen.models.separable import Separable
+from atlasgen.reports.html import figure_png, label_points, plot_style, plot_width, render_page
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
-from atlasgen.separable.error import errors_by_terms, sample_hemisphere_pairs
+from atlasgen.separable.error import errors_by_terms, measure_errors, sample_hemisphere_pairs
 from atlasgen.separable.factorize import factorize
 from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
+from atlasgen.separable.rebuild import evaluate_separable
 from atlasgen.separable.source import make_source, sample_matrices
 from atlasgen.separable.storage import FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices, quantize_factors
-from atlasgen.reports.html import figure_png, label_points, plot_style
-from atlasgen.reports.html import plot_width, render_page
-import json
-from atlasgen.io.atomic import staged_folder
-from atlasgen.separable.rebuild import evaluate_separable
-from atlasgen.separable.error import measure_errors
 
-__all__ = ["MaterialStudy", "study_material", "format_separable_report", "format_separable_html", "write_separable_report", "RESOLUTIONS"]
+__all__ = [
+    "MaterialStudy",
+    "study_material",
+    "format_separable_report",
+    "format_separable_html",
+    "write_separable_report",
+    "RESOLUTIONS",
+]
 
 #: Sampling grids of the resolution study (texels per factor axis; the atlas stores 32).
 RESOLUTIONS = (8, 12, 16, 24, 32, 48, 64)
@@ -62,8 +67,9 @@ def _median_time(fn, repeats=5):
     return float(np.median(times))
 
 
-def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
-                   parametrizations=tuple(PARAMETRIZATIONS)) -> MaterialStudy:
+def study_material(
+    material, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5, parametrizations=tuple(PARAMETRIZATIONS)
+) -> MaterialStudy:
     """Measure one separable material: the chosen bake, and every comparison the report plots."""
     params = material.params
     source = make_source(params, material.source)
@@ -74,27 +80,39 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     p = get_parametrization(name)
 
     grids = Separable.sampling_grids(params)
-    chosen = approximate_brdf(source, name, terms=params["terms"], max_error=params["max_error"],
-                              method=params["factorization"], target=params["target"], reference=reference, pairs=pairs,
-                              grids=grids)
+    chosen = approximate_brdf(
+        source,
+        name,
+        terms=params["terms"],
+        max_error=params["max_error"],
+        method=params["factorization"],
+        target=params["target"],
+        reference=reference,
+        pairs=pairs,
+        grids=grids,
+    )
     full = approximate_brdf(source, name, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs)
     by_terms = {
-        t: {"float": [e["relative_rms"] for e in full.errors_by_terms[t]],
+        t: {
+            "float": [e["relative_rms"] for e in full.errors_by_terms[t]],
             "8bit": [e["relative_rms"] for e in full.errors_8bit_by_terms[t]],
-            "log_float": [e["log_error"] for e in full.errors_by_terms[t]]}
+            "log_float": [e["log_error"] for e in full.errors_by_terms[t]],
+        }
         for t in full.errors_by_terms
     }
 
     by_param = {}
     for other in parametrizations:
-        r = approximate_brdf(source, other, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs,
-                             measure_8bit=False)
+        r = approximate_brdf(
+            source, other, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs, measure_8bit=False
+        )
         curves = [[e["relative_rms"] for e in errs] for errs in r.errors_by_terms.values()]
         by_param[other] = [float(min(c[k] for c in curves)) for k in range(MAX_AUTO_TERMS)]
 
     target = chosen.target
     by_res = []
     for res in resolutions:
+
         def run(res=res):
             mats, _ = sample_matrices(source, p, res, (target,))
             w1, w2 = p.quadrature_weights(res)
@@ -117,8 +135,11 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
         nmf.append({"terms": k, "relative_rms": e["relative_rms"], "relative_rms_8bit": e8["relative_rms"]})
     f = factorize(mats[target], w1, w2, 1, name, "nd")
     f.target = target
-    nd = {"terms": 1, "relative_rms": errors_by_terms(f, reference, l, v, (1,))[0]["relative_rms"],
-          "relative_rms_8bit": errors_by_terms(quantize_factors(f), reference, l, v, (1,))[0]["relative_rms"]}
+    nd = {
+        "terms": 1,
+        "relative_rms": errors_by_terms(f, reference, l, v, (1,))[0]["relative_rms"],
+        "relative_rms_8bit": errors_by_terms(quantize_factors(f), reference, l, v, (1,))[0]["relative_rms"],
+    }
 
     def stage_times():
         t0 = time.perf_counter()
@@ -156,10 +177,19 @@ def study_material(material, atlas_path=None, resolutions=RESOLUTIONS, repeats: 
     return MaterialStudy(
         name=material.name,
         source=material.source,
-        chosen={"parametrization": name, "target": target, "terms": chosen.terms, "grid": chosen.grid,
-                "factorization": params["factorization"],
-                "float": chosen.errors, "8bit_srgb": {k: v for k, v in next(
-                    e for e in chosen.errors_8bit_by_terms[target] if e["terms"] == chosen.terms).items() if k != "terms"}},
+        chosen={
+            "parametrization": name,
+            "target": target,
+            "terms": chosen.terms,
+            "grid": chosen.grid,
+            "factorization": params["factorization"],
+            "float": chosen.errors,
+            "8bit_srgb": {
+                k: v
+                for k, v in next(e for e in chosen.errors_8bit_by_terms[target] if e["terms"] == chosen.terms).items()
+                if k != "terms"
+            },
+        },
         by_terms=by_terms,
         by_parametrization=by_param,
         by_resolution=by_res,
@@ -192,8 +222,12 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
         for target, curves in study.by_terms.items():
             ax.semilogy(ks, curves["float"], "o-", label=f"SVD {target}, float")
             ax.semilogy(ks, curves["8bit"], "s--", label=f"SVD {target}, 8-bit sRGB")
-        ax.semilogy([e["terms"] for e in study.nonnegative["nmf"]], [e["relative_rms"] for e in study.nonnegative["nmf"]],
-                    "^:", label="NMF, float")
+        ax.semilogy(
+            [e["terms"] for e in study.nonnegative["nmf"]],
+            [e["relative_rms"] for e in study.nonnegative["nmf"]],
+            "^:",
+            label="NMF, float",
+        )
         ax.semilogy([1], [study.nonnegative["nd"]["relative_rms"]], "kx", markersize=9, label="Kautz-McCool ND, float")
         save(fig, ax, "terms", "terms K (atlas slices)", "relative RMS of f cos", "error against K")
 
@@ -202,7 +236,9 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
             rows = [r for r in study.by_resolution if r["terms"] == k]
             ax.semilogy([r["resolution"] for r in rows], [r["relative_rms"] for r in rows], "o-", label=f"K = {k}")
         ax.axvline(FACTOR_RESOLUTION, color="grey", ls=":", label="stored grid (32)")
-        save(fig, ax, "resolution", "sampling grid, texels per factor axis", "relative RMS of f cos (float)", "error against grid")
+        save(
+            fig, ax, "resolution", "sampling grid, texels per factor axis", "relative RMS of f cos (float)", "error against grid"
+        )
 
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         xs = [r["cost"] for r in study.by_resolution]
@@ -212,8 +248,14 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
         ax.loglog([x for x, _ in front], [y for _, y in front], "r-o", label="Pareto front")
         label_points(ax, front, [f"{p['resolution']}/K{p['terms']}" for p in study.pareto])
         table = read_lighting_cost()
-        save(fig, ax, "pareto", f"lighting cost ({table.unit}), {table.device}", "relative RMS of f cos (float)",
-             "error against run-time cost")
+        save(
+            fig,
+            ax,
+            "pareto",
+            f"lighting cost ({table.unit}), {table.device}",
+            "relative RMS of f cos (float)",
+            "error against run-time cost",
+        )
 
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
         for name, curve in study.by_parametrization.items():
@@ -241,31 +283,68 @@ def format_separable_report(studies: list, plots: dict) -> str:
         lines.append("| " + " | ".join(str(c) for c in _summary_cells(s)) + " |")
     for s in studies:
         lines += ["", f"## {s.name}", "", f"Source file: `{s.source}`.", ""]
-        lines += ["### Error against K (float and 8-bit), SVD against NMF and ND", "",
-                  f"![error against K]({plots[s.name]['terms'].name})", "",
-                  "| K | " + " | ".join(f"{t} float | {t} 8-bit" for t in s.by_terms) + " |",
-                  "|---|" + "---|---|" * len(s.by_terms)]
+        lines += [
+            "### Error against K (float and 8-bit), SVD against NMF and ND",
+            "",
+            f"![error against K]({plots[s.name]['terms'].name})",
+            "",
+            "| K | " + " | ".join(f"{t} float | {t} 8-bit" for t in s.by_terms) + " |",
+            "|---|" + "---|---|" * len(s.by_terms),
+        ]
         for k in range(MAX_AUTO_TERMS):
-            lines.append(f"| {k + 1} | " + " | ".join(
-                f"{_pct(c['float'][k])} | {_pct(c['8bit'][k])}" for c in s.by_terms.values()) + " |")
-        nmf = ", ".join(f"K={e['terms']}: {_pct(e['relative_rms'])} float / {_pct(e['relative_rms_8bit'])} 8-bit"
-                        for e in s.nonnegative["nmf"])
+            lines.append(
+                f"| {k + 1} | " + " | ".join(f"{_pct(c['float'][k])} | {_pct(c['8bit'][k])}" for c in s.by_terms.values()) + " |"
+            )
+        nmf = ", ".join(
+            f"K={e['terms']}: {_pct(e['relative_rms'])} float / {_pct(e['relative_rms_8bit'])} 8-bit"
+            for e in s.nonnegative["nmf"]
+        )
         nd = s.nonnegative["nd"]
-        lines += ["", f"Non-negative alternatives (no bias, full 8-bit range): NMF {nmf}; Kautz-McCool ND (K=1): "
-                      f"{_pct(nd['relative_rms'])} float / {_pct(nd['relative_rms_8bit'])} 8-bit.", ""]
-        lines += ["### Error against the sampling grid", "", f"![error against grid]({plots[s.name]['resolution'].name})", "",
-                  "| grid | K=1 | K=2 | K=4 | K=8 | sample + SVD (ms) |", "|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            f"Non-negative alternatives (no bias, full 8-bit range): NMF {nmf}; Kautz-McCool ND (K=1): "
+            f"{_pct(nd['relative_rms'])} float / {_pct(nd['relative_rms_8bit'])} 8-bit.",
+            "",
+        ]
+        lines += [
+            "### Error against the sampling grid",
+            "",
+            f"![error against grid]({plots[s.name]['resolution'].name})",
+            "",
+            "| grid | K=1 | K=2 | K=4 | K=8 | sample + SVD (ms) |",
+            "|---|---|---|---|---|---|",
+        ]
         for res in sorted({r["resolution"] for r in s.by_resolution}):
             rows = {r["terms"]: r for r in s.by_resolution if r["resolution"] == res}
-            lines.append(f"| {res} | " + " | ".join(_pct(rows[k]["relative_rms"]) for k in (1, 2, 4, 8))
-                         + f" | {1e3 * rows[1]['seconds']:.1f} |")
-        lines += ["", "### Error against run-time cost (Pareto front)", "", f"![pareto]({plots[s.name]['pareto'].name})", "",
-                  "Run-time cost: the lighting pass per pixel per light, from atlasgen/data/lighting_cost.json.", "",
-                  "Front: " + ", ".join(f"grid {p['resolution']} K={p['terms']}: {p['cost']:.3g} ns/pixel/light, "
-                                        f"{_pct(p['relative_rms'])}" for p in s.pareto) + ".", ""]
-        lines += ["### Parametrizations (same 32-texel grid, same K)", "",
-                  f"![parametrizations]({plots[s.name]['parametrization'].name})", "",
-                  "| parametrization | K=1 | K=2 | K=4 | K=8 |", "|---|---|---|---|---|"]
+            lines.append(
+                f"| {res} | "
+                + " | ".join(_pct(rows[k]["relative_rms"]) for k in (1, 2, 4, 8))
+                + f" | {1e3 * rows[1]['seconds']:.1f} |"
+            )
+        lines += [
+            "",
+            "### Error against run-time cost (Pareto front)",
+            "",
+            f"![pareto]({plots[s.name]['pareto'].name})",
+            "",
+            "Run-time cost: the lighting pass per pixel per light, from atlasgen/data/lighting_cost.json.",
+            "",
+            "Front: "
+            + ", ".join(
+                f"grid {p['resolution']} K={p['terms']}: {p['cost']:.3g} ns/pixel/light, {_pct(p['relative_rms'])}"
+                for p in s.pareto
+            )
+            + ".",
+            "",
+        ]
+        lines += [
+            "### Parametrizations (same 32-texel grid, same K)",
+            "",
+            f"![parametrizations]({plots[s.name]['parametrization'].name})",
+            "",
+            "| parametrization | K=1 | K=2 | K=4 | K=8 |",
+            "|---|---|---|---|---|",
+        ]
         for name, curve in s.by_parametrization.items():
             lines.append(f"| {name} | " + " | ".join(_pct(curve[k - 1]) for k in (1, 2, 4, 8)) + " |")
         lines += ["", _timings_text(s), ""]
@@ -275,15 +354,26 @@ def format_separable_report(studies: list, plots: dict) -> str:
 def _summary_cells(s: MaterialStudy) -> list:
     t = s.timings
     atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
-    return [s.name, s.chosen["parametrization"], s.chosen["target"], s.chosen["terms"], s.chosen["grid"],
-            _pct(s.chosen["float"]["relative_rms"]), _pct(s.chosen["8bit_srgb"]["relative_rms"]),
-            f"{s.chosen['float']['log_error']:.4g}", f"{1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f}", atlas]
+    return [
+        s.name,
+        s.chosen["parametrization"],
+        s.chosen["target"],
+        s.chosen["terms"],
+        s.chosen["grid"],
+        _pct(s.chosen["float"]["relative_rms"]),
+        _pct(s.chosen["8bit_srgb"]["relative_rms"]),
+        f"{s.chosen['float']['log_error']:.4g}",
+        f"{1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f}",
+        atlas,
+    ]
 
 
 def _timings_text(s: MaterialStudy) -> str:
     t = s.timings
-    return (f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, SVD {1e3 * t['svd_s']:.1f} ms, "
-            f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms.")
+    return (
+        f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, SVD {1e3 * t['svd_s']:.1f} ms, "
+        f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms."
+    )
 
 
 def _html_blocks(s: MaterialStudy, plots: dict) -> list[dict]:
@@ -328,8 +418,15 @@ def format_separable_html(studies: list, plots: dict) -> bytes:
     return render_page("separable.html.j2", studies=pages, plot_width=plot_width(_PLOT_SIZE[0]))
 
 
-def write_separable_report(materials, output, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5,
-                           parametrizations=tuple(PARAMETRIZATIONS), on_material=None) -> dict:
+def write_separable_report(
+    materials,
+    output,
+    atlas_path=None,
+    resolutions=RESOLUTIONS,
+    repeats: int = 5,
+    parametrizations=tuple(PARAMETRIZATIONS),
+    on_material=None,
+) -> dict:
     """Study each separable material and write ``index.html``, ``index.md``, ``report.json`` and PNG plots into ``output``.
 
     The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
@@ -340,7 +437,7 @@ def write_separable_report(materials, output, atlas_path=None, resolutions=RESOL
 
     materials = [m for m in materials if isinstance(m.model, Separable)]
     if not materials:
-        raise InputError(f"no separable materials to report on; expected TOML files with type = \"{Separable.type_name}\"")
+        raise InputError(f'no separable materials to report on; expected TOML files with type = "{Separable.type_name}"')
     folder = Path(output)
     studies = []
     for done, m in enumerate(materials, 1):

@@ -16,10 +16,9 @@ from dataclasses import MISSING, fields
 from pathlib import Path
 
 from atlasgen.errors import InputError
-from atlasgen.io.report_files import read_report_json, report_json_paths
-from atlasgen.reports.separable import MaterialStudy
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.reports.separable import format_separable_html, format_separable_report
+from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.reports.separable import MaterialStudy, format_separable_html, format_separable_report
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
@@ -87,7 +86,9 @@ def merge_separable_reports(sources, output) -> dict:
                 try:
                     files[output / png.name] = png.read_bytes()
                 except OSError as exc:
-                    raise InputError(f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})") from None
+                    raise InputError(
+                        f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})"
+                    ) from None
                 plots[study.name][kind] = output / png.name
             studies.append(study)
     files[output / "index.md"] = format_separable_report(studies, plots).encode()

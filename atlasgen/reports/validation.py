@@ -19,16 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
-from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
-from atlasgen.reports.html import plot_width, render_page
+from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
 from atlasgen.validate.metrics import flip_heatmap
-from atlasgen.io.atomic import write_files_atomically
 
-__all__ = ["write_validation", 
+__all__ = [
+    "write_validation",
     "build_report",
     "report_dict",
     "plot_speed_error",
@@ -88,8 +88,10 @@ def report_dict(run) -> dict:
                 "speed_ratio": _finite(ref.seconds / r.atlas_seconds if r.atlas_seconds > 0 else math.inf),
                 **ref.metrics.as_dict(),
                 "meets_goal": _goal(r, ref, goals),
-                "images": {"reference": image_name(r.material, r.scene, kind),
-                           "flip": image_name(r.material, r.scene, f"flip-{kind}")},  # fmt: skip
+                "images": {
+                    "reference": image_name(r.material, r.scene, kind),
+                    "flip": image_name(r.material, r.scene, f"flip-{kind}"),
+                },  # fmt: skip
             }
             floor = getattr(ref, "noise_floor_db", None)
             if floor is not None:  # a stochastic reference: two seeds against each other
@@ -138,7 +140,9 @@ def _summary(rows: list) -> dict:
 def summary_line(data: dict, html_path) -> str:
     """The one line ``atlasgen validate`` prints: where the page is and how many results meet the goals."""
     s = data["summary"]
-    goals = f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" if s["lut_results"] else "no LUT goals apply"
+    goals = (
+        f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" if s["lut_results"] else "no LUT goals apply"
+    )
     return (f"{Path(html_path).as_posix()} ({len(data['results'])} material/scene results, "
             f"{goals}, {data['total_seconds']:.1f} s)")  # fmt: skip
 
@@ -268,8 +272,11 @@ def plot_speed_error(data: dict) -> bytes:
         ax.set_yscale("log")
         ax.set_xlabel("reference render cost: Mitsuba render time / atlas frame time")
         ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
-        ax.set_title("Reference render cost against error (labelled: the front)\n"
-                     "run-time cost vs error: the library report's Pareto charts", fontsize="medium")
+        ax.set_title(
+            "Reference render cost against error (labelled: the front)\n"
+            "run-time cost vs error: the library report's Pareto charts",
+            fontsize="medium",
+        )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
         return figure_png(fig)
@@ -296,8 +303,10 @@ def _figures(row: dict, size: tuple) -> list[dict]:
     for kind in _FIGURE_KINDS:
         ref = row["references"].get(kind)
         if ref is None:
-            figures += [{"src": None, "caption": f"no {_KIND_LABEL[kind]}", "width": width, "height": height},
-                        {"src": None, "caption": f"no FLIP map against a {kind} reference", "width": width, "height": height}]
+            figures += [
+                {"src": None, "caption": f"no {_KIND_LABEL[kind]}", "width": width, "height": height},
+                {"src": None, "caption": f"no FLIP map against a {kind} reference", "width": width, "height": height},
+            ]
             continue
         figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}",
                         "width": width, "height": height})  # fmt: skip
@@ -333,10 +342,21 @@ def _html(data: dict) -> bytes:
         b = row.get("error_breakdown")
         if b:
             model = row["references"]["model"]
-            breakdown.append({"material": row["material"], "scene": row["scene"], "figures": [
-                _fmt(b["table_float"]["psnr_db"], ".2f"), f"{b['table_float']['flip']:.4f}",
-                _fmt(b["table_8bit"]["psnr_db"], ".2f"), f"{b['table_8bit']['flip']:.4f}",
-                _fmt(model["psnr_db"], ".2f"), f"{model['flip']:.4f}", _fmt(b["gpu_vs_8bit"]["psnr_db"], ".2f")]})
+            breakdown.append(
+                {
+                    "material": row["material"],
+                    "scene": row["scene"],
+                    "figures": [
+                        _fmt(b["table_float"]["psnr_db"], ".2f"),
+                        f"{b['table_float']['flip']:.4f}",
+                        _fmt(b["table_8bit"]["psnr_db"], ".2f"),
+                        f"{b['table_8bit']['flip']:.4f}",
+                        _fmt(model["psnr_db"], ".2f"),
+                        f"{model['flip']:.4f}",
+                        _fmt(b["gpu_vs_8bit"]["psnr_db"], ".2f"),
+                    ],
+                }
+            )
     for name, rows in _rows_by_material(data).items():
         materials.append({
             "name": name, "type": rows[0]["type"], "anchor": _anchor(name),
@@ -346,10 +366,19 @@ def _html(data: dict) -> bytes:
         })  # fmt: skip
     columns = [_KIND_LABEL["atlas"]] + [f"{_KIND_LABEL[k]} and its FLIP map" for k in _FIGURE_KINDS]
     return render_page(
-        "validation.html.j2", data=data, settings=s, merged="merged_from" in data, goals_text=_goals_text(s["goals"]),
-        worst_psnr=_fmt(data["summary"]["worst_lut_psnr_db"], ".2f"), worst_flip=_fmt(data["summary"]["worst_lut_flip"], ".4f"),
-        material_lines=describe_materials(data), plot_width=plot_width(_PLOT_SIZE[0]), metric_rows=metric_rows,
-        breakdown=breakdown, materials=materials, columns=columns,
+        "validation.html.j2",
+        data=data,
+        settings=s,
+        merged="merged_from" in data,
+        goals_text=_goals_text(s["goals"]),
+        worst_psnr=_fmt(data["summary"]["worst_lut_psnr_db"], ".2f"),
+        worst_flip=_fmt(data["summary"]["worst_lut_flip"], ".4f"),
+        material_lines=describe_materials(data),
+        plot_width=plot_width(_PLOT_SIZE[0]),
+        metric_rows=metric_rows,
+        breakdown=breakdown,
+        materials=materials,
+        columns=columns,
     )
 
 
@@ -377,7 +406,11 @@ def _page_files(data: dict, out_dir: Path) -> dict:
 
 def _read_report(path: Path) -> dict:
     data = read_report_json(path, "validation", "atlasgen validate")
-    missing = [k for k in ("atlas", "settings", "environment", "total_seconds", "results") if k not in data] if isinstance(data, dict) else ["everything"]
+    missing = (
+        [k for k in ("atlas", "settings", "environment", "total_seconds", "results") if k not in data]
+        if isinstance(data, dict)
+        else ["everything"]
+    )
     if missing:
         raise InputError(f"{path.as_posix()}: not a validation report (missing {', '.join(missing)})")
     return data

@@ -105,9 +105,9 @@ def evaluate_analytic(params: dict, l, v):
     diffuse = np.asarray(params.get("diffuse", (0.0, 0.0, 0.0)), dtype=np.float64)
     out = lambert_brdf(l, v, diffuse)
     if source in ("ggx", "beckmann"):
-        lobe = microfacet_brdf(
-            l, v, source, params["alpha"], params["fresnel"], params["f0"], params["ior"]
-        ) * np.asarray(params.get("specular", (1.0, 1.0, 1.0)))
+        lobe = microfacet_brdf(l, v, source, params["alpha"], params["fresnel"], params["f0"], params["ior"]) * np.asarray(
+            params.get("specular", (1.0, 1.0, 1.0))
+        )
     elif source == "blinn_phong":
         lobe = blinn_phong_brdf(l, v, params["exponent"], params["specular"])
     elif source == "ward":

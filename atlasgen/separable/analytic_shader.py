@@ -12,7 +12,7 @@ the lighting pass passes them as literals (:func:`analytic_call`).
 from __future__ import annotations
 
 from atlasgen.optics.microfacet import COS_EPSILON
-from atlasgen.shaderlang import Comment, Function, If, Let, Return, Var, Assign, float_literal
+from atlasgen.shaderlang import Assign, Comment, Function, If, Let, Return, Var, float_literal
 
 __all__ = ["DISTRIBUTION_CODES", "FRESNEL_CODES", "analytic_declarations", "analytic_call"]
 
@@ -91,5 +91,7 @@ def analytic_call(rep, n: str = "n", l: str = "l", v: str = "v") -> str:
     """The WGSL call of ``analytic_f_cos`` for one :class:`~atlasgen.io.manifest.AnalyticRepresentation`,
     its parameters as f32 literals."""
     p = (DISTRIBUTION_CODES[rep.distribution], rep.alpha, FRESNEL_CODES[rep.fresnel], rep.ior)
-    return (f"analytic_f_cos({n}, {l}, {v}, vec4<f32>({_vec(p)}), vec3<f32>({_vec(rep.f0)}), "
-            f"vec3<f32>({_vec(rep.specular)}), vec3<f32>({_vec(rep.diffuse)}))")
+    return (
+        f"analytic_f_cos({n}, {l}, {v}, vec4<f32>({_vec(p)}), vec3<f32>({_vec(rep.f0)}), "
+        f"vec3<f32>({_vec(rep.specular)}), vec3<f32>({_vec(rep.diffuse)}))"
+    )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -70,7 +70,7 @@ class Approximation:
         return {k: v for k, v in _at(self.errors_by_terms[self.target], self.terms).items() if k != "terms"}
 
 
-@lru_cache(maxsize=None)
+@cache
 def _weights(name: str, resolution: int):
     return get_parametrization(name).quadrature_weights(resolution)
 
@@ -235,7 +235,10 @@ def approximate_brdf(
         reported = (errors_8bit or errors)[chosen["target"]]
         met = bool(upper_bound(_at(reported, k)) <= max_error)
     grid_errors = {
-        c["target"]: [float(f"{e:.6g}") for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))]
+        c["target"]: [
+            float(f"{e:.6g}")
+            for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))
+        ]
         for c in on_grid
     }
     timings["error_s"] += time.perf_counter() - t3
@@ -251,9 +254,15 @@ def approximate_brdf(
         timings=timings,
         max_error_met=met,
         grid=chosen["grid"],
-        candidates=[{"grid": c["grid"], "target": c["target"],
-                     "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]],
-                     "relative_rms_se_by_terms": [e["relative_rms_se"] for e in c["errors"]]} for c in candidates],  # fmt: skip
+        candidates=[
+            {
+                "grid": c["grid"],
+                "target": c["target"],
+                "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]],
+                "relative_rms_se_by_terms": [e["relative_rms_se"] for e in c["errors"]],
+            }
+            for c in candidates
+        ],  # fmt: skip
         selection=selection,
         report=report,
     )

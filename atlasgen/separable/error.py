@@ -33,9 +33,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from atlasgen.separable.rebuild import sample_factors
+
 from atlasgen.separable.parametrization import get_parametrization
-from atlasgen.separable.rebuild import cached_on_pairs
+from atlasgen.separable.rebuild import cached_on_pairs, sample_factors
 from atlasgen.separable.source import lobe_alpha
 
 __all__ = [
@@ -182,8 +182,9 @@ def mixture_weights(l, v, lobe_alpha: float | None, sphere: bool = False) -> np.
 
 
 @lru_cache(maxsize=16)
-def sample_error_pairs(count: int = ERROR_PAIRS, seed: int = ERROR_SEED, lobe_alpha: float | None = None,
-                       sphere: bool = False) -> ErrorSample:
+def sample_error_pairs(
+    count: int = ERROR_PAIRS, seed: int = ERROR_SEED, lobe_alpha: float | None = None, sphere: bool = False
+) -> ErrorSample:
     """``count`` i.i.d. pairs from the defensive mixture (see the module docstring).
 
     v is uniform in solid angle on the upper hemisphere; l is uniform too with probability
@@ -339,8 +340,9 @@ def upper_bound(error: dict) -> float:
     return error["relative_rms"] + MET_SIGMAS * error.get("relative_rms_se", 0.0)
 
 
-def errors_by_terms(factors, reference: np.ndarray, l: np.ndarray, v: np.ndarray, terms=None,
-                    log: bool = True, weight=None) -> list[dict]:
+def errors_by_terms(
+    factors, reference: np.ndarray, l: np.ndarray, v: np.ndarray, terms=None, log: bool = True, weight=None
+) -> list[dict]:
     """Errors and standard errors of the first K terms at the pairs (l, v), n = +z, for each K in ``terms``.
 
     ``terms`` defaults to 1 .. factors.terms. One interpolation pass serves every K

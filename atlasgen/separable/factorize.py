@@ -14,7 +14,17 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-__all__ = ["single_blas_thread", "matrix_errors", "Factors", "factorize", "factorize_svd", "factorize_nmf", "factorize_nd", "fix_signs", "FACTORIZATIONS"]
+__all__ = [
+    "single_blas_thread",
+    "matrix_errors",
+    "Factors",
+    "factorize",
+    "factorize_svd",
+    "factorize_nmf",
+    "factorize_nd",
+    "fix_signs",
+    "FACTORIZATIONS",
+]
 
 FACTORIZATIONS = ("svd", "nmf", "nd")
 
@@ -44,7 +54,7 @@ class Factors:
     def resolution(self) -> int:
         return self.g.shape[2]
 
-    def truncated(self, terms: int) -> "Factors":
+    def truncated(self, terms: int) -> Factors:
         return Factors(self.g[:terms], self.h[:terms], self.parametrization, self.singular_values[:, :terms], self.target,
                        self.transmission)  # fmt: skip
 

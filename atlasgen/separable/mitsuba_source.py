@@ -9,12 +9,20 @@ import re
 
 import numpy as np
 
-from atlasgen.errors import BackendError, did_you_mean, MaterialError
+from atlasgen.errors import BackendError, MaterialError, did_you_mean
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, shown
 
-__all__ = ["VARIANT", "BSDF_PROPERTIES", "load_mitsuba_bsdf", "explain_mitsuba_error", "evaluate_mitsuba_f_cos",
-           "bsdf_alpha", "transmitted_fractions", "TRANSMISSION_VIEWS"]
+__all__ = [
+    "VARIANT",
+    "BSDF_PROPERTIES",
+    "load_mitsuba_bsdf",
+    "explain_mitsuba_error",
+    "evaluate_mitsuba_f_cos",
+    "bsdf_alpha",
+    "transmitted_fractions",
+    "TRANSMISSION_VIEWS",
+]
 
 VARIANT = "llvm_ad_rgb"
 
@@ -31,12 +39,42 @@ BSDF_PROPERTIES = {
     "thindielectric": (*_IOR, "specular_reflectance", "specular_transmittance"),
     "roughdielectric": (*_IOR, "specular_reflectance", "specular_transmittance", *_ROUGH),
     "plastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "nonlinear"),
-    "roughplastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "nonlinear", "distribution", "alpha",
-                     "sample_visible"),  # fmt: skip
-    "principled": ("base_color", "roughness", "anisotropic", "metallic", "spec_trans", "eta", "specular",
-                   "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat", "clearcoat_gloss"),  # fmt: skip
-    "principledthin": ("base_color", "roughness", "anisotropic", "spec_trans", "eta", "spec_tint", "sheen",
-                       "sheen_tint", "flatness", "diff_trans"),  # fmt: skip
+    "roughplastic": (
+        *_IOR,
+        "diffuse_reflectance",
+        "specular_reflectance",
+        "nonlinear",
+        "distribution",
+        "alpha",
+        "sample_visible",
+    ),  # fmt: skip
+    "principled": (
+        "base_color",
+        "roughness",
+        "anisotropic",
+        "metallic",
+        "spec_trans",
+        "eta",
+        "specular",
+        "spec_tint",
+        "sheen",
+        "sheen_tint",
+        "flatness",
+        "clearcoat",
+        "clearcoat_gloss",
+    ),  # fmt: skip
+    "principledthin": (
+        "base_color",
+        "roughness",
+        "anisotropic",
+        "spec_trans",
+        "eta",
+        "spec_tint",
+        "sheen",
+        "sheen_tint",
+        "flatness",
+        "diff_trans",
+    ),  # fmt: skip
     "twosided": (),
     "blendbsdf": ("weight",),
     "mask": ("opacity",),
@@ -44,8 +82,16 @@ BSDF_PROPERTIES = {
     "normalmap": (),
     "null": (),
     "pplastic": (*_IOR, "diffuse_reflectance", "specular_reflectance", "alpha"),
-    "hair": ("eumelanin", "pheomelanin", "sigma_a", "reflectance", "int_ior", "longitudinal_roughness",
-             "azimuthal_roughness", "scale_tilt"),  # fmt: skip
+    "hair": (
+        "eumelanin",
+        "pheomelanin",
+        "sigma_a",
+        "reflectance",
+        "int_ior",
+        "longitudinal_roughness",
+        "azimuthal_roughness",
+        "scale_tilt",
+    ),  # fmt: skip
     "measured": ("filename",),
 }
 _COLOUR = 'expected {type = "rgb", value = [r, g, b]}, a spectrum or a number'

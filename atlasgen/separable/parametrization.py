@@ -79,7 +79,7 @@ class Warp(enum.IntEnum):
     COS = 3
 
     @classmethod
-    def of(cls, kind) -> "Warp":
+    def of(cls, kind) -> Warp:
         """A member from itself or its name in any case (``"sqrt_hi"``)."""
         return kind if isinstance(kind, cls) else cls[str(kind).upper()]
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from atlasgen.errors import InputError
 from atlasgen.io.atlas import read_atlas
@@ -18,7 +19,6 @@ from atlasgen.optics.interpolation import linear_stencil, sample_slice
 from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.parametrization import SYSTEM_ANGLES, angles_of_directions, get_parametrization
-from scipy.sparse import csr_matrix
 
 __all__ = [
     "sample_factors",
@@ -99,8 +99,7 @@ def _stencil(name: str, resolution: int, n, l, v) -> _Stencil:
     p = get_parametrization(name)
     if n is None:  # local frame: angles depend on the system only, texels on the grid
         z = np.array([0.0, 0.0, 1.0])
-        angles = _cached(_ANGLE_CACHE, (p.system, id(l), id(v)), (l, v),
-                         lambda: angles_of_directions(p.system, z, l, v))
+        angles = _cached(_ANGLE_CACHE, (p.system, id(l), id(v)), (l, v), lambda: angles_of_directions(p.system, z, l, v))
 
         def make():
             named = dict(zip(SYSTEM_ANGLES[p.system], angles[0]))
@@ -163,8 +162,9 @@ def evaluate_factors(factors: Factors, n, l, v, cosine: bool = True, clamp: bool
     return total.reshape(shape + (3,))
 
 
-def factors_from_slices(decoded: np.ndarray, scale, bias, parametrization: str, target: str = "f_cos",
-                        transmission_scale=None) -> Factors:
+def factors_from_slices(
+    decoded: np.ndarray, scale, bias, parametrization: str, target: str = "f_cos", transmission_scale=None
+) -> Factors:
     """Factors from decoded atlas slices ``(K, 32, 64, 4)`` (what a sampler returns, linear).
 
     ``scale`` and ``bias`` are ``(K, 2, 3)``: per term, per factor (g, h), per channel;

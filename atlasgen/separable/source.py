@@ -6,12 +6,21 @@ from functools import lru_cache
 
 import numpy as np
 
+from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 from atlasgen.separable.analytic import evaluate_analytic
 from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos, load_mitsuba_bsdf
-from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 from atlasgen.separable.parametrization import HORIZON_COS
 
-__all__ = ["BrdfSource", "make_source", "thin_film_source", "film_transmits", "sample_matrices", "sample_matrix", "lobe_alpha", "measure_lobe_alpha"]
+__all__ = [
+    "BrdfSource",
+    "make_source",
+    "thin_film_source",
+    "film_transmits",
+    "sample_matrices",
+    "sample_matrix",
+    "lobe_alpha",
+    "measure_lobe_alpha",
+]
 
 
 class BrdfSource:
@@ -23,8 +32,15 @@ class BrdfSource:
     mask them (:func:`sample_matrix`).
     """
 
-    def __init__(self, kind: str, evaluate_f=None, evaluate_f_cos=None, zero_on_horizon: bool = False,
-                 alpha: float | None = None, transmits: bool = False):
+    def __init__(
+        self,
+        kind: str,
+        evaluate_f=None,
+        evaluate_f_cos=None,
+        zero_on_horizon: bool = False,
+        alpha: float | None = None,
+        transmits: bool = False,
+    ):
         if (evaluate_f is None) == (evaluate_f_cos is None):
             raise ValueError("give exactly one of evaluate_f, evaluate_f_cos")
         self.kind = kind

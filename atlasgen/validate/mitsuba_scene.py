@@ -32,8 +32,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from atlasgen.render.meshes import build_mesh
+
 from atlasgen.materials.scene import object_matrix
+from atlasgen.render.meshes import build_mesh
 
 __all__ = [
     "render_pixel_centres",
@@ -89,8 +90,10 @@ def register_direct_integrator(mi) -> str:
                 value = bsdf.eval(ctx, si, wo, hit)
                 result += dr.select(hit & (ds.pdf > 0), value * weight, 0.0)
             if any(self.background):
-                bg = mi.Spectrum(mi.Color3f(*self.background)) if mi.is_rgb else mi.Spectrum(
-                    mi.srgb_model_eval(mi.srgb_model_fetch(mi.ScalarColor3f(*self.background)), ray.wavelengths)
+                bg = (
+                    mi.Spectrum(mi.Color3f(*self.background))
+                    if mi.is_rgb
+                    else mi.Spectrum(mi.srgb_model_eval(mi.srgb_model_fetch(mi.ScalarColor3f(*self.background)), ray.wavelengths))
                 )
                 result = dr.select(hit, result, bg)
             return result, hit, []
@@ -193,7 +196,8 @@ def sensor_dict(mi, scene, spp: int = 1, stochastic: bool = False) -> dict:
             "pixel_format": "rgb",
             "component_format": "float32",
         },
-        "sampler": {"type": "independent", "sample_count": int(spp)} if stochastic
+        "sampler": {"type": "independent", "sample_count": int(spp)}
+        if stochastic
         else {"type": "stratified", "sample_count": int(spp), "jitter": False},
     }
 
@@ -252,8 +256,7 @@ def mitsuba_mesh(mi, obj, bsdf=None, interior=None, name=None, emitter=None):
     return mesh
 
 
-def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None = None, interiors=None,
-                       stochastic: bool = False):
+def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None = None, interiors=None, stochastic: bool = False):
     """Load the Mitsuba twin of ``scene``.
 
     Parameters
@@ -306,8 +309,9 @@ def render_mitsuba(mi, mi_scene, spp: int = 1, seed: int = 0, python_plugins: bo
 CENTRE_PASS_SPP = 64
 
 
-def render_pixel_centres(mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True,
-                         first_sample: int = 0) -> tuple[np.ndarray, float]:
+def render_pixel_centres(
+    mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True, first_sample: int = 0
+) -> tuple[np.ndarray, float]:
     """Render with every sample's camera ray through its pixel's centre: ``(linear RGB (h, w, 3), seconds)``.
 
     A stochastic reference needs many samples per pixel (paths, wavelengths), but the

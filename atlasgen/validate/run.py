@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import BackendError, did_you_mean, InputError, SceneError
+from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.materials.material import read_material
@@ -32,19 +32,19 @@ from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
-from atlasgen.validate.metrics import compare_images, noise_floor, NOISE_FLOOR_MARGIN_DB, relative_rms
+from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, relative_rms
 from atlasgen.validate.mitsuba_scene import (
+    CENTRE_PASS_SPP,
     build_mitsuba_scene,
     cast_shadow_mask,
     object_mask,
     register_direct_integrator,
     render_mitsuba,
     render_pixel_centres,
-    CENTRE_PASS_SPP,
 )
 from atlasgen.validate.rebuild import material_mask, rebuild_images
 from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
-from atlasgen.validate.scenes import bind_material, load_validation_scene, MATERIAL_PLACEHOLDER, resize_scene
+from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, bind_material, load_validation_scene, resize_scene
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -321,8 +321,10 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                 ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
                                           atlas_image, run.exposure)  # fmt: skip
                 run.references["physical"] = ref
-                say(f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
-                    + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else ""))
+                say(
+                    f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
+                    + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else "")
+                )
             runs.append(run)
         if on_material is not None:
             on_material(entry.name, done, len(plan.entries))
@@ -346,7 +348,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
 
 
-def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, atlas_image, exposure) -> ReferenceRender:
+def _converged_physical(
+    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, atlas_image, exposure
+) -> ReferenceRender:
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
     A stochastic reference renders with seeds 0 and 1 at ``physical_spp`` samples per pixel;
@@ -481,8 +485,10 @@ CAST_SHADOW_NOTE = "cast shadows of other objects (the deferred renderer has non
 
 
 #: What the physical comparison leaves out where the material's own reference cannot cover an object.
-STAND_IN_NOTE = ("the open surfaces showing the material, where a medium's reference has a diffuse stand-in: masked, "
-                 "and left out of the reference, so they shadow and light nothing")
+STAND_IN_NOTE = (
+    "the open surfaces showing the material, where a medium's reference has a diffuse stand-in: masked, "
+    "and left out of the reference, so they shadow and light nothing"
+)
 
 
 def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, first_sample: int = 0) -> ReferenceRender:

@@ -58,9 +58,7 @@ def load_validation_scene(name_or_path):
 
 def bind_material(scene, material: str):
     """A copy of ``scene`` with the placeholder material replaced by ``material``."""
-    objects = [
-        dataclasses.replace(o, material=material) if o.material == MATERIAL_PLACEHOLDER else o for o in scene.objects
-    ]
+    objects = [dataclasses.replace(o, material=material) if o.material == MATERIAL_PLACEHOLDER else o for o in scene.objects]
     return dataclasses.replace(scene, objects=objects)
 
 

@@ -4,8 +4,8 @@ GLSL and HLSL are compiled to SPIR-V with glslang and run through wgpu (lavapipe
 to the WGSL, on a small baked library (a lambert, a toon with hard steps, a separable).
 """
 
-import shutil
 import hashlib
+import shutil
 import struct
 import subprocess
 from pathlib import Path
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.io.sidecar import SIDECAR_MAGIC
 from atlasgen.materials.material import read_materials
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
 from atlasgen.separable.rebuild import evaluate_separable
-from atlasgen.io.sidecar import SIDECAR_MAGIC
 from atlasgen.separable.shader import separable_table
 from atlasgen.shaderlang import LANGUAGES
 
@@ -92,8 +92,10 @@ def small_atlas(tmp_path_factory):
     folder = tmp_path_factory.mktemp("languages")
     names = ("terracotta", "toon-hero", "separable-plastic")
     film = folder / "film.toml"
-    film.write_text('type = "separable"\nsource = "thin_film"\nalpha = 0.3\nterms = 2\n'
-                    'film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = 1.5, backlight_colour = [0.5, 0.8, 1.0] }\n')
+    film.write_text(
+        'type = "separable"\nsource = "thin_film"\nalpha = 0.3\nterms = 2\n'
+        "film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = 1.5, backlight_colour = [0.5, 0.8, 1.0] }\n"
+    )
     materials = read_materials([*(ROOT / "materials" / f"{n}.toml" for n in names), film])
     result = bake_atlas(materials, "array", True, {})
     paths = write_bake(result, folder / "atlas.dds")
@@ -120,8 +122,16 @@ def test_every_language_comes_from_the_one_description(small_atlas):
         assert rest == texts["wgsl" if key == "include" else key]
         assert first == "// atlasgen manifest sha256: " + hashlib.sha256(paths["manifest"].read_bytes()).hexdigest()
     # The same functions, constants and table rows in each language.
-    for name in ("atlas_uv", "atlas_sample", "atlas_scale_bias", "specular_alpha", "separable_f_cos",
-                 "MATERIAL_TERRACOTTA", "SEPARABLE_TABLE", "ATLAS_FLAG_NEAREST"):
+    for name in (
+        "atlas_uv",
+        "atlas_sample",
+        "atlas_scale_bias",
+        "specular_alpha",
+        "separable_f_cos",
+        "MATERIAL_TERRACOTTA",
+        "SEPARABLE_TABLE",
+        "ATLAS_FLAG_NEAREST",
+    ):
         assert all(name in text for text in texts.values()), name
     spelling = {"wgsl": "vec4<f32>(", "glsl": "vec4(", "hlsl": "float4("}
     rows = {lang: text.count(spelling[lang]) for lang, text in texts.items()}
@@ -187,6 +197,7 @@ def _queries(result, rng):
 def _random_frames(rng, count):
     """Unit n, and l, v above its horizon (cosines >= 0.02: away from grazing, where f32 and f64 angles
     may pick different texels)."""
+
     def unit(x):
         return x / np.linalg.norm(x, axis=1, keepdims=True)
 

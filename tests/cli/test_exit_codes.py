@@ -49,7 +49,7 @@ def _run(tmp_path, library, monkeypatch, code):
             raise BackendError("no WebGPU adapter")
 
         monkeypatch.setattr("atlasgen.render.renderer.get_device", no_adapter)
-        (tmp_path / "s.toml").write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n')
+        (tmp_path / "s.toml").write_text("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n")
         assert CliRunner().invoke(app, args).exit_code == 0
         args = ["render", str(tmp_path / "s.toml"), "--atlas", out, "-o", str(tmp_path / "r.exr")]
     elif code == 6:

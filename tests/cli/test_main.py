@@ -138,8 +138,11 @@ def test_cli_reference_is_generated_from_the_app():
     assert stale.read_text() == text, "docs/cli.md is stale: run python -m atlasgen.cli.docgen"
 
 
-@pytest.mark.parametrize("argv", [["-m", "atlasgen"], ["-c", "from atlasgen.cli.main import main; main([])"]],
-                         ids=["python -m atlasgen", "bare atlasgen"])
+@pytest.mark.parametrize(
+    "argv",
+    [["-m", "atlasgen"], ["-c", "from atlasgen.cli.main import main; main([])"]],
+    ids=["python -m atlasgen", "bare atlasgen"],
+)
 @pytest.mark.slow
 def test_bare_atlasgen_and_python_m_print_the_help_and_succeed(argv):
     out = subprocess.run([sys.executable, *argv], capture_output=True, text=True)

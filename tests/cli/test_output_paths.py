@@ -68,7 +68,11 @@ def test_an_output_may_not_be_a_folder(tmp_path, library):
     (tmp_path / "out.dds").mkdir()
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "out.dds")], "the atlas (-o) is an existing folder")
     (tmp_path / "a.wgsl").mkdir()
-    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds")], "the include written beside the atlas is an existing folder")
+    _refused(
+        tmp_path,
+        ["bake", str(library), "-o", str(tmp_path / "a.dds")],
+        "the include written beside the atlas is an existing folder",
+    )
 
 
 def test_the_atlas_extension_must_match(tmp_path, library):

@@ -74,8 +74,10 @@ def test_render_writes_exr_png_and_aov(gpu_device, atlas, tmp_path):
     [
         (SCENE.format(material="gold"), "unknown material 'gold'; expected one of the names in"),
         (SCENE.format(material="clay").replace('shape = "sphere"', 'shape = "mesh"\nfile = "nope.obj"'), "no such mesh file"),
-        (SCENE.format(material="clay") + "[[lights]]\ntype = 'point'\nposition = [0, 0, 1]\nintensity = 1\n" * 1025,
-         "expected at most 1024"),
+        (
+            SCENE.format(material="clay") + "[[lights]]\ntype = 'point'\nposition = [0, 0, 1]\nintensity = 1\n" * 1025,
+            "expected at most 1024",
+        ),
     ],
 )
 def test_bad_scenes_fail_with_one_line(atlas, tmp_path, scene_text, words):

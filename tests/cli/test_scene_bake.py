@@ -80,6 +80,11 @@ def test_the_depfile_names_exactly_the_scene_materials_and_their_cache_entries(t
     assert target == out.as_posix()
     named = set(prerequisites.split())
     materials = tmp_path / "materials"
-    assert named == {(materials / "alpha.toml").as_posix(), (materials / "charlie.toml").as_posix(), scene.as_posix(),
-                     (cache / "alpha.npz").as_posix(), (cache / "charlie.npz").as_posix()}
+    assert named == {
+        (materials / "alpha.toml").as_posix(),
+        (materials / "charlie.toml").as_posix(),
+        scene.as_posix(),
+        (cache / "alpha.npz").as_posix(),
+        (cache / "charlie.npz").as_posix(),
+    }
     assert all((cache / f"{n}.npz").is_file() for n in ("alpha", "charlie")) and not (cache / "bravo.npz").exists()

@@ -9,7 +9,6 @@ import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
-
 from tests.validate.validation_fixtures import mitsuba_rgb, validation_atlas  # noqa: F401  (shared fixtures)
 
 
@@ -69,7 +68,9 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
         result = runner.invoke(app, ["validate", str(folder / f"{material}.toml"), *tiny, "-o", str(tmp_path / material)])
         assert result.exit_code == 0, result.output
         assert [r["material"] for r in json.loads((tmp_path / material / "report.json").read_text())["results"]] == [material]
-    result = runner.invoke(app, ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all")])
+    result = runner.invoke(
+        app, ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all")]
+    )
     assert result.exit_code == 0, result.output
     data = json.loads((tmp_path / "all" / "report.json").read_text())
     assert [r["material"] for r in data["results"]] == ["matte", "coat"]
@@ -86,8 +87,10 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
     [
         (lambda tmp, folder: tmp / "nosuch.toml", "nosuch.toml: no such file"),
         # Same name, other content: the atlas's slices are not what this file describes.
-        (lambda tmp, folder: _write(tmp / "matte.toml", (folder / "matte.toml").read_text().replace("0.8", "0.7")),
-         "matte.toml: changed since"),
+        (
+            lambda tmp, folder: _write(tmp / "matte.toml", (folder / "matte.toml").read_text().replace("0.8", "0.7")),
+            "matte.toml: changed since",
+        ),
         (lambda tmp, folder: _write(tmp / "other.toml", 'type = "lambert"\n'), "material 'other' is not in"),
     ],
     ids=["missing", "changed-since-the-bake", "not-in-the-atlas"],
@@ -169,7 +172,9 @@ def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_
 @pytest.mark.slow
 def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
     out = tmp_path / "v"
-    result = CliRunner().invoke(app, ["validate", "gloss", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out), "--strict"])
+    result = CliRunner().invoke(
+        app, ["validate", "gloss", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out), "--strict"]
+    )
     assert result.exit_code == 0, result.output
     claimed = json.loads((out / "report.json").read_text())["results"][0]["claimed_errors"]
     first, last = result.stdout.strip().splitlines()
@@ -186,8 +191,17 @@ def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(valida
     [
         ([], ["validated matte (1/2)", "validated coat (2/2)"]),
         (["-q"], []),
-        (["-v"], ["matte / front: atlas", "matte / front: model reference", "validated matte (1/2)",
-                  "coat / front: atlas", "coat / front: model reference", "validated coat (2/2)"]),
+        (
+            ["-v"],
+            [
+                "matte / front: atlas",
+                "matte / front: model reference",
+                "validated matte (1/2)",
+                "coat / front: atlas",
+                "coat / front: model reference",
+                "validated coat (2/2)",
+            ],
+        ),
     ],
     ids=["default", "quiet", "verbose"],
 )

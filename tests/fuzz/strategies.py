@@ -208,7 +208,9 @@ def scene_toml(draw, materials=("clay", "gloss"), mesh_files=("mesh.obj",)) -> b
                              ("outline_normal_degrees", _num(clean, 1, 180)), ("exposure", _num(clean, 0.01, 10))], 4)  # fmt: skip
     lights = []
     for _ in range(draw(st.integers(0, 3))):
-        kind = draw(st.sampled_from(["point", "directional"]) if clean else st.one_of(st.sampled_from(["point", "directional"]), weird))
+        kind = draw(
+            st.sampled_from(["point", "directional"]) if clean else st.one_of(st.sampled_from(["point", "directional"]), weird)
+        )
         light = {"type": kind, "intensity": draw(_num(clean, 0, 100))}
         key = ("position" if kind == "point" else "direction") if clean else draw(st.sampled_from(["position", "direction"]))
         light[key] = draw(_vec(clean))
@@ -218,9 +220,14 @@ def scene_toml(draw, materials=("clay", "gloss"), mesh_files=("mesh.obj",)) -> b
     for _ in range(draw(st.integers(0, 3))):
         shapes = st.sampled_from(["sphere", "plane", "box", "torus", "mesh"])
         shape = draw(shapes if clean else st.one_of(shapes, weird))
-        obj = {"shape": shape, "material": draw(st.sampled_from(materials) if clean else st.one_of(st.sampled_from(materials), weird))}
+        obj = {
+            "shape": shape,
+            "material": draw(st.sampled_from(materials) if clean else st.one_of(st.sampled_from(materials), weird)),
+        }
         if shape == "mesh":
-            obj["file"] = draw(st.sampled_from(mesh_files) if clean else st.one_of(st.sampled_from(mesh_files), st.text(max_size=10)))
+            obj["file"] = draw(
+                st.sampled_from(mesh_files) if clean else st.one_of(st.sampled_from(mesh_files), st.text(max_size=10))
+            )
         segments = st.integers(3, 32) if clean else st.one_of(st.integers(3, 32), edge_numbers, weird)
         _optional(draw, obj, [("translate", _vec(clean)), ("rotate", _vec(clean, -360, 360)), ("scale", _vec(clean, 0.1, 3)),
                               ("albedo", _vec(clean, 0.0, 1.0)), ("gloss", _num(clean, 0, 1)), ("opacity", _num(clean, 0, 1)),
@@ -269,7 +276,7 @@ def damage_dds(data: bytes, damage) -> bytes:
         elif op == "byte" and args[0] < len(out):
             out[args[0]] = args[1]
         elif op == "truncate":
-            del out[args[0]:]
+            del out[args[0] :]
         elif op == "append":
             out += args[0]
     return bytes(out)

@@ -113,7 +113,9 @@ def test_the_renderer_refuses_an_include_from_another_bake(tmp_path):
     out = _bake(tmp_path, "build")
     other = _bake(tmp_path, "other", colour="[0.7, 0.5, 0.3]")
     shutil.copy(other.with_suffix(".wgsl"), out.with_suffix(".wgsl"))
-    with pytest.raises(InputError, match=r"atlas\.wgsl: its manifest sha256 does not match .*atlas\.json .*re-run atlasgen bake$"):
+    with pytest.raises(
+        InputError, match=r"atlas\.wgsl: its manifest sha256 does not match .*atlas\.json .*re-run atlasgen bake$"
+    ):
         read_render_atlas(out)
     text = other.with_suffix(".wgsl").read_text().split("\n", 1)[1]  # an include without its first line
     out.with_suffix(".wgsl").write_text(text)

@@ -23,9 +23,7 @@ from atlasgen.errors import InputError, OutputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.ktx2 import encode_ktx2, read_ktx2
 from atlasgen.materials.material import read_materials
-
-from tests import dds_reader
-from tests import ktx2_reader
+from tests import dds_reader, ktx2_reader
 
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "resources" / "ktx2"
@@ -290,8 +288,7 @@ DAMAGED = {
     "level byteLength": (lambda: _put(_tiny(), 88, "<Q", 1 << 62), "'levels[0].byteLength'"),
     "uncompressedByteLength": (lambda: _put(_tiny(), 96, "<Q", 1 << 40), "'levels[0].uncompressedByteLength'"),
     "corrupt zstd frame": (lambda: _put(_tiny(True), _level0_offset(_tiny(True)), "<I", 0xDEADBEEF), "corrupt Zstandard"),
-    "uncompressedByteLength of a zstd level": (lambda: _put(_tiny(True), 96 + 24, "<Q", 5),
-                                               "'levels[1].uncompressedByteLength'"),
+    "uncompressedByteLength of a zstd level": (lambda: _put(_tiny(True), 96 + 24, "<Q", 5), "'levels[1].uncompressedByteLength'"),
     "zstd bomb": (lambda: _bomb(content_size=False), "inflates to more than"),
     "zstd bomb declaring its size": (lambda: _bomb(content_size=True), "inflates to more than"),
 }
@@ -374,7 +371,10 @@ def test_cli_refuses_other_suffixes_and_zstd_dds(library, tmp_path):
     runner = CliRunner()
     res = runner.invoke(app, ["bake", str(library), "-o", str(tmp_path / "atlas.png")])
     assert res.exit_code == OutputError.exit_code
-    assert res.stderr.strip() == f"atlasgen: error: {(tmp_path / 'atlas.png').as_posix()}: the atlas (-o) must end in .dds or .ktx2, not '.png'"
+    assert (
+        res.stderr.strip()
+        == f"atlasgen: error: {(tmp_path / 'atlas.png').as_posix()}: the atlas (-o) must end in .dds or .ktx2, not '.png'"
+    )
     res = runner.invoke(app, ["bake", str(library), "-o", str(tmp_path / "atlas.dds"), "--zstd"])
     assert res.exit_code == 2 and "--zstd needs a KTX2 output" in res.stderr
     assert not list(tmp_path.glob("atlas.*"))

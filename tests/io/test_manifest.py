@@ -22,8 +22,19 @@ from atlasgen.cli.main import app
 from atlasgen.contract import FORMAT_VERSION
 from atlasgen.errors import InputError, ManifestError
 from atlasgen.io.manifest import (
-    BrdfError, Dimensions, ErrorSummary, Fit, LutRepresentation, Manifest, MaterialEntry, SeparableFactors, VolumeBleed,
-    format_manifest, parse_manifest, read_manifest, write_manifest,
+    BrdfError,
+    Dimensions,
+    ErrorSummary,
+    Fit,
+    LutRepresentation,
+    Manifest,
+    MaterialEntry,
+    SeparableFactors,
+    VolumeBleed,
+    format_manifest,
+    parse_manifest,
+    read_manifest,
+    write_manifest,
 )  # fmt: skip
 
 GOLDEN = Path(__file__).resolve().parents[1] / "resources" / "golden"
@@ -155,7 +166,10 @@ def _manifests(draw):
             quantization_error=ErrorSummary(max=draw(st.floats(0, 10)), rms=draw(st.floats(0, 10))),
         ))  # fmt: skip
         first += n + draw(st.integers(0, 2))
-    bleed = draw(st.none() | st.lists(st.builds(VolumeBleed, level=st.integers(1, 8), max=st.floats(0, 2), rms=st.floats(0, 2)), max_size=3))
+    bleed = draw(
+        st.none()
+        | st.lists(st.builds(VolumeBleed, level=st.integers(1, 8), max=st.floats(0, 2), rms=st.floats(0, 2)), max_size=3)
+    )
     return _manifest(*entries, volume_bleed=bleed, atlas_sha256=draw(st.text("0123456789abcdef", min_size=64, max_size=64)))
 
 
@@ -214,7 +228,9 @@ def test_the_schemas_are_package_data():
     for name in ("info.schema.json", "manifest.schema.json"):
         assert any(fnmatch.fnmatch(f"schemas/{name}", pattern) for pattern in patterns), name
     assert sorted(p.name for p in (files("atlasgen") / "schemas").iterdir() if p.name.endswith(".json")) == [
-        "info.schema.json", "manifest.schema.json"]
+        "info.schema.json",
+        "manifest.schema.json",
+    ]
 
 
 # ---- refusals ------------------------------------------------------------------------------------
@@ -254,30 +270,66 @@ REFUSED = {
     "a list": ([], None, "expected an atlas manifest (a JSON object), got an empty list"),
     "empty object": ({}, "format_version", f"missing; expected format version {FORMAT_VERSION}"),
     "materials not a list": ({"format_version": FORMAT_VERSION, "materials": 5}, "dimensions", "missing"),
-    "newer version": (_with(_set(["format_version"], FORMAT_VERSION + 1)), "format_version", "the file is newer than this atlasgen"),
-    "older version": (_with(_set(["format_version"], FORMAT_VERSION - 1)), "format_version",
-                      f"expected format version {FORMAT_VERSION} (the file is from an older atlasgen: re-bake the atlas "
-                      f"with this one), got {FORMAT_VERSION - 1}"),
-    "version 0": (_with(_set(["format_version"], 0)), "format_version", f"expected format version {FORMAT_VERSION} (an integer), got 0"),
+    "newer version": (
+        _with(_set(["format_version"], FORMAT_VERSION + 1)),
+        "format_version",
+        "the file is newer than this atlasgen",
+    ),
+    "older version": (
+        _with(_set(["format_version"], FORMAT_VERSION - 1)),
+        "format_version",
+        f"expected format version {FORMAT_VERSION} (the file is from an older atlasgen: re-bake the atlas "
+        f"with this one), got {FORMAT_VERSION - 1}",
+    ),
+    "version 0": (
+        _with(_set(["format_version"], 0)),
+        "format_version",
+        f"expected format version {FORMAT_VERSION} (an integer), got 0",
+    ),
     "version string": (_with(_set(["format_version"], "1")), "format_version", 'got "1"'),
     "unknown top-level": (_with(_set(["extras"], 1)), "extras", "unknown field"),
     "materials a number": (_with(_set(["materials"], 5)), "materials", "expected a list of material objects, got 5"),
     "entry not an object": (_with(_set(["materials", 2], "leaf")), "materials[2]", "expected a JSON object"),
-    "negative slice": (_with(_set(["materials", 3, "first_slice"], -1)), "materials[3].first_slice", "expected an integer >= 0, got -1"),
-    "id not first slice": (_with(_set(["materials", 3, "id"], 9)), "materials[3].id", "expected the entry's first_slice (3), got 9"),
+    "negative slice": (
+        _with(_set(["materials", 3, "first_slice"], -1)),
+        "materials[3].first_slice",
+        "expected an integer >= 0, got -1",
+    ),
+    "id not first slice": (
+        _with(_set(["materials", 3, "id"], 9)),
+        "materials[3].id",
+        "expected the entry's first_slice (3), got 9",
+    ),
     "missing name": (_with(lambda d: d["materials"][1].pop("name")), "materials[1].name", "missing; expected a non-empty string"),
     "bad scale": (_with(_set(["materials", 0, "scale"], [[1.0]])), "materials[0].scale[0]", "[rgb, alpha] pair"),
     "flag not bool": (_with(_set(["materials", 0, "flags"], {"outline": 1})), "materials[0].flags", "true/false"),
-    "factor table": (_with(_set(["materials", 5, "factor_bias"], [[0, 0]] * 4)), "materials[5].factor_bias[0]", "[[r, g, b], [r, g, b]]"),
+    "factor table": (
+        _with(_set(["materials", 5, "factor_bias"], [[0, 0]] * 4)),
+        "materials[5].factor_bias[0]",
+        "[[r, g, b], [r, g, b]]",
+    ),
     "factors without scale": (_with(lambda d: d["materials"][5].pop("factor_scale")), "materials[5].factor_scale", "missing"),
-    "bad representation": (_with(_set(["materials", 5, "representation"], {"kind": "x"})), "materials[5].representation", "expected a LUT"),
-    "fit gloss": (_with(_set(["materials", 0, "fit"], {"from": "physical", "gloss": 1.5})), "materials[0].fit.gloss",
-                  "expected a number in [0, 1], got 1.5"),
-    "fit source": (_with(_set(["materials", 0, "fit"], {"from": "closed-form", "gloss": 0.5})), "materials[0].fit.from",
-                   "one of 'physical', 'bsdf', 'auto'"),
+    "bad representation": (
+        _with(_set(["materials", 5, "representation"], {"kind": "x"})),
+        "materials[5].representation",
+        "expected a LUT",
+    ),
+    "fit gloss": (
+        _with(_set(["materials", 0, "fit"], {"from": "physical", "gloss": 1.5})),
+        "materials[0].fit.gloss",
+        "expected a number in [0, 1], got 1.5",
+    ),
+    "fit source": (
+        _with(_set(["materials", 0, "fit"], {"from": "closed-form", "gloss": 0.5})),
+        "materials[0].fit.from",
+        "one of 'physical', 'bsdf', 'auto'",
+    ),
     "transmission not an object": (_with(_set(["materials", 5, "transmission"], 3)), "materials[5].transmission", "an object"),
-    "transmission slice": (_with(_set(["materials", 5, "transmission"], {"slice": 1})), "materials[5].transmission.slice",
-                           "expected 3 (the entry's last slice, after its terms), got 1"),
+    "transmission slice": (
+        _with(_set(["materials", 5, "transmission"], {"slice": 1})),
+        "materials[5].transmission.slice",
+        "expected 3 (the entry's last slice, after its terms), got 1",
+    ),
     "encoding": (_with(_set(["encoding"], "hdr")), "encoding", "one of 'srgb', 'linear'"),
     "dxgi mismatch": (_with(_set(["dxgi_format"], 28)), "dxgi_format", "29 (the DXGI format of srgb encoding), got 28"),
 }
@@ -306,8 +358,13 @@ def test_a_transmission_slice_is_the_last_slice_and_the_terms_are_the_rest():
     def add(data):
         entry = data["materials"][5]
         entry["factor_scale"], entry["factor_bias"] = entry["factor_scale"][:-1], entry["factor_bias"][:-1]
-        entry["transmission"] = {"slice": entry["slice_count"] - 1, "pairs": 10, "seed": 1, "estimator": "x",
-                                 "errors_8bit_sphere": {"relative_rms": 0.1, "relative_rms_se": 0.01, "log_error": 0.2}}
+        entry["transmission"] = {
+            "slice": entry["slice_count"] - 1,
+            "pairs": 10,
+            "seed": 1,
+            "estimator": "x",
+            "errors_8bit_sphere": {"relative_rms": 0.1, "relative_rms_se": 0.01, "log_error": 0.2},
+        }
 
     data = _with(add)
     entry = MaterialEntry.from_json(data["materials"][5])
@@ -328,7 +385,8 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
         return _with(change)
 
     assert "field 'materials[11].slice_count': expected slices 256..256 within the atlas's 256 layers" in _refusal(
-        tmp_path, move(11, 256))
+        tmp_path, move(11, 256)
+    )
     message = _refusal(tmp_path, move(4, 5))
     assert "field 'materials[5].first_slice'" in message and "slice 5, also 'red-plastic''s" in message
     assert "expected a unique name" in _refusal(tmp_path, _with(_set(["materials", 1, "name"], "beetle-shell")))

@@ -6,9 +6,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.contract import texel_grid
+from atlasgen.io.fields import validate_params
 from atlasgen.models import get_model
 from atlasgen.models.backlit import translucency
-from atlasgen.io.fields import validate_params
 
 MODEL = get_model("backlit")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

@@ -2,17 +2,17 @@
 
 import numpy as np
 import pytest
-from tests.fresnel_reference import fresnel_by_angles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from atlasgen.contract import texel_grid
+from atlasgen.io.fields import validate_params
 from atlasgen.models import get_model
 from atlasgen.optics.fresnel import normal_reflectance
-from atlasgen.io.fields import validate_params
 from atlasgen.optics.microfacet import ggx_distribution
 from atlasgen.optics.specular import specular_alpha, specular_f_cos
+from tests.fresnel_reference import fresnel_by_angles
 
 MODEL = get_model("fresnel")
 DEFAULTS = validate_params(MODEL.params, {}, "test")
@@ -78,9 +78,11 @@ def test_coupled_energy_is_two_way_transmission_renormalised():
     coupled = MODEL.evaluate({**DEFAULTS, "colour": colour}, nl, nv)[..., :3]
     lit = np.clip(nl, 0.0, None)
     f_avg = quad(lambda c: 2 * c * fresnel_by_angles(np.arccos(c), 1.5), 0, 1, epsabs=1e-14)[0]
-    t = (1.0 - fresnel_by_angles(np.arccos(np.clip(lit, 1e-9, 1 - 1e-12)), 1.5)) * (
-        1.0 - fresnel_by_angles(np.arccos(np.clip(nv, 1e-9, 1 - 1e-12)), 1.5)
-    ) / (1.0 - f_avg)
+    t = (
+        (1.0 - fresnel_by_angles(np.arccos(np.clip(lit, 1e-9, 1 - 1e-12)), 1.5))
+        * (1.0 - fresnel_by_angles(np.arccos(np.clip(nv, 1e-9, 1 - 1e-12)), 1.5))
+        / (1.0 - f_avg)
+    )
     np.testing.assert_allclose(coupled, (lit * t)[..., None] * colour, atol=1e-7)
     plain = MODEL.evaluate({**DEFAULTS, "colour": colour, "energy": "none"}, nl, nv)[..., :3]
     np.testing.assert_allclose(plain, np.broadcast_to(lit[..., None] * colour, plain.shape), rtol=1e-15)

@@ -7,9 +7,9 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from atlasgen.contract import texel_grid
+from atlasgen.io.fields import validate_params
 from atlasgen.models import get_model
 from atlasgen.models.backlit import translucency
-from atlasgen.optics.fresnel import fresnel_dielectric
 from atlasgen.models.iridescent import (
     MIN_SAMPLES,
     XYZ_TO_LINEAR_SRGB,
@@ -20,7 +20,7 @@ from atlasgen.models.iridescent import (
     spectral_samples,
     spectrum_to_rgb,
 )
-from atlasgen.io.fields import validate_params
+from atlasgen.optics.fresnel import fresnel_dielectric
 
 MODEL = get_model("iridescent")
 WAVELENGTHS = spectral_grid(MIN_SAMPLES)[0]
@@ -35,6 +35,7 @@ def reflectance_by_transfer_matrix(cos0, wavelength, thickness, n_film, n_base, 
     sin2 = 1.0 - cos0**2
     total = 0.0
     for pol in ("s", "p"):
+
         def admittance(n):
             n_cos = np.sqrt(complex(n) ** 2 - sin2)
             return n_cos if pol == "s" else complex(n) ** 2 / n_cos

@@ -14,7 +14,9 @@ ROOT = Path(__file__).resolve().parents[2]
 LUT_MODELS = ["lambert", "fresnel", "iridescent", "sss", "backlit", "toon"]
 # Read at collection, so only the LUT files: reading a separable material with a Mitsuba
 # source loads Mitsuba, which the LUT tests must not need.
-LIBRARY = [read_material(f) for f in find_material_files([ROOT / "materials"]) if tomllib.loads(f.read_text()).get("type") in LUT_MODELS]
+LIBRARY = [
+    read_material(f) for f in find_material_files([ROOT / "materials"]) if tomllib.loads(f.read_text()).get("type") in LUT_MODELS
+]
 
 
 def _format(value):

@@ -13,13 +13,15 @@ import pytest
 
 from atlasgen.models import get_model, model_types
 from atlasgen.models.backlit import translucency, transmitted_albedo
-from atlasgen.optics.thin_film import film_average, film_table, thin_film_f_cos
 from atlasgen.optics.quadrature import gauss_legendre_rule
+from atlasgen.optics.thin_film import film_average, film_table, thin_film_f_cos
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "validation.md"
 #: Bases for the perturbations where the defaults switch a feature off (a back-light of 0).
-_BASES = {"iridescent": {"backlight": 1.0, "colour": (0.2, 0.1, 0.3)},
-          "bsdf": {"bsdf": {"type": "roughplastic", "alpha": 0.2}, "gloss": 0.5}}
+_BASES = {
+    "iridescent": {"backlight": 1.0, "colour": (0.2, 0.1, 0.3)},
+    "bsdf": {"bsdf": {"type": "roughplastic", "alpha": 0.2}, "gloss": 0.5},
+}
 
 
 def _values(type_name: str) -> dict:

@@ -28,7 +28,9 @@ def test_footprint_mean_of_a_linear_function_is_its_value_at_the_centre():
     centre value. At the edges the bake's clip makes it the mean over the clipped sub-positions."""
     boxed = footprint_f_cos(_diffuse(_linear), azimuths=8, factor=4)[..., 0] * np.pi
     nl, nv = texel_centres(WIDTH, HEIGHT)
-    np.testing.assert_allclose(boxed[1:-1, 1:-1], _linear(nl[None, 1:-1, None], nv[1:-1, None, None]).repeat(8, -1), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        boxed[1:-1, 1:-1], _linear(nl[None, 1:-1, None], nv[1:-1, None, None]).repeat(8, -1), rtol=0, atol=1e-13
+    )
     offsets = (np.arange(4) + 0.5) / 4 - 0.5
     edge_nl = np.clip(1.0 + offsets * 2.0 / (WIDTH - 1), -1.0, 1.0).mean()  # the last column: half its box is past N.L = 1
     edge_nv = np.maximum(np.clip(offsets / (HEIGHT - 1), 0.0, 1.0), GRAZING_N_DOT_V).mean()  # row 0, floored as the fit floors it

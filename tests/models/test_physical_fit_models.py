@@ -16,10 +16,10 @@ from atlasgen.materials.material import read_material
 from atlasgen.models import get_model
 from atlasgen.models.backlit import thin_sheet_f_cos
 from atlasgen.models.physical_fit import slice_relative_rms
-from atlasgen.optics.thin_film import thin_film_f_cos, thin_film_rgb_f_cos
 from atlasgen.optics.film import XYZ_TO_LINEAR_SRGB, d65, spectral_grid, spectral_samples, spectrum_to_rgb
 from atlasgen.optics.fresnel import fresnel_dielectric
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
+from atlasgen.optics.thin_film import thin_film_f_cos, thin_film_rgb_f_cos
 
 MATERIALS = Path(__file__).resolve().parents[2] / "materials"
 
@@ -45,7 +45,13 @@ def _values(type_name, path=None, **overrides):
     if path is not None:
         import tomllib
 
-        values.update({k: v for k, v in tomllib.loads(Path(path).read_text()).items() if k not in ("type", "description", "from", "fit_gloss")})
+        values.update(
+            {
+                k: v
+                for k, v in tomllib.loads(Path(path).read_text()).items()
+                if k not in ("type", "description", "from", "fit_gloss")
+            }
+        )
     values.update(overrides)
     return model, values
 
@@ -273,8 +279,11 @@ def test_iridescent_from_physical_beats_the_model_against_the_thin_film(write_ma
     modelled = slice_relative_rms(own.values[0], f_cos, 0.5, azimuths=32)
     assert fitted < modelled
     fit = physical.extra["fit"]
-    assert fit["from"] == "physical" and fit["gloss"] == 0.5 and fit["wavelengths"] == spectral_samples(
-        values["thickness"], values["film_ior"])
+    assert (
+        fit["from"] == "physical"
+        and fit["gloss"] == 0.5
+        and fit["wavelengths"] == spectral_samples(values["thickness"], values["film_ior"])
+    )
     assert fit["relative_rms"] < fit["model_relative_rms"]
     assert np.isfinite(physical.values).all() and (physical.values >= 0.0).all()
 

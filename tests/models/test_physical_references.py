@@ -6,10 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from atlasgen.models import get_model
 from atlasgen.models.sss import SKIN1_SIGMA_A, SKIN1_SIGMA_S_REDUCED, skin_medium
-from atlasgen.optics.thin_film import thin_film_f_cos
 from atlasgen.optics.microfacet import smith_g2_separable_over_cos, smith_visibility_correlated_ggx
+from atlasgen.optics.thin_film import thin_film_f_cos
 
 
 def _dirs(rng, n):

@@ -67,10 +67,12 @@ def _entry(result, name):
 
 @pytest.mark.slow
 def test_terms_fill_consecutive_slices_with_the_manifest_fields(bake_folder):
-    result = bake_folder({
-        "a": 'type = "lambert"\nid = 0\n',
-        "glossy": 'type = "separable"\nsource = "ggx"\nalpha = 0.2\nterms = 3\n',
-    })
+    result = bake_folder(
+        {
+            "a": 'type = "lambert"\nid = 0\n',
+            "glossy": 'type = "separable"\nsource = "ggx"\nalpha = 0.2\nterms = 3\n',
+        }
+    )
     e = _entry(result, "glossy")
     assert e["slice_count"] == e["terms"] == 3 and e["first_slice"] == 1
     assert np.asarray(e["factor_scale"]).shape == (3, 2, 3) == np.asarray(e["factor_bias"]).shape
@@ -110,6 +112,7 @@ def test_max_error_picks_the_cheapest_candidate_meeting_it(bake_folder):
     assert rep["kind"] == "separable" and (rep["terms"], rep["sampling_grid"]) == (k, grid)
     assert {c["grid"] for c in rep["candidates"]} == {16, 32}
     assert {c["target"] for c in rep["candidates"]} == {"f_cos", "f_proxy"}
+
     # On the selection sample, a candidate meets the budget when estimate + 2 SE is within it.
     # Fewer terms never do, on any grid or target...
     def bound(c, i):
@@ -239,7 +242,7 @@ def test_lut_only_bake_imports_no_separable_model_nor_heavy_backends(write_mater
         import sys
         from atlasgen.bake.pipeline import bake_atlas
         from atlasgen.materials.material import read_materials
-        bake_atlas(read_materials([{str(tmp_path / 'materials')!r}]))
+        bake_atlas(read_materials([{str(tmp_path / "materials")!r}]))
         bad = [m for m in sys.modules if m.startswith(('mitsuba', 'drjit', 'atlasgen.models.separable', 'matplotlib'))]
         assert not bad, bad
     """)

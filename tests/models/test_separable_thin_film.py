@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from atlasgen.bake.adaptive import bake_material
-from atlasgen.errors import MaterialError
 from atlasgen.materials.material import read_material
 from atlasgen.models import get_model
 from atlasgen.models.physical_fit import fit_slice
@@ -17,7 +16,7 @@ from atlasgen.models.separable import FILM_KEYS
 from atlasgen.optics.thin_film import FILM_DEFAULTS, thin_film_rgb_f_cos
 from atlasgen.separable.source import make_source
 
-FILM = 'film = { thickness = 650.0, film_ior = 1.56, base_ior = 1.9, base_k = 1.2, film_split = 0.0 }'
+FILM = "film = { thickness = 650.0, film_ior = 1.56, base_ior = 1.9, base_k = 1.2, film_split = 0.0 }"
 
 
 def _directions(rng, n):
@@ -42,12 +41,16 @@ def test_the_source_is_the_thin_films_rgb_on_the_upper_hemispheres():
     "body, field, expected",
     [
         ("", "film", "missing"),
-        ('film = { thickness = 420.0, film_ior = 1.45 }', "film.base_ior", "missing"),
-        ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight_view = "average" }', "film.backlight_view", "unknown"),
-        ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = -1.0 }', "film.backlight", "expected"),
-        ('film = { thickness = 420.0, film_ior = 0.5, base_ior = 1.8 }', "film.film_ior", "expected"),
+        ("film = { thickness = 420.0, film_ior = 1.45 }", "film.base_ior", "missing"),
+        (
+            'film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight_view = "average" }',
+            "film.backlight_view",
+            "unknown",
+        ),
+        ("film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, backlight = -1.0 }", "film.backlight", "expected"),
+        ("film = { thickness = 420.0, film_ior = 0.5, base_ior = 1.8 }", "film.film_ior", "expected"),
         ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, energy = "some" }', "film.energy", "expected one of"),
-        ('film = 3.0', "film", "expected a table"),
+        ("film = 3.0", "film", "expected a table"),
     ],
 )
 def test_a_thin_film_source_needs_a_valid_film(expect_rejected, body, field, expected):
@@ -103,12 +106,17 @@ def test_a_film_without_its_optional_keys_gets_the_iridescent_defaults(write_mat
     assert film == {**defaults, "thickness": 420.0, "film_ior": 1.45, "base_ior": 1.8}
     rng = np.random.default_rng(2)
     l, v = _directions(rng, 16), _directions(rng, 16)
-    np.testing.assert_allclose(make_source(material.params).f_cos(l, v),
-                               thin_film_rgb_f_cos(v, l, FILM_DEFAULTS | film, 0.2, (0.0, 0.0, 0.0)), rtol=1e-12)
+    np.testing.assert_allclose(
+        make_source(material.params).f_cos(l, v),
+        thin_film_rgb_f_cos(v, l, FILM_DEFAULTS | film, 0.2, (0.0, 0.0, 0.0)),
+        rtol=1e-12,
+    )
 
 
-BACKLIT_FILM = ('film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, film_split = 0.8, backlight = 1.5, '
-                'backlight_colour = [0.55, 0.75, 1.0], backlight_distortion = 0.25, backlight_power = 3.0 }')
+BACKLIT_FILM = (
+    "film = { thickness = 420.0, film_ior = 1.45, base_ior = 1.8, film_split = 0.8, backlight = 1.5, "
+    "backlight_colour = [0.55, 0.75, 1.0], backlight_distortion = 0.25, backlight_power = 3.0 }"
+)
 
 
 @pytest.fixture(scope="module")
@@ -182,16 +190,19 @@ def test_the_rebuild_reads_the_terms_above_and_the_transmission_slice_below(back
     above = _directions(rng, 400)
     factors = read_separable_factors(path, "film")
     assert factors.transmission is not None
-    np.testing.assert_array_equal(evaluate_separable(path, "film", n, above, v, cosine=True),
-                                  evaluate_factors(replace(factors, transmission=None), n, above, v, cosine=True))
+    np.testing.assert_array_equal(
+        evaluate_separable(path, "film", n, above, v, cosine=True),
+        evaluate_factors(replace(factors, transmission=None), n, above, v, cosine=True),
+    )
     # The manifest's figure over the whole sphere: terms and slice against the film, with its SE.
     sphere = entry.factors.transmission.errors_8bit_sphere
     assert sphere.relative_rms_se > 0.0 and sphere.relative_rms < 0.5
 
 
 def test_auto_is_refused_with_a_back_light(expect_rejected):
-    expect_rejected("separable", f'source = "thin_film"\nrepresentation = "auto"\n{BACKLIT_FILM}', "representation",
-                    "film.backlight")
+    expect_rejected(
+        "separable", f'source = "thin_film"\nrepresentation = "auto"\n{BACKLIT_FILM}', "representation", "film.backlight"
+    )
 
 
 def test_the_physical_reference_has_the_back_light_and_the_material_one_slice_more(write_material):

@@ -8,9 +8,9 @@ from scipy.integrate import quad
 
 from atlasgen.contract import texel_grid
 from atlasgen.errors import MaterialError
+from atlasgen.io.fields import validate_params
 from atlasgen.models import get_model
 from atlasgen.models.sss import SKIN_VARIANCES, SKIN_WEIGHTS, preintegrate_ring
-from atlasgen.io.fields import validate_params
 
 MODEL = get_model("sss")
 DEFAULTS = validate_params(MODEL.params, {}, "test")

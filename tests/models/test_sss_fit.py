@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import pytest
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.models import sss_fit
 from atlasgen.models.sss_fit import (
-    FIT_STRATA, MIN_N_DOT_V, bilinear_stencil, fit_texels, local_directions, sample_configurations, sphere_rays,
+    FIT_STRATA,
+    MIN_N_DOT_V,
+    bilinear_stencil,
+    fit_texels,
+    local_directions,
+    sample_configurations,
+    sphere_rays,
 )  # fmt: skip
 from atlasgen.optics.interpolation import sample_slice
 

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.contract import texel_centres
-from atlasgen.models import get_model
 from atlasgen.io.fields import validate_params
+from atlasgen.models import get_model
 
 MODEL = get_model("toon")
 DEFAULTS = validate_params(MODEL.params, {}, "test")
@@ -66,8 +66,13 @@ def test_nearest_sampled_slice_reproduces_the_model_everywhere(seed):
 
     rng = np.random.default_rng(seed)
     thresholds = tuple(sorted(rng.uniform(-1, 1, 3)))
-    params = {**DEFAULTS, "thresholds": thresholds, "colours": (INK, RED, GREEN, BLUE),
-              "silhouette": float(rng.uniform(0, 0.5)), "specular_threshold": float(rng.uniform(-1, 1))}
+    params = {
+        **DEFAULTS,
+        "thresholds": thresholds,
+        "colours": (INK, RED, GREEN, BLUE),
+        "silhouette": float(rng.uniform(0, 0.5)),
+        "specular_threshold": float(rng.uniform(-1, 1)),
+    }
     table = MODEL.bake(params).values[0]
     nl, nv = rng.uniform(-1, 1, 5000), rng.uniform(0, 1, 5000)
     np.testing.assert_array_equal(sample_slice(table, nl, nv, nearest=True), MODEL.evaluate(params, nl, nv))

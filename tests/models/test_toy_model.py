@@ -162,9 +162,8 @@ def test_the_bake_stores_the_toys_closed_form_and_its_include(toy_atlas):
 
 def _closed_form(scene, result, entry, albedo):
     """sum over lights of E * albedo * colour * wrap(N.L) / pi at the g-buffer's pixels of ``entry``."""
-    from tests.render.atlas_fixture import light_at
-
     from atlasgen.render.camera import pixel_rays
+    from tests.render.atlas_fixture import light_at
 
     mask = result.aov("id") == entry.first_slice
     n = result.aov("normal")[mask].astype(np.float64)
@@ -222,7 +221,9 @@ def test_the_model_reference_plugin_evaluates_the_closed_form(toy_atlas, mitsuba
     si.n = mi.Normal3f(0.0, 0.0, 1.0)
     si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
     with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
-        value = bsdf.eval(mi.BSDFContext(), si, mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo[:, k], np.float32)) for k in range(3)]))
+        value = bsdf.eval(
+            mi.BSDFContext(), si, mi.Vector3f(*[mi.Float(np.ascontiguousarray(wo[:, k], np.float32)) for k in range(3)])
+        )
     got = np.stack([np.asarray(c) for c in (value.x, value.y, value.z)], -1)
     expected = np.asarray([0.5, 1.0, 1.0]) * np.asarray(COLOUR) * wrap(cos_o)[:, None] / np.pi
     np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-7)

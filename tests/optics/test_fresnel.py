@@ -2,13 +2,13 @@
 
 import numpy as np
 import pytest
-from tests.fresnel_reference import fresnel_by_angles
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from atlasgen.optics.fresnel import fresnel_dielectric, fresnel_schlick, normal_reflectance
 from atlasgen.optics.quadrature import hemispherical_average
+from tests.fresnel_reference import fresnel_by_angles
 
 
 @given(theta=st.floats(0.01, np.pi / 2 - 0.01), n=st.floats(1.01, 4.0))

@@ -10,8 +10,13 @@ from atlasgen.contract import texel_centres
 from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d, linear_stencil, sample_slice
 
 
-@given(a=st.floats(-5, 5), b=st.floats(-5, 5), c=st.floats(-5, 5),
-       x=st.lists(st.floats(-3, 40), min_size=1, max_size=20), y=st.lists(st.floats(-3, 40), min_size=1, max_size=20))
+@given(
+    a=st.floats(-5, 5),
+    b=st.floats(-5, 5),
+    c=st.floats(-5, 5),
+    x=st.lists(st.floats(-3, 40), min_size=1, max_size=20),
+    y=st.lists(st.floats(-3, 40), min_size=1, max_size=20),
+)
 @settings(max_examples=100, deadline=None)
 def test_interpolation_is_exact_for_linear_tables_and_clamps(a, b, c, x, y):
     n = 32
@@ -69,7 +74,9 @@ def test_slice_lookup_hits_texel_centres_exactly_and_interpolates_linearly_betwe
     np.testing.assert_allclose(sample_slice(table, np.array([-3.0, 3.0]), np.array([-1.0, 2.0])), table[[0, -1], [0, -1]])
 
 
-@pytest.mark.parametrize("nl, nv, texel", [(-1.0, 0.0, (0, 0)), (1.0, 1.0, (31, 63)), (-1.0 + 2 * 10.4 / 63, 20.6 / 31, (21, 10))])
+@pytest.mark.parametrize(
+    "nl, nv, texel", [(-1.0, 0.0, (0, 0)), (1.0, 1.0, (31, 63)), (-1.0 + 2 * 10.4 / 63, 20.6 / 31, (21, 10))]
+)
 def test_nearest_reads_the_texel_containing_the_point(nl, nv, texel):
     table = np.arange(32 * 64, dtype=float).reshape(32, 64, 1)
     assert sample_slice(table, np.array([nl]), np.array([nv]), nearest=True)[0, 0] == table[texel][0]

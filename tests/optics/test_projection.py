@@ -9,8 +9,14 @@ from scipy.optimize import nnls
 
 from atlasgen.contract import texel_centres
 from atlasgen.models.physical_fit import azimuth_pairs, fit_slice, renderer_bases
-from atlasgen.optics.projection import (collinear_texels, continue_collinear_texels, project_slice_texels, refine_specular_scale, solve_nonnegative_least_squares,
-                                        weighted_residual)  # fmt: skip
+from atlasgen.optics.projection import (
+    collinear_texels,
+    continue_collinear_texels,
+    project_slice_texels,
+    refine_specular_scale,
+    solve_nonnegative_least_squares,
+    weighted_residual,  # fmt: skip
+)
 from atlasgen.optics.srgb import encode_srgb
 
 AZIMUTHS = 64
@@ -47,7 +53,9 @@ def test_diffuse_plus_renderer_lobe_with_constant_fresnel_projects_onto_itself(t
     # At N.L = 1 or N.V = 1 every azimuth gives the same pair: the lobe is a constant there,
     # which the diffuse term holds as well, and the ridge gives it to the diffuse term. At
     # N.V = 0 the GGX lobe barely varies with azimuth, so the split is as ill-conditioned.
-    rgba, rgb, fresnel, target, diffuse, lobe, weights = (x[1:-1, :-1] for x in (rgba, rgb, fresnel, target, diffuse, lobe, weights))
+    rgba, rgb, fresnel, target, diffuse, lobe, weights = (
+        x[1:-1, :-1] for x in (rgba, rgb, fresnel, target, diffuse, lobe, weights)
+    )
     np.testing.assert_allclose(rgba[..., :3], rgb, atol=1e-4)
     # The ridge (1e-6 of the diffuse Gram entry, 3/pi^2) leaves A exact to 1e-3 where the lobe carries more than 1e-3.
     has_lobe = (weights[..., None] * lobe**2).sum(axis=(-2, -1)) > 1e-3

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
 from atlasgen.bake.include import render_include
 from atlasgen.bake.mips import build_array_mips
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
 from atlasgen.io.manifest import Dimensions, Manifest, MaterialEntry
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.render.atlas_texture import RenderAtlas

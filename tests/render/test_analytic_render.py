@@ -15,7 +15,6 @@ from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import Renderer
 from atlasgen.separable.analytic import evaluate_analytic, to_local_frame
-
 from tests.render.atlas_fixture import interior, light_at
 
 SCENE = """

@@ -8,9 +8,9 @@ import pytest
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_materials
-from atlasgen.render.atlas_texture import RenderAtlas, read_render_atlas
 from atlasgen.optics.quantize import unorm_scale
 from atlasgen.optics.srgb import decode_srgb
+from atlasgen.render.atlas_texture import RenderAtlas, read_render_atlas
 
 
 @pytest.fixture

@@ -5,8 +5,8 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
-from atlasgen.models import MODEL_TYPES
 from atlasgen.materials.scene import read_scene
+from atlasgen.models import MODEL_TYPES
 
 ROOT = Path(__file__).resolve().parents[2]
 

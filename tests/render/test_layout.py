@@ -7,7 +7,6 @@ section (https://www.w3.org/TR/WGSL/#memory-layouts), not from the code under te
 from __future__ import annotations
 
 import enum
-
 from pathlib import Path
 
 import numpy as np
@@ -382,7 +381,10 @@ def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
 
     lo, hi = 0.0, 0.5 * np.pi
     angles = np.linspace(-0.1, hi + 0.1, 41, dtype=np.float32)
-    lines = "\n".join(f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], vec4<f32>(0.0, {lo!r}, {hi!r}, {int(warp)}.0)));" for i in range(41))
+    lines = "\n".join(
+        f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], vec4<f32>(0.0, {lo!r}, {hi!r}, {int(warp)}.0)));"
+        for i in range(41)
+    )
     code = (
         f"{emit('wgsl', [UNWARP])}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
         "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
@@ -394,10 +396,9 @@ def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
 
 
 def test_material_flags_are_the_include_bits():
-    from atlasgen.bake.include import MaterialFlag, render_include
-
     import dataclasses
 
+    from atlasgen.bake.include import MaterialFlag, render_include
     from atlasgen.io.manifest import read_manifest
 
     golden = read_manifest(Path(__file__).parents[1] / "resources" / "golden" / "array-srgb.json")

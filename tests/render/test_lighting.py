@@ -5,13 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from atlasgen.render.camera import pixel_rays
-from atlasgen.render.lighting import pack_lights
 from atlasgen.materials.scene import Light
 from atlasgen.optics.srgb import decode_srgb
-
+from atlasgen.render.camera import pixel_rays
+from atlasgen.render.lighting import pack_lights
 from tests.render.atlas_fixture import MIP_GREYS, MIPS, decoded_slice, interior, reference_radiance
-
 
 SPHERE = """
 [camera]

@@ -22,8 +22,11 @@ def enclosed_volume(mesh):
 
 @pytest.mark.parametrize(
     "mesh, volume, tol",
-    [(make_sphere(128), 4 / 3 * np.pi, 2e-3), (make_box(), 8.0, 1e-6),
-     (make_torus(0.25, 128), 2 * np.pi**2 * 0.25**2, 3e-3)],  # fmt: skip
+    [
+        (make_sphere(128), 4 / 3 * np.pi, 2e-3),
+        (make_box(), 8.0, 1e-6),
+        (make_torus(0.25, 128), 2 * np.pi**2 * 0.25**2, 3e-3),
+    ],  # fmt: skip
 )
 def test_closed_shapes_are_outward_ccw_with_the_right_volume(mesh, volume, tol):
     assert enclosed_volume(mesh) == pytest.approx(volume, rel=tol)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-
 SCENE = """
 [camera]
 position = [0, 0, 4]

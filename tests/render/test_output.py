@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import OutputError
-from atlasgen.render.output import write_aov, write_render
 from atlasgen.optics.srgb import encode_srgb
+from atlasgen.render.output import write_aov, write_render
 
 
 def read(path):

@@ -9,7 +9,6 @@ from atlasgen.errors import SceneError
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import pack_frame
 
-
 SCENE = """
 [camera]
 position = [0.5, 1.0, 4.0]
@@ -40,7 +39,9 @@ def ray_sphere_depth(eye, rays, centre, radius):
 
 
 def test_gbuffer_matches_ray_traced_sphere(renderer, scene_from):
-    scene = scene_from(SCENE + """
+    scene = scene_from(
+        SCENE
+        + """
 [[objects]]
 shape = "sphere"
 material = "glossy"
@@ -49,7 +50,8 @@ scale = 1.1
 albedo = [0.25, 0.5, 0.75]
 gloss = 0.8
 segments = 256
-""")
+"""
+    )
     result = renderer.render(scene)
     rays = pixel_rays(scene.camera, scene.width, scene.height)
     depth = ray_sphere_depth(scene.camera.position, rays, (0.2, -0.1, 0.3), 1.1)
@@ -76,7 +78,9 @@ def test_degenerate_meshes_give_no_nan(renderer, scene_from, tmp_path):
     lines = ["v -1 -1 0", "v 1 -1 0", "v -1 1 0", "v 1 1 0", "v 0 0 0", "v 0.5 0.5 0", "v 2 2 0", "vn 0 0 0"]
     faces = ["f 1//1 2//1 3//1", "f 3//1 2//1 4//1", "f 5//1 5//1 5//1", "f 5//1 6//1 7//1", "f 1//1 1//1 2//1"]
     (tmp_path / "degenerate.obj").write_text("\n".join(lines + faces) + "\n")
-    scene = scene_from(SCENE + """
+    scene = scene_from(
+        SCENE
+        + """
 [[objects]]
 shape = "mesh"
 file = "degenerate.obj"
@@ -88,7 +92,9 @@ segments = 3
 translate = [1.5, 0, 0]
 scale = 0.4
 opacity = 0.5
-""", base=tmp_path)
+""",
+        base=tmp_path,
+    )
     result = renderer.render(scene)
     assert np.isfinite(result.radiance).all()
     covered = result.aov("id") != 0xFFFF

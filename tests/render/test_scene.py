@@ -30,7 +30,9 @@ def test_defaults(scene_from):
 
 def test_full_scene(scene_from, tmp_path):
     (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    scene = scene_from(MINIMAL + """
+    scene = scene_from(
+        MINIMAL
+        + """
 [image]
 width = 32
 height = 16
@@ -49,7 +51,9 @@ file = "m.obj"
 material = "gold"
 scale = 2
 opacity = 0.25
-""", base=tmp_path)
+""",
+        base=tmp_path,
+    )
     point, sun = scene.lights
     assert point.position == (1.0, 2.0, 3.0) and point.intensity == 7.0 and point.colour == (1.0, 0.5, 0.0)
     assert sun.direction == (0.0, -1.0, 0.0)  # normalised
@@ -85,8 +89,11 @@ def test_bad_fields_name_file_field_and_expectation(scene_from, extra, field, wo
     "text, field, hint",
     [
         (MINIMAL + "[[objcts]]\nshape = 'sphere'\n", "objcts", " (did you mean 'objects'?)"),
-        (MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ntranslat = [0, 0, 1]\n", "objects[0].translat",
-         " (did you mean 'translate'?)"),
+        (
+            MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ntranslat = [0, 0, 1]\n",
+            "objects[0].translat",
+            " (did you mean 'translate'?)",
+        ),
         ("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfvo = 30\n", "camera.fvo", " (did you mean 'fov'?)"),
         (MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'a'\nwobble = 1\n", "objects[0].wobble", ""),
     ],
@@ -121,7 +128,9 @@ def test_read_scene_errors(tmp_path):
 
 def test_unknown_material_lists_known_names(scene_from):
     scene = scene_from(MINIMAL + "[[objects]]\nshape = 'sphere'\nmaterial = 'golld'\n", path="s.toml")
-    entries = [MaterialEntry(name=n, id=i, constant=n.upper(), first_slice=i, type="lambert") for n, i in (("gold", 3), ("skin", 4))]
+    entries = [
+        MaterialEntry(name=n, id=i, constant=n.upper(), first_slice=i, type="lambert") for n, i in (("gold", 3), ("skin", 4))
+    ]
     manifest = Manifest(dimensions=Dimensions(width=64, height=32, layers=256, mip_count=7), encoding="srgb",
                         dxgi_format=29, materials=entries)  # fmt: skip
     with pytest.raises(SceneError) as info:

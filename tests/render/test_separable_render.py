@@ -10,9 +10,7 @@ from atlasgen.materials.material import read_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.camera import pixel_rays
 from atlasgen.render.renderer import Renderer
-
 from tests.render.atlas_fixture import interior, light_at
-
 
 SCENE = """
 [camera]

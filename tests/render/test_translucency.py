@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from atlasgen.render.camera import Camera
 from atlasgen.materials.scene import SceneObject
+from atlasgen.render.camera import Camera
 from atlasgen.render.translucency import sort_back_to_front
-
 
 HEADER = """
 [camera]

@@ -37,14 +37,22 @@ def browser():
 
     options = webdriver.ChromeOptions()
     options.binary_location = chromium
-    for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                "--allow-file-access-from-files", f"--window-size={WIDTH},900", "--force-device-scale-factor=1"):
+    for arg in (
+        "--headless=new",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-dev-shm-usage",
+        "--allow-file-access-from-files",
+        f"--window-size={WIDTH},900",
+        "--force-device-scale-factor=1",
+    ):
         options.add_argument(arg)
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(driver_path), options=options)
     # The layout viewport, whatever the window decorations take: exactly WIDTH CSS px.
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": WIDTH, "height": 900, "deviceScaleFactor": 1, "mobile": False})
+    driver.execute_cdp_cmd(
+        "Emulation.setDeviceMetricsOverride", {"width": WIDTH, "height": 900, "deviceScaleFactor": 1, "mobile": False}
+    )
     yield driver
     driver.quit()
 
@@ -70,7 +78,8 @@ def check_page(driver, page: Path, shot: str) -> dict:
     driver.get(page.resolve().as_uri())
     driver.execute_script("return document.readyState")
     images = driver.execute_script(
-        "return Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, i.naturalWidth]);")
+        "return Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, i.naturalWidth]);"
+    )
     assert images, f"{page}: no images"
     broken = [src for src, complete, width in images if not complete or width == 0]
     assert broken == [], f"{page}: images that did not load: {broken}"
@@ -107,8 +116,7 @@ def test_library_and_separable_pages(browser, library, tmp_path):
 @pytest.mark.mitsuba
 @pytest.mark.gpu
 def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
-    from atlasgen.reports.validation import merge_validation_reports
-    from atlasgen.reports.validation import write_validation
+    from atlasgen.reports.validation import merge_validation_reports, write_validation
     from atlasgen.validate.run import validate_atlas
 
     root, atlas = library
@@ -122,17 +130,20 @@ def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
         check_page(browser, out / "materials" / name / "index.html", f"validation-{name}")
     # Images at their native size (the default view), pixel for pixel.
     sizes = browser.execute_script(
-        "return Array.from(document.querySelectorAll('.figures img')).map(i => [i.naturalWidth, i.naturalHeight, i.width, i.height]);")
+        "return Array.from(document.querySelectorAll('.figures img')).map(i => [i.naturalWidth, i.naturalHeight, i.width, i.height]);"
+    )
     assert sizes and all(s == [48, 36, 48, 36] for s in sizes), sizes
     # Every material shows the same figures in the same order: the captions differ only in the material's numbers.
     rows = browser.execute_script(
-        "return Array.from(document.querySelectorAll('.figures')).map(f => f.querySelectorAll('figure').length);")
+        "return Array.from(document.querySelectorAll('.figures')).map(f => f.querySelectorAll('figure').length);"
+    )
     assert len(set(rows)) == 1 and rows[0] == 7, rows
     # The zoom is a whole factor and keeps pixels square.
     browser.execute_script("document.getElementById('zoom3').click()")
     zoomed = browser.execute_script(
         "const i = document.querySelector('.figures img'); const r = i.getBoundingClientRect();"
-        "return [r.width, r.height, getComputedStyle(i).imageRendering];")
+        "return [r.width, r.height, getComputedStyle(i).imageRendering];"
+    )
     assert zoomed == [144, 108, "pixelated"]
     assert browser.execute_script("return document.documentElement.scrollWidth") <= WIDTH
     assert shown["height"] > 0

@@ -7,8 +7,13 @@ import numpy as np
 from atlasgen.separable.source import BrdfSource, make_source
 
 ANALYTIC_DEFAULTS = dict(
-    alpha=0.2, fresnel="schlick", f0=(0.04, 0.04, 0.04), ior=1.5, specular=(1.0, 1.0, 1.0),
-    diffuse=(0.0, 0.0, 0.0), exponent=100.0,
+    alpha=0.2,
+    fresnel="schlick",
+    f0=(0.04, 0.04, 0.04),
+    ior=1.5,
+    specular=(1.0, 1.0, 1.0),
+    diffuse=(0.0, 0.0, 0.0),
+    exponent=100.0,
 )
 
 

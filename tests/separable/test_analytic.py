@@ -6,7 +6,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from atlasgen.separable.analytic import blinn_phong_brdf, evaluate_analytic, lambert_brdf, microfacet_brdf, ward_brdf
-
 from tests.separable.separable_helpers import ANALYTIC_DEFAULTS
 
 
@@ -47,8 +46,12 @@ def test_reciprocity(source):
     np.testing.assert_allclose(evaluate_analytic(params, l, v), evaluate_analytic(params, v, l), rtol=1e-10)
 
 
-@given(alpha=st.sampled_from([0.005, 0.05, 0.5, 1.0, 2.0]), source=st.sampled_from(["ggx", "beckmann", "ward"]),
-       cos_o=st.sampled_from([0.0, 1e-300, 1e-12, 1e-6, 0.01]), cos_i=st.floats(0.0, 1.0))
+@given(
+    alpha=st.sampled_from([0.005, 0.05, 0.5, 1.0, 2.0]),
+    source=st.sampled_from(["ggx", "beckmann", "ward"]),
+    cos_o=st.sampled_from([0.0, 1e-300, 1e-12, 1e-6, 0.01]),
+    cos_i=st.floats(0.0, 1.0),
+)
 @settings(max_examples=150, deadline=None)
 def test_grazing_values_are_finite(alpha, source, cos_o, cos_i):
     """1 / (4 N.L N.V) blows up at grazing; the BRDFs still return finite values."""

@@ -6,7 +6,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from atlasgen.separable.approximate import GRID_RESOLUTIONS, _choose, approximate_brdf
-
 from tests.separable.separable_helpers import analytic
 
 errors = st.floats(min_value=1e-4, max_value=1.0)
@@ -16,8 +15,11 @@ errors = st.floats(min_value=1e-4, max_value=1.0)
 def candidate_tables(draw):
     grids = draw(st.lists(st.sampled_from((8, 16, 24, 32, 48)), min_size=1, max_size=4, unique=True))
     k = draw(st.integers(1, 8))
-    return [{"grid": g, "target": t, "errors": [{"terms": i + 1, "relative_rms": draw(errors)} for i in range(k)]}
-            for g in sorted(grids) for t in ("f_cos", "f_proxy")]
+    return [
+        {"grid": g, "target": t, "errors": [{"terms": i + 1, "relative_rms": draw(errors)} for i in range(k)]}
+        for g in sorted(grids)
+        for t in ("f_cos", "f_proxy")
+    ]
 
 
 def _chosen_error(table, budget):

@@ -44,5 +44,9 @@ def test_log_error_closed_forms():
     assert log_error(ref, np.full_like(ref, -5.0)) == 0.0
     out = measure_errors(np.ones((4, 3)), np.full((4, 3), 1.5))
     # A constant error has no spread: both standard errors are 0.
-    assert out == {"relative_rms": 0.5, "relative_rms_se": 0.0,
-                   "log_error": pytest.approx(np.log(2.5) - np.log(2.0), rel=1e-5), "log_error_se": 0.0}
+    assert out == {
+        "relative_rms": 0.5,
+        "relative_rms_se": 0.0,
+        "log_error": pytest.approx(np.log(2.5) - np.log(2.0), rel=1e-5),
+        "log_error_se": 0.0,
+    }

@@ -16,7 +16,6 @@ from atlasgen.separable.error import (
     sample_error_pairs,
 )
 from atlasgen.separable.storage import quantize_factors
-
 from tests.separable.separable_helpers import analytic
 
 COPPER_F0 = (0.955, 0.638, 0.538)
@@ -167,8 +166,12 @@ def test_sphere_pairs_integrate_closed_forms_without_bias(alpha):
     assert s.sphere and s.estimator.endswith("-sphere") and abs((l[:, 2] < 0).mean() - 0.5) < 0.005
     r = v * np.array([-1.0, -1.0, 1.0])
     n = 200
-    cases = [(np.ones(len(w)), 1.0), (np.where(l[:, 2] < 0, -l[:, 2], 0.0), 0.25),
-             (np.maximum((l * r).sum(1), 0.0) ** n, 0.5 / (n + 1)), (np.maximum(-(l * v).sum(1), 0.0) ** n, 0.5 / (n + 1))]
+    cases = [
+        (np.ones(len(w)), 1.0),
+        (np.where(l[:, 2] < 0, -l[:, 2], 0.0), 0.25),
+        (np.maximum((l * r).sum(1), 0.0) ** n, 0.5 / (n + 1)),
+        (np.maximum(-(l * v).sum(1), 0.0) ** n, 0.5 / (n + 1)),
+    ]
     for g, exact in cases:
         x = w * g
         se = x.std() / np.sqrt(len(x))

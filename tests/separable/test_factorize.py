@@ -16,7 +16,6 @@ from atlasgen.separable.factorize import (
 )
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrix
-
 from tests.separable.separable_helpers import analytic
 
 
@@ -110,8 +109,13 @@ def test_two_dimensional_product_on_the_half_diff_grid_is_rank_one():
 
 
 @pytest.mark.slow
-@given(alpha=st.floats(0.03, 1.0), f0=st.floats(0.02, 1.0), source=st.sampled_from(["ggx", "beckmann", "ward", "blinn_phong"]),
-       name=st.sampled_from(["half_diff", "in_out"]), target=st.sampled_from(["f_cos", "f_proxy"]))
+@given(
+    alpha=st.floats(0.03, 1.0),
+    f0=st.floats(0.02, 1.0),
+    source=st.sampled_from(["ggx", "beckmann", "ward", "blinn_phong"]),
+    name=st.sampled_from(["half_diff", "in_out"]),
+    target=st.sampled_from(["f_cos", "f_proxy"]),
+)
 @settings(max_examples=25, deadline=None)
 def test_error_never_grows_with_terms(alpha, f0, source, name, target):
     """Eckart-Young: the weighted grid residual of K SVD terms is non-increasing in K."""

@@ -6,12 +6,12 @@ import json
 import re
 
 import pytest
-from tests.html_links import PageLinks
 
 from atlasgen.errors import InputError, OutputError
 from atlasgen.materials.material import read_material
-from atlasgen.reports.separable_merge import PLOT_KINDS, merge_separable_reports
 from atlasgen.reports.separable import write_separable_report
+from atlasgen.reports.separable_merge import PLOT_KINDS, merge_separable_reports
+from tests.html_links import PageLinks
 
 #: Small studies: two grids, one repeat, one parametrization (seconds, not tens of seconds).
 CHEAP = {"resolutions": (8, 16), "repeats": 1, "parametrizations": ("half_diff",)}
@@ -126,9 +126,14 @@ def test_cli_merge_prints_the_merged_markdown_and_names_a_bad_source(reports, tm
 
     _, folders = reports
     runner = CliRunner()
-    res = runner.invoke(app, ["report", "separable", "--merge", str(folders["lobe"]), str(folders["sheen"]), "-o", str(tmp_path / "m")])
+    res = runner.invoke(
+        app, ["report", "separable", "--merge", str(folders["lobe"]), str(folders["sheen"]), "-o", str(tmp_path / "m")]
+    )
     assert res.exit_code == 0, res.output
     assert res.output.strip() == (tmp_path / "m" / "index.html").as_posix()
     res = runner.invoke(app, ["report", "separable", "--merge", str(tmp_path / "none"), "-o", str(tmp_path / "n")])
     assert res.exit_code == 3
-    assert res.output.startswith(f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: ") and res.output.count("\n") == 1
+    assert (
+        res.output.startswith(f"atlasgen: error: {(tmp_path / 'none' / 'report.json').as_posix()}: ")
+        and res.output.count("\n") == 1
+    )

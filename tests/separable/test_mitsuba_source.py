@@ -11,7 +11,6 @@ from atlasgen.errors import MaterialError
 from atlasgen.separable.error import sample_error_pairs, sample_hemisphere_pairs
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 from atlasgen.separable.source import make_source
-
 from tests.separable.separable_helpers import analytic
 
 
@@ -19,8 +18,17 @@ from tests.separable.separable_helpers import analytic
 @pytest.mark.parametrize("alpha", [0.1, 0.4])
 def test_roughdielectric_reflection_is_the_analytic_microfacet_brdf(mitsuba_llvm, distribution, alpha):
     """Mitsuba's rough dielectric reflects D F G / (4 cos_i cos_o) with exact Fresnel: our model, computed independently."""
-    bsdf = load_mitsuba_bsdf({"type": "roughdielectric", "distribution": distribution, "alpha": alpha,
-                              "int_ior": 1.5, "ext_ior": 1.0, "sample_visible": False}, "t.toml")
+    bsdf = load_mitsuba_bsdf(
+        {
+            "type": "roughdielectric",
+            "distribution": distribution,
+            "alpha": alpha,
+            "int_ior": 1.5,
+            "ext_ior": 1.0,
+            "sample_visible": False,
+        },
+        "t.toml",
+    )
     l, v = sample_hemisphere_pairs(20_000, seed=3)
     ours = analytic(distribution, alpha=alpha, fresnel="exact", ior=1.5).f_cos(l, v)
     theirs = evaluate_mitsuba_f_cos(bsdf, l, v)
@@ -31,7 +39,9 @@ def test_roughdielectric_reflection_is_the_analytic_microfacet_brdf(mitsuba_llvm
 
 
 def test_diffuse_is_lambert(mitsuba_llvm):
-    src = make_source({"source": "mitsuba", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.4, 0.6]}}})
+    src = make_source(
+        {"source": "mitsuba", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.4, 0.6]}}}
+    )
     l, v = sample_hemisphere_pairs(1000, seed=1)
     np.testing.assert_allclose(src.f_cos(l, v), np.array([0.2, 0.4, 0.6]) / np.pi * l[:, 2:3], rtol=1e-5)
     assert src.zero_on_horizon
@@ -149,7 +159,7 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
 
 def test_every_bsdf_example_in_the_docs_loads(mitsuba_llvm):
     text = (Path(__file__).resolve().parents[2] / "docs" / "separable.md").read_text(encoding="utf-8")
-    section = text[text.index("### The `bsdf` table"):text.index("What is refused")]
+    section = text[text.index("### The `bsdf` table") : text.index("What is refused")]
     blocks = re.findall(r"```toml\n(.*?)```", section, re.S)
     examples = [tomllib.loads(line)["bsdf"] for line in blocks[0].splitlines() if line.startswith("bsdf =")]
     examples += [tomllib.loads(block)["bsdf"] for block in blocks[1:]]

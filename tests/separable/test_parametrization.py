@@ -20,7 +20,9 @@ Z = np.array([0.0, 0.0, 1.0])
 
 @pytest.mark.slow
 @given(
-    th=st.floats(0.01, 1.5), td=st.floats(0.01, 1.5), pd=st.floats(0.01, 3.13),
+    th=st.floats(0.01, 1.5),
+    td=st.floats(0.01, 1.5),
+    pd=st.floats(0.01, 3.13),
 )
 @settings(max_examples=200, deadline=None)
 def test_half_diff_angles_round_trip(th, td, pd):

@@ -7,10 +7,9 @@ import pytest
 
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
-from atlasgen.separable.rebuild import evaluate_separable, read_separable_factors
 from atlasgen.separable.error import measure_errors, sample_error_pairs
+from atlasgen.separable.rebuild import evaluate_separable, read_separable_factors
 from atlasgen.separable.source import make_source
-
 from tests.separable.separable_helpers import random_frames
 
 

@@ -14,8 +14,14 @@ from atlasgen.reports.separable import write_separable_report
 def test_report_writes_markdown_json_and_the_plots(write_material, tmp_path, separable_atlas):
     atlas, _ = separable_atlas
     material = read_material(write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n'))
-    out = write_separable_report([material], tmp_path / "report", atlas_path=atlas, resolutions=(8, 16), repeats=1,
-                                 parametrizations=("half_diff", "in_out"))
+    out = write_separable_report(
+        [material],
+        tmp_path / "report",
+        atlas_path=atlas,
+        resolutions=(8, 16),
+        repeats=1,
+        parametrizations=("half_diff", "in_out"),
+    )
     plots = out["plots"]["lobe"]
     assert set(plots) == {"terms", "resolution", "pareto", "parametrization"}
     for png in plots.values():

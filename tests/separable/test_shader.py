@@ -3,10 +3,9 @@
 import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
-from atlasgen.separable.rebuild import evaluate_separable
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
+from atlasgen.separable.rebuild import evaluate_separable
 from atlasgen.separable.shader import SIDECAR_VERSION, separable_table, separable_wgsl, wgsl_function_name
-
 from tests.separable.separable_helpers import random_frames
 
 COMPUTE = """
@@ -82,8 +81,9 @@ def _run(ctx, level0, srgb, include, n, l, v, material):
         {"bytes_per_row": 64 * 4, "rows_per_image": 32},
         (64, 32, layers),
     )
-    sampler = device.create_sampler(mag_filter="linear", min_filter="linear", address_mode_u="clamp-to-edge",
-                                    address_mode_v="clamp-to-edge")
+    sampler = device.create_sampler(
+        mag_filter="linear", min_filter="linear", address_mode_u="clamp-to-edge", address_mode_v="clamp-to-edge"
+    )
     count = len(n)
     dirs = np.zeros((count, 3, 4), np.float32)
     dirs[:, 0, :3], dirs[:, 1, :3], dirs[:, 2, :3] = n, l, v
@@ -92,12 +92,15 @@ def _run(ctx, level0, srgb, include, n, l, v, material):
     out_buf = device.create_buffer(size=count * 16, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
     module = device.create_shader_module(code=include + COMPUTE)
     pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
-    bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
-        {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
-        {"binding": 1, "resource": sampler},
-        {"binding": 2, "resource": {"buffer": dirs_buf, "offset": 0, "size": dirs_buf.size}},
-        {"binding": 3, "resource": {"buffer": out_buf, "offset": 0, "size": out_buf.size}},
-    ])
+    bind = device.create_bind_group(
+        layout=pipeline.get_bind_group_layout(0),
+        entries=[
+            {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
+            {"binding": 1, "resource": sampler},
+            {"binding": 2, "resource": {"buffer": dirs_buf, "offset": 0, "size": dirs_buf.size}},
+            {"binding": 3, "resource": {"buffer": out_buf, "offset": 0, "size": out_buf.size}},
+        ],
+    )
     encoder = device.create_command_encoder()
     compute = encoder.begin_compute_pass()
     compute.set_pipeline(pipeline)

@@ -6,7 +6,6 @@ import pytest
 from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.parametrization import get_parametrization
 from atlasgen.separable.source import BrdfSource, sample_matrices
-
 from tests.separable.separable_helpers import analytic
 
 

@@ -7,7 +7,6 @@ from atlasgen.separable.approximate import approximate_brdf
 from atlasgen.separable.factorize import Factors
 from atlasgen.separable.rebuild import factors_from_slices
 from atlasgen.separable.storage import encode_factor_slices, factors_to_slices, quantize_factors
-
 from tests.separable.separable_helpers import analytic
 
 

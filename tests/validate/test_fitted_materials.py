@@ -57,7 +57,7 @@ COATS = {
     # A roughplastic of alpha 0.3 as its best single slice (the bsdf model), and a fresnel
     # material fitted from its roughplastic reference at the default gloss.
     "rough": 'type = "bsdf"\nbsdf = { type = "roughplastic", distribution = "ggx", alpha = 0.3, int_ior = 1.5, '
-             'nonlinear = false, diffuse_reflectance = { type = "rgb", value = [0.6, 0.2, 0.1] } }\n',
+    'nonlinear = false, diffuse_reflectance = { type = "rgb", value = [0.6, 0.2, 0.1] } }\n',
     "glaze": 'type = "fresnel"\ncolour = [0.8, 0.78, 0.72]\nior = 1.5\nfrom = "physical"\nfit_gloss = 0.45\n',
     "glaze-model": 'type = "fresnel"\ncolour = [0.8, 0.78, 0.72]\nior = 1.5\n',
 }

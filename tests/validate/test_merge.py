@@ -9,7 +9,6 @@ from pathlib import Path
 import pytest
 
 from atlasgen.errors import InputError
-
 from tests.html_links import PageLinks
 
 
@@ -22,8 +21,7 @@ def _split(run):
 
 @pytest.fixture(scope="module")
 def merged(validation_run, tmp_path_factory):
-    from atlasgen.reports.validation import merge_validation_reports
-    from atlasgen.reports.validation import write_validation
+    from atlasgen.reports.validation import merge_validation_reports, write_validation
 
     out = tmp_path_factory.mktemp("merge") / "validation"
     parts = _split(validation_run)
@@ -68,7 +66,8 @@ def test_every_image_and_page_the_merged_html_links_exists(merged):
         assert (out / src).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", src
     # Every result's images live in its material's folder, and its own page is linked.
     assert {p for p in parser.images if p != "speed_error.png"} <= {
-        p for m in parts for p in (str(q.relative_to(out)) for q in (out / "materials" / m / "images").iterdir())}
+        p for m in parts for p in (str(q.relative_to(out)) for q in (out / "materials" / m / "images").iterdir())
+    }
     pages = {link for link in parser.links if link.endswith(".html")}
     assert sorted(pages) == sorted(f"materials/{m}/index.html" for m in parts)
     # The other links: a zoomable image's own file, or a section of the page (the contents).

@@ -75,7 +75,9 @@ def test_direct_integrator_has_no_shadows_and_lights_back_faces_through_the_bsdf
 
     mi = mitsuba_rgb
     register_references(mi)
-    text = SCENE.replace('direction = [0.3, -1.0, -0.2]', 'direction = [0.0, 1.0, 0.0]').replace("intensity = 3.0", "intensity = 0.0")
+    text = SCENE.replace("direction = [0.3, -1.0, -0.2]", "direction = [0.0, 1.0, 0.0]").replace(
+        "intensity = 3.0", "intensity = 0.0"
+    )
     scene = parse_scene(tomllib.loads(text), "below.toml")
     leaf = MaterialEntry(name="leaf", id=0, constant="MATERIAL_LEAF", first_slice=0, type="backlit", params={
         "colour": [0.0, 0.0, 0.0], "transmission_colour": [1.0, 1.0, 1.0], "distortion": 0.0, "power": 1.0,
@@ -120,7 +122,7 @@ def test_a_render_continued_from_sample_n_averages_to_the_longer_render(mitsuba_
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_pixel_centres
 
     mi = mitsuba_rgb
-    sphere = SCENE.replace("scale = 4.0", "scale = 4.0\n[[objects]]\nshape = \"sphere\"\nmaterial = \"any\"\nscale = 0.5")
+    sphere = SCENE.replace("scale = 4.0", 'scale = 4.0\n[[objects]]\nshape = "sphere"\nmaterial = "any"\nscale = 0.5')
     scene = parse_scene(tomllib.loads(sphere), "two.toml")
     diffuse = [{"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.7, 0.6, 0.5]}}] * 2
     # Path tracing with a bounce: the plane lights the sphere by inter-reflection, so every

@@ -39,7 +39,12 @@ def test_rebuild_leaves_other_materials_pixels_black(validation_run, validation_
     _, scene = load_validation_scene("front")
     scene = bind_material(scene, "matte")
     ids = np.full((scene.height, scene.width), 0xFFFF, dtype=np.uint16)
-    aovs = {"id": ids, "normal": np.zeros(ids.shape + (3,)), "depth": np.full(ids.shape, np.inf), "albedo": np.zeros(ids.shape + (3,))}
+    aovs = {
+        "id": ids,
+        "normal": np.zeros(ids.shape + (3,)),
+        "depth": np.full(ids.shape, np.inf),
+        "albedo": np.zeros(ids.shape + (3,)),
+    }
     (rebuild,) = get_model(entry.type).radiance_rebuilds(entry, validation_atlas).values()
     image = rebuild_image(rebuild, entry, scene, aovs)
     assert image.shape == (scene.height, scene.width, 3) and not image.any()

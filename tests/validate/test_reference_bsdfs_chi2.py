@@ -9,7 +9,6 @@ BSDFs need a vectorised variant: ``llvm_ad_rgb``.
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -51,8 +50,9 @@ def entry(write_material):
 
     def make(name: str, text: str) -> MaterialEntry:
         material = read_material(write_material(name, text))
-        return MaterialEntry(name=material.name, id=0, constant="MATERIAL_M", first_slice=0, type=material.type,
-                             params=material.params)
+        return MaterialEntry(
+            name=material.name, id=0, constant="MATERIAL_M", first_slice=0, type=material.type, params=material.params
+        )
 
     return make
 

@@ -85,7 +85,10 @@ def test_every_table_type_and_separable_has_a_model_reference_and_unknown_types_
         assert ref.description == f"{kind} model, exact, in the renderer's equation"
     sep = model_reference(_entry("separable", {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "s"), (0.5, 1, 1))
     assert sep.bsdf["type"] == "atlasgen_brdf"
-    assert json.loads(sep.bsdf["material"]) == {"params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}}, "albedo": [0.5, 1.0, 1.0]}
+    assert json.loads(sep.bsdf["material"]) == {
+        "params": {"source": "mitsuba", "bsdf": {"type": "diffuse"}},
+        "albedo": [0.5, 1.0, 1.0],
+    }
     assert sep.description == "source BSDF (mitsuba): {'type': 'diffuse'}"
     with pytest.raises(InputError, match="'mystery'.*no reference for model type 'hologram'"):
         model_reference(_entry("hologram", {}, "mystery"))

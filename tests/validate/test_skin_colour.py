@@ -41,8 +41,12 @@ def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
 
     # The shipped skin as baked: fitted to volpath renders of a sphere of itself.
     assert material.fit_from == "physical"
-    entry = SimpleNamespace(name=material.name, type=material.type, params=material.params,
-                            fit=Fit(source="physical", gloss=material.fit_gloss, details={}))
+    entry = SimpleNamespace(
+        name=material.name,
+        type=material.type,
+        params=material.params,
+        fit=Fit(source="physical", gloss=material.fit_gloss, details={}),
+    )
     _, scene = load_validation_scene("front")
     scene = bind_material(resize_scene(scene, 64, 48), entry.name)
     register_references(mi)
