@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -21,7 +22,7 @@ from hypothesis import settings  # noqa: E402
 settings.register_profile("atlasgen", deadline=None)
 settings.load_profile("atlasgen")
 
-os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp/atlasgen-xdg-%d" % os.getuid())
+os.environ.setdefault("XDG_RUNTIME_DIR", f"/tmp/atlasgen-xdg-{os.getuid()}")
 os.makedirs(os.environ["XDG_RUNTIME_DIR"], mode=0o700, exist_ok=True)
 
 
@@ -121,6 +122,8 @@ FIXTURE_MARKERS = {
     "validation_run": "slow",
     "separable_atlas": "slow",
     "renderer": "slow",
+    # The shipped library's bake cache, filled once per test run for every xdist worker.
+    "shipped_library_cache": "slow",
 }
 
 
@@ -129,6 +132,53 @@ def pytest_collection_modifyitems(config, items):
         for fixture, marker in FIXTURE_MARKERS.items():
             if fixture in getattr(item, "fixturenames", ()):
                 item.add_marker(marker)
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def shared_folder(tmp_path_factory, name: str, build) -> Path:
+    """A folder that ``build(folder)`` fills once per test run, shared by pytest-xdist's workers.
+
+    The first process to arrive builds it under a lock; the others wait for it and reuse it. A
+    build that raises leaves no folder, so the next test to ask tries again.
+    """
+    import fcntl
+    import shutil
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the run's base, shared by every worker's own basetemp
+    folder, done = root / f"shared-{name}", root / f"shared-{name}.done"
+    with open(root / f"shared-{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            try:
+                build(folder)
+            except BaseException:
+                shutil.rmtree(folder, ignore_errors=True)
+                raise
+            done.touch()
+    return folder
+
+
+@pytest.fixture(scope="session")
+def shipped_library_cache(tmp_path_factory, mitsuba_llvm):
+    """The bake cache (``atlasgen bake --cache``) of the shipped library, physics fits included.
+
+    Baking the library costs a minute of CPU, most of it the fits from physics; every test that
+    bakes the whole library (the goldens, the containers, the installed wheel) assembles it from
+    this cache, as ``make atlas`` does. The cache's own correctness (a cached bake is the bake)
+    is tests/test_cache.py's.
+    """
+    from atlasgen.bake.cache import fill_cache
+    from atlasgen.materials.material import read_materials
+
+    return shared_folder(
+        tmp_path_factory, "library-cache", lambda folder: fill_cache(folder, read_materials([ROOT / "materials"]))
+    )
 
 
 @pytest.fixture(scope="session")
@@ -144,3 +194,86 @@ def mitsuba_llvm():
     except Exception as exc:  # ImportError, or the variant/LLVM is unavailable
         pytest.skip(f"Mitsuba 3 llvm_ad_rgb is unavailable: {exc}")
     return mi
+
+
+# ---- the fast loop's CPU budget --------------------------------------------------------------
+#: The `slow` marker's definition (pyproject.toml): a test over this many CPU seconds (its setup,
+#: call and teardown, time.process_time, every thread of the process) is marked slow, or uses a
+#: fixture in FIXTURE_MARKERS that makes it so. Fixtures scoped wider than a function are paid
+#: once per process and are not charged to the test that happens to come first, except that one
+#: costing more than the budget must itself be listed as slow.
+SLOW_CPU_BUDGET_S = 1.0
+#: Backend start-up (importing Mitsuba and setting its variant, opening the WebGPU device) is paid
+#: by whichever test reaches it first in each process: never charged to a test.
+_STARTUP_FIXTURES = {"gpu_context", "mitsuba_llvm", "mitsuba_rgb"}
+#: ATLASGEN_CPU_GUARD=0 turns the guard off (a profiler or debugger inflates every test);
+#: ATLASGEN_CPU_REPORT=FILE appends "nodeid<TAB>cpu seconds" for every test, to find them.
+_GUARD = os.environ.get("ATLASGEN_CPU_GUARD", "1") != "0"
+_REPORT = os.environ.get("ATLASGEN_CPU_REPORT")
+
+
+#: Imported before the first test when the guard is on, so that no test is charged for being the
+#: first in its process to import one (matplotlib alone costs most of a budget).
+_HEAVY_IMPORTS = ("matplotlib", "matplotlib.pyplot", "scipy.optimize", "scipy.integrate", "scipy.interpolate",
+                  "scipy.stats", "trimesh", "OpenImageIO", "jinja2", "zstandard", "wgpu", "PIL.Image", "hypothesis")  # fmt: skip
+
+
+def pytest_configure(config):
+    if not _GUARD:
+        return
+    import importlib
+
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    for name in _HEAVY_IMPORTS:
+        try:
+            importlib.import_module(name)
+        except ImportError:  # an optional backend that is not installed: its tests skip
+            pass
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_fixture_setup(fixturedef, request):
+    if fixturedef.scope == "function":
+        yield
+        return
+    start = time.process_time()
+    yield
+    spent = time.process_time() - start
+    target = getattr(request, "_pyfuncitem", None)  # the test whose set-up this is
+    if target is not None:
+        target._atlasgen_wide_fixtures = getattr(target, "_atlasgen_wide_fixtures", 0.0) + spent
+        if fixturedef.argname not in _STARTUP_FIXTURES and spent > SLOW_CPU_BUDGET_S:
+            target._atlasgen_costly_fixtures = [*getattr(target, "_atlasgen_costly_fixtures", []), (fixturedef.argname, spent)]
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    item._atlasgen_cpu_start = time.process_time()
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    if call.when != "teardown":
+        return
+    spent = time.process_time() - item._atlasgen_cpu_start - getattr(item, "_atlasgen_wide_fixtures", 0.0)
+    if _REPORT:
+        with open(_REPORT, "a", encoding="utf-8") as log:
+            log.write(f"{item.nodeid}\t{spent:.3f}\t{getattr(item, '_atlasgen_wide_fixtures', 0.0):.3f}\n")
+    report = outcome.get_result()
+    if not _GUARD or item.get_closest_marker("slow") is not None or report.failed:
+        return
+    problems = []
+    if spent > SLOW_CPU_BUDGET_S:
+        problems.append(f"it used {spent:.2f} s of CPU")
+    problems += [
+        f"its fixture {name!r} used {cost:.2f} s of CPU" for name, cost in getattr(item, "_atlasgen_costly_fixtures", [])
+    ]
+    if problems:
+        report.outcome = "failed"
+        report.longrepr = (
+            f"{item.nodeid} is not marked slow, but {'; '.join(problems)}, over the fast loop's budget of "
+            f"{SLOW_CPU_BUDGET_S} s (tests/conftest.py SLOW_CPU_BUDGET_S): mark it @pytest.mark.slow, "
+            "or list the fixture in FIXTURE_MARKERS"
+        )

@@ -69,6 +69,29 @@ def test_values_above_one_get_a_slice_scale_and_nothing_clamps(tmp_path, write_m
     assert not result.warnings
 
 
+def test_the_quantization_error_is_the_max_and_rms_of_a_known_error_pattern(tmp_path, write_material, monkeypatch):
+    """Every texel holds an 8-bit code plus a known offset (0.3 of a code on a quarter of them, 0
+    elsewhere; the peak, 1, sets the scale to 1), stored linearly: the manifest's
+    quantization_error is then max = 0.3 / 255 and rms = sqrt(mean(offset^2)) / 255, not the mean."""
+    write_material("pattern", 'type = "lambert"\n')
+    from atlasgen.models.lambert import Lambert
+
+    nl, _ = texel_grid()
+    rows, columns = np.indices(nl.shape)
+    codes = (rows * 64 + columns) * 7 % 255
+    offset = np.where((rows + columns) % 4 == 0, 0.3, 0.0)
+    offset[0, 0], codes[0, 0] = 0.0, 255
+    values = np.repeat(((codes + offset) / 255)[..., None], 4, axis=-1)
+    monkeypatch.setattr(Lambert, "bake", lambda self, v: SliceSet(values[None].copy()))
+    result = bake_folder(tmp_path / "materials", linear=True)
+    entry = result.manifest.materials[0]
+    assert entry.scale[0] == [1.0, 1.0]
+    np.testing.assert_array_equal(result.levels[0][0], np.repeat(codes[..., None], 4, axis=-1))
+    assert entry.quantization_error.max == pytest.approx(0.3 / 255, rel=1e-6)
+    assert entry.quantization_error.rms == pytest.approx(np.sqrt(np.mean(offset**2)) / 255, rel=1e-6)
+    assert entry.quantization_error.rms != pytest.approx(np.mean(offset) / 255, rel=0.1)
+
+
 def test_fixed_scale_clamps_and_reports_the_fraction(tmp_path, write_material, monkeypatch):
     write_material("bright", 'type = "lambert"\nalpha_scale = 2.0\n')
     from atlasgen.models.lambert import Lambert

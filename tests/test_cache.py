@@ -1,6 +1,7 @@
 """The per-material cache: only what changed is re-baked."""
 
 import numpy as np
+import pytest
 
 from atlasgen.bake.cache import cache_path, load_cached
 from atlasgen.bake.pipeline import bake_atlas
@@ -37,3 +38,23 @@ def test_a_stale_or_corrupt_cache_entry_is_rebaked(tmp_path, write_material):
     cache_path(tmp_path / "cache", materials[0]).write_bytes(b"garbage")
     assert load_cached(tmp_path / "cache", materials[0]) is None
     assert bake_atlas(materials, cache_dir=tmp_path / "cache").timings["cache"]["baked"] == ["a"]
+
+
+@pytest.mark.slow
+def test_a_bake_from_the_cache_writes_the_bytes_of_a_bake_without_it(tmp_path, write_material):
+    """Whole-library tests (the goldens, the containers, the installed wheel) assemble from a
+    session's cache: every output of a cached bake must be the uncached bake's, byte for byte."""
+    from atlasgen.bake.pipeline import write_bake
+
+    write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
+    write_material("gloss", 'type = "fresnel"\n')
+    write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 8.0\nterms = 2\n')
+    materials = read_materials([tmp_path / "materials"])
+    write_bake(bake_atlas(materials), tmp_path / "plain" / "a.dds")
+    bake_atlas(materials, cache_dir=tmp_path / "cache")  # fills the cache
+    cached = bake_atlas(materials, cache_dir=tmp_path / "cache")
+    assert sorted(cached.timings["cache"]["hits"]) == ["clay", "gloss", "lobe"]
+    write_bake(cached, tmp_path / "cached" / "a.dds")
+    for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl", ".separable.bin"):
+        plain, again = (tmp_path / d / f"a{suffix}" for d in ("plain", "cached"))
+        assert plain.read_bytes() == again.read_bytes(), suffix

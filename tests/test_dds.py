@@ -76,6 +76,7 @@ def test_data_order_is_element_major(baked):
 
 
 @pytest.mark.parametrize("linear", [False, True])
+@pytest.mark.slow
 def test_each_mip_is_the_linear_box_filter_of_the_level_above(baked, linear):
     path, _ = baked(linear=linear)
     levels = parse(path.read_bytes())["levels"]

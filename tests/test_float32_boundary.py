@@ -176,6 +176,7 @@ def test_mitsuba_bsdf_tables_are_checked(expect_rejected, mitsuba_llvm, bsdf, fi
 
 
 @pytest.mark.gpu
+@pytest.mark.slow
 def test_adversarial_scenes_render_only_finite_pixels(tmp_path, gpu_device):
     """The largest float32 intensities, lights and objects far away or inside each other,
     degenerate meshes and scales: every pixel of the EXR and of the PNG's source is finite."""

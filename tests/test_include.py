@@ -36,6 +36,7 @@ def bilinear(texels, u, v):
     return (1 - fy) * ((1 - fx) * texels[y0, x0] + fx * texels[y0, x1]) + fy * ((1 - fx) * texels[y1, x0] + fx * texels[y1, x1])
 
 
+@pytest.mark.slow
 def test_atlas_sample_on_the_gpu_matches_the_contract(gpu_device, atlas):
     import wgpu
 

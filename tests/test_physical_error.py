@@ -189,6 +189,7 @@ def leaf_candidates():
     return physical_candidates(model, values, bake_supersampled, gloss=0.5)
 
 
+@pytest.mark.slow
 def test_a_thin_sheet_is_measured_over_the_sphere_with_no_separable_candidate(leaf_candidates):
     """leaf's reference (the thin sheet) transmits: l covers the sphere; LUT candidates only, each
     skipped representation with its reason; the fit from physics is the shipped bake's slice."""
@@ -204,6 +205,7 @@ def test_a_thin_sheet_is_measured_over_the_sphere_with_no_separable_candidate(le
     assert by["lut: fitted from physics, 8-bit"]["error"] < 0.1 < by["lut: model, point-sampled, 8-bit"]["error"]
 
 
+@pytest.mark.slow
 def test_the_sphere_estimate_of_a_transmitting_reference_agrees_with_a_dense_uniform_one(leaf_candidates):
     """The importance-sampled error of leaf's 8-bit fitted slice (100 000 pairs over the sphere) against
     1 000 000 uniform pairs (l uniform over the sphere), within 3 combined SE. For the model's own
@@ -230,6 +232,7 @@ def test_the_sphere_estimate_of_a_transmitting_reference_agrees_with_a_dense_uni
     )
 
 
+@pytest.mark.slow
 def test_skin_says_plainly_it_is_lut_only():
     model = get_model("sss")
     values = validate_params(model.params, {}, "<test>")

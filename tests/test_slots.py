@@ -33,6 +33,7 @@ def test_no_gap_large_enough():
 
 
 @given(st.lists(st.integers(1, 4), min_size=1, max_size=40), st.randoms(use_true_random=False))
+@pytest.mark.slow
 def test_allocation_never_overlaps_and_respects_previous(counts, rnd):
     names = [f"m{i}" for i in range(len(counts))]
     first = assign_slices([req(n, c) for n, c in zip(names, counts)])

@@ -109,6 +109,7 @@ def _damaged(data: bytes, key: str) -> dict:
     }
 
 
+@pytest.mark.slow
 def test_a_damaged_cache_entry_is_baked_again_with_a_warning(tmp_path, write_material):
     write_material("a", 'type = "lambert"\ncolour = [0.2, 0.4, 0.6]\n')
     materials = read_materials([tmp_path / "materials"])

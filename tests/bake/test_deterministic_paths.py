@@ -8,6 +8,7 @@ import json
 import os
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
@@ -23,6 +24,7 @@ def _bake(cwd: Path, args: list[str], monkeypatch) -> None:
     assert res.exit_code == 0, res.output
 
 
+@pytest.mark.slow
 def test_the_bytes_depend_on_neither_the_working_directory_nor_the_arguments(tmp_path, monkeypatch):
     project = tmp_path / "project"
     (project / "materials").mkdir(parents=True)

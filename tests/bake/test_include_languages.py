@@ -138,6 +138,7 @@ def test_every_language_comes_from_the_one_description(small_atlas):
     assert len(set(rows.values())) == 1, rows
 
 
+@pytest.mark.slow
 def test_sidecar_is_the_include_table_little_endian(small_atlas):
     result, paths = small_atlas
     data = paths["separable"].read_bytes()
@@ -157,6 +158,7 @@ def test_sidecar_is_the_include_table_little_endian(small_atlas):
 
 @needs_glslang
 @pytest.mark.parametrize("lang", ["glsl", "hlsl"])
+@pytest.mark.slow
 def test_glslang_compiles_the_include(lang, small_atlas):
     _, paths = small_atlas
     spirv = _spirv(lang, paths["dds"].parent)

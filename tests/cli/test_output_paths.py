@@ -82,6 +82,7 @@ def test_the_atlas_extension_must_match(tmp_path, library):
              "--preview must end in .png")  # fmt: skip
 
 
+@pytest.mark.slow
 def test_an_empty_folder_does_not_empty_an_atlas_without_allow_empty(tmp_path, library):
     _bake(tmp_path, library)
     empty = tmp_path / "empty"

@@ -34,6 +34,7 @@ def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, t
         (["matte", "--spp", "0"], 2, "--spp"),
     ],
 )
+@pytest.mark.slow
 def test_bad_input_gets_one_clear_line_and_writes_nothing(validation_atlas, tmp_path, args, code, message):  # noqa: F811
     out = tmp_path / "v"
     result = CliRunner().invoke(app, ["validate", *args, "--atlas", str(validation_atlas), "-o", str(out)])
@@ -48,6 +49,7 @@ def test_missing_atlas_says_to_bake_first(tmp_path):
 
 
 @pytest.mark.mitsuba  # needs drjit
+@pytest.mark.slow
 def test_missing_llvm_backend_exits_5_and_names_libllvm19(validation_atlas, tmp_path, monkeypatch):  # noqa: F811
     dr = pytest.importorskip("drjit")
 

@@ -35,20 +35,32 @@ KHR_DF_MODEL_RGBSDA, KHR_DF_PRIMARIES_BT709 = 1, 1
 KHR_DF_TRANSFER_LINEAR, KHR_DF_TRANSFER_SRGB = 1, 2
 CHANNEL_R, CHANNEL_G, CHANNEL_B, CHANNEL_A = 0, 1, 2, 15
 
-#: (layout, linear) -> BakeResult of the shipped library, baked once per session.
+#: A small library for the tests of the container (not of the library): a LUT and a Fresnel LUT
+#: with its alpha, quick to bake. The shipped library's whole atlas is the slow test's.
+SMALL_LIBRARY = {"clay": 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n', "gloss": 'type = "fresnel"\n'}
+
+#: (folder, layout, linear) -> BakeResult, baked once per process.
 _BAKES: dict = {}
 
 
-def _shipped_bake(layout: str, linear: bool):
-    key = (layout, linear)
+@pytest.fixture(scope="module")
+def small_library(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("ktx2-library")
+    for name, text in SMALL_LIBRARY.items():
+        (folder / f"{name}.toml").write_text(text)
+    return folder
+
+
+def _bake(folder: Path, layout: str, linear: bool, cache_dir=None):
+    key = (folder, layout, linear)
     if key not in _BAKES:
-        _BAKES[key] = bake_atlas(read_materials([ROOT / "materials"]), layout=layout, linear=linear)
+        _BAKES[key] = bake_atlas(read_materials([folder]), layout=layout, linear=linear, cache_dir=cache_dir)
     return _BAKES[key]
 
 
-def _write(tmp_path, layout="array", linear=False, zstd=False) -> tuple[Path, Path]:
-    """The shipped library written as X.dds and as X.ktx2 (with its manifest beside it)."""
-    result = _shipped_bake(layout, linear)
+def _write(tmp_path, folder, layout="array", linear=False, zstd=False, cache_dir=None) -> tuple[Path, Path]:
+    """The library in ``folder`` written as X.dds and as X.ktx2 (with its manifest beside it)."""
+    result = _bake(folder, layout, linear, cache_dir)
     dds, ktx2 = tmp_path / "dds" / "atlas.dds", tmp_path / "ktx2" / "atlas.ktx2"
     write_bake(result, dds)
     write_bake(result, ktx2, zstd=zstd)
@@ -61,8 +73,9 @@ VARIANTS = [("array", False), ("array", True), ("volume", True)]
 @pytest.mark.parametrize("zstd", [False, True], ids=["plain", "zstd"])
 @pytest.mark.parametrize("layout,linear", VARIANTS, ids=[f"{lay}-{'linear' if lin else 'srgb'}" for lay, lin in VARIANTS])
 @pytest.mark.slow
-def test_every_layer_and_level_matches_the_dds(tmp_path, layout, linear, zstd):
-    dds_path, ktx2_path = _write(tmp_path, layout, linear, zstd)
+def test_every_layer_and_level_matches_the_dds(tmp_path, layout, linear, zstd, shipped_library_cache):
+    # The shipped library: every slice of a real atlas, in every layout, against the DDS.
+    dds_path, ktx2_path = _write(tmp_path, ROOT / "materials", layout, linear, zstd, shipped_library_cache)
     data = ktx2_path.read_bytes()
     f = ktx2_reader.parse(data)
     ktx2_reader.check_layout(f, data)
@@ -87,9 +100,9 @@ def test_every_layer_and_level_matches_the_dds(tmp_path, layout, linear, zstd):
         np.testing.assert_array_equal(mine, ref)
 
 
-def test_level_index_and_file_order(tmp_path):
+def test_level_index_and_file_order(tmp_path, small_library):
     """Level 0 is first in the index but last in the file; no padding between RGBA8 levels."""
-    _, ktx2_path = _write(tmp_path)
+    _, ktx2_path = _write(tmp_path, small_library)
     f = ktx2_reader.parse(ktx2_path.read_bytes())
     li = f["level_index"]
     offsets = [e["byteOffset"] for e in li]
@@ -100,8 +113,8 @@ def test_level_index_and_file_order(tmp_path):
 
 
 @pytest.mark.parametrize("linear", [False, True], ids=["srgb", "linear"])
-def test_data_format_descriptor_is_the_basic_block_of_rgba8(tmp_path, linear):
-    _, ktx2_path = _write(tmp_path, linear=linear)
+def test_data_format_descriptor_is_the_basic_block_of_rgba8(tmp_path, small_library, linear):
+    _, ktx2_path = _write(tmp_path, small_library, linear=linear)
     f = ktx2_reader.parse(ktx2_path.read_bytes())
     dfd = f["dfd"]
     assert dfd["dfdTotalSize"] == f["index"]["dfdByteLength"] == 4 + 24 + 4 * 16
@@ -124,8 +137,9 @@ def test_data_format_descriptor_is_the_basic_block_of_rgba8(tmp_path, linear):
 
 
 @pytest.mark.parametrize("zstd", [False, True], ids=["plain", "zstd"])
-def test_key_value_data_names_the_writer_and_records_the_manifest_hash(tmp_path, zstd):
-    _, ktx2_path = _write(tmp_path, zstd=zstd)
+@pytest.mark.slow
+def test_key_value_data_names_the_writer_and_records_the_manifest_hash(tmp_path, small_library, zstd):
+    _, ktx2_path = _write(tmp_path, small_library, zstd=zstd)
     f = ktx2_reader.parse(ktx2_path.read_bytes())
     kv = ktx2_reader.kvd_dict(f)
     manifest_bytes = ktx2_path.with_suffix(".json").read_bytes()
@@ -137,8 +151,9 @@ def test_key_value_data_names_the_writer_and_records_the_manifest_hash(tmp_path,
     assert read_ktx2(ktx2_path).key_values == dict(f["kvd"])
 
 
-def test_zstd_file_is_far_smaller_and_levels_uncompressed_lengths_are_kept(tmp_path):
-    dds_path, ktx2_path = _write(tmp_path, zstd=True)
+@pytest.mark.slow
+def test_zstd_file_is_far_smaller_and_levels_uncompressed_lengths_are_kept(tmp_path, small_library):
+    dds_path, ktx2_path = _write(tmp_path, small_library, zstd=True)
     assert dds_path.stat().st_size > 2_796_544
     assert ktx2_path.stat().st_size < 100_000
     f = ktx2_reader.parse(ktx2_path.read_bytes())
@@ -146,8 +161,8 @@ def test_zstd_file_is_far_smaller_and_levels_uncompressed_lengths_are_kept(tmp_p
         assert e["uncompressedByteLength"] == len(f["raw_levels"][k]) > e["byteLength"]
 
 
-def test_the_siblings_are_those_of_the_dds_bake(tmp_path):
-    dds_path, ktx2_path = _write(tmp_path)
+def test_the_siblings_are_those_of_the_dds_bake(tmp_path, small_library):
+    dds_path, ktx2_path = _write(tmp_path, small_library)
     # The manifest records the texels' hash, the same in either container, so the manifest
     # and the includes (which record the manifest's hash) are byte-identical.
     for suffix in (".json", ".wgsl", ".glsl", ".hlsl"):
@@ -155,8 +170,8 @@ def test_the_siblings_are_those_of_the_dds_bake(tmp_path):
     assert ktx2_path.with_name("atlas.timings.json").exists()
 
 
-def test_read_atlas_accepts_either_container(tmp_path):
-    dds_path, ktx2_path = _write(tmp_path)
+def test_read_atlas_accepts_either_container(tmp_path, small_library):
+    dds_path, ktx2_path = _write(tmp_path, small_library)
     a, b = read_atlas(dds_path), read_atlas(ktx2_path)
     assert a.srgb and b.srgb and replace(a.manifest, atlas_sha256="") == replace(b.manifest, atlas_sha256="")
     first = b.manifest.materials[0].first_slice
@@ -167,9 +182,10 @@ def test_read_atlas_accepts_either_container(tmp_path):
     assert r.srgb and [lv.shape for lv in r.levels] == [lv.shape for lv in a.image.levels]
 
 
-def test_same_inputs_give_the_same_bytes(tmp_path):
-    _, one = _write(tmp_path / "one", zstd=True)
-    _, two = _write(tmp_path / "two", zstd=True)
+@pytest.mark.slow
+def test_same_inputs_give_the_same_bytes(tmp_path, small_library):
+    _, one = _write(tmp_path / "one", small_library, zstd=True)
+    _, two = _write(tmp_path / "two", small_library, zstd=True)
     assert one.read_bytes() == two.read_bytes()
 
 

@@ -192,6 +192,7 @@ def test_golden_manifests_validate_against_the_schema(variant):
     assert list(_schema("manifest").iter_errors(_golden(variant))) == []
 
 
+@pytest.mark.slow
 def test_a_budgeted_lut_manifest_validates_against_the_schema(tmp_path, write_material):
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_materials

@@ -71,6 +71,7 @@ def conductor_fresnel(cos_theta, n, k):
     k_base=st.floats(0.0, 10.0),
 )
 @settings(max_examples=200, deadline=None)
+@pytest.mark.slow
 def test_airy_sum_matches_the_transfer_matrix(cos0, wavelength, thickness, n_film, n_base, k_base):
     got = film_reflectance(np.array([cos0]), np.array([wavelength]), thickness, n_film, n_base, k_base)[0, 0]
     expected = reflectance_by_transfer_matrix(cos0, wavelength, thickness, n_film, n_base, k_base)
@@ -83,6 +84,7 @@ def test_airy_sum_matches_the_transfer_matrix(cos0, wavelength, thickness, n_fil
     n_base=st.one_of(st.floats(0.05, 0.98), st.floats(1.02, 5.0), st.just(1.0)),
     k_base=st.floats(0.0, 10.0),
 )
+@pytest.mark.slow
 def test_grazing_light_is_fully_reflected(thickness, n_film, n_base, k_base):
     assume(n_film != 1.0 or n_base != 1.0 or k_base > 0.0)  # air on air has no interface
     r = film_reflectance(np.array([0.0]), WAVELENGTHS, thickness, n_film, n_base, k_base)
@@ -100,6 +102,7 @@ def test_quarter_and_half_wave_layers_at_normal_incidence():
 
 @given(film_ior=st.floats(1.0, 3.0), base_ior=st.floats(1.01, 5.0))
 @settings(max_examples=50, deadline=None)
+@pytest.mark.slow
 def test_zero_thickness_is_exactly_the_base_fresnel(film_ior, base_ior):
     params = {**DEFAULTS, "thickness": 0.0, "film_ior": film_ior, "base_ior": base_ior}
     cos_theta = np.linspace(0.0, 1.0, 101)
@@ -111,6 +114,7 @@ def test_zero_thickness_is_exactly_the_base_fresnel(film_ior, base_ior):
 
 @given(film_ior=st.floats(1.0, 3.0), base_ior=st.floats(0.05, 5.0), base_k=st.floats(0.1, 10.0))
 @settings(max_examples=50, deadline=None)
+@pytest.mark.slow
 def test_zero_thickness_over_a_conductor_is_the_conductor_fresnel(film_ior, base_ior, base_k):
     cos_theta = np.linspace(0.01, 1.0, 50)
     params = {**DEFAULTS, "thickness": 0.0, "film_ior": film_ior, "base_ior": base_ior, "base_k": base_k}
@@ -144,6 +148,7 @@ def test_zero_thickness_model_equals_the_fresnel_model():
 
 
 @pytest.mark.parametrize("thickness, base", [(380.0, (1.5, 0.0)), (900.0, (2.0, 0.0)), (520.0, (1.9, 1.2))])
+@pytest.mark.slow
 def test_white_coupled_film_conserves_energy_when_all_colour_goes_to_rgb(thickness, base):
     # With film_split = 1 the film's reflection is all in RGB: the renderer's albedo * RGB / pi
     # reflects 2 int_0^1 RGB(c, v) dc over the light directions, which must be
@@ -269,6 +274,7 @@ params_strategy = st.fixed_dictionaries(
 
 @given(raw=params_strategy)
 @settings(max_examples=40, deadline=None)
+@pytest.mark.slow
 def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slice):
     params = validate_params(MODEL.params, raw, "hypothesis")
     MODEL.check(params, "hypothesis")

@@ -14,6 +14,7 @@ unit = st.floats(0.0, 1.0)
 
 @given(colour=st.tuples(unit, unit, unit))
 @settings(max_examples=40, deadline=None)
+@pytest.mark.slow
 def test_bake_is_the_closed_form_at_texel_centres(colour, valid_slice):
     values = valid_slice(MODEL, {"colour": colour})[0]
     for j in (0, 7, HEIGHT - 1):

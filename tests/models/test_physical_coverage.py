@@ -50,6 +50,7 @@ def _fingerprint(reference) -> str:
 
 
 @pytest.mark.parametrize("type_name", model_types())
+@pytest.mark.slow
 def test_every_parameter_reaches_the_physical_reference_or_is_a_documented_omission(type_name):
     model = get_model(type_name)
     values = _values(type_name)

@@ -4,6 +4,7 @@ texel's footprint, projected at the texel centre."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.models.physical_fit import GRAZING_N_DOT_V, fit_slice, footprint_f_cos
@@ -37,6 +38,7 @@ def test_footprint_mean_of_a_linear_function_is_its_value_at_the_centre():
     np.testing.assert_allclose(boxed[0, -1], _linear(edge_nl, edge_nv), rtol=0, atol=1e-13)
 
 
+@pytest.mark.slow
 def test_supersampled_fit_of_a_function_linear_over_each_texel_is_the_point_fit(monkeypatch):
     from atlasgen.models import physical_fit
 
@@ -50,6 +52,7 @@ def test_supersampled_fit_of_a_function_linear_over_each_texel_is_the_point_fit(
     np.testing.assert_allclose(boxed[1:-1, 1:-1, 3], point[1:-1, 1:-1, 3], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_supersampled_fit_of_a_sharp_feature_is_closer_to_the_texel_mean():
     """A ridge in N.L narrower than a texel (sigma = 0.004, texels 0.032 apart) between two texel
     centres: point sampling sees only its tails, the footprint its mean. Texel means by a dense
@@ -87,6 +90,7 @@ def test_footprint_pairs_deal_the_point_fits_azimuths_over_the_footprint():
     assert np.unique(l[5, 5, :, 2]).size == 4 and np.unique(v[5, 5, :, 2]).size == 4
 
 
+@pytest.mark.slow
 def test_footprint_fit_of_the_renderers_own_equation_is_exact_to_8_bits():
     """f cos = c / pi + A0 D V max(N.L, 0) at the fit's gloss is the renderer's equation with one
     constant texel value: fitted over the footprint, the slice reproduces it (at the footprint's pairs
@@ -110,6 +114,7 @@ def test_footprint_fit_of_the_renderers_own_equation_is_exact_to_8_bits():
     np.testing.assert_allclose(np.median(fitted[2:-2, 2:-2, :3], axis=(0, 1)), c, rtol=0.01)
 
 
+@pytest.mark.slow
 def test_footprint_fit_of_a_sharp_feature_is_closer_to_the_texel_mean():
     centre = -1.0 + 2.0 * 40.3 / (WIDTH - 1)
 

@@ -75,6 +75,7 @@ def _vector(mi, a):
 
 @pytest.mark.parametrize("tint", [None, (0.6, 0.3, 0.9)])
 @pytest.mark.parametrize("below", [False, True])
+@pytest.mark.slow
 def test_thin_film_plugin_eval_equals_the_numpy_function(mitsuba_spectral, below, tint):
     """The ``atlasgen_thinfilm`` plugin's eval at random (w_i, w_o) and wavelengths is
     :func:`thin_film_f_cos` with the colours upsampled as Mitsuba upsamples them (Jakob &
@@ -167,6 +168,7 @@ def test_d65_is_the_cie_table():
     assert d65(300.0) == 0.0
 
 
+@pytest.mark.slow
 def test_the_d65_colour_integral_is_mitsubas(mitsuba_spectral):
     """Against Mitsuba's own pipeline for a white light (CIE 1931 tables times its D65, to XYZ,
     through the sRGB matrix, Y of D65 = 1) on film spectra: within a few 1e-3 relative RMS,
@@ -230,6 +232,7 @@ def test_the_rgb_integral_is_the_per_wavelength_function_on_the_models_grid():
                                    rtol=1e-12, atol=1e-15)  # fmt: skip
 
 
+@pytest.mark.slow
 def test_backlit_from_physical_is_the_sheet_itself(write_material):
     """The renderer's equation holds the thin sheet exactly at texel centres: RGB = T |N.L| where
     the light is behind (N.L < 0, the back-light), R N.L in front, A = specular."""
@@ -293,6 +296,7 @@ def test_iridescent_from_physical_refuses_normalise(write_material):
         read_material(write_material("m", 'type = "iridescent"\nnormalise = true\nfrom = "physical"\n'))
 
 
+@pytest.mark.slow
 def test_the_backlit_fit_fits_its_physical_f_cos():
     """fit_physical projects exactly the function physical_f_cos returns (the report's reference)."""
     from atlasgen.models.physical_fit import fit_slice

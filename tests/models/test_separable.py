@@ -185,6 +185,7 @@ def test_near_delta_and_very_rough_ggx_stay_finite_and_report_their_error(bake_f
         assert e["errors"]["float"]["relative_rms"] < 0.05
 
 
+@pytest.mark.slow
 def test_all_zero_brdf_gives_zero_slices_and_zero_error(bake_folder):
     result = bake_folder({"black": 'type = "separable"\nsource = "lambert"\ndiffuse = [0, 0, 0]\nterms = 2\n'})
     e = _entry(result, "black")

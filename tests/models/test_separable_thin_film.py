@@ -145,6 +145,7 @@ def _transmitted(film, v_cos, l_cos):
             * np.abs(l_cos)[..., None] / np.pi)  # fmt: skip
 
 
+@pytest.mark.slow
 def test_a_back_light_bakes_a_transmission_slice_after_the_terms(backlit_film_atlas):
     """K terms, then one table slice whose RGB / pi is the film's closed-form transmission at the texel
     centres (to 8-bit); the manifest and the separable table say where it is and how it is scaled."""
@@ -170,6 +171,7 @@ def test_a_back_light_bakes_a_transmission_slice_after_the_terms(backlit_film_at
     assert directory.tolist() == [entry.first_slice, 2.0, 2.0, np.float32(entry.scale[2][0])]
 
 
+@pytest.mark.slow
 def test_the_rebuild_reads_the_terms_above_and_the_transmission_slice_below(backlit_film_atlas):
     """evaluate_separable from the files: light from below is the slice's bilinear rgb / pi, within a
     few 8-bit steps of the film's closed form; from above, the terms alone (the slice changes nothing)."""
@@ -213,6 +215,7 @@ def test_the_physical_reference_has_the_back_light_and_the_material_one_slice_mo
     assert get_model("separable").slice_count(material.params) == 2
 
 
+@pytest.mark.slow
 def test_the_gpu_include_reads_the_transmission_slice_as_the_rebuild_does(gpu_device, backlit_film_atlas):
     """The generated include on lavapipe against evaluate_separable, with normals anywhere and l on
     both sides: the terms above the surface and the transmission slice below agree to the GPU's

@@ -116,6 +116,7 @@ def params_strategy(draw):
 
 @given(raw=params_strategy())
 @settings(max_examples=50, deadline=None)
+@pytest.mark.slow
 def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slice):
     params = validate_params(MODEL.params, raw, "hypothesis")
     MODEL.check(params, "hypothesis")

@@ -73,6 +73,7 @@ def test_bilinear_stencil_is_the_renderers_lookup():
     np.testing.assert_allclose(mine, sample_slice(table, nl, nv), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_fit_gives_back_a_bilinear_slice_exactly():
     # A bilinear function of (N.L, N.V) is a slice exactly, and the smoothness penalty (second
     # differences) vanishes on it: the fit must return it to rounding.
@@ -84,6 +85,7 @@ def test_fit_gives_back_a_bilinear_slice_exactly():
     np.testing.assert_allclose(fit_texels(nl, nv, y), truth, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_fit_gives_back_lambert():
     # RGB = colour * max(N.L, 0): exact on texels away from the kink at N.L = 0 (which lies
     # between two texel centres), non-negative everywhere.
@@ -98,6 +100,7 @@ def test_fit_gives_back_lambert():
     assert np.abs(fitted - expected).max() < 0.02
 
 
+@pytest.mark.slow
 def test_fit_is_non_negative_and_least_squares_where_free():
     nl, nv, _ = _samples(1)
     rng = np.random.default_rng(5)
@@ -124,6 +127,7 @@ def _skin_reference():
     return ref.interior, dict(ref.integrator, type="volpathmis")
 
 
+@pytest.mark.slow
 def test_sphere_renders_are_deterministic_and_lit_from_the_light(mitsuba_llvm):
     medium, integrator = _skin_reference()
     nl = np.repeat([1.0, -1.0], 2048)

@@ -177,6 +177,7 @@ def _closed_form(scene, result, entry, albedo):
 
 
 @pytest.mark.gpu
+@pytest.mark.slow
 def test_the_renderer_shades_both_toys_with_the_closed_form(toy_atlas, gpu_device):
     from atlasgen.materials.scene import parse_scene
     from atlasgen.render.atlas_texture import read_render_atlas
@@ -231,6 +232,7 @@ def test_the_model_reference_plugin_evaluates_the_closed_form(toy_atlas, mitsuba
 
 @pytest.mark.gpu
 @pytest.mark.mitsuba
+@pytest.mark.slow
 def test_validation_measures_both_toys_against_their_mitsuba_model_reference(toy_atlas, gpu_device, mitsuba_llvm):
     from atlasgen.validate.run import validate_atlas
 

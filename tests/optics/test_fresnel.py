@@ -12,6 +12,7 @@ from tests.fresnel_reference import fresnel_by_angles
 
 
 @given(theta=st.floats(0.01, np.pi / 2 - 0.01), n=st.floats(1.01, 4.0))
+@pytest.mark.slow
 def test_exact_fresnel_matches_the_angle_form(theta, n):
     np.testing.assert_allclose(fresnel_dielectric(np.cos(theta), n), fresnel_by_angles(theta, n), rtol=1e-10)
 
@@ -46,6 +47,7 @@ def test_grazing_incidence_reflects_everything():
 
 
 @given(theta=st.floats(0.01, 1.5), n=st.floats(1.01, 4.0))
+@pytest.mark.slow
 def test_reflectance_is_the_same_from_either_side(theta, n):
     # Stokes: light at theta_i onto index n reflects as much as light leaving the medium at
     # the refracted angle theta_t, with relative index 1/n.
@@ -54,6 +56,7 @@ def test_reflectance_is_the_same_from_either_side(theta, n):
 
 
 @given(n=st.floats(1.01, 4.0), past=st.floats(1e-6, 1.0))
+@pytest.mark.slow
 def test_total_internal_reflection_beyond_the_critical_angle(n, past):
     # Leaving a medium of index n: the critical angle has sin = 1/n; beyond it F = 1 exactly.
     critical = np.arcsin(1.0 / n)

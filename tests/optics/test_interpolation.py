@@ -18,6 +18,7 @@ from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d, linear
     y=st.lists(st.floats(-3, 40), min_size=1, max_size=20),
 )
 @settings(max_examples=100, deadline=None)
+@pytest.mark.slow
 def test_interpolation_is_exact_for_linear_tables_and_clamps(a, b, c, x, y):
     n = 32
     k = min(len(x), len(y))

@@ -63,6 +63,7 @@ def test_beckmann_g1_fit_follows_the_exact_smith_function(alpha):
 
 
 @given(alpha=st.floats(0.01, 4.0))
+@pytest.mark.slow
 def test_g1_is_one_facing_and_zero_at_grazing(alpha):
     for name, g1 in G1.items():
         assert g1(1.0, alpha) == pytest.approx(1.0, rel=1e-12), name

@@ -136,6 +136,7 @@ def test_fitted_lambertian_slice_holds_the_colour_to_one_srgb_step():
     assert info["gloss"] == 0.5 and info["relative_rms"] < 0.01
 
 
+@pytest.mark.slow
 def test_a_fit_choosing_its_gloss_finds_the_lobe_width_between_grid_points():
     """A diffuse colour plus 0.3 times the renderer's own lobe at a gloss off the 1/32 grid:
     the slice holds it exactly at that gloss only, and the refined search lands on it."""

@@ -31,6 +31,7 @@ def test_rules_are_cached_and_read_only():
 
 
 @given(lo=st.floats(-3, 3), width=st.floats(0.0, 3.0))
+@pytest.mark.slow
 def test_integrals_over_intervals_match_antiderivatives(lo, width):
     hi = lo + width
     got = integrate_gauss_legendre(np.exp, np.array([lo, 0.0]), np.array([hi, np.pi]))

@@ -83,6 +83,7 @@ def _albedo_from_lambda(gloss, cos_v, n=600):
 
 @pytest.mark.parametrize("gloss", [0.0, 0.3, 0.5])
 @pytest.mark.parametrize("cos_v", [1.0, 0.7, 0.3])
+@pytest.mark.slow
 def test_directional_albedo_agrees_with_brute_force_integration_over_the_light(gloss, cos_v):
     """Rough enough for the midpoint rule over l to resolve the lobe (alpha >= 0.25)."""
     assert _albedo_over_light(gloss, cos_v) == pytest.approx(_albedo_over_normals(gloss, cos_v), rel=2e-3)
@@ -90,6 +91,7 @@ def test_directional_albedo_agrees_with_brute_force_integration_over_the_light(g
 
 @pytest.mark.parametrize("gloss", GLOSSES)
 @pytest.mark.parametrize("cos_v", [1.0, 0.8, 0.5, 0.2, 0.05])
+@pytest.mark.slow
 def test_directional_albedo_agrees_with_the_textbook_masking_function(gloss, cos_v):
     assert _albedo_over_normals(gloss, cos_v) == pytest.approx(_albedo_from_lambda(gloss, cos_v), rel=1e-9)
 

@@ -71,6 +71,7 @@ def analytic_render(gpu_device, write_material, tmp_path, scene_from):
 
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
+@pytest.mark.slow
 def test_analytic_material_matches_numpy_brdf(analytic_render, name):
     atlas, scene, result = analytic_render
     albedo = np.asarray([0.9, 0.8, 0.7]) if name == "metal" else np.ones(3)

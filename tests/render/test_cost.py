@@ -32,6 +32,7 @@ def test_relative_costs_divide_by_the_baseline_of_the_same_run():
     assert relative_costs({"lut": 2.0, "separable:8": 10.0}, "lut") == {"lut": 1.0, "separable:8": 5.0}
 
 
+@pytest.mark.slow
 def test_measure_lighting_cost_covers_the_frame_and_divides_by_pixels_and_lights(gpu_device, write_material, tmp_path):
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_materials

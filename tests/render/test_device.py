@@ -31,6 +31,7 @@ def test_adapter_failure_is_a_backend_error(monkeypatch):
         device_module.create_device()
 
 
+@pytest.mark.slow
 def test_shared_device_collects_logged_errors(gpu_device):
     assert device_module.get_device() is gpu_device
     assert gpu_device.name and gpu_device.adapter.info["adapter_type"]
@@ -40,6 +41,7 @@ def test_shared_device_collects_logged_errors(gpu_device):
     assert gpu_device.take_errors() == []
 
 
+@pytest.mark.slow
 def test_validation_errors_raise(gpu_device):
     import wgpu
 

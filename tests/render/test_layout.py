@@ -210,6 +210,7 @@ _TYPES = st.recursive(
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(_TYPES, min_size=1, max_size=6), st.integers(0, 2**32 - 1))
+@pytest.mark.slow
 def test_any_struct_lays_out_and_round_trips(types, seed):
     struct = Struct("S", [Field(f"f{i}", t) for i, t in enumerate(types)])
     end = 0
@@ -329,6 +330,7 @@ CASES = {
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.slow
 def test_gpu_reads_what_was_packed(case, gpu_device):
     t, space, structs = CASES[case]
     value = _random_value(t, np.random.default_rng(11))
@@ -339,6 +341,7 @@ def test_gpu_reads_what_was_packed(case, gpu_device):
 
 
 @pytest.mark.gpu
+@pytest.mark.slow
 def test_gpu_agrees_on_uniform_rules(gpu_device):
     import wgpu
 
@@ -374,6 +377,7 @@ def test_gpu_agrees_on_uniform_rules(gpu_device):
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("warp", list(Warp), ids=lambda w: w.name)
+@pytest.mark.slow
 def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
     # The include's separable_unwarp, called with Warp's code, against the numpy texel mapping.
     from atlasgen.separable.shader import UNWARP

@@ -54,6 +54,7 @@ def test_sanitize_normals_zeroes_degenerate_rows():
     np.testing.assert_array_equal(out, [[0, 0, 1], [0, 0, 0], [0, 0, 0], [0, 0, 0]])
 
 
+@pytest.mark.slow
 def test_read_obj_with_zero_normals(tmp_path):
     path = tmp_path / "tri.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 2 2\nvn 0 0 0\nf 1//1 2//1 3//1\nf 4//1 4//1 4//1\n")

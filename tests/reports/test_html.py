@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from atlasgen.reports.html import CSS_PX_PER_INCH, MIN_FONT_PT, pareto_front, plot_style, render_page
 
 
@@ -14,6 +16,7 @@ def test_pareto_front_keeps_exactly_the_undominated_points():
         assert (i in pareto_front(points)) == (not dominated)
 
 
+@pytest.mark.slow
 def test_every_plot_text_is_at_least_nine_css_pixels():
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=(6, 4))

@@ -53,6 +53,7 @@ def test_reciprocity(source):
     cos_i=st.floats(0.0, 1.0),
 )
 @settings(max_examples=150, deadline=None)
+@pytest.mark.slow
 def test_grazing_values_are_finite(alpha, source, cos_o, cos_i):
     """1 / (4 N.L N.V) blows up at grazing; the BRDFs still return finite values."""
     l = np.array([[np.sqrt(1 - cos_i**2), 0.0, cos_i]])

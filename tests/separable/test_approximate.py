@@ -30,6 +30,7 @@ def _chosen_error(table, budget):
 
 
 @given(candidate_tables(), errors, errors)
+@pytest.mark.slow
 def test_a_tighter_budget_never_yields_a_larger_error(table, a, b):
     tight, loose = sorted((a, b))
     assert _chosen_error(table, tight) <= _chosen_error(table, loose)

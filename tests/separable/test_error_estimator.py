@@ -82,6 +82,7 @@ def test_the_quadrature_is_converged(sharp_copper):
     assert finer == pytest.approx(exact, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_the_estimator_is_unbiased_within_its_standard_error_across_seeds(sharp_copper):
     f_src, g_src, exact = sharp_copper
     z = []
@@ -156,6 +157,7 @@ def _full_factors(src, result, target):
 
 
 @pytest.mark.parametrize("alpha", [None, 0.05, 0.3])
+@pytest.mark.slow
 def test_sphere_pairs_integrate_closed_forms_without_bias(alpha):
     """With l over the whole sphere, mean(w g) = (1/(4 pi)) (1/(2 pi)) int_sphere int_hemisphere g:
     1 for g = 1, 1/4 for g = |cos theta_l| below the surface, 1/(2(n+1)) for the cosine lobes

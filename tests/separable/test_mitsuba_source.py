@@ -16,6 +16,7 @@ from tests.separable.separable_helpers import analytic
 
 @pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
 @pytest.mark.parametrize("alpha", [0.1, 0.4])
+@pytest.mark.slow
 def test_roughdielectric_reflection_is_the_analytic_microfacet_brdf(mitsuba_llvm, distribution, alpha):
     """Mitsuba's rough dielectric reflects D F G / (4 cos_i cos_o) with exact Fresnel: our model, computed independently."""
     bsdf = load_mitsuba_bsdf(
@@ -198,6 +199,7 @@ def test_reflection_only_bakes_the_reflection_and_records_the_dropped_fraction(m
     assert np.isfinite(entry.errors_8bit.relative_rms)
 
 
+@pytest.mark.slow
 def test_an_opaque_bsdf_records_no_dropped_fraction(mitsuba_llvm):
     from atlasgen.separable.mitsuba_source import transmitted_fractions
 

@@ -42,6 +42,7 @@ def test_half_diff_angles_round_trip(th, td, pd):
 
 @given(tl=st.floats(0.01, 1.56), tv=st.floats(0.01, 1.56), phi=st.floats(0.01, 3.13), spin=st.floats(0, 6.28))
 @settings(max_examples=200, deadline=None)
+@pytest.mark.slow
 def test_in_out_angles_round_trip_and_rotation_invariance(tl, tv, phi, spin):
     l, v = directions_of_angles("in_out", tl, tv, phi)
     c, s = np.cos(spin), np.sin(spin)
@@ -119,6 +120,7 @@ def test_quadrature_weights_integrate_uniform_pairs(name):
 
 @given(th=st.floats(0, 1.5707), td=st.floats(0, 1.5707), pd=st.floats(0, 3.1415))
 @settings(max_examples=200, deadline=None)
+@pytest.mark.slow
 def test_clamp_phi_d_lands_above_the_horizon_and_keeps_valid_ones(th, td, pd):
     clamped = clamp_phi_d(th, td, pd)
     l, v = directions_of_angles("half_diff", th, td, clamped)

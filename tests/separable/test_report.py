@@ -59,17 +59,32 @@ def test_cli_maps_errors_to_messages(write_material, tmp_path):
     assert res.exit_code == 3 and "no separable materials" in res.output
 
 
+#: (material name, content hash) -> MaterialStudy: the three verbosities study the same files.
+_STUDIES: dict = {}
+
+
 @pytest.mark.parametrize("flag", [None, "-q", "-v"])
 @pytest.mark.slow
+@pytest.mark.xdist_group("separable-report-progress")  # one process, so the studies are shared
 def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch, flag):
     import functools
 
     import atlasgen.reports.separable as module
     from atlasgen.cli.main import app
 
-    # The study's sweeps, cut down to keep the test quick; the CLI passes everything else.
+    # The study's sweeps, cut down to keep the test quick; the CLI passes everything else. What
+    # is checked is the progress each verbosity prints, so each material is studied once.
     monkeypatch.setattr(module, "write_separable_report", functools.partial(
         module.write_separable_report, resolutions=(8,), parametrizations=("half_diff",)))  # fmt: skip
+    study = module.study_material
+
+    def study_once(material, *args):
+        key = (material.name, material.content_hash)
+        if key not in _STUDIES:
+            _STUDIES[key] = study(material, *args)
+        return _STUDIES[key]
+
+    monkeypatch.setattr(module, "study_material", study_once)
     for name in ("lobe", "wide"):
         write_material(name, 'type = "separable"\nsource = "blinn_phong"\nexponent = 20.0\nterms = 1\n')
     out = tmp_path / "r"

@@ -1,6 +1,7 @@
 """The WGSL include: it compiles, and on a GPU it returns what the Python rebuild returns."""
 
 import numpy as np
+import pytest
 
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
@@ -54,6 +55,7 @@ def test_include_is_one_generic_function_over_a_data_table():
     assert separable_wgsl([]) == "" and wgsl_function_name("A-b c") == "a_b_c"
 
 
+@pytest.mark.slow
 def test_include_compiles_for_every_parametrization_and_target(gpu_device):
     entries = [
         _entry(f"m{i}_{t}", name, t, first=4 * i + (2 if t == "f_proxy" else 0))

@@ -65,6 +65,7 @@ def test_8bit_error_is_bounded_by_half_a_step(srgb):
     assert np.all(np.abs(q.h - f.h) <= step * scale[:, 1, :, None, None] + 1e-9)
 
 
+@pytest.mark.slow
 def test_8bit_adds_little_error_for_a_glossy_brdf():
     result = approximate_brdf(analytic("ggx", alpha=0.2), terms=4, target="f_cos")
     float_err = result.errors_by_terms["f_cos"][3]["relative_rms"]

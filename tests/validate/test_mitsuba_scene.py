@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 SCENE = """
 [camera]
@@ -113,6 +114,7 @@ def test_stochastic_references_trace_every_sample_through_the_pixel_centre(mitsu
     assert edge.sum() >= 10  # the antialiased silhouette
 
 
+@pytest.mark.slow
 def test_a_render_continued_from_sample_n_averages_to_the_longer_render(mitsuba_rgb):
     """Samples [0, 64) and [64, 192), weighted 64 : 128, are the render of samples [0, 192):
     a reference that needs more samples continues its render instead of starting again."""

@@ -100,6 +100,7 @@ def test_a_model_without_a_model_reference_is_refused(monkeypatch):
         model_reference(_entry("toon", _defaults("toon")))
 
 
+@pytest.mark.slow
 def test_physical_references_exist_only_where_physics_does():
     for kind in ("toon", "separable"):
         assert physical_reference(_entry(kind, _defaults(kind))) is None

@@ -56,6 +56,7 @@ def test_physical_references_render_where_they_exist(validation_run):
     assert skin.noise_floor_ok or skin.spp == 64
 
 
+@pytest.mark.slow
 def test_unknown_material_and_material_without_reference_fail_before_rendering(validation_atlas, tmp_path):
     from atlasgen.validate.run import plan_validation
 
@@ -72,6 +73,7 @@ def test_unknown_material_and_material_without_reference_fail_before_rendering(v
         plan_validation(odd, [name])
 
 
+@pytest.mark.slow
 def test_unknown_scene_and_scene_without_placeholder(validation_atlas, tmp_path):
     from atlasgen.validate.run import plan_validation
 
@@ -94,6 +96,7 @@ def test_missing_llvm_backend_names_libllvm19(monkeypatch):
         load_mitsuba("llvm_ad_rgb")
 
 
+@pytest.mark.slow
 def test_atlas_baked_by_another_model_version_is_refused(validation_atlas, tmp_path):
     """The model reference runs today's model code: a manifest with other parameters would mislead."""
     from atlasgen.validate.run import plan_validation
