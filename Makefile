@@ -82,7 +82,7 @@ pins: apt
 	  | grep -v -e '^pip==' -e '^atlasgen[= @]'; } > constraints.txt.tmp && mv -f constraints.txt.tmp constraints.txt
 	rm -rf $(BUILD)/pins-venv $(VENV) && $(MAKE) setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	ATLASGEN_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -p no:xdist tests/test_golden.py tests/io/test_ktx2.py
+	ATLASGEN_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -n 0 tests/test_golden.py tests/io/test_ktx2.py
 
 atlas: $(BUILD)/atlas.dds
 
@@ -120,6 +120,27 @@ $(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wi
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
+# ---- budgets: what the validation and report jobs are run with --------------------------------
+# `make validate` and `make report` converge: each stochastic reference gets the samples its noise
+# floor needs, and the library page charts cost against error versus physics. `make demo` is a
+# first look in two minutes: it passes DEMO_* below, so references stop at 64 spp (any figure short
+# of its noise floor is labelled with its spp and floor, and warned about), the library page skips
+# the physical Pareto charts and says so, and the separable study times each candidate once. The
+# options are written to build/budget.args while the Makefile is read by a make asked to validate
+# or report, and every such job depends on it: switching between the two budgets redoes the jobs.
+VALIDATE_ARGS ?=
+REPORT_ARGS ?=
+STUDY_ARGS ?=
+DEMO_VALIDATE_ARGS := --max-physical-spp 64
+DEMO_REPORT_ARGS := --no-physical
+DEMO_STUDY_ARGS := --repeats 1
+BUDGET := validate $(VALIDATE_ARGS); report library $(REPORT_ARGS); report separable $(STUDY_ARGS)
+ifneq ($(filter validate report,$(MAKECMDGOALS)),)
+$(shell mkdir -p $(BUILD) && { echo "$(BUDGET)" | cmp -s - $(BUILD)/budget.args || echo "$(BUDGET)" > $(BUILD)/budget.args; })
+endif
+$(BUILD)/budget.args:
+	@mkdir -p $(@D) && echo "$(BUDGET)" > $@
+
 validate: $(VALIDATION)/report.json
 # STRICT=1 (for CI): fail with exit code 6 when a validation goal is missed (docs/cli.md). The
 # check is this phony target's recipe, so every run checks again, not only the one that merged.
@@ -136,9 +157,9 @@ prune = for d in $(1)/*/; do [ -d "$$d" ] || continue; n=$$(basename "$$d"); \
 # touched whenever make re-bakes the material) stands for the material's slices; the atlas is
 # order-only: it must be current before validating, but another material's change to it does not
 # make this material's report stale.
-$(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q
+	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # The combined page (index.html, report.json, speed_error.png) from the per-material report.json
 # files; materials.list re-merges when a material is removed.
@@ -147,8 +168,8 @@ $(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE)
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
-$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
-	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D)
+$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
+	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D) $(STUDY_ARGS)
 
 $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(REPORT_CODE) | $(VENV)/.stamp
 	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS))
@@ -159,9 +180,9 @@ $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(REP
 report: $(BUILD)/report/index.html
 # A library without separable materials has no separable report to merge or link.
 SEPARABLE_INDEX := $(if $(SEPARABLE_STEMS),$(SEPARABLE_REPORT)/index.md)
-$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json $(REPORT_CODE) | $(VENV)/.stamp
+$(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json $(REPORT_CODE) $(BUILD)/budget.args | $(VENV)/.stamp
 	$(if $(SEPARABLE_STEMS),,rm -rf $(SEPARABLE_REPORT))
-	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report
+	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report $(REPORT_ARGS)
 
 # One make over the whole graph, in parallel: validation and the separable study are one process
 # per material, and no two jobs write the same file. -Otarget keeps each job's output together.
@@ -170,14 +191,17 @@ $(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/
 DEMO_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 demo: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(MAKE) -j$(DEMO_JOBS) -Otarget atlas render validate report
+	$(MAKE) -j$(DEMO_JOBS) -Otarget atlas render validate report \
+	  VALIDATE_ARGS='$(DEMO_VALIDATE_ARGS)' REPORT_ARGS='$(DEMO_REPORT_ARGS)' STUDY_ARGS='$(DEMO_STUDY_ARGS)'
 	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/scenes/*.png, build/validation/index.html, build/report/index.html"
 
 # PYTEST_ARGS selects a part of the suite (.ci/run runs the fast subset, then the rest).
 PYTEST_ARGS ?=
+# Bytecode on, whatever the environment says: pytest caches its rewritten test modules as .pyc,
+# which saves ~10 s of collection per worker on every run after the first.
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -q $(PYTEST_ARGS)
 
 # ruff (lint and format) over the code, mypy over the typed packages (pyproject.toml [tool.mypy]).
 lint: setup

@@ -159,7 +159,10 @@ def _compare(a, b, where: str, tolerant: bool, problems: list[str], siblings_a=N
         if len(a) != len(b):
             problems.append(f"{where}: {len(a)} items != {len(b)}")
             return
-        se_a = siblings_a.get(f"{key}_se") if siblings_a and key else None
+        se_a = None
+        if siblings_a and key:
+            for name in _se_names(key):
+                se_a = siblings_a.get(name) if se_a is None else se_a
         for i, (x, y) in enumerate(zip(a, b)):
             # A list of figures beside a list of their SEs (relative_rms_by_terms / _se_by_terms).
             _compare(
@@ -187,11 +190,19 @@ def _compare(a, b, where: str, tolerant: bool, problems: list[str], siblings_a=N
 def _se_of(siblings, key) -> float | None:
     if not siblings or key is None:
         return None
-    for name in (f"{key}_se", key.replace("_by_terms", "_se_by_terms")):
+    for name in _se_names(key):
         value = siblings.get(name)
-        if isinstance(value, float | int) and name != key:
+        if isinstance(value, float | int):
             return float(value)
     return None
+
+
+def _se_names(key: str) -> list[str]:
+    """Where a figure's standard error is recorded beside it: ``x_se``, or ``x_se_by_terms`` for ``x_by_terms``."""
+    names = [f"{key}_se"]
+    if key.endswith("_by_terms"):
+        names.append(key.replace("_by_terms", "_se_by_terms"))
+    return names
 
 
 # ---- the side-car ------------------------------------------------------------------------------

@@ -154,6 +154,7 @@ def test_report_library(installed, workdir, baked):
     result = _run([installed / "atlasgen", "report", "library", "--atlas", baked, "-o", "report", "--no-physical"], cwd=workdir)
     assert result.stdout.strip() == "report/index.html"
     assert (workdir / "report" / "index.html").stat().st_size > 0
+    assert "Not measured on this page" in (workdir / "report" / "index.html").read_text()  # and says so
     code = "from atlasgen.separable.auto import read_lighting_cost as r; import atlasgen; print(atlasgen.__file__, r().device)"
     where, device = _run([installed / "python", "-c", code], cwd=workdir).stdout.split(" ", 1)
     assert Path(where).is_relative_to(installed.parent) and device.strip()

@@ -23,6 +23,8 @@ def test_every_referenced_image_exists(tmp_path, write_material):
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
     index = write_library_report(atlas, tmp_path / "build" / "report", physical=False)
     parser = PageLinks(index.read_text())
+    # What was skipped is said, not left out: the page claims nothing it did not measure.
+    assert "Not measured on this page: it was written with <code>--no-physical</code>" in index.read_text()
     terms = next(m for m in read_json(atlas.with_suffix(".json"))["materials"] if m["name"] == "gloss")["terms"]
     # The library's cost plot, one cost plot and one preview per slice of each material.
     assert len(parser.images) == 1 + 3 + 2 + terms

@@ -65,11 +65,13 @@ def tree(tmp_path):
     for scene, used in SCENES.items():
         inputs = [f"materials/{m}.toml" for m in used] + [f"scenes/{scene}.toml"] + [f"build/cache/{m}.npz" for m in used]
         write_depfile(root / "build" / "scenes" / f"{scene}.d", f"build/scenes/{scene}.dds", inputs)
-    _make(root, "-n", "atlas")  # reading the Makefile writes build/materials.list
+    # Reading the Makefile writes build/materials.list, and with a goal that validates, build/budget.args.
+    _make(root, "-n", "atlas", "validate")
     for path in root.rglob("*"):
         if path.is_file():
             os.utime(path, (T0, T0))
-    for path in [*_outputs(root / "build"), root / "build" / "materials.list", root / ".venv" / ".stamp"]:
+    built = [root / "build" / "materials.list", root / "build" / "budget.args", root / ".venv" / ".stamp"]
+    for path in [*_outputs(root / "build"), *built]:
         os.utime(path, (T_BUILT, T_BUILT))
     return root
 
@@ -104,6 +106,20 @@ def _studied(commands) -> list[str]:
 def test_nothing_changed_runs_nothing(tree):
     assert _commands(tree, "atlas", "render", "validate", "report") == []
     assert _make(tree, "-q", "render", "validate", "report").returncode == 0
+
+
+def test_switching_between_the_demo_budget_and_convergence_redoes_the_validation_and_reports(tree):
+    """make demo validates at a budget (DEMO_VALIDATE_ARGS), make validate converges: the reports
+    of one are never taken as the other's."""
+    demo = ["VALIDATE_ARGS=--max-physical-spp 64", "REPORT_ARGS=--no-physical", "STUDY_ARGS=--repeats 1"]
+    commands = _commands(tree, "validate", "report", *demo)
+    assert sorted(_validated(commands)) == [f"materials/{m}.toml" for m in sorted(MATERIALS)]
+    assert all(c.endswith("--max-physical-spp 64") for c in commands if " validate materials/" in c)
+    assert sorted(_studied(commands)) == [f"materials/{m}.toml" for m in sorted(SEPARABLE)]
+    assert any(" report library " in c and c.endswith("--no-physical") for c in commands)
+    # `make -n` wrote the demo's budget while reading the Makefile: the converged one is now stale.
+    assert sorted(_validated(_commands(tree, "validate"))) == [f"materials/{m}.toml" for m in sorted(MATERIALS)]
+    assert (tree / "build" / "budget.args").read_text().startswith("validate ; report library ;")
 
 
 def test_a_changed_material_revalidates_only_itself(tree):

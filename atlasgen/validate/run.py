@@ -15,7 +15,9 @@ references, scenes, Mitsuba, the GPU), so bad input fails fast and writes nothin
 from __future__ import annotations
 
 import gc
+import hashlib
 import math
+import pickle
 import statistics
 import time
 from dataclasses import dataclass, field, replace
@@ -294,6 +296,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     say = progress or (lambda text: None)
 
     runs = []
+    _PHYSICAL_RENDERS.clear()  # shared within this run only
     for done, entry in enumerate(plan.entries, 1):
         model = entry_model(entry)
         for scene_name, scene in plan.scenes:
@@ -329,6 +332,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         if on_material is not None:
             on_material(entry.name, done, len(plan.entries))
 
+    _PHYSICAL_RENDERS.clear()
     errors = renderer.ctx.errors[errors_before:]
     if errors:
         raise BackendError(f"the GPU device reported {len(errors)} error(s); first: {errors[0].splitlines()[0]}")
@@ -491,6 +495,30 @@ STAND_IN_NOTE = (
 )
 
 
+#: Physical reference renders made in this :func:`validate_atlas` run, by :func:`_render_key`:
+#: two materials with the same physics (a closed-form and a fitted skin) share their reference
+#: instead of rendering it twice. Emptied when the run ends; bounded, oldest first out.
+_PHYSICAL_RENDERS: dict[str, ReferenceRender] = {}
+_PHYSICAL_RENDERS_MAX = 32
+
+
+def _render_key(mi, *decides) -> str | None:
+    """SHA-256 of everything that decides a reference render (the scene as shown, each object's
+    BSDF and medium, the integrator, samples and first sample, the variant) and of the Mitsuba
+    version; ``None`` when some part cannot be serialized, and the render is then not kept."""
+    try:
+        blob = pickle.dumps((getattr(mi, "__version__", None), decides), protocol=5)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+    return hashlib.sha256(blob).hexdigest()
+
+
+def _copy_render(ref: ReferenceRender) -> ReferenceRender:
+    """A copy the caller may change: the convergence loop adds samples to the images in place."""
+    return replace(ref, image=ref.image.copy(), second_image=None if ref.second_image is None else ref.second_image.copy(),
+                   mask=None if ref.mask is None else ref.mask.copy())  # fmt: skip
+
+
 def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, first_sample: int = 0) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
@@ -533,6 +561,24 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, f
     # renderer cannot show either.
     keep = [i for i, o in enumerate(scene.objects) if o.index not in not_the_material]
     shown = replace(scene, objects=[scene.objects[i] for i in keep])
+    # The objects' material names decide nothing the render shows: their BSDFs and media do.
+    unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
+    key = _render_key(mi, variant, unnamed, keep, bsdfs, interiors, n, reference.integrator, reference.stochastic,
+                      reference.builtin_only, first_sample)  # fmt: skip
+    if key is not None and key in _PHYSICAL_RENDERS:
+        mi.set_variant("llvm_ad_rgb")
+        return _copy_render(_PHYSICAL_RENDERS[key])
+    ref = _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample)
+    if key is not None:
+        _PHYSICAL_RENDERS[key] = _copy_render(ref)
+        while len(_PHYSICAL_RENDERS) > _PHYSICAL_RENDERS_MAX:
+            del _PHYSICAL_RENDERS[next(iter(_PHYSICAL_RENDERS))]
+    return ref
+
+
+def _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample):
+    """Render the reference's Mitsuba scene (both seeds where it is stochastic) and its masks."""
+    variant = reference.variant
     mi_scene = build_mitsuba_scene(mi, shown, [bsdfs[i] for i in keep], n, reference.integrator, [interiors[i] for i in keep],
                                    stochastic=reference.stochastic)  # fmt: skip
     second = None

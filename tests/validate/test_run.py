@@ -174,3 +174,27 @@ def test_a_reference_short_of_its_floor_gets_the_samples_the_floor_needs():
     assert _samples_for_floor(4, 30.0, 25.0) == 16  # 4 * 10^0.6 = 15.9
     assert _samples_for_floor(64, float("inf"), 35.0) is None
     assert _samples_for_floor(64, 30.0, None) is None
+
+
+@pytest.mark.slow
+def test_materials_with_the_same_physics_share_their_reference_render(tmp_path, mitsuba_rgb, gpu_context, monkeypatch):
+    """A closed-form skin and a copy of it (the same physics) render their volpath reference once
+    per scene in one run, and both are measured against that one image."""
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
+    from atlasgen.validate import run as module
+
+    folder = tmp_path / "materials"
+    folder.mkdir()
+    for name in ("skin-a", "skin-b"):
+        (folder / f"{name}.toml").write_text('type = "sss"\ncolour = [0.9, 0.7, 0.6]\nradius = 8.0\n')
+    dds = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([folder])), dds)
+    rendered = []
+    render = module._render_physical_scene
+    monkeypatch.setattr(module, "_render_physical_scene", lambda *a: rendered.append(a[0]) or render(*a))
+    run = module.validate_atlas(dds, scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=4)
+    assert len(rendered) == 1
+    a, b = (r.references["physical"] for r in run.runs)
+    assert a.image is not b.image and np.array_equal(a.image, b.image) and a.spp == b.spp == 4
+    assert not module._PHYSICAL_RENDERS  # nothing outlives the run
