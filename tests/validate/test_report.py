@@ -88,6 +88,11 @@ def test_json_and_html_carry_noise_floors_and_masks_and_strict_flags_a_noisy_flo
                 assert got["masked_fraction"] == pytest.approx(ref.masked_fraction) and got["masked"]
     html = (out / "index.html").read_text(encoding="utf-8")
     assert "noise floor dB" in html and "cast shadows" in html
+    # Each floor is labelled with the samples it was measured at.
+    for row in data["results"]:
+        ref = row["references"].get("physical", {})
+        if "noise_floor_db" in ref:
+            assert f"{ref['noise_floor_db']:.1f} at {ref['spp']} spp" in html
     # Flag one comparison as too noisy: it is listed, and --strict counts it as missed.
     row = next(r for r in data["results"] if "noise_floor_db" in r["references"].get("physical", {}))
     row["references"]["physical"].update(noise_floor_db=20.0, psnr_db=15.0, noise_floor_ok=False)
