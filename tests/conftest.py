@@ -202,7 +202,7 @@ def mitsuba_llvm():
 #: fixture in FIXTURE_MARKERS that makes it so. Fixtures scoped wider than a function are paid
 #: once per process and are not charged to the test that happens to come first, except that one
 #: costing more than the budget must itself be listed as slow.
-SLOW_CPU_BUDGET_S = 1.0
+SLOW_CPU_BUDGET_S = 2.0
 #: Backend start-up (importing Mitsuba and setting its variant, opening the WebGPU device) is paid
 #: by whichever test reaches it first in each process: never charged to a test.
 _STARTUP_FIXTURES = {"gpu_context", "mitsuba_llvm", "mitsuba_rgb"}

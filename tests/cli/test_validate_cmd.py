@@ -97,6 +97,7 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
     ],
     ids=["missing", "changed-since-the-bake", "not-in-the-atlas"],
 )
+@pytest.mark.slow
 def test_a_bad_material_file_gets_one_line_naming_it(validation_atlas, tmp_path, make_arg, message):  # noqa: F811
     path = make_arg(tmp_path, validation_atlas.parent / "materials")
     out = tmp_path / "v"

@@ -113,6 +113,7 @@ def test_atlas_baked_by_another_model_version_is_refused(validation_atlas, tmp_p
         plan_validation(odd, ["coat"])
 
 
+@pytest.mark.slow
 def test_custom_scene_objects_with_fixed_materials_must_exist_in_the_atlas(validation_atlas, tmp_path):
     from atlasgen.validate.run import plan_validation
 
