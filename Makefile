@@ -89,8 +89,11 @@ atlas: $(BUILD)/atlas.dds
 # Rewritten only when the set of material files changes, so removing one re-assembles the atlas
 # and re-merges the reports. It is refreshed while the Makefile is read, not by a rule that always
 # runs, so that `make -n` and `make -q` report exactly what is out of date.
+# $(call write_if_changed,TEXT,FILE): replace FILE atomically with TEXT, only when it says otherwise,
+# so that its time stamp moves exactly when its content does.
+write_if_changed = mkdir -p $(dir $(2)) && { echo "$(1)" | cmp -s - $(2) || { echo "$(1)" > $(2).$$$$ && mv -f $(2).$$$$ $(2); }; }
 ifeq ($(filter clean,$(MAKECMDGOALS)),)
-$(shell mkdir -p $(BUILD) && { echo "$(MATERIAL_FILES)" | cmp -s - $(BUILD)/materials.list || { echo "$(MATERIAL_FILES)" > $(BUILD)/.materials.list.$$$$ && mv -f $(BUILD)/.materials.list.$$$$ $(BUILD)/materials.list; }; })
+$(shell $(call write_if_changed,$(MATERIAL_FILES),$(BUILD)/materials.list))
 endif
 # Only for `make clean <target>`, where the file is not refreshed while the Makefile is read.
 $(BUILD)/materials.list:
@@ -123,7 +126,7 @@ $(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wi
 # ---- budgets: what the validation and report jobs are run with --------------------------------
 # `make validate` and `make report` converge: each stochastic reference gets the samples its noise
 # floor needs, and the library page charts cost against error versus physics. `make demo` is a
-# first look in two minutes: it passes DEMO_* below, so references stop at 64 spp (any figure short
+# quicker first look (README, "Timings"): it passes DEMO_* below, so references stop at 64 spp (any figure short
 # of its noise floor is labelled with its spp and floor, and warned about), the library page skips
 # the physical Pareto charts and says so, and the separable study times each candidate once. The
 # options are written to build/budget.args while the Makefile is read by a make asked to validate
@@ -136,7 +139,7 @@ DEMO_REPORT_ARGS := --no-physical
 DEMO_STUDY_ARGS := --repeats 1
 BUDGET := validate $(VALIDATE_ARGS); report library $(REPORT_ARGS); report separable $(STUDY_ARGS)
 ifneq ($(filter validate report,$(MAKECMDGOALS)),)
-$(shell mkdir -p $(BUILD) && { echo "$(BUDGET)" | cmp -s - $(BUILD)/budget.args || echo "$(BUDGET)" > $(BUILD)/budget.args; })
+$(shell $(call write_if_changed,$(BUDGET),$(BUILD)/budget.args))
 endif
 $(BUILD)/budget.args:
 	@mkdir -p $(@D) && echo "$(BUDGET)" > $@
@@ -198,7 +201,7 @@ demo: setup
 # PYTEST_ARGS selects a part of the suite (.ci/run runs the fast subset, then the rest).
 PYTEST_ARGS ?=
 # Bytecode on, whatever the environment says: pytest caches its rewritten test modules as .pyc,
-# which saves ~10 s of collection per worker on every run after the first.
+# so every run after the first skips most of the collection's cost (README, "Development").
 test: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -q $(PYTEST_ARGS)

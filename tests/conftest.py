@@ -215,7 +215,7 @@ _REPORT = os.environ.get("ATLASGEN_CPU_REPORT")
 #: Imported before the first test when the guard is on, so that no test is charged for being the
 #: first in its process to import one (matplotlib alone costs most of a budget).
 _HEAVY_IMPORTS = ("matplotlib", "matplotlib.pyplot", "scipy.optimize", "scipy.integrate", "scipy.interpolate",
-                  "scipy.stats", "trimesh", "OpenImageIO", "jinja2", "zstandard", "wgpu", "PIL.Image", "hypothesis")  # fmt: skip
+                  "scipy.stats", "trimesh", "OpenImageIO", "jinja2", "zstandard", "wgpu", "PIL.Image")  # fmt: skip
 
 
 def pytest_configure(config):

@@ -148,61 +148,38 @@ def compare_manifest(produced: dict, expected: dict, jit_materials) -> list[str]
     return problems
 
 
-def _compare(a, b, where: str, tolerant: bool, problems: list[str], siblings_a=None, siblings_b=None, key=None) -> None:
+def _compare(a, b, where: str, tolerant: bool, problems: list[str], se=None) -> None:
+    """Append to ``problems`` where ``a`` differs from ``b``; ``se`` is the standard error recorded
+    beside a figure (a list of them beside a list of figures), which widens a tolerant comparison."""
     if isinstance(a, dict) and isinstance(b, dict):
         if a.keys() != b.keys():
             problems.append(f"{where}: keys {sorted(a)} != {sorted(b)}")
             return
         for k in a:
-            _compare(a[k], b[k], f"{where}.{k}", tolerant, problems, a, b, k)
+            _compare(a[k], b[k], f"{where}.{k}", tolerant, problems, _recorded_se(a, k))
     elif isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             problems.append(f"{where}: {len(a)} items != {len(b)}")
             return
-        se_a = None
-        if siblings_a and key:
-            for name in _se_names(key):
-                se_a = siblings_a.get(name) if se_a is None else se_a
         for i, (x, y) in enumerate(zip(a, b)):
-            # A list of figures beside a list of their SEs (relative_rms_by_terms / _se_by_terms).
-            _compare(
-                x,
-                y,
-                f"{where}[{i}]",
-                tolerant,
-                problems,
-                {"x": x, "x_se": se_a[i] if isinstance(se_a, list) and i < len(se_a) else None},
-                None,
-                "x",
-            )
+            item_se = se[i] if isinstance(se, list) and i < len(se) else None
+            _compare(x, y, f"{where}[{i}]", tolerant, problems, item_se)
     elif tolerant and isinstance(a, float | int) and isinstance(b, float | int) and not isinstance(a, bool):
-        se = _se_of(siblings_a, key)
-        allowed = SE_MULTIPLE * math.sqrt(2) * se if se else 0.0
+        allowed = SE_MULTIPLE * math.sqrt(2) * se if isinstance(se, float | int) and se else 0.0
         if not _close(float(a), float(b), RELATIVE_TOLERANCE, allowed):
             problems.append(
                 f"{where}: {a} != {b} (allowed relative {RELATIVE_TOLERANCE:g}"
-                + (f" or {allowed:.3g}, {SE_MULTIPLE:g} SE)" if se else ")")
+                + (f" or {allowed:.3g}, {SE_MULTIPLE:g} SE)" if allowed else ")")
             )
     elif a != b:
         problems.append(f"{where}: {a!r} != {b!r}")
 
 
-def _se_of(siblings, key) -> float | None:
-    if not siblings or key is None:
-        return None
-    for name in _se_names(key):
-        value = siblings.get(name)
-        if isinstance(value, float | int):
-            return float(value)
-    return None
-
-
-def _se_names(key: str) -> list[str]:
-    """Where a figure's standard error is recorded beside it: ``x_se``, or ``x_se_by_terms`` for ``x_by_terms``."""
-    names = [f"{key}_se"]
-    if key.endswith("_by_terms"):
-        names.append(key.replace("_by_terms", "_se_by_terms"))
-    return names
+def _recorded_se(record: dict, key: str):
+    """The standard error a record gives beside its field ``key``: ``key_se``, or ``x_se_by_terms``
+    beside ``x_by_terms`` (a list beside a list); ``None`` where it gives none."""
+    names = [f"{key}_se"] + ([key.replace("_by_terms", "_se_by_terms")] if key.endswith("_by_terms") else [])
+    return next((record[n] for n in names if n in record), None)
 
 
 # ---- the side-car ------------------------------------------------------------------------------
@@ -231,7 +208,7 @@ def check_links(outputs: dict[str, bytes]) -> list[str]:
         problems.append("the manifest's atlas_sha256 is not the produced atlas's texels'")
     sidecar = outputs.get(".separable.bin")
     if sidecar is not None:
-        version, _rows, length = struct.unpack_from("<3I", sidecar, 4)
+        _version, _rows, length = struct.unpack_from("<3I", sidecar, 4)
         if sidecar[16 : 16 + length] != hashlib.sha256(outputs[".json"]).digest():
             problems.append("the side-car does not record the produced manifest's SHA-256")
     return problems

@@ -13,6 +13,7 @@ an accidental one fails here.
 
 from __future__ import annotations
 
+import functools
 import gzip
 import hashlib
 import json
@@ -64,6 +65,7 @@ def _golden_name(variant: str, suffix: str) -> str:
     return f"{variant}{suffix}.gz" if suffix == ".dds" else f"{variant}{suffix}"
 
 
+@functools.cache  # both variants regenerate VERSIONS.json: probe the library once
 def jit_materials_of(folder: Path) -> list[str]:
     """The materials in ``folder`` whose slices pass through Mitsuba's JIT: they cannot bake without it."""
     result = subprocess.run([sys.executable, "-c", _PROBE, str(folder)], capture_output=True, text=True, check=True)

@@ -296,7 +296,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     say = progress or (lambda text: None)
 
     runs = []
-    _PHYSICAL_RENDERS.clear()  # shared within this run only
+    # Physical renders of this run, by what decides them (:func:`_render_key`): two materials with
+    # the same physics (a closed-form and a fitted skin) share their reference.
+    renders: dict[str, ReferenceRender] = {}
     for done, entry in enumerate(plan.entries, 1):
         model = entry_model(entry)
         for scene_name, scene in plan.scenes:
@@ -321,7 +323,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
-                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp, renders,
                                           atlas_image, run.exposure)  # fmt: skip
                 run.references["physical"] = ref
                 say(
@@ -332,7 +334,6 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         if on_material is not None:
             on_material(entry.name, done, len(plan.entries))
 
-    _PHYSICAL_RENDERS.clear()
     errors = renderer.ctx.errors[errors_before:]
     if errors:
         raise BackendError(f"the GPU device reported {len(errors)} error(s); first: {errors[0].splitlines()[0]}")
@@ -353,7 +354,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
 
 def _converged_physical(
-    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, atlas_image, exposure
+    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure
 ) -> ReferenceRender:
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
@@ -370,7 +371,7 @@ def _converged_physical(
     continue the old ones (``first_sample``), so none is rendered twice.
     """
     n = physical_spp
-    ref = _render_physical(mi, scene, entry, reference, manifest, n, spp)
+    ref = _render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
     while True:
         if ref.second_image is not None:
             ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, ref.mask)
@@ -379,7 +380,7 @@ def _converged_physical(
         if ref.noise_floor_ok is not False or n >= max_spp or target is None:
             break
         more = min(target, max_spp) - n
-        extra = _render_physical(mi, scene, entry, reference, manifest, more, spp, first_sample=n)
+        extra = _render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n)
         ref.image = (n * ref.image + more * extra.image) / (n + more)
         ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
         ref.seconds += extra.seconds
@@ -495,13 +496,6 @@ STAND_IN_NOTE = (
 )
 
 
-#: Physical reference renders made in this :func:`validate_atlas` run, by :func:`_render_key`:
-#: two materials with the same physics (a closed-form and a fitted skin) share their reference
-#: instead of rendering it twice. Emptied when the run ends; bounded, oldest first out.
-_PHYSICAL_RENDERS: dict[str, ReferenceRender] = {}
-_PHYSICAL_RENDERS_MAX = 32
-
-
 def _render_key(mi, *decides) -> str | None:
     """SHA-256 of everything that decides a reference render (the scene as shown, each object's
     BSDF and medium, the integrator, samples and first sample, the variant) and of the Mitsuba
@@ -514,12 +508,14 @@ def _render_key(mi, *decides) -> str | None:
 
 
 def _copy_render(ref: ReferenceRender) -> ReferenceRender:
-    """A copy the caller may change: the convergence loop adds samples to the images in place."""
+    """A render of the caller's own: the convergence loop sets its samples, images and metrics."""
     return replace(ref, image=ref.image.copy(), second_image=None if ref.second_image is None else ref.second_image.copy(),
                    mask=None if ref.mask is None else ref.mask.copy())  # fmt: skip
 
 
-def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, first_sample: int = 0) -> ReferenceRender:
+def _render_physical(
+    mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0
+) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
     plugins only.
@@ -530,6 +526,8 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, f
     object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`),
     and where its material lives in a medium, the open surfaces showing it (a diffuse stand-in
     in the reference) are masked too (:func:`~atlasgen.validate.mitsuba_scene.object_mask`).
+    ``renders`` holds the run's renders by :func:`_render_key`: one already made is not made again
+    (``None``: render, and keep nothing).
     """
     if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
@@ -563,16 +561,14 @@ def _render_physical(mi, scene, entry, reference, manifest, physical_spp, spp, f
     shown = replace(scene, objects=[scene.objects[i] for i in keep])
     # The objects' material names decide nothing the render shows: their BSDFs and media do.
     unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
-    key = _render_key(mi, variant, unnamed, keep, bsdfs, interiors, n, reference.integrator, reference.stochastic,
-                      reference.builtin_only, first_sample)  # fmt: skip
-    if key is not None and key in _PHYSICAL_RENDERS:
+    key = None if renders is None else _render_key(mi, variant, unnamed, keep, bsdfs, interiors, n, reference.integrator,
+                                                   reference.stochastic, reference.builtin_only, first_sample)  # fmt: skip
+    if key is not None and key in renders:
         mi.set_variant("llvm_ad_rgb")
-        return _copy_render(_PHYSICAL_RENDERS[key])
+        return _copy_render(renders[key])
     ref = _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample)
     if key is not None:
-        _PHYSICAL_RENDERS[key] = _copy_render(ref)
-        while len(_PHYSICAL_RENDERS) > _PHYSICAL_RENDERS_MAX:
-            del _PHYSICAL_RENDERS[next(iter(_PHYSICAL_RENDERS))]
+        renders[key] = _copy_render(ref)
     return ref
 
 

@@ -137,7 +137,6 @@ def test_data_format_descriptor_is_the_basic_block_of_rgba8(tmp_path, small_libr
 
 
 @pytest.mark.parametrize("zstd", [False, True], ids=["plain", "zstd"])
-@pytest.mark.slow
 def test_key_value_data_names_the_writer_and_records_the_manifest_hash(tmp_path, small_library, zstd):
     _, ktx2_path = _write(tmp_path, small_library, zstd=zstd)
     f = ktx2_reader.parse(ktx2_path.read_bytes())
@@ -151,7 +150,6 @@ def test_key_value_data_names_the_writer_and_records_the_manifest_hash(tmp_path,
     assert read_ktx2(ktx2_path).key_values == dict(f["kvd"])
 
 
-@pytest.mark.slow
 def test_zstd_file_is_far_smaller_and_levels_uncompressed_lengths_are_kept(tmp_path, small_library):
     dds_path, ktx2_path = _write(tmp_path, small_library, zstd=True)
     assert dds_path.stat().st_size > 2_796_544
@@ -182,7 +180,6 @@ def test_read_atlas_accepts_either_container(tmp_path, small_library):
     assert r.srgb and [lv.shape for lv in r.levels] == [lv.shape for lv in a.image.levels]
 
 
-@pytest.mark.slow
 def test_same_inputs_give_the_same_bytes(tmp_path, small_library):
     _, one = _write(tmp_path / "one", small_library, zstd=True)
     _, two = _write(tmp_path / "two", small_library, zstd=True)
