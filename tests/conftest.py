@@ -218,8 +218,14 @@ _HEAVY_IMPORTS = ("matplotlib", "matplotlib.pyplot", "scipy.optimize", "scipy.in
                   "scipy.stats", "trimesh", "OpenImageIO", "jinja2", "zstandard", "wgpu", "PIL.Image")  # fmt: skip
 
 
+def _is_xdist_controller(config) -> bool:
+    """True in the process that only hands tests to xdist workers and runs none itself."""
+    return not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") != "no"
+
+
 def pytest_configure(config):
-    if not _GUARD:
+    # The controller runs no test, so paying its imports would only delay the workers' start.
+    if not _GUARD or _is_xdist_controller(config):
         return
     import importlib
 

@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 
 from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
-from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d
+from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d, linear_stencil
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.translucency import transmitted_albedo
 
@@ -74,6 +74,19 @@ def _table_on_grid(stack: tuple, lam: tuple):
     return on_grid
 
 
+def _lobe_geometry(wi, wo, alpha):
+    """``(c_i, c_o, valid, w_i.h, D V max(c_o, 0))`` of (N, 3) local pairs: the film's lobe without its Fresnel."""
+    ci, co = wi[:, 2], wo[:, 2]
+    h = wi + wo
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    cos_d = np.clip((wi * h).sum(1), 0.0, 1.0)
+    # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked by valid.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vis = np.nan_to_num(smith_visibility_correlated_ggx(ci, co, alpha))
+    lobe = ggx_distribution(h[:, 2], alpha) * vis * np.maximum(co, 0.0)
+    return ci, co, (ci > 0) & (co > 0), cos_d, lobe
+
+
 def thin_film_terms(wi, wo, lam, film, alpha):
     """The thin-film BSDF's f cos(theta_o) split by what it multiplies, per lane and wavelength.
 
@@ -92,16 +105,8 @@ def thin_film_terms(wi, wo, lam, film, alpha):
     film = {**FILM_DEFAULTS, **film}
     stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
     table = film_table(*stack)
-    ci, co = wi[:, 2], wo[:, 2]
-    valid = (ci > 0) & (co > 0)
-    h = wi + wo
-    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
-    cos_d = np.clip((wi * h).sum(1), 0.0, 1.0)
-    d = ggx_distribution(h[:, 2], alpha)
+    ci, co, valid, cos_d, lobe = _lobe_geometry(wi, wo, alpha)
     strength, split = float(film["film_strength"]), float(film["film_split"])
-    # V stays finite at a grazing cosine (alpha > 0); lanes with both cosines 0 are masked below.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        vis = np.nan_to_num(smith_visibility_correlated_ggx(ci, co, alpha))
     if np.ndim(lam) == 1:  # one grid for every lane
         on_grid = _table_on_grid(stack, tuple(float(x) for x in lam))
 
@@ -115,7 +120,7 @@ def thin_film_terms(wi, wo, lam, film, alpha):
     r_i = look(np.clip(ci, 0.0, 1.0))
     r_o = look(np.clip(co, 0.0, 1.0))
     lit = np.maximum(co, 0.0)[:, None]
-    spec = (strength * (1.0 - split)) * (d * vis * np.maximum(co, 0.0))[:, None] * look(cos_d)
+    spec = (strength * (1.0 - split)) * lobe[:, None] * look(cos_d)
     rough = (strength * split / np.pi) * r_i * lit
     weight = (1.0 - r_o) * (1.0 - r_i)
     if film["energy"] == "coupled":
@@ -185,15 +190,74 @@ def thin_film_rgb_f_cos(wi, wo, film, alpha, colour, backlight_colour=None, chun
     film = {**FILM_DEFAULTS, **film}
     samples = spectral_samples(film["thickness"], film["film_ior"])
     grid, _ = spectral_grid(samples)
+    stack = (film["thickness"], film["film_ior"], film["base_ior"], film["base_k"])
+    tables = _rgb_tables(stack, tuple(float(x) for x in grid), samples, film["energy"] == "coupled")
     colour = np.asarray(colour, dtype=np.float64)
-    back = np.zeros(3) if backlight_colour is None else np.asarray(backlight_colour, dtype=np.float64)
     wi = np.asarray(wi, dtype=np.float64)
     wo = np.asarray(wo, dtype=np.float64)
+    strength, split = float(film["film_strength"]), float(film["film_split"])
+    gain = 0.0
+    if backlight_colour is not None and film["backlight"] > 0.0:
+        gain = float(film["backlight"]) * transmitted_albedo(film["backlight_distortion"], film["backlight_power"])
     out = np.empty((len(wi), 3))
     for start in range(0, len(wi), chunk):
         part = slice(start, start + chunk)
-        own, base_weight, back_weight = thin_film_terms(wi[part], wo[part], grid, film, alpha)
-        out[part] = spectrum_to_rgb(own, samples, "D65")[0] + colour * spectrum_to_rgb(base_weight, samples, "D65")[0]
-        if backlight_colour is not None:
-            out[part] += back * spectrum_to_rgb(back_weight, samples, "D65")[0]
+        ci, co, valid, cos_d, lobe = _lobe_geometry(wi[part], wo[part], alpha)
+        ci, co_lit = np.clip(ci, 0.0, 1.0), np.clip(co, 0.0, 1.0)
+        lit = co_lit[:, None]
+        own = (strength * (1.0 - split)) * lobe[:, None] * tables.look(tables.reflect, cos_d)
+        own += (strength * split / np.pi) * tables.look(tables.reflect, ci) * lit
+        base = (tables.white_g - tables.look(tables.reflect_g, co_lit) - tables.look(tables.reflect_g, ci)
+                + tables.look_pair(co_lit, ci)) / np.pi * lit  # fmt: skip
+        out[part] = np.where(valid[:, None], own + colour * base, 0.0)
+        if gain > 0.0:
+            back = (gain / np.pi) * np.where(co < 0.0, -co, 0.0)[:, None] * (tables.white - tables.look(tables.reflect, ci))
+            out[part] += np.asarray(backlight_colour, dtype=np.float64) * np.where((wi[part, 2] > 0)[:, None], back, 0.0)
     return out
+
+
+class _RgbTables:
+    """The film's reflectance already integrated to linear sRGB, for :func:`thin_film_rgb_f_cos`.
+
+    With T[c, s] the reflectance on the cosine grid at the fit's wavelengths (:func:`_table_on_grid`),
+    w[s] the D65 weights of :func:`~atlasgen.optics.film.spectrum_to_rgb` and g[s] the coupled
+    energy's 1 / (1 - R_avg) (1 without it), f cos is a sum of terms linear in one lookup of T,
+    or bilinear in two (the base's (1 - R(c_o)) (1 - R(c_i))). Linear filtering commutes with
+    the sum over s, so the RGB integral of each term is a lookup of its table already summed:
+
+        sum_s R(c)_s w_s                = lerp over c of  T w                       (reflect)
+        sum_s R(c)_s g_s w_s            = lerp over c of  T (g w)                   (reflect_g)
+        sum_s R(a)_s R(b)_s g_s w_s     = bilinear in (a, b) of  T diag(g w) T^T    (pair_g)
+
+    exact up to rounding, and one gather of 3 numbers per lane instead of a spectrum of S.
+    """
+
+    def __init__(self, on_grid: np.ndarray, weights: np.ndarray, g: np.ndarray):
+        w = np.ascontiguousarray(weights[:3].T)  # (S, 3)
+        gw = g[:, None] * w
+        self.size = len(on_grid)
+        self.reflect = on_grid @ w
+        self.reflect_g = on_grid @ gw
+        self.white, self.white_g = w.sum(axis=0), gw.sum(axis=0)
+        self.pair_g = np.stack([(on_grid * gw[:, k]) @ on_grid.T for k in range(3)], axis=-1)
+
+    def look(self, table: np.ndarray, c) -> np.ndarray:
+        return interpolate_1d(table, c * (self.size - 1))
+
+    def look_pair(self, a, b) -> np.ndarray:
+        a0, a1, fa = linear_stencil(self.size, a * (self.size - 1))
+        b0, b1, fb = linear_stencil(self.size, b * (self.size - 1))
+        fa, fb = fa[:, None], fb[:, None]
+        p = self.pair_g
+        return (1.0 - fa) * ((1.0 - fb) * p[a0, b0] + fb * p[a0, b1]) + fa * ((1.0 - fb) * p[a1, b0] + fb * p[a1, b1])
+
+
+@lru_cache(maxsize=4)
+def _rgb_tables(stack: tuple, lam: tuple, samples: int, coupled: bool) -> _RgbTables:
+    """:class:`_RgbTables` of a film ``stack`` on the wavelengths ``lam`` of ``spectral_grid(samples)``."""
+    _, weights = spectral_grid(samples, "D65")
+    g = np.ones(len(lam))
+    if coupled:
+        grid, average = film_average(*stack)
+        g = 1.0 / np.maximum(1.0 - np.interp(np.asarray(lam), grid, average), 1e-6)
+    return _RgbTables(_table_on_grid(stack, lam), weights, g)
