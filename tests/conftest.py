@@ -15,13 +15,6 @@ from hypothesis import settings
 settings.register_profile("atlasgen", deadline=None)
 settings.load_profile("atlasgen")
 
-# Hypothesis's per-example deadline is a timed assertion: on a loaded machine it fails
-# tests whose results are right. Examples are bounded by their own size instead.
-from hypothesis import settings  # noqa: E402
-
-settings.register_profile("atlasgen", deadline=None)
-settings.load_profile("atlasgen")
-
 os.environ.setdefault("XDG_RUNTIME_DIR", f"/tmp/atlasgen-xdg-{os.getuid()}")
 os.makedirs(os.environ["XDG_RUNTIME_DIR"], mode=0o700, exist_ok=True)
 
