@@ -3,6 +3,7 @@ environment through the whole chain, the specular table against brute-force inte
 convergence, and the azimuthal average for 4D materials."""
 
 import doctest
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,6 +27,7 @@ from atlasgen.optics.specular import specular_f_cos
 from atlasgen.optics.spherical_harmonics import project_equirect, zonal_coefficients
 
 RNG = np.random.default_rng(5)
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "atlas-format.md"
 COLOUR = np.array([0.8, 0.5, 0.2])
 
 
@@ -172,6 +174,14 @@ def test_an_azimuthal_average_keeps_the_zonal_part_and_a_uniform_environments_in
     # Under a uniform radiance, lambda_0 / pi is int f cos dl over the whole sphere (here: c, the albedo).
     table = slice_sh_table(s)
     np.testing.assert_allclose(table[:, 0] / np.pi, np.broadcast_to(COLOUR * (1.0 + 1.0 / 63.0**2), (HEIGHT, 3)), rtol=1e-12)
+
+
+def test_docs_give_the_tables_measured_shapes_and_lambert_factor():
+    text = " ".join(DOCS.read_text(encoding="utf-8").split())
+    assert f"`(HEIGHT, SH_ORDER + 1, 3)` = {slice_sh_table(_lambert()).shape}" in text
+    assert f"shape `(HEIGHT, {slice_specular_table(_lambert(), samples=(2, 2)).shape[1]})`" in text
+    e = _interpolated_clamped_cosine_lambdas(0)[0] / np.pi - 1.0
+    assert f"(1 + 1/{round(1.0 / np.sqrt(e))}^2)" in text and e == pytest.approx(1.0 / (WIDTH - 1) ** 2, rel=1e-12)
 
 
 def test_the_docstrings_examples_hold():

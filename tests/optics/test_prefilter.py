@@ -2,6 +2,7 @@
 roughness 1, and the FFT-ordered sum against the plain brute-force sum over source texels."""
 
 import doctest
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from atlasgen.optics.prefilter import MIN_LEVEL_WIDTH, level_alpha, level_width,
 from atlasgen.optics.specular import specular_alpha
 
 RNG = np.random.default_rng(3)
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "atlas-format.md"
 
 
 def test_level_k_is_roughness_k_over_levels_minus_one_as_the_renderer_maps_gloss():
@@ -74,6 +76,13 @@ def test_sampling_blends_the_two_nearest_levels():
     np.testing.assert_allclose(sample_prefiltered(levels[:1] + levels[1:], d, 0.0), 1.0)
     img = RNG.random((8, 16, 3))
     np.testing.assert_allclose(sample_prefiltered([img, img], d, 0.3), sample_equirect(img, d))
+
+
+def test_docs_give_the_levels_measured_roughness_and_sizes():
+    text = " ".join(DOCS.read_text(encoding="utf-8").split())
+    assert "(alpha " + ", ".join(f"{level_alpha(k):g}" for k in range(6)) + ")" in text
+    sizes = ", ".join(f"{w}x{w // 2}" for w in (level_width(256, k) for k in range(6)))
+    assert f"256x128 gives {sizes})" in text, sizes
 
 
 def test_the_docstrings_examples_hold():

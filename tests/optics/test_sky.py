@@ -2,6 +2,7 @@
 and the figures docs/scenes.md gives for it."""
 
 import doctest
+import re
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,17 @@ def test_the_sky_is_deterministic_float32():
     a, b = sky_image(16, 32), sky_image(16, 32)
     assert a.dtype == np.float32 and a.shape == (16, 32, 3)
     np.testing.assert_array_equal(a, b)
+
+
+def test_docs_give_the_default_skys_measured_figures():
+    text = DOCS.read_text(encoding="utf-8")
+    p = SkyParameters()
+    hor, zen = np.array(p.horizon), np.array(p.zenith)
+    mean = ", ".join(f"{x:.2f}" for x in (hor + 2.0 * zen) / 3.0)
+    up = ", ".join(f"{x:.2f}" for x in np.pi * (hor + 4.0 * zen) / 5.0)
+    assert f"mean radiance ({mean})" in text, mean
+    assert f"upward face ({up})" in text, up
+    assert re.search(rf"`sun_irradiance`[^\n]*default {p.sun_irradiance:g}\b", text)
 
 
 def test_the_docstrings_examples_hold():
