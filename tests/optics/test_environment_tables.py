@@ -24,7 +24,7 @@ from atlasgen.optics.environment_tables import (
 from atlasgen.optics.interpolation import interpolate_1d, sample_slice
 from atlasgen.optics.prefilter import prefilter_ggx
 from atlasgen.optics.specular import specular_f_cos
-from atlasgen.optics.spherical_harmonics import project_equirect, zonal_coefficients
+from atlasgen.optics.spherical_harmonics import evaluate_sh, project_equirect, zonal_coefficients
 
 RNG = np.random.default_rng(5)
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "atlas-format.md"
@@ -90,6 +90,12 @@ def test_table_rows_interpolate_as_the_slice_does():
     nv = 0.37  # between rows 11 and 12
     direct = zonal_coefficients(lambda mu: sample_slice(s[..., :3], mu, nv), 4, texel_centres()[0], 4)
     np.testing.assert_allclose(interpolate_1d(table, nv * (HEIGHT - 1)), direct, atol=1e-12)
+    # The CPU twin reads the table at that N.V, as a shader does.
+    coefficients = RNG.normal(size=(25, 3))
+    n = _unit(RNG.normal(size=(5, 3)))
+    np.testing.assert_allclose(
+        diffuse_environment(coefficients, table, n, nv), evaluate_sh(coefficients, n, zonal=direct) / np.pi, atol=1e-12
+    )
 
 
 def test_a_uniform_environment_shades_lambert_with_its_colour_times_the_radiance():
@@ -117,6 +123,14 @@ def test_a_uniform_environment_shades_specular_with_the_table():
     ratio = spec / radiance
     np.testing.assert_allclose(ratio, np.broadcast_to(ratio[:, :1], ratio.shape), rtol=1e-6)
     assert np.all((0.0 < ratio) & (ratio <= 0.5 * (1.0 + 1e-6)))  # the levels are float32
+
+
+def test_the_specular_term_reads_level_one_minus_gloss_times_five():
+    levels = [np.full((8, 16, 3), float(k), dtype=np.float32) for k in range(6)]  # level k holds k
+    table = np.full((HEIGHT, 5), 0.5)
+    r = _unit(RNG.normal(size=(4, 3)))
+    got = specular_environment(levels, table, r, 0.3, np.array([1.0, 0.9, 0.5, 0.0]))
+    np.testing.assert_allclose(got[:, 0], 0.5 * np.array([0.0, 0.5, 2.5, 5.0]), rtol=1e-12)
 
 
 def _brute_albedo_over_light(gloss, cos_v, n=600):

@@ -71,7 +71,7 @@ def test_roughness_one_spreads_a_bright_texel_into_the_normalised_lobe():
 def test_sampling_blends_the_two_nearest_levels():
     levels = [np.full((8, 16, 3), v, dtype=np.float32) for v in (1.0, 2.0, 4.0)]
     d = np.array([[0.0, 0.6, 0.8], [1.0, 0.0, 0.0]])
-    np.testing.assert_allclose(sample_prefiltered(levels, d, [0.25, 1.5]), [[1.25] * 3, [3.0] * 3])
+    np.testing.assert_allclose(sample_prefiltered(levels, d, [0.75, 1.5]), [[1.75] * 3, [3.0] * 3])
     np.testing.assert_allclose(sample_prefiltered(levels, d, 7.0), 4.0)
     np.testing.assert_allclose(sample_prefiltered(levels[:1] + levels[1:], d, 0.0), 1.0)
     img = RNG.random((8, 16, 3))
