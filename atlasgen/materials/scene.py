@@ -1,4 +1,4 @@
-"""The TOML scene format: camera, image, lights and objects (documented in docs/scenes.md).
+"""The TOML scene format: camera, image, lights, objects and environment (documented in docs/scenes.md).
 
 Every bad value raises :class:`atlasgen.errors.SceneError` naming the file, the field
 (``objects[2].material``) and what was expected, on one line. Material names are
@@ -16,9 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import SceneError, did_you_mean
+from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
 from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import read_input_text
+from atlasgen.materials.environment import Environment
+from atlasgen.optics.sky import SkyParameters
 
 __all__ = [
     "Camera",
@@ -27,6 +30,8 @@ __all__ = [
     "Light",
     "SceneObject",
     "RenderSettings",
+    "Environment",
+    "SKY_KEYS",
     "Scene",
     "read_scene",
     "parse_scene",
@@ -39,6 +44,8 @@ __all__ = [
 #: Lights one frame can take; they live in one storage buffer read by one lighting pass.
 MAX_LIGHTS = 1024
 SHAPES = ("sphere", "plane", "box", "torus", "mesh")
+#: The ``[environment]`` keys that only the built-in sky uses (:class:`atlasgen.optics.sky.SkyParameters`).
+SKY_KEYS = ("sun_direction", "sun_irradiance", "sun_colour", "sun_radius", "zenith", "horizon", "ground")
 
 
 @dataclass(frozen=True)
@@ -107,7 +114,7 @@ class RenderSettings:
 
 @dataclass
 class Scene:
-    """A parsed scene; ``path`` is what error messages name."""
+    """A parsed scene; ``path`` is what error messages name. ``environment`` is ``None`` without one."""
 
     path: str
     camera: Camera
@@ -117,6 +124,7 @@ class Scene:
     lights: list = field(default_factory=list)
     objects: list = field(default_factory=list)
     settings: RenderSettings = field(default_factory=RenderSettings)
+    environment: Environment | None = None
 
 
 class _Reader:
@@ -254,11 +262,64 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
     )
 
 
+_ENVIRONMENT_EXPECTED = 'a radiance [r, g, b] in W/(m^2 sr), an image file (.exr, .hdr) or "sky"'
+
+
+def _environment_source(r: _Reader, raw, name: str, base: Path):
+    """(source, radiance, file) of an environment's ``source``: a list, ``"sky"`` or a file name."""
+    if isinstance(raw, list):
+        return "uniform", r.vec3({"source": raw}, "source", name, lo=0.0), None
+    if raw == "sky":
+        return "sky", (0.0, 0.0, 0.0), None
+    if not isinstance(raw, str) or not raw:
+        r.fail(name, _ENVIRONMENT_EXPECTED, raw)
+    file = Path(raw) if Path(raw).is_absolute() else base / raw
+    if file.suffix.lower() not in ENVIRONMENT_SUFFIXES:
+        raise SceneError(r.path, name, f'expected an OpenEXR (.exr) or Radiance HDR (.hdr) image, or "sky", got {raw!r}')
+    try:
+        exists = file.is_file()
+    except (OSError, ValueError):  # a NUL character, a name too long
+        exists = False
+    if not exists:
+        raise SceneError(r.path, name, f"no such environment image {file.as_posix()!r}; expected an .exr or .hdr file")
+    return "file", (0.0, 0.0, 0.0), file
+
+
+def _read_environment(r: _Reader, raw, base: Path) -> Environment:
+    """The ``environment`` key: a source alone, or an ``[environment]`` table with ``source`` and its settings."""
+    if not isinstance(raw, dict):
+        source, radiance, file = _environment_source(r, raw, "environment", base)
+        return Environment(source, radiance, file, sky=SkyParameters() if source == "sky" else None)
+    r.table(raw, "environment", ("source", "intensity", "rotate", *SKY_KEYS))
+    if "source" not in raw:
+        raise SceneError(r.path, "environment.source", f"missing; expected {_ENVIRONMENT_EXPECTED}")
+    source, radiance, file = _environment_source(r, raw["source"], "environment.source", base)
+    intensity = r.number(raw, "intensity", "environment.intensity", default=1.0, lo=0.0)
+    rotate = r.number(raw, "rotate", "environment.rotate", default=0.0)
+    if source != "sky":
+        for key in SKY_KEYS:
+            if key in raw:
+                raise SceneError(r.path, f"environment.{key}", f'only used with source = "sky", not {shown(raw["source"])}')
+        return Environment(source, radiance, file, intensity, rotate)
+    d = SkyParameters()
+    sun = r.vec3(raw, "sun_direction", "environment.sun_direction", default=d.sun_direction, nonzero=True)
+    sky = SkyParameters(
+        sun_direction=tuple(float(c) for c in _direction(sun)),
+        sun_irradiance=r.number(raw, "sun_irradiance", "environment.sun_irradiance", default=d.sun_irradiance, lo=0.0),
+        sun_colour=r.vec3(raw, "sun_colour", "environment.sun_colour", default=d.sun_colour, lo=0.0),
+        sun_radius=r.number(raw, "sun_radius", "environment.sun_radius", default=d.sun_radius, lo=0.0, hi=90.0, lo_open=True),
+        zenith=r.vec3(raw, "zenith", "environment.zenith", default=d.zenith, lo=0.0),
+        horizon=r.vec3(raw, "horizon", "environment.horizon", default=d.horizon, lo=0.0),
+        ground=r.vec3(raw, "ground", "environment.ground", default=d.ground, lo=0.0),
+    )
+    return Environment(source, radiance, file, intensity, rotate, sky)
+
+
 def parse_scene(data: dict, path="<scene>", base=None) -> Scene:
     """Validate a scene already parsed from TOML; ``base`` resolves relative mesh paths."""
     path = str(path)
     r = _Reader(path)
-    r.table(data, "", ("camera", "image", "render", "lights", "objects"))
+    r.table(data, "", ("camera", "image", "render", "lights", "objects", "environment"))
     if "camera" not in data:
         raise SceneError(path, "camera", "missing; expected a [camera] table")
     camera = _read_camera(r, data["camera"])
@@ -289,7 +350,8 @@ def parse_scene(data: dict, path="<scene>", base=None) -> Scene:
         r.fail("objects", "an array of tables [[objects]]", objects_raw)
     base = Path(base) if base is not None else Path(".")
     objects = [_read_object(r, raw, i, base) for i, raw in enumerate(objects_raw)]
-    return Scene(path, camera, width, height, background, lights, objects, settings)
+    environment = _read_environment(r, data["environment"], base) if "environment" in data else None
+    return Scene(path, camera, width, height, background, lights, objects, settings, environment)
 
 
 def read_scene(path) -> Scene:

@@ -1,0 +1,97 @@
+"""A scene's environment: the parsed ``environment`` key, its radiance as an image, and Mitsuba's equivalent.
+
+docs/scenes.md ("Environment") documents the key; :func:`atlasgen.materials.scene.parse_scene`
+reads it into an :class:`Environment`. The environment lights every surface from every direction,
+unshadowed and unoccluded, as the scene's lights are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from atlasgen.errors import SceneError
+from atlasgen.io.environment_file import read_environment_file
+from atlasgen.optics.equirect import resample_equirect, rotation_matrix
+from atlasgen.optics.sky import SkyParameters, sky_image
+
+__all__ = ["ENVIRONMENT_SOURCES", "Environment", "environment_image", "sky_parameters", "mitsuba_emitter"]
+
+#: What an environment's radiance comes from.
+ENVIRONMENT_SOURCES = ("uniform", "file", "sky")
+
+
+@dataclass(frozen=True)
+class Environment:
+    """A scene's environment.
+
+    ``source`` is ``uniform`` (``radiance`` [r, g, b], W/(m^2 sr), from every direction), ``file``
+    (``file``, an equirectangular OpenEXR or Radiance HDR image) or ``sky`` (the procedural sky of
+    ``sky``, :class:`atlasgen.optics.sky.SkyParameters`). Its radiance is the source's times
+    ``intensity``, turned by ``rotate`` degrees about +y (:func:`atlasgen.optics.equirect.rotate`).
+    """
+
+    source: str
+    radiance: tuple = (0.0, 0.0, 0.0)
+    file: Path | None = None
+    intensity: float = 1.0
+    rotate: float = 0.0
+    sky: SkyParameters | None = None
+
+
+def sky_parameters(env: Environment) -> SkyParameters:
+    """The sky's parameters in the world: the sun direction turned by ``rotate`` (the gradient is symmetric about +y)."""
+    if env.source != "sky" or env.sky is None:
+        raise ValueError(f"not a sky environment: {env.source!r}")
+    sun = rotation_matrix(env.rotate) @ np.asarray(env.sky.sun_direction, dtype=np.float64)
+    return replace(env.sky, sun_direction=tuple(float(c) for c in sun))
+
+
+def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
+    """The environment's radiance as an equirectangular float32 image ``(height, width, 3)`` (Mitsuba's layout).
+
+    ``uniform``: the constant radiance x intensity. ``file``: the image read
+    (:func:`atlasgen.io.environment_file.read_environment_file`, errors naming that file as a
+    :class:`~atlasgen.errors.SceneError`), turned and resampled in one step
+    (:func:`atlasgen.optics.equirect.resample_equirect`: point-sampled up, averaged down), times
+    intensity. ``sky``: built at this size with its sun turned (:func:`sky_parameters`), times
+    intensity.
+    """
+    if env.source == "uniform":
+        value = np.asarray(env.radiance, dtype=np.float64) * env.intensity
+        return np.broadcast_to(value, (height, width, 3)).astype(np.float32)
+    if env.source == "file":
+        if env.file is None:
+            raise ValueError("a file environment needs its file")
+        pixels = read_environment_file(env.file, SceneError)
+        same = pixels.shape[:2] == (height, width) and env.rotate == 0.0
+        image = pixels.astype(np.float64) if same else resample_equirect(pixels, height, width, env.rotate).astype(np.float64)
+        return (image * env.intensity).astype(np.float32)
+    if env.source == "sky":
+        return (sky_image(height, width, sky_parameters(env)).astype(np.float64) * env.intensity).astype(np.float32)
+    raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
+
+
+def mitsuba_emitter(env: Environment, sky_height: int = 512) -> dict:
+    """The Mitsuba 3 emitter that is this environment (docs/scenes.md, "Environment"), for ``mi.load_dict``.
+
+    ``uniform``: ``constant`` with ``radiance`` = radiance x intensity. ``file``: ``envmap`` with
+    the file's absolute ``filename``, ``scale`` = intensity and ``to_world`` =
+    ``rotate([0, 1, 0], rotate)``. ``sky``: ``envmap`` of the :func:`environment_image` at
+    ``sky_height`` x 2 ``sky_height`` as a bitmap (intensity and the sun's turn already in it).
+    """
+    import mitsuba as mi
+
+    if env.source == "uniform":
+        value = [float(c) * env.intensity for c in env.radiance]
+        return {"type": "constant", "radiance": {"type": "rgb", "value": value}}
+    if env.source == "file":
+        return {
+            "type": "envmap",
+            "filename": str(Path(env.file).resolve()),
+            "scale": float(env.intensity),
+            "to_world": mi.ScalarTransform4f().rotate([0.0, 1.0, 0.0], float(env.rotate)),
+        }
+    return {"type": "envmap", "bitmap": mi.Bitmap(environment_image(env, sky_height, 2 * sky_height))}

@@ -1,0 +1,76 @@
+"""Reading environment images: OpenEXR and Radiance HDR, RGB(A), and a one-line refusal for each bad file."""
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import FieldError, InputError, SceneError
+from atlasgen.io.environment_file import read_environment_file
+from atlasgen.io.images import write_exr
+
+RNG = np.random.default_rng(2)
+
+
+def _hdr(path, pixels):
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], oiio.FLOAT))
+    out.write_image(np.ascontiguousarray(pixels, dtype=np.float32))
+    out.close()
+
+
+def test_an_exr_reads_as_its_radiance(tmp_path):
+    pixels = RNG.random((8, 16, 3)).astype(np.float32) * 100.0
+    write_exr(tmp_path / "sky.exr", pixels)
+    got = read_environment_file(tmp_path / "sky.exr")
+    assert got.dtype == np.float32 and got.shape == (8, 16, 3)
+    np.testing.assert_array_equal(got, pixels)
+
+
+def test_rgba_drops_alpha_and_hdr_reads_too(tmp_path):
+    pixels = RNG.random((4, 8, 4)).astype(np.float32)
+    write_exr(tmp_path / "a.exr", pixels, channel_names=("R", "G", "B", "A"))
+    np.testing.assert_array_equal(read_environment_file(tmp_path / "a.exr"), pixels[..., :3])
+    _hdr(tmp_path / "b.hdr", pixels[..., :3] * 10.0)
+    np.testing.assert_allclose(
+        read_environment_file(tmp_path / "b.hdr"), pixels[..., :3] * 10.0, atol=0.07
+    )  # RGBE: 8-bit mantissas, one exponent per texel
+
+
+def _bad(tmp_path, name, pixels=None, channels=("R", "G", "B"), raw=None):
+    path = tmp_path / name
+    if raw is not None:
+        path.write_bytes(raw)
+    elif pixels is not None:
+        write_exr(path, pixels, channel_names=channels)
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, make, words",
+    [
+        ("sky.png", dict(raw=b"\x89PNG"), "expected an OpenEXR (.exr) or Radiance HDR (.hdr) environment image, got 'sky.png'"),
+        ("junk.exr", dict(raw=b"not an image"), "expected an OpenEXR or Radiance HDR image ("),
+        ("grey.exr", dict(pixels=np.ones((4, 8, 1), np.float32), channels=("Y",)), "expected RGB or RGBA channels, got Y"),
+        ("wide.exr", dict(pixels=np.ones((4, 12, 3), np.float32)), "twice as wide as high, got 12x4"),
+        ("tiny.exr", dict(pixels=np.ones((2, 4, 3), np.float32)), "expected at least 8x4 texels, got 4x2"),
+        ("nan.exr", dict(pixels=np.where(np.arange(96).reshape(4, 8, 3) == 50, np.nan, 1.0).astype(np.float32)),
+         "expected finite radiance, got NaN or infinity in 1 texels, the first at row 2, column 0"),
+        ("inf.exr", dict(pixels=np.full((4, 8, 3), np.inf, np.float32)), "NaN or infinity in 32 texels, the first at row 0"),
+        ("neg.exr", dict(pixels=np.where(np.arange(96).reshape(4, 8, 3) == 95, -1.0, 1.0).astype(np.float32)),
+         "expected non-negative radiance, got negative values in 1 texels, the first at row 3, column 7"),
+    ],
+)  # fmt: skip
+def test_each_bad_file_is_one_line_naming_it(tmp_path, name, make, words):
+    path = _bad(tmp_path, name, **make)
+    with pytest.raises(SceneError) as info:
+        read_environment_file(path, SceneError)
+    message = str(info.value)
+    assert message.startswith(f"{path.as_posix()}: ") and "\n" not in message and words in message, message
+
+
+def test_a_missing_file_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="no such environment image"):
+        read_environment_file(tmp_path / "gone.exr")
+    with pytest.raises(FieldError):  # the default error class
+        read_environment_file(_bad(tmp_path, "junk.hdr", raw=b"#?RADIANCE\nbroken"))

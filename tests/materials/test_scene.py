@@ -1,0 +1,139 @@
+"""The scene's ``environment`` key: every form it takes, its defaults, and one line for every bad value."""
+
+import math
+import textwrap
+import tomllib
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from atlasgen.errors import SceneError
+from atlasgen.io.images import write_exr
+from atlasgen.materials.scene import SKY_KEYS, parse_scene, read_scene
+from atlasgen.optics.sky import SkyParameters
+
+CAMERA = "[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n"
+
+
+def _scene(text, base=None, path="scenes/x.toml"):
+    # Top-level keys come before the first table.
+    return parse_scene(tomllib.loads(textwrap.dedent(text) + "\n" + CAMERA), path, base)
+
+
+def _rejects(text, field, words, base=None):
+    with pytest.raises(SceneError) as info:
+        _scene(text, base)
+    message = str(info.value)
+    assert message.startswith(f"scenes/x.toml: field '{field}': ") and "\n" not in message, message
+    assert words in message, message
+    return message
+
+
+def test_no_environment_by_default():
+    assert _scene("").environment is None
+
+
+def test_a_uniform_radiance():
+    env = _scene("environment = [0.5, 1, 2]").environment
+    assert (env.source, env.radiance, env.intensity, env.rotate, env.file, env.sky) == (
+        "uniform",
+        (0.5, 1.0, 2.0),
+        1.0,
+        0.0,
+        None,
+        None,
+    )
+
+
+def test_the_built_in_sky_with_defaults_and_with_its_parameters():
+    assert _scene('environment = "sky"').environment.sky == SkyParameters()
+    env = _scene("""
+        [environment]
+        source = "sky"
+        intensity = 2.5
+        rotate = -30
+        sun_direction = [0, 3, 4]
+        sun_irradiance = 5
+        sun_colour = [1, 0.9, 0.8]
+        sun_radius = 1.5
+        zenith = [0.1, 0.2, 0.9]
+        horizon = [0.7, 0.8, 0.9]
+        ground = [0.2, 0.2, 0.2]
+    """).environment
+    assert (env.source, env.intensity, env.rotate) == ("sky", 2.5, -30.0)
+    assert env.sky == SkyParameters((0.0, 0.6, 0.8), 5.0, (1.0, 0.9, 0.8), 1.5, (0.1, 0.2, 0.9), (0.7, 0.8, 0.9), (0.2, 0.2, 0.2))
+    assert {f.name for f in SkyParameters.__dataclass_fields__.values()} == set(SKY_KEYS)
+
+
+def test_a_file_relative_to_the_scene(tmp_path):
+    (tmp_path / "hdri").mkdir()
+    write_exr(tmp_path / "hdri" / "studio.exr", np.ones((4, 8, 3), np.float32))
+    scene_file = tmp_path / "s.toml"
+    scene_file.write_text('[environment]\nsource = "hdri/studio.exr"\nintensity = 0.5\nrotate = 90\n' + CAMERA)
+    env = read_scene(scene_file).environment
+    assert (env.source, env.file, env.intensity, env.rotate) == ("file", tmp_path / "hdri" / "studio.exr", 0.5, 90.0)
+    assert _scene('environment = "hdri/studio.exr"', base=tmp_path).environment.file == tmp_path / "hdri" / "studio.exr"
+
+
+def test_a_scene_may_have_an_environment_and_no_lights_or_objects(tmp_path):
+    scene_file = tmp_path / "only-sky.toml"
+    scene_file.write_text('environment = "sky"\n' + CAMERA)
+    scene = read_scene(scene_file)
+    assert scene.lights == [] and scene.objects == [] and scene.environment.source == "sky"
+
+
+@pytest.mark.parametrize(
+    "text, field, words",
+    [
+        ("environment = -1", "environment", "expected a radiance [r, g, b] in W/(m^2 sr), an image file (.exr, .hdr) or \"sky\", got -1"),
+        ("environment = true", "environment", "an image file (.exr, .hdr) or \"sky\", got True"),
+        ('environment = ""', "environment", "got ''"),
+        ("environment = [1, -1, 0]", "environment", ">= 0"),
+        ("environment = [1, 2]", "environment", "[x, y, z] of 3 finite float32 numbers"),
+        ("environment = [1, 2, nan]", "environment", "[x, y, z] of 3 finite float32 numbers"),
+        ("environment = [1, 2, 1e39]", "environment", "[x, y, z] of 3 finite float32 numbers"),
+        ('environment = "sky.png"', "environment", "expected an OpenEXR (.exr) or Radiance HDR (.hdr) image, or \"sky\", got 'sky.png'"),
+        ('environment = "Sky"', "environment", "got 'Sky'"),
+        ('environment = "gone.exr"', "environment", "no such environment image 'gone.exr'; expected an .exr or .hdr file"),
+        ("[environment]\nintensity = 2", "environment.source", "missing; expected a radiance [r, g, b]"),
+        ("[environment]\nsource = 3", "environment.source", "got 3"),
+        ('[environment]\nsource = "sky"\nintensity = -1', "environment.intensity", ">= 0"),
+        ('[environment]\nsource = "sky"\nintensity = 1e39', "environment.intensity", "beyond float32's range"),
+        ('[environment]\nsource = "sky"\nrotate = nan', "environment.rotate", "not finite"),
+        ('[environment]\nsource = "sky"\nrotate = "90"', "environment.rotate", "expected a finite number, got '90'"),
+        ('[environment]\nsource = "sky"\nsun_direction = [0, 0, 0]', "environment.sun_direction", "not all zero"),
+        ('[environment]\nsource = "sky"\nsun_irradiance = -3', "environment.sun_irradiance", ">= 0"),
+        ('[environment]\nsource = "sky"\nsun_radius = 0', "environment.sun_radius", "> 0 and <= 90"),
+        ('[environment]\nsource = "sky"\nsun_radius = 91', "environment.sun_radius", "> 0 and <= 90"),
+        ('[environment]\nsource = "sky"\nsun_colour = [1, 1]', "environment.sun_colour", "[x, y, z]"),
+        ('[environment]\nsource = "sky"\nzenith = [-1, 0, 0]', "environment.zenith", ">= 0"),
+        ('[environment]\nsource = "sky"\nhorizon = "blue"', "environment.horizon", "[x, y, z]"),
+        ('[environment]\nsource = "sky"\nground = [0, 0, -0.1]', "environment.ground", ">= 0"),
+        ("[environment]\nsource = [1, 1, 1]\nsun_direction = [0, 1, 0]", "environment.sun_direction",
+         'only used with source = "sky", not [1, 1, 1]'),
+        ('[environment]\nsource = "sky"\nturbidity = 3', "environment.turbidity", "unknown key"),
+        ('[environment]\nsource = "sky"\nsun_directon = [0, 1, 0]', "environment.sun_directon", "did you mean 'sun_direction'?"),
+    ],
+)  # fmt: skip
+def test_every_bad_value_is_one_line(text, field, words):
+    _rejects(text, field, words)
+
+
+@pytest.mark.slow
+@given(st.one_of(st.integers(), st.floats(allow_nan=True), st.booleans(), st.none(), st.text(max_size=8),
+                 st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(), st.text(max_size=2)), max_size=5)))  # fmt: skip
+def test_any_value_parses_or_is_refused_on_one_line(value):
+    data = tomllib.loads(CAMERA)
+    data["environment"] = value
+    try:
+        env = parse_scene(data, "scenes/x.toml", base="/nonexistent-folder").environment
+    except SceneError as exc:
+        message = str(exc)
+        assert message.startswith("scenes/x.toml: field 'environment': ") and "\n" not in message, message
+        return
+    if env.source == "uniform":
+        assert len(value) == 3 and all(0.0 <= float(c) and math.isfinite(float(c)) for c in value)
+    else:
+        assert value == "sky" and env.source == "sky"
