@@ -19,8 +19,8 @@ from atlasgen.materials.material import read_materials
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
 from atlasgen.separable.rebuild import evaluate_separable
-from atlasgen.separable.shader import separable_table
-from atlasgen.shaderlang import LANGUAGES
+from atlasgen.shaders.lang import LANGUAGES
+from atlasgen.shaders.separable import separable_table
 
 ROOT = Path(__file__).resolve().parents[2]
 GLSLANG = shutil.which("glslangValidator")

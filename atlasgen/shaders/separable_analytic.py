@@ -12,7 +12,7 @@ the lighting pass passes them as literals (:func:`analytic_call`).
 from __future__ import annotations
 
 from atlasgen.optics.microfacet import COS_EPSILON
-from atlasgen.shaderlang import Assign, Comment, Function, If, Let, Return, Var, float_literal
+from atlasgen.shaders.lang import Assign, Comment, Function, If, Let, Return, Var, float_literal
 
 __all__ = ["DISTRIBUTION_CODES", "FRESNEL_CODES", "analytic_declarations", "analytic_call"]
 
@@ -25,7 +25,7 @@ _EPS = float_literal(COS_EPSILON)
 
 
 def analytic_declarations() -> list:
-    """The generic closed-form evaluation, for every include language (:mod:`atlasgen.shaderlang`)."""
+    """The generic closed-form evaluation, for every include language (:mod:`atlasgen.shaders.lang`)."""
     g1 = (("c", "f32"), ("a", "f32"), ("beckmann", "bool"))
     return [
         Comment("---- atlasgen: analytic BRDFs evaluated in closed form (no atlas data) ----\n"

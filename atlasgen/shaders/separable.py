@@ -17,7 +17,7 @@ from atlasgen.io.manifest import MaterialEntry
 from atlasgen.io.sidecar import SIDECAR_FILE_VERSION, SIDECAR_MAGIC
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
-from atlasgen.shaderlang import Array, Assign, Comment, For, Function, If, Let, Return, Var, emit, float_literal
+from atlasgen.shaders.lang import Array, Assign, Comment, For, Function, If, Let, Return, Var, emit, float_literal
 
 __all__ = [
     "separable_declarations",
