@@ -17,6 +17,7 @@ from atlasgen.io.manifest import MaterialEntry
 from atlasgen.io.sidecar import SIDECAR_FILE_VERSION, SIDECAR_MAGIC
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
+from atlasgen.shaders.common import common_declarations
 from atlasgen.shaders.lang import Array, Assign, Comment, For, Function, If, Let, Return, Var, emit, float_literal
 
 __all__ = [
@@ -152,10 +153,8 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
             Return("acos(clamp(dot(a, b) / (la * lb), -1.0, 1.0))"),
         )),
         Function("separable_angles_half_diff", "vec3", three, (
-            Let("vec3", "hs", "l + v"),
-            Let("f32", "hl", "length(hs)"),
-            Var("vec3", "h", "n"),
-            If("hl > 1e-6", (Assign("h", "hs / max(hl, 1e-30)"),)),
+            Comment("l = -v (both on the horizon, opposite): h is the limit from above, n."),
+            Let("vec3", "h", "atlas_half_vector(l, v, n)"),
             Let("f32", "nh", "dot(n, h)"),
             Let("f32", "lh", "dot(l, h)"),
             Let("vec3", "t", "n - nh * h"),
@@ -223,6 +222,7 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
 
 
 def separable_wgsl(entries: list[MaterialEntry]) -> str:
-    """:func:`separable_declarations` in WGSL ("" without separable entries)."""
+    """:func:`separable_declarations` in WGSL after the helpers they call (:mod:`atlasgen.shaders.common`),
+    on their own as the include holds them ("" without separable entries)."""
     decls = separable_declarations(entries)
-    return emit("wgsl", decls) if decls else ""
+    return emit("wgsl", [*common_declarations(), *decls]) if decls else ""

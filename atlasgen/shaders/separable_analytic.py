@@ -69,10 +69,7 @@ def analytic_declarations() -> list:
             If("nl <= 0.0 || nv <= 0.0", (Return("splat3(0.0)"),)),
             Var("vec3", "f", "diffuse / 3.14159265358979"),
             If("p.x < 1.5", (
-                Let("vec3", "hs", "l + v"),
-                Let("f32", "hl", "length(hs)"),
-                Var("vec3", "h", "n"),
-                If("hl > 1e-12", (Assign("h", "hs / hl"),)),
+                Let("vec3", "h", "atlas_half_vector(l, v, n)"),
                 Let("bool", "beckmann", "p.x > 0.5"),
                 Let("f32", "d", "analytic_distribution(clamp(dot(n, h), 0.0, 1.0), p.y, beckmann)"),
                 Let("f32", "g", "analytic_g1_over_cos(nl, p.y, beckmann) * analytic_g1_over_cos(nv, p.y, beckmann)"),

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN
-from atlasgen.shaders.lang import Function, If, Let, Return, float_literal
+from atlasgen.shaders.lang import Comment, Function, If, Let, Return, float_literal
 
 __all__ = ["specular_declarations"]
 
@@ -19,7 +19,8 @@ def specular_declarations() -> list:
     """The lobe of :mod:`atlasgen.optics.specular` as shader declarations (:mod:`atlasgen.shaders.lang`): its one shader statement.
 
     ``specular_alpha(gloss)`` and ``specular(n, l, v, alpha)`` = D V max(N.L, 0) (0 where
-    N.L <= 0, N.H <= 0 or l + v is degenerate). In f32, (N.H)^2 (alpha^2 - 1) + 1 loses
+    N.L <= 0, N.H <= 0 or l + v is degenerate: ``atlas_half_vector``'s fallback is 0,
+    :mod:`atlasgen.shaders.common`). In f32, (N.H)^2 (alpha^2 - 1) + 1 loses
     every digit of alpha^2 near N.H = 1 for small alpha, so it is written
     |N x H|^2 + (N.H alpha)^2, the same number without the cancellation (as Filament does).
     """
@@ -31,10 +32,9 @@ def specular_declarations() -> list:
         ), "GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN)."),
         Function("specular", "f32", (("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("alpha", "f32")), (
             Let("f32", "n_dot_l", "dot(n, l)"),
-            Let("vec3", "hv", "l + v"),
-            Let("f32", "hv2", "dot(hv, hv)"),
-            If("n_dot_l <= 0.0 || hv2 < 1e-12", (Return("0.0"),)),
-            Let("vec3", "h", "hv * inverseSqrt(hv2)"),
+            If("n_dot_l <= 0.0", (Return("0.0"),)),
+            Comment("l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing."),
+            Let("vec3", "h", "atlas_half_vector(l, v, splat3(0.0))"),
             Let("f32", "n_dot_h", "dot(n, h)"),
             If("n_dot_h <= 0.0", (Return("0.0"),)),
             Let("vec3", "n_x_h", "cross(n, h)"),

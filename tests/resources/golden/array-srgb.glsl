@@ -340,6 +340,16 @@ vec4 atlas_sample(texture2DArray atlas, sampler atlas_sampler, uint material_id,
     return vec4(texel.rgb * sb.x + vec3(sb.z), texel.a * sb.y + sb.w);
 }
 
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+vec3 atlas_half_vector(vec3 l, vec3 v, vec3 fallback) {
+    vec3 s = l + v;
+    float s2 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * inversesqrt(s2);
+    }
+    return fallback;
+}
+
 // GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN).
 float specular_alpha(float gloss) {
     float r = 1.0 - clamp(gloss, 0.0, 1.0);
@@ -351,12 +361,11 @@ float specular_alpha(float gloss) {
 // alpha depends on the pixel only: computed once, outside the light loop.
 float specular(vec3 n, vec3 l, vec3 v, float alpha) {
     float n_dot_l = dot(n, l);
-    vec3 hv = l + v;
-    float hv2 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+    if (n_dot_l <= 0.0) {
         return 0.0;
     }
-    vec3 h = hv * inversesqrt(hv2);
+    // l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing.
+    vec3 h = atlas_half_vector(l, v, vec3(0.0));
     float n_dot_h = dot(n, h);
     if (n_dot_h <= 0.0) {
         return 0.0;
@@ -471,12 +480,8 @@ float separable_azimuth(vec3 a, vec3 b) {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 vec3 separable_angles_half_diff(vec3 n, vec3 l, vec3 v) {
-    vec3 hs = l + v;
-    float hl = length(hs);
-    vec3 h = n;
-    if (hl > 1e-6) {
-        h = hs / max(hl, 1e-30);
-    }
+    // l = -v (both on the horizon, opposite): h is the limit from above, n.
+    vec3 h = atlas_half_vector(l, v, n);
     float nh = dot(n, h);
     float lh = dot(l, h);
     vec3 t = n - nh * h;

@@ -340,6 +340,16 @@ float4 atlas_sample(Texture2DArray<float4> atlas, SamplerState atlas_sampler, ui
     return float4(texel.rgb * sb.x + ((float3)(sb.z)), texel.a * sb.y + sb.w);
 }
 
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+float3 atlas_half_vector(float3 l, float3 v, float3 fallback) {
+    float3 s = l + v;
+    float s2 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * rsqrt(s2);
+    }
+    return fallback;
+}
+
 // GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN).
 float specular_alpha(float gloss) {
     float r = 1.0 - clamp(gloss, 0.0, 1.0);
@@ -351,12 +361,11 @@ float specular_alpha(float gloss) {
 // alpha depends on the pixel only: computed once, outside the light loop.
 float specular(float3 n, float3 l, float3 v, float alpha) {
     float n_dot_l = dot(n, l);
-    float3 hv = l + v;
-    float hv2 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+    if (n_dot_l <= 0.0) {
         return 0.0;
     }
-    float3 h = hv * rsqrt(hv2);
+    // l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing.
+    float3 h = atlas_half_vector(l, v, ((float3)(0.0)));
     float n_dot_h = dot(n, h);
     if (n_dot_h <= 0.0) {
         return 0.0;
@@ -471,12 +480,8 @@ float separable_azimuth(float3 a, float3 b) {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 float3 separable_angles_half_diff(float3 n, float3 l, float3 v) {
-    float3 hs = l + v;
-    float hl = length(hs);
-    float3 h = n;
-    if (hl > 1e-6) {
-        h = hs / max(hl, 1e-30);
-    }
+    // l = -v (both on the horizon, opposite): h is the limit from above, n.
+    float3 h = atlas_half_vector(l, v, n);
     float nh = dot(n, h);
     float lh = dot(l, h);
     float3 t = n - nh * h;

@@ -340,6 +340,16 @@ fn atlas_sample(atlas: texture_2d_array<f32>, atlas_sampler: sampler, material_i
     return vec4<f32>(texel.rgb * sb.x + vec3<f32>(sb.z), texel.a * sb.y + sb.w);
 }
 
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+fn atlas_half_vector(l: vec3<f32>, v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let s: vec3<f32> = l + v;
+    let s2: f32 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * inverseSqrt(s2);
+    }
+    return fallback;
+}
+
 // GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN).
 fn specular_alpha(gloss: f32) -> f32 {
     let r: f32 = 1.0 - clamp(gloss, 0.0, 1.0);
@@ -351,12 +361,11 @@ fn specular_alpha(gloss: f32) -> f32 {
 // alpha depends on the pixel only: computed once, outside the light loop.
 fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, alpha: f32) -> f32 {
     let n_dot_l: f32 = dot(n, l);
-    let hv: vec3<f32> = l + v;
-    let hv2: f32 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+    if (n_dot_l <= 0.0) {
         return 0.0;
     }
-    let h: vec3<f32> = hv * inverseSqrt(hv2);
+    // l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing.
+    let h: vec3<f32> = atlas_half_vector(l, v, vec3<f32>(0.0));
     let n_dot_h: f32 = dot(n, h);
     if (n_dot_h <= 0.0) {
         return 0.0;
@@ -471,12 +480,8 @@ fn separable_azimuth(a: vec3<f32>, b: vec3<f32>) -> f32 {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 fn separable_angles_half_diff(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let hs: vec3<f32> = l + v;
-    let hl: f32 = length(hs);
-    var h: vec3<f32> = n;
-    if (hl > 1e-6) {
-        h = hs / max(hl, 1e-30);
-    }
+    // l = -v (both on the horizon, opposite): h is the limit from above, n.
+    let h: vec3<f32> = atlas_half_vector(l, v, n);
     let nh: f32 = dot(n, h);
     let lh: f32 = dot(l, h);
     let t: vec3<f32> = n - nh * h;
