@@ -624,7 +624,7 @@ class Separable(Model):
 LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"),
                                                  ("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("gloss", "f32")), (
     Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
-    Return("a.rgb * 0.3183098861837907 + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
+    Return("a.rgb / ATLAS_PI + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
 ), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
 
 

@@ -1,4 +1,10 @@
-"""What every emitted unit may call, emitted once in the include before its callers: the half vector of l and v.
+"""What every emitted unit may use, emitted once at the head of the include: ATLAS_PI and the half vector of l and v.
+
+``ATLAS_PI`` (:data:`PI`) is the one pi of the generated code: every emitter, the renderer's
+lighting pass and the documented shading line (``albedo * A.rgb / ATLAS_PI``) use it. It
+carries the include's ``ATLAS_`` prefix because WGSL has no preprocessor to guard a name and
+forbids declaring one twice, so an include that declared ``PI`` would not compile in an engine
+that has its own (most do; atlasgen's renderer did).
 
 ``atlas_half_vector(l, v, fallback)`` = (l + v) / |l + v|, or ``fallback`` where
 |l + v|^2 <= :data:`HALF_VECTOR_MIN_LENGTH2`: l and v (nearly) opposite, with no half vector.
@@ -28,9 +34,14 @@ above, h = n, as their NumPy rebuilds do.
 
 from __future__ import annotations
 
-from atlasgen.shaders.lang import Function, If, Let, Return, float_literal
+import numpy as np
 
-__all__ = ["HALF_VECTOR_MIN_LENGTH2", "HALF_VECTOR", "common_declarations"]
+from atlasgen.shaders.lang import Const, Function, If, Let, Return, float_literal
+
+__all__ = ["PI", "HALF_VECTOR_MIN_LENGTH2", "HALF_VECTOR", "common_declarations"]
+
+#: ``ATLAS_PI``: pi, as the nearest f32 in every language (:func:`~atlasgen.shaders.lang.float_literal`).
+PI = Const("ATLAS_PI", "f32", float_literal(np.pi), "shade with albedo * A.rgb / ATLAS_PI (docs/atlas-format.md)")
 
 #: |l + v|^2 at or below which ``atlas_half_vector`` returns its fallback: |l + v| <= 1e-6.
 HALF_VECTOR_MIN_LENGTH2 = 1e-12
@@ -46,5 +57,5 @@ HALF_VECTOR = Function("atlas_half_vector", "vec3", (("l", "vec3"), ("v", "vec3"
 
 
 def common_declarations() -> list:
-    """The declarations of this module, in the order the include emits them (before every caller)."""
-    return [HALF_VECTOR]
+    """The declarations of this module, in the order the include emits them (before every user)."""
+    return [PI, HALF_VECTOR]

@@ -76,9 +76,9 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
 
     ``atlas_uv`` maps N.L in [-1, 1] and N.V in [0, 1] to texel centres:
     u = (0.5 + 63 (N.L + 1) / 2) / 64, v = (0.5 + 31 N.V) / 32; ``atlas_sample``
-    then returns ``texel * scale + bias`` per slice, linear. Then the helpers every
-    caller below shares (:mod:`atlasgen.shaders.common`; GLSL and HLSL need a function
-    declared before its first call), the renderer's specular lobe (:func:`atlasgen.shaders.specular.specular_declarations`) and what
+    then returns ``texel * scale + bias`` per slice, linear. ``ATLAS_PI`` and the half-vector
+    helper every function below shares come first (:mod:`atlasgen.shaders.common`; GLSL and
+    HLSL need a name declared before its first use). Then the renderer's specular lobe (:func:`atlasgen.shaders.specular.specular_declarations`) and what
     each model type adds (``models(type).include_declarations``,
     :meth:`atlasgen.models.base.Model.include_declarations`).
     """
@@ -92,6 +92,7 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
         Const("ATLAS_LAYERS", "u32", f"{LAYERS}u"),
         Const("ATLAS_MIP_COUNT", "u32", f"{manifest.dimensions.mip_count}u"),
         *(Const(f"ATLAS_FLAG_{flag.name}", "u32", f"{int(flag)}u") for flag in MaterialFlag),
+        *common_declarations(),
     ]  # fmt: skip
     flags = [0] * LAYERS
     materials = []
@@ -143,7 +144,6 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
             Let("vec4", "sb", "atlas_scale_bias(material_id)"),
             Return("vec4(texel.rgb * sb.x + splat3(sb.z), texel.a * sb.y + sb.w)"),
         ), "Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale."),
-        *common_declarations(),
         *specular_declarations(),
     ]  # fmt: skip
     for type_name, entries in _by_type(manifest):

@@ -78,7 +78,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
             radiance += irradiance * albedo_gloss.rgb * material_f_cos(atlas, atlas_sampler, material, n, l, v);
         } else {
             let a = atlas_sample(atlas, atlas_sampler, material, dot(n, l), n_dot_v, lod);
-            radiance += irradiance * (albedo_gloss.rgb * a.rgb / PI + a.a * specular(n, l, v, alpha));
+            radiance += irradiance * (albedo_gloss.rgb * a.rgb / ATLAS_PI + a.a * specular(n, l, v, alpha));
         }
     }
     return vec4<f32>(radiance, 1.0);

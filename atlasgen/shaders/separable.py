@@ -50,7 +50,7 @@ _WARP_LEGEND = ", ".join(f"{int(w)} {w.name.lower()}" for w in Warp)
 UNWARP = Function("separable_unwarp", "f32", (("angle", "f32"), ("axis", "vec4")), (
         Let("f32", "s", "clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0)"),
         Let("i32", "warp", "i32(axis.w)"),
-        If(f"warp == {int(Warp.COS)}", (Return("1.0 - cos(s * 1.5707963267948966)"),)),
+        If(f"warp == {int(Warp.COS)}", (Return("1.0 - cos(s * (0.5 * ATLAS_PI))"),)),
         If(f"warp == {int(Warp.SQRT)}", (Return("sqrt(s)"),)),
         If(f"warp == {int(Warp.SQRT_HI)}", (Return("1.0 - sqrt(1.0 - s)"),)),
         Return("s"),
@@ -185,7 +185,7 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
                 If("back > 0.0", (
                     Let("vec2", "ut", f"vec2((0.5 + {float_literal(WIDTH - 1)} * (max(dot(n, l), -1.0) + 1.0) * 0.5) / {float_literal(WIDTH)}, "
                                       f"(0.5 + {float_literal(HEIGHT - 1)} * min(dot(n, v), 1.0)) / {float_literal(HEIGHT)})"),
-                    Return("sample_array(atlas, samp, ut, material + terms, 0.0).rgb * (back * 0.3183098861837907)"),
+                    Return("sample_array(atlas, samp, ut, material + terms, 0.0).rgb * (back / ATLAS_PI)"),
                 )),
                 Return("splat3(0.0)"),
             )),

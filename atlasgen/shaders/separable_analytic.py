@@ -44,11 +44,11 @@ def analytic_declarations() -> list:
             Let("f32", "a2", "a * a"),
             If("!beckmann", (
                 Let("f32", "d", "c * c * (a2 - 1.0) + 1.0"),
-                Return("a2 / (3.14159265358979 * d * d)"),
+                Return("a2 / (ATLAS_PI * d * d)"),
             )),
             Let("f32", "cm", f"max(c, {_EPS})"),
             Let("f32", "c2", "cm * cm"),
-            Return("exp(-((1.0 - c2) / c2) / a2) / (3.14159265358979 * a2 * c2 * c2)"),
+            Return("exp(-((1.0 - c2) / c2) / a2) / (ATLAS_PI * a2 * c2 * c2)"),
         ), "GGX (Walter eq. 33) or Beckmann (eq. 25) normal distribution D(cos theta_h)."),
         Function("analytic_fresnel", "vec3", (("c", "f32"), ("p", "vec4"), ("f0", "vec3")), (
             Let("f32", "cd", "clamp(c, 0.0, 1.0)"),
@@ -67,7 +67,7 @@ def analytic_declarations() -> list:
             Let("f32", "nl", "dot(n, l)"),
             Let("f32", "nv", "dot(n, v)"),
             If("nl <= 0.0 || nv <= 0.0", (Return("splat3(0.0)"),)),
-            Var("vec3", "f", "diffuse / 3.14159265358979"),
+            Var("vec3", "f", "diffuse / ATLAS_PI"),
             If("p.x < 1.5", (
                 Let("vec3", "h", "atlas_half_vector(l, v, n)"),
                 Let("bool", "beckmann", "p.x > 0.5"),

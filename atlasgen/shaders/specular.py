@@ -7,8 +7,6 @@ spells the same formulas for :mod:`atlasgen.shaders.lang`, and the include
 
 from __future__ import annotations
 
-import numpy as np
-
 from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.shaders.lang import Comment, Function, If, Let, Return, float_literal
 
@@ -24,7 +22,6 @@ def specular_declarations() -> list:
     every digit of alpha^2 near N.H = 1 for small alpha, so it is written
     |N x H|^2 + (N.H alpha)^2, the same number without the cancellation (as Filament does).
     """
-    pi = float_literal(np.pi)
     return [
         Function("specular_alpha", "f32", (("gloss", "f32"),), (
             Let("f32", "r", "1.0 - clamp(gloss, 0.0, 1.0)"),
@@ -43,7 +40,7 @@ def specular_declarations() -> list:
             Let("f32", "nl", "min(n_dot_l, 1.0)"),
             Let("f32", "nv", "clamp(dot(n, v), 0.0, 1.0)"),
             Let("f32", "vis", "0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2))"),
-            Return(f"a2 / ({pi} * t * t) * vis * nl"),
+            Return("a2 / (ATLAS_PI * t * t) * vis * nl"),
         ), "GGX lobe with height-correlated Smith visibility, times the cosine (Walter et al. 2007; Heitz 2014):\n"
            "D(N.H) V(N.L, N.V) max(N.L, 0), a microfacet BRDF with Fresnel 1 (A carries F).\n"
            "alpha depends on the pixel only: computed once, outside the light loop."),

@@ -1,6 +1,7 @@
 """The generated WGSL include: compiled by a real WebGPU device and checked against the contract."""
 
 import dataclasses
+import re
 from pathlib import Path
 
 import numpy as np
@@ -140,3 +141,16 @@ def test_material_flags_are_the_include_bits():
     assert "const ATLAS_FLAG_OUTLINE: u32 = 1u;\nconst ATLAS_FLAG_NEAREST: u32 = 2u;" in text
     assert "case 0u: { return 3u; }" in text  # OUTLINE | NEAREST
     assert "case 1u: { return 2u; }" in text and "case 2u: { return 2u; }" in text
+
+
+@pytest.mark.parametrize("lang", ["wgsl", "glsl", "hlsl"])
+def test_the_include_defines_every_constant_its_docs_name(lang):
+    # Every ATLAS_* and SEPARABLE_* name the engine docs give is declared by the include (the
+    # golden one, which holds separable materials), so code written from the docs compiles.
+    root = Path(__file__).parents[2]
+    docs = "".join((root / doc).read_text() for doc in ("docs/engine-integration.md", "docs/atlas-format.md"))
+    names = sorted(set(re.findall(r"\b(?:ATLAS|SEPARABLE)_[A-Z0-9_]*[A-Z0-9]\b", docs)))
+    assert {"ATLAS_PI", "ATLAS_WIDTH", "SEPARABLE_TABLE"} <= set(names), names
+    text = (root / "tests" / "resources" / "golden" / f"array-srgb.{lang}").read_text()
+    undeclared = [n for n in names if not re.search(rf"^(?:static )?(?:const|var<private>) (?:\w+ )?{n}\b", text, re.MULTILINE)]
+    assert not undeclared, f"the {lang} include lacks {undeclared}"

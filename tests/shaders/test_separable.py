@@ -6,6 +6,7 @@ import pytest
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
 from atlasgen.separable.parametrization import PARAMETRIZATIONS, Parametrization, Warp
 from atlasgen.separable.rebuild import evaluate_separable
+from atlasgen.shaders.common import PI
 from atlasgen.shaders.lang import emit
 from atlasgen.shaders.separable import SIDECAR_VERSION, UNWARP, separable_table, separable_wgsl, wgsl_function_name
 from tests.separable.separable_helpers import random_frames
@@ -149,7 +150,7 @@ def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
         for i in range(41)
     )
     code = (
-        f"{emit('wgsl', [UNWARP])}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
+        f"{emit('wgsl', [PI, UNWARP])}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
         "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
         f"@compute @workgroup_size(1)\nfn main() {{\n{lines}\n}}\n"
     )

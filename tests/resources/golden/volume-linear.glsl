@@ -8,6 +8,17 @@ const uint ATLAS_LAYERS = 256u;
 const uint ATLAS_MIP_COUNT = 9u;
 const uint ATLAS_FLAG_OUTLINE = 1u;
 const uint ATLAS_FLAG_NEAREST = 2u;
+const float ATLAS_PI = 3.141592653589793;  // shade with albedo * A.rgb / ATLAS_PI (docs/atlas-format.md)
+
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+vec3 atlas_half_vector(vec3 l, vec3 v, vec3 fallback) {
+    vec3 s = l + v;
+    float s2 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * inversesqrt(s2);
+    }
+    return fallback;
+}
 
 // Material IDs: the first slice of each material.
 
@@ -340,16 +351,6 @@ vec4 atlas_sample(texture3D atlas, sampler atlas_sampler, uint material_id, floa
     return vec4(texel.rgb * sb.x + vec3(sb.z), texel.a * sb.y + sb.w);
 }
 
-// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
-vec3 atlas_half_vector(vec3 l, vec3 v, vec3 fallback) {
-    vec3 s = l + v;
-    float s2 = dot(s, s);
-    if (s2 > 1.0e-12) {
-        return s * inversesqrt(s2);
-    }
-    return fallback;
-}
-
 // GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN).
 float specular_alpha(float gloss) {
     float r = 1.0 - clamp(gloss, 0.0, 1.0);
@@ -376,7 +377,7 @@ float specular(vec3 n, vec3 l, vec3 v, float alpha) {
     float nl = min(n_dot_l, 1.0);
     float nv = clamp(dot(n, v), 0.0, 1.0);
     float vis = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
-    return a2 / (3.141592653589793 * t * t) * vis * nl;
+    return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
@@ -503,7 +504,7 @@ float separable_unwarp(float angle, vec4 axis) {
     float s = clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0);
     int warp = int(axis.w);
     if (warp == 3) {
-        return 1.0 - cos(s * 1.5707963267948966);
+        return 1.0 - cos(s * (0.5 * ATLAS_PI));
     }
     if (warp == 1) {
         return sqrt(s);
@@ -536,7 +537,7 @@ vec3 separable_f_cos(texture2DArray atlas, sampler samp, uint material, vec3 n, 
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             vec2 ut = vec2((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return textureLod(sampler2DArray(atlas, samp), vec3(ut, float(material + terms)), 0.0).rgb * (back * 0.3183098861837907);
+            return textureLod(sampler2DArray(atlas, samp), vec3(ut, float(material + terms)), 0.0).rgb * (back / ATLAS_PI);
         }
         return vec3(0.0);
     }
