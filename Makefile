@@ -27,7 +27,7 @@ CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
 # Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
 # below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
 # agree); __init__.py holds the version, which is part of every key.
-BELOW_BAKE := $(sort $(wildcard atlasgen/*.py $(foreach layer,optics io separable models materials,atlasgen/$(layer)/*.py)))
+BELOW_BAKE := $(sort $(wildcard atlasgen/*.py $(foreach layer,optics io separable shaders models materials,atlasgen/$(layer)/*.py)))
 BAKE_CODE := $(BELOW_BAKE) atlasgen/bake/adaptive.py
 # Assembling the atlas from cached slices: everything up to and including bake/.
 ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))

@@ -17,7 +17,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 #: Lowest first. A top-level module (``atlasgen/errors.py``) sits in layer "atlasgen".
-LAYERS = ["atlasgen", "optics", "io", "separable", "models", "materials", "bake", "render", "validate", "reports", "cli"]
+LAYERS = ["atlasgen", "optics", "io", "separable", "shaders", "models",
+          "materials", "bake", "render", "validate", "reports", "cli"]  # fmt: skip
 
 #: Imported inside functions on purpose: each is heavy or optional (a GPU, a Mitsuba build,
 #: a plotting stack), and a LUT-only bake or ``--help`` must not pay for it.
@@ -145,3 +146,15 @@ def test_the_library_never_imports_click_nor_exits():
         if any(t.split(".")[0] == "click" for t, _, _ in GRAPH[module]) or "sys.exit(" in text:
             offenders.append(str(path.relative_to(ROOT)))
     assert not offenders
+
+
+def test_the_bake_cache_key_covers_every_layer_below_bake():
+    # A change to any code a bake runs on re-bakes (atlasgen/bake/cache.py, the Makefile's BAKE_CODE):
+    # a new layer below bake/ must join BAKE_RELEVANT, or its changes would be served stale slices.
+    from atlasgen.bake.cache import bake_relevant_files
+
+    package = ROOT / "atlasgen"
+    below = [package / layer for layer in LAYERS[1 : LAYERS.index("bake")]]
+    expected = {*package.glob("*.py"), *(p for folder in below for p in folder.rglob("*.py"))}
+    missing = sorted(p.relative_to(ROOT).as_posix() for p in expected - set(bake_relevant_files()))
+    assert not missing, f"add to BAKE_RELEVANT: {missing}"

@@ -268,3 +268,19 @@ def test_the_makefile_bake_code_is_what_the_cache_key_hashes(tree):
     result = _make(tree, "--eval", "print-bake-code: ; @echo $(BAKE_CODE)", "print-bake-code")
     assert result.returncode == 0, result.stderr
     assert set(result.stdout.split()) == {f.relative_to(ROOT).as_posix() for f in bake_relevant_files()}
+
+
+def test_shader_code_rebakes_every_material(tree):
+    # The shader package is a layer below bake/: its code is in every cache key (BAKE_RELEVANT),
+    # so make re-bakes every material when it changes, as the key would.
+    _touch(tree / "atlasgen" / "shaders" / "include.py")
+    bakes = [re.search(r"bake (\S+) --cache", c).group(1) for c in _commands(tree, "atlas") if "--cache-only" in c]
+    assert sorted(bakes) == [f"materials/{m}.toml" for m in sorted(MATERIALS)]
+
+
+def test_a_renderer_shader_file_rerenders_without_rebaking(tree):
+    # The .wgsl files are the renderer's (RENDER_CODE): no material's slices depend on them.
+    _touch(tree / "atlasgen" / "shaders" / "lighting.wgsl")
+    commands = _commands(tree, "atlas", "render")
+    assert sorted(_scene_jobs(commands)) == [("render", "one"), ("render", "two")]
+    assert not any(" bake " in c for c in commands)

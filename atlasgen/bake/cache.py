@@ -32,10 +32,10 @@ __all__ = [
 
 _PACKAGE = Path(__file__).resolve().parents[1]
 #: Code whose change can change a material's float slices: every layer below ``bake/`` (the
-#: top-level modules, optics, io, separable, models, materials), and the supersampling that
+#: top-level modules, optics, io, separable, shaders, models, materials), and the supersampling that
 #: meets an error budget. The rest of ``bake/`` (encoding, mips, file writing) runs at assembly
 #: time on every bake, so it is not part of the key. The Makefile's BAKE_CODE is the same list.
-BAKE_RELEVANT = ("*.py", "optics", "io", "separable", "models", "materials", "bake/adaptive.py")
+BAKE_RELEVANT = ("*.py", "optics", "io", "separable", "shaders", "models", "materials", "bake/adaptive.py")
 
 
 def bake_relevant_files() -> list[Path]:

@@ -13,7 +13,6 @@ import numpy as np
 
 from atlasgen import __version__
 from atlasgen.bake.cache import load_or_bake
-from atlasgen.bake.include import render_include_data, render_includes, stamp_include
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
 from atlasgen.bake.slots import assign_slices
@@ -34,7 +33,9 @@ from atlasgen.io.ktx2 import (
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
 from atlasgen.io.output_paths import check_suffix
 from atlasgen.io.sidecar import stamp_sidecar
+from atlasgen.models import get_model
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
+from atlasgen.shaders.include import render_include_data, render_includes, stamp_include
 
 __all__ = [
     "BakeResult",
@@ -61,7 +62,7 @@ class BakeResult:
     warnings: list = field(default_factory=list)
     #: ``{"glsl": text, "hlsl": text}``: the include in the other languages (WGSL is ``include``).
     includes: dict = field(default_factory=dict)
-    #: ``X.separable.bin``: the separable rebuild's data table (atlasgen.separable.shader); b"" for none.
+    #: ``X.separable.bin``: the separable rebuild's data table (atlasgen.shaders.separable); b"" for none.
     separable_data: bytes = b""
 
     def describe(self, dds_path, zstd: bool = False) -> str:
@@ -306,13 +307,12 @@ def bake_atlas(
             "sample level 0 only, or use --layout array"
         )
 
-    includes = render_includes(manifest, scales, biases)
+    includes = render_includes(manifest, scales, biases, models=get_model)
     include = includes.pop("wgsl")
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
+    data = render_include_data(manifest, models=get_model)
     timings["total_s"] = time.perf_counter() - t_start
-    return BakeResult(
-        levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, render_include_data(manifest)
-    )
+    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, data)
 
 
 def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:

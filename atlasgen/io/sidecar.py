@@ -2,7 +2,7 @@
 
 The header is the magic ``ASEP``, then little-endian u32 file version, row count and digest
 length (32), then the SHA-256 of the manifest written with it; the table's float32 rows follow
-(:func:`atlasgen.separable.shader.separable_table_bytes`, docs/engine-integration.md).
+(:func:`atlasgen.shaders.separable.separable_table_bytes`, docs/engine-integration.md).
 """
 
 from __future__ import annotations

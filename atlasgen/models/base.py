@@ -221,7 +221,7 @@ class Model:
 
     @classmethod
     def include_declarations(cls, entries: list[MaterialEntry]) -> list:
-        """Shader declarations (:mod:`atlasgen.shaderlang`) this model type adds to every
+        """Shader declarations (:mod:`atlasgen.shaders.lang`) this model type adds to every
         include language (WGSL, GLSL, HLSL), given its manifest entries."""
         return []
 

@@ -34,7 +34,6 @@ from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
-from atlasgen.separable.analytic_shader import analytic_call, analytic_declarations
 from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values
 from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
 from atlasgen.separable.error import (
@@ -47,11 +46,12 @@ from atlasgen.separable.error import (
 from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fractions
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
 from atlasgen.separable.rebuild import evaluate_factors, factors_from_slices, read_separable_factors
-from atlasgen.separable.shader import separable_declarations, separable_table_bytes
 from atlasgen.separable.source import film_transmits, make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
-from atlasgen.shaderlang import Function, Let, Return, float_literal
+from atlasgen.shaders.lang import Function, Let, Return, float_literal
+from atlasgen.shaders.separable import separable_declarations, separable_table_bytes
+from atlasgen.shaders.separable_analytic import analytic_call, analytic_declarations
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
            "check_film", "stored_factors"]  # fmt: skip
@@ -624,7 +624,7 @@ class Separable(Model):
 LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("samp", "sampler"), ("material", "u32"),
                                                  ("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("gloss", "f32")), (
     Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
-    Return("a.rgb * 0.3183098861837907 + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
+    Return("a.rgb / ATLAS_PI + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
 ), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
 
 

@@ -20,8 +20,8 @@ as the atlas lookup clamps it. The lobe never creates energy: int f_s cos d omeg
 for every alpha and view (tests/optics/test_specular.py).
 
 The renderer (lighting.wgsl, through the generated include), the WGSL/GLSL/HLSL includes
-(:func:`specular_declarations`), the CPU rebuild and the Mitsuba model references
-(:func:`renderer_f_cos`) all take the lobe from here. The equation is documented once,
+(:func:`atlasgen.shaders.specular.specular_declarations`, the same lobe as shader code), the
+CPU rebuild and the Mitsuba model references (:func:`renderer_f_cos`) all take the lobe from here. The equation is documented once,
 in docs/atlas-format.md, and recorded in each manifest as ``specular_lobe``
 (:data:`atlasgen.contract.SPECULAR_LOBE`).
 """
@@ -32,7 +32,6 @@ import numpy as np
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
-from atlasgen.shaderlang import Function, If, Let, Return, float_literal
 
 __all__ = [
     "half_vector_cosine",
@@ -40,7 +39,6 @@ __all__ = [
     "specular_fresnel_cosine",
     "specular_f_cos",
     "renderer_f_cos",
-    "specular_declarations",
 ]
 
 
@@ -114,38 +112,3 @@ def renderer_f_cos(rgba, albedo, gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_deg
     m = np.asarray(rgba, dtype=np.float64)
     lobe = specular_f_cos(gloss, n_dot_l, n_dot_v, n_dot_h, lv_degenerate)
     return np.asarray(albedo, dtype=np.float64) * m[..., :3] / np.pi + (m[..., 3] * lobe)[..., None]
-
-
-def specular_declarations() -> list:
-    """The lobe above as shader declarations (:mod:`atlasgen.shaderlang`): the one shader statement of it.
-
-    ``specular_alpha(gloss)`` and ``specular(n, l, v, alpha)`` = D V max(N.L, 0) (0 where
-    N.L <= 0, N.H <= 0 or l + v is degenerate). In f32, (N.H)^2 (alpha^2 - 1) + 1 loses
-    every digit of alpha^2 near N.H = 1 for small alpha, so it is written
-    |N x H|^2 + (N.H alpha)^2, the same number without the cancellation (as Filament does).
-    """
-    pi = float_literal(np.pi)
-    return [
-        Function("specular_alpha", "f32", (("gloss", "f32"),), (
-            Let("f32", "r", "1.0 - clamp(gloss, 0.0, 1.0)"),
-            Return(f"max(r * r, {float_literal(SPECULAR_ALPHA_MIN)})"),
-        ), "GGX roughness of a gloss: alpha = max((1 - gloss)^2, SPECULAR_ALPHA_MIN)."),
-        Function("specular", "f32", (("n", "vec3"), ("l", "vec3"), ("v", "vec3"), ("alpha", "f32")), (
-            Let("f32", "n_dot_l", "dot(n, l)"),
-            Let("vec3", "hv", "l + v"),
-            Let("f32", "hv2", "dot(hv, hv)"),
-            If("n_dot_l <= 0.0 || hv2 < 1e-12", (Return("0.0"),)),
-            Let("vec3", "h", "hv * inverseSqrt(hv2)"),
-            Let("f32", "n_dot_h", "dot(n, h)"),
-            If("n_dot_h <= 0.0", (Return("0.0"),)),
-            Let("vec3", "n_x_h", "cross(n, h)"),
-            Let("f32", "a2", "alpha * alpha"),
-            Let("f32", "t", "dot(n_x_h, n_x_h) + n_dot_h * n_dot_h * a2"),
-            Let("f32", "nl", "min(n_dot_l, 1.0)"),
-            Let("f32", "nv", "clamp(dot(n, v), 0.0, 1.0)"),
-            Let("f32", "vis", "0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2))"),
-            Return(f"a2 / ({pi} * t * t) * vis * nl"),
-        ), "GGX lobe with height-correlated Smith visibility, times the cosine (Walter et al. 2007; Heitz 2014):\n"
-           "D(N.H) V(N.L, N.V) max(N.L, 0), a microfacet BRDF with Fresnel 1 (A carries F).\n"
-           "alpha depends on the pixel only: computed once, outside the light loop."),
-    ]  # fmt: skip

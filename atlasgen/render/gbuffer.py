@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
+from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
 from atlasgen.render.meshes import vertex_buffer_layout
-from atlasgen.render.shaders import assemble_shader
+from atlasgen.shaders.passes import assemble_shader
 
 __all__ = ["GBuffer", "GBufferPass", "pack_object"]
 
@@ -107,7 +107,9 @@ class GBufferPass:
         import wgpu
 
         self.device = device
-        module = device.create_shader_module(label="gbuffer", code=assemble_shader("common.wgsl", "gbuffer.wgsl"))
+        module = device.create_shader_module(
+            label="gbuffer", code=assemble_shader("common.wgsl", "gbuffer.wgsl", declare=declaration_wgsl)
+        )
         self.object_layout = device.create_bind_group_layout(
             label="object",
             entries=[{

@@ -1,8 +1,8 @@
 """The renderer's CPU/GPU shared declarations: uniform and storage structs, constants.
 
-Each struct a pass binds is declared here once (:class:`atlasgen.wgsl.Struct`); the
+Each struct a pass binds is declared here once (:class:`atlasgen.shaders.structs.Struct`); the
 shader files name it with a ``// @declare NAME`` line, which
-:func:`atlasgen.render.shaders.assemble_shader` replaces with the generated WGSL, and
+:func:`atlasgen.shaders.passes.assemble_shader` replaces with :func:`declaration_wgsl`'s WGSL, and
 the ``pack_*`` functions of the passes fill it through the same declaration.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import enum
 
-from atlasgen.wgsl import U32, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
+from atlasgen.shaders.structs import U32, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
 
 __all__ = [
     "FRAME",

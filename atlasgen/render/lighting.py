@@ -24,8 +24,8 @@ import numpy as np
 
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
-from atlasgen.render.layout import LIGHT, LightType
-from atlasgen.render.shaders import assemble_shader
+from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
+from atlasgen.shaders.passes import assemble_shader
 
 __all__ = [
     "LightingPass",
@@ -96,7 +96,8 @@ class LightingPass:
         self.device = device
         glue = material_dispatch_wgsl(manifest, shaded_ids)
         module = device.create_shader_module(
-            label="lighting", code=assemble_shader("common.wgsl", "lighting.wgsl", include=include + "\n" + glue)
+            label="lighting",
+            code=assemble_shader("common.wgsl", "lighting.wgsl", declare=declaration_wgsl, include=include + "\n" + glue),
         )
         frag = wgpu.ShaderStage.FRAGMENT
         self.layout = device.create_bind_group_layout(

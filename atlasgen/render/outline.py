@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 
-from atlasgen.render.shaders import assemble_shader
+from atlasgen.render.layout import declaration_wgsl
+from atlasgen.shaders.passes import assemble_shader
 
 __all__ = ["OutlinePass", "outline_parameters"]
 
@@ -29,7 +30,7 @@ class OutlinePass:
 
         self.device = device
         module = device.create_shader_module(
-            label="outline", code=assemble_shader("common.wgsl", "outline.wgsl", include=include)
+            label="outline", code=assemble_shader("common.wgsl", "outline.wgsl", declare=declaration_wgsl, include=include)
         )
         frag = wgpu.ShaderStage.FRAGMENT
         self.layout = device.create_bind_group_layout(

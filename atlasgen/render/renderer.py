@@ -22,12 +22,12 @@ from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
 from atlasgen.render.device import get_device
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
-from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE
+from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, pack_lights
 from atlasgen.render.meshes import build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
-from atlasgen.render.shaders import assemble_shader
 from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
+from atlasgen.shaders.passes import assemble_shader
 
 __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
 
@@ -372,7 +372,9 @@ class _Tracer:
             label="stencil-mask", size=(g.width, g.height, 1), format=wgpu.TextureFormat.r8unorm,
             usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC,
         )  # fmt: skip
-        module = device.create_shader_module(label="stencil-mask", code=assemble_shader("common.wgsl", "stencil_mask.wgsl"))
+        module = device.create_shader_module(
+            label="stencil-mask", code=assemble_shader("common.wgsl", "stencil_mask.wgsl", declare=declaration_wgsl)
+        )
         stencil = {"compare": "equal", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "keep"}
         self.pipeline = device.create_render_pipeline(
             label="stencil-mask",

@@ -71,7 +71,7 @@ _TINY = 1e-12
 
 class Warp(enum.IntEnum):
     """Texel spacing along a factor axis (module docstring); the value is the code the
-    generated WGSL's ``separable_unwarp`` takes (:mod:`atlasgen.separable.shader`)."""
+    generated WGSL's ``separable_unwarp`` takes (:mod:`atlasgen.shaders.separable`)."""
 
     LINEAR = 0
     SQRT = 1

@@ -10,7 +10,6 @@
 // @declare Frame
 
 // @declare NO_MATERIAL
-const PI: f32 = 3.14159265358979;
 
 // One triangle covering the viewport: no vertex buffer needed.
 @vertex

@@ -152,7 +152,7 @@ def test_a_back_light_bakes_a_transmission_slice_after_the_terms(backlit_film_at
     from atlasgen.contract import texel_grid
     from atlasgen.io.atlas import read_atlas
     from atlasgen.optics.quantize import dequantize_rgba
-    from atlasgen.separable.shader import separable_table
+    from atlasgen.shaders.separable import separable_table
 
     path, result = backlit_film_atlas
     entry = result.manifest.entry_named("film")

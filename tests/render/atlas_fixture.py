@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from atlasgen.bake.include import render_include
 from atlasgen.bake.mips import build_array_mips
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH, atlas_uv, texel_grid
 from atlasgen.io.manifest import Dimensions, Manifest, MaterialEntry
+from atlasgen.models import get_model
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.render.atlas_texture import RenderAtlas
+from atlasgen.shaders.include import render_include
 
 LAMBERT, GLOSSY, TOON, MIPS, PLAIN = 0, 1, 2, 3, 4
 #: Constant linear grey of each mip level of the ``mips`` slice (levels differ on purpose).
@@ -54,7 +55,7 @@ def build_fixture_atlas() -> RenderAtlas:
         ))  # fmt: skip
     manifest = Manifest(dimensions=Dimensions(width=WIDTH, height=HEIGHT, layers=LAYERS, mip_count=len(levels)),
                         encoding="srgb", dxgi_format=29, layout="array", materials=entries)  # fmt: skip
-    include = render_include(manifest, scales, np.zeros((LAYERS, 2)))
+    include = render_include(manifest, scales, np.zeros((LAYERS, 2)), models=get_model)
     return RenderAtlas(levels, True, manifest, include, "fixture-atlas")
 
 

@@ -8,6 +8,17 @@ static const uint ATLAS_LAYERS = 256u;
 static const uint ATLAS_MIP_COUNT = 7u;
 static const uint ATLAS_FLAG_OUTLINE = 1u;
 static const uint ATLAS_FLAG_NEAREST = 2u;
+static const float ATLAS_PI = 3.141592653589793;  // shade with albedo * A.rgb / ATLAS_PI (docs/atlas-format.md)
+
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+float3 atlas_half_vector(float3 l, float3 v, float3 fallback) {
+    float3 s = l + v;
+    float s2 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * rsqrt(s2);
+    }
+    return fallback;
+}
 
 // Material IDs: the first slice of each material.
 
@@ -351,12 +362,11 @@ float specular_alpha(float gloss) {
 // alpha depends on the pixel only: computed once, outside the light loop.
 float specular(float3 n, float3 l, float3 v, float alpha) {
     float n_dot_l = dot(n, l);
-    float3 hv = l + v;
-    float hv2 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+    if (n_dot_l <= 0.0) {
         return 0.0;
     }
-    float3 h = hv * rsqrt(hv2);
+    // l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing.
+    float3 h = atlas_half_vector(l, v, ((float3)(0.0)));
     float n_dot_h = dot(n, h);
     if (n_dot_h <= 0.0) {
         return 0.0;
@@ -367,7 +377,7 @@ float specular(float3 n, float3 l, float3 v, float alpha) {
     float nl = min(n_dot_l, 1.0);
     float nv = clamp(dot(n, v), 0.0, 1.0);
     float vis = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
-    return a2 / (3.141592653589793 * t * t) * vis * nl;
+    return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
@@ -471,12 +481,8 @@ float separable_azimuth(float3 a, float3 b) {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 float3 separable_angles_half_diff(float3 n, float3 l, float3 v) {
-    float3 hs = l + v;
-    float hl = length(hs);
-    float3 h = n;
-    if (hl > 1e-6) {
-        h = hs / max(hl, 1e-30);
-    }
+    // l = -v (both on the horizon, opposite): h is the limit from above, n.
+    float3 h = atlas_half_vector(l, v, n);
     float nh = dot(n, h);
     float lh = dot(l, h);
     float3 t = n - nh * h;
@@ -498,7 +504,7 @@ float separable_unwarp(float angle, float4 axis) {
     float s = clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0);
     int warp = int(axis.w);
     if (warp == 3) {
-        return 1.0 - cos(s * 1.5707963267948966);
+        return 1.0 - cos(s * (0.5 * ATLAS_PI));
     }
     if (warp == 1) {
         return sqrt(s);
@@ -531,7 +537,7 @@ float3 separable_f_cos(Texture2DArray<float4> atlas, SamplerState samp, uint mat
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             float2 ut = float2((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return atlas.SampleLevel(samp, float3(ut, float(material + terms)), 0.0).rgb * (back * 0.3183098861837907);
+            return atlas.SampleLevel(samp, float3(ut, float(material + terms)), 0.0).rgb * (back / ATLAS_PI);
         }
         return ((float3)(0.0));
     }

@@ -8,6 +8,17 @@ const ATLAS_LAYERS: u32 = 256u;
 const ATLAS_MIP_COUNT: u32 = 9u;
 const ATLAS_FLAG_OUTLINE: u32 = 1u;
 const ATLAS_FLAG_NEAREST: u32 = 2u;
+const ATLAS_PI: f32 = 3.141592653589793;  // shade with albedo * A.rgb / ATLAS_PI (docs/atlas-format.md)
+
+// (l + v) / |l + v|, or `fallback` where |l + v| <= 1e-6: l = -v up to f32 rounding, no half vector.
+fn atlas_half_vector(l: vec3<f32>, v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let s: vec3<f32> = l + v;
+    let s2: f32 = dot(s, s);
+    if (s2 > 1.0e-12) {
+        return s * inverseSqrt(s2);
+    }
+    return fallback;
+}
 
 // Material IDs: the first slice of each material.
 
@@ -351,12 +362,11 @@ fn specular_alpha(gloss: f32) -> f32 {
 // alpha depends on the pixel only: computed once, outside the light loop.
 fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, alpha: f32) -> f32 {
     let n_dot_l: f32 = dot(n, l);
-    let hv: vec3<f32> = l + v;
-    let hv2: f32 = dot(hv, hv);
-    if (n_dot_l <= 0.0 || hv2 < 1e-12) {
+    if (n_dot_l <= 0.0) {
         return 0.0;
     }
-    let h: vec3<f32> = hv * inverseSqrt(hv2);
+    // l = -v has no half vector: h = 0, so N.H = 0 and the lobe adds nothing.
+    let h: vec3<f32> = atlas_half_vector(l, v, vec3<f32>(0.0));
     let n_dot_h: f32 = dot(n, h);
     if (n_dot_h <= 0.0) {
         return 0.0;
@@ -367,7 +377,7 @@ fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, alpha: f32) -> f32 {
     let nl: f32 = min(n_dot_l, 1.0);
     let nv: f32 = clamp(dot(n, v), 0.0, 1.0);
     let vis: f32 = 0.5 / (nl * sqrt(nv * nv * (1.0 - a2) + a2) + nv * sqrt(nl * nl * (1.0 - a2) + a2));
-    return a2 / (3.141592653589793 * t * t) * vis * nl;
+    return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
@@ -471,12 +481,8 @@ fn separable_azimuth(a: vec3<f32>, b: vec3<f32>) -> f32 {
 
 // (theta_h, theta_d, phi_d), Rusinkiewicz 1998.
 fn separable_angles_half_diff(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
-    let hs: vec3<f32> = l + v;
-    let hl: f32 = length(hs);
-    var h: vec3<f32> = n;
-    if (hl > 1e-6) {
-        h = hs / max(hl, 1e-30);
-    }
+    // l = -v (both on the horizon, opposite): h is the limit from above, n.
+    let h: vec3<f32> = atlas_half_vector(l, v, n);
     let nh: f32 = dot(n, h);
     let lh: f32 = dot(l, h);
     let t: vec3<f32> = n - nh * h;
@@ -498,7 +504,7 @@ fn separable_unwarp(angle: f32, axis: vec4<f32>) -> f32 {
     let s: f32 = clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0);
     let warp: i32 = i32(axis.w);
     if (warp == 3) {
-        return 1.0 - cos(s * 1.5707963267948966);
+        return 1.0 - cos(s * (0.5 * ATLAS_PI));
     }
     if (warp == 1) {
         return sqrt(s);
@@ -531,7 +537,7 @@ fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             let ut: vec2<f32> = vec2<f32>((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return textureSampleLevel(atlas, samp, ut, material + terms, 0.0).rgb * (back * 0.3183098861837907);
+            return textureSampleLevel(atlas, samp, ut, material + terms, 0.0).rgb * (back / ATLAS_PI);
         }
         return vec3<f32>(0.0);
     }

@@ -17,7 +17,8 @@ from atlasgen.io.manifest import MaterialEntry
 from atlasgen.io.sidecar import SIDECAR_FILE_VERSION, SIDECAR_MAGIC
 from atlasgen.separable.parametrization import ANGLE_RANGES, PROXY_FLOOR, SYSTEM_ANGLES, Warp, get_parametrization
 from atlasgen.separable.storage import FACTOR_RESOLUTION
-from atlasgen.shaderlang import Array, Assign, Comment, For, Function, If, Let, Return, Var, emit, float_literal
+from atlasgen.shaders.common import common_declarations
+from atlasgen.shaders.lang import Array, Assign, Comment, For, Function, If, Let, Return, Var, emit, float_literal
 
 __all__ = [
     "separable_declarations",
@@ -49,7 +50,7 @@ _WARP_LEGEND = ", ".join(f"{int(w)} {w.name.lower()}" for w in Warp)
 UNWARP = Function("separable_unwarp", "f32", (("angle", "f32"), ("axis", "vec4")), (
         Let("f32", "s", "clamp((angle - axis.y) / (axis.z - axis.y), 0.0, 1.0)"),
         Let("i32", "warp", "i32(axis.w)"),
-        If(f"warp == {int(Warp.COS)}", (Return("1.0 - cos(s * 1.5707963267948966)"),)),
+        If(f"warp == {int(Warp.COS)}", (Return("1.0 - cos(s * (0.5 * ATLAS_PI))"),)),
         If(f"warp == {int(Warp.SQRT)}", (Return("sqrt(s)"),)),
         If(f"warp == {int(Warp.SQRT_HI)}", (Return("1.0 - sqrt(1.0 - s)"),)),
         Return("s"),
@@ -152,10 +153,8 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
             Return("acos(clamp(dot(a, b) / (la * lb), -1.0, 1.0))"),
         )),
         Function("separable_angles_half_diff", "vec3", three, (
-            Let("vec3", "hs", "l + v"),
-            Let("f32", "hl", "length(hs)"),
-            Var("vec3", "h", "n"),
-            If("hl > 1e-6", (Assign("h", "hs / max(hl, 1e-30)"),)),
+            Comment("l = -v (both on the horizon, opposite): h is the limit from above, n."),
+            Let("vec3", "h", "atlas_half_vector(l, v, n)"),
             Let("f32", "nh", "dot(n, h)"),
             Let("f32", "lh", "dot(l, h)"),
             Let("vec3", "t", "n - nh * h"),
@@ -186,7 +185,7 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
                 If("back > 0.0", (
                     Let("vec2", "ut", f"vec2((0.5 + {float_literal(WIDTH - 1)} * (max(dot(n, l), -1.0) + 1.0) * 0.5) / {float_literal(WIDTH)}, "
                                       f"(0.5 + {float_literal(HEIGHT - 1)} * min(dot(n, v), 1.0)) / {float_literal(HEIGHT)})"),
-                    Return("sample_array(atlas, samp, ut, material + terms, 0.0).rgb * (back * 0.3183098861837907)"),
+                    Return("sample_array(atlas, samp, ut, material + terms, 0.0).rgb * (back / ATLAS_PI)"),
                 )),
                 Return("splat3(0.0)"),
             )),
@@ -223,6 +222,7 @@ def separable_declarations(entries: list[MaterialEntry]) -> list:
 
 
 def separable_wgsl(entries: list[MaterialEntry]) -> str:
-    """:func:`separable_declarations` in WGSL ("" without separable entries)."""
+    """:func:`separable_declarations` in WGSL after the helpers they call (:mod:`atlasgen.shaders.common`),
+    on their own as the include holds them ("" without separable entries)."""
     decls = separable_declarations(entries)
-    return emit("wgsl", decls) if decls else ""
+    return emit("wgsl", [*common_declarations(), *decls]) if decls else ""

@@ -5,6 +5,7 @@ to the WGSL, on a small baked library (a lambert, a toon with hard steps, a sepa
 """
 
 import hashlib
+import re
 import shutil
 import struct
 import subprocess
@@ -19,8 +20,8 @@ from atlasgen.materials.material import read_materials
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
 from atlasgen.separable.rebuild import evaluate_separable
-from atlasgen.separable.shader import separable_table
-from atlasgen.shaderlang import LANGUAGES
+from atlasgen.shaders.lang import LANGUAGES
+from atlasgen.shaders.separable import separable_table
 
 ROOT = Path(__file__).resolve().parents[2]
 GLSLANG = shutil.which("glslangValidator")
@@ -102,10 +103,10 @@ def small_atlas(tmp_path_factory):
     return result, paths
 
 
-def _spirv(lang: str, folder: Path) -> bytes:
-    source = folder / f"test.{lang}.comp"
-    source.write_text(SHADERS[lang])
-    out = folder / f"test.{lang}.spv"
+def _spirv(lang: str, folder: Path, code: str | None = None, name: str = "test") -> bytes:
+    source = folder / f"{name}.{lang}.comp"
+    source.write_text(SHADERS[lang] if code is None else code)
+    out = folder / f"{name}.{lang}.spv"
     args = ["-V", "-S", "comp"] if lang == "glsl" else ["-D", "-V", "-S", "comp", "-e", "main"]
     run = subprocess.run([GLSLANG, *args, str(source), "-o", str(out)], capture_output=True, text=True)
     assert run.returncode == 0, run.stdout + run.stderr
@@ -163,6 +164,99 @@ def test_glslang_compiles_the_include(lang, small_atlas):
     _, paths = small_atlas
     spirv = _spirv(lang, paths["dds"].parent)
     assert spirv[:4] == struct.pack("<I", 0x07230203)
+
+
+# The shading line the docs give engines, compiled against the include alone (the include must define
+# every name the line uses) and in a program that has its own PI, as most engines do and atlasgen's
+# renderer did (the include's names must not clash with it: WGSL forbids declaring a name twice).
+DOCUMENTED = ("docs/engine-integration.md", "docs/atlas-format.md")
+_SHADING_LINE = re.compile(r"`(L \+= E \* \(albedo \* A\.rgb [^`]*)`")
+SHADING_PROGRAMS = {
+    "wgsl": """
+OWN_PI
+@group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
+@group(0) @binding(1) var atlas_samp: sampler;
+@group(0) @binding(2) var<storage, read_write> r: array<vec4<f32>>;
+@compute @workgroup_size(1)
+fn main() {
+    let n = vec3<f32>(0.0, 0.0, 1.0); let l = vec3<f32>(0.6, 0.0, 0.8); let v = vec3<f32>(0.0, 0.6, 0.8);
+    let E = vec3<f32>(2.0); let albedo = vec3<f32>(0.8); let gloss = 0.5;
+    let A = atlas_sample(atlas_tex, atlas_samp, 0u, dot(n, l), dot(n, v), 0.0);
+    var L = vec3<f32>(0.0);
+    SHADING;
+    r[0] = vec4<f32>(L, 1.0);
+}
+""",
+    "glsl": """#version 450
+#extension GL_GOOGLE_include_directive : require
+#include "atlas.glsl"
+OWN_PI
+layout(set = 0, binding = 0) uniform texture2DArray atlas_tex;
+layout(set = 0, binding = 1) uniform sampler atlas_samp;
+layout(std430, set = 0, binding = 2) buffer Results { vec4 r[]; };
+layout(local_size_x = 1) in;
+void main() {
+    vec3 n = vec3(0.0, 0.0, 1.0); vec3 l = vec3(0.6, 0.0, 0.8); vec3 v = vec3(0.0, 0.6, 0.8);
+    vec3 E = vec3(2.0); vec3 albedo = vec3(0.8); float gloss = 0.5;
+    vec4 A = atlas_sample(atlas_tex, atlas_samp, 0u, dot(n, l), dot(n, v), 0.0);
+    vec3 L = vec3(0.0);
+    SHADING;
+    r[0] = vec4(L, 1.0);
+}
+""",
+    "hlsl": """#include "atlas.hlsl"
+OWN_PI
+[[vk::binding(0, 0)]] Texture2DArray<float4> atlas_tex;
+[[vk::binding(1, 0)]] SamplerState atlas_samp;
+[[vk::binding(2, 0)]] RWStructuredBuffer<float4> r;
+[numthreads(1, 1, 1)]
+void main() {
+    float3 n = float3(0.0, 0.0, 1.0); float3 l = float3(0.6, 0.0, 0.8); float3 v = float3(0.0, 0.6, 0.8);
+    float3 E = float3(2.0, 2.0, 2.0); float3 albedo = float3(0.8, 0.8, 0.8); float gloss = 0.5;
+    float4 A = atlas_sample(atlas_tex, atlas_samp, 0u, dot(n, l), dot(n, v), 0.0);
+    float3 L = float3(0.0, 0.0, 0.0);
+    SHADING;
+    r[0] = float4(L, 1.0);
+}
+""",
+}
+
+
+OWN_PI = {
+    "wgsl": "const PI: f32 = 3.1415927;",
+    "glsl": "const float PI = 3.1415927;",
+    "hlsl": "static const float PI = 3.1415927;",
+}
+
+
+def shading_program(lang: str, own_pi: bool) -> str:
+    return SHADING_PROGRAMS[lang].replace("OWN_PI", OWN_PI[lang] if own_pi else "").replace("SHADING", documented_shading())
+
+
+def documented_shading() -> str:
+    """The one shading line both docs give, as written there."""
+    found = {doc: _SHADING_LINE.findall((ROOT / doc).read_text()) for doc in DOCUMENTED}
+    assert all(found.values()), f"no shading line in {[doc for doc, lines in found.items() if not lines]}"
+    lines = {line for doc_lines in found.values() for line in doc_lines}
+    assert len(lines) == 1, lines
+    return lines.pop()
+
+
+@needs_glslang
+@pytest.mark.parametrize("own_pi", [False, True], ids=["include-alone", "own-pi"])
+@pytest.mark.parametrize("lang", ["glsl", "hlsl"])
+@pytest.mark.slow
+def test_glslang_compiles_the_documented_shading(lang, own_pi, small_atlas):
+    _, paths = small_atlas
+    spirv = _spirv(lang, paths["dds"].parent, shading_program(lang, own_pi), f"shading-{own_pi}")
+    assert spirv[:4] == struct.pack("<I", 0x07230203)
+
+
+@pytest.mark.parametrize("own_pi", [False, True], ids=["include-alone", "own-pi"])
+@pytest.mark.slow
+def test_naga_compiles_the_documented_shading(own_pi, small_atlas, gpu_device):
+    result, _ = small_atlas
+    gpu_device.device.create_shader_module(label="shading", code=result.include + shading_program("wgsl", own_pi))
 
 
 def _queries(result, rng):
@@ -315,7 +409,5 @@ def test_each_language_samples_what_the_cpu_samples(lang, small_atlas, gpu_devic
 
 
 def _scale_bias(include: str, s: int):
-    import re
-
     match = re.search(rf"case {s}u: {{ return vec4<f32>\(([^)]*)\); }}", include)
     return [float(x) for x in match.group(1).split(",")] if match else [1.0, 1.0, 0.0, 0.0]

@@ -1,13 +1,16 @@
-"""The WGSL include: it compiles, and on a GPU it returns what the Python rebuild returns."""
+"""The separable rebuild's shader code: it compiles, and on a GPU it returns what the Python rebuild returns."""
 
 import numpy as np
 import pytest
 
 from atlasgen.io.manifest import MaterialEntry, SeparableFactors
-from atlasgen.separable.parametrization import PARAMETRIZATIONS
+from atlasgen.separable.parametrization import PARAMETRIZATIONS, Parametrization, Warp
 from atlasgen.separable.rebuild import evaluate_separable
-from atlasgen.separable.shader import SIDECAR_VERSION, separable_table, separable_wgsl, wgsl_function_name
+from atlasgen.shaders.common import PI
+from atlasgen.shaders.lang import emit
+from atlasgen.shaders.separable import SIDECAR_VERSION, UNWARP, separable_table, separable_wgsl, wgsl_function_name
 from tests.separable.separable_helpers import random_frames
+from tests.shaders.gpu_compute import run_compute
 
 COMPUTE = """
 @group(0) @binding(0) var atlas_tex: texture_2d_array<f32>;
@@ -133,3 +136,24 @@ def test_gpu_rebuild_matches_the_python_rebuild(gpu_device, separable_atlas):
         assert diff.max() <= 0.01 * scale, (entry.name, diff.max(), scale)
         assert np.median(diff) <= 2e-4 * scale
         assert np.corrcoef(gpu.ravel(), cpu.ravel())[0, 1] > 0.999
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("warp", list(Warp), ids=lambda w: w.name)
+@pytest.mark.slow
+def test_gpu_unwarp_code_means_the_same_warp(warp, gpu_device):
+    # The include's separable_unwarp, called with Warp's code, against the numpy texel mapping.
+    lo, hi = 0.0, 0.5 * np.pi
+    angles = np.linspace(-0.1, hi + 0.1, 41, dtype=np.float32)
+    lines = "\n".join(
+        f"    dst[{i}] = bitcast<u32>(separable_unwarp(src[{i}], vec4<f32>(0.0, {lo!r}, {hi!r}, {int(warp)}.0)));"
+        for i in range(41)
+    )
+    code = (
+        f"{emit('wgsl', [PI, UNWARP])}\n@group(0) @binding(0) var<storage, read> src: array<f32, 41>;\n"
+        "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
+        f"@compute @workgroup_size(1)\nfn main() {{\n{lines}\n}}\n"
+    )
+    got = run_compute(gpu_device, code, angles.tobytes(), False, 41).view(np.float32)
+    expected = Parametrization("t", "half_diff", "theta_h", (("theta_h", warp.name.lower()),)).texel_of("theta_h", angles, 2)
+    np.testing.assert_allclose(got, expected, atol=2e-6)

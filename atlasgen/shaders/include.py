@@ -1,17 +1,24 @@
-"""The shader include (WGSL, GLSL, HLSL from one description): material-ID constants, per-slice scale/bias and the one sampling function."""
+"""The shader include (WGSL, GLSL, HLSL from one description): material-ID constants, per-slice scale/bias and the one sampling function.
+
+What each model type adds (a separable material's rebuild, its data table) comes from the
+model's own hooks, which the caller hands in as a lookup (:data:`ModelLookup`, the bake passes
+:func:`atlasgen.models.get_model`): the include is assembled here, below the models, without
+importing them.
+"""
 
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
-from atlasgen.io.manifest import Manifest
-from atlasgen.models import get_model
-from atlasgen.optics.specular import specular_declarations
-from atlasgen.shaderlang import (
+from atlasgen.io.manifest import Manifest, MaterialEntry
+from atlasgen.shaders.common import common_declarations
+from atlasgen.shaders.lang import (
     LANGUAGES,
     Array,
     Assign,
@@ -26,8 +33,35 @@ from atlasgen.shaderlang import (
     emit,
     float_literal,
 )
+from atlasgen.shaders.specular import specular_declarations
 
-__all__ = ["render_include", "render_includes", "render_include_data", "include_declarations", "stamp_include", "MaterialFlag"]
+__all__ = [
+    "render_include",
+    "render_includes",
+    "render_include_data",
+    "include_declarations",
+    "stamp_include",
+    "MaterialFlag",
+    "ModelShaderCode",
+    "ModelLookup",
+]
+
+
+class ModelShaderCode(Protocol):
+    """The hooks of a model type that the include asks (:class:`atlasgen.models.base.Model` provides them)."""
+
+    def include_declarations(self, entries: list[MaterialEntry]) -> list: ...
+    def include_wgsl(self, entries: list[MaterialEntry]) -> str: ...
+    def include_data(self, entries: list[MaterialEntry]) -> bytes: ...
+
+
+#: A model type's name -> its hooks: the caller's registry (:func:`atlasgen.models.get_model`).
+ModelLookup = Callable[[str], ModelShaderCode]
+
+
+def _by_type(manifest: Manifest) -> list[tuple[str, list[MaterialEntry]]]:
+    """(type name, its entries) for each model type of ``manifest``, types sorted by name."""
+    return [(t, [m for m in manifest.materials if m.type == t]) for t in sorted({m.type for m in manifest.materials})]
 
 
 class MaterialFlag(enum.IntFlag):
@@ -37,14 +71,16 @@ class MaterialFlag(enum.IntFlag):
     NEAREST = 2  # read the one nearest texel: hard toon steps
 
 
-def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndarray) -> list:
-    """The atlas contract of ``manifest`` as shader declarations (:mod:`atlasgen.shaderlang`).
+def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, *, models: ModelLookup) -> list:
+    """The atlas contract of ``manifest`` as shader declarations (:mod:`atlasgen.shaders.lang`).
 
     ``atlas_uv`` maps N.L in [-1, 1] and N.V in [0, 1] to texel centres:
     u = (0.5 + 63 (N.L + 1) / 2) / 64, v = (0.5 + 31 N.V) / 32; ``atlas_sample``
-    then returns ``texel * scale + bias`` per slice, linear. Then the renderer's
-    specular lobe (:func:`atlasgen.optics.specular.specular_declarations`) and what
-    each model adds (:meth:`atlasgen.models.base.Model.include_declarations`).
+    then returns ``texel * scale + bias`` per slice, linear. ``ATLAS_PI`` and the half-vector
+    helper every function below shares come first (:mod:`atlasgen.shaders.common`; GLSL and
+    HLSL need a name declared before its first use). Then the renderer's specular lobe (:func:`atlasgen.shaders.specular.specular_declarations`) and what
+    each model type adds (``models(type).include_declarations``,
+    :meth:`atlasgen.models.base.Model.include_declarations`).
     """
     f = float_literal
     volume = manifest.layout == "volume"
@@ -56,6 +92,7 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
         Const("ATLAS_LAYERS", "u32", f"{LAYERS}u"),
         Const("ATLAS_MIP_COUNT", "u32", f"{manifest.dimensions.mip_count}u"),
         *(Const(f"ATLAS_FLAG_{flag.name}", "u32", f"{int(flag)}u") for flag in MaterialFlag),
+        *common_declarations(),
     ]  # fmt: skip
     flags = [0] * LAYERS
     materials = []
@@ -109,35 +146,38 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
         ), "Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale."),
         *specular_declarations(),
     ]  # fmt: skip
-    for type_name in sorted({m.type for m in manifest.materials}):
-        decls += get_model(type_name).include_declarations([m for m in manifest.materials if m.type == type_name])
+    for type_name, entries in _by_type(manifest):
+        decls += models(type_name).include_declarations(entries)
     return decls
 
 
-def render_include(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, language: str = "wgsl") -> str:
+def render_include(
+    manifest: Manifest, scales: np.ndarray, biases: np.ndarray, language: str = "wgsl", *, models: ModelLookup
+) -> str:
     """Shader text (``language``: wgsl, glsl or hlsl) implementing exactly the atlas contract of ``manifest``.
 
     Every language is emitted from the same :func:`include_declarations`; WGSL also
     gets what models add as WGSL only (:meth:`~atlasgen.models.base.Model.include_wgsl`).
     """
-    text = emit(language, include_declarations(manifest, scales, biases))
+    text = emit(language, include_declarations(manifest, scales, biases, models=models))
     if language == "wgsl":
-        for type_name in sorted({m.type for m in manifest.materials}):
-            extra = get_model(type_name).include_wgsl([m for m in manifest.materials if m.type == type_name])
+        for type_name, entries in _by_type(manifest):
+            extra = models(type_name).include_wgsl(entries)
             if extra:
                 text += f"\n// ---- {type_name} ----\n{extra.rstrip()}\n"
     return text
 
 
-def render_includes(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, languages=LANGUAGES) -> dict[str, str]:
+def render_includes(
+    manifest: Manifest, scales: np.ndarray, biases: np.ndarray, languages=LANGUAGES, *, models: ModelLookup
+) -> dict[str, str]:
     """``{language: text}`` of :func:`render_include` for each of ``languages``."""
-    return {lang: render_include(manifest, scales, biases, lang) for lang in languages}
+    return {lang: render_include(manifest, scales, biases, lang, models=models) for lang in languages}
 
 
-def render_include_data(manifest: Manifest) -> bytes:
+def render_include_data(manifest: Manifest, *, models: ModelLookup) -> bytes:
     """The side-car the models of ``manifest`` write beside the include (``X.separable.bin``), b"" for none."""
-    return b"".join(get_model(t).include_data([m for m in manifest.materials if m.type == t])
-                    for t in sorted({m.type for m in manifest.materials}))  # fmt: skip
+    return b"".join(models(type_name).include_data(entries) for type_name, entries in _by_type(manifest))
 
 
 def stamp_include(text: str, manifest_sha256: bytes) -> str:

@@ -12,7 +12,7 @@ the lighting pass passes them as literals (:func:`analytic_call`).
 from __future__ import annotations
 
 from atlasgen.optics.microfacet import COS_EPSILON
-from atlasgen.shaderlang import Assign, Comment, Function, If, Let, Return, Var, float_literal
+from atlasgen.shaders.lang import Assign, Comment, Function, If, Let, Return, Var, float_literal
 
 __all__ = ["DISTRIBUTION_CODES", "FRESNEL_CODES", "analytic_declarations", "analytic_call"]
 
@@ -25,7 +25,7 @@ _EPS = float_literal(COS_EPSILON)
 
 
 def analytic_declarations() -> list:
-    """The generic closed-form evaluation, for every include language (:mod:`atlasgen.shaderlang`)."""
+    """The generic closed-form evaluation, for every include language (:mod:`atlasgen.shaders.lang`)."""
     g1 = (("c", "f32"), ("a", "f32"), ("beckmann", "bool"))
     return [
         Comment("---- atlasgen: analytic BRDFs evaluated in closed form (no atlas data) ----\n"
@@ -44,11 +44,11 @@ def analytic_declarations() -> list:
             Let("f32", "a2", "a * a"),
             If("!beckmann", (
                 Let("f32", "d", "c * c * (a2 - 1.0) + 1.0"),
-                Return("a2 / (3.14159265358979 * d * d)"),
+                Return("a2 / (ATLAS_PI * d * d)"),
             )),
             Let("f32", "cm", f"max(c, {_EPS})"),
             Let("f32", "c2", "cm * cm"),
-            Return("exp(-((1.0 - c2) / c2) / a2) / (3.14159265358979 * a2 * c2 * c2)"),
+            Return("exp(-((1.0 - c2) / c2) / a2) / (ATLAS_PI * a2 * c2 * c2)"),
         ), "GGX (Walter eq. 33) or Beckmann (eq. 25) normal distribution D(cos theta_h)."),
         Function("analytic_fresnel", "vec3", (("c", "f32"), ("p", "vec4"), ("f0", "vec3")), (
             Let("f32", "cd", "clamp(c, 0.0, 1.0)"),
@@ -67,12 +67,9 @@ def analytic_declarations() -> list:
             Let("f32", "nl", "dot(n, l)"),
             Let("f32", "nv", "dot(n, v)"),
             If("nl <= 0.0 || nv <= 0.0", (Return("splat3(0.0)"),)),
-            Var("vec3", "f", "diffuse / 3.14159265358979"),
+            Var("vec3", "f", "diffuse / ATLAS_PI"),
             If("p.x < 1.5", (
-                Let("vec3", "hs", "l + v"),
-                Let("f32", "hl", "length(hs)"),
-                Var("vec3", "h", "n"),
-                If("hl > 1e-12", (Assign("h", "hs / hl"),)),
+                Let("vec3", "h", "atlas_half_vector(l, v, n)"),
                 Let("bool", "beckmann", "p.x > 0.5"),
                 Let("f32", "d", "analytic_distribution(clamp(dot(n, h), 0.0, 1.0), p.y, beckmann)"),
                 Let("f32", "g", "analytic_g1_over_cos(nl, p.y, beckmann) * analytic_g1_over_cos(nv, p.y, beckmann)"),

@@ -1,12 +1,20 @@
 """The generated WGSL include: compiled by a real WebGPU device and checked against the contract."""
 
+import dataclasses
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
 from atlasgen.contract import atlas_uv, texel_centres
+from atlasgen.io.manifest import read_manifest
 from atlasgen.materials.material import read_materials
+from atlasgen.models import get_model
 from atlasgen.optics.quantize import dequantize_rgba, unorm_scale
+from atlasgen.shaders.include import MaterialFlag, render_include
+from atlasgen.shaders.structs import wgsl_constants
 
 
 @pytest.fixture
@@ -119,3 +127,30 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     centre = (ids == 3) & (np.arange(len(ids)) < 64)
     closed = np.maximum(nl[centre], 0)[:, None] * np.array([0.8, 0.5, 0.25])
     np.testing.assert_allclose(got[centre, :3], closed, atol=8e-3)
+
+
+def test_material_flags_are_the_include_bits():
+    golden = read_manifest(Path(__file__).parents[1] / "resources" / "golden" / "array-srgb.json")
+    a, b = golden.materials[0], golden.materials[5]
+    manifest = dataclasses.replace(golden, materials=[
+        dataclasses.replace(a, first_slice=0, id=0, slice_count=1, flags={"outline": True, "nearest": True}),
+        dataclasses.replace(b, first_slice=1, id=1, slice_count=2, flags={"nearest": True}, factors=None),
+    ])  # fmt: skip
+    text = render_include(manifest, np.ones((256, 2)), np.zeros((256, 2)), models=get_model)
+    assert wgsl_constants(MaterialFlag, "ATLAS_FLAG_") in text
+    assert "const ATLAS_FLAG_OUTLINE: u32 = 1u;\nconst ATLAS_FLAG_NEAREST: u32 = 2u;" in text
+    assert "case 0u: { return 3u; }" in text  # OUTLINE | NEAREST
+    assert "case 1u: { return 2u; }" in text and "case 2u: { return 2u; }" in text
+
+
+@pytest.mark.parametrize("lang", ["wgsl", "glsl", "hlsl"])
+def test_the_include_defines_every_constant_its_docs_name(lang):
+    # Every ATLAS_* and SEPARABLE_* name the engine docs give is declared by the include (the
+    # golden one, which holds separable materials), so code written from the docs compiles.
+    root = Path(__file__).parents[2]
+    docs = "".join((root / doc).read_text() for doc in ("docs/engine-integration.md", "docs/atlas-format.md"))
+    names = sorted(set(re.findall(r"\b(?:ATLAS|SEPARABLE)_[A-Z0-9_]*[A-Z0-9]\b", docs)))
+    assert {"ATLAS_PI", "ATLAS_WIDTH", "SEPARABLE_TABLE"} <= set(names), names
+    text = (root / "tests" / "resources" / "golden" / f"array-srgb.{lang}").read_text()
+    undeclared = [n for n in names if not re.search(rf"^(?:static )?(?:const|var<private>) (?:\w+ )?{n}\b", text, re.MULTILINE)]
+    assert not undeclared, f"the {lang} include lacks {undeclared}"
