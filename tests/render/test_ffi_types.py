@@ -1,0 +1,44 @@
+"""The fast typedef lookup gives cffi's own parse for every form it takes, and leaves the rest to it."""
+
+from __future__ import annotations
+
+import pytest
+
+from atlasgen.render.ffi_types import install
+
+wgpu_ffi = pytest.importorskip("wgpu.backends.wgpu_native._ffi")
+
+
+#: A handle, a struct, an enum, a flags word, a callback and a function-pointer typedef of the header.
+KINDS = ("WGPUTexture", "WGPUBufferDescriptor", "WGPUTextureFormat", "WGPUBufferUsage", "WGPUBufferMapCallback",
+         "WGPUProcRenderPassEncoderDraw")  # fmt: skip
+
+
+def _typedef_names(ffi, every: int = 45):
+    names = sorted(k.split(" ", 1)[1] for k in ffi._parser._declarations if k.startswith("typedef "))
+    assert set(KINDS) <= set(names)
+    return sorted(set(names[::every]) | set(KINDS))
+
+
+@pytest.mark.slow
+def test_each_form_resolves_to_the_model_type_the_parser_builds():
+    ffi = wgpu_ffi.ffi
+    install(ffi)
+    parser = ffi._parser
+    fast = parser.parse_type_and_quals
+    slow = type(parser).parse_type_and_quals.__get__(parser)  # cffi's own, which install() leaves on the class
+    assert fast != slow
+    names = _typedef_names(ffi)
+    assert len(names) > 12
+    for name in names:
+        for form in (name, f"{name} *", f"{name}[]", f"{name}[3]", f"{name} *[2]", f" {name}  * "):
+            assert fast(form) == slow(form), form
+
+
+@pytest.mark.slow
+def test_anything_else_goes_to_the_parser():
+    ffi = wgpu_ffi.ffi
+    install(ffi)
+    for cdecl in ("uint32_t *", "int[4]", "WGPUBufferDescriptor **", "void(*)(int)"):
+        assert ffi.typeof(cdecl) is ffi.typeof(cdecl)  # parsed once, then cffi's own cache
+    assert ffi.typeof("WGPUBufferDescriptor *") is ffi.typeof("WGPUBufferDescriptor*")
