@@ -11,7 +11,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test lint fuzz bench clean atlas render validate report pins
+.PHONY: setup apt demo test lint fuzz bench bench-workflow clean atlas render validate report pins
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -221,6 +221,11 @@ fuzz: setup
 bench: setup
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(PY) bench/run.py
+
+# The developer's loop (fast subset, whole suite, demo after make clean), a quarter of an hour:
+# its figures go to BENCHMARKS.md and the README's "Timings" table (bench/workflow.py).
+bench-workflow: setup
+	$(PY) bench/run.py workflow
 
 clean:
 	rm -rf $(BUILD) .pytest_cache .hypothesis
