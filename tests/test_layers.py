@@ -17,7 +17,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 #: Lowest first. A top-level module (``atlasgen/errors.py``) sits in layer "atlasgen".
-LAYERS = ["atlasgen", "optics", "io", "separable", "models", "materials", "bake", "render", "validate", "reports", "cli"]
+LAYERS = ["atlasgen", "optics", "io", "separable", "models", "materials", "bake", "render", "validate", "preview", "reports",
+          "cli"]  # fmt: skip
 
 #: Imported inside functions on purpose: each is heavy or optional (a GPU, a Mitsuba build,
 #: a plotting stack), and a LUT-only bake or ``--help`` must not pay for it.
@@ -33,6 +34,7 @@ LAZY_OK = {
     "PIL",
     "jinja2",
     "zstandard",
+    "watchfiles",
 }
 
 #: (importing module, imported module) pairs allowed to break the rules above, with why.
