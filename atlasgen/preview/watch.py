@@ -5,7 +5,7 @@ not the files themselves: editors that save by writing a new file and renaming i
 one (vim, most IDEs) replace the file a watch on it would follow, while the folder sees the
 new one arrive. Events are kept only for the files the preview reads (a folder given as a
 source: every ``*.toml`` directly in it), so the PNG's own writes, editors' swap files and
-backups never trigger an update. A batch of events (watchfiles groups those 50 ms apart) is one
+backups never trigger an update. A batch of events (watchfiles groups those 20 ms apart) is one
 update. An update that fails (a bad edit) reports its error on one line and leaves the last
 good picture in place; the watch goes on.
 """
@@ -23,8 +23,9 @@ from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Preview, Previewer, ch
 
 __all__ = ["Update", "watch_preview", "describe_update"]
 
-#: watchfiles' wait for further events before it reports a batch, ms: an editor's write and rename land in one.
-STEP_MS = 50
+#: watchfiles' wait for further events before it reports a batch, ms: an editor's write and rename,
+#: microseconds apart, land in one.
+STEP_MS = 20
 #: How often the watch wakes with nothing to report, ms: to start, and to see ``stop`` without events.
 IDLE_MS = 100
 

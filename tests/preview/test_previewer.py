@@ -55,7 +55,9 @@ def test_one_material_is_one_labelled_picture(warm, tmp_path, write_material):
     shown = warm.write([clay], out)
     picture = decode(out.read_bytes())
     assert shown.names == ["clay"] and picture.shape[1] == WIDTH and picture.shape[0] > HEIGHT + 40
-    assert set(shown.timings) == {"read", "bake", "upload", "render", "label", "encode", "write"}
+    steps = {"read", "bake", "render", "label", "encode", "write"}
+    # The previewer's first preview makes the device and pipelines; a later one uploads the new atlas.
+    assert set(shown.timings) in (steps | {"device", "pipelines"}, steps | {"upload"})
     # The sphere's and the ball's middles are the clay's colour (red above green above blue), the
     # background and floor grey.
     for x in (WIDTH // 2 - 150, WIDTH // 2 + 150):
@@ -66,6 +68,7 @@ def test_one_material_is_one_labelled_picture(warm, tmp_path, write_material):
     renderer = warm.renderer
     again = warm.write([clay], out)
     assert warm.renderer is renderer and not again.compiled and again.png == shown.png
+    assert set(again.timings) == steps | {"upload"}
 
 
 @pytest.mark.slow
