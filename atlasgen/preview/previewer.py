@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.bake.pipeline import bake_atlas
+from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
@@ -158,6 +159,9 @@ class Previewer:
         timings: dict[str, float] = {}
         t0 = time.perf_counter()
         materials = read_materials(paths)
+        if not materials:
+            shown = ", ".join(Path(p).as_posix() for p in paths)
+            raise InputError(f"{shown}: no material files; expected .toml files, or folders holding them")
         check_unique_names([*materials, self.floor])
         inputs = [Path(m.source) for m in materials] + [f for m in materials for f in referenced_files(m)]
         t1 = time.perf_counter()

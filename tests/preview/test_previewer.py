@@ -42,6 +42,12 @@ def test_outputs_are_checked_before_anything_runs(tmp_path, write_material):
         check_preview_output(tmp_path / "x.png", [tmp_path / "missing.toml"])
 
 
+def test_a_folder_without_materials_is_one_line(tmp_path):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match=r"empty: no material files; expected \.toml files"):
+        Previewer(None).preview([tmp_path / "empty"])
+
+
 @pytest.fixture(scope="module")
 def warm(gpu_context, tmp_path_factory):
     """One previewer for the module's tests: the pipelines cost seconds on lavapipe."""
