@@ -38,6 +38,7 @@ __all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
 #: Subcommands that live in their own module, imported only when invoked, so that
 #: ``atlasgen --help`` never pays for the renderer's or the reports' imports.
 LAZY_COMMANDS = {
+    "preview": ("atlasgen.cli.preview_cmd", "preview", "Show materials on a standard ball; --watch re-renders on every save."),
     "render": ("atlasgen.cli.render_cmd", "render", "Render a scene with the bundled deferred renderer."),
     "report": ("atlasgen.cli.report_cmd", "report", "Write reports (separable factorisation, library)."),
     "validate": ("atlasgen.cli.validate_cmd", "validate", "Compare baked materials with Mitsuba 3 references."),

@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Files the wheel must hold besides the code: what the commands read at run time.
 PACKAGE_DATA = ["atlasgen/data/materials/terracotta.toml", "atlasgen/data/materials/separable-gold.toml",
                 "atlasgen/data/validation/front.toml", "atlasgen/data/validation/back.toml",
-                "atlasgen/shaders/lighting.wgsl", "atlasgen/data/lighting_cost.json"]  # fmt: skip
+                "atlasgen/shaders/lighting.wgsl", "atlasgen/data/lighting_cost.json",
+                "atlasgen/data/preview/atlasgen-preview-floor.toml"]  # fmt: skip
 SCENE = """
 [camera]
 position = [0, 0, 4]
@@ -135,6 +136,15 @@ def test_render(installed, workdir, baked):
         pytest.skip(f"no GPU adapter: {result.stderr.strip()}")
     assert result.returncode == 0, result.stderr
     assert (workdir / "out.exr").stat().st_size > 0 and (workdir / "out.png").stat().st_size > 0
+
+
+def test_preview_with_the_installed_floor(installed, workdir):
+    (workdir / "clay.toml").write_text('type = "lambert"\n')
+    result = _run([installed / "atlasgen", "preview", "clay.toml", "--no-cache"], cwd=workdir, check=False)
+    if result.returncode == 5:
+        pytest.skip(f"no GPU adapter: {result.stderr.strip()}")
+    assert result.returncode == 0, result.stderr
+    assert (workdir / "build" / "preview" / "clay.png").read_bytes().startswith(b"\x89PNG")
 
 
 def test_validate_on_the_installed_scenes(installed, workdir, baked):

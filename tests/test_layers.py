@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Lowest first. A top-level module (``atlasgen/errors.py``) sits in layer "atlasgen".
 LAYERS = ["atlasgen", "optics", "io", "separable", "shaders", "models",
-          "materials", "bake", "render", "validate", "reports", "cli"]  # fmt: skip
+          "materials", "bake", "render", "validate", "preview", "reports", "cli"]  # fmt: skip
 
 #: Imported inside functions on purpose: each is heavy or optional (a GPU, a Mitsuba build,
 #: a plotting stack), and a LUT-only bake or ``--help`` must not pay for it.
@@ -26,6 +26,7 @@ LAZY_OK = {
     "mitsuba",
     "drjit",
     "wgpu",
+    "cffi",  # wgpu-py's foreign-function layer (atlasgen/render/ffi_types.py)
     "matplotlib",
     "flip_evaluator",
     "flip",
@@ -34,6 +35,7 @@ LAZY_OK = {
     "PIL",
     "jinja2",
     "zstandard",
+    "watchfiles",
 }
 
 #: (importing module, imported module) pairs allowed to break the rules above, with why.

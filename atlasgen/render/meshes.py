@@ -1,4 +1,4 @@
-"""Triangle meshes: the built-in shapes and OBJ/PLY files (read by trimesh).
+"""Triangle meshes: the built-in shapes, the preview's material ball and OBJ/PLY files (read by trimesh).
 
 All meshes are in object space with counter-clockwise front faces and per-vertex
 normals. Normals that are zero or not finite are kept as zeros: the g-buffer shader
@@ -7,6 +7,7 @@ replaces them by the face normal, so degenerate input never produces NaN pixels.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +22,12 @@ __all__ = [
     "make_plane",
     "make_box",
     "make_torus",
+    "ProfileArc",
+    "ProfileLine",
+    "MATERIAL_BALL_PROFILE",
+    "revolve_profile",
+    "make_material_ball",
+    "encode_mesh_ply",
     "read_mesh",
     "build_mesh",
     "sanitize_normals",
@@ -131,6 +138,136 @@ def make_torus(minor_radius: float = 0.25, segments: int = 64) -> Mesh:
     pos = centre + minor_radius * normal
     idx = _grid_indices(segments, minor_segments, wrap_cols=False)
     return _mesh(pos.reshape(-1, 3), normal.reshape(-1, 3), idx)
+
+
+@dataclass(frozen=True)
+class ProfileArc:
+    """A circular arc of a profile in the (r, y) half-plane (r the distance from the y axis).
+
+    Angles are in radians from +r towards +y. The arc runs from ``start`` to ``end``, and the
+    solid lies on its left: counter-clockwise (``end > start``) it bulges out and its normal is
+    the radius; clockwise it is hollow (a groove, a bowl) and its normal points to the centre.
+    """
+
+    name: str
+    centre: tuple[float, float]
+    radius: float
+    start: float
+    end: float
+
+    @property
+    def length(self) -> float:
+        return self.radius * abs(self.end - self.start)
+
+    def sample(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """``count`` points from start to end and their unit outward normals, each ``(count, 2)``."""
+        a = np.linspace(self.start, self.end, count)
+        radial = np.stack([np.cos(a), np.sin(a)], -1)
+        return np.asarray(self.centre) + self.radius * radial, radial * math.copysign(1.0, self.end - self.start)
+
+
+@dataclass(frozen=True)
+class ProfileLine:
+    """A straight piece of a profile from ``start`` to ``end`` ((r, y) points), the solid on its left."""
+
+    name: str
+    start: tuple[float, float]
+    end: tuple[float, float]
+
+    @property
+    def length(self) -> float:
+        return math.dist(self.start, self.end)
+
+    def sample(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """``count`` points from start to end and the unit outward normal (dy, -dr) / length at each."""
+        t = np.linspace(0.0, 1.0, count)[:, None]
+        p0, p1 = np.asarray(self.start), np.asarray(self.end)
+        (dr, dy) = (p1 - p0) / self.length
+        return p0 + t * (p1 - p0), np.tile([dy, -dr], (count, 1))
+
+
+def _material_ball_profile() -> tuple:
+    """The ball's profile, bottom pole to the bottom of its top cavity: a unit sphere with a groove
+    round its equator, cut flat at 52 degrees of latitude (the sharp rim), and a bowl sunk into the top.
+
+    Each circle is fixed by the points it passes through: the groove's centre (c, 0) by the sphere
+    at +-9 degrees and its depth r = 0.9, (c - 0.9)^2 = (cos 9 - c)^2 + sin^2 9; the bowl's
+    centre (0, y_c) by the top's inner edge (0.36, y_top) and its depth y_b = y_top - 0.2,
+    y_c = (0.36^2 + y_top^2 - y_b^2) / (2 (y_top - y_b)).
+    """
+    groove, depth = math.radians(9.0), 0.9
+    gr, gy = math.cos(groove), math.sin(groove)
+    c = (gr**2 + gy**2 - depth**2) / (2.0 * (gr - depth))
+    rim = math.radians(52.0)
+    top_r, top_y = math.cos(rim), math.sin(rim)
+    inner, bottom = 0.36, math.sin(rim) - 0.2
+    yc = (inner**2 + top_y**2 - bottom**2) / (2.0 * (top_y - bottom))
+    bowl_rim = math.atan2(top_y - yc, inner)
+    return (
+        ProfileArc("lower body", (0.0, 0.0), 1.0, -math.pi / 2, -groove),
+        # Clockwise about a centre outside the sphere: a hollow ring.
+        ProfileArc("groove", (c, 0.0), c - depth, math.atan2(-gy, gr - c) + 2 * math.pi, math.atan2(gy, gr - c)),
+        ProfileArc("upper body", (0.0, 0.0), 1.0, groove, rim),
+        ProfileLine("top", (top_r, top_y), (inner, top_y)),
+        ProfileArc("cavity", (0.0, yc), yc - bottom, bowl_rim, -math.pi / 2),
+    )
+
+
+#: The material ball's profile (:func:`make_material_ball`): pieces meeting at creases (the groove's
+#: two edges, the rim between the upper body and the flat top, the cavity's edge).
+MATERIAL_BALL_PROFILE = _material_ball_profile()
+
+
+def revolve_profile(pieces, segments: int = 96) -> Mesh:
+    """The closed surface swept by a profile about the y axis: ``x = r sin(phi)``, ``z = r cos(phi)``.
+
+    ``pieces`` (:class:`ProfileArc`, :class:`ProfileLine`) run end to start, from a point on the
+    axis to a point on the axis, the solid on their left. Each piece has its own rings of
+    vertices, spaced about as far apart as the ``segments`` around, with its own normals: the
+    surface is smooth within a piece, and where two pieces meet their rings share positions but
+    not normals, so the crease stays sharp. Points on the axis are one vertex each (a pole).
+    """
+    step = 2.0 * math.pi / segments
+    phi = step * np.arange(segments)
+    sin, cos = np.sin(phi), np.cos(phi)
+    positions, normals, faces = [], [], []
+    count = 0
+    for piece in pieces:
+        points, piece_normals = piece.sample(max(2, math.ceil(piece.length / step) + 1))
+        rings = []
+        for (r, y), (nr, ny) in zip(points, piece_normals):
+            if r < 1e-9:  # a pole: one vertex, its normal along the axis
+                positions.append([[0.0, y, 0.0]])
+                normals.append([[0.0, math.copysign(1.0, ny), 0.0]])
+                rings.append(np.full(segments, count))
+                count += 1
+            else:
+                positions.append(np.stack([r * sin, np.full(segments, y), r * cos], -1))
+                normals.append(np.stack([nr * sin, np.full(segments, ny), nr * cos], -1))
+                rings.append(count + np.arange(segments))
+                count += segments
+        for below, above in zip(rings, rings[1:]):
+            # Counter-clockwise seen from outside: d(phi) x d(profile) is the outward normal.
+            a, b = below, np.roll(below, -1)
+            c, d = above, np.roll(above, -1)
+            quads = np.concatenate([np.stack([a, b, c], -1), np.stack([b, d, c], -1)])
+            keep = (quads[:, 0] != quads[:, 1]) & (quads[:, 1] != quads[:, 2]) & (quads[:, 0] != quads[:, 2])
+            faces.append(quads[keep])
+    return _mesh(np.concatenate(positions), np.concatenate(normals), np.concatenate(faces))
+
+
+def make_material_ball(segments: int = 96) -> Mesh:
+    """The preview's material ball (:data:`MATERIAL_BALL_PROFILE` revolved): in [-1, 1]^3 like the
+    unit sphere, resting on y = -1, with a groove (a cavity ring) round it, a sharp rim and a cavity on top."""
+    return revolve_profile(MATERIAL_BALL_PROFILE, segments)
+
+
+def encode_mesh_ply(mesh: Mesh) -> bytes:
+    """A binary PLY of ``mesh`` with its vertex normals, written by trimesh (for ``shape = "mesh"`` scenes)."""
+    import trimesh
+
+    shape = trimesh.Trimesh(vertices=mesh.positions, faces=mesh.indices, vertex_normals=mesh.normals, process=False)
+    return shape.export(file_type="ply", encoding="binary", vertex_normal=True)
 
 
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:

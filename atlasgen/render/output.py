@@ -17,7 +17,7 @@ from atlasgen.io.images import encode_exr, encode_png, write_exr
 from atlasgen.optics.display import display_aces
 from atlasgen.optics.quantize import quantize_rgba
 
-__all__ = ["finite_radiance", "render_png", "write_render", "write_aov", "aov_channels"]
+__all__ = ["finite_radiance", "display_codes", "render_png", "write_render", "write_aov", "aov_channels"]
 
 #: The largest value of the renderer's ``rgba16float`` HDR target (IEEE half).
 HDR_MAX = 65504.0
@@ -34,9 +34,14 @@ def finite_radiance(radiance) -> np.ndarray:
     return np.clip(np.nan_to_num(values, nan=0.0, posinf=HDR_MAX, neginf=-HDR_MAX), -HDR_MAX, HDR_MAX)
 
 
+def display_codes(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """``(h, w, 3)`` linear radiance as 8-bit sRGB codes for viewing: :func:`~atlasgen.optics.display.display_aces`."""
+    return quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False)
+
+
 def render_png(radiance: np.ndarray, exposure: float = 1.0) -> bytes:
-    """PNG bytes of ``(h, w, 3)`` linear radiance for viewing: :func:`~atlasgen.optics.display.display_aces`, 8 bits."""
-    return encode_png(quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False))
+    """PNG bytes of :func:`display_codes`."""
+    return encode_png(display_codes(radiance, exposure))
 
 
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:

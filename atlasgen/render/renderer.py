@@ -12,6 +12,7 @@ Order of passes in one frame (each a WebGPU render pass):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -23,8 +24,8 @@ from atlasgen.render.camera import camera_basis, projection_matrix, tangents, vi
 from atlasgen.render.device import get_device
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
-from atlasgen.render.lighting import LightingPass, pack_lights
-from atlasgen.render.meshes import build_mesh
+from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights
+from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
 from atlasgen.shaders.passes import assemble_shader
@@ -124,10 +125,40 @@ class Renderer:
         self._lighting_passes: dict = {}
         self.outline_pass = OutlinePass(device, atlas.include)
         self._meshes: dict = {}
+        self._given_meshes: dict[str, Mesh] = {}
         self._gbuffers: dict = {}
         self._fence = None
 
     # ---- resources -------------------------------------------------------------------
+
+    def set_atlas(self, atlas: RenderAtlas) -> bool:
+        """Render with ``atlas`` from now on, as ``Renderer(atlas, ctx)`` would, keeping what does not
+        depend on it: the device, the g-buffer pipeline, meshes and render targets.
+
+        The texture is uploaded again. The lighting and outline shaders hold the include's text
+        (and the lighting one each custom-lit material's call), so they are compiled again only when
+        that text changed: on lavapipe a compile costs more than everything else an update does.
+        Returns whether they were.
+        """
+        old = self.atlas
+        self.atlas = atlas
+        self.atlas_texture = upload_atlas(self.ctx, atlas)
+        recompile = atlas.include != old.include or material_dispatch_wgsl(atlas.manifest) != material_dispatch_wgsl(old.manifest)
+        if recompile:
+            self._lighting_passes = {}
+            self.outline_pass = OutlinePass(self.device, atlas.include)
+        return recompile
+
+    def add_mesh(self, file, mesh: Mesh) -> None:
+        """Draw ``shape = "mesh"`` objects whose ``file`` is ``file`` with ``mesh``, not with what the file holds.
+
+        For meshes made in memory (the preview's material ball): a scene still names a file, which
+        its parser checks exists, but the renderer does not read it, so trimesh (0.9 s to import)
+        is never loaded.
+        """
+        key = str(Path(file))
+        self._given_meshes[key] = mesh
+        self._meshes = {k: v for k, v in self._meshes.items() if k[1] != key}
 
     def lighting_pass_for(self, shaded_ids=frozenset()) -> LightingPass:
         """The lighting pass compiled for the materials a scene shows whose model shades them
@@ -148,7 +179,8 @@ class Renderer:
         if key not in self._meshes:
             import wgpu
 
-            mesh = build_mesh(obj, scene_path)
+            given = self._given_meshes.get(str(obj.file)) if obj.shape == "mesh" else None
+            mesh = given if given is not None else build_mesh(obj, scene_path)
             usage = wgpu.BufferUsage.COPY_DST
             vertices = self.device.create_buffer_with_data(data=mesh.interleaved(), usage=wgpu.BufferUsage.VERTEX | usage)
             indices = self.device.create_buffer_with_data(data=mesh.indices.ravel(), usage=wgpu.BufferUsage.INDEX | usage)

@@ -98,3 +98,112 @@ def test_the_vertex_buffer_layout_describes_the_interleaved_bytes():
             got = np.frombuffer(raw[start : start + 4 * components], np.float32)
             np.testing.assert_array_equal(got, getattr(mesh, name)[i])
     assert [a["shader_location"] for a in layout["attributes"]] == [0, 1]
+
+
+# ---- the material ball -------------------------------------------------------------------------
+
+
+def welded(mesh, decimals=6):
+    """Faces over vertices merged by position: the surface's topology, whatever its normals."""
+    _, index = np.unique(np.round(mesh.positions.astype(np.float64), decimals), axis=0, return_inverse=True)
+    return index.ravel()[mesh.indices]
+
+
+def winding_numbers(mesh, points):
+    """How many times the closed mesh winds round each point: 1 inside, 0 outside (van Oosterom & Strackee's
+    solid angle of each triangle, tan(omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|))."""
+    tri = mesh.positions[mesh.indices].astype(np.float64)
+    a, b, c = (tri[None, :, k] - points[:, None] for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+    dot = lambda x, y: np.einsum("...k,...k->...", x, y)
+    numerator = dot(a, np.cross(b, c))
+    denominator = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
+    return 2.0 * np.arctan2(numerator, denominator).sum(axis=1) / (4.0 * np.pi)
+
+
+def test_the_material_ball_is_closed_and_consistently_wound():
+    from atlasgen.render.meshes import make_material_ball
+
+    faces = welded(make_material_ball(48))
+    assert (faces[:, 0] != faces[:, 1]).all() and (faces[:, 1] != faces[:, 2]).all() and (faces[:, 0] != faces[:, 2]).all()
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    # Every edge is shared by exactly two faces, which run along it in opposite directions.
+    _, counts = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    assert (counts == 2).all()
+    assert len(np.unique(directed, axis=0)) == len(directed)
+    # A sphere's topology: V - E + F = 2.
+    assert len(np.unique(faces)) - len(counts) + len(faces) == 2
+
+
+def test_the_material_ball_has_unit_outward_normals():
+    from atlasgen.render.meshes import make_material_ball
+
+    mesh = make_material_ball(48)
+    np.testing.assert_allclose(np.linalg.norm(mesh.normals, axis=1), 1.0, atol=1e-6)
+    assert enclosed_volume(mesh) > 0
+    # Each face's winding agrees with its vertices' normals...
+    fn = face_normals(mesh)
+    assert (np.einsum("ijk,ik->ij", mesh.normals[mesh.indices], fn) > 0).all()
+    # ... and a step along a normal leaves the solid, a step against it enters it.
+    rng = np.random.default_rng(7)
+    pick = rng.choice(len(mesh.positions), 80, replace=False)
+    p, n = mesh.positions[pick].astype(np.float64), mesh.normals[pick].astype(np.float64)
+    np.testing.assert_allclose(winding_numbers(mesh, p + 0.01 * n), 0.0, atol=1e-6)
+    np.testing.assert_allclose(winding_numbers(mesh, p - 0.01 * n), 1.0, atol=1e-6)
+
+
+def test_the_material_balls_volume_is_its_profiles():
+    """Pappus: the solid's volume is pi times the integral of r^2 dy round its profile, here summed
+    exactly over a dense polyline of it (trapezoids in r^2), against the mesh's tetrahedra."""
+    from atlasgen.render.meshes import MATERIAL_BALL_PROFILE, make_material_ball
+
+    points = np.concatenate([piece.sample(4000)[0] for piece in MATERIAL_BALL_PROFILE])
+    r2, y = points[:, 0] ** 2, points[:, 1]
+    profile = np.pi * np.sum(0.5 * (r2[1:] + r2[:-1]) * np.diff(y))  # the axis, r = 0, adds nothing
+    assert 3.0 < profile < 4 / 3 * np.pi  # a sphere less its groove and top
+    assert enclosed_volume(make_material_ball(256)) == pytest.approx(profile, rel=2e-3)
+
+
+def test_the_material_balls_normals_are_smooth_except_at_its_creases():
+    from atlasgen.render.meshes import MATERIAL_BALL_PROFILE, make_material_ball
+
+    segments = 64
+    mesh = make_material_ball(segments)
+    # The positions that carry more than one normal: the rings where two profile pieces meet.
+    keys = np.round(mesh.positions.astype(np.float64), 6)
+    unique, index = np.unique(keys, axis=0, return_inverse=True)
+    index = index.ravel()
+    normals_at = {}
+    for i, n in zip(index, mesh.normals):
+        normals_at.setdefault(i, []).append(n)
+    split = {i: ns for i, ns in normals_at.items() if len(ns) > 1}
+    assert len(split) == segments * (len(MATERIAL_BALL_PROFILE) - 1)
+    # The rim: the upper body's last ring against the flat top's first, 90 - 52 degrees apart.
+    rim_y = MATERIAL_BALL_PROFILE[3].start[1]
+    rim = [ns for i, ns in split.items() if abs(unique[i, 1] - rim_y) < 1e-6 and np.hypot(unique[i, 0], unique[i, 2]) > 0.5]
+    assert len(rim) == segments
+    for a, b in rim:
+        assert np.degrees(np.arccos(np.clip(np.dot(a, b), -1, 1))) == pytest.approx(38.0, abs=1e-3)
+    # Everywhere else one normal per position (smooth shading), and it is the mean of the faces round
+    # it to within 3 degrees, where the groove's rings are 31 degrees apart.
+    fn = face_normals(mesh)
+    accumulated = np.zeros((len(mesh.positions), 3))
+    for k in range(3):
+        np.add.at(accumulated, mesh.indices[:, k], fn)
+    accumulated /= np.linalg.norm(accumulated, axis=1, keepdims=True)
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", accumulated, mesh.normals), -1, 1)))
+    assert angle[~np.isin(index, list(split))].max() < 3.0
+
+
+def test_the_material_balls_ply_holds_its_vertices_normals_and_faces(tmp_path):
+    import trimesh
+
+    from atlasgen.render.meshes import encode_mesh_ply, make_material_ball
+
+    mesh = make_material_ball(24)
+    path = tmp_path / "ball.ply"
+    path.write_bytes(encode_mesh_ply(mesh))
+    loaded = trimesh.load(path, process=False)
+    np.testing.assert_array_equal(loaded.vertices, mesh.positions)
+    np.testing.assert_array_equal(loaded.faces, mesh.indices)
+    np.testing.assert_allclose(loaded.vertex_normals, mesh.normals, atol=1e-6)

@@ -129,3 +129,43 @@ def test_frame_uniform_layout(scene_from):
     assert data[40:43].tolist() == [1.25, 100.0, 6.0]  # bias, mip distance, last level
     assert np.frombuffer(data[44:48].tobytes(), dtype=np.uint32).tolist() == [1, 0, 0, 0]  # one light
     assert data[52] == np.float32(0.05)  # outline depth threshold
+
+
+def test_a_given_mesh_is_drawn_without_reading_its_file(renderer, scene_from, tmp_path):
+    from atlasgen.render.meshes import make_sphere
+
+    # Not a mesh at all: reading it would fail, so the picture proves the renderer did not.
+    (tmp_path / "ball.ply").write_text("not a mesh\n")
+    renderer.add_mesh(tmp_path / "ball.ply", make_sphere(64))
+    shown = SCENE + '[[objects]]\nshape = "{shape}"\nmaterial = "glossy"\nsegments = 64\n'
+    given = renderer.render(scene_from(shown.format(shape="mesh") + 'file = "ball.ply"\n', base=tmp_path))
+    built = renderer.render(scene_from(shown.format(shape="sphere")))
+    assert (given.aov("id") != 0xFFFF).mean() > 0.2
+    np.testing.assert_array_equal(given.radiance, built.radiance)
+
+
+@pytest.mark.slow
+def test_set_atlas_renders_what_a_new_renderer_would(gpu_device, write_material, scene_from):
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+    from atlasgen.render.atlas_texture import RenderAtlas
+    from atlasgen.render.renderer import Renderer
+
+    def atlas(colour):
+        path = write_material("clay", f'type = "lambert"\ncolour = {colour}\n')
+        result = bake_atlas(read_materials([path]))
+        return RenderAtlas(result.levels, True, result.manifest, result.include, "test")
+
+    # Same peak (the slice's scale, in the include) with other texels; then another peak.
+    first, same_include, new_include = atlas([0.7, 0.5, 0.3]), atlas([0.7, 0.2, 0.3]), atlas([0.4, 0.5, 0.3])
+    assert first.include == same_include.include != new_include.include
+    scene = scene_from(SCENE + '[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    renderer = Renderer(first, gpu_device)
+    before = renderer.render(scene, aovs=False).radiance
+    assert renderer.set_atlas(same_include) is False
+    texels_only = renderer.render(scene, aovs=False).radiance
+    assert renderer.set_atlas(new_include) is True
+    recompiled = renderer.render(scene, aovs=False).radiance
+    assert np.abs(texels_only - before).max() > 0.05
+    for got, fresh in ((texels_only, same_include), (recompiled, new_include)):
+        np.testing.assert_array_equal(got, Renderer(fresh, gpu_device).render(scene, aovs=False).radiance)

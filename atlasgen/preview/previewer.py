@@ -1,0 +1,215 @@
+"""Bake materials and render each on the standard ball, on one renderer that stays warm.
+
+A :class:`Previewer` holds the GPU device, its compiled pipelines and the ball's mesh across
+previews: the first one pays for all of them, and each later one bakes the materials (from the
+per-material bake cache: only a changed file is baked again), hands the new atlas to the
+renderer (:meth:`~atlasgen.render.renderer.Renderer.set_atlas`, which recompiles the lighting
+shader only when the generated include changed) and renders. Every step is timed.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from atlasgen.bake.pipeline import bake_atlas
+from atlasgen.errors import InputError
+from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
+from atlasgen.io.images import encode_png
+from atlasgen.io.output_paths import check_output_paths, check_suffix
+from atlasgen.io.package_data import package_data_path
+from atlasgen.materials.material import Material, check_unique_names, find_material_files, read_material, read_materials
+from atlasgen.materials.scene import Scene
+from atlasgen.preview.label import draw_label, label_lines
+from atlasgen.preview.scene import ball_mesh_file, parse_preview_scene, preview_scene_data
+from atlasgen.preview.sheet import arrange_sheet
+from atlasgen.render.atlas_texture import RenderAtlas
+from atlasgen.render.device import get_device
+from atlasgen.render.meshes import make_material_ball
+from atlasgen.render.output import display_codes
+from atlasgen.render.renderer import Renderer
+
+__all__ = [
+    "DEFAULT_CACHE_DIR",
+    "DEFAULT_OUTPUT_DIR",
+    "FLOOR_MATERIAL",
+    "Preview",
+    "Previewer",
+    "default_output",
+    "referenced_files",
+    "check_preview_output",
+]
+
+#: The bake cache ``make`` fills (Makefile CACHE_DIR): a material ``make`` has baked is a hit here,
+#: and one previewed here is a hit for ``make``. Entries are keyed by the file's content and the
+#: bake code, so sharing them can cost a re-bake, never a wrong slice.
+DEFAULT_CACHE_DIR = Path("build/cache")
+#: Where the picture goes without ``-o``: beside the other build outputs.
+DEFAULT_OUTPUT_DIR = Path("build/preview")
+#: The floor's material file, shipped with atlasgen.
+FLOOR_MATERIAL = ("preview", "atlasgen-preview-floor.toml")
+
+
+@dataclass
+class Preview:
+    """One preview: its PNG, the materials it shows and where the time went (seconds)."""
+
+    png: bytes
+    names: list[str]
+    #: read, bake, then device and pipelines (the first preview: the GPU device, the renderer's pipelines and
+    #: the atlas's upload) or upload (later ones: the new atlas handed to the renderer), render (the frames,
+    #: with any shader compiled for them, and their read-back), label, encode (PNG) and, written, write
+    timings: dict[str, float] = field(default_factory=dict)
+    #: The files the preview was made from: the material files, then the files they name.
+    inputs: list[Path] = field(default_factory=list)
+    #: Whether the lighting shader was compiled for this preview (a new include).
+    compiled: bool = False
+
+    @property
+    def seconds(self) -> float:
+        return sum(self.timings.values())
+
+
+def default_output(paths) -> Path:
+    """``build/preview/NAME.png`` for one material file (its stem) or one folder (its name), else
+    ``build/preview/contact-sheet.png``.
+
+    >>> default_output(["materials/skin.toml"]).as_posix(), default_output(["materials"]).as_posix()
+    ('build/preview/skin.png', 'build/preview/materials.png')
+    >>> default_output(["a.toml", "b.toml"]).as_posix()
+    'build/preview/contact-sheet.png'
+    """
+    paths = [Path(p) for p in paths]
+    if len(paths) == 1:
+        name = paths[0].stem if paths[0].suffix.lower() == ".toml" else Path(os.path.abspath(paths[0])).name
+        return DEFAULT_OUTPUT_DIR / f"{name or 'preview'}.png"
+    return DEFAULT_OUTPUT_DIR / "contact-sheet.png"
+
+
+def referenced_files(material: Material) -> list[Path]:
+    """The files ``material`` names besides its own: every ``filename`` in its parameters (a Mitsuba
+    ``measured`` BSDF's data, a bitmap), resolved as Mitsuba resolves them, from the working folder."""
+    found: list[Path] = []
+
+    def walk(value) -> None:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                if key == "filename" and isinstance(item, str):
+                    found.append(Path(item))
+                else:
+                    walk(item)
+        elif isinstance(value, (list, tuple)):
+            for item in value:
+                walk(item)
+
+    walk(material.params)
+    return found
+
+
+def check_preview_output(output, sources) -> None:
+    """Refuse an output that is not a ``.png``, is a folder, or would overwrite a material file."""
+    check_suffix(output, "the preview (-o)", (".png",))
+    inputs = [(f, "a material file") for f in find_material_files(sources)]
+    check_output_paths([(Path(output), "the preview (-o)")], inputs)
+
+
+class Previewer:
+    """Renders materials on the standard ball (:mod:`atlasgen.preview.scene`), keeping the GPU warm.
+
+    Parameters
+    ----------
+    cache_dir
+        The per-material bake cache (:mod:`atlasgen.bake.cache`); None bakes every time.
+    ctx
+        A :class:`~atlasgen.render.device.GpuContext`; the shared one by default.
+    """
+
+    def __init__(self, cache_dir=DEFAULT_CACHE_DIR, ctx=None):
+        self.cache_dir = None if cache_dir is None else Path(cache_dir)
+        self.ctx = ctx
+        self.renderer: Renderer | None = None
+        self.ball = make_material_ball()
+        self.floor = read_material(package_data_path(*FLOOR_MATERIAL))
+        self._ball_file: Path | None = None
+
+    @property
+    def ball_file(self) -> Path:
+        """The ball's mesh file the scene names (:func:`~atlasgen.preview.scene.ball_mesh_file`), beside the
+        bake cache, written on first use."""
+        if self._ball_file is None:
+            self._ball_file = ball_mesh_file(self.ball, None if self.cache_dir is None else self.cache_dir / "preview")
+        return self._ball_file
+
+    def scene_for(self, name: str) -> Scene:
+        """The scene a preview renders for the material ``name`` (:mod:`atlasgen.preview.scene`)."""
+        return parse_preview_scene(preview_scene_data(name, self.floor.name, self.ball_file))
+
+    def preview(self, paths, use_cache: bool = True) -> Preview:
+        """Bake the materials under ``paths`` into one atlas and render each: one labelled picture,
+        or a contact sheet of them. ``use_cache=False`` bakes them afresh (a file they name changed,
+        which the cache's key does not cover).
+
+        Raises the bake's and the renderer's errors (:class:`~atlasgen.errors.MaterialError` with
+        the file and field, :class:`~atlasgen.errors.BackendError` without a GPU) before anything is
+        written.
+        """
+        timings: dict[str, float] = {}
+        t0 = time.perf_counter()
+        materials = read_materials(paths)
+        if not materials:
+            shown = ", ".join(Path(p).as_posix() for p in paths)
+            raise InputError(f"{shown}: no material files; expected .toml files, or folders holding them")
+        check_unique_names([*materials, self.floor])
+        inputs = [Path(m.source) for m in materials] + [f for m in materials for f in referenced_files(m)]
+        t1 = time.perf_counter()
+        timings["read"] = t1 - t0
+        result = bake_atlas([*materials, self.floor], cache_dir=self.cache_dir if use_cache else None)
+        atlas = RenderAtlas(result.levels, result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, result.manifest,
+                            result.include, "the preview's atlas")  # fmt: skip
+        t2 = time.perf_counter()
+        timings["bake"] = t2 - t1
+        if self.renderer is None:
+            self.ctx = self.ctx or get_device()
+            t_device = time.perf_counter()
+            timings["device"] = t_device - t2
+            self.renderer = Renderer(atlas, self.ctx)
+            self.renderer.add_mesh(self.ball_file, self.ball)
+            compiled = True
+            t3 = time.perf_counter()
+            timings["pipelines"] = t3 - t_device
+        else:
+            compiled = self.renderer.set_atlas(atlas)
+            t3 = time.perf_counter()
+            timings["upload"] = t3 - t2
+        entries = {e.name: e for e in result.manifest.materials}
+        cells, spent = [], {"render": 0.0, "label": 0.0}
+        for material in materials:
+            t = time.perf_counter()
+            scene = self.scene_for(material.name)
+            radiance = self.renderer.render(scene, aovs=False).radiance
+            codes = display_codes(radiance, scene.settings.exposure)
+            t_render = time.perf_counter()
+            cells.append(draw_label(codes, label_lines(entries[material.name])))
+            spent["render"] += t_render - t
+            spent["label"] += time.perf_counter() - t_render
+        timings.update(spent)
+        t4 = time.perf_counter()
+        png = encode_png(arrange_sheet(cells))
+        timings["encode"] = time.perf_counter() - t4
+        return Preview(png, [m.name for m in materials], timings, inputs, compiled)
+
+    def write(self, paths, output, use_cache: bool = True) -> Preview:
+        """:meth:`preview`, then replace ``output`` with its PNG atomically (timed as ``write``).
+
+        The output is checked first (:func:`check_preview_output`); a preview that fails leaves
+        ``output`` as it was.
+        """
+        check_preview_output(output, paths)
+        preview = self.preview(paths, use_cache)
+        t = time.perf_counter()
+        write_file_atomically(output, preview.png)
+        preview.timings["write"] = time.perf_counter() - t
+        return preview

@@ -1,0 +1,168 @@
+"""``atlasgen preview --watch``: re-bake and re-render on every save, on a renderer that stays warm.
+
+The folders holding the material files (and the files they name) are watched with watchfiles,
+not the files themselves: editors that save by writing a new file and renaming it over the old
+one (vim, most IDEs) replace the file a watch on it would follow, while the folder sees the
+new one arrive. Events are kept only for the files the preview reads (a folder given as a
+source: every ``*.toml`` directly in it), so the PNG's own writes, editors' swap files and
+backups never trigger an update. A batch of events (watchfiles groups those 20 ms apart) is one
+update. An update that fails (a bad edit) reports its error on one line and leaves the last
+good picture in place; the watch goes on.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from atlasgen.errors import AtlasgenError, BackendError
+from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Preview, Previewer, check_preview_output
+
+__all__ = ["Update", "watch_preview", "describe_update"]
+
+#: watchfiles' wait for further events before it reports a batch, ms: an editor's write and rename,
+#: microseconds apart, land in one.
+STEP_MS = 20
+#: How often the watch wakes with nothing to report, ms: to start, and to see ``stop`` without events.
+IDLE_MS = 100
+
+
+@dataclass
+class Update:
+    """One picture the watch made or failed to make."""
+
+    #: The files whose change caused it, as the user named them; empty for the first picture.
+    changed: list[str]
+    #: The preview, or None when it failed (then ``error`` holds why).
+    preview: Preview | None
+    error: AtlasgenError | None = None
+    #: The time of each step (:attr:`Preview.timings`) and ``total``, s.
+    timings: dict = field(default_factory=dict)
+
+
+def describe_update(update: Update, output, steps: bool = True) -> str:
+    """The line printed for an update: what changed and how long the PNG took, e.g.
+    ``materials/clay.toml changed: build/preview/clay.png in 0.412 s``, with ``steps`` followed by
+    ``(read 0.001, bake 0.061, upload 0.009, ...)``; for a failed one, its error."""
+    what = f"{', '.join(update.changed)} changed" if update.changed else "first picture"
+    if update.preview is None:
+        return f"{what}: kept the last picture ({update.error})"
+    line = f"{what}: {Path(output).as_posix()} in {update.timings['total']:.3f} s"
+    if not steps:
+        return line
+    detail = ", ".join(f"{k} {v:.3f}" for k, v in update.timings.items() if k != "total")
+    return line + f" ({detail}{'; lighting shader compiled' if update.preview.compiled else ''})"
+
+
+class _Sources:
+    """The files a preview reads, by absolute path, and the folders to watch for them."""
+
+    def __init__(self, paths):
+        self.given = [Path(p) for p in paths]
+        self.folders_given = {os.path.abspath(p) for p in self.given if p.is_dir()}
+        self.shown = {os.path.abspath(p): p.as_posix() for p in self.given if not p.is_dir()}
+        self.referenced: set[str] = set()
+
+    def learn(self, preview: Preview) -> None:
+        """Watch the files ``preview`` was made from too (a folder's materials, the files they name)."""
+        for path in preview.inputs:
+            key = os.path.abspath(path)
+            self.shown.setdefault(key, Path(path).as_posix())
+            if path not in self.given and path.suffix.lower() != ".toml":
+                self.referenced.add(key)
+
+    def folders(self) -> list[str]:
+        return sorted(self.folders_given | {os.path.dirname(k) for k in self.shown})
+
+    def wants(self, path: str) -> bool:
+        key = os.path.abspath(path)
+        return key in self.shown or (os.path.dirname(key) in self.folders_given and key.lower().endswith(".toml"))
+
+    def name(self, path: str) -> str:
+        key = os.path.abspath(path)
+        return self.shown.get(key) or os.path.relpath(key)
+
+
+def watch_preview(
+    paths,
+    output,
+    cache_dir=DEFAULT_CACHE_DIR,
+    *,
+    stop: threading.Event | None = None,
+    max_updates: int | None = None,
+    echo: Callable[[str], None] | None = None,
+    on_update: Callable[[Update], None] | None = None,
+    previewer: Previewer | None = None,
+) -> int:
+    """Write ``output``'s preview of ``paths``, then again on every change to what it reads, until stopped.
+
+    Parameters
+    ----------
+    paths, output, cache_dir
+        As :meth:`Previewer.write <atlasgen.preview.previewer.Previewer.write>`.
+    stop
+        Set it (from another thread) to end the watch; it ends within :data:`IDLE_MS` of it, or
+        after the update under way.
+    max_updates
+        End after this many updates caused by changes (the first picture is not one).
+    echo
+        Called with one line per update (:func:`describe_update`); errors are lines too.
+    on_update
+        Called with each :class:`Update`, the first picture's included.
+    previewer
+        The warm state to use (a test's, a benchmark's); a new one on ``cache_dir`` by default.
+
+    Returns the number of updates caused by changes. The output is checked before anything
+    starts (:func:`~atlasgen.preview.previewer.check_preview_output`). Ctrl-C raises
+    :class:`KeyboardInterrupt` out of the watch (between updates or in one: the PNG is
+    replaced whole or not at all).
+    """
+    try:
+        import watchfiles
+    except ImportError:
+        raise BackendError("--watch needs the Python package watchfiles (pip install 'atlasgen[render]')") from None
+
+    check_preview_output(output, paths)
+    previewer = previewer or Previewer(cache_dir)
+    stop = stop or threading.Event()
+    sources = _Sources(paths)
+    done, first = 0, True
+
+    def update(changed: list[str], use_cache: bool = True) -> None:
+        try:
+            preview = previewer.write(paths, output, use_cache)
+        except AtlasgenError as exc:
+            result = Update(changed, None, exc)
+        else:
+            sources.learn(preview)
+            result = Update(changed, preview, None, {**preview.timings, "total": preview.seconds})
+        if echo is not None:
+            echo(describe_update(result, output))
+        if on_update is not None:
+            on_update(result)
+
+    while not stop.is_set():
+        folders = sources.folders()
+        changes = watchfiles.watch(*folders, watch_filter=lambda _, path: sources.wants(path), step=STEP_MS,
+                                   stop_event=stop, rust_timeout=IDLE_MS, yield_on_timeout=True, recursive=False)  # fmt: skip
+        try:
+            for batch in changes:
+                if first:
+                    # The watch is running by now, so no save made while the first picture renders is lost.
+                    first = False
+                    update([])
+                elif batch:
+                    changed = sorted({sources.name(path) for _, path in batch})
+                    # The bake cache's key is the material file alone: a file it names changed under it.
+                    update(changed, use_cache=not any(os.path.abspath(path) in sources.referenced for _, path in batch))
+                    done += 1
+                    if max_updates is not None and done >= max_updates:
+                        return done
+                if sources.folders() != folders:
+                    break  # a material names a file in another folder now: watch that one too
+        finally:
+            changes.close()
+    return done

@@ -1,0 +1,79 @@
+"""``atlasgen preview``: a thin click layer over :mod:`atlasgen.preview`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from atlasgen.cli.main import _one_line, fail_on_errors
+from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
+from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
+from atlasgen.preview.watch import describe_update, watch_preview
+
+__all__ = ["preview"]
+
+
+def _steps(timings: dict) -> str:
+    return ", ".join(f"{name} {seconds:.3f} s" for name, seconds in timings.items())
+
+
+@click.command("preview")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="PNG to write.  [default: build/preview/NAME.png, NAME the material file's stem or the folder's "
+                   "name; build/preview/contact-sheet.png for several]")  # fmt: skip
+@click.option("--cache", "cache_dir", type=click.Path(path_type=Path, file_okay=False), default=DEFAULT_CACHE_DIR,
+              show_default=True, help="Per-material bake cache, the one make fills: unchanged materials are loaded, "
+                                      "not baked again.")  # fmt: skip
+@click.option("--no-cache", is_flag=True, help="Bake every material, and store nothing.")
+@click.option("--watch", is_flag=True,
+              help="Keep running: re-bake and re-render on every save of a material file (or a file it names), "
+                   "printing one line per update; Ctrl-C ends it (exit 0).")  # fmt: skip
+@verbosity_options(quiet="Print only errors.", verbose="Also print how long each step took.")
+@fail_on_errors
+def preview(paths, output, cache_dir, no_cache, watch, verbosity):
+    """Show material files (or folders of them) on a standard ball and sphere, in a labelled PNG.
+
+    The materials are baked alone, from the bake cache, and rendered with the deferred renderer
+    on a floor with a key and a rim light (atlasgen/preview/scene.py). Each picture is labelled
+    with the material's name and type, its representation (LUT slice, fitted slice, separable
+    with K terms, analytic) and the error its manifest entry gives. Several materials, or a
+    folder, give a contact sheet: one bake, one labelled picture per material.
+
+    With --watch the GPU device and the compiled pipelines stay warm: every save re-bakes what
+    changed and rewrites the PNG (atomically, so a viewer never sees half of it). Editors that
+    save by renaming a new file over the old one are followed (the folder is watched). A bad
+    edit prints its one-line error and keeps the last good picture.
+
+    Exit codes as every command's; a bad material file gives its one line (3) and leaves the PNG as
+    it was.
+    """
+    output = output or default_output(paths)
+    cache = None if no_cache else cache_dir
+    if watch:
+        _watch(paths, output, cache, verbosity)
+        return
+    shown = Previewer(cache).write(paths, output)
+    if verbosity != QUIET:
+        click.echo(f"wrote {output.as_posix()} ({', '.join(shown.names)}) in {shown.seconds:.2f} s")
+    if verbosity == VERBOSE:
+        click.echo(f"  {_steps(shown.timings)}", err=True)
+
+
+def _watch(paths, output, cache, verbosity) -> None:
+    def report(update) -> None:
+        if update.error is not None:
+            click.echo(f"atlasgen: error: {_one_line(update.error)} (kept the last picture; watching)", err=True)
+        elif verbosity != QUIET:
+            click.echo(describe_update(update, output, steps=verbosity == VERBOSE))
+
+    check_preview_output(output, paths)
+    if verbosity != QUIET:
+        click.echo(f"watching {', '.join(Path(p).as_posix() for p in paths)} (Ctrl-C to stop)", err=True)
+    try:
+        watch_preview(paths, output, cache, on_update=report)
+    except KeyboardInterrupt:
+        # Ctrl-C is how a watch ends: a success; the PNG was replaced whole or not at all.
+        if verbosity != QUIET:
+            click.echo("stopped watching", err=True)

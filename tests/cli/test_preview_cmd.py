@@ -1,0 +1,88 @@
+"""``atlasgen preview``: the picture, its default path, one-line errors with their exit codes, and Ctrl-C."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.cli.main import app
+
+CLAY = 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n'
+
+
+@pytest.mark.parametrize(
+    "body, args, code, words",
+    [
+        ('type = "lambert"\ncolour = [0.7, 0.5]\n', [], 3, "field 'colour'"),
+        (CLAY, ["-o", "clay.jpg"], 4, "the preview (-o) must end in .png"),
+        (CLAY, ["missing.toml"], 3, "missing.toml: no such file or folder"),
+    ],
+    ids=["bad material", "not a png", "missing file"],
+)
+def test_bad_input_is_one_line_and_the_picture_stays(tmp_path, monkeypatch, write_material, body, args, code, words):
+    monkeypatch.chdir(tmp_path)
+    clay = write_material("clay", body)
+    old = tmp_path / "build" / "preview" / "clay.png"
+    old.parent.mkdir(parents=True)
+    old.write_bytes(b"the last good picture")
+    paths = [a for a in args if a.endswith(".toml")] or [str(clay)]
+    res = CliRunner().invoke(app, ["preview", *paths, "--cache", str(tmp_path / "cache"), *[a for a in args if a not in paths]])
+    assert res.exit_code == code, res.output
+    assert len(res.stderr.splitlines()) == 1 and res.stderr.startswith("atlasgen: error: ") and words in res.stderr
+    assert old.read_bytes() == b"the last good picture"
+
+
+def test_paths_are_required():
+    res = CliRunner().invoke(app, ["preview"])
+    assert res.exit_code == 2 and "Missing argument 'PATHS...'" in res.stderr
+
+
+@pytest.mark.slow
+def test_the_picture_goes_to_build_preview_by_default(gpu_device, tmp_path, monkeypatch, write_material):
+    monkeypatch.chdir(tmp_path)
+    write_material("clay", CLAY)
+    res = CliRunner().invoke(app, ["preview", "materials/clay.toml", "-v", "--cache", "cache"])
+    assert res.exit_code == 0, res.output
+    assert res.stdout.startswith("wrote build/preview/clay.png (clay) in ")
+    assert res.stderr.startswith("  read ") and "render" in res.stderr
+    assert (tmp_path / "build" / "preview" / "clay.png").read_bytes().startswith(b"\x89PNG")
+    assert (tmp_path / "cache" / "clay.npz").is_file()
+    # A folder: a contact sheet named after it.
+    res = CliRunner().invoke(app, ["preview", "materials", "-q", "--no-cache"])
+    assert res.exit_code == 0 and res.output == "" and (tmp_path / "build" / "preview" / "materials.png").is_file()
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_a_watch_with_success(gpu_device, tmp_path, write_material):
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "clay.png"
+    code = ("import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+            "from atlasgen.cli.main import main\n"
+            f"main(['preview', {str(clay)!r}, '--watch', '-o', {str(out)!r}, '--cache', {str(tmp_path / 'cache')!r}])\n")  # fmt: skip
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=os.environ)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not out.exists() and time.monotonic() < deadline and child.poll() is None:
+            time.sleep(0.1)
+        assert out.exists(), "no first picture"
+        first = out.read_bytes()
+        clay.write_text(CLAY.replace("0.3", "0.1"))
+        while out.read_bytes() == first and time.monotonic() < deadline:
+            time.sleep(0.1)
+        child.send_signal(signal.SIGINT)
+        stdout, stderr = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 0, stderr
+    assert stderr.splitlines()[0].startswith("watching ") and stderr.splitlines()[-1] == "stopped watching"
+    lines = stdout.splitlines()
+    assert lines[0].startswith(f"first picture: {out.as_posix()} in ")
+    assert lines[1].startswith(f"{clay.as_posix()} changed: {out.as_posix()} in ") and lines[1].endswith(" s")
+    assert out.read_bytes() != first and out.read_bytes().startswith(b"\x89PNG")

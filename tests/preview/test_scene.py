@@ -1,0 +1,95 @@
+"""The preview's scene: what it holds, the environment it asks for, the ball's file, and its light."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.errors import SceneError
+from atlasgen.preview import scene as preview_scene
+from atlasgen.preview.scene import ENVIRONMENT, ball_mesh_file, parse_preview_scene, preview_scene_data
+from atlasgen.render.meshes import make_material_ball, make_sphere
+
+
+@pytest.fixture
+def ball_file(tmp_path):
+    return ball_mesh_file(make_material_ball(24), tmp_path)
+
+
+def test_a_sphere_and_the_ball_rest_side_by_side_on_the_floor(ball_file):
+    scene = parse_preview_scene(preview_scene_data("clay", "floor", ball_file))
+    floor, sphere, ball = scene.objects
+    assert (floor.shape, floor.material, sphere.shape, sphere.material, ball.shape, ball.material) == (
+        "plane", "floor", "sphere", "clay", "mesh", "clay")  # fmt: skip
+    assert ball.file == ball_file
+    lowest = {"sphere": make_sphere(8).positions[:, 1].min(), "mesh": make_material_ball(24).positions[:, 1].min()}
+    for obj in (sphere, ball):
+        assert obj.translate[1] + obj.scale[1] * lowest[obj.shape] == pytest.approx(0.0, abs=1e-6)
+    assert sphere.translate[0] < 0 < ball.translate[0]
+    # A key light above and in front (the camera's side), a rim light from the right.
+    key, rim = scene.lights
+    assert key.type == "point" and key.position[1] > 2 and key.position[2] > 2
+    assert rim.type == "directional" and rim.direction[0] < 0
+
+
+def test_the_environment_is_asked_for_once_the_format_takes_it(ball_file, monkeypatch):
+    data = preview_scene_data("clay", "floor", ball_file)
+    assert "environment" not in data
+    seen, today = [], preview_scene.parse_scene
+
+    def future_parser(raw, path="<scene>", base=None):
+        seen.append(raw.get("environment"))
+        return today({k: v for k, v in raw.items() if k != "environment"}, path, base)
+
+    monkeypatch.setattr(preview_scene, "parse_scene", future_parser)
+    parse_preview_scene(data)
+    assert seen == [ENVIRONMENT] == ["sky"]
+
+
+def test_only_the_unknown_environment_key_falls_back(ball_file):
+    # Today's parser refuses the key: the scene is parsed without it.
+    assert parse_preview_scene(preview_scene_data("clay", "floor", ball_file)).objects[1].material == "clay"
+    with pytest.raises(SceneError, match=r"objects\[2\]\.file"):
+        parse_preview_scene(preview_scene_data("clay", "floor", ball_file.with_name("missing.ply")))
+
+
+def test_the_balls_file_is_named_by_its_content_and_written_once(tmp_path):
+    first = ball_mesh_file(make_material_ball(24), tmp_path)
+    stamp = first.stat().st_mtime_ns
+    assert ball_mesh_file(make_material_ball(24), tmp_path) == first and first.stat().st_mtime_ns == stamp
+    other = ball_mesh_file(make_material_ball(32), tmp_path)
+    assert other != first and other.parent == first.parent == tmp_path
+    assert first.read_bytes().startswith(b"ply\n")
+
+
+@pytest.mark.slow
+def test_the_floor_shows_the_lights_in_the_scene_formats_units(gpu_device, ball_file, write_material):
+    """Where the floor is seen, its radiance is a Lambertian's under the two lights (docs/scenes.md):
+    L = albedo * colour / pi * (I cos / d^2 for the key + E cos for the rim), cos = N.L with N = +y."""
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.io.package_data import package_data_path
+    from atlasgen.materials.material import read_material
+    from atlasgen.preview.previewer import FLOOR_MATERIAL
+    from atlasgen.render.atlas_texture import RenderAtlas
+    from atlasgen.render.camera import pixel_rays
+    from atlasgen.render.renderer import Renderer
+
+    floor = read_material(package_data_path(*FLOOR_MATERIAL))
+    clay = read_material(write_material("clay", 'type = "lambert"\n'))
+    result = bake_atlas([clay, floor])
+    renderer = Renderer(RenderAtlas(result.levels, True, result.manifest, result.include), gpu_device)
+    renderer.add_mesh(ball_file, make_material_ball(24))
+    scene = parse_preview_scene(preview_scene_data("clay", floor.name, ball_file))
+    rendered = renderer.render(scene)
+    on_floor = rendered.aov("id") == result.manifest.materials[[m.name for m in result.manifest.materials].index(floor.name)].id
+    rays = pixel_rays(scene.camera, scene.width, scene.height)
+    eye = np.asarray(scene.camera.position)
+    points = eye + rays * (-eye[1] / rays[..., 1])[..., None]  # where each ray meets y = 0
+    key, rim = scene.lights
+    to_key = np.asarray(key.position) - points
+    distance = np.linalg.norm(to_key, axis=-1)
+    irradiance = (np.asarray(key.colour) * key.intensity * np.maximum(to_key[..., 1] / distance, 0)[..., None] / distance[..., None] ** 2
+                  + np.asarray(rim.colour) * rim.intensity * max(-rim.direction[1], 0.0))  # fmt: skip
+    expected = np.asarray(scene.objects[0].albedo) / np.pi * irradiance
+    assert on_floor.mean() > 0.3
+    np.testing.assert_allclose(rendered.radiance[on_floor], expected[on_floor], rtol=0.01)

@@ -1,0 +1,195 @@
+"""``watch_preview``: real file writes (in place, renamed over, broken, fixed) from a thread, checked
+against the PNG and the printed lines. A stand-in previewer keeps the fast tests off the GPU."""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+from pathlib import Path
+
+import pytest
+
+from atlasgen.materials.material import read_materials
+from atlasgen.preview.previewer import Preview
+from atlasgen.preview.watch import Update, describe_update, watch_preview
+
+CLAY = 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n'
+#: Seconds a step of a test waits for the watch before failing.
+PATIENCE = 20.0
+
+
+class StandIn:
+    """A previewer whose picture is the material files' bytes: reads them as the real one does
+    (a bad file raises the same MaterialError), and records each call."""
+
+    def __init__(self, extra_inputs=()):
+        self.calls: list[bool] = []
+        self.extra_inputs = [Path(p) for p in extra_inputs]
+
+    def write(self, paths, output, use_cache=True):
+        self.calls.append(use_cache)
+        materials = read_materials(paths)
+        png = b"".join(Path(m.source).read_bytes() for m in materials)
+        Path(output).write_bytes(png)
+        inputs = [Path(m.source) for m in materials] + self.extra_inputs
+        return Preview(png, [m.name for m in materials], {"bake": 0.001, "render": 0.002}, inputs)
+
+
+def run_watch(paths, output, previewer, script, max_updates, **options):
+    """Watch in this thread while ``script(next_update)`` acts from another; return the updates and lines.
+
+    ``next_update()`` returns the next :class:`Update` (the first is the first picture). A script
+    that fails, or a watch that stalls, ends the test instead of hanging it.
+    """
+    updates: queue.Queue[Update] = queue.Queue()
+    lines: list[str] = []
+    stop, failures = threading.Event(), []
+
+    def next_update() -> Update:
+        try:
+            return updates.get(timeout=PATIENCE)
+        except queue.Empty:
+            raise AssertionError("the watch reported nothing") from None
+
+    def act():
+        try:
+            script(next_update)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the test's thread
+            failures.append(exc)
+            stop.set()
+
+    actor = threading.Thread(target=act, daemon=True)
+    timer = threading.Timer(6 * PATIENCE, stop.set)
+    actor.start(), timer.start()
+    try:
+        done = watch_preview(paths, output, stop=stop, max_updates=max_updates, echo=lines.append, on_update=updates.put,
+                             previewer=previewer, **options)  # fmt: skip
+    finally:
+        timer.cancel()
+        actor.join(PATIENCE)
+    if failures:
+        raise failures[0]
+    assert not stop.is_set() or done == max_updates, "the watch was stopped by the test's timer"
+    return done, lines
+
+
+def rename_over(path: Path, text: str) -> None:
+    """Save as vim and most IDEs do: a new file beside the old one, renamed over it."""
+    temporary = path.with_name(f".{path.name}.swp")
+    temporary.write_text(text)
+    os.replace(temporary, path)
+
+
+def test_saves_in_place_renamed_over_broken_and_fixed(write_material, tmp_path):
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "materials" / "clay.png"  # in the watched folder: its own writes must not count
+    previewer = StandIn()
+    seen = []
+
+    def script(next_update):
+        first = next_update()
+        assert first.changed == [] and first.preview is not None and out.read_bytes() == CLAY.encode()
+        for text, save in ((CLAY.replace("0.3", "0.2"), Path.write_text), (CLAY.replace("0.3", "0.1"), rename_over)):
+            save(clay, text)
+            update = next_update()
+            assert update.changed == [clay.as_posix()] and update.error is None
+            assert out.read_bytes() == text.encode()
+            seen.append(update)
+        (tmp_path / "materials" / "notes.txt").write_text("not a material\n")
+        clay.write_text('type = "lambert"\ncolour = [0.7, 0.5]\n')
+        broken = next_update()
+        assert broken.changed == [clay.as_posix()] and broken.preview is None
+        assert "field 'colour'" in str(broken.error) and out.read_bytes() == CLAY.replace("0.3", "0.1").encode()
+        rename_over(clay, CLAY)
+        assert next_update().error is None and out.read_bytes() == CLAY.encode()
+
+    done, lines = run_watch([clay], out, previewer, script, max_updates=4)
+    assert done == 4 and len(previewer.calls) == 5 and all(previewer.calls)
+    assert lines[0].startswith(f"first picture: {out.as_posix()} in ")
+    assert lines[1] == describe_update(seen[0], out) and lines[1].startswith(f"{clay.as_posix()} changed: {out.as_posix()} in ")
+    assert "(bake 0.001, render 0.002)" in lines[1]
+    assert lines[3].startswith(f"{clay.as_posix()} changed: kept the last picture ({clay.as_posix()}: field 'colour'")
+    assert len(lines) == 5 and all("\n" not in line for line in lines)
+
+
+def test_a_folder_takes_new_material_files(write_material, tmp_path):
+    write_material("clay", CLAY)
+    folder, out = tmp_path / "materials", tmp_path / "sheet.png"
+
+    def script(next_update):
+        assert next_update().preview.names == ["clay"]
+        (folder / "snow.toml").write_text('type = "lambert"\n')
+        update = next_update()
+        assert update.changed == [os.path.relpath(folder / "snow.toml")] and update.preview.names == ["clay", "snow"]
+
+    run_watch([folder], out, StandIn(), script, max_updates=1)
+
+
+def test_a_file_a_material_names_is_watched_and_baked_afresh(write_material, tmp_path):
+    clay = write_material("clay", CLAY)
+    data = tmp_path / "elsewhere" / "measured.bsdf"
+    data.parent.mkdir()
+    data.write_bytes(b"1")
+    previewer = StandIn(extra_inputs=[data])
+
+    def script(next_update):
+        next_update()
+        # The watch now covers the data's folder too; give it a moment to start there.
+        threading.Event().wait(0.5)
+        data.write_bytes(b"2")
+        assert next_update().changed == [data.as_posix()]
+        clay.write_text(CLAY.replace("0.3", "0.2"))
+        assert next_update().changed == [clay.as_posix()]
+
+    run_watch([clay], tmp_path / "clay.png", previewer, script, max_updates=2)
+    # The bake cache's key is the material file: a change to the data bakes without it.
+    assert previewer.calls == [True, False, True]
+
+
+def test_an_output_that_is_not_a_png_is_refused_before_watching(write_material, tmp_path):
+    from atlasgen.errors import OutputError
+
+    clay = write_material("clay", CLAY)
+    with pytest.raises(OutputError, match=r"must end in \.png"):
+        watch_preview([clay], tmp_path / "clay.toml", previewer=StandIn(), max_updates=1)
+
+
+@pytest.mark.slow
+def test_the_real_preview_follows_saves_on_a_warm_renderer(gpu_device, write_material, tmp_path):
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from atlasgen.preview.previewer import Previewer
+    from atlasgen.preview.scene import HEIGHT, WIDTH
+
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "clay.png"
+    previewer = Previewer(tmp_path / "cache", gpu_device)
+
+    def centre_of_sphere():
+        return np.asarray(Image.open(io.BytesIO(out.read_bytes())).convert("RGB"))[HEIGHT // 2 - 40, WIDTH // 2 - 150].astype(int)
+
+    def script(next_update):
+        assert next_update().preview.compiled
+        r, g, b = centre_of_sphere()
+        assert r > g > b
+        renderer = previewer.renderer
+        # Blue now: another peak, so another include, and the lighting shader is compiled again.
+        rename_over(clay, 'type = "lambert"\ncolour = [0.1, 0.2, 0.6]\n')
+        update = next_update()
+        assert update.error is None and update.preview.compiled and previewer.renderer is renderer
+        r, g, b = centre_of_sphere()
+        assert b > g > r
+        blue = out.read_bytes()
+        clay.write_text('type = "lambert"\ncolour = "#12"\n')
+        assert next_update().error is not None and out.read_bytes() == blue
+        # The same peak with other channels: the include is unchanged, only the texels are uploaded.
+        rename_over(clay, 'type = "lambert"\ncolour = [0.3, 0.2, 0.6]\n')
+        update = next_update()
+        assert update.error is None and not update.preview.compiled and centre_of_sphere()[0] > r
+
+    done, lines = run_watch([clay], out, previewer, script, max_updates=3)
+    assert "lighting shader compiled" in lines[1] and "lighting shader compiled" not in lines[3]
