@@ -81,7 +81,9 @@ def _sh_diffuse(order: int = SH_ORDER) -> Function:
         body.append(Assign("total", f"lam[{l}].xyz * ({terms})", "+="))
     body.append(Return("total / ATLAS_PI"))
     return Function(
-        "atlas_sh_diffuse", "vec3", (("n", "vec3"), ("sh", f"vec4[{sh_count(order)}]"), ("lam", f"vec4[{order + 1}]")),
+        "atlas_sh_diffuse",
+        "vec3",
+        (("n", "vec3"), ("sh", f"vec4[{sh_count(order)}]"), ("lam", f"vec4[{order + 1}]")),
         tuple(body),
         "(1/pi) sum_l lam_l sum_m L_lm Y_lm(n): an environment's diffuse light through a slice (Funk-Hecke;\n"
         "Ramamoorthi & Hanrahan 2001). sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase);\n"
