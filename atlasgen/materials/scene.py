@@ -125,6 +125,8 @@ class Scene:
     objects: list = field(default_factory=list)
     settings: RenderSettings = field(default_factory=RenderSettings)
     environment: Environment | None = None
+    #: Whether ``[image].background`` was given: without it, a scene with an environment shows the environment there.
+    background_given: bool = False
 
 
 class _Reader:
@@ -351,7 +353,7 @@ def parse_scene(data: dict, path="<scene>", base=None) -> Scene:
     base = Path(base) if base is not None else Path(".")
     objects = [_read_object(r, raw, i, base) for i, raw in enumerate(objects_raw)]
     environment = _read_environment(r, data["environment"], base) if "environment" in data else None
-    return Scene(path, camera, width, height, background, lights, objects, settings, environment)
+    return Scene(path, camera, width, height, background, lights, objects, settings, environment, "background" in image)
 
 
 def read_scene(path) -> Scene:

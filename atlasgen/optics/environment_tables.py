@@ -40,6 +40,8 @@ __all__ = [
     "diffuse_environment",
     "specular_environment",
     "reflect",
+    "directional_albedo_table",
+    "split_sum_environment",
 ]
 
 #: Columns of the specular table: gloss i / (GLOSS_COUNT - 1), i = 0..15.
@@ -232,3 +234,43 @@ def specular_environment(levels, specular_table, reflected, n_dot_v, gloss) -> n
     s = interpolate_2d(table, g * (table.shape[1] - 1), nv * (table.shape[0] - 1))
     pre = sample_prefiltered(levels, reflected, (1.0 - g) * (len(levels) - 1))
     return pre * np.asarray(s)[..., None]
+
+
+def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128)) -> np.ndarray:
+    """S_sep(N.V_j) = int_H f cos(l, v_j) dl, ``(height, 3)``: the directional albedo of a 4D f cos, per N.V row.
+
+    For materials whose f cos has no (N.L, N.V) slice (separable ones): the renderer gives them
+    the split sum with their own albedo, Lpre(r, alpha) S_sep(N.V) (:func:`split_sum_environment`).
+    ``f_cos(l, v)`` as for :func:`azimuth_averaged_slice` (local frame, n = +z, ``(N, 3)`` each);
+    rows at N.V_j = j / (height - 1), v = (sin(theta_v), 0, N.V). The integral is Gauss-Legendre in
+    cos(theta_l) (``nodes[0]``) times the midpoint rule in the azimuth (``nodes[1]``).
+
+    >>> t = directional_albedo_table(lambda l, v: np.repeat(l[:, 2:] / np.pi, 3, 1), 3, (8, 4))
+    >>> t.round(12).tolist()[0]  # a white Lambertian surface reflects everything
+    [1.0, 1.0, 1.0]
+    """
+    t, w = gauss_legendre_rule(nodes[0])
+    mu, w_mu = 0.5 * (t + 1.0), 0.5 * w
+    phi = 2.0 * np.pi * (np.arange(nodes[1]) + 0.5) / nodes[1]
+    s = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
+    l = np.stack(np.broadcast_arrays(s[:, None] * np.cos(phi), s[:, None] * np.sin(phi), mu[:, None]), -1).reshape(-1, 3)
+    weight = np.repeat(w_mu, nodes[1]) * (2.0 * np.pi / nodes[1])
+    out = np.empty((height, 3))
+    for j, c in enumerate(np.linspace(0.0, 1.0, height)):
+        v = np.broadcast_to(_view(c), l.shape)
+        out[j] = weight @ np.asarray(f_cos(l, v), dtype=np.float64).reshape(-1, 3)
+    return out
+
+
+def split_sum_environment(levels, albedo_table, reflected, n_dot_v, gloss) -> np.ndarray:
+    """Lpre(r, alpha) S_sep(N.V): the split sum of a material with its own directional albedo ``(H, 3)``, ``(..., 3)``.
+
+    ``albedo_table`` from :func:`directional_albedo_table`, read linearly at N.V (H - 1); the lobe
+    width comes from the object's gloss, level (1 - gloss) (levels - 1), as for
+    :func:`specular_environment`. Exact for a uniform environment, whatever the lobe.
+    """
+    table = np.asarray(albedo_table, dtype=np.float64)
+    g = np.clip(np.asarray(gloss, dtype=np.float64), 0.0, 1.0)
+    nv = np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0)
+    s = interpolate_1d(table, nv * (table.shape[0] - 1))
+    return sample_prefiltered(levels, reflected, (1.0 - g) * (len(levels) - 1)) * s

@@ -25,12 +25,13 @@ from atlasgen.optics.equirect import resample_equirect, sample_equirect, texel_d
 from atlasgen.optics.microfacet import ggx_distribution
 from atlasgen.optics.specular import specular_alpha
 
-__all__ = ["PREFILTER_LEVELS", "MIN_LEVEL_WIDTH", "level_alpha", "level_width", "prefilter_ggx", "sample_prefiltered"]
+__all__ = ["PREFILTER_LEVELS", "level_alpha", "level_width", "filter_width", "prefilter_ggx", "sample_prefiltered"]
 
 #: Levels the renderer prefilters: roughness 0, 0.2, ..., 1.
 PREFILTER_LEVELS = 6
-#: No level is narrower than this (16x8): coarser, the rough lobes' cosine fall-off is undersampled.
-MIN_LEVEL_WIDTH = 16
+#: Levels are filtered at least this wide (16x8), then resampled to their mip size when that is
+#: smaller: coarser, the rough lobes' cosine fall-off is undersampled by the filter's target texels.
+_MIN_FILTER_WIDTH = 16
 #: Kernel evaluations per level at most (target rows x source texels); beyond it the source is
 #: averaged down (:func:`atlasgen.optics.equirect.resample_equirect`) before filtering.
 _LEVEL_BUDGET = 1 << 24
@@ -50,17 +51,32 @@ def level_alpha(level: int, levels: int = PREFILTER_LEVELS) -> float:
     return float(specular_alpha(1.0 - level / (levels - 1)))
 
 
-def level_width(source_width: int, level: int, levels: int = PREFILTER_LEVELS) -> int:
-    """Width of ``level`` (its height is half): the source's at level 0, then halved per level, and never
-    finer than its lobe needs nor narrower than :data:`MIN_LEVEL_WIDTH`.
+def level_width(source_width: int, level: int) -> int:
+    """Width of ``level`` (its height is half): the source's >> level, a standard mip chain.
+
+    So the levels can be one texture's mip levels (the renderer uploads them as one, and a
+    shader picks the level with ``textureSampleLevel``); the source's width must be divisible by
+    2^(levels - 1) and leave at least 4x2 (:func:`prefilter_ggx` checks).
+
+    >>> [level_width(256, k) for k in range(6)]
+    [256, 128, 64, 32, 16, 8]
+    """
+    return int(source_width) >> level
+
+
+def filter_width(source_width: int, level: int, levels: int = PREFILTER_LEVELS) -> int:
+    """Width at which ``level`` is filtered before it is resampled to :func:`level_width`: no finer than
+    its lobe needs, no narrower than 16 (nor than the level itself).
 
     A lobe of roughness alpha is about alpha radians wide (D falls to half at tan(theta_h) =
     0.64 alpha, 1.3 alpha between r and l), so a column spacing 2 pi / W of alpha or less (W the
-    power of two at or above 2 pi / alpha) resolves it; the result is even.
+    power of two at or above 2 pi / alpha) resolves it; a wider level is the filtered one
+    interpolated bilinearly, which is as good as the filter's own texels. Below 16 wide the filter's
+    texels are too coarse for the cosine fall-off, so it runs at 16 and is averaged down.
 
-    >>> [level_width(256, k) for k in range(6)]
+    >>> [filter_width(256, k) for k in range(6)]
     [256, 128, 64, 32, 16, 16]
-    >>> [level_width(2048, k) for k in range(6)]
+    >>> [filter_width(2048, k) for k in range(6)]
     [2048, 256, 64, 32, 16, 16]
     """
     if level == 0:
@@ -68,7 +84,7 @@ def level_width(source_width: int, level: int, levels: int = PREFILTER_LEVELS) -
     alpha = level_alpha(level, levels)
     lobe = 2 ** math.ceil(math.log2(2.0 * math.pi / alpha))
     w = min(int(source_width) >> level, lobe)
-    return max(MIN_LEVEL_WIDTH, w + (w % 2))
+    return max(_MIN_FILTER_WIDTH, w + (w % 2))
 
 
 def _filter_level(source: np.ndarray, height: int, width: int, alpha: float) -> np.ndarray:
@@ -101,14 +117,17 @@ def prefilter_ggx(image, levels: int = PREFILTER_LEVELS) -> list[np.ndarray]:
 
     Level 0 (roughness 0, alpha = 0.002) is the source itself: its lobe, about 0.003 radians
     (0.15 degrees) between r and l, is narrower than a texel of any usable image (1.4 degrees at
-    256 wide), so filtering it would only blur. Level k >= 1 is :func:`level_width` wide and
-    holds, at each texel direction r, the normalised sum over source texels
+    256 wide), so filtering it would only blur. Level k >= 1 is :func:`level_width` wide (W >> k by
+    H >> k, a mip chain: 256x128 down to 8x4 for 6 levels) and holds, at each texel direction r, the
+    normalised sum over source texels
     sum_s Omega_s D(r.h_s) max(r.l_s, 0) L_s / sum_s Omega_s D(r.h_s) max(r.l_s, 0)
     (Omega_s: :func:`atlasgen.optics.equirect.texel_solid_angles`), so a constant image stays
     that constant at every level. Levels 1 and above filter the source averaged down to at most
     :data:`SOURCE_WIDTH` wide (the average keeps its integral, so a sun keeps its irradiance), used
     as is when its width is a multiple of the level's and the sum fits ``_LEVEL_BUDGET`` kernel
-    evaluations, else averaged further to the widest such multiple.
+    evaluations, else averaged further to the widest such multiple. A level is filtered at
+    :func:`filter_width` and, where that differs from its mip size, resampled to it
+    (:func:`atlasgen.optics.equirect.resample_equirect`: bilinear up, averaged down).
     """
     img = np.asarray(image, dtype=np.float64)
     if img.ndim != 3 or img.shape[0] < 2:
@@ -116,11 +135,16 @@ def prefilter_ggx(image, levels: int = PREFILTER_LEVELS) -> list[np.ndarray]:
     if levels < 2:
         raise ValueError(f"expected at least 2 levels, got {levels}")
     w0 = img.shape[1]
+    if img.shape[0] * 2 != w0 or img.shape[0] % (1 << (levels - 1)) or (img.shape[0] >> (levels - 1)) < 2:
+        raise ValueError(
+            f"expected a 2:1 image whose height divides by 2^{levels - 1} and leaves at least 4x2 at the last level"
+            f" (a mip chain of {levels} levels), got shape {img.shape}"
+        )
     out = [img.astype(np.float32)]
     work = img if w0 <= SOURCE_WIDTH else resample_equirect(img, SOURCE_WIDTH // 2, SOURCE_WIDTH).astype(np.float64)
     hw, ww = work.shape[:2]
     for k in range(1, levels):
-        width = level_width(w0, k, levels)
+        width = filter_width(w0, k, levels)
         height = width // 2
         if ww % width == 0 and height * hw * ww <= _LEVEL_BUDGET:
             source = work
@@ -129,7 +153,11 @@ def prefilter_ggx(image, levels: int = PREFILTER_LEVELS) -> list[np.ndarray]:
             while m > 1 and height * (m * width // 2) * (m * width) > _LEVEL_BUDGET:
                 m -= 1
             source = resample_equirect(work, max(2, m * width // 2), m * width).astype(np.float64)
-        out.append(_filter_level(source, height, width, level_alpha(k, levels)).astype(np.float32))
+        level = _filter_level(source, height, width, level_alpha(k, levels))
+        mip = level_width(w0, k)
+        if mip != width:
+            level = resample_equirect(level, mip // 2, mip)
+        out.append(np.asarray(level, dtype=np.float32))
     return out
 
 

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import enum
 
-from atlasgen.shaders.structs import U32, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
+from atlasgen.shaders.structs import U32, Array, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
 
 __all__ = [
     "FRAME",
     "OBJECT",
     "LIGHT",
+    "ENVIRONMENT",
     "LightType",
     "NO_MATERIAL",
     "UNIFORM_OFFSET_ALIGNMENT",
@@ -81,10 +82,21 @@ LIGHT = Struct(
     doc="One element of the lights storage array (pack_lights in atlasgen/render/lighting.py).",
 )
 
+ENVIRONMENT = Struct(
+    "Environment",
+    [
+        Field("sh", Array(vec4(), 25), "order-4 SH coefficients L_k of the radiance (rgb), k = l*l + l + m"),
+        Field("params", vec4(), "x: prefiltered levels (mips), y: rows of level 0, z: 1 where the background shows it"),
+    ],
+    address_space="uniform",
+    doc="The scene's environment (pack_environment in atlasgen/render/environment.py).",
+)
+
 _DECLARATIONS = {
     "Frame": FRAME.wgsl,
     "Object": OBJECT.wgsl,
     "Light": LIGHT.wgsl,
+    "Environment": ENVIRONMENT.wgsl,
     "LightType": lambda: wgsl_constants(LightType, "LIGHT_"),
     "NO_MATERIAL": lambda: wgsl_constant(
         "NO_MATERIAL", U32, NO_MATERIAL, "Material-ID target value of pixels that no object covers (cleared, never written)."

@@ -25,6 +25,8 @@ import numpy as np
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
 from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
+from atlasgen.shaders.environment import environment_declarations
+from atlasgen.shaders.lang import emit
 from atlasgen.shaders.passes import assemble_shader
 
 __all__ = [
@@ -64,6 +66,16 @@ def material_dispatch_wgsl(manifest: Manifest, only_ids=None) -> str:
     return "\n".join(lines) + "\n"
 
 
+def environment_glue_wgsl(include: str, environment: bool) -> str:
+    """``ENVIRONMENT_LIGHTING`` for the lighting shader, and the include's environment functions when
+    ``include`` (an atlas baked before they existed) lacks them: the same declarations
+    (:mod:`atlasgen.shaders.environment`), so the renderer and an engine run one statement of each."""
+    text = f"const ENVIRONMENT_LIGHTING: bool = {'true' if environment else 'false'};\n"
+    if "fn atlas_env_uv(" not in include:
+        text += emit("wgsl", environment_declarations())
+    return text
+
+
 #: What an empty scene's light buffer holds: WebGPU rejects zero-size buffers.
 _NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0)}
 
@@ -90,11 +102,12 @@ class LightingPass:
     out = opacity * lit + (1 - opacity) * frame.
     """
 
-    def __init__(self, device, include: str, manifest: Manifest, shaded_ids=None):
+    def __init__(self, device, include: str, manifest: Manifest, shaded_ids=None, environment: bool = False):
         import wgpu
 
         self.device = device
-        glue = material_dispatch_wgsl(manifest, shaded_ids)
+        self.environment = environment
+        glue = material_dispatch_wgsl(manifest, shaded_ids) + environment_glue_wgsl(include, environment)
         module = device.create_shader_module(
             label="lighting",
             code=assemble_shader("common.wgsl", "lighting.wgsl", declare=declaration_wgsl, include=include + "\n" + glue),
@@ -110,12 +123,29 @@ class LightingPass:
                 {"binding": 4, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 5, "visibility": frag, "texture": {"sample_type": "float", "view_dimension": "2d-array"}},
                 {"binding": 6, "visibility": frag, "sampler": {"type": "filtering"}},
+                {"binding": 7, "visibility": frag, "buffer": {"type": "uniform"}},
+                {"binding": 8, "visibility": frag, "texture": {"sample_type": "float"}},
+                {"binding": 9, "visibility": frag, "sampler": {"type": "filtering"}},
+                {
+                    "binding": 10,
+                    "visibility": frag,
+                    "texture": {"sample_type": "unfilterable-float", "view_dimension": "2d-array"},
+                },
             ],
         )
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
         self.sampler = device.create_sampler(
             label="atlas",
             address_mode_u="clamp-to-edge",
+            address_mode_v="clamp-to-edge",
+            mag_filter="linear",
+            min_filter="linear",
+            mipmap_filter="linear",
+        )
+        # The environment: periodic in u, clamped at the poles (Mitsuba's envmap lookup).
+        self.env_sampler = device.create_sampler(
+            label="environment",
+            address_mode_u="repeat",
             address_mode_v="clamp-to-edge",
             mag_filter="linear",
             min_filter="linear",
@@ -150,7 +180,9 @@ class LightingPass:
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture):
+    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment):
+        """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`)."""
+        env_buffer, env_texture, tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
@@ -161,6 +193,10 @@ class LightingPass:
                 {"binding": 4, "resource": gbuffer.material.create_view()},
                 {"binding": 5, "resource": atlas_texture.create_view(dimension="2d-array")},
                 {"binding": 6, "resource": self.sampler},
+                {"binding": 7, "resource": {"buffer": env_buffer}},
+                {"binding": 8, "resource": env_texture.create_view()},
+                {"binding": 9, "resource": self.env_sampler},
+                {"binding": 10, "resource": tables.create_view(dimension="2d-array")},
             ],
         )
 

@@ -22,6 +22,7 @@ from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
 from atlasgen.render.device import get_device
+from atlasgen.render.environment import EnvironmentLighting
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights
@@ -123,6 +124,7 @@ class Renderer:
         )  # fmt: skip
         self.gbuffer_pass = GBufferPass(device, self.frame_layout)
         self._lighting_passes: dict = {}
+        self.environment = EnvironmentLighting(self.ctx, atlas)
         self.outline_pass = OutlinePass(device, atlas.include)
         self._meshes: dict = {}
         self._given_meshes: dict[str, Mesh] = {}
@@ -143,6 +145,7 @@ class Renderer:
         old = self.atlas
         self.atlas = atlas
         self.atlas_texture = upload_atlas(self.ctx, atlas)
+        self.environment = self.environment.for_atlas(atlas)  # the slices' tables follow the texels
         recompile = atlas.include != old.include or material_dispatch_wgsl(atlas.manifest) != material_dispatch_wgsl(old.manifest)
         if recompile:
             self._lighting_passes = {}
@@ -160,18 +163,20 @@ class Renderer:
         self._given_meshes[key] = mesh
         self._meshes = {k: v for k, v in self._meshes.items() if k[1] != key}
 
-    def lighting_pass_for(self, shaded_ids=frozenset()) -> LightingPass:
+    def lighting_pass_for(self, shaded_ids=frozenset(), environment: bool = False) -> LightingPass:
         """The lighting pass compiled for the materials a scene shows whose model shades them
         itself (``custom_lighting``, e.g. separable BRDFs).
 
         A lighting shader that merely contains the separable reconstruction runs ~9x
         slower on lavapipe at 720p even when no pixel takes that branch (measured: 3.8 s
         against 0.43 s for 16 lights and 4 translucent objects), so a model's own code is
-        only compiled in for scenes that use one of its materials.
+        only compiled in for scenes that use one of its materials. The environment term likewise
+        (``environment``): a scene without one runs the shader without it.
         """
-        key = frozenset(shaded_ids)
+        ids = frozenset(shaded_ids)
+        key = (ids, environment)
         if key not in self._lighting_passes:
-            self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, key)
+            self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, ids, environment)
         return self._lighting_passes[key]
 
     def _mesh(self, obj, scene_path="<scene>") -> _GpuMesh:
@@ -237,8 +242,12 @@ class Renderer:
             layout=self.gbuffer_pass.object_layout,
             entries=[{"binding": 0, "resource": {"buffer": object_buffer, "offset": 0, "size": OBJECT.size}}],
         )
-        lighting_pass = self.lighting_pass_for(e.first_slice for e in entries if get_model(e.type).custom_lighting)
-        lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture)
+        custom = [get_model(e.type).custom_lighting for e in entries]
+        lighting_pass = self.lighting_pass_for(
+            (e.first_slice for e, c in zip(entries, custom) if c), scene.environment is not None
+        )
+        environment = self.environment.bindings(scene, entries, custom)
+        lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment)
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.
         wants_outlines = any(entry.flag("outline") for entry in entries)
@@ -246,7 +255,7 @@ class Renderer:
         translucent = sort_back_to_front(scene.objects, centres, scene.camera)
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, wants_outlines,
-                              (frame_buffer, light_buffer, object_buffer))  # fmt: skip
+                              (frame_buffer, light_buffer, object_buffer, environment))  # fmt: skip
 
     # ---- encoding ----------------------------------------------------------------------
 

@@ -18,6 +18,7 @@ from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.shaders.common import common_declarations
+from atlasgen.shaders.environment import environment_declarations
 from atlasgen.shaders.lang import (
     LANGUAGES,
     Array,
@@ -78,7 +79,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     u = (0.5 + 63 (N.L + 1) / 2) / 64, v = (0.5 + 31 N.V) / 32; ``atlas_sample``
     then returns ``texel * scale + bias`` per slice, linear. ``ATLAS_PI`` and the half-vector
     helper every function below shares come first (:mod:`atlasgen.shaders.common`; GLSL and
-    HLSL need a name declared before its first use). Then the renderer's specular lobe (:func:`atlasgen.shaders.specular.specular_declarations`) and what
+    HLSL need a name declared before its first use). Then the renderer's specular lobe (:func:`atlasgen.shaders.specular.specular_declarations`),
+    the environment lighting functions (:func:`atlasgen.shaders.environment.environment_declarations`) and what
     each model type adds (``models(type).include_declarations``,
     :meth:`atlasgen.models.base.Model.include_declarations`).
     """
@@ -145,6 +147,7 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
             Return("vec4(texel.rgb * sb.x + splat3(sb.z), texel.a * sb.y + sb.w)"),
         ), "Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale."),
         *specular_declarations(),
+        *environment_declarations(),
     ]  # fmt: skip
     for type_name, entries in _by_type(manifest):
         decls += models(type_name).include_declarations(entries)

@@ -4,11 +4,12 @@ The generated include is a list of declarations (:class:`Const`, :class:`Array`,
 :class:`Function`) whose statements are small typed records and whose expressions
 are written once in a neutral C-like dialect:
 
-- types ``f32 u32 i32 bool vec2 vec3 vec4 uvec4`` and the resource types
-  ``texture_array texture_3d sampler``;
+- types ``f32 u32 i32 bool vec2 vec3 vec4 uvec4``, the resource types
+  ``texture_array texture_3d texture_2d sampler``, and, for parameters, fixed-size arrays
+  ``T[N]`` (``array<T, N>`` in WGSL, ``T name[N]`` in GLSL and HLSL);
 - calls to functions spelled alike in the three languages, plus ``atan2``, ``inverseSqrt`` and the
   pseudo-calls ``splat3(x)``, ``sample_array(t, s, uv, layer, lod)`` and
-  ``sample_3d(t, s, uvw, lod)``, which each language spells its own way.
+  ``sample_3d(t, s, uvw, lod)`` and ``sample_2d(t, s, uv, lod)``, which each language spells its own way.
 
 :func:`emit` translates the list into one language; nothing else in the package
 writes shader syntax for the include, so the three files cannot drift apart.
@@ -41,16 +42,16 @@ LANGUAGES = ("wgsl", "glsl", "hlsl")
 _TYPES = {
     "wgsl": {"f32": "f32", "u32": "u32", "i32": "i32", "bool": "bool", "vec2": "vec2<f32>", "vec3": "vec3<f32>",
              "vec4": "vec4<f32>", "uvec4": "vec4<u32>", "texture_array": "texture_2d_array<f32>",
-             "texture_3d": "texture_3d<f32>", "sampler": "sampler"},
+             "texture_3d": "texture_3d<f32>", "texture_2d": "texture_2d<f32>", "sampler": "sampler"},
     "glsl": {"f32": "float", "u32": "uint", "i32": "int", "bool": "bool", "vec2": "vec2", "vec3": "vec3",
              "vec4": "vec4", "uvec4": "uvec4", "texture_array": "texture2DArray", "texture_3d": "texture3D",
-             "sampler": "sampler"},
+             "texture_2d": "texture2D", "sampler": "sampler"},
     "hlsl": {"f32": "float", "u32": "uint", "i32": "int", "bool": "bool", "vec2": "float2", "vec3": "float3",
              "vec4": "float4", "uvec4": "uint4", "texture_array": "Texture2DArray<float4>",
-             "texture_3d": "Texture3D<float4>", "sampler": "SamplerState"},
+             "texture_3d": "Texture3D<float4>", "texture_2d": "Texture2D<float4>", "sampler": "SamplerState"},
 }  # fmt: skip
 #: Functions whose name differs by language (the rest are spelled alike in all three).
-_RENAMES = {"glsl": {"atan2": "atan", "inverseSqrt": "inversesqrt"}, "hlsl": {"inverseSqrt": "rsqrt"}, "wgsl": {}}
+_RENAMES = {"glsl": {"atan2": "atan", "inverseSqrt": "inversesqrt"}, "hlsl": {"inverseSqrt": "rsqrt", "mix": "lerp"}, "wgsl": {}}
 
 
 def float_literal(x: float) -> str:
@@ -177,6 +178,11 @@ def _pseudo(lang: str, name: str, a: list[str]) -> str:
         return {"wgsl": f"textureSampleLevel({t}, {s}, {uv}, {layer}, {lod})",
                 "glsl": f"textureLod(sampler2DArray({t}, {s}), vec3({uv}, float({layer})), {lod})",
                 "hlsl": f"{t}.SampleLevel({s}, float3({uv}, float({layer})), {lod})"}[lang]  # fmt: skip
+    if name == "sample_2d":
+        t, s, uv, lod = a
+        return {"wgsl": f"textureSampleLevel({t}, {s}, {uv}, {lod})",
+                "glsl": f"textureLod(sampler2D({t}, {s}), {uv}, {lod})",
+                "hlsl": f"{t}.SampleLevel({s}, {uv}, {lod})"}[lang]  # fmt: skip
     t, s, uvw, lod = a  # sample_3d
     return {"wgsl": f"textureSampleLevel({t}, {s}, {uvw}, {lod})",
             "glsl": f"textureLod(sampler3D({t}, {s}), {uvw}, {lod})",
@@ -197,7 +203,7 @@ def expr(lang: str, text: str) -> str:
             i = m.end()
             continue
         word, i = m.group(), m.end()
-        if word in ("splat3", "sample_array", "sample_3d"):
+        if word in ("splat3", "sample_array", "sample_3d", "sample_2d"):
             args, i = _split_call(text, i)
             out.append(_pseudo(lang, word, [expr(lang, a) for a in args]))
         else:
@@ -210,6 +216,19 @@ def _decl(lang: str, type_: str, name: str, mutable: bool) -> str:
     if lang == "wgsl":
         return f"{'var' if mutable else 'let'} {name}: {_TYPES[lang][type_]}"
     return f"{_TYPES[lang][type_]} {name}"
+
+
+_ARRAY_TYPE = re.compile(r"^(\w+)\[(\d+)\]$")
+
+
+def _param(lang: str, name: str, type_: str) -> str:
+    """One function parameter; ``T[N]`` is a fixed-size array, passed by value."""
+    t = _TYPES[lang]
+    m = _ARRAY_TYPE.match(type_)
+    if m is None:
+        return f"{name}: {t[type_]}" if lang == "wgsl" else f"{t[type_]} {name}"
+    base, count = t[m[1]], m[2]
+    return f"{name}: array<{base}, {count}>" if lang == "wgsl" else f"{base} {name}[{count}]"
 
 
 def _statements(lang: str, body, indent: int) -> list[str]:
@@ -277,11 +296,10 @@ def _declaration(lang: str, d) -> list[str]:
         return [head, *body, "};" if lang == "hlsl" else ");"]
     if isinstance(d, Function):
         comment = [f"// {line}" for line in d.comment.splitlines()]
+        params = ", ".join(_param(lang, name, ty) for name, ty in d.params)
         if lang == "wgsl":
-            params = ", ".join(f"{name}: {t[ty]}" for name, ty in d.params)
             head = f"fn {d.name}({params}) -> {t[d.ret]} {{"
         else:
-            params = ", ".join(f"{t[ty]} {name}" for name, ty in d.params)
             head = f"{t[d.ret]} {d.name}({params}) {{"
         return [*comment, head, *_statements(lang, d.body, 1), "}"]
     raise TypeError(f"not a declaration: {d!r}")

@@ -26,6 +26,70 @@
 @group(0) @binding(4) var material_tex: texture_2d<u32>;
 @group(0) @binding(5) var atlas: texture_2d_array<f32>;
 @group(0) @binding(6) var atlas_sampler: sampler;
+@group(0) @binding(7) var<uniform> env: Environment;
+@group(0) @binding(8) var env_tex: texture_2d<f32>;
+@group(0) @binding(9) var env_sampler: sampler;
+@group(0) @binding(10) var env_tables: texture_2d_array<f32>;
+
+// @declare Environment
+
+// Environment lighting (docs/atlas-format.md, "Environment lighting"), before the light loop:
+//
+//     table material:     L += albedo * atlas_sh_diffuse(n, sh, lambda(N.V)) + Lpre(r, alpha) * S(N.V, gloss)
+//     separable material: L += albedo * Lpre(r, alpha) * S_sep(N.V)
+//
+// ENVIRONMENT_LIGHTING is a constant the renderer prepends (atlasgen/render/lighting.py): a scene
+// without an environment compiles these branches out. env_tables holds each slice's lambda_l
+// (texels 0..4), S at 16 glosses (texels 5..8, four a texel) and S_sep (texel 9) per N.V row
+// (atlasgen/render/environment.py); rgba32float is not filterable, so rows are blended here.
+
+fn env_row(nv: f32, nearest: bool) -> vec2<f32> {
+    // (row j0, weight of row j0 + 1) at N.V, row j at N.V = j / 31 as the atlas's rows.
+    let y = clamp(nv, 0.0, 1.0) * f32(ATLAS_HEIGHT - 1u);
+    var j0 = min(floor(y), f32(ATLAS_HEIGHT - 2u));
+    var t = y - j0;
+    if (nearest) {
+        t = select(0.0, 1.0, t >= 0.5);
+    }
+    return vec2<f32>(j0, t);
+}
+
+fn env_texel(material: u32, column: u32, row: vec2<f32>) -> vec4<f32> {
+    let j0 = i32(row.x);
+    let a = textureLoad(env_tables, vec2<i32>(i32(column), j0), i32(material), 0);
+    let b = textureLoad(env_tables, vec2<i32>(i32(column), j0 + 1), i32(material), 0);
+    return mix(a, b, row.y);
+}
+
+fn env_specular_table(material: u32, gloss: f32, row: vec2<f32>) -> f32 {
+    let g = clamp(gloss, 0.0, 1.0) * 15.0;
+    let i0 = u32(min(floor(g), 14.0));
+    let i1 = i0 + 1u;
+    let s0 = env_texel(material, 5u + i0 / 4u, row)[i0 % 4u];
+    let s1 = env_texel(material, 5u + i1 / 4u, row)[i1 % 4u];
+    return mix(s0, s1, g - f32(i0));
+}
+
+fn env_prefiltered(r: vec3<f32>, gloss: f32) -> vec3<f32> {
+    let levels = env.params.x;
+    return atlas_env_prefiltered(env_tex, env_sampler, r, atlas_env_level(gloss, levels), env.params.y, levels);
+}
+
+fn environment_radiance(material: u32, custom: bool, n: vec3<f32>, v: vec3<f32>, n_dot_v: f32,
+                        albedo: vec3<f32>, gloss: f32) -> vec3<f32> {
+    let r = 2.0 * dot(n, v) * n - v;
+    let nearest = (atlas_material_flags(material) & ATLAS_FLAG_NEAREST) != 0u;
+    let row = env_row(n_dot_v, nearest && !custom);
+    let pre = env_prefiltered(r, gloss);
+    if (custom) {
+        return albedo * pre * env_texel(material, 9u, row).rgb;
+    }
+    var lam: array<vec4<f32>, 5>;
+    for (var l = 0u; l < 5u; l = l + 1u) {
+        lam[l] = env_texel(material, l, row);
+    }
+    return albedo * atlas_sh_diffuse(n, env.sh, lam) + pre * env_specular_table(material, gloss, row);
+}
 
 // @declare Light
 // @declare LightType
@@ -45,6 +109,13 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     let pixel = vec2<i32>(coord.xy);
     let material = textureLoad(material_tex, pixel, 0).r;
     if (material == NO_MATERIAL) {
+        if (ENVIRONMENT_LIGHTING && env.params.z > 0.5) {
+            // The environment along the pixel's ray, level 0 (the image itself).
+            let ndc0 = coord.xy * frame.viewport.zw * 2.0 - 1.0;
+            let ray0 = frame.forward.xyz + ndc0.x * frame.forward.w * frame.right.xyz - ndc0.y * frame.right.w * frame.up.xyz;
+            let d = normalize(ray0);
+            return vec4<f32>(textureSampleLevel(env_tex, env_sampler, atlas_env_uv(d, env.params.y), 0.0).rgb, 1.0);
+        }
         return vec4<f32>(frame.background.rgb, 1.0);
     }
     let albedo_gloss = textureLoad(albedo_gloss_tex, pixel, 0);
@@ -63,6 +134,9 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     let alpha = specular_alpha(albedo_gloss.a);
 
     var radiance = vec3<f32>(0.0);
+    if (ENVIRONMENT_LIGHTING) {
+        radiance += environment_radiance(material, custom, n, v, n_dot_v, albedo_gloss.rgb, albedo_gloss.a);
+    }
     for (var i = 0u; i < frame.counts.x; i = i + 1u) {
         let light = lights[i];
         var l = -light.position;

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from atlasgen.optics.equirect import sample_equirect, texel_directions, texel_solid_angles
+from atlasgen.optics.equirect import resample_equirect, sample_equirect, texel_directions, texel_solid_angles
 from atlasgen.optics.microfacet import ggx_distribution
-from atlasgen.optics.prefilter import MIN_LEVEL_WIDTH, level_alpha, level_width, prefilter_ggx, sample_prefiltered
+from atlasgen.optics.prefilter import filter_width, level_alpha, level_width, prefilter_ggx, sample_prefiltered
 from atlasgen.optics.specular import specular_alpha
 
 RNG = np.random.default_rng(3)
@@ -24,15 +24,39 @@ def test_level_k_is_roughness_k_over_levels_minus_one_as_the_renderer_maps_gloss
     assert level_alpha(0) == 0.002 and level_alpha(5) == 1.0
 
 
-def test_levels_halve_as_they_roughen_and_stop_at_16x8():
-    widths = [level_width(256, k) for k in range(6)]
-    assert widths[0] == 256 and all(b <= a for a, b in zip(widths, widths[1:])) and min(widths) == MIN_LEVEL_WIDTH
+def test_levels_are_a_standard_mip_chain_of_the_source():
+    # Level k is exactly (W >> k, H >> k), so the levels upload as one texture's mip chain.
+    assert [level_width(256, k) for k in range(6)] == [256, 128, 64, 32, 16, 8]
     shapes = [lv.shape for lv in prefilter_ggx(np.ones((32, 64, 3)), 4)]
-    assert shapes == [(32, 64, 3), (16, 32, 3), (8, 16, 3), (8, 16, 3)]
+    assert shapes == [(32, 64, 3), (16, 32, 3), (8, 16, 3), (4, 8, 3)]
+    assert [lv.shape[:2] for lv in prefilter_ggx(np.ones((128, 256, 3)), 6)] == [(128 >> k, 256 >> k) for k in range(6)]
+
+
+def test_levels_are_filtered_no_finer_than_their_lobe_and_no_coarser_than_16_wide():
+    widths = [filter_width(2048, k) for k in range(6)]
+    assert widths == [2048, 256, 64, 32, 16, 16]
+    assert all(b <= a for a, b in zip(widths, widths[1:]))
+
+
+def test_an_image_that_makes_no_mip_chain_is_refused():
+    for shape, levels in (((16, 32, 3), 6), ((30, 60, 3), 3), ((32, 48, 3), 2)):
+        with pytest.raises(ValueError, match="mip chain"):
+            prefilter_ggx(np.ones(shape), levels)
+
+
+@pytest.mark.slow
+def test_a_level_filtered_coarser_than_its_mip_is_the_filtered_one_resampled():
+    # 1024 wide: level 1 (512 wide) is filtered at 256 wide from the source averaged to 512, then interpolated.
+    big = resample_equirect(RNG.random((16, 32, 3)), 512, 1024)
+    assert filter_width(1024, 1) == 256 == level_width(512, 1) == filter_width(512, 1)
+    level = prefilter_ggx(big, 6)[1]
+    assert level.shape == (256, 512, 3)
+    small = prefilter_ggx(resample_equirect(big, 256, 512), 6)[1]
+    np.testing.assert_allclose(level, resample_equirect(small, 256, 512), rtol=1e-5, atol=1e-6)
 
 
 def test_a_constant_environment_stays_that_constant_at_every_level():
-    for level in prefilter_ggx(np.full((32, 64, 3), [0.2, 1.5, 7.0]), 6):
+    for level in prefilter_ggx(np.full((64, 128, 3), [0.2, 1.5, 7.0]), 6):
         np.testing.assert_allclose(level, np.broadcast_to([0.2, 1.5, 7.0], level.shape), rtol=1e-6)
         assert level.dtype == np.float32
 
@@ -43,10 +67,11 @@ def test_level_zero_is_the_source_itself():
 
 
 def test_the_fft_ordered_sum_is_the_brute_force_sum():
-    img = RNG.random((16, 32, 3))
+    img = RNG.random((32, 64, 3))
     levels = prefilter_ggx(img, 3)
-    src = texel_directions(16, 32).reshape(-1, 3)
-    omega = texel_solid_angles(16, 32).ravel()
+    assert [filter_width(64, k, 3) for k in (1, 2)] == [level_width(64, k) for k in (1, 2)]  # not resampled
+    src = texel_directions(32, 64).reshape(-1, 3)
+    omega = texel_solid_angles(32, 64).ravel()
     for k in (1, 2):
         r = texel_directions(*levels[k].shape[:2]).reshape(-1, 3)
         h = r[:, None] + src[None]
@@ -64,7 +89,10 @@ def test_roughness_one_spreads_a_bright_texel_into_the_normalised_lobe():
     img[20, 37] = 500.0
     d0, omega = texel_directions(h, w)[20, 37], texel_solid_angles(h, w)[20, 37]
     rough = prefilter_ggx(img, 6)[5][..., 0]
-    expected = 500.0 * omega * np.maximum(texel_directions(*rough.shape) @ d0, 0.0) / np.pi
+    # Level 5 (4x2) is filtered at 16x8 and averaged down to its mip size.
+    assert filter_width(w, 5) == 16 and rough.shape == (2, 4)
+    at_filter = 500.0 * omega * np.maximum(texel_directions(8, 16) @ d0, 0.0) / np.pi
+    expected = resample_equirect(at_filter[..., None], 2, 4)[..., 0]
     np.testing.assert_allclose(rough, expected, atol=2e-3 * expected.max())
 
 
@@ -82,6 +110,7 @@ def test_docs_give_the_levels_measured_roughness_and_sizes():
     text = " ".join(DOCS.read_text(encoding="utf-8").split())
     assert "(alpha " + ", ".join(f"{level_alpha(k):g}" for k in range(6)) + ")" in text
     sizes = ", ".join(f"{w}x{w // 2}" for w in (level_width(256, k) for k in range(6)))
+    assert "filtered at " + ", ".join(str(filter_width(256, k)) for k in range(6)) + " wide" in text
     assert f"256x128 gives {sizes})" in text, sizes
 
 

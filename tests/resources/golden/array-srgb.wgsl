@@ -380,6 +380,95 @@ fn specular(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, alpha: f32) -> f32 {
     return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
+// (1/pi) sum_l lam_l sum_m L_lm Y_lm(n): an environment's diffuse light through a slice (Funk-Hecke;
+// Ramamoorthi & Hanrahan 2001). sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase);
+// lam[l].rgb the slice's zonal weights at this N.V. Multiply by the albedo.
+fn atlas_sh_diffuse(n: vec3<f32>, sh: array<vec4<f32>, 25>, lam: array<vec4<f32>, 5>) -> vec3<f32> {
+    let shx: f32 = n.x;
+    let shy: f32 = n.y;
+    let shz: f32 = n.z;
+    let q0_0: f32 = 1.0;
+    let y0: f32 = 0.28209479177387814 * q0_0;
+    let q1_0: f32 = 1.0 * shz * q0_0;
+    let y2: f32 = 0.4886025119029199 * q1_0;
+    let q2_0: f32 = 1.5 * shz * q1_0 - 0.5 * q0_0;
+    let y6: f32 = 0.6307831305050401 * q2_0;
+    let q3_0: f32 = 1.6666666666666667 * shz * q2_0 - 0.6666666666666666 * q1_0;
+    let y12: f32 = 0.7463526651802308 * q3_0;
+    let q4_0: f32 = 1.75 * shz * q3_0 - 0.75 * q2_0;
+    let y20: f32 = 0.8462843753216345 * q4_0;
+    let re1: f32 = shx;
+    let im1: f32 = shy;
+    let q1_1: f32 = 1.0;
+    let y3: f32 = 0.48860251190292 * q1_1 * re1;
+    let y1: f32 = 0.48860251190292 * q1_1 * im1;
+    let q2_1: f32 = 3.0 * shz * q1_1;
+    let y7: f32 = 0.36418281019735976 * q2_1 * re1;
+    let y5: f32 = 0.36418281019735976 * q2_1 * im1;
+    let q3_1: f32 = 2.5 * shz * q2_1 - 1.5 * q1_1;
+    let y13: f32 = 0.3046971996429772 * q3_1 * re1;
+    let y11: f32 = 0.3046971996429772 * q3_1 * im1;
+    let q4_1: f32 = 2.3333333333333335 * shz * q3_1 - 1.3333333333333333 * q2_1;
+    let y21: f32 = 0.2676186174229157 * q4_1 * re1;
+    let y19: f32 = 0.2676186174229157 * q4_1 * im1;
+    let re2: f32 = re1 * shx - im1 * shy;
+    let im2: f32 = re1 * shy + im1 * shx;
+    let q2_2: f32 = 3.0;
+    let y8: f32 = 0.18209140509867988 * q2_2 * re2;
+    let y4: f32 = 0.18209140509867988 * q2_2 * im2;
+    let q3_2: f32 = 5.0 * shz * q2_2;
+    let y14: f32 = 0.09635371475468515 * q3_2 * re2;
+    let y10: f32 = 0.09635371475468515 * q3_2 * im2;
+    let q4_2: f32 = 3.5 * shz * q3_2 - 2.5 * q2_2;
+    let y22: f32 = 0.063078313050504 * q4_2 * re2;
+    let y18: f32 = 0.063078313050504 * q4_2 * im2;
+    let re3: f32 = re2 * shx - im2 * shy;
+    let im3: f32 = re2 * shy + im2 * shx;
+    let q3_3: f32 = 15.0;
+    let y15: f32 = 0.03933623932844291 * q3_3 * re3;
+    let y9: f32 = 0.03933623932844291 * q3_3 * im3;
+    let q4_3: f32 = 7.0 * shz * q3_3;
+    let y23: f32 = 0.016858388283618388 * q4_3 * re3;
+    let y17: f32 = 0.016858388283618388 * q4_3 * im3;
+    let re4: f32 = re3 * shx - im3 * shy;
+    let im4: f32 = re3 * shy + im3 * shx;
+    let q4_4: f32 = 105.0;
+    let y24: f32 = 0.005960340337611203 * q4_4 * re4;
+    let y16: f32 = 0.005960340337611203 * q4_4 * im4;
+    var total: vec3<f32> = vec3<f32>(0.0);
+    total += lam[0].xyz * (sh[0].xyz * y0);
+    total += lam[1].xyz * (sh[1].xyz * y1 + sh[2].xyz * y2 + sh[3].xyz * y3);
+    total += lam[2].xyz * (sh[4].xyz * y4 + sh[5].xyz * y5 + sh[6].xyz * y6 + sh[7].xyz * y7 + sh[8].xyz * y8);
+    total += lam[3].xyz * (sh[9].xyz * y9 + sh[10].xyz * y10 + sh[11].xyz * y11 + sh[12].xyz * y12 + sh[13].xyz * y13 + sh[14].xyz * y14 + sh[15].xyz * y15);
+    total += lam[4].xyz * (sh[16].xyz * y16 + sh[17].xyz * y17 + sh[18].xyz * y18 + sh[19].xyz * y19 + sh[20].xyz * y20 + sh[21].xyz * y21 + sh[22].xyz * y22 + sh[23].xyz * y23 + sh[24].xyz * y24);
+    return total / ATLAS_PI;
+}
+
+// Texture uv of direction d in an equirect image of `height` rows, Mitsuba's envmap convention:
+// u = atan2(d.x, -d.z) / 2pi, v = acos(d.y) / pi with row j at v = j / (H - 1); sample with
+// repeat in u and clamp-to-edge in v.
+fn atlas_env_uv(d: vec3<f32>, height: f32) -> vec2<f32> {
+    let u: f32 = atan2(d.x, -d.z) / (2.0 * ATLAS_PI);
+    let v: f32 = atan2(length(vec2<f32>(d.x, d.z)), d.y) / ATLAS_PI;
+    return vec2<f32>(u - floor(u), (0.5 + v * (height - 1.0)) / height);
+}
+
+// The prefiltered level of a gloss: level k holds roughness k / (levels - 1).
+fn atlas_env_level(gloss: f32, levels: f32) -> f32 {
+    return (1.0 - clamp(gloss, 0.0, 1.0)) * (levels - 1.0);
+}
+
+// Prefiltered radiance towards d at a fractional level of a mip chain whose level 0 has `height` rows
+// (levels >= 2): the two levels around it, each at its own rows' uv, blended linearly.
+fn atlas_env_prefiltered(env: texture_2d<f32>, env_sampler: sampler, d: vec3<f32>, level: f32, height: f32, levels: f32) -> vec3<f32> {
+    let lv: f32 = clamp(level, 0.0, levels - 1.0);
+    let k0: f32 = min(floor(lv), levels - 2.0);
+    let h0: f32 = height / exp2(k0);
+    let a: vec4<f32> = textureSampleLevel(env, env_sampler, atlas_env_uv(d, h0), k0);
+    let b: vec4<f32> = textureSampleLevel(env, env_sampler, atlas_env_uv(d, 0.5 * h0), k0 + 1.0);
+    return mix(a.xyz, b.xyz, lv - k0);
+}
+
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.

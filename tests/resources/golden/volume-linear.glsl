@@ -380,6 +380,95 @@ float specular(vec3 n, vec3 l, vec3 v, float alpha) {
     return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
+// (1/pi) sum_l lam_l sum_m L_lm Y_lm(n): an environment's diffuse light through a slice (Funk-Hecke;
+// Ramamoorthi & Hanrahan 2001). sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase);
+// lam[l].rgb the slice's zonal weights at this N.V. Multiply by the albedo.
+vec3 atlas_sh_diffuse(vec3 n, vec4 sh[25], vec4 lam[5]) {
+    float shx = n.x;
+    float shy = n.y;
+    float shz = n.z;
+    float q0_0 = 1.0;
+    float y0 = 0.28209479177387814 * q0_0;
+    float q1_0 = 1.0 * shz * q0_0;
+    float y2 = 0.4886025119029199 * q1_0;
+    float q2_0 = 1.5 * shz * q1_0 - 0.5 * q0_0;
+    float y6 = 0.6307831305050401 * q2_0;
+    float q3_0 = 1.6666666666666667 * shz * q2_0 - 0.6666666666666666 * q1_0;
+    float y12 = 0.7463526651802308 * q3_0;
+    float q4_0 = 1.75 * shz * q3_0 - 0.75 * q2_0;
+    float y20 = 0.8462843753216345 * q4_0;
+    float re1 = shx;
+    float im1 = shy;
+    float q1_1 = 1.0;
+    float y3 = 0.48860251190292 * q1_1 * re1;
+    float y1 = 0.48860251190292 * q1_1 * im1;
+    float q2_1 = 3.0 * shz * q1_1;
+    float y7 = 0.36418281019735976 * q2_1 * re1;
+    float y5 = 0.36418281019735976 * q2_1 * im1;
+    float q3_1 = 2.5 * shz * q2_1 - 1.5 * q1_1;
+    float y13 = 0.3046971996429772 * q3_1 * re1;
+    float y11 = 0.3046971996429772 * q3_1 * im1;
+    float q4_1 = 2.3333333333333335 * shz * q3_1 - 1.3333333333333333 * q2_1;
+    float y21 = 0.2676186174229157 * q4_1 * re1;
+    float y19 = 0.2676186174229157 * q4_1 * im1;
+    float re2 = re1 * shx - im1 * shy;
+    float im2 = re1 * shy + im1 * shx;
+    float q2_2 = 3.0;
+    float y8 = 0.18209140509867988 * q2_2 * re2;
+    float y4 = 0.18209140509867988 * q2_2 * im2;
+    float q3_2 = 5.0 * shz * q2_2;
+    float y14 = 0.09635371475468515 * q3_2 * re2;
+    float y10 = 0.09635371475468515 * q3_2 * im2;
+    float q4_2 = 3.5 * shz * q3_2 - 2.5 * q2_2;
+    float y22 = 0.063078313050504 * q4_2 * re2;
+    float y18 = 0.063078313050504 * q4_2 * im2;
+    float re3 = re2 * shx - im2 * shy;
+    float im3 = re2 * shy + im2 * shx;
+    float q3_3 = 15.0;
+    float y15 = 0.03933623932844291 * q3_3 * re3;
+    float y9 = 0.03933623932844291 * q3_3 * im3;
+    float q4_3 = 7.0 * shz * q3_3;
+    float y23 = 0.016858388283618388 * q4_3 * re3;
+    float y17 = 0.016858388283618388 * q4_3 * im3;
+    float re4 = re3 * shx - im3 * shy;
+    float im4 = re3 * shy + im3 * shx;
+    float q4_4 = 105.0;
+    float y24 = 0.005960340337611203 * q4_4 * re4;
+    float y16 = 0.005960340337611203 * q4_4 * im4;
+    vec3 total = vec3(0.0);
+    total += lam[0].xyz * (sh[0].xyz * y0);
+    total += lam[1].xyz * (sh[1].xyz * y1 + sh[2].xyz * y2 + sh[3].xyz * y3);
+    total += lam[2].xyz * (sh[4].xyz * y4 + sh[5].xyz * y5 + sh[6].xyz * y6 + sh[7].xyz * y7 + sh[8].xyz * y8);
+    total += lam[3].xyz * (sh[9].xyz * y9 + sh[10].xyz * y10 + sh[11].xyz * y11 + sh[12].xyz * y12 + sh[13].xyz * y13 + sh[14].xyz * y14 + sh[15].xyz * y15);
+    total += lam[4].xyz * (sh[16].xyz * y16 + sh[17].xyz * y17 + sh[18].xyz * y18 + sh[19].xyz * y19 + sh[20].xyz * y20 + sh[21].xyz * y21 + sh[22].xyz * y22 + sh[23].xyz * y23 + sh[24].xyz * y24);
+    return total / ATLAS_PI;
+}
+
+// Texture uv of direction d in an equirect image of `height` rows, Mitsuba's envmap convention:
+// u = atan2(d.x, -d.z) / 2pi, v = acos(d.y) / pi with row j at v = j / (H - 1); sample with
+// repeat in u and clamp-to-edge in v.
+vec2 atlas_env_uv(vec3 d, float height) {
+    float u = atan(d.x, -d.z) / (2.0 * ATLAS_PI);
+    float v = atan(length(vec2(d.x, d.z)), d.y) / ATLAS_PI;
+    return vec2(u - floor(u), (0.5 + v * (height - 1.0)) / height);
+}
+
+// The prefiltered level of a gloss: level k holds roughness k / (levels - 1).
+float atlas_env_level(float gloss, float levels) {
+    return (1.0 - clamp(gloss, 0.0, 1.0)) * (levels - 1.0);
+}
+
+// Prefiltered radiance towards d at a fractional level of a mip chain whose level 0 has `height` rows
+// (levels >= 2): the two levels around it, each at its own rows' uv, blended linearly.
+vec3 atlas_env_prefiltered(texture2D env, sampler env_sampler, vec3 d, float level, float height, float levels) {
+    float lv = clamp(level, 0.0, levels - 1.0);
+    float k0 = min(floor(lv), levels - 2.0);
+    float h0 = height / exp2(k0);
+    vec4 a = textureLod(sampler2D(env, env_sampler), atlas_env_uv(d, h0), k0);
+    vec4 b = textureLod(sampler2D(env, env_sampler), atlas_env_uv(d, 0.5 * h0), k0 + 1.0);
+    return mix(a.xyz, b.xyz, lv - k0);
+}
+
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
