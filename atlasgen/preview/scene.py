@@ -20,7 +20,6 @@ import os
 import tempfile
 from pathlib import Path
 
-from atlasgen.errors import SceneError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.materials.scene import Scene, parse_scene
 from atlasgen.render.meshes import Mesh, encode_mesh_ply
@@ -35,9 +34,9 @@ __all__ = [
     "ball_mesh_file",
 ]
 
-#: What the preview is lit by besides its two lights: the built-in procedural sky of the scene
-#: format's ``environment`` key, once the format has one (:func:`parse_preview_scene`).
-ENVIRONMENT = "sky"
+#: What the preview is lit by besides its two lights: the built-in procedural sky (docs/scenes.md,
+#: "Environment"), dimmed so that the key light still models the form; it is also the background.
+ENVIRONMENT = {"source": "sky", "intensity": 0.6}
 #: The name errors in the preview scene are reported under.
 PREVIEW_SCENE = "<preview scene>"
 #: One material's picture, in pixels, before its label.
@@ -52,12 +51,13 @@ def preview_scene_data(material: str, floor_material: str, ball_file) -> dict:
     """
     return {
         "camera": {"position": [0.0, 3.1, 7.6], "target": [0.0, 0.75, 0.0], "fov": 42.0},
-        "image": {"width": WIDTH, "height": HEIGHT, "background": [0.035, 0.037, 0.042]},
+        "image": {"width": WIDTH, "height": HEIGHT},
+        "environment": dict(ENVIRONMENT),
         "lights": [
             # Key: from above the camera's left shoulder; a point light, so the floor falls off.
-            {"type": "point", "position": [-4.0, 6.5, 5.5], "intensity": 190.0, "colour": [1.0, 0.97, 0.92]},
+            {"type": "point", "position": [-4.0, 6.5, 5.5], "intensity": 90.0, "colour": [1.0, 0.97, 0.92]},
             # Rim: from the right and a little behind, a little cooler: it draws the right-hand edges.
-            {"type": "directional", "direction": [-0.8, -0.3, 0.52], "intensity": 2.0, "colour": [0.85, 0.92, 1.0]},
+            {"type": "directional", "direction": [-0.8, -0.3, 0.52], "intensity": 1.2, "colour": [0.85, 0.92, 1.0]},
         ],
         "objects": [
             {"shape": "plane", "material": floor_material, "scale": 12.0, "albedo": [0.1, 0.1, 0.1]},
@@ -68,17 +68,7 @@ def preview_scene_data(material: str, floor_material: str, ball_file) -> dict:
 
 
 def parse_preview_scene(data: dict) -> Scene:
-    """``data`` (:func:`preview_scene_data`) as a :class:`~atlasgen.materials.scene.Scene`, lit by
-    :data:`ENVIRONMENT` when the scene format knows ``environment``.
-
-    While it does not, the parser refuses the key as unknown and the scene is parsed without
-    it; once the format takes it, this returns the scene with it, and the fallback can go.
-    """
-    try:
-        return parse_scene({**data, "environment": ENVIRONMENT}, PREVIEW_SCENE)
-    except SceneError as exc:
-        if exc.field != "environment" or not exc.expected.startswith("unknown key"):
-            raise
+    """``data`` (:func:`preview_scene_data`) as a :class:`~atlasgen.materials.scene.Scene`."""
     return parse_scene(data, PREVIEW_SCENE)
 
 

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import SceneError
-from atlasgen.preview import scene as preview_scene
 from atlasgen.preview.scene import ENVIRONMENT, ball_mesh_file, parse_preview_scene, preview_scene_data
 from atlasgen.render.meshes import make_material_ball, make_sphere
 
@@ -32,23 +31,10 @@ def test_a_sphere_and_the_ball_rest_side_by_side_on_the_floor(ball_file):
     assert rim.type == "directional" and rim.direction[0] < 0
 
 
-def test_the_environment_is_asked_for_once_the_format_takes_it(ball_file, monkeypatch):
-    data = preview_scene_data("clay", "floor", ball_file)
-    assert "environment" not in data
-    seen, today = [], preview_scene.parse_scene
-
-    def future_parser(raw, path="<scene>", base=None):
-        seen.append(raw.get("environment"))
-        return today({k: v for k, v in raw.items() if k != "environment"}, path, base)
-
-    monkeypatch.setattr(preview_scene, "parse_scene", future_parser)
-    parse_preview_scene(data)
-    assert seen == [ENVIRONMENT] == ["sky"]
-
-
-def test_only_the_unknown_environment_key_falls_back(ball_file):
-    # Today's parser refuses the key: the scene is parsed without it.
-    assert parse_preview_scene(preview_scene_data("clay", "floor", ball_file)).objects[1].material == "clay"
+def test_the_ball_is_lit_by_the_sky_which_is_also_its_background(ball_file):
+    scene = parse_preview_scene(preview_scene_data("clay", "floor", ball_file))
+    assert scene.environment is not None and scene.environment.source == "sky"
+    assert scene.environment.intensity == ENVIRONMENT["intensity"] and not scene.background_given
     with pytest.raises(SceneError, match=r"objects\[2\]\.file"):
         parse_preview_scene(preview_scene_data("clay", "floor", ball_file.with_name("missing.ply")))
 
@@ -64,14 +50,18 @@ def test_the_balls_file_is_named_by_its_content_and_written_once(tmp_path):
 
 @pytest.mark.slow
 def test_the_floor_shows_the_lights_in_the_scene_formats_units(gpu_device, ball_file, write_material):
-    """Where the floor is seen, its radiance is a Lambertian's under the two lights (docs/scenes.md):
-    L = albedo * colour / pi * (I cos / d^2 for the key + E cos for the rim), cos = N.L with N = +y."""
+    """Where the floor is seen, its radiance is a Lambertian's under the two lights and the sky (docs/scenes.md):
+    L = albedo * colour / pi * (I cos / d^2 for the key + E cos for the rim + the sky's irradiance on N = +y),
+    cos = N.L, the last by Funk-Hecke with the clamped cosine's closed-form lambda_l (docs/atlas-format.md)."""
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.io.package_data import package_data_path
     from atlasgen.materials.material import read_material
     from atlasgen.preview.previewer import FLOOR_MATERIAL
     from atlasgen.render.atlas_texture import RenderAtlas
+    from atlasgen.materials.environment import environment_image
+    from atlasgen.optics.spherical_harmonics import evaluate_sh, project_equirect
     from atlasgen.render.camera import pixel_rays
+    from atlasgen.render.environment import IMAGE_HEIGHT
     from atlasgen.render.renderer import Renderer
 
     floor = read_material(package_data_path(*FLOOR_MATERIAL))
@@ -90,6 +80,9 @@ def test_the_floor_shows_the_lights_in_the_scene_formats_units(gpu_device, ball_
     distance = np.linalg.norm(to_key, axis=-1)
     irradiance = (np.asarray(key.colour) * key.intensity * np.maximum(to_key[..., 1] / distance, 0)[..., None] / distance[..., None] ** 2
                   + np.asarray(rim.colour) * rim.intensity * max(-rim.direction[1], 0.0))  # fmt: skip
+    sky = project_equirect(environment_image(scene.environment, IMAGE_HEIGHT, 2 * IMAGE_HEIGHT))
+    clamped_cosine = np.array([np.pi, 2 * np.pi / 3, np.pi / 4, 0.0, -np.pi / 24])[:, None]
+    irradiance = irradiance + evaluate_sh(sky, np.array([0.0, 1.0, 0.0]), zonal=clamped_cosine)
     expected = np.asarray(scene.objects[0].albedo) / np.pi * irradiance
     assert on_floor.mean() > 0.3
     np.testing.assert_allclose(rendered.radiance[on_floor], expected[on_floor], rtol=0.01)
