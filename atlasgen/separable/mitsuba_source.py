@@ -191,9 +191,59 @@ def explain_mitsuba_error(message: str, spec: dict, field: str = "bsdf") -> tupl
 ROUGHNESS_RANGES = {"alpha": (0.0, 4.0), "alpha_u": (0.0, 4.0), "alpha_v": (0.0, 4.0), "roughness": (0.0, 1.0)}
 
 
+#: Properties that hold a reflectance, transmittance or colour (Mitsuba 3 docs, "Plugin reference: BSDFs"),
+#: and a conductor's complex index: physical values are >= 0, and a negative one is a sign error, not a look.
+COLOUR_KEYS = ("reflectance", "diffuse_reflectance", "specular_reflectance", "specular_transmittance", "base_color",
+               "eta", "k")  # fmt: skip
+#: Properties that weigh two things against each other, in [0, 1]: ``blendbsdf``'s ``weight``, ``mask``'s
+#: ``opacity`` and the principled BSDFs' lobe weights (Mitsuba 3 docs, "blendbsdf", "mask", "principled").
+WEIGHT_KEYS = ("weight", "opacity", "metallic", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat",
+               "clearcoat_gloss", "anisotropic", "diff_trans")  # fmt: skip
+_CONDUCTORS = ("conductor", "roughconductor")
+
+
+def _colour_numbers(value) -> list | None:
+    """The numbers of a colour property (a number, ``{type = "rgb", value = [r, g, b]}``, or a
+    ``{type = "spectrum"}`` of one value or ``[[wavelength, value], ...]``), or None for another form
+    (a texture): Mitsuba reads those itself."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value]
+    if not isinstance(value, dict):
+        return None
+    inner = value.get("value")
+    if value.get("type") == "rgb" and isinstance(inner, list):
+        return [x for x in inner if isinstance(x, (int, float)) and not isinstance(x, bool)]
+    if value.get("type") == "spectrum":
+        if isinstance(inner, (int, float)) and not isinstance(inner, bool):
+            return [inner]
+        if isinstance(inner, list):
+            return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], (int, float))]
+    return None
+
+
+def _check_meaningful(spec: dict, path, field: str) -> None:
+    """Refuse what no material means: a negative colour (:data:`COLOUR_KEYS`), a weight outside [0, 1]
+    (:data:`WEIGHT_KEYS`), a conductor with eta = k = 0 (its Fresnel term is 0/0: NaN in every sample)."""
+    for key in COLOUR_KEYS:
+        numbers = _colour_numbers(spec.get(key)) if key in spec else None
+        if numbers and min(numbers) < 0.0:
+            noun = "a complex index part" if key in ("eta", "k") else "a reflectance"
+            raise MaterialError(path, f"{field}.{key}", f"expected {noun} >= 0 in every channel, got {shown(spec[key])}")
+    for key in WEIGHT_KEYS:
+        value = spec.get(key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0.0 <= value <= 1.0:
+            raise MaterialError(path, f"{field}.{key}", f"expected a weight in [0, 1], got {shown(value)}")
+    if spec.get("type") in _CONDUCTORS and "eta" in spec and "k" in spec:
+        eta, k = _colour_numbers(spec["eta"]), _colour_numbers(spec["k"])
+        if eta and k and not any(eta) and not any(k):
+            raise MaterialError(path, f"{field}.eta", "expected eta or k > 0 for a conductor, got eta = k = 0 "
+                                                      "(its Fresnel reflectance is 0/0)")  # fmt: skip
+
+
 def _check_bsdf_values(spec: dict, path, field: str) -> None:
     """Every number of the (nested) BSDF table finite in float32, every roughness in range,
-    every ``type`` a plugin name: one-line errors naming ``bsdf.key``."""
+    every ``type`` a plugin name, every colour and weight meaningful (:func:`_check_meaningful`):
+    one-line errors naming ``bsdf.key``."""
     plugin = spec.get("type")
     if not isinstance(plugin, str) or not plugin:
         raise MaterialError(path, f"{field}.type", f"expected a Mitsuba plugin name (a string), got {shown(plugin)}")
@@ -212,6 +262,7 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
             if not ok:
                 bounds = f"in [{lo:g}, {hi:g}]" if key == "roughness" else f"> {lo:g} and <= {hi:g}"
                 raise MaterialError(path, where, f"expected a roughness {bounds}, got {shown(value)}")
+    _check_meaningful(spec, path, field)
 
 
 def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf", reflection_only: bool | None = None):
