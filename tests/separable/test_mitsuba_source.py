@@ -221,3 +221,32 @@ def test_an_unavailable_variant_is_one_backend_error_line(mitsuba_llvm, monkeypa
     message = str(info.value)
     assert "\n" not in message and "[llvm.cpp:42]" not in message
     assert message == "Mitsuba variant 'llvm_ad_rgb' is unavailable: cannot load LLVM; libLLVM.so not found"
+
+
+@pytest.mark.parametrize("reflectance", [0.0, 0.5])
+def test_delta_fractions_is_the_smooth_coat_share_of_the_albedo(mitsuba_llvm, reflectance):
+    """A smooth plastic's coat reflects F(theta_v) (exact Fresnel, n = 1.5: 0.04 at normal view), the
+    part BSDF.eval omits; the rest is its diffuse albedo, integrated here from BSDF.eval by a midpoint
+    rule over the hemisphere, independent of BSDF.sample. D / (D + S) must match; with a black base S = 0."""
+    from atlasgen.separable.mitsuba_source import delta_fractions
+
+    spec = {"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": reflectance, "nonlinear": False}
+    rows = delta_fractions(spec, views=(0.0,))
+    n = 256
+    mu = (np.arange(n) + 0.5) / n  # cos theta_l, uniform: d omega = d mu d phi
+    phi = 2.0 * np.pi * (np.arange(n) + 0.5) / n
+    m, p = np.meshgrid(mu, phi, indexing="ij")
+    s = np.sqrt(1.0 - m * m)
+    l = np.stack([s * np.cos(p), s * np.sin(p), m], -1).reshape(-1, 3)
+    v = np.tile([0.0, 0.0, 1.0], (l.shape[0], 1))
+    albedo = float(evaluate_mitsuba_f_cos(load_mitsuba_bsdf(spec, "t"), l, v).mean(axis=1).sum() * (2.0 * np.pi / (n * n)))
+    coat = 0.04
+    assert rows[0]["view_deg"] == 0.0
+    assert rows[0]["fraction"] == pytest.approx(coat / (coat + albedo), abs=5e-3)
+    assert (rows[0]["fraction"] == pytest.approx(1.0)) == (reflectance == 0.0)
+
+
+def test_a_rough_bsdf_has_no_delta_fraction(mitsuba_llvm):
+    from atlasgen.separable.mitsuba_source import delta_fractions
+
+    assert [r["fraction"] for r in delta_fractions({"type": "roughplastic", "alpha": 0.2})] == [0.0] * 4
