@@ -27,7 +27,7 @@ from atlasgen.bake.cache import cache_path, fill_cache
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
-from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
@@ -207,6 +207,12 @@ def app(ctx, debug):
     "--library", is_flag=True, help="Also bake the material library installed with atlasgen (alone when no PATHS are given)."
 )
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Fail (exit 7, nothing written) when a material warns: its measured error over 20%, a dropped delta lobe, "
+    "tolerated non-finite samples.",
+)
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
 def bake(
@@ -224,6 +230,7 @@ def bake(
     depfile,
     library,
     allow_empty,
+    strict,
     verbosity,
 ):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
@@ -257,6 +264,10 @@ def bake(
             result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
     else:
         result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
+    if strict and result.material_warnings:
+        count = len(result.material_warnings)
+        raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, nothing written: "
+                           + "; ".join(str(w) for w in result.material_warnings))  # fmt: skip
     extra_files = {}
     if depfile is not None:
         # Written in the same commit as the atlas: a depfile that cannot be written fails
@@ -271,7 +282,7 @@ def bake(
         for line in _describe_materials(result):
             click.echo(line, err=True)
     if verbosity != QUIET:
-        for warning in result.warnings:
+        for warning in [*result.warnings, *result.material_warnings]:
             click.echo(f"atlasgen: warning: {warning}", err=True)
         click.echo(result.describe(output, zstd))
 

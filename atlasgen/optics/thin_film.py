@@ -18,7 +18,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples, spectrum_to_rgb
+from atlasgen.optics.film import film_reflectance, spectral_grid, spectral_samples
 from atlasgen.optics.interpolation import interpolate_1d, interpolate_2d, linear_stencil
 from atlasgen.optics.microfacet import ggx_distribution, smith_visibility_correlated_ggx
 from atlasgen.optics.translucency import transmitted_albedo

@@ -121,7 +121,9 @@ def test_bsdf_needs_its_dict(write_material):
     ('{ type = "blendbsdf", weight = 0.5, a = { type = "conductor" }, b = { type = "diffuse" } }', "bsdf.a.type",
      "rough_only = true"),
 ])  # fmt: skip
-def test_what_a_slice_cannot_hold_is_refused_unless_consented(mitsuba_llvm, expect_rejected, write_material, bsdf, field, consent):
+def test_what_a_slice_cannot_hold_is_refused_unless_consented(
+    mitsuba_llvm, expect_rejected, write_material, bsdf, field, consent
+):
     """An anisotropic BSDF, or one with a smooth (delta) lobe beside its rough ones, is refused naming the field
     and the consent; with the consent the same file reads (issue 21)."""
     message = expect_rejected("bsdf", f"bsdf = {bsdf}", field, "expected ")

@@ -110,7 +110,8 @@ def test_a_non_bsdf_plugin_is_rejected(mitsuba_llvm):
 
 @pytest.mark.slow
 def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba_llvm, write_material, tmp_path):
-    """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others."""
+    """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others: an error
+    naming bsdf, unless the material tolerates that many (then one warning)."""
     import drjit as dr
 
     from atlasgen.bake.pipeline import bake_atlas
@@ -142,8 +143,14 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
             return "BrokenBSDF[]"
 
     mi.register_bsdf("atlasgen_test_broken", lambda props: BrokenBSDF(props))
-    write_material("broken", 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n')
+    body = 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n'
+    write_material("broken", body)
+    with pytest.raises(MaterialError, match=r"broken.toml: field 'bsdf': .* non-finite samples .*nonfinite_tolerance >= "):
+        bake_atlas(read_materials([tmp_path / "materials"]))
+    write_material("broken", body + "nonfinite_tolerance = 1000000\n")
     result = bake_atlas(read_materials([tmp_path / "materials"]))
+    (warning,) = [w for w in result.material_warnings if w.cause == "non-finite samples"]
+    assert warning.material == "broken" and "nonfinite_tolerance = 1000000" in str(warning)
     entry = result.manifest.materials[0].factors
     from atlasgen.separable.parametrization import get_parametrization
 
