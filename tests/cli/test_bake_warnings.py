@@ -33,3 +33,17 @@ def test_a_consented_loss_warns_and_strict_fails_writing_nothing(mitsuba_llvm, w
     assert len(warnings) == 1 and cause in warnings[0], plain.stderr
     quiet = CliRunner().invoke(app, args + ["-q"])
     assert quiet.exit_code == 0 and quiet.stderr == ""
+
+
+@pytest.mark.parametrize("after_s, quiet, shown", [(0.0, False, True), (0.0, True, False), (3600.0, False, False)])
+def test_a_long_bake_reports_each_material_on_stderr(write_material, tmp_path, monkeypatch, after_s, quiet, shown):
+    """Past PROGRESS_AFTER_S each baked material is one stderr line (not a terminal here); -q silences it,
+    and a bake quicker than that prints none."""
+    monkeypatch.setattr("atlasgen.cli.main.PROGRESS_AFTER_S", after_s)
+    write_material("clay", 'type = "lambert"\n')
+    write_material("sand", 'type = "lambert"\ncolour = [0.8, 0.7, 0.5]\n')
+    args = ["bake", str(tmp_path / "materials"), "-o", str(tmp_path / "a.dds")] + (["-q"] if quiet else [])
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    expected = ["baked clay (1/2)", "baked sand (2/2)"] if shown else []
+    assert [x for x in result.stderr.splitlines() if x.startswith("baked ")] == expected
