@@ -18,6 +18,7 @@ __all__ = [
     "OutputError",
     "BackendError",
     "GoalsMissed",
+    "BakeWarnings",
     "did_you_mean",
     "EXIT_OK",
     "EXIT_INTERNAL",
@@ -95,6 +96,13 @@ class GoalsMissed(AtlasgenError):
     exit_code = 6
 
 
+class BakeWarnings(AtlasgenError):
+    """``bake --strict``: a material warned (a measured error over the threshold, a dropped lobe,
+    tolerated non-finite samples: :mod:`atlasgen.bake.quality`); nothing is written."""
+
+    exit_code = 7
+
+
 def did_you_mean(word: str, known) -> str:
     """`` (did you mean 'x'?)`` for the closest of ``known`` to a mistyped ``word``, else ``""``.
 
@@ -140,5 +148,10 @@ EXIT_CODES = (
         "adapter (`apt-get install mesa-vulkan-drivers`)",
     ),
     (GoalsMissed.exit_code, "validate --strict: a material missed a validation goal (the report is still written)"),
+    (
+        BakeWarnings.exit_code,
+        "bake --strict: a material warned (its measured error over the threshold, a dropped delta lobe, "
+        "tolerated non-finite samples); nothing is written",
+    ),
     (EXIT_INTERRUPTED, "interrupted (Ctrl-C); outputs are replaced whole or not at all"),
 )

@@ -16,6 +16,7 @@ import json
 import math
 import os
 import sys
+import time
 import traceback
 import warnings
 from pathlib import Path
@@ -26,14 +27,18 @@ from atlasgen import __version__
 from atlasgen.bake.cache import cache_path, fill_cache
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
-from atlasgen.cli.options import NORMAL, QUIET, VERBOSE, verbosity_options
-from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
+
+#: Seconds after which ``atlasgen bake`` reports each finished material on stderr (a bar on a
+#: terminal, else ``baked skin (3/12)`` lines; nothing with -q).
+PROGRESS_AFTER_S = 2.0
 
 #: Subcommands that live in their own module, imported only when invoked, so that
 #: ``atlasgen --help`` never pays for the renderer's or the reports' imports.
@@ -207,6 +212,12 @@ def app(ctx, debug):
     "--library", is_flag=True, help="Also bake the material library installed with atlasgen (alone when no PATHS are given)."
 )
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Fail (exit 7, nothing written) when a material warns: its measured error over 20%, a dropped delta lobe, "
+    "tolerated non-finite samples.",
+)
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
 def bake(
@@ -224,6 +235,7 @@ def bake(
     depfile,
     library,
     allow_empty,
+    strict,
     verbosity,
 ):
     """Bake material definitions (files or folders; default: materials/) into an atlas."""
@@ -251,12 +263,20 @@ def bake(
         return
     previous = read_previous_slots(ids_from) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
-    show_bar = verbosity == NORMAL and sys.stderr.isatty()
-    if show_bar:
-        with click.progressbar(length=len(materials), label="baking", file=sys.stderr) as bar:
-            result = bake_atlas(materials, layout, linear, previous, progress=lambda _: bar.update(1), cache_dir=cache_dir)
-    else:
-        result = bake_atlas(materials, layout, linear, previous, cache_dir=cache_dir)
+    with MaterialProgress("baked", verbosity) as report:
+        started, done = time.monotonic(), [0]
+
+        def on_material(name):
+            # Quick bakes stay quiet; one that runs past PROGRESS_AFTER_S reports each material from then on.
+            done[0] += 1
+            if time.monotonic() - started > PROGRESS_AFTER_S:
+                report(name, done[0], len(materials))
+
+        result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir)
+    if strict and result.material_warnings:
+        count = len(result.material_warnings)
+        raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, nothing written: "
+                           + "; ".join(str(w) for w in result.material_warnings))  # fmt: skip
     extra_files = {}
     if depfile is not None:
         # Written in the same commit as the atlas: a depfile that cannot be written fails
@@ -271,7 +291,7 @@ def bake(
         for line in _describe_materials(result):
             click.echo(line, err=True)
     if verbosity != QUIET:
-        for warning in result.warnings:
+        for warning in [*result.warnings, *result.material_warnings]:
             click.echo(f"atlasgen: warning: {warning}", err=True)
         click.echo(result.describe(output, zstd))
 

@@ -15,6 +15,7 @@ from atlasgen import __version__
 from atlasgen.bake.cache import load_or_bake
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
+from atlasgen.bake.quality import MaterialWarning, assess_material
 from atlasgen.bake.slots import assign_slices
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.errors import MaterialError, OutputError
@@ -64,6 +65,9 @@ class BakeResult:
     includes: dict = field(default_factory=dict)
     #: ``X.separable.bin``: the separable rebuild's data table (atlasgen.shaders.separable); b"" for none.
     separable_data: bytes = b""
+    #: Per-material warnings (:mod:`atlasgen.bake.quality`): a measured error over the threshold and its
+    #: cause, tolerated non-finite samples. ``warnings`` holds the bake's other notes (cache, clamping).
+    material_warnings: list[MaterialWarning] = field(default_factory=list)
 
     def describe(self, dds_path, zstd: bool = False) -> str:
         """The texconv-style line for this atlas written to ``dds_path`` (``.dds`` or ``.ktx2``)."""
@@ -248,6 +252,7 @@ def bake_atlas(
 
     decoded0 = dequantize_rgba(levels[0], srgb)
     warnings = list(cache_warnings)
+    material_warnings: list[MaterialWarning] = []
     entries = []
     for material, slices, values, encoded in baked:
         first = slots[material.name]
@@ -284,6 +289,7 @@ def bake_atlas(
         model_fields = {}
         for extra in (slices.extra, encoded.extra, material.model.finalize(material.params, slices, encoded, dec)):
             model_fields.update(_jsonable(extra))
+        material_warnings.extend(assess_material(material, model_fields))
         entries.append(entry.with_fields(model_fields, material.source))
     entries.sort(key=lambda e: e.first_slice)
 
@@ -312,7 +318,8 @@ def bake_atlas(
     timings["cache"] = {"hits": cache_hits, "baked": baked_names}
     data = render_include_data(manifest, models=get_model)
     timings["total_s"] = time.perf_counter() - t_start
-    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, data)
+    return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, data,
+                      material_warnings)  # fmt: skip
 
 
 def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:

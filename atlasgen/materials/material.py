@@ -28,7 +28,8 @@ __all__ = [
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
-COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from", "fit_gloss")
+COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from", "fit_gloss",
+               "nonfinite_tolerance")  # fmt: skip
 #: Values of ``from``: the model's closed form, or a fit to its physical reference
 #: (:mod:`atlasgen.models.physical_fit`).
 FIT_SOURCES = ("model", "physical")
@@ -50,6 +51,8 @@ class Material:
     error_budget: float | None = None
     fit_from: str = "model"  # the file's ``from``
     fit_gloss: float | None = None  # with from = "physical": the renderer gloss the slice is fitted for
+    #: Non-finite (NaN, inf) samples of the source the bake may replace by 0, with a warning; more are an error.
+    nonfinite_tolerance: int = 0
     extra: dict = field(default_factory=dict)
 
     @property
@@ -72,6 +75,7 @@ _ID = Param("id", None, "int", 0, 255, doc="slice index")
 _POSITIVE = Param("", None, "float", 0.0, lo_open=True)
 _FIT_GLOSS = Param("fit_gloss", FIT_GLOSS, "float", 0.0, 1.0, doc="renderer gloss a from = 'physical' slice is fitted for")
 _SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
+_NONFINITE = Param("nonfinite_tolerance", 0, "int", 0, doc="non-finite source samples the bake may replace by 0")
 
 
 def _scale_field(raw, key, path):
@@ -162,6 +166,7 @@ def read_material(path) -> Material:
         error_budget=None if error_budget is None else float(error_budget),
         fit_from=fit_from,
         fit_gloss=fit_gloss,
+        nonfinite_tolerance=int(_NONFINITE.coerce(raw.get("nonfinite_tolerance", 0), shown)),
     )
 
 

@@ -15,7 +15,7 @@ from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference, SliceSet
 from atlasgen.models.physical_fit import fitted_bsdf_slice
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf
+from atlasgen.separable.mitsuba_source import delta_fractions, describe_lobes, load_mitsuba_bsdf
 
 __all__ = ["Bsdf"]
 
@@ -39,13 +39,25 @@ class Bsdf(Model):
     params = (
         Param("bsdf", None, "table", doc='a Mitsuba 3 BSDF dict, e.g. {type = "roughplastic", alpha = 0.2}'),
         Param("gloss", None, "float", lo=0.0, hi=1.0, doc="renderer gloss the slice is fitted for (default: the best fit)"),
+        Param(
+            "rough_only",
+            False,
+            "bool",
+            doc="bake only the rough lobes of a BSDF with a smooth (delta) one, e.g. plastic (the dropped fraction is recorded)",
+        ),
+        Param(
+            "accept_anisotropy",
+            False,
+            "bool",
+            doc="bake an anisotropic BSDF in one tangent frame (its measured error is recorded and printed)",
+        ),
     )
 
     def check(self, values: dict, path) -> None:
         if values["bsdf"] is None:
             raise MaterialError(path, "bsdf", 'missing; expected a Mitsuba BSDF table, e.g. {type = "roughplastic"}')
 
-        load_mitsuba_bsdf(values["bsdf"], path)
+        load_mitsuba_bsdf(values["bsdf"], path, anisotropic=values["accept_anisotropy"], rough_only=values["rough_only"])
 
     def fitted(self, values: dict):
         """The fitted slice ``(H, W, 4)`` and its description (cached per BSDF and gloss)."""
@@ -59,7 +71,14 @@ class Bsdf(Model):
 
     def bake(self, values: dict) -> SliceSet:
         table, info = self.fitted(values)
-        return SliceSet(np.array(table)[None], extra={"fit": {"from": "bsdf", **info}})
+        fit = {"from": "bsdf", **info}
+        if values["accept_anisotropy"] or values["rough_only"]:
+            lobes = describe_lobes(values["bsdf"])
+            if values["accept_anisotropy"] and lobes["anisotropic"]:
+                fit["anisotropic"] = True  # the slice is the BSDF in one tangent frame: see relative_rms
+            if values["rough_only"] and lobes["delta_components"]:
+                fit["dropped_delta_fraction"] = delta_fractions(values["bsdf"])
+        return SliceSet(np.array(table)[None], extra={"fit": fit})
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """The BSDF itself (the object's albedo is not applied: a BSDF dict has no one colour to scale)."""

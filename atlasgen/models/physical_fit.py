@@ -186,7 +186,8 @@ def fit_slice(
         target = footprint_f_cos(f_cos, azimuths, supersampling)
     else:
         target = np.asarray(f_cos(l.reshape(-1, 3), v.reshape(-1, 3)), dtype=np.float64).reshape(l.shape)
-        target = np.where(np.isfinite(target), target, 0.0)
+    nonfinite = int((~np.isfinite(target)).sum())
+    target = np.where(np.isfinite(target), target, 0.0)
     weights = np.full(l.shape[:-1], 1.0 / azimuths)
     energy = float((weights[..., None] * target * target).sum())
     fits = {}
@@ -229,6 +230,8 @@ def fit_slice(
             "relative_rms": float(np.sqrt(residual / energy)) if energy > 0 else 0.0}  # fmt: skip
     if supersampling > 1:
         info.update(supersampling=int(supersampling), footprint=footprint)
+    if nonfinite:  # replaced by 0 above; the bake refuses them unless tolerated (atlasgen.bake.quality)
+        info["nonfinite_samples"] = nonfinite
     return rgba, info
 
 

@@ -200,7 +200,9 @@ class Separable(Model):
                     "missing; expected a Mitsuba BSDF table, e.g. {type = \"roughconductor\"}, with source = 'mitsuba'",
                 )
 
-            load_mitsuba_bsdf(values["bsdf"], path, reflection_only=values["reflection_only"])
+            load_mitsuba_bsdf(values["bsdf"], path, reflection_only=values["reflection_only"],
+                              anisotropic='or use type = "bsdf" with accept_anisotropy = true (a separable material has no such consent)',
+                              rough_only='or use type = "bsdf" with rough_only = true (a separable material has no such consent)')  # fmt: skip
         elif values["bsdf"] is not None:
             raise MaterialError(path, "bsdf", f"only used with source = 'mitsuba', but source is {values['source']!r}")
         if values["source"] == "thin_film":

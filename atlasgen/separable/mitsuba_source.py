@@ -21,6 +21,9 @@ __all__ = [
     "evaluate_mitsuba_f_cos",
     "bsdf_alpha",
     "transmitted_fractions",
+    "delta_fractions",
+    "bsdf_lobes",
+    "describe_lobes",
     "TRANSMISSION_VIEWS",
 ]
 
@@ -191,9 +194,59 @@ def explain_mitsuba_error(message: str, spec: dict, field: str = "bsdf") -> tupl
 ROUGHNESS_RANGES = {"alpha": (0.0, 4.0), "alpha_u": (0.0, 4.0), "alpha_v": (0.0, 4.0), "roughness": (0.0, 1.0)}
 
 
+#: Properties that hold a reflectance, transmittance or colour (Mitsuba 3 docs, "Plugin reference: BSDFs"),
+#: and a conductor's complex index: physical values are >= 0, and a negative one is a sign error, not a look.
+COLOUR_KEYS = ("reflectance", "diffuse_reflectance", "specular_reflectance", "specular_transmittance", "base_color",
+               "eta", "k")  # fmt: skip
+#: Properties that weigh two things against each other, in [0, 1]: ``blendbsdf``'s ``weight``, ``mask``'s
+#: ``opacity`` and the principled BSDFs' lobe weights (Mitsuba 3 docs, "blendbsdf", "mask", "principled").
+WEIGHT_KEYS = ("weight", "opacity", "metallic", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat",
+               "clearcoat_gloss", "anisotropic", "diff_trans")  # fmt: skip
+_CONDUCTORS = ("conductor", "roughconductor")
+
+
+def _colour_numbers(value) -> list | None:
+    """The numbers of a colour property (a number, ``{type = "rgb", value = [r, g, b]}``, or a
+    ``{type = "spectrum"}`` of one value or ``[[wavelength, value], ...]``), or None for another form
+    (a texture): Mitsuba reads those itself."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value]
+    if not isinstance(value, dict):
+        return None
+    inner = value.get("value")
+    if value.get("type") == "rgb" and isinstance(inner, list):
+        return [x for x in inner if isinstance(x, (int, float)) and not isinstance(x, bool)]
+    if value.get("type") == "spectrum":
+        if isinstance(inner, (int, float)) and not isinstance(inner, bool):
+            return [inner]
+        if isinstance(inner, list):
+            return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], (int, float))]
+    return None
+
+
+def _check_meaningful(spec: dict, path, field: str) -> None:
+    """Refuse what no material means: a negative colour (:data:`COLOUR_KEYS`), a weight outside [0, 1]
+    (:data:`WEIGHT_KEYS`), a conductor with eta = k = 0 (its Fresnel term is 0/0: NaN in every sample)."""
+    for key in COLOUR_KEYS:
+        numbers = _colour_numbers(spec.get(key)) if key in spec else None
+        if numbers and min(numbers) < 0.0:
+            noun = "a complex index part" if key in ("eta", "k") else "a reflectance"
+            raise MaterialError(path, f"{field}.{key}", f"expected {noun} >= 0 in every channel, got {shown(spec[key])}")
+    for key in WEIGHT_KEYS:
+        value = spec.get(key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0.0 <= value <= 1.0:
+            raise MaterialError(path, f"{field}.{key}", f"expected a weight in [0, 1], got {shown(value)}")
+    if spec.get("type") in _CONDUCTORS and "eta" in spec and "k" in spec:
+        eta, k = _colour_numbers(spec["eta"]), _colour_numbers(spec["k"])
+        if eta and k and not any(eta) and not any(k):
+            raise MaterialError(path, f"{field}.eta", "expected eta or k > 0 for a conductor, got eta = k = 0 "
+                                                      "(its Fresnel reflectance is 0/0)")  # fmt: skip
+
+
 def _check_bsdf_values(spec: dict, path, field: str) -> None:
     """Every number of the (nested) BSDF table finite in float32, every roughness in range,
-    every ``type`` a plugin name: one-line errors naming ``bsdf.key``."""
+    every ``type`` a plugin name, every colour and weight meaningful (:func:`_check_meaningful`):
+    one-line errors naming ``bsdf.key``."""
     plugin = spec.get("type")
     if not isinstance(plugin, str) or not plugin:
         raise MaterialError(path, f"{field}.type", f"expected a Mitsuba plugin name (a string), got {shown(plugin)}")
@@ -212,17 +265,61 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
             if not ok:
                 bounds = f"in [{lo:g}, {hi:g}]" if key == "roughness" else f"> {lo:g} and <= {hi:g}"
                 raise MaterialError(path, where, f"expected a roughness {bounds}, got {shown(value)}")
+    _check_meaningful(spec, path, field)
 
 
-def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf", reflection_only: bool | None = None):
+#: Plugins whose lobe is smooth (a delta): ``BSDF.eval`` returns 0 for it (Mitsuba 3 docs, "BSDF.eval").
+_DELTA_PLUGINS = ("plastic", "conductor", "dielectric", "thindielectric")
+
+
+def _anisotropy_field(spec: dict, field: str) -> str:
+    """The dotted key that makes ``spec`` anisotropic: ``alpha_v`` (or ``alpha_u``), a principled
+    ``anisotropic``, else the table itself."""
+    for _, where, node in _nodes(spec, field):
+        if node.get("alpha_u") != node.get("alpha_v"):
+            return f"{where}.alpha_v" if "alpha_v" in node else f"{where}.alpha_u"
+        if node.get("anisotropic"):
+            return f"{where}.anisotropic"
+    return field
+
+
+def _delta_field(spec: dict, field: str) -> tuple[str, str]:
+    """The dotted ``type`` key of the first smooth (delta) plugin in ``spec``, and that plugin."""
+    for _, where, node in _nodes(spec, field):
+        if node.get("type") in _DELTA_PLUGINS:
+            return f"{where}.type", str(node["type"])
+    return f"{field}.type", str(spec.get("type"))
+
+
+def bsdf_lobes(bsdf, mi) -> dict:
+    """``{"anisotropic": bool, "delta_components": int}`` of a loaded BSDF: Mitsuba's ``Anisotropic``
+    flag, and how many of its components (``BSDF.flags(i)``) carry ``DeltaReflection``."""
+    delta = sum(mi.has_flag(bsdf.flags(i), mi.BSDFFlags.DeltaReflection) for i in range(bsdf.component_count()))
+    return {"anisotropic": bool(mi.has_flag(bsdf.flags(), mi.BSDFFlags.Anisotropic)), "delta_components": int(delta)}
+
+
+def load_mitsuba_bsdf(
+    spec: dict,
+    path,
+    field: str = "bsdf",
+    reflection_only: bool | None = None,
+    anisotropic: bool | str | None = None,
+    rough_only: bool | str | None = None,
+):
     """Instantiate a Mitsuba BSDF from a dict (``mi.load_dict``).
 
     The table is checked first (numbers finite in float32, roughness in range, ``type``
-    a name); the BSDF must reflect light diffusely or glossily, since smooth (delta)
-    lobes and the ``null`` BSDF evaluate to zero everywhere and leave nothing to factor.
+    a name, colours >= 0, weights in [0, 1], no conductor with eta = k = 0); the BSDF must
+    reflect light diffusely or glossily, since smooth (delta) lobes and the ``null`` BSDF
+    evaluate to zero everywhere and leave nothing to factor.
     With ``reflection_only = False`` a BSDF that transmits light (``roughdielectric``,
     ``dielectric``, ``thindielectric``, ...) is refused, since a slice holds reflection
     only; ``True`` accepts it, ``None`` (the default) does not check.
+    ``anisotropic`` and ``rough_only`` do the same for Mitsuba's ``Anisotropic`` flag (a slice
+    of (N.L, N.V) cannot hold a response that turns with the azimuth) and for a component with
+    ``DeltaReflection`` beside the rough ones (``BSDF.eval`` omits it, so the fit would drop it
+    unseen): ``False`` refuses, ``True`` accepts, ``None`` does not check. A string in place of
+    ``False`` refuses and names what to set instead (the model's consent field, or a remedy).
 
     Raises
     ------
@@ -253,7 +350,25 @@ def load_mitsuba_bsdf(spec: dict, path, field: str = "bsdf", reflection_only: bo
     if not (mi.has_flag(flags, mi.BSDFFlags.GlossyReflection) or mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection)):
         raise MaterialError(path, f"{field}.type", f"expected a BSDF with a diffuse or glossy reflection, got {spec['type']!r}, "
                                                    "which has none (smooth and null lobes evaluate to zero)")  # fmt: skip
+    lobes = bsdf_lobes(obj, mi)
+    if lobes["anisotropic"] and anisotropic is not None and anisotropic is not True:
+        remedy = anisotropic if isinstance(anisotropic, str) else "set accept_anisotropy = true to bake it anyway"
+        raise MaterialError(path, _anisotropy_field(spec, field), f"expected an isotropic BSDF: a {spec['type']!r} BSDF that "
+                            f"turns with the azimuth cannot be held by an (N.L, N.V) slice; {remedy} "
+                            "(its measured error is recorded and printed)")  # fmt: skip
+    if lobes["delta_components"] and rough_only is not None and rough_only is not True:
+        where, plugin = _delta_field(spec, field)
+        remedy = rough_only if isinstance(rough_only, str) else "or set rough_only = true to bake its rough lobes alone"
+        raise MaterialError(path, where, f"expected rough lobes only: a {plugin!r} BSDF has a smooth (delta) reflection, which "
+                                         f"BSDF.eval omits and a slice cannot hold; use its rough form, {remedy} "
+                                         "(the dropped fraction is recorded)")  # fmt: skip
     return obj
+
+
+def describe_lobes(spec: dict) -> dict:
+    """:func:`bsdf_lobes` of the BSDF dict ``spec`` (loaded unchecked: its material was checked when read)."""
+    mi = _mitsuba()
+    return bsdf_lobes(load_mitsuba_bsdf(spec, "<describe_lobes>"), mi)
 
 
 def evaluate_mitsuba_f_cos(bsdf, l, v) -> np.ndarray:
@@ -308,10 +423,24 @@ def transmitted_fractions(spec: dict, views=TRANSMISSION_VIEWS, samples: int = _
     ``samples`` stratified-by-seed uniform numbers per angle (numpy PCG64, fixed seed), so
     the figure is deterministic. Returns ``[{"view_deg", "fraction"}, ...]``.
     """
+    return _sampled_fractions(spec, views, samples, lambda mi, bs: np.asarray(bs.wo.z, dtype=np.float64) < 0.0)
+
+
+def delta_fractions(spec: dict, views=TRANSMISSION_VIEWS, samples: int = _TRANSMISSION_SAMPLES) -> list[dict]:
+    """The fraction of a BSDF's response in its smooth (delta) lobes, the part ``BSDF.eval`` omits,
+    at each view angle: D / (D + S), with D and S the directional albedos of the samples whose
+    ``sampled_type`` has Mitsuba's ``Delta`` flag and of the rest, measured as
+    :func:`transmitted_fractions` measures T / (R + T). Returns ``[{"view_deg", "fraction"}, ...]``.
+    """
+    return _sampled_fractions(spec, views, samples, lambda mi, bs: mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta).numpy())
+
+
+def _sampled_fractions(spec: dict, views, samples: int, selected) -> list[dict]:
+    """The share of ``BSDF.sample``'s weight over the samples ``selected(mi, bs)`` marks, per view angle."""
     mi = _mitsuba()
     import drjit as dr
 
-    bsdf = load_mitsuba_bsdf(spec, "<transmitted_fractions>")
+    bsdf = load_mitsuba_bsdf(spec, "<sampled_fractions>")
     rng = np.random.default_rng(_TRANSMISSION_SEED)
     out = []
     for degrees in views:
@@ -325,8 +454,8 @@ def transmitted_fractions(spec: dict, views=TRANSMISSION_VIEWS, samples: int = _
         bs, weight = bsdf.sample(mi.BSDFContext(), si, mi.Float(xi[0]), mi.Point2f(xi[1], xi[2]))
         w = np.asarray(weight, dtype=np.float64).reshape(3, -1).mean(axis=0)
         w = np.where(np.isfinite(w), w, 0.0)
-        down = np.asarray(bs.wo.z, dtype=np.float64) < 0.0
+        chosen = np.asarray(selected(mi, bs), dtype=bool)
         total = float(np.sum(w))
-        fraction = float(np.sum(w[down]) / total) if total > 0.0 else 0.0
+        fraction = float(np.sum(w[chosen]) / total) if total > 0.0 else 0.0
         out.append({"view_deg": float(degrees), "fraction": float(f"{fraction:.4g}")})
     return out

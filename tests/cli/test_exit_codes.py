@@ -61,6 +61,13 @@ def _run(tmp_path, library, monkeypatch, code):
         monkeypatch.setattr("atlasgen.cli.validate_cmd.summary_line", lambda data, html: "summary")
         monkeypatch.setattr("atlasgen.cli.validate_cmd.missed_goals", lambda data: ["clay: PSNR 40 dB < 45 dB"])
         args = ["validate", "--merge", str(tmp_path), "-o", str(tmp_path / "v"), "--strict"]
+    elif code == 7:
+        # A material that warns; the real ones (Mitsuba-backed) are in tests/cli/test_bake_warnings.py.
+        from atlasgen.bake.quality import MaterialWarning
+
+        warning = MaterialWarning("clay.toml", "clay", "unreachable fit", 0.5, "relative RMS error 50.0% of its fit > 20%")
+        monkeypatch.setattr("atlasgen.bake.pipeline.assess_material", lambda material, extra: [warning])
+        args = ["bake", str(library), "-o", out, "--strict"]
     elif code == 130:
         monkeypatch.setattr("atlasgen.cli.main.read_materials", _interrupt)
     return CliRunner().invoke(app, args)

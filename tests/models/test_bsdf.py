@@ -112,3 +112,29 @@ def test_from_must_be_model_or_physical(write_material):
 def test_bsdf_needs_its_dict(write_material):
     with pytest.raises(MaterialError, match="bsdf.*missing"):
         read_material(write_material("m", 'type = "bsdf"\n'))
+
+
+@pytest.mark.parametrize("bsdf, field, consent", [
+    ('{ type = "roughconductor", alpha_u = 0.1, alpha_v = 0.4 }', "bsdf.alpha_v", "accept_anisotropy = true"),
+    ('{ type = "principled", anisotropic = 0.5, roughness = 0.3 }', "bsdf.anisotropic", "accept_anisotropy = true"),
+    ('{ type = "plastic", diffuse_reflectance = 0.3 }', "bsdf.type", "rough_only = true"),
+    ('{ type = "blendbsdf", weight = 0.5, a = { type = "conductor" }, b = { type = "diffuse" } }', "bsdf.a.type",
+     "rough_only = true"),
+])  # fmt: skip
+def test_what_a_slice_cannot_hold_is_refused_unless_consented(
+    mitsuba_llvm, expect_rejected, write_material, bsdf, field, consent
+):
+    """An anisotropic BSDF, or one with a smooth (delta) lobe beside its rough ones, is refused naming the field
+    and the consent; with the consent the same file reads (issue 21)."""
+    message = expect_rejected("bsdf", f"bsdf = {bsdf}", field, "expected ")
+    assert consent in message, message
+    read_material(write_material("ok", f'type = "bsdf"\nbsdf = {bsdf}\n{consent}\n'))
+
+
+@pytest.mark.parametrize("bsdf, field", [
+    ('{ type = "roughconductor", alpha_u = 0.1, alpha_v = 0.4 }', "bsdf.alpha_v"),
+    ('{ type = "plastic" }', "bsdf.type"),
+])  # fmt: skip
+def test_a_separable_material_refuses_them_and_points_to_the_bsdf_model(mitsuba_llvm, expect_rejected, bsdf, field):
+    message = expect_rejected("separable", f'source = "mitsuba"\nterms = 1\nbsdf = {bsdf}', field, "expected ")
+    assert 'type = "bsdf" with' in message, message

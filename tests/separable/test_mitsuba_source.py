@@ -110,7 +110,8 @@ def test_a_non_bsdf_plugin_is_rejected(mitsuba_llvm):
 
 @pytest.mark.slow
 def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba_llvm, write_material, tmp_path):
-    """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others."""
+    """A Python BSDF registered with Mitsuba returns NaN for some directions and inf for others: an error
+    naming bsdf, unless the material tolerates that many (then one warning)."""
     import drjit as dr
 
     from atlasgen.bake.pipeline import bake_atlas
@@ -142,8 +143,14 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
             return "BrokenBSDF[]"
 
     mi.register_bsdf("atlasgen_test_broken", lambda props: BrokenBSDF(props))
-    write_material("broken", 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n')
+    body = 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n'
+    write_material("broken", body)
+    with pytest.raises(MaterialError, match=r"broken.toml: field 'bsdf': .* non-finite samples .*nonfinite_tolerance >= "):
+        bake_atlas(read_materials([tmp_path / "materials"]))
+    write_material("broken", body + "nonfinite_tolerance = 1000000\n")
     result = bake_atlas(read_materials([tmp_path / "materials"]))
+    (warning,) = [w for w in result.material_warnings if w.cause == "non-finite samples"]
+    assert warning.material == "broken" and "nonfinite_tolerance = 1000000" in str(warning)
     entry = result.manifest.materials[0].factors
     from atlasgen.separable.parametrization import get_parametrization
 
@@ -221,3 +228,32 @@ def test_an_unavailable_variant_is_one_backend_error_line(mitsuba_llvm, monkeypa
     message = str(info.value)
     assert "\n" not in message and "[llvm.cpp:42]" not in message
     assert message == "Mitsuba variant 'llvm_ad_rgb' is unavailable: cannot load LLVM; libLLVM.so not found"
+
+
+@pytest.mark.parametrize("reflectance", [0.0, 0.5])
+def test_delta_fractions_is_the_smooth_coat_share_of_the_albedo(mitsuba_llvm, reflectance):
+    """A smooth plastic's coat reflects F(theta_v) (exact Fresnel, n = 1.5: 0.04 at normal view), the
+    part BSDF.eval omits; the rest is its diffuse albedo, integrated here from BSDF.eval by a midpoint
+    rule over the hemisphere, independent of BSDF.sample. D / (D + S) must match; with a black base S = 0."""
+    from atlasgen.separable.mitsuba_source import delta_fractions
+
+    spec = {"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "diffuse_reflectance": reflectance, "nonlinear": False}
+    rows = delta_fractions(spec, views=(0.0,))
+    n = 256
+    mu = (np.arange(n) + 0.5) / n  # cos theta_l, uniform: d omega = d mu d phi
+    phi = 2.0 * np.pi * (np.arange(n) + 0.5) / n
+    m, p = np.meshgrid(mu, phi, indexing="ij")
+    s = np.sqrt(1.0 - m * m)
+    l = np.stack([s * np.cos(p), s * np.sin(p), m], -1).reshape(-1, 3)
+    v = np.tile([0.0, 0.0, 1.0], (l.shape[0], 1))
+    albedo = float(evaluate_mitsuba_f_cos(load_mitsuba_bsdf(spec, "t"), l, v).mean(axis=1).sum() * (2.0 * np.pi / (n * n)))
+    coat = 0.04
+    assert rows[0]["view_deg"] == 0.0
+    assert rows[0]["fraction"] == pytest.approx(coat / (coat + albedo), abs=5e-3)
+    assert (rows[0]["fraction"] == pytest.approx(1.0)) == (reflectance == 0.0)
+
+
+def test_a_rough_bsdf_has_no_delta_fraction(mitsuba_llvm):
+    from atlasgen.separable.mitsuba_source import delta_fractions
+
+    assert [r["fraction"] for r in delta_fractions({"type": "roughplastic", "alpha": 0.2})] == [0.0] * 4

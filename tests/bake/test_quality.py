@@ -1,0 +1,83 @@
+"""atlasgen.bake.quality: which baked materials warn, and the refusal of non-finite samples (issue 21)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from atlasgen.bake.quality import ERROR_WARNING_THRESHOLD, assess_material, count_nonfinite
+from atlasgen.errors import MaterialError
+
+GOLDEN = Path(__file__).resolve().parents[1] / "resources" / "golden" / "array-srgb.json"
+
+
+def _material(tolerance=0, bsdf=None):
+    return SimpleNamespace(source="materials/m.toml", name="m", params={"bsdf": bsdf}, nonfinite_tolerance=tolerance)
+
+
+@pytest.mark.parametrize("relative_rms, warns", [(0.996, True), (0.24, True), (0.2001, True), (0.2, False), (0.111, False)])
+def test_a_fit_error_over_the_threshold_warns_as_an_unreachable_fit(relative_rms, warns):
+    """Skin's fit at radius 0.01 mm (99.6%) and 10 m (24%) warn; the shipped skin (11.1%) does not."""
+    warnings = assess_material(_material(), {"fit": {"from": "physical", "gloss": 0.5, "relative_rms": relative_rms}})
+    assert bool(warnings) == warns
+    if warns:
+        (w,) = warnings
+        assert w.cause == "unreachable fit" and w.figure == relative_rms
+        assert str(w).startswith("materials/m.toml: material 'm': relative RMS error ")
+        assert f"{100 * relative_rms:.1f}%" in str(w) and "\n" not in str(w)
+
+
+def test_a_separable_materials_stored_error_is_judged_too():
+    (w,) = assess_material(_material(), {"errors_8bit": {"relative_rms": 0.3}})
+    assert w.cause == "unreachable fit" and "30.0% of its stored factors" in str(w)
+    assert assess_material(_material(), {"errors_8bit": {"relative_rms": 0.03}}) == []
+
+
+def test_accepted_anisotropy_always_warns_with_its_error():
+    (w,) = assess_material(_material(), {"fit": {"relative_rms": 0.05, "anisotropic": True}})
+    assert w.cause == "anisotropy" and "5.0%" in str(w) and "anisotropic" in str(w)
+
+
+def test_a_dropped_delta_lobe_warns_by_its_own_fraction_not_the_fit_error():
+    rows = [{"view_deg": 0.0, "fraction": 0.13}, {"view_deg": 80.0, "fraction": 0.7}]
+    (w,) = assess_material(_material(), {"fit": {"relative_rms": 0.019, "dropped_delta_fraction": rows}})
+    assert w.cause == "dropped delta lobe" and w.figure == 0.7 and "70.0% of the albedo at 80 degrees" in str(w)
+    small = [{"view_deg": 80.0, "fraction": ERROR_WARNING_THRESHOLD}]
+    assert assess_material(_material(), {"fit": {"relative_rms": 0.019, "dropped_delta_fraction": small}}) == []
+
+
+def test_a_missed_budget_warns():
+    (w,) = assess_material(_material(), {"errors_8bit": {"relative_rms": 0.05}, "max_error": 0.02, "max_error_met": False})
+    assert w.cause == "missed budget" and "0.02" in str(w)
+
+
+def test_non_finite_samples_are_an_error_unless_tolerated_then_a_warning():
+    extra = {"nonfinite_samples": 1632, "nonfinite_reference": 8}
+    assert count_nonfinite(extra) == 1640 and count_nonfinite({"fit": {"nonfinite_samples": 3}}) == 3
+    with pytest.raises(MaterialError) as info:
+        assess_material(_material(bsdf={"type": "x"}), extra)
+    message = str(info.value)
+    assert message.startswith("materials/m.toml: field 'bsdf': ") and "1640 non-finite" in message
+    assert "nonfinite_tolerance >= 1640" in message
+    with pytest.raises(MaterialError):
+        assess_material(_material(tolerance=1639), extra)
+    (w,) = assess_material(_material(tolerance=1640), extra)
+    assert w.cause == "non-finite samples" and "1640 non-finite samples" in str(w)
+
+
+def test_no_shipped_material_warns():
+    """The goldens' manifest as shipped: none of its materials is over the threshold."""
+    manifest = json.loads(GOLDEN.read_text())
+    for entry in manifest["materials"]:
+        material = SimpleNamespace(source=entry["source"], name=entry["name"], params=entry["params"], nonfinite_tolerance=0)
+        assert assess_material(material, entry) == [], entry["name"]
+
+
+def test_nonfinite_tolerance_is_a_checked_material_field(expect_rejected, write_material):
+    from atlasgen.materials.material import read_material
+
+    expect_rejected("lambert", "nonfinite_tolerance = -1", "nonfinite_tolerance", "expected an integer >= 0")
+    assert read_material(write_material("ok", 'type = "lambert"\nnonfinite_tolerance = 5\n')).nonfinite_tolerance == 5
