@@ -45,7 +45,15 @@ VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
 SEPARABLE_STUDIES := $(patsubst %,$(SEPARABLE_REPORT)/materials/%/report.json,$(SEPARABLE_STEMS))
 
-setup: apt $(VENV)/.stamp $(BUILD)/versions.txt
+# The three.js example's JavaScript (web/package.json, pinned exactly by web/package-lock.json), for
+# tests/web/test_threejs.py: `npm ci` when node_modules is missing or the lock changed (npm ci writes
+# node_modules/.package-lock.json). Without npm the browser test skips, so set-up only says so.
+WEB_DEPS := web/node_modules/.package-lock.json
+setup: apt $(VENV)/.stamp $(BUILD)/versions.txt $(WEB_DEPS)
+
+$(WEB_DEPS): web/package.json web/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then cd web && npm ci --no-audit --no-fund --loglevel=error; \
+	else echo "npm not found: web/node_modules not installed (tests/web/test_threejs.py will skip)"; fi
 
 # Installs only what is missing, as root via apt-get (sudo where we are not root).
 apt:

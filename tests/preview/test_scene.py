@@ -55,11 +55,11 @@ def test_the_floor_shows_the_lights_in_the_scene_formats_units(gpu_device, ball_
     cos = N.L, the last by Funk-Hecke with the clamped cosine's closed-form lambda_l (docs/atlas-format.md)."""
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.io.package_data import package_data_path
+    from atlasgen.materials.environment import environment_image
     from atlasgen.materials.material import read_material
+    from atlasgen.optics.spherical_harmonics import evaluate_sh, project_equirect
     from atlasgen.preview.previewer import FLOOR_MATERIAL
     from atlasgen.render.atlas_texture import RenderAtlas
-    from atlasgen.materials.environment import environment_image
-    from atlasgen.optics.spherical_harmonics import evaluate_sh, project_equirect
     from atlasgen.render.camera import pixel_rays
     from atlasgen.render.environment import IMAGE_HEIGHT
     from atlasgen.render.renderer import Renderer

@@ -8,11 +8,12 @@ selenium; skips cleanly without them. Full-page screenshots land in
 from __future__ import annotations
 
 import base64
-import shutil
 import textwrap
 from pathlib import Path
 
 import pytest
+
+from tests.chromium import start_chromium
 
 pytestmark = pytest.mark.slow
 
@@ -26,29 +27,12 @@ MATERIALS = {
 
 
 @pytest.fixture(scope="module")
-def browser():
+def browser(tmp_path_factory):
     """A headless Chromium at 1280 CSS px wide, through chromedriver."""
-    webdriver = pytest.importorskip("selenium.webdriver")
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    driver_path = shutil.which("chromedriver")
-    if chromium is None or driver_path is None:
-        pytest.skip("chromium and chromium-driver are not installed (make setup installs them)")
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = chromium
-    for arg in (
-        "--headless=new",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-dev-shm-usage",
-        "--allow-file-access-from-files",
-        f"--window-size={WIDTH},900",
-        "--force-device-scale-factor=1",
-    ):
-        options.add_argument(arg)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver = start_chromium(
+        tmp_path_factory.mktemp("chromium-profile"),
+        ("--allow-file-access-from-files", f"--window-size={WIDTH},900", "--force-device-scale-factor=1"),
+    )
     # The layout viewport, whatever the window decorations take: exactly WIDTH CSS px.
     driver.execute_cdp_cmd(
         "Emulation.setDeviceMetricsOverride", {"width": WIDTH, "height": 900, "deviceScaleFactor": 1, "mobile": False}
