@@ -18,7 +18,7 @@ from atlasgen.reports.validation import (
     summary_line,
     write_validation,
 )
-from atlasgen.validate.run import validate_atlas
+from atlasgen.validate.run import ENVIRONMENT_SCENES, validate_atlas
 
 __all__ = ["validate"]
 
@@ -51,6 +51,9 @@ def _resolution(ctx, param, value):
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
+@click.option("--environment", is_flag=True,
+              help="Also validate environment lighting: the scenes env-uniform (Mitsuba constant) and env-sky (envmap), "
+                   "a lone 64x64 sphere, on the material's pixels, against the model reference.")  # fmt: skip
 @click.option("--atlas", type=click.Path(path_type=Path, dir_okay=False), default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
@@ -63,7 +66,19 @@ def _resolution(ctx, param, value):
                    verbose="Print a line after every render instead of one per material.")  # fmt: skip
 @fail_on_errors
 def validate(
-    materials, scenes, spp, physical_spp, max_physical_spp, resolution, no_physical, atlas, output, merge, strict, verbosity
+    materials,
+    scenes,
+    spp,
+    physical_spp,
+    max_physical_spp,
+    resolution,
+    no_physical,
+    environment,
+    atlas,
+    output,
+    merge,
+    strict,
+    verbosity,
 ):
     """Compare baked MATERIALs (default: all in the atlas) with Mitsuba 3 references.
 
@@ -90,6 +105,8 @@ def validate(
             if verbosity == VERBOSE:
                 click.echo(text, err=True)
 
+        if environment:
+            scenes = tuple(dict.fromkeys((*scenes, *ENVIRONMENT_SCENES)))
         with MaterialProgress("validated", verbosity) as on_material:
             run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
                                  max_physical_spp=max_physical_spp,

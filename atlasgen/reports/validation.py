@@ -70,6 +70,8 @@ def _goal(run, ref, goals) -> bool | None:
     other references, and models whose manifest claims its own error, ``Model.validation_goals``)."""
     if ref.kind != "model" or not run.goals:
         return None
+    if getattr(run, "goal_psnr_db", None) is not None:  # an environment map: its PSNR goal alone (issue #20)
+        return bool(ref.metrics.psnr >= run.goal_psnr_db)
     return bool(ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"])
 
 
@@ -114,6 +116,10 @@ def report_dict(run) -> dict:
             row["claimed_errors"] = r.claimed
         if r.breakdown is not None:
             row["error_breakdown"] = r.breakdown
+        if getattr(r, "environment_breakdown", None) is not None:
+            row["environment_breakdown"] = r.environment_breakdown
+        if getattr(r, "goal_psnr_db", None) is not None:
+            row["goal_psnr_db"] = r.goal_psnr_db
         rows.append(row)
     return {
         "atlas": run.atlas,

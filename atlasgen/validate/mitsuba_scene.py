@@ -33,7 +33,9 @@ import time
 
 import numpy as np
 
+from atlasgen.materials.environment import mitsuba_emitter
 from atlasgen.materials.scene import object_matrix
+from atlasgen.render.environment import IMAGE_HEIGHT
 from atlasgen.render.meshes import build_mesh
 
 __all__ = [
@@ -85,6 +87,12 @@ def register_direct_integrator(mi) -> str:
             ctx = mi.BSDFContext()
             result = mi.Spectrum(0.0)
             for emitter in scene.emitters():
+                # An environment: infinite and not a delta light (a directional emitter is infinite too).
+                if mi.has_flag(emitter.flags(), mi.EmitterFlags.Infinite) and not mi.has_flag(
+                    emitter.flags(), mi.EmitterFlags.Delta
+                ):
+                    result += _environment_estimate(mi, dr, emitter, bsdf, ctx, si, sampler, hit)
+                    continue
                 ds, weight = emitter.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
                 wo = si.to_local(ds.d)
                 value = bsdf.eval(ctx, si, wo, hit)
@@ -107,6 +115,48 @@ def register_direct_integrator(mi) -> str:
     mi.register_integrator(DIRECT_INTEGRATOR, lambda props: DirectNoShadow(props))
     _registered.add((variant, DIRECT_INTEGRATOR))
     return DIRECT_INTEGRATOR
+
+
+#: Balance-heuristic count of the emitter's own samples against one cosine sample (:func:`_environment_estimate`):
+#: a ``constant`` emitter samples the sphere uniformly, which only adds variance to a cosine-shaped integrand, so it
+#: weighs little; an ``envmap`` (a sun) needs its importance sampling.
+ENVIRONMENT_EMITTER_WEIGHT = {"constant": 0.05, "envmap": 1.0}
+
+
+def _environment_estimate(mi, dr, emitter, bsdf, ctx, si, sampler, active):
+    """One unbiased estimate of int f(w_i, l) cos L(l) dl over the whole sphere, without a visibility test.
+
+    Two samples, combined by the balance heuristic (Veach 1997, eq. 9.10) with counts c_c = 1 and c_e
+    (:data:`ENVIRONMENT_EMITTER_WEIGHT`): l_c from the cosine-weighted upper hemisphere, p_c = max(cos, 0) / pi,
+    and l_e from the emitter, p_e = ``pdf_direction`` (uniform for ``constant``, luminance for ``envmap``):
+
+        F = sum_{t in (c, e)} c_t f(l_t) cos L(l_t) / (c_c p_c(l_t) + c_e p_e(l_t)).
+
+    The weights c_t p_t / (c_c p_c + c_e p_e) sum to 1 wherever either density is positive, and p_e > 0 wherever
+    L > 0, so F is unbiased for reflection and transmission (N.L < 0) alike; the renderer, which neither
+    shadows nor occludes its environment, is compared with exactly this integral.
+    """
+    c_e = ENVIRONMENT_EMITTER_WEIGHT["constant" if emitter.class_name().startswith("Constant") else "envmap"]
+
+    def emitted(d):
+        ds = dr.zeros(mi.DirectionSample3f)
+        ds.d = d
+        it = dr.zeros(mi.SurfaceInteraction3f)
+        it.wi = -d
+        it.wavelengths = si.wavelengths
+        return emitter.eval(it, active), emitter.pdf_direction(si, ds, active)
+
+    wo_c = mi.warp.square_to_cosine_hemisphere(sampler.next_2d(active))
+    value_c, pdf_e_c = emitted(si.to_world(wo_c))
+    f_c = bsdf.eval(ctx, si, wo_c, active)
+    den_c = mi.warp.square_to_cosine_hemisphere_pdf(wo_c) + c_e * pdf_e_c
+    ds_e, weight_e = emitter.sample_direction(si, sampler.next_2d(active), active)
+    wo_e = si.to_local(ds_e.d)
+    f_e = bsdf.eval(ctx, si, wo_e, active)
+    den_e = mi.warp.square_to_cosine_hemisphere_pdf(wo_e) + c_e * ds_e.pdf
+    part_c = dr.select(den_c > 0, f_c * value_c / den_c, 0.0)
+    part_e = dr.select((den_e > 0) & (ds_e.pdf > 0), c_e * f_e * weight_e * ds_e.pdf / den_e, 0.0)
+    return dr.select(active, part_c + part_e, 0.0)
 
 
 def register_shadow_integrator(mi) -> str:
@@ -203,8 +253,12 @@ def sensor_dict(mi, scene, spp: int = 1, stochastic: bool = False) -> dict:
 
 
 def emitter_dicts(scene) -> dict:
-    """The scene's lights as Mitsuba emitter dicts, in the renderer's units."""
+    """The scene's lights as Mitsuba emitter dicts, in the renderer's units, and its environment
+    (:func:`atlasgen.materials.environment.mitsuba_emitter`, a sky at the renderer's image size, so
+    both light with the same image)."""
     out = {}
+    if getattr(scene, "environment", None) is not None:
+        out["environment"] = mitsuba_emitter(scene.environment, IMAGE_HEIGHT)
     for i, light in enumerate(scene.lights):
         value = {"type": "rgb", "value": [float(c) * float(light.intensity) for c in light.colour]}
         if light.type == "point":

@@ -34,6 +34,7 @@ from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
+from atlasgen.validate.environment import break_down_environment, environment_parts
 from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, relative_rms
 from atlasgen.validate.mitsuba_scene import (
     CENTRE_PASS_SPP,
@@ -50,6 +51,8 @@ from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, bind_material, load_v
 
 __all__ = [
     "DEFAULT_SCENES",
+    "ENVIRONMENT_SCENES",
+    "GOAL_ENVIRONMENT_PSNR_DB",
     "ATLAS_TIMING_FRAMES",
     "GOAL_PSNR_DB",
     "GOAL_FLIP",
@@ -62,6 +65,16 @@ __all__ = [
 ]
 
 DEFAULT_SCENES = ("front", "back")
+#: The environment scenes (``atlasgen validate --environment``): a lone sphere under a uniform
+#: environment and under the procedural sky (docs/validation.md, "Environment lighting").
+ENVIRONMENT_SCENES = ("env-uniform", "env-sky")
+#: Samples per pixel and seed an environment reference starts at, and the most it grows to.
+ENVIRONMENT_SPP = 64
+MAX_ENVIRONMENT_SPP = 4096
+#: Goal of the environment-map case against the model reference (issue #20); the uniform case has the usual goals.
+GOAL_ENVIRONMENT_PSNR_DB = 35.0
+#: What an environment comparison leaves out.
+ENVIRONMENT_MASK_NOTE = "every pixel that does not show the material (the background)"
 #: A stochastic reference whose noise floor is too close to the error gets the samples the
 #: floor needs, at least this many times the last count, up to MAX_SPP_FACTOR times
 #: --physical-spp (:func:`_converged_physical`).
@@ -119,6 +132,8 @@ class MaterialRun:
     breakdown: dict | None = None  # the atlas's error split by cause, where the model has a float rebuild (:func:`_break_down`)
     notes: list = field(default_factory=list)
     goals: bool = True  # the model-reference goals apply (Model.validation_goals)
+    environment_breakdown: dict | None = None  # the environment terms' CPU error by part (environment scenes)
+    goal_psnr_db: float | None = None  # a goal of this scene's own, PSNR only (an environment map), else the usual goals
 
 
 @dataclass
@@ -312,6 +327,13 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             say(f"{entry.name} / {scene_name}: atlas {1000 * atlas_s:.1f} ms")
 
             mi.set_variant("llvm_ad_rgb")
+            if bound.environment is not None:
+                _check_environment(run, mi, renderer, entry, plan.manifest, bound, aovs, model.custom_lighting)
+                ref = run.references["model"]
+                say(f"{entry.name} / {scene_name}: environment reference {ref.seconds:.2f} s at {ref.spp} spp, "
+                    f"PSNR {ref.metrics.psnr:.1f} dB, noise floor {ref.noise_floor_db:.1f} dB")  # fmt: skip
+                runs.append(run)
+                continue
             mi_scene = build_mitsuba_scene(mi, bound, _object_bsdfs(bound, entry, plan.manifest), spp)
             image, seconds = render_mitsuba(mi, mi_scene, spp)
             ref = ReferenceRender("model", model_reference(entry).description, image, seconds, spp, "llvm_ad_rgb")
@@ -348,9 +370,59 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         "physical_spp": physical_spp,
         "max_physical_spp": max_physical_spp,
         "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
-        "goals": {"psnr_db": GOAL_PSNR_DB, "flip": GOAL_FLIP},
+        "goals": {"psnr_db": GOAL_PSNR_DB, "flip": GOAL_FLIP, "environment_map_psnr_db": GOAL_ENVIRONMENT_PSNR_DB},
     }
     return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
+
+
+def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_lighting: bool) -> None:
+    """The model reference of an environment scene, converged, on the material's pixels; and the CPU breakdown.
+
+    The reference is stochastic (:func:`~atlasgen.validate.mitsuba_scene.render_pixel_centres`, the
+    environment integrated by ``atlasgen_direct``'s MIS estimate): seeds 0 and 1 from
+    :data:`ENVIRONMENT_SPP` samples per pixel each, grown as physical references are
+    (:func:`_samples_for_floor`) up to :data:`MAX_ENVIRONMENT_SPP`. Every figure covers the pixels whose
+    g-buffer ID is the material's only (the background is not the material). A table material also
+    gets its error split into the SH band limit and the split sum (:mod:`atlasgen.validate.environment`).
+    """
+    mask = ~material_mask(entry, aovs)
+    mi_scene = build_mitsuba_scene(mi, scene, _object_bsdfs(scene, entry, manifest), 1, stochastic=True)
+    image = second = None
+    n, target, seconds = 0, ENVIRONMENT_SPP, 0.0
+    while True:
+        more = target - n
+        a, t_a = render_pixel_centres(mi, mi_scene, more, seed=0, first_sample=n)
+        b, t_b = render_pixel_centres(mi, mi_scene, more, seed=1, first_sample=n)
+        image = a if image is None else (n * image + more * a) / target
+        second = b if second is None else (n * second + more * b) / target
+        n, seconds = target, seconds + t_a + t_b
+        floor = noise_floor(image, second, run.exposure, mask)
+        metrics = compare_images(0.5 * (image + second), run.atlas_image, run.exposure, mask=mask)
+        wanted = _samples_for_floor(n, floor, metrics.psnr)
+        if floor >= metrics.psnr + NOISE_FLOOR_MARGIN_DB or n >= MAX_ENVIRONMENT_SPP or wanted is None:
+            break
+        target = min(wanted, MAX_ENVIRONMENT_SPP)
+    del mi_scene
+    source = model_reference(entry).description
+    ref = ReferenceRender("model", f"{source}, under the environment", 0.5 * (image + second), seconds, n, "llvm_ad_rgb",
+                          metrics=metrics, noise_floor_db=floor, mask=mask, masked=ENVIRONMENT_MASK_NOTE)  # fmt: skip
+    run.references["model"] = ref
+    if scene.environment.source != "uniform":
+        run.goal_psnr_db = GOAL_ENVIRONMENT_PSNR_DB
+    if custom_lighting:
+        run.notes.append("a separable material: the renderer's split sum with its directional albedo; "
+                         "its error is not split by part")  # fmt: skip
+        return
+    data = renderer.environment.data(scene.environment)
+    parts = environment_parts(renderer.atlas.levels, renderer.atlas.srgb, entry, scene, aovs, data)
+    out = break_down_environment(parts, run.exposure)
+    keep = ~parts.mask
+    m = compare_images(ref.image, parts.exact, run.exposure, with_flip=False, mask=keep)
+    out["exact_vs_reference"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    m = compare_images(parts.approx, np.where(parts.mask[..., None], run.atlas_image, 0.0), run.exposure, with_flip=False,
+                       mask=keep)  # fmt: skip
+    out["gpu_vs_cpu"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    run.environment_breakdown = out
 
 
 def _converged_physical(

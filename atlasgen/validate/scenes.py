@@ -23,6 +23,8 @@ MATERIAL_PLACEHOLDER = "$material"
 STANDARD_SCENES = {
     "front": "a sphere on a plane, lit from the front (point key light, directional fill)",
     "back": "the same sphere and plane, lit from behind (point and directional lights)",
+    "env-uniform": "a sphere alone under a uniform environment, no lights (Mitsuba: constant)",
+    "env-sky": "a sphere alone under the procedural sky, no lights (Mitsuba: envmap of the same image)",
 }
 
 

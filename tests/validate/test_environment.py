@@ -1,0 +1,108 @@
+"""The environment breakdown on the CPU (atlasgen/validate/environment.py) and the mask its metrics use.
+
+The g-buffer here is a sphere's, computed in closed form (ray-sphere intersection), so no GPU is needed.
+"""
+
+import math
+import textwrap
+import tomllib
+
+import numpy as np
+import pytest
+
+from atlasgen.materials.scene import parse_scene
+from atlasgen.render.camera import pixel_rays
+from atlasgen.render.environment import EnvironmentData
+from atlasgen.validate.environment import break_down_environment, environment_parts
+from atlasgen.validate.metrics import compare_images
+from atlasgen.validate.rebuild import material_mask
+from tests.render.atlas_fixture import GLOSSY, LAMBERT, build_fixture_atlas
+
+SPHERE = """
+{environment}
+[camera]
+position = [0, 0.3, 3]
+target = [0, 0, 0]
+fov = 30
+[image]
+width = 20
+height = 16
+[[objects]]
+shape = "sphere"
+material = "m"
+"""
+
+
+def _scene(environment):
+    return parse_scene(tomllib.loads(textwrap.dedent(SPHERE.format(environment=environment))), "test.toml", None)
+
+
+def _sphere_aovs(scene, slot: int, gloss: float = 0.6):
+    """The g-buffer of a unit sphere at the origin: depth, normal, albedo, gloss and id per pixel."""
+    rays = pixel_rays(scene.camera, scene.width, scene.height)
+    o = np.asarray(scene.camera.position, dtype=np.float64)
+    d = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    b = d @ o
+    disc = b * b - (o @ o - 1.0)
+    hit = disc > 0
+    t = np.where(hit, -b - np.sqrt(np.maximum(disc, 0.0)), 0.0)
+    depth = t * np.linalg.norm(rays, axis=-1)  # along the unnormalised ray, as the rebuilds read it
+    normal = o + d * t[..., None]
+    albedo = np.broadcast_to([0.8, 0.6, 0.4], hit.shape + (3,))
+    return {"depth": depth, "normal": normal, "albedo": albedo, "gloss": np.full(hit.shape, gloss),
+            "id": np.where(hit, slot, 0xFFFF)}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def atlas():
+    return build_fixture_atlas()
+
+
+@pytest.mark.slow
+def test_the_parts_sum_to_the_total_cpu_error_and_a_uniform_environment_is_exact_for_the_diffuse_term(atlas):
+    entry = atlas.manifest.materials[GLOSSY]
+    for environment in ('environment = "sky"', "environment = [0.5, 1.0, 2.0]"):
+        scene = _scene(environment)
+        aovs = _sphere_aovs(scene, GLOSSY)
+        parts = environment_parts(atlas.levels, atlas.srgb, entry, scene, aovs, EnvironmentData.of(scene.environment))
+        assert parts.mask.sum() > 50
+        sh_error = parts.diffuse_sh - parts.diffuse_exact
+        split_error = parts.specular_split_sum - parts.specular_exact
+        np.testing.assert_allclose(sh_error + split_error, parts.approx - parts.exact, atol=1e-12)
+        assert np.abs(parts.specular_exact).max() > 1e-3 and np.abs(parts.diffuse_exact).max() > 1e-2
+        figures = break_down_environment(parts)
+        assert figures["pixels"] == int(parts.mask.sum())
+        if "sky" in environment:  # both approximations cost something under a sun
+            assert 20.0 < figures["sh_band_limit"]["psnr_db"] < 80.0 and 20.0 < figures["split_sum"]["psnr_db"] < 80.0
+            assert figures["total"]["psnr_db"] <= max(figures["sh_band_limit"]["psnr_db"], figures["split_sum"]["psnr_db"])
+        else:  # a constant is exact to the band limit: lambda_0 / pi L is the whole integral (to the texel sum's
+            # quadrature of a piecewise-linear slice, 6e-5 at 128 x 256 texels)
+            np.testing.assert_allclose(parts.diffuse_sh[parts.mask], parts.diffuse_exact[parts.mask], rtol=2e-4)
+            # and the split sum is exact for a constant too, up to its table's quadrature (5e-4, environment_tables.py)
+            np.testing.assert_allclose(parts.specular_split_sum[parts.mask], parts.specular_exact[parts.mask], rtol=2e-2)
+
+
+@pytest.mark.slow
+def test_a_lambert_slice_under_a_uniform_environment_integrates_to_albedo_times_radiance(atlas):
+    scene = _scene("environment = [0.5, 1.0, 2.0]")
+    aovs = _sphere_aovs(scene, LAMBERT)
+    parts = environment_parts(atlas.levels, atlas.srgb, atlas.manifest.materials[LAMBERT], scene, aovs)
+    expected = np.array([0.8, 0.6, 0.4]) * np.array([0.5, 1.0, 2.0])
+    # The fixture's lambert slice is max(N.L, 0) stored in 8 bits: its integral is pi (1 + 1/63^2) to quantisation.
+    np.testing.assert_allclose(parts.diffuse_exact[parts.mask] / expected, 1.0, atol=3e-3)
+    np.testing.assert_allclose(parts.specular_exact[parts.mask], 0.0, atol=1e-12)
+
+
+def test_the_environment_metrics_ignore_pixels_that_do_not_show_the_material():
+    ids = np.full((12, 16), 0xFFFF)
+    ids[3:9, 4:12] = 7
+    entry = type("Entry", (), {"first_slice": 7, "slice_count": 1})()
+    mask = ~material_mask(entry, {"id": ids})
+    rng = np.random.default_rng(1)
+    reference = rng.uniform(0.0, 1.0, (12, 16, 3)).astype(np.float32)
+    test = reference.copy()
+    test[mask] = rng.uniform(0.0, 1.0, (int(mask.sum()), 3))  # only the background differs
+    m = compare_images(reference, test, mask=mask, with_flip=False)
+    assert m.psnr == math.inf and m.linear_rmse == 0.0
+    test[5, 6] += 0.1  # and a material pixel that differs is seen
+    assert compare_images(reference, test, mask=mask, with_flip=False).psnr < 60.0
