@@ -35,6 +35,8 @@ class Bsdf(Model):
     reference = "least-squares projection of a Mitsuba BSDF onto the renderer's equation (Lawson & Hanson 1974)"
     physical_omissions = {
         "gloss": "the renderer gloss the slice is fitted for; the physical reference is the BSDF itself, with its own roughness",
+        "rough_only": "consent to drop the BSDF's delta lobes from the slice; the reference keeps them, so the error shows what was dropped",
+        "accept_anisotropy": "consent to bake an anisotropic BSDF's average; the reference keeps the anisotropy, so the error shows it",
     }
     params = (
         Param("bsdf", None, "table", doc='a Mitsuba 3 BSDF dict, e.g. {type = "roughplastic", alpha = 0.2}'),

@@ -223,7 +223,7 @@ def test_the_gpu_include_reads_the_transmission_slice_as_the_rebuild_does(gpu_de
     from atlasgen.io.dds import read_dds
     from atlasgen.separable.rebuild import evaluate_separable
     from tests.separable.separable_helpers import random_frames
-    from tests.separable.test_shader import _run
+    from tests.shaders.test_separable import _run
 
     path, result = backlit_film_atlas
     dds = read_dds(path)
