@@ -27,7 +27,7 @@ from atlasgen.io.package_data import package_data_path
 from atlasgen.materials.material import Material, check_unique_names, find_material_files, read_material, read_materials
 from atlasgen.materials.scene import Scene
 from atlasgen.preview.label import draw_label, label_lines
-from atlasgen.preview.reference import ReferenceShot, load_reference_mitsuba, reference_lines, refine_reference
+from atlasgen.preview.reference import MAX_SPP, ReferenceShot, load_reference_mitsuba, reference_lines, refine_reference
 from atlasgen.preview.scene import ball_mesh_file, parse_preview_scene, preview_scene_data
 from atlasgen.preview.sheet import arrange_sheet
 from atlasgen.render.atlas_texture import RenderAtlas
@@ -258,8 +258,6 @@ class Previewer:
 
         Raises :class:`~atlasgen.errors.BackendError` without Mitsuba's LLVM variant.
         """
-        from atlasgen.preview.reference import MAX_SPP
-
         t = time.perf_counter()
         mi = load_reference_mitsuba()
         references: dict[str, ReferenceShot] = {}

@@ -27,10 +27,17 @@ import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.materials.scene import Scene, with_fitted_surfaces
+from atlasgen.validate.backend import load_mitsuba
 from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB
 from atlasgen.validate.rebuild import material_mask
 from atlasgen.validate.references import physical_reference
-from atlasgen.validate.run import add_physical_samples, mean_of_seeds, measure_physical, render_physical
+from atlasgen.validate.run import (
+    add_physical_samples,
+    mean_of_seeds,
+    measure_physical,
+    register_references_for_variant,
+    render_physical,
+)
 
 __all__ = ["START_SPP", "MAX_SPP", "ReferenceShot", "load_reference_mitsuba", "refine_reference", "reference_lines"]
 
@@ -87,9 +94,6 @@ def reference_lines(shot: ReferenceShot | None) -> list[str]:
 
 def load_reference_mitsuba():
     """Mitsuba's ``llvm_ad_rgb`` variant with atlasgen's plugins registered (raises BackendError without it)."""
-    from atlasgen.validate.backend import load_mitsuba
-    from atlasgen.validate.run import register_references_for_variant
-
     mi = load_mitsuba("llvm_ad_rgb")
     register_references_for_variant(mi)
     return mi

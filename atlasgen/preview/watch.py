@@ -22,6 +22,7 @@ from atlasgen.errors import AtlasgenError, BackendError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.images import encode_png
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Preview, Previewer, check_preview_output, compose_picture
+from atlasgen.preview.reference import MAX_SPP, load_reference_mitsuba, refine_reference
 
 __all__ = ["Update", "watch_preview", "describe_update"]
 
@@ -146,8 +147,6 @@ def watch_preview(
     write_lock = threading.Lock()
 
     def refine(preview: Preview, cancel: threading.Event) -> None:
-        from atlasgen.preview.reference import MAX_SPP, load_reference_mitsuba, refine_reference
-
         references: dict = {}
         try:
             mi = load_reference_mitsuba()
