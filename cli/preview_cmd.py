@@ -9,6 +9,7 @@ import click
 from atlasgen.cli.main import _one_line, fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
+from atlasgen.preview.reference import reference_lines
 from atlasgen.preview.watch import describe_update, watch_preview
 
 __all__ = ["preview"]
@@ -30,9 +31,21 @@ def _steps(timings: dict) -> str:
 @click.option("--watch", is_flag=True,
               help="Keep running: re-bake and re-render on every save of a material file (or a file it names), "
                    "printing one line per update; Ctrl-C ends it (exit 0).")  # fmt: skip
+@click.option("--reference", is_flag=True,
+              help="Also render each material's Mitsuba physical reference of the same scene and show it beside the "
+                   "picture, labelled with its spp, noise floor and the picture's PSNR against it on the material's "
+                   "pixels (needs Mitsuba).")  # fmt: skip
+@click.option(
+    "--reference-spp",
+    "max_spp",
+    type=click.IntRange(4),
+    default=256,
+    show_default=True,
+    help="The most samples per pixel (per seed) a reference is refined to.",
+)
 @verbosity_options(quiet="Print only errors.", verbose="Also print how long each step took.")
 @fail_on_errors
-def preview(paths, output, cache_dir, no_cache, watch, verbosity):
+def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbosity):
     """Show material files (or folders of them) on a standard ball and sphere, in a labelled PNG.
 
     The materials are baked alone, from the bake cache, and rendered with the deferred renderer
@@ -46,33 +59,46 @@ def preview(paths, output, cache_dir, no_cache, watch, verbosity):
     save by renaming a new file over the old one are followed (the folder is watched). A bad
     edit prints its one-line error and keeps the last good picture.
 
+    With --reference each picture has the material's Mitsuba physical reference of the same
+    scene beside it, rendered at the preview's resolution with seeds 0 and 1 (their PSNR is its
+    noise floor), from 4 samples per pixel doubling until the floor is 10 dB above the picture's
+    PSNR against it, or --reference-spp. A material without one says so. With --watch the
+    reference renders in the background: the picture comes first, and each refinement rewrites
+    the PNG.
+
     Exit codes as every command's; a bad material file gives its one line (3) and leaves the PNG as
     it was.
     """
     output = output or default_output(paths)
     cache = None if no_cache else cache_dir
     if watch:
-        _watch(paths, output, cache, verbosity)
+        _watch(paths, output, cache, verbosity, reference, max_spp)
         return
-    shown = Previewer(cache).write(paths, output)
+    shown = Previewer(cache).write(paths, output, reference=reference, max_spp=max_spp)
     if verbosity != QUIET:
         click.echo(f"wrote {output.as_posix()} ({', '.join(shown.names)}) in {shown.seconds:.2f} s")
     if verbosity == VERBOSE:
         click.echo(f"  {_steps(shown.timings)}", err=True)
 
 
-def _watch(paths, output, cache, verbosity) -> None:
+def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> None:
     def report(update) -> None:
         if update.error is not None:
             click.echo(f"atlasgen: error: {_one_line(update.error)} (kept the last picture; watching)", err=True)
         elif verbosity != QUIET:
             click.echo(describe_update(update, output, steps=verbosity == VERBOSE))
 
+    def refined(name, shot) -> None:
+        if name is None:
+            click.echo(f"atlasgen: error: {_one_line(shot)} (no reference; watching)", err=True)
+        elif verbosity == VERBOSE:
+            click.echo(f"reference {name}: {', '.join(reference_lines(shot)[1:])} ({shot.seconds:.1f} s)")
+
     check_preview_output(output, paths)
     if verbosity != QUIET:
         click.echo(f"watching {', '.join(Path(p).as_posix() for p in paths)} (Ctrl-C to stop)", err=True)
     try:
-        watch_preview(paths, output, cache, on_update=report)
+        watch_preview(paths, output, cache, on_update=report, reference=reference, max_spp=max_spp, on_reference=refined)
     except KeyboardInterrupt:
         # Ctrl-C is how a watch ends: a success; the PNG was replaced whole or not at all.
         if verbosity != QUIET:

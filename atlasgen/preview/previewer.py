@@ -14,16 +14,20 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from atlasgen.bake.pipeline import bake_atlas
 from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
+from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.io.package_data import package_data_path
 from atlasgen.materials.material import Material, check_unique_names, find_material_files, read_material, read_materials
 from atlasgen.materials.scene import Scene
 from atlasgen.preview.label import draw_label, label_lines
+from atlasgen.preview.reference import MAX_SPP, ReferenceShot, load_reference_mitsuba, reference_lines, refine_reference
 from atlasgen.preview.scene import ball_mesh_file, parse_preview_scene, preview_scene_data
 from atlasgen.preview.sheet import arrange_sheet
 from atlasgen.render.atlas_texture import RenderAtlas
@@ -37,6 +41,8 @@ __all__ = [
     "DEFAULT_OUTPUT_DIR",
     "FLOOR_MATERIAL",
     "Preview",
+    "Shot",
+    "compose_picture",
     "Previewer",
     "default_output",
     "referenced_files",
@@ -54,6 +60,41 @@ FLOOR_MATERIAL = ("preview", "atlasgen-preview-floor.toml")
 
 
 @dataclass
+class Shot:
+    """One material's atlas picture, as rendered, and what its reference needs."""
+
+    entry: MaterialEntry
+    scene: Scene
+    radiance: np.ndarray
+    lines: list[str]
+    #: The g-buffer read-backs (``id``: the material-ID AOV), kept when a reference was asked for.
+    aovs: dict | None = None
+
+    @property
+    def name(self) -> str:
+        return self.entry.name
+
+
+def compose_picture(shots: list[Shot], references: dict | None = None) -> np.ndarray:
+    """The labelled pictures of ``shots``, a contact sheet for several; with ``references`` (name ->
+    :class:`~atlasgen.preview.reference.ReferenceShot`, a name missing while its first pass renders)
+    each atlas picture has its reference beside it, on the right."""
+    cells = []
+    for shot in shots:
+        exposure = shot.scene.settings.exposure
+        cell = draw_label(display_codes(shot.radiance, exposure), shot.lines)
+        if references is not None:
+            ref = references.get(shot.name)
+            if ref is not None and ref.image is not None:
+                codes = display_codes(ref.image, exposure)
+            else:
+                codes = np.full((*shot.radiance.shape[:2], 3), 24, np.uint8)  # no image (yet): a dark panel
+            cell = arrange_sheet([cell, draw_label(codes, reference_lines(ref))], columns=2)
+        cells.append(cell)
+    return arrange_sheet(cells)
+
+
+@dataclass
 class Preview:
     """One preview: its PNG, the materials it shows and where the time went (seconds)."""
 
@@ -67,6 +108,11 @@ class Preview:
     inputs: list[Path] = field(default_factory=list)
     #: Whether the lighting shader was compiled for this preview (a new include).
     compiled: bool = False
+    #: Each material's picture, in order, and the atlas's manifest (the floor's entry included).
+    shots: list[Shot] = field(default_factory=list)
+    manifest: Manifest | None = None
+    #: Each material's physical reference (``--reference``), by name; None without one asked for.
+    references: dict | None = None
 
     @property
     def seconds(self) -> float:
@@ -147,10 +193,11 @@ class Previewer:
         """The scene a preview renders for the material ``name`` (:mod:`atlasgen.preview.scene`)."""
         return parse_preview_scene(preview_scene_data(name, self.floor.name, self.ball_file))
 
-    def preview(self, paths, use_cache: bool = True) -> Preview:
+    def preview(self, paths, use_cache: bool = True, aovs: bool = False) -> Preview:
         """Bake the materials under ``paths`` into one atlas and render each: one labelled picture,
         or a contact sheet of them. ``use_cache=False`` bakes them afresh (a file they name changed,
-        which the cache's key does not cover).
+        which the cache's key does not cover). ``aovs`` keeps each picture's g-buffer read-backs (a
+        reference needs the material-ID AOV).
 
         Raises the bake's and the renderer's errors (:class:`~atlasgen.errors.MaterialError` with
         the file and field, :class:`~atlasgen.errors.BackendError` without a GPU) before anything is
@@ -185,30 +232,55 @@ class Previewer:
             t3 = time.perf_counter()
             timings["upload"] = t3 - t2
         entries = {e.name: e for e in result.manifest.materials}
-        cells, spent = [], {"render": 0.0, "label": 0.0}
+        cells, shots, spent = [], [], {"render": 0.0, "label": 0.0}
         for material in materials:
             t = time.perf_counter()
             scene = self.scene_for(material.name)
-            radiance = self.renderer.render(scene, aovs=False).radiance
-            codes = display_codes(radiance, scene.settings.exposure)
+            frame = self.renderer.render(scene, aovs=aovs)
+            codes = display_codes(frame.radiance, scene.settings.exposure)
             t_render = time.perf_counter()
-            cells.append(draw_label(codes, label_lines(entries[material.name])))
+            shot = Shot(entries[material.name], scene, np.asarray(frame.radiance, np.float32), label_lines(entries[material.name]),
+                        frame.aovs if aovs else None)  # fmt: skip
+            shots.append(shot)
+            cells.append(draw_label(codes, shot.lines))
             spent["render"] += t_render - t
             spent["label"] += time.perf_counter() - t_render
         timings.update(spent)
         t4 = time.perf_counter()
         png = encode_png(arrange_sheet(cells))
         timings["encode"] = time.perf_counter() - t4
-        return Preview(png, [m.name for m in materials], timings, inputs, compiled)
+        return Preview(png, [m.name for m in materials], timings, inputs, compiled, shots, result.manifest)
 
-    def write(self, paths, output, use_cache: bool = True) -> Preview:
-        """:meth:`preview`, then replace ``output`` with its PNG atomically (timed as ``write``).
+    def add_references(self, preview: Preview, max_spp: int | None = None) -> Preview:
+        """Render each material's physical reference of its scene (:mod:`atlasgen.preview.reference`) to
+        convergence or the cap, and set ``preview.png`` to the pictures with their references beside them
+        (timed as ``reference``). ``preview`` must have been made with ``aovs=True``.
+
+        Raises :class:`~atlasgen.errors.BackendError` without Mitsuba's LLVM variant.
+        """
+        t = time.perf_counter()
+        mi = load_reference_mitsuba()
+        references: dict[str, ReferenceShot] = {}
+        for shot in preview.shots:
+            for ref in refine_reference(mi, shot.scene, shot.entry, preview.manifest, shot.radiance, shot.aovs or {},
+                                        max_spp=max_spp or MAX_SPP):  # fmt: skip
+                references[shot.name] = ref
+        preview.references = references
+        preview.png = encode_png(compose_picture(preview.shots, references))
+        preview.timings["reference"] = time.perf_counter() - t
+        return preview
+
+    def write(self, paths, output, use_cache: bool = True, reference: bool = False, max_spp: int | None = None) -> Preview:
+        """:meth:`preview` (with ``reference``, :meth:`add_references` too), then replace ``output`` with
+        its PNG atomically (timed as ``write``).
 
         The output is checked first (:func:`check_preview_output`); a preview that fails leaves
         ``output`` as it was.
         """
         check_preview_output(output, paths)
-        preview = self.preview(paths, use_cache)
+        preview = self.preview(paths, use_cache, aovs=reference)
+        if reference:
+            self.add_references(preview, max_spp)
         t = time.perf_counter()
         write_file_atomically(output, preview.png)
         preview.timings["write"] = time.perf_counter() - t

@@ -19,7 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import AtlasgenError, BackendError
-from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Preview, Previewer, check_preview_output
+from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.images import encode_png
+from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Preview, Previewer, check_preview_output, compose_picture
+from atlasgen.preview.reference import MAX_SPP, load_reference_mitsuba, refine_reference
 
 __all__ = ["Update", "watch_preview", "describe_update"]
 
@@ -96,6 +99,9 @@ def watch_preview(
     echo: Callable[[str], None] | None = None,
     on_update: Callable[[Update], None] | None = None,
     previewer: Previewer | None = None,
+    reference: bool = False,
+    max_spp: int | None = None,
+    on_reference: Callable[[str, object], None] | None = None,
 ) -> int:
     """Write ``output``'s preview of ``paths``, then again on every change to what it reads, until stopped.
 
@@ -114,6 +120,13 @@ def watch_preview(
         Called with each :class:`Update`, the first picture's included.
     previewer
         The warm state to use (a test's, a benchmark's); a new one on ``cache_dir`` by default.
+    reference, max_spp, on_reference
+        Show each material's physical reference beside it (:mod:`atlasgen.preview.reference`). The atlas
+        picture is written first, its reference labelled ``reference: rendering``; a background thread
+        then renders the reference at low spp and refines it, each pass rewriting the PNG with the
+        current atlas picture (``on_reference(name, shot)`` after each; ``on_reference(None, error)`` if
+        it cannot render). An edit stops the thread's
+        refinement (after the pass under way) and starts one for the new picture.
 
     Returns the number of updates caused by changes. The output is checked before anything
     starts (:func:`~atlasgen.preview.previewer.check_preview_output`). Ctrl-C raises
@@ -130,15 +143,53 @@ def watch_preview(
     stop = stop or threading.Event()
     sources = _Sources(paths)
     done, first = 0, True
+    refining: list[threading.Event] = []
+    write_lock = threading.Lock()
+
+    def refine(preview: Preview, cancel: threading.Event) -> None:
+        references: dict = {}
+        try:
+            mi = load_reference_mitsuba()
+            for shot in preview.shots:
+                for ref in refine_reference(mi, shot.scene, shot.entry, preview.manifest, shot.radiance, shot.aovs or {},
+                                            max_spp=max_spp or MAX_SPP, stop=cancel):  # fmt: skip
+                    references[shot.name] = ref
+                    png = encode_png(compose_picture(preview.shots, references))
+                    with write_lock:
+                        if cancel.is_set():
+                            return
+                        write_file_atomically(output, png)
+                    if on_reference is not None:
+                        on_reference(shot.name, ref)
+        except AtlasgenError as exc:  # no Mitsuba: said once, and the watch goes on without references
+            if echo is not None:
+                echo(f"reference: {exc}")
+            if on_reference is not None:
+                on_reference(None, exc)
 
     def update(changed: list[str], use_cache: bool = True) -> None:
+        for cancel in refining:
+            cancel.set()
+        refining.clear()
         try:
-            preview = previewer.write(paths, output, use_cache)
+            with write_lock:
+                if reference:
+                    # The atlas picture first, its references shown as rendering: the thread refines them.
+                    check_preview_output(output, paths)
+                    preview = previewer.preview(paths, use_cache, aovs=True)
+                    preview.png = encode_png(compose_picture(preview.shots, {}))
+                    write_file_atomically(output, preview.png)
+                else:
+                    preview = previewer.write(paths, output, use_cache)
         except AtlasgenError as exc:
             result = Update(changed, None, exc)
         else:
             sources.learn(preview)
             result = Update(changed, preview, None, {**preview.timings, "total": preview.seconds})
+            if reference:
+                cancel = threading.Event()
+                refining.append(cancel)
+                threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True).start()
         if echo is not None:
             echo(describe_update(result, output))
         if on_update is not None:
@@ -165,4 +216,6 @@ def watch_preview(
                     break  # a material names a file in another folder now: watch that one too
         finally:
             changes.close()
+    for cancel in refining:
+        cancel.set()
     return done

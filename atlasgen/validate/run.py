@@ -60,6 +60,10 @@ __all__ = [
     "MaterialRun",
     "ValidationRun",
     "is_material_file",
+    "render_physical",
+    "add_physical_samples",
+    "measure_physical",
+    "mean_of_seeds",
     "plan_validation",
     "validate_atlas",
 ]
@@ -443,26 +447,46 @@ def _converged_physical(
     continue the old ones (``first_sample``), so none is rendered twice.
     """
     n = physical_spp
-    ref = _render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
+    ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
     while True:
-        if ref.second_image is not None:
-            ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, ref.mask)
-        ref.metrics = compare_images(_mean_of_seeds(ref), atlas_image, exposure, mask=ref.mask)
+        measure_physical(ref, atlas_image, exposure)
         target = _samples_for_floor(n, ref.noise_floor_db, None if ref.metrics is None else ref.metrics.psnr)
         if ref.noise_floor_ok is not False or n >= max_spp or target is None:
             break
         more = min(target, max_spp) - n
-        extra = _render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n)
-        ref.image = (n * ref.image + more * extra.image) / (n + more)
-        ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
-        ref.seconds += extra.seconds
-        n += more
-        ref.spp = n
-    ref.image, ref.second_image = _mean_of_seeds(ref), None
+        add_physical_samples(mi, scene, entry, reference, manifest, ref, more, spp, renders)
+        n = ref.spp
+    ref.image, ref.second_image = mean_of_seeds(ref), None
     return ref
 
 
-def _mean_of_seeds(ref: ReferenceRender) -> np.ndarray:
+def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=None) -> None:
+    """Set ``ref``'s noise floor (the PSNR between its two seeds, where it has two) and the atlas
+    image's metrics against the mean of its seeds, leaving out ``ref.mask`` and ``mask`` (True = left out)."""
+    if mask is not None:
+        mask = mask if ref.mask is None else (ref.mask | mask)
+    else:
+        mask = ref.mask
+    if ref.second_image is not None:
+        ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, mask)
+    ref.metrics = compare_images(mean_of_seeds(ref), atlas_image, exposure, mask=mask)
+
+
+def add_physical_samples(mi, scene, entry, reference, manifest, ref: ReferenceRender, more: int, spp: int,
+                         renders: dict | None = None) -> None:  # fmt: skip
+    """Continue both seeds of the stochastic render ``ref`` (``ref.spp`` samples each) by ``more``
+    samples, [``ref.spp``, ``ref.spp`` + ``more``), so none is rendered twice; each image becomes
+    the sample-weighted mean (n I_n + m I_m) / (n + m) of the old and the new."""
+    n = ref.spp
+    extra = render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n)
+    ref.image = (n * ref.image + more * extra.image) / (n + more)
+    ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
+    ref.seconds += extra.seconds
+    ref.spp = n + more
+
+
+def mean_of_seeds(ref: ReferenceRender) -> np.ndarray:
+    """The mean of a stochastic reference's two seeds; a deterministic one's image."""
     return ref.image if ref.second_image is None else 0.5 * (ref.image + ref.second_image)
 
 
@@ -585,7 +609,7 @@ def _copy_render(ref: ReferenceRender) -> ReferenceRender:
                    mask=None if ref.mask is None else ref.mask.copy())  # fmt: skip
 
 
-def _render_physical(
+def render_physical(
     mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0
 ) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
@@ -642,6 +666,10 @@ def _render_physical(
     if key is not None:
         renders[key] = _copy_render(ref)
     return ref
+
+
+#: The name validation's tests know it by.
+_render_physical = render_physical
 
 
 def _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample):
