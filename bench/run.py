@@ -15,8 +15,19 @@ import traceback
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTIONS = ["bake", "models", "separable", "render", "preview", "cost", "physical", "pareto", "environment",
-            "environment_error", "environment_cost"]
+SECTIONS = [
+    "bake",
+    "models",
+    "separable",
+    "render",
+    "preview",
+    "cost",
+    "physical",
+    "pareto",
+    "environment",
+    "environment_error",
+    "environment_cost",
+]
 
 
 #: Each section's text in BENCHMARKS.md starts with this marker, so one section can be re-run alone.
