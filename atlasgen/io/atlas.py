@@ -30,6 +30,7 @@ from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
     "Atlas",
+    "apply_slice_scale",
     "read_atlas",
     "check_include",
     "include_manifest_sha256",
@@ -91,10 +92,16 @@ class Atlas:
         entry = self.manifest.by_slice(slice_index) if apply_scale and self.manifest is not None else None
         if entry is not None:
             k = slice_index - entry.first_slice
-            scale, bias = entry.scale[k], entry.bias[k]
-            rgba[..., :3] = rgba[..., :3] * scale[0] + bias[0]
-            rgba[..., 3] = rgba[..., 3] * scale[1] + bias[1]
+            rgba = apply_slice_scale(rgba, entry.scale[k], entry.bias[k])
         return rgba
+
+
+def apply_slice_scale(rgba: np.ndarray, scale, bias) -> np.ndarray:
+    """Decoded texels ``(..., 4)`` in the slice's units: RGB * scale[0] + bias[0], A * scale[1] + bias[1]
+    (docs/atlas-format.md, the manifest's ``value`` mapping), in place; returns ``rgba``."""
+    rgba[..., :3] = rgba[..., :3] * scale[0] + bias[0]
+    rgba[..., 3] = rgba[..., 3] * scale[1] + bias[1]
+    return rgba
 
 
 def read_atlas(path) -> Atlas:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS
+from atlasgen.io.atlas import apply_slice_scale
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.materials.environment import Environment, environment_image
 from atlasgen.optics.environment_tables import (
@@ -82,11 +83,7 @@ def decode_render_slice(levels, srgb: bool, entry: MaterialEntry, slice_index: i
     """Linear RGBA ``(32, 64, 4)`` of atlas slice ``slice_index`` at level 0: what ``atlas_sample`` returns."""
     rgba = dequantize_rgba(np.asarray(levels[0][slice_index]), srgb).astype(np.float64)
     k = slice_index - entry.first_slice
-    scale = entry.scale[k] if entry.scale else (1.0, 1.0)
-    bias = entry.bias[k] if entry.bias else (0.0, 0.0)
-    rgba[..., :3] = rgba[..., :3] * scale[0] + bias[0]
-    rgba[..., 3] = rgba[..., 3] * scale[1] + bias[1]
-    return rgba
+    return apply_slice_scale(rgba, entry.scale[k] if entry.scale else (1.0, 1.0), entry.bias[k] if entry.bias else (0.0, 0.0))
 
 
 def _separable_f_cos(levels, srgb: bool, entry: MaterialEntry):

@@ -37,13 +37,14 @@ from atlasgen.optics.environment_tables import (
     slice_specular_table,
     specular_environment,
 )
+from atlasgen.optics.equirect import texel_directions, texel_solid_angles
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
 from atlasgen.render.environment import EnvironmentData, decode_render_slice
 from atlasgen.validate.metrics import compare_images
 from atlasgen.validate.rebuild import _pixel_geometry, material_mask
 
-__all__ = ["EnvironmentParts", "equirect_directions", "environment_parts", "break_down_environment"]
+__all__ = ["EnvironmentParts", "environment_parts", "break_down_environment"]
 
 #: Material pixels integrated at a time (bounds the (pixels x texels) arrays to a few tens of MB).
 _CHUNK = 48
@@ -66,24 +67,6 @@ class EnvironmentParts:
     @property
     def exact(self) -> np.ndarray:
         return self.diffuse_exact + self.specular_exact
-
-
-def equirect_directions(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit directions ``(height * width, 3)`` of an equirect image's texels and their solid angles (summing to 4 pi).
-
-    Mitsuba's ``envmap`` layout (docs/scenes.md, "Environment"): column i at phi = 2 pi (i + 1/2) / W,
-    row j at theta = pi j / (H - 1), d = (sin(theta) sin(phi), cos(theta), -sin(theta) cos(phi)).
-
-    >>> d, w = equirect_directions(5, 8)
-    >>> round(float(w.sum()), 12) == round(4 * math.pi, 12), bool(np.allclose(np.linalg.norm(d, axis=1), 1))
-    (True, True)
-    """
-    theta = np.pi * np.arange(height) / (height - 1)
-    phi = 2.0 * np.pi * (np.arange(width) + 0.5) / width
-    st = np.sin(theta)[:, None]
-    d = np.stack(np.broadcast_arrays(st * np.sin(phi), np.cos(theta)[:, None], -st * np.cos(phi)), axis=-1)
-    w = np.broadcast_to(st, (height, width)).astype(np.float64)
-    return d.reshape(-1, 3), (w * (4.0 * np.pi / w.sum())).reshape(-1)
 
 
 def environment_parts(levels, srgb: bool, entry: MaterialEntry, scene, aovs: dict,
@@ -118,7 +101,7 @@ def environment_parts(levels, srgb: bool, entry: MaterialEntry, scene, aovs: dic
 def _brute_force(values, nearest, image, n, v, nv, gloss):
     """(int A.rgb / pi L dl, int A.a D V (n.l)+ L dl) per pixel, as sums over the image's texels."""
     h, w = image.shape[:2]
-    dirs, weights = equirect_directions(h, w)
+    dirs, weights = texel_directions(h, w).reshape(-1, 3), texel_solid_angles(h, w).reshape(-1)
     radiance = np.asarray(image, dtype=np.float64).reshape(-1, 3) * weights[:, None]
     rgb, alpha = values[..., :3], values[..., 3:4]
     diffuse, specular = np.zeros((len(n), 3)), np.zeros((len(n), 3))

@@ -39,6 +39,9 @@ def test_each_form_resolves_to_the_model_type_the_parser_builds():
 def test_anything_else_goes_to_the_parser():
     ffi = wgpu_ffi.ffi
     install(ffi)
-    for cdecl in ("uint32_t *", "int[4]", "WGPUBufferDescriptor **", "void(*)(int)"):
-        assert ffi.typeof(cdecl) is ffi.typeof(cdecl)  # parsed once, then cffi's own cache
+    parser = ffi._parser
+    slow = type(parser).parse_type_and_quals.__get__(parser)
+    # Not a plain typedef name with at most one * and one [N]: the parser's answer, whatever it is.
+    for cdecl in ("uint32_t *", "int[4]", "WGPUBufferDescriptor **", "WGPUBufferDescriptor *[2][3]", "void(*)(int)"):
+        assert parser.parse_type_and_quals(cdecl) == slow(cdecl), cdecl
     assert ffi.typeof("WGPUBufferDescriptor *") is ffi.typeof("WGPUBufferDescriptor*")
