@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from atlasgen.errors import InputError
+from atlasgen.io.atomic import recover_commits
 
 __all__ = ["report_json_paths", "read_report_json"]
 
@@ -27,6 +28,7 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
 def read_report_json(path: Path, kind: str, command: str):
     """The parsed JSON of one report, or an :class:`InputError` naming the file and the fix."""
     path = Path(path)
+    recover_commits(path.parent)
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
