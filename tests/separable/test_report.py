@@ -44,7 +44,7 @@ def test_report_writes_markdown_json_and_the_plots(write_material, tmp_path, sep
 
 def test_report_needs_a_separable_material(write_material, tmp_path):
     lut = read_material(write_material("clay", 'type = "lambert"\n'))
-    with pytest.raises(InputError, match="no separable materials"):
+    with pytest.raises(InputError, match="clay.toml: field 'type': material 'clay' is 'lambert', not separable; expected"):
         write_separable_report([lut], tmp_path / "r")
 
 
