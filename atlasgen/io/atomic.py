@@ -332,7 +332,7 @@ def _backup(path: Path) -> str | None:
     return backup
 
 
-def _write_journal(journal: Path, entries: list) -> None:
+def _write_journal(journal: Path, entries: list, primary: Path) -> None:
     data = json.dumps({"version": JOURNAL_VERSION, "pid": os.getpid(), "entries": entries, "complete": True}, indent=1)
     try:
         fd = os.open(journal, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
@@ -342,15 +342,14 @@ def _write_journal(journal: Path, entries: list) -> None:
             os.fsync(fh.fileno())
     except OSError as exc:
         _unlink(journal)
-        raise OutputError(
-            f"{journal.as_posix()}: cannot write the commit journal ({exc.strerror}); nothing was replaced"
-        ) from None
+        raise OutputError(f"{primary.as_posix()}: cannot write ({exc.strerror}, writing the commit journal {journal.name}); "
+                          "nothing was replaced") from None  # fmt: skip
     _fsync_folder(_folder(journal))
 
 
-def _commit(journal: Path, entries: list) -> None:
+def _commit(journal: Path, entries: list, primary: Path) -> None:
     """Steps 4-5 of the module's commit: journal, renames (rolled back on failure), clean-up."""
-    _write_journal(journal, entries)
+    _write_journal(journal, entries, primary)
     done = []
     for entry in entries:
         target = Path(entry["target"])
@@ -456,7 +455,7 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
                 entries.append(entry)
                 entry["old"] = _backup(path)
             with deferred_interrupts():
-                _commit(journal, entries)
+                _commit(journal, entries, primary)
             committed = True
         finally:
             if not committed:
