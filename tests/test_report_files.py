@@ -60,7 +60,9 @@ def _validation_report(figure) -> dict:
     ref = {"seconds": 1.0, "speed_ratio": 2.0, "psnr_db": figure, "flip": 0.1, "meets_goal": True, "images": {}}
     row = {"material": "clay", "scene": "front", "exposure": 1.0, "atlas_seconds": 0.5, "references": {"model": ref},
            "atlas_image": "images/a.png", "notes": []}  # fmt: skip
-    return {"atlas": "a.dds", "settings": {}, "environment": {}, "total_seconds": 1.0, "results": [row]}
+    environment = {"gpu": "lavapipe", "mitsuba": "3.9.1", "atlas_timing": "wall", "mitsuba_timing": "wall"}
+    return {"atlas": "a.dds", "settings": {"spp": 16, "physical_spp": 64, "goals": {"psnr_db": 30, "flip": 0.2}},
+            "environment": environment, "total_seconds": 1.0, "results": [row]}  # fmt: skip
 
 
 @pytest.mark.parametrize("figure,expected", [

@@ -426,6 +426,9 @@ def read_validation_report(path: Path) -> dict:
     return data
 
 
+#: The keys of ``environment`` and ``settings`` the merged page prints.
+_ENVIRONMENT_KEYS = ("gpu", "mitsuba", "atlas_timing", "mitsuba_timing")
+_SETTINGS_KEYS = ("spp", "physical_spp")
 #: The numbers of a report.json (each finite, or null) that a merge adds, compares or prints.
 _ROW_NUMBERS = ("exposure", "atlas_seconds", "goal_psnr_db")
 _REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "linear_rmse", "linear_relative_rms",
@@ -435,6 +438,12 @@ _REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "line
 def _check_figures(path: Path, data: dict) -> None:
     """Refuse a report whose figures are not finite numbers (or null), naming the field."""
     check_number(path, "total_seconds", data["total_seconds"], allow_none=False)
+    for part, keys in (("environment", _ENVIRONMENT_KEYS), ("settings", _SETTINGS_KEYS)):
+        if not isinstance(data[part], dict):
+            raise FieldError(path.as_posix(), part, f"expected an object, got {type(data[part]).__name__}")
+        missing = [k for k in keys if k not in data[part]]
+        if missing:
+            raise FieldError(path.as_posix(), f"{part}.{missing[0]}", "missing; expected the key atlasgen validate writes")
     if not isinstance(data["results"], list):
         raise FieldError(path.as_posix(), "results", f"expected a list of results, got {type(data['results']).__name__}")
     for i, row in enumerate(data["results"]):
