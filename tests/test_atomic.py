@@ -375,3 +375,17 @@ def test_removed_siblings_go_in_the_same_commit(tmp_path):
         (tmp_path / name).write_bytes(b"old")
     write_files_atomically({tmp_path / "a.dds": b"new"}, remove=[tmp_path / "a.glsl", tmp_path / "a.ktx2", tmp_path / "gone"])
     assert _outputs(tmp_path) == {tmp_path / "a.dds": b"new"}
+
+
+def test_a_killed_commit_whose_target_became_immutable_is_rolled_back(tmp_path):
+    old, _ = _journal_case(tmp_path, 1)  # a.json renamed, a.wgsl and a.dds not yet
+    if not _chattr(tmp_path / "a.dds", "+i"):
+        pytest.skip("chattr +i needs root and a file system with the immutable flag")
+    try:
+        atomic.recover_commits(tmp_path)
+        left = _outputs(tmp_path)
+    finally:
+        _chattr(tmp_path / "a.dds", "-i")
+    # Every output as it was; the immutable file's backup (a link to it) cannot be removed, and stays hidden.
+    assert {p: d for p, d in left.items() if not p.name.startswith(".")} == old
+    assert [(p.name.startswith(".a.dds."), d) for p, d in left.items() if p.name.startswith(".")] == [(True, b"old a.dds")]

@@ -238,14 +238,14 @@ def _roll_back(entries: list) -> None:
     for entry in reversed(entries):
         target, new, old = entry["target"], entry["new"], entry["old"]
         if new is not None and os.path.lexists(new):
-            _unlink(new)  # never renamed: the target is still the old file
+            _discard(new)  # never renamed: the target is still the old file
             if old is not None:
-                _unlink(old)
+                _discard(old)
             continue
         if old is not None:
             if os.path.lexists(old):
                 os.replace(old, target)  # a no-op when both are links of one file ...
-                _unlink(old)  # ... which leaves the backup to remove
+                _discard(old)  # ... which leaves the backup to remove
         elif new is not None:
             _unlink(target)  # the target did not exist before this commit
 
@@ -265,7 +265,14 @@ def _roll_forward(entries: list) -> None:
 def _remove_backups(entries: list) -> None:
     for entry in entries:
         if entry["old"] is not None:
-            _unlink(entry["old"])
+            _discard(entry["old"])
+
+
+def _discard(path) -> None:
+    """Remove a temporary or a backup if it can be: a backup of an immutable file cannot be, and
+    stays (under a temporary's name) without harm."""
+    with contextlib.suppress(OSError):
+        os.unlink(path)
 
 
 def _recover(journal: Path) -> None:
@@ -278,12 +285,20 @@ def _recover(journal: Path) -> None:
         else:
             try:
                 _roll_forward(entries)
-            except OSError:
+            except OSError:  # a target that can no longer be replaced: back to the old set
+                _mark_rollback(marker)
                 _roll_back(entries)
             _remove_backups(entries)
     _unlink(journal)
     _fsync_folder(_folder(journal))
     _unlink(marker)
+
+
+def _mark_rollback(marker: Path) -> None:
+    """Create the rollback marker (flushed), so that a roll-back killed half-way is finished as one."""
+    with contextlib.suppress(OSError):
+        os.close(os.open(marker, os.O_WRONLY | os.O_CREAT, 0o644))
+        _fsync_folder(_folder(marker))
 
 
 def _journal_path(folder: Path, key: str) -> Path:
@@ -361,9 +376,7 @@ def _commit(journal: Path, entries: list, primary: Path) -> None:
                 os.replace(entry["new"], target)
         except OSError as exc:
             marker = journal.with_name(journal.name[: -len(JOURNAL_SUFFIX)] + ROLLBACK_SUFFIX)
-            with contextlib.suppress(OSError):
-                os.close(os.open(marker, os.O_WRONLY | os.O_CREAT, 0o644))
-                _fsync_folder(_folder(marker))
+            _mark_rollback(marker)
             _roll_back(entries)
             _unlink(journal)
             _unlink(marker)
@@ -423,7 +436,11 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
     journal = _journal_path(home, key)
     with output_lock(home, key):
         if journal.exists():
-            _recover(journal)
+            try:
+                _recover(journal)
+            except OSError as exc:
+                raise OutputError(f"{primary.as_posix()}: cannot finish the commit a killed run left in {journal.name} "
+                                  f"({exc.strerror}); expected its outputs to be replaceable") from None  # fmt: skip
         staged: list[tuple[str, Path]] = []
         entries: list[dict[str, str | None]] = []
         committed = False
@@ -458,7 +475,9 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
                 _commit(journal, entries, primary)
             committed = True
         finally:
-            if not committed:
+            # A journal still there means renames began and neither finished nor rolled back: its
+            # temporaries and backups are what recovery needs, so they stay.
+            if not committed and not journal.exists():
                 for tmp, _ in staged:
                     _unlink(tmp)
                 _remove_backups(entries)
