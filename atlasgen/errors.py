@@ -139,8 +139,8 @@ EXIT_CODES = (
     ),
     (
         OutputError.exit_code,
-        "an output cannot be written, or would overwrite an input, another output or a folder; "
-        "existing outputs are left untouched",
+        "an output cannot be written or replaced, would overwrite an input, another output or a folder, or "
+        "another writer held its output set's lock past the timeout; existing outputs are left untouched",
     ),
     (
         BackendError.exit_code,
@@ -153,5 +153,8 @@ EXIT_CODES = (
         "bake --strict: a material warned (its measured error over the threshold, a dropped delta lobe, "
         "tolerated non-finite samples); nothing is written",
     ),
-    (EXIT_INTERRUPTED, "interrupted (Ctrl-C); outputs are replaced whole or not at all"),
+    (
+        EXIT_INTERRUPTED,
+        "interrupted (Ctrl-C, at any instant once atlasgen's code runs); each output set is left whole, old or new",
+    ),
 )

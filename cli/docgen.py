@@ -6,6 +6,7 @@ import click
 
 from atlasgen.cli.main import app
 from atlasgen.errors import EXIT_CODES
+from atlasgen.io.atomic import LOCK_TIMEOUT_S
 
 __all__ = ["render_cli_reference", "render_exit_codes"]
 
@@ -31,6 +32,43 @@ def render_exit_codes() -> str:
         ]
     )
 
+
+OUTPUTS = f"""\
+## Outputs: one generation on disk
+
+Every command writes its outputs as one set: a bake's atlas, manifest, includes, side-car,
+timings, preview and depfile; a render's EXR and PNG; a report's pages, plots and JSON. A reader
+that trusts the files (an engine loading `X.dds` and `X.json` without checking their hashes) sees
+them change together, by a journaled commit (`atlasgen/io/atomic.py`):
+
+1. **Lock.** `fcntl.flock` on `.X.atlasgen.lock` beside the primary output (`X`: its name up to
+   the first dot). A second writer of the same set waits for the first, up to {LOCK_TIMEOUT_S:g} s
+   (`ATLASGEN_LOCK_TIMEOUT_S`), then exits 4 with one line; two bakes of one target, as two
+   `make -j` jobs might run, end as one bake's generation. The lock file exists only while held.
+2. **Stage.** Each file is written to `.<name>.<pid>.<random>.atlasgen.tmp` beside its target and
+   flushed to disk.
+3. **Check.** Every existing target, and every stale sibling the commit removes, gets a hard-linked
+   backup. Linking fails as the rename would (an immutable or append-only file, a read-only file
+   system), so a target that cannot be replaced stops the command before its first rename: exit 4,
+   `X.dds: cannot replace (Operation not permitted); nothing was replaced`.
+4. **Journal.** `.X.atlasgen.journal` names every target, its new file and its backup; it is
+   flushed to disk before the first rename.
+5. **Rename** each file over its target, the primary (the file a `make` rule targets: the atlas,
+   the render's PNG, `report.json`, `index.md`, `index.html`) last, remove the stale siblings,
+   delete the journal, then the backups. A rename that still fails puts every renamed target back
+   from its backup: exit 4, every output as it was. Ctrl-C here is held until the set is whole.
+6. **Recover.** A commit killed during its renames leaves its journal. The next atlasgen command
+   that writes the set, and every atlasgen reader of the folder (`read_atlas`, so `info`, `render`,
+   `validate` and the reports; the report merges), rolls it forward under the lock before anything
+   else; a killed roll-back is rolled back. Until then the primary is stale, so `make` runs the
+   command again, and a reader that checks the hashes refuses the mix.
+
+The documented paths stay plain files, as engines and asset pipelines expect; the price is that
+a plain reader looking at a folder after a kill, before any atlasgen command has, can see the
+half-done set (the primary still old). Exit 4 leaves every existing output untouched; exit 130
+leaves each set whole, old or new.
+
+"""
 
 USAGE = """\
 ## Running it
@@ -79,6 +117,7 @@ def render_cli_reference() -> str:
         "",
         render_exit_codes(),
         USAGE,
+        OUTPUTS,
     ]
     for name in app.list_commands(ctx):
         command = app.get_command(ctx, name)

@@ -29,6 +29,7 @@ from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
+from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
@@ -334,6 +335,9 @@ def main(argv=None):
     # Not click's standalone mode, so that what ends the run outside a command (a Ctrl-C
     # while the arguments are parsed, an unknown top-level option) is one line too.
     try:
+        # From here a Ctrl-C raises KeyboardInterrupt, so a command's clean-up runs; before
+        # it, since the first import of atlasgen.cli, it ended the process with the same line.
+        end_start_up_interrupts()
         status = app.main(args=argv, prog_name="atlasgen", standalone_mode=False)
     except click.Abort as exc:  # click's form of a KeyboardInterrupt
         exit_for(KeyboardInterrupt() if isinstance(exc.__context__, KeyboardInterrupt) else exc)
@@ -343,6 +347,18 @@ def main(argv=None):
         exit_for(exc)
     sys.exit(status if isinstance(status, int) else 0)
 
+
+def _launched_as_the_command_line() -> bool:
+    """Whether this process is the ``atlasgen`` script or ``python -m atlasgen`` (which call :func:`main`)."""
+    launcher = sys.modules.get("__main__")
+    spec = getattr(launcher, "__spec__", None)
+    return (spec is not None and spec.name in ("atlasgen.__main__", "atlasgen.cli.main")) or (
+        Path(getattr(launcher, "__file__", "") or "").name == "atlasgen"
+    )
+
+
+if not _launched_as_the_command_line():
+    end_start_up_interrupts()  # imported as a library (tests, notebooks): Ctrl-C as Python has it
 
 if __name__ == "__main__":
     main()

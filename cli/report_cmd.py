@@ -12,6 +12,7 @@ from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials
+from atlasgen.models.separable import Separable
 from atlasgen.reports.library import write_library_report
 from atlasgen.reports.separable import write_separable_report
 from atlasgen.reports.separable_merge import merge_separable_reports
@@ -79,6 +80,11 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     missing = sorted(set(wanted) - {m.name for m in chosen})
     if missing:
         raise InputError(f"{materials_dir.as_posix()}: no material named {', '.join(missing)}")
+    if not names:  # every separable material of the folder; the others are not asked for
+        chosen = [m for m in chosen if isinstance(m.model, Separable)]
+        if not chosen:
+            raise InputError(f"{materials_dir.as_posix()}: no separable materials to report on; "
+                             f'expected materials with type = "{Separable.type_name}"')  # fmt: skip
     if files:
         chosen += read_materials(files)
     with MaterialProgress("studied", verbosity) as on_material:

@@ -4,6 +4,8 @@ produces is checked per material; renders never hold a NaN or infinite pixel."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -272,3 +274,26 @@ def test_a_tiny_light_direction_is_normalised(tmp_path):
     path.write_text('[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\n'
                     '[[lights]]\ntype = "directional"\ndirection = [0, -1e-300, 0]\nintensity = 1\n')  # fmt: skip
     assert read_scene(path).lights[0].direction == (0.0, -1.0, 0.0)
+
+
+def test_the_materials_doc_states_the_ranges_as_the_code_checks_them():
+    """docs/materials.md's paragraph on float32 ranges: each figure it gives, measured here."""
+    from atlasgen.io.fields import MAX_TABLE_DEPTH, MAX_TABLE_ENTRIES
+    from atlasgen.models.backlit import Backlit
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "materials.md").read_text(encoding="utf-8")
+    paragraph = " ".join(doc.split("Every range below is checked twice", 1)[1].split("\n\n", 1)[0].split())
+    smallest = float(np.nextafter(np.float32(0), np.float32(1)))
+    assert f"at least {smallest:.2g}:" in paragraph
+    power = next(p for p in Backlit.params if p.name == "power")
+    assert power.coerce(smallest, "m.toml") == smallest
+    with pytest.raises(MaterialError) as refused:
+        power.coerce(1e-300, "m.toml")
+    message = str(refused.value).split(": ", 2)[2]
+    assert f"(`{message}`)" in paragraph
+    below_one = Param("x", 0.5, lo=0.0, hi=1.0, hi_open=True)
+    with pytest.raises(MaterialError, match="1 in float32"):
+        below_one.coerce(1 - 1e-12, "m.toml")
+    assert "`< 1` likewise refuses 1 - 1e-12, which is 1 in float32" in paragraph
+    assert f"about {float(np.finfo(np.float32).max):.2g}".replace("e+", "e") in paragraph
+    assert f"nests at most {MAX_TABLE_DEPTH} tables" in paragraph and f"at most {MAX_TABLE_ENTRIES} keys" in paragraph

@@ -1,5 +1,7 @@
 """Finding and reading the report.json files a merge combines: one-line errors naming the file."""
 
+import json
+
 import pytest
 
 from atlasgen.errors import InputError
@@ -32,3 +34,83 @@ def test_a_round_trip_and_every_failure(tmp_path):
         read_report_json(bad, "x", "cmd")
     with pytest.raises(InputError, match="cannot read"):
         read_report_json(tmp_path, "x", "cmd")  # a folder
+
+
+@pytest.mark.parametrize("constant", ["NaN", "Infinity", "-Infinity"])
+def test_nan_and_infinities_are_refused_with_one_line(tmp_path, constant):
+    path = tmp_path / "report.json"
+    path.write_text('{"total_seconds": ' + constant + "}")
+    name = constant
+    with pytest.raises(InputError) as refused:
+        read_report_json(path, "validation", "atlasgen validate")
+    assert str(refused.value) == f"{path.as_posix()}: expected finite numbers (JSON has no {name}), got {name}"
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "1.5", True, [1], {}])
+def test_check_number_refuses_what_is_not_a_finite_number(value):
+    from atlasgen.errors import FieldError
+    from atlasgen.io.report_files import check_number
+
+    with pytest.raises(FieldError, match=r"^t\.json: field 'materials\.clay\.bake_s': expected a finite number or null, got "):
+        check_number("t.json", "materials.clay.bake_s", value)
+    assert check_number("t.json", "x", 2) == 2
+
+
+def _validation_report(figure) -> dict:
+    ref = {"seconds": 1.0, "speed_ratio": 2.0, "psnr_db": figure, "flip": 0.1, "meets_goal": True, "images": {}}
+    row = {"material": "clay", "scene": "front", "exposure": 1.0, "atlas_seconds": 0.5, "references": {"model": ref},
+           "atlas_image": "images/a.png", "notes": []}  # fmt: skip
+    environment = {"gpu": "lavapipe", "mitsuba": "3.9.1", "atlas_timing": "wall", "mitsuba_timing": "wall"}
+    return {"atlas": "a.dds", "settings": {"spp": 16, "physical_spp": 64, "goals": {"psnr_db": 30, "flip": 0.2}},
+            "environment": environment, "total_seconds": 1.0, "results": [row]}  # fmt: skip
+
+
+@pytest.mark.parametrize("figure,expected", [
+    ("high", "field 'results[0].references.model.psnr_db': expected a finite number or null, got 'high'"),
+    (None, None),
+])  # fmt: skip
+def test_a_merged_validation_report_refuses_a_figure_that_is_not_a_number(tmp_path, figure, expected):
+    import json
+
+    from atlasgen.errors import FieldError
+    from atlasgen.reports.validation import read_validation_report
+
+    path = tmp_path / "report.json"
+    path.write_text(json.dumps(_validation_report(figure)))
+    if expected is None:
+        assert read_validation_report(path)["results"][0]["references"]["model"]["psnr_db"] is None
+        return
+    with pytest.raises(FieldError) as refused:
+        read_validation_report(path)
+    assert str(refused.value) == f"{path.as_posix()}: {expected}"
+
+
+def test_a_merged_validation_report_with_nan_is_refused_through_the_cli(tmp_path):
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    source = tmp_path / "clay"
+    source.mkdir()
+    (source / "report.json").write_text(json.dumps(_validation_report(1.0)).replace("1.0", "NaN", 1))
+    result = CliRunner().invoke(app, ["validate", "--merge", str(source), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 3, result.output
+    assert result.output.splitlines() == [
+        f"atlasgen: error: {(source / 'report.json').as_posix()}: expected finite numbers (JSON has no NaN), got NaN"
+    ]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_timings_file_with_a_non_number_bake_time_is_refused_with_one_line(tmp_path):
+    from atlasgen.errors import FieldError
+    from atlasgen.reports.library import _bake_seconds
+
+    path = tmp_path / "atlas.timings.json"
+    assert _bake_seconds({"materials": {"clay": {"bake_s": 0.25}}}, path, "clay") == 0.25
+    assert _bake_seconds({}, path, "clay") is None
+    with pytest.raises(
+        FieldError, match=r"atlas\.timings\.json: field 'materials\.clay\.bake_s': expected a finite number or null, got 'slow'"
+    ):
+        _bake_seconds({"materials": {"clay": {"bake_s": "slow"}}}, path, "clay")
+    with pytest.raises(FieldError, match=r"field 'materials': expected an object"):
+        _bake_seconds({"materials": [1]}, path, "clay")

@@ -133,3 +133,42 @@ def test_a_damaged_cache_entry_is_baked_again_with_a_warning(tmp_path, write_mat
     assert filled["baked"] == ["a"] and len(filled["warnings"]) == 1
     with zipfile.ZipFile(entry) as archive:  # a whole .npz again
         assert sorted(archive.namelist()) == ["meta.npy", "values.npy"]
+
+
+def _nested_twosided(levels: int) -> str:
+    table = '{ type = "diffuse" }'
+    for _ in range(levels):
+        table = f'{{ type = "twosided", bsdf = {table} }}'
+    return f'type = "bsdf"\nbsdf = {table}\n'
+
+
+@pytest.mark.parametrize("levels,field", [(60, "bsdf" + ".bsdf" * 9), (9, "bsdf" + ".bsdf" * 9)])
+def test_a_deeply_nested_bsdf_table_is_refused_naming_the_field(tmp_path, levels, field):
+    """Issue 24: 60 nested ``twosided`` plugins (2 KB) grew to 3.9 GB in Mitsuba; the table's
+    depth is refused when the file is read, before Mitsuba sees it."""
+    from atlasgen.errors import MaterialError
+
+    path = tmp_path / "deep.toml"
+    path.write_text(_nested_twosided(levels))
+    assert path.stat().st_size < 2100
+    with pytest.raises(MaterialError) as refused:
+        read_materials([path])
+    assert str(refused.value) == f"{path.as_posix()}: field '{field}': expected tables nested at most 8 deep under 'bsdf'"
+
+
+def test_a_bsdf_table_at_the_depth_bound_is_read(tmp_path):
+    from atlasgen.io.fields import check_table_bounds
+
+    table = {"type": "diffuse"}
+    for _ in range(8):
+        table = {"type": "twosided", "bsdf": table}
+    check_table_bounds(table, tmp_path / "m.toml", "bsdf")  # eight nested tables: at the bound
+
+
+def test_a_huge_bsdf_table_is_refused_naming_the_field(tmp_path):
+    from atlasgen.errors import MaterialError
+
+    path = tmp_path / "wide.toml"
+    path.write_text('type = "bsdf"\nbsdf = { type = "diffuse", reflectance = [' + ", ".join(["0.5"] * 300) + "] }\n")
+    with pytest.raises(MaterialError, match=r"field 'bsdf\.reflectance\[254\]': expected a table of at most 256 keys"):
+        read_materials([path])

@@ -20,7 +20,7 @@ from atlasgen.bake.slots import assign_slices
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.errors import MaterialError, OutputError
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
-from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.atomic import recover_commits, write_files_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.ktx2 import (
@@ -43,6 +43,7 @@ __all__ = [
     "bake_atlas",
     "read_previous_slots",
     "sibling_paths",
+    "other_container_path",
     "write_bake",
     "encode_atlas_texture",
     "pair_outputs",
@@ -103,6 +104,19 @@ def sibling_paths(dds_path) -> dict:
     }
 
 
+def other_container_path(atlas_path) -> Path:
+    """``X.ktx2`` for ``X.dds`` and the reverse: the container a bake to ``atlas_path`` removes.
+
+    The two share their side files (``X.json``, the includes, the side-car), so only one of
+    them may stand beside those files.
+
+    >>> other_container_path("build/atlas.dds").as_posix(), other_container_path("a.KTX2").as_posix()
+    ('build/atlas.ktx2', 'a.dds')
+    """
+    p = Path(atlas_path)
+    return p.with_suffix(".dds" if p.suffix.lower() == ".ktx2" else ".ktx2")
+
+
 def read_previous_slots(manifest_path) -> dict[str, int]:
     """``name -> first_slice`` from an existing manifest of any format version, so re-bakes
     keep IDs stable (:func:`atlasgen.io.manifest.read_slots`).
@@ -111,6 +125,7 @@ def read_previous_slots(manifest_path) -> dict[str, int]:
     manifest whose names and slices cannot be read; deleting it re-numbers every material.
     """
     path = Path(manifest_path)
+    recover_commits(path.parent)
     return read_slots(path) if path.exists() else {}
 
 
@@ -368,12 +383,17 @@ def write_bake(
     match). ``result`` is left as it is (its manifest as baked: no texture hash, sources as
     given), so it can be written to other paths too.
 
+    Every sibling this bake does not write is removed in the same commit: the other
+    container (``X.ktx2`` for ``X.dds``, :func:`other_container_path`), the includes of
+    languages not in ``languages``, and ``X.separable.bin`` when no material is separable.
+
     ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
     texture, which the Makefile's rules target, is renamed into place last
     (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
     stale, so ``make`` bakes again.
     """
     paths = sibling_paths(dds_path)
+    every_sibling = {**paths, "other_container": other_container_path(paths["dds"])}
     texts = {"include": result.include, "glsl": result.includes.get("glsl"), "hlsl": result.includes.get("hlsl")}
     for key, lang in (("include", "wgsl"), ("glsl", "glsl"), ("hlsl", "hlsl")):
         if lang not in languages or texts[key] is None:
@@ -397,5 +417,8 @@ def write_bake(
         contents[paths["preview"]] = render_contact_sheet(result)
     for path, data in (extra_files or {}).items():
         contents[Path(path)] = data
-    write_files_atomically(contents, primary=paths["dds"])
+    # The siblings this bake does not write are stale: the other container (it would share
+    # this manifest and includes), includes in languages not asked for, an old side-car.
+    stale = [path for path in every_sibling.values() if path not in contents]
+    write_files_atomically(contents, primary=paths["dds"], remove=stale)
     return paths

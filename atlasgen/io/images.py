@@ -16,16 +16,18 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import OutputError
-from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.atomic import scratch_folder, write_file_atomically
 
 __all__ = ["encode_png", "encode_exr", "write_png", "write_exr"]
 
 
-def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None) -> bytes:
+def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None, near=None) -> bytes:
     """The bytes of ``pixels`` ``(h, w, c)`` as an OpenImageIO-written file of format ``suffix``.
 
-    OpenImageIO writes to a path, so the file is made in a private temporary folder and
-    read back.
+    OpenImageIO writes to a path, so the file is made in a private scratch folder and read
+    back: beside ``near`` (the output the bytes are for, :func:`atlasgen.io.atomic.scratch_folder`),
+    so that a failure names the output and needs room only where the output goes; in the
+    system's temporary folder when ``near`` is None.
     """
     import OpenImageIO as oiio
 
@@ -40,20 +42,27 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
         spec.attribute("DateTime", "")
     for name, value in (attributes or {}).items():
         spec.attribute(name, value)
-    with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
+    shown = f"{Path(near).as_posix()}: cannot write" if near is not None else f"cannot encode a {suffix} image"
+    scratch = scratch_folder(near) if near is not None else tempfile.TemporaryDirectory(prefix="atlasgen-image-")
+    with scratch as folder:
         path = str(Path(folder) / f"image{suffix}")
         out = oiio.ImageOutput.create(path)
         if out is None or not out.open(path, spec):
-            raise OutputError(f"cannot encode a {suffix} image ({oiio.geterror() or 'unknown format'})")
+            raise OutputError(f"{shown} ({oiio.geterror() or 'unknown format'})")
         ok = out.write_image(np.ascontiguousarray(pixels))
         error = out.geterror()
-        out.close()
-        if not ok:
-            raise OutputError(f"cannot encode a {suffix} image ({error})")
-        return Path(path).read_bytes()
+        closed = out.close()
+        if not ok or not closed:
+            error = error or out.geterror() or "the encoder failed"
+            # OpenImageIO names its own file, the scratch copy; the user's file is the output.
+            raise OutputError(f"{shown} ({error.replace(path, Path(near).as_posix()) if near is not None else error})")
+        try:
+            return Path(path).read_bytes()
+        except OSError as exc:
+            raise OutputError(f"{shown} ({exc.strerror})") from None
 
 
-def encode_png(codes: np.ndarray) -> bytes:
+def encode_png(codes: np.ndarray, near=None) -> bytes:
     """PNG bytes of 8-bit codes ``(h, w, c)``: c = 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA).
 
     The codes are stored as given, alpha straight (not premultiplied), as PNG defines it;
@@ -65,24 +74,25 @@ def encode_png(codes: np.ndarray) -> bytes:
     # PNG's alpha is straight; OpenImageIO would otherwise take the codes as premultiplied
     # and divide the colour by alpha.
     straight = {"oiio:UnassociatedAlpha": 1} if codes.shape[2] in (2, 4) else None
-    return _encode(codes, "uint8", ".png", attributes=straight)
+    return _encode(codes, "uint8", ".png", attributes=straight, near=near)
 
 
-def encode_exr(pixels: np.ndarray, channel_names=("R", "G", "B")) -> bytes:
-    """OpenEXR bytes of ``(h, w, c)`` pixels as float32, ZIP-compressed, with the given channel names."""
+def encode_exr(pixels: np.ndarray, channel_names=("R", "G", "B"), near=None) -> bytes:
+    """OpenEXR bytes of ``(h, w, c)`` pixels as float32, ZIP-compressed, with the given channel names;
+    ``near``: the output they are for (encoded beside it, and named by a failure)."""
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim != 3 or pixels.shape[2] != len(channel_names):
         raise ValueError(
             f"expected pixels shaped (h, w, {len(channel_names)}) for channels {tuple(channel_names)}, got {pixels.shape}"
         )
-    return _encode(pixels, "float", ".exr", channel_names)
+    return _encode(pixels, "float", ".exr", channel_names, near=near)
 
 
 def write_png(path, codes: np.ndarray) -> None:
     """Write 8-bit codes as a PNG (:func:`encode_png`), replacing ``path`` atomically."""
-    write_file_atomically(path, encode_png(codes))
+    write_file_atomically(path, encode_png(codes, near=path))
 
 
 def write_exr(path, pixels: np.ndarray, channel_names=("R", "G", "B")) -> None:
     """Write float pixels as a float32 OpenEXR (:func:`encode_exr`), replacing ``path`` atomically."""
-    write_file_atomically(path, encode_exr(pixels, channel_names))
+    write_file_atomically(path, encode_exr(pixels, channel_names, near=path))

@@ -57,6 +57,9 @@ ZSTD_LEVEL = 19
 TEXEL_BLOCK_SIZE = 4
 #: A reader refuses files whose levels would inflate to more than this (a decompression bomb).
 MAX_UNCOMPRESSED_BYTES = 1 << 30
+#: The largest width, height or depth a reader accepts (Vulkan's ``maxImageDimension2D`` is
+#: at least 4096, and 16384 on desktop GPUs; 65536 leaves room).
+MAX_EXTENT = 1 << 16
 
 # identifier, vkFormat, typeSize, pixelWidth/Height/Depth, layerCount, faceCount, levelCount,
 # supercompressionScheme, dfdByteOffset/Length, kvdByteOffset/Length, sgdByteOffset/Length.
@@ -223,6 +226,72 @@ def encode_ktx2(levels: list[np.ndarray], layout: str, srgb: bool, key_values: d
     return header + index + dfd + kvd + body
 
 
+#: The byte layout of the basic descriptor block (Khronos Data Format 1.3, section 5), after
+#: ``dfdTotalSize``: ``(field, byte offset in the block, byte size, bit shift, bit width)``.
+_BLOCK_FIELDS = (
+    ("vendorId", 0, 4, 0, 17), ("descriptorType", 0, 4, 17, 15),
+    ("versionNumber", 4, 2, 0, 16), ("descriptorBlockSize", 6, 2, 0, 16),
+    ("colorModel", 8, 1, 0, 8), ("colorPrimaries", 9, 1, 0, 8), ("transferFunction", 10, 1, 0, 8), ("flags", 11, 1, 0, 8),
+    *((f"texelBlockDimension{i}", 12 + i, 1, 0, 8) for i in range(4)),
+    *((f"bytesPlane{i}", 16 + i, 1, 0, 8) for i in range(8)),
+)  # fmt: skip
+#: One sample's fields, at byte ``24 + 16 * sample`` of the block. The qualifiers are the
+#: high four bits of the channelType byte: linear, exponent, signed, float.
+_SAMPLE_FIELDS = (
+    ("bitOffset", 0, 2, 0, 16), ("bitLength", 2, 1, 0, 8), ("channelType", 3, 1, 0, 4),
+    ("qualifierLinear", 3, 1, 4, 1), ("qualifierExponent", 3, 1, 5, 1), ("qualifierSigned", 3, 1, 6, 1),
+    ("qualifierFloat", 3, 1, 7, 1), *((f"samplePosition{i}", 4 + i, 1, 0, 8) for i in range(4)),
+    ("sampleLower", 8, 4, 0, 32), ("sampleUpper", 12, 4, 0, 32),
+)  # fmt: skip
+
+
+def _descriptor_fields(dfd: bytes) -> list[tuple[str, int]]:
+    """``(name, value)`` of every field of a DFD's basic block and its samples, in file order.
+
+    ``dfd`` starts at ``dfdTotalSize``; the samples are as many as ``descriptorBlockSize``
+    says, as far as the bytes go (a short block is the caller's to refuse).
+    """
+    block = dfd[4:]
+
+    def value(base: int, offset: int, size: int, shift: int, width: int) -> int:
+        return (int.from_bytes(block[base + offset : base + offset + size], "little") >> shift) & ((1 << width) - 1)
+
+    fields = [(name, value(0, *layout)) for name, *layout in _BLOCK_FIELDS]
+    block_size = dict(fields)["descriptorBlockSize"]
+    for k in range(max(0, min(block_size, len(block)) - BASIC_BLOCK_HEADER_BYTES) // SAMPLE_BYTES):
+        base = BASIC_BLOCK_HEADER_BYTES + SAMPLE_BYTES * k
+        fields += [(f"samples[{k}].{name}", value(base, *layout)) for name, *layout in _SAMPLE_FIELDS]
+    return fields
+
+
+def _check_descriptor(path: Path, dfd: bytes, vk_format: int) -> None:
+    """Refuse a DFD that is not, field by field, the basic block of ``vk_format``.
+
+    KTX 2.0 requires the DFD to describe ``vkFormat`` exactly, and libktx decodes by the
+    DFD: a transfer function, colour model, plane size or sample that disagrees would be
+    read otherwise by an engine. The one DFD each of R8G8B8A8_UNORM and _SRGB has is
+    :func:`_basic_descriptor`'s; the first field that differs is named.
+    """
+    expected = _basic_descriptor(vk_format == VK_FORMAT_R8G8B8A8_SRGB)
+    block_size = int.from_bytes(dfd[10:12], "little") if len(dfd) >= 12 else 0
+    if len(dfd) < 4 + BASIC_BLOCK_HEADER_BYTES:
+        raise _field_error(path, "dfdByteLength", f"{len(dfd)}; expected {len(expected)} for {VK_NAMES[vk_format]}")
+    if 4 + block_size > len(dfd):
+        raise _field_error(path, "dfd.descriptorBlockSize", f"{block_size} bytes run past the {len(dfd)}-byte DFD")
+    got, want = _descriptor_fields(dfd), dict(_descriptor_fields(expected))
+    for name, value in got:
+        if name not in want:
+            raise _field_error(path, f"dfd.{name}", f"a sample {VK_NAMES[vk_format]} does not have (it has 4: R, G, B, A)")
+        if value != want[name]:
+            raise _field_error(
+                path, f"dfd.{name}", f"{value}; expected {want[name]} for vkFormat {vk_format} ({VK_NAMES[vk_format]})"
+            )
+    if len(got) != len(want):
+        raise _field_error(path, "dfd.descriptorBlockSize", f"{block_size}; expected {len(expected) - 4} (4 samples: R, G, B, A)")
+    if len(dfd) != len(expected):
+        raise _field_error(path, "dfdByteLength", f"{len(dfd)}; expected {len(expected)} (one basic block)")
+
+
 def _field_error(path: Path, name: str, problem: str) -> InputError:
     return InputError(f"{path.as_posix()}: KTX2 field '{name}': {problem}")
 
@@ -233,7 +302,9 @@ def _check_span(path: Path, name: str, offset: int, length: int, size: int) -> N
 
 
 def _read_key_values(path: Path, data: bytes, offset: int, length: int) -> dict:
-    key_values = {}
+    """The key/value entries; KTX 2.0 requires their keys unique and sorted by code point (UTF-8 byte order)."""
+    key_values: dict[str, bytes] = {}
+    previous = None
     pos, end = offset, offset + length
     while pos < end:
         if pos + 4 > end:
@@ -245,7 +316,13 @@ def _read_key_values(path: Path, data: bytes, offset: int, length: int) -> dict:
         nul = entry.find(b"\0")
         if nul < 1:
             raise _field_error(path, "keyAndValue", f"entry at byte {pos} has no NUL-terminated key")
-        key_values[entry[:nul].decode("utf-8", "replace")] = entry[nul + 1 :]
+        key = entry[:nul]
+        if previous is not None and key <= previous:
+            problem = "appears twice" if key == previous else f"comes after {previous.decode('utf-8', 'replace')!r}"
+            raise _field_error(path, "keyAndValue", f"key {key.decode('utf-8', 'replace')!r} at byte {pos} {problem}; "
+                                                    "expected unique keys sorted by code point (KTX 2.0)")  # fmt: skip
+        previous = key
+        key_values[key.decode("utf-8", "replace")] = entry[nul + 1 :]
         pos += 4 + entry_length + (-entry_length % 4)
     return key_values
 
@@ -275,6 +352,8 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
 
     Every offset and length is checked against the file before anything is sliced or
     inflated; a bad one raises a one-line :class:`InputError` naming the file and field.
+    The Data Format Descriptor must be, field by field, the one ``vkFormat`` has
+    (:func:`_check_descriptor`), and the key/value keys unique and sorted.
     ``data``: the file's bytes, when the caller has read them already.
     """
     path = Path(path)
@@ -294,7 +373,12 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
         raise _field_error(path, "typeSize", f"{type_size}; expected 1 for 8-bit components")
     if face_count != 1:
         raise _field_error(path, "faceCount", f"{face_count}; expected 1 (no cubemaps)")
-    if width == 0 or height == 0 or (depth == 0) == (layer_count == 0):
+    for name, extent in (("pixelWidth", width), ("pixelHeight", height), ("pixelDepth", depth)):
+        if extent > MAX_EXTENT or (extent == 0 and name != "pixelDepth"):
+            raise _field_error(
+                path, name, f"{extent}; expected 1 to {MAX_EXTENT}" + " (0 for a 2D array)" * (name == "pixelDepth")
+            )
+    if (depth == 0) == (layer_count == 0):
         raise _field_error(
             path,
             "pixelDepth",
@@ -315,6 +399,7 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
     _check_span(path, "sgdByteLength", sgd_offset, sgd_length, size)
     if dfd_offset < index_end or dfd_length < 4 or struct.unpack_from("<I", data, dfd_offset)[0] != dfd_length:
         raise _field_error(path, "dfdByteOffset", f"no Data Format Descriptor of {dfd_length} bytes at byte {dfd_offset}")
+    _check_descriptor(path, data[dfd_offset : dfd_offset + dfd_length], vk_format)
     if sgd_length != 0:
         raise _field_error(path, "sgdByteLength", f"{sgd_length}; expected 0 (no global data for this scheme)")
     key_values = _read_key_values(path, data, kvd_offset, kvd_length)

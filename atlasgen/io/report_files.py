@@ -1,13 +1,52 @@
-"""Finding and reading the per-material ``report.json`` files that a report merge combines."""
+"""Finding and reading the per-material ``report.json`` files that a report merge combines,
+and the checks that keep a hand-edited or damaged figure out of a merged report."""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
-from atlasgen.errors import InputError
+from atlasgen.errors import FieldError, InputError
+from atlasgen.io.atomic import recover_commits
 
-__all__ = ["report_json_paths", "read_report_json"]
+__all__ = ["report_json_paths", "read_report_json", "loads_finite_json", "check_number"]
+
+
+def _refuse_constant(path: Path):
+    def refuse(name: str):
+        raise InputError(f"{path.as_posix()}: expected finite numbers (JSON has no {name}), got {name}")
+
+    return refuse
+
+
+def loads_finite_json(text: str, path) -> object:
+    """``json.loads`` that refuses ``NaN``, ``Infinity`` and ``-Infinity`` (Python's extensions to JSON).
+
+    Raises
+    ------
+    InputError
+        One line naming the file: malformed JSON, or one of those constants.
+    """
+    path = Path(path)
+    try:
+        return json.loads(text, parse_constant=_refuse_constant(path))
+    except ValueError as exc:
+        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+
+
+def check_number(path, field: str, value, allow_none: bool = True):
+    """``value`` if it is a finite number (or ``None``, with ``allow_none``); else a one-line
+    :class:`~atlasgen.errors.FieldError` naming the file and the field.
+
+    >>> check_number("t.json", "bake_s", 0.5), check_number("t.json", "bake_s", None)
+    (0.5, None)
+    """
+    if value is None and allow_none:
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FieldError(Path(path).as_posix(), field, f"expected a finite number{' or null' * allow_none}, got {value!r}")
+    return value
 
 
 def report_json_paths(sources, kind: str, command: str) -> list[Path]:
@@ -25,13 +64,15 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
 
 
 def read_report_json(path: Path, kind: str, command: str):
-    """The parsed JSON of one report, or an :class:`InputError` naming the file and the fix."""
+    """The parsed JSON of one report (no NaN or infinities), or an :class:`InputError` naming the file and the fix."""
     path = Path(path)
+    recover_commits(path.parent)
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError(f"{path.as_posix()}: no such {kind} report; run {command} -o {path.parent.as_posix()} first") from None
     except OSError as exc:
         raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    return loads_finite_json(text, path)

@@ -39,9 +39,9 @@ def display_codes(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     return quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False)
 
 
-def render_png(radiance: np.ndarray, exposure: float = 1.0) -> bytes:
-    """PNG bytes of :func:`display_codes`."""
-    return encode_png(display_codes(radiance, exposure))
+def render_png(radiance: np.ndarray, exposure: float = 1.0, near=None) -> bytes:
+    """PNG bytes of :func:`display_codes` (``near``: the output they are for, :func:`atlasgen.io.images.encode_png`)."""
+    return encode_png(display_codes(radiance, exposure), near=near)
 
 
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
@@ -53,7 +53,8 @@ def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
     write_files_atomically(
-        {exr_path: encode_exr(finite_radiance(radiance)), png_path: render_png(radiance, exposure)}, primary=png_path
+        {exr_path: encode_exr(finite_radiance(radiance), near=exr_path), png_path: render_png(radiance, exposure, near=png_path)},
+        primary=png_path,
     )
     return [exr_path, png_path]
 

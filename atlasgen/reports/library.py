@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 from atlasgen.bake.preview import slice_png
-from atlasgen.errors import InputError
+from atlasgen.errors import FieldError, InputError
 from atlasgen.io.atlas import read_atlas
-from atlasgen.io.atomic import write_file_atomically, write_files_atomically
+from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
+from atlasgen.io.report_files import check_number, loads_finite_json
 from atlasgen.models import get_model
 from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
 from atlasgen.reports.pareto import (
@@ -22,6 +22,7 @@ from atlasgen.reports.pareto import (
     plot_library,
     plot_material,
 )
+from atlasgen.reports.validation import read_validation_report
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 
 __all__ = ["write_library_report"]
@@ -79,9 +80,21 @@ def _read_json(path):
     if not path.exists():
         return None
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    return loads_finite_json(text, path)
+
+
+def _bake_seconds(timings, path, name: str) -> float | None:
+    """``materials.<name>.bake_s`` of a bake's timings file: a finite number, or None where absent."""
+    materials = timings.get("materials", {}) if isinstance(timings, dict) else None
+    if not isinstance(materials, dict):
+        raise FieldError(Path(path).as_posix(), "materials", f"expected an object of per-material timings, got {materials!r}")
+    entry = materials.get(name) or {}
+    if not isinstance(entry, dict):
+        raise FieldError(Path(path).as_posix(), f"materials.{name}", f"expected an object of timings, got {entry!r}")
+    return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"))
 
 
 def _validation_rows(validation: dict | None, name: str) -> list[dict]:
@@ -170,8 +183,10 @@ def write_library_report(
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
-    timings = _read_json(Path(atlas_path).with_suffix("").as_posix() + ".timings.json") or {}
-    validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
+    timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
+    timings = _read_json(timings_path) or {}
+    validation_json = Path(validation_dir) / "report.json" if validation_dir else None
+    validation = read_validation_report(validation_json) if validation_json is not None and validation_json.exists() else None
     out_dir = Path(out_dir)
 
     rows, files = [], {}
@@ -185,7 +200,7 @@ def write_library_report(
             rel = f"slices/{name}-{k}.png"
             files[out_dir / rel] = slice_png(atlas.image.levels[0], s, srgb, zoom=2)
             previews.append(rel)
-        bake_s = (timings.get("materials", {}).get(name) or {}).get("bake_s")
+        bake_s = _bake_seconds(timings, timings_path, name)
         refs = _validation_rows(validation, name)
         candidates = [c for c in _runtime_candidates(entry, table) if c["cost"] is not None]
         chart = None
@@ -203,8 +218,6 @@ def write_library_report(
         files[out_dir / _PLOT] = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
                                                   "Library: run-time cost against error", label_all=True)  # fmt: skip
         plot = {"src": _PLOT, "width": plot_width(_PLOT_SIZE[0])}
-    # Previews and plots first, all-or-nothing; the page that links them replaces the old one last.
-    write_files_atomically(files)
 
     def rel(target) -> str | None:
         return os.path.relpath(target, out_dir) if target is not None and Path(target).exists() else None
@@ -228,22 +241,21 @@ def write_library_report(
                          "chosen": c["chosen"]} for c in candidates],
         })  # fmt: skip
     index = out_dir / "index.html"
-    write_file_atomically(
-        index,
-        render_page(
-            "library.html.j2",
-            atlas=Path(atlas_path).as_posix(),
-            encoding=atlas.manifest.encoding,
-            layout=atlas.manifest.layout,
-            links=links,
-            plot=plot,
-            rows=page_rows,
-            physical=physical_section,
-            cost_device=table.device,
-            cost_unit=table.unit,
-            chart_width=plot_width(_SMALL_PLOT_SIZE[0]),
-        ),
+    files[index] = render_page(
+        "library.html.j2",
+        atlas=Path(atlas_path).as_posix(),
+        encoding=atlas.manifest.encoding,
+        layout=atlas.manifest.layout,
+        links=links,
+        plot=plot,
+        rows=page_rows,
+        physical=physical_section,
+        cost_device=table.device,
+        cost_unit=table.unit,
+        chart_width=plot_width(_SMALL_PLOT_SIZE[0]),
     )
+    # Previews, plots and the page that links them, as one set; the page is renamed last.
+    write_files_atomically(files, primary=index)
     return index
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import InputError
+from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import staged_folder
 from atlasgen.models.separable import Separable
 from atlasgen.reports.html import figure_png, label_points, plot_style, plot_width, render_page
@@ -435,9 +436,15 @@ def write_separable_report(
     :class:`OutputError` when the folder cannot be written.
     """
 
+    others = [m for m in materials if not isinstance(m.model, Separable)]
     materials = [m for m in materials if isinstance(m.model, Separable)]
     if not materials:
-        raise InputError(f'no separable materials to report on; expected TOML files with type = "{Separable.type_name}"')
+        if not others:
+            raise InputError(f'no separable materials to report on; expected materials with type = "{Separable.type_name}"')
+        raise InputError("; ".join(f"{m.source}: field 'type': material {m.name!r} is {m.type!r}, not separable"
+                                   for m in others) + f'; expected type = "{Separable.type_name}"')  # fmt: skip
+    if atlas_path is not None:
+        read_atlas(atlas_path)  # a missing or damaged atlas is refused, not reported as "not in atlas"
     folder = Path(output)
     studies = []
     for done, m in enumerate(materials, 1):

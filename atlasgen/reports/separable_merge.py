@@ -32,6 +32,8 @@ def _read_studies(path: Path) -> list:
     required = {f.name for f in fields(MaterialStudy) if f.default is MISSING and f.default_factory is MISSING}
     if not isinstance(data, list):
         raise InputError(f"{path.as_posix()}: not a separable report (expected a list of material studies)")
+    if not data:
+        raise InputError(f"{path.as_posix()}: an empty separable report (expected at least one material study)")
     studies = []
     for index, item in enumerate(data):
         if not isinstance(item, dict) or not required <= set(item) or not set(item) <= known:

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import InputError
+from atlasgen.errors import FieldError, InputError
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.images import encode_png
-from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
@@ -38,6 +38,7 @@ __all__ = [
     "describe_materials",
     "missed_goals",
     "noise_floor_failures",
+    "read_validation_report",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -411,7 +412,8 @@ def _page_files(data: dict, out_dir: Path) -> dict:
     }
 
 
-def _read_report(path: Path) -> dict:
+def read_validation_report(path: Path) -> dict:
+    """A ``report.json`` of ``atlasgen validate``, its figures checked finite (one line naming the field otherwise)."""
     data = read_report_json(path, "validation", "atlasgen validate")
     missing = (
         [k for k in ("atlas", "settings", "environment", "total_seconds", "results") if k not in data]
@@ -420,7 +422,40 @@ def _read_report(path: Path) -> dict:
     )
     if missing:
         raise InputError(f"{path.as_posix()}: not a validation report (missing {', '.join(missing)})")
+    _check_figures(path, data)
     return data
+
+
+#: The keys of ``environment`` and ``settings`` the merged page prints.
+_ENVIRONMENT_KEYS = ("gpu", "mitsuba", "atlas_timing", "mitsuba_timing")
+_SETTINGS_KEYS = ("spp", "physical_spp")
+#: The numbers of a report.json (each finite, or null) that a merge adds, compares or prints.
+_ROW_NUMBERS = ("exposure", "atlas_seconds", "goal_psnr_db")
+_REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "linear_rmse", "linear_relative_rms",
+                      "noise_floor_db", "masked_fraction", "spp")  # fmt: skip
+
+
+def _check_figures(path: Path, data: dict) -> None:
+    """Refuse a report whose figures are not finite numbers (or null), naming the field."""
+    check_number(path, "total_seconds", data["total_seconds"], allow_none=False)
+    for part, keys in (("environment", _ENVIRONMENT_KEYS), ("settings", _SETTINGS_KEYS)):
+        if not isinstance(data[part], dict):
+            raise FieldError(path.as_posix(), part, f"expected an object, got {type(data[part]).__name__}")
+        missing = [k for k in keys if k not in data[part]]
+        if missing:
+            raise FieldError(path.as_posix(), f"{part}.{missing[0]}", "missing; expected the key atlasgen validate writes")
+    if not isinstance(data["results"], list):
+        raise FieldError(path.as_posix(), "results", f"expected a list of results, got {type(data['results']).__name__}")
+    for i, row in enumerate(data["results"]):
+        if not isinstance(row, dict) or not isinstance(row.get("references"), dict):
+            raise FieldError(path.as_posix(), f"results[{i}]", "expected a result with 'references'")
+        for key in _ROW_NUMBERS:
+            check_number(path, f"results[{i}].{key}", row.get(key))
+        for kind, ref in row["references"].items():
+            if not isinstance(ref, dict):
+                raise FieldError(path.as_posix(), f"results[{i}].references.{kind}", "expected an object of figures")
+            for key in _REFERENCE_NUMBERS:
+                check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
 
 
 def _rebase(rel: str, source: Path, out_dir: Path) -> str:
@@ -465,7 +500,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
     """
     out_dir = Path(out_dir)
     paths = report_json_paths(sources, "validation", "atlasgen validate")
-    reports = [_read_report(p) for p in paths]
+    reports = [read_validation_report(p) for p in paths]
     first = reports[0]
     rows, seen = [], {}
     for path, report in zip(paths, reports):

@@ -139,3 +139,53 @@ def test_ctrl_c_while_mitsuba_starts_is_an_interruption(tmp_path, mitsuba_llvm, 
         pytest.skip(f"the signal missed the bake (exit {child.returncode})")
     assert child.returncode == 130, stderr
     assert stderr.splitlines() == ["atlasgen: interrupted"], stderr
+
+
+def _frames_in(stderr: str, roots) -> list[str]:
+    return [line for line in stderr.splitlines() if line.strip().startswith("File ") and any(str(r) in line for r in roots)]
+
+
+@pytest.mark.slow
+def test_ctrl_c_at_any_instant_of_start_up_is_one_line_and_130(tmp_path):
+    """Issue 24: Ctrl-C in the first second printed a 19-26-line traceback from cli/main.py's
+    imports. SIGINT at many delays from the process's start: once atlasgen's first module
+    runs (atlasgen/cli/__init__.py, before click, NumPy or the library), one line and 130.
+    Before it, in Python's own start-up (site and its .pth files), Python decides; such a
+    landing is counted apart, and none of its frames may be atlasgen's."""
+    from pathlib import Path
+
+    import atlasgen
+    from atlasgen.io.atlas import read_atlas
+
+    package = Path(atlasgen.__file__).parent
+    roots = (package, package.parent / "cli")
+    folder = tmp_path / "m"
+    folder.mkdir()
+    (folder / "clay.toml").write_text('type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    assert subprocess.run([sys.executable, "-m", "atlasgen", "bake", str(folder), "-o", str(out), "-q"]).returncode == 0
+    old = {p.name: p.read_bytes() for p in out.parent.iterdir()}
+    (folder / "clay.toml").write_text('type = "lambert"\ncolour = [0.1, 0.2, 0.3]\n')
+    outcomes = {}
+    for delay in (0.02, 0.06, 0.1, 0.15, 0.2, 0.3, 0.4, 0.55, 0.7, 0.9, 1.2):
+        child = subprocess.Popen([sys.executable, "-m", "atlasgen", "bake", str(folder), "-o", str(out), "-q"],
+                                 stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})  # fmt: skip
+        time.sleep(delay)
+        child.send_signal(signal.SIGINT)
+        _, stderr = child.communicate(timeout=120)
+        assert not _frames_in(stderr, roots), (delay, stderr)
+        if child.returncode == 130:
+            assert stderr.splitlines() == ["atlasgen: interrupted"], (delay, stderr)
+            outcomes[delay] = "atlasgen"
+        elif child.returncode == 0:
+            outcomes[delay] = "done"
+        else:  # before atlasgen's first line: killed by the signal, or site's KeyboardInterrupt
+            assert child.returncode in (-signal.SIGINT, 1) and "atlasgen:" not in stderr, (delay, child.returncode, stderr)
+            outcomes[delay] = "python start-up"
+        read_atlas(out)  # whole: the old set or the new one, never a mix
+        now = {p.name: p.read_bytes() for p in out.parent.iterdir()}
+        if child.returncode != 0:  # untouched, or (Ctrl-C held during the renames) the whole new set
+            assert now == old or (sorted(now) == sorted(old) and now["atlas.json"] != old["atlas.json"]), delay
+        for p in out.parent.iterdir():
+            p.write_bytes(old[p.name])
+    assert list(outcomes.values()).count("atlasgen") >= 3, outcomes

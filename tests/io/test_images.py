@@ -102,3 +102,46 @@ def test_writes_are_atomic_and_report_the_folder(tmp_path):
     with pytest.raises(OutputError, match="cannot write output folder"):
         write_png(tmp_path / "blocker" / "a.png", np.zeros((1, 1, 3), np.uint8))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]
+
+
+def test_an_image_is_encoded_beside_its_output_not_in_the_system_temp_folder(tmp_path, monkeypatch):
+    """Issue 24: the EXR was encoded in the system temp folder, so a full temp folder failed a
+    render whose output folder had room, and the message named the scratch file."""
+    import tempfile
+
+    from atlasgen.render.output import write_render
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "no-such-temp-folder"))
+    out = tmp_path / "render" / "r.exr"
+    write_render(out, np.full((4, 6, 3), 0.5, np.float32))
+    assert sorted(p.name for p in out.parent.iterdir()) == ["r.exr", "r.png"]
+    assert read(out)[0].shape == (4, 6, 3)
+
+
+@pytest.fixture
+def full_folder(tmp_path):
+    """A 64 KiB tmpfs, filled up (root only)."""
+    import os
+    import subprocess
+
+    folder = tmp_path / "full"
+    folder.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+                                           capture_output=True).returncode != 0:  # fmt: skip
+        pytest.skip("mounting a small tmpfs needs root")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_a_full_disk_names_the_output_and_leaves_nothing(full_folder):
+    from atlasgen.render.output import write_render
+
+    out = full_folder / "r.exr"
+    noise = np.random.default_rng(1).random((256, 256, 3), dtype=np.float32)
+    with pytest.raises(OutputError) as refused:
+        write_render(out, noise)
+    message = str(refused.value)
+    assert message.startswith(f"{out.as_posix()}: cannot write (") and "atlasgen.tmp" not in message, message
+    assert "\n" not in message and list(full_folder.iterdir()) == []

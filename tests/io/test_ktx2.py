@@ -274,6 +274,17 @@ def _bomb(content_size: bool) -> bytes:
     return _put(blob[:start] + frame, 88, "<Q", len(frame))
 
 
+#: The basic descriptor block of the tiny file: after the header, 3 level index entries and dfdTotalSize.
+DFD_BLOCK = 80 + 3 * 24 + 4
+
+
+def _twin_keys() -> bytes:
+    """The manifest hash key twice, a wrong value first (written as ``...sha25X``, then renamed)."""
+    keys = {"KTXwriter": "atlasgen test", "atlasgen.manifest_sha256": "f" * 64, "atlasgen.manifest_sha25X": "0" * 64}
+    blob = encode_ktx2(_tiny_levels(), "array", True, keys)
+    return blob.replace(b"atlasgen.manifest_sha25X", b"atlasgen.manifest_sha256", 1)
+
+
 #: name -> (damaged bytes, text the one-line message must contain)
 DAMAGED = {
     "empty": (lambda: b"", "not a KTX2 file"),
@@ -304,6 +315,21 @@ DAMAGED = {
     "uncompressedByteLength of a zstd level": (lambda: _put(_tiny(True), 96 + 24, "<Q", 5), "'levels[1].uncompressedByteLength'"),
     "zstd bomb": (lambda: _bomb(content_size=False), "inflates to more than"),
     "zstd bomb declaring its size": (lambda: _bomb(content_size=True), "inflates to more than"),
+    # Issue 24: the DFD read field by field against vkFormat (its basic block starts at byte 156).
+    "linear transfer in an sRGB file": (lambda: _put(_tiny(), DFD_BLOCK + 10, "<B", 1), "'dfd.transferFunction': 1; expected 2"),
+    "sRGB transfer in a linear file": (lambda: _put(_tiny(), 12, "<I", 37), "'dfd.transferFunction': 2; expected 1"),
+    "BC1 colour model": (lambda: _put(_tiny(), DFD_BLOCK + 8, "<B", 128), "'dfd.colorModel': 128; expected 1"),
+    "bytesPlane0 = 0": (lambda: _put(_tiny(), DFD_BLOCK + 16, "<B", 0), "'dfd.bytesPlane0': 0; expected 4"),
+    "16-bit alpha sample": (lambda: _put(_tiny(), DFD_BLOCK + 24 + 48 + 2, "<B", 15), "'dfd.samples[3].bitLength': 15"),
+    "non-Khronos descriptor": (lambda: _put(_tiny(), DFD_BLOCK, "<I", 1), "'dfd.vendorId': 1; expected 0"),
+    "block size past the end": (lambda: _put(_tiny(), DFD_BLOCK + 6, "<H", 200), "'dfd.descriptorBlockSize': 200 bytes run past"),
+    "primaries": (lambda: _put(_tiny(), DFD_BLOCK + 9, "<B", 10), "'dfd.colorPrimaries': 10; expected 1"),
+    "duplicated key, the wrong value first": (lambda: _twin_keys(), "key 'atlasgen.manifest_sha256' at byte"),
+    "unsorted keys": (lambda: _tiny().replace(b"atlasgen.manifest", b"Atlasgen.manifest", 1), "comes after 'KTXwriter'"),
+    "pixelWidth 0": (lambda: _put(_tiny(), 20, "<I", 0), "'pixelWidth': 0; expected 1 to 65536"),
+    "pixelWidth 0xFFFFFFFF": (lambda: _put(_tiny(), 20, "<I", 0xFFFFFFFF), "'pixelWidth': 4294967295"),
+    "pixelHeight 0": (lambda: _put(_tiny(), 24, "<I", 0), "'pixelHeight': 0"),
+    "pixelHeight 0xFFFFFFFF": (lambda: _put(_tiny(), 24, "<I", 0xFFFFFFFF), "'pixelHeight': 4294967295"),
 }
 
 
@@ -311,6 +337,7 @@ def test_the_damage_offsets_point_at_the_fields_they_name():
     blob = _tiny()
     f = ktx2_reader.parse(blob)
     assert _kvd_offset(blob) == f["index"]["kvdByteOffset"] and _level0_offset(blob) == f["level_index"][0]["byteOffset"]
+    assert DFD_BLOCK == f["index"]["dfdByteOffset"] + 4 and blob[DFD_BLOCK + 10] == f["dfd"]["block"]["transferFunction"]
     assert blob[_kvd_offset(blob) + 4 :].startswith(b"KTXorientation\0")
 
 

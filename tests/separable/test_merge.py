@@ -93,7 +93,7 @@ def test_an_interrupted_report_leaves_the_folder_as_it_was(tmp_path, write_mater
     out.mkdir()
     (out / "index.md").write_text("the previous report")
     lut = read_material(write_material("clay", 'type = "lambert"\n'))
-    with pytest.raises(InputError, match="no separable materials"):
+    with pytest.raises(InputError, match="clay.toml: field 'type': material 'clay' is 'lambert', not separable; expected type"):
         write_separable_report([lut], out, **CHEAP)
     assert (out / "index.md").read_text() == "the previous report"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["materials", "report"]  # no staging folder left

@@ -44,7 +44,7 @@ def test_report_writes_markdown_json_and_the_plots(write_material, tmp_path, sep
 
 def test_report_needs_a_separable_material(write_material, tmp_path):
     lut = read_material(write_material("clay", 'type = "lambert"\n'))
-    with pytest.raises(InputError, match="no separable materials"):
+    with pytest.raises(InputError, match="clay.toml: field 'type': material 'clay' is 'lambert', not separable; expected"):
         write_separable_report([lut], tmp_path / "r")
 
 
@@ -111,3 +111,38 @@ def test_cli_library_picks_from_the_installed_library(tmp_path):
     res = CliRunner().invoke(app, ["report", "separable", "nope", "--library", "-o", str(tmp_path / "r")])
     assert res.exit_code == 3
     assert res.stderr.strip() == f"atlasgen: error: {shipped_library().as_posix()}: no material named nope"
+
+
+def test_a_named_material_that_is_not_separable_is_named_with_its_type(write_material, tmp_path):
+    """Issue 24: ``report separable terracotta`` said "no separable materials" without naming it."""
+    from atlasgen.cli.report_cmd import report
+
+    path = write_material("terracotta", 'type = "lambert"\n')
+    res = CliRunner().invoke(report, ["separable", "terracotta", "-m", str(tmp_path / "materials"), "-o", str(tmp_path / "r")])
+    assert res.exit_code == 3
+    assert res.output.splitlines() == [f"atlasgen: error: {path.as_posix()}: field 'type': material 'terracotta' is "
+                                       "'lambert', not separable; expected type = \"separable\""]  # fmt: skip
+
+
+def test_a_missing_atlas_is_refused_not_reported_as_not_in_atlas(write_material, tmp_path):
+    from atlasgen.cli.report_cmd import report
+
+    write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n')
+    missing = tmp_path / "nope.dds"
+    res = CliRunner().invoke(report, ["separable", "lobe", "-m", str(tmp_path / "materials"), "--atlas", str(missing),
+                                      "-o", str(tmp_path / "r")])  # fmt: skip
+    assert res.exit_code == 3
+    assert res.output.splitlines() == [f"atlasgen: error: {missing.as_posix()}: no such atlas"]
+    assert not (tmp_path / "r").exists()
+
+
+def test_merging_an_empty_report_is_refused(tmp_path):
+    from atlasgen.cli.report_cmd import report
+
+    source = tmp_path / "empty"
+    source.mkdir()
+    (source / "report.json").write_text("[]\n")
+    res = CliRunner().invoke(report, ["separable", "--merge", str(source), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 3
+    assert res.output.splitlines() == [f"atlasgen: error: {(source / 'report.json').as_posix()}: an empty separable report "
+                                       "(expected at least one material study)"]  # fmt: skip

@@ -1,0 +1,83 @@
+"""The bake's output set (issue 24): one container beside its side files, no sibling of an
+earlier bake left behind, one writer at a time."""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import replace
+
+import pytest
+from click.testing import CliRunner
+
+from atlasgen.bake.pipeline import bake_atlas, other_container_path, write_bake
+from atlasgen.cli.main import app
+from atlasgen.errors import InputError
+from atlasgen.io import atomic
+from atlasgen.io.atlas import read_atlas
+from atlasgen.io.sidecar import SIDECAR_MAGIC, sidecar_manifest_sha256
+from atlasgen.materials.material import read_materials
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pipeline")
+    (folder / "clay.toml").write_text('type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
+    return bake_atlas(read_materials([folder]), "array")
+
+
+def _names(folder) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+@pytest.mark.parametrize("first,second", [("dds", "ktx2"), ("ktx2", "dds")])
+def test_a_bake_to_one_container_removes_the_other(tmp_path, baked, first, second):
+    """X.dds and X.ktx2 would share X.json and the includes: only the one baked last stays."""
+    write_bake(baked, tmp_path / f"atlas.{first}")
+    write_bake(baked, tmp_path / f"atlas.{second}")
+    assert _names(tmp_path) == sorted([f"atlas.{second}", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl",
+                                       "atlas.timings.json"])  # fmt: skip
+    read_atlas(tmp_path / f"atlas.{second}")
+    with pytest.raises(InputError, match="no such atlas"):
+        read_atlas(tmp_path / f"atlas.{first}")
+
+
+def test_other_container_path():
+    assert other_container_path("b/x.dds").as_posix() == "b/x.ktx2"
+    assert other_container_path("b/x.ktx2").as_posix() == "b/x.dds"
+
+
+def _with_sidecar(result):
+    header = SIDECAR_MAGIC + struct.pack("<3I", 2, 1, 32) + bytes(32)
+    return replace(result, separable_data=header + struct.pack("<4f", 1, 2, 3, 4))
+
+
+def test_a_bake_without_separable_materials_removes_the_old_side_car(tmp_path, baked):
+    write_bake(_with_sidecar(baked), tmp_path / "atlas.dds")
+    sidecar = tmp_path / "atlas.separable.bin"
+    assert sidecar_manifest_sha256(sidecar.read_bytes()) is not None
+    write_bake(baked, tmp_path / "atlas.dds")
+    assert not sidecar.exists()
+
+
+def test_includes_of_languages_not_asked_for_are_removed(tmp_path, write_material):
+    write_material("clay", 'type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    runner = CliRunner()
+    assert runner.invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"]).exit_code == 0
+    assert {"atlas.glsl", "atlas.hlsl", "atlas.wgsl"} <= set(_names(out.parent))
+    res = runner.invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "--include", "wgsl", "-q"])
+    assert res.exit_code == 0, res.output
+    assert _names(out.parent) == ["atlas.dds", "atlas.json", "atlas.timings.json", "atlas.wgsl"]
+
+
+def test_a_second_writer_of_the_set_is_refused_after_the_lock_timeout(tmp_path, write_material, monkeypatch):
+    write_material("clay", 'type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    out.parent.mkdir()
+    monkeypatch.setenv("ATLASGEN_LOCK_TIMEOUT_S", "0.1")
+    with atomic.output_lock(out.parent, "atlas") as lock:  # another writer of build/atlas.*
+        res = CliRunner().invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"])
+    assert res.exit_code == 4
+    assert res.stderr.splitlines() == [f"atlasgen: error: {lock.as_posix()}: another atlasgen process is writing this "
+                                       "output set (waited 0.1 s); expected one writer at a time"]  # fmt: skip
+    assert _names(out.parent) == []
