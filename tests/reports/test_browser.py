@@ -71,13 +71,31 @@ def check_page(driver, page: Path, shot: str) -> dict:
     assert severe == [], f"{page}: console errors: {severe}"
     scroll_width = driver.execute_script("return document.documentElement.scrollWidth")
     assert scroll_width <= WIDTH, f"{page}: {scroll_width} px wide, over {WIDTH}"
+    # No element reaches past the viewport, and no scroll box hides part of what it holds (a clipped chart).
+    wide = driver.execute_script(
+        "return Array.from(document.body.querySelectorAll('*')).filter(e => {"
+        " const r = e.getBoundingClientRect(); const s = getComputedStyle(e);"
+        " const clips = ['auto', 'scroll', 'hidden'].includes(s.overflowX) && e.scrollWidth > e.clientWidth + 1;"
+        " return r.right > window.innerWidth + 0.5 || clips; })"
+        ".map(e => e.tagName + (e.className ? '.' + e.className : '') + ' ' + Math.round(e.getBoundingClientRect().right)"
+        " + '/' + e.scrollWidth);"
+    )
+    assert wide == [], f"{page}: elements wider than the {WIDTH} px viewport or clipped: {wide[:8]}"
+    # A chart's point labels (SVG text of class point-label, inline) do not overlap one another.
+    boxes = driver.execute_script(
+        "return Array.from(document.querySelectorAll('svg .point-label')).map(e => {"
+        " const r = e.getBoundingClientRect(); return [e.closest('svg').id, e.textContent.trim(), r.left, r.top, r.right, r.bottom]; });"
+    )
+    overlaps = [(a[:2], b[:2]) for i, a in enumerate(boxes) for b in boxes[i + 1 :]
+                if a[0] == b[0] and a[2] < b[4] and b[2] < a[4] and a[3] < b[5] and b[3] < a[5]]  # fmt: skip
+    assert overlaps == [], f"{page}: point labels overlap: {overlaps[:5]}"
     height = driver.execute_script("return document.documentElement.scrollHeight")
     shot_data = driver.execute_cdp_cmd("Page.captureScreenshot", {
         "format": "png", "captureBeyondViewport": True,
         "clip": {"x": 0, "y": 0, "width": WIDTH, "height": height, "scale": 1}})  # fmt: skip
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     (SCREENSHOTS / f"{shot}.png").write_bytes(base64.b64decode(shot_data["data"]))
-    return {"images": images, "height": height}
+    return {"images": images, "height": height, "labels": boxes}
 
 
 def test_library_and_separable_pages(browser, library, tmp_path):
