@@ -33,10 +33,13 @@ from atlasgen.optics.film import (
 from atlasgen.optics.fresnel import normal_reflectance
 from atlasgen.optics.quadrature import cosine_rule
 from atlasgen.optics.specular import specular_alpha, specular_fresnel_cosine
-from atlasgen.optics.thin_film import thin_film_rgb_f_cos
+from atlasgen.optics.thin_film import PHYSICAL_FILM, thin_film_rgb_f_cos
+from atlasgen.optics.translucency import transmitted_albedo
 
 __all__ = [
     "Iridescent",
+    "physical_film",
+    "PHYSICAL_DESCRIPTION",
     "film_reflectance",
     "spectrum_to_rgb",
     "cie_xyz_cmfs",
@@ -51,6 +54,36 @@ __all__ = [
 
 
 _CHUNK = 256
+_STACK_KEYS = ("thickness", "film_ior", "base_ior", "base_k")
+_BACK_KEYS = ("backlight", "backlight_distortion", "backlight_power")
+PHYSICAL_DESCRIPTION = ("physical thin film: Airy reflectance per wavelength at the half-vector on a GGX lobe, "
+                        "base coupled to the lobe's albedo (reciprocal, energy-conserving; llvm_ad_spectral, "
+                        "wavelengths sampled per sample)")  # fmt: skip
+
+
+def physical_film(values: dict):
+    """``(film, colour, backlight_colour)`` of the iridescent material ``values``'s physical thin film.
+
+    The film (:func:`atlasgen.optics.thin_film.thin_film_f_cos`'s ``film``) is the material's stack
+    (``thickness``, ``film_ior``, ``base_ior``, ``base_k``) with
+    :data:`~atlasgen.optics.thin_film.PHYSICAL_FILM`: no strength, no split, the base coupled to
+    the lobe's albedo. Where ``backlight`` > 0 it keeps the back-light's energy
+    B T_B (:func:`atlasgen.optics.translucency.transmitted_albedo`) as diffuse transmission. The
+    base passes at most what enters it: where colour + B T_B backlight_colour exceeds 1 in a
+    channel, both are scaled down by that channel's sum, so the film's albedo stays <= 1.
+    """
+    film = {k: float(values[k]) for k in _STACK_KEYS}
+    film.update(PHYSICAL_FILM)
+    colour = np.asarray(values["colour"], dtype=np.float64)
+    back = np.asarray(values["backlight_colour"], dtype=np.float64)
+    if values["backlight"] <= 0.0:
+        return film, colour, back
+    film.update({k: float(values[k]) for k in _BACK_KEYS})
+    gain = float(values["backlight"]) * transmitted_albedo(values["backlight_distortion"], values["backlight_power"])
+    total = float(np.max(colour + gain * back))
+    if total > 1.0:
+        colour, back = colour / total, back / total
+    return film, colour, back
 
 
 class Iridescent(Model):
@@ -177,35 +210,38 @@ class Iridescent(Model):
     physical_omissions = {
         "normalise": "an encoding for engines whose specular term already carries F0 (A = k(1-s)Y/F0); "
         "the physical highlight is the film's own reflectance, and the report measures the 1/F0 gap",
+        "film_strength": "stylisation: k > 1 reflects more than the film does (about 1.9x the incident energy at "
+        "grazing for k = 3); the physical film is the Airy reflectance itself, and the manifest's "
+        "fit.stylisation_psnr_db measures the model's deviation from it",
+        "film_split": "stylisation: the share of the film shown as a rough colour R(N.V) in RGB, which depends on the "
+        "view only and so is not reciprocal; the physical film reflects on its lobe alone, at the half-vector",
+        "energy": "how the model weights its base; the physical film always couples the base to the lobe's own "
+        "albedo E (energy-conserving and reciprocal), neither the model's (1-R)(1-R)/(1-R_avg) nor 1",
         "backlight_view": "how the model reduces the back-light's azimuth to (N.L, N.V); the film transmits "
         "diffusely, with no azimuth, the energy of the model's term (transmitted_albedo), "
         "as the backlit model's thin sheet does, the same in both modes",
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: the film stack's Airy reflectance per
-        wavelength on the renderer's GGX lobe (its roughness) and on a rough part, split and
-        scaled as the model splits and scales it, over the base colour, with the back-light as
-        diffuse transmission of the energy of the model's term through the film
-        (:func:`atlasgen.optics.thin_film.thin_film_f_cos`).
+        """``atlasgen_thinfilm`` in ``llvm_ad_spectral``: the physical thin film of :func:`physical_film`
+        (the film stack's Airy reflectance per wavelength at the half-vector on the renderer's GGX lobe,
+        its roughness, over the base colour coupled to the lobe's albedo, and the back-light as
+        reciprocal diffuse transmission of the energy of the model's term through the film), with the
+        object's ``albedo`` on the base (:func:`atlasgen.optics.thin_film.thin_film_f_cos`).
 
         Stochastic: Mitsuba samples the wavelengths per sample, so the render converges
         with ``--physical-spp``.
         """
-        keys = ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy",
-                "backlight", "backlight_distortion", "backlight_power")  # fmt: skip
-        film = {k: values[k] for k in keys}
-        colour = np.asarray(values["colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
-        back = np.asarray(values["backlight_colour"], dtype=np.float64) * np.asarray(albedo, dtype=np.float64)
+        film, colour, back = physical_film(values)
+        colour = colour * np.asarray(albedo, dtype=np.float64)
+        back = back * np.asarray(albedo, dtype=np.float64)
         return Reference({
             "type": THIN_FILM_REFERENCE,
             "film": json.dumps(film, sort_keys=True),
             "alpha": float(specular_alpha(gloss)),
             "colour_r": float(colour[0]), "colour_g": float(colour[1]), "colour_b": float(colour[2]),
             "backlight_r": float(back[0]), "backlight_g": float(back[1]), "backlight_b": float(back[2]),
-        }, "thin-film GGX microfacet, Airy reflectance per wavelength, the model's split, strength and "
-           "back-light (llvm_ad_spectral, wavelengths sampled per sample)",
-            variant="llvm_ad_spectral", stochastic=True)  # fmt: skip
+        }, PHYSICAL_DESCRIPTION, variant="llvm_ad_spectral", stochastic=True)  # fmt: skip
 
     def physical_fit_problem(self, values):
         """``normalise = true`` encodes A for engines whose specular term carries F0; a fit to the
@@ -219,7 +255,8 @@ class Iridescent(Model):
         (its w_i the view, w_o the light), the plugin's per-wavelength f cos integrated to linear
         sRGB for white light, with that function's approximations against Mitsuba's spectral
         render. It transmits where ``backlight`` > 0. It is the separable model's
-        ``source = "thin_film"`` with this film (its back-light included), GGX alpha and base colour."""
+        ``source = "thin_film"`` with this film (``energy = "conserving"``, its back-light included),
+        GGX alpha and base colour."""
         ref = self.physical_reference(values, gloss=gloss)
         bsdf = ref.bsdf
         film = json.loads(bsdf["film"])
@@ -229,9 +266,9 @@ class Iridescent(Model):
         def f_cos(l, v):
             return thin_film_rgb_f_cos(v, l, film, bsdf["alpha"], colour, back)
 
-        stack = {k: film[k] for k in ("thickness", "film_ior", "base_ior", "base_k", "film_strength", "film_split", "energy",
-                                      "backlight", "backlight_distortion", "backlight_power")}  # fmt: skip
-        stack["backlight_colour"] = back
+        stack = {k: film[k] for k in _STACK_KEYS + tuple(PHYSICAL_FILM) + _BACK_KEYS if k in film}
+        if values["backlight"] > 0.0:
+            stack["backlight_colour"] = back
         source = {"source": "thin_film", "film": stack, "alpha": bsdf["alpha"], "diffuse": colour}
         return PhysicalFCos(f_cos, ref.description, alpha=bsdf["alpha"], transmits=values["backlight"] > 0.0, source=source)
 
@@ -249,4 +286,5 @@ class Iridescent(Model):
         """
         physical = self.physical_f_cos(values, gloss)
         samples = spectral_samples(values["thickness"], values["film_ior"])
-        return fit_to_reference(self, values, physical.f_cos, physical.description, gloss, wavelengths=samples)
+        return fit_to_reference(self, values, physical.f_cos, physical.description, gloss, deviation=True,
+                                transmits=physical.transmits, wavelengths=samples)  # fmt: skip

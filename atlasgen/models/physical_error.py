@@ -57,7 +57,7 @@ __all__ = [
 ]
 
 #: Version of the candidate list's content: part of the report cache's key.
-CANDIDATES_VERSION = 7
+CANDIDATES_VERSION = 8
 
 
 @dataclass(frozen=True)

@@ -38,12 +38,13 @@ from atlasgen.optics.projection import (
     weighted_residual,
 )
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba, unorm_scale
-from atlasgen.optics.specular import half_vector_cosine
+from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.separable.mitsuba_source import evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 
 __all__ = ["AZIMUTHS", "FIT_GLOSS", "GRAZING_N_DOT_V", "GLOSS_CANDIDATES", "azimuth_pairs", "renderer_bases", "fit_slice",
            "plain_bsdf_reference", "check_physical_fit", "bake_from_physics", "mitsuba_f_cos", "FittedSlice",
-           "slice_relative_rms", "fit_to_reference", "FIT_SUPERSAMPLING", "FOOTPRINTS", "footprint_f_cos", "footprint_pairs"]  # fmt: skip
+           "slice_relative_rms", "fit_to_reference", "cosine_pairs", "psnr_against", "DEVIATION_PAIRS", "DEVIATION_SEED",
+           "FIT_SUPERSAMPLING", "FOOTPRINTS", "footprint_f_cos", "footprint_pairs"]  # fmt: skip
 
 #: Azimuth samples per texel.
 AZIMUTHS = 128
@@ -272,6 +273,63 @@ def slice_relative_rms(rgba, f_cos, gloss=FIT_GLOSS, azimuths: int = AZIMUTHS) -
     return float(np.sqrt(residual / energy)) if energy > 0 else 0.0
 
 
+#: Pairs and seed of the cosine-weighted sample a deviation in dB is measured on (:func:`psnr_against`).
+DEVIATION_PAIRS = 16384
+DEVIATION_SEED = 20260
+
+
+def cosine_pairs(count: int = DEVIATION_PAIRS, seed: int = DEVIATION_SEED, sphere: bool = False):
+    """``count`` i.i.d. (l, v) pairs, each cosine-weighted on the upper hemisphere (pdf cos / pi; Malley's
+    method: a uniform disc point lifted to the hemisphere, PBRT 3rd ed. sec. 13.6.3), n = +z. With
+    ``sphere``, l is mirrored below the surface with probability 1/2 (a reference that transmits)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(2):
+        u, phi = rng.random(count), 2.0 * np.pi * rng.random(count)
+        r = np.sqrt(u)
+        out.append(np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u)], axis=-1))
+    l, v = out
+    if sphere:
+        l[rng.random(count) < 0.5, 2] *= -1.0
+    return l, v
+
+
+def psnr_against(reference: np.ndarray, approx: np.ndarray) -> tuple[float, float]:
+    """PSNR in dB of ``approx`` against ``reference`` (``(N, 3)`` f cos at the same i.i.d. pairs), and its SE.
+
+        PSNR = 10 log10(P^2 / MSE),  MSE = mean over pairs and channels of (approx - reference)^2,
+
+    P the reference's peak over the sample, held fixed. The SE is the delta method's
+    (10 / ln 10) SE(MSE) / MSE, SE(MSE) the pairs' standard error of the mean (Owen 2013, sec. 9.2).
+    """
+    ref, app = np.asarray(reference, dtype=np.float64), np.asarray(approx, dtype=np.float64)
+    per_pair = ((app - ref) ** 2).mean(axis=1)
+    mse = float(per_pair.mean())
+    peak = float(ref.max())
+    if mse <= 0.0 or peak <= 0.0:
+        return float("inf"), 0.0
+    se = float(per_pair.std(ddof=1) / np.sqrt(len(per_pair)))
+    return 10.0 * float(np.log10(peak * peak / mse)), 10.0 / float(np.log(10.0)) * se / mse
+
+
+def _deviations(model: Model, values: dict, f_cos, rgba, gloss: float, transmits: bool) -> dict:
+    """The model's own f cos (its closed form, no texels) and the fitted slice's (float), each in the
+    renderer's equation at ``gloss``, against ``f_cos`` in dB on one cosine-weighted sample (:func:`psnr_against`)."""
+    l, v = cosine_pairs(sphere=transmits)
+    nl, nv, nh, degenerate = l[:, 2], v[:, 2], *half_vector_cosine(l, v)
+    reference = np.asarray(f_cos(l, v), dtype=np.float64)
+    own = renderer_f_cos(model.evaluate(values, np.clip(nl, -1.0, 1.0), nv), 1.0, gloss, nl, nv, nh, degenerate)
+    fitted = renderer_f_cos(sample_slice(rgba, nl, nv), 1.0, gloss, nl, nv, nh, degenerate)
+    out = {}
+    for name, approx in (("model", own), ("fit", fitted)):
+        db, se = psnr_against(reference, approx)
+        out[f"{name}_psnr_db"], out[f"{name}_psnr_se_db"] = round(db, 2), round(se, 3)
+    out.update(
+        psnr_pairs=len(l), psnr_seed=DEVIATION_SEED, psnr_sample="cosine-weighted" + (", l over the sphere" if transmits else "")
+    )
+    return out
+
+
 def _remember_last(f_cos):
     """``f_cos`` that returns its last result again for the same (l, v): a spectral reference
     costs seconds per slice of pairs."""
@@ -285,7 +343,16 @@ def _remember_last(f_cos):
     return remembered
 
 
-def fit_to_reference(model: Model, values: dict, f_cos, reference: str, gloss: float = FIT_GLOSS, **extra) -> SliceSet:
+def fit_to_reference(
+    model: Model,
+    values: dict,
+    f_cos,
+    reference: str,
+    gloss: float = FIT_GLOSS,
+    deviation: bool = False,
+    transmits: bool = False,
+    **extra,
+) -> SliceSet:
     """One slice fitted by :func:`fit_slice` to a model's physical reference given as NumPy
     ``f_cos(l, v) -> (N, 3)``, for the renderer gloss ``gloss`` (a model's
     :meth:`~atlasgen.models.base.Model.fit_physical`).
@@ -294,7 +361,11 @@ def fit_to_reference(model: Model, values: dict, f_cos, reference: str, gloss: f
     (``gloss``, ``azimuths``, ``alpha_cap``, ``relative_rms``: 8-bit RGB and A), ``extra`` and
     ``model_relative_rms``: the model's own float slice (``from = "model"``, at the texel
     centres, not rounded) against the same reference in the same measure, so the manifest
-    says what fitting to physics gained.
+    says what fitting to physics gained. With ``deviation``, also ``model_psnr_db`` and
+    ``fit_psnr_db`` with their SEs: the model's closed form and the fitted float slice, each in
+    the renderer's equation, against the reference in dB on a cosine-weighted sample (l over the
+    sphere where the reference ``transmits``): what the model's look costs in truth, beside what
+    the table can reach (:func:`psnr_against`).
     """
     f_cos = _remember_last(f_cos)  # the fit and the model's measure sample the same pairs
     rgba, info = fit_slice(f_cos, float(gloss))
@@ -302,6 +373,8 @@ def fit_to_reference(model: Model, values: dict, f_cos, reference: str, gloss: f
     own = np.broadcast_to(np.asarray(model.evaluate(values, nl[None, :], nv[:, None]), dtype=np.float64), rgba.shape)
     fit = {"from": "physical", "reference": reference, **info, **extra,
            "model_relative_rms": slice_relative_rms(own, f_cos, float(gloss), info["azimuths"])}  # fmt: skip
+    if deviation:
+        fit.update(_deviations(model, values, f_cos, rgba, float(gloss), transmits))
     return SliceSet(rgba.reshape(1, HEIGHT, WIDTH, 4), extra={"fit": fit})
 
 

@@ -32,7 +32,7 @@ from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
-from atlasgen.optics.thin_film import FILM_DEFAULTS
+from atlasgen.optics.thin_film import ENERGY_MODES, FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
 from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values
 from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
@@ -86,6 +86,8 @@ def check_film(film, path) -> dict:
             path, "film", f"expected a table such as {{thickness = 420.0, film_ior = 1.45, base_ior = 1.8}}, got {film!r}"
         )
     params = {p.name: p for p in Iridescent.params if p.name in FILM_KEYS}
+    # A film table may also be the iridescent model's physical film, whose base is coupled to the lobe's albedo.
+    params["energy"] = replace(params["energy"], choices=ENERGY_MODES)
     for key in film:
         if key not in params:
             raise MaterialError(path, f"film.{key}", f"unknown; expected one of {', '.join(FILM_KEYS)}")

@@ -60,6 +60,7 @@ from atlasgen.optics.interpolation import linear_stencil
 from atlasgen.optics.specular import half_vector_cosine, specular_f_cos
 
 __all__ = ["FIT_STRATA", "FIT_PASSES", "FIT_SEEDS", "GEOMETRY_SEED", "MIN_N_DOT_V", "SMOOTHNESS", "OBJECT_RADIUS",
+           "FIT_RADII", "SCORE_RADII", "SCORE_PASSES",
            "sample_configurations", "local_directions", "sphere_rays", "bilinear_stencil", "fit_texels",
            "render_sphere_samples", "fit_sss_slice", "fitted_sss_slice"]  # fmt: skip
 
@@ -75,8 +76,18 @@ GEOMETRY_SEED = 11
 MIN_N_DOT_V = 1e-3
 #: Weight of the second-difference penalty, relative to the mean sample weight per texel.
 SMOOTHNESS = 0.1
-#: Radius of the fitted sphere in scene units: the validation scenes' sphere.
+#: Radius of the validation scenes' sphere in scene units: the medium is scaled so that it is as
+#: large in mean free paths as a ``radius`` mm ball (:func:`atlasgen.models.sss.skin_medium`).
 OBJECT_RADIUS = 0.5
+#: Radii of the spheres the slice is fitted to, the same medium inside (curvatures 0.7 and 1.4 times
+#: the material's ``radius``): not the validation sphere, so the fit is scored there out of sample.
+FIT_RADII = (0.35, 0.7)
+#: Geometries the fit is scored on and not fitted to: the validation sphere, and a sphere 40 times
+#: its radius, flat over the skin's scattering distance (a flat part the validation plane cannot
+#: show: it holds no medium).
+SCORE_RADII = (("validation_sphere", OBJECT_RADIUS), ("flat", 20.0))
+#: Jittered passes per seed of each scored geometry, per :data:`FIT_PASSES` of the fit.
+SCORE_PASSES = 8
 #: Rays per ``volpath`` call (memory, not results: every ray has its own random stream).
 _BATCH = 1 << 20
 
@@ -241,15 +252,17 @@ def _mitsuba():
     return mi
 
 
-def render_sphere_samples(medium: dict, integrator: dict, origins, directions, seed: int) -> np.ndarray:
-    """Radiance ``(N, 3)`` along each ray into the sphere of ``medium`` lit from +z (unit irradiance),
+def render_sphere_samples(
+    medium: dict, integrator: dict, origins, directions, seed: int, radius: float = OBJECT_RADIUS
+) -> np.ndarray:
+    """Radiance ``(N, 3)`` along each ray into the sphere of ``radius`` and ``medium`` lit from +z (unit irradiance),
     by Mitsuba's ``llvm_ad_rgb`` ``integrator``, one independent sample per ray, Mitsuba seed ``seed``."""
     mi = _mitsuba()
     # A symbolic loop (volpath's) traces every live Python plugin instance: free them first.
     gc.collect()
     scene = mi.load_dict({
         "type": "scene",
-        "sphere": {"type": "sphere", "radius": OBJECT_RADIUS, "bsdf": {"type": "null"}, "interior": medium},
+        "sphere": {"type": "sphere", "radius": float(radius), "bsdf": {"type": "null"}, "interior": medium},
         "light": {"type": "directional", "direction": [0.0, 0.0, -1.0], "irradiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
     })  # fmt: skip
     integ = mi.load_dict(integrator)
@@ -277,51 +290,82 @@ def _relative_rms_between(a, b, stencil) -> float:
     return float(np.sqrt(np.mean((la - lb) ** 2) / np.mean(lb * lb)))
 
 
-def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES, model_rgb=None):
-    """The ``(HEIGHT, WIDTH, 4)`` slice fitted to volpath renders of the sphere of ``medium``, and a
-    dict describing the fit (module docstring): ``spp`` (renders per configuration and seed),
-    ``rays``, ``light_directions``, ``seeds``, ``relative_rms``, ``seed_disagreement_relative_rms``,
-    ``noise_relative_rms``, and with ``model_rgb`` (the closed form's ``(HEIGHT, WIDTH, 3)`` slice)
-    ``model_relative_rms``, that slice's error measured as the fit's; and the renders' wall
-    seconds (not part of the slice: timings vary)."""
-    nl, nv, phi = sample_configurations(passes)
-    origins, directions = sphere_rays(nl, nv, phi)
+def _render_geometry(medium, integrator, specular, gloss, radius, passes, seed):
+    """Configurations of one sphere (``radius``, jitter ``seed``) and y = pi (L - A f_s cos) of both Mitsuba seeds' renders."""
+    nl, nv, phi = sample_configurations(passes, seed=seed)
+    origins, directions = sphere_rays(nl, nv, phi, radius)
     l, v, nh, degenerate = local_directions(nl, nv, phi)
     lobe = specular_f_cos(gloss, l[:, 2], v[:, 2], nh, degenerate)[:, None]  # the renderer's f_s cos
-    t0 = time.perf_counter()
-    renders = [render_sphere_samples(medium, integrator, origins, directions, s) for s in FIT_SEEDS]
-    seconds = time.perf_counter() - t0
+    renders = [render_sphere_samples(medium, integrator, origins, directions, s, radius) for s in FIT_SEEDS]
     # y = pi (L - A f_s cos): the diffuse part the slice's RGB must supply.
-    ys = [np.pi * (r - float(specular) * lobe) for r in renders]
+    return nl, nv, [np.pi * (r - float(specular) * lobe) for r in renders]
+
+
+def _noise_free_error(slice_rgb, stencil, ys) -> float:
+    """Relative RMS of the slice against the renders y of two seeds: sqrt(mean(r0 r1) / mean(y0 y1)), r the
+    residuals (the seeds' noise is independent, so it averages out of the product)."""
+    index, weight = stencil
+    looked_up = (np.asarray(slice_rgb).reshape(-1, 3)[index] * weight[..., None]).sum(1)
+    r0, r1 = ys[0] - looked_up, ys[1] - looked_up
+    return float(np.sqrt(max(np.mean(r0 * r1), 0.0) / np.mean(ys[0] * ys[1])))
+
+
+def fit_sss_slice(medium: dict, integrator: dict, specular: float, gloss: float, passes: int = FIT_PASSES, model_rgb=None):
+    """The ``(HEIGHT, WIDTH, 4)`` slice fitted to volpath renders of the spheres of :data:`FIT_RADII` filled
+    with ``medium``, and a dict describing the fit (module docstring): ``spp`` (renders per configuration
+    and seed), ``rays``, ``light_directions``, ``seeds``, ``fit_radii``, ``relative_rms`` (in sample: on the
+    fitted spheres), ``seed_disagreement_relative_rms``, ``noise_relative_rms``, ``out_of_sample``
+    (the same measure on fresh configurations of each geometry of :data:`SCORE_RADII`, which the fit
+    never saw: ``{name: {"radius", "rays", "relative_rms"[, "model_relative_rms"]}}``), and with
+    ``model_rgb`` (the closed form's ``(HEIGHT, WIDTH, 3)`` slice) ``model_relative_rms``, that slice's
+    error measured as the fit's; and the renders' wall seconds (not part of the slice: timings vary).
+
+    The fitted spheres share ``passes`` between them; each scored geometry gets
+    ``passes * SCORE_PASSES / FIT_PASSES`` (at least 1), with jitter seeds of its own.
+    """
+    t0 = time.perf_counter()
+    per_radius = max(1, int(passes) // len(FIT_RADII))
+    parts = [
+        _render_geometry(medium, integrator, specular, gloss, r, per_radius, GEOMETRY_SEED + k) for k, r in enumerate(FIT_RADII)
+    ]
+    nl = np.concatenate([p[0] for p in parts])
+    nv = np.concatenate([p[1] for p in parts])
+    ys = [np.concatenate([p[2][s] for p in parts]) for s in range(len(FIT_SEEDS))]
     # The three fits share their normal matrix (same configurations): one call, nine columns.
     fits = fit_texels(nl, nv, np.concatenate([0.5 * (ys[0] + ys[1]), ys[0], ys[1]], axis=1))
     rgb, single = fits[..., :3], (fits[..., 3:6], fits[..., 6:])
     stencil = bilinear_stencil(nl, nv)
-    index, weight = stencil
-
-    def error(slice_rgb) -> float:
-        # The residuals of the two seeds' renders of the same rays: their noise is
-        # independent, so it averages out of their product.
-        looked_up = (np.asarray(slice_rgb).reshape(-1, 3)[index] * weight[..., None]).sum(1)
-        r0, r1 = ys[0] - looked_up, ys[1] - looked_up
-        return float(np.sqrt(max(np.mean(r0 * r1), 0.0) / np.mean(ys[0] * ys[1])))
-
     disagreement = _relative_rms_between(single[0], single[1], stencil) / np.sqrt(2.0)
+    scored = {}
+    score_passes = max(1, int(passes) * SCORE_PASSES // FIT_PASSES)
+    for k, (name, radius) in enumerate(SCORE_RADII):
+        snl, snv, sys_ = _render_geometry(medium, integrator, specular, gloss, radius, score_passes, GEOMETRY_SEED + 100 + k)
+        score_stencil = bilinear_stencil(snl, snv)
+        scored[name] = {
+            "radius": float(radius),
+            "rays": int(len(snl)),
+            "relative_rms": _noise_free_error(rgb, score_stencil, sys_),
+        }
+        if model_rgb is not None:
+            scored[name]["model_relative_rms"] = _noise_free_error(model_rgb, score_stencil, sys_)
+    seconds = time.perf_counter() - t0
     rgba = np.concatenate([rgb, np.full((HEIGHT, WIDTH, 1), float(specular))], -1)
     info = {
         "spp": 1,
-        "passes": int(passes),
+        "passes": int(per_radius * len(FIT_RADII)),
         "rays": int(len(nl)),
         "light_directions": 1,
         "seeds": list(FIT_SEEDS),
-        "relative_rms": error(rgb),
+        "fit_radii": [float(r) for r in FIT_RADII],
+        "relative_rms": _noise_free_error(rgb, stencil, ys),
         # Two slices differing by independent noise: their RMS difference over sqrt(2) is
         # one slice's noise, and the slice fitted to both has half their variance.
         "seed_disagreement_relative_rms": float(np.sqrt(2.0) * disagreement),
         "noise_relative_rms": float(disagreement / np.sqrt(2.0)),
+        "out_of_sample": scored,
     }
     if model_rgb is not None:
-        info["model_relative_rms"] = error(model_rgb)
+        info["model_relative_rms"] = _noise_free_error(model_rgb, stencil, ys)
     return rgba, info, seconds
 
 

@@ -9,12 +9,18 @@ is shown at ``w * CSS_PX_PER_INCH`` CSS pixels wide, and saved at ``PLOT_DPI`` (
 that, so that it stays sharp on high-density screens). Text of ``s`` points then
 measures ``s * CSS_PX_PER_INCH / 72`` CSS pixels: the smallest font used (``MIN_FONT_PT``)
 is at least 12 px.
+
+Point labels are not drawn into the PNG: :func:`label_points` records them, and
+:func:`figure_chart` places them, as HTML text over the image (``templates/chart.html.j2``),
+where no two overlap (:func:`place_labels`): the browser test measures the boxes the page
+really draws.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+from dataclasses import dataclass
 
 __all__ = [
     "CSS_PX_PER_INCH",
@@ -26,6 +32,10 @@ __all__ = [
     "plot_width",
     "pareto_front",
     "label_points",
+    "place_labels",
+    "figure_chart",
+    "Chart",
+    "LABEL_FONT_PX",
 ]
 
 #: CSS pixels per figure inch on every report page.
@@ -105,17 +115,86 @@ def pareto_front(points) -> list[int]:
     return front
 
 
+#: Point labels' font size and line height in CSS px (report.css's ``.point-label``), and the width
+#: :func:`place_labels` allows per character: wider than any system-ui glyph but "W" and "M".
+LABEL_FONT_PX = 12
+LABEL_LINE_PX = 16
+_LABEL_CHAR_PX = 7.4
+_LABEL_PAD_PX = 6
+#: Offsets (dx, dy) in CSS px from a point to its label's top-left corner, tried in this order, then the
+#: same twice and three times as far; dx < 0 means "to the left, by the label's width and dx".
+_LABEL_OFFSETS = ((6, -20), (6, 4), (-6, -20), (-6, 4), (-0.5, -24), (-0.5, 8))
+
+
 def label_points(ax, xy, labels) -> None:
-    """Label points (in order of increasing x) with text of the plot's smallest size,
-    alternately above and below, so that neighbours along a front do not overlap; the
-    last one's label reads leftwards, so that it stays inside the axes."""
-    for n, ((x, y), label) in enumerate(zip(xy, labels)):
-        last = n == len(labels) - 1 and n > 0
-        ax.annotate(
-            label,
-            (x, y),
-            fontsize=MIN_FONT_PT,
-            xytext=(-5 if last else 5, 6 if n % 2 == 0 else -14),
-            textcoords="offset points",
-            ha="right" if last else "left",
-        )
+    """Record labels for points ``xy`` (data coordinates) of ``ax``; :func:`figure_chart` places them
+    as HTML text over the image, where none overlaps another."""
+    ax.__dict__.setdefault("_point_labels", []).extend((float(x), float(y), str(t)) for (x, y), t in zip(xy, labels))
+
+
+def _label_box(text: str, x: float, y: float, offset) -> tuple:
+    w = len(text) * _LABEL_CHAR_PX + _LABEL_PAD_PX
+    dx, dy = offset
+    left = x - w + dx if dx < 0 and dx != -0.5 else (x - w / 2 if dx == -0.5 else x + dx)
+    top = y + dy
+    return left, top, left + w, top + LABEL_LINE_PX
+
+
+def place_labels(points, width: float, height: float, margin: float = 3.0) -> list[dict]:
+    """Greedy label placement: each ``(x, y, text)`` point (CSS px from the image's top-left) gets the
+    first of the candidate boxes around it (:data:`_LABEL_OFFSETS`, then farther) that stays inside
+    ``width`` x ``height`` and keeps ``margin`` px from every label placed before it; where none does,
+    the least overlapping. Returns ``[{"text", "left", "top", "x", "y"}]`` in CSS px.
+
+    >>> [(l["left"], l["top"]) for l in place_labels([(100, 100, "a"), (102, 100, "b")], 400, 300)]
+    [(106.0, 80.0), (108.0, 104.0)]
+    """
+    placed, out = [], []
+    for x, y, text in points:
+        best = None
+        for scale in (1, 2, 3):
+            for dx, dy in _LABEL_OFFSETS:
+                offset = (dx * scale if dx != -0.5 else dx, dy * scale)
+                box = _label_box(text, x, y, offset)
+                inside = box[0] >= 0 and box[1] >= 0 and box[2] <= width and box[3] <= height
+                overlap = sum(max(0.0, min(box[2], b[2]) + margin - max(box[0], b[0])) *
+                              max(0.0, min(box[3], b[3]) + margin - max(box[1], b[1])) for b in placed)  # fmt: skip
+                cost = overlap + (0.0 if inside else 1e9)
+                if best is None or cost < best[0]:
+                    best = (cost, box)
+                if cost == 0.0:
+                    break
+            if best[0] == 0.0:
+                break
+        box = best[1]
+        placed.append(box)
+        out.append({"text": text, "left": round(float(box[0]), 1), "top": round(float(box[1]), 1),
+                    "x": round(float(x), 1), "y": round(float(y), 1)})  # fmt: skip
+    return out
+
+
+@dataclass(frozen=True)
+class Chart:
+    """A plot for a page: its PNG, its displayed size in CSS px, and its point labels placed over it
+    (:func:`place_labels`; ``templates/chart.html.j2`` draws them)."""
+
+    png: bytes
+    width: int
+    height: int
+    labels: tuple = ()
+
+
+def figure_chart(fig) -> Chart:
+    """:func:`figure_png` of ``fig`` with the labels :func:`label_points` recorded on its axes placed over
+    it: each point's position in the laid-out figure, in CSS px (``CSS_PX_PER_INCH`` per inch)."""
+    fig.canvas.draw()  # lays out (constrained layout) and fixes every transform
+    width_in, height_in = fig.get_size_inches()
+    css = CSS_PX_PER_INCH / fig.dpi
+    width, height = round(width_in * CSS_PX_PER_INCH), round(height_in * CSS_PX_PER_INCH)
+    points = []
+    for ax in fig.axes:
+        for x, y, text in ax.__dict__.get("_point_labels", []):
+            px, py = ax.transData.transform((x, y))
+            points.append((px * css, height - py * css, text))
+    labels = tuple(place_labels(points, width, height))
+    return Chart(figure_png(fig), width, height, labels)

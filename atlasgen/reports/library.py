@@ -12,7 +12,8 @@ from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, loads_finite_json
 from atlasgen.models import get_model
-from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
+from atlasgen.reports.comparisons import manifest_pairs
+from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, pareto_front, plot_style, render_page
 from atlasgen.reports.pareto import (
     MAX_JOBS,
     baked_candidate,
@@ -30,7 +31,7 @@ __all__ = ["write_library_report"]
 #: The library's cost/error plot: its file and its size in inches (shown at 100 CSS px per inch).
 _PLOT = "cost-vs-error.png"
 _PLOT_SIZE = (7.0, 4.5)
-_SMALL_PLOT_SIZE = (4.2, 3.0)
+_SMALL_PLOT_SIZE = (3.8, 2.8)
 #: The Pareto charts against the physical reference: the library's, and one per material under ``pareto/``.
 _PARETO_PLOT = "pareto.png"
 _PARETO_DIR = "pareto"
@@ -140,8 +141,10 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
         if not result.get("candidates"):
             without.append({"name": entry.name, "reason": result.get("reason", "no physical reference")})
             continue
-        chart = f"{_PARETO_DIR}/{entry.name}.png"
-        files[out_dir / chart] = plot_material(entry.name, result, chosen[entry.name], _PARETO_SMALL_SIZE)
+        src = f"{_PARETO_DIR}/{entry.name}.png"
+        drawn = plot_material(entry.name, result, chosen[entry.name], _PARETO_SMALL_SIZE)
+        files[out_dir / src] = drawn.png
+        chart = {"src": src, "chart": drawn}
         front = front_flags(result["candidates"])
         materials.append({
             "name": entry.name, "chart": chart, "reference": result["reference"], "gloss": f"{result['gloss']:g}",
@@ -154,7 +157,10 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
     plot = None
     if materials:
         files[out_dir / _PARETO_PLOT] = plot_library({m["name"]: results[m["name"]] for m in materials}, chosen, _PARETO_SIZE)
-        plot = {"src": _PARETO_PLOT, "width": plot_width(_PARETO_SIZE[0])}
+        plot = {
+            "src": _PARETO_PLOT,
+            "chart": Chart(b"", round(_PARETO_SIZE[0] * CSS_PX_PER_INCH), round(_PARETO_SIZE[1] * CSS_PX_PER_INCH)),
+        }
     first = next((results[m["name"]] for m in materials), None)
     sample = None if first is None else {"estimator": first["estimator"], "pairs": first["pairs"], "seed": first["seed"]}
     return {
@@ -162,7 +168,6 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
         "materials": materials,
         "without": without,
         "sample": sample,
-        "chart_width": plot_width(_PARETO_SMALL_SIZE[0]),
     }
 
 
@@ -205,19 +210,20 @@ def write_library_report(
         candidates = [c for c in _runtime_candidates(entry, table) if c["cost"] is not None]
         chart = None
         if candidates:
-            chart = f"cost/{name}.png"
-            files[out_dir / chart] = _plot_cost_error(
-                {name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error"
-            )
+            src = f"cost/{name}.png"
+            drawn = _plot_cost_error({name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error")
+            files[out_dir / src] = drawn.png
+            chart = {"src": src, "chart": drawn}
             chosen_points += [(name, c) for c in candidates if c["chosen"]]
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
     physical_section = _physical_section(atlas.manifest.materials, out_dir, files, jobs) if physical else None
     plot = None
     if chosen_points:
-        files[out_dir / _PLOT] = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
-                                                  "Library: run-time cost against error", label_all=True)  # fmt: skip
-        plot = {"src": _PLOT, "width": plot_width(_PLOT_SIZE[0])}
+        drawn = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
+                                 "Library: run-time cost against error", label_all=True)  # fmt: skip
+        files[out_dir / _PLOT] = drawn.png
+        plot = {"src": _PLOT, "chart": drawn}
 
     def rel(target) -> str | None:
         return os.path.relpath(target, out_dir) if target is not None and Path(target).exists() else None
@@ -240,6 +246,11 @@ def write_library_report(
             "runtime": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".3g"),
                          "chosen": c["chosen"]} for c in candidates],
         })  # fmt: skip
+    pairs = [
+        p
+        for entry, *_ in rows
+        for p in manifest_pairs(entry.name, None if entry.fit is None else entry.fit.to_json(), validation)
+    ]
     index = out_dir / "index.html"
     files[index] = render_page(
         "library.html.j2",
@@ -249,22 +260,24 @@ def write_library_report(
         links=links,
         plot=plot,
         rows=page_rows,
+        pairs=pairs,
         physical=physical_section,
         cost_device=table.device,
         cost_unit=table.unit,
-        chart_width=plot_width(_SMALL_PLOT_SIZE[0]),
     )
     # Previews, plots and the page that links them, as one set; the page is renamed last.
     write_files_atomically(files, primary=index)
     return index
 
 
-def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = False) -> bytes:
+def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = False) -> Chart:
     """Run-time cost (the shipped cost table, :func:`atlasgen.separable.auto.read_lighting_cost`)
     against error, one marker per candidate; the chosen representation is filled, the Pareto
     front (nothing both cheaper and closer) labelled."""
     floor = 1e-6  # a closed form's error is 0: drawn on the axis's floor
     with plot_style() as plt:
+        from matplotlib import ticker
+
         fig, ax = plt.subplots(figsize=size)
         points = []
         for name, candidates in series.items():
@@ -277,9 +290,15 @@ def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = Fa
         label_points(ax, [(p[0], p[1]) for p in front], [p[2] for p in front])
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xlabel(f"lighting cost ({table.unit}), {table.device}")
-        ax.set_ylabel("error (rel. RMS of f cos; LUT: quantisation RMS)")
-        ax.set_title(title, fontsize="medium")
+        # Costs span less than a decade or two: label 1, 2, 5 x 10^k plainly, not every minor tick in powers of ten.
+        ax.xaxis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(ticker.NullFormatter())
+        small = size[0] < 5.0  # a table cell's chart: axis titles short enough to fit it
+        ax.set_xlabel(f"lighting cost ({table.unit})")
+        ax.set_ylabel("error (rel. RMS)" if small else "error (rel. RMS of f cos; LUT: quantisation RMS)")
+        # The device's name is long: on its own line of the title, where it wraps no axis.
+        ax.set_title(title if small else f"{title}\non {table.device}", fontsize="medium")
         if label_all and len(series) <= 12:
             ax.legend(fontsize="small")
-        return figure_png(fig)
+        return figure_chart(fig)

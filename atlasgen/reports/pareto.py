@@ -34,7 +34,7 @@ from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
 from atlasgen.models import get_model
 from atlasgen.models.physical_error import candidates_key, physical_candidates
-from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style
+from atlasgen.reports.html import Chart, figure_chart, figure_png, label_points, pareto_front, plot_style
 
 __all__ = ["MAX_JOBS", "ERROR_FLOOR", "baked_candidate", "material_candidates", "library_candidates", "cache_files", "front_flags", "short_label",
            "plot_material", "plot_library"]  # fmt: skip
@@ -192,8 +192,9 @@ def _room(ax, candidates):
     ax.set_ylim(min(ys) / 3.0, max(ys) * 3.0)
 
 
-def plot_material(name: str, result: dict, chosen: str | None, size) -> bytes:
-    """One material's Pareto chart (see the module docstring); the baked representation a star."""
+def plot_material(name: str, result: dict, chosen: str | None, size) -> Chart:
+    """One material's Pareto chart (see the module docstring); the baked representation a star; the
+    front's labels placed over it (:func:`atlasgen.reports.html.figure_chart`)."""
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=size)
         _draw(ax, result["candidates"], chosen, "C0")
@@ -202,7 +203,7 @@ def plot_material(name: str, result: dict, chosen: str | None, size) -> bytes:
         ax.set_xlabel(_axis_label(result))
         ax.set_ylabel(f"rel. RMS of f cos vs physical (±1 SE)\n(exact: drawn at {ERROR_FLOOR:g})")
         ax.set_title(f"{name}: cost against error vs physical", fontsize="medium")
-        return figure_png(fig)
+        return figure_chart(fig)
 
 
 def plot_library(results: dict, chosen: dict, size) -> bytes:

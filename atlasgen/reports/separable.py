@@ -18,7 +18,7 @@ from atlasgen.errors import InputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import staged_folder
 from atlasgen.models.separable import Separable
-from atlasgen.reports.html import figure_png, label_points, plot_style, plot_width, render_page
+from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 from atlasgen.separable.error import errors_by_terms, measure_errors, sample_hemisphere_pairs
@@ -205,8 +205,11 @@ def study_material(
 _PLOT_SIZE = (5.8, 3.9)
 
 
-def _plots(study: MaterialStudy, folder: Path) -> dict:
+def _plots(study: MaterialStudy, folder: Path, charts: dict | None = None) -> dict:
+    """The study's four plots written into ``folder``, ``{kind: path}``; ``charts`` (when given) gets
+    each plot's :class:`~atlasgen.reports.html.Chart` (its size and placed labels), by kind."""
     paths = {}
+    charts = {} if charts is None else charts
     ks = np.arange(1, MAX_AUTO_TERMS + 1)
 
     def save(fig, ax, kind: str, xlabel: str, ylabel: str, title: str) -> None:
@@ -216,7 +219,8 @@ def _plots(study: MaterialStudy, folder: Path) -> dict:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
         paths[kind] = folder / f"{study.name}-{kind}.png"
-        paths[kind].write_bytes(figure_png(fig))
+        charts[kind] = figure_chart(fig)  # the front's labels go over the image, as text
+        paths[kind].write_bytes(charts[kind].png)
 
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=_PLOT_SIZE)
@@ -411,12 +415,22 @@ def _html_blocks(s: MaterialStudy, plots: dict) -> list[dict]:
     ]  # fmt: skip
 
 
-def format_separable_html(studies: list, plots: dict) -> bytes:
+def format_separable_html(studies: list, plots: dict, charts: dict | None = None) -> bytes:
     """The report as one HTML page (UTF-8 bytes), the plots beside it: the figures of
-    :func:`format_separable_report`, with a table under each plot."""
-    pages = [{"name": s.name, "anchor": "material-" + s.name, "source": s.source, "summary": _summary_cells(s),
-              "blocks": _html_blocks(s, plots[s.name]), "timings": _timings_text(s)} for s in studies]  # fmt: skip
-    return render_page("separable.html.j2", studies=pages, plot_width=plot_width(_PLOT_SIZE[0]))
+    :func:`format_separable_report`, with a table under each plot; ``charts`` (``{name: {kind: Chart}}``,
+    from :func:`_plots`) places each plot's point labels over it."""
+    pages = []
+    for s in studies:
+        blocks = _html_blocks(s, plots[s.name])
+        for block, kind in zip(blocks, ("terms", "resolution", "pareto", "parametrization")):
+            block["chart"] = ((charts or {}).get(s.name) or {}).get(kind) or Chart(b"", *_css_size(_PLOT_SIZE))
+        pages.append({"name": s.name, "anchor": "material-" + s.name, "source": s.source, "summary": _summary_cells(s),
+                      "blocks": blocks, "timings": _timings_text(s)})  # fmt: skip
+    return render_page("separable.html.j2", studies=pages)
+
+
+def _css_size(size) -> tuple[int, int]:
+    return round(size[0] * CSS_PX_PER_INCH), round(size[1] * CSS_PX_PER_INCH)
 
 
 def write_separable_report(
@@ -454,9 +468,10 @@ def write_separable_report(
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
     with staged_folder(folder, primary="report.json") as staging:
-        plots = {s.name: _plots(s, staging) for s in studies}
+        charts: dict = {s.name: {} for s in studies}
+        plots = {s.name: _plots(s, staging, charts[s.name]) for s in studies}
         (staging / "index.md").write_text(format_separable_report(studies, plots))
-        (staging / "index.html").write_bytes(format_separable_html(studies, plots))
+        (staging / "index.html").write_bytes(format_separable_html(studies, plots, charts))
         (staging / "report.json").write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")
     plots = {name: {kind: folder / path.name for kind, path in kinds.items()} for name, kinds in plots.items()}
     return {"markdown": folder / "index.md", "html": folder / "index.html", "json": folder / "report.json", "plots": plots}

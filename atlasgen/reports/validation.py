@@ -24,7 +24,8 @@ from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
-from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
+from atlasgen.reports.comparisons import validation_pairs
+from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
 from atlasgen.validate.metrics import flip_heatmap
 
 __all__ = [
@@ -247,7 +248,12 @@ def missed_goals(data: dict) -> list[str]:
 
 
 def plot_speed_error(data: dict) -> bytes:
-    """One PNG plot: the *reference render cost*, how many atlas frames one reference render costs (x, log), against
+    """The PNG of :func:`speed_error_chart` (its labels are the page's, over the image)."""
+    return speed_error_chart(data).png
+
+
+def speed_error_chart(data: dict) -> Chart:
+    """One PNG plot and its point labels (:func:`atlasgen.reports.html.figure_chart`): the *reference render cost*, how many atlas frames one reference render costs (x, log), against
     the atlas image's mean FLIP against that reference (y, log), one point per material and scene.
 
     ``data`` is a report dict (:func:`report_dict`, or a merged one): the plot reads only
@@ -286,7 +292,7 @@ def plot_speed_error(data: dict) -> bytes:
         )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
-        return figure_png(fig)
+        return figure_chart(fig)
 
 
 def _fmt(x, spec):
@@ -330,7 +336,7 @@ def _claimed_text(kind: str, row: dict) -> str:
             f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
 
 
-def _html(data: dict) -> bytes:
+def _html(data: dict, plot: Chart | None = None) -> bytes:
     s = data["settings"]
     sizes = {sc["name"]: (sc.get("width"), sc.get("height")) for sc in s.get("scenes", [])}
     metric_rows, breakdown, materials = [], [], []
@@ -382,7 +388,8 @@ def _html(data: dict) -> bytes:
         worst_psnr=_fmt(data["summary"]["worst_lut_psnr_db"], ".2f"),
         worst_flip=_fmt(data["summary"]["worst_lut_flip"], ".4f"),
         material_lines=describe_materials(data),
-        plot_width=plot_width(_PLOT_SIZE[0]),
+        plot=plot if plot is not None else speed_error_chart(data),
+        pairs=validation_pairs(data),
         metric_rows=metric_rows,
         breakdown=breakdown,
         materials=materials,
@@ -405,10 +412,11 @@ def build_report(run, out_dir) -> dict:
 
 def _page_files(data: dict, out_dir: Path) -> dict:
     """``{path: bytes}`` of the plot, the JSON and the page of one report dict."""
+    plot = speed_error_chart(data)
     return {
-        out_dir / "speed_error.png": plot_speed_error(data),
+        out_dir / "speed_error.png": plot.png,
         out_dir / "report.json": (json.dumps(data, indent=2, allow_nan=False) + "\n").encode(),
-        out_dir / "index.html": _html(data),
+        out_dir / "index.html": _html(data, plot),
     }
 
 

@@ -128,3 +128,24 @@ def test_footprint_fit_of_a_sharp_feature_is_closer_to_the_texel_mean():
     mean = ridge(np.clip(nl[:, None] + dense * 2.0 / (WIDTH - 1), -1.0, 1.0), 0.5).mean(axis=1)
     row = HEIGHT // 2
     assert np.sum((fitted[row, :, 0] - mean) ** 2) < 0.1 * np.sum((point[row, :, 0] - mean) ** 2)
+
+
+def test_psnr_against_is_the_closed_form_and_its_se_shrinks_with_the_sample():
+    """A constant error e under a reference of peak P gives 10 log10(P^2 / e^2) with SE 0; a noisy error's SE
+    is the delta method's, within 10% of the spread over independent samples."""
+    from atlasgen.models.physical_fit import cosine_pairs, psnr_against
+
+    reference = np.zeros((1000, 3))
+    reference[0] = 2.0
+    db, se = psnr_against(reference, reference + 0.01)
+    assert db == pytest.approx(10.0 * np.log10(4.0 / 1e-4), rel=1e-12) and se == pytest.approx(0.0, abs=1e-9)
+    rng = np.random.default_rng(3)
+    runs = [psnr_against(reference, reference + 0.01 * rng.standard_normal((1000, 3))) for _ in range(100)]
+    spread = np.std([r[0] for r in runs])
+    assert np.mean([r[1] for r in runs]) == pytest.approx(spread, rel=0.25)
+    l, v = cosine_pairs(20000, 1)
+    for d in (l, v):  # cosine-weighted: E[cos] = 2/3, unit vectors on the upper hemisphere
+        assert np.allclose(np.linalg.norm(d, axis=1), 1.0) and (d[:, 2] >= 0).all()
+        assert d[:, 2].mean() == pytest.approx(2.0 / 3.0, abs=0.01)
+    below, _ = cosine_pairs(20000, 1, sphere=True)
+    assert 0.45 < (below[:, 2] < 0).mean() < 0.55

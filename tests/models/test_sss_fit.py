@@ -151,8 +151,15 @@ def test_fit_is_deterministic_and_reports_its_noise(mitsuba_llvm):
     b, again, _ = sss_fit.fit_sss_slice(medium, integrator, 0.028, 0.5, passes=1)
     assert a.tobytes() == b.tobytes() and info == again
     assert a.shape == (HEIGHT, WIDTH, 4) and (a >= 0.0).all() and np.all(a[..., 3] == 0.028)
-    assert info["rays"] == np.prod(FIT_STRATA) and info["light_directions"] == 1
+    assert info["rays"] == len(sss_fit.FIT_RADII) * np.prod(FIT_STRATA) and info["light_directions"] == 1
     assert 0.0 < info["noise_relative_rms"] < info["seed_disagreement_relative_rms"]
+    # Fitted on spheres other than the validation sphere, and scored there and on a flat part, out of sample.
+    assert sss_fit.OBJECT_RADIUS not in info["fit_radii"]
+    scored = info["out_of_sample"]
+    assert set(scored) == {"validation_sphere", "flat"} and scored["validation_sphere"]["radius"] == sss_fit.OBJECT_RADIUS
+    assert all(s["rays"] == np.prod(FIT_STRATA) and 0.0 <= s["relative_rms"] < 1.0 for s in scored.values()), scored
+    # Flat skin lit from behind (N.L < 0) is dark, unlike a sphere's wrap: the flat part scores worst.
+    assert scored["flat"]["relative_rms"] > scored["validation_sphere"]["relative_rms"]
     # Skin lit head-on returns light (a few tenths of its colour), and almost none from behind.
     assert a[HEIGHT // 2, -1, 0] > 0.2 and a[HEIGHT // 2, 0, :3].max() < 0.05
 
@@ -206,3 +213,25 @@ def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_con
     assert info["from"] == "physical" and info["gloss"] == 0.5 and info["spp"] == 1
     # The fit's noise is well below its error (10 dB: a factor sqrt(10) in RMS).
     assert info["noise_relative_rms"] * np.sqrt(10.0) < info["relative_rms"] < info["model_relative_rms"]
+
+
+def test_the_documented_skin_scores_are_the_manifests():
+    """docs/materials.md's in-sample and out-of-sample table is the golden manifest's skin fit, to 0.01%."""
+    import json
+    import re
+
+    root = Path(__file__).resolve().parents[2]
+    manifest = json.loads((root / "tests" / "resources" / "golden" / "array-srgb.json").read_text())
+    fit = next(m for m in manifest["materials"] if m["name"] == "skin")["fit"]
+    scored = fit["out_of_sample"]
+    expected = {
+        "fitted spheres (in sample)": (fit["relative_rms"], fit["model_relative_rms"]),
+        "validation sphere (out of sample)": (scored["validation_sphere"]["relative_rms"], scored["validation_sphere"]["model_relative_rms"]),
+        "flat (out of sample)": (scored["flat"]["relative_rms"], scored["flat"]["model_relative_rms"]),
+    }  # fmt: skip
+    text = (root / "docs" / "materials.md").read_text(encoding="utf-8")
+    rows = dict((name, (float(a) / 100, float(b) / 100))
+                for name, a, b in re.findall(r"\| ([a-z ()]+) \| ([0-9.]+)% \| ([0-9.]+)% \|", text))  # fmt: skip
+    for name, (fitted, model) in expected.items():
+        assert rows[name] == pytest.approx((fitted, model), abs=5.1e-5), name
+    assert fit["fit_radii"] == list(sss_fit.FIT_RADII) and sss_fit.OBJECT_RADIUS not in fit["fit_radii"]

@@ -71,13 +71,32 @@ def check_page(driver, page: Path, shot: str) -> dict:
     assert severe == [], f"{page}: console errors: {severe}"
     scroll_width = driver.execute_script("return document.documentElement.scrollWidth")
     assert scroll_width <= WIDTH, f"{page}: {scroll_width} px wide, over {WIDTH}"
+    # No element reaches past the viewport, and no scroll box hides part of what it holds (a clipped chart).
+    wide = driver.execute_script(
+        "return Array.from(document.body.querySelectorAll('*')).filter(e => {"
+        " const r = e.getBoundingClientRect(); const s = getComputedStyle(e);"
+        " const clips = ['auto', 'scroll', 'hidden'].includes(s.overflowX) && e.scrollWidth > e.clientWidth + 1;"
+        " return r.right > window.innerWidth + 0.5 || clips; })"
+        ".map(e => e.tagName + (e.className ? '.' + e.className : '') + ' ' + Math.round(e.getBoundingClientRect().right)"
+        " + '/' + e.scrollWidth);"
+    )
+    assert wide == [], f"{page}: elements wider than the {WIDTH} px viewport or clipped: {wide[:8]}"
+    # A chart's point labels (HTML text over its image, class point-label) do not overlap one another.
+    boxes = driver.execute_script(
+        "const charts = []; return Array.from(document.querySelectorAll('.point-label')).map(e => {"
+        " const c = e.parentElement; if (!charts.includes(c)) charts.push(c); const r = e.getBoundingClientRect();"
+        " return [charts.indexOf(c), e.textContent.trim(), r.left, r.top, r.right, r.bottom]; });"
+    )
+    overlaps = [(a[:2], b[:2]) for i, a in enumerate(boxes) for b in boxes[i + 1 :]
+                if a[0] == b[0] and a[2] < b[4] and b[2] < a[4] and a[3] < b[5] and b[3] < a[5]]  # fmt: skip
+    assert overlaps == [], f"{page}: point labels overlap: {overlaps[:5]}"
     height = driver.execute_script("return document.documentElement.scrollHeight")
     shot_data = driver.execute_cdp_cmd("Page.captureScreenshot", {
         "format": "png", "captureBeyondViewport": True,
         "clip": {"x": 0, "y": 0, "width": WIDTH, "height": height, "scale": 1}})  # fmt: skip
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     (SCREENSHOTS / f"{shot}.png").write_bytes(base64.b64decode(shot_data["data"]))
-    return {"images": images, "height": height}
+    return {"images": images, "height": height, "labels": boxes}
 
 
 def test_library_and_separable_pages(browser, library, tmp_path):
@@ -92,6 +111,7 @@ def test_library_and_separable_pages(browser, library, tmp_path):
     check_page(browser, separable["html"], "separable")
     index = write_library_report(atlas, root / "build" / "report", separable_dir=separable["html"].parent)
     shown = check_page(browser, index, "library")
+    assert shown["labels"], "the library page's charts label their fronts"  # so the overlap check saw labels
     # The library page links the separable report's HTML page, which the check above opened.
     assert browser.execute_script("return Array.from(document.links).some(a => a.href.endsWith('/separable/index.html'))")
     assert len(shown["images"]) >= 2
@@ -110,6 +130,7 @@ def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
         write_validation(run, out / "materials" / name)
     merge_validation_reports([out / "materials" / name for name in MATERIALS], out)
     shown = check_page(browser, out / "index.html", "validation")
+    assert shown["labels"], "the validation plot labels its front"
     for name in MATERIALS:
         check_page(browser, out / "materials" / name / "index.html", f"validation-{name}")
     # Images at their native size (the default view), pixel for pixel.
@@ -131,3 +152,18 @@ def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
     assert zoomed == [144, 108, "pixelated"]
     assert browser.execute_script("return document.documentElement.scrollWidth") <= WIDTH
     assert shown["height"] > 0
+
+
+def test_the_checks_catch_a_clipped_chart_and_overlapping_labels(browser, tmp_path):
+    """check_page fails on a page whose chart is clipped by its scroll box, and on one whose labels overlap."""
+    pixel = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8BQDwAEhQGAhKmMIQAAAABJRU5ErkJggg==")
+    (tmp_path / "p.png").write_bytes(pixel)
+    clipped = '<div class="scroll" style="overflow-x: auto; width: 300px"><img src="p.png" width="900" height="10"></div>'
+    overlapping = ('<div style="position: relative"><img src="p.png" width="200" height="100">'
+                   '<span class="point-label" style="position: absolute; left: 10px; top: 10px">alpha</span>'
+                   '<span class="point-label" style="position: absolute; left: 20px; top: 14px">beta</span></div>')  # fmt: skip
+    for name, body, message in (("clipped", clipped, "clipped"), ("overlapping", overlapping, "overlap")):
+        page = tmp_path / f"{name}.html"
+        page.write_text(f"<!DOCTYPE html><html><body>{body}</body></html>")
+        with pytest.raises(AssertionError, match=message):
+            check_page(browser, page, f"check-{name}")

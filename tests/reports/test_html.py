@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from atlasgen.reports.html import CSS_PX_PER_INCH, MIN_FONT_PT, pareto_front, plot_style, render_page
+from atlasgen.reports.html import CSS_PX_PER_INCH, LABEL_LINE_PX, MIN_FONT_PT, pareto_front, place_labels, plot_style, render_page
 
 
 def test_pareto_front_keeps_exactly_the_undominated_points():
@@ -34,3 +36,24 @@ def test_every_plot_text_is_at_least_nine_css_pixels():
 def test_pages_escape_what_they_show():
     page = render_page("library.html.j2", atlas="<b>a</b>", encoding="srgb", layout="array", links=[], plot=None, rows=[])
     assert b"&lt;b&gt;a&lt;/b&gt;" in page and b"<b>a</b>" not in page
+
+
+@given(st.lists(st.tuples(st.floats(60, 540), st.floats(60, 340), st.text("abcK0123/", min_size=1, max_size=12)),
+                min_size=1, max_size=6))  # fmt: skip
+@settings(max_examples=60, deadline=None)
+@pytest.mark.slow
+def test_placed_labels_stay_inside_and_do_not_overlap_where_there_is_room(points):
+    """A handful of labels on a 600 x 400 chart: each box inside it, none intersecting another
+    (boxes as place_labels sizes them), each within a few label heights of its point."""
+    labels = place_labels(points, 600, 400)
+    boxes = []
+    for label, (x, y, text) in zip(labels, points):
+        w = len(text) * 7.4 + 6
+        box = (label["left"], label["top"], label["left"] + w, label["top"] + LABEL_LINE_PX)
+        assert box[0] >= 0 and box[1] >= 0 and box[2] <= 600 and box[3] <= 400
+        assert abs(label["top"] - y) <= 4 * LABEL_LINE_PX + 8 and label["text"] == text and label["x"] == round(x, 1)
+        boxes.append(box)
+    if len(points) <= 3:  # always room for three: every one placed clear of the others
+        for i, a in enumerate(boxes):
+            for b in boxes[i + 1 :]:
+                assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), (a, b)
