@@ -23,7 +23,7 @@ from atlasgen.reports.pareto import (
     plot_library,
     plot_material,
 )
-from atlasgen.reports.validation import read_validation_report
+from atlasgen.reports.validation import check_result_figures
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 
 __all__ = ["write_library_report"]
@@ -190,8 +190,11 @@ def write_library_report(
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
     timings = _read_json(timings_path) or {}
-    validation_json = Path(validation_dir) / "report.json" if validation_dir else None
-    validation = read_validation_report(validation_json) if validation_json is not None and validation_json.exists() else None
+    validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
+    if validation is not None:  # only its results are read: their figures must be numbers
+        check_result_figures(
+            Path(validation_dir) / "report.json", validation.get("results", []) if isinstance(validation, dict) else None
+        )
     out_dir = Path(out_dir)
 
     rows, files = [], {}

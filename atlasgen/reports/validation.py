@@ -40,6 +40,7 @@ __all__ = [
     "missed_goals",
     "noise_floor_failures",
     "read_validation_report",
+    "check_result_figures",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -452,16 +453,21 @@ def _check_figures(path: Path, data: dict) -> None:
         missing = [k for k in keys if k not in data[part]]
         if missing:
             raise FieldError(path.as_posix(), f"{part}.{missing[0]}", "missing; expected the key atlasgen validate writes")
-    if not isinstance(data["results"], list):
-        raise FieldError(path.as_posix(), "results", f"expected a list of results, got {type(data['results']).__name__}")
-    for i, row in enumerate(data["results"]):
+    check_result_figures(path, data["results"])
+
+
+def check_result_figures(path, results) -> None:
+    """Refuse validation ``results`` whose figures are not finite numbers (or null), naming the field."""
+    if not isinstance(results, list):
+        raise FieldError(Path(path).as_posix(), "results", f"expected a list of results, got {type(results).__name__}")
+    for i, row in enumerate(results):
         if not isinstance(row, dict) or not isinstance(row.get("references"), dict):
-            raise FieldError(path.as_posix(), f"results[{i}]", "expected a result with 'references'")
+            raise FieldError(Path(path).as_posix(), f"results[{i}]", "expected a result with 'references'")
         for key in _ROW_NUMBERS:
             check_number(path, f"results[{i}].{key}", row.get(key))
         for kind, ref in row["references"].items():
             if not isinstance(ref, dict):
-                raise FieldError(path.as_posix(), f"results[{i}].references.{kind}", "expected an object of figures")
+                raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}", "expected an object of figures")
             for key in _REFERENCE_NUMBERS:
                 check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
 
