@@ -67,7 +67,7 @@ apt:
 # Every Python package, direct or transitive, is installed at the version constraints.txt pins: the
 # goldens' bytes and the reports' figures depend on Mitsuba, Dr.Jit, NumPy and the rest (README,
 # Development: "Pinned versions").
-EXTRAS := mitsuba,render,report,test,dev
+EXTRAS := mitsuba,materialx,render,report,test,dev
 $(VENV)/.stamp: pyproject.toml $(wildcard constraints.txt)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -c constraints.txt -e '.[$(EXTRAS)]'
