@@ -633,13 +633,15 @@ class Separable(Model):
             return None  # the closed form itself: nothing approximated
         if isinstance(entry.representation, LutRepresentation):
             return {"relative_rms_8bit": entry.representation.reconstruction_error, "relative_rms_float": None, "terms": None,
-                    "error_budget": entry.representation.error_budget}  # fmt: skip
+                    "error_budget": entry.representation.error_budget,
+                    "relative_rms_8bit_se": _lut_error_se(entry.representation)}  # fmt: skip
         factors = entry.factors
         return {
             "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
             "relative_rms_float": None if factors.errors is None else factors.errors.float_error.relative_rms,
             "terms": factors.terms,
             "error_budget": getattr(entry.representation, "error_budget", None),
+            "relative_rms_8bit_se": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms_se,
         }
 
     # -- reports ----------------------------------------------------------------------------------
@@ -677,6 +679,13 @@ LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("s
     Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
     Return("a.rgb / ATLAS_PI + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
 ), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
+
+
+def _lut_error_se(rep) -> float | None:
+    """The standard error of a fitted LUT slice's error, from the candidate chosen (``auto``)."""
+    auto = rep.auto or {}
+    chosen = next((c for c in auto.get("candidates", []) if c.get("representation") == auto.get("chosen")), None)
+    return None if chosen is None else chosen.get("error_se")
 
 
 def _source_description(values: dict, what: str = "BRDF") -> str:
