@@ -167,8 +167,8 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             given = flatten.get(key) if isinstance(flatten, dict) else None
             if given is None and flatten != "default":
                 raise MaterialError(
-                    shown, f"{material}.{key}", f"driven by {driver}; expected a constant value (or flatten it to its default "
-                    "or a given value)"
+                    shown, f"{material}.{key}", f"driven by {driver}; expected a constant value (or bake it at its default: atlasgen bake --flatten default"
+                    ")"
                 )  # fmt: skip
             value = given if given is not None else (defaults[key][1] if key in defaults else None)
             flattened[key] = {"driven_by": driver, "value": value}
