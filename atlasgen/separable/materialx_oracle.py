@@ -243,8 +243,7 @@ class MaterialXOracle:
         out = np.zeros((l.shape[0], 3))
         if l.shape[0] == 0:
             return out
-        with _lock:
-            ctx = _context()
+        with _lock, _context() as ctx:  # current on this thread: Mitsuba calls its plugins from worker threads
             self._set_inputs(inputs)
             self.program["u_viewPosition"].value = (0.0, 0.0, 0.0)
             self.program["u_numActiveLightSources"].value = 1
@@ -296,8 +295,7 @@ def materialx_oracle(category: str) -> MaterialXOracle:
     if category not in SURFACE_MODELS:
         raise BackendError(f"no MaterialX oracle for {category!r}; expected one of {', '.join(SURFACE_MODELS)}")
     pixel = adapt_pixel_stage(_generate(category))
-    with _lock:
-        ctx = _context()
+    with _lock, _context() as ctx:
         try:
             program = ctx.program(vertex_shader=VERTEX_STAGE, fragment_shader=pixel)
         except Exception as exc:

@@ -136,3 +136,17 @@ def test_adapted_stage_declares_the_missing_uniform():
     src = adapt_pixel_stage(_source("standard_surface"))
     assert "uniform bool u_refractionTwoSided = false;" in src
     assert "uniform LightData u_lightData" not in src
+
+
+def test_another_thread_can_evaluate_it():
+    """Mitsuba calls its Python plugins from worker threads: the GL context must be made current there."""
+    import threading
+
+    l = v = np.array([[0.0, 0.0, 1.0]])
+    here = evaluate_materialx_f_cos("standard_surface", {}, l, v)
+    there: list = []
+    worker = threading.Thread(target=lambda: there.append(evaluate_materialx_f_cos("standard_surface", {}, l, v)))
+    worker.start()
+    worker.join()
+    assert len(there) == 1
+    np.testing.assert_array_equal(there[0], here)
