@@ -231,12 +231,12 @@ def run() -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         with _OracleClock() as clock:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             shipped = read_material_file(SHIPPED)
             from atlasgen.bake.pipeline import bake_atlas
 
             bake_atlas(shipped)
-            shipped_s = time.perf_counter() - t0
+            shipped_s, shipped_cpu_s = time.perf_counter() - t0, time.process_time() - c0
         oracle_s = clock.seconds
         text = SHIPPED.read_text().replace("</materialx>", PLASTIC + "</materialx>")
         doc = tmp / "measured.mtlx"
@@ -291,8 +291,11 @@ def run() -> dict:
             "## MaterialX documents against MaterialX's own shader (issue 23)",
             "",
             f"The shipped document ({SHIPPED.relative_to(ROOT).as_posix()}, {len(shipped)} materials) bakes in "
-            f"**{shipped_s:.1f} s** in process, {oracle_s:.1f} s of it ({oracle_s / shipped_s:.0%}) in the oracle "
-            "(generating, compiling and shading MaterialX's GLSL on llvmpipe). Goal: under 60 s.",
+            f"**{shipped_s:.1f} s** in process ({shipped_cpu_s:.1f} s of CPU, every thread of the process, llvmpipe's "
+            f"included; the machine is shared, so the wall time is the larger), {oracle_s:.1f} s of the wall time "
+            f"({oracle_s / shipped_s:.0%}) in the oracle (generating, compiling and shading MaterialX's GLSL on llvmpipe); "
+            "the rest is the fitting: the LUT candidate's gloss search and the separable terms' error estimates. "
+            "Goal: under 60 s.",
             "",
             "### PSNR against the oracle on the validation scenes (front / back, dB)",
             "",
@@ -332,7 +335,7 @@ def run() -> dict:
             "",
         ]
     )
-    data = {"shipped_bake_s": round(shipped_s, 2), "oracle_s": round(oracle_s, 2), "psnr": data_rows,
+    data = {"shipped_bake_s": round(shipped_s, 2), "shipped_bake_cpu_s": round(shipped_cpu_s, 2), "oracle_s": round(oracle_s, 2), "psnr": data_rows,
             "independent_errors": {"auto": independent, "k8": independent_k8}, "metal_vs_roughconductor": ratio,
             "examples": examples}  # fmt: skip
     return {"markdown": md, "data": data}
