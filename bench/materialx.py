@@ -98,7 +98,7 @@ def _variant_document(text: str, representation: str) -> list:
         if representation == "lut":
             params.update(representation="lut")
         else:
-            params.update(representation="separable", terms=8, max_error=None)
+            params.update(representation="separable", terms=8, max_error=None, grid=None)
         m.params = params
         m.name = f"{m.name}__{representation}"
         m.content_hash = f"{m.content_hash}:{representation}"
