@@ -20,10 +20,16 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # Validation and the separable report follow the same pattern: one job per material, into its own
 # folder, re-run only when that material's bake result or the code that measures it changed, then
 # a cheap merge that reads the per-material JSON and renders or measures nothing.
-MATERIAL_FILES := $(sort $(wildcard materials/*.toml))
-STEMS := $(patsubst materials/%.toml,%,$(MATERIAL_FILES))
+# A MaterialX document (materials/*.mtlx) bakes each of its materials into its own cache entry
+# (build/cache/<stem>.<material>.npz), which make cannot name before reading the document: the
+# document's stamp (build/cache/<stem>.mtlx.stamp) stands for them, and its validation is one job.
+TOML_FILES := $(sort $(wildcard materials/*.toml))
+MTLX_FILES := $(sort $(wildcard materials/*.mtlx))
+MATERIAL_FILES := $(TOML_FILES) $(MTLX_FILES)
+STEMS := $(patsubst materials/%.toml,%,$(TOML_FILES))
+MTLX_STEMS := $(patsubst materials/%.mtlx,%,$(MTLX_FILES))
 CACHE_DIR := $(BUILD)/cache
-CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS))
+CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS)) $(patsubst %,$(CACHE_DIR)/%.mtlx.stamp,$(MTLX_STEMS))
 # Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
 # below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
 # agree); __init__.py holds the version, which is part of every key.
@@ -36,12 +42,13 @@ ASSEMBLY_CODE := $(BELOW_BAKE) $(sort $(wildcard atlasgen/bake/*.py))
 SLICE_CODE := $(ASSEMBLY_CODE)
 REPORT_CODE := $(sort $(wildcard atlasgen/reports/*.py atlasgen/reports/templates/*))
 # Separable materials by their type, read with grep so that parsing the Makefile stays instant.
-SEPARABLE_FILES := $(sort $(if $(MATERIAL_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(MATERIAL_FILES))))
+SEPARABLE_FILES := $(sort $(if $(TOML_FILES),$(shell grep -lE '^[[:space:]]*type[[:space:]]*=[[:space:]]*["'"'"']separable["'"'"']' $(TOML_FILES))))
 SEPARABLE_STEMS := $(patsubst materials/%.toml,%,$(SEPARABLE_FILES))
 RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
 VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py atlasgen/data/validation/*.toml)) $(RENDER_CODE) $(REPORT_CODE)
 VALIDATION := $(BUILD)/validation
 VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
+MTLX_VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(MTLX_STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
 SEPARABLE_STUDIES := $(patsubst %,$(SEPARABLE_REPORT)/materials/%/report.json,$(SEPARABLE_STEMS))
 
@@ -67,7 +74,7 @@ apt:
 # Every Python package, direct or transitive, is installed at the version constraints.txt pins: the
 # goldens' bytes and the reports' figures depend on Mitsuba, Dr.Jit, NumPy and the rest (README,
 # Development: "Pinned versions").
-EXTRAS := mitsuba,render,report,test,dev
+EXTRAS := mitsuba,materialx,render,report,test,dev
 $(VENV)/.stamp: pyproject.toml $(wildcard constraints.txt)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -c constraints.txt -e '.[$(EXTRAS)]'
@@ -109,6 +116,9 @@ $(BUILD)/materials.list:
 
 $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
+
+$(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(BAKE_CODE) | $(VENV)/.stamp
+	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q && touch $@
 
 $(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png
@@ -156,7 +166,7 @@ validate: $(VALIDATION)/report.json
 # STRICT=1 (for CI): fail with exit code 6 when a validation goal is missed (docs/cli.md). The
 # check is this phony target's recipe, so every run checks again, not only the one that merged.
 ifneq ($(STRICT),)
-	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q --strict
+	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED) $(MTLX_VALIDATED)) -o $(VALIDATION) -q --strict
 endif
 
 # $(call prune,FOLDER,STEMS): remove FOLDER's per-material subfolders whose material file is gone.
@@ -172,11 +182,16 @@ $(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DI
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
+# A MaterialX document's materials: one validation job, into the document's folder.
+$(MTLX_VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
+	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
+
 # The combined page (index.html, report.json, speed_error.png) from the per-material report.json
 # files; materials.list re-merges when a material is removed.
-$(VALIDATION)/report.json: $(VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE) | $(VENV)/.stamp
-	@$(call prune,$(VALIDATION)/materials,$(STEMS))
-	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED)) -o $(VALIDATION) -q
+$(VALIDATION)/report.json: $(VALIDATED) $(MTLX_VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE) | $(VENV)/.stamp
+	@$(call prune,$(VALIDATION)/materials,$(STEMS) $(MTLX_STEMS))
+	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED) $(MTLX_VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
 $(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp

@@ -28,6 +28,8 @@ def run() -> dict:
              "**Bold**: on the material's Pareto front (nothing both cheaper and closer).", ""]  # fmt: skip
     data, without = {"device": table.device, "unit": table.unit, "materials": {}}, []
     for path in find_material_files([shipped_library()]):
+        if path.suffix != ".toml":  # a MaterialX document's materials: bench/materialx.py measures them
+            continue
         material = read_material(path)
         t0 = time.perf_counter()
         gloss = material.fit_gloss if material.fit_from == "physical" else None  # drawn at its fit gloss

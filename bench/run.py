@@ -27,6 +27,7 @@ SECTIONS = [
     "environment",
     "environment_error",
     "environment_cost",
+    "materialx",
 ]
 
 

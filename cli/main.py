@@ -214,6 +214,14 @@ def app(ctx, debug):
 )
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
 @click.option(
+    "--flatten",
+    "mtlx_flatten",
+    type=click.Choice(["default"]),
+    default=None,
+    help="MaterialX documents: bake an input driven by a texture or node graph at its nodedef default (recorded in the "
+    "manifest's params.materialx.flattened) instead of refusing the material.",
+)
+@click.option(
     "--strict",
     is_flag=True,
     help="Fail (exit 7, nothing written) when a material warns: its measured error over 20%, a dropped delta lobe, "
@@ -236,10 +244,14 @@ def bake(
     depfile,
     library,
     allow_empty,
+    mtlx_flatten,
     strict,
     verbosity,
 ):
-    """Bake material definitions (files or folders; default: materials/) into an atlas."""
+    """Bake material definitions (files or folders; default: materials/) into an atlas.
+
+    A file is a TOML material or a MaterialX document (.mtlx), whose every surfacematerial is baked from
+    MaterialX's own shader."""
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     if cache_only and cache_dir is None:
@@ -249,7 +261,7 @@ def bake(
     if unknown:
         raise click.UsageError(f"--include: unknown language {unknown[0]!r}; expected wgsl, glsl or hlsl, comma-separated")
     sources = list(paths) + ([shipped_library()] if library else [])
-    every_material = read_materials(sources or [Path("materials")])
+    every_material = read_materials(sources or [Path("materials")], materialx_flatten=mtlx_flatten)
     materials = select_scene_materials(every_material, scene) if scene is not None else every_material
     # Every output path is checked before anything (the cache included) is written.
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)

@@ -60,7 +60,7 @@ def report():
 def separable(names, materials_dir, library, atlas, output, repeats, merge, verbosity):
     """Error against K, grid, 8 bits and time for separable MATERIAL names (default: all separable ones).
 
-    NAMES are material names (picked from --materials) or material files (X.toml).
+    NAMES are material names (picked from --materials) or material files (X.toml, or X.mtlx: its every material).
     With --merge they are folders of earlier reports (e.g. one per material), combined
     without measuring again.
     """
@@ -73,8 +73,8 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     if library:
         materials_dir = shipped_library()
 
-    files = [Path(n) for n in names if n.endswith(".toml")]
-    wanted = [n for n in names if not n.endswith(".toml")]
+    files = [Path(n) for n in names if n.endswith((".toml", ".mtlx"))]
+    wanted = [n for n in names if not n.endswith((".toml", ".mtlx"))]
     pool = read_materials([materials_dir]) if (wanted or not files) else []
     chosen = [m for m in pool if not wanted or m.name in wanted]
     missing = sorted(set(wanted) - {m.name for m in chosen})

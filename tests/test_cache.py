@@ -58,3 +58,14 @@ def test_a_bake_from_the_cache_writes_the_bytes_of_a_bake_without_it(tmp_path, w
     for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl", ".separable.bin"):
         plain, again = (tmp_path / d / f"a{suffix}" for d in ("plain", "cached"))
         assert plain.read_bytes() == again.read_bytes(), suffix
+
+
+def test_a_document_s_materials_get_one_cache_entry_each(tmp_path):
+    from atlasgen.materials.material import Material
+
+    def material(name, source):
+        return Material(name=name, type="lambert", params={}, source=source, content_hash=name)
+
+    assert cache_path(tmp_path, material("a", "materials/a.toml")) == tmp_path / "a.npz"
+    assert cache_path(tmp_path, material("Gold", "materials/lib.mtlx")) == tmp_path / "lib.Gold.npz"
+    assert cache_path(tmp_path, material("Car", "materials/lib.mtlx")) == tmp_path / "lib.Car.npz"

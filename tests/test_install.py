@@ -101,7 +101,7 @@ def baked(installed, workdir, shipped_library_cache) -> Path:
 def test_the_wheel_holds_the_data_the_licence_and_the_entry_point(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     assert all(name in names for name in PACKAGE_DATA), sorted(set(PACKAGE_DATA) - set(names))
-    shipped = sorted(p.name for p in (ROOT / "materials").glob("*.toml"))
+    shipped = sorted(p.name for pattern in ("*.toml", "*.mtlx") for p in (ROOT / "materials").glob(pattern))
     assert sorted(n.rsplit("/", 1)[1] for n in names if n.startswith("atlasgen/data/materials/")) == shipped
     info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
     assert f"{info}/licenses/LICENSE" in names and "atlasgen/__main__.py" in names

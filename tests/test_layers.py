@@ -36,6 +36,8 @@ LAZY_OK = {
     "jinja2",
     "zstandard",
     "watchfiles",
+    "MaterialX",  # the MaterialX importer and its oracle (atlasgen/separable/materialx_oracle.py)
+    "moderngl",
 }
 
 #: (importing module, imported module) pairs allowed to break the rules above, with why.

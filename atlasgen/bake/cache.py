@@ -65,8 +65,12 @@ def cache_key(material) -> str:
 
 
 def cache_path(cache_dir, material) -> Path:
-    """``<cache_dir>/<source file stem>.npz``: one file per material file, so Make can name it."""
-    return Path(cache_dir) / f"{Path(material.source).stem}.npz"
+    """``<cache_dir>/<source file stem>.npz``: one file per material file, so Make can name it; a
+    MaterialX document's materials one each, ``<document stem>.<material name>.npz``."""
+    stem = Path(material.source).stem
+    if material.source.lower().endswith(".mtlx"):
+        return Path(cache_dir) / f"{stem}.{material.name}.npz"
+    return Path(cache_dir) / f"{stem}.npz"
 
 
 def _check_entry(values: np.ndarray, meta) -> None:

@@ -11,6 +11,7 @@ from pathlib import Path
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
+from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
 from atlasgen.models.physical_fit import FIT_GLOSS, check_physical_fit
@@ -19,6 +20,7 @@ __all__ = [
     "Material",
     "read_material",
     "read_materials",
+    "read_material_file",
     "find_material_files",
     "check_unique_names",
     "select_scene_materials",
@@ -170,8 +172,23 @@ def read_material(path) -> Material:
     )
 
 
+def read_material_file(path, materialx_flatten=None) -> list[Material]:
+    """The materials of one file: a TOML material file's one, or every ``surfacematerial`` of a
+    MaterialX document (``.mtlx``, :mod:`atlasgen.materials.materialx_document`; ``materialx_flatten``
+    says what driven inputs become)."""
+    if not is_materialx_file(path):
+        return [read_material(path)]
+    out = []
+    for fields in read_materialx_document(path, materialx_flatten):
+        if not NAME_PATTERN.match(fields["name"]):
+            raise MaterialError(fields["source"], fields["name"],
+                                "expected a material name of a letter then letters, digits, '-' or '_' (at most 63)")  # fmt: skip
+        out.append(Material(**fields))
+    return out
+
+
 def find_material_files(paths) -> list[Path]:
-    """Expand files and folders (``*.toml``, sorted, non-recursive) into a file list.
+    """Expand files and folders (``*.toml`` and ``*.mtlx``, sorted, non-recursive) into a file list.
 
     Sorting makes the bake order, and so the atlas, independent of the file system.
     """
@@ -179,7 +196,7 @@ def find_material_files(paths) -> list[Path]:
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            files.extend(sorted(p.glob("*.toml")))
+            files.extend(sorted([*p.glob("*.toml"), *p.glob("*.mtlx")]))
         elif p.is_file():
             files.append(p)
         else:
@@ -187,9 +204,9 @@ def find_material_files(paths) -> list[Path]:
     return files
 
 
-def read_materials(paths) -> list[Material]:
-    """Read every material under ``paths``; duplicate names are an error."""
-    return check_unique_names([read_material(f) for f in find_material_files(paths)])
+def read_materials(paths, materialx_flatten=None) -> list[Material]:
+    """Read every material under ``paths`` (a MaterialX document gives each of its materials); duplicate names are an error."""
+    return check_unique_names([m for f in find_material_files(paths) for m in read_material_file(f, materialx_flatten)])
 
 
 def check_unique_names(materials: list[Material]) -> list[Material]:

@@ -28,6 +28,7 @@ from atlasgen.models.base import (
     encode_scaled,
 )
 from atlasgen.models.iridescent import Iridescent
+from atlasgen.models.materialx import check_materialx_spec, describe_materialx, materialx_mitsuba_bsdf
 from atlasgen.models.physical_lut import fit_lut, lut_errors, stored_slice
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
@@ -62,10 +63,10 @@ DEFAULT_BUDGET = 0.02
 #: Largest fixed ``terms``: the rank of a 32 x 1024 factor matrix.
 MAX_TERMS = 32
 
-SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba", "thin_film")
+SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba", "thin_film", "materialx")
 #: Sources the lighting shader can evaluate in closed form (``representation = "analytic"``).
 ANALYTIC_SHADER_SOURCES = ("ggx", "beckmann", "lambert")
-REPRESENTATIONS = ("separable", "analytic", "auto")
+REPRESENTATIONS = ("separable", "analytic", "auto", "lut")
 
 
 #: Keys of a ``source = "thin_film"`` material's ``film`` table (the iridescent model's parameters
@@ -145,6 +146,13 @@ class Separable(Model):
         Param("exponent", 100.0, "float", lo=0.0, hi=1e6, lo_open=True, doc="Blinn-Phong exponent"),
         Param("bsdf", None, "table", doc="a Mitsuba 3 BSDF dict (source = 'mitsuba')"),
         Param("film", None, "table", doc="the film stack and split, as the iridescent model names them (source = 'thin_film')"),
+        Param(
+            "materialx",
+            None,
+            "table",
+            doc="a MaterialX surface shader (source = 'materialx', written by the .mtlx reader): document, material, "
+            "category, oracle_inputs",
+        ),
         Param("terms", None, "int", lo=1, hi=MAX_TERMS, doc="fixed number of terms K (one slice each)"),
         Param(
             "max_error",
@@ -184,7 +192,7 @@ class Separable(Model):
             "choice",
             choices=REPRESENTATIONS,
             doc="K separable terms; 'analytic': the closed form evaluated in the lighting shader (ggx, beckmann, lambert); "
-            "'auto': the cheapest in run-time cost meeting error_budget",
+            "'auto': the cheapest in run-time cost meeting error_budget; 'lut': one slice fitted to the source",
         ),
     )
 
@@ -214,6 +222,18 @@ class Separable(Model):
             values["film"] = check_film(values["film"], path)  # the defaults filled in, as every user of it reads them
         elif values["film"] is not None:
             raise MaterialError(path, "film", f"only used with source = 'thin_film', but source is {values['source']!r}")
+        if values["source"] == "materialx":
+            if values["materialx"] is None:
+                raise MaterialError(
+                    path, "materialx", "missing; expected the table the .mtlx reader writes, with source = 'materialx'"
+                )
+            values["materialx"] = check_materialx_spec(values["materialx"], path)
+        elif values["materialx"] is not None:
+            raise MaterialError(path, "materialx", f"only used with source = 'materialx', but source is {values['source']!r}")
+        if values["representation"] == "lut" and _transmits(values):
+            raise MaterialError(path, "representation", "'lut' holds reflection only, but film.backlight > 0 transmits light")
+        if values["representation"] == "lut" and values["terms"] is not None:
+            raise MaterialError(path, "representation", "'lut' is one slice; expected no 'terms'")
         if values["reflection_only"] and values["source"] != "mitsuba":
             raise MaterialError(path, "reflection_only", f"only used with source = 'mitsuba' (a transmissive BSDF), "
                                                          f"but source is {values['source']!r}")  # fmt: skip
@@ -266,6 +286,8 @@ class Separable(Model):
     def slice_count(self, values: dict) -> int:
         """K when fixed (and one transmission slice for a back-light); with ``max_error`` only
         the bake knows (len of its slices)."""
+        if values["representation"] == "lut":
+            return 1
         terms = values["terms"] if values["terms"] is not None else MAX_AUTO_TERMS
         return terms + _transmits(values)
 
@@ -277,7 +299,26 @@ class Separable(Model):
             return self._bake_analytic(values)
         if values["representation"] == "auto":
             return self._bake_auto(values)
+        if values["representation"] == "lut":
+            return self._bake_lut_only(values)
         return self._bake_separable(values)
+
+    def _bake_lut_only(self, values: dict) -> SliceSet:
+        """``representation = "lut"``: one slice fitted to the source (:func:`atlasgen.models.physical_lut.fit_lut`),
+        its error the relative RMS of f cos against the source on the report sample, 8-bit, with its SE."""
+        budget = values["max_error"] if values["max_error"] is not None else DEFAULT_BUDGET
+        source = make_source(values)
+        sample = _error_samples(source)[1]
+        reference, _ = _reference(source, sample)
+        lut, fit = fit_lut(values)
+        error = lut_errors(stored_slice(lut), fit["gloss"], reference, sample)
+        key = cost_key("lut")
+        chosen = {"representation": key, "error": error["relative_rms"], "error_se": error["relative_rms_se"],
+                  "gloss": fit["gloss"], "meets_budget": bool(error["relative_rms"] <= budget),
+                  "error_kind": "relative RMS of f cos, one 8-bit slice fitted from physics"}  # fmt: skip
+        auto = {"error_budget": budget, "estimator": sample.estimator, "pairs": sample.count, "seed": sample.seed,
+                "chosen": key, "candidates": [chosen]}  # fmt: skip
+        return self._bake_lut(values, lut, fit, chosen, auto)
 
     def _bake_analytic(self, values: dict, auto: dict | None = None) -> SliceSet:
         """The in-plane cut of f cos as the one slice (previews only: the shader reads no texel of it)
@@ -338,8 +379,7 @@ class Separable(Model):
     def _bake_lut(self, values: dict, rgba, fit: dict, chosen: dict, auto: dict) -> SliceSet:
         """One slice fitted from physics, drawn by the renderer's equation at the fitted gloss
         (:meth:`lighting_wgsl`); ``fit`` goes to the manifest as ``bake_from_physics`` writes it."""
-        source = values["source"]
-        reference = f"source BRDF ({source})" + (f": {values.get('bsdf')}" if source == "mitsuba" else "")
+        reference = _source_description(values)
         rep = {"kind": "lut", "supersampling": 1, "error_budget": auto["error_budget"],
                "reconstruction_error": chosen["error"], "meets_budget": chosen["meets_budget"],
                "candidates": auto["candidates"], "auto": auto}  # fmt: skip
@@ -400,7 +440,7 @@ class Separable(Model):
                 "grid_by_terms": result.matrix_errors_by_terms,
             },
         }
-        if values["reflection_only"]:
+        if values.get("reflection_only"):
             extra["transmitted_fraction"] = transmitted_fractions(values["bsdf"])
         if result.max_error_met is not None:
             extra["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
@@ -530,12 +570,16 @@ class Separable(Model):
     )
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
+        """For ``source = "materialx"``, the Mitsuba BSDF faithful to it where there is one
+        (:func:`atlasgen.models.materialx.materialx_mitsuba_bsdf`). For ``source = "thin_film"``, the iridescent model's spectral reference (``atlasgen_thinfilm``
         in ``llvm_ad_spectral``, wavelengths sampled per sample) with this material's film (its
         back-light included), ``alpha`` and base colour ``diffuse``, the whole film tinted by the
         albedo as the renderer's L += E albedo f cos is: the film the source integrates
         to RGB for white light (:func:`atlasgen.separable.source.thin_film_source`). Other sources:
         ``None`` (their model reference is the source itself)."""
+        if values["source"] == "materialx":
+            found = materialx_mitsuba_bsdf(values["materialx"], albedo)
+            return None if found is None else Reference(found[0], found[1])
         if values["source"] != "thin_film":
             return None
         film = {**FILM_DEFAULTS, **values["film"]}
@@ -555,15 +599,14 @@ class Separable(Model):
         src = values["source"]
         if src == "thin_film":
             return None
-        return dict(values), f"source BRDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else "")
+        return dict(values), _source_description(values)
 
     def model_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
         """The source BSDF itself times the albedo (``atlasgen_brdf``), f cos for the full (w_i, w_o):
         the renderer adds L += E albedo f cos with f rebuilt from the factors."""
-        src = values.get("source")
         material = {"params": values, "albedo": [float(a) for a in albedo]}
         return Reference({"type": BRDF_REFERENCE, "material": json.dumps(material, sort_keys=True)},
-                         f"source BSDF ({src})" + (f": {values.get('bsdf')}" if src == "mitsuba" else ""))  # fmt: skip
+                         _source_description(values, "BSDF"))  # fmt: skip
 
     def radiance_rebuilds(self, entry, atlas_path):
         """``"8bit"``: the include's sum over the 8-bit factors in float64
@@ -592,17 +635,25 @@ class Separable(Model):
             return None  # the closed form itself: nothing approximated
         if isinstance(entry.representation, LutRepresentation):
             return {"relative_rms_8bit": entry.representation.reconstruction_error, "relative_rms_float": None, "terms": None,
-                    "error_budget": entry.representation.error_budget}  # fmt: skip
+                    "error_budget": entry.representation.error_budget,
+                    "relative_rms_8bit_se": _lut_error_se(entry.representation)}  # fmt: skip
         factors = entry.factors
         return {
             "relative_rms_8bit": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms,
             "relative_rms_float": None if factors.errors is None else factors.errors.float_error.relative_rms,
             "terms": factors.terms,
             "error_budget": getattr(entry.representation, "error_budget", None),
+            "relative_rms_8bit_se": None if factors.errors_8bit is None else factors.errors_8bit.relative_rms_se,
         }
 
     # -- reports ----------------------------------------------------------------------------------
     def describe_representation(self, entry) -> str:
+        text = self._describe_representation(entry)
+        if entry.params.get("source") == "materialx" and isinstance(entry.params.get("materialx"), dict):
+            return f"{describe_materialx(entry.params['materialx'])}: {text}"
+        return text
+
+    def _describe_representation(self, entry) -> str:
         factors, rep = entry.factors, entry.representation
         if isinstance(rep, AnalyticRepresentation):
             how = f", chosen by run-time cost (budget {rep.auto['error_budget']:g})" if rep.auto else ""
@@ -630,6 +681,23 @@ LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("s
     Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
     Return("a.rgb / ATLAS_PI + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
 ), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
+
+
+def _lut_error_se(rep) -> float | None:
+    """The standard error of a fitted LUT slice's error, from the candidate chosen (``auto``)."""
+    auto = rep.auto or {}
+    chosen = next((c for c in auto.get("candidates", []) if c.get("representation") == auto.get("chosen")), None)
+    return None if chosen is None else chosen.get("error_se")
+
+
+def _source_description(values: dict, what: str = "BRDF") -> str:
+    """``source BRDF (ggx)``; a Mitsuba source with its dict, a MaterialX one with its document and material."""
+    src = values["source"]
+    if src == "mitsuba":
+        return f"source {what} ({src}): {values.get('bsdf')}"
+    if src == "materialx" and isinstance(values.get("materialx"), dict):
+        return f"source {what}: {describe_materialx(values['materialx'])}, its GLSL evaluated by the MaterialX oracle"
+    return f"source {what} ({src})"
 
 
 def fit_gloss(entry) -> float:

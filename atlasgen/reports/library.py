@@ -9,7 +9,7 @@ from atlasgen.bake.preview import slice_png
 from atlasgen.errors import FieldError, InputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.manifest import AnalyticRepresentation, MaterialEntry, SeparableRepresentation
+from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, loads_finite_json
 from atlasgen.models import get_model
 from atlasgen.reports.comparisons import manifest_pairs
@@ -127,6 +127,51 @@ def _fmt(x, spec=".3g"):
     return "–" if x is None else format(x, spec)
 
 
+def _oracle_error(entry: MaterialEntry) -> str:
+    """A MaterialX material's error against the oracle: relative RMS of f cos ± its SE, 8-bit, on the
+    report sample (independent of the fit's): the atlas's measured factors, else the bake's estimate."""
+    rep = entry.representation
+    if isinstance(rep, LutRepresentation):
+        auto = rep.auto or {}
+        chosen = next((c for c in auto.get("candidates", []) if c.get("representation") == auto.get("chosen")), {})
+        return f"{rep.reconstruction_error:.4f} ± {_fmt(chosen.get('error_se'), '.4f')} (one LUT slice)"
+    factors = entry.factors
+    if factors is not None and factors.errors_8bit is not None:
+        e = factors.errors_8bit
+        return f"{e.relative_rms:.4f} ± {_fmt(e.relative_rms_se, '.4f')} (K = {factors.terms or factors.term_slices}, measured on the atlas)"
+    if isinstance(rep, SeparableRepresentation):
+        return f"{rep.estimated_error_8bit:.4f} ± {_fmt(rep.estimated_error_8bit_se, '.4f')} (K = {rep.terms}, estimated)"
+    return "–"
+
+
+def _materialx_rows(entries, validation: dict | None, validation_dir, out_dir: Path) -> list[dict]:
+    """One row per material imported from a MaterialX document: its document and name in it, its
+    surface model, the representation chosen, its error against the oracle ± SE, what the table
+    could not hold or was flattened, and per validation scene the atlas image beside the oracle's."""
+    rows = []
+    for entry in entries:
+        spec = entry.params.get("materialx") if entry.params.get("source") == "materialx" else None
+        if not isinstance(spec, dict):
+            continue
+        images = []
+        for result in (validation or {}).get("results", []):
+            model = result.get("references", {}).get("model", {})
+            if result.get("material") != entry.name or not model.get("images"):
+                continue
+            pair = [Path(validation_dir) / result["atlas_image"], Path(validation_dir) / model["images"]["reference"]]
+            if all(p.exists() for p in pair):
+                images.append({"scene": result.get("scene"), "atlas": os.path.relpath(pair[0], out_dir),
+                               "oracle": os.path.relpath(pair[1], out_dir), "psnr": _fmt(model.get("psnr_db"), ".1f")})  # fmt: skip
+        rows.append({
+            "name": entry.name, "document": spec.get("document"), "material": spec.get("material"),
+            "category": spec.get("category"), "representation": get_model(entry.type).describe_representation(entry),
+            "error": _oracle_error(entry), "not_in_table": list(spec.get("not_in_table") or []),
+            "flattened": [f"{k} (driven by {v.get('driven_by')}) as {v.get('value')}" for k, v in (spec.get("flattened") or {}).items()],
+            "images": images,
+        })  # fmt: skip
+    return rows
+
+
 def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
     """The Pareto charts against the physical reference (:mod:`atlasgen.reports.pareto`): the library's
     chart, one per material with a projectable reference, every candidate in a table, and one line
@@ -221,6 +266,7 @@ def write_library_report(
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
     physical_section = _physical_section(atlas.manifest.materials, out_dir, files, jobs) if physical else None
+    materialx = _materialx_rows(atlas.manifest.materials, validation, validation_dir, out_dir)
     plot = None
     if chosen_points:
         drawn = _plot_cost_error({n: [c] for n, c in chosen_points}, table, _PLOT_SIZE,
@@ -265,6 +311,7 @@ def write_library_report(
         rows=page_rows,
         pairs=pairs,
         physical=physical_section,
+        materialx=materialx,
         cost_device=table.device,
         cost_unit=table.unit,
     )

@@ -333,7 +333,8 @@ def _claimed_text(kind: str, row: dict) -> str:
     c = row.get("claimed_errors")
     if kind != "model" or not c:
         return ""
-    return (f"claimed rel. RMS {_fmt(c['relative_rms_8bit'], '.4f')} (8-bit, K={c['terms']}); "
+    se = f" ± {c['relative_rms_8bit_se']:.4f}" if c.get("relative_rms_8bit_se") is not None else ""
+    return (f"claimed rel. RMS {_fmt(c['relative_rms_8bit'], '.4f')}{se} (8-bit, K={c['terms']}); "
             f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
 
 

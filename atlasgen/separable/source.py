@@ -8,6 +8,7 @@ import numpy as np
 
 from atlasgen.optics.thin_film import thin_film_rgb_f_cos
 from atlasgen.separable.analytic import evaluate_analytic
+from atlasgen.separable.materialx_oracle import evaluate_materialx_f_cos
 from atlasgen.separable.mitsuba_source import bsdf_alpha, evaluate_mitsuba_f_cos, load_mitsuba_bsdf
 from atlasgen.separable.parametrization import HORIZON_COS
 
@@ -15,6 +16,7 @@ __all__ = [
     "BrdfSource",
     "make_source",
     "thin_film_source",
+    "materialx_source",
     "film_transmits",
     "sample_matrices",
     "sample_matrix",
@@ -105,8 +107,28 @@ def thin_film_source(film: dict, alpha: float, diffuse) -> BrdfSource:
     return BrdfSource("thin_film", evaluate_f_cos=f_cos, zero_on_horizon=True, alpha=alpha, transmits=transmits)
 
 
+def materialx_source(spec: dict) -> BrdfSource:
+    """A MaterialX surface shader's reflection as a source: MaterialX's own GLSL
+    (:mod:`atlasgen.separable.materialx_oracle`) for ``spec["category"]`` with the constant inputs
+    ``spec["oracle_inputs"]``, 0 where l or v is below the surface (the table holds reflection
+    only), lobe roughness ``spec["alpha"]`` (the narrowest of its lobes)."""
+    category, inputs = str(spec["category"]), dict(spec["oracle_inputs"])
+
+    def f_cos(l, v):
+        shape = np.shape(l)
+        l2 = np.asarray(l, dtype=np.float64).reshape(-1, 3)
+        v2 = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+        value = evaluate_materialx_f_cos(category, inputs, l2, v2)
+        return np.where((l2[:, 2:3] > 0.0) & (v2[:, 2:3] > 0.0), value, 0.0).reshape(shape)
+
+    alpha = spec.get("alpha")
+    return BrdfSource("materialx", evaluate_f_cos=f_cos, zero_on_horizon=True, alpha=None if alpha is None else float(alpha))
+
+
 def make_source(params: dict, path="<material>") -> BrdfSource:
-    """The source a separable material's params describe (Mitsuba loaded lazily)."""
+    """The source a separable material's params describe (Mitsuba and MaterialX loaded lazily)."""
+    if params["source"] == "materialx":
+        return materialx_source(params["materialx"])
     if params["source"] == "thin_film":
         return thin_film_source(params["film"], params["alpha"], params["diffuse"])
     if params["source"] == "mitsuba":

@@ -28,7 +28,7 @@ import numpy as np
 from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.manifest import Manifest
-from atlasgen.materials.material import read_material
+from atlasgen.materials.material import read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import read_render_atlas
@@ -167,7 +167,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
     entries_by_name = {e.name: e for e in atlas.manifest.materials}
     if materials:
-        names = list(dict.fromkeys(_material_name(m, atlas_path, entries_by_name) for m in materials))
+        names = list(dict.fromkeys(n for m in materials for n in _material_names(m, atlas_path, entries_by_name)))
     else:
         names = sorted(entries_by_name, key=lambda n: entries_by_name[n].first_slice)
     entries = []
@@ -203,27 +203,29 @@ def is_material_file(item) -> bool:
     """Whether a ``materials`` item names a material file rather than a material.
 
     Material names are letters, digits, ``-`` and ``_`` only, so anything ending in
-    ``.toml`` (or a :class:`~pathlib.Path`) cannot be a name.
+    ``.toml`` or ``.mtlx`` (or a :class:`~pathlib.Path`) cannot be a name.
     """
-    return isinstance(item, Path) or str(item).endswith(".toml")
+    return isinstance(item, Path) or str(item).endswith((".toml", ".mtlx"))
 
 
-def _material_name(item, atlas_path, entries_by_name) -> str:
-    """The material name of a ``materials`` item: a name as it is, a material file by its
-    ``name`` field. A file must be the one the atlas was baked from (same content hash),
-    or the atlas's slices would not be what the file describes."""
+def _material_names(item, atlas_path, entries_by_name) -> list[str]:
+    """The material names of a ``materials`` item: a name as it is, a material file by its
+    ``name`` field (a MaterialX document by each of its materials). A file must be the one the
+    atlas was baked from (same content hash), or the atlas's slices would not be what the file describes."""
     if not is_material_file(item):
-        return str(item)
-    material = read_material(item)  # InputError / MaterialError naming the file
-    entry = entries_by_name.get(material.name)
-    if entry is None:
-        known = ", ".join(sorted(entries_by_name)) or "none"
-        raise InputError(f"{material.source}: material {material.name!r} is not in {atlas_path.as_posix()} "
-                         f"(known: {known}); re-run atlasgen bake")  # fmt: skip
-    if entry.content_hash != material.content_hash:
-        raise InputError(f"{material.source}: changed since {atlas_path.as_posix()} was baked "
-                         f"(its content hash differs from the manifest's); re-run atlasgen bake")  # fmt: skip
-    return material.name
+        return [str(item)]
+    names = []
+    for material in read_material_file(item):  # InputError / MaterialError naming the file
+        entry = entries_by_name.get(material.name)
+        if entry is None:
+            known = ", ".join(sorted(entries_by_name)) or "none"
+            raise InputError(f"{material.source}: material {material.name!r} is not in {atlas_path.as_posix()} "
+                             f"(known: {known}); re-run atlasgen bake")  # fmt: skip
+        if entry.content_hash != material.content_hash:
+            raise InputError(f"{material.source}: changed since {atlas_path.as_posix()} was baked "
+                             f"(its content hash differs from the manifest's); re-run atlasgen bake")  # fmt: skip
+        names.append(material.name)
+    return names
 
 
 def _check_params_current(atlas_path, entry) -> None:

@@ -115,7 +115,8 @@ def test_lut_bake_imports_no_heavy_backend(library, tmp_path):
         "import sys; from atlasgen.cli.main import main\n"
         f"try: main(['bake', {str(library)!r}, '-o', {str(tmp_path / 'a.dds')!r}, '-q'])\n"
         "except SystemExit as e: assert not e.code, e.code\n"
-        "heavy = sorted(m for m in ('mitsuba', 'drjit', 'wgpu', 'matplotlib', 'OpenImageIO') if m in sys.modules)\n"
+        "heavy = sorted(m for m in ('mitsuba', 'drjit', 'wgpu', 'matplotlib', 'OpenImageIO', 'MaterialX', 'moderngl')"
+        " if m in sys.modules)\n"
         "print(','.join(heavy))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

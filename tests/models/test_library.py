@@ -15,7 +15,9 @@ LUT_MODELS = ["lambert", "fresnel", "iridescent", "sss", "backlit", "toon"]
 # Read at collection, so only the LUT files: reading a separable material with a Mitsuba
 # source loads Mitsuba, which the LUT tests must not need.
 LIBRARY = [
-    read_material(f) for f in find_material_files([ROOT / "materials"]) if tomllib.loads(f.read_text()).get("type") in LUT_MODELS
+    read_material(f)
+    for f in find_material_files([ROOT / "materials"])
+    if f.suffix == ".toml" and tomllib.loads(f.read_text()).get("type") in LUT_MODELS
 ]
 
 

@@ -1,0 +1,196 @@
+"""Reading MaterialX documents (``.mtlx``): every ``surfacematerial`` becomes one separable material
+(:func:`atlasgen.materials.material.read_material_file` makes the :class:`~atlasgen.materials.material.Material` records).
+
+Each material's surface shader must be one of :data:`~atlasgen.separable.materialx_oracle.SURFACE_MODELS`
+with constant inputs. It becomes ``type = "separable"``, ``source = "materialx"``, whose BRDF is
+MaterialX's own GLSL (:mod:`atlasgen.separable.materialx_oracle`), baked as
+``representation = "auto"`` within :data:`DEFAULT_BUDGET` (the cheapest of one LUT slice and K
+separable terms whose error against the oracle meets it; docs/materialx.md).
+
+- Names come from the document (the ``surfacematerial`` node's name); the manifest's ``params``
+  record ``materialx.document`` and ``materialx.material``.
+- An input driven by a node, a node graph or an interface name is refused with one line naming
+  it, unless ``flatten`` says what to use instead: ``"default"`` (the nodedef's default) or a
+  ``{input: value}`` table (others still refused). What was flattened is recorded in
+  ``materialx.flattened``.
+- Inputs the table's equation has no room for (emission, opacity, transmission) are named in
+  ``materialx.not_in_table``, never dropped silently: the oracle shades the reflection with
+  emission 0 and opacity 1, and the report lists them.
+
+MaterialX is imported inside functions (the ``materialx`` extra).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from atlasgen.errors import InputError, MaterialError
+from atlasgen.io.fields import validate_params
+from atlasgen.models import get_model
+from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults
+
+__all__ = ["DEFAULT_BUDGET", "SAMPLING_GRID", "NOT_IN_TABLE", "is_materialx_file", "read_materialx_document"]
+
+#: The relative RMS of f cos against the oracle that ``representation = "auto"`` must meet.
+DEFAULT_BUDGET = 0.03
+#: The separable sampling grid the terms are fitted on: the 16-texel grid, which other separable
+#: materials also try, never erred less on the shipped document, and each grid costs the oracle's
+#: evaluations, so the bake tries only this one (both targets, f cos and f times a proxy, still).
+SAMPLING_GRID = 32
+#: Per surface model: input -> (the value the oracle shades with, what the table cannot hold).
+NOT_IN_TABLE = {
+    "standard_surface": {"emission": (0.0, "emission"), "opacity": ((1.0, 1.0, 1.0), "opacity"),
+                         "transmission": (None, "transmission (the reflection that remains is baked)")},
+    "open_pbr_surface": {"emission_luminance": (0.0, "emission"), "geometry_opacity": (1.0, "opacity"),
+                         "transmission_weight": (None, "transmission (the reflection that remains is baked)")},
+    "gltf_pbr": {"emissive": ((0.0, 0.0, 0.0), "emission"), "alpha": (1.0, "opacity"),
+                 "transmission": (None, "transmission (the reflection that remains is baked)")},
+    "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity")},
+}  # fmt: skip
+#: Per surface model: (roughness input, weight input or None) of each microfacet lobe.
+_LOBES = {
+    "standard_surface": (("specular_roughness", "specular"), ("coat_roughness", "coat")),
+    "open_pbr_surface": (("specular_roughness", "specular_weight"), ("coat_roughness", "coat_weight")),
+    "gltf_pbr": (("roughness", None), ("clearcoat_roughness", "clearcoat")),
+    "UsdPreviewSurface": (("roughness", None), ("clearcoatRoughness", "clearcoat")),
+}
+
+
+def is_materialx_file(path) -> bool:
+    """Whether ``path`` names a MaterialX document (``.mtlx``)."""
+    return str(path).lower().endswith(".mtlx")
+
+
+def _plain(value):
+    if isinstance(value, bool | int | float | str):
+        return value
+    if hasattr(value, "asTuple"):
+        return [float(x) for x in value.asTuple()]
+    return str(value)
+
+
+def _driver(inp) -> str | None:
+    """What drives an input other than a value: ``node 'tex'``, ``node graph 'ng'``, ``interface 'x'``."""
+    for what, name in (("node", inp.getNodeName()), ("node graph", inp.getNodeGraphString()),
+                       ("interface input", inp.getInterfaceName()), ("output", inp.getOutputString())):  # fmt: skip
+        if name:
+            return f"{what} {name!r}"
+    return None
+
+
+def _differs(value, neutral) -> bool:
+    if isinstance(neutral, tuple):
+        return any(abs(float(a) - float(b)) > 0.0 for a, b in zip(value, neutral, strict=False))
+    return abs(float(value) - float(neutral)) > 0.0
+
+
+def _lobe_alpha(category: str, inputs: dict, defaults: dict) -> float:
+    """The narrowest microfacet lobe's GGX alpha = roughness^2 (MaterialX's mx_roughness_anisotropy), at least 1e-3."""
+    alphas = []
+    for rough, weight in _LOBES[category]:
+        w = 1.0 if weight is None else float(inputs.get(weight, defaults.get(weight, (None, 1.0))[1]))
+        if w > 0.0 and rough in defaults:
+            alphas.append(float(inputs.get(rough, defaults[rough][1])) ** 2)
+    return max(min(alphas, default=0.25), 1e-3)
+
+
+def read_materialx_document(path, flatten=None) -> list[dict]:
+    """Every ``surfacematerial`` of a ``.mtlx`` document, in document order, as the fields of a
+    :class:`~atlasgen.materials.material.Material`: ``name``, ``type``, ``params`` (validated),
+    ``source``, ``content_hash`` (of the document's bytes and the name), ``description``.
+
+    ``flatten``: ``None`` (refuse driven inputs), ``"default"`` or ``{input: value}`` (see the module).
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable.
+    MaterialError
+        Malformed XML, no material, a material whose shader is missing, unsupported or has a
+        driven input, or a name atlasgen cannot use; one line naming the file and the field
+        (``<material>.<input>``).
+    """
+    import MaterialX as mx
+
+    path = Path(path)
+    shown = path.as_posix()
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{shown}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    doc = mx.createDocument()
+    try:
+        mx.readFromXmlString(doc, data.decode("utf-8"), mx.FileSearchPath(str(path.parent)))
+    except UnicodeDecodeError:
+        raise MaterialError(shown, None, "expected UTF-8 MaterialX XML") from None
+    except Exception as exc:  # noqa: BLE001 - MaterialX raises its own exception types
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
+    doc.importLibrary(load_materialx_libraries())
+    nodes = doc.getMaterialNodes()
+    if not nodes:
+        raise MaterialError(shown, None, "expected at least one surfacematerial node, found none")
+    model = get_model("separable")
+    out = []
+    for node in nodes:
+        name = node.getName()
+        connection = node.getInput("surfaceshader")
+        shader = None if connection is None else connection.getConnectedNode()
+        if shader is None:
+            raise MaterialError(shown, f"{name}.surfaceshader", "expected a connected surface shader node, found none")
+        category = shader.getCategory()
+        if category not in SURFACE_MODELS:
+            raise MaterialError(
+                shown,
+                f"{name}.surfaceshader",
+                f"surface shader {category!r} is not supported; expected one of {', '.join(SURFACE_MODELS)}",
+            )
+        spec = _read_shader(shown, name, category, shader, flatten)
+        raw = {"source": "materialx", "materialx": spec, "representation": "auto", "max_error": DEFAULT_BUDGET,
+               "grid": SAMPLING_GRID}  # fmt: skip
+        params = validate_params(model.params, raw, shown)
+        model.check(params, shown)
+        out.append({"name": name, "type": "separable", "params": params, "source": shown,
+                    "content_hash": hashlib.sha256(data + b"\0" + name.encode()).hexdigest(),
+                    "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
+    return out
+
+
+def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:
+    """The ``materialx`` table of one shader node: its constant inputs, what was flattened, what the table cannot hold."""
+    defaults = surface_defaults(category)
+    inputs, flattened = {}, {}
+    for inp in shader.getInputs():
+        key = inp.getName()
+        if key not in defaults and inp.getValue() is None and _driver(inp) is None:
+            continue  # a geometric input left at its default (normal, tangent)
+        driver = _driver(inp)
+        if driver is not None:
+            given = flatten.get(key) if isinstance(flatten, dict) else None
+            if given is None and flatten != "default":
+                raise MaterialError(
+                    shown, f"{material}.{key}", f"driven by {driver}; expected a constant value (or bake it at its default: atlasgen bake --flatten default"
+                    ")"
+                )  # fmt: skip
+            value = given if given is not None else (defaults[key][1] if key in defaults else None)
+            flattened[key] = {"driven_by": driver, "value": value}
+            if value is not None:
+                inputs[key] = value
+            continue
+        if key not in defaults:
+            raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of {', '.join(defaults)}")
+        inputs[key] = _plain(inp.getValue())
+    oracle_inputs = dict(inputs)
+    not_in_table = []
+    for key, (neutral, what) in NOT_IN_TABLE[category].items():
+        value = inputs.get(key, defaults[key][1] if key in defaults else None)
+        reference = neutral if neutral is not None else 0.0
+        if value is not None and _differs(value, reference if not isinstance(reference, tuple) else reference):
+            not_in_table.append(f"{key} = {value}: {what}")
+            if neutral is not None:
+                oracle_inputs[key] = list(neutral) if isinstance(neutral, tuple) else neutral
+    return {"document": shown, "material": material, "category": category, "inputs": inputs, "oracle_inputs": oracle_inputs,
+            "flattened": flattened, "not_in_table": not_in_table, "alpha": _lobe_alpha(category, inputs, defaults)}  # fmt: skip

@@ -1,0 +1,349 @@
+"""Issue 23's goals: MaterialX documents baked from MaterialX's own GLSL, measured against it.
+
+* **Baking**: the shipped document (``materials/materialx-showcase.mtlx``) baked in process, with
+  the share of the time spent in the oracle (compiling and shading); and the test copies of
+  MaterialX's constant-input example materials in all four surface models
+  (``tests/resources/materialx/examples.mtlx``, written here: the distribution's files are not in
+  this repository): each bakes, or is refused with one line.
+* **Against the oracle on the validation scenes** (``front``, ``back``, 128x96): the PSNR of the atlas
+  image against the same scene shaded by the oracle under the same lights (the model reference),
+  for the representation ``auto`` chose within the document's budget, for K = 8 separable terms
+  (the cap the budget machinery tries), and for one LUT slice (its floor where it cannot reach).
+  Goals: >= 40 dB for metals and plastics, >= 35 dB for coated and thin-film materials.
+* **Separable errors against an independent converged estimate**: each baked material's 8-bit
+  relative RMS of f cos (the manifest's, on the report sample) against the same measure on an
+  independent sample of 4x the pairs (another seed), the factors read back from the atlas.
+  Goal: within 10% of themselves.
+* **The metal against Mitsuba's roughconductor**: the oracle's f cos over roughconductor's (same
+  n, k, alpha) over uniform (l, v) pairs with N.L, N.V >= 0.2, and pixel by pixel on the
+  validation images (pixels above 1% of the reference's peak).
+
+Run alone: ``python bench/run.py materialx``.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+SHIPPED = ROOT / "materials" / "materialx-showcase.mtlx"
+EXAMPLES = ROOT / "tests" / "resources" / "materialx" / "examples.mtlx"
+SCENES = ("front", "back")
+RESOLUTION = (128, 96)
+#: Goal per material class (dB against the oracle on both scenes).
+GOALS = {"metal": 40.0, "plastic": 40.0, "coated": 35.0, "thin film": 35.0, "sheen": 35.0}
+#: The materials measured against the oracle: the shipped four and a plastic, each with its class.
+CLASSES = {"mx_gold": "metal", "mx_car_paint": "coated", "mx_pearl": "thin film", "mx_velvet": "sheen",
+           "ss_plastic": "plastic"}  # fmt: skip
+PLASTIC = """  <standard_surface name="SR_ss_plastic" type="surfaceshader">
+    <input name="base_color" type="color3" value="0.1, 0.3, 0.7" />
+    <input name="specular_roughness" type="float" value="0.35" />
+  </standard_surface>
+  <surfacematerial name="ss_plastic" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="SR_ss_plastic" />
+  </surfacematerial>
+"""
+
+
+class _OracleClock:
+    """Seconds spent in the oracle (generation, compilation and shading), by wrapping its entry points."""
+
+    def __init__(self):
+        from atlasgen.separable import materialx_oracle
+
+        self.module, self.seconds = materialx_oracle, 0.0
+        self.saved = (materialx_oracle.MaterialXOracle.f_cos, materialx_oracle.materialx_oracle)
+
+    def __enter__(self):
+        f_cos, build = self.saved
+
+        def timed_f_cos(oracle, *args):
+            t0 = time.perf_counter()
+            try:
+                return f_cos(oracle, *args)
+            finally:
+                self.seconds += time.perf_counter() - t0
+
+        def timed_build(category):
+            t0 = time.perf_counter()
+            try:
+                return build(category)
+            finally:
+                self.seconds += time.perf_counter() - t0
+
+        self.module.MaterialXOracle.f_cos = timed_f_cos
+        self.module.materialx_oracle = timed_build
+        return self
+
+    def __exit__(self, *exc):
+        self.module.MaterialXOracle.f_cos, self.module.materialx_oracle = self.saved
+
+
+def _variant_document(text: str, representation: str) -> list:
+    """The materials of a document text, each re-set to ``representation`` (``lut`` or 8 ``separable`` terms)."""
+    from atlasgen.materials.material import read_material_file
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "doc.mtlx"
+        path.write_text(text)
+        materials = read_material_file(path)
+    out = []
+    for m in materials:
+        params = dict(m.params)
+        if representation == "lut":
+            params.update(representation="lut")
+        else:
+            params.update(representation="separable", terms=8, max_error=None, grid=None)
+        m.params = params
+        m.name = f"{m.name}__{representation}"
+        m.content_hash = f"{m.content_hash}:{representation}"
+        out.append(m)
+    return out
+
+
+def _bake_and_validate(materials: list, folder: Path):
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.validate.run import validate_atlas
+
+    folder.mkdir(parents=True, exist_ok=True)
+    dds = folder / "atlas.dds"
+    t0 = time.perf_counter()
+    result = bake_atlas(materials)
+    bake_s = time.perf_counter() - t0
+    write_bake(result, dds)
+    run = validate_atlas(dds, scenes=list(SCENES), resolution=RESOLUTION, physical_spp=16)
+    return dds, result, run, bake_s
+
+
+def _psnr(run) -> dict:
+    out: dict = {}
+    for r in run.runs:
+        out.setdefault(r.material.split("__")[0], {})[r.scene] = round(float(r.references["model"].metrics.psnr), 2)
+    return out
+
+
+def _independent_errors(dds: Path, materials: list) -> dict:
+    """Manifest 8-bit relative RMS and an independent estimate (4x pairs, another seed), per separable material."""
+    import numpy as np
+
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.separable.error import ERROR_PAIRS, error_sample_for, measure_errors
+    from atlasgen.separable.rebuild import evaluate_factors, read_separable_factors
+    from atlasgen.separable.source import make_source
+
+    manifest = read_atlas(dds).manifest
+    out = {}
+    for entry in manifest.materials:
+        if entry.factors is None or entry.factors.errors_8bit is None:
+            continue
+        source = make_source(entry.params)
+        sample = error_sample_for(source, seed=20260323, count=4 * ERROR_PAIRS)
+        factors = read_separable_factors(dds, entry.name)
+        reference = np.nan_to_num(source.f_cos(sample.l, sample.v))
+        approx = evaluate_factors(factors, None, sample.l, sample.v, cosine=True)
+        independent = measure_errors(reference, approx, sample.weight)
+        claimed = entry.factors.errors_8bit
+        out[entry.name.split("__")[0]] = {
+            "claimed": round(claimed.relative_rms, 5),
+            "claimed_se": round(claimed.relative_rms_se or 0.0, 5),
+            "independent": round(independent["relative_rms"], 5),
+            "independent_se": round(independent["relative_rms_se"], 5),
+            "ratio": round(independent["relative_rms"] / claimed.relative_rms, 4),
+        }
+    return out
+
+
+def _metal_ratio(run_auto) -> dict:
+    import numpy as np
+
+    from atlasgen.materials.material import read_material_file
+    from atlasgen.models.materialx import materialx_mitsuba_bsdf
+    from atlasgen.models.physical_fit import mitsuba_f_cos
+    from atlasgen.separable.source import make_source
+
+    gold = next(m for m in read_material_file(SHIPPED) if m.name == "mx_gold")
+    bsdf, description = materialx_mitsuba_bsdf(gold.params["materialx"])
+    rng = np.random.default_rng(23)
+    n = 200_000
+
+    def directions():
+        z = rng.uniform(0.2, 1.0, n)
+        phi = 2 * np.pi * rng.random(n)
+        s = np.sqrt(1 - z * z)
+        return np.stack([s * np.cos(phi), s * np.sin(phi), z], -1)
+
+    l, v = directions(), directions()
+    a, b = make_source(gold.params).f_cos(l, v), mitsuba_f_cos(bsdf)(l, v)
+    keep = (b > 1e-3).all(1)
+    ratio = (a[keep] / b[keep]).ravel()
+    pixels = []
+    for r in run_auto.runs:
+        if r.material != "mx_gold" or "physical" not in r.references:
+            continue
+        model, phys = r.references["model"].image[..., :3], r.references["physical"].image[..., :3]
+        lit = phys > 0.01 * phys.max()
+        pixels.append(model[lit] / phys[lit])
+    pix = np.concatenate(pixels) if pixels else np.zeros(1)
+    return {
+        "reference": description,
+        "pairs": int(keep.sum()),
+        "bsdf_ratio_p1_p50_p99": [round(float(x), 4) for x in np.percentile(ratio, [1, 50, 99])],
+        "bsdf_ratio_min_max": [round(float(ratio.min()), 4), round(float(ratio.max()), 4)],
+        "pixel_ratio_p1_p50_p99": [round(float(x), 4) for x in np.percentile(pix, [1, 50, 99])],
+        "pixels": int(pix.size),
+    }
+
+
+def _examples() -> dict:
+    """Each test copy of MaterialX's example materials: baked (representation, error, seconds) or refused (the line)."""
+    from atlasgen.bake.adaptive import bake_material
+    from atlasgen.errors import AtlasgenError
+    from atlasgen.materials.material import read_material_file
+
+    out = {}
+    for path in sorted(EXAMPLES.parent.glob("*.mtlx")):
+        try:
+            materials = read_material_file(path)
+        except AtlasgenError as exc:
+            out[path.name] = {"refused": str(exc)}
+            continue
+        t0 = time.perf_counter()
+        for m in materials:
+            t1 = time.perf_counter()
+            slices = bake_material(m)
+            rep = slices.extra.get("representation") or {}
+            error = rep.get("estimated_error_8bit", rep.get("reconstruction_error"))
+            out[m.name] = {"category": m.params["materialx"]["category"], "kind": rep.get("kind"), "terms": rep.get("terms"),
+                           "error": None if error is None else round(float(error), 4), "seconds": round(time.perf_counter() - t1, 1),
+                           "not_in_table": m.params["materialx"]["not_in_table"]}  # fmt: skip
+        out[path.name] = {"materials": len(materials), "seconds": round(time.perf_counter() - t0, 1)}
+    return out
+
+
+def run() -> dict:
+    from atlasgen.materials.material import read_material_file
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        with _OracleClock() as clock:
+            t0, c0 = time.perf_counter(), time.process_time()
+            shipped = read_material_file(SHIPPED)
+            from atlasgen.bake.pipeline import bake_atlas
+
+            bake_atlas(shipped)
+            shipped_s, shipped_cpu_s = time.perf_counter() - t0, time.process_time() - c0
+        oracle_s = clock.seconds
+        text = SHIPPED.read_text().replace("</materialx>", PLASTIC + "</materialx>")
+        doc = tmp / "measured.mtlx"
+        doc.write_text(text)
+        measured = read_material_file(doc)
+        dds, _, run_auto, _ = _bake_and_validate(measured, tmp / "auto")
+        auto_psnr = _psnr(run_auto)
+        import json
+
+        manifest = json.loads(dds.with_suffix(".json").read_text())
+        chosen = {e["name"]: e["representation"] for e in manifest["materials"]}
+        independent = _independent_errors(dds, measured)
+        ratio = _metal_ratio(run_auto)
+        k8_dds, _, run_k8, _ = _bake_and_validate(_variant_document(text, "separable"), tmp / "k8")
+        k8_psnr = _psnr(run_k8)
+        independent_k8 = _independent_errors(k8_dds, [])
+        _, _, run_lut, _ = _bake_and_validate(_variant_document(text, "lut"), tmp / "lut")
+        lut_psnr = _psnr(run_lut)
+    examples = _examples()
+
+    rows, data_rows = [], {}
+    for name, cls in CLASSES.items():
+        goal = GOALS[cls]
+        rep = chosen[name]
+        what = "LUT" if rep["kind"] == "lut" else f"K = {rep.get('terms')}"
+        worst = min(auto_psnr[name].values())
+        best = max(worst, min(k8_psnr[name].values()))
+        rows.append(f"| {name} | {cls} | {what} | " + " / ".join(f"{auto_psnr[name][s]:.1f}" for s in SCENES)
+                    + " | " + " / ".join(f"{k8_psnr[name][s]:.1f}" for s in SCENES) + " | "
+                    + " / ".join(f"{lut_psnr[name][s]:.1f}" for s in SCENES) + f" | {goal:.0f} | "
+                    + ("met" if worst >= goal else ("met with K = 8" if best >= goal else "**missed**")) + " |")  # fmt: skip
+        data_rows[name] = {"class": cls, "goal_db": goal, "chosen": what, "auto_db": auto_psnr[name], "k8_db": k8_psnr[name],
+                           "lut_db": lut_psnr[name]}  # fmt: skip
+    err_rows = []
+    for label, table in (("auto", independent), ("K = 8", independent_k8)):
+        for name, e in table.items():
+            ok = abs(e["ratio"] - 1.0) <= 0.10
+            err_rows.append(f"| {name} | {label} | {e['claimed']:.4f} ± {e['claimed_se']:.4f} | {e['independent']:.4f} ± "
+                            f"{e['independent_se']:.4f} | {e['ratio']:.3f} | {'yes' if ok else '**no**'} |")  # fmt: skip
+    ex_rows = []
+    for name, e in examples.items():
+        if "refused" in e:
+            ex_rows.append(f"| {name} | refused | {e['refused']} |")
+        elif "materials" in e:
+            ex_rows.append(f"| {name} | {e['materials']} materials in {e['seconds']:.1f} s | |")
+        else:
+            what = "LUT" if e["kind"] == "lut" else f"K = {e['terms']}"
+            extra = "; ".join(e["not_in_table"])
+            ex_rows.append(f"| {name} ({e['category']}) | {what}, error {e['error']}, {e['seconds']:.1f} s | {extra} |")
+    md = "\n".join(
+        [
+            "## MaterialX documents against MaterialX's own shader (issue 23)",
+            "",
+            f"The shipped document ({SHIPPED.relative_to(ROOT).as_posix()}, {len(shipped)} materials) bakes in "
+            f"**{shipped_s:.1f} s** in process ({shipped_cpu_s:.1f} s of CPU, every thread of the process, llvmpipe's "
+            f"included; the machine is shared, so the wall time is the larger), {oracle_s:.1f} s of the wall time "
+            f"({oracle_s / shipped_s:.0%}) in the oracle (generating, compiling and shading MaterialX's GLSL on llvmpipe); "
+            "the rest is the fitting: the LUT candidate's gloss search and the separable terms' error estimates. "
+            "Goal: under 60 s.",
+            "",
+            "### PSNR against the oracle on the validation scenes (front / back, dB)",
+            "",
+            f"Atlas image against the same scene shaded by MaterialX's GLSL under the same lights, {RESOLUTION[0]}x{RESOLUTION[1]}. "
+            "'auto': the representation the bake chose within the document's budget (relative RMS 0.03); K = 8: the most "
+            "separable terms the budget machinery tries; LUT: one slice fitted to the oracle, the floor where a LUT cannot "
+            "reach (A is a scalar: a coloured or layered highlight needs terms).",
+            "",
+            "| material | class | auto chose | auto | K = 8 | LUT | goal | verdict |",
+            "|---|---|---|---|---|---|---|---|",
+            *rows,
+            "",
+            "### Separable errors against an independent estimate",
+            "",
+            "8-bit relative RMS of f cos against the oracle: the manifest's (report sample, 100000 pairs) and an "
+            "independent estimate (another seed, 400000 pairs), the factors read back from the atlas. Goal: within 10%.",
+            "",
+            "| material | representation | manifest ± SE | independent ± SE | ratio | within 10% |",
+            "|---|---|---|---|---|---|",
+            *err_rows,
+            "",
+            "### The gold standard_surface against Mitsuba's roughconductor",
+            "",
+            f"{ratio['reference']}. Oracle over roughconductor, f cos over {ratio['pairs']} uniform pairs with N.L, N.V >= 0.2: "
+            f"1st / 50th / 99th percentile {' / '.join(f'{x:.3f}' for x in ratio['bsdf_ratio_p1_p50_p99'])} (min "
+            f"{ratio['bsdf_ratio_min_max'][0]:.3f}, max {ratio['bsdf_ratio_min_max'][1]:.3f}); per pixel on the validation "
+            f"images ({ratio['pixels']} channel values above 1% of the peak): "
+            f"{' / '.join(f'{x:.3f}' for x in ratio['pixel_ratio_p1_p50_p99'])}. The ratio is MaterialX's height-correlated "
+            "G2 over Mitsuba's G1 G1 times its energy compensation (tests/models/test_materialx.py holds it to that within "
+            "2e-3); it grows towards grazing views.",
+            "",
+            "### Test copies of MaterialX's constant-input examples",
+            "",
+            "| material | baked or refused | not in the table |",
+            "|---|---|---|",
+            *ex_rows,
+            "",
+        ]
+    )
+    data = {"shipped_bake_s": round(shipped_s, 2), "shipped_bake_cpu_s": round(shipped_cpu_s, 2), "oracle_s": round(oracle_s, 2), "psnr": data_rows,
+            "independent_errors": {"auto": independent, "k8": independent_k8}, "metal_vs_roughconductor": ratio,
+            "examples": examples}  # fmt: skip
+    return {"markdown": md, "data": data}
+
+
+if __name__ == "__main__":
+    import json
+
+    out = run()
+    print(out["markdown"])
+    print(json.dumps(out["data"], indent=2))

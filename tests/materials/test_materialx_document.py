@@ -1,0 +1,102 @@
+"""Reading MaterialX documents: every surfacematerial of the four surface models, and one-line refusals."""
+
+from __future__ import annotations
+
+import pytest
+
+pytest.importorskip("MaterialX")
+
+pytestmark = pytest.mark.slow  # loading MaterialX's libraries costs about a second of CPU
+
+from atlasgen.errors import MaterialError  # noqa: E402
+from atlasgen.materials.material import find_material_files, read_material_file, read_materials  # noqa: E402
+
+
+def _document(tmp_path, body: str, name: str = "lib.mtlx"):
+    path = tmp_path / name
+    path.write_text(f'<?xml version="1.0"?>\n<materialx version="1.39">\n{body}\n</materialx>\n')
+    return path
+
+
+def _material(name, category, inputs: str):
+    return (f'<{category} name="SR_{name}" type="surfaceshader">{inputs}</{category}>\n'
+            f'<surfacematerial name="{name}" type="material">'
+            f'<input name="surfaceshader" type="surfaceshader" nodename="SR_{name}" /></surfacematerial>')  # fmt: skip
+
+
+FOUR = "\n".join([
+    _material("Std", "standard_surface", '<input name="base_color" type="color3" value="0.8, 0.1, 0.1" />'),
+    _material("Open", "open_pbr_surface", '<input name="coat_weight" type="float" value="1" />'),
+    _material("Gltf", "gltf_pbr", '<input name="metallic" type="float" value="1" />'),
+    _material("Usd", "UsdPreviewSurface", '<input name="roughness" type="float" value="0.3" />'),
+])  # fmt: skip
+
+
+def test_every_surface_model_reads_with_the_document_names(tmp_path):
+    path = _document(tmp_path, FOUR)
+    materials = read_material_file(path)
+    assert [m.name for m in materials] == ["Std", "Open", "Gltf", "Usd"]
+    for m in materials:
+        spec = m.params["materialx"]
+        assert m.type == "separable" and m.params["source"] == "materialx" and m.source == path.as_posix()
+        assert spec["document"] == path.as_posix() and spec["material"] == m.name
+    assert materials[0].params["materialx"]["inputs"] == {"base_color": pytest.approx([0.8, 0.1, 0.1])}
+    assert materials[1].params["materialx"]["category"] == "open_pbr_surface"
+    assert len({m.content_hash for m in materials}) == 4  # one cache entry each
+
+
+def test_a_folder_lists_documents_beside_toml_files(tmp_path):
+    _document(tmp_path, FOUR)
+    (tmp_path / "a.toml").write_text('type = "lambert"\n')
+    assert [p.name for p in find_material_files([tmp_path])] == ["a.toml", "lib.mtlx"]
+    assert [m.name for m in read_materials([tmp_path])] == ["a", "Std", "Open", "Gltf", "Usd"]
+
+
+TEXTURED = '<image name="tex" type="color3"><input name="file" type="filename" value="a.png" /></image>\n' + _material(
+    "Tex", "standard_surface", '<input name="base_color" type="color3" nodename="tex" />'
+)
+
+
+def test_a_driven_input_is_refused_naming_it(tmp_path):
+    path = _document(tmp_path, TEXTURED)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    message = str(info.value)
+    assert "\n" not in message and message.startswith(f"{path.as_posix()}: field 'Tex.base_color': driven by node 'tex'")
+
+
+def test_flattening_records_what_was_flattened(tmp_path):
+    path = _document(tmp_path, TEXTURED)
+    spec = read_material_file(path, "default")[0].params["materialx"]
+    assert spec["flattened"] == {"base_color": {"driven_by": "node 'tex'", "value": pytest.approx([0.8, 0.8, 0.8])}}
+    spec = read_material_file(path, {"base_color": [0.1, 0.2, 0.3]})[0].params["materialx"]
+    assert spec["inputs"]["base_color"] == [0.1, 0.2, 0.3]
+
+
+def test_inputs_the_table_cannot_hold_are_named_and_left_out_of_the_oracle(tmp_path):
+    body = _material("Glow", "standard_surface", '<input name="emission" type="float" value="2" />'
+                     '<input name="transmission" type="float" value="0.5" />'
+                     '<input name="opacity" type="color3" value="0.5, 0.5, 0.5" />')  # fmt: skip
+    spec = read_material_file(_document(tmp_path, body))[0].params["materialx"]
+    assert [line.split(" =")[0] for line in spec["not_in_table"]] == ["emission", "opacity", "transmission"]
+    assert spec["oracle_inputs"]["emission"] == 0.0 and spec["oracle_inputs"]["opacity"] == [1.0, 1.0, 1.0]
+    assert spec["oracle_inputs"]["transmission"] == 0.5  # the reflection that remains is what the oracle shades
+
+
+@pytest.mark.parametrize(
+    ("body", "field", "expected"),
+    [
+        (_material("Ph", "standard_surface", "").replace("standard_surface", "surface_unlit"), "Ph.surfaceshader",
+         "surface shader 'surface_unlit' is not supported"),
+        ('<surfacematerial name="Lone" type="material" />', "Lone.surfaceshader", "expected a connected surface shader"),
+        ("", None, "expected at least one surfacematerial"),
+        ("<notclosed", None, "malformed MaterialX document"),
+    ],
+)  # fmt: skip
+def test_bad_documents_are_refused_on_one_line(tmp_path, body, field, expected):
+    path = _document(tmp_path, body)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    message = str(info.value)
+    where = f"{path.as_posix()}: field '{field}'" if field else path.as_posix()
+    assert "\n" not in message and message.startswith(f"{where}: {expected}"), message

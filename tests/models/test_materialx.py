@@ -1,0 +1,108 @@
+"""MaterialX materials in the separable model: their physical stand-in, and what representation = "auto" chooses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from atlasgen.models.materialx import artistic_ior, materialx_mitsuba_bsdf
+
+GOLD = {"base": 1.0, "base_color": [0.944, 0.776, 0.373], "metalness": 1.0, "specular_color": [0.998, 0.981, 0.751],
+        "specular_roughness": 0.25}  # fmt: skip
+
+
+def _spec(inputs, category="standard_surface"):
+    return {"document": "x.mtlx", "material": "M", "category": category, "inputs": inputs, "oracle_inputs": inputs}
+
+
+def test_artistic_ior_reproduces_its_reflectivity_at_normal_incidence():
+    r = np.array([0.944, 0.776, 0.373])
+    n, k = artistic_ior(r, np.array([0.998, 0.981, 0.751]))
+    np.testing.assert_allclose(((n - 1) ** 2 + k**2) / ((n + 1) ** 2 + k**2), r, rtol=1e-12)
+
+
+def test_a_metal_gets_roughconductor_and_a_plain_dielectric_roughplastic():
+    bsdf, description = materialx_mitsuba_bsdf(_spec(GOLD), albedo=(0.5, 1.0, 1.0))
+    assert bsdf["type"] == "roughconductor" and bsdf["alpha"] == pytest.approx(0.0625)
+    assert bsdf["specular_reflectance"]["value"] == [0.5, 1.0, 1.0] and "roughconductor" in description
+    bsdf, _ = materialx_mitsuba_bsdf(_spec({"base_color": [0.5, 0.1, 0.1], "specular_IOR": 1.4}))
+    assert bsdf["type"] == "roughplastic" and bsdf["int_ior"] == pytest.approx(1.4)
+    assert bsdf["diffuse_reflectance"]["value"] == pytest.approx([0.5, 0.1, 0.1])
+
+
+@pytest.mark.parametrize(
+    ("inputs", "category"),
+    [({**GOLD, "coat": 1.0}, "standard_surface"), ({**GOLD, "sheen": 0.5}, "standard_surface"),
+     ({"metalness": 0.5}, "standard_surface"), ({"specular_color": [1.0, 0.5, 0.5]}, "standard_surface"),
+     ({}, "open_pbr_surface")],
+)  # fmt: skip
+def test_no_stand_in_where_mitsuba_has_no_faithful_bsdf(inputs, category):
+    assert materialx_mitsuba_bsdf(_spec(inputs, category)) is None
+
+
+def _directions(rng, n):
+    z = rng.uniform(0.2, 1.0, n)
+    phi = 2.0 * np.pi * rng.random(n)
+    s = np.sqrt(1.0 - z * z)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], -1)
+
+
+@pytest.mark.slow
+def test_the_oracle_over_roughconductor_is_materialx_s_g2_and_energy_compensation():
+    """MaterialX's metal differs from Mitsuba's roughconductor (same n, k, alpha) by exactly its
+    height-correlated G2 over Mitsuba's separable G1 G1, and Turquin's energy compensation."""
+    pytest.importorskip("MaterialX")
+    pytest.importorskip("mitsuba")
+    from atlasgen.models.physical_fit import mitsuba_f_cos
+    from atlasgen.separable.source import make_source
+
+    rng = np.random.default_rng(7)
+    l, v = _directions(rng, 4096), _directions(rng, 4096)
+    spec = {**_spec(GOLD), "alpha": 0.0625}
+    oracle = make_source({"source": "materialx", "materialx": spec}).f_cos(l, v)
+    bsdf, _ = materialx_mitsuba_bsdf(spec)
+    mitsuba = mitsuba_f_cos(bsdf)(l, v)
+    keep = (mitsuba > 1e-3).all(1)
+    a = 0.0625
+    nl, nv = l[:, 2], v[:, 2]
+    h = (l + v) / np.linalg.norm(l + v, axis=-1, keepdims=True)
+    lam = lambda c: np.sqrt(a * a + (1 - a * a) * c * c)  # noqa: E731
+    g2 = 2 * nl * nv / (nv * lam(nl) + nl * lam(nv))
+    g1 = lambda c: 2 * c / (c + lam(c))  # noqa: E731
+    # with the tests' own analytic directional albedo and conductor Fresnel (tests/separable/test_materialx_oracle.py)
+    from tests.separable.test_materialx_oracle import _dir_albedo, _fresnel_conductor
+
+    n, k = artistic_ior(np.array(GOLD["base_color"]), np.array(GOLD["specular_color"]))
+    f = _fresnel_conductor(np.sum(v * h, -1), n, k)
+    ess = _dir_albedo(nv, a)
+    expected = (g2 / (g1(nl) * g1(nv)))[:, None] * (1.0 + f * ((1.0 - ess) / ess)[:, None])
+    np.testing.assert_allclose((oracle / mitsuba)[keep], expected[keep], rtol=2e-3)
+
+
+def _auto(inputs, category="standard_surface"):
+    from atlasgen.models import get_model
+
+    model = get_model("separable")
+    params = {p.name: p.default for p in model.params}
+    params.update(source="materialx", materialx={**_spec(inputs, category), "alpha": 0.0625}, representation="auto",
+                  max_error=0.03)  # fmt: skip
+    model.check(params, "x.mtlx")
+    return model.bake(params)
+
+
+@pytest.mark.slow
+def test_auto_draws_a_lambertian_as_one_slice():
+    pytest.importorskip("MaterialX")
+    slices = _auto({"base_color": [0.5, 0.5, 0.5], "specular": 0.0})
+    rep = slices.extra["representation"]
+    assert rep["kind"] == "lut" and rep["reconstruction_error"] < 0.01 and slices.values.shape[0] == 1
+
+
+@pytest.mark.slow
+def test_auto_sees_that_gold_s_coloured_highlight_needs_separable_terms():
+    """A is a scalar: one slice cannot hold a highlight whose colour changes with the angle."""
+    pytest.importorskip("MaterialX")
+    slices = _auto(GOLD)
+    rep = slices.extra["representation"]
+    errors = {c["representation"]: c["error"] for c in rep["auto"]["candidates"]}
+    assert rep["kind"] == "separable" and errors["lut"] > 0.1 > min(e for k, e in errors.items() if k != "lut")
