@@ -187,7 +187,11 @@ def _summary(rows: list) -> dict:
         "look_meeting_goals": sum(1 for row in looks if row["look"]["meets_goal"]),
         "look_not_judged": [f"{row['material']}/{row['scene']}" for row in looks if row["look"]["not_judged"]],
         "no_physical_reference": list(
-            dict.fromkeys(row["material"] for row in rows if row.get("look") and row["look"].get("reference") is None)
+            dict.fromkeys(
+                row["material"]
+                for row in rows
+                if (row.get("look") or {}).get("reference", "") is None and not row["look"].get("skipped")
+            )
         ),  # fmt: skip
         "short_of_noise_floor": [
             f"{row['material']}/{row['scene']} ({kind}, {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB)"
@@ -249,6 +253,8 @@ def _look_text(rows: list) -> tuple[str, str]:
     if not looks:
         return "none", ""
     if all(look.get("reference") is None for _, look in looks):
+        if looks[0][1].get("skipped"):
+            return "none", f"look not measured: physical reference {looks[0][1].get('why_none')}"
         return "none", f"no physical reference ({looks[0][1].get('why_none') or 'none'})"
     judged = [(row, look) for row, look in looks if look.get("reference") is not None]
     figures = [row["references"][look["reference"]] for row, look in judged]

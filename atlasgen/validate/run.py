@@ -174,10 +174,14 @@ class _Plan:
     entries: list
     scenes: list  # (name, Scene)
     atlas: Atlas | None = None  # read once: the renderer, the rebuilds and the checks share it
+    float_slices: dict = field(default_factory=dict)  # name -> the bake cache's float slices, where current
 
 
-def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None) -> _Plan:
-    """Check every input before anything renders: atlas, materials, references and scenes."""
+def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None, bake_cache=None) -> _Plan:
+    """Check every input before anything renders: atlas, materials, references and scenes.
+
+    Each material's float slices are taken from ``bake_cache`` where its entry is current
+    (:func:`_float_slices`) before any reference is built, so a fitted slice is not fitted again."""
     atlas_path = Path(atlas_path)
     if not atlas_path.exists():
         raise InputError(f"{atlas_path.as_posix()}: no such atlas; bake one first (atlasgen bake -o {atlas_path.as_posix()})")
@@ -189,13 +193,17 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
         names = list(dict.fromkeys(_material_name(m, atlas, entries_by_name) for m in materials))
     else:
         names = sorted(entries_by_name, key=lambda n: entries_by_name[n].first_slice)
-    entries = []
+    entries, float_slices = [], {}
     for name in names:
         if name not in entries_by_name:
             known = ", ".join(sorted(entries_by_name)) or "none"
             hint = did_you_mean(name, entries_by_name)
             raise InputError(f"{atlas_path.as_posix()}: no material {name!r}{hint}; known: {known}")
         entry = entries_by_name[name]
+        slices = _float_slices(entry, bake_cache)
+        if slices is not None:
+            float_slices[name] = slices
+            entry_model(entry, slices)  # a fitted slice's table, for every FittedSlice of this material
         model_reference(entry)  # raises InputError when no reference is possible
         _check_params_current(atlas_path, entry)
         entries.append(entry)
@@ -215,7 +223,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
             if obj.material != MATERIAL_PLACEHOLDER:
                 model_reference(entries_by_name[obj.material])
         loaded.append((name, scene))
-    return _Plan(atlas_path, atlas.manifest, entries, loaded, atlas)
+    return _Plan(atlas_path, atlas.manifest, entries, loaded, atlas, float_slices)
 
 
 def is_material_file(item) -> bool:
@@ -351,7 +359,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
     max_physical_spp = max(MAX_PHYSICAL_SPP if max_physical_spp is None else int(max_physical_spp), physical_spp)
     t_start = time.perf_counter()
-    plan = plan_validation(atlas_path, materials, scenes, resolution)
+    plan = plan_validation(atlas_path, materials, scenes, resolution, bake_cache)
     mi = load_mitsuba("llvm_ad_rgb")
     register_references(mi)
     renderer = Renderer(read_render_atlas(plan.atlas_path, atlas=plan.atlas))
@@ -365,7 +373,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     renders = ReferenceCache(reference_cache)
     bake_hits = []
     for done, entry in enumerate(plan.entries, 1):
-        float_slices = _float_slices(entry, bake_cache)
+        float_slices = plan.float_slices.get(entry.name)
         if float_slices is not None:
             bake_hits.append(entry.name)
         model = entry_model(entry, float_slices)
@@ -551,11 +559,10 @@ def _look_goal(entry, model, run, physical: bool) -> dict:
         kind = "physical"
     elif getattr(model, "model_reference_is_physical", False):
         kind = "model"
+    elif not physical and physical_reference(entry) is not None:
+        return {**out, "reference": None, "compared": None, "why_none": "not rendered (--no-physical)", "skipped": True}
     else:
-        why = model.no_physical_reference or (
-            "physical references skipped (--no-physical)" if not physical else "its model has none"
-        )
-        return {**out, "reference": None, "compared": None, "why_none": why}
+        return {**out, "reference": None, "compared": None, "why_none": model.no_physical_reference or "its model has none"}
     short = _short_description(run.references[kind].description)
     if entry.fit is not None and entry.fit.source in ("physical", "bsdf"):
         compared = f"the {short} it was fitted from"
