@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 PHYSICAL_SPP = 64
-MAX_PHYSICAL_SPP = 256
+MAX_PHYSICAL_SPP = 64
 SCENES = ("front", "back")
 
 
