@@ -12,6 +12,13 @@ from atlasgen.cli.main import app
 from tests.validate.validation_fixtures import mitsuba_rgb, validation_atlas  # noqa: F401  (shared fixtures)
 
 
+@pytest.fixture(autouse=True)
+def _in_a_fresh_folder(tmp_path, monkeypatch):
+    """Every run here from a folder of its own: the default caches (build/cache, build/cache/references)
+    are relative to it, so no test reads or fills the checkout's."""
+    monkeypatch.chdir(tmp_path)
+
+
 @pytest.mark.slow
 def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
     out = tmp_path / "v"
@@ -231,3 +238,20 @@ def _flip(out):
 def _write(path, text):
     path.write_text(text)
     return path
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_the_reference_cache_defaults_to_build_cache_references_and_serves_a_second_run(validation_atlas, mitsuba_rgb,  # noqa: F811
+                                                                                        gpu_device, tmp_path):  # fmt: skip
+    runner = CliRunner()
+    args = ["validate", "matte", *TINY_RUN, "--atlas", str(validation_atlas), "-q"]
+    assert runner.invoke(app, [*args, "-o", "first"]).exit_code == 0
+    assert len(list((tmp_path / "build" / "cache" / "references").glob("*.npz"))) == 1  # the model reference
+    assert runner.invoke(app, [*args, "-o", "second"]).exit_code == 0
+    environment = json.loads((tmp_path / "second" / "report.json").read_text())["environment"]
+    assert environment["reference_renders_from_cache"] == 1 and environment["reference_renders_stored"] == 0
+    assert environment["reference_cache"] == "build/cache/references"
+    result = runner.invoke(app, [*args, "-o", "third", "--no-reference-cache", "--reference-cache", str(tmp_path / "elsewhere")])
+    assert result.exit_code == 0 and not (tmp_path / "elsewhere").exists()
+    assert gpu_device.take_errors() == []
