@@ -38,7 +38,7 @@ from tests.toml_text import toml_document  # noqa: E402
 
 PHYSICAL_SPP = 64
 #: The cap a stochastic reference may grow to: high enough for skin's volpathmis reference to
-#: clear its error by 10 dB (the default cap, 16x, is for an interactive `atlasgen validate`).
+#: clear its error by 10 dB (``atlasgen validate``'s default, :data:`atlasgen.validate.run.MAX_PHYSICAL_SPP`).
 MAX_PHYSICAL_SPP = 8192
 SCENES = ("front", "back")
 ALPHAS = (0.1, 0.3, 0.5)

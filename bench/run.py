@@ -23,6 +23,7 @@ SECTIONS = [
     "preview",
     "cost",
     "physical",
+    "verdict",
     "pareto",
     "environment",
     "environment_error",

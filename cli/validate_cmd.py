@@ -18,7 +18,8 @@ from atlasgen.reports.validation import (
     summary_line,
     write_validation,
 )
-from atlasgen.validate.run import ENVIRONMENT_SCENES, validate_atlas
+from atlasgen.validate.reference_cache import DEFAULT_REFERENCE_CACHE
+from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, validate_atlas
 
 __all__ = ["validate"]
 
@@ -46,8 +47,8 @@ def _resolution(ctx, param, value):
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
-@click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,
-              help="The most samples per pixel a stochastic physical reference grows to.  [default: 16x --physical-spp]")  # fmt: skip
+@click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=MAX_PHYSICAL_SPP, show_default=True,
+              help="The most samples per pixel a stochastic physical reference grows to: the default lets every shipped reference clear its noise floor; a reference that stops short is named in the summary (and fails --strict).")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
@@ -58,6 +59,11 @@ def _resolution(ctx, param, value):
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
+@click.option("--cache", "bake_cache", type=click.Path(path_type=Path, file_okay=False), default=Path("build/cache"),
+              show_default=True, help="The bake's cache (atlasgen bake --cache): float slices are read from a material's current entry there instead of being computed or fitted again.")  # fmt: skip
+@click.option("--reference-cache", type=click.Path(path_type=Path, file_okay=False), default=DEFAULT_REFERENCE_CACHE,
+              show_default=True, help="Folder of reference renders, keyed by everything that decides each image: a second run renders nothing it holds.")  # fmt: skip
+@click.option("--no-reference-cache", is_flag=True, help="Keep reference renders for this run only.")
 @click.option("--merge", is_flag=True,
               help="Render nothing: merge the report.json of earlier runs, the folders given as arguments, "
                    "into one OUTPUT/index.html, report.json and plot.")  # fmt: skip
@@ -75,6 +81,9 @@ def validate(
     no_physical,
     environment,
     atlas,
+    bake_cache,
+    reference_cache,
+    no_reference_cache,
     output,
     merge,
     strict,
@@ -111,7 +120,8 @@ def validate(
             run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
                                  max_physical_spp=max_physical_spp,
                                  resolution=resolution, physical=not no_physical, progress=progress,
-                                 on_material=on_material)  # fmt: skip
+                                 on_material=on_material, bake_cache=bake_cache,
+                                 reference_cache=None if no_reference_cache else reference_cache)  # fmt: skip
         written = write_validation(run, output)
 
     if verbosity != QUIET:

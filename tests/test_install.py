@@ -153,7 +153,7 @@ def test_validate_on_the_installed_scenes(installed, workdir, baked):
     if result.returncode == 5:
         pytest.skip(f"a backend is missing: {result.stderr.strip()}")
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("terracotta: 1/1 LUT goals met")
+    assert result.stdout.startswith("terracotta: storage goals met; storage 1/1 met")
     assert (workdir / "validation" / "report.json").is_file() and (workdir / "validation" / "index.html").is_file()
 
 

@@ -297,6 +297,8 @@ def bake_atlas(
             flags=_jsonable(material.model.flags(material.params)),
             clamped_fraction=encoded.clamped_fraction,
             quantization_error=ErrorSummary(max=float(err.max()), rms=float(np.sqrt((err**2).mean()))),
+            # The material's own look goal travels with its slices: validation reads the manifest, not the file.
+            extra={} if material.look_goal is None else {"validate": dict(material.look_goal)},
         )
         # The model's own fields, merged in the order it produced them (a key naming a
         # common field, such as a finer quantization_error, replaces it), become the

@@ -33,6 +33,7 @@ __all__ = [
     "Atlas",
     "apply_slice_scale",
     "read_atlas",
+    "as_atlas",
     "check_include",
     "include_manifest_sha256",
     "texel_sha256",
@@ -103,6 +104,12 @@ def apply_slice_scale(rgba: np.ndarray, scale, bias) -> np.ndarray:
     rgba[..., :3] = rgba[..., :3] * scale[0] + bias[0]
     rgba[..., 3] = rgba[..., 3] * scale[1] + bias[1]
     return rgba
+
+
+def as_atlas(atlas) -> Atlas:
+    """``atlas`` itself if it is an :class:`Atlas` already read, else :func:`read_atlas` of the path: a caller
+    that reads the pair once hands the same one to every reader below it."""
+    return atlas if isinstance(atlas, Atlas) else read_atlas(atlas)
 
 
 def read_atlas(path) -> Atlas:

@@ -31,7 +31,10 @@ NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
 COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from", "fit_gloss",
-               "nonfinite_tolerance")  # fmt: skip
+               "nonfinite_tolerance", "validate")  # fmt: skip
+#: Keys of a material's ``[validate]`` table: its look goal against its physical reference
+#: (``atlasgen validate``; the defaults are atlasgen.validate.run's GOAL_LOOK_PSNR_DB and GOAL_LOOK_FLIP).
+VALIDATE_KEYS = ("psnr_db", "flip")
 #: Values of ``from``: the model's closed form, or a fit to its physical reference
 #: (:mod:`atlasgen.models.physical_fit`).
 FIT_SOURCES = ("model", "physical")
@@ -55,6 +58,8 @@ class Material:
     fit_gloss: float | None = None  # with from = "physical": the renderer gloss the slice is fitted for
     #: Non-finite (NaN, inf) samples of the source the bake may replace by 0, with a warning; more are an error.
     nonfinite_tolerance: int = 0
+    #: The ``[validate]`` table: a look goal of the material's own (``psnr_db``, ``flip``), or None for the defaults.
+    look_goal: dict | None = None
     extra: dict = field(default_factory=dict)
 
     @property
@@ -78,6 +83,30 @@ _POSITIVE = Param("", None, "float", 0.0, lo_open=True)
 _FIT_GLOSS = Param("fit_gloss", FIT_GLOSS, "float", 0.0, 1.0, doc="renderer gloss a from = 'physical' slice is fitted for")
 _SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
 _NONFINITE = Param("nonfinite_tolerance", 0, "int", 0, doc="non-finite source samples the bake may replace by 0")
+_LOOK_PSNR = Param(
+    "validate.psnr_db", None, "float", 0.0, lo_open=True, doc="look goal: least PSNR (dB) against the physical reference"
+)
+_LOOK_FLIP = Param("validate.flip", None, "float", 0.0, 1.0, doc="look goal: most mean FLIP against the physical reference")
+
+
+def _look_goal(raw, path) -> dict | None:
+    """The ``[validate]`` table, checked: ``{"psnr_db": x, "flip": y}`` with the keys it sets, or None.
+
+    >>> _look_goal({"validate": {"psnr_db": 28}}, "m.toml")
+    {'psnr_db': 28.0}
+    >>> _look_goal({}, "m.toml") is None
+    True
+    """
+    table = raw.get("validate")
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise MaterialError(path, "validate", f"expected a table with {' and/or '.join(VALIDATE_KEYS)}, got {short(table)}")
+    unknown = sorted(set(table) - set(VALIDATE_KEYS))
+    if unknown:
+        raise MaterialError(path, f"validate.{unknown[0]}", f"unknown key; expected one of {', '.join(VALIDATE_KEYS)}")
+    params = {"psnr_db": _LOOK_PSNR, "flip": _LOOK_FLIP}
+    return {k: float(params[k].coerce(table[k], path, name=f"validate.{k}")) for k in VALIDATE_KEYS if k in table}
 
 
 def _scale_field(raw, key, path):
@@ -169,6 +198,7 @@ def read_material(path) -> Material:
         fit_from=fit_from,
         fit_gloss=fit_gloss,
         nonfinite_tolerance=int(_NONFINITE.coerce(raw.get("nonfinite_tolerance", 0), shown)),
+        look_goal=_look_goal(raw, shown),
     )
 
 

@@ -10,7 +10,7 @@ from typing import ClassVar
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
-from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atlas import as_atlas
 from atlasgen.io.fields import Param
 from atlasgen.io.manifest import LutRepresentation, MaterialEntry
 from atlasgen.optics.interpolation import sample_slice
@@ -164,6 +164,9 @@ class Model:
     physical_omissions: ClassVar[dict[str, str]] = {}
     #: Why :meth:`physical_reference` returns ``None`` for this model ("" for a model that has one).
     no_physical_reference: ClassVar[str] = ""
+    #: The model reference is the physical BSDF itself (a separable material's source): validation
+    #: judges the look against it where there is no physical reference of its own.
+    model_reference_is_physical: ClassVar[bool] = False
     #: Why a model with a physical reference that is not one plain BSDF has no :meth:`physical_f_cos`
     #: ("" where it has one or needs none): the cost-against-error report says it for the material.
     no_physical_f_cos: ClassVar[str] = ""
@@ -313,10 +316,14 @@ class Model:
         """
         return None
 
-    def radiance_rebuilds(self, entry: MaterialEntry, atlas_path) -> dict[str, RadianceRebuild]:
+    def radiance_rebuilds(self, entry: MaterialEntry, atlas, float_slices=None) -> dict[str, RadianceRebuild]:
         """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
         atlas's stored texels (what the GPU samples) and, where it can be computed,
         ``"float"`` the model's own float data sampled the same way.
+
+        ``atlas`` is an :class:`~atlasgen.io.atlas.Atlas` already read, or its path;
+        ``float_slices`` ``(n, H, W, 4)`` the material's float slices where the caller has them
+        (the bake cache), else they are baked again.
 
         Validation rebuilds the renderer's image from its g-buffer with each. With both,
         the atlas's error against the model reference splits into resolution and filtering
@@ -326,11 +333,12 @@ class Model:
         ``flags.nearest``), in the renderer's equation.
         """
         nearest = entry.flag("nearest")
+        table = (self.bake(entry.params).values if float_slices is None else float_slices)[0]
         return {
             "float": RadianceRebuild("the model's float table at the texel centres, sampled as the renderer does",
-                                     _table_radiance(_SampledTable(self.bake(entry.params).values[0], nearest))),
+                                     _table_radiance(_SampledTable(table, nearest))),
             "8bit": RadianceRebuild("the baked 8-bit slice, sampled as the renderer does",
-                                    _table_radiance(_SampledTable(read_atlas(atlas_path).decode_slice(entry.first_slice), nearest))),
+                                    _table_radiance(_SampledTable(as_atlas(atlas).decode_slice(entry.first_slice), nearest))),
         }  # fmt: skip
 
     def claimed_errors(self, entry: MaterialEntry) -> dict | None:

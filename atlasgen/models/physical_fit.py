@@ -469,8 +469,16 @@ class FittedSlice(Model):
     #: per Mitsuba plugin instance, and a fit can take seconds (a spectral or volume reference).
     _tables: ClassVar[dict] = {}
 
+    def _key(self, values: dict) -> tuple:
+        return (self.type_name, json.dumps(values, sort_keys=True, default=str), self.gloss)
+
+    def use_table(self, values: dict, table) -> None:
+        """Take ``table`` ``(H, W, 4)`` as the fit of ``values`` (the bake cache's float slice of the very
+        material, found by its content hash and the bake code), so that no instance fits it again."""
+        FittedSlice._tables[self._key(values)] = np.asarray(table, dtype=np.float64)
+
     def _table(self, values: dict) -> np.ndarray:
-        key = (self.type_name, json.dumps(values, sort_keys=True, default=str), self.gloss)
+        key = self._key(values)
         if key not in FittedSlice._tables:
             FittedSlice._tables[key] = np.asarray(self.bake(values).values[0], dtype=np.float64)
         return FittedSlice._tables[key]
@@ -478,6 +486,11 @@ class FittedSlice(Model):
     def evaluate(self, values, n_dot_l, n_dot_v):
         nl, nv = np.broadcast_arrays(np.asarray(n_dot_l, dtype=np.float64), np.asarray(n_dot_v, dtype=np.float64))
         return sample_slice(self._table(values), nl, nv)
+
+    def radiance_rebuilds(self, entry, atlas, float_slices=None):
+        # The float rebuild samples the fit itself (computed once per process), not a second fit.
+        table = self._table(entry.params) if float_slices is None else float_slices[0]
+        return Model.radiance_rebuilds(self, entry, atlas, np.asarray(table)[None])
 
     def model_reference(self, values: dict, albedo=(1.0, 1.0, 1.0), gloss: float = 0.5):
         # Fit now, before any Mitsuba scene holds the reference's plugin: a fit that renders

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from atlasgen.errors import MaterialError
-from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atlas import as_atlas
 from atlasgen.io.fields import Param
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
 from atlasgen.models.base import (
@@ -135,6 +135,7 @@ class Separable(Model):
     # the include's code, and the bake's error claims take the place of the LUT goals.
     custom_lighting = True
     validation_goals = False
+    model_reference_is_physical = True
     params = (
         Param("source", "ggx", "choice", choices=SOURCES, doc="the BRDF to factor"),
         Param("alpha", 0.2, "float", lo=0.0, hi=4.0, lo_open=True, doc="roughness (GGX, Beckmann, Ward)"),
@@ -608,7 +609,7 @@ class Separable(Model):
         return Reference({"type": BRDF_REFERENCE, "material": json.dumps(material, sort_keys=True)},
                          _source_description(values, "BSDF"))  # fmt: skip
 
-    def radiance_rebuilds(self, entry, atlas_path):
+    def radiance_rebuilds(self, entry, atlas, float_slices=None):
         """``"8bit"``: the include's sum over the 8-bit factors in float64
         (:func:`atlasgen.separable.rebuild.evaluate_factors`), L = E albedo f cos. The float
         factors are not in the atlas, so there is no ``"float"`` rebuild."""
@@ -619,10 +620,10 @@ class Separable(Model):
             return {
                 "8bit": RadianceRebuild(
                     "the baked 8-bit slice in the renderer's equation at the fitted gloss, times the albedo",
-                    _lut_radiance(read_atlas(atlas_path).decode_slice(entry.first_slice), fit_gloss(entry)),
+                    _lut_radiance(as_atlas(atlas).decode_slice(entry.first_slice), fit_gloss(entry)),
                 )
             }
-        factors = read_separable_factors(atlas_path, entry.name)
+        factors = read_separable_factors(atlas, entry.name)
 
         def radiance(n, l, v, albedo, gloss, irradiance):
             return irradiance * albedo * evaluate_factors(factors, n, l, v, cosine=True)

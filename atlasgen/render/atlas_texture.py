@@ -42,8 +42,9 @@ class RenderAtlas:
             raise InputError(f"{self.name}: expected levels of shape (layers, h, w, 4) uint8, got {first.shape} {first.dtype}")
 
 
-def read_render_atlas(dds_path) -> RenderAtlas:
-    """Read ``X.dds`` with its manifest ``X.json`` and include ``X.wgsl`` (all written by the bake).
+def read_render_atlas(dds_path, atlas=None) -> RenderAtlas:
+    """Read ``X.dds`` with its manifest ``X.json`` and include ``X.wgsl`` (all written by the bake);
+    ``atlas``: the pair already read (:func:`~atlasgen.io.atlas.read_atlas` of ``dds_path``), not read again.
 
     Raises :class:`InputError` when one of the three is missing, when they are not one
     bake's files (:func:`atlasgen.io.atlas.read_atlas` checks the texture against the
@@ -51,7 +52,7 @@ def read_render_atlas(dds_path) -> RenderAtlas:
     volume: the renderer samples a 2D texture array, whose layer is never filtered.
     """
     dds_path = Path(dds_path)
-    atlas = read_atlas(dds_path)
+    atlas = read_atlas(dds_path) if atlas is None else atlas
     shown = dds_path.as_posix()
     if atlas.manifest is None:
         raise InputError(

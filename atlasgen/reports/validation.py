@@ -41,6 +41,7 @@ __all__ = [
     "noise_floor_failures",
     "read_validation_report",
     "check_result_figures",
+    "look_verdict",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -78,6 +79,40 @@ def _goal(run, ref, goals) -> bool | None:
     return bool(ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"])
 
 
+def look_verdict(look: dict, ref: dict | None) -> dict:
+    """The verdict on a material's look on one scene: ``{"meets_goal", "not_judged"}`` from its look goal
+    (``MaterialRun.look``) and the figures of the reference it names (a report.json reference dict).
+
+    Judged on the material's pixels: PSNR >= the goal's and mean FLIP <= the goal's; where the
+    reference clips on display (``clipped_pixels`` > 0), the PSNR at the exposure that clips none of
+    it (``unclipped_psnr_db``) must reach the goal too, so saturation cannot hide error. A
+    stochastic reference whose noise floor is not 10 dB above the PSNR is not judged: ``meets_goal``
+    is None and ``not_judged`` says why ("reference at N spp, floor F dB"). No reference: both None.
+
+    >>> look = {"reference": "physical", "goal": {"psnr_db": 30.0, "flip": 0.05}}
+    >>> look_verdict(look, {"psnr_db": 44.1, "flip": 0.02, "clipped_pixels": 0})
+    {'meets_goal': True, 'not_judged': None}
+    >>> look_verdict(look, {"psnr_db": 44.1, "flip": 0.02, "clipped_pixels": 9, "unclipped_psnr_db": 28.0})["meets_goal"]
+    False
+    >>> look_verdict(look, {"psnr_db": 38.0, "flip": 0.02, "noise_floor_ok": False, "noise_floor_db": 41.3, "spp": 1024})
+    {'meets_goal': None, 'not_judged': 'reference at 1024 spp, floor 41.3 dB'}
+    """
+    if not look or look.get("reference") is None or ref is None:
+        return {"meets_goal": None, "not_judged": None}
+    if ref.get("noise_floor_ok") is False:
+        return {
+            "meets_goal": None,
+            "not_judged": f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB",
+        }
+    goal = look["goal"]
+    psnrs = [math.inf if ref.get("psnr_db") is None else ref["psnr_db"]]
+    if ref.get("clipped_pixels"):
+        psnrs.append(math.inf if ref.get("unclipped_psnr_db") is None else ref["unclipped_psnr_db"])
+    flip = ref.get("flip")
+    ok = min(psnrs) >= goal["psnr_db"] and (flip is None or not math.isfinite(flip) or flip <= goal["flip"])
+    return {"meets_goal": bool(ok), "not_judged": None}
+
+
 def report_dict(run) -> dict:
     """The JSON report: settings, environment, and per material and scene every measured figure."""
     goals = run.settings["goals"]
@@ -105,6 +140,11 @@ def report_dict(run) -> dict:
             if getattr(ref, "mask", None) is not None:
                 refs[kind]["masked_fraction"] = ref.masked_fraction
                 refs[kind]["masked"] = ref.masked
+        look = getattr(r, "look", None)
+        if look is not None:
+            look = {**look, **look_verdict(look, refs.get(look.get("reference") or ""))}
+            if look["reference"] is not None:
+                refs[look["reference"]]["look_goal"] = look["meets_goal"]
         row = {
             "material": r.material,
             "type": r.type,
@@ -123,6 +163,8 @@ def report_dict(run) -> dict:
             row["environment_breakdown"] = r.environment_breakdown
         if getattr(r, "goal_psnr_db", None) is not None:
             row["goal_psnr_db"] = r.goal_psnr_db
+        if look is not None:
+            row["look"] = look
         rows.append(row)
     return {
         "atlas": run.atlas,
@@ -138,22 +180,48 @@ def _summary(rows: list) -> dict:
     """The goals line, from the JSON rows (so a merged report recomputes it the same way): over
     the model-reference results the goals apply to (``meets_goal`` not null)."""
     lut = [ref for row in rows if (ref := row["references"].get("model")) is not None and ref["meets_goal"] is not None]
+    looks = [row for row in rows if (row.get("look") or {}).get("reference") is not None]
     return {
         "lut_results": len(lut),
         "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
         "worst_lut_psnr_db": min((x["psnr_db"] for x in lut if x["psnr_db"] is not None), default=None),
         "worst_lut_flip": max((x["flip"] for x in lut), default=None),
+        "look_results": len(looks),
+        "look_meeting_goals": sum(1 for row in looks if row["look"]["meets_goal"]),
+        "look_not_judged": [f"{row['material']}/{row['scene']}" for row in looks if row["look"]["not_judged"]],
+        "no_physical_reference": list(
+            dict.fromkeys(
+                row["material"]
+                for row in rows
+                if (row.get("look") or {}).get("reference", "") is None and not row["look"].get("skipped")
+            )
+        ),  # fmt: skip
+        "short_of_noise_floor": [
+            f"{row['material']}/{row['scene']} ({kind}, {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB)"
+            for row in rows
+            for kind, ref in row["references"].items()
+            if ref.get("noise_floor_ok") is False
+        ],  # fmt: skip
     }
 
 
 def summary_line(data: dict, html_path) -> str:
     """The one line ``atlasgen validate`` prints: where the page is and how many results meet the goals."""
-    s = data["summary"]
-    goals = (
-        f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" if s["lut_results"] else "no LUT goals apply"
-    )
-    return (f"{Path(html_path).as_posix()} ({len(data['results'])} material/scene results, "
-            f"{goals}, {data['total_seconds']:.1f} s)")  # fmt: skip
+    s = _summary(data["results"])  # recomputed: a report written before the look goals has none of its fields
+    parts = [f"{len(data['results'])} material/scene results"]
+    parts.append(f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the storage goals" if s["lut_results"]
+                 else "no LUT goals apply")  # fmt: skip
+    if s["look_results"]:
+        judged = s["look_results"] - len(s["look_not_judged"])
+        parts.append(f"{s['look_meeting_goals']}/{judged} looks meet their goal against physics"
+                     + (f" ({len(s['look_not_judged'])} not judged)" if s["look_not_judged"] else ""))  # fmt: skip
+    if s["no_physical_reference"]:
+        parts.append(f"no physical reference: {', '.join(s['no_physical_reference'])}")
+    if s["short_of_noise_floor"]:
+        parts.append(f"{len(s['short_of_noise_floor'])} reference(s) short of their noise floor: "
+                     f"{', '.join(s['short_of_noise_floor'])}")  # fmt: skip
+    parts.append(f"{data['total_seconds']:.1f} s")
+    return f"{Path(html_path).as_posix()} ({', '.join(parts)})"
 
 
 def _rows_by_material(data: dict) -> dict:
@@ -180,36 +248,90 @@ def _separable_figures(rows: list) -> tuple:
     return claims[0].get("relative_rms_8bit"), claims[0].get("error_budget"), max(measured, default=None)
 
 
-def describe_materials(data: dict) -> list[str]:
-    """One line per material: what was measured, against which goal.
+def _look_text(rows: list) -> tuple[str, str]:
+    """``(verdict, text)`` of a material's look over its scenes: ``"met"``, ``"missed"``, ``"not judged"``
+    or ``"none"``, and e.g. ``look against the Mitsuba roughplastic it was fitted from: 44.1 / 44.2 dB,
+    FLIP 0.021 / 0.030 (goal >= 30 dB, FLIP <= 0.05): met``."""
+    looks = [(row, row["look"]) for row in rows if row.get("look")]
+    if not looks:
+        return "none", ""
+    if all(look.get("reference") is None for _, look in looks):
+        if looks[0][1].get("skipped"):
+            return "none", f"look not measured: physical reference {looks[0][1].get('why_none')}"
+        return "none", f"no physical reference ({looks[0][1].get('why_none') or 'none'})"
+    judged = [(row, look) for row, look in looks if look.get("reference") is not None]
+    figures = [row["references"][look["reference"]] for row, look in judged]
+    compared = judged[0][1]["compared"]
+    goal = judged[0][1]["goal"]
+    psnrs = " / ".join(_psnr_text(f["psnr_db"]) for f in figures)
+    flips = " / ".join(_fmt(f["flip"], ".3f") for f in figures)
+    own = ", the material's own" if judged[0][1].get("goal_source") == "material" else ""
+    text = f"look against {compared}: {psnrs} dB, FLIP {flips} (goal >= {goal['psnr_db']:g} dB, FLIP <= {goal['flip']:g}{own})"
+    missed = [row["scene"] for row, look in judged if look["meets_goal"] is False]
+    unjudged = [f"{row['scene']}: {look['not_judged']}" for row, look in judged if look["not_judged"]]
+    if missed:
+        return "missed", text + f": missed on {', '.join(missed)}" + (
+            f"; not judged on {'; '.join(unjudged)}" if unjudged else ""
+        )
+    if unjudged:
+        return "not judged", text + f": not judged on {'; '.join(unjudged)}"
+    return "met", text + ": met"
 
-    A LUT material counts its results (one per scene) meeting the goals against the
-    model reference, e.g. ``terracotta: 2/2 LUT goals met (PSNR >= 45 dB, FLIP <= 0.01);
-    worst PSNR 52.1 dB, FLIP 0.0031``. No LUT goal applies to a separable material: its
-    line gives the error its manifest claims (relative RMS of f cos at 8 bits, the figure
-    its ``error_budget`` bounds), the budget, and the worst error measured in the scenes.
+
+def describe_materials(data: dict) -> list[str]:
+    """One line per material: its verdict, then what was measured against which goal.
+
+    The verdict leads: ``all goals met`` only where every goal that applies is met and the look
+    was judged against physics on every scene; else ``goals missed: look, storage`` (what missed), or
+    ``look not judged`` (a reference short of its noise floor), or ``storage goals met`` followed by
+    ``no physical reference (why)`` (toon). Then the storage goal, e.g. ``storage 2/2 met (PSNR >= 45 dB, FLIP <= 0.01;
+    worst 52.1 dB, FLIP 0.0031)`` for a LUT material (its image against the model reference), the
+    look (:func:`_look_text`), and for a separable material the error its manifest claims (relative
+    RMS of f cos at 8 bits, the figure its ``error_budget`` bounds), the budget, and the worst
+    error measured in the scenes.
     """
     goals = data["settings"]["goals"]
     lines = []
     for name, rows in _rows_by_material(data).items():
+        parts, missed = [], []
         models = [row["references"]["model"] for row in rows if "model" in row["references"]]
         checked = [m for m in models if m.get("meets_goal") is not None]
         if checked:
             psnrs = [m["psnr_db"] for m in checked if m["psnr_db"] is not None]
             worst_psnr = min(psnrs) if psnrs else None
-            lines.append(f"{name}: {sum(1 for m in checked if m['meets_goal'])}/{len(checked)} LUT goals met "
-                         f"({_goals_text(goals)}); worst PSNR {_psnr_text(worst_psnr)} dB, "
-                         f"FLIP {max(m['flip'] for m in checked):.4f}")  # fmt: skip
-            continue
+            met = sum(1 for m in checked if m["meets_goal"])
+            if met < len(checked):
+                missed.append("storage")
+            parts.append(f"storage {met}/{len(checked)} met ({_goals_text(goals)}; worst {_psnr_text(worst_psnr)} dB, "
+                         f"FLIP {max(m['flip'] for m in checked):.4f})")  # fmt: skip
+        look, look_text = _look_text(rows)
+        if look_text:
+            parts.append(look_text)
+        if look == "missed":
+            missed.insert(0, "look")
         claimed, budget, measured = _separable_figures(rows)
-        if claimed is None:
+        if not checked and claimed is not None:
+            verdict = "none" if budget is None else f"{budget:.2%}, {'met' if claimed <= budget else 'missed'}"
+            if budget is not None and claimed > budget:
+                missed.append("separable budget")
+            line = f"separable error {claimed:.2%} (8-bit, claimed; budget {verdict})"
+            if measured is not None:
+                line += f", {measured:.2%} measured in the scenes (worst, atlas against source)"
+            parts.append(line)
+        if not parts:
             lines.append(f"{name}: no goals apply ({rows[0]['type']})")
             continue
-        verdict = "none" if budget is None else f"{budget:.2%}, {'met' if claimed <= budget else 'missed'}"
-        line = f"{name}: no LUT goals apply; separable error {claimed:.2%} (8-bit, claimed; budget {verdict})"
-        if measured is not None:
-            line += f", {measured:.2%} measured in the scenes (worst, atlas against source)"
-        lines.append(line)
+        if missed:
+            head = f"goals missed: {', '.join(missed)}"
+        elif look == "not judged":
+            head = "look not judged"
+        elif look == "none" and look_text:
+            head = "storage goals met" if checked else "no goals judged"
+        elif look == "none":  # a report without look goals (written before them)
+            head = "storage goals met" if checked else "no LUT goals apply"
+        else:
+            head = "all goals met"
+        lines.append(f"{name}: {head}; {'; '.join(parts)}")
     return lines
 
 
@@ -242,6 +364,12 @@ def missed_goals(data: dict) -> list[str]:
             if model.get("meets_goal") is False:
                 missed.append(f"{name} on {row['scene']}: PSNR {_psnr_text(model['psnr_db'])} dB, "
                               f"FLIP {model['flip']:.4f} ({_goals_text(goals)})")  # fmt: skip
+            look = row.get("look") or {}
+            if look.get("meets_goal") is False:
+                ref = row["references"][look["reference"]]
+                missed.append(f"{name} on {row['scene']}: look against {look['compared']}: PSNR {_psnr_text(ref['psnr_db'])} dB "
+                              f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {ref['flip']:.4f} "
+                              f"(goal >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g})")  # fmt: skip
         claimed, budget, _ = _separable_figures(rows)
         if claimed is not None and budget is not None and claimed > budget:
             missed.append(f"{name}: separable error {claimed:.2%} over its budget {budget:.2%}")
@@ -338,6 +466,14 @@ def _claimed_text(kind: str, row: dict) -> str:
             f"measured {_fmt(c['measured_relative_rms_atlas_vs_source'], '.4f')}")  # fmt: skip
 
 
+def _region_text(ref: dict, region: str) -> str:
+    """``PSNR dB / FLIP (coverage)`` of one of a comparison's regions (grazing N.V and the rest), or ""."""
+    r = (ref.get("regions") or {}).get(region)
+    if r is None:
+        return ""
+    return f"{_fmt(r['psnr_db'], '.2f')} / {_fmt(r['flip'], '.4f')} ({r['coverage']:.1%})"
+
+
 def _html(data: dict, plot: Chart | None = None) -> bytes:
     s = data["settings"]
     sizes = {sc["name"]: (sc.get("width"), sc.get("height")) for sc in s.get("scenes", [])}
@@ -348,7 +484,13 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
                 "material": row["material"], "anchor": _anchor(row["material"]), "type": row["type"],
                 "scene": row["scene"], "atlas_ms": f"{1000 * row['atlas_seconds']:.1f}", "kind": kind,
                 "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": f"{ref['rmse']:.5f}",
-                "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": f"{ref['flip']:.4f}", "goal": ref["meets_goal"],
+                "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": f"{ref['flip']:.4f}",
+                "goal": ref["meets_goal"] if ref.get("meets_goal") is not None else ref.get("look_goal"),
+                "whole_frame": _fmt(ref.get("whole_frame_psnr_db"), ".2f"),
+                "coverage": _fmt(ref.get("coverage"), ".1%"),
+                "clipped": "" if ref.get("clipped_pixels") is None else
+                           f"{ref['clipped_pixels']} ({_fmt(ref.get('unclipped_psnr_db'), '.2f')} dB unclipped)",
+                "grazing": _region_text(ref, "grazing"), "rest": _region_text(ref, "rest"),
                 # A floor is the floor at some sample count: a budgeted run (make demo) stops short.
                 "floor": f"{_fmt(ref.get('noise_floor_db'), '.1f')} at {ref.get('spp')} spp" if "noise_floor_db" in ref else "",
                 "floor_ok": ref.get("noise_floor_ok"),

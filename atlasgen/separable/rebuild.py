@@ -14,7 +14,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from atlasgen.errors import InputError
-from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atlas import Atlas, as_atlas
 from atlasgen.optics.interpolation import linear_stencil, sample_slice
 from atlasgen.optics.quantize import dequantize_rgba
 from atlasgen.separable.factorize import Factors
@@ -188,7 +188,8 @@ def factors_from_slices(
 
 
 def read_separable_factors(atlas_path, material: str) -> Factors:
-    """The 8-bit factors of a separable material, decoded from an atlas file and its manifest.
+    """The 8-bit factors of a separable material, decoded from an atlas file and its manifest
+    (``atlas_path``: the file, or an :class:`~atlasgen.io.atlas.Atlas` already read).
 
     Reads ``X.dds`` (or ``X.ktx2``) and ``X.json`` beside it through
     :func:`atlasgen.io.atlas.read_atlas`, which refuses a pair from different bakes; sRGB
@@ -200,9 +201,8 @@ def read_separable_factors(atlas_path, material: str) -> Factors:
         The atlas or manifest is missing, the two do not match, or there is no separable
         material of that name.
     """
-    path = Path(atlas_path)
-    atlas = read_atlas(path)
-    manifest_path = path.with_suffix(".json")
+    atlas = as_atlas(atlas_path if isinstance(atlas_path, Atlas) else Path(atlas_path))
+    manifest_path = atlas.manifest_path
     if atlas.manifest is None:
         raise InputError(f"{manifest_path.as_posix()}: no such file (the manifest beside the atlas); re-run atlasgen bake")
     manifest = atlas.manifest

@@ -2,20 +2,27 @@
 
 Every metric compares ``display_clip(test)`` with ``display_clip(reference)``
 (:func:`atlasgen.optics.display.display_clip`), the sRGB image a user looks at, so dark
-and bright regions weigh as they are seen.
+and bright regions weigh as they are seen. A ``mask`` leaves pixels out (validation leaves
+out every pixel that does not show the material: background black in both images would
+count as exact), and the metrics say which fraction of the frame they cover (``coverage``).
+
+The display clips: a pixel brighter than 1 after exposure shows as 1 in both images, so its
+error is hidden. :func:`compare_images` counts those pixels of the reference
+(``clipped_pixels``) and measures the PSNR again at the exposure that keeps the whole
+compared reference below clipping (``unclipped_psnr``, :func:`unclipped_exposure`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from atlasgen.optics.display import display_clip
 
 __all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images", "noise_floor",
-           "NOISE_FLOOR_MARGIN_DB"]  # fmt: skip
+           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics"]  # fmt: skip
 
 #: A stochastic reference's noise floor must lie this far above the PSNR it measures.
 NOISE_FLOOR_MARGIN_DB = 10.0
@@ -85,33 +92,108 @@ class ImageMetrics:
     linear_rmse: float
     linear_relative_rms: float = math.nan
     flip_map: np.ndarray | None = None
+    #: Fraction of the frame's pixels the figures cover (1 without a mask).
+    coverage: float = 1.0
+    #: Compared pixels whose reference clips on display (a channel of exposure * L above 1): their error is hidden.
+    clipped_pixels: int = 0
+    #: The exposure that keeps the compared reference below clipping (:func:`unclipped_exposure`) and the PSNR there.
+    unclipped_exposure: float = math.nan
+    unclipped_psnr: float = math.nan
+    #: Figures over parts of the compared pixels (:func:`region_metrics`), e.g. grazing N.V and the rest.
+    regions: dict = field(default_factory=dict)
+    #: The PSNR over the whole frame (the background counted), for comparison with earlier figures; None if not measured.
+    whole_frame_psnr: float | None = None
 
     def as_dict(self) -> dict:
-        return {
+        out = {
             "rmse": self.rmse,
-            "psnr_db": self.psnr if math.isfinite(self.psnr) else None,
+            "psnr_db": _finite(self.psnr),
             "flip": self.flip,
             "linear_rmse": self.linear_rmse,
-            "linear_relative_rms": self.linear_relative_rms if math.isfinite(self.linear_relative_rms) else None,
+            "linear_relative_rms": _finite(self.linear_relative_rms),
+            "coverage": self.coverage,
+            "clipped_pixels": self.clipped_pixels,
+            "unclipped_exposure": _finite(self.unclipped_exposure),
+            "unclipped_psnr_db": _finite(self.unclipped_psnr),
         }
+        if self.regions:
+            out["regions"] = self.regions
+        if self.whole_frame_psnr is not None:
+            out["whole_frame_psnr_db"] = _finite(self.whole_frame_psnr)
+        return out
 
 
-def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True, mask=None) -> ImageMetrics:
-    """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS.
+def _finite(x):
+    return x if x is not None and math.isfinite(x) else None
+
+
+def clipped_pixels(reference, exposure: float = 1.0) -> int:
+    """Pixels of ``reference`` ``(n, 3)`` or ``(h, w, 3)`` with a channel above 1 after ``exposure``: the
+    display shows them as 1 whatever their value, so a test image brighter still looks exact there.
+
+    >>> clipped_pixels(np.array([[0.5, 0.5, 0.5], [0.2, 1.5, 0.1]]), exposure=1.0)
+    1
+    """
+    x = np.asarray(reference, dtype=np.float64).reshape(-1, 3) * float(exposure)
+    return int(np.count_nonzero(np.nan_to_num(x, nan=0.0).max(axis=1) > 1.0))
+
+
+def unclipped_exposure(reference, exposure: float = 1.0) -> float:
+    """The exposure e' = e min(1, 1 / max(e L)) over the pixels given: the scene's exposure ``e``
+    where nothing of ``reference`` clips, else the one at which its brightest channel reaches 1.
+
+    >>> unclipped_exposure(np.array([[0.5, 4.0, 0.1]]), exposure=0.2)
+    0.2
+    >>> unclipped_exposure(np.array([[0.5, 4.0, 0.1]]), exposure=1.0)
+    0.25
+    """
+    x = np.nan_to_num(np.asarray(reference, dtype=np.float64) * float(exposure), nan=0.0, posinf=0.0)
+    peak = float(x.max()) if x.size else 0.0
+    return float(exposure) if peak <= 1.0 else float(exposure) / peak
+
+
+def region_metrics(ref_ldr, test_ldr, error_map, regions: dict, frame_pixels: int) -> dict:
+    """``{name: {"coverage", "pixels", "psnr_db", "flip"}}`` over each region's pixels (``(h, w)`` bool, True =
+    in the region) of two display images and FLIP's map; ``psnr_db`` and ``flip`` are None for an empty region."""
+    out = {}
+    for name, region in regions.items():
+        region = np.asarray(region, dtype=bool)
+        n = int(region.sum())
+        p = psnr(ref_ldr[region], test_ldr[region]) if n else math.nan
+        f = float(error_map[region].mean()) if n and error_map is not None else math.nan
+        out[name] = {"coverage": n / frame_pixels if frame_pixels else 0.0, "pixels": n, "psnr_db": _finite(p),
+                     "flip": _finite(f)}  # fmt: skip
+    return out
+
+
+def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True, mask=None, regions=None) -> ImageMetrics:
+    """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS;
+    the coverage, the reference's clipped pixels and the PSNR at the exposure that clips none of it.
 
     ``mask`` (``(h, w)`` bool, True = excluded) leaves pixels out of every figure: FLIP is
     computed on the whole image (it looks at neighbourhoods) and averaged over the kept
-    pixels only; the map stays whole.
+    pixels only; the map stays whole. ``regions`` (``{name: (h, w) bool}``, True = in the
+    region) adds figures over each region's kept pixels (:func:`region_metrics`).
     """
-    keep = (slice(None),) if mask is None else (~np.asarray(mask, dtype=bool),)
+    keep_mask = np.ones(np.shape(reference)[:2], dtype=bool) if mask is None else ~np.asarray(mask, dtype=bool)
+    keep = (keep_mask,)
     ref_ldr = display_clip(reference, exposure)
     test_ldr = display_clip(test, exposure)
     error_map, mean = flip(ref_ldr, test_ldr) if with_flip else (None, math.nan)
     if error_map is not None and mask is not None:
         mean = float(error_map[keep].mean()) if np.any(keep[0]) else math.nan
+    region_figures = {}
+    if regions:
+        region_figures = region_metrics(ref_ldr, test_ldr, error_map, {k: np.asarray(r, dtype=bool) & keep_mask
+                                                                       for k, r in regions.items()}, keep_mask.size)  # fmt: skip
     reference, test = np.asarray(reference)[keep], np.asarray(test)[keep]
+    e = unclipped_exposure(reference, exposure)
+    unclipped = psnr(display_clip(reference, e), display_clip(test, e)) if reference.size else math.nan
     return ImageMetrics(rmse(ref_ldr[keep], test_ldr[keep]), psnr(ref_ldr[keep], test_ldr[keep]), mean,
-                        rmse(reference, test), relative_rms(reference, test), error_map)  # fmt: skip
+                        rmse(reference, test), relative_rms(reference, test), error_map,
+                        coverage=float(keep_mask.mean()) if keep_mask.size else 0.0,
+                        clipped_pixels=clipped_pixels(reference, exposure), unclipped_exposure=e,
+                        unclipped_psnr=unclipped, regions=region_figures)  # fmt: skip
 
 
 def noise_floor(render_a, render_b, exposure: float = 1.0, mask=None) -> float:

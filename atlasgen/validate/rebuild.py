@@ -24,7 +24,7 @@ from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models.base import RadianceRebuild
 from atlasgen.render.camera import pixel_rays
 
-__all__ = ["rebuild_images", "rebuild_image", "material_mask"]
+__all__ = ["rebuild_images", "rebuild_image", "material_mask", "n_dot_v_image"]
 
 
 def material_mask(entry: MaterialEntry, aovs: dict) -> np.ndarray:
@@ -41,6 +41,18 @@ def _pixel_geometry(scene, aovs, mask):
     x = np.asarray(scene.camera.position, dtype=np.float64) + rays * depth[:, None]
     v = -rays / np.linalg.norm(rays, axis=1, keepdims=True)
     return x, n, v
+
+
+def n_dot_v_image(scene, aovs: dict, mask) -> np.ndarray:
+    """``(h, w)``: N.V at each pixel of ``mask`` (True = wanted), from the g-buffer's normal and the
+    direction to the camera through the pixel; NaN elsewhere. N.V < 0 (a normal facing away, as a
+    back face shows it) stays negative."""
+    mask = np.asarray(mask, dtype=bool)
+    out = np.full(mask.shape, np.nan)
+    if mask.any():
+        _, n, v = _pixel_geometry(scene, aovs, mask)
+        out[mask] = (n * v).sum(axis=1)
+    return out
 
 
 def _light_at(light, x):
@@ -77,11 +89,13 @@ def rebuild_image(rebuild: RadianceRebuild, entry: MaterialEntry, scene, aovs: d
     return out.astype(np.float32)
 
 
-def rebuild_images(model, entry: MaterialEntry, atlas_path, scene, aovs: dict) -> dict:
+def rebuild_images(model, entry: MaterialEntry, atlas, scene, aovs: dict, float_slices=None) -> dict:
     """``{name: (image, seconds, description)}`` for each of the model's rebuilds (``"8bit"``,
-    and ``"float"`` where it has one); the seconds include reading the atlas."""
+    and ``"float"`` where it has one); the seconds include decoding the atlas (``atlas``: an
+    :class:`~atlasgen.io.atlas.Atlas` already read, or its path) and, without ``float_slices``
+    (the bake cache's), computing the float table."""
     t0 = time.perf_counter()
-    rebuilds = model.radiance_rebuilds(entry, atlas_path)
+    rebuilds = model.radiance_rebuilds(entry, atlas, float_slices)
     setup = (time.perf_counter() - t0) / max(len(rebuilds), 1)
     images = {}
     for name, rebuild in rebuilds.items():

@@ -49,15 +49,21 @@ def register_references(mi) -> None:
     register_bsdfs(mi)
 
 
-def entry_model(entry: MaterialEntry):
+def entry_model(entry: MaterialEntry, float_slices=None):
     """The model a manifest entry's slices were baked from: its registered model, or for a
     ``from = "physical"`` entry that model's fitted slice (:class:`FittedSlice`), so that the
     model reference and the rebuilds measure the atlas against what was baked.
 
+    ``float_slices`` (the bake cache's ``(n, H, W, 4)``, where validation found them) are a
+    fitted entry's slice: the fit is then not run again.
+
     Raises :class:`KeyError` for an unknown type."""
     model = get_model(entry.type)
     if entry.fit is not None and entry.fit.source == "physical":
-        return FittedSlice(model, entry.fit.gloss)
+        fitted = FittedSlice(model, entry.fit.gloss)
+        if float_slices is not None:
+            fitted.use_table(entry.params, float_slices[0])
+        return fitted
     return model
 
 

@@ -17,25 +17,27 @@ from __future__ import annotations
 import gc
 import hashlib
 import math
-import pickle
 import statistics
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
+from atlasgen.bake.cache import load_cached
 from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
-from atlasgen.io.atlas import read_atlas
+from atlasgen.io.atlas import Atlas, read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.materials.material import read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
 from atlasgen.models import get_model
+from atlasgen.optics.display import display_clip
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
 from atlasgen.validate.environment import break_down_environment, environment_parts
-from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, relative_rms
+from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, psnr, relative_rms
 from atlasgen.validate.mitsuba_scene import (
     CENTRE_PASS_SPP,
     build_mitsuba_scene,
@@ -45,7 +47,8 @@ from atlasgen.validate.mitsuba_scene import (
     render_mitsuba,
     render_pixel_centres,
 )
-from atlasgen.validate.rebuild import material_mask, rebuild_images
+from atlasgen.validate.rebuild import material_mask, n_dot_v_image, rebuild_images
+from atlasgen.validate.reference_cache import ReferenceCache, render_key
 from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
 from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, bind_material, load_validation_scene, resize_scene
 
@@ -56,6 +59,10 @@ __all__ = [
     "ATLAS_TIMING_FRAMES",
     "GOAL_PSNR_DB",
     "GOAL_FLIP",
+    "GOAL_LOOK_PSNR_DB",
+    "GOAL_LOOK_FLIP",
+    "GRAZING_N_DOT_V",
+    "MAX_PHYSICAL_SPP",
     "ReferenceRender",
     "MaterialRun",
     "ValidationRun",
@@ -80,16 +87,26 @@ GOAL_ENVIRONMENT_PSNR_DB = 35.0
 #: What an environment comparison leaves out.
 ENVIRONMENT_MASK_NOTE = "every pixel that does not show the material (the background)"
 #: A stochastic reference whose noise floor is too close to the error gets the samples the
-#: floor needs, at least this many times the last count, up to MAX_SPP_FACTOR times
-#: --physical-spp (:func:`_converged_physical`).
+#: floor needs, at least this many times the last count, up to MAX_PHYSICAL_SPP in all (or
+#: --max-physical-spp; :func:`_converged_physical`). 8192 lets every shipped reference clear
+#: its floor (skin's volpathmis needs about 7000 spp on the front scene); the reference cache
+#: (:mod:`.reference_cache`) keeps a second run from rendering them again.
 MIN_SPP_GROWTH = 2
-MAX_SPP_FACTOR = 16
+MAX_PHYSICAL_SPP = 8192
 #: dB the predicted floor aims above PSNR + margin: the PSNR rises as the reference's noise falls.
 FLOOR_HEADROOM_DB = 1.0
 ATLAS_TIMING_FRAMES = 3
-#: Goals against the model reference for shipped LUT materials (issue #5).
+#: Goals against the model reference for shipped LUT materials (issue #5): what the atlas's storage costs.
 GOAL_PSNR_DB = 45.0
 GOAL_FLIP = 0.01
+#: The default look goal: the atlas image against the material's physical reference, on the material's
+#: pixels (issue #21). A material's ``[validate]`` table overrides either (docs/materials.md).
+GOAL_LOOK_PSNR_DB = 30.0
+GOAL_LOOK_FLIP = 0.05
+#: N.V below which a pixel counts as grazing in each comparison's ``regions``.
+GRAZING_N_DOT_V = 0.2
+#: What every comparison on the validation scenes leaves out.
+BACKGROUND_NOTE = "the pixels that do not show the material (background, other materials)"
 
 
 @dataclass
@@ -138,6 +155,7 @@ class MaterialRun:
     goals: bool = True  # the model-reference goals apply (Model.validation_goals)
     environment_breakdown: dict | None = None  # the environment terms' CPU error by part (environment scenes)
     goal_psnr_db: float | None = None  # a goal of this scene's own, PSNR only (an environment map), else the usual goals
+    look: dict | None = None  # the look goal: which reference, what it is, the goal (:func:`_look_goal`)
 
 
 @dataclass
@@ -155,10 +173,15 @@ class _Plan:
     manifest: Manifest
     entries: list
     scenes: list  # (name, Scene)
+    atlas: Atlas | None = None  # read once: the renderer, the rebuilds and the checks share it
+    float_slices: dict = field(default_factory=dict)  # name -> the bake cache's float slices, where current
 
 
-def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None) -> _Plan:
-    """Check every input before anything renders: atlas, materials, references and scenes."""
+def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolution=None, bake_cache=None) -> _Plan:
+    """Check every input before anything renders: atlas, materials, references and scenes.
+
+    Each material's float slices are taken from ``bake_cache`` where its entry is current
+    (:func:`_float_slices`) before any reference is built, so a fitted slice is not fitted again."""
     atlas_path = Path(atlas_path)
     if not atlas_path.exists():
         raise InputError(f"{atlas_path.as_posix()}: no such atlas; bake one first (atlasgen bake -o {atlas_path.as_posix()})")
@@ -167,16 +190,20 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
     entries_by_name = {e.name: e for e in atlas.manifest.materials}
     if materials:
-        names = list(dict.fromkeys(n for m in materials for n in _material_names(m, atlas_path, entries_by_name)))
+        names = list(dict.fromkeys(n for m in materials for n in _material_names(m, atlas, entries_by_name)))
     else:
         names = sorted(entries_by_name, key=lambda n: entries_by_name[n].first_slice)
-    entries = []
+    entries, float_slices = [], {}
     for name in names:
         if name not in entries_by_name:
             known = ", ".join(sorted(entries_by_name)) or "none"
             hint = did_you_mean(name, entries_by_name)
             raise InputError(f"{atlas_path.as_posix()}: no material {name!r}{hint}; known: {known}")
         entry = entries_by_name[name]
+        slices = _float_slices(entry, bake_cache)
+        if slices is not None:
+            float_slices[name] = slices
+            entry_model(entry, slices)  # a fitted slice's table, for every FittedSlice of this material
         model_reference(entry)  # raises InputError when no reference is possible
         _check_params_current(atlas_path, entry)
         entries.append(entry)
@@ -196,7 +223,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
             if obj.material != MATERIAL_PLACEHOLDER:
                 model_reference(entries_by_name[obj.material])
         loaded.append((name, scene))
-    return _Plan(atlas_path, atlas.manifest, entries, loaded)
+    return _Plan(atlas_path, atlas.manifest, entries, loaded, atlas, float_slices)
 
 
 def is_material_file(item) -> bool:
@@ -208,12 +235,31 @@ def is_material_file(item) -> bool:
     return isinstance(item, Path) or str(item).endswith((".toml", ".mtlx"))
 
 
-def _material_names(item, atlas_path, entries_by_name) -> list[str]:
-    """The material names of a ``materials`` item: a name as it is, a material file by its
-    ``name`` field (a MaterialX document by each of its materials). A file must be the one the
-    atlas was baked from (same content hash), or the atlas's slices would not be what the file describes."""
+def _material_names(item, atlas, entries_by_name) -> list[str]:
+    """The material names of a ``materials`` item: a name as it is, a material file by the manifest
+    entries it was baked into (a MaterialX document by each of its materials). A file must be the
+    one the atlas was baked from (same content hash), or the atlas's slices would not be what the
+    file describes.
+
+    A TOML file's bytes are hashed, not parsed: the entry whose ``source`` is this file, or else whose
+    content hash is the file's, names it. Only a file no entry matches is parsed (a MaterialX
+    document's entries hash its bytes with each material's name), for its names and the message
+    (a missing or invalid file fails there, naming the file)."""
     if not is_material_file(item):
         return [str(item)]
+    atlas_path = atlas.path
+    path = Path(item)
+    try:
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        digest = None
+    if digest is not None:
+        here = Path(path).resolve()
+        by_source = [e for e in entries_by_name.values() if atlas.source_path(e).resolve() == here]
+        by_hash = [e for e in entries_by_name.values() if e.content_hash == digest]
+        match = next((e for e in by_source if e.content_hash == digest), None) or (by_hash[0] if len(by_hash) == 1 else None)
+        if match is not None:
+            return [match.name]
     names = []
     for material in read_material_file(item):  # InputError / MaterialError naming the file
         entry = entries_by_name.get(material.name)
@@ -266,7 +312,8 @@ def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
 
 
 def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = 64,
-                   max_physical_spp: int | None = None, resolution=None, physical: bool = True, progress=None, on_material=None) -> ValidationRun:  # fmt: skip
+                   max_physical_spp: int | None = None, resolution=None, physical: bool = True, progress=None, on_material=None,
+                   bake_cache=None, reference_cache=None) -> ValidationRun:  # fmt: skip
     """Render every material on every scene, through the atlas and with Mitsuba; measure.
 
     Parameters
@@ -283,7 +330,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         Mitsuba samples per pixel of the model references (1 = the pixel centre, what
         the rasteriser samples; a square number k^2 averages a k x k grid).
     max_physical_spp
-        The most samples per pixel a stochastic reference grows to (default 16x ``physical_spp``).
+        The most samples per pixel a stochastic reference grows to (default :data:`MAX_PHYSICAL_SPP`).
     physical_spp
         Samples per pixel of the stochastic physical references (``volpath``, spectral
         ones). Each is rendered twice, with seeds 0 and 1, for its noise floor.
@@ -296,6 +343,13 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     on_material
         Called as ``on_material(name, done, total)`` when a material has been rendered
         and measured on every scene (``done`` of ``total`` materials).
+    bake_cache
+        The bake's cache folder (``build/cache``, :mod:`atlasgen.bake.cache`): a material's float
+        slices come from its current entry there, and are not computed (or fitted) again.
+        ``None``, or no current entry: computed.
+    reference_cache
+        A folder of reference renders (:mod:`.reference_cache`): renders found there are not
+        rendered again, and new ones are stored. ``None``: kept for the run only.
 
     Raises
     ------
@@ -307,21 +361,26 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     """
     if spp < 1 or physical_spp < 1:
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
-    max_physical_spp = physical_spp * MAX_SPP_FACTOR if max_physical_spp is None else max(int(max_physical_spp), physical_spp)
+    max_physical_spp = max(MAX_PHYSICAL_SPP if max_physical_spp is None else int(max_physical_spp), physical_spp)
     t_start = time.perf_counter()
-    plan = plan_validation(atlas_path, materials, scenes, resolution)
+    plan = plan_validation(atlas_path, materials, scenes, resolution, bake_cache)
     mi = load_mitsuba("llvm_ad_rgb")
     register_references(mi)
-    renderer = Renderer(read_render_atlas(plan.atlas_path))
+    renderer = Renderer(read_render_atlas(plan.atlas_path, atlas=plan.atlas))
     errors_before = len(renderer.ctx.errors)
     say = progress or (lambda text: None)
 
     runs = []
-    # Physical renders of this run, by what decides them (:func:`_render_key`): two materials with
-    # the same physics (a closed-form and a fitted skin) share their reference.
-    renders: dict[str, ReferenceRender] = {}
+    # Reference renders, by what decides them (:func:`_render_key`): two materials with the same
+    # physics (a closed-form and a fitted skin) share their reference within a run, and with a
+    # ``reference_cache`` folder a second run renders none of them again.
+    renders = ReferenceCache(reference_cache)
+    bake_hits = []
     for done, entry in enumerate(plan.entries, 1):
-        model = entry_model(entry)
+        float_slices = plan.float_slices.get(entry.name)
+        if float_slices is not None:
+            bake_hits.append(entry.name)
+        model = entry_model(entry, float_slices)
         for scene_name, scene in plan.scenes:
             bound = with_fitted_surfaces(bind_material(scene, entry.name), {e.name: e for e in plan.manifest.materials})
             atlas_image, atlas_s, aovs = _time_atlas(renderer, bound)
@@ -340,24 +399,24 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                     f"PSNR {ref.metrics.psnr:.1f} dB, noise floor {ref.noise_floor_db:.1f} dB")  # fmt: skip
                 runs.append(run)
                 continue
-            mi_scene = build_mitsuba_scene(mi, bound, _object_bsdfs(bound, entry, plan.manifest), spp)
-            image, seconds = render_mitsuba(mi, mi_scene, spp)
-            ref = ReferenceRender("model", model_reference(entry).description, image, seconds, spp, "llvm_ad_rgb")
-            ref.metrics = compare_images(image, atlas_image, run.exposure)
+            own = material_mask(entry, aovs)
+            outside, regions = ~own, _grazing_regions(bound, aovs, own)
+            ref = _model_render(mi, bound, entry, plan.manifest, spp, renders)
+            measure_physical(ref, atlas_image, run.exposure, outside, regions)
             run.references["model"] = ref
-            del mi_scene
-            _check_rebuilds(run, model, plan.atlas_path, entry, bound, aovs)
-            say(f"{entry.name} / {scene_name}: model reference {seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+            _check_rebuilds(run, model, plan.atlas, entry, bound, aovs, float_slices)
+            say(f"{entry.name} / {scene_name}: model reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
                 ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp, renders,
-                                          atlas_image, run.exposure)  # fmt: skip
+                                          atlas_image, run.exposure, outside, regions)  # fmt: skip
                 run.references["physical"] = ref
                 say(
                     f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
                     + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else "")
                 )
+            run.look = _look_goal(entry, model, run, physical)
             runs.append(run)
         if on_material is not None:
             on_material(entry.name, done, len(plan.entries))
@@ -370,13 +429,24 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         "mitsuba": getattr(mi, "__version__", "?"),
         "atlas_timing": f"median of {ATLAS_TIMING_FRAMES} frames after a warm-up, outlines off, including read-back",
         "mitsuba_timing": "one mi.render call, including Dr.Jit kernel compilation (cached across materials)",
+        "reference_cache": None if reference_cache is None else Path(reference_cache).as_posix(),
+        "reference_renders_from_cache": renders.hits,
+        "reference_renders_stored": renders.stored,
+        "float_slices_from_bake_cache": bake_hits,
     }
     settings = {
         "spp": spp,
         "physical_spp": physical_spp,
         "max_physical_spp": max_physical_spp,
         "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
-        "goals": {"psnr_db": GOAL_PSNR_DB, "flip": GOAL_FLIP, "environment_map_psnr_db": GOAL_ENVIRONMENT_PSNR_DB},
+        "goals": {
+            "psnr_db": GOAL_PSNR_DB,
+            "flip": GOAL_FLIP,
+            "environment_map_psnr_db": GOAL_ENVIRONMENT_PSNR_DB,
+            "look_psnr_db": GOAL_LOOK_PSNR_DB,
+            "look_flip": GOAL_LOOK_FLIP,
+            "grazing_n_dot_v": GRAZING_N_DOT_V,
+        },
     }
     return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
 
@@ -431,8 +501,84 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
     run.environment_breakdown = out
 
 
+def _float_slices(entry, bake_cache):
+    """``entry``'s float slices ``(n, H, W, 4)`` from its current bake-cache entry (``<bake_cache>/<stem>.npz``,
+    keyed by the material file's content hash, as the manifest records it, and the bake code), or None."""
+    if bake_cache is None:
+        return None
+    material = SimpleNamespace(name=entry.name, source=entry.source, content_hash=entry.content_hash)
+    slices = load_cached(bake_cache, material)
+    if slices is None or slices.values.shape[0] != entry.slice_count:
+        return None
+    return slices.values
+
+
+def _grazing_regions(scene, aovs, own) -> dict:
+    """The material's pixels split at :data:`GRAZING_N_DOT_V` (N.V from the g-buffer normal and the camera)."""
+    n_dot_v = n_dot_v_image(scene, aovs, own)
+    with np.errstate(invalid="ignore"):
+        grazing = own & (n_dot_v < GRAZING_N_DOT_V)
+    return {"grazing": grazing, "rest": own & ~grazing}
+
+
+def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
+    """The model reference of ``entry`` on ``scene`` (every object's model reference), from ``renders`` if there."""
+    bsdfs = _object_bsdfs(scene, entry, manifest)
+    unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
+    key = _render_key(mi, "model", "llvm_ad_rgb", unnamed, bsdfs, spp)
+    description = model_reference(entry).description
+    kept = renders.get(key) if renders is not None else None
+    if kept is not None:
+        return ReferenceRender(**{**kept, "description": description})
+    mi_scene = build_mitsuba_scene(mi, scene, bsdfs, spp)
+    image, seconds = render_mitsuba(mi, mi_scene, spp)
+    del mi_scene
+    ref = ReferenceRender("model", description, image, seconds, spp, "llvm_ad_rgb")
+    if renders is not None:
+        renders.put(key, _render_fields(ref))
+    return ref
+
+
+def _short_description(description: str) -> str:
+    """A reference's description up to its first clause: what it is, not how.
+
+    >>> _short_description("Mitsuba roughplastic: exact Fresnel, GGX lobe of the renderer's roughness")
+    'Mitsuba roughplastic'
+    >>> _short_description("Mitsuba diffuse (the consistency gate)")
+    'Mitsuba diffuse'
+    """
+    cut = min((i for i in (description.find(c) for c in (":", ",", " (", ";")) if i > 0), default=len(description))
+    return description[:cut].strip()
+
+
+def _look_goal(entry, model, run, physical: bool) -> dict:
+    """What the look of ``entry`` is judged against on this scene, and the goal: the physical reference
+    (or, for a model whose model reference is the physical BSDF itself, that), the material's
+    ``[validate]`` goal or the defaults (:data:`GOAL_LOOK_PSNR_DB`, :data:`GOAL_LOOK_FLIP`), or why
+    there is none. The verdict itself is the report's (:func:`atlasgen.reports.validation.look_verdict`)."""
+    own = dict(entry.extra.get("validate") or {})
+    goal = {"psnr_db": float(own.get("psnr_db", GOAL_LOOK_PSNR_DB)), "flip": float(own.get("flip", GOAL_LOOK_FLIP))}
+    out = {"goal": goal, "goal_source": "material" if own else "default"}
+    if "physical" in run.references:
+        kind = "physical"
+    elif getattr(model, "model_reference_is_physical", False):
+        kind = "model"
+    elif not physical and physical_reference(entry) is not None:
+        return {**out, "reference": None, "compared": None, "why_none": "not rendered (--no-physical)", "skipped": True}
+    else:
+        return {**out, "reference": None, "compared": None, "why_none": model.no_physical_reference or "its model has none"}
+    short = _short_description(run.references[kind].description)
+    if entry.fit is not None and entry.fit.source in ("physical", "bsdf"):
+        compared = f"the {short} it was fitted from"
+    elif kind == "model":
+        compared = f"the {short} it was factored from"
+    else:
+        compared = f"its physical reference, {short}"
+    return {**out, "reference": kind, "compared": compared}
+
+
 def _converged_physical(
-    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure
+    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure, mask=None, regions=None
 ) -> ReferenceRender:
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
@@ -451,7 +597,7 @@ def _converged_physical(
     n = physical_spp
     ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
     while True:
-        measure_physical(ref, atlas_image, exposure)
+        measure_physical(ref, atlas_image, exposure, mask, regions)
         target = _samples_for_floor(n, ref.noise_floor_db, None if ref.metrics is None else ref.metrics.psnr)
         if ref.noise_floor_ok is not False or n >= max_spp or target is None:
             break
@@ -462,16 +608,23 @@ def _converged_physical(
     return ref
 
 
-def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=None) -> None:
+def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=None, regions=None) -> None:
     """Set ``ref``'s noise floor (the PSNR between its two seeds, where it has two) and the atlas
-    image's metrics against the mean of its seeds, leaving out ``ref.mask`` and ``mask`` (True = left out)."""
+    image's metrics against the mean of its seeds, leaving out ``ref.mask`` and ``mask`` (True = left out:
+    validation passes every pixel that does not show the material), with figures over ``regions``
+    (:func:`~atlasgen.validate.metrics.compare_images`) and the whole-frame PSNR of earlier reports
+    (only ``ref.mask`` left out, the background counted) for comparison."""
+    own_mask = ref.mask
     if mask is not None:
         mask = mask if ref.mask is None else (ref.mask | mask)
     else:
         mask = ref.mask
     if ref.second_image is not None:
         ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, mask)
-    ref.metrics = compare_images(mean_of_seeds(ref), atlas_image, exposure, mask=mask)
+    reference = mean_of_seeds(ref)
+    ref.metrics = compare_images(reference, atlas_image, exposure, mask=mask, regions=regions)
+    keep = (slice(None),) if own_mask is None else (~own_mask,)
+    ref.metrics.whole_frame_psnr = psnr(display_clip(reference, exposure)[keep], display_clip(atlas_image, exposure)[keep])
 
 
 def add_physical_samples(mi, scene, entry, reference, manifest, ref: ReferenceRender, more: int, spp: int,
@@ -503,20 +656,25 @@ def _samples_for_floor(n: int, floor_db: float | None, psnr_db: float | None) ->
     return int(math.ceil(wanted / CENTRE_PASS_SPP) * CENTRE_PASS_SPP) if wanted > CENTRE_PASS_SPP else int(math.ceil(wanted))
 
 
-def _check_rebuilds(run, model, atlas_path, entry, scene, aovs) -> None:
+def _check_rebuilds(run, model, atlas, entry, scene, aovs, float_slices=None) -> None:
     """Measure the model's CPU rebuilds (:meth:`~atlasgen.models.base.Model.radiance_rebuilds`)
     against the atlas image and the model reference, and the manifest's claims where it makes any.
 
+    ``atlas`` is the run's :class:`~atlasgen.io.atlas.Atlas` (read once); ``float_slices`` the
+    material's float slices where the bake cache has them (else the model computes them).
     With a float rebuild the atlas's error splits by cause (:func:`_break_down`); with the
     8-bit rebuild alone, that rebuild is reported as a reference of its own (``rebuild``).
+    Every figure covers the material's pixels only.
     """
-    images = rebuild_images(model, entry, atlas_path, scene, aovs)
+    images = rebuild_images(model, entry, atlas, scene, aovs, float_slices)
+    outside = ~material_mask(entry, aovs)
     if "float" in images:
         _break_down(run, entry, images["float"][0], images["8bit"][0], aovs)
     else:
         image, seconds, description = images["8bit"]
         ref = ReferenceRender("rebuild", description, image, seconds, 1, "numpy")
-        ref.metrics = compare_images(image, _only_material(run.atlas_image, entry, aovs), run.exposure)
+        ref.metrics = compare_images(image, _only_material(run.atlas_image, entry, aovs), run.exposure, mask=outside)
+        ref.mask, ref.masked = outside, BACKGROUND_NOTE
         run.references["rebuild"] = ref
     claimed = model.claimed_errors(entry)
     if claimed is not None:
@@ -533,11 +691,12 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
     """
     model_image = _only_material(run.references["model"].image, entry, aovs)
     atlas_image = _only_material(run.atlas_image, entry, aovs)
+    outside = ~material_mask(entry, aovs)
     out = {}
     for key, image in (("table_float", table_float), ("table_8bit", table_8bit)):
-        m = compare_images(model_image, image, run.exposure)
+        m = compare_images(model_image, image, run.exposure, mask=outside)
         out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": m.flip, "linear_relative_rms": m.linear_relative_rms}
-    m = compare_images(table_8bit, atlas_image, run.exposure, with_flip=False)
+    m = compare_images(table_8bit, atlas_image, run.exposure, with_flip=False, mask=outside)
     out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
     run.breakdown = out
 
@@ -596,19 +755,16 @@ STAND_IN_NOTE = (
 
 def _render_key(mi, *decides) -> str | None:
     """SHA-256 of everything that decides a reference render (the scene as shown, each object's
-    BSDF and medium, the integrator, samples and first sample, the variant) and of the Mitsuba
-    version; ``None`` when some part cannot be serialized, and the render is then not kept."""
-    try:
-        blob = pickle.dumps((getattr(mi, "__version__", None), decides), protocol=5)
-    except (pickle.PicklingError, TypeError, AttributeError):
-        return None
-    return hashlib.sha256(blob).hexdigest()
+    BSDF and medium, the integrator, samples and first sample, the variant), of the Mitsuba
+    version and of the reference code (:func:`~atlasgen.validate.reference_cache.render_key`);
+    ``None`` when some part has no canonical form, and the render is then not kept."""
+    return render_key(getattr(mi, "__version__", None), *decides)
 
 
-def _copy_render(ref: ReferenceRender) -> ReferenceRender:
-    """A render of the caller's own: the convergence loop sets its samples, images and metrics."""
-    return replace(ref, image=ref.image.copy(), second_image=None if ref.second_image is None else ref.second_image.copy(),
-                   mask=None if ref.mask is None else ref.mask.copy())  # fmt: skip
+def _render_fields(ref: ReferenceRender) -> dict:
+    """What a reference cache keeps of a render: its images, masks and how it was made (no metrics)."""
+    return {"kind": ref.kind, "description": ref.description, "image": ref.image, "seconds": ref.seconds, "spp": ref.spp,
+            "variant": ref.variant, "second_image": ref.second_image, "mask": ref.mask, "masked": ref.masked}  # fmt: skip
 
 
 def render_physical(
@@ -624,8 +780,8 @@ def render_physical(
     object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`),
     and where its material lives in a medium, the open surfaces showing it (a diffuse stand-in
     in the reference) are masked too (:func:`~atlasgen.validate.mitsuba_scene.object_mask`).
-    ``renders`` holds the run's renders by :func:`_render_key`: one already made is not made again
-    (``None``: render, and keep nothing).
+    ``renders`` (a :class:`~atlasgen.validate.reference_cache.ReferenceCache`) holds renders by
+    :func:`_render_key`: one already made is not made again (``None``: render, and keep nothing).
     """
     if reference.builtin_only:
         # Free every Python BSDF first: a symbolic call (volpath's loop) traces every
@@ -661,12 +817,13 @@ def render_physical(
     unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
     key = None if renders is None else _render_key(mi, variant, unnamed, keep, bsdfs, interiors, n, reference.integrator,
                                                    reference.stochastic, reference.builtin_only, first_sample)  # fmt: skip
-    if key is not None and key in renders:
+    kept = None if key is None else renders.get(key)
+    if kept is not None:
         mi.set_variant("llvm_ad_rgb")
-        return _copy_render(renders[key])
+        return ReferenceRender(**kept)
     ref = _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample)
     if key is not None:
-        renders[key] = _copy_render(ref)
+        renders.put(key, _render_fields(ref))
     return ref
 
 

@@ -12,13 +12,20 @@ from atlasgen.cli.main import app
 from tests.validate.validation_fixtures import mitsuba_rgb, validation_atlas  # noqa: F401  (shared fixtures)
 
 
+@pytest.fixture(autouse=True)
+def _in_a_fresh_folder(tmp_path, monkeypatch):
+    """Every run here from a folder of its own: the default caches (build/cache, build/cache/references)
+    are relative to it, so no test reads or fills the checkout's."""
+    monkeypatch.chdir(tmp_path)
+
+
 @pytest.mark.slow
 def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
     out = tmp_path / "v"
     result = CliRunner().invoke(app, ["validate", "matte", "--scene", "front", "--resolution", "24x18", "--no-physical",
                                       "--atlas", str(validation_atlas), "-o", str(out), "-q"])  # fmt: skip
     assert result.exit_code == 0, result.output
-    assert "1/1 LUT results meet the goals" in result.output or "0/1 LUT results meet the goals" in result.output
+    assert "1/1 LUT results meet the storage goals" in result.output or "0/1 LUT results meet the storage goals" in result.output
     data = json.loads((out / "report.json").read_text())
     assert [r["material"] for r in data["results"]] == ["matte"]
     assert data["settings"]["scenes"][0]["width"] == 24
@@ -80,7 +87,7 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
     lines = result.output.strip().splitlines()
     assert [line.split(":")[0] for line in lines[:-1]] == ["matte", "coat"]
     assert lines[-1] == (f"{(tmp_path / 'all' / 'index.html').as_posix()} (2 material/scene results, "
-                         f"{s['lut_meeting_goals']}/2 LUT results meet the goals, {data['total_seconds']:.1f} s)")  # fmt: skip
+                         f"{s['lut_meeting_goals']}/2 LUT results meet the storage goals, {data['total_seconds']:.1f} s)")  # fmt: skip
     assert gpu_device.take_errors() == []
 
 
@@ -138,8 +145,9 @@ def test_strict_exits_6_when_a_goal_is_missed_and_still_writes_the_report(valida
     result = CliRunner().invoke(app, args)
     assert result.exit_code == (6 if strict else 0), result.output
     psnr = json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]["psnr_db"]
-    assert result.stdout.splitlines()[0] == (f"matte: 0/1 LUT goals met (PSNR >= 1000 dB, FLIP <= 0.01); worst PSNR "
-                                             f"{psnr:.1f} dB, FLIP {_flip(out):.4f}")  # fmt: skip
+    assert result.stdout.splitlines()[0] == (f"matte: goals missed: storage; storage 0/1 met (PSNR >= 1000 dB, FLIP <= 0.01; "
+                                             f"worst {psnr:.1f} dB, FLIP {_flip(out):.4f}); look not measured: physical "
+                                             f"reference not rendered (--no-physical)")  # fmt: skip
     if strict:
         progress, message = result.stderr.strip().splitlines()
         assert progress == "validated matte (1/1)"
@@ -158,7 +166,7 @@ def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_
         result = runner.invoke(app, ["validate", material, *TINY_RUN, "--atlas", str(validation_atlas),
                                      "-o", str(tmp_path / material), "--strict"])  # fmt: skip
         assert result.exit_code == 0, result.output
-        assert result.stdout.startswith(f"{material}: 1/1 LUT goals met (PSNR >= 0 dB, FLIP <= 1);")
+        assert result.stdout.startswith(f"{material}: storage goals met; storage 1/1 met (PSNR >= 0 dB, FLIP <= 1;")
     merge = ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all"), "--strict"]
     assert runner.invoke(app, merge).exit_code == 0
     # The merge judges the goals the runs recorded: a stricter record fails it.
@@ -181,9 +189,13 @@ def test_a_separable_material_names_its_error_and_budget_not_0_of_0_goals(valida
     assert result.exit_code == 0, result.output
     claimed = json.loads((out / "report.json").read_text())["results"][0]["claimed_errors"]
     first, last = result.stdout.strip().splitlines()
-    assert first == (f"gloss: no LUT goals apply; separable error {claimed['relative_rms_8bit']:.2%} (8-bit, claimed; "
-                     f"budget none), {claimed['measured_relative_rms_atlas_vs_source']:.2%} measured in the scenes "
-                     f"(worst, atlas against source)")  # fmt: skip
+    look = json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]
+    verdict = "all goals met" if look["psnr_db"] >= 30 and look["flip"] <= 0.05 else "goals missed: look"
+    assert first.startswith(f"gloss: {verdict}; look against the source BSDF it was factored from: {look['psnr_db']:.1f} dB, "
+                            f"FLIP {look['flip']:.3f} (goal >= 30 dB, FLIP <= 0.05)")  # fmt: skip
+    assert first.endswith(f"; separable error {claimed['relative_rms_8bit']:.2%} (8-bit, claimed; "
+                          f"budget none), {claimed['measured_relative_rms_atlas_vs_source']:.2%} measured in the scenes "
+                          f"(worst, atlas against source)")  # fmt: skip
     assert "no LUT goals apply" in last and "0/0" not in result.output
     assert gpu_device.take_errors() == []
 
@@ -226,3 +238,20 @@ def _flip(out):
 def _write(path, text):
     path.write_text(text)
     return path
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_the_reference_cache_defaults_to_build_cache_references_and_serves_a_second_run(validation_atlas, mitsuba_rgb,  # noqa: F811
+                                                                                        gpu_device, tmp_path):  # fmt: skip
+    runner = CliRunner()
+    args = ["validate", "matte", *TINY_RUN, "--atlas", str(validation_atlas), "-q"]
+    assert runner.invoke(app, [*args, "-o", "first"]).exit_code == 0
+    assert len(list((tmp_path / "build" / "cache" / "references").glob("*.npz"))) == 1  # the model reference
+    assert runner.invoke(app, [*args, "-o", "second"]).exit_code == 0
+    environment = json.loads((tmp_path / "second" / "report.json").read_text())["environment"]
+    assert environment["reference_renders_from_cache"] == 1 and environment["reference_renders_stored"] == 0
+    assert environment["reference_cache"] == "build/cache/references"
+    result = runner.invoke(app, [*args, "-o", "third", "--no-reference-cache", "--reference-cache", str(tmp_path / "elsewhere")])
+    assert result.exit_code == 0 and not (tmp_path / "elsewhere").exists()
+    assert gpu_device.take_errors() == []

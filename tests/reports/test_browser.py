@@ -126,7 +126,7 @@ def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
     root, atlas = library
     out = root / "build" / "validation"
     for name in MATERIALS:
-        run = validate_atlas(atlas, [name], scenes=["front"], resolution=(48, 36), physical_spp=4)
+        run = validate_atlas(atlas, [name], scenes=["front"], resolution=(48, 36), physical_spp=4, max_physical_spp=64)
         write_validation(run, out / "materials" / name)
     merge_validation_reports([out / "materials" / name for name in MATERIALS], out)
     shown = check_page(browser, out / "index.html", "validation")

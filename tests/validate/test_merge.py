@@ -99,7 +99,7 @@ def test_summary_line_reads_the_merged_goals(merged):
     s = written["data"]["summary"]
     line = summary_line(written["data"], written["html"])
     assert line.startswith(f"{(out / 'index.html').as_posix()} ({len(written['data']['results'])} material/scene results, ")
-    assert f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the goals" in line
+    assert f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the storage goals" in line
 
 
 def test_reports_with_other_settings_or_the_same_material_twice_are_refused(merged, tmp_path):

@@ -73,3 +73,66 @@ def test_masked_pixels_are_left_out_of_every_figure():
     assert masked.psnr == np.inf and masked.rmse == 0.0 and masked.linear_relative_rms == 0.0
     assert masked.flip == pytest.approx(float(whole.flip_map[~mask].mean()))
     assert noise_floor(a, b, mask=mask) == np.inf and noise_floor(a, b) == pytest.approx(whole.psnr)
+
+
+def _srgb(x):
+    """The sRGB transfer function, written out again (IEC 61966-2-1), for closed forms."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(np.maximum(x, 0.0), 1.0 / 2.4) - 0.055)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(1, 9), st.integers(1, 11), st.floats(0.01, 0.3))
+def test_the_background_does_not_dilute_the_error_and_coverage_says_how_much_was_compared(rows, cols, d):
+    """Black background in both images is exact: over the whole 12x12 frame the same error reads
+    10 log10(1 / coverage) dB better than over the material's pixels."""
+    ref = np.zeros((12, 12, 3))
+    ref[:rows, :cols] = 0.2
+    test = ref.copy()
+    test[:rows, :cols] += d
+    outside = np.ones((12, 12), dtype=bool)
+    outside[:rows, :cols] = False
+    masked, whole = compare_images(ref, test, mask=outside, with_flip=False), compare_images(ref, test, with_flip=False)
+    coverage = rows * cols / 144
+    assert masked.coverage == pytest.approx(coverage) and whole.coverage == 1.0
+    assert masked.psnr == pytest.approx(-20.0 * math.log10(float(_srgb(0.2 + d) - _srgb(0.2))), rel=1e-9)
+    assert whole.psnr == pytest.approx(masked.psnr + 10.0 * math.log10(1.0 / coverage), rel=1e-9)
+
+
+def test_clipped_pixels_are_counted_and_measured_at_an_exposure_that_clips_nothing():
+    """A reference of 2 and a test of 1.5 both clip at exposure 1 and look exact; at exposure 0.5
+    (the reference's peak at 1) they differ by srgb(1) - srgb(0.75)."""
+    from atlasgen.validate.metrics import unclipped_exposure
+
+    ref = np.full((4, 5, 3), 2.0)
+    ref[0, 0] = 0.5  # one pixel below clipping
+    test = np.where(ref > 1.0, 1.5, ref)
+    m = compare_images(ref, test, exposure=1.0, with_flip=False)
+    assert m.psnr == math.inf and m.clipped_pixels == 19
+    assert m.unclipped_exposure == pytest.approx(0.5) == unclipped_exposure(ref, 1.0)
+    rms = math.sqrt(19 / 20) * float(_srgb(1.0) - _srgb(0.75))
+    assert m.unclipped_psnr == pytest.approx(-20.0 * math.log10(rms), rel=1e-9)
+    # Masked out, the clipped pixels neither count nor set the exposure.
+    keep_one = np.ones((4, 5), dtype=bool)
+    keep_one[0, 0] = False
+    m = compare_images(ref, test, exposure=1.0, with_flip=False, mask=keep_one)
+    assert m.clipped_pixels == 0 and m.unclipped_exposure == 1.0 and m.unclipped_psnr == math.inf
+    as_json = compare_images(ref, test, with_flip=False).as_dict()
+    assert as_json["clipped_pixels"] == 19 and as_json["unclipped_psnr_db"] == pytest.approx(-20.0 * math.log10(rms))
+
+
+def test_regions_split_the_compared_pixels_with_their_own_figures():
+    ref = np.full((6, 8, 3), 0.3)
+    test = ref.copy()
+    test[:2] += 0.1  # the error sits in the first two rows only
+    outside = np.zeros((6, 8), dtype=bool)
+    outside[5] = True
+    grazing = np.zeros((6, 8), dtype=bool)
+    grazing[:2] = True
+    m = compare_images(ref, test, mask=outside, regions={"grazing": grazing, "rest": ~grazing})
+    g, r = m.regions["grazing"], m.regions["rest"]
+    assert g["pixels"] == 16 and r["pixels"] == 24  # the masked row is in neither
+    assert g["coverage"] + r["coverage"] == pytest.approx(m.coverage)
+    assert g["psnr_db"] == pytest.approx(-20.0 * math.log10(float(_srgb(0.4) - _srgb(0.3))), rel=1e-9)
+    assert r["psnr_db"] is None and r["flip"] == pytest.approx(float(m.flip_map[2:5].mean()))
+    assert g["flip"] == pytest.approx(float(m.flip_map[:2].mean()))

@@ -66,3 +66,22 @@ def test_error_breakdown_separates_resolution_quantization_and_the_gpu(validatio
             b = r.breakdown
             assert b["table_float"]["psnr_db"] >= b["table_8bit"]["psnr_db"] + 3.0, b
             assert b["table_8bit"]["psnr_db"] >= 45.0, b
+
+
+def test_n_dot_v_comes_from_the_g_buffer_normal_and_the_ray_through_each_pixel():
+    """A normal facing the camera along each pixel's ray has N.V = 1; one at right angles to it, 0."""
+    from atlasgen.render.camera import pixel_rays
+    from atlasgen.validate.rebuild import n_dot_v_image
+    from atlasgen.validate.scenes import load_validation_scene, resize_scene
+
+    _, scene = load_validation_scene("front")
+    scene = resize_scene(scene, 8, 6)
+    rays = pixel_rays(scene.camera, 8, 6).reshape(6, 8, 3)
+    rays = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
+    side = np.cross(rays, [0.0, 1.0, 0.0])
+    mask = np.ones((6, 8), dtype=bool)
+    mask[0, 0] = False
+    depth = np.full((6, 8), 3.0)
+    facing = n_dot_v_image(scene, {"normal": -rays, "depth": depth}, mask)
+    across = n_dot_v_image(scene, {"normal": side, "depth": depth}, mask)
+    assert np.isnan(facing[0, 0]) and np.allclose(facing[mask], 1.0) and np.allclose(across[mask], 0.0, atol=1e-12)

@@ -101,3 +101,29 @@ def test_json_and_html_carry_noise_floors_and_masks_and_strict_flags_a_noisy_flo
     assert failure in missed_goals(data)
     row["references"]["physical"]["noise_floor_ok"] = True
     assert failure not in noise_floor_failures(data)
+
+
+def test_json_and_html_carry_coverage_clipping_grazing_and_the_look_verdict(written, validation_run):
+    from atlasgen.reports.validation import look_verdict
+
+    out, result = written
+    data = json.loads((out / "report.json").read_text())
+    for row, run in zip(data["results"], validation_run.runs):
+        for kind, ref in row["references"].items():
+            m = run.references[kind].metrics
+            assert ref["coverage"] == pytest.approx(m.coverage) and ref["clipped_pixels"] == m.clipped_pixels
+            if kind in ("model", "physical"):
+                assert set(ref["regions"]) == {"grazing", "rest"} and "whole_frame_psnr_db" in ref
+        look = row["look"]
+        assert look["goal"] == {
+            "psnr_db": data["settings"]["goals"]["look_psnr_db"],
+            "flip": data["settings"]["goals"]["look_flip"],
+        }
+        if look["reference"] is not None:
+            judged = look_verdict(look, row["references"][look["reference"]])
+            assert (look["meets_goal"], look["not_judged"]) == (judged["meets_goal"], judged["not_judged"])
+    s = data["summary"]
+    assert s["look_results"] == sum(1 for row in data["results"] if row["look"]["reference"] is not None)
+    assert s["no_physical_reference"] == ["cel"]
+    html = (out / "index.html").read_text()
+    assert "N.V &lt; 0.2: PSNR / FLIP" in html and "whole-frame PSNR dB" in html and "coverage" in html

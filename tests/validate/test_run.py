@@ -201,3 +201,135 @@ def test_materials_with_the_same_physics_share_their_reference_render(tmp_path, 
     # Nothing outlives the run: the next one renders its reference again.
     module.validate_atlas(dds, ["skin-a"], scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=4)
     assert len(rendered) == 2
+
+
+def test_every_comparison_covers_the_materials_pixels_and_splits_off_grazing_ones(validation_run):
+    """The front scene's frame is partly background: each figure says which fraction it compared, and
+    the whole-frame PSNR (the background counted as exact) reads higher than the material's own."""
+    for run in validation_run.runs:
+        if run.scene != "front":
+            continue
+        for kind in ("model", "physical"):
+            ref = run.references.get(kind)
+            if ref is None:
+                continue
+            m = ref.metrics
+            own = 1.0 - (ref.masked_fraction or 0.0)
+            assert 0.2 < m.coverage < own, (run.material, kind)
+            g, rest = m.regions["grazing"], m.regions["rest"]
+            assert g["pixels"] > 0 and rest["pixels"] > 0 and g["coverage"] + rest["coverage"] == pytest.approx(m.coverage)
+            if math.isfinite(m.psnr):
+                assert m.whole_frame_psnr >= m.psnr
+
+
+def test_each_result_names_its_look_reference_or_why_it_has_none(validation_run):
+    from atlasgen.validate.run import GOAL_LOOK_FLIP, GOAL_LOOK_PSNR_DB
+
+    looks = {(r.material, r.scene): r.look for r in validation_run.runs}
+    matte = looks[("matte", "front")]
+    assert matte["reference"] == "physical" and matte["compared"] == "its physical reference, Mitsuba diffuse"
+    assert matte["goal"] == {"psnr_db": GOAL_LOOK_PSNR_DB, "flip": GOAL_LOOK_FLIP} and matte["goal_source"] == "default"
+    assert looks[("gloss", "front")]["reference"] == "model"  # a separable material: its source BSDF
+    assert looks[("gloss", "front")]["compared"].endswith("it was factored from")
+    cel = looks[("cel", "front")]
+    assert cel["reference"] is None and cel["why_none"].startswith("an artistic model")
+
+
+def test_a_materials_own_look_goal_replaces_the_default():
+    from types import SimpleNamespace
+
+    from atlasgen.validate.run import GOAL_LOOK_FLIP, _look_goal
+
+    entry = SimpleNamespace(extra={"validate": {"psnr_db": 28.0}}, fit=SimpleNamespace(source="physical"))
+    model = SimpleNamespace(no_physical_reference="", model_reference_is_physical=False)
+    run = SimpleNamespace(references={"physical": SimpleNamespace(description="Mitsuba principled: sheen 1, as given")})
+    look = _look_goal(entry, model, run, physical=True)
+    assert look == {"goal": {"psnr_db": 28.0, "flip": GOAL_LOOK_FLIP}, "goal_source": "material", "reference": "physical",
+                    "compared": "the Mitsuba principled it was fitted from"}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_second_run_with_a_reference_cache_renders_nothing(tmp_path, validation_atlas, mitsuba_rgb, gpu_context, monkeypatch):
+    """Model and physical references (a deterministic one and a stochastic one that grows) are stored
+    by what decides them; the second run finds every one and gets the same figures."""
+    from atlasgen.validate import run as module
+
+    cache = tmp_path / "references"
+    args = dict(scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=16, reference_cache=cache)
+    first = module.validate_atlas(validation_atlas, ["matte", "skin"], **args)
+    assert first.environment["reference_renders_stored"] >= 4 and any(cache.glob("*.npz"))
+
+    def refuse(*a, **k):
+        raise AssertionError("rendered again")
+
+    for name in ("render_mitsuba", "render_pixel_centres", "_render_physical_scene"):
+        monkeypatch.setattr(module, name, refuse)
+    second = module.validate_atlas(validation_atlas, ["matte", "skin"], **args)
+    assert second.environment["reference_renders_from_cache"] == first.environment["reference_renders_stored"]
+    for a, b in zip(first.runs, second.runs):
+        for kind in a.references:
+            x, y = a.references[kind], b.references[kind]
+            assert x.spp == y.spp and np.array_equal(x.image, y.image) and x.metrics.psnr == y.metrics.psnr
+    # The key holds the reference code: other code, other key, and the render happens again.
+    monkeypatch.setattr(module, "render_key", lambda *a: None)
+    with pytest.raises(AssertionError, match="rendered again"):
+        module.validate_atlas(validation_atlas, ["matte"], **args)
+
+
+def test_reference_keys_are_canonical_across_processes():
+    """The key is canonical JSON, not pickle: a fresh interpreter with another hash seed gets the same one."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from atlasgen.validate.reference_cache import render_key; from atlasgen.validate.scenes import "
+            "load_validation_scene; print(render_key('3.9.1', load_validation_scene('front')[1], {'b': {'alpha', 'beta', 'gamma', 'delta', 'eps'}, 'a': 1}))")  # fmt: skip
+    keys = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                           env={**os.environ, "PYTHONHASHSEED": seed}).stdout.strip() for seed in ("1", "2")}  # fmt: skip
+    assert len(keys) == 1 and len(next(iter(keys))) == 64
+
+
+@pytest.mark.slow
+def test_validation_reads_the_atlas_once_and_takes_fitted_slices_from_the_bake_cache(tmp_path, mitsuba_rgb, gpu_context,
+                                                                                      monkeypatch):  # fmt: skip
+    """Issue 21 item 7: one read and one hash of the atlas for two scenes; a fitted material's slice from the bake
+    cache, so the physics fit never runs; a material file named by hashing its bytes, never parsed."""
+    import atlasgen.io.atlas as atlas_io
+    import atlasgen.models.physical_fit as physical_fit
+    from atlasgen.bake.cache import fill_cache
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.materials.material import read_materials
+    from atlasgen.validate import run as module
+
+    folder = tmp_path / "materials"
+    folder.mkdir()
+    (folder / "coat.toml").write_text('type = "fresnel"\ncolour = [0.6, 0.2, 0.1]\nior = 1.5\nfrom = "physical"\n')
+    (folder / "clay.toml").write_text('type = "lambert"\ncolour = [0.7, 0.4, 0.3]\n')
+    materials = read_materials([folder])
+    cache, dds = tmp_path / "cache", tmp_path / "atlas.dds"
+    fill_cache(cache, materials)
+    write_bake(bake_atlas(materials, cache_dir=cache), dds)
+
+    counts = {"read_dds": 0, "texel_sha256": 0}
+    for name in counts:
+        original = getattr(atlas_io, name)
+        monkeypatch.setattr(
+            atlas_io, name, lambda *a, _f=original, _n=name, **k: counts.__setitem__(_n, counts[_n] + 1) or _f(*a, **k)
+        )
+
+    def refuse(*a, **k):
+        raise AssertionError("fitted again")
+
+    monkeypatch.setattr(physical_fit.FittedSlice, "_tables", {})
+    monkeypatch.setattr(physical_fit, "bake_from_physics", refuse)
+    monkeypatch.setattr(physical_fit.Model, "bake", refuse)  # no float table is baked again either
+    monkeypatch.setattr(module, "read_material", refuse)
+    run = module.validate_atlas(dds, [folder / "coat.toml", folder / "clay.toml"], scenes=["front", "back"],
+                                resolution=(24, 18), bake_cache=cache, physical=False)  # fmt: skip
+    assert counts == {"read_dds": 1, "texel_sha256": 1}
+    assert run.environment["float_slices_from_bake_cache"] == ["coat", "clay"]
+    assert {r.material for r in run.runs} == {"coat", "clay"} and all(r.breakdown is not None for r in run.runs)
+    # Without the cache, the fit runs (and is refused here).
+    monkeypatch.setattr(physical_fit.FittedSlice, "_tables", {})
+    with pytest.raises(AssertionError, match="fitted again"):
+        module.validate_atlas(dds, ["coat"], scenes=["front"], resolution=(24, 18), physical=False)
