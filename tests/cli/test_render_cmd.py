@@ -93,13 +93,16 @@ def test_bad_scenes_fail_with_one_line(atlas, tmp_path, scene_text, words):
 
 def test_no_adapter(atlas, tmp_path, monkeypatch):
     wgpu = pytest.importorskip("wgpu")
+    # Loading the native backend replaces ``wgpu.gpu``: patch the object create_device will call,
+    # not the placeholder a bare ``import wgpu`` gives (the test passed only after another had loaded it).
+    pytest.importorskip("wgpu.backends.wgpu_native")
     from atlasgen.render import device
 
     monkeypatch.setattr(device, "_shared", None)
     monkeypatch.setattr(wgpu.gpu, "request_adapter_sync", lambda **kwargs: None)
     scene = write_scene(tmp_path, SCENE.format(material="clay"))
     res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "o.exr")])
-    assert res.exit_code == 5
+    assert res.exit_code == 5, (res.stdout, res.stderr)
     assert "apt-get install mesa-vulkan-drivers" in res.stderr and res.stderr.count("\n") == 1
 
 
