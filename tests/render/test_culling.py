@@ -79,23 +79,41 @@ def scattered_lights(count: int, seed: int = 3, extra: str = "") -> str:
     return "\n".join(out) + extra
 
 
-def touching_lights(scene, depth, count: int = 6) -> str:
-    """Lights whose sphere only just reaches one pixel at a tile's edge: the range is the distance to
-    that pixel's surface point plus 1e-4 of it, and the light sits outside the tile, across its edge."""
-    from atlasgen.render.camera import camera_basis, pixel_rays
+def edge_lights(scene, depth, count: int = 6) -> tuple[str, list]:
+    """Lights at the right edges of tiles (1 + k, 2 + k // 2), for k < ``count``, and those tiles.
+
+    Even k: a light that only just *touches* the tile: its centre lies outside the tile's right
+    plane by (1 - 1e-4) of its range, so its sphere meets the frustum by 1e-4 of it (it reaches no
+    pixel centre, which lie half a pixel inside). Odd k: a light that only just *reaches* it:
+    0.4 across the edge from the surface point of the tile's last pixel column, with a range of
+    1.02 x 0.4, so it lights a sliver of the tile's pixels and no light elsewhere covers for it.
+    """
+    from atlasgen.render.camera import camera_basis, pixel_rays, tangents
 
     rays = pixel_rays(scene.camera, scene.width, scene.height)
-    right, _, _ = camera_basis(scene.camera)
-    out = []
+    right, up, forward = camera_basis(scene.camera)
+    tan_x, _ = tangents(scene.camera, scene.width, scene.height)
+    eye = np.asarray(scene.camera.position)
+    out, tiles = [], []
     for k in range(count):
-        x = TILE_SIZE * (2 + k) - 1  # the last pixel column of tile 1 + k
-        y = 40 + 5 * k
+        tx, ty = 1 + k, 2 + k // 2
+        x, y = TILE_SIZE * (tx + 1) - 1, TILE_SIZE * ty + 7  # the tile's last column, a middle row
         assert np.isfinite(depth[y, x])
-        point = np.asarray(scene.camera.position) + rays[y, x] * depth[y, x]
-        centre = (point + right * 0.4).tolist()  # across the tile's right edge
-        out.append(f"[[lights]]\ntype = 'point'\nposition = [{centre[0]!r}, {centre[1]!r}, {centre[2]!r}]\n"
-                   f"intensity = 50.0\nrange = {0.4 * (1 + 1e-4)!r}")  # fmt: skip
-    return "\n" + "\n".join(out) + "\n"
+        point = eye + rays[y, x] * depth[y, x]
+        if k % 2 == 0:
+            radius = 0.4
+            a = ((x + 1) / scene.width * 2 - 1) * tan_x  # the right edge's slope x / z
+            inward = (-right + a * forward) / np.hypot(1.0, a)
+            offset = point - eye
+            on_plane = eye + up * (offset @ up) + (offset @ forward) * (forward + a * right)
+            centre = on_plane - inward * radius * (1 - 1e-4)
+        else:
+            radius = 0.4 * 1.02
+            centre = point + right * 0.4
+        c = centre.tolist()
+        out.append(f"[[lights]]\ntype = 'point'\nposition = [{c[0]!r}, {c[1]!r}, {c[2]!r}]\nintensity = 50.0\nrange = {radius!r}")
+        tiles.append((tx, ty))
+    return "\n" + "\n".join(out) + "\n", tiles
 
 
 def assert_frames_equal(culled, brute):
@@ -130,17 +148,16 @@ def test_decoded_lists_keep_the_true_count_and_at_most_capacity_indices():
 def test_culled_frame_equals_the_brute_force_frame(renderer, scene_from):
     probe = scene_from(SCENE.format(translucent="", lights=scattered_lights(60)))
     depth = renderer.render(probe, outlines=False).aov("depth")
-    scene = scene_from(SCENE.format(translucent="", lights=scattered_lights(60) + touching_lights(probe, depth)))
+    extra, tiles = edge_lights(probe, depth)
+    scene = scene_from(SCENE.format(translucent="", lights=scattered_lights(60) + extra))
     culled, brute = render_both(renderer, scene)
     assert culled.tile_lists is not None and brute.tile_lists is None
     assert_frames_equal(culled.radiance, brute.radiance)
-    # The touching lights are listed in the tile of the one pixel they reach, and not in the tile
-    # left of it (they sit 0.4 to the right of that pixel, reaching 0.4 * (1 + 1e-4)).
-    first = len(scene.lights) - 6
-    for k in range(6):
-        x, y = TILE_SIZE * (2 + k) - 1, 40 + 5 * k
-        tx, ty = x // TILE_SIZE, y // TILE_SIZE
-        assert first + k in culled.tile_lists.lists[ty][tx]
+    reference = cull_tiles_reference(scene, culled.aov("depth"))
+    first = len(scene.lights) - len(tiles)
+    for k, (tx, ty) in enumerate(tiles):
+        # The edge lights are listed for the tile they only just meet (and the reference agrees).
+        assert first + k in reference[(tx, ty)] and first + k in culled.tile_lists.lists[ty][tx], k
     # The culling did cull: most tiles list a small share of the lights.
     assert np.median(culled.tile_lists.counts) < 0.3 * len(scene.lights)
 
@@ -225,3 +242,11 @@ def test_every_pass_is_timed(renderer, scene_from, translucent):
         times, used = time_passes(renderer, frame, outlines=False, method=method)
         assert used == method and set(times) == expected
         assert all(0 < t < 10_000 for t in times.values()), times
+
+
+def test_doctests():
+    import doctest
+
+    from atlasgen.render import culling
+
+    assert doctest.testmod(culling).failed == 0
