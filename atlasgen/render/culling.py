@@ -35,6 +35,7 @@ __all__ = [
     "tile_grid",
     "tile_rectangle",
     "pack_cull",
+    "pack_light_spheres",
     "decode_tile_lists",
     "overflowing_tiles",
     "cull_tiles_reference",
@@ -83,6 +84,23 @@ def pack_cull(rectangles) -> bytes:
         data = CULL.pack(origin=[x0, y0, 0, 0])
         out += data + bytes(CULL_STRIDE - len(data))
     return bytes(out)
+
+
+def pack_light_spheres(scene) -> bytes:
+    """cull.wgsl's ``light_spheres``: per light, float32 (x, y, z, range) with the centre in camera space
+    (x along right, y along up, z along forward, from the eye) and range 0 for an unbounded light.
+
+    Done once per frame here in float64, rather than once per light in each of the screen's tiles.
+    Never empty (WebGPU rejects zero-size buffers).
+    """
+    right, up, forward = camera_basis(scene.camera)
+    eye = np.asarray(scene.camera.position, dtype=np.float64)
+    out = np.zeros((max(len(scene.lights), 1), 4), dtype=np.float64)
+    for i, light in enumerate(scene.lights):
+        if light.bounded:
+            c = np.asarray(light.position, dtype=np.float64) - eye
+            out[i] = (c @ right, c @ up, c @ forward, light.range)
+    return out.astype("<f4").tobytes()
 
 
 @dataclass
@@ -221,10 +239,9 @@ class CullingPass:
                 {"binding": 0, "visibility": compute, "buffer": {"type": "uniform"}},
                 {"binding": 1, "visibility": compute, "buffer": {"type": "read-only-storage"}},
                 {"binding": 2, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
-                {"binding": 3, "visibility": compute, "texture": {"sample_type": "uint"}},
-                {"binding": 4, "visibility": compute, "buffer": {"type": "storage"}},
+                {"binding": 3, "visibility": compute, "buffer": {"type": "storage"}},
                 {
-                    "binding": 5,
+                    "binding": 4,
                     "visibility": compute,
                     "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": CULL.size},
                 },
@@ -236,16 +253,16 @@ class CullingPass:
             compute={"module": module, "entry_point": "cs_cull"},
         )
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, tile_buffer, cull_buffer):
+    def bind_group(self, frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer):
+        """``sphere_buffer`` holds :func:`pack_light_spheres`; ``tile_buffer`` receives the lists."""
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
                 {"binding": 0, "resource": {"buffer": frame_buffer}},
-                {"binding": 1, "resource": {"buffer": light_buffer}},
+                {"binding": 1, "resource": {"buffer": sphere_buffer}},
                 {"binding": 2, "resource": gbuffer.normal_depth.create_view()},
-                {"binding": 3, "resource": gbuffer.material.create_view()},
-                {"binding": 4, "resource": {"buffer": tile_buffer}},
-                {"binding": 5, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
+                {"binding": 3, "resource": {"buffer": tile_buffer}},
+                {"binding": 4, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
             ],
         )
 

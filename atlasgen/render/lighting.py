@@ -1,7 +1,9 @@
 """Deferred lighting through the material atlas (lighting.wgsl).
 
-For every pixel and light, with E the irradiance normal to the light direction
-(I / d^2 for a point light of intensity I, E for a directional light):
+For every pixel and each light of its tile's list (:mod:`atlasgen.render.culling`; every light
+where nothing was culled), with E the irradiance normal to the light direction (I W S / d^2 for a
+point or spot light of intensity I, with the range window W and spot cone S of
+:mod:`atlasgen.optics.falloff`; E for a directional light):
 
     L += E * (albedo * A.rgb / pi + A.a * D(N.H) V(N.L, N.V) max(N.L, 0))
 

@@ -33,6 +33,7 @@ from atlasgen.render.culling import (
     TileLists,
     decode_tile_lists,
     pack_cull,
+    pack_light_spheres,
     tile_grid,
     tile_rectangle,
 )
@@ -153,7 +154,7 @@ class Renderer:
         self.gbuffer_pass = GBufferPass(device, self.frame_layout)
         self.culling = culling
         self.tile_capacity = int(tile_capacity)
-        self.culling_pass = CullingPass(device)
+        self._culling_pass: CullingPass | None = None  # compiled on the first culled frame
         self._lighting_passes: dict = {}
         self.environment = EnvironmentLighting(self.ctx, atlas)
         self.outline_pass = OutlinePass(device, atlas.include)
@@ -209,6 +210,13 @@ class Renderer:
         if key not in self._lighting_passes:
             self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, ids, environment)
         return self._lighting_passes[key]
+
+    @property
+    def culling_pass(self) -> CullingPass:
+        """The light-culling pipeline, compiled when a frame first needs it (a scene without ranges never does)."""
+        if self._culling_pass is None:
+            self._culling_pass = CullingPass(self.device)
+        return self._culling_pass
 
     def _mesh(self, obj, scene_path="<scene>") -> _GpuMesh:
         key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
@@ -297,8 +305,9 @@ class Renderer:
             usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC,
         )
         cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
+        sphere_buffer = device.create_buffer_with_data(data=pack_light_spheres(scene), usage=wgpu.BufferUsage.STORAGE)
         cull_group = (
-            self.culling_pass.bind_group(frame_buffer, light_buffer, gbuffer, tile_buffer, cull_buffer) if culled else None
+            self.culling_pass.bind_group(frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer) if culled else None
         )
         lighting_group = lighting_pass.bind_group(
             frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment, tile_buffer
@@ -308,7 +317,7 @@ class Renderer:
         wants_outlines = any(entry.flag("outline") for entry in entries)
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, wants_outlines,
-                              (frame_buffer, light_buffer, object_buffer, environment, cull_buffer),
+                              (frame_buffer, light_buffer, object_buffer, environment, cull_buffer, sphere_buffer),
                               culled, cull_group, cull_tiles, tile_buffer)  # fmt: skip
 
     # ---- encoding ----------------------------------------------------------------------
