@@ -63,12 +63,16 @@ class Camera:
 
 @dataclass(frozen=True)
 class Light:
-    """A point or directional light.
+    """A point, spot or directional light.
 
     ``point``: ``intensity`` is radiant intensity I (W/sr, Mitsuba ``point.intensity``);
-    irradiance at distance d is I / d^2. ``directional``: ``intensity`` is the
-    irradiance E normal to ``direction`` (Mitsuba ``directional.irradiance``), and
-    ``direction`` is the direction the light travels.
+    irradiance at distance d is I W(d, range) / d^2, with the window W of
+    :func:`atlasgen.optics.falloff.range_window` (1 everywhere without a range).
+    ``spot``: a point light whose intensity is scaled off its axis ``direction`` by
+    :func:`atlasgen.optics.falloff.spot_factor` of ``inner_angle`` and ``outer_angle`` (degrees,
+    Mitsuba ``spot``). ``directional``: ``intensity`` is the irradiance E normal to ``direction``
+    (Mitsuba ``directional.irradiance``), and ``direction`` is the direction the light travels;
+    it has no range.
     """
 
     type: str
@@ -76,6 +80,14 @@ class Light:
     intensity: float
     position: tuple | None = None
     direction: tuple | None = None
+    range: float = math.inf
+    inner_angle: float = 0.0
+    outer_angle: float = 0.0
+
+    @property
+    def bounded(self) -> bool:
+        """Whether the light reaches only points within ``range`` of its position (so it can be culled)."""
+        return math.isfinite(self.range)
 
 
 @dataclass(frozen=True)
@@ -200,18 +212,42 @@ def _read_camera(r: _Reader, raw) -> Camera:
     return Camera(position, target, up, fov, near, far)
 
 
+#: The keys only a spot light uses.
+_SPOT_KEYS = ("inner_angle", "outer_angle")
+
+
 def _read_light(r: _Reader, raw, i) -> Light:
     name = f"lights[{i}]"
-    r.table(raw, name, ("type", "colour", "intensity", "position", "direction"))
+    r.table(raw, name, ("type", "colour", "intensity", "position", "direction", "range", *_SPOT_KEYS))
     kind = raw.get("type")
-    if kind not in ("point", "directional"):
-        r.fail(f"{name}.type", "'point' or 'directional'", kind)
+    if kind not in ("point", "spot", "directional"):
+        r.fail(f"{name}.type", "'point', 'spot' or 'directional'", kind)
     colour = r.vec3(raw, "colour", f"{name}.colour", default=(1.0, 1.0, 1.0), lo=0.0)
     intensity = r.number(raw, "intensity", f"{name}.intensity", lo=0.0)
-    if kind == "point":
-        if "direction" in raw:
-            raise SceneError(r.path, f"{name}.direction", "not used by a point light; expected 'position'")
-        return Light("point", colour, intensity, position=r.vec3(raw, "position", f"{name}.position"))
+    if kind != "spot":
+        for key in _SPOT_KEYS:
+            if key in raw:
+                raise SceneError(r.path, f"{name}.{key}", f"only used by a spot light, not a {kind} light")
+    if kind in ("point", "spot"):
+        # No range: the light reaches everywhere (infinite range), as before ranges existed.
+        light_range = r.number(raw, "range", f"{name}.range", lo=0.0, lo_open=True) if "range" in raw else math.inf
+        position = r.vec3(raw, "position", f"{name}.position")
+        if kind == "point":
+            if "direction" in raw:
+                raise SceneError(r.path, f"{name}.direction", "not used by a point light; expected 'position'")
+            return Light("point", colour, intensity, position=position, range=light_range)
+        axis = np.asarray(r.vec3(raw, "direction", f"{name}.direction", nonzero=True))
+        outer = r.number(raw, "outer_angle", f"{name}.outer_angle", lo=0.0, hi=90.0, lo_open=True)
+        # Mitsuba's spot default: the full-intensity cone is 3/4 of the cut-off angle.
+        inner = r.number(raw, "inner_angle", f"{name}.inner_angle", default=0.75 * outer, lo=0.0)
+        if inner >= outer:
+            raise SceneError(
+                r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees), got {inner!r}"
+            )
+        direction = tuple(float(c) for c in _direction(axis))
+        return Light("spot", colour, intensity, position, direction, light_range, inner, outer)
+    if "range" in raw:
+        raise SceneError(r.path, f"{name}.range", "not used by a directional light, which reaches everywhere")
     if "position" in raw:
         raise SceneError(r.path, f"{name}.position", "not used by a directional light; expected 'direction'")
     direction = np.asarray(r.vec3(raw, "direction", f"{name}.direction", nonzero=True))

@@ -81,7 +81,7 @@ def create_device(power_preference: str = "high-performance") -> GpuContext:
 
     The pipeline needs nothing beyond core WebGPU: stencil (``depth24plus-stencil8``),
     2D texture arrays with explicit per-level uploads, an ``r16uint`` render target
-    and several colour attachments.
+    and several colour attachments; ``timestamp-query`` is requested where the adapter has it.
     """
     _ensure_runtime_dir()
     try:
@@ -96,7 +96,9 @@ def create_device(power_preference: str = "high-performance") -> GpuContext:
         raise BackendError(f"{INSTALL_HINT} ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
     if adapter is None:
         raise BackendError(INSTALL_HINT)
-    device = adapter.request_device_sync(label="atlasgen")
+    # Timestamp queries time the frame's passes (atlasgen.render.timing) where the adapter has them.
+    features = [f for f in ("timestamp-query",) if f in adapter.features]
+    device = adapter.request_device_sync(label="atlasgen", required_features=features)
     ctx = GpuContext(adapter, device)
     handler = _ErrorCollector(ctx.errors)
     logging.getLogger("wgpu").addHandler(handler)

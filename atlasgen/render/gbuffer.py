@@ -149,11 +149,13 @@ class GBufferPass:
             },
         )
 
-    def encode(self, encoder, gbuffer: GBuffer, frame_group, object_group, draws, clear: bool, stencil_reference: int):
+    def encode(self, encoder, gbuffer: GBuffer, frame_group, object_group, draws, clear: bool, stencil_reference: int,
+               timestamps=None):  # fmt: skip
         """Record one render pass drawing ``draws`` = [(gpu_mesh, object_slot), ...].
 
         ``clear`` starts a frame (all targets, depth 1, stencil 0); otherwise colour and
         depth are kept and only the stencil is cleared, so it marks just this pass's pixels.
+        ``timestamps``: the pass's ``timestamp_writes``, if timed.
         """
         pass_ = encoder.begin_render_pass(
             color_attachments=gbuffer.colour_attachments(clear),
@@ -166,6 +168,7 @@ class GBufferPass:
                 "stencil_store_op": "store",
                 "stencil_clear_value": 0,
             },
+            timestamp_writes=timestamps,
         )
         pass_.set_pipeline(self.pipeline)
         pass_.set_bind_group(0, frame_group)

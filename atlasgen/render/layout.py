@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import enum
 
-from atlasgen.shaders.structs import U32, Array, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
+from atlasgen.materials.scene import MAX_LIGHTS
+from atlasgen.shaders.structs import F32, U32, Array, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
 
 __all__ = [
     "FRAME",
     "OBJECT",
     "LIGHT",
+    "CULL",
+    "TILE_SIZE",
+    "LIGHT_MASK_WORDS",
     "ENVIRONMENT",
     "LightType",
     "NO_MATERIAL",
@@ -34,8 +38,9 @@ UNIFORM_OFFSET_ALIGNMENT = 256
 class LightType(enum.IntEnum):
     """``Light.kind``: how ``Light.position`` is read."""
 
-    DIRECTIONAL = 0  # position is the direction the light travels; radiant is an irradiance E
+    DIRECTIONAL = 0  # direction is the direction the light travels; radiant is an irradiance E
     POINT = 1  # position is a point; radiant is a radiant intensity I
+    SPOT = 2  # a point light whose intensity falls off about its axis, direction (cone)
 
 
 FRAME = Struct(
@@ -49,7 +54,9 @@ FRAME = Struct(
         Field("viewport", vec4(), "width, height, 1 / width, 1 / height"),
         Field("background", vec4(), "radiance of pixels no object covers"),
         Field("mip", vec4(), "x: bias, y: reference distance, z: last mip level"),
-        Field("counts", vec4(U32), "x: number of lights"),
+        Field(
+            "counts", vec4(U32), "x: number of lights, y: 1 where lighting reads tile lists, z: tiles per row, w: list capacity"
+        ),
         Field("outline_colour", vec4(), "radiance written on outline pixels"),
         Field("outline", vec4(), "x: relative inverse-depth threshold, y: cos(normal threshold)"),
     ],
@@ -75,11 +82,28 @@ OBJECT_UNIFORM_STRIDE = round_up(UNIFORM_OFFSET_ALIGNMENT, OBJECT.size)
 LIGHT = Struct(
     "Light",
     [
-        Field("position", vec3(), "LIGHT_POINT: the position; LIGHT_DIRECTIONAL: the direction of travel"),
+        Field("position", vec3(), "LIGHT_POINT, LIGHT_SPOT: the position"),
         Field("kind", U32, "a LIGHT_* constant"),
-        Field("radiant", vec3(), "colour * intensity: I in W/sr (point) or E in W/m^2 (directional)"),
+        Field("radiant", vec3(), "colour * intensity: I in W/sr (point, spot: on the axis) or E in W/m^2 (directional)"),
+        Field("range", F32, "distance at which the windowed falloff reaches 0; 0: unbounded"),
+        Field("direction", vec3(), "LIGHT_DIRECTIONAL: the direction of travel; LIGHT_SPOT: the unit axis"),
+        Field("cos_outer", F32, "LIGHT_SPOT: cos(outer angle); beyond it the light sends nothing"),
+        Field("cone", vec4(), "LIGHT_SPOT: x: outer angle (rad), y: 1 / (outer - inner angle) (1/rad)"),
     ],
     doc="One element of the lights storage array (pack_lights in atlasgen/render/lighting.py).",
+)
+
+#: Pixels along each side of a culling tile (16 x 16 tiles, as Andersson 2011); the culling pass's workgroup size.
+TILE_SIZE = 16
+
+#: u32 words of the culling pass's per-tile bit mask of lights: one bit per light the renderer takes.
+LIGHT_MASK_WORDS = MAX_LIGHTS // 32
+
+CULL = Struct(
+    "Cull",
+    [Field("origin", vec4(U32), "x, y: the first tile of the rectangle this dispatch culls; z, w unused")],
+    address_space="uniform",
+    doc="One culling dispatch, at a dynamic offset (pack_cull in atlasgen/render/culling.py).",
 )
 
 ENVIRONMENT = Struct(
@@ -97,6 +121,11 @@ _DECLARATIONS = {
     "Object": OBJECT.wgsl,
     "Light": LIGHT.wgsl,
     "Environment": ENVIRONMENT.wgsl,
+    "Cull": CULL.wgsl,
+    "TILE_SIZE": lambda: wgsl_constant("TILE_SIZE", U32, TILE_SIZE, "Pixels along each side of a light-culling tile."),
+    "LIGHT_MASK_WORDS": lambda: wgsl_constant(
+        "LIGHT_MASK_WORDS", U32, LIGHT_MASK_WORDS, "u32 words of a tile's bit mask of lights (one bit per light)."
+    ),
     "LightType": lambda: wgsl_constants(LightType, "LIGHT_"),
     "NO_MATERIAL": lambda: wgsl_constant(
         "NO_MATERIAL", U32, NO_MATERIAL, "Material-ID target value of pixels that no object covers (cleared, never written)."

@@ -1,7 +1,9 @@
 """Deferred lighting through the material atlas (lighting.wgsl).
 
-For every pixel and light, with E the irradiance normal to the light direction
-(I / d^2 for a point light of intensity I, E for a directional light):
+For every pixel and each light of its tile's list (:mod:`atlasgen.render.culling`; every light
+where nothing was culled), with E the irradiance normal to the light direction (I W S / d^2 for a
+point or spot light of intensity I, with the range window W and spot cone S of
+:mod:`atlasgen.optics.falloff`; E for a directional light):
 
     L += E * (albedo * A.rgb / pi + A.a * D(N.H) V(N.L, N.V) max(N.L, 0))
 
@@ -20,6 +22,8 @@ L += E * albedo * f cos.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from atlasgen.io.manifest import Manifest
@@ -32,6 +36,7 @@ from atlasgen.shaders.passes import assemble_shader
 __all__ = [
     "LightingPass",
     "pack_lights",
+    "pack_light",
     "material_dispatch_wgsl",
     "LIGHT_STRIDE",
 ]
@@ -77,20 +82,32 @@ def environment_glue_wgsl(include: str, environment: bool) -> str:
 
 
 #: What an empty scene's light buffer holds: WebGPU rejects zero-size buffers.
-_NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0)}
+_NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0), "range": 0.0,
+             "direction": (0.0, 0.0, -1.0), "cos_outer": 0.0, "cone": (0.0, 0.0, 0.0, 0.0)}  # fmt: skip
+
+
+def pack_light(light) -> dict:
+    """One :data:`~atlasgen.render.layout.LIGHT` element's fields for a scene light (range 0: unbounded)."""
+    item = {
+        **_NO_LIGHT,
+        "kind": LightType[light.type.upper()],
+        "radiant": np.asarray(light.colour, dtype=np.float64) * light.intensity,
+        "range": light.range if light.bounded else 0.0,
+    }
+    if light.position is not None:
+        item["position"] = light.position
+    if light.direction is not None:
+        item["direction"] = light.direction
+    if light.type == "spot":
+        outer, inner = math.radians(light.outer_angle), math.radians(light.inner_angle)
+        item["cos_outer"] = math.cos(outer)
+        item["cone"] = (outer, 1.0 / (outer - inner), 0.0, 0.0)
+    return item
 
 
 def pack_lights(lights) -> bytes:
     """The ``Light`` array (:data:`~atlasgen.render.layout.LIGHT`) of a scene's lights; never empty."""
-    items = [
-        {
-            "position": light.position if light.type == "point" else light.direction,
-            "kind": LightType[light.type.upper()],
-            "radiant": np.asarray(light.colour, dtype=np.float64) * light.intensity,
-        }
-        for light in lights
-    ]
-    return LIGHT.pack_array(items or [_NO_LIGHT])
+    return LIGHT.pack_array([pack_light(light) for light in lights] or [_NO_LIGHT])
 
 
 class LightingPass:
@@ -131,6 +148,7 @@ class LightingPass:
                     "visibility": frag,
                     "texture": {"sample_type": "unfilterable-float", "view_dimension": "2d-array"},
                 },
+                {"binding": 11, "visibility": frag, "buffer": {"type": "read-only-storage"}},
             ],
         )
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
@@ -180,8 +198,9 @@ class LightingPass:
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment):
-        """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`)."""
+    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment, tile_buffer):
+        """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
+        ``tile_buffer``: the tile light lists (:mod:`atlasgen.render.culling`), read where ``Frame.counts.y`` is 1."""
         env_buffer, env_texture, tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
@@ -197,17 +216,18 @@ class LightingPass:
                 {"binding": 8, "resource": env_texture.create_view()},
                 {"binding": 9, "resource": self.env_sampler},
                 {"binding": 10, "resource": tables.create_view(dimension="2d-array")},
+                {"binding": 11, "resource": {"buffer": tile_buffer}},
             ],
         )
 
-    def encode(self, encoder, target, gbuffer, bind_group, background=None, opacity=None, scissor=None):
+    def encode(self, encoder, target, gbuffer, bind_group, background=None, opacity=None, scissor=None, timestamps=None):
         """Record one full-screen lighting pass into ``target`` (an ``rgba16float`` texture).
 
         ``opacity=None``: the opaque pass, clearing the target to ``background``.
         Otherwise: the translucent pass, stencil-masked and blended with ``opacity``.
         ``scissor`` (x, y, w, h) limits the pass to the object's screen rectangle: the
         stencil alone would give the same image, but a software rasteriser still runs
-        the shader on every pixel it rejects.
+        the shader on every pixel it rejects. ``timestamps``: the pass's ``timestamp_writes``, if timed.
         """
         translucent = opacity is not None
         pass_ = encoder.begin_render_pass(
@@ -222,6 +242,7 @@ class LightingPass:
                 "depth_read_only": True,
                 "stencil_read_only": True,
             },
+            timestamp_writes=timestamps,
         )  # fmt: skip
         pass_.set_pipeline(self.translucent if translucent else self.opaque)
         pass_.set_bind_group(0, bind_group)

@@ -59,9 +59,10 @@ class OutlinePass:
             ],
         )
 
-    def encode(self, encoder, target, bind_group):
+    def encode(self, encoder, target, bind_group, timestamps=None):
         pass_ = encoder.begin_render_pass(
-            color_attachments=[{"view": target.create_view(), "load_op": "load", "store_op": "store"}]
+            color_attachments=[{"view": target.create_view(), "load_op": "load", "store_op": "store"}],
+            timestamp_writes=timestamps,
         )
         pass_.set_pipeline(self.pipeline)
         pass_.set_bind_group(0, bind_group)

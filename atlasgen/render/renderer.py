@@ -3,10 +3,16 @@
 Order of passes in one frame (each a WebGPU render pass):
 
 1. g-buffer, opaque objects (clear; stencil reference 0);
-2. lighting, opaque (every pixel; background where the material ID is 0xFFFF);
-3. for each translucent object, far to near (:mod:`.translucency`): g-buffer with
-   stencil marking, stencil-masked lighting blended with the object's opacity;
-4. outlines (:mod:`.outline`) over the final g-buffer.
+2. light culling (:mod:`.culling`, a compute pass): a light list per 16 x 16 tile, when some
+   light has a range (without one every light reaches every pixel, and nothing is culled);
+3. lighting, opaque (every pixel; background where the material ID is 0xFFFF), over each
+   tile's list;
+4. for each translucent object, far to near (:mod:`.translucency`): g-buffer with
+   stencil marking, culling again over its screen rectangle against the depths it left,
+   stencil-masked lighting blended with the object's opacity;
+5. outlines (:mod:`.outline`) over the final g-buffer.
+
+Each pass is a step labelled for timing (:meth:`Renderer.frame_steps`, :mod:`.timing`).
 """
 
 from __future__ import annotations
@@ -21,6 +27,16 @@ from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_m
 from atlasgen.models import get_model
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
+from atlasgen.render.culling import (
+    DEFAULT_TILE_CAPACITY,
+    CullingPass,
+    TileLists,
+    decode_tile_lists,
+    pack_cull,
+    pack_light_spheres,
+    tile_grid,
+    tile_rectangle,
+)
 from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
@@ -28,7 +44,7 @@ from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_ST
 from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights
 from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
-from atlasgen.render.translucency import encode_translucent, screen_rectangle, sort_back_to_front
+from atlasgen.render.translucency import screen_rectangle, sort_back_to_front, translucent_steps
 from atlasgen.shaders.passes import assemble_shader
 
 __all__ = ["Renderer", "RenderResult", "TranslucentStep", "pack_frame", "AOVS"]
@@ -44,6 +60,8 @@ class TranslucentStep:
     object_index: int
     stencil: np.ndarray  # (h, w) bool: pixels it won in the g-buffer
     radiance: np.ndarray  # (h, w, 3) float32 after blending it in
+    tile_lists: TileLists | None = None  # the lists it was lit with (culled frames)
+    depth: np.ndarray | None = None  # (h, w) g-buffer view depth after it (inf where empty)
 
 
 @dataclass
@@ -52,7 +70,10 @@ class RenderResult:
 
     radiance: np.ndarray  # (h, w, 3) float32, W/(m^2 sr)
     aovs: dict = field(default_factory=dict)
-    opaque_radiance: np.ndarray | None = None  # after step 2 (trace only)
+    opaque_radiance: np.ndarray | None = None  # after the opaque lighting (trace only)
+    opaque_tile_lists: TileLists | None = None  # the opaque layer's lists (trace of a culled frame)
+    opaque_depth: np.ndarray | None = None  # (h, w) the opaque layer's view depth (trace only)
+    tile_lists: TileLists | None = None  # the last lists built (culled frames, with aovs)
     steps: list = field(default_factory=list)
     draw_order: list = field(default_factory=list)  # object indices, opaque first then translucent far to near
 
@@ -71,8 +92,9 @@ class _GpuMesh:
     bounds: np.ndarray  # (2, 3) object-space min, max
 
 
-def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None) -> bytes:
-    """The ``Frame`` uniform for ``scene`` (declared as :data:`atlasgen.render.layout.FRAME`)."""
+def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None, tile_capacity: int | None = None) -> bytes:
+    """The ``Frame`` uniform for ``scene`` (declared as :data:`atlasgen.render.layout.FRAME`);
+    ``tile_capacity`` (lights a tile list holds) when the frame is culled, ``None`` for the full loop."""
     cam, w, h = scene.camera, scene.width, scene.height
     right, up, forward = camera_basis(cam)
     tan_x, tan_y = tangents(cam, w, h)
@@ -89,7 +111,9 @@ def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None) -> 
         viewport=[w, h, 1.0 / w, 1.0 / h],
         background=[*scene.background, 1.0],
         mip=[bias, s.mip_distance, mip_levels - 1, 0.0],
-        counts=[len(scene.lights), 0, 0, 0],
+        counts=[len(scene.lights), 0, 0, 0]
+        if tile_capacity is None
+        else [len(scene.lights), 1, tile_grid(w, h)[0], tile_capacity],
         outline_colour=[*s.outline_colour, 1.0],
         outline=[depth_threshold, normal_cos, 0.0, 0.0],
     )
@@ -104,9 +128,14 @@ class Renderer:
         The baked atlas with its manifest and generated include.
     ctx
         A :class:`~atlasgen.render.device.GpuContext`; the shared one by default.
+    culling
+        Cull lights per tile when a scene has lights with a range; ``False`` loops over every
+        light at every pixel (the brute-force baseline, same image).
+    tile_capacity
+        Light indices each tile's list holds; a tile with more is lit by the full loop.
     """
 
-    def __init__(self, atlas: RenderAtlas, ctx=None):
+    def __init__(self, atlas: RenderAtlas, ctx=None, culling: bool = True, tile_capacity: int = DEFAULT_TILE_CAPACITY):
         import wgpu
 
         self.ctx = ctx or get_device()
@@ -123,6 +152,9 @@ class Renderer:
             }],
         )  # fmt: skip
         self.gbuffer_pass = GBufferPass(device, self.frame_layout)
+        self.culling = culling
+        self.tile_capacity = int(tile_capacity)
+        self._culling_pass: CullingPass | None = None  # compiled on the first culled frame
         self._lighting_passes: dict = {}
         self.environment = EnvironmentLighting(self.ctx, atlas)
         self.outline_pass = OutlinePass(device, atlas.include)
@@ -179,6 +211,13 @@ class Renderer:
             self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, ids, environment)
         return self._lighting_passes[key]
 
+    @property
+    def culling_pass(self) -> CullingPass:
+        """The light-culling pipeline, compiled when a frame first needs it (a scene without ranges never does)."""
+        if self._culling_pass is None:
+            self._culling_pass = CullingPass(self.device)
+        return self._culling_pass
+
     def _mesh(self, obj, scene_path="<scene>") -> _GpuMesh:
         key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
         if key not in self._meshes:
@@ -207,8 +246,12 @@ class Renderer:
             self._gbuffers = {key: (GBuffer.create(self.device, width, height), hdr)}  # keep one size only
         return self._gbuffers[key]
 
-    def prepare(self, scene: Scene, mip_bias: float | None = None) -> _PreparedFrame:
-        """Upload everything a frame of ``scene`` needs; raise SceneError for what the atlas lacks."""
+    def prepare(self, scene: Scene, mip_bias: float | None = None, culling: bool | None = None) -> _PreparedFrame:
+        """Upload everything a frame of ``scene`` needs; raise SceneError for what the atlas lacks.
+
+        ``culling`` overrides the renderer's setting for this frame. A frame is culled only when some
+        light has a range: otherwise every list would hold every light.
+        """
         import wgpu
 
         if len(scene.lights) > MAX_LIGHTS:
@@ -216,8 +259,10 @@ class Renderer:
         entries = resolve_materials(scene, self.atlas.manifest, self.atlas.name)
         gbuffer, hdr = self._gbuffer(scene.width, scene.height)
         device = self.device
+        culled = (self.culling if culling is None else culling) and any(light.bounded for light in scene.lights)
         frame_buffer = device.create_buffer_with_data(
-            data=pack_frame(scene, len(self.atlas.levels), mip_bias), usage=wgpu.BufferUsage.UNIFORM
+            data=pack_frame(scene, len(self.atlas.levels), mip_bias, self.tile_capacity if culled else None),
+            usage=wgpu.BufferUsage.UNIFORM,
         )
         light_buffer = device.create_buffer_with_data(data=pack_lights(scene.lights), usage=wgpu.BufferUsage.STORAGE)
         object_data = bytearray()
@@ -247,41 +292,88 @@ class Renderer:
             (e.first_slice for e, c in zip(entries, custom) if c), scene.environment is not None
         )
         environment = self.environment.bindings(scene, entries, custom)
-        lighting_group = lighting_pass.bind_group(frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment)
+        opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
+        translucent = sort_back_to_front(scene.objects, centres, scene.camera)
+        # Culling dispatch 0 covers the screen; dispatch 1 + n the tiles of translucent object n's rectangle.
+        cull_tiles = [tile_rectangle(None, scene.width, scene.height)]
+        cull_tiles += [
+            tile_rectangle(rectangles[i], scene.width, scene.height) if rectangles[i] else (0, 0, 0, 0) for i in translucent
+        ]
+        nx, ny = tile_grid(scene.width, scene.height)
+        tile_buffer = device.create_buffer(
+            size=4 * nx * ny * (self.tile_capacity + 1) if culled else 16,
+            usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC,
+        )
+        cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
+        sphere_buffer = device.create_buffer_with_data(data=pack_light_spheres(scene), usage=wgpu.BufferUsage.STORAGE)
+        cull_group = (
+            self.culling_pass.bind_group(frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer) if culled else None
+        )
+        lighting_group = lighting_pass.bind_group(
+            frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment, tile_buffer
+        )
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.
         wants_outlines = any(entry.flag("outline") for entry in entries)
-        opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
-        translucent = sort_back_to_front(scene.objects, centres, scene.camera)
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, wants_outlines,
-                              (frame_buffer, light_buffer, object_buffer, environment))  # fmt: skip
+                              (frame_buffer, light_buffer, object_buffer, environment, cull_buffer, sphere_buffer),
+                              culled, cull_group, cull_tiles, tile_buffer)  # fmt: skip
 
     # ---- encoding ----------------------------------------------------------------------
+
+    def frame_steps(self, frame: _PreparedFrame, outlines: bool = True, trace=None) -> list:
+        """The frame's passes in order: ``(label, encode(encoder, timestamps))`` for each, and, when
+        tracing, ``(None, with_mask)`` markers where the frame is to be read (after the opaque
+        lighting and after each translucent object). Labels: ``gbuffer``, ``culling``, ``lighting``,
+        ``translucency`` (a translucent object's g-buffer, culling and lighting passes), ``outlines``."""
+        objs = frame.scene.objects
+        g = frame.gbuffer
+
+        def opaque_gbuffer(encoder, timestamps=None):
+            self.gbuffer_pass.encode(encoder, g, frame.frame_group, frame.object_group, [frame.draws[i] for i in frame.opaque],
+                                     clear=True, stencil_reference=0, timestamps=timestamps)  # fmt: skip
+
+        def cull(step):
+            def encode(encoder, timestamps=None):
+                self.culling_pass.encode(encoder, frame.cull_group, step, frame.cull_tiles[step], timestamps)
+
+            return encode
+
+        def opaque_lighting(encoder, timestamps=None):
+            frame.lighting_pass.encode(encoder, frame.hdr, g, frame.lighting_group, background=frame.scene.background,
+                                       timestamps=timestamps)  # fmt: skip
+
+        steps = [("gbuffer", opaque_gbuffer)]
+        if frame.culled:
+            steps.append(("culling", cull(0)))
+        steps.append(("lighting", opaque_lighting))
+        for n, i in enumerate(frame.translucent):
+            if trace is not None:
+                steps.append((None, n > 0))
+            after = None if trace is None else (lambda encoder, timestamps=None: trace.copy_stencil(encoder))
+            steps += [("translucency", step) for step in translucent_steps(
+                self.gbuffer_pass, frame.lighting_pass, g, frame.hdr, frame.frame_group, frame.object_group,
+                frame.lighting_group, frame.draws[i], objs[i].opacity, scissor=frame.rectangles[i], after=after,
+                cull=cull(1 + n) if frame.culled else None)]  # fmt: skip
+        if trace is not None:
+            steps.append((None, bool(frame.translucent)))
+        if outlines and frame.wants_outlines:
+            steps.append(("outlines", lambda encoder, timestamps=None: self.outline_pass.encode(
+                encoder, frame.hdr, frame.outline_group, timestamps)))  # fmt: skip
+        return steps
 
     def encode_frame(self, frame: _PreparedFrame, outlines: bool = True, trace=None):
         """Command buffers for one whole frame (several when tracing, to read in between)."""
         buffers = []
         encoder = self.device.create_command_encoder()
-        objs = frame.scene.objects
-        self.gbuffer_pass.encode(encoder, frame.gbuffer, frame.frame_group, frame.object_group,
-                                 [frame.draws[i] for i in frame.opaque], clear=True, stencil_reference=0)  # fmt: skip
-        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
-        for n, i in enumerate(frame.translucent):
-            if trace is not None:
+        for label, item in self.frame_steps(frame, outlines, trace):
+            if label is None:
                 buffers.append(encoder.finish())
-                buffers.append((trace, n > 0))  # marker: read the frame (and the last stencil mask) here
+                buffers.append((trace, item))  # marker: read the frame (and the last stencil mask) here
                 encoder = self.device.create_command_encoder()
-            encode_translucent(encoder, self.gbuffer_pass, frame.lighting_pass, frame.gbuffer, frame.hdr,
-                               frame.frame_group, frame.object_group, frame.lighting_group, frame.draws[i],
-                               objs[i].opacity, scissor=frame.rectangles[i],
-                               after=None if trace is None else trace.copy_stencil)  # fmt: skip
-        if trace is not None:
-            buffers.append(encoder.finish())
-            buffers.append((trace, bool(frame.translucent)))
-            encoder = self.device.create_command_encoder()
-        if outlines and frame.wants_outlines:
-            self.outline_pass.encode(encoder, frame.hdr, frame.outline_group)
+            else:
+                item(encoder)
         buffers.append(encoder.finish())
         return buffers
 
@@ -314,16 +406,17 @@ class Renderer:
     # ---- the whole thing ------------------------------------------------------------
 
     def render(self, scene: Scene, mip_bias: float | None = None, outlines: bool = True,
-               aovs: bool = True, trace: bool = False) -> RenderResult:  # fmt: skip
-        """Render ``scene``; read back radiance and (``aovs``) the g-buffer layers.
+               aovs: bool = True, trace: bool = False, culling: bool | None = None) -> RenderResult:  # fmt: skip
+        """Render ``scene``; read back radiance and (``aovs``) the g-buffer layers and tile lists.
 
         ``trace`` records, for each translucent object, its stencil mask and the frame
-        after blending it (:class:`TranslucentStep`), for tests and debugging.
+        after blending it (:class:`TranslucentStep`), for tests and debugging. ``culling``
+        overrides the renderer's setting (``False``: the full loop over every light).
 
         Raises :class:`BackendError` if the device reported a validation error.
         """
         before = len(self.ctx.errors)
-        frame = self.prepare(scene, mip_bias)
+        frame = self.prepare(scene, mip_bias, culling)
         tracer = _Tracer(self, frame) if trace else None
         pending = []
         for item in self.encode_frame(frame, outlines, tracer):
@@ -338,11 +431,16 @@ class Renderer:
         result.draw_order = list(frame.opaque) + list(frame.translucent)
         if tracer is not None:
             result.opaque_radiance = tracer.frames[0]
+            result.opaque_tile_lists, result.opaque_depth = tracer.tiles[0], tracer.depths[0]
             result.steps = [
-                TranslucentStep(i, mask, rad) for i, mask, rad in zip(frame.translucent, tracer.masks, tracer.frames[1:])
+                TranslucentStep(i, mask, rad, tiles, depth)
+                for i, mask, rad, tiles, depth in zip(
+                    frame.translucent, tracer.masks, tracer.frames[1:], tracer.tiles[1:], tracer.depths[1:]
+                )  # fmt: skip
             ]
         if aovs:
             result.aovs = self.read_aovs(frame)
+            result.tile_lists = self.read_tile_lists(frame)
         errors = self.ctx.errors[before:]
         if errors:
             raise BackendError(f"the GPU device reported {len(errors)} error(s); first: {errors[0].splitlines()[0]}")
@@ -357,6 +455,13 @@ class Renderer:
             (width, height, 1),
         )
         return np.frombuffer(data, dtype=dtype).reshape(height, width, channels).copy()
+
+    def read_tile_lists(self, frame) -> TileLists | None:
+        """The light lists the last culling pass left (``None`` for a frame that is not culled)."""
+        if not frame.culled:
+            return None
+        g = frame.gbuffer
+        return decode_tile_lists(bytes(self.device.queue.read_buffer(frame.tile_buffer)), g.width, g.height, self.tile_capacity)
 
     def read_radiance(self, frame) -> np.ndarray:
         w, h = frame.gbuffer.width, frame.gbuffer.height
@@ -394,6 +499,10 @@ class _PreparedFrame:
     rectangles: list  # per object: screen rectangle (x, y, w, h) of its bounding box, None if off screen
     wants_outlines: bool  # some object's material has flags.outline
     keepalive: tuple
+    culled: bool = False  # lit through tile light lists
+    cull_group: object = None
+    cull_tiles: list = field(default_factory=list)  # per culling dispatch: tile rectangle (x0, y0, nx, ny)
+    tile_buffer: object = None
 
 
 class _Tracer:
@@ -429,7 +538,7 @@ class _Tracer:
             },
             fragment={"module": module, "entry_point": "fs_main", "targets": [{"format": wgpu.TextureFormat.r8unorm}]},
         )  # fmt: skip
-        self.frames, self.masks = [], []
+        self.frames, self.masks, self.tiles, self.depths = [], [], [], []
 
     def copy_stencil(self, encoder):
         pass_ = encoder.begin_render_pass(
@@ -448,6 +557,8 @@ class _Tracer:
 
     def read(self, with_mask: bool):
         self.frames.append(self.renderer.read_radiance(self.frame))
+        self.tiles.append(self.renderer.read_tile_lists(self.frame))
+        self.depths.append(self.renderer.read_aovs(self.frame)["depth"])
         if with_mask:
             g = self.frame.gbuffer
             self.masks.append(self.renderer._read(self.mask, 1, np.uint8, 1, g.width, g.height)[..., 0] == 255)

@@ -17,7 +17,7 @@ import numpy as np
 
 from atlasgen.render.camera import camera_basis
 
-__all__ = ["sort_back_to_front", "object_sort_key", "encode_translucent", "screen_rectangle"]
+__all__ = ["sort_back_to_front", "object_sort_key", "translucent_steps", "screen_rectangle"]
 
 
 def object_sort_key(obj, centre, eye, forward) -> tuple:
@@ -55,17 +55,26 @@ def screen_rectangle(corners_world: np.ndarray, view_proj: np.ndarray, width: in
     return (x0, y0, x1 - x0, y1 - y0)
 
 
-def encode_translucent(encoder, gbuffer_pass, lighting_pass, gbuffer, hdr, frame_group, object_group,
-                       lighting_group, draw, opacity, scissor=None, after=None):  # fmt: skip
-    """Record steps 1-3 for one object; ``draw`` is its ``(gpu_mesh, slot)``.
+def translucent_steps(gbuffer_pass, lighting_pass, gbuffer, hdr, frame_group, object_group, lighting_group, draw,
+                      opacity, scissor=None, after=None, cull=None) -> list:  # fmt: skip
+    """Steps 1-3 for one object, ``draw`` its ``(gpu_mesh, slot)``: a list of ``encode(encoder, timestamps)``
+    calls, one per pass, in order, so the renderer can record, time or split them.
 
-    ``scissor`` is the object's screen rectangle (:func:`screen_rectangle`); the
-    lighting pass is skipped when it is empty. ``after(encoder)`` (optional) is called
-    between the g-buffer and lighting passes, e.g. to copy out the stencil.
+    ``scissor`` is the object's screen rectangle (:func:`screen_rectangle`); the lighting pass is
+    skipped when it is empty. ``after(encoder, timestamps)`` (optional) runs between the g-buffer
+    and lighting passes, e.g. to copy out the stencil; ``cull(encoder, timestamps)`` (optional)
+    then rebuilds the light lists against the depths this object left in the g-buffer, so that its
+    layer is lit with lists correct for its own depths.
     """
-    gbuffer_pass.encode(encoder, gbuffer, frame_group, object_group, [draw], clear=False, stencil_reference=1)
-    if after is not None:
-        after(encoder)
+
+    def draw_step(encoder, timestamps=None):
+        gbuffer_pass.encode(encoder, gbuffer, frame_group, object_group, [draw], clear=False, stencil_reference=1,
+                            timestamps=timestamps)  # fmt: skip
+
+    def light_step(encoder, timestamps=None):
+        lighting_pass.encode(encoder, hdr, gbuffer, lighting_group, opacity=opacity, scissor=scissor, timestamps=timestamps)
+
+    steps = [draw_step] + ([after] if after is not None else [])
     if scissor is None:
-        return
-    lighting_pass.encode(encoder, hdr, gbuffer, lighting_group, opacity=opacity, scissor=scissor)
+        return steps
+    return steps + ([cull] if cull is not None else []) + [light_step]

@@ -1,7 +1,7 @@
 // atlasgen renderer: declarations shared by every pass.
 //
 // Radiometric units follow Mitsuba 3 exactly (docs/scenes.md): radiance in W/(m^2 sr),
-// point lights are radiant intensities I (irradiance I / d^2), directional lights are
+// point lights are radiant intensities I (irradiance I / d^2, windowed to 0 at a range), directional lights are
 // irradiances E normal to their direction.
 //
 // Structs and constants shared with the CPU are declared once, in atlasgen/render/layout.py:

@@ -18,8 +18,13 @@ What is kept identical, so that only the shading differs:
   in world space, with the renderer's normal transform (inverse transpose, not
   renormalised per vertex), so interpolated shading normals match the g-buffer's.
 - **Lights.** ``point`` -> Mitsuba ``point`` with ``intensity`` = colour * intensity
-  (W/sr, falls off as I/d^2); ``directional`` -> ``directional`` with ``irradiance`` =
-  colour * intensity, travelling along the same direction.
+  (W/sr, falls off as I/d^2); ``spot`` -> ``spot`` with the same intensity on its axis,
+  ``cutoff_angle`` = outer and ``beam_width`` = inner angle (the renderer's spot falloff is
+  Mitsuba's, :func:`atlasgen.optics.falloff.spot_factor`); ``directional`` -> ``directional``
+  with ``irradiance`` = colour * intensity, travelling along the same direction. A light's
+  ``range`` has no Mitsuba counterpart: ``atlasgen_direct`` applies its window
+  (:func:`atlasgen.optics.falloff.range_window`) to that emitter's sample, so the references
+  fall off exactly as the renderer does (:func:`light_ranges`).
 - **Integration.** Direct lighting only, and without the visibility test: the deferred
   renderer casts no shadows, so :class:`DirectNoShadow` (registered as
   ``atlasgen_direct``) evaluates every emitter at every hit point. That also checks
@@ -33,6 +38,7 @@ import time
 
 import numpy as np
 
+from atlasgen.errors import SceneError
 from atlasgen.materials.environment import mitsuba_emitter
 from atlasgen.materials.scene import object_matrix
 from atlasgen.render.environment import IMAGE_HEIGHT
@@ -48,6 +54,7 @@ __all__ = [
     "cast_shadow_mask",
     "sensor_dict",
     "emitter_dicts",
+    "light_ranges",
     "mitsuba_mesh",
     "build_mitsuba_scene",
     "render_mitsuba",
@@ -68,6 +75,8 @@ def register_direct_integrator(mi) -> str:
         L(x, w_i) = sum_e f(w_i, w_o,e) cos(theta_o,e) E_e(x),
 
     with E_e = I / d^2 for a point and E for a directional emitter, and no shadow ray.
+    An emitter named in the ``light_ranges`` property (:func:`light_ranges`) is scaled by the
+    renderer's range window W(d, r) = saturate(1 - (d/r)^4)^2, and is 0 at and beyond d = r.
     Rays that miss every shape return the constant ``background`` radiance.
     """
     variant = mi.variant()
@@ -79,6 +88,8 @@ def register_direct_integrator(mi) -> str:
         def __init__(self, props):
             mi.SamplingIntegrator.__init__(self, props)
             self.background = [props.get(f"background_{c}", 0.0) for c in "rgb"]
+            text = props.get("light_ranges", "")
+            self.ranges = {k: float(v) for k, v in (item.split("=") for item in text.split(";") if item)}
 
         def sample(self, scene, sampler, ray, medium=None, active=True):
             si = scene.ray_intersect(ray, active)
@@ -94,6 +105,10 @@ def register_direct_integrator(mi) -> str:
                     result += _environment_estimate(mi, dr, emitter, bsdf, ctx, si, sampler, hit)
                     continue
                 ds, weight = emitter.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
+                light_range = self.ranges.get(emitter.id())
+                if light_range is not None:
+                    x = ds.dist / light_range
+                    weight *= dr.select(x < 1.0, dr.square(dr.clip(1.0 - dr.square(dr.square(x)), 0.0, 1.0)), 0.0)
                 wo = si.to_local(ds.d)
                 value = bsdf.eval(ctx, si, wo, hit)
                 result += dr.select(hit & (ds.pdf > 0), value * weight, 0.0)
@@ -263,6 +278,17 @@ def emitter_dicts(scene) -> dict:
         value = {"type": "rgb", "value": [float(c) * float(light.intensity) for c in light.colour]}
         if light.type == "point":
             out[f"light_{i:04d}"] = {"type": "point", "position": [float(c) for c in light.position], "intensity": value}
+        elif light.type == "spot":
+            position = np.asarray(light.position, dtype=np.float64)
+            axis = np.asarray(light.direction, dtype=np.float64)
+            up = [0.0, 1.0, 0.0] if abs(axis[1]) < 0.9 else [1.0, 0.0, 0.0]
+            out[f"light_{i:04d}"] = {
+                "type": "spot",
+                "to_world": look_at_transform(position, position + axis, up),
+                "cutoff_angle": float(light.outer_angle),
+                "beam_width": float(light.inner_angle),
+                "intensity": value,
+            }
         else:
             out[f"light_{i:04d}"] = {
                 "type": "directional",
@@ -270,6 +296,21 @@ def emitter_dicts(scene) -> dict:
                 "irradiance": value,
             }
     return out
+
+
+def look_at_transform(origin, target, up):
+    """Mitsuba's ``ScalarTransform4f().look_at``, with the variant already set by the caller."""
+    import mitsuba as mi
+
+    return mi.ScalarTransform4f().look_at(
+        origin=[float(c) for c in origin], target=[float(c) for c in target], up=[float(c) for c in up]
+    )
+
+
+def light_ranges(scene) -> str:
+    """``atlasgen_direct``'s ``light_ranges`` property: ``light_NNNN=range`` for each light with a range, ``;``-separated
+    (the emitters' names in :func:`emitter_dicts`)."""
+    return ";".join(f"light_{i:04d}={float(light.range)!r}" for i, light in enumerate(scene.lights) if light.bounded)
 
 
 def world_mesh_arrays(obj):
@@ -331,7 +372,14 @@ def build_mitsuba_scene(mi, scene, bsdfs, spp: int = 1, integrator: dict | None 
     if integrator is None:
         register_direct_integrator(mi)
         bg = [float(c) for c in scene.background]
-        integrator = {"type": DIRECT_INTEGRATOR, "background_r": bg[0], "background_g": bg[1], "background_b": bg[2]}
+        integrator = {"type": DIRECT_INTEGRATOR, "background_r": bg[0], "background_g": bg[1], "background_b": bg[2],
+                      "light_ranges": light_ranges(scene)}  # fmt: skip
+    elif integrator.get("type") != SHADOW_INTEGRATOR:
+        # Only atlasgen_direct windows a range: any other integrator would light beyond it.
+        bounded = [i for i, light in enumerate(scene.lights) if light.bounded]
+        if bounded:
+            raise SceneError(scene.path, f"lights[{bounded[0]}].range",
+                             f"the {integrator.get('type')!r} reference cannot apply a light's range; expected lights without one")  # fmt: skip
     d = {"type": "scene", "integrator": integrator, "sensor": sensor_dict(mi, scene, spp, stochastic)}
     d.update(emitter_dicts(scene))
     interiors = interiors or [None] * len(scene.objects)

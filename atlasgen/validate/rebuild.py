@@ -22,6 +22,7 @@ import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models.base import RadianceRebuild
+from atlasgen.optics.falloff import range_window, spot_factor
 from atlasgen.render.camera import pixel_rays
 
 __all__ = ["rebuild_images", "rebuild_image", "material_mask", "n_dot_v_image"]
@@ -58,10 +59,16 @@ def n_dot_v_image(scene, aovs: dict, mask) -> np.ndarray:
 def _light_at(light, x):
     """(unit l, irradiance E) of ``light`` at points ``x``."""
     radiant = np.asarray(light.colour, dtype=np.float64) * light.intensity
-    if light.type == "point":
+    if light.type in ("point", "spot"):
         d = np.asarray(light.position, dtype=np.float64) - x
         d2 = np.maximum((d * d).sum(1), 1e-12)
-        return d / np.sqrt(d2)[:, None], radiant[None, :] / d2[:, None]
+        l = d / np.sqrt(d2)[:, None]
+        scale = range_window(np.sqrt(d2), light.range)
+        if light.type == "spot":
+            scale = scale * spot_factor(
+                -(l @ np.asarray(light.direction, dtype=np.float64)), light.inner_angle, light.outer_angle
+            )
+        return l, radiant[None, :] * (scale / d2)[:, None]
     return np.broadcast_to(-np.asarray(light.direction, dtype=np.float64), x.shape), np.broadcast_to(radiant, x.shape)
 
 

@@ -84,12 +84,25 @@ def sample_bilinear(table: np.ndarray, n_dot_l, n_dot_v) -> np.ndarray:
 
 def light_at(light, world: np.ndarray):
     """``(unit l, irradiance E)`` of a scene light at points ``world`` (..., 3): E = colour * I / d^2
-    towards a point light, colour * E along a directional one."""
+    towards a point light, colour * E along a directional one.
+
+    With a range r, written out here from docs/scenes.md (not taken from atlasgen.optics.falloff):
+    E *= (1 - (d/r)^4)^2 for d < r, 0 beyond; a spot light scales E by 1 within its inner angle,
+    (outer - theta) / (outer - inner) between the two, 0 beyond the outer one."""
     radiant = np.asarray(light.colour) * light.intensity
-    if light.type == "point":
+    if light.type in ("point", "spot"):
         d = np.asarray(light.position) - world
         d2 = np.sum(d * d, -1, keepdims=True)
-        return d / np.sqrt(d2), radiant / d2
+        l = d / np.sqrt(d2)
+        scale = np.ones_like(d2)
+        if np.isfinite(light.range):
+            dist = np.sqrt(d2)
+            scale = np.where(dist < light.range, (1.0 - (dist / light.range) ** 4) ** 2, 0.0)
+        if light.type == "spot":
+            theta = np.degrees(np.arccos(np.clip(-np.sum(l * np.asarray(light.direction), -1, keepdims=True), -1, 1)))
+            cone = np.clip((light.outer_angle - theta) / (light.outer_angle - light.inner_angle), 0.0, 1.0)
+            scale = scale * cone
+        return l, radiant * scale / d2
     return np.broadcast_to(-np.asarray(light.direction), world.shape), np.broadcast_to(radiant, world.shape)
 
 

@@ -70,7 +70,34 @@ opacity = 0.25
         ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\nscale = [1, 0, 1]\n", "objects[0].scale", "non-zero"),
         ("[[objects]]\nshape = 'mesh'\nmaterial = 'a'\nfile = 'nope.ply'\n", "objects[0].file", "no such mesh file"),
         ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ncolour = [1, 1, 1]\n", "objects[0].colour", "unknown key"),
-        ("[[lights]]\ntype = 'spot'\nintensity = 1\n", "lights[0].type", "'point' or 'directional'"),
+        ("[[lights]]\ntype = 'area'\nintensity = 1\n", "lights[0].type", "'point', 'spot' or 'directional'"),
+        ("[[lights]]\ntype = 'point'\nintensity = 1\nposition = [0, 0, 0]\nrange = 0\n", "lights[0].range", "> 0"),
+        (
+            "[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, -1]\nrange = 2\n",
+            "lights[0].range",
+            "reaches everywhere",
+        ),
+        ("[[lights]]\ntype = 'point'\nintensity = 1\nposition = [0, 0, 0]\nouter_angle = 20\n", "lights[0].outer_angle", "spot"),
+        (
+            "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, -1]\n",
+            "lights[0].outer_angle",
+            "missing",
+        ),
+        (
+            "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, -1]\nouter_angle = 95\n",
+            "lights[0].outer_angle",
+            "<= 90",
+        ),
+        (
+            "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, 0]\nouter_angle = 20\n",
+            "lights[0].direction",
+            "not all zero",
+        ),
+        (
+            "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, -1]\nouter_angle = 20\ninner_angle = 20\n",
+            "lights[0].inner_angle",
+            "below outer_angle",
+        ),
         ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
         ("[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, 0]\n", "lights[0].direction", "not all zero"),
         ("[image]\nwidth = 0\n", "image.width", "an integer >= 1 and <= 8192"),
@@ -158,3 +185,16 @@ def test_object_matrix_composes_scale_rotation_translation(angles, scale, transl
     rx = object_matrix(SceneObject(0, "sphere", "m", rotate=(angles[0], 0, 0)))
     a = math.radians(angles[0])
     np.testing.assert_allclose(rx[:3, :3] @ [0, 1, 0], [0, math.cos(a), math.sin(a)], atol=1e-12)
+
+
+def test_ranged_point_and_spot_lights(scene_from):
+    scene = scene_from(
+        MINIMAL
+        + "[[lights]]\ntype = 'point'\nintensity = 2\nposition = [0, 1, 0]\nrange = 3.5\n"
+        + "[[lights]]\ntype = 'spot'\nintensity = 5\nposition = [0, 4, 0]\ndirection = [0, -2, 0]\nouter_angle = 40\nrange = 9\n"
+        + "[[lights]]\ntype = 'point'\nintensity = 2\nposition = [0, 1, 0]\n"
+    )
+    point, spot, unbounded = scene.lights
+    assert (point.range, point.bounded) == (3.5, True)
+    assert spot.direction == (0.0, -1.0, 0.0) and (spot.inner_angle, spot.outer_angle, spot.range) == (30.0, 40.0, 9.0)
+    assert unbounded.range == float("inf") and not unbounded.bounded  # no range: reaches everywhere, as before

@@ -220,12 +220,15 @@ def test_struct_text():
     text = LIGHT.wgsl()
     body = text[text.index("struct Light {") :]
     members = [line.split("//")[0].strip() for line in body.splitlines()[1:-1]]
-    assert members == ["position: vec3<f32>,", "kind: u32,", "radiant: vec3<f32>,"]
-    assert body.splitlines()[-1] == "};" and "size 32, align 16" in text
+    assert members == ["position: vec3<f32>,", "kind: u32,", "radiant: vec3<f32>,", "range: f32,", "direction: vec3<f32>,",
+                       "cos_outer: f32,", "cone: vec4<f32>,"]  # fmt: skip
+    assert body.splitlines()[-1] == "};" and "size 64, align 16" in text
 
 
 def test_enum_constants():
-    assert wgsl_constants(LightType, "LIGHT_") == "const LIGHT_DIRECTIONAL: u32 = 0u;\nconst LIGHT_POINT: u32 = 1u;\n"
+    assert wgsl_constants(LightType, "LIGHT_") == (
+        "const LIGHT_DIRECTIONAL: u32 = 0u;\nconst LIGHT_POINT: u32 = 1u;\nconst LIGHT_SPOT: u32 = 2u;\n"
+    )
 
     class Signed(enum.IntEnum):
         LOW = -2

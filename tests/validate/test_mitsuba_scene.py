@@ -137,3 +137,79 @@ def test_a_render_continued_from_sample_n_averages_to_the_longer_render(mitsuba_
     assert np.abs(first - rest).max() > 1e-3  # the two parts are different samples
     again, _ = render_pixel_centres(mi, mi_scene, 128, seed=2, first_sample=0)
     assert np.abs(again - rest).max() > 1e-3  # numbering matters
+
+
+RANGED = """
+[camera]
+position = [0.3, 2.0, 1.5]
+target = [0.0, 0.0, 0.0]
+fov = 70.0
+[image]
+width = 32
+height = 24
+[[lights]]
+type = "point"
+position = [0.4, 0.5, -0.3]
+intensity = 3.0
+range = 1.2
+[[lights]]
+type = "spot"
+position = [-0.5, 1.0, 0.2]
+direction = [0.2, -1.0, 0.1]
+intensity = 2.0
+inner_angle = 15.0
+outer_angle = 35.0
+range = 2.5
+[[objects]]
+shape = "plane"
+material = "any"
+scale = 4.0
+"""
+
+
+def test_ranged_point_and_spot_lights_fall_off_as_the_renderer_in_the_reference(mitsuba_rgb):
+    """atlasgen_direct windows each ranged emitter, and Mitsuba's spot is the renderer's cone:
+    L = rho / pi * sum I W(d, r) S cos / d^2 (atlasgen.optics.falloff), 0 beyond each range."""
+    import tomllib
+
+    from atlasgen.materials.scene import parse_scene
+    from atlasgen.optics.falloff import range_window, spot_factor
+    from atlasgen.render.camera import pixel_rays
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, render_mitsuba
+
+    mi = mitsuba_rgb
+    scene = parse_scene(tomllib.loads(RANGED), "ranged.toml")
+    rho = np.array([0.7, 0.6, 0.5])
+    mi_scene = build_mitsuba_scene(mi, scene, [{"type": "diffuse", "reflectance": {"type": "rgb", "value": rho.tolist()}}])
+    image, _ = render_mitsuba(mi, mi_scene, spp=1)
+
+    eye = np.array(scene.camera.position)
+    rays = pixel_rays(scene.camera, 32, 24)
+    hit = eye + rays * (-eye[1] / rays[..., 1])[..., None]
+    irradiance = np.zeros(hit.shape[:2])
+    for light in scene.lights:
+        to_light = np.array(light.position) - hit
+        dist = np.linalg.norm(to_light, axis=-1)
+        scale = range_window(dist, light.range)
+        if light.type == "spot":
+            scale = scale * spot_factor(-(to_light / dist[..., None]) @ np.array(light.direction), light.inner_angle,
+                                        light.outer_angle)  # fmt: skip
+        irradiance += light.intensity * scale * (to_light[..., 1] / dist) / dist**2
+    expected = rho / np.pi * irradiance[..., None]
+    on_plane = (np.abs(hit[..., 0]) < 3.9) & (np.abs(hit[..., 2]) < 3.9)
+    dark = on_plane & (irradiance == 0)
+    assert dark.mean() > 0.2 and (on_plane & (irradiance > 0)).mean() > 0.2  # both sides of the ranges in view
+    np.testing.assert_allclose(image[on_plane], expected[on_plane], rtol=2e-4, atol=1e-7)
+    assert (image[dark] == 0).all()
+
+
+def test_an_integrator_that_cannot_window_a_range_is_refused(mitsuba_rgb):
+    import tomllib
+
+    from atlasgen.errors import SceneError
+    from atlasgen.materials.scene import parse_scene
+    from atlasgen.validate.mitsuba_scene import build_mitsuba_scene
+
+    scene = parse_scene(tomllib.loads(RANGED), "ranged.toml")
+    with pytest.raises(SceneError, match=r"ranged.toml: field 'lights\[0\].range': the 'path' reference cannot apply"):
+        build_mitsuba_scene(mitsuba_rgb, scene, [{"type": "diffuse"}], integrator={"type": "path"})

@@ -1,0 +1,276 @@
+"""Tiled light culling on the GPU (cull.wgsl), its CPU reference and its read-back.
+
+The screen is cut into :data:`~atlasgen.render.layout.TILE_SIZE` x ``TILE_SIZE`` tiles (Andersson 2011;
+Olsson & Assarsson 2011). After a g-buffer pass, one compute workgroup per tile takes the min and max
+view depth of the tile's covered pixels and keeps each light whose sphere (position, range) is not
+wholly outside one of the tile's four side planes or its depth range; unbounded lights are always
+kept. The lighting pass then loops over its tile's list only.
+
+Lists live in one storage buffer: per tile, ``capacity + 1`` u32, the count first, then the indices
+in light order. The count is the true one: a tile with more lights than ``capacity`` keeps its first
+``capacity`` and the lighting pass loops over every light there instead, so a list is never
+silently truncated (:func:`overflowing_tiles` counts such tiles).
+
+Each translucent layer is culled again after its own g-buffer pass, over the tiles of its screen
+rectangle, so its lists hold the lights that reach its depths, not the opaque layer's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from atlasgen.render.camera import camera_basis, pixel_rays, tangents
+from atlasgen.render.layout import CULL, TILE_SIZE, UNIFORM_OFFSET_ALIGNMENT, declaration_wgsl
+from atlasgen.shaders.passes import assemble_shader
+from atlasgen.shaders.structs import round_up
+
+__all__ = [
+    "DEFAULT_TILE_CAPACITY",
+    "CULL_STRIDE",
+    "CullingPass",
+    "TileLists",
+    "tile_grid",
+    "tile_rectangle",
+    "pack_cull",
+    "pack_light_spheres",
+    "decode_tile_lists",
+    "overflowing_tiles",
+    "cull_tiles_reference",
+    "lights_reaching",
+]
+
+#: Light indices a tile's list holds before the tile falls back to the full loop.
+DEFAULT_TILE_CAPACITY = 255
+
+#: Bytes between the culling dispatches' uniforms (dynamic offsets are multiples of 256).
+CULL_STRIDE = round_up(UNIFORM_OFFSET_ALIGNMENT, CULL.size)
+
+
+def tile_grid(width: int, height: int) -> tuple[int, int]:
+    """``(tiles per row, rows of tiles)`` covering ``width`` x ``height`` pixels.
+
+    >>> tile_grid(1280, 720)
+    (80, 45)
+    >>> tile_grid(17, 16)
+    (2, 1)
+    """
+    return -(-width // TILE_SIZE), -(-height // TILE_SIZE)
+
+
+def tile_rectangle(rectangle, width: int, height: int) -> tuple[int, int, int, int]:
+    """``(first tile x, first tile y, tiles across, tiles down)`` covering the pixel rectangle ``(x, y, w, h)``;
+    ``None`` is the whole screen.
+
+    >>> tile_rectangle((20, 5, 20, 40), 1280, 720)
+    (1, 0, 2, 3)
+    >>> tile_rectangle(None, 100, 40)
+    (0, 0, 7, 3)
+    """
+    if rectangle is None:
+        return (0, 0, *tile_grid(width, height))
+    x, y, w, h = rectangle
+    x0, y0 = x // TILE_SIZE, y // TILE_SIZE
+    x1, y1 = -(-(x + w) // TILE_SIZE), -(-(y + h) // TILE_SIZE)
+    return x0, y0, x1 - x0, y1 - y0
+
+
+def pack_cull(rectangles) -> bytes:
+    """The ``Cull`` uniforms (:data:`~atlasgen.render.layout.CULL`) of each tile rectangle, ``CULL_STRIDE`` apart."""
+    out = bytearray()
+    for x0, y0, _, _ in rectangles:
+        data = CULL.pack(origin=[x0, y0, 0, 0])
+        out += data + bytes(CULL_STRIDE - len(data))
+    return bytes(out)
+
+
+def pack_light_spheres(scene) -> bytes:
+    """cull.wgsl's ``light_spheres``: per light, float32 (x, y, z, range) with the centre in camera space
+    (x along right, y along up, z along forward, from the eye) and range 0 for an unbounded light.
+
+    Done once per frame here in float64, rather than once per light in each of the screen's tiles.
+    Never empty (WebGPU rejects zero-size buffers).
+    """
+    right, up, forward = camera_basis(scene.camera)
+    eye = np.asarray(scene.camera.position, dtype=np.float64)
+    out = np.zeros((max(len(scene.lights), 1), 4), dtype=np.float64)
+    for i, light in enumerate(scene.lights):
+        if light.bounded:
+            c = np.asarray(light.position, dtype=np.float64) - eye
+            out[i] = (c @ right, c @ up, c @ forward, light.range)
+    return out.astype("<f4").tobytes()
+
+
+@dataclass
+class TileLists:
+    """Light lists read back from the GPU: ``counts`` (rows, tiles per row), the true number of lights per tile,
+    and ``lists[ty][tx]`` the indices it holds (at most ``capacity``)."""
+
+    counts: np.ndarray
+    lists: list
+    capacity: int
+
+    def overflowed(self) -> np.ndarray:
+        """(rows, tiles per row) bool: tiles whose count exceeds the capacity (lit by the full loop)."""
+        return self.counts > self.capacity
+
+
+def decode_tile_lists(data: bytes, width: int, height: int, capacity: int) -> TileLists:
+    """The tile lists of a ``width`` x ``height`` frame from the tile buffer's bytes."""
+    nx, ny = tile_grid(width, height)
+    words = np.frombuffer(data, dtype=np.uint32)[: nx * ny * (capacity + 1)].reshape(ny, nx, capacity + 1)
+    counts = words[..., 0].astype(np.int64)
+    lists = [[words[ty, tx, 1 : 1 + min(int(counts[ty, tx]), capacity)].tolist() for tx in range(nx)] for ty in range(ny)]
+    return TileLists(counts, lists, capacity)
+
+
+def overflowing_tiles(lists: TileLists) -> int:
+    """How many tiles hold more lights than their list: each is lit by the full loop."""
+    return int(lists.overflowed().sum())
+
+
+def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=None) -> dict:
+    """``{(tx, ty): set of light indices}``: the lights whose sphere meets each tile's frustum and depth range.
+
+    The CPU statement of cull.wgsl's test, in float64: for the tile's covered pixels (finite
+    ``depth``, view depth along the camera's forward axis) with depth range [z_min, z_max], a
+    light of centre c (camera space x, y, z) and radius r = ``slack`` * range is kept unless
+    z + r < z_min or z - r > z_max, or c lies more than r outside one of the four planes
+    through the eye and the tile's pixel edges (distance (x - a z) / sqrt(1 + a^2) for an
+    edge of slope a). Unbounded lights are kept in every covered tile; a tile no object covers
+    gets none. ``tiles`` (a ``(x0, y0, nx, ny)`` tile rectangle) limits the tiles.
+    """
+    width, height = scene.width, scene.height
+    right, up, forward = camera_basis(scene.camera)
+    tan_x, tan_y = tangents(scene.camera, width, height)
+    eye = np.asarray(scene.camera.position, dtype=np.float64)
+    x0, y0, nx, ny = tiles if tiles is not None else tile_rectangle(None, width, height)
+    bounded = [i for i, light in enumerate(scene.lights) if light.bounded]
+    unbounded = {i for i, light in enumerate(scene.lights) if not light.bounded}
+    centres = np.array([scene.lights[i].position for i in bounded], dtype=np.float64).reshape(-1, 3) - eye
+    cx, cy, cz = centres @ right, centres @ up, centres @ forward
+    radius = np.array([scene.lights[i].range for i in bounded], dtype=np.float64) * slack
+
+    def outside(s, z, a):
+        return (s - a * z) / math.sqrt(1.0 + a * a)
+
+    out = {}
+    for ty in range(y0, y0 + ny):
+        for tx in range(x0, x0 + nx):
+            px0, py0 = tx * TILE_SIZE, ty * TILE_SIZE
+            px1, py1 = min(px0 + TILE_SIZE, width), min(py0 + TILE_SIZE, height)
+            d = depth[py0:py1, px0:px1]
+            d = d[np.isfinite(d)]
+            if d.size == 0:
+                out[(tx, ty)] = set()
+                continue
+            left, right_ = (px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x
+            top, bottom = -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y
+            keep = (
+                (cz + radius >= d.min())
+                & (cz - radius <= d.max())
+                & (outside(cx, cz, left) >= -radius)
+                & (-outside(cx, cz, right_) >= -radius)
+                & (outside(cy, cz, bottom) >= -radius)
+                & (-outside(cy, cz, top) >= -radius)
+            )
+            out[(tx, ty)] = unbounded | {bounded[k] for k in np.flatnonzero(keep)}
+    return out
+
+
+def lights_reaching(scene, depth: np.ndarray, candidates=None) -> np.ndarray:
+    """``(h, w)`` int: how many lights reach each covered pixel's surface point (0 where nothing is drawn).
+
+    A bounded light reaches a point closer than its range (and, for a spot light, inside its
+    outer cone); an unbounded one reaches every point. ``candidates``, a :class:`TileLists`
+    or the reference's dict, restricts each tile to the lights listed for it (a tile that
+    overflowed tests every light), which makes this cheap enough for 1024 lights at 720p.
+    """
+    width, height = scene.width, scene.height
+    rays = pixel_rays(scene.camera, width, height)
+    world = np.asarray(scene.camera.position, dtype=np.float64) + rays * np.where(np.isfinite(depth), depth, 0.0)[..., None]
+    covered = np.isfinite(depth)
+    out = np.zeros((height, width), dtype=np.int64)
+    nx, ny = tile_grid(width, height)
+    everything = list(range(len(scene.lights)))
+    for ty in range(ny):
+        for tx in range(nx):
+            if candidates is None:
+                chosen = everything
+            elif isinstance(candidates, TileLists):
+                chosen = everything if candidates.overflowed()[ty, tx] else candidates.lists[ty][tx]
+            else:
+                chosen = sorted(candidates.get((tx, ty), ()))
+            sl = (slice(ty * TILE_SIZE, (ty + 1) * TILE_SIZE), slice(tx * TILE_SIZE, (tx + 1) * TILE_SIZE))
+            points, mask = world[sl], covered[sl]
+            count = np.zeros(mask.shape, dtype=np.int64)
+            for i in chosen:
+                light = scene.lights[i]
+                if not light.bounded:
+                    count += 1
+                    continue
+                d = points - np.asarray(light.position, dtype=np.float64)
+                dist2 = (d * d).sum(-1)
+                reach = dist2 < light.range**2
+                if light.type == "spot":
+                    cos_theta = (d @ np.asarray(light.direction)) / np.sqrt(np.maximum(dist2, 1e-300))
+                    reach &= cos_theta > math.cos(math.radians(light.outer_angle))
+                count += reach
+            out[sl] = np.where(mask, count, 0)
+    return out
+
+
+class CullingPass:
+    """The compute pipeline of cull.wgsl and the bindings it reads."""
+
+    def __init__(self, device):
+        import wgpu
+
+        self.device = device
+        module = device.create_shader_module(
+            label="cull", code=assemble_shader("common.wgsl", "cull.wgsl", declare=declaration_wgsl)
+        )
+        compute = wgpu.ShaderStage.COMPUTE
+        self.layout = device.create_bind_group_layout(
+            label="cull",
+            entries=[
+                {"binding": 0, "visibility": compute, "buffer": {"type": "uniform"}},
+                {"binding": 1, "visibility": compute, "buffer": {"type": "read-only-storage"}},
+                {"binding": 2, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
+                {"binding": 3, "visibility": compute, "buffer": {"type": "storage"}},
+                {
+                    "binding": 4,
+                    "visibility": compute,
+                    "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": CULL.size},
+                },
+            ],
+        )
+        self.pipeline = device.create_compute_pipeline(
+            label="cull",
+            layout=device.create_pipeline_layout(bind_group_layouts=[self.layout]),
+            compute={"module": module, "entry_point": "cs_cull"},
+        )
+
+    def bind_group(self, frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer):
+        """``sphere_buffer`` holds :func:`pack_light_spheres`; ``tile_buffer`` receives the lists."""
+        return self.device.create_bind_group(
+            layout=self.layout,
+            entries=[
+                {"binding": 0, "resource": {"buffer": frame_buffer}},
+                {"binding": 1, "resource": {"buffer": sphere_buffer}},
+                {"binding": 2, "resource": gbuffer.normal_depth.create_view()},
+                {"binding": 3, "resource": {"buffer": tile_buffer}},
+                {"binding": 4, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
+            ],
+        )
+
+    def encode(self, encoder, bind_group, step: int, tiles, timestamps=None) -> None:
+        """Record one dispatch culling the tile rectangle ``tiles`` = (x0, y0, nx, ny) with the
+        ``step``-th ``Cull`` uniform (0: the opaque layer; k: the k-th translucent object)."""
+        pass_ = encoder.begin_compute_pass(timestamp_writes=timestamps)
+        pass_.set_pipeline(self.pipeline)
+        pass_.set_bind_group(0, bind_group, [step * CULL_STRIDE])
+        pass_.dispatch_workgroups(int(tiles[2]), int(tiles[3]), 1)
+        pass_.end()

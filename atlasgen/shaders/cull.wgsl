@@ -1,0 +1,135 @@
+// Tiled light culling (Andersson 2011, "DirectX 11 Rendering in Battlefield 3"; Olsson &
+// Assarsson 2011, "Tiled Shading"): one workgroup per TILE_SIZE x TILE_SIZE screen tile
+// builds the list of lights that can reach the tile's pixels, for the lighting pass.
+//
+// 1. Depth bounds: each of the CULL_GROUP x CULL_GROUP invocations reads the view depth of its
+//    2 x 2 pixels from the g-buffer; the workgroup keeps the min and max over the pixels some
+//    object covers (empty pixels hold FAR_DEPTH). Positive floats order as their bits, so
+//    atomicMax on the bits (and on their complement, for the min) orders the depths. The
+//    workgroup's memory is cleared first: lavapipe hands the next workgroup what the last left.
+// 2. Each light's sphere (centre in camera space, range; light_spheres, filled by the CPU,
+//    atlasgen/render/culling.py pack_light_spheres) is tested against the tile's four side
+//    planes through the eye and the depth range [z_min, z_max]: it is kept unless it lies
+//    wholly outside one of them. Unbounded lights (range 0: directional, or no range given)
+//    are always kept. Kept lights set their bit in a workgroup mask.
+// 3. The mask is written out in light order, so a tile's list sums its lights in the same
+//    order as the full loop: count first, then up to capacity indices. The count is the
+//    true number, even beyond the capacity: the lighting pass then loops over every
+//    light for that tile instead (never a silently truncated list).
+//
+// On a software GPU every barrier costs a switch of all invocations, so there are three, and
+// a quarter as many invocations as pixels.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+// Per light: camera-space centre (x along right, y along up, z along forward from the eye), range (0: unbounded).
+@group(0) @binding(1) var<storage, read> light_spheres: array<vec4<f32>>;
+@group(0) @binding(2) var normal_depth_tex: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read_write> tile_lights: array<u32>;
+@group(0) @binding(4) var<uniform> cull: Cull;
+
+// @declare Cull
+// @declare TILE_SIZE
+// @declare LIGHT_MASK_WORDS
+
+// The sphere test is loosened by this share of the range: float32 rounding in the planes
+// must never cull a light that reaches a pixel, and where it only just does, it adds ~0.
+const RANGE_SLACK: f32 = 1.001;
+// Invocations along each side of the workgroup: each reads 2 x 2 pixels of the tile.
+const CULL_GROUP: u32 = TILE_SIZE / 2u;
+const INVOCATIONS: u32 = CULL_GROUP * CULL_GROUP;
+// Depths at or beyond this are the g-buffer's clear value (FAR_DEPTH, 3e38): no object there.
+const EMPTY_DEPTH: f32 = 1.0e38;
+
+var<workgroup> depth_min_complement: atomic<u32>;
+var<workgroup> depth_max: atomic<u32>;
+var<workgroup> mask: array<atomic<u32>, LIGHT_MASK_WORDS>;
+
+// The unit normal (in the (s, z) plane) of the plane through the eye that holds the camera's up
+// (or right) axis and the screen line at slope a: dot(normal, (s, z)) = (s - a z) / sqrt(1 + a^2),
+// the signed distance, positive on the side where s / z > a.
+fn plane_normal(a: f32) -> vec2<f32> {
+    return vec2<f32>(1.0, -a) * inverseSqrt(1.0 + a * a);
+}
+
+@compute @workgroup_size(CULL_GROUP, CULL_GROUP)
+fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+           @builtin(local_invocation_index) index: u32) {
+    let tile = cull.origin.xy + group.xy;
+    if (index == 0u) {
+        atomicStore(&depth_min_complement, 0u);
+        atomicStore(&depth_max, 0u);
+    }
+    if (index < LIGHT_MASK_WORDS) {  // INVOCATIONS >= LIGHT_MASK_WORDS: one word each
+        atomicStore(&mask[index], 0u);
+    }
+    workgroupBarrier();
+    let size = vec2<u32>(frame.viewport.xy);
+    var lo_bits = 0xffffffffu;
+    var hi_bits = 0u;
+    for (var k = 0u; k < 4u; k = k + 1u) {
+        let pixel = tile * TILE_SIZE + local.xy * 2u + vec2<u32>(k & 1u, k >> 1u);
+        if (all(pixel < size)) {
+            let depth = textureLoad(normal_depth_tex, vec2<i32>(pixel), 0).w;
+            if (depth < EMPTY_DEPTH) {
+                lo_bits = min(lo_bits, bitcast<u32>(depth));
+                hi_bits = max(hi_bits, bitcast<u32>(depth));
+            }
+        }
+    }
+    if (hi_bits != 0u) {
+        atomicMax(&depth_min_complement, ~lo_bits);
+        atomicMax(&depth_max, hi_bits);
+    }
+    workgroupBarrier();
+    let z_min = bitcast<f32>(~atomicLoad(&depth_min_complement));
+    let z_max = bitcast<f32>(atomicLoad(&depth_max));
+    let covered = atomicLoad(&depth_max) != 0u;
+
+    // The tile's edges as slopes: camera-space x / z from its left and right pixel edges,
+    // y / z from its top and bottom ones (image y runs along -up).
+    let lo = vec2<f32>(tile * TILE_SIZE);
+    let hi = vec2<f32>(min((tile + 1u) * TILE_SIZE, size));
+    let ndc_lo = lo * frame.viewport.zw * 2.0 - 1.0;
+    let ndc_hi = hi * frame.viewport.zw * 2.0 - 1.0;
+    let left = plane_normal(ndc_lo.x * frame.forward.w);
+    let right = -plane_normal(ndc_hi.x * frame.forward.w);
+    let top = -plane_normal(-ndc_lo.y * frame.right.w);
+    let bottom = plane_normal(-ndc_hi.y * frame.right.w);
+
+    for (var i = index; i < frame.counts.x; i = i + INVOCATIONS) {
+        let sphere = light_spheres[i];
+        var keep = covered;
+        if (covered && sphere.w > 0.0) {
+            let r = sphere.w * RANGE_SLACK;
+            keep = sphere.z + r >= z_min && sphere.z - r <= z_max
+                && dot(left, sphere.xz) >= -r && dot(right, sphere.xz) >= -r
+                && dot(bottom, sphere.yz) >= -r && dot(top, sphere.yz) >= -r;
+        }
+        if (keep) {
+            atomicOr(&mask[i / 32u], 1u << (i % 32u));
+        }
+    }
+    workgroupBarrier();
+    if (index < LIGHT_MASK_WORDS) {
+        let capacity = frame.counts.w;
+        let base = (tile.y * frame.counts.z + tile.x) * (capacity + 1u);
+        var offset = 0u;
+        for (var k = 0u; k < index; k = k + 1u) {
+            offset = offset + countOneBits(atomicLoad(&mask[k]));
+        }
+        var bits = atomicLoad(&mask[index]);
+        loop {
+            if (bits == 0u) {
+                break;
+            }
+            if (offset < capacity) {
+                tile_lights[base + 1u + offset] = index * 32u + firstTrailingBit(bits);
+            }
+            offset = offset + 1u;
+            bits = bits & (bits - 1u);
+        }
+        if (index == LIGHT_MASK_WORDS - 1u) {
+            tile_lights[base] = offset;
+        }
+    }
+}
