@@ -36,12 +36,27 @@ def test_each_form_resolves_to_the_model_type_the_parser_builds():
 
 
 @pytest.mark.slow
+def test_c_primitives_resolve_to_the_model_type_the_parser_builds():
+    ffi = wgpu_ffi.ffi
+    install(ffi)
+    parser = ffi._parser
+    fast = parser.parse_type_and_quals
+    slow = type(parser).parse_type_and_quals.__get__(parser)
+    # What wgpu-py allocates and casts besides the header's typedefs, and a few more.
+    for name in ("uint8_t", "char", "uint32_t", "intptr_t", "uintptr_t", "int", "float", "double", "size_t", "int64_t"):
+        for form in (name, f"{name} *", f"{name} []", f"{name}[4]"):
+            assert fast(form) == slow(form), form
+    for form in ("void *", "void"):
+        assert fast(form) == slow(form), form
+
+
+@pytest.mark.slow
 def test_anything_else_goes_to_the_parser():
     ffi = wgpu_ffi.ffi
     install(ffi)
     parser = ffi._parser
     slow = type(parser).parse_type_and_quals.__get__(parser)
     # Not a plain typedef name with at most one * and one [N]: the parser's answer, whatever it is.
-    for cdecl in ("uint32_t *", "int[4]", "WGPUBufferDescriptor **", "WGPUBufferDescriptor *[2][3]", "void(*)(int)"):
+    for cdecl in ("unsigned int", "WGPUBufferDescriptor **", "WGPUBufferDescriptor *[2][3]", "void(*)(int)"):
         assert parser.parse_type_and_quals(cdecl) == slow(cdecl), cdecl
     assert ffi.typeof("WGPUBufferDescriptor *") is ffi.typeof("WGPUBufferDescriptor*")

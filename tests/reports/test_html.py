@@ -57,3 +57,35 @@ def test_placed_labels_stay_inside_and_do_not_overlap_where_there_is_room(points
         for i, a in enumerate(boxes):
             for b in boxes[i + 1 :]:
                 assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), (a, b)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", [(4.2, 3.0), (7.5, 5.0)])
+def test_placed_axes_keep_every_text_inside_the_figure_and_off_the_axes(size):
+    # The report plots' worst case: log axes over many decades (10^-6 ... 10^2), two-line title
+    # and y label, a two-line x label (the Pareto charts').
+    from atlasgen.reports.html import place_axes
+
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=size)
+        ax.loglog([1e-1, 1e3], [1e-6, 1e2], "o")
+        ax.set_title("first line of a title\nsecond line", fontsize="medium")
+        ax.set_xlabel("lighting pass cost (ns)\non a device")
+        ax.set_ylabel("rel. RMS\n(exact: drawn at 1e-06)")
+        place_axes(fig)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        figure_box, axes_box = fig.bbox, ax.get_window_extent(renderer)
+        texts = [ax.title, ax.xaxis.label, ax.yaxis.label]
+        for axis, coordinate in ((ax.xaxis, 0), (ax.yaxis, 1)):  # the tick labels drawn: those in view
+            low, high = sorted(axis.get_view_interval())
+            texts += [t for t in axis.get_ticklabels() if t.get_text() and low <= t.get_position()[coordinate] <= high]
+        boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
+        boxes.append(("everything drawn", ax.get_tightbbox(renderer)))
+        plt.close(fig)
+    for text, box in boxes:
+        inside = box.x0 >= figure_box.x0 and box.y0 >= figure_box.y0 and box.x1 <= figure_box.x1 and box.y1 <= figure_box.y1
+        assert inside, f"{text!r} at {box.extents} leaves the figure {figure_box.extents}"
+        assert text == "everything drawn" or not box.overlaps(axes_box), (
+            f"{text!r} at {box.extents} overlaps the axes {axes_box.extents}"
+        )

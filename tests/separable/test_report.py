@@ -69,12 +69,14 @@ _STUDIES: dict = {}
 def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch, flag):
     import functools
 
+    import atlasgen.cli.report_cmd as command
     import atlasgen.reports.separable as module
     from atlasgen.cli.main import app
 
     # The study's sweeps, cut down to keep the test quick; the CLI passes everything else. What
-    # is checked is the progress each verbosity prints, so each material is studied once.
-    monkeypatch.setattr(module, "write_separable_report", functools.partial(
+    # is checked is the progress each verbosity prints, so each material is studied once. The
+    # command holds its own reference to the function (from-import): patch that one.
+    monkeypatch.setattr(command, "write_separable_report", functools.partial(
         module.write_separable_report, resolutions=(8,), parametrizations=("half_diff",)))  # fmt: skip
     study = module.study_material
 
