@@ -23,6 +23,7 @@ not filterable):
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,7 +115,8 @@ def material_tables(levels, srgb: bool, entry: MaterialEntry, custom_lighting: b
     if custom_lighting:
         f_cos = _separable_f_cos(levels, srgb, entry)
         if f_cos is not None:
-            out[:, _SEPARABLE_COLUMN, :3] = directional_albedo_table(f_cos, HEIGHT)
+            # The rebuild's azimuths are unsigned (acos), so its f cos is even in the azimuth of l.
+            out[:, _SEPARABLE_COLUMN, :3] = directional_albedo_table(f_cos, HEIGHT, even=True)
         return out.astype(np.float32)
     values = decode_render_slice(levels, srgb, entry, entry.first_slice)
     nearest = entry.flag("nearest")
@@ -177,6 +179,16 @@ def upload_tables(ctx, tables: np.ndarray):
     return texture
 
 
+#: How many materials' tables :class:`EnvironmentLighting` keeps for atlases to come, the latest first.
+_KEPT_TABLES = 64
+
+
+def _tables_key(levels, srgb: bool, entry: MaterialEntry, custom_lighting: bool) -> tuple:
+    """What :func:`material_tables` reads: the entry (its scales, biases, flags, factors) and its level-0 texels."""
+    texels = np.asarray(levels[0][entry.first_slice : entry.first_slice + entry.slice_count])
+    return repr(entry), srgb, custom_lighting, hashlib.sha256(texels.tobytes()).digest()
+
+
 class EnvironmentLighting:
     """The renderer's environment resources on one device: per environment (cached) and per material slice.
 
@@ -192,11 +204,15 @@ class EnvironmentLighting:
         self._done: set = set()
         self._tables_texture = None
         self._placeholder = None
+        #: A material's tables by what they are made from (:func:`_tables_key`), kept across atlases.
+        self._made: dict = {}
 
     def for_atlas(self, atlas) -> EnvironmentLighting:
-        """The same for another atlas: its slices' tables are made anew, the prefiltered environment is kept."""
+        """The same for another atlas: the prefiltered environment is kept, and so are the tables of every
+        material whose texels and entry are unchanged (a preview's floor, a material that was not edited)."""
         other = EnvironmentLighting(self.ctx, atlas)
         other._environments = self._environments
+        other._made = self._made
         return other
 
     def data(self, env: Environment) -> EnvironmentData:
@@ -211,10 +227,18 @@ class EnvironmentLighting:
 
     def tables(self, entries, custom) -> object:
         """The tables texture holding every material of ``entries`` (``custom``: theirs is ``custom_lighting``)."""
-        new = [(e, c) for e, c in zip(entries, custom) if e.first_slice not in self._done]
-        for entry, is_custom in new:
-            self._tables[entry.first_slice] = material_tables(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+        new = {e.first_slice: (e, c) for e, c in zip(entries, custom) if e.first_slice not in self._done}
+        made = {}
+        for entry, is_custom in new.values():
+            key = _tables_key(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+            if key not in self._made:
+                self._made[key] = material_tables(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+            made[key] = self._made[key]
+            self._tables[entry.first_slice] = made[key]
             self._done.add(entry.first_slice)
+        if new:
+            self._made = {**made, **{k: v for k, v in self._made.items() if k not in made}}
+            self._made = dict(list(self._made.items())[:_KEPT_TABLES])
         if new or self._tables_texture is None:
             self._tables_texture = upload_tables(self.ctx, self._tables)
         return self._tables_texture

@@ -24,6 +24,7 @@ import numpy as np
 
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
+from atlasgen.render.atlas_data import STORAGE
 from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
 from atlasgen.shaders.environment import environment_declarations
 from atlasgen.shaders.lang import emit
@@ -131,6 +132,8 @@ class LightingPass:
                     "visibility": frag,
                     "texture": {"sample_type": "unfilterable-float", "view_dimension": "2d-array"},
                 },
+                # The include's per-bake tables (atlasgen/render/atlas_data.py STORAGE).
+                *({"binding": b, "visibility": frag, "buffer": {"type": "read-only-storage"}} for _, b in STORAGE.values()),
             ],
         )
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
@@ -180,9 +183,10 @@ class LightingPass:
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment):
-        """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`)."""
-        env_buffer, env_texture, tables = environment
+    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment, tables):
+        """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
+        ``tables``: the include's storage tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
+        env_buffer, env_texture, env_tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
@@ -196,7 +200,8 @@ class LightingPass:
                 {"binding": 7, "resource": {"buffer": env_buffer}},
                 {"binding": 8, "resource": env_texture.create_view()},
                 {"binding": 9, "resource": self.env_sampler},
-                {"binding": 10, "resource": tables.create_view(dimension="2d-array")},
+                {"binding": 10, "resource": env_tables.create_view(dimension="2d-array")},
+                *({"binding": STORAGE[name][1], "resource": {"buffer": buffer}} for name, buffer in tables.items()),
             ],
         )
 
