@@ -24,6 +24,7 @@ from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
+from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import figure_png, label_points, pareto_front, plot_style, plot_width, render_page
 from atlasgen.validate.metrics import flip_heatmap
 
@@ -384,6 +385,8 @@ def _html(data: dict) -> bytes:
         plot_width=plot_width(_PLOT_SIZE[0]),
         metric_rows=metric_rows,
         breakdown=breakdown,
+        environment_rows=environment_rows(data),
+        environment_columns=[heading for heading, _ in ENVIRONMENT_COLUMNS],
         materials=materials,
         columns=columns,
     )
