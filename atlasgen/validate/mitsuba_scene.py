@@ -413,6 +413,10 @@ def render_pixel_centres(
     return image, time.perf_counter() - t0
 
 
+#: Halton coordinates in the order render_environment_qmc uses them under an ``envmap``: the emitter's last.
+_EMITTER_FIRST = [2, 3, 4, 5, 6, 0, 1]
+
+
 def render_environment_qmc(mi, mi_scene, spp: int, seed: int = 0, first_sample: int = 0) -> tuple[np.ndarray, float]:
     """A scene lit by its environment alone, as :func:`render_pixel_centres` renders it, by importance sampling
     the BSDF (and the emitter) on randomised quasi-Monte Carlo points: ``(linear RGB (h, w, 3), seconds)``.
@@ -422,7 +426,8 @@ def render_environment_qmc(mi, mi_scene, spp: int, seed: int = 0, first_sample: 
     shifted by ``seed`` (:func:`atlasgen.optics.low_discrepancy.halton_points`) and draws three directions:
     w_b from ``bsdf.sample`` (coordinates 1-3: the BSDF's own lobe choice and direction, on w_i's side),
     w_o cosine-distributed on the other side (4-5: light through the surface, N.L < 0) and, for an
-    ``envmap``, w_e from the emitter (6-7). They are combined by the balance heuristic (Veach 1997, eq. 9.10)
+    ``envmap``, w_e from the emitter (6-7; then the emitter takes coordinates 1-2, bases 2 and 3, whose
+    points spread best: half the error of the sun's samples on bases 13 and 17). They are combined by the balance heuristic (Veach 1997, eq. 9.10)
     with counts 1, 1 and c_e (:data:`ENVIRONMENT_EMITTER_WEIGHT`'s for an ``envmap``; 0 for a ``constant``
     emitter, whose own sampling adds only variance):
 
@@ -457,7 +462,8 @@ def render_environment_qmc(mi, mi_scene, spp: int, seed: int = 0, first_sample: 
         while done < end:
             batch = min(CENTRE_PASS_SPP, end - done)
             count = width * height * batch
-            u = np.tile(halton_points(done, batch, 7, seed), (width * height, 1))  # the same points for every pixel
+            # The same points for every pixel; the sky's emitter samples (the sun) take the two best-spread bases, 2 and 3.
+            u = np.tile(halton_points(done, batch, 7, seed)[:, _EMITTER_FIRST if c_e else slice(None)], (width * height, 1))
             pixel = dr.arange(mi.UInt32, count) // batch
             centre = mi.Point2f((mi.Float(pixel % width) + 0.5) / width, (mi.Float(pixel // width) + 0.5) / height)
             ray, weight = sensor.sample_ray_differential(0.0, mi.Float(0.5), centre, mi.Point2f(0.5, 0.5))
