@@ -11,14 +11,20 @@ compile, label, PNG encode, write); the rest of the latency is the watch noticin
 Whole process: ``atlasgen preview MATERIAL -o OUT -v`` as a subprocess, the median of ``RUNS`` runs
 after one that fills the bake cache, from process start to exit; ``-v`` prints the steps' times.
 
+Beside each wall time, the CPU time it took (user + system, every thread: the watch, the bake and
+lavapipe's; a subprocess's from its rusage), which other processes on a shared machine disturb less,
+and the ratio of each median to the one the last run wrote in BENCHMARKS.json.
+
 Run alone: ``python bench/run.py preview`` (updates this section of BENCHMARKS.md and .json).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import re
+import resource
 import shutil
 import statistics
 import subprocess
@@ -40,7 +46,7 @@ NONCE = time.time_ns() % 999_983 * 1e-9
 
 
 def _terracotta_peak(i: int) -> str:
-    # The largest channel moves: the slice's scale, so the include, and the lighting shader is compiled again.
+    # The largest channel moves: the slice's scale, so the bake's include (the renderer reads it from a buffer).
     return f'type = "lambert"\ndescription = "terracotta, edited"\ncolour = [{0.76 - 0.01 * (i + 1) - NONCE:.9f}, 0.39, 0.25]\n'
 
 
@@ -61,7 +67,7 @@ def _gold(i: int) -> str:
 
 #: (key, material file, kind for the goal, what each save edits, how)
 CASES = (
-    ("terracotta", "terracotta", "lut", "colour, a new largest channel (the lighting shader is compiled)", _terracotta_peak),
+    ("terracotta", "terracotta", "lut", "colour, a new largest channel (a new slice scale)", _terracotta_peak),
     ("terracotta-same-peak", "terracotta", "lut", "colour, the same largest channel (texels only)", _terracotta_same_peak),
     ("red-plastic", "red-plastic", None, "colour of a slice fitted to Mitsuba's roughplastic (the fit runs)", _red_plastic),
     ("separable-gold", "separable-gold", "separable", "roughness alpha of the factored Mitsuba BSDF", _gold),
@@ -93,17 +99,18 @@ def measure_saves(stem: str, edit) -> dict:
         first = updates.get(timeout=600)
         if first.error is not None:
             raise RuntimeError(f"{stem}: first picture failed: {first.error}")
-        latencies, steps, compiled = [], [], 0
+        latencies, cpus, steps, compiled = [], [], [], 0
         for i in range(WARMUP + SAVES):
             time.sleep(0.3)  # the watch idle again, as between an artist's saves
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             rename_over(path, edit(i))
             update = updates.get(timeout=600)
-            latency = time.perf_counter() - t0
+            latency, cpu = time.perf_counter() - t0, time.process_time() - c0
             if update.error is not None:
                 raise RuntimeError(f"{stem}: save {i} failed: {update.error}")
             if i >= WARMUP:
                 latencies.append(latency)
+                cpus.append(cpu)
                 steps.append(update.timings)
                 compiled += update.preview.compiled
         stop.set()
@@ -116,6 +123,7 @@ def measure_saves(stem: str, edit) -> dict:
         "min_s": min(latencies),
         "max_s": max(latencies),
         "all_s": latencies,
+        "cpu_median_s": statistics.median(cpus),
         "steps_median_s": step_medians,
         "update_median_s": work,
         "noticing_median_s": statistics.median(lat - s["total"] for lat, s in zip(latencies, steps)),
@@ -131,11 +139,13 @@ def measure_process(stem: str) -> dict:
         material = str(ROOT / "materials" / f"{stem}.toml")
         cmd = [str(exe), "preview", material, "-o", f"{tmp}/out.png", "--cache", f"{tmp}/cache", "-v"]
         subprocess.run(cmd, check=True, capture_output=True)  # fills the cache and writes the ball's file
-        walls, steps = [], []
+        walls, cpus, steps = [], [], []
         for _ in range(RUNS):
-            t0 = time.perf_counter()
+            t0, r0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
             done = subprocess.run(cmd, check=True, capture_output=True, text=True)
             walls.append(time.perf_counter() - t0)
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpus.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
             steps.append({k: float(v) for k, v in re.findall(r"(\w+) ([0-9.]+) s", done.stderr)})
         imports = []
         for _ in range(RUNS):
@@ -144,6 +154,7 @@ def measure_process(stem: str) -> dict:
             imports.append(time.perf_counter() - t0)
     step_medians = {k: statistics.median(s[k] for s in steps) for k in steps[0]}
     return {"median_s": statistics.median(walls), "min_s": min(walls), "max_s": max(walls), "all_s": walls,
+            "cpu_median_s": statistics.median(cpus),
             "steps_median_s": step_medians, "start_and_imports_median_s": statistics.median(imports)}  # fmt: skip
 
 
@@ -151,9 +162,31 @@ def _steps(medians: dict) -> str:
     return ", ".join(f"{k} {v:.3f}" for k, v in medians.items())
 
 
+def _last_run() -> dict:
+    """The ``preview`` section BENCHMARKS.json holds (the figures this run is compared with), {} without one."""
+    try:
+        data = json.loads((ROOT / "BENCHMARKS.json").read_text()).get("preview", {})
+    except (OSError, ValueError):
+        return {}
+    return data if "saves" in data else {}
+
+
+def _ratio(new: float, old: dict | None) -> str:
+    return f"{new / old['median_s']:.2f}x" if old and old.get("median_s") else "-"
+
+
+def _median(entry: dict | None) -> str:
+    return f"{entry['median_s']:.3f}" if entry and "median_s" in entry else "-"
+
+
+def _cpu(entry: dict | None) -> str:
+    return f"{entry['cpu_median_s']:.3f}" if entry and "cpu_median_s" in entry else "-"
+
+
 def run() -> dict:
     from atlasgen.render.device import get_device
 
+    last = _last_run()
     load, cpus = os.getloadavg()[0], os.cpu_count()
     device = get_device().name
     saves = {}
@@ -174,16 +207,21 @@ def run() -> dict:
         f"Watch mode: each save renames an edited copy over the material file (as vim saves); latency from "
         f"just before the rename to the PNG in place, median of {SAVES} saves after {WARMUP}, fresh bake cache "
         f"(every save bakes). 640x400 per picture plus its label. Device: {device}; load average {load:.2f} on "
-        f"{cpus} CPUs when the section started.",
+        f"{cpus} CPUs when the section started. CPU: the process's user + system seconds over the same span "
+        f"(every thread: the watch, the bake, lavapipe's); last run: this median over the one BENCHMARKS.json held.",
         "",
-        "| material | each save edits | median (s) | fastest | slowest | goal | where an update's time goes (median s) "
-        "| noticing the save (s) | shader compiled |",
-        "|---|---|---:|---:|---:|---|---|---:|---:|",
+        "| material | each save edits | median (s) | CPU median (s) | last run (s) | ratio | fastest | slowest | goal "
+        "| where an update's time goes (median s) | noticing the save (s) | shader compiled |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|---:|",
     ]
-    for s in saves.values():
+    old_saves = last.get("saves", {})
+    for key, s in saves.items():
+        old = old_saves.get(key)
         goal = f"<= {GOALS_S[s['kind']]} s: {'met' if s['median_s'] <= GOALS_S[s['kind']] else 'not met'}" if s["kind"] else "-"
-        md.append(f"| {s['material']} | {s['edit']} | {s['median_s']:.3f} | {s['min_s']:.3f} | {s['max_s']:.3f} | {goal} "
-                  f"| {_steps(s['steps_median_s'])} | {s['noticing_median_s']:.3f} | {s['compiled_saves']}/{SAVES} |")  # fmt: skip
+        md.append(f"| {s['material']} | {s['edit']} | {s['median_s']:.3f} | {_cpu(s)} | "
+                  f"{_median(old)} | {_ratio(s['median_s'], old)} | {s['min_s']:.3f} "
+                  f"| {s['max_s']:.3f} | {goal} | {_steps(s['steps_median_s'])} | {s['noticing_median_s']:.3f} "
+                  f"| {s['compiled_saves']}/{SAVES} |")  # fmt: skip
     lut, same = saves["terracotta"], saves["terracotta-same-peak"]
     compile_s = lut["steps_median_s"]["render"] - same["steps_median_s"]["render"]
     missed = [s for s in saves.values() if s["kind"] and s["median_s"] > GOALS_S[s["kind"]]]
@@ -191,22 +229,28 @@ def run() -> dict:
         md += ["", "Where the time goes where a goal is missed: " + "; ".join(
             f"{s['material']} ({s['edit']}): " + ", ".join(
                 f"{k} {v:.3f} s" for k, v in sorted(s["steps_median_s"].items(), key=lambda kv: -kv[1])[:2])
-            for s in missed) + f". A new slice scale changes the include, and lavapipe compiles the lighting shader "
-            f"again on the next frame: {compile_s:.3f} s of terracotta's render (the two terracotta rows' difference)."]  # fmt: skip
-    p, load_after = process, os.getloadavg()[0]
+            for s in missed) + "."]  # fmt: skip
+    md += ["", f"A new slice scale costs {compile_s:.3f} s more render than new texels alone (the two terracotta "
+           f"rows): the renderer reads scales and factor tables from storage buffers, and compiled its lighting "
+           f"shader on {sum(s['compiled_saves'] for s in saves.values())} of {len(saves) * SAVES} saves."]  # fmt: skip
+    p, load_after, old_p = process, os.getloadavg()[0], last.get("process")
+    last_text = f"; last run {old_p['median_s']:.2f} s, ratio {_ratio(p['median_s'], old_p)}" if old_p else ""
     md += [
         "",
         f"Whole process, `atlasgen preview materials/terracotta.toml -v` with a warm bake cache: median "
-        f"{p['median_s']:.2f} s of {RUNS} (fastest {p['min_s']:.2f}, slowest {p['max_s']:.2f}); goal <= "
-        f"{GOALS_S['process']} s: {'met' if goals['process'] else 'not met'}. Its steps (median s): "
-        f"{_steps(p['steps_median_s'])}; Python's start with the command's imports alone: "
-        f"{p['start_and_imports_median_s']:.2f} s. Load average {load_after:.2f} when the section ended: other "
-        "processes on the machine move these figures by as much as 2x between runs.",
-        "",
+        f"{p['median_s']:.2f} s of {RUNS} (fastest {p['min_s']:.2f}, slowest {p['max_s']:.2f}; CPU median "
+        f"{p['cpu_median_s']:.2f} s{last_text})",
     ]
+    md[-1] += (f"; goal <= {GOALS_S['process']} s: {'met' if goals['process'] else 'not met'}. Its steps (median s): "
+               f"{_steps(p['steps_median_s'])}; Python's start with the command's imports alone: "
+               f"{p['start_and_imports_median_s']:.2f} s. Load average {load_after:.2f} when the section ended: other "
+               "processes on the machine move the wall times by as much as 2x between runs, the CPU times less.")  # fmt: skip
+    md.append("")
     return {"markdown": "\n".join(md),
             "data": {"device": device, "load_average": load, "load_average_after": load_after, "cpus": cpus, "saves": saves, "process": process,
-                     "lighting_compile_s": compile_s, "goals_s": GOALS_S, "goals_met": goals}}  # fmt: skip
+                     "lighting_compile_s": compile_s, "goals_s": GOALS_S, "goals_met": goals,
+                     "last_run": {"saves": {k: v.get("median_s") for k, v in old_saves.items()},
+                                  "process": (old_p or {}).get("median_s")}}}  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -9,7 +9,7 @@
     the renderer's g-buffer, a back face is shaded with the flipped normal. It samples
     the renderer's GGX lobe (D cos theta_m, reflected about m; Walter et al. 2007,
     section 5.3) with probability 1/2 and the cosine-weighted hemisphere otherwise,
-    with the mixture's pdf.
+    with the mixture's pdf; a slice without specular scale (A.a = 0) samples the cosine alone.
 ``atlasgen_brdf`` (:data:`BRDF_REFERENCE`)
     A separable material's source BSDF times the object's albedo, f cos for the full
     (w_i, w_o): the analytic source, or the Mitsuba BSDF given in the material.
@@ -135,6 +135,11 @@ def register_bsdfs(mi) -> None:
             self.albedo = np.asarray(spec.get("albedo", (1.0, 1.0, 1.0)), dtype=np.float64)
             self.gloss = float(spec.get("gloss", 0.5))
             self.distribution = mi.MicrofacetDistribution(mi.MicrofacetType.GGX, float(specular_alpha(self.gloss)), False)
+            # A slice whose A.a is 0 everywhere has no lobe: cosine sampling alone is then f cos's own shape for a
+            # lambert slice (each sample exactly its albedo), where half the samples in an empty lobe add variance.
+            nl, nv = np.meshgrid(np.linspace(-1.0, 1.0, 64), np.linspace(0.0, 1.0, 32))
+            alpha = np.asarray(self.model.evaluate(self.values, nl, nv))[..., 3]
+            self.lobe_probability = LOBE_SAMPLING_PROBABILITY if np.any(alpha != 0.0) else 0.0
 
         def f_cos(self, wi, wo, side):
             nh, degenerate = half_vector_cosine(wi, wo)
@@ -153,7 +158,7 @@ def register_bsdfs(mi) -> None:
             o_dot_m = dr.dot(wo_up, m)
             # D(m) cos(theta_m) per microfacet normal; reflection maps d omega_m to d omega_o / (4 o.m).
             lobe = dr.select(o_dot_m > 0, self.distribution.pdf(wi_up, m) / (4.0 * dr.maximum(o_dot_m, 1e-12)), 0.0)
-            p = LOBE_SAMPLING_PROBABILITY
+            p = self.lobe_probability
             mixed = (1.0 - p) * wo_up.z / dr.pi + p * lobe
             return dr.select(active & (wo_up.z > 0) & (wi_up.z > 0), mixed, 0.0)
 
@@ -161,7 +166,7 @@ def register_bsdfs(mi) -> None:
             wi_up, _, flip = self._upper(si, si.wi)
             m, _ = self.distribution.sample(wi_up, sample2)
             mirrored = 2.0 * dr.dot(wi_up, m) * m - wi_up
-            lobe = sample1 < LOBE_SAMPLING_PROBABILITY
+            lobe = sample1 < self.lobe_probability
             wo_up = dr.select(lobe, mirrored, mi.warp.square_to_cosine_hemisphere(sample2))
             bs = mi.BSDFSample3f()
             bs.wo = mi.Vector3f(wo_up.x, wo_up.y, wo_up.z * flip)

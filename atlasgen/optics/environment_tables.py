@@ -129,6 +129,8 @@ def slice_specular_table(values, gloss_count: int = GLOSS_COUNT, samples=SPECULA
     h, w = v.shape[:2]
     _, nv = texel_centres(w, h)
     a = v[..., 3:4]
+    if not np.any(a):
+        return np.zeros((h, gloss_count))  # no specular scale anywhere (a diffuse slice): S = 0, exactly
     n_xi, n_phi = samples
     t_xi, w_xi = gauss_legendre_rule(n_xi)
     t_phi, w_phi = gauss_legendre_rule(n_phi)
@@ -236,14 +238,17 @@ def specular_environment(levels, specular_table, reflected, n_dot_v, gloss) -> n
     return pre * np.asarray(s)[..., None]
 
 
-def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128)) -> np.ndarray:
+def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128), even: bool = False) -> np.ndarray:
     """S_sep(N.V_j) = int_H f cos(l, v_j) dl, ``(height, 3)``: the directional albedo of a 4D f cos, per N.V row.
 
     For materials whose f cos has no (N.L, N.V) slice (separable ones): the renderer gives them
     the split sum with their own albedo, Lpre(r, alpha) S_sep(N.V) (:func:`split_sum_environment`).
     ``f_cos(l, v)`` as for :func:`azimuth_averaged_slice` (local frame, n = +z, ``(N, 3)`` each);
     rows at N.V_j = j / (height - 1), v = (sin(theta_v), 0, N.V). The integral is Gauss-Legendre in
-    cos(theta_l) (``nodes[0]``) times the midpoint rule in the azimuth (``nodes[1]``).
+    cos(theta_l) (``nodes[0]``) times the midpoint rule in the azimuth (``nodes[1]``). ``even``: f cos is
+    even in the azimuth of l (isotropic, v in the xz plane, as a separable rebuild's angles are), so
+    the nodes in (pi, 2 pi), the mirror images of those in (0, pi), are not evaluated and the
+    others count twice: the same sum for half the work (even ``nodes[1]`` only).
 
     >>> t = directional_albedo_table(lambda l, v: np.repeat(l[:, 2:] / np.pi, 3, 1), 3, (8, 4))
     >>> t.round(12).tolist()[0]  # a white Lambertian surface reflects everything
@@ -251,10 +256,13 @@ def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128)) -> np
     """
     t, w = gauss_legendre_rule(nodes[0])
     mu, w_mu = 0.5 * (t + 1.0), 0.5 * w
-    phi = 2.0 * np.pi * (np.arange(nodes[1]) + 0.5) / nodes[1]
+    if even and nodes[1] % 2:
+        raise ValueError(f"an even integrand needs an even number of azimuths, got {nodes[1]}")
+    used = nodes[1] // 2 if even else nodes[1]
+    phi = 2.0 * np.pi * (np.arange(used) + 0.5) / nodes[1]
     s = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
     l = np.stack(np.broadcast_arrays(s[:, None] * np.cos(phi), s[:, None] * np.sin(phi), mu[:, None]), -1).reshape(-1, 3)
-    weight = np.repeat(w_mu, nodes[1]) * (2.0 * np.pi / nodes[1])
+    weight = np.repeat(w_mu, used) * ((2.0 if even else 1.0) * 2.0 * np.pi / nodes[1])
     out = np.empty((height, 3))
     for j, c in enumerate(np.linspace(0.0, 1.0, height)):
         v = np.broadcast_to(_view(c), l.shape)

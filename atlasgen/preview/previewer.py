@@ -224,6 +224,8 @@ class Previewer:
             timings["device"] = t_device - t2
             self.renderer = Renderer(atlas, self.ctx)
             self.renderer.add_mesh(self.ball_file, self.ball)
+            if self.cache_dir is not None:  # the sky, prefiltered once for every preview to come
+                self.renderer.environment.cache_dir = self.cache_dir / "preview"
             compiled = True
             t3 = time.perf_counter()
             timings["pipelines"] = t3 - t_device

@@ -13,6 +13,7 @@ import tempfile
 from dataclasses import dataclass, field
 
 from atlasgen.errors import BackendError
+from atlasgen.render.ffi_types import cached_declarations
 from atlasgen.render.ffi_types import install as install_fast_types
 
 __all__ = ["GpuContext", "get_device", "create_device", "INSTALL_HINT"]
@@ -85,8 +86,9 @@ def create_device(power_preference: str = "high-performance") -> GpuContext:
     """
     _ensure_runtime_dir()
     try:
-        import wgpu
-        from wgpu.backends.wgpu_native._ffi import ffi
+        with cached_declarations():  # the WebGPU header's parse, from the last process that made it
+            import wgpu
+            from wgpu.backends.wgpu_native._ffi import ffi
     except ImportError:
         raise BackendError(INSTALL_HINT) from None
     install_fast_types(ffi)

@@ -23,12 +23,17 @@ not filterable):
 
 from __future__ import annotations
 
+import hashlib
+import io
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.contract import HEIGHT, LAYERS
 from atlasgen.io.atlas import apply_slice_scale
+from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.materials.environment import Environment, environment_image
 from atlasgen.optics.environment_tables import (
@@ -48,6 +53,7 @@ __all__ = [
     "TABLE_COLUMNS",
     "EnvironmentData",
     "prepare_environment",
+    "cached_environment",
     "decode_render_slice",
     "material_tables",
     "pack_environment",
@@ -77,6 +83,33 @@ class EnvironmentData:
 
 
 prepare_environment = EnvironmentData.of
+
+
+def cached_environment(env: Environment, cache_dir=None) -> EnvironmentData:
+    """:meth:`EnvironmentData.of` ``env``, kept in ``cache_dir`` (``environment-<key>.npz``) for a built-in one.
+
+    Prefiltering the sky and projecting it costs ~0.8 s of CPU, every time the same for the same
+    parameters: a process that starts often (``atlasgen preview``) loads it instead. The key hashes the
+    environment's parameters, the bake-relevant code (:func:`atlasgen.bake.cache.tool_fingerprint`, which
+    covers ``optics`` and ``materials``) and this module. A ``file`` environment, whose image can change
+    under the same name, is always built; so is any with ``cache_dir`` None. An entry that does not load
+    is built again and replaced.
+    """
+    if cache_dir is None or env.source == "file":
+        return EnvironmentData.of(env)
+    digest = hashlib.sha256(f"{env!r}:{IMAGE_HEIGHT}:{tool_fingerprint()}".encode())
+    digest.update(Path(__file__).read_bytes())
+    path = Path(cache_dir) / f"environment-{digest.hexdigest()[:24]}.npz"
+    try:
+        with np.load(path) as z:
+            return EnvironmentData(z["image"], z["sh"], [z[f"level_{k}"] for k in range(int(z["count"]))])
+    except (OSError, ValueError, KeyError):
+        pass
+    data = EnvironmentData.of(env)
+    out = io.BytesIO()
+    np.savez(out, image=data.image, sh=data.sh, count=len(data.levels), **{f"level_{k}": v for k, v in enumerate(data.levels)})
+    write_file_atomically(path, out.getvalue())
+    return data
 
 
 def decode_render_slice(levels, srgb: bool, entry: MaterialEntry, slice_index: int) -> np.ndarray:
@@ -114,7 +147,8 @@ def material_tables(levels, srgb: bool, entry: MaterialEntry, custom_lighting: b
     if custom_lighting:
         f_cos = _separable_f_cos(levels, srgb, entry)
         if f_cos is not None:
-            out[:, _SEPARABLE_COLUMN, :3] = directional_albedo_table(f_cos, HEIGHT)
+            # The rebuild's azimuths are unsigned (acos), so its f cos is even in the azimuth of l.
+            out[:, _SEPARABLE_COLUMN, :3] = directional_albedo_table(f_cos, HEIGHT, even=True)
         return out.astype(np.float32)
     values = decode_render_slice(levels, srgb, entry, entry.first_slice)
     nearest = entry.flag("nearest")
@@ -177,6 +211,16 @@ def upload_tables(ctx, tables: np.ndarray):
     return texture
 
 
+#: How many materials' tables :class:`EnvironmentLighting` keeps for atlases to come, the latest first.
+_KEPT_TABLES = 64
+
+
+def _tables_key(levels, srgb: bool, entry: MaterialEntry, custom_lighting: bool) -> tuple:
+    """What :func:`material_tables` reads: the entry (its scales, biases, flags, factors) and its level-0 texels."""
+    texels = np.asarray(levels[0][entry.first_slice : entry.first_slice + entry.slice_count])
+    return repr(entry), srgb, custom_lighting, hashlib.sha256(texels.tobytes()).digest()
+
+
 class EnvironmentLighting:
     """The renderer's environment resources on one device: per environment (cached) and per material slice.
 
@@ -192,11 +236,18 @@ class EnvironmentLighting:
         self._done: set = set()
         self._tables_texture = None
         self._placeholder = None
+        #: A material's tables by what they are made from (:func:`_tables_key`), kept across atlases.
+        self._made: dict = {}
+        #: Where prefiltered built-in environments are kept across processes (:func:`cached_environment`); None: nowhere.
+        self.cache_dir = None
 
     def for_atlas(self, atlas) -> EnvironmentLighting:
-        """The same for another atlas: its slices' tables are made anew, the prefiltered environment is kept."""
+        """The same for another atlas: the prefiltered environment is kept, and so are the tables of every
+        material whose texels and entry are unchanged (a preview's floor, a material that was not edited)."""
         other = EnvironmentLighting(self.ctx, atlas)
         other._environments = self._environments
+        other._made = self._made
+        other.cache_dir = self.cache_dir
         return other
 
     def data(self, env: Environment) -> EnvironmentData:
@@ -205,16 +256,24 @@ class EnvironmentLighting:
 
     def _entry(self, env):
         if env not in self._environments:
-            data = prepare_environment(env)
+            data = cached_environment(env, self.cache_dir)
             self._environments = {env: (data, upload_environment(self.ctx, data))}  # keep one environment only
         return self._environments[env]
 
     def tables(self, entries, custom) -> object:
         """The tables texture holding every material of ``entries`` (``custom``: theirs is ``custom_lighting``)."""
-        new = [(e, c) for e, c in zip(entries, custom) if e.first_slice not in self._done]
-        for entry, is_custom in new:
-            self._tables[entry.first_slice] = material_tables(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+        new = {e.first_slice: (e, c) for e, c in zip(entries, custom) if e.first_slice not in self._done}
+        made = {}
+        for entry, is_custom in new.values():
+            key = _tables_key(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+            if key not in self._made:
+                self._made[key] = material_tables(self.atlas.levels, self.atlas.srgb, entry, is_custom)
+            made[key] = self._made[key]
+            self._tables[entry.first_slice] = made[key]
             self._done.add(entry.first_slice)
+        if new:
+            self._made = {**made, **{k: v for k, v in self._made.items() if k not in made}}
+            self._made = dict(list(self._made.items())[:_KEPT_TABLES])
         if new or self._tables_texture is None:
             self._tables_texture = upload_tables(self.ctx, self._tables)
         return self._tables_texture

@@ -28,6 +28,7 @@ import numpy as np
 
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
+from atlasgen.render.atlas_data import STORAGE
 from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
 from atlasgen.shaders.environment import environment_declarations
 from atlasgen.shaders.lang import emit
@@ -149,6 +150,8 @@ class LightingPass:
                     "texture": {"sample_type": "unfilterable-float", "view_dimension": "2d-array"},
                 },
                 {"binding": 11, "visibility": frag, "buffer": {"type": "read-only-storage"}},
+                # The include's per-bake tables (atlasgen/render/atlas_data.py STORAGE).
+                *({"binding": b, "visibility": frag, "buffer": {"type": "read-only-storage"}} for _, b in STORAGE.values()),
             ],
         )
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
@@ -198,10 +201,11 @@ class LightingPass:
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment, tile_buffer):
+    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment, tile_buffer, tables):
         """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
-        ``tile_buffer``: the tile light lists (:mod:`atlasgen.render.culling`), read where ``Frame.counts.y`` is 1."""
-        env_buffer, env_texture, tables = environment
+        ``tile_buffer``: the tile light lists (:mod:`atlasgen.render.culling`), read where ``Frame.counts.y`` is 1;
+        ``tables``: the include's storage tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
+        env_buffer, env_texture, env_tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
@@ -215,8 +219,9 @@ class LightingPass:
                 {"binding": 7, "resource": {"buffer": env_buffer}},
                 {"binding": 8, "resource": env_texture.create_view()},
                 {"binding": 9, "resource": self.env_sampler},
-                {"binding": 10, "resource": tables.create_view(dimension="2d-array")},
+                {"binding": 10, "resource": env_tables.create_view(dimension="2d-array")},
                 {"binding": 11, "resource": {"buffer": tile_buffer}},
+                *({"binding": STORAGE[name][1], "resource": {"buffer": buffer}} for name, buffer in tables.items()),
             ],
         )
 

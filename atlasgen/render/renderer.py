@@ -25,6 +25,7 @@ import numpy as np
 from atlasgen.errors import BackendError, SceneError
 from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials, shading_gloss
 from atlasgen.models import get_model
+from atlasgen.render.atlas_data import RendererInclude, upload_tables
 from atlasgen.render.atlas_texture import RenderAtlas, upload_atlas
 from atlasgen.render.camera import camera_basis, projection_matrix, tangents, view_matrix
 from atlasgen.render.culling import (
@@ -143,6 +144,9 @@ class Renderer:
         device = self.ctx.device
         self.device = device
         self.atlas_texture = upload_atlas(self.ctx, atlas)
+        # The include's functions with its per-bake tables in buffers (atlas_data.py): what the passes compile.
+        self.include = RendererInclude.of(atlas.manifest)
+        self.atlas_tables = upload_tables(device, self.include)
         self.frame_layout = device.create_bind_group_layout(
             label="frame",
             entries=[{
@@ -157,7 +161,7 @@ class Renderer:
         self._culling_pass: CullingPass | None = None  # compiled on the first culled frame
         self._lighting_passes: dict = {}
         self.environment = EnvironmentLighting(self.ctx, atlas)
-        self.outline_pass = OutlinePass(device, atlas.include)
+        self.outline_pass = OutlinePass(device, self.include.text)
         self._meshes: dict = {}
         self._given_meshes: dict[str, Mesh] = {}
         self._gbuffers: dict = {}
@@ -169,19 +173,24 @@ class Renderer:
         """Render with ``atlas`` from now on, as ``Renderer(atlas, ctx)`` would, keeping what does not
         depend on it: the device, the g-buffer pipeline, meshes and render targets.
 
-        The texture is uploaded again. The lighting and outline shaders hold the include's text
-        (and the lighting one each custom-lit material's call), so they are compiled again only when
-        that text changed: on lavapipe a compile costs more than everything else an update does.
-        Returns whether they were.
+        The texture and the include's tables (scales, biases, factor tables: :mod:`.atlas_data`) are
+        uploaded again. The lighting and outline shaders hold the include's functions (and the lighting
+        one each custom-lit material's call), so they are compiled again only when those changed: a
+        material renamed, moved, flagged or of another type, not a new scale. On lavapipe a compile
+        costs more than everything else an update does. Returns whether they were.
         """
-        old = self.atlas
+        old, old_include = self.atlas, self.include
         self.atlas = atlas
         self.atlas_texture = upload_atlas(self.ctx, atlas)
+        self.include = RendererInclude.of(atlas.manifest)
+        self.atlas_tables = upload_tables(self.device, self.include)
         self.environment = self.environment.for_atlas(atlas)  # the slices' tables follow the texels
-        recompile = atlas.include != old.include or material_dispatch_wgsl(atlas.manifest) != material_dispatch_wgsl(old.manifest)
+        recompile = self.include.text != old_include.text or (
+            material_dispatch_wgsl(atlas.manifest) != material_dispatch_wgsl(old.manifest)
+        )
         if recompile:
             self._lighting_passes = {}
-            self.outline_pass = OutlinePass(self.device, atlas.include)
+            self.outline_pass = OutlinePass(self.device, self.include.text)
         return recompile
 
     def add_mesh(self, file, mesh: Mesh) -> None:
@@ -208,7 +217,7 @@ class Renderer:
         ids = frozenset(shaded_ids)
         key = (ids, environment)
         if key not in self._lighting_passes:
-            self._lighting_passes[key] = LightingPass(self.device, self.atlas.include, self.atlas.manifest, ids, environment)
+            self._lighting_passes[key] = LightingPass(self.device, self.include.text, self.atlas.manifest, ids, environment)
         return self._lighting_passes[key]
 
     @property
@@ -310,7 +319,7 @@ class Renderer:
             self.culling_pass.bind_group(frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer) if culled else None
         )
         lighting_group = lighting_pass.bind_group(
-            frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment, tile_buffer
+            frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment, tile_buffer, self.atlas_tables
         )
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.

@@ -25,6 +25,7 @@ from atlasgen.io.report_files import check_number, read_report_json, report_json
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
+from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
 from atlasgen.validate.metrics import flip_heatmap
 
@@ -536,6 +537,8 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
         pairs=validation_pairs(data),
         metric_rows=metric_rows,
         breakdown=breakdown,
+        environment_rows=environment_rows(data),
+        environment_columns=[heading for heading, _ in ENVIRONMENT_COLUMNS],
         materials=materials,
         columns=columns,
     )

@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from atlasgen.errors import InputError
 from atlasgen.io.atlas import Atlas, as_atlas
@@ -39,6 +38,10 @@ class _Stencil:
     """
 
     def __init__(self, resolution: int, x1, x2, y2, valid):
+        # Here, not at the top: scipy.sparse costs ~0.3 s to import, and the renderer (so every
+        # `atlasgen preview`, LUT materials too) imports this module; only separable materials build a stencil.
+        from scipy.sparse import csr_matrix
+
         n = resolution
         self.valid = valid
         count = np.size(valid)

@@ -9,7 +9,8 @@ importing them.
 from __future__ import annotations
 
 import enum
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Mapping
 from typing import Protocol
 
 import numpy as np
@@ -29,6 +30,7 @@ from atlasgen.shaders.lang import (
     If,
     Let,
     Return,
+    Storage,
     Switch,
     Var,
     emit,
@@ -40,6 +42,7 @@ __all__ = [
     "render_include",
     "render_includes",
     "render_include_data",
+    "render_buffered_include",
     "include_declarations",
     "stamp_include",
     "MaterialFlag",
@@ -72,7 +75,8 @@ class MaterialFlag(enum.IntFlag):
     NEAREST = 2  # read the one nearest texel: hard toon steps
 
 
-def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, *, models: ModelLookup) -> list:
+def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, *, models: ModelLookup,
+                         storage: Mapping[str, tuple[int, int]] | None = None) -> list:  # fmt: skip
     """The atlas contract of ``manifest`` as shader declarations (:mod:`atlasgen.shaders.lang`).
 
     ``atlas_uv`` maps N.L in [-1, 1] and N.V in [0, 1] to texel centres:
@@ -83,7 +87,12 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     the environment lighting functions (:func:`atlasgen.shaders.environment.environment_declarations`) and what
     each model type adds (``models(type).include_declarations``,
     :meth:`atlasgen.models.base.Model.include_declarations`).
+
+    ``storage`` (WGSL only, the renderer's form: :func:`render_buffered_include`) names tables that become
+    read-only storage buffers at its (group, binding) instead of constants, so that new values are a buffer
+    write, not a shader compile; ``atlas_scale_bias`` then reads ``ATLAS_SCALE_BIAS`` when it is one of them.
     """
+    storage = dict(storage or {})
     f = float_literal
     volume = manifest.layout == "volume"
     decls: list = [
@@ -123,7 +132,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
               else "sample_array(atlas, atlas_sampler, uv, material_id, lod)")  # fmt: skip
     decls += [
         Function("atlas_scale_bias", "vec4", (("material_id", "u32"),),
-                 (Switch("material_id", sb_cases, (Return("vec4(1.0, 1.0, 0.0, 0.0)"),)),),
+                 ((Return("ATLAS_SCALE_BIAS[material_id]"),) if "ATLAS_SCALE_BIAS" in storage else
+                  (Switch("material_id", sb_cases, (Return("vec4(1.0, 1.0, 0.0, 0.0)"),)),)),
                  "(rgb_scale, alpha_scale, rgb_bias, alpha_bias) of a slice: ATLAS_SCALE_BIAS[material_id]."),
         Function("atlas_uv", "vec2", (("n_dot_l", "f32"), ("n_dot_v", "f32")), (
             Let("f32", "nl", "clamp(n_dot_l, -1.0, 1.0)"),
@@ -151,7 +161,7 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     ]  # fmt: skip
     for type_name, entries in _by_type(manifest):
         decls += models(type_name).include_declarations(entries)
-    return decls
+    return [Storage(d.name, d.type, *storage[d.name]) if isinstance(d, Array) and d.name in storage else d for d in decls]
 
 
 def render_include(
@@ -163,12 +173,39 @@ def render_include(
     gets what models add as WGSL only (:meth:`~atlasgen.models.base.Model.include_wgsl`).
     """
     text = emit(language, include_declarations(manifest, scales, biases, models=models))
-    if language == "wgsl":
-        for type_name, entries in _by_type(manifest):
-            extra = models(type_name).include_wgsl(entries)
-            if extra:
-                text += f"\n// ---- {type_name} ----\n{extra.rstrip()}\n"
+    return _add_wgsl_extras(text, manifest, models) if language == "wgsl" else text
+
+
+def _add_wgsl_extras(text: str, manifest: Manifest, models: ModelLookup) -> str:
+    for type_name, entries in _by_type(manifest):
+        extra = models(type_name).include_wgsl(entries)
+        if extra:
+            text += f"\n// ---- {type_name} ----\n{extra.rstrip()}\n"
     return text
+
+
+def _array_values(array: Array) -> np.ndarray:
+    """The rows of a ``vec4`` :class:`Array` as float64 ``(n, 4)``: its literals (:func:`float_literal`) read back exactly."""
+    rows = [re.fullmatch(r"vec4\((.*)\)", v) for v in array.values]
+    if array.type != "vec4" or not all(rows):
+        raise ValueError(f"{array.name}: only vec4 tables can be storage buffers")
+    return np.array([[float(x) for x in row[1].split(",")] for row in rows], dtype=np.float64).reshape(-1, 4)
+
+
+def render_buffered_include(
+    manifest: Manifest, scales: np.ndarray, biases: np.ndarray, storage: Mapping[str, tuple[int, int]], *, models: ModelLookup
+) -> tuple[str, dict[str, np.ndarray]]:
+    """The WGSL include of ``manifest`` with the tables named in ``storage`` (name -> (group, binding)) read from
+    storage buffers, and those tables' values, ``{name: (n, 4) float64}`` (only those the include has).
+
+    The functions are those of :func:`render_include`, so the text changes only when the materials' code
+    does (their names, slots, flags and types), not with a new scale, bias or factor table: a renderer that
+    keeps its compiled shader for as long as this text stays the same uploads the values instead.
+    """
+    plain = include_declarations(manifest, scales, biases, models=models)
+    values = {d.name: _array_values(d) for d in plain if isinstance(d, Array) and d.name in storage}
+    text = emit("wgsl", include_declarations(manifest, scales, biases, models=models, storage=storage))
+    return _add_wgsl_extras(text, manifest, models), values
 
 
 def render_includes(

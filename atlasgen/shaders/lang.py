@@ -24,6 +24,7 @@ __all__ = [
     "LANGUAGES",
     "Const",
     "Array",
+    "Storage",
     "Function",
     "Comment",
     "Let",
@@ -85,6 +86,17 @@ class Array:
     type: str
     values: tuple
     per_line: int = 1
+
+
+@dataclass(frozen=True)
+class Storage:
+    """A table the host binds as a read-only storage buffer, WGSL only: the renderer's form of an :class:`Array`
+    whose values change with each bake (a buffer is rewritten, a constant table is compiled)."""
+
+    name: str
+    type: str
+    group: int
+    binding: int
 
 
 @dataclass(frozen=True)
@@ -294,6 +306,10 @@ def _declaration(lang: str, d) -> list[str]:
         if lang == "glsl":
             body[-1] = body[-1][:-1]
         return [head, *body, "};" if lang == "hlsl" else ");"]
+    if isinstance(d, Storage):
+        if lang != "wgsl":
+            raise ValueError(f"{d.name}: a storage buffer table is WGSL only, not {lang}")
+        return [f"@group({d.group}) @binding({d.binding}) var<storage, read> {d.name}: array<{t[d.type]}>;"]
     if isinstance(d, Function):
         comment = [f"// {line}" for line in d.comment.splitlines()]
         params = ", ".join(_param(lang, name, ty) for name, ty in d.params)

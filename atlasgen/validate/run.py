@@ -44,6 +44,7 @@ from atlasgen.validate.mitsuba_scene import (
     cast_shadow_mask,
     object_mask,
     register_direct_integrator,
+    render_environment_qmc,
     render_mitsuba,
     render_pixel_centres,
 )
@@ -454,8 +455,10 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_lighting: bool) -> None:
     """The model reference of an environment scene, converged, on the material's pixels; and the CPU breakdown.
 
-    The reference is stochastic (:func:`~atlasgen.validate.mitsuba_scene.render_pixel_centres`, the
-    environment integrated by ``atlasgen_direct``'s MIS estimate): seeds 0 and 1 from
+    The reference is stochastic: a scene lit by its environment alone by
+    :func:`~atlasgen.validate.mitsuba_scene.render_environment_qmc` (the BSDF and the emitter sampled on
+    shifted Halton points, which converges far faster for a glossy lobe), one with lights too by
+    :func:`~atlasgen.validate.mitsuba_scene.render_pixel_centres` (``atlasgen_direct``'s MIS estimate); seeds 0 and 1 from
     :data:`ENVIRONMENT_SPP` samples per pixel each, grown as physical references are
     (:func:`_samples_for_floor`) up to :data:`MAX_ENVIRONMENT_SPP`. Every figure covers the pixels whose
     g-buffer ID is the material's only (the background is not the material). A table material also
@@ -463,12 +466,15 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
     """
     mask = ~material_mask(entry, aovs)
     mi_scene = build_mitsuba_scene(mi, scene, _object_bsdfs(scene, entry, manifest), 1, stochastic=True)
+    # Lit by its environment alone: sample the BSDF too, on quasi-random points (render_environment_qmc).
+    qmc = not scene.lights
+    render = render_environment_qmc if qmc else render_pixel_centres
     image = second = None
     n, target, seconds = 0, ENVIRONMENT_SPP, 0.0
     while True:
         more = target - n
-        a, t_a = render_pixel_centres(mi, mi_scene, more, seed=0, first_sample=n)
-        b, t_b = render_pixel_centres(mi, mi_scene, more, seed=1, first_sample=n)
+        a, t_a = render(mi, mi_scene, more, seed=0, first_sample=n)
+        b, t_b = render(mi, mi_scene, more, seed=1, first_sample=n)
         image = a if image is None else (n * image + more * a) / target
         second = b if second is None else (n * second + more * b) / target
         n, seconds = target, seconds + t_a + t_b
@@ -480,7 +486,8 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
         target = min(wanted, MAX_ENVIRONMENT_SPP)
     del mi_scene
     source = model_reference(entry).description
-    ref = ReferenceRender("model", f"{source}, under the environment", 0.5 * (image + second), seconds, n, "llvm_ad_rgb",
+    how = ", BSDF and emitter sampled on shifted Halton points" if qmc else ""
+    ref = ReferenceRender("model", f"{source}, under the environment{how}", 0.5 * (image + second), seconds, n, "llvm_ad_rgb",
                           metrics=metrics, noise_floor_db=floor, mask=mask, masked=ENVIRONMENT_MASK_NOTE)  # fmt: skip
     run.references["model"] = ref
     if scene.environment.source != "uniform":

@@ -15,6 +15,7 @@ from atlasgen.optics.environment_tables import (
     SPECULAR_SAMPLES,
     azimuth_averaged_slice,
     diffuse_environment,
+    directional_albedo_table,
     reflect,
     slice_sh_table,
     slice_specular_table,
@@ -202,3 +203,33 @@ def test_the_docstrings_examples_hold():
     from atlasgen.optics import environment_tables
 
     assert doctest.testmod(environment_tables).failed == 0
+
+
+def test_an_even_integrand_takes_half_the_azimuths_for_the_same_albedo():
+    # A GGX lobe about the mirror direction of v = (sin, 0, cos): even in the azimuth of l, as a separable rebuild is.
+    def f_cos(l, v):
+        h = l + v
+        h /= np.linalg.norm(h, axis=1, keepdims=True)
+        value = specular_f_cos(0.6, l[:, 2], v[:, 2], h[:, 2])
+        return np.repeat(np.nan_to_num(value)[:, None], 3, axis=1)
+
+    calls = []
+
+    def counted(l, v):
+        calls.append(len(l))
+        return f_cos(l, v)
+
+    full = directional_albedo_table(counted, 5, (24, 32))
+    half = directional_albedo_table(counted, 5, (24, 32), even=True)
+    np.testing.assert_allclose(half, full, rtol=1e-12, atol=1e-15)
+    assert calls[5:] == [n // 2 for n in calls[:5]] and full.max() > 0.1
+    with pytest.raises(ValueError, match="even number"):
+        directional_albedo_table(f_cos, 5, (24, 31), even=True)
+
+
+def test_a_slice_without_specular_scale_has_a_zero_table_and_the_others_do_not():
+    values = np.zeros((HEIGHT, WIDTH, 4))
+    values[..., :3] = 0.5
+    assert not slice_specular_table(values).any()
+    values[..., 3] = 1e-3
+    assert (slice_specular_table(values, gloss_count=2, samples=(8, 4)) > 0).all()

@@ -60,3 +60,55 @@ def test_anything_else_goes_to_the_parser():
     for cdecl in ("unsigned int", "WGPUBufferDescriptor **", "WGPUBufferDescriptor *[2][3]", "void(*)(int)"):
         assert parser.parse_type_and_quals(cdecl) == slow(cdecl), cdecl
     assert ffi.typeof("WGPUBufferDescriptor *") is ffi.typeof("WGPUBufferDescriptor*")
+
+
+HEADER = """
+typedef struct Pair { int a; double b[3]; } Pair;
+typedef enum Mode { MODE_A = 1, MODE_B = 7 } Mode;
+typedef void (*Callback)(Pair const * pair, void * user);
+int take(Pair * pair, Mode mode, Callback callback);
+"""
+
+
+def _declared(ffi) -> dict:
+    return {name: (str(tp), quals) for name, (tp, quals) in ffi._parser._declarations.items()}
+
+
+def test_cached_declarations_give_a_fresh_parser_what_the_parse_declared(tmp_path, monkeypatch):
+    import cffi
+    from cffi import cparser
+
+    from atlasgen.render.ffi_types import cached_declarations
+
+    cache = tmp_path / "cache"
+    parsed = cffi.FFI()
+    parsed.cdef(HEADER)  # no cache: cffi's own parse, the reference
+    with cached_declarations(cache):
+        first = cffi.FFI()
+        first.cdef(HEADER)  # parsed, and stored
+    (entry,) = cache.iterdir()
+    calls = []
+    monkeypatch.setattr(cparser.Parser, "_internal_parse", lambda self, source: calls.append(source))
+    with cached_declarations(cache):
+        loaded = cffi.FFI()
+        loaded.cdef(HEADER)  # from the cache: no parse at all
+        assert not calls
+        other = cffi.FFI()
+        other.cdef("typedef int Other;")  # another source: parsed
+        assert len(calls) == 1
+    assert _declared(loaded) == _declared(first) == _declared(parsed)
+    assert loaded.sizeof("Pair") == parsed.sizeof("Pair") and loaded.cast("Mode", 7) == parsed.cast("Mode", 7)
+    assert str(loaded.cast("Mode", 7)) == "<cdata 'Mode' 7: MODE_B>"
+    assert str(loaded.typeof("Callback")) == str(parsed.typeof("Callback"))
+    monkeypatch.undo()
+
+    # A damaged entry is parsed again (and replaced); a folder others may write to is never read.
+    entry.write_bytes(b"not a pickle")
+    with cached_declarations(cache):
+        again = cffi.FFI()
+        again.cdef(HEADER)
+    assert _declared(again) == _declared(parsed) and entry.read_bytes() != b"not a pickle"
+    cache.chmod(0o777)
+    monkeypatch.setattr("pickle.loads", lambda data: pytest.fail("read a pickle from a shared folder"))
+    with cached_declarations(cache):
+        cffi.FFI().cdef(HEADER)

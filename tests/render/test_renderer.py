@@ -151,21 +151,27 @@ def test_set_atlas_renders_what_a_new_renderer_would(gpu_device, write_material,
     from atlasgen.render.atlas_texture import RenderAtlas
     from atlasgen.render.renderer import Renderer
 
-    def atlas(colour):
-        path = write_material("clay", f'type = "lambert"\ncolour = {colour}\n')
-        result = bake_atlas(read_materials([path]))
+    def atlas(colour, other=False):
+        paths = [write_material("clay", f'type = "lambert"\ncolour = {colour}\n')]
+        if other:
+            paths.append(write_material("stone", 'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n'))
+        result = bake_atlas(read_materials(paths))
         return RenderAtlas(result.levels, True, result.manifest, result.include, "test")
 
-    # Same peak (the slice's scale, in the include) with other texels; then another peak.
-    first, same_include, new_include = atlas([0.7, 0.5, 0.3]), atlas([0.7, 0.2, 0.3]), atlas([0.4, 0.5, 0.3])
-    assert first.include == same_include.include != new_include.include
+    # Same peak (the slice's scale) with other texels; another peak, a new scale in the bake's include but
+    # only a new buffer for the renderer; then another material, new code (its constant): a compile.
+    first, same_peak, new_peak = atlas([0.7, 0.5, 0.3]), atlas([0.7, 0.2, 0.3]), atlas([0.4, 0.5, 0.3])
+    more = atlas([0.4, 0.5, 0.3], other=True)
+    assert first.include == same_peak.include != new_peak.include
     scene = scene_from(SCENE + '[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
     renderer = Renderer(first, gpu_device)
     before = renderer.render(scene, aovs=False).radiance
-    assert renderer.set_atlas(same_include) is False
+    assert renderer.set_atlas(same_peak) is False
     texels_only = renderer.render(scene, aovs=False).radiance
-    assert renderer.set_atlas(new_include) is True
+    assert renderer.set_atlas(new_peak) is False
+    new_scale = renderer.render(scene, aovs=False).radiance
+    assert renderer.set_atlas(more) is True
     recompiled = renderer.render(scene, aovs=False).radiance
-    assert np.abs(texels_only - before).max() > 0.05
-    for got, fresh in ((texels_only, same_include), (recompiled, new_include)):
+    assert np.abs(texels_only - before).max() > 0.05 and np.abs(new_scale - texels_only).max() > 0.05
+    for got, fresh in ((texels_only, same_peak), (new_scale, new_peak), (recompiled, more)):
         np.testing.assert_array_equal(got, Renderer(fresh, gpu_device).render(scene, aovs=False).radiance)

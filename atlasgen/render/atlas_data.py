@@ -1,0 +1,66 @@
+"""The include as the renderer compiles it: the tables a bake changes read from storage buffers.
+
+The bake's include (:func:`atlasgen.shaders.include.render_include`, what an engine loads) holds each
+slice's scale and bias, and a separable material's factor table, as constants, so that the shader
+needs nothing else bound. Compiled into the renderer's lighting shader, that makes every new scale a
+new shader, and on lavapipe a compile (1.6 s) costs more than the rest of a preview's update. The
+renderer therefore compiles the same functions with those two tables as read-only storage buffers
+(:func:`atlasgen.shaders.include.render_buffered_include`): its text changes only with what the
+materials' code depends on (their names, slots, flags and types), and a re-bake that keeps those
+rewrites two buffers. The values come from the manifest, as the bake's own include does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from atlasgen.contract import LAYERS
+from atlasgen.io.manifest import Manifest
+from atlasgen.models import get_model
+from atlasgen.shaders.include import render_buffered_include
+
+__all__ = ["STORAGE", "RendererInclude", "manifest_scale_bias", "upload_tables"]
+
+#: The storage tables and their (group, binding) in the lighting pass (atlasgen/render/lighting.py).
+STORAGE = {"ATLAS_SCALE_BIAS": (0, 20), "SEPARABLE_TABLE": (0, 21)}
+
+
+def manifest_scale_bias(manifest: Manifest) -> tuple[np.ndarray, np.ndarray]:
+    """Each slice's (rgb, alpha) scale and bias, ``(LAYERS, 2)`` each, from the manifest's entries: the arrays
+    the bake hands :func:`~atlasgen.shaders.include.render_include` (scale 1, bias 0 for unused slices)."""
+    scales, biases = np.ones((LAYERS, 2)), np.zeros((LAYERS, 2))
+    for m in manifest.materials:
+        if m.scale:
+            scales[m.first_slice : m.first_slice + len(m.scale)] = m.scale
+        if m.bias:
+            biases[m.first_slice : m.first_slice + len(m.bias)] = m.bias
+    return scales, biases
+
+
+@dataclass(frozen=True)
+class RendererInclude:
+    """The renderer's WGSL include of an atlas and the values of its storage tables (name -> ``(n, 4)``)."""
+
+    text: str
+    tables: dict
+
+    @classmethod
+    def of(cls, manifest: Manifest) -> RendererInclude:
+        scales, biases = manifest_scale_bias(manifest)
+        text, tables = render_buffered_include(manifest, scales, biases, STORAGE, models=get_model)
+        return cls(text, tables)
+
+
+def upload_tables(device, include: RendererInclude) -> dict:
+    """A read-only storage buffer per :data:`STORAGE` table, name -> buffer: its rows as float32, or one row of
+    zeros for a table this include lacks (the pass binds every one; a shader without it never reads it)."""
+    import wgpu
+
+    buffers = {}
+    for name in STORAGE:
+        rows = include.tables.get(name)
+        data = np.zeros((1, 4), np.float32) if rows is None else np.asarray(rows, dtype=np.float32)
+        buffers[name] = device.create_buffer_with_data(data=data.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+    return buffers
