@@ -57,6 +57,9 @@ class MaterialStudy:
     timings: dict
     atlas: dict | None = None
     pareto: list = field(default_factory=list)
+    # Each plot's displayed size and placed labels, by kind ({"width", "height", "labels"}), kept
+    # in report.json so that a merge draws the labels over the copied PNGs as this run did.
+    charts: dict = field(default_factory=dict)
 
 
 def _median_time(fn, repeats=5):
@@ -470,6 +473,10 @@ def write_separable_report(
     with staged_folder(folder, primary="report.json") as staging:
         charts: dict = {s.name: {} for s in studies}
         plots = {s.name: _plots(s, staging, charts[s.name]) for s in studies}
+        for s in studies:
+            s.charts = {
+                kind: {"width": c.width, "height": c.height, "labels": list(c.labels)} for kind, c in charts[s.name].items()
+            }
         (staging / "index.md").write_text(format_separable_report(studies, plots))
         (staging / "index.html").write_bytes(format_separable_html(studies, plots, charts))
         (staging / "report.json").write_text(json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n")

@@ -18,6 +18,7 @@ from pathlib import Path
 from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.reports.html import Chart
 from atlasgen.reports.separable import MaterialStudy, format_separable_html, format_separable_report
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
@@ -94,7 +95,10 @@ def merge_separable_reports(sources, output) -> dict:
                 plots[study.name][kind] = output / png.name
             studies.append(study)
     files[output / "index.md"] = format_separable_report(studies, plots).encode()
-    files[output / "index.html"] = format_separable_html(studies, plots)
+    charts = {
+        s.name: {kind: Chart(b"", c["width"], c["height"], tuple(c["labels"])) for kind, c in s.charts.items()} for s in studies
+    }
+    files[output / "index.html"] = format_separable_html(studies, plots, charts)
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     write_files_atomically(files, primary=output / "index.md")  # the Makefile's target

@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 from click.testing import CliRunner
@@ -171,12 +172,26 @@ def test_bake_library_bakes_the_installed_library(runner, tmp_path, monkeypatch,
     res = runner.invoke(app, ["bake", "--library", "--layout", "volume", "-q", "--cache", str(shipped_library_cache)])
     assert res.exit_code == 0, res.output
     manifest = json.loads((tmp_path / "build" / "atlas.json").read_text())
-    shipped = sorted(shipped_library().glob("*.toml"))
-    assert [m["name"] for m in manifest["materials"]] == [p.stem for p in shipped]
-    assert [m["content_hash"] for m in manifest["materials"]] == [hashlib.sha256(p.read_bytes()).hexdigest() for p in shipped]
+    shipped = sorted([*shipped_library().glob("*.toml"), *shipped_library().glob("*.mtlx")])
+    # A TOML file is one material named by its stem, hashed by its bytes; a MaterialX document is
+    # one per surfacematerial, in document order, hashed by its bytes and the material's name
+    # (read here with the standard library's XML parser, not atlasgen's reader).
+    expected = []
+    for p in shipped:
+        data = p.read_bytes()
+        if p.suffix == ".toml":
+            expected.append((p.stem, hashlib.sha256(data).hexdigest()))
+        else:
+            for node in ElementTree.fromstring(data).iter("surfacematerial"):
+                name = node.get("name")
+                expected.append((name, hashlib.sha256(data + b"\0" + name.encode()).hexdigest()))
+    assert any(p.suffix == ".mtlx" for p in shipped)
+    # Slots, and so the manifest's entries, go in name order (atlasgen/bake/slots.py).
+    assert [(m["name"], m["content_hash"]) for m in manifest["materials"]] == sorted(expected)
     # The repository's materials/ is that library (atlasgen/data/materials links to it).
     root = Path(__file__).resolve().parents[2]
-    assert [p.read_bytes() for p in shipped] == [p.read_bytes() for p in sorted((root / "materials").glob("*.toml"))]
+    mine = sorted([*(root / "materials").glob("*.toml"), *(root / "materials").glob("*.mtlx")])
+    assert [p.read_bytes() for p in shipped] == [p.read_bytes() for p in mine]
 
 
 def test_info_quiet_and_verbose(runner, library, tmp_path):

@@ -323,7 +323,7 @@ def test_validation_reads_the_atlas_once_and_takes_fitted_slices_from_the_bake_c
     monkeypatch.setattr(physical_fit.FittedSlice, "_tables", {})
     monkeypatch.setattr(physical_fit, "bake_from_physics", refuse)
     monkeypatch.setattr(physical_fit.Model, "bake", refuse)  # no float table is baked again either
-    monkeypatch.setattr(module, "read_material", refuse)
+    monkeypatch.setattr(module, "read_material_file", refuse)
     run = module.validate_atlas(dds, [folder / "coat.toml", folder / "clay.toml"], scenes=["front", "back"],
                                 resolution=(24, 18), bake_cache=cache, physical=False)  # fmt: skip
     assert counts == {"read_dds": 1, "texel_sha256": 1}
