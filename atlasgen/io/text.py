@@ -1,4 +1,4 @@
-"""Reading a user-named input file as text, with the one-line refusals every reader shares."""
+"""Reading a user-named input file, as bytes or text, with the one-line refusals every reader shares."""
 
 from __future__ import annotations
 
@@ -6,7 +6,24 @@ from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["read_input_text"]
+__all__ = ["read_input_bytes", "read_input_text"]
+
+
+def read_input_bytes(path, missing: str = "no such file") -> bytes:
+    """The bytes of ``path`` (a reader that hashes them before it parses them).
+
+    Raises
+    ------
+    InputError
+        ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
+        system refuses it (a directory included).
+    """
+    try:
+        return Path(path).read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{Path(path).as_posix()}: {missing}") from None
+    except OSError as exc:
+        raise InputError(f"{Path(path).as_posix()}: cannot read ({exc.strerror})") from None
 
 
 def read_input_text(path, missing: str, expected: str, error: type[FieldError]) -> str:

@@ -11,6 +11,7 @@ from pathlib import Path
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
+from atlasgen.io.text import read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
@@ -126,12 +127,7 @@ def read_material(path) -> Material:
     """
     path = Path(path)
     shown = path.as_posix()
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{shown}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    data = read_input_bytes(path)
     try:
         raw = tomllib.loads(data.decode("utf-8"))
     except UnicodeDecodeError:

@@ -25,8 +25,9 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from atlasgen.errors import InputError, MaterialError
+from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
+from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
 from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults
 
@@ -115,12 +116,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
 
     path = Path(path)
     shown = path.as_posix()
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(f"{shown}: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+    data = read_input_bytes(path)
     doc = mx.createDocument()
     try:
         mx.readFromXmlString(doc, data.decode("utf-8"), mx.FileSearchPath(str(path.parent)))
