@@ -110,17 +110,19 @@ struct LightSample {
 // W = saturate(1 - (d/r)^4)^2 (Lagarde & de Rousiers 2014; Karis 2013; 1 without a range) and,
 // for a spot light, S = clamp((outer - theta) / (outer - inner), 0, 1), 0 beyond the outer cone
 // (Mitsuba's spot); E as given for a directional light. atlasgen/optics/falloff.py is the NumPy form.
-fn light_at(light: Light, world: vec3<f32>) -> LightSample {
-    var out = LightSample(-light.direction, light.radiant, true);
-    if (light.kind == LIGHT_DIRECTIONAL) {
-        return out;
+// Reads the light's members one by one, as each branch needs them: a software GPU gathers every
+// member of a whole-struct load, per pixel and per light, and most lights are plain point lights.
+fn light_at(index: u32, world: vec3<f32>) -> LightSample {
+    let kind = lights[index].kind;
+    if (kind == LIGHT_DIRECTIONAL) {
+        return LightSample(-lights[index].direction, lights[index].radiant, true);
     }
-    let d = light.position - world;
+    let d = lights[index].position - world;
     let d2 = max(dot(d, d), 1e-12);
-    out.l = d * inverseSqrt(d2);
-    out.irradiance = light.radiant / d2;
-    if (light.range > 0.0) {
-        let x = d2 / (light.range * light.range);
+    var out = LightSample(d * inverseSqrt(d2), lights[index].radiant / d2, true);
+    let range = lights[index].range;
+    if (range > 0.0) {
+        let x = d2 / (range * range);
         if (x >= 1.0) {
             out.reaches = false;
             return out;
@@ -128,13 +130,14 @@ fn light_at(light: Light, world: vec3<f32>) -> LightSample {
         let w = 1.0 - x * x;
         out.irradiance = out.irradiance * (w * w);
     }
-    if (light.kind == LIGHT_SPOT) {
-        let cos_theta = dot(-out.l, light.direction);
-        if (cos_theta <= light.cos_outer) {
+    if (kind == LIGHT_SPOT) {
+        let cos_theta = dot(-out.l, lights[index].direction);
+        if (cos_theta <= lights[index].cos_outer) {
             out.reaches = false;
             return out;
         }
-        let s = clamp((light.cone.x - acos(clamp(cos_theta, -1.0, 1.0))) * light.cone.y, 0.0, 1.0);
+        let cone = lights[index].cone;
+        let s = clamp((cone.x - acos(clamp(cos_theta, -1.0, 1.0))) * cone.y, 0.0, 1.0);
         out.irradiance = out.irradiance * s;
     }
     return out;
@@ -201,7 +204,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
         if (listed) {
             i = tile_lights[base + 1u + k];
         }
-        let arrival = light_at(lights[i], world);
+        let arrival = light_at(i, world);
         if (!arrival.reaches) {
             continue;
         }
