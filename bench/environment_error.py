@@ -100,8 +100,10 @@ def _mitsuba() -> tuple[list[dict], float]:
             goal = None
         psnr, floor = ref.metrics.psnr, ref.noise_floor_db
         converged = floor is not None and floor >= psnr + validation.NOISE_FLOOR_MARGIN_DB
-        # Judged only where the reference's noise floor is far enough above the error it measures.
-        met = None if goal is None or not converged else psnr >= goal
+        # A miss is judged only where the reference's noise floor is far enough above the error it
+        # measures; a pass always, as the reference's noise only lowers the PSNR measured against it
+        # (atlasgen.reports.validation.look_verdict).
+        met = None if goal is None or not (converged or psnr >= goal) else psnr >= goal
         rows.append({"material": run.material, "scene": run.scene, "psnr_db": psnr, "noise_floor_db": floor, "spp": ref.spp,
                      "capped": ref.spp >= SPP_CAP and not converged, "converged": converged, "goal_db": goal,
                      "goal_met": met, "seconds": ref.seconds, "description": ref.description})  # fmt: skip
@@ -137,8 +139,10 @@ def run() -> dict:
         f"Against Mitsuba (the model reference lit by the environment alone: the BSDF, and for the sky the emitter "
         f"too, sampled on shifted Halton points, `atlasgen.validate.mitsuba_scene.render_environment_qmc`), through "
         f"`validate_atlas` on `build/atlas.dds`: two shifts from 64 spp each, grown by the noise-floor rule, capped "
-        f"here at {SPP_CAP} spp per shift (the validation's cap is 4096). A goal is judged only where the noise floor "
-        f"(the two shifts' PSNR) is 10 dB above the PSNR. {mi_s:.0f} s in all.",
+        f"here at {SPP_CAP} spp per shift (the validation's cap is 4096). A miss is judged only where the noise floor "
+        f"(the two shifts' PSNR) is 10 dB above the PSNR; a PSNR that meets its goal against a reference short of "
+        f"its floor is met as a lower bound ('yes, bound'), since the reference's noise only adds error. "
+        f"{mi_s:.0f} s in all.",
         "",
         "| material | scene | PSNR (dB) | goal (dB) | met | noise floor (dB) | spp per seed | converged | reference (s) |",
         "|---|---|---:|---:|---|---:|---:|---|---:|",
@@ -147,6 +151,8 @@ def run() -> dict:
         spp = f"{r['spp']} (capped)" if r["capped"] else str(r["spp"])
         goal = "-" if r["goal_db"] is None else f"{r['goal_db']:g}"
         met = {True: "yes", False: "no", None: "-" if r["goal_db"] is None else "not judged"}[r["goal_met"]]
+        if r["goal_met"] and not r["converged"]:
+            met = "yes, bound"
         md.append(f"| {r['material']} | {r['scene']} | {_db(r['psnr_db'])} | {goal} | {met} "
                   f"| {_db(r['noise_floor_db'])} | {spp} | {'yes' if r['converged'] else 'no'} | {r['seconds']:.1f} |")  # fmt: skip
     conv = [f"{r['material']}/{r['scene']}" for r in mi_rows if r["converged"]]
