@@ -100,19 +100,37 @@ def _mitsuba() -> tuple[list[dict], float]:
             goal = None
         psnr, floor = ref.metrics.psnr, ref.noise_floor_db
         converged = floor is not None and floor >= psnr + validation.NOISE_FLOOR_MARGIN_DB
-        # A miss is judged only where the reference's noise floor is far enough above the error it
-        # measures; a pass always, as the reference's noise only lowers the PSNR measured against it
-        # (atlasgen.reports.validation.look_verdict).
-        met = None if goal is None or not (converged or psnr >= goal) else psnr >= goal
         rows.append({"material": run.material, "scene": run.scene, "psnr_db": psnr, "noise_floor_db": floor, "spp": ref.spp,
                      "capped": ref.spp >= SPP_CAP and not converged, "converged": converged, "goal_db": goal,
-                     "goal_met": met, "seconds": ref.seconds, "description": ref.description})  # fmt: skip
+                     "seconds": ref.seconds, "description": ref.description})  # fmt: skip
     return rows, time.perf_counter() - t0
+
+
+def judge(row: dict) -> bool | None:
+    """Whether a Mitsuba row meets its goal; None where it has none or cannot say.
+
+    A miss is judged only where the reference's noise floor is far enough above the error it
+    measures; a pass always, as the reference's noise only lowers the PSNR measured against it
+    (:func:`atlasgen.reports.validation.look_verdict`).
+    """
+    goal, psnr = row["goal_db"], row["psnr_db"]
+    if goal is None or not (row["converged"] or psnr >= goal):
+        return None
+    return bool(psnr >= goal)
 
 
 def run() -> dict:
     cpu_rows, device, cpu_s = _cpu_breakdown()
     mi_rows, mi_s = _mitsuba()
+    data = {"device": device, "cpu_seconds": cpu_s, "cpu_breakdown": cpu_rows, "mitsuba_seconds": mi_s, "spp_cap": SPP_CAP,
+            "mitsuba": mi_rows}  # fmt: skip
+    return {"markdown": markdown(data), "data": data}
+
+
+def markdown(data: dict) -> str:
+    """The section's text from its measured data (``bench/run.py --rewrite`` re-renders it from BENCHMARKS.json)."""
+    cpu_rows, device, cpu_s = data["cpu_breakdown"], data["device"], data["cpu_seconds"]
+    mi_rows, mi_s, spp_cap = data["mitsuba"], data["mitsuba_seconds"], data["spp_cap"]
     md = [
         "## Environment lighting: error per material",
         "",
@@ -139,7 +157,7 @@ def run() -> dict:
         f"Against Mitsuba (the model reference lit by the environment alone: the BSDF, and for the sky the emitter "
         f"too, sampled on shifted Halton points, `atlasgen.validate.mitsuba_scene.render_environment_qmc`), through "
         f"`validate_atlas` on `build/atlas.dds`: two shifts from 64 spp each, grown by the noise-floor rule, capped "
-        f"here at {SPP_CAP} spp per shift (the validation's cap is 4096). A miss is judged only where the noise floor "
+        f"here at {spp_cap} spp per shift (the validation's cap is 4096). A miss is judged only where the noise floor "
         f"(the two shifts' PSNR) is 10 dB above the PSNR; a PSNR that meets its goal against a reference short of "
         f"its floor is met as a lower bound ('yes, bound'), since the reference's noise only adds error. "
         f"{mi_s:.0f} s in all.",
@@ -150,8 +168,9 @@ def run() -> dict:
     for r in mi_rows:
         spp = f"{r['spp']} (capped)" if r["capped"] else str(r["spp"])
         goal = "-" if r["goal_db"] is None else f"{r['goal_db']:g}"
-        met = {True: "yes", False: "no", None: "-" if r["goal_db"] is None else "not judged"}[r["goal_met"]]
-        if r["goal_met"] and not r["converged"]:
+        verdict = judge(r)
+        met = {True: "yes", False: "no", None: "-" if r["goal_db"] is None else "not judged"}[verdict]
+        if verdict and not r["converged"]:
             met = "yes, bound"
         md.append(f"| {r['material']} | {r['scene']} | {_db(r['psnr_db'])} | {goal} | {met} "
                   f"| {_db(r['noise_floor_db'])} | {spp} | {'yes' if r['converged'] else 'no'} | {r['seconds']:.1f} |")  # fmt: skip
@@ -163,9 +182,7 @@ def run() -> dict:
         "Not converged (the PSNR is a lower bound set by the reference's noise): " + (", ".join(notconv) or "none") + ".",
         "",
     ]
-    data = {"device": device, "cpu_seconds": cpu_s, "cpu_breakdown": cpu_rows, "mitsuba_seconds": mi_s, "spp_cap": SPP_CAP,
-            "mitsuba": mi_rows}  # fmt: skip
-    return {"markdown": "\n".join(md), "data": data}
+    return "\n".join(md)
 
 
 if __name__ == "__main__":

@@ -55,9 +55,23 @@ def _update(names, results, parts) -> int:
     return 0 if all("error" not in results[n] for n in names) else 1
 
 
+def _rewrite(names) -> int:
+    """``bench/run.py --rewrite NAME...``: re-render those sections' text from the data BENCHMARKS.json
+    holds (for a section whose module has ``markdown(data)``), measuring nothing: a change to how a
+    section judges or words its figures lands without re-running an hour of benchmarks."""
+    data = json.loads((ROOT / "BENCHMARKS.json").read_text())
+    results, parts = {}, []
+    for name in names:
+        results[name] = data[name]
+        parts.append(importlib.import_module(name).markdown(data[name]))
+    return _update(names, results, parts)
+
+
 def main(argv=None) -> int:
     names = (argv if argv is not None else sys.argv[1:]) or SECTIONS
     sys.path.insert(0, str(ROOT / "bench"))
+    if names[0] == "--rewrite":
+        return _rewrite(names[1:])
     results, parts = {}, []
     for name in names:
         print(f"bench: {name} ...", file=sys.stderr, flush=True)
