@@ -55,6 +55,7 @@ from atlasgen.shaders.separable import separable_declarations, separable_table_b
 from atlasgen.shaders.separable_analytic import analytic_call, analytic_declarations
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
+           "representation_radiance",
            "check_film", "stored_factors"]  # fmt: skip
 
 MAX_AUTO_TERMS = 8  # max_error mode tries K = 1 .. 8 (atlasgen.separable.approximate)
@@ -615,12 +616,12 @@ class Separable(Model):
         factors are not in the atlas, so there is no ``"float"`` rebuild."""
         if isinstance(entry.representation, AnalyticRepresentation):
             return {"8bit": RadianceRebuild("the closed form in float64 (atlasgen.separable.analytic), as the shader evaluates it",
-                                            _analytic_radiance(entry.representation))}  # fmt: skip
+                                            representation_radiance(entry, None))}  # fmt: skip
         if isinstance(entry.representation, LutRepresentation):
             return {
                 "8bit": RadianceRebuild(
                     "the baked 8-bit slice in the renderer's equation at the fitted gloss, times the albedo",
-                    _lut_radiance(as_atlas(atlas).decode_slice(entry.first_slice), fit_gloss(entry)),
+                    representation_radiance(entry, as_atlas(atlas).decode_slice(entry.first_slice)),
                 )
             }
         factors = read_separable_factors(atlas, entry.name)
@@ -704,6 +705,17 @@ def _source_description(values: dict, what: str = "BRDF") -> str:
 def fit_gloss(entry) -> float:
     """The renderer gloss a slice fitted from physics was made for (the manifest's ``fit.gloss``)."""
     return float(entry.fit.gloss) if entry.fit is not None else 0.5
+
+
+def representation_radiance(entry, first_slice):
+    """``radiance(n, l, v, albedo, gloss, irradiance)`` of a separable material held as one LUT slice or
+    a closed form, as the lighting pass shades it (``first_slice``: its decoded slice, what
+    ``atlas_sample`` returns; unused by a closed form); None for one held as factors."""
+    if isinstance(entry.representation, AnalyticRepresentation):
+        return _analytic_radiance(entry.representation)
+    if isinstance(entry.representation, LutRepresentation):
+        return _lut_radiance(first_slice, fit_gloss(entry))
+    return None
 
 
 def _lut_radiance(table, gloss: float):

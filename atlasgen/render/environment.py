@@ -36,6 +36,7 @@ from atlasgen.io.atlas import apply_slice_scale
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.materials.environment import Environment, environment_image
+from atlasgen.models.separable import representation_radiance
 from atlasgen.optics.environment_tables import (
     GLOSS_COUNT,
     directional_albedo_table,
@@ -119,8 +120,8 @@ def decode_render_slice(levels, srgb: bool, entry: MaterialEntry, slice_index: i
     return apply_slice_scale(rgba, entry.scale[k] if entry.scale else (1.0, 1.0), entry.bias[k] if entry.bias else (0.0, 0.0))
 
 
-def _separable_f_cos(levels, srgb: bool, entry: MaterialEntry):
-    """f cos(l, v) of a factored separable material, rebuilt from its slices (local frame), or None."""
+def separable_factors(levels, srgb: bool, entry: MaterialEntry):
+    """The factors of a factored separable material as the GPU reads them (its level-0 slices decoded), or None."""
     if entry.factors is None:
         return None
     texels = np.asarray(levels[0])[entry.first_slice : entry.first_slice + entry.slice_count]
@@ -128,27 +129,45 @@ def _separable_f_cos(levels, srgb: bool, entry: MaterialEntry):
     f = entry.factors
     back = f.transmission
     pair = None if back is None else (entry.scale[back.slice][0], entry.bias[back.slice][0])
-    factors = factors_from_slices(decoded, f.factor_scale, f.factor_bias, f.parametrization, f.target, pair)
+    return factors_from_slices(decoded, f.factor_scale, f.factor_bias, f.parametrization, f.target, pair)
 
-    def f_cos(l, v):
-        n = np.broadcast_to([0.0, 0.0, 1.0], l.shape)
-        return evaluate_factors(factors, n, l, v, cosine=True)
+
+def custom_f_cos(levels, srgb: bool, entry: MaterialEntry):
+    """``f_cos(n, l, v)`` ``(N, 3)`` of a separable material as the lighting pass evaluates it, from the
+    atlas as the GPU reads it: its factors' rebuild, or, held as one LUT slice or a closed form, that
+    representation's (:func:`atlasgen.models.separable.representation_radiance`); None if it has neither."""
+    factors = separable_factors(levels, srgb, entry)
+    if factors is not None:
+        return lambda n, l, v: evaluate_factors(factors, n, l, v, cosine=True)
+    radiance = representation_radiance(entry, decode_render_slice(levels, srgb, entry, entry.first_slice))
+    if radiance is None:
+        return None
+
+    def f_cos(n, l, v):
+        one = np.ones(np.broadcast_shapes(np.shape(n), np.shape(l), np.shape(v)))
+        return radiance(n, l, v, one, np.full(one.shape[:-1], 0.5), one)
 
     return f_cos
+
+
+def separable_albedo_table(f_cos) -> np.ndarray:
+    """S_sep(N.V) ``(HEIGHT, 3)`` of a :func:`custom_f_cos`, in the local frame (n = +z)."""
+    # The rebuild's azimuths are unsigned (acos), so its f cos is even in the azimuth of l.
+    return directional_albedo_table(lambda l, v: f_cos(np.broadcast_to([0.0, 0.0, 1.0], l.shape), l, v), HEIGHT, even=True)
 
 
 def material_tables(levels, srgb: bool, entry: MaterialEntry, custom_lighting: bool) -> np.ndarray:
     """The tables layer of a material (its first slice, the ID the g-buffer holds): ``(32, TABLE_COLUMNS, 4)`` float32.
 
-    A separable material (``custom_lighting``) without factors (an analytic or a LUT
-    representation) gets zero tables: no environment light (docs/scenes.md says so).
+    A separable material (``custom_lighting``) gets S_sep from the f cos the lighting pass gives it:
+    its factors', or, held as one LUT slice or a closed form, that representation's
+    (:func:`atlasgen.models.separable.representation_radiance`).
     """
     out = np.zeros((HEIGHT, TABLE_COLUMNS, 4))
     if custom_lighting:
-        f_cos = _separable_f_cos(levels, srgb, entry)
+        f_cos = custom_f_cos(levels, srgb, entry)
         if f_cos is not None:
-            # The rebuild's azimuths are unsigned (acos), so its f cos is even in the azimuth of l.
-            out[:, _SEPARABLE_COLUMN, :3] = directional_albedo_table(f_cos, HEIGHT, even=True)
+            out[:, _SEPARABLE_COLUMN, :3] = separable_albedo_table(f_cos)
         return out.astype(np.float32)
     values = decode_render_slice(levels, srgb, entry, entry.first_slice)
     nearest = entry.flag("nearest")

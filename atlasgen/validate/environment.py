@@ -20,6 +20,11 @@ weights scaled to sum to 4 pi, so a uniform environment's integral is exact). Th
 the SH part and the split-sum part, which sum to the whole CPU error by construction
 (:func:`environment_parts`); :func:`break_down_environment` turns each into a PSNR on the material's
 pixels with the same display convention as every other figure (:func:`atlasgen.validate.metrics.compare_images`).
+
+A separable material's f cos is 4D and has no A.a: the renderer gives it the split sum with its own
+directional albedo, approx = albedo Lpre(r, alpha) S_sep(N.V), against
+exact = int_S2 albedo f cos(n, l, v) L(l) dl with f cos rebuilt from its factors as the light loop
+evaluates it (:func:`separable_environment_parts`); the whole error is then the split sum's.
 """
 
 from __future__ import annotations
@@ -36,15 +41,16 @@ from atlasgen.optics.environment_tables import (
     slice_sh_table,
     slice_specular_table,
     specular_environment,
+    split_sum_environment,
 )
 from atlasgen.optics.equirect import texel_directions, texel_solid_angles
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
-from atlasgen.render.environment import EnvironmentData, decode_render_slice
+from atlasgen.render.environment import EnvironmentData, custom_f_cos, decode_render_slice, separable_albedo_table
 from atlasgen.validate.metrics import compare_images
 from atlasgen.validate.rebuild import _pixel_geometry, material_mask
 
-__all__ = ["EnvironmentParts", "environment_parts", "break_down_environment"]
+__all__ = ["EnvironmentParts", "environment_parts", "separable_environment_parts", "break_down_environment"]
 
 #: Material pixels integrated at a time (bounds the (pixels x texels) arrays to a few tens of MB).
 _CHUNK = 48
@@ -96,6 +102,40 @@ def environment_parts(levels, srgb: bool, entry: MaterialEntry, scene, aovs: dic
         out["dex"][mask] = albedo * dex
         out["sex"][mask] = sex
     return EnvironmentParts(out["dsh"], out["dex"], out["ssum"], out["sex"], mask)
+
+
+def separable_environment_parts(levels, srgb: bool, entry: MaterialEntry, scene, aovs: dict,
+                                data: EnvironmentData | None = None) -> EnvironmentParts | None:  # fmt: skip
+    """A separable material's environment term at its g-buffer pixels, approximated and exact.
+
+    As :func:`environment_parts`, for a ``custom_lighting`` material, with its f cos as the lighting
+    pass evaluates it (:func:`atlasgen.render.environment.custom_f_cos`; None if it has none). The
+    split sum is the whole approximation, so the diffuse parts are zero; S_sep is the renderer's
+    (:func:`atlasgen.render.environment.separable_albedo_table`).
+    """
+    f_cos = custom_f_cos(levels, srgb, entry)
+    if f_cos is None:
+        return None
+    if data is None:
+        data = EnvironmentData.of(scene.environment)
+    mask = material_mask(entry, aovs)
+    approx, exact = np.zeros((scene.height, scene.width, 3)), np.zeros((scene.height, scene.width, 3))
+    if mask.any():
+        _, n, v = _pixel_geometry(scene, aovs, mask)
+        albedo = np.asarray(aovs["albedo"], dtype=np.float64)[mask]
+        gloss = np.asarray(aovs["gloss"], dtype=np.float64)[mask]
+        nv = np.clip(np.sum(n * v, axis=1), 0.0, 1.0)
+        table = separable_albedo_table(f_cos)
+        approx[mask] = albedo * split_sum_environment(data.levels, table, reflect(v, n), nv, gloss)
+        h, w = data.image.shape[:2]
+        dirs, weights = texel_directions(h, w).reshape(-1, 3), texel_solid_angles(h, w).reshape(-1)
+        radiance = np.asarray(data.image, dtype=np.float64).reshape(-1, 3) * weights[:, None]
+        sums = np.zeros((len(n), 3))
+        for p in range(len(n)):  # one pixel against every texel: (texels, 3) arrays
+            sums[p] = np.sum(f_cos(np.broadcast_to(n[p], dirs.shape), dirs, np.broadcast_to(v[p], dirs.shape)) * radiance, axis=0)
+        exact[mask] = albedo * sums
+    zero = np.zeros_like(approx)
+    return EnvironmentParts(zero, zero.copy(), approx, exact, mask)
 
 
 def _brute_force(values, nearest, image, n, v, nv, gloss):

@@ -136,3 +136,26 @@ def test_a_separable_sphere_under_the_sky_is_its_split_sum(gpu_context, separabl
     nv = np.clip(np.sum(n * v, -1), 0.0, 1.0)
     expected = np.array([0.8, 0.6, 0.4]) * split_sum_environment(data.levels, table, reflect(v, n), nv, 0.6)
     np.testing.assert_allclose(result.radiance[on], expected, rtol=5e-3, atol=2e-3 * expected.max())
+
+
+def test_a_separable_material_drawn_by_one_lut_slice_gets_the_split_sum_of_that_slice(tmp_path):
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+    from atlasgen.models.separable import representation_radiance
+    from atlasgen.render.atlas_texture import RenderAtlas
+    from atlasgen.render.environment import decode_render_slice, material_tables
+
+    (tmp_path / "m.toml").write_text('type = "separable"\nsource = "ggx"\nalpha = 0.3\nrepresentation = "lut"\n')
+    result = bake_atlas(read_materials([tmp_path / "m.toml"]))
+    atlas = RenderAtlas(result.levels, result.dxgi_format == 29, result.manifest, result.include, "test")
+    entry = atlas.manifest.entry_named("m")
+    tables = material_tables(atlas.levels, atlas.srgb, entry, custom_lighting=True)
+    radiance = representation_radiance(entry, decode_render_slice(atlas.levels, atlas.srgb, entry, entry.first_slice))
+
+    def f_cos(l, v):
+        one = np.ones_like(l)
+        return radiance(np.broadcast_to([0.0, 0.0, 1.0], l.shape), l, v, one, np.full(len(l), 0.5), one)
+
+    # Column 9 is S_sep of what the light loop shades it with (it was all zero: no environment light).
+    np.testing.assert_allclose(tables[:, 9, :3], directional_albedo_table(f_cos, even=True), rtol=1e-5, atol=1e-7)
+    assert tables[-1, 9, :3].min() > 0.01

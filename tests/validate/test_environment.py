@@ -134,3 +134,36 @@ def test_a_lambert_sphere_under_a_constant_emitter_meets_45_db_against_mitsuba(a
     m = compare_images(reference, np.asarray(result.radiance, dtype=np.float32), scene.settings.exposure, mask=mask,
                        with_flip=False)  # fmt: skip
     assert m.psnr >= 45.0, m.psnr
+
+
+def test_a_separable_material_under_a_uniform_environment_is_its_split_sum_and_none_without_factors(separable_atlas):
+    from atlasgen.render.atlas_texture import read_render_atlas
+    from atlasgen.validate.environment import separable_environment_parts
+
+    path, _ = separable_atlas
+    atlas = read_render_atlas(path)
+    radiance = np.array([0.5, 1.0, 2.0])
+    scene = _scene("environment = [0.5, 1.0, 2.0]")
+    entry = atlas.manifest.entry_named("plastic")
+    parts = separable_environment_parts(atlas.levels, atlas.srgb, entry, scene, _sphere_aovs(scene, entry.first_slice))
+    assert parts.mask.sum() > 50
+    # The split sum is exact for a constant: albedo L S_sep(N.V) is the whole integral, to the texel sum's
+    # quadrature of the rebuilt lobe (alpha 0.3: 1e-2 at 128 x 256 texels) against S_sep's Gauss-Legendre rule.
+    on = parts.mask
+    assert parts.specular_exact[on].min() > 1e-2
+    np.testing.assert_allclose(parts.specular_split_sum[on], parts.specular_exact[on], rtol=2e-2)
+    # And it is albedo L times the directional albedo: a white furnace reflects at most what arrives.
+    assert np.all(parts.specular_exact[on] / (np.array([0.8, 0.6, 0.4]) * radiance) <= 1.0 + 1e-2)
+    figures = break_down_environment(parts)
+    assert figures["sh_band_limit"]["psnr_db"] is None  # no diffuse part: its error is exactly zero
+    assert figures["total"]["psnr_db"] == pytest.approx(figures["split_sum"]["psnr_db"], rel=1e-12)
+
+    sky = _scene('environment = "sky"')
+    under_sky = break_down_environment(
+        separable_environment_parts(atlas.levels, atlas.srgb, entry, sky, _sphere_aovs(sky, entry.first_slice))
+    )
+    # A sun costs the split sum much: the mirror direction's prefiltered radiance stands for a lobe that is
+    # mostly diffuse here (16.9 dB when written).
+    assert 10.0 < under_sky["total"]["psnr_db"] < figures["total"]["psnr_db"] - 20.0
+    lut = atlas.manifest.entry_named("lut")
+    assert separable_environment_parts(atlas.levels, atlas.srgb, lut, scene, _sphere_aovs(scene, lut.first_slice)) is None
