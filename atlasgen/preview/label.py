@@ -34,6 +34,10 @@ _LINE, _PAD = LABEL_FONT_SIZE + 5, 6
 _BAND, _TEXT, _TITLE = (24, 24, 27), (190, 190, 195), (245, 245, 245)
 
 
+#: What a fitted slice was fitted to, by the manifest's ``fit.from`` (:class:`atlasgen.io.manifest.Fit`).
+_FIT_SOURCES = {"physical": "its physical reference", "bsdf": "its Mitsuba BSDF", "auto": "its source BRDF"}
+
+
 def representation_text(entry: MaterialEntry) -> str:
     """How ``entry`` is stored and drawn, e.g. ``LUT slice``, ``separable, 4 terms``, ``analytic ggx``.
 
@@ -49,7 +53,7 @@ def representation_text(entry: MaterialEntry) -> str:
         return text + (" + transmission slice" if factors.transmission is not None else "")
     text = "LUT slice"
     if fit is not None:
-        text += f" fitted to {fit.source} (shaded at gloss {fit.gloss:g})"
+        text += f" fitted to {_FIT_SOURCES.get(fit.source, fit.source)} (shaded at gloss {fit.gloss:g})"
     if isinstance(rep, LutRepresentation) and rep.supersampling > 1:
         text += f", {rep.supersampling}x supersampled"
     return text
@@ -72,7 +76,7 @@ def error_text(entry: MaterialEntry) -> str | None:
         return f"error: {100 * e.relative_rms:.2f}%{se} relative RMS of f cos (8-bit)"
     relative_rms = fit.details.get("relative_rms") if fit is not None else None
     if isinstance(relative_rms, (int, float)):
-        return f"error: {100 * relative_rms:.2f}% relative RMS against the physical reference (fit)"
+        return f"error: {100 * relative_rms:.2f}% relative RMS against {_FIT_SOURCES.get(fit.source, fit.source)} (fit)"
     if isinstance(rep, LutRepresentation):
         return f"error: reconstruction RMS {rep.reconstruction_error:.2g} (budget {rep.error_budget:g})"
     return f"error: 8-bit quantisation RMS {entry.quantization_error.rms:.2g}"

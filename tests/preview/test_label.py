@@ -35,8 +35,13 @@ CASES = {
     "plain LUT": (entry(), "LUT slice", "error: 8-bit quantisation RMS 0.00037"),
     "fitted to physics": (
         entry(type="fresnel", fit=Fit(source="physical", gloss=0.55, details={"relative_rms": 0.0208151834393869})),
-        "LUT slice fitted to physical (shaded at gloss 0.55)",
-        "error: 2.08% relative RMS against the physical reference (fit)",
+        "LUT slice fitted to its physical reference (shaded at gloss 0.55)",
+        "error: 2.08% relative RMS against its physical reference (fit)",
+    ),
+    "a separable material's auto choice of one slice": (
+        entry(type="separable", fit=Fit(source="auto", gloss=0.5, details={"relative_rms": 0.0571})),
+        "LUT slice fitted to its source BRDF (shaded at gloss 0.5)",
+        "error: 5.71% relative RMS against its source BRDF (fit)",
     ),
     "LUT within a budget": (
         entry(
