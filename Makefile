@@ -11,7 +11,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test lint fuzz bench bench-workflow clean atlas render validate report pins
+.PHONY: setup apt demo test lint fuzz bench bench-workflow clean atlas render validate report pins tags
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -90,6 +90,12 @@ $(BUILD)/versions.txt: $(VENV)/.stamp
 # Moves every pin to the newest release that pyproject.toml allows, re-installs through the new
 # pins and regenerates the goldens, in one step. Review `git diff constraints.txt tests/resources`
 # and say in the commit why the bytes moved.
+# The release tags, from the line CHANGELOG.md records them on ("<!-- Tags: v0.1.0 is 5b33261, ..."): a
+# clone that arrived without tags gets them back, and the CHANGELOG's compare links resolve.
+tags:
+	@sed -n 's/^<!-- Tags: \(.*\)\. Relative.*/\1/p' CHANGELOG.md | tr ',' '\n' | \
+	while read -r tag _is commit; do git tag -f "$$tag" "$$commit" >/dev/null && echo "$$tag -> $$commit"; done
+
 pins: apt
 	rm -rf $(BUILD)/pins-venv && $(PYTHON) -m venv $(BUILD)/pins-venv
 	$(BUILD)/pins-venv/bin/pip install -q --disable-pip-version-check -U pip '.[$(EXTRAS)]'
