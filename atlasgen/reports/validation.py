@@ -493,7 +493,9 @@ def materialx_summary(rows: list) -> dict | None:
                            if q.get("pixel_p1_p50_p99"))  # fmt: skip
         out["ratio"] = {"reference": r.get("reference"), "pairs": r.get("pairs"), "pixels": pixels,
                         "bsdf": " / ".join(f"{x:.3f}" for x in r.get("bsdf_p1_p50_p99") or []),
-                        "bsdf_range": " to ".join(f"{x:.3f}" for x in r.get("bsdf_min_max") or [])}  # fmt: skip
+                        "bsdf_range": " to ".join(f"{x:.3f}" for x in r.get("bsdf_min_max") or []),
+                        "probe": " to ".join(f"{x:.3f}" for x in r.get("probe_range") or []),
+                        "within": r.get("within_probe_range")}  # fmt: skip
     return out
 
 
