@@ -31,7 +31,8 @@ from atlasgen.validate.mitsuba_scene import world_mesh_arrays
 __all__ = ["FORWARD_DESCRIPTION", "PROBE_RATIO_RANGE", "RATIO_PAIRS", "forward_lights", "gl_view_projection", "is_materialx_entry",
            "oracle_over_physical_bsdf", "render_forward_reference"]  # fmt: skip
 
-FORWARD_DESCRIPTION = ("MaterialX's GLSL forward-rendered (moderngl on llvmpipe): the scene's meshes and lights, "
+#: Its first clause is what the look's summary names ("against the forward render of MaterialX's GLSL it was factored from").
+FORWARD_DESCRIPTION = ("forward render of MaterialX's GLSL (moderngl on llvmpipe): the scene's meshes and lights, "
                        "one sample per pixel centre, inverse-square falloff")  # fmt: skip
 
 

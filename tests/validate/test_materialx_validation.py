@@ -83,7 +83,7 @@ def test_the_model_reference_is_the_forward_render_and_the_mitsuba_route_agrees(
     run, _ = gold_run
     (result,) = run.runs
     model = result.references["model"]
-    assert model.variant == "moderngl" and model.description.startswith("MaterialX's GLSL forward-rendered")
+    assert model.variant == "moderngl" and model.description.startswith("forward render of MaterialX's GLSL")
     x = result.materialx
     assert x["reference"] == "forward" and x["document"].endswith("gold.mtlx") and x["material"] == "gold"
     assert x["forward_vs_mitsuba_plugin"]["psnr_db"] > 60.0  # the same shading, rasterised against ray-traced
