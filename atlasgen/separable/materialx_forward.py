@@ -1,4 +1,4 @@
-"""MaterialX's own shader forward-rendered over a scene's triangles, under its point and directional lights.
+"""MaterialX's own shader forward-rendered over a scene's triangles, under its point, spot and directional lights.
 
 The reference ``atlasgen validate`` compares a MaterialX material's atlas image with
 (:mod:`atlasgen.validate.materialx_reference` hands the scene down as arrays): the same
@@ -7,7 +7,8 @@ meshes, camera and lights as the deferred renderer, shaded by MaterialX 1.39.5's
 environment light) in moderngl's headless EGL context (llvmpipe), one sample at each pixel
 centre into an RGBA32F target, depth-tested, nothing blended. The lights are MaterialX light
 shaders bound with ``bindLightShader`` (``ND_directional_light`` as type 1, ``ND_point_light`` as
-type 2) and set through its ``u_lightData`` array and ``u_numActiveLightSources``.
+type 2, ``ND_spot_light`` as type 3) and set through its ``u_lightData`` array and
+``u_numActiveLightSources``.
 
 The vertex stage is MaterialX's, unchanged. The pixel stage's BSDF code is MaterialX's, unchanged;
 four edits make it shade as the deferred renderer does, where the two differ:
@@ -15,7 +16,9 @@ four edits make it shade as the deferred renderer does, where the two differ:
 - the point light's falloff: MaterialX's ``mx_point_light`` divides by (d + 1)^decay_rate, which is
   not the inverse square even at decay_rate 2. atlasgen's lights give E = I W(d, r) / d^2 with the
   range window W (:func:`atlasgen.optics.falloff.windowed_irradiance`; 1 without a range), so
-  its body is replaced by that, and ``LightData`` gains a ``range`` member (0: none);
+  its body is replaced by that, and ``LightData`` gains a ``range`` member (0: none). The spot
+  light's, which blends cosines by a smoothstep, becomes that falloff times atlasgen's cone
+  (:func:`atlasgen.optics.falloff.spot_factor`, linear in the angle; its angles in radians);
 - two-sided shading: the renderer shades a back face with the flipped normal, MaterialX's
   stage does not, so ``vd`` becomes a global filled from the interpolated block with
   ``normalWorld`` flipped where ``gl_FrontFacing`` is false;
@@ -65,7 +68,7 @@ __all__ = [
 #: The most lights one forward render binds (MaterialX's ``hwMaxActiveLightSources``).
 MAX_LIGHTS = 16
 #: atlasgen light type -> (MaterialX light node, the id it is bound with: ``u_lightData[i].type``).
-LIGHT_TYPES = {"directional": ("directional_light", 1), "point": ("point_light", 2)}
+LIGHT_TYPES = {"directional": ("directional_light", 1), "point": ("point_light", 2), "spot": ("spot_light", 3)}
 
 _POINT_LIGHT = re.compile(r"void mx_point_light\(LightData light, vec3 position, out lightshader result\)\n\{.*?\n\}\n", re.S)
 _POINT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out lightshader result)
@@ -84,6 +87,20 @@ _POINT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out l
     result.intensity = light.color * light.intensity * window / d2;
 }
 """
+_SPOT_LIGHT = re.compile(r"void mx_spot_light\(LightData light, vec3 position, out lightshader result\)\n\{.*?\n\}\n", re.S)
+_SPOT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out lightshader result);  // generated after it
+
+void mx_spot_light(LightData light, vec3 position, out lightshader result)
+{
+    // atlasgen's spot (atlasgen.optics.falloff.spot_factor, Mitsuba's spot): the point light's falloff times
+    // S = saturate((outer - theta) / (outer - inner)), 0 from the outer cone on; inner_angle and outer_angle
+    // hold the half-angles in radians here (MaterialX's own are cosines, blended by a smoothstep).
+    mx_point_light(light, position, result);
+    float c = clamp(dot(result.direction, -light.direction), -1.0, 1.0);
+    float s = clamp((light.outer_angle - acos(c)) / (light.outer_angle - light.inner_angle), 0.0, 1.0);
+    result.intensity *= c > cos(light.outer_angle) ? s : 0.0;
+}
+"""
 _OUTPUT = re.compile(r"^out\s+vec4\s+(?P<name>\w+)\s*;", re.M)
 _BLOCK = re.compile(r"in\s+VertexData\s*\{(?P<body>[^}]*)\}\s*vd\s*;")
 
@@ -91,8 +108,9 @@ _BLOCK = re.compile(r"in\s+VertexData\s*\{(?P<body>[^}]*)\}\s*vd\s*;")
 @dataclass(frozen=True)
 class ForwardLight:
     """One light as the renderer's scene has it: ``type`` ``"point"`` (``position``, radiant intensity
-    ``intensity`` x ``colour``, ``range``: ``inf`` for none) or ``"directional"`` (``direction`` it
-    travels, irradiance ``intensity`` x ``colour``)."""
+    ``intensity`` x ``colour``, ``range``: ``inf`` for none), ``"spot"`` (a point light with an axis
+    ``direction`` and cone half-angles ``inner_angle`` < ``outer_angle`` in degrees) or ``"directional"``
+    (``direction`` it travels, irradiance ``intensity`` x ``colour``)."""
 
     type: str
     colour: tuple
@@ -100,6 +118,8 @@ class ForwardLight:
     position: tuple | None = None
     direction: tuple | None = None
     range: float = math.inf
+    inner_angle: float = 0.0
+    outer_angle: float = 0.0
 
 
 @dataclass
@@ -144,8 +164,10 @@ def adapt_forward_pixel_stage(pixel_source: str) -> str:
         raise BackendError(
             "MaterialX's pixel stage does not have the layout of MaterialX 1.39's GLSL (VertexData, LightData, main)"
         )
-    if _POINT_LIGHT.search(pixel_source) is None:
-        raise BackendError("MaterialX's pixel stage has no mx_point_light of MaterialX 1.39's form; expected a point light bound")
+    if _POINT_LIGHT.search(pixel_source) is None or _SPOT_LIGHT.search(pixel_source) is None:
+        raise BackendError(
+            "MaterialX's pixel stage has no mx_point_light and mx_spot_light of MaterialX 1.39's form; expected both bound"
+        )
     out = output["name"]
     members = varyings_of(pixel_source)
     src = (pixel_source[: block.start()] + "in VertexData\n{" + block["body"] + "} atlasgen_vd;\n\nstruct AtlasgenVertexData\n{"
@@ -153,6 +175,7 @@ def adapt_forward_pixel_stage(pixel_source: str) -> str:
            + pixel_source[block.end() :])  # fmt: skip
     src = src.replace("struct LightData\n{", "struct LightData\n{\n    float range;", 1)
     src = _POINT_LIGHT.sub(lambda _: _POINT_LIGHT_BODY, src, count=1)
+    src = _SPOT_LIGHT.sub(lambda _: _SPOT_LIGHT_BODY, src, count=1)
     src = _OUTPUT.sub(f"layout(location = 0) out vec4 {out};\nlayout(location = 1) out vec4 atlasgen_position;\n"
                       "layout(location = 2) out vec4 atlasgen_normal;", src, count=1)  # fmt: skip
     src = declare_refraction_two_sided(src)
@@ -216,11 +239,14 @@ def _set_lights(p: _Program, lights) -> None:
         _set(p.program, p.uniforms, f"{key}.type", LIGHT_TYPES[light.type][1])
         _set(p.program, p.uniforms, f"{key}.color", tuple(float(c) for c in light.colour))
         _set(p.program, p.uniforms, f"{key}.intensity", float(light.intensity))
-        if light.type == "point":
+        if light.type in ("point", "spot"):
             _set(p.program, p.uniforms, f"{key}.position", tuple(float(c) for c in light.position))
             _set(p.program, p.uniforms, f"{key}.range", float(light.range) if math.isfinite(light.range) else 0.0)
-        else:
+        if light.type in ("directional", "spot"):
             _set(p.program, p.uniforms, f"{key}.direction", tuple(float(c) for c in light.direction))
+        if light.type == "spot":
+            _set(p.program, p.uniforms, f"{key}.inner_angle", math.radians(light.inner_angle))
+            _set(p.program, p.uniforms, f"{key}.outer_angle", math.radians(light.outer_angle))
     _set(p.program, p.uniforms, "u_numActiveLightSources", len(lights))
 
 

@@ -43,16 +43,16 @@ def is_materialx_entry(entry) -> bool:
 
 def forward_lights(scene) -> list[ForwardLight] | None:
     """The scene's lights as the forward render binds them, or ``None`` where one has no MaterialX
-    light shader here (a spot light: the Mitsuba route then stays the reference)."""
+    light shader here (the Mitsuba route then stays the reference)."""
     out = []
     for light in scene.lights:
-        if light.type == "point":
-            out.append(ForwardLight("point", tuple(light.colour), float(light.intensity), position=tuple(light.position),
-                                    range=float(light.range)))  # fmt: skip
-        elif light.type == "directional":
-            out.append(ForwardLight("directional", tuple(light.colour), float(light.intensity), direction=tuple(light.direction)))
-        else:
+        if light.type not in ("point", "spot", "directional"):
             return None
+        out.append(ForwardLight(light.type, tuple(light.colour), float(light.intensity),
+                                position=None if light.position is None else tuple(light.position),
+                                direction=None if light.direction is None else tuple(light.direction),
+                                range=float(light.range), inner_angle=float(light.inner_angle),
+                                outer_angle=float(light.outer_angle)))  # fmt: skip
     return out
 
 

@@ -573,7 +573,7 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside)
     forward = render_forward_reference(scene, entry)
     if forward is None:
         run.materialx["reference"] = "mitsuba plugin"
-        run.notes.append("the scene has a spot light, which the MaterialX forward render does not bind: the model "
+        run.notes.append("the scene has a light the MaterialX forward render does not bind: the model "
                          "reference is the oracle through Mitsuba's atlasgen_brdf plugin")  # fmt: skip
         return plugin
     image, seconds, _ = forward

@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow  # compiling a surface model's program costs secon
 
 from atlasgen.errors import BackendError  # noqa: E402
 from atlasgen.materials.scene import Camera  # noqa: E402
-from atlasgen.optics.falloff import windowed_irradiance  # noqa: E402
+from atlasgen.optics.falloff import spot_factor, windowed_irradiance  # noqa: E402
 from atlasgen.render.camera import pixel_rays  # noqa: E402
 from atlasgen.render.meshes import make_plane, make_sphere  # noqa: E402
 from atlasgen.separable.materialx_forward import (  # noqa: E402
@@ -191,17 +191,39 @@ def test_inputs_are_reset_between_renders(gl):
     np.testing.assert_array_equal(_render(gl, LAMBERT, _scene(), light).radiance, first)
 
 
+def test_a_spot_light_is_the_point_falloff_times_atlasgens_cone(gl):
+    """Mitsuba's spot, as atlasgen's renderer: linear in the angle from the inner to the outer cone."""
+    position, axis = np.array([0.3, 1.5, 0.2]), _unit([0.2, -1.0, 0.1])
+    light = ForwardLight("spot", (1.0, 0.8, 0.6), 4.0, position=tuple(position), direction=tuple(axis), range=3.0,
+                         inner_angle=15.0, outer_angle=35.0)  # fmt: skip
+    image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [light])
+    x = image.position[image.covered].astype(np.float64)
+    to_light = position - x
+    d = np.linalg.norm(to_light, axis=-1)
+    l = to_light / d[:, None]
+    cone = spot_factor(-(l @ axis), 15.0, 35.0)
+    assert (cone == 0.0).any() and (cone == 1.0).any() and ((cone > 0.05) & (cone < 0.95)).any()
+    lit = (windowed_irradiance(4.0, d, 3.0) * np.clip(l[:, 1], 0.0, None) / np.pi)[:, None] * [1.0, 0.8, 0.6]
+    got = image.radiance[image.covered]
+    np.testing.assert_allclose(got[cone == 1.0], lit[cone == 1.0], rtol=1e-5)
+    assert np.all(got[cone == 0.0] == 0.0)
+    # In the cone's ramp the shader's float32 acos (llvmpipe's, as the renderer's) sets the precision.
+    ramp = (cone > 0.0) & (cone < 1.0) & (lit[:, 0] > 1e-3)
+    np.testing.assert_allclose(got[ramp, 0] / lit[ramp, 0], cone[ramp], atol=2e-4)
+
+
 def test_a_light_it_cannot_bind_is_refused(gl):
-    spot = ForwardLight("spot", (1.0, 1.0, 1.0), 1.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0))
-    with pytest.raises(BackendError, match="no 'spot' light; expected one of directional, point"):
-        _render(gl, LAMBERT, _scene(), [spot])
+    area = ForwardLight("area", (1.0, 1.0, 1.0), 1.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0))
+    with pytest.raises(BackendError, match="no 'area' light; expected one of directional, point, spot"):
+        _render(gl, LAMBERT, _scene(), [area])
     assert gl.error == "GL_NO_ERROR"
 
 
-def test_the_pixel_stage_keeps_materialx_bsdf_code_and_replaces_only_the_point_falloff():
-    _, pixel = generate_surface_stages("standard_surface", (("directional_light", 1), ("point_light", 2)), 4)
+def test_the_pixel_stage_keeps_materialx_bsdf_code_and_replaces_only_the_lights_falloff():
+    _, pixel = generate_surface_stages("standard_surface", (("directional_light", 1), ("point_light", 2), ("spot_light", 3)), 4)
     adapted = adapt_forward_pixel_stage(pixel)
     assert "pow(distance + 1.0, light.decay_rate" in pixel and "decay_rate + M_FLOAT_EPS" not in adapted
+    assert "smoothstep(low, high, cosDir)" in pixel and "smoothstep(low, high, cosDir)" not in adapted
     assert "struct LightData\n{\n    float range;" in adapted and "gl_FrontFacing" in adapted
     bsdf = pixel[pixel.index("void mx_roughness_anisotropy") : pixel.index("\nvoid main()")]
     assert bsdf in adapted  # every function after the lights, verbatim

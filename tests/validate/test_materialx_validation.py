@@ -45,14 +45,15 @@ def test_the_gl_projection_puts_every_pixel_centre_where_the_renderers_ray_goes(
     assert np.all(np.abs(ndc[..., 2]) < 1.0)
 
 
-def test_lights_the_forward_render_cannot_bind_leave_the_mitsuba_route():
+def test_every_light_of_a_scene_is_handed_down_as_the_renderer_has_it():
     _, scene = load_validation_scene("front")
-    lights = forward_lights(scene)
-    assert [light.type for light in lights] == ["point", "directional"] and math.isinf(lights[0].range)
-    spot = Light(
-        "spot", (1.0, 1.0, 1.0), 2.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0), inner_angle=10, outer_angle=20
-    )
-    assert forward_lights(dataclasses.replace(scene, lights=[*scene.lights, spot])) is None
+    spot = Light("spot", (1.0, 0.9, 0.8), 2.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0), range=4.0,
+                 inner_angle=10.0, outer_angle=20.0)  # fmt: skip
+    lights = forward_lights(dataclasses.replace(scene, lights=[*scene.lights, spot]))
+    assert [light.type for light in lights] == ["point", "directional", "spot"] and math.isinf(lights[0].range)
+    assert (lights[2].range, lights[2].inner_angle, lights[2].outer_angle, lights[2].colour) == (4.0, 10.0, 20.0, (1.0, 0.9, 0.8))
+    assert lights[1].direction == tuple(scene.lights[1].direction) and lights[0].position == tuple(scene.lights[0].position)
+    assert forward_lights(dataclasses.replace(scene, lights=[dataclasses.replace(spot, type="area")])) is None
 
 
 @pytest.fixture(scope="module")
