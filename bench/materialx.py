@@ -210,7 +210,8 @@ def _examples() -> dict:
         try:
             materials = read_material_file(path)
         except AtlasgenError as exc:
-            out[path.name] = {"refused": str(exc)}
+            # The line names the file as given (absolute here): quote it relative to the repository.
+            out[path.name] = {"refused": str(exc).replace(f"{ROOT.as_posix()}/", "")}
             continue
         t0 = time.perf_counter()
         for m in materials:

@@ -24,6 +24,11 @@ _MODEL_WHY = (
     "The same two measures of the model's own look (no fit): its stylisation (strength, split, back-light) against "
     "the physical film, as relative RMS over uniform pairs and as PSNR over cosine-weighted ones."
 )
+_MATERIALX_PHYSICAL_WHY = (
+    "Both divide MaterialX's shading by its physical twin's (same n, k and alpha); the pairs weight the hemisphere "
+    "uniformly, the pixels by what the camera sees: MaterialX's height-correlated G2 and energy compensation lift "
+    "grazing pairs most, and the scenes show few of them."
+)
 _SKIN_WHY = (
     "The slice holds one curvature: it is fitted between the two fitted spheres' curvatures, so the validation sphere, "
     "which it never saw, lies inside what it learnt, while flat skin, which no light from behind reaches, lies outside it."
@@ -57,6 +62,29 @@ def validation_pairs(data: dict) -> list[dict]:
         out.append(_pair(row["material"], "the separable atlas's error against its source BSDF",
                          (f"manifest claim (8-bit, K={claimed.get('terms')}, uniform (l, v) pairs)", _pct(claimed["relative_rms_8bit"])),
                          ("measured in the scenes (worst scene, radiance per pixel)", _pct(max(measured))), SEPARABLE_WHY))  # fmt: skip
+    return out + _materialx_pairs(data)
+
+
+def _materialx_pairs(data: dict) -> list[dict]:
+    """Per MaterialX material with a physical twin (the gold's ``roughconductor``): MaterialX's shading
+    over the twin's, as f cos over uniform (l, v) pairs and per pixel in the scenes (median and range)."""
+    out, seen = [], set()
+    for row in data.get("results", []):
+        ratio = (row.get("materialx") or {}).get("oracle_over_physical")
+        if not ratio or row["material"] in seen or not ratio.get("bsdf_p1_p50_p99"):
+            continue
+        seen.add(row["material"])
+        pixels = [q for r in data["results"] if r["material"] == row["material"]
+                  for q in [((r.get("materialx") or {}).get("oracle_over_physical") or {}).get("pixel_p1_p50_p99")] if q]  # fmt: skip
+        if not pixels:
+            continue
+        low, mid, high = ratio["bsdf_p1_p50_p99"]
+        bsdf = f"{mid:.3f} ({low:.3f} to {high:.3f})"
+        pix = f"{pixels[0][1]:.3f} ({min(q[0] for q in pixels):.3f} to {max(q[2] for q in pixels):.3f})"
+        out.append(_pair(row["material"], f"MaterialX's shading over its physical twin's ({ratio.get('reference')})",
+                         (f"f cos over {ratio.get('pairs')} uniform (l, v) pairs, N.L, N.V >= 0.2 (median, 1st to 99th percentile)", bsdf),
+                         ("per pixel in the scenes (first scene's median, 1st to 99th percentile of all)", pix),
+                         _MATERIALX_PHYSICAL_WHY))  # fmt: skip
     return out
 
 

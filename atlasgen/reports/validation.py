@@ -43,6 +43,7 @@ __all__ = [
     "read_validation_report",
     "check_result_figures",
     "look_verdict",
+    "materialx_summary",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -177,6 +178,8 @@ def report_dict(run) -> dict:
             row["goal_psnr_db"] = r.goal_psnr_db
         if look is not None:
             row["look"] = look
+        if getattr(r, "materialx", None) is not None:
+            row["materialx"] = r.materialx
         rows.append(row)
     return {
         "atlas": run.atlas,
@@ -470,6 +473,44 @@ def _figures(row: dict, size: tuple) -> list[dict]:
     return figures
 
 
+def materialx_summary(rows: list) -> dict | None:
+    """What the page says of a material imported from MaterialX, from its rows' ``materialx`` records:
+    its source document and name in it, its surface model, the representation chosen, its error against
+    the oracle ± SE (the manifest's: 8-bit relative RMS of f cos on a sample independent of the fit),
+    what the table could not hold or was flattened, the per-scene PSNR against the oracle's image, and
+    where there is one its shading over its physical reference's; ``None`` for any other material."""
+    records = [(row, row["materialx"]) for row in rows if row.get("materialx")]
+    if not records:
+        return None
+    first = records[0][1]
+    claimed = records[0][0].get("claimed_errors") or {}
+    error = claimed.get("relative_rms_8bit")
+    se = claimed.get("relative_rms_8bit_se")
+    out = {
+        "document": first.get("document"), "material": first.get("material"), "category": first.get("category"),
+        "representation": first.get("representation"),
+        "error": "n/a" if error is None else f"{error:.4f}" + ("" if se is None else f" ± {se:.4f}"),
+        "not_in_table": first.get("not_in_table") or [], "flattened": first.get("flattened") or [],
+        "scenes": [{"scene": row["scene"], "psnr": _psnr_text((row["references"].get("model") or {}).get("psnr_db")),
+                    "reference": m.get("reference"),
+                    "agreement": _psnr_text((m.get("forward_vs_mitsuba_plugin") or {}).get("psnr_db"))
+                    if m.get("forward_vs_mitsuba_plugin") else None}
+                   for row, m in records],
+        "ratio": None,
+    }  # fmt: skip
+    ratios = [(row["scene"], m["oracle_over_physical"]) for row, m in records if m.get("oracle_over_physical")]
+    if ratios:
+        r = ratios[0][1]
+        pixels = "; ".join(f"{scene} {' / '.join(f'{x:.3f}' for x in q['pixel_p1_p50_p99'])}" for scene, q in ratios
+                           if q.get("pixel_p1_p50_p99"))  # fmt: skip
+        out["ratio"] = {"reference": r.get("reference"), "pairs": r.get("pairs"), "pixels": pixels,
+                        "bsdf": " / ".join(f"{x:.3f}" for x in r.get("bsdf_p1_p50_p99") or []),
+                        "bsdf_range": " to ".join(f"{x:.3f}" for x in r.get("bsdf_min_max") or []),
+                        "probe": " to ".join(f"{x:.3f}" for x in r.get("probe_range") or []),
+                        "within": r.get("within_probe_range")}  # fmt: skip
+    return out
+
+
 def _claimed_text(kind: str, row: dict) -> str:
     c = row.get("claimed_errors")
     if kind != "model" or not c:
@@ -531,7 +572,7 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
     for name, rows in _rows_by_material(data).items():
         materials.append({
             "name": name, "type": rows[0]["type"], "anchor": _anchor(name),
-            "page": next((r["page"] for r in rows if "page" in r), None),
+            "page": next((r["page"] for r in rows if "page" in r), None), "materialx": materialx_summary(rows),
             "results": [{"scene": r["scene"], "figures": _figures(r, sizes.get(r["scene"], (None, None))),
                          "notes": r["notes"]} for r in rows],
         })  # fmt: skip

@@ -53,6 +53,12 @@ __all__ = [
     "vertex_data_for",
     "VERTEX_STAGE",
     "adapt_pixel_stage",
+    "generate_surface_stages",
+    "declare_refraction_two_sided",
+    "set_surface_inputs",
+    "gl_context",
+    "GL_LOCK",
+    "park_framebuffer",
 ]
 
 #: The surface shader nodes the oracle compiles (MaterialX's bxdf library names).
@@ -65,7 +71,8 @@ LIGHT_INTENSITY = 1.0
 CHUNK = 1 << 18
 _WIDTH = 1024
 
-_lock = threading.Lock()
+#: One thread at a time draws in the process's one context (Mitsuba calls plugins from worker threads).
+GL_LOCK = threading.Lock()
 
 
 def _materialx():
@@ -166,9 +173,7 @@ def adapt_pixel_stage(pixel_source: str) -> str:
            "uniform sampler2D atlasgen_views;\nuniform sampler2D atlasgen_lights;\nvec3 atlasgen_view;\n"
            + pixel_source[block.end() :])  # fmt: skip
     src = src.replace(declaration, "LightData u_lightData[MAX_LIGHT_SOURCES];")
-    if "u_refractionTwoSided" in src and not re.search(r"uniform\s+bool\s+u_refractionTwoSided\b", src):
-        version, _, rest = src.partition("\n")
-        src = f"{version}\nuniform bool u_refractionTwoSided = false;\n{rest}"
+    src = declare_refraction_two_sided(src)
     head, sep, tail = src.rpartition("void main()\n{")
     if not sep:
         raise BackendError("MaterialX's pixel stage has no main(); expected MaterialX 1.39's GLSL layout")
@@ -183,8 +188,10 @@ def adapt_pixel_stage(pixel_source: str) -> str:
     return head + sep + setup + tail
 
 
-def _generate(category: str) -> str:
-    """MaterialX's GLSL pixel stage for one node of ``category`` with every input a uniform."""
+def generate_surface_stages(category: str, lights=(("directional_light", 1),), max_lights: int = 1) -> tuple[str, str]:
+    """MaterialX's GLSL ``(vertex, pixel)`` stages for one node of ``category`` with every input a
+    uniform, no environment light, and each ``(light node, id)`` of ``lights`` bound with
+    ``bindLightShader`` (``u_lightData[i].type`` is the id), at most ``max_lights`` active."""
     mx, mx_shader, mx_glsl = _materialx()
     stdlib = load_materialx_libraries()
     doc = mx.createDocument()
@@ -197,17 +204,33 @@ def _generate(category: str) -> str:
     options = context.getOptions()
     options.hwSpecularEnvironmentMethod = mx_shader.HwSpecularEnvironmentMethod.SPECULAR_ENVIRONMENT_NONE
     options.shaderInterfaceType = mx_shader.ShaderInterfaceType.SHADER_INTERFACE_COMPLETE
-    options.hwMaxActiveLightSources = 1
+    options.hwMaxActiveLightSources = int(max_lights)
     light_doc = mx.createDocument()
     light_doc.importLibrary(stdlib)
-    light = light_doc.addNode("directional_light", "L", "lightshader")
-    mx_shader.HwShaderGenerator.bindLightShader(light.getNodeDef(), 1, context)
+    for kind, light_id in lights:
+        light = light_doc.addNode(kind, f"L{light_id}", "lightshader")
+        mx_shader.HwShaderGenerator.bindLightShader(light.getNodeDef(), int(light_id), context)
     shader = generator.generate("M", material, context)
-    return shader.getSourceCode(mx_shader.PIXEL_STAGE)
+    return shader.getSourceCode(mx_shader.VERTEX_STAGE), shader.getSourceCode(mx_shader.PIXEL_STAGE)
+
+
+def _generate(category: str) -> str:
+    """MaterialX's GLSL pixel stage for one node of ``category`` with every input a uniform and one directional light (id 1)."""
+    return generate_surface_stages(category)[1]
+
+
+def declare_refraction_two_sided(src: str) -> str:
+    """``src`` with ``u_refractionTwoSided`` declared (false) where MaterialX 1.39.5 uses it without declaring it."""
+    if "u_refractionTwoSided" in src and not re.search(r"uniform\s+bool\s+u_refractionTwoSided\b", src):
+        version, _, rest = src.partition("\n")
+        src = f"{version}\nuniform bool u_refractionTwoSided = false;\n{rest}"
+    return src
 
 
 @lru_cache(maxsize=1)
-def _context():
+def gl_context():
+    """moderngl's standalone EGL context (Mesa's llvmpipe), one per process; enter it under :data:`GL_LOCK`
+    (``with GL_LOCK, gl_context() as ctx``) to make it current on the calling thread."""
     try:
         import moderngl
     except ImportError as exc:  # pragma: no cover - depends on the installation
@@ -219,6 +242,38 @@ def _context():
         raise BackendError(
             f"no headless OpenGL context for the MaterialX oracle (EGL: {first}); install libegl1, libegl-mesa0"
         ) from None
+
+
+_parking: list = []
+
+
+def park_framebuffer(ctx) -> None:
+    """Bind a 1x1 framebuffer kept for the process, before releasing the one in use: moderngl rebinds
+    the last bound framebuffer whenever it creates one, and rebinding a deleted one is GL_INVALID_OPERATION."""
+    if not _parking:
+        _parking.append(ctx.framebuffer(color_attachments=[ctx.renderbuffer((1, 1))]))
+    _parking[0].use()
+
+
+def set_surface_inputs(program, uniforms, category: str, inputs: dict) -> None:
+    """Set every input uniform ``<NODE_NAME>_<input>`` of a ``category`` program still in ``uniforms``
+    (the compiler removes what changes nothing) to ``inputs[input]``, or its nodedef default."""
+    for name, (kind, default) in surface_defaults(category).items():
+        uniform = f"{NODE_NAME}_{name}"
+        if uniform not in uniforms:
+            continue
+        value = inputs.get(name, default)
+        if kind == "boolean":
+            value = int(bool(value))
+        elif kind == "integer":
+            value = int(value)
+        elif isinstance(value, list | tuple):
+            value = tuple(float(x) for x in value)
+        elif kind in ("float",):
+            value = float(value)
+        else:
+            continue  # strings, filenames: no uniform a constant input sets
+        program[uniform].value = value
 
 
 @dataclass
@@ -243,7 +298,7 @@ class MaterialXOracle:
         out = np.zeros((l.shape[0], 3))
         if l.shape[0] == 0:
             return out
-        with _lock, _context() as ctx:  # current on this thread: Mitsuba calls its plugins from worker threads
+        with GL_LOCK, gl_context() as ctx:  # current on this thread: Mitsuba calls its plugins from worker threads
             self._set_inputs(inputs)
             self.program["u_viewPosition"].value = (0.0, 0.0, 0.0)
             self.program["u_numActiveLightSources"].value = 1
@@ -266,27 +321,13 @@ class MaterialXOracle:
                 self._triangle.render(moderngl.TRIANGLES, vertices=3)
                 pixels = np.frombuffer(fbo.read(components=4, dtype="f4"), dtype=np.float32).reshape(rows * _WIDTH, 4)
                 out[start : start + count] = pixels[:count, :3] / LIGHT_INTENSITY
+                park_framebuffer(ctx)
                 for obj in (fbo, target, *textures):
                     obj.release()
         return out
 
     def _set_inputs(self, inputs: dict) -> None:
-        for name, (kind, default) in surface_defaults(self.category).items():
-            uniform = f"{NODE_NAME}_{name}"
-            if uniform not in self.uniforms:
-                continue  # the compiler removed it: it changes nothing this shader computes
-            value = inputs.get(name, default)
-            if kind == "boolean":
-                value = int(bool(value))
-            elif kind == "integer":
-                value = int(value)
-            elif isinstance(value, list | tuple):
-                value = tuple(float(x) for x in value)
-            elif kind in ("float",):
-                value = float(value)
-            else:
-                continue  # strings, filenames: no uniform a constant input sets
-            self.program[uniform].value = value
+        set_surface_inputs(self.program, self.uniforms, self.category, inputs)
 
 
 @cache
@@ -295,7 +336,7 @@ def materialx_oracle(category: str) -> MaterialXOracle:
     if category not in SURFACE_MODELS:
         raise BackendError(f"no MaterialX oracle for {category!r}; expected one of {', '.join(SURFACE_MODELS)}")
     pixel = adapt_pixel_stage(_generate(category))
-    with _lock, _context() as ctx:
+    with GL_LOCK, gl_context() as ctx:
         try:
             program = ctx.program(vertex_shader=VERTEX_STAGE, fragment_shader=pixel)
         except Exception as exc:

@@ -37,6 +37,12 @@ from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
 from atlasgen.validate.environment import break_down_environment, environment_parts
+from atlasgen.validate.materialx_reference import (
+    FORWARD_DESCRIPTION,
+    is_materialx_entry,
+    oracle_over_physical_bsdf,
+    render_forward_reference,
+)
 from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, psnr, relative_rms
 from atlasgen.validate.mitsuba_scene import (
     CENTRE_PASS_SPP,
@@ -157,6 +163,7 @@ class MaterialRun:
     environment_breakdown: dict | None = None  # the environment terms' CPU error by part (environment scenes)
     goal_psnr_db: float | None = None  # a goal of this scene's own, PSNR only (an environment map), else the usual goals
     look: dict | None = None  # the look goal: which reference, what it is, the goal (:func:`_look_goal`)
+    materialx: dict | None = None  # a MaterialX material: its document, representation, cross-checks (:func:`_materialx_model`)
 
 
 @dataclass
@@ -377,6 +384,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     # ``reference_cache`` folder a second run renders none of them again.
     renders = ReferenceCache(reference_cache)
     bake_hits = []
+    bsdf_ratios: dict = {}  # a MaterialX material's BRDF over its physical reference's, measured once per material
     for done, entry in enumerate(plan.entries, 1):
         float_slices = plan.float_slices.get(entry.name)
         if float_slices is not None:
@@ -403,6 +411,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             own = material_mask(entry, aovs)
             outside, regions = ~own, _grazing_regions(bound, aovs, own)
             ref = _model_render(mi, bound, entry, plan.manifest, spp, renders)
+            if is_materialx_entry(entry):
+                ref = _materialx_model(run, bound, entry, model, ref, outside)
             measure_physical(ref, atlas_image, run.exposure, outside, regions)
             run.references["model"] = ref
             _check_rebuilds(run, model, plan.atlas, entry, bound, aovs, float_slices)
@@ -417,6 +427,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                     f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
                     + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else "")
                 )
+            if run.materialx is not None and "physical" in run.references:
+                run.materialx["oracle_over_physical"] = _oracle_over_physical(run, entry, own, bsdf_ratios)
             run.look = _look_goal(entry, model, run, physical)
             runs.append(run)
         if on_material is not None:
@@ -544,6 +556,64 @@ def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
     if renders is not None:
         renders.put(key, _render_fields(ref))
     return ref
+
+
+def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside) -> ReferenceRender:
+    """The model reference of a MaterialX material: the scene forward-rendered with MaterialX's shader
+    (:func:`~atlasgen.validate.materialx_reference.render_forward_reference`), where the lighting is the
+    atlas's and only the BRDF differs. The oracle through Mitsuba's ``atlasgen_brdf`` plugin (``plugin``)
+    stays beside it as a cross-check: ``run.materialx`` records how far the two images of the same
+    shading differ on the material's pixels (only the geometry can: rasterised against ray-traced shading
+    points and normals). A scene with a light the forward render cannot bind keeps ``plugin``."""
+    spec = entry.params["materialx"]
+    run.materialx = {"document": spec.get("document"), "material": spec.get("material"), "category": spec.get("category"),
+                     "representation": model.describe_representation(entry).split(": ", 1)[-1],
+                     "not_in_table": list(spec.get("not_in_table") or []),
+                     "flattened": sorted(spec.get("flattened") or {})}  # fmt: skip
+    forward = render_forward_reference(scene, entry)
+    if forward is None:
+        run.materialx["reference"] = "mitsuba plugin"
+        run.notes.append("the scene has a light the MaterialX forward render does not bind: the model "
+                         "reference is the oracle through Mitsuba's atlasgen_brdf plugin")  # fmt: skip
+        return plugin
+    image, seconds, _ = forward
+    agree = compare_images(plugin.image, image, run.exposure, with_flip=False, mask=outside)
+    run.materialx["reference"] = "forward"
+    run.materialx["forward_vs_mitsuba_plugin"] = {"psnr_db": _finite_or_none(agree.psnr),
+                                                  "linear_relative_rms": agree.linear_relative_rms,
+                                                  "plugin_seconds": plugin.seconds}  # fmt: skip
+    run.notes.append(f"model reference: MaterialX's shader forward-rendered under the scene's lights; the oracle through "
+                     f"Mitsuba's plugin (intersections at the pixel centres) gives the same pixels to "
+                     f"{_psnr_text(agree.psnr)} dB PSNR, relative RMS {agree.linear_relative_rms:.2e}")  # fmt: skip
+    return ReferenceRender("model", f"{FORWARD_DESCRIPTION}; {model_reference(entry).description}", image, seconds, 1,
+                           "moderngl")  # fmt: skip
+
+
+def _psnr_text(psnr) -> str:
+    return "inf" if psnr is None or not math.isfinite(psnr) else f"{psnr:.1f}"
+
+
+def _oracle_over_physical(run, entry, own, bsdf_ratios: dict) -> dict:
+    """MaterialX's shading over its physical reference's (the gold's ``roughconductor``): per pixel on this
+    scene (the model reference's image over the physical one, every channel above 1% of the physical
+    image's peak on the material's pixels) and, once per material, f cos over uniform (l, v) pairs
+    (:func:`~atlasgen.validate.materialx_reference.oracle_over_physical_bsdf`)."""
+    model = run.references["model"].image[..., :3].astype(np.float64)
+    phys = mean_of_seeds(run.references["physical"])[..., :3].astype(np.float64)
+    keep = own[..., None] & (phys > 0.01 * max(float(phys[own].max(initial=0.0)), 1e-12))
+    ratio = model[keep] / phys[keep]
+    if entry.name not in bsdf_ratios:
+        bsdf_ratios[entry.name] = oracle_over_physical_bsdf(entry)
+    out = {"reference": run.references["physical"].description, "pixels": int(ratio.size),
+           "pixel_p1_p50_p99": [float(x) for x in np.percentile(ratio, [1, 50, 99])] if ratio.size else None,
+           **bsdf_ratios[entry.name]}  # fmt: skip
+    if out["pixel_p1_p50_p99"] is not None:
+        p = out["pixel_p1_p50_p99"]
+        run.notes.append(f"MaterialX over its physical reference ({_short_description(out['reference'])}): per pixel "
+                         f"{p[0]:.3f} / {p[1]:.3f} / {p[2]:.3f} (1st / 50th / 99th percentile of {ratio.size} channel values); "
+                         f"f cos over {out['pairs']} uniform (l, v) pairs with N.L, N.V >= 0.2: "
+                         f"{out['bsdf_min_max'][0]:.3f} to {out['bsdf_min_max'][1]:.3f}")  # fmt: skip
+    return out
 
 
 def _short_description(description: str) -> str:

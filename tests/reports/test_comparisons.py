@@ -38,3 +38,20 @@ def test_fits_give_their_two_measures_and_skin_its_in_and_out_of_sample_scores()
     assert manifest_pairs("clay", None) == []
     separable = manifest_pairs("sharp", None, {"results": [_row("sharp", "front", 0.0258, 0.1232)]})
     assert [p["second"] for p in separable] == ["12.32%"]
+
+
+def _materialx_row(scene, pixel):
+    ratio = {"reference": "Mitsuba roughconductor", "pairs": 12000, "bsdf_p1_p50_p99": [0.999, 1.010, 1.035],
+             "bsdf_min_max": [0.998, 1.039], "pixel_p1_p50_p99": pixel}  # fmt: skip
+    return {"material": "gold", "scene": scene, "claimed_errors": None, "materialx": {"oracle_over_physical": ratio}}
+
+
+def test_a_materialx_gold_sets_its_ratio_to_roughconductor_over_pairs_beside_the_pixels():
+    pairs = validation_pairs(
+        {"results": [_materialx_row("front", [0.999, 1.0, 1.001]), _materialx_row("back", [1.012, 1.024, 1.041])]}
+    )
+    assert len(pairs) == 1
+    p = pairs[0]
+    assert "roughconductor" in p["measures"] and "12000" in p["first_label"]
+    assert (p["first"], p["second"]) == ("1.010 (0.999 to 1.035)", "1.000 (0.999 to 1.041)")  # the second: over both scenes
+    assert validation_pairs({"results": [{"material": "gold", "scene": "front", "materialx": {}}]}) == []

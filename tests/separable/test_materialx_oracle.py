@@ -25,6 +25,20 @@ from atlasgen.separable.materialx_oracle import (  # noqa: E402
 )
 
 
+@pytest.fixture(autouse=True)
+def _no_gl_error():
+    """Every test leaves OpenGL without an error (one left behind would go unseen by the next caller)."""
+    yield
+    from atlasgen.errors import BackendError
+    from atlasgen.separable.materialx_oracle import gl_context
+
+    try:
+        context = gl_context()
+    except BackendError:
+        return
+    assert context.error == "GL_NO_ERROR"
+
+
 def _directions(rng, n):
     z = rng.random(n)
     phi = 2.0 * np.pi * rng.random(n)
