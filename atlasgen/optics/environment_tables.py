@@ -245,10 +245,14 @@ def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128), even:
     the split sum with their own albedo, Lpre(r, alpha) S_sep(N.V) (:func:`split_sum_environment`).
     ``f_cos(l, v)`` as for :func:`azimuth_averaged_slice` (local frame, n = +z, ``(N, 3)`` each);
     rows at N.V_j = j / (height - 1), v = (sin(theta_v), 0, N.V). The integral is Gauss-Legendre in
-    cos(theta_l) (``nodes[0]``) times the midpoint rule in the azimuth (``nodes[1]``). ``even``: f cos is
-    even in the azimuth of l (isotropic, v in the xz plane, as a separable rebuild's angles are), so
-    the nodes in (pi, 2 pi), the mirror images of those in (0, pi), are not evaluated and the
-    others count twice: the same sum for half the work (even ``nodes[1]`` only).
+    cos(theta_l) (``nodes[0]``) times Gauss-Legendre in the azimuth on (0, pi) and (pi, 2 pi)
+    (``nodes[1]`` in all): its nodes crowd towards the azimuth pi, where the mirror lobe of a sharp
+    BRDF lies (azimuth pi from v's), so a lobe narrower than the node spacing elsewhere is still
+    resolved (a GGX lobe of alpha 0.05 at N.V 0.26: 0.8% with 64 x 128 nodes, where the midpoint
+    rule in the azimuth was 73% short). ``even``: f cos is even in the azimuth of l (isotropic, v in
+    the xz plane, as a separable rebuild's angles are), so the nodes in (pi, 2 pi), the mirror
+    images of those in (0, pi), are not evaluated and the others count twice: the same sum for
+    half the work (even ``nodes[1]`` only).
 
     >>> t = directional_albedo_table(lambda l, v: np.repeat(l[:, 2:] / np.pi, 3, 1), 3, (8, 4))
     >>> t.round(12).tolist()[0]  # a white Lambertian surface reflects everything
@@ -256,13 +260,14 @@ def directional_albedo_table(f_cos, height: int = HEIGHT, nodes=(64, 128), even:
     """
     t, w = gauss_legendre_rule(nodes[0])
     mu, w_mu = 0.5 * (t + 1.0), 0.5 * w
-    if even and nodes[1] % 2:
-        raise ValueError(f"an even integrand needs an even number of azimuths, got {nodes[1]}")
-    used = nodes[1] // 2 if even else nodes[1]
-    phi = 2.0 * np.pi * (np.arange(used) + 0.5) / nodes[1]
+    if nodes[1] % 2:
+        raise ValueError(f"the azimuth rule has two halves, so an even number of azimuths; got {nodes[1]}")
+    tp, wp = gauss_legendre_rule(nodes[1] // 2)
+    half, w_half = 0.5 * np.pi * (tp + 1.0), 0.5 * np.pi * wp  # on (0, pi)
+    phi, w_phi = (half, 2.0 * w_half) if even else (np.concatenate([half, 2.0 * np.pi - half]), np.tile(w_half, 2))
     s = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
     l = np.stack(np.broadcast_arrays(s[:, None] * np.cos(phi), s[:, None] * np.sin(phi), mu[:, None]), -1).reshape(-1, 3)
-    weight = np.repeat(w_mu, used) * ((2.0 if even else 1.0) * 2.0 * np.pi / nodes[1])
+    weight = (w_mu[:, None] * w_phi[None, :]).reshape(-1)
     out = np.empty((height, 3))
     for j, c in enumerate(np.linspace(0.0, 1.0, height)):
         v = np.broadcast_to(_view(c), l.shape)
