@@ -27,6 +27,10 @@ __all__ = [
 ]
 
 FACTORIZATIONS = ("svd", "nmf", "nd")
+#: Multiplicative updates of :func:`factorize_nmf`. At 300 a sharp GGX metal's 8-term NMF still
+#: fell visibly in its weighted error (MaterialX gold, alpha 0.0625: relative RMS 0.034 at 300,
+#: 0.028 at 1000, 0.024 at 3000); 1000 takes most of that for about 0.1 s per 32 x 1024 matrix.
+NMF_ITERATIONS = 1000
 
 
 @dataclass
@@ -142,7 +146,7 @@ def factorize_svd(matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int
 
 
 def factorize_nmf(
-    matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int, parametrization: str, iterations: int = 300
+    matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int, parametrization: str, iterations: int = NMF_ITERATIONS
 ) -> Factors:
     """Non-negative matrix factorization per channel (Lee & Seung 2001, multiplicative updates).
 
