@@ -27,9 +27,9 @@ __all__ = [
 ]
 
 FACTORIZATIONS = ("svd", "nmf", "nd")
-#: Multiplicative updates of :func:`factorize_nmf`. At 300 a sharp GGX metal's 8-term NMF still
-#: fell visibly in its weighted error (MaterialX gold, alpha 0.0625: relative RMS 0.034 at 300,
-#: 0.028 at 1000, 0.024 at 3000); 1000 takes most of that for about 0.1 s per 32 x 1024 matrix.
+#: Multiplicative updates of :func:`factorize_nmf`. At 300 a sharp GGX metal's 8-term NMF (MaterialX
+#: gold, alpha 0.0625) was still far from converged in its weighted error and in the scenes' images;
+#: 1000 takes most of what 3000 gains, at a tenth of a second per 32 x 1024 matrix.
 NMF_ITERATIONS = 1000
 
 
