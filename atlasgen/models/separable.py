@@ -420,9 +420,10 @@ class Separable(Model):
                 "report_seed": report.seed, "chosen": chosen["representation"], "candidates": annotated}  # fmt: skip
         if chosen["representation"] == lut_key:
             reported = lut_errors(stored_slice(lut), fit["gloss"], _reference(source, report)[0], report)
-            chosen = {**chosen, "error": reported[measure], "error_se": reported[f"{measure}_se"],
+            # The slice's reconstruction_error stays its relative RMS, as every LUT's; the budget's figure is auto.reported.
+            chosen = {**chosen, "error": reported["relative_rms"], "error_se": reported["relative_rms_se"],
                       "meets_budget": bool(upper_bound(reported, measure) <= budget)}  # fmt: skip
-            auto["reported"] = {"error": chosen["error"], "error_se": chosen["error_se"], "seed": report.seed}
+            auto["reported"] = {"error": reported[measure], "error_se": reported[f"{measure}_se"], "seed": report.seed}
             return self._bake_lut(values, lut, fit, chosen, auto)
         k = int(chosen["representation"].split(":")[1])
         separable = self._bake_separable({**values, "terms": k, "max_error": None, "grid": chosen["grid"],
@@ -432,9 +433,7 @@ class Separable(Model):
         reported = relative_log_errors(cached["reference"], approx, report.weight)
         meets = bool(upper_bound(reported, measure) <= budget)
         auto["reported"] = {"error": reported[measure], "error_se": reported[f"{measure}_se"], "seed": report.seed}
-        separable.extra["representation"].update(error_budget=budget, meets_budget=meets, error_measure=measure,
-                                                 estimated_error_8bit_log=reported[measure],
-                                                 estimated_error_8bit_log_se=reported[f"{measure}_se"], auto=auto)  # fmt: skip
+        separable.extra["representation"].update(error_budget=budget, meets_budget=meets, auto=auto)
         return separable
 
     def _bake_lut(self, values: dict, rgba, fit: dict, chosen: dict, auto: dict) -> SliceSet:
@@ -691,7 +690,20 @@ class Separable(Model):
         return {"8bit": RadianceRebuild("the include's rebuild in float64 on the CPU (atlasgen.separable)", radiance)}
 
     def claimed_errors(self, entry):
-        """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K."""
+        """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K. Where ``auto``
+        judged by the relative log RMS (a MaterialX document), ``error_budget`` is None, since the budget
+        bounds that figure instead, and ``relative_log_rms_8bit`` (with its SE and ``relative_log_rms_budget``) is it."""
+        claim = self._claimed_errors(entry)
+        auto = getattr(entry.representation, "auto", None) or {}
+        if claim is None or auto.get("error_measure", "relative_rms") == "relative_rms":
+            return claim
+        reported = auto.get("reported") or {}
+        if isinstance(entry.representation, LutRepresentation):
+            claim = {**claim, "relative_rms_8bit_se": None}  # its candidates' SEs are the log measure's
+        return {**claim, "error_budget": None, "relative_log_rms_8bit": reported.get("error"),
+                "relative_log_rms_8bit_se": reported.get("error_se"), "relative_log_rms_budget": auto.get("error_budget")}  # fmt: skip
+
+    def _claimed_errors(self, entry):
         if isinstance(entry.representation, AnalyticRepresentation):
             return None  # the closed form itself: nothing approximated
         if isinstance(entry.representation, LutRepresentation):

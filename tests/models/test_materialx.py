@@ -140,3 +140,31 @@ def test_auto_judged_as_the_scenes_show_it_weighs_nmf_and_reports_on_another_sam
     assert rep["meets_budget"] == (upper_bound({"e": reported["error"], "e_se": reported["error_se"]}, "e") <= 0.04)
     # The gold's coloured highlight: the LUT cannot meet it.
     assert not auto["candidates"][0]["meets_budget"]
+
+
+def test_a_log_measured_auto_claims_its_log_error_against_the_budget_not_the_relative_rms():
+    """Validation's strict check compares the claimed relative RMS with error_budget: a budget in another measure
+    must not be compared with it, and the figure it bounds is claimed beside it."""
+    from types import SimpleNamespace
+
+    from atlasgen.io.manifest import SeparableRepresentation
+    from atlasgen.models import get_model
+
+    def entry(auto):
+        rep = SeparableRepresentation(terms=6, sampling_grid=32, target="f_cos", error_budget=0.04, estimated_error_8bit=0.05,
+                                      meets_budget=True, candidates=[], auto=auto)  # fmt: skip
+        errors = SimpleNamespace(relative_rms=0.05, relative_rms_se=0.001)
+        factors = SimpleNamespace(errors_8bit=errors, errors=None, terms=6)
+        return SimpleNamespace(representation=rep, factors=factors)
+
+    model = get_model("separable")
+    plain = model.claimed_errors(entry({"error_budget": 0.04}))
+    assert (plain["relative_rms_8bit"], plain["error_budget"]) == (0.05, 0.04) and "relative_log_rms_8bit" not in plain
+    logged = model.claimed_errors(entry({"error_budget": 0.04, "error_measure": "relative_log_rms",
+                                         "reported": {"error": 0.035, "error_se": 0.0004, "seed": 1}}))  # fmt: skip
+    assert logged["relative_rms_8bit"] == 0.05 and logged["error_budget"] is None
+    assert (logged["relative_log_rms_8bit"], logged["relative_log_rms_8bit_se"], logged["relative_log_rms_budget"]) == (
+        0.035,
+        0.0004,
+        0.04,
+    )
