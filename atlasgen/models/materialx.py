@@ -21,7 +21,10 @@ from atlasgen.separable.materialx_oracle import SURFACE_MODELS
 __all__ = ["SPEC_KEYS", "check_materialx_spec", "describe_materialx", "materialx_mitsuba_bsdf", "artistic_ior"]
 
 #: Keys of a ``materialx`` table; the first four are required.
-SPEC_KEYS = ("document", "material", "category", "oracle_inputs", "inputs", "flattened", "not_in_table", "alpha")
+SPEC_KEYS = ("document", "material", "category", "oracle_inputs", "inputs", "flattened", "not_in_table", "alpha",
+             "error_measure")  # fmt: skip
+#: What ``materialx.error_measure`` may say ``representation = "auto"`` judges by (the separable model's ``error_measure``).
+ERROR_MEASURES = ("relative_rms", "relative_log_rms")
 
 #: standard_surface inputs that must be at these values for a Mitsuba BSDF to be faithful to it.
 _PLAIN = {"coat": 0.0, "sheen": 0.0, "thin_film_thickness": 0.0, "specular_anisotropy": 0.0, "transmission": 0.0,
@@ -45,6 +48,9 @@ def check_materialx_spec(spec, path) -> dict:
         raise MaterialError(path, "materialx.category", f"expected one of {', '.join(SURFACE_MODELS)}, got {spec['category']!r}")
     if not isinstance(spec["oracle_inputs"], dict):
         raise MaterialError(path, "materialx.oracle_inputs", "expected a table of constant inputs")
+    if spec.get("error_measure", "relative_rms") not in ERROR_MEASURES:
+        raise MaterialError(path, "materialx.error_measure", f"expected one of {', '.join(ERROR_MEASURES)}, "
+                                                              f"got {spec['error_measure']!r}")  # fmt: skip
     return {"inputs": dict(spec["oracle_inputs"]), "flattened": {}, "not_in_table": [], "alpha": None, **spec}
 
 

@@ -23,7 +23,7 @@ from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.separable.approximate import reference_values
-from atlasgen.separable.error import SELECTION_SEED, error_sample_for, measure_errors
+from atlasgen.separable.error import SELECTION_SEED, error_sample_for, measure_errors, relative_log_errors
 from atlasgen.separable.source import make_source
 
 __all__ = ["LUT_GLOSSES", "SELECTION_AZIMUTHS", "pair_geometry", "slice_f_cos", "stored_slice", "fit_lut", "lut_errors"]
@@ -76,7 +76,7 @@ class _Memo:
 
 
 @lru_cache(maxsize=32)
-def _fit_lut(params_json: str, glosses: tuple, srgb: bool):
+def _fit_lut(params_json: str, glosses: tuple, srgb: bool, measure: str = "relative_rms"):
     source = make_source(json.loads(params_json))
     selection = error_sample_for(source, SELECTION_SEED)
     reference, _ = reference_values(source, selection)
@@ -86,31 +86,34 @@ def _fit_lut(params_json: str, glosses: tuple, srgb: bool):
     screened = []
     for g in glosses:
         rgba, _ = fit_slice(coarse, float(g), azimuths=SELECTION_AZIMUTHS, srgb=srgb)
-        screened.append((lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)["relative_rms"], float(g)))
+        screened.append((lut_errors(stored_slice(rgba, srgb), float(g), reference, selection)[measure], float(g)))
     fine = _Memo(source.f_cos)
     best = None
     for _, g in sorted(screened)[:2]:
         rgba, info = fit_slice(fine, g, azimuths=AZIMUTHS, srgb=srgb)
-        error = lut_errors(stored_slice(rgba, srgb), g, reference, selection)["relative_rms"]
+        error = lut_errors(stored_slice(rgba, srgb), g, reference, selection)[measure]
         if best is None or error < best[2]:
             best = (rgba, info, error)
     rgba, info, error = best
     rgba.setflags(write=False)
-    return rgba, {**info, "selection_relative_rms": error, "selection_seed": selection.seed}
+    return rgba, {**info, f"selection_{measure}": error, "selection_seed": selection.seed}
 
 
-def fit_lut(params: dict, glosses=LUT_GLOSSES, srgb: bool = True):
+def fit_lut(params: dict, glosses=LUT_GLOSSES, srgb: bool = True, measure: str = "relative_rms"):
     """The slice fitted from physics to the separable-model source ``params`` (:func:`~atlasgen.models.physical_fit.fit_slice`) for the renderer
     gloss of ``glosses`` whose 8-bit slice errs least on the *selection* sample
     (:data:`~atlasgen.separable.error.SELECTION_SEED`), and its fit description.
 
     The fit's own texel grid with 128 azimuths undersamples a sharp lobe, so the gloss is judged on
     the importance-sampled selection pairs instead; never on the sample the figures are reported on.
+    ``measure`` is the error the gloss is judged by: a key of :func:`lut_errors`.
     """
-    return _fit_lut(json.dumps(params, sort_keys=True), tuple(float(g) for g in glosses), bool(srgb))
+    return _fit_lut(json.dumps(params, sort_keys=True), tuple(float(g) for g in glosses), bool(srgb), str(measure))
 
 
 def lut_errors(rgba: np.ndarray, gloss: float, reference: np.ndarray, sample) -> dict:
-    """Relative RMS of f cos (and log error) with standard errors of the slice drawn at ``gloss``,
-    against ``reference`` (f cos at ``sample``'s pairs)."""
-    return measure_errors(reference, slice_f_cos(rgba, gloss, sample.l, sample.v), sample.weight)
+    """Relative RMS of f cos, log error and relative log RMS
+    (:func:`~atlasgen.separable.error.relative_log_errors`) with standard errors of the slice drawn
+    at ``gloss``, against ``reference`` (f cos at ``sample``'s pairs)."""
+    approx = slice_f_cos(rgba, gloss, sample.l, sample.v)
+    return {**measure_errors(reference, approx, sample.weight), **relative_log_errors(reference, approx, sample.weight)}

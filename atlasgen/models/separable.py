@@ -35,7 +35,7 @@ from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import ENERGY_MODES, FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
-from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values
+from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values, search_terms
 from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
 from atlasgen.separable.error import (
     ERROR_SEED,
@@ -43,6 +43,8 @@ from atlasgen.separable.error import (
     SELECTION_SEED,
     error_sample_for,
     measure_errors,
+    relative_log_errors,
+    upper_bound,
 )
 from atlasgen.separable.mitsuba_source import load_mitsuba_bsdf, transmitted_fractions
 from atlasgen.separable.parametrization import PARAMETRIZATIONS
@@ -342,6 +344,8 @@ class Separable(Model):
         RMS of f cos against the source (the physical material) on the report sample of
         :mod:`atlasgen.separable.error`, 8-bit, with its standard error."""
         budget = values["max_error"] if values["max_error"] is not None else DEFAULT_BUDGET
+        if error_measure(values) == "relative_log_rms":
+            return self._bake_auto_display(values, budget)
         table = read_lighting_cost()
         separable = self._bake_separable({**values, "max_error": budget})
         rep = separable.extra["representation"]
@@ -376,6 +380,61 @@ class Separable(Model):
         if terms != rep["terms"]:
             separable = self._bake_separable({**values, "terms": terms, "max_error": None, "grid": rep["sampling_grid"]})
         separable.extra["representation"].update(error_budget=budget, meets_budget=annotated[best]["meets_budget"], auto=auto)
+        return separable
+
+    def _bake_auto_display(self, values: dict, budget: float) -> SliceSet:
+        """``auto`` judged on the relative log RMS of f cos (:func:`~atlasgen.separable.error.relative_log_errors`),
+        the measure a MaterialX document's budget is in (:func:`error_measure`): what the validation
+        scenes' sRGB display shows, where the relative RMS is ruled by grazing peaks that the display
+        clips. Candidates: one LUT slice (its gloss judged on the same measure) and K separable terms
+        of each factorization of :data:`~atlasgen.separable.approximate.DISPLAY_FACTORIZATIONS` and each
+        target, K = 1, 2, ... until one meets the budget (:func:`~atlasgen.separable.approximate.search_terms`).
+        The choice is made on the selection sample; the chosen representation is then measured on
+        the independent report sample, the figures the manifest holds."""
+        table = read_lighting_cost()
+        measure = "relative_log_rms"
+        source = make_source(values)
+        selection, report = _error_samples(source)
+        selection_reference, _ = _reference(source, selection)
+        lut, fit = fit_lut(values, measure=measure)
+        lut_key = cost_key("lut")
+        lut_selection = lut_errors(stored_slice(lut), fit["gloss"], selection_reference, selection)
+        candidates = [{"representation": lut_key, "cost": table.cost(lut_key), "error": lut_selection[measure],
+                       "error_se": lut_selection[f"{measure}_se"], "upper_bound": upper_bound(lut_selection, measure),
+                       "gloss": fit["gloss"], "error_kind": "relative log RMS of f cos, one 8-bit slice fitted from physics"}]  # fmt: skip
+        grid = values["grid"] if values["grid"] is not None else FACTOR_RESOLUTION
+        targets = ("f_cos", "f_proxy") if values["target"] == "auto" else (values["target"],)
+        terms, _ = search_terms(source, values["parametrization"], budget, selection, selection_reference, grid=grid,
+                                resolution=FACTOR_RESOLUTION, targets=targets, measure=measure)  # fmt: skip
+        for c in terms:
+            key = cost_key("separable", c["terms"])
+            candidates.append({"representation": key, "cost": table.cost(key), "error": c[measure], "error_se": c[f"{measure}_se"],
+                               "upper_bound": upper_bound(c, measure), "factorization": c["factorization"],
+                               "target": c["target"], "grid": c["grid"],
+                               "error_kind": f"estimated relative log RMS of f cos, 8-bit, {c['factorization'].upper()}"})  # fmt: skip
+        # Judged within the estimate's uncertainty, as a budget of separable terms is.
+        best, annotated = choose_representation([{**c, "error": c["upper_bound"]} for c in candidates], budget)
+        annotated = [{**c, "error": candidates[i]["error"]} for i, c in enumerate(annotated)]
+        chosen = annotated[best]
+        auto = {"error_budget": budget, "error_measure": measure, "cost_device": table.device, "cost_unit": table.unit,
+                "estimator": selection.estimator, "pairs": selection.count, "seed": selection.seed,
+                "report_seed": report.seed, "chosen": chosen["representation"], "candidates": annotated}  # fmt: skip
+        if chosen["representation"] == lut_key:
+            reported = lut_errors(stored_slice(lut), fit["gloss"], _reference(source, report)[0], report)
+            # The slice's reconstruction_error stays its relative RMS, as every LUT's; the budget's figure is auto.reported.
+            chosen = {**chosen, "error": reported["relative_rms"], "error_se": reported["relative_rms_se"],
+                      "meets_budget": bool(upper_bound(reported, measure) <= budget)}  # fmt: skip
+            auto["reported"] = {"error": reported[measure], "error_se": reported[f"{measure}_se"], "seed": report.seed}
+            return self._bake_lut(values, lut, fit, chosen, auto)
+        k = int(chosen["representation"].split(":")[1])
+        separable = self._bake_separable({**values, "terms": k, "max_error": None, "grid": chosen["grid"],
+                                          "factorization": chosen["factorization"], "target": chosen["target"]})  # fmt: skip
+        cached = separable._separable
+        approx = evaluate_factors(quantized_factors(cached), None, report.l, report.v, cosine=True)
+        reported = relative_log_errors(cached["reference"], approx, report.weight)
+        meets = bool(upper_bound(reported, measure) <= budget)
+        auto["reported"] = {"error": reported[measure], "error_se": reported[f"{measure}_se"], "seed": report.seed}
+        separable.extra["representation"].update(error_budget=budget, meets_budget=meets, auto=auto)
         return separable
 
     def _bake_lut(self, values: dict, rgba, fit: dict, chosen: dict, auto: dict) -> SliceSet:
@@ -632,7 +691,20 @@ class Separable(Model):
         return {"8bit": RadianceRebuild("the include's rebuild in float64 on the CPU (atlasgen.separable)", radiance)}
 
     def claimed_errors(self, entry):
-        """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K."""
+        """The manifest's relative RMS of f cos over uniform (l, v) pairs, 8-bit and float, and K. Where ``auto``
+        judged by the relative log RMS (a MaterialX document), ``error_budget`` is None, since the budget
+        bounds that figure instead, and ``relative_log_rms_8bit`` (with its SE and ``relative_log_rms_budget``) is it."""
+        claim = self._claimed_errors(entry)
+        auto = getattr(entry.representation, "auto", None) or {}
+        if claim is None or auto.get("error_measure", "relative_rms") == "relative_rms":
+            return claim
+        reported = auto.get("reported") or {}
+        if isinstance(entry.representation, LutRepresentation):
+            claim = {**claim, "relative_rms_8bit_se": None}  # its candidates' SEs are the log measure's
+        return {**claim, "error_budget": None, "relative_log_rms_8bit": reported.get("error"),
+                "relative_log_rms_8bit_se": reported.get("error_se"), "relative_log_rms_budget": auto.get("error_budget")}  # fmt: skip
+
+    def _claimed_errors(self, entry):
         if isinstance(entry.representation, AnalyticRepresentation):
             return None  # the closed form itself: nothing approximated
         if isinstance(entry.representation, LutRepresentation):
@@ -683,6 +755,19 @@ LUT_F_COS = Function("lut_slice_f_cos", "vec3", (("atlas", "texture_array"), ("s
     Let("vec4", "a", "atlas_sample(atlas, samp, material, dot(n, l), dot(n, v), 0.0)"),
     Return("a.rgb / ATLAS_PI + splat3(a.a * specular(n, l, v, specular_alpha(gloss)))"),
 ), "f cos of one LUT slice in the renderer's equation at a fixed gloss (a material fitted from physics), level 0.")  # fmt: skip
+
+
+def error_measure(values: dict) -> str:
+    """The error ``representation = "auto"`` judges candidates by: ``"relative_log_rms"`` where a
+    MaterialX document's reader asked for it (``materialx.error_measure``), else ``"relative_rms"``."""
+    spec = values.get("materialx") if values.get("source") == "materialx" else None
+    return str((spec or {}).get("error_measure") or "relative_rms")
+
+
+def quantized_factors(cached: dict):
+    """The 8-bit factors of a separable bake's private hand-over (``SliceSet._separable``), as the atlas returns them."""
+    stored = dequantize_rgba(quantize_rgba(cached["stored"], True), True)
+    return factors_from_slices(stored, cached["scale"], cached["bias"], cached["parametrization"], cached["target"])
 
 
 def _lut_error_se(rep) -> float | None:

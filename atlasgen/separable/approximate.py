@@ -23,7 +23,16 @@ from atlasgen.separable.resample import resample_factors
 from atlasgen.separable.source import BrdfSource, sample_matrices
 from atlasgen.separable.storage import quantize_factors
 
-__all__ = ["Approximation", "approximate_brdf", "reference_values", "TARGETS", "MAX_AUTO_TERMS", "GRID_RESOLUTIONS"]
+__all__ = [
+    "Approximation",
+    "approximate_brdf",
+    "reference_values",
+    "search_terms",
+    "TARGETS",
+    "MAX_AUTO_TERMS",
+    "GRID_RESOLUTIONS",
+    "DISPLAY_FACTORIZATIONS",
+]
 
 #: ``max_error`` mode tries K = 1 .. MAX_AUTO_TERMS.
 MAX_AUTO_TERMS = 8
@@ -34,6 +43,11 @@ TARGETS = ("f_cos", "f_proxy")
 #: least squares) lower the measured error of sharp lobes but ring around the highlight in
 #: images, so they are only used when a material asks for one (docs/separable.md).
 GRID_RESOLUTIONS = (16, 32)
+#: Factorizations :func:`search_terms` weighs. The SVD minimises the L2 error, but its terms after
+#: the first are signed: each is stored with a bias of its whole span, and the 8-bit step of that
+#: span lands in every dim tail, which a display shows. NMF's terms are non-negative, stored
+#: without a bias, where sRGB's 8-bit codes are finest, so a sharp lobe's tails keep their shape.
+DISPLAY_FACTORIZATIONS = ("svd", "nmf")
 
 
 @dataclass
@@ -266,3 +280,62 @@ def approximate_brdf(
         selection=selection,
         report=report,
     )
+
+
+def search_terms(
+    source: BrdfSource,
+    parametrization: str,
+    budget: float,
+    selection: ErrorSample,
+    reference,
+    grid: int = 32,
+    resolution: int = 32,
+    methods=DISPLAY_FACTORIZATIONS,
+    targets=TARGETS,
+    measure: str = "relative_log_rms",
+    max_terms: int = MAX_AUTO_TERMS,
+    srgb: bool = True,
+):
+    """Separable candidates K = 1, 2, ... of each factorization and target, judged on ``selection``.
+
+    Each candidate is the 8-bit factors (:func:`quantize_factors`) of one factorization
+    (``methods``) of one target's matrix sampled once on ``grid``, with its ``measure``
+    (:func:`~atlasgen.separable.error.errors_by_terms`: ``relative_rms`` and
+    ``relative_log_rms`` with their SEs) against ``reference`` (f cos at the selection pairs).
+    SVD candidates are the prefixes of one factorization, which are the best rank-K ones
+    (Eckart & Young 1936); NMF is factored anew for each K, since its terms have no order.
+    The search stops after the first K at which a candidate meets ``budget`` within its
+    uncertainty (:func:`~atlasgen.separable.error.upper_bound`): every larger K costs more.
+
+    Returns ``(candidates, nonfinite)``: dicts ``{"factorization", "target", "terms", "grid",
+    "relative_rms", "relative_rms_se", "relative_log_rms", "relative_log_rms_se"}`` in
+    order of K, and the count of non-finite samples.
+    """
+    p = get_parametrization(parametrization)
+    matrices, nonfinite = sample_matrices(source, p, grid, targets)
+    w1, w2 = _weights(p.name, grid)
+    l, v = selection.pairs
+
+    def judged(factors, wanted):
+        stored = quantize_factors(resample_factors(factors, resolution), srgb=srgb)
+        return errors_by_terms(stored, reference, l, v, wanted, log=False, weight=selection.weight, relative_log=True)
+
+    prefixes = {}
+    out = []
+    for k in range(1, max_terms + 1):
+        for method in methods:
+            for target in targets:
+                if method == "svd":
+                    if target not in prefixes:
+                        factors = factorize(matrices[target], w1, w2, max_terms, p.name, "svd")
+                        factors.target = target
+                        prefixes[target] = judged(factors, range(1, max_terms + 1))
+                    error = prefixes[target][k - 1]
+                else:
+                    factors = factorize(matrices[target], w1, w2, k, p.name, method)
+                    factors.target = target
+                    error = judged(factors, [k])[0]
+                out.append({"factorization": method, "target": target, "grid": int(grid), **error})
+        if any(upper_bound(c, measure) <= budget for c in out if c["terms"] == k):
+            break
+    return out, nonfinite

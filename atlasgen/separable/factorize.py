@@ -27,6 +27,10 @@ __all__ = [
 ]
 
 FACTORIZATIONS = ("svd", "nmf", "nd")
+#: Multiplicative updates of :func:`factorize_nmf`. At 300 a sharp GGX metal's 8-term NMF (MaterialX
+#: gold, alpha 0.0625) was still far from converged in its weighted error and in the scenes' images;
+#: 1000 takes most of what 3000 gains, at a tenth of a second per 32 x 1024 matrix.
+NMF_ITERATIONS = 1000
 
 
 @dataclass
@@ -142,7 +146,7 @@ def factorize_svd(matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int
 
 
 def factorize_nmf(
-    matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int, parametrization: str, iterations: int = 300
+    matrix: np.ndarray, w1: np.ndarray, w2: np.ndarray, terms: int, parametrization: str, iterations: int = NMF_ITERATIONS
 ) -> Factors:
     """Non-negative matrix factorization per channel (Lee & Seung 2001, multiplicative updates).
 

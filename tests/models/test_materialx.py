@@ -106,3 +106,65 @@ def test_auto_sees_that_gold_s_coloured_highlight_needs_separable_terms():
     rep = slices.extra["representation"]
     errors = {c["representation"]: c["error"] for c in rep["auto"]["candidates"]}
     assert rep["kind"] == "separable" and errors["lut"] > 0.1 > min(e for k, e in errors.items() if k != "lut")
+
+
+@pytest.mark.slow
+def test_auto_judged_as_the_scenes_show_it_weighs_nmf_and_reports_on_another_sample():
+    """A MaterialX document's budget is in relative log RMS: the search weighs SVD and NMF terms, stops at the
+    first K that meets it, chooses on the selection sample and reports the chosen one on the report sample."""
+    pytest.importorskip("MaterialX")
+    from atlasgen.models import get_model
+    from atlasgen.separable.error import ERROR_SEED, SELECTION_SEED, upper_bound
+
+    model = get_model("separable")
+    params = {p.name: p.default for p in model.params}
+    params.update(source="materialx", representation="auto", max_error=0.04, grid=32,
+                  materialx={**_spec(GOLD), "alpha": 0.0625, "error_measure": "relative_log_rms"})  # fmt: skip
+    model.check(params, "x.mtlx")
+    slices = model.bake(params)
+    rep = slices.extra["representation"]
+    auto = rep["auto"]
+    assert auto["error_measure"] == "relative_log_rms" and (auto["seed"], auto["report_seed"]) == (SELECTION_SEED, ERROR_SEED)
+    terms = [c for c in auto["candidates"] if c["representation"] != "lut"]
+    assert {c["factorization"] for c in terms} == {"svd", "nmf"}
+    last = max(int(c["representation"].split(":")[1]) for c in terms)
+    meeting = [c for c in terms if c["meets_budget"]]
+    # The search stops at the first K with a candidate meeting the budget, and that K is chosen.
+    assert meeting and all(c["representation"] == f"separable:{last}" for c in meeting)
+    assert auto["chosen"] == f"separable:{last}" == f"separable:{rep['terms']}"
+    chosen = min(meeting, key=lambda c: c["upper_bound"])
+    assert slices.extra["factorization"] == chosen["factorization"] and rep["target"] == chosen["target"]
+    # The reported figure is measured anew on the report sample: close to the selection's, not the same number.
+    reported = auto["reported"]
+    assert reported["error"] != chosen["error"] and abs(reported["error"] - chosen["error"]) < 5 * chosen["error_se"]
+    assert rep["meets_budget"] == (upper_bound({"e": reported["error"], "e_se": reported["error_se"]}, "e") <= 0.04)
+    # The gold's coloured highlight: the LUT cannot meet it.
+    assert not auto["candidates"][0]["meets_budget"]
+
+
+def test_a_log_measured_auto_claims_its_log_error_against_the_budget_not_the_relative_rms():
+    """Validation's strict check compares the claimed relative RMS with error_budget: a budget in another measure
+    must not be compared with it, and the figure it bounds is claimed beside it."""
+    from types import SimpleNamespace
+
+    from atlasgen.io.manifest import SeparableRepresentation
+    from atlasgen.models import get_model
+
+    def entry(auto):
+        rep = SeparableRepresentation(terms=6, sampling_grid=32, target="f_cos", error_budget=0.04, estimated_error_8bit=0.05,
+                                      meets_budget=True, candidates=[], auto=auto)  # fmt: skip
+        errors = SimpleNamespace(relative_rms=0.05, relative_rms_se=0.001)
+        factors = SimpleNamespace(errors_8bit=errors, errors=None, terms=6)
+        return SimpleNamespace(representation=rep, factors=factors)
+
+    model = get_model("separable")
+    plain = model.claimed_errors(entry({"error_budget": 0.04}))
+    assert (plain["relative_rms_8bit"], plain["error_budget"]) == (0.05, 0.04) and "relative_log_rms_8bit" not in plain
+    logged = model.claimed_errors(entry({"error_budget": 0.04, "error_measure": "relative_log_rms",
+                                         "reported": {"error": 0.035, "error_se": 0.0004, "seed": 1}}))  # fmt: skip
+    assert logged["relative_rms_8bit"] == 0.05 and logged["error_budget"] is None
+    assert (logged["relative_log_rms_8bit"], logged["relative_log_rms_8bit_se"], logged["relative_log_rms_budget"]) == (
+        0.035,
+        0.0004,
+        0.04,
+    )

@@ -88,3 +88,24 @@ def test_one_grid_by_default_keeps_the_stored_resolution():
     result = approximate_brdf(analytic("beckmann", alpha=0.4), terms=2)
     assert result.grid == 32 and [c["grid"] for c in result.candidates] == [32, 32]
     assert np.isfinite(result.errors["relative_rms"])
+
+
+@pytest.mark.slow
+def test_the_term_search_weighs_both_factorizations_and_stops_at_the_first_k_that_meets():
+    from atlasgen.separable.approximate import search_terms
+    from atlasgen.separable.error import SELECTION_SEED, error_sample_for, upper_bound
+
+    source = analytic("ggx", alpha=0.15, fresnel="schlick", f0=(0.9, 0.6, 0.3))
+    selection = error_sample_for(source, SELECTION_SEED, count=20_000)
+    reference = source.f_cos(*selection.pairs)
+    found, _ = search_terms(source, "half_diff", 0.0, selection, reference, targets=("f_cos",), max_terms=3)
+    # A budget of 0 is never met: every K up to the cap, each factorization once per K.
+    assert [(c["terms"], c["factorization"]) for c in found] == [(k, m) for k in (1, 2, 3) for m in ("svd", "nmf")]
+    svd = [c["relative_rms"] for c in found if c["factorization"] == "svd"]
+    assert svd == sorted(svd, reverse=True)  # prefixes of one SVD: the error never grows with K
+    # One term of either factorization is the same rank-1 fit up to 8 bits (NMF starts from |SVD|).
+    first = [c["relative_log_rms"] for c in found if c["terms"] == 1]
+    assert first[0] == pytest.approx(first[1], rel=0.05)
+    budget = min(upper_bound(c, "relative_log_rms") for c in found if c["terms"] == 2)
+    stopped, _ = search_terms(source, "half_diff", budget, selection, reference, targets=("f_cos",), max_terms=3)
+    assert max(c["terms"] for c in stopped) == 2 and stopped == found[:4]

@@ -50,3 +50,32 @@ def test_log_error_closed_forms():
         "log_error": pytest.approx(np.log(2.5) - np.log(2.0), rel=1e-5),
         "log_error_se": 0.0,
     }
+
+
+def test_relative_log_rms_closed_forms_and_its_by_terms_twin():
+    from atlasgen.separable.error import errors_by_terms, relative_log_errors
+    from atlasgen.separable.factorize import Factors
+    from atlasgen.separable.rebuild import evaluate_factors
+
+    rng = np.random.default_rng(3)
+    ref = rng.random((2000, 3)) * 5.0
+    assert relative_log_errors(ref, ref)["relative_log_rms"] == 0.0
+    # ln(1 + a) = (1 + c) ln(1 + f) everywhere: the relative log RMS is |c| exactly, the SE 0.
+    c = 0.07
+    scaled = np.expm1((1.0 + c) * np.log1p(ref))
+    e = relative_log_errors(ref, scaled)
+    assert e["relative_log_rms"] == pytest.approx(c, rel=1e-5) and e["relative_log_rms_se"] == pytest.approx(0.0, abs=1e-6)
+    # Negative approximations count as 0, as the shader clamps them: then every log is lost.
+    assert relative_log_errors(ref, -ref)["relative_log_rms"] == pytest.approx(1.0)
+    # errors_by_terms computes it from running sums over terms: the same figure as from the rebuilt values.
+    l, v = sample_hemisphere_pairs(4000, seed=5)
+    factors = Factors(rng.random((3, 3, 32)), rng.random((3, 3, 32, 32)), "half_diff", np.zeros((3, 3)))
+    reference = 0.8 * evaluate_factors(factors, None, l, v, cosine=True)
+    by_terms = errors_by_terms(factors, reference, l, v, log=False, relative_log=True)
+    for entry in by_terms:
+        k = entry["terms"]
+        direct = relative_log_errors(reference, evaluate_factors(factors.truncated(k), None, l, v, cosine=True))
+        assert entry["relative_log_rms"] == pytest.approx(direct["relative_log_rms"], rel=1e-5)
+        assert entry["relative_log_rms_se"] == pytest.approx(direct["relative_log_rms_se"], rel=1e-2)
+    # Without the flag the figures are those the manifests have always held.
+    assert "relative_log_rms" not in errors_by_terms(factors, reference, l, v, log=False)[0]
