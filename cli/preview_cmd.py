@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import _one_line, fail_on_errors
+from atlasgen.cli.main import fail_on_errors, one_line_message
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
@@ -84,13 +84,13 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
 def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> None:
     def report(update) -> None:
         if update.error is not None:
-            click.echo(f"atlasgen: error: {_one_line(update.error)} (kept the last picture; watching)", err=True)
+            click.echo(f"atlasgen: error: {one_line_message(update.error)} (kept the last picture; watching)", err=True)
         elif verbosity != QUIET:
             click.echo(describe_update(update, output, steps=verbosity == VERBOSE))
 
     def refined(name, shot) -> None:
         if name is None:
-            click.echo(f"atlasgen: error: {_one_line(shot)} (no reference; watching)", err=True)
+            click.echo(f"atlasgen: error: {one_line_message(shot)} (no reference; watching)", err=True)
         elif verbosity == VERBOSE:
             click.echo(f"reference {name}: {', '.join(reference_lines(shot)[1:])} ({shot.seconds:.1f} s)")
 
