@@ -27,7 +27,7 @@ class StandIn:
         self.calls: list[bool] = []
         self.extra_inputs = [Path(p) for p in extra_inputs]
 
-    def write(self, paths, output, use_cache=True):
+    def write(self, paths, output, use_cache=True, drafts=False):
         self.calls.append(use_cache)
         materials = read_materials(paths)
         png = b"".join(Path(m.source).read_bytes() for m in materials)
