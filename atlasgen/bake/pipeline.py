@@ -278,25 +278,27 @@ def bake_atlas(
         biases[first : first + n] = encoded.bias
 
     t0 = time.perf_counter()
-    float_levels = build_volume_mips(level0) if layout == "volume" else build_array_mips(level0)
     if layout == "array":
-        # Unused layers stay zero at every level of their own chain: quantise only used ones.
+        # Each layer's chain is its own, and unused layers stay zero at every level of theirs:
+        # filter and quantise only the used ones (a preview uses 2 of 256).
         used = sorted({s for m, _, v, _ in baked for s in range(slots[m.name], slots[m.name] + v.shape[0])})
-        levels = [np.zeros(lv.shape, np.uint8) for lv in float_levels]
-        for lv, fl in zip(levels, float_levels):
-            lv[used] = quantize_rgba(fl[used], srgb)
+        levels = []
+        for fl in build_array_mips(level0[used]):
+            lv = np.zeros((LAYERS, *fl.shape[1:]), np.uint8)
+            lv[used] = quantize_rgba(fl, srgb)
+            levels.append(lv)
     else:
+        float_levels = build_volume_mips(level0)
         levels = [quantize_rgba(lv, srgb) for lv in float_levels]
     timings["mips_and_quantize_s"] = time.perf_counter() - t0
 
-    decoded0 = dequantize_rgba(levels[0], srgb)
     warnings = list(cache_warnings)
     material_warnings: list[MaterialWarning] = []
     entries = []
     for material, slices, values, encoded in baked:
         first = slots[material.name]
         n = values.shape[0]
-        dec = decoded0[first : first + n]
+        dec = dequantize_rgba(levels[0][first : first + n], srgb)
         scale_c = np.concatenate([np.repeat(encoded.scale[:, :1], 3, 1), encoded.scale[:, 1:]], 1)[:, None, None, :]
         bias_c = np.concatenate([np.repeat(encoded.bias[:, :1], 3, 1), encoded.bias[:, 1:]], 1)[:, None, None, :]
         err = np.abs(dec * scale_c + bias_c - values)
