@@ -5,7 +5,7 @@ not the files themselves: editors that save by writing a new file and renaming i
 one (vim, most IDEs) replace the file a watch on it would follow, while the folder sees the
 new one arrive. Events are kept only for the files the preview reads (a folder given as a
 source: every ``*.toml`` directly in it), so the PNG's own writes, editors' swap files and
-backups never trigger an update. A batch of events (watchfiles groups those 20 ms apart) is one
+backups never trigger an update. A batch of events (watchfiles groups those STEP_MS apart) is one
 update. An update that fails (a bad edit) reports its error on one line and leaves the last
 good picture in place; the watch goes on.
 """
@@ -35,8 +35,11 @@ from atlasgen.preview.reference import MAX_SPP, load_reference_mitsuba, refine_r
 __all__ = ["Update", "watch_preview", "describe_update", "describe_label"]
 
 #: watchfiles' wait for further events before it reports a batch, ms: an editor's write and rename,
-#: microseconds apart, land in one.
-STEP_MS = 20
+#: microseconds apart, land in one. watchfiles reports a batch after one quiet step, checking every
+#: step, so noticing a save takes 1 to 2 steps (bench/preview.py's "noticing the save"); a shorter
+#: step costs no measurable idle CPU. A save split by more than a step (a slow in-place write) shows
+#: its first half's one-line error, and the next batch its picture.
+STEP_MS = 5
 #: How often the watch wakes with nothing to report, ms: to start, and to see ``stop`` without events.
 IDLE_MS = 100
 
@@ -74,7 +77,8 @@ def describe_label(preview: Preview, error: AtlasgenError | None = None) -> str:
     if error is not None:
         return f"error figures: not measured, the picture keeps its label ({error})"
     shown = "; ".join(f"{shot.name}: {error_text(shot.entry) or 'exact'}" for shot in preview.shots)
-    return f"{shown} (measured in {sum(preview.label_timings.values()):.3f} s)"
+    timing = f"measured in {sum(preview.label_timings.values()):.3f} s"
+    return f"{shown} ({timing})" if shown else f"error figures {timing}"
 
 
 class _Sources:
