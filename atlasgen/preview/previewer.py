@@ -57,8 +57,8 @@ DEFAULT_CACHE_DIR = Path("build/cache")
 DEFAULT_OUTPUT_DIR = Path("build/preview")
 #: The floor's material file, shipped with atlasgen.
 FLOOR_MATERIAL = ("preview", "atlasgen-preview-floor.toml")
-#: zlib level of the preview's PNGs: level 6 (the encoder's default) takes about twice the CPU for files
-#: a third smaller, and a watch writes one per save. The bytes depend on the pixels alone either way.
+#: zlib level of the preview's PNGs: the encoder's default, 6, spends more CPU on each picture for a
+#: smaller file, and a watch writes one per save. The bytes depend on the pixels alone either way.
 PNG_COMPRESSION = 2
 
 
