@@ -35,7 +35,7 @@ from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
 
-__all__ = ["app", "main", "fail_on_errors", "exit_for", "FiniteFloatRange"]
+__all__ = ["app", "main", "fail_on_errors", "exit_for", "one_line_message", "FiniteFloatRange"]
 
 #: Seconds after which ``atlasgen bake`` reports each finished material on stderr (a bar on a
 #: terminal, else ``baked skin (3/12)`` lines; nothing with -q).
@@ -69,14 +69,19 @@ def _debugging() -> bool:
     return bool(ctx is not None and ctx.find_root().params.get("debug"))
 
 
-def _one_line(text) -> str:
+def one_line_message(text) -> str:
+    """``text`` (an exception, a message) on one line: its non-blank lines joined by ``; ``.
+
+    >>> one_line_message("bad value\n  expected a number\n")
+    'bad value; expected a number'
+    """
     return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
 
 
 def exit_for(exc: BaseException):
     """Print the one line for an exception that ended a command, and exit with its status."""
     if isinstance(exc, AtlasgenError):
-        click.echo(f"atlasgen: error: {_one_line(exc)}", err=True)
+        click.echo(f"atlasgen: error: {one_line_message(exc)}", err=True)
         sys.exit(exc.exit_code)
     if isinstance(exc, KeyboardInterrupt):
         click.echo("atlasgen: interrupted", err=True)
@@ -84,11 +89,11 @@ def exit_for(exc: BaseException):
     if isinstance(exc, click.ClickException):
         ctx = getattr(exc, "ctx", None)
         hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
-        click.echo(f"atlasgen: error: {_one_line(exc.format_message())}{hint}", err=True)
+        click.echo(f"atlasgen: error: {one_line_message(exc.format_message())}{hint}", err=True)
         sys.exit(exc.exit_code)
     if _debugging():
         traceback.print_exception(exc)
-    detail = _one_line(exc)
+    detail = one_line_message(exc)
     detail = f"{type(exc).__name__}: {detail[:200]}" if detail else type(exc).__name__
     click.echo(f"atlasgen: internal error ({detail}); this is a bug: please report it to {REPORT_BUGS_TO} "
                "with the traceback that ATLASGEN_DEBUG=1 adds", err=True)  # fmt: skip

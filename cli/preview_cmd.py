@@ -6,11 +6,11 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import _one_line, fail_on_errors
+from atlasgen.cli.main import fail_on_errors, one_line_message
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
-from atlasgen.preview.watch import describe_update, watch_preview
+from atlasgen.preview.watch import describe_label, describe_update, watch_preview
 
 __all__ = ["preview"]
 
@@ -57,7 +57,9 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
     With --watch the GPU device and the compiled pipelines stay warm: every save re-bakes what
     changed and rewrites the PNG (atomically, so a viewer never sees half of it). Editors that
     save by renaming a new file over the old one are followed (the folder is watched). A bad
-    edit prints its one-line error and keeps the last good picture.
+    edit prints its one-line error and keeps the last good picture. A separable material's
+    picture comes first, labelled "error: measuring ..."; its error figure (the one a full bake
+    writes) follows on a second line and in the PNG's label.
 
     With --reference each picture has the material's Mitsuba physical reference of the same
     scene beside it, rendered at the preview's resolution with seeds 0 and 1 (their PSNR is its
@@ -84,13 +86,20 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
 def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> None:
     def report(update) -> None:
         if update.error is not None:
-            click.echo(f"atlasgen: error: {_one_line(update.error)} (kept the last picture; watching)", err=True)
+            click.echo(f"atlasgen: error: {one_line_message(update.error)} (kept the last picture; watching)", err=True)
         elif verbosity != QUIET:
             click.echo(describe_update(update, output, steps=verbosity == VERBOSE))
 
+    def labelled(preview, error) -> None:
+        if error is not None:
+            click.echo(f"atlasgen: error: {one_line_message(error)} (the picture stands without its error figures; watching)",
+                       err=True)  # fmt: skip
+        elif verbosity != QUIET:
+            click.echo(describe_label(preview))
+
     def refined(name, shot) -> None:
         if name is None:
-            click.echo(f"atlasgen: error: {_one_line(shot)} (no reference; watching)", err=True)
+            click.echo(f"atlasgen: error: {one_line_message(shot)} (no reference; watching)", err=True)
         elif verbosity == VERBOSE:
             click.echo(f"reference {name}: {', '.join(reference_lines(shot)[1:])} ({shot.seconds:.1f} s)")
 
@@ -98,7 +107,8 @@ def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> No
     if verbosity != QUIET:
         click.echo(f"watching {', '.join(Path(p).as_posix() for p in paths)} (Ctrl-C to stop)", err=True)
     try:
-        watch_preview(paths, output, cache, on_update=report, reference=reference, max_spp=max_spp, on_reference=refined)
+        watch_preview(paths, output, cache, on_update=report, reference=reference, max_spp=max_spp, on_reference=refined,
+                      on_label=labelled)  # fmt: skip
     except KeyboardInterrupt:
         # Ctrl-C is how a watch ends: a success; the PNG was replaced whole or not at all.
         if verbosity != QUIET:

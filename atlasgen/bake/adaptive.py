@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
-from atlasgen.models.base import Model, SliceSet
+from atlasgen.models.base import DraftSlices, Model, SliceSet
 from atlasgen.models.physical_fit import bake_from_physics
 from atlasgen.optics.interpolation import sample_slice
 
-__all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget", "bake_material"]
+__all__ = ["SUPERSAMPLING_FACTORS", "reconstruction_error", "bake_supersampled", "bake_within_budget", "bake_material",
+           "draft_material"]  # fmt: skip
 
 #: Sub-samples per texel axis, cheapest first.
 SUPERSAMPLING_FACTORS = (1, 2, 4, 8)
@@ -92,3 +93,12 @@ def bake_material(material):
     if material.error_budget is not None and type(model).bake is Model.bake:
         return bake_within_budget(model, material.params, material.error_budget)
     return model.bake(material.params)
+
+
+def draft_material(material) -> DraftSlices | None:
+    """The model's draft of what :func:`bake_material` bakes (:meth:`~atlasgen.models.base.Model.bake_draft`),
+    or None where the model has none, or the bake is a fit or a budget's supersampling (drafted by nobody)."""
+    model = material.model
+    if material.fit_from == "physical" or (material.error_budget is not None and type(model).bake is Model.bake):
+        return None
+    return model.bake_draft(material.params)

@@ -8,12 +8,13 @@ import io
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.bake.adaptive import bake_material
+from atlasgen.bake.adaptive import bake_material, draft_material
 from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.models.base import SliceSet
@@ -26,6 +27,7 @@ __all__ = [
     "load_cached",
     "store_cached",
     "load_or_bake",
+    "load_or_draft",
     "fill_cache",
     "BAKE_RELEVANT",
 ]
@@ -145,6 +147,37 @@ def load_or_bake(cache_dir, material, warnings=None) -> tuple[SliceSet, bool]:
     if cache_dir is not None:
         store_cached(cache_dir, material, slices, slices.timings["bake_s"])
     return slices, False
+
+
+def load_or_draft(cache_dir, material, warnings=None) -> tuple[SliceSet, bool, Callable[[], SliceSet] | None]:
+    """:func:`load_or_bake`, except that a material the cache lacks whose model drafts
+    (:func:`~atlasgen.bake.adaptive.draft_material`) comes back as its draft with the completion:
+    ``(slices, hit, complete)``; ``complete()`` returns the full slices, and with a ``cache_dir`` stores
+    them (``bake_s`` the draft's time plus its own). The draft is never stored. ``complete`` is None
+    for a hit and for a material baked whole."""
+    t0 = time.perf_counter()
+    slices = load_cached(cache_dir, material, warnings) if cache_dir is not None else None
+    if slices is not None:
+        slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
+        return slices, True, None
+    draft = draft_material(material)
+    if draft is None:
+        slices, _ = load_or_bake(None, material)
+        if cache_dir is not None:
+            store_cached(cache_dir, material, slices, slices.timings["bake_s"])
+        return slices, False, None
+    drafted = time.perf_counter() - t0
+    draft.slices.timings["bake_s"] = drafted
+
+    def complete() -> SliceSet:
+        t1 = time.perf_counter()
+        full = draft.complete()
+        full.timings["bake_s"] = drafted + time.perf_counter() - t1
+        if cache_dir is not None:
+            store_cached(cache_dir, material, full, full.timings["bake_s"])
+        return full
+
+    return draft.slices, False, complete
 
 
 def fill_cache(cache_dir, materials) -> dict:

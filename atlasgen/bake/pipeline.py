@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.bake.cache import load_or_bake
+from atlasgen.bake.cache import load_or_bake, load_or_draft
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
 from atlasgen.bake.quality import MaterialWarning, assess_material
@@ -69,6 +69,9 @@ class BakeResult:
     #: Per-material warnings (:mod:`atlasgen.bake.quality`): a measured error over the threshold and its
     #: cause, tolerated non-finite samples. ``warnings`` holds the bake's other notes (cache, clamping).
     material_warnings: list[MaterialWarning] = field(default_factory=list)
+    #: ``bake_atlas(drafts=True)``: name -> the completion of each material baked as a draft (its
+    #: entry lacks the figures the completion measures); empty for a full bake.
+    drafts: dict = field(default_factory=dict)
 
     def describe(self, dds_path, zstd: bool = False) -> str:
         """The texconv-style line for this atlas written to ``dds_path`` (``.dds`` or ``.ktx2``)."""
@@ -185,7 +188,14 @@ def _check_encoded(material, encoded) -> None:
 
 
 def bake_atlas(
-    materials, layout: str = "array", linear: bool = False, previous_slots=None, progress=None, cache_dir=None
+    materials,
+    layout: str = "array",
+    linear: bool = False,
+    previous_slots=None,
+    progress=None,
+    cache_dir=None,
+    drafts: bool = False,
+    baked=None,
 ) -> BakeResult:
     """Bake validated materials into an RGBA8 atlas.
 
@@ -205,6 +215,12 @@ def bake_atlas(
     cache_dir
         Folder of per-material float slices (:mod:`atlasgen.bake.cache`); materials whose
         file and bake code are unchanged are loaded instead of baked.
+    drafts
+        Bake a material the cache lacks as its model's draft where it has one
+        (:func:`~atlasgen.bake.cache.load_or_draft`): the same texels and include, the entry without
+        the figures still to measure; ``BakeResult.drafts`` holds the completions. For a preview only.
+    baked
+        ``name -> SliceSet`` already baked (a draft's completion), used instead of the cache or a bake.
     """
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
@@ -213,9 +229,17 @@ def bake_atlas(
     baked = []
     timings = {"materials": {}}
     cache_hits, baked_names, cache_warnings = [], [], []
+    completions = {}
     for material in materials:
         model = material.model
-        slices, hit = load_or_bake(cache_dir, material, cache_warnings)
+        if baked is not None and material.name in baked:
+            slices, hit = baked[material.name], False
+        elif drafts:
+            slices, hit, complete = load_or_draft(cache_dir, material, cache_warnings)
+            if complete is not None:
+                completions[material.name] = complete
+        else:
+            slices, hit = load_or_bake(cache_dir, material, cache_warnings)
         (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
@@ -254,25 +278,27 @@ def bake_atlas(
         biases[first : first + n] = encoded.bias
 
     t0 = time.perf_counter()
-    float_levels = build_volume_mips(level0) if layout == "volume" else build_array_mips(level0)
     if layout == "array":
-        # Unused layers stay zero at every level of their own chain: quantise only used ones.
+        # Each layer's chain is its own, and unused layers stay zero at every level of theirs:
+        # filter and quantise only the used ones (a preview uses 2 of 256).
         used = sorted({s for m, _, v, _ in baked for s in range(slots[m.name], slots[m.name] + v.shape[0])})
-        levels = [np.zeros(lv.shape, np.uint8) for lv in float_levels]
-        for lv, fl in zip(levels, float_levels):
-            lv[used] = quantize_rgba(fl[used], srgb)
+        levels = []
+        for fl in build_array_mips(level0[used]):
+            lv = np.zeros((LAYERS, *fl.shape[1:]), np.uint8)
+            lv[used] = quantize_rgba(fl, srgb)
+            levels.append(lv)
     else:
+        float_levels = build_volume_mips(level0)
         levels = [quantize_rgba(lv, srgb) for lv in float_levels]
     timings["mips_and_quantize_s"] = time.perf_counter() - t0
 
-    decoded0 = dequantize_rgba(levels[0], srgb)
     warnings = list(cache_warnings)
     material_warnings: list[MaterialWarning] = []
     entries = []
     for material, slices, values, encoded in baked:
         first = slots[material.name]
         n = values.shape[0]
-        dec = decoded0[first : first + n]
+        dec = dequantize_rgba(levels[0][first : first + n], srgb)
         scale_c = np.concatenate([np.repeat(encoded.scale[:, :1], 3, 1), encoded.scale[:, 1:]], 1)[:, None, None, :]
         bias_c = np.concatenate([np.repeat(encoded.bias[:, :1], 3, 1), encoded.bias[:, 1:]], 1)[:, None, None, :]
         err = np.abs(dec * scale_c + bias_c - values)
@@ -336,7 +362,7 @@ def bake_atlas(
     data = render_include_data(manifest, models=get_model)
     timings["total_s"] = time.perf_counter() - t_start
     return BakeResult(levels, layout, manifest.dxgi_format, manifest, include, timings, warnings, includes, data,
-                      material_warnings)  # fmt: skip
+                      material_warnings, completions)  # fmt: skip
 
 
 def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: bool = False) -> bytes:

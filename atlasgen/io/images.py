@@ -62,19 +62,25 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
             raise OutputError(f"{shown} ({exc.strerror})") from None
 
 
-def encode_png(codes: np.ndarray, near=None) -> bytes:
+def encode_png(codes: np.ndarray, near=None, compression: int | None = None) -> bytes:
     """PNG bytes of 8-bit codes ``(h, w, c)``: c = 1 (grey), 2 (grey, alpha), 3 (RGB) or 4 (RGBA).
 
     The codes are stored as given, alpha straight (not premultiplied), as PNG defines it;
-    the PNG carries no colour profile, so viewers read the colour as sRGB.
+    the PNG carries no colour profile, so viewers read the colour as sRGB. ``compression`` is
+    zlib's level, 0 (none, fastest) to 9 (smallest); None: the encoder's default, 6. The same
+    codes at the same level give the same bytes.
     """
     codes = np.asarray(codes)
     if codes.dtype != np.uint8 or codes.ndim != 3 or not 1 <= codes.shape[2] <= 4:
         raise TypeError(f"expected 8-bit codes shaped (h, w, 1..4), got {codes.dtype} {codes.shape}")
     # PNG's alpha is straight; OpenImageIO would otherwise take the codes as premultiplied
     # and divide the colour by alpha.
-    straight = {"oiio:UnassociatedAlpha": 1} if codes.shape[2] in (2, 4) else None
-    return _encode(codes, "uint8", ".png", attributes=straight, near=near)
+    attributes = {"oiio:UnassociatedAlpha": 1} if codes.shape[2] in (2, 4) else {}
+    if compression is not None:
+        if not 0 <= compression <= 9:
+            raise ValueError(f"PNG compression must be a zlib level from 0 to 9, not {compression!r}")
+        attributes["png:compressionLevel"] = int(compression)
+    return _encode(codes, "uint8", ".png", attributes=attributes, near=near)
 
 
 def encode_exr(pixels: np.ndarray, channel_names=("R", "G", "B"), near=None) -> bytes:

@@ -17,7 +17,7 @@ from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.quantize import unorm_scale
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 
-__all__ = ["Model", "SliceSet", "EncodedSlices", "Reference", "RadianceRebuild", "PhysicalFCos", "encode_scaled",
+__all__ = ["Model", "SliceSet", "DraftSlices", "EncodedSlices", "Reference", "RadianceRebuild", "PhysicalFCos", "encode_scaled",
            "MODEL_REFERENCE", "BRDF_REFERENCE", "THIN_FILM_REFERENCE", "THIN_SHEET_REFERENCE"]  # fmt: skip
 
 # Names of atlasgen's Mitsuba BSDF plugins (:mod:`atlasgen.models.mitsuba_bsdfs` registers them).
@@ -38,6 +38,19 @@ class SliceSet:
     values: np.ndarray
     extra: dict = field(default_factory=dict)  # model-specific manifest fields (must be deterministic)
     timings: dict = field(default_factory=dict)  # seconds per stage, for atlas.timings.json
+
+
+@dataclass
+class DraftSlices:
+    """A bake's slices before the figures that only describe them are measured (:meth:`Model.bake_draft`).
+
+    ``slices.values`` and every field the atlas, the include and the renderer read are the full
+    bake's; ``slices.extra`` lacks the figures ``complete()`` measures. ``complete()`` returns
+    exactly what :meth:`Model.bake` returns for the same parameters, reusing the draft's work.
+    """
+
+    slices: SliceSet
+    complete: Callable[[], SliceSet]
 
 
 @dataclass
@@ -204,6 +217,12 @@ class Model:
         rgba = np.asarray(self.evaluate(values, nl[None, :], nv[:, None]), dtype=np.float64)
         rgba = np.broadcast_to(rgba, (HEIGHT, WIDTH, 4))
         return SliceSet(np.array(rgba).reshape(1, HEIGHT, WIDTH, 4))
+
+    def bake_draft(self, values: dict) -> DraftSlices | None:
+        """The slices of :meth:`bake` first, their error figures later (:class:`DraftSlices`), for a
+        preview that shows the picture before the figures; None (the default): nothing to defer,
+        :meth:`bake` it whole. :meth:`finalize` is handed the draft's slices too."""
+        return None
 
     def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
         return encode_scaled(slices.values, rgb_scale, alpha_scale)

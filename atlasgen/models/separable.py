@@ -20,6 +20,7 @@ from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
 from atlasgen.models.base import (
     BRDF_REFERENCE,
     THIN_FILM_REFERENCE,
+    DraftSlices,
     EncodedSlices,
     Model,
     RadianceRebuild,
@@ -35,7 +36,13 @@ from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.specular import half_vector_cosine, renderer_f_cos
 from atlasgen.optics.thin_film import ENERGY_MODES, FILM_DEFAULTS
 from atlasgen.separable.analytic import analytic_f_cos_world
-from atlasgen.separable.approximate import GRID_RESOLUTIONS, approximate_brdf, reference_values, search_terms
+from atlasgen.separable.approximate import (
+    GRID_RESOLUTIONS,
+    choose_approximation,
+    reference_values,
+    report_approximation,
+    search_terms,
+)
 from atlasgen.separable.auto import choose_representation, cost_key, read_lighting_cost
 from atlasgen.separable.error import (
     ERROR_SEED,
@@ -449,12 +456,24 @@ class Separable(Model):
         fit_info = {"from": "auto", "reference": reference, **{k: v for k, v in fit.items()}}
         return SliceSet(np.array(rgba).reshape(1, *np.shape(rgba)), extra={"representation": rep, "fit": fit_info})
 
+    def bake_draft(self, values: dict) -> DraftSlices | None:
+        """K factor slices before their error figures (``representation = "separable"`` only): the
+        SVD, the choice of K, grid and target on the selection sample, and the 8-bit factors, all as
+        the full bake makes them; the report sample's figures wait for ``complete()``. A draft's
+        manifest fields lack ``errors``, ``representation``, ``max_error_met`` and ``errors_8bit``.
+        ``"auto"`` chooses its representation by the report figures, so it has no draft."""
+        if values["representation"] != "separable":
+            return None
+        return self._draft_separable(values)
+
     def _bake_separable(self, values: dict) -> SliceSet:
+        return self._draft_separable(values).complete()
+
+    def _draft_separable(self, values: dict) -> DraftSlices:
         source = make_source(values)
         method = values["factorization"]
-        selection, report = _error_samples(source)
-        reference, ref_nonfinite = _reference(source, report)
-        result = approximate_brdf(
+        selection = error_sample_for(source, SELECTION_SEED)
+        choice = choose_approximation(
             source,
             values["parametrization"],
             terms=1 if method == "nd" else values["terms"],
@@ -465,77 +484,83 @@ class Separable(Model):
             grids=self.sampling_grids(values),
             reference=_reference(source, selection)[0],
             pairs=selection,
-            report=report,
-            report_reference=reference,
         )
-        timings = dict(result.timings)
+        factors = choice.factors
         t0 = time.perf_counter()
-        slices = factors_to_slices(result.factors)
+        slices = factors_to_slices(factors)
         stored, scale, bias, clamped = encode_factor_slices(slices)
-        timings["quantize_s"] = time.perf_counter() - t0
-
+        quantize_s = time.perf_counter() - t0
         extra = {
             "brdf_source": values["source"],
-            "parametrization": result.factors.parametrization,
+            "parametrization": factors.parametrization,
             "factorization": method,
-            "target": result.target,
-            "terms": int(result.terms),
-            "sampling_grid": int(result.grid),
+            "target": choice.chosen["target"],
+            "terms": int(choice.terms),
+            "sampling_grid": int(choice.chosen["grid"]),
             "factor_resolution": FACTOR_RESOLUTION,
             "channel_layout": CHANNEL_LAYOUT,
             "factor_scale": _rounded(scale),
             "factor_bias": _rounded(bias),
-            "nonfinite_samples": result.nonfinite_samples,
-            "nonfinite_reference": ref_nonfinite,
-            "errors": {
-                "estimator": report.estimator,
-                "pairs": report.count,
-                "seed": report.seed,
-                "selection_pairs": selection.count,
-                "selection_seed": selection.seed,
-                **({} if report.lobe_alpha is None else {"lobe_alpha": report.lobe_alpha}),
-                "met_sigmas": MET_SIGMAS,
-                "float": result.errors,
-                "float_by_terms": result.errors_by_terms,
-                "estimated_8bit_srgb_by_terms": result.errors_8bit_by_terms,
-                "grid_by_terms": result.matrix_errors_by_terms,
-            },
+            "nonfinite_samples": choice.chosen["nonfinite"],
         }
-        if values.get("reflection_only"):
-            extra["transmitted_fraction"] = transmitted_fractions(values["bsdf"])
-        if result.max_error_met is not None:
-            extra["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
-            extra["max_error_met"] = result.max_error_met
-        chosen_8bit = next(e for e in result.errors_8bit_by_terms[result.target] if e["terms"] == result.terms)
-        extra["representation"] = {
-            "kind": "separable",
-            "terms": int(result.terms),
-            "sampling_grid": int(result.grid),
-            "target": result.target,
-            "error_budget": extra.get("max_error"),
-            "estimated_error_8bit": chosen_8bit["relative_rms"],
-            "estimated_error_8bit_se": chosen_8bit["relative_rms_se"],
-            "meets_budget": result.max_error_met,
-            "candidates": result.candidates,
-        }
+        timings = {**choice.timings, "quantize_s": quantize_s}
         if source.transmits:
             t0 = time.perf_counter()
             slices = np.concatenate([slices, transmission_slice(source.f_cos)[None]])
-            extra["transmission"] = {"slice": int(result.terms)}
+            extra["transmission"] = {"slice": int(choice.terms)}
             timings["transmission_s"] = time.perf_counter() - t0
-        out = SliceSet(slices, extra, timings)
+        draft = SliceSet(slices, extra, timings)
+        hand_over = {"stored": stored, "scale": scale, "bias": bias, "clamped": clamped,
+                     "parametrization": factors.parametrization, "target": choice.chosen["target"]}  # fmt: skip
         # Private hand-over to encode()/finalize(): exact arrays, never written to the manifest.
-        out._separable = {
-            "stored": stored,
-            "scale": scale,
-            "bias": bias,
-            "clamped": clamped,
-            "reference": reference,
-            "sample": report,
-            "parametrization": result.factors.parametrization,
-            "target": result.target,
-        }
-        return out
+        draft._separable = {**hand_over, "draft": True}
+
+        def complete() -> SliceSet:
+            report = error_sample_for(source, ERROR_SEED)
+            reference, ref_nonfinite = _reference(source, report)
+            result = report_approximation(choice, report, reference)
+            full = {
+                **{k: v for k, v in extra.items() if k not in ("nonfinite_samples", "transmission")},
+                "nonfinite_samples": result.nonfinite_samples,
+                "nonfinite_reference": ref_nonfinite,
+                "errors": {
+                    "estimator": report.estimator,
+                    "pairs": report.count,
+                    "seed": report.seed,
+                    "selection_pairs": selection.count,
+                    "selection_seed": selection.seed,
+                    **({} if report.lobe_alpha is None else {"lobe_alpha": report.lobe_alpha}),
+                    "met_sigmas": MET_SIGMAS,
+                    "float": result.errors,
+                    "float_by_terms": result.errors_by_terms,
+                    "estimated_8bit_srgb_by_terms": result.errors_8bit_by_terms,
+                    "grid_by_terms": result.matrix_errors_by_terms,
+                },
+            }
+            if values.get("reflection_only"):
+                full["transmitted_fraction"] = transmitted_fractions(values["bsdf"])
+            if result.max_error_met is not None:
+                full["max_error"] = values["max_error"] if values["max_error"] is not None else 0.02
+                full["max_error_met"] = result.max_error_met
+            chosen_8bit = next(e for e in result.errors_8bit_by_terms[result.target] if e["terms"] == result.terms)
+            full["representation"] = {
+                "kind": "separable",
+                "terms": int(result.terms),
+                "sampling_grid": int(result.grid),
+                "target": result.target,
+                "error_budget": full.get("max_error"),
+                "estimated_error_8bit": chosen_8bit["relative_rms"],
+                "estimated_error_8bit_se": chosen_8bit["relative_rms_se"],
+                "meets_budget": result.max_error_met,
+                "candidates": result.candidates,
+            }
+            if "transmission" in extra:
+                full["transmission"] = extra["transmission"]
+            out = SliceSet(slices, full, {**result.timings, **{k: v for k, v in timings.items() if k not in result.timings}})
+            out._separable = {**hand_over, "reference": reference, "sample": report}
+            return out
+
+        return DraftSlices(draft, complete)
 
     @staticmethod
     def sampling_grids(values: dict) -> tuple:
@@ -578,7 +603,10 @@ class Separable(Model):
         if _kind(slices) == "lut":
             return {}  # a plain slice: the generic quantization error covers it
         cached = getattr(slices, "_separable", None)
-        if cached is not None:
+        if cached is not None and cached.get("draft"):
+            reference = sample = None  # a draft's figures wait for its completion
+            name, target = cached["parametrization"], cached["target"]
+        elif cached is not None:
             reference, sample = cached["reference"], cached["sample"]
             name, target = cached["parametrization"], cached["target"]
         else:  # slices from the bake cache: only the manifest fields survive
@@ -589,14 +617,14 @@ class Separable(Model):
             target = slices.extra.get("target", "f_cos")
         k = _term_slices(slices)
         factors = _decoded_factors(slices, encoded, decoded, name, target)
-        approx = evaluate_factors(replace(factors, transmission=None), None, sample.l, sample.v, cosine=True)
         # The generic quantization error assumes one (rgb, a) scale per slice; with
         # per-factor scale and bias it is measured here, in factor units.
         err = np.abs(factors_to_slices(factors)[..., :3] - np.asarray(slices.values)[:k, ..., :3])
-        out = {
-            "errors_8bit": measure_errors(reference, approx, sample.weight),
-            "quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))},
-        }
+        out = {"quantization_error": {"max": float(err.max()), "rms": float(np.sqrt(np.mean(err**2)))}}
+        if sample is None:
+            return out
+        approx = evaluate_factors(replace(factors, transmission=None), None, sample.l, sample.v, cosine=True)
+        out = {"errors_8bit": measure_errors(reference, approx, sample.weight), **out}
         if factors.transmission is not None:
             out["transmission"] = _transmission_errors(make_source(values), factors, k)
         return out

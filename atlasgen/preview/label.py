@@ -26,8 +26,10 @@ import numpy as np
 from atlasgen.errors import BackendError
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
 
-__all__ = ["representation_text", "error_text", "label_lines", "draw_label", "LABEL_FONT_SIZE"]
+__all__ = ["representation_text", "error_text", "label_lines", "draw_label", "LABEL_FONT_SIZE", "MEASURING"]
 
+#: The error line of a picture drawn from a draft bake (watch mode) while its figure is measured.
+MEASURING = "error: measuring ... (the picture is final)"
 #: Pixel size of the label's font (Pillow's built-in one).
 LABEL_FONT_SIZE = 14
 _LINE, _PAD = LABEL_FONT_SIZE + 5, 6
@@ -82,9 +84,15 @@ def error_text(entry: MaterialEntry) -> str | None:
     return f"error: 8-bit quantisation RMS {entry.quantization_error.rms:.2g}"
 
 
-def label_lines(entry: MaterialEntry) -> list[str]:
-    """The label's lines: ``name (type)``, :func:`representation_text`, :func:`error_text` if any."""
-    error = error_text(entry)
+def label_lines(entry: MaterialEntry, measuring: bool = False) -> list[str]:
+    """The label's lines: ``name (type)``, :func:`representation_text`, :func:`error_text` if any;
+    ``measuring`` (``entry`` is a draft's, its figure still to come): :data:`MEASURING` in its place.
+
+    >>> from atlasgen.io.manifest import MaterialEntry
+    >>> label_lines(MaterialEntry(name="gold", id=0, constant="MATERIAL_GOLD", first_slice=0, type="separable"), True)[2]
+    'error: measuring ... (the picture is final)'
+    """
+    error = MEASURING if measuring else error_text(entry)
     return [f"{entry.name} ({entry.type})", representation_text(entry)] + ([error] if error else [])
 
 

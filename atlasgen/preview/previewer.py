@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.bake.pipeline import bake_atlas
+from atlasgen.bake.pipeline import BakeResult, bake_atlas
 from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
@@ -57,6 +57,9 @@ DEFAULT_CACHE_DIR = Path("build/cache")
 DEFAULT_OUTPUT_DIR = Path("build/preview")
 #: The floor's material file, shipped with atlasgen.
 FLOOR_MATERIAL = ("preview", "atlasgen-preview-floor.toml")
+#: zlib level of the preview's PNGs: the encoder's default, 6, spends more CPU on each picture for a
+#: smaller file, and a watch writes one per save. The bytes depend on the pixels alone either way.
+PNG_COMPRESSION = 2
 
 
 @dataclass
@@ -113,6 +116,15 @@ class Preview:
     manifest: Manifest | None = None
     #: Each material's physical reference (``--reference``), by name; None without one asked for.
     references: dict | None = None
+    #: ``preview(drafts=True)``: name -> completion of each material drawn from a draft bake, its label's
+    #: error still to measure (:meth:`Previewer.complete`); empty once complete, or for a full bake.
+    pending: dict = field(default_factory=dict)
+    #: The materials shown, the floor last, and the bake they were drawn from (for :meth:`Previewer.complete`).
+    materials: list = field(default_factory=list, repr=False)
+    bake: BakeResult | None = field(default=None, repr=False)
+    use_cache: bool = True
+    #: :meth:`Previewer.complete`'s steps, s: measure (the drafts' figures and the atlas again), label, encode.
+    label_timings: dict[str, float] = field(default_factory=dict)
 
     @property
     def seconds(self) -> float:
@@ -193,11 +205,14 @@ class Previewer:
         """The scene a preview renders for the material ``name`` (:mod:`atlasgen.preview.scene`)."""
         return parse_preview_scene(preview_scene_data(name, self.floor.name, self.ball_file))
 
-    def preview(self, paths, use_cache: bool = True, aovs: bool = False) -> Preview:
+    def preview(self, paths, use_cache: bool = True, aovs: bool = False, drafts: bool = False) -> Preview:
         """Bake the materials under ``paths`` into one atlas and render each: one labelled picture,
         or a contact sheet of them. ``use_cache=False`` bakes them afresh (a file they name changed,
         which the cache's key does not cover). ``aovs`` keeps each picture's g-buffer read-backs (a
-        reference needs the material-ID AOV).
+        reference needs the material-ID AOV). ``drafts`` bakes what the cache lacks as drafts where the
+        model has them (:meth:`~atlasgen.models.base.Model.bake_draft`: a separable material's SVD and
+        choice of K without the report sample's figures): the picture is the full bake's, its label says
+        the error is being measured, and :meth:`complete` measures it (``Preview.pending``).
 
         Raises the bake's and the renderer's errors (:class:`~atlasgen.errors.MaterialError` with
         the file and field, :class:`~atlasgen.errors.BackendError` without a GPU) before anything is
@@ -213,7 +228,7 @@ class Previewer:
         inputs = [Path(m.source) for m in materials] + [f for m in materials for f in referenced_files(m)]
         t1 = time.perf_counter()
         timings["read"] = t1 - t0
-        result = bake_atlas([*materials, self.floor], cache_dir=self.cache_dir if use_cache else None)
+        result = bake_atlas([*materials, self.floor], cache_dir=self.cache_dir if use_cache else None, drafts=drafts)
         atlas = RenderAtlas(result.levels, result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, result.manifest,
                             result.include, "the preview's atlas")  # fmt: skip
         t2 = time.perf_counter()
@@ -233,25 +248,66 @@ class Previewer:
             compiled = self.renderer.set_atlas(atlas)
             t3 = time.perf_counter()
             timings["upload"] = t3 - t2
+        shots, spent = self._render_shots(materials, result, aovs)
+        timings.update(spent)
+        t4 = time.perf_counter()
+        png = encode_png(arrange_sheet([cell for cell, _ in shots]), compression=PNG_COMPRESSION)
+        timings["encode"] = time.perf_counter() - t4
+        return Preview(png, [m.name for m in materials], timings, inputs, compiled, [shot for _, shot in shots],
+                       result.manifest, pending=dict(result.drafts), materials=[*materials, self.floor], bake=result,
+                       use_cache=use_cache)  # fmt: skip
+
+    def _render_shots(self, materials, result: BakeResult, aovs: bool) -> tuple[list, dict]:
+        """Each material's labelled picture and :class:`Shot`, and the time of ``render`` and ``label``."""
         entries = {e.name: e for e in result.manifest.materials}
-        cells, shots, spent = [], [], {"render": 0.0, "label": 0.0}
+        shots, spent = [], {"render": 0.0, "label": 0.0}
         for material in materials:
             t = time.perf_counter()
             scene = self.scene_for(material.name)
             frame = self.renderer.render(scene, aovs=aovs)
             codes = display_codes(frame.radiance, scene.settings.exposure)
             t_render = time.perf_counter()
-            shot = Shot(entries[material.name], scene, np.asarray(frame.radiance, np.float32), label_lines(entries[material.name]),
+            entry = entries[material.name]
+            shot = Shot(entry, scene, np.asarray(frame.radiance, np.float32), label_lines(entry, material.name in result.drafts),
                         frame.aovs if aovs else None)  # fmt: skip
-            shots.append(shot)
-            cells.append(draw_label(codes, shot.lines))
+            shots.append((draw_label(codes, shot.lines), shot))
             spent["render"] += t_render - t
             spent["label"] += time.perf_counter() - t_render
-        timings.update(spent)
-        t4 = time.perf_counter()
-        png = encode_png(arrange_sheet(cells))
-        timings["encode"] = time.perf_counter() - t4
-        return Preview(png, [m.name for m in materials], timings, inputs, compiled, shots, result.manifest)
+        return shots, spent
+
+    def complete(self, preview: Preview, references: dict | None = None) -> Preview:
+        """Measure the figures ``preview``'s drafts left out (``Preview.pending``: their completions, which
+        also fill the bake cache), bake the atlas again from the full slices, and set each shot's entry and
+        label, ``preview.manifest`` and ``preview.png`` (with ``references`` beside the pictures, as
+        :func:`compose_picture`) to what a full bake's preview shows. The pictures are kept: a draft's
+        texels and include are the full bake's; were they not, the pictures are rendered again. Timed in
+        ``preview.label_timings``; nothing to do without pending drafts.
+        """
+        if not preview.pending:
+            return preview
+        t0 = time.perf_counter()
+        baked = {name: complete() for name, complete in preview.pending.items()}
+        result = bake_atlas(preview.materials, cache_dir=self.cache_dir if preview.use_cache else None, baked=baked)
+        t1 = time.perf_counter()
+        materials = preview.materials[:-1]
+        same = result.include == preview.bake.include and all(
+            np.array_equal(a, b) for a, b in zip(result.levels, preview.bake.levels)
+        )
+        if same:
+            entries = {e.name: e for e in result.manifest.materials}
+            for shot in preview.shots:
+                shot.entry = entries[shot.name]
+                shot.lines = label_lines(shot.entry)
+        else:  # a model whose draft is not its bake: show what the full bake draws
+            self.renderer.set_atlas(RenderAtlas(result.levels, result.dxgi_format == DXGI_FORMAT_R8G8B8A8_UNORM_SRGB,
+                                                result.manifest, result.include, "the preview's atlas"))  # fmt: skip
+            shots, _ = self._render_shots(materials, result, any(s.aovs is not None for s in preview.shots))
+            preview.shots = [shot for _, shot in shots]
+        t2 = time.perf_counter()
+        preview.png = encode_png(compose_picture(preview.shots, references), compression=PNG_COMPRESSION)
+        preview.manifest, preview.bake, preview.pending = result.manifest, result, {}
+        preview.label_timings = {"measure": t1 - t0, "label": t2 - t1, "encode": time.perf_counter() - t2}
+        return preview
 
     def add_references(self, preview: Preview, max_spp: int | None = None) -> Preview:
         """Render each material's physical reference of its scene (:mod:`atlasgen.preview.reference`) to
@@ -268,19 +324,20 @@ class Previewer:
                                         max_spp=max_spp or MAX_SPP):  # fmt: skip
                 references[shot.name] = ref
         preview.references = references
-        preview.png = encode_png(compose_picture(preview.shots, references))
+        preview.png = encode_png(compose_picture(preview.shots, references), compression=PNG_COMPRESSION)
         preview.timings["reference"] = time.perf_counter() - t
         return preview
 
-    def write(self, paths, output, use_cache: bool = True, reference: bool = False, max_spp: int | None = None) -> Preview:
-        """:meth:`preview` (with ``reference``, :meth:`add_references` too), then replace ``output`` with
-        its PNG atomically (timed as ``write``).
+    def write(self, paths, output, use_cache: bool = True, reference: bool = False, max_spp: int | None = None,
+              drafts: bool = False) -> Preview:  # fmt: skip
+        """:meth:`preview` (with ``reference``, :meth:`add_references` too; ``drafts`` as there), then replace
+        ``output`` with its PNG atomically (timed as ``write``).
 
         The output is checked first (:func:`check_preview_output`); a preview that fails leaves
         ``output`` as it was.
         """
         check_preview_output(output, paths)
-        preview = self.preview(paths, use_cache, aovs=reference)
+        preview = self.preview(paths, use_cache, aovs=reference, drafts=drafts)
         if reference:
             self.add_references(preview, max_spp)
         t = time.perf_counter()

@@ -8,6 +8,7 @@ written (:func:`finite_radiance`), so no render ever holds a NaN or infinite pix
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -34,9 +35,32 @@ def finite_radiance(radiance) -> np.ndarray:
     return np.clip(np.nan_to_num(values, nan=0.0, posinf=HDR_MAX, neginf=-HDR_MAX), -HDR_MAX, HDR_MAX)
 
 
-def display_codes(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """``(h, w, 3)`` linear radiance as 8-bit sRGB codes for viewing: :func:`~atlasgen.optics.display.display_aces`."""
+def _display_codes(radiance, exposure: float) -> np.ndarray:
     return quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False)
+
+
+@functools.lru_cache(maxsize=8)
+def _half_float_codes(exposure: float) -> np.ndarray:
+    """:func:`_display_codes` of every IEEE half, indexed by its bits (65536 uint8)."""
+    every_half = np.arange(1 << 16, dtype=np.uint16).view(np.float16).astype(np.float32)
+    codes = _display_codes(every_half.reshape(1, -1, 1), exposure).reshape(-1)
+    codes.flags.writeable = False
+    return codes
+
+
+def display_codes(radiance: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """``(h, w, 3)`` linear radiance as 8-bit sRGB codes for viewing: :func:`~atlasgen.optics.display.display_aces`.
+
+    Every step is per value, so radiance read back from the ``rgba16float`` HDR target (every
+    value a half) is mapped through a table of all 65536 halves' codes, the same codes as the
+    formula gives each value, for a fraction of its cost; other radiance goes through the formula.
+    """
+    values = np.asarray(radiance)
+    if values.dtype == np.float32 and values.size > (1 << 16):
+        halves = values.astype(np.float16)
+        if np.array_equal(halves.astype(np.float32), values, equal_nan=True):
+            return _half_float_codes(float(exposure))[halves.view(np.uint16)]
+    return _display_codes(values, exposure)
 
 
 def render_png(radiance: np.ndarray, exposure: float = 1.0, near=None) -> bytes:

@@ -25,12 +25,15 @@ from atlasgen.separable.storage import quantize_factors
 
 __all__ = [
     "Approximation",
+    "Choice",
     "approximate_brdf",
+    "choose_approximation",
+    "report_approximation",
     "reference_values",
-    "search_terms",
     "TARGETS",
     "MAX_AUTO_TERMS",
     "GRID_RESOLUTIONS",
+    "search_terms",
     "DISPLAY_FACTORIZATIONS",
 ]
 
@@ -134,6 +137,155 @@ def _choose(candidates: list[dict], terms, max_error):
     return i, k, False
 
 
+@dataclass
+class Choice:
+    """The first half of :func:`approximate_brdf`: every candidate factored and judged on the
+    ``selection`` sample, and the one chosen (``index``, its ``terms``). Everything the atlas
+    stores is decided here (:attr:`factors`); :func:`report_approximation` measures the figures
+    that only describe it, on the independent report sample."""
+
+    candidates: list
+    index: int
+    terms: int
+    #: Whether the chosen candidate met ``max_error`` on the selection sample (None: K fixed).
+    met: bool | None
+    #: The largest K factored, and the K every reported curve lists.
+    most: int
+    wanted: list
+    max_error: float | None
+    measure_8bit: bool
+    selection: ErrorSample
+    timings: dict
+
+    @property
+    def chosen(self) -> dict:
+        return self.candidates[self.index]
+
+    @property
+    def factors(self) -> Factors:
+        """The chosen factors truncated to the chosen K, on the stored resolution: what the atlas holds."""
+        return self.chosen["factors"].truncated(self.terms)
+
+
+def choose_approximation(
+    source: BrdfSource,
+    parametrization: str = "half_diff",
+    terms: int | None = None,
+    max_error: float | None = None,
+    method: str = "svd",
+    target: str = "auto",
+    resolution: int = 32,
+    reference=None,
+    pairs=None,
+    srgb: bool = True,
+    measure_8bit: bool = True,
+    grids=None,
+) -> Choice:
+    """Factor and judge every candidate on the selection sample, and choose (:func:`approximate_brdf`'s
+    parameters of the same names; ``pairs`` defaults to the lobe-sampled pairs with
+    :data:`~atlasgen.separable.error.SELECTION_SEED`). Nothing here reads the report sample, so
+    the choice, and the factors, are a full :func:`approximate_brdf`'s."""
+    if terms is None and max_error is None:
+        max_error = 0.02
+    grids = (resolution,) if grids is None else tuple(sorted(set(int(g) for g in grids)))
+    p = get_parametrization(parametrization)
+    targets = TARGETS if target == "auto" else (target,)
+    most = 1 if method == "nd" else (terms or MAX_AUTO_TERMS)
+    # K = 1 .. 8 for the curves, and the fixed K itself when it is larger.
+    wanted = sorted(set(range(1, min(most, MAX_AUTO_TERMS) + 1)) | {most})
+    selection = _as_sample(error_sample_for(source, SELECTION_SEED) if pairs is None else pairs)
+    if reference is None:
+        reference, _ = reference_values(source, selection)
+    l, v = selection.pairs
+
+    timings = {"sample_s": 0.0, "svd_s": 0.0, "error_s": 0.0}
+    candidates = []
+    for grid in grids:
+        t0 = time.perf_counter()
+        matrices, nonfinite = sample_matrices(source, p, grid, targets)
+        t1 = time.perf_counter()
+        w1, w2 = _weights(p.name, grid)
+        sampled = {}
+        for name in targets:
+            sampled[name] = factorize(matrices[name], w1, w2, most, p.name, method)
+            sampled[name].target = name
+        t2 = time.perf_counter()
+        for name in targets:
+            stored = resample_factors(sampled[name], resolution)
+            # Each term has its own scale and bias, so quantizing all K terms once gives
+            # the 8-bit error of every prefix K in one more pass.
+            judged_factors = quantize_factors(stored, srgb=srgb) if measure_8bit else stored
+            judged = errors_by_terms(judged_factors, reference, l, v, wanted, log=not measure_8bit, weight=selection.weight)
+            candidates.append({"grid": grid, "target": name, "factors": stored, "sampled": sampled[name],
+                               "judged": judged_factors, "matrix": matrices[name], "weights": (w1, w2),
+                               "nonfinite": nonfinite, "errors": judged})  # fmt: skip
+        timings["sample_s"] += t1 - t0
+        timings["svd_s"] += t2 - t1
+        timings["error_s"] += time.perf_counter() - t2
+        if terms is None and any(upper_bound(c["errors"][0]) <= max_error for c in candidates):
+            break  # one term on the coarsest grid so far: no later grid can be cheaper
+
+    index, k, met = _choose(candidates, most if terms else None, max_error)
+    return Choice(candidates, index, k, met, most, wanted, max_error, measure_8bit, selection, timings)
+
+
+def report_approximation(choice: Choice, report: ErrorSample, report_reference) -> Approximation:
+    """The second half of :func:`approximate_brdf`: the reported figures of ``choice``, measured on the
+    independent ``report`` sample (f cos there: ``report_reference``), and whether the budget is met there."""
+    t3 = time.perf_counter()
+    timings = dict(choice.timings)
+    candidates, chosen, k, met, most, wanted = (
+        choice.candidates,
+        choice.chosen,
+        choice.terms,
+        choice.met,
+        choice.most,
+        choice.wanted,
+    )
+    on_grid = [c for c in candidates if c["grid"] == chosen["grid"]]
+    # Every reported figure is measured again, on the independent report sample.
+    report = _as_sample(report)
+    rl, rv, rw = report.l, report.v, report.weight
+    errors = {c["target"]: errors_by_terms(c["factors"], report_reference, rl, rv, wanted, weight=rw) for c in on_grid}
+    errors_8bit = ({c["target"]: errors_by_terms(c["judged"], report_reference, rl, rv, wanted, log=False, weight=rw)
+                    for c in on_grid} if choice.measure_8bit else {})  # fmt: skip
+    if met is not None:
+        reported = (errors_8bit or errors)[chosen["target"]]
+        met = bool(upper_bound(_at(reported, k)) <= choice.max_error)
+    grid_errors = {
+        c["target"]: [
+            float(f"{e:.6g}")
+            for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))
+        ]
+        for c in on_grid
+    }
+    timings["error_s"] += time.perf_counter() - t3
+    return Approximation(
+        factors=choice.factors,
+        terms=k,
+        target=chosen["target"],
+        errors_by_terms=errors,
+        errors_8bit_by_terms=errors_8bit,
+        matrix_errors_by_terms=grid_errors,
+        nonfinite_samples=chosen["nonfinite"],
+        nonfinite_reference=0,
+        timings=timings,
+        max_error_met=met,
+        grid=chosen["grid"],
+        candidates=[
+            {
+                "grid": c["grid"],
+                "target": c["target"],
+                "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]],
+                "relative_rms_se_by_terms": [e["relative_rms_se"] for e in c["errors"]],
+            }
+            for c in candidates
+        ],  # fmt: skip
+        selection=choice.selection,
+        report=report,
+    )
+
+
 def approximate_brdf(
     source: BrdfSource,
     parametrization: str = "half_diff",
@@ -155,7 +307,8 @@ def approximate_brdf(
     A candidate is a (sampling grid, target) pair with its K = 1 .. 8 prefixes. The
     BRDF is sampled on each grid, factored there, and carried to the stored
     ``resolution`` (:func:`~atlasgen.separable.resample.resample_factors`), so every
-    candidate is judged on what the atlas would hold.
+    candidate is judged on what the atlas would hold. It is :func:`choose_approximation`
+    (on the selection sample) followed by :func:`report_approximation` (on the report sample).
 
     Parameters
     ----------
@@ -189,97 +342,18 @@ def approximate_brdf(
         when ``pairs`` is defaulted too; otherwise ``pairs`` itself (a study that passes one
         sample chooses and reports on it).
     """
-    if terms is None and max_error is None:
-        max_error = 0.02
-    grids = (resolution,) if grids is None else tuple(sorted(set(int(g) for g in grids)))
-    p = get_parametrization(parametrization)
-    targets = TARGETS if target == "auto" else (target,)
-    most = 1 if method == "nd" else (terms or MAX_AUTO_TERMS)
-    # K = 1 .. 8 for the curves, and the fixed K itself when it is larger.
-    wanted = sorted(set(range(1, min(most, MAX_AUTO_TERMS) + 1)) | {most})
     if report is None:
         report = error_sample_for(source, ERROR_SEED) if pairs is None else pairs
         report_reference = report_reference if report_reference is not None else (reference if pairs is not None else None)
-    selection = _as_sample(error_sample_for(source, SELECTION_SEED) if pairs is None else pairs)
     report = _as_sample(report)
     ref_nonfinite = 0
-    if reference is None:
-        reference, _ = reference_values(source, selection)
     if report_reference is None:
         report_reference, ref_nonfinite = reference_values(source, report)
-    l, v = selection.pairs
-
-    timings = {"sample_s": 0.0, "svd_s": 0.0, "error_s": 0.0}
-    candidates = []
-    for grid in grids:
-        t0 = time.perf_counter()
-        matrices, nonfinite = sample_matrices(source, p, grid, targets)
-        t1 = time.perf_counter()
-        w1, w2 = _weights(p.name, grid)
-        sampled = {}
-        for name in targets:
-            sampled[name] = factorize(matrices[name], w1, w2, most, p.name, method)
-            sampled[name].target = name
-        t2 = time.perf_counter()
-        for name in targets:
-            stored = resample_factors(sampled[name], resolution)
-            # Each term has its own scale and bias, so quantizing all K terms once gives
-            # the 8-bit error of every prefix K in one more pass.
-            judged_factors = quantize_factors(stored, srgb=srgb) if measure_8bit else stored
-            judged = errors_by_terms(judged_factors, reference, l, v, wanted, log=not measure_8bit, weight=selection.weight)
-            candidates.append({"grid": grid, "target": name, "factors": stored, "sampled": sampled[name],
-                               "judged": judged_factors, "matrix": matrices[name], "weights": (w1, w2),
-                               "nonfinite": nonfinite, "errors": judged})  # fmt: skip
-        timings["sample_s"] += t1 - t0
-        timings["svd_s"] += t2 - t1
-        timings["error_s"] += time.perf_counter() - t2
-        if terms is None and any(upper_bound(c["errors"][0]) <= max_error for c in candidates):
-            break  # one term on the coarsest grid so far: no later grid can be cheaper
-
-    t3 = time.perf_counter()
-    index, k, met = _choose(candidates, most if terms else None, max_error)
-    chosen = candidates[index]
-    on_grid = [c for c in candidates if c["grid"] == chosen["grid"]]
-    # Every reported figure is measured again, on the independent report sample.
-    rl, rv, rw = report.l, report.v, report.weight
-    errors = {c["target"]: errors_by_terms(c["factors"], report_reference, rl, rv, wanted, weight=rw) for c in on_grid}
-    errors_8bit = ({c["target"]: errors_by_terms(c["judged"], report_reference, rl, rv, wanted, log=False, weight=rw)
-                    for c in on_grid} if measure_8bit else {})  # fmt: skip
-    if met is not None:
-        reported = (errors_8bit or errors)[chosen["target"]]
-        met = bool(upper_bound(_at(reported, k)) <= max_error)
-    grid_errors = {
-        c["target"]: [
-            float(f"{e:.6g}")
-            for e in matrix_errors(c["matrix"], *c["weights"], c["sampled"].truncated(min(most, MAX_AUTO_TERMS)))
-        ]
-        for c in on_grid
-    }
-    timings["error_s"] += time.perf_counter() - t3
-    return Approximation(
-        factors=chosen["factors"].truncated(k),
-        terms=k,
-        target=chosen["target"],
-        errors_by_terms=errors,
-        errors_8bit_by_terms=errors_8bit,
-        matrix_errors_by_terms=grid_errors,
-        nonfinite_samples=chosen["nonfinite"],
-        nonfinite_reference=ref_nonfinite,
-        timings=timings,
-        max_error_met=met,
-        grid=chosen["grid"],
-        candidates=[
-            {
-                "grid": c["grid"],
-                "target": c["target"],
-                "relative_rms_by_terms": [e["relative_rms"] for e in c["errors"]],
-                "relative_rms_se_by_terms": [e["relative_rms_se"] for e in c["errors"]],
-            }
-            for c in candidates
-        ],  # fmt: skip
-        selection=selection,
-        report=report,
-    )
+    choice = choose_approximation(source, parametrization, terms, max_error, method, target, resolution, reference, pairs,
+                                  srgb, measure_8bit, grids)  # fmt: skip
+    result = report_approximation(choice, report, report_reference)
+    result.nonfinite_reference = ref_nonfinite
+    return result
 
 
 def search_terms(

@@ -86,3 +86,24 @@ def test_ctrl_c_ends_a_watch_with_success(gpu_device, tmp_path, write_material):
     assert lines[0].startswith(f"first picture: {out.as_posix()} in ")
     assert lines[1].startswith(f"{clay.as_posix()} changed: {out.as_posix()} in ") and lines[1].endswith(" s")
     assert out.read_bytes() != first and out.read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("verbosity", [[], ["-q"]])
+def test_a_watch_prints_the_label_once_measured_and_its_failure_on_one_line(tmp_path, monkeypatch, write_material, verbosity):
+    from atlasgen.cli import preview_cmd
+    from atlasgen.errors import MaterialError
+    from atlasgen.preview.previewer import Preview
+
+    clay = write_material("clay", CLAY)
+    measured = Preview(b"", ["clay"], label_timings={"measure": 0.2, "label": 0.0, "encode": 0.01})
+
+    def fake_watch(paths, output, cache, on_label, **_):
+        on_label(measured, None)
+        on_label(measured, MaterialError("clay.toml", None, "report sample\nfailed"))
+
+    monkeypatch.setattr(preview_cmd, "watch_preview", fake_watch)
+    res = CliRunner().invoke(app, ["preview", str(clay), "--watch", "-o", str(tmp_path / "clay.png"), *verbosity])
+    assert res.exit_code == 0, res.output
+    failure = "atlasgen: error: clay.toml: report sample; failed (the picture stands without its error figures; watching)"
+    assert res.stderr.splitlines()[-1] == failure
+    assert res.stdout.splitlines() == ([] if verbosity else ["error figures measured in 0.210 s"])

@@ -73,6 +73,30 @@ def test_png_holds_the_codes_exactly(tmp_path, channels):
     assert encode_png(codes) == data  # same codes, same bytes
 
 
+def _zlib_level_class(data: bytes) -> int:
+    """FLEVEL of the PNG's zlib stream (RFC 1950, sec. 2.2): 0 for levels 0-1, 1 for 2-5, 2 for 6, 3 for 7-9."""
+    start = data.index(b"IDAT") + 4
+    return data[start + 1] >> 6
+
+
+@pytest.mark.parametrize("level, flevel", [(0, 0), (2, 1), (None, 2), (9, 3)])
+def test_a_png_compression_level_changes_the_bytes_not_the_codes(level, flevel):
+    y, x = np.mgrid[0:40, 0:60]
+    codes = np.stack([x * 4, y * 6, (x * y) % 256], axis=-1).astype(np.uint8)
+    data = encode_png(codes, compression=level)
+    np.testing.assert_array_equal(decode_png(data), codes)
+    assert _zlib_level_class(data) == flevel
+    assert encode_png(codes, compression=level) == data  # same codes and level, same bytes
+    if level is not None:
+        assert len(encode_png(codes, compression=0)) >= len(data) >= len(encode_png(codes, compression=9))
+
+
+@pytest.mark.parametrize("level", [-1, 10])
+def test_a_png_compression_level_is_zlibs(level):
+    with pytest.raises(ValueError, match="zlib level from 0 to 9"):
+        encode_png(np.zeros((2, 2, 3), np.uint8), compression=level)
+
+
 def test_png_takes_8_bit_codes_only():
     with pytest.raises(TypeError, match="8-bit codes"):
         encode_png(np.zeros((2, 2, 3)))

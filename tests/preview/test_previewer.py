@@ -130,3 +130,33 @@ def test_a_lambert_a_metal_and_skin_read_well(name, shipped_library_cache, gpu_d
     assert (codes.max(axis=1) >= 254).mean() < 0.03
     assert (codes.max(axis=1) < 10).mean() < 0.2
     assert 50 < np.median(codes.mean(axis=1)) < 200
+
+
+GLOSSY = 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n'
+
+
+@pytest.mark.slow
+def test_a_drafts_picture_is_the_full_bakes_and_its_label_follows(warm, tmp_path, write_material):
+    from atlasgen.preview.label import MEASURING, error_text, label_lines
+    from atlasgen.preview.watch import describe_label
+
+    glossy = write_material("glossy", GLOSSY)
+    full = warm.preview([glossy], use_cache=False)  # a full bake, as `atlasgen preview` makes it
+    draft = warm.preview([glossy], drafts=True)
+    assert list(draft.pending) == ["glossy"] and full.pending == {}
+    assert draft.shots[0].lines[:2] == full.shots[0].lines[:2] and draft.shots[0].lines[2] == MEASURING
+    np.testing.assert_array_equal(draft.shots[0].radiance, full.shots[0].radiance)
+    # The picture above the label is the full bake's; only the label differs.
+    picture, full_picture = decode(draft.png), decode(full.png)
+    np.testing.assert_array_equal(picture[:HEIGHT], full_picture[:HEIGHT])
+    assert not (warm.cache_dir / "glossy.npz").exists()
+    warm.complete(draft)
+    # Now the label is the one a full bake's manifest gives, the PNG the full preview's, byte for byte.
+    entry = full.manifest.entry_named("glossy")
+    assert draft.pending == {} and draft.shots[0].lines == label_lines(entry) and error_text(entry) in draft.shots[0].lines
+    assert error_text(entry).startswith("error: ") and "%" in error_text(entry)
+    assert draft.png == full.png and set(draft.label_timings) == {"measure", "label", "encode"}
+    assert describe_label(draft).startswith(f"glossy: {error_text(entry)} (measured in ")
+    assert (warm.cache_dir / "glossy.npz").is_file()  # the completion filled the cache
+    again = warm.preview([glossy], drafts=True)
+    assert again.pending == {} and again.png == full.png

@@ -27,7 +27,7 @@ class StandIn:
         self.calls: list[bool] = []
         self.extra_inputs = [Path(p) for p in extra_inputs]
 
-    def write(self, paths, output, use_cache=True):
+    def write(self, paths, output, use_cache=True, drafts=False):
         self.calls.append(use_cache)
         materials = read_materials(paths)
         png = b"".join(Path(m.source).read_bytes() for m in materials)
@@ -193,3 +193,57 @@ def test_the_real_preview_follows_saves_on_a_warm_renderer(gpu_device, write_mat
 
     done, lines = run_watch([clay], out, previewer, script, max_updates=3)
     assert "lighting shader compiled" in lines[0] and not any("lighting shader compiled" in line for line in lines[1:])
+
+
+class Drafting(StandIn):
+    """A stand-in whose pictures are drafts: the PNG is the file's bytes, and completing it appends the
+    label; ``fail`` makes the completion raise as a material's figures can."""
+
+    def __init__(self, fail: bool = False):
+        super().__init__()
+        self.fail, self.completed = fail, []
+
+    def write(self, paths, output, use_cache=True, drafts=False):
+        preview = super().write(paths, output, use_cache)
+        if drafts:
+            preview.pending = {name: None for name in preview.names}
+        return preview
+
+    def complete(self, preview, references=None):
+        from atlasgen.errors import MaterialError
+
+        if self.fail:
+            raise MaterialError("clay.toml", None, "the report sample failed")
+        self.completed.append(Path(self.out).read_bytes())  # the draft picture stands until now
+        preview.png += b"+label"
+        preview.pending, preview.label_timings = {}, {"measure": 0.25, "label": 0.0, "encode": 0.01}
+        return preview
+
+
+@pytest.mark.parametrize("fail", [False, True])
+def test_a_drafts_picture_comes_first_and_its_label_right_after(write_material, tmp_path, fail):
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "clay.png"
+    previewer, labelled = Drafting(fail), []
+    previewer.out = out
+
+    def script(next_update):
+        next_update()
+        rename_over(clay, CLAY.replace("0.3", "0.2"))
+        update = next_update()
+        # The picture is reported while the label is still to come.
+        assert update.error is None and update.preview.pending == {"clay": None}
+
+    done, lines = run_watch([clay], out, previewer, script, max_updates=1,
+                            on_label=lambda preview, error: labelled.append((preview.png, error)))  # fmt: skip
+    saved = CLAY.replace("0.3", "0.2").encode()
+    assert lines[0].startswith("first picture: ") and lines[2].startswith(f"{clay.as_posix()} changed: ") and len(lines) == 4
+    if fail:
+        assert [png for png, _ in labelled] == [CLAY.encode(), saved] and all("report sample" in str(e) for _, e in labelled)
+        assert lines[3].startswith("error figures: not measured, the picture keeps its label (clay.toml: the report sample")
+        assert out.read_bytes() == saved
+    else:
+        assert previewer.completed == [CLAY.encode(), saved] and [e for _, e in labelled] == [None, None]
+        assert [png for png, _ in labelled] == [CLAY.encode() + b"+label", saved + b"+label"]
+        assert lines[1] == lines[3] == "error figures measured in 0.260 s"
+        assert out.read_bytes() == saved + b"+label"

@@ -68,3 +68,33 @@ def test_the_png_the_makefile_targets_is_renamed_last(tmp_path, monkeypatch):
     monkeypatch.setattr(atomic, "commit_hook", lambda step, path: renames.append(path.name) if step == "rename" else None)
     write_render(tmp_path / "a.exr", np.zeros((2, 2, 3), np.float32))
     assert renames == ["a.exr", "a.png"]
+
+
+def _formula_codes(radiance, exposure):
+    from atlasgen.optics.display import display_aces
+    from atlasgen.optics.quantize import quantize_rgba
+    from atlasgen.render.output import finite_radiance
+
+    return quantize_rgba(display_aces(finite_radiance(radiance), exposure), srgb=False)
+
+
+@pytest.mark.parametrize("exposure", [1.0, 0.35])
+def test_display_codes_of_half_float_radiance_are_the_formulas(exposure):
+    from atlasgen.render.output import display_codes
+
+    rng = np.random.default_rng(5)
+    radiance = (rng.standard_exponential((200, 300, 3)) * rng.choice([1e-3, 0.5, 30.0], (200, 300, 3))).astype(np.float16)
+    radiance = radiance.astype(np.float32)  # as the renderer reads its rgba16float target back
+    radiance[0, :6, 0] = [np.nan, np.inf, -np.inf, -2.0, 0.0, 65504.0]
+    np.testing.assert_array_equal(display_codes(radiance, exposure), _formula_codes(radiance, exposure))
+
+
+def test_display_codes_of_other_radiance_are_the_formulas_too():
+    from atlasgen.render.output import display_codes
+
+    # float32 values between halves, where the nearest half's code differs from the value's own.
+    values = np.linspace(0.05, 0.4, 200 * 300 * 3, dtype=np.float32).reshape(200, 300, 3)
+    own = _formula_codes(values, 1.0)
+    assert (own != _formula_codes(values.astype(np.float16).astype(np.float32), 1.0)).any()
+    np.testing.assert_array_equal(display_codes(values, 1.0), own)
+    np.testing.assert_array_equal(display_codes(values.astype(np.float64), 1.0), own)
