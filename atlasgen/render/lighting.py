@@ -39,6 +39,7 @@ __all__ = [
     "pack_lights",
     "pack_light",
     "material_dispatch_wgsl",
+    "light_kinds_wgsl",
     "LIGHT_STRIDE",
 ]
 
@@ -82,6 +83,17 @@ def environment_glue_wgsl(include: str, environment: bool) -> str:
     return text
 
 
+def light_kinds_wgsl(kinds) -> str:
+    """``DIRECTIONAL_LIGHTS`` and ``SPOT_LIGHTS`` for the lighting shader: whether ``kinds`` (the
+    :class:`~atlasgen.render.layout.LightType` values a scene's lights have) holds each. lavapipe runs both
+    sides of every branch, per light and pixel, so a scene of point lights compiles the others' code out."""
+    kinds = set(kinds)
+    return "".join(
+        f"const {name}: bool = {'true' if kind in kinds else 'false'};\n"
+        for name, kind in (("DIRECTIONAL_LIGHTS", LightType.DIRECTIONAL), ("SPOT_LIGHTS", LightType.SPOT))
+    )
+
+
 #: What an empty scene's light buffer holds: WebGPU rejects zero-size buffers.
 _NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0), "range": 0.0,
              "direction": (0.0, 0.0, -1.0), "cos_outer": 0.0, "cone": (0.0, 0.0, 0.0, 0.0)}  # fmt: skip
@@ -120,12 +132,14 @@ class LightingPass:
     out = opacity * lit + (1 - opacity) * frame.
     """
 
-    def __init__(self, device, include: str, manifest: Manifest, shaded_ids=None, environment: bool = False):
+    def __init__(self, device, include: str, manifest: Manifest, shaded_ids=None, environment: bool = False,
+                 light_kinds=tuple(LightType)):  # fmt: skip
         import wgpu
 
         self.device = device
         self.environment = environment
-        glue = material_dispatch_wgsl(manifest, shaded_ids) + environment_glue_wgsl(include, environment)
+        glue = (material_dispatch_wgsl(manifest, shaded_ids) + environment_glue_wgsl(include, environment)
+                + light_kinds_wgsl(light_kinds))  # fmt: skip
         module = device.create_shader_module(
             label="lighting",
             code=assemble_shader("common.wgsl", "lighting.wgsl", declare=declaration_wgsl, include=include + "\n" + glue),

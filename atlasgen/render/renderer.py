@@ -41,7 +41,7 @@ from atlasgen.render.culling import (
 from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
-from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
+from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights
 from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
@@ -204,7 +204,7 @@ class Renderer:
         self._given_meshes[key] = mesh
         self._meshes = {k: v for k, v in self._meshes.items() if k[1] != key}
 
-    def lighting_pass_for(self, shaded_ids=frozenset(), environment: bool = False) -> LightingPass:
+    def lighting_pass_for(self, shaded_ids=frozenset(), environment: bool = False, light_kinds=tuple(LightType)) -> LightingPass:
         """The lighting pass compiled for the materials a scene shows whose model shades them
         itself (``custom_lighting``, e.g. separable BRDFs).
 
@@ -212,12 +212,16 @@ class Renderer:
         slower on lavapipe at 720p even when no pixel takes that branch (measured: 3.8 s
         against 0.43 s for 16 lights and 4 translucent objects), so a model's own code is
         only compiled in for scenes that use one of its materials. The environment term likewise
-        (``environment``): a scene without one runs the shader without it.
+        (``environment``): a scene without one runs the shader without it, and the code of directional and spot
+        lights runs only where ``light_kinds`` (:class:`~atlasgen.render.layout.LightType` values) holds them.
         """
         ids = frozenset(shaded_ids)
-        key = (ids, environment)
+        kinds = frozenset(LightType(k) for k in light_kinds) & {LightType.DIRECTIONAL, LightType.SPOT}
+        key = (ids, environment, kinds)
         if key not in self._lighting_passes:
-            self._lighting_passes[key] = LightingPass(self.device, self.include.text, self.atlas.manifest, ids, environment)
+            self._lighting_passes[key] = LightingPass(
+                self.device, self.include.text, self.atlas.manifest, ids, environment, kinds
+            )
         return self._lighting_passes[key]
 
     @property
@@ -298,7 +302,9 @@ class Renderer:
         )
         custom = [get_model(e.type).custom_lighting for e in entries]
         lighting_pass = self.lighting_pass_for(
-            (e.first_slice for e, c in zip(entries, custom) if c), scene.environment is not None
+            (e.first_slice for e, c in zip(entries, custom) if c),
+            scene.environment is not None,
+            {LightType[light.type.upper()] for light in scene.lights},
         )
         environment = self.environment.bindings(scene, entries, custom)
         opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]

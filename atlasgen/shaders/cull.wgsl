@@ -59,8 +59,8 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
         atomicStore(&depth_min_complement, 0u);
         atomicStore(&depth_max, 0u);
     }
-    if (index < LIGHT_MASK_WORDS) {  // INVOCATIONS >= LIGHT_MASK_WORDS: one word each
-        atomicStore(&mask[index], 0u);
+    for (var w = index; w < LIGHT_MASK_WORDS; w = w + INVOCATIONS) {
+        atomicStore(&mask[w], 0u);
     }
     workgroupBarrier();
     let size = vec2<u32>(frame.viewport.xy);
@@ -110,26 +110,33 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
         }
     }
     workgroupBarrier();
-    if (index < LIGHT_MASK_WORDS) {
-        let capacity = frame.counts.w;
-        let base = (tile.y * frame.counts.z + tile.x) * (capacity + 1u);
-        var offset = 0u;
-        for (var k = 0u; k < index; k = k + 1u) {
-            offset = offset + countOneBits(atomicLoad(&mask[k]));
+    // Each invocation writes the lights of its words, after those of the words before them.
+    let capacity = frame.counts.w;
+    let base = (tile.y * frame.counts.z + tile.x) * (capacity + 1u);
+    let words = (frame.counts.x + 31u) / 32u;
+    var offset = 0u;
+    var counted = 0u;
+    for (var w = index; w < words; w = w + INVOCATIONS) {
+        for (; counted < w; counted = counted + 1u) {
+            offset = offset + countOneBits(atomicLoad(&mask[counted]));
         }
-        var bits = atomicLoad(&mask[index]);
+        var bits = atomicLoad(&mask[w]);
+        counted = w + 1u;
         loop {
             if (bits == 0u) {
                 break;
             }
             if (offset < capacity) {
-                tile_lights[base + 1u + offset] = index * 32u + firstTrailingBit(bits);
+                tile_lights[base + 1u + offset] = w * 32u + firstTrailingBit(bits);
             }
             offset = offset + 1u;
             bits = bits & (bits - 1u);
         }
-        if (index == LIGHT_MASK_WORDS - 1u) {
+        if (w == words - 1u) {
             tile_lights[base] = offset;
         }
+    }
+    if (words == 0u && index == 0u) {
+        tile_lights[base] = 0u;
     }
 }

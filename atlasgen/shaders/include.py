@@ -130,6 +130,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     texture = "texture_3d" if volume else "texture_array"
     lookup = ("sample_3d(atlas, atlas_sampler, vec3(uv, (f32(material_id) + 0.5) / f32(ATLAS_LAYERS)), lod)" if volume
               else "sample_array(atlas, atlas_sampler, uv, material_id, lod)")  # fmt: skip
+    sample_params = (("atlas", texture), ("atlas_sampler", "sampler"), ("material_id", "u32"), ("n_dot_l", "f32"),
+                     ("n_dot_v", "f32"))  # fmt: skip
     decls += [
         Function("atlas_scale_bias", "vec4", (("material_id", "u32"),),
                  ((Return("ATLAS_SCALE_BIAS[material_id]"),) if "ATLAS_SCALE_BIAS" in storage else
@@ -143,25 +145,46 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
         ), "Texel centres sit at N.L = -1 + 2i/63 and N.V = j/31, so both range ends are exact."),
         Function("atlas_material_flags", "u32", (("material_id", "u32"),),
                  (Switch("material_id", flag_cases, (Return("0u"),)),), "ATLAS_FLAGS[material_id]."),
-        Function("atlas_sample", "vec4", (("atlas", texture), ("atlas_sampler", "sampler"), ("material_id", "u32"),
-                                          ("n_dot_l", "f32"), ("n_dot_v", "f32"), ("lod", "f32")), (
-            Var("vec2", "uv", "atlas_uv(n_dot_l, n_dot_v)"),
-            If("(atlas_material_flags(material_id) & ATLAS_FLAG_NEAREST) != 0u", (
-                Comment("Step functions (toon bands) are baked with their edges on texel boundaries:\n"
-                        "read the one texel, so the steps stay hard instead of ramping over a texel."),
-                Let("vec2", "size", "vec2(f32(ATLAS_WIDTH), f32(ATLAS_HEIGHT))"),
-                Assign("uv", "(floor(uv * size) + 0.5) / size"),
-            )),
-            Let("vec4", "texel", lookup),
-            Let("vec4", "sb", "atlas_scale_bias(material_id)"),
-            Return("vec4(texel.rgb * sb.x + splat3(sb.z), texel.a * sb.y + sb.w)"),
-        ), "Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale."),
+        Function("atlas_sample", "vec4", (*sample_params, ("lod", "f32")),
+                 _sample_body(lookup, "(atlas_material_flags(material_id) & ATLAS_FLAG_NEAREST) != 0u",
+                              "atlas_scale_bias(material_id)"),
+                 "Linear RGBA of a material at (N.L, N.V): RGB the diffuse response, A the specular scale."),
         *specular_declarations(),
         *environment_declarations(),
     ]  # fmt: skip
+    if storage:
+        # The renderer's light loop: a slice's scale and bias and its nearest flag depend on the pixel's material
+        # only, so it reads them once per pixel and hands them in (a software GPU gathers a storage read per lane,
+        # per light, and runs both sides of every branch). The same body as atlas_sample's.
+        decls.append(
+            Function(
+                "atlas_sample_fetched",
+                "vec4",
+                (*sample_params, ("lod", "f32"), ("nearest", "bool"), ("sb", "vec4")),
+                _sample_body(lookup, "nearest", "sb"),
+                "atlas_sample with the material's nearest flag and atlas_scale_bias(material_id) read by the caller.",
+            )
+        )
     for type_name, entries in _by_type(manifest):
         decls += models(type_name).include_declarations(entries)
     return [Storage(d.name, d.type, *storage[d.name]) if isinstance(d, Array) and d.name in storage else d for d in decls]
+
+
+def _sample_body(lookup: str, nearest: str, scale_bias: str) -> tuple:
+    """atlas_sample's statements: the texel at (N.L, N.V), the nearest one where ``nearest``, times the slice's
+    scale plus its bias (``scale_bias``: (rgb_scale, alpha_scale, rgb_bias, alpha_bias))."""
+    return (
+        Var("vec2", "uv", "atlas_uv(n_dot_l, n_dot_v)"),
+        If(nearest, (
+            Comment("Step functions (toon bands) are baked with their edges on texel boundaries:\n"
+                    "read the one texel, so the steps stay hard instead of ramping over a texel."),
+            Let("vec2", "size", "vec2(f32(ATLAS_WIDTH), f32(ATLAS_HEIGHT))"),
+            Assign("uv", "(floor(uv * size) + 0.5) / size"),
+        )),
+        Let("vec4", "texel", lookup),
+        *(() if scale_bias == "sb" else (Let("vec4", "sb", scale_bias),)),
+        Return("vec4(texel.rgb * sb.x + splat3(sb.z), texel.a * sb.y + sb.w)"),
+    )  # fmt: skip
 
 
 def render_include(

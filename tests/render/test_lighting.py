@@ -204,3 +204,40 @@ def test_ranged_and_spot_lights_match_numpy_and_are_exactly_zero_beyond_range(re
     # 2%: the lights graze parts of the plane, where the 8-bit slice holds N.L to ~1% of itself.
     assert err.max() < 2e-2, f"worst relative error {err.max():.4f}"
     assert (result.radiance[dark] == 0).all()  # at and beyond the range, and outside the cone: exactly 0
+
+
+RANGED_POINTS = """
+[[lights]]
+type = "point"
+position = [1.5, 1.0, 1.5]
+intensity = 5.0
+range = 3.0
+[[lights]]
+type = "point"
+position = [-1.0, -0.5, 2.0]
+colour = [0.3, 0.6, 1.0]
+intensity = 3.0
+range = 2.5
+"""
+OTHER_KINDS = {
+    "directional": '[[lights]]\ntype = "directional"\ndirection = [0.5, -0.3, -1.0]\nintensity = 1.5\n',
+    "spot": '[[lights]]\ntype = "spot"\nposition = [0.0, 2.5, 2.0]\ndirection = [0, -1, -0.6]\n'
+    "outer_angle = 30\nintensity = 8.0\nrange = 6.0\n",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(OTHER_KINDS))
+def test_light_kinds_compiled_per_scene_add_linearly(renderer, scene_from, kind):
+    # A scene of point lights runs a shader without the directional and spot code (DIRECTIONAL_LIGHTS,
+    # SPOT_LIGHTS); adding a light of another kind compiles its code in. Whichever shader runs, the lights
+    # add: points + other = points alone + other alone.
+    def render(lights):
+        text = SPHERE.format(lights=lights, material="glossy", gloss=0.4)
+        result = renderer.render(scene_from(text), outlines=False)
+        return result.radiance[result.aov("id") != 0xFFFF]  # the sphere: the background is no light's
+
+    points, other, both = render(RANGED_POINTS), render(OTHER_KINDS[kind]), render(RANGED_POINTS + OTHER_KINDS[kind])
+    assert points.max() > 0.2 and other.max() > 0.2 and (points > 0).mean() > 0.3 and (other > 0).mean() > 0.3
+    assert len({key[2] for key in renderer._lighting_passes}) >= 2  # two kind sets, two shaders
+    # The frame is rgba16float: each sum is rounded to half precision (2^-11 relative) once or twice.
+    np.testing.assert_allclose(both, points + other, rtol=2e-3, atol=1e-4)
