@@ -20,7 +20,7 @@ from atlasgen.bake.slots import assign_slices
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.errors import MaterialError, OutputError
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
-from atlasgen.io.atomic import recover_commits, write_files_atomically
+from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.ktx2 import (
@@ -125,7 +125,6 @@ def read_previous_slots(manifest_path) -> dict[str, int]:
     manifest whose names and slices cannot be read; deleting it re-numbers every material.
     """
     path = Path(manifest_path)
-    recover_commits(path.parent)
     return read_slots(path) if path.exists() else {}
 
 
