@@ -388,10 +388,10 @@ def write_bake(
     container (``X.ktx2`` for ``X.dds``, :func:`other_container_path`), the includes of
     languages not in ``languages``, and ``X.separable.bin`` when no material is separable.
 
-    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
-    texture, which the Makefile's rules target, is renamed into place last
-    (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
-    stale, so ``make`` bakes again.
+    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit, one rename
+    of the set's ``current`` link (:func:`atlasgen.io.atomic.write_files_atomically`): a bake
+    killed part-way leaves every file old, the atlas texture the Makefile's rules target
+    included, so ``make`` bakes again.
     """
     paths = sibling_paths(dds_path)
     every_sibling = {**paths, "other_container": other_container_path(paths["dds"])}

@@ -11,9 +11,9 @@ that never changes once made::
 (``X``: the primary output's name up to its first dot, :func:`set_key`.) A commit, under the
 set's lock (``fcntl.flock`` on ``.X.atlasgen/lock``, waiting up to :data:`LOCK_TIMEOUT_S`):
 
-1. **Write** every new file into a fresh ``gen-<n+1>`` and flush it to disk.
-2. **Check** every file the commit replaces or removes: a hard link to it fails, as a rename
-   would, for an immutable or append-only file, so nothing is replaced.
+1. **Check** every file the commit replaces or removes: one marked immutable or append-only
+   (``chattr +i``), or a folder, refuses the commit, so nothing is replaced.
+2. **Write** every new file into a fresh ``gen-<n+1>`` and flush it to disk.
 3. **Migrate**, only where a documented path is not yet this set's link (a plain file of an
    older atlasgen, a foreign link): a holding generation gets a hard link of it (and of the
    current generation's files), ``current`` is pointed at it, and the link is renamed over the
@@ -33,7 +33,8 @@ whole generation; the next commit removes what it left. Ctrl-C is held from step
 Because every new file is new, ``make`` (whose ``stat`` follows the link) sees the targets of
 a commit as fresh, and those of a killed one as stale.
 
-Single files (:func:`write_file_atomically`: caches, depfiles, previews of ``preview``) stay
+A failure before step 5 leaves what every reader sees as it was (exit 4). Single files
+(:func:`write_file_atomically`: caches, ``atlasgen preview``'s image) stay
 plain files, replaced by one rename of a temporary ``.<name>.<pid>.<random>.atlasgen.tmp``
 beside them; the next write of the same target removes those whose process is gone.
 """
@@ -47,6 +48,7 @@ import os
 import re
 import secrets
 import shutil
+import struct
 import tempfile
 import time
 from pathlib import Path
@@ -341,17 +343,28 @@ def _collect_garbage(home: Path, store: Path, previous: str | None = None) -> No
             _discard(entry)
 
 
-def _check_replaceable(path: Path, stored_file: Path, store: Path) -> None:
-    """Refuse, before anything changes, to replace a file that cannot be: linking an immutable or
-    append-only file fails as replacing it would."""
-    probe = store / f"probe.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+#: ``FS_IOC_GETFLAGS`` (``_IOR('f', 1, long)``) and the inode flags that forbid replacing a file.
+FS_IOC_GETFLAGS = 0x80086601
+FS_IMMUTABLE_FL, FS_APPEND_FL = 0x10, 0x20
+
+
+def _check_replaceable(path: Path, stored_file: Path) -> None:
+    """Refuse, before anything changes, to replace a file marked immutable or append-only
+    (``chattr +i``/``+a``, which through a link marks the generation's file): swapping
+    ``current`` would replace it all the same, against what the mark asks for. A file system
+    without inode flags has no such files."""
     try:
-        os.link(stored_file, probe, follow_symlinks=False)
-    except FileNotFoundError:
+        fd = os.open(stored_file, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
         return
-    except OSError as exc:
-        raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); nothing was replaced") from None
-    _discard(probe)
+    try:
+        flags = struct.unpack("i", fcntl.ioctl(fd, FS_IOC_GETFLAGS, bytes(8))[:4])[0]
+    except OSError:
+        return
+    finally:
+        os.close(fd)
+    if flags & (FS_IMMUTABLE_FL | FS_APPEND_FL):
+        raise OutputError(f"{path.as_posix()}: cannot replace ({os.strerror(errno.EPERM)}); nothing was replaced")
 
 
 def _hold(source: Path, held: Path) -> None:
@@ -450,7 +463,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
     for path in names:
         if _is_link_to(path, texts[path]):
             if names[path] in old:
-                _check_replaceable(path, store / current / names[path], store)
+                _check_replaceable(path, store / current / names[path])
         elif not os.path.lexists(path):
             absent.append(path)
         elif path.is_dir() and not path.is_symlink():
@@ -480,8 +493,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
             except OSError as exc:
                 raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
             for path in migrate:
-                try:
-                    _discard(holding / names[path])
+                try:  # never a name carried above: those paths are this set's links
                     _hold(path, holding / names[path])
                 except OSError as exc:
                     raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); nothing was replaced") from None
@@ -591,7 +603,7 @@ def staged_folder(folder, primary=None):
 
     On a clean exit every file written under it replaces its counterpart under
     ``folder`` in one all-or-nothing step (:func:`write_files_atomically`), ``primary``
-    (a path relative to ``folder``, the file a build rule targets) renamed last; on an
+    (a path relative to ``folder``, the file a build rule targets) naming the set; on an
     exception nothing under ``folder`` changes. The temporary folder is removed either
     way. Files already in ``folder`` that the writer did not produce are left alone.
 
