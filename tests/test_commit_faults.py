@@ -271,6 +271,11 @@ def test_a_full_validation_changes_as_one_set_through_every_fault(tmp_path, libr
     out = tmp_path / "validation"
     args = ["validate", "clay", "--atlas", atlas, "--scene", "front", "--resolution", "24x18", "--no-physical",
             "--cache", tmp_path / "no-cache", "--reference-cache", tmp_path / "references", "-o", out, "-q"]  # fmt: skip
+    # The new atlas's references rendered once first: the traced run must make the calls each
+    # faulted run makes, and a reference-cache miss adds renames (of the cache's files).
+    warm = atlasgen([*args[:-2], tmp_path / "warm", "-q"])  # -o warm
+    if warm.returncode == 5:  # no Vulkan device, no Mitsuba
+        pytest.skip(warm.stderr.strip())
     seen = drive(args, out, "report.json", use_old, use_new, immutable=["images/clay__front__atlas.png"])
     check_seen(seen)
 
