@@ -37,36 +37,44 @@ OUTPUTS = f"""\
 ## Outputs: one generation on disk
 
 Every command writes its outputs as one set: a bake's atlas, manifest, includes, side-car,
-timings, preview and depfile; a render's EXR and PNG; a report's pages, plots and JSON. A reader
-that trusts the files (an engine loading `X.dds` and `X.json` without checking their hashes) sees
-them change together, by a journaled commit (`atlasgen/io/atomic.py`):
+timings, preview and depfile; a render's EXR and PNG; a report's pages, plots and JSON. Any
+reader, one that checks the hashes or one that does not (an engine loading `X.dds` and `X.json`),
+sees them change together, at one instant, even if the command is killed
+(`atlasgen/io/atomic.py`):
 
-1. **Lock.** `fcntl.flock` on `.X.atlasgen.lock` beside the primary output (`X`: its name up to
-   the first dot). A second writer of the same set waits for the first, up to {LOCK_TIMEOUT_S:g} s
-   (`ATLASGEN_LOCK_TIMEOUT_S`), then exits 4 with one line; two bakes of one target, as two
-   `make -j` jobs might run, end as one bake's generation. The lock file exists only while held.
-2. **Stage.** Each file is written to `.<name>.<pid>.<random>.atlasgen.tmp` beside its target and
-   flushed to disk.
-3. **Check.** Every existing target, and every stale sibling the commit removes, gets a hard-linked
-   backup. Linking fails as the rename would (an immutable or append-only file, a read-only file
-   system), so a target that cannot be replaced stops the command before its first rename: exit 4,
-   `X.dds: cannot replace (Operation not permitted); nothing was replaced`.
-4. **Journal.** `.X.atlasgen.journal` names every target, its new file and its backup; it is
-   flushed to disk before the first rename.
-5. **Rename** each file over its target, the primary (the file a `make` rule targets: the atlas,
-   the render's PNG, `report.json`, `index.md`, `index.html`) last, remove the stale siblings,
-   delete the journal, then the backups. A rename that still fails puts every renamed target back
-   from its backup: exit 4, every output as it was. Ctrl-C here is held until the set is whole.
-6. **Recover.** A commit killed during its renames leaves its journal. The next atlasgen command
-   that writes the set, and every atlasgen reader of the folder (`read_atlas`, so `info`, `render`,
-   `validate` and the reports; the report merges), rolls it forward under the lock before anything
-   else; a killed roll-back is rolled back. Until then the primary is stale, so `make` runs the
-   command again, and a reader that checks the hashes refuses the mix.
+- Each output at its documented path is a relative symbolic link, made once and never changed:
+  `X.dds -> .X.atlasgen/current/X.dds` (`images/a.png -> ../.X.atlasgen/current/images/a.png`),
+  `X` being the primary output's name up to its first dot. `.X.atlasgen/current` is a link to the
+  generation folder `gen-<n>` that holds the files.
+- A commit writes every new file into a fresh `gen-<n+1>` (with hard links of the files of the
+  previous generation that it neither rewrites nor removes), then renames a new link over
+  `current`. That one rename is the commit: before it every path reads the old generation, after
+  it the new one. Names that leave the set (a stale side-car, includes in languages not asked
+  for, the other container) are then links to nothing, which a reader cannot open either, and
+  are removed. One previous generation is kept, for readers that resolved `current` a moment
+  earlier; the next commit removes the older ones, and whatever a killed run left.
+- **Lock.** `fcntl.flock` on `.X.atlasgen/lock`: a second writer of the same set waits for the
+  first, up to {LOCK_TIMEOUT_S:g} s (`ATLASGEN_LOCK_TIMEOUT_S`), then exits 4 with one line; two
+  bakes of one target, as two `make -j` jobs might run, end as one bake's generation.
+- **Exit 4 changes nothing.** A file marked immutable or append-only (`chattr +i`, which through
+  the link marks the generation's file), an output path that is a folder, or a failing rename
+  stops the command before the commit: `X.dds: cannot replace (Operation not permitted); nothing
+  was replaced`. Exit 130 (Ctrl-C, held while the commit runs) leaves each set whole, old or new.
+- **Plain files of an older atlasgen** are taken over first without a visible change: a holding
+  generation gets a hard link of each, `current` points at it, and a link is renamed over each
+  file (the same bytes before and after), then the commit swaps as above.
+- **`make`** follows the link: a commit's targets are new files, with new times, and a killed
+  commit leaves the old ones, so `make` runs the command again.
 
-The documented paths stay plain files, as engines and asset pipelines expect; the price is that
-a plain reader looking at a folder after a kill, before any atlasgen command has, can see the
-half-done set (the primary still old). Exit 4 leaves every existing output untouched; exit 130
-leaves each set whole, old or new.
+What this asks of other tools: copy an output folder with its links (`cp -r`, `cp -a`,
+`rsync -a`, `tar`; the links are relative, so the copy reads its own generation), or copy the
+files themselves (`cp -L`, `rsync -L`); `rsync -r` without `-l` skips links. A single file copied
+out (`cp X.dds elsewhere/`) is a plain file. Open a report page by its documented path: a tool that
+resolves the link first (`realpath`) finds the page inside `gen-<n>`, where a report's links to
+other folders do not lead. A reader holding a file open keeps reading its generation. A file
+written in place through its link (an editor) changes that generation's file. A file written on
+its own, not as part of a set (caches, `atlasgen preview`'s image), stays a plain file, replaced
+by one rename.
 
 """
 

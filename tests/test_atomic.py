@@ -1,10 +1,9 @@
-"""All-or-nothing outputs: a process killed at any step of a commit leaves the primary file
-stale, never a new primary beside old side files; any reader finishes a commit whose journal
-was written, and the next run removes the temporaries the killed one left."""
+"""All-or-nothing outputs: each output path is a link into ``.X.atlasgen/current``, and a commit
+is one rename of that link, so a plain reader sees one generation at every instant; a process
+killed at any step leaves the primary stale or the whole new set, and the next run tidies up."""
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -16,7 +15,7 @@ import pytest
 from atlasgen.errors import InputError, OutputError
 from atlasgen.io import atomic
 from atlasgen.io.atlas import RERUN
-from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_files_atomically
+from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_file_atomically, write_files_atomically
 from atlasgen.render.atlas_texture import read_render_atlas
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,25 +48,70 @@ def record_steps(monkeypatch):
     return steps
 
 
-def test_primary_is_renamed_last_after_every_write(tmp_path, record_steps):
-    files = {tmp_path / name: name.encode() for name in ("a.dds", "a.json", "a.wgsl")}
+def plain(folder: Path, names) -> dict:
+    """What a reader that knows nothing of atlasgen sees: the bytes at each path, None where it cannot open one."""
+    seen = {}
+    for name in names:
+        try:
+            seen[name] = (folder / name).read_bytes()
+        except FileNotFoundError:
+            seen[name] = None
+    return seen
+
+
+def visible(folder: Path) -> dict:
+    """Every path under ``folder`` outside the set stores, as a plain reader finds it: name -> bytes (None: dangling)."""
+    found = {}
+    for path in sorted(folder.rglob("*")):
+        rel = path.relative_to(folder).as_posix()
+        if rel.split("/")[0].endswith(atomic.STORE_SUFFIX) or (path.is_dir() and not path.is_symlink()):
+            continue
+        found[rel] = path.read_bytes() if path.exists() else None
+    return found
+
+
+def test_each_output_is_a_relative_link_into_the_current_generation(tmp_path, record_steps):
+    files = {tmp_path / "a.json": b"j", tmp_path / "img" / "x.png": b"x", tmp_path / "a.dds": b"d"}
     write_files_atomically(files, primary=tmp_path / "a.dds")
-    assert record_steps == [("write", "a.json"), ("write", "a.wgsl"), ("write", "a.dds"),
-                            ("rename", "a.json"), ("rename", "a.wgsl"), ("rename", "a.dds")]  # fmt: skip
-    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == {p.name: d for p, d in files.items()}
+    assert record_steps == [("write", "a.json"), ("write", "x.png"), ("write", "a.dds"),
+                            ("link", "a.json"), ("link", "x.png"), ("link", "a.dds"), ("swap", "a.dds")]  # fmt: skip
+    store = tmp_path / ".a.atlasgen"
+    assert os.readlink(store / "current") == "gen-1"
+    assert os.readlink(tmp_path / "a.dds") == ".a.atlasgen/current/a.dds"
+    assert os.readlink(tmp_path / "img" / "x.png") == "../.a.atlasgen/current/img/x.png"
+    assert visible(tmp_path) == {"a.dds": b"d", "a.json": b"j", "img/x.png": b"x"}
+    assert sorted(os.listdir(store)) == ["current", "gen-1", "lock"]
+    # The second commit swaps `current`, keeps one previous generation, and leaves the links alone.
+    links = {p: os.lstat(p).st_ino for p in files}
+    record_steps.clear()
+    write_files_atomically({tmp_path / "a.dds": b"d2"})
+    assert record_steps == [("write", "a.dds"), ("swap", "a.dds")]  # the links are made once
+    assert os.readlink(store / "current") == "gen-2" and sorted(os.listdir(store)) == ["current", "gen-1", "gen-2", "lock"]
+    assert visible(tmp_path) == {"a.dds": b"d2", "a.json": b"j", "img/x.png": b"x"}  # files not written stay
+    assert {p: os.lstat(p).st_ino for p in files} == links
+    write_files_atomically({tmp_path / "a.dds": b"d3"})
+    assert sorted(os.listdir(store)) == ["current", "gen-2", "gen-3", "lock"]
 
 
-def test_default_primary_is_the_last_file_given(tmp_path, record_steps):
+def test_an_output_outside_the_primarys_folder_is_linked_too(tmp_path):
+    build, elsewhere = tmp_path / "build", tmp_path / "previews" / "p.png"
+    write_files_atomically({elsewhere: b"p", build / "a.dds": b"d"}, primary=build / "a.dds")
+    assert os.readlink(elsewhere) == "../build/.a.atlasgen/current/@up1/previews/p.png"
+    assert elsewhere.read_bytes() == b"p"
+    write_files_atomically({build / "a.dds": b"d2"}, remove=[elsewhere])
+    assert not os.path.lexists(elsewhere)
+
+
+def test_default_primary_is_the_last_file_given(tmp_path):
     write_files_atomically({tmp_path / "x": b"1", tmp_path / "y": b"2"})
-    assert [name for step, name in record_steps if step == "rename"] == ["x", "y"]
+    assert (tmp_path / ".y.atlasgen").is_dir()
     with pytest.raises(ValueError):
         write_files_atomically({tmp_path / "x": b"1"}, primary=tmp_path / "z")
 
 
 def test_a_failed_write_leaves_every_output_and_no_temporary(tmp_path, monkeypatch):
-    old = {tmp_path / "a": b"old a", tmp_path / "b": b"old b"}
-    for path, data in old.items():
-        path.write_bytes(data)
+    old = {"a": b"old a", "b": b"old b"}
+    write_files_atomically({tmp_path / name: data for name, data in old.items()})
 
     def fail_on_second_write(step, path):
         if step == "write" and Path(path).name == "b":
@@ -75,8 +119,17 @@ def test_a_failed_write_leaves_every_output_and_no_temporary(tmp_path, monkeypat
 
     monkeypatch.setattr(atomic, "commit_hook", fail_on_second_write)
     with pytest.raises(OSError):
-        write_files_atomically({tmp_path / "a": b"new a", tmp_path / "b": b"new b"})
-    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == old
+        write_files_atomically({tmp_path / "a": b"new a", tmp_path / "b": b"new b", tmp_path / "c": b"new c"})
+    assert visible(tmp_path) == old
+    assert sorted(os.listdir(tmp_path / ".b.atlasgen")) == ["current", "gen-1", "lock"]
+
+
+def test_a_single_file_stays_a_plain_file_replaced_by_one_rename(tmp_path):
+    target = tmp_path / "cache" / "entry.bin"
+    write_file_atomically(target, b"one")
+    write_file_atomically(target, b"two")
+    assert not target.is_symlink() and target.read_bytes() == b"two"
+    assert os.listdir(target.parent) == ["entry.bin"]
 
 
 def _dead_pid() -> int:
@@ -97,8 +150,55 @@ def test_stale_temporaries_of_dead_runs_are_removed_and_live_ones_kept(tmp_path)
     dead_folder.mkdir()
     (dead_folder / "image.png").write_bytes(b"partial")
     write_files_atomically({target: b"new"})
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([target.name, live.name, other.name, foreign.name])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [target.name, live.name, other.name, foreign.name, ".atlas.atlasgen"]
+    )
     assert remove_stale_temporaries(tmp_path / "atlas.json") == [other]
+
+
+def test_plain_files_of_an_older_atlasgen_become_links_to_the_same_bytes_first(tmp_path, record_steps):
+    """The migration: a holding generation of the old files, then each file turned into its link,
+    then the swap; at every step a plain reader reads the old set."""
+    names = ("a.json", "a.glsl", "a.dds")
+    for name in names:
+        (tmp_path / name).write_bytes(f"old {name}".encode())
+    (tmp_path / "user.dds").write_bytes(b"user's")
+    os.symlink("user.dds", tmp_path / "a.wgsl")  # a link of someone else's: its target's bytes are what a reader sees
+    old = plain(tmp_path, (*names, "a.wgsl"))
+    seen = []
+    atomic.commit_hook = lambda step, path: (record_steps.append((step, Path(path).name)), seen.append(plain(tmp_path, old)))
+    try:
+        write_files_atomically({tmp_path / "a.json": b"new json", tmp_path / "a.wgsl": b"new wgsl", tmp_path / "a.dds": b"new dds"},
+                               primary=tmp_path / "a.dds", remove=[tmp_path / "a.glsl"])  # fmt: skip
+    finally:
+        atomic.commit_hook = None
+    assert [s for s, _ in record_steps] == ["write"] * 3 + ["swap"] + ["migrate"] * 4 + ["swap", "remove"]
+    assert all(view == old for view in seen[:-1])  # every step up to the second swap: the old set
+    assert plain(tmp_path, old) == {"a.json": b"new json", "a.glsl": None, "a.dds": b"new dds", "a.wgsl": b"new wgsl"}
+    assert not os.path.lexists(tmp_path / "a.glsl") and (tmp_path / "user.dds").read_bytes() == b"user's"
+
+
+def test_a_reader_holding_a_file_open_keeps_its_generation(tmp_path):
+    write_files_atomically({tmp_path / "a.json": b"old json", tmp_path / "a.dds": b"old dds"})
+    with open(tmp_path / "a.dds", "rb") as held:
+        write_files_atomically({tmp_path / "a.json": b"new json", tmp_path / "a.dds": b"new dds"})
+        write_files_atomically({tmp_path / "a.json": b"newer json", tmp_path / "a.dds": b"newer dds"})  # the old one collected
+        assert held.read() == b"old dds"
+
+
+def test_make_sees_a_new_mtime_and_a_copied_folder_still_reads(tmp_path):
+    out = tmp_path / "out"
+    write_files_atomically({out / "a.json": b"j", out / "img" / "x.png": b"x", out / "a.dds": b"d"})
+    past = 1_700_000_000
+    os.utime(out / "a.dds", (past, past))  # follows the link, as make's stat does
+    write_files_atomically({out / "a.dds": b"d2"})
+    assert os.stat(out / "a.dds").st_mtime > past + 1000
+    shutil.copytree(out, tmp_path / "copy", symlinks=True)  # cp -r, rsync -a: links copied as links
+    subprocess.run(["cp", "-r", str(out), str(tmp_path / "cp")], check=True)
+    for copy in ("copy", "cp"):
+        assert visible(tmp_path / copy) == {"a.dds": b"d2", "a.json": b"j", "img/x.png": b"x"}, copy
+    shutil.rmtree(out)
+    assert visible(tmp_path / "copy") == {"a.dds": b"d2", "a.json": b"j", "img/x.png": b"x"}  # relative: not into `out`
 
 
 def _library(tmp_path: Path, colour: str) -> Path:
@@ -118,8 +218,11 @@ def _snapshot(build: Path) -> dict:
     return {name: (build / name).read_bytes() for name in OUTPUTS if (build / name).exists()}
 
 
-def _temporaries(build: Path) -> list[str]:
-    return sorted(p.name for p in build.iterdir() if p.name.endswith(TEMP_SUFFIX))
+def _leftovers(build: Path) -> list[str]:
+    """Temporaries beside the outputs, and anything in the store but the lock, ``current`` and two generations."""
+    store = build / ".atlas.atlasgen"
+    extra = sorted(set(os.listdir(store)) - {"lock", "current", os.readlink(store / "current")})
+    return [p.name for p in build.iterdir() if p.name.endswith(TEMP_SUFFIX)] + extra[1:]
 
 
 #: The files a reader uses together: texture, manifest, include.
@@ -139,49 +242,48 @@ def _read_as_the_renderer(build: Path, old: dict, new: dict) -> str:
     return "ok"
 
 
+def _restore(saved: Path, build: Path) -> None:
+    shutil.rmtree(build)
+    shutil.copytree(saved, build, symlinks=True)
+
+
 @pytest.mark.slow
-def test_a_bake_killed_at_each_step_leaves_the_atlas_stale_and_any_reader_finishes_the_set(tmp_path):
+@pytest.mark.parametrize("before", ["links", "plain files"])
+def test_a_bake_killed_at_each_step_leaves_one_generation_for_a_plain_reader(tmp_path, before):
+    """``links``: the old set is a previous bake's; ``plain files``: an older atlasgen's, migrated first."""
     library = _library(tmp_path, "[0.2, 0.3, 0.4]")
-    build = tmp_path / "build"
-    subprocess.run(_bake_command(library, build), check=True, env=os.environ)
+    build, saved = tmp_path / "build", tmp_path / "saved"
+    subprocess.run(_bake_command(library, build), check=True)
     old = _snapshot(build)
+    if before == "plain files":
+        shutil.rmtree(build)
+        build.mkdir()
+        for name, data in old.items():
+            (build / name).write_bytes(data)
+    shutil.copytree(build, saved, symlinks=True)
     _library(tmp_path, "[0.7, 0.5, 0.3]")
     reference = tmp_path / "reference"
     subprocess.run(_bake_command(library, reference), check=True)
     new = _snapshot(reference)
     assert old["atlas.dds"] != new["atlas.dds"] and old["atlas.json"] != new["atlas.json"]
-    # Seven files: seven writes, then seven renames; the DDS last.
-    n = len(OUTPUTS)
-    steps = 2 * n
+    # Seven writes, then (plain files) the holding swap and seven migrations, then the swap.
+    steps = len(OUTPUTS) + (1 + len(OUTPUTS) if before == "plain files" else 0) + 1
     for k in range(steps):
-        env = {**os.environ, "ATLASGEN_TEST_KILL_AT": str(k)}
-        inodes = {name: (build / name).stat().st_ino for name in OUTPUTS}
-        killed = subprocess.run(_bake_command(library, build), env=env, capture_output=True)
+        killed = subprocess.run(_bake_command(library, build), env={**os.environ, "ATLASGEN_TEST_KILL_AT": str(k)},
+                                capture_output=True)  # fmt: skip
         assert killed.returncode == 137, (k, killed.stderr)
         now = _snapshot(build)
-        # Every file is whole (old or new), and the DDS is still the old one: stale.
-        assert all(now[name] in (old[name], new[name]) for name in DETERMINISTIC), k
-        json.loads(now["atlas.timings.json"])
-        assert now["atlas.dds"] == old["atlas.dds"], k
-        renamed = sorted(name for name in OUTPUTS if (build / name).stat().st_ino != inodes[name])
-        assert len(renamed) == max(0, k - n), (k, renamed)
-        # The journal is written before the first rename: from then on the set is the new one's to finish.
-        assert (build / ".atlas.atlasgen.journal").exists() == (k >= n), k
-        # Any reader finishes (or never started) the commit: the plain files are then one generation.
+        # Every file is whole and of one generation: the old one, since the swap is the last step.
+        assert {name: now[name] for name in DETERMINISTIC} == {name: old[name] for name in DETERMINISTIC}, k
         assert _read_as_the_renderer(build, old, new) == "ok", k
-        expected = new if k >= n else old
-        assert {name: (build / name).read_bytes() for name in DETERMINISTIC} == {n_: expected[n_] for n_ in DETERMINISTIC}, k
-        assert len(_temporaries(build)) == (0 if k >= n else k), k  # a killed write's temporaries wait for the next write
-        subprocess.run(_bake_command(library, build), check=True)
+        subprocess.run(_bake_command(library, build), check=True)  # finds what the kill left, and tidies it
         repaired = _snapshot(build)
         assert {n_: repaired[n_] for n_ in DETERMINISTIC} == {n_: new[n_] for n_ in DETERMINISTIC}, k
-        assert _temporaries(build) == [] and not list(build.glob(".*.atlasgen.*")), k
-        # Back to the old state for the next step.
-        for name, data in old.items():
-            (build / name).write_bytes(data)
-    killed = subprocess.run(_bake_command(library, build), env={**os.environ, "ATLASGEN_TEST_KILL_AT": str(steps)})
-    assert killed.returncode == 0  # there is no step after the last rename
-    assert _read_as_the_renderer(build, old, new) == "ok"
+        assert _leftovers(build) == [], k
+        _restore(saved, build)
+    done = subprocess.run(_bake_command(library, build), env={**os.environ, "ATLASGEN_TEST_KILL_AT": str(steps)})
+    assert done.returncode == 0  # there is no step after the swap
+    assert {n_: (build / n_).read_bytes() for n_ in DETERMINISTIC} == {n_: new[n_] for n_ in DETERMINISTIC}
 
 
 MAKE_ATLASGEN = "#!{python}\n" + KILLING_ATLASGEN
@@ -221,143 +323,162 @@ def test_make_atlas_reruns_a_bake_killed_at_any_step(tmp_path):
         if path.is_file():
             os.utime(path, (T0, T0))
     for path in [*build.rglob("*"), root / ".venv" / ".stamp"]:
-        os.utime(path, (T0 + 100, T0 + 100))
+        if path.exists():
+            os.utime(path, (T0 + 100, T0 + 100))
+    saved = tmp_path / "saved"
+    shutil.copytree(build, saved, symlinks=True)
     (library / "clay.toml").write_text('type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n')
-    for k in (0, len(OUTPUTS), 2 * len(OUTPUTS) - 1):  # first write, first rename, the DDS's rename
+    for k in (0, len(OUTPUTS) - 1, len(OUTPUTS)):  # first write, the DDS's write, the swap
         failed = _make(root, "atlas", kill_at=k)
         assert failed.returncode != 0, k
         assert _snapshot(build)["atlas.dds"] == old["atlas.dds"], k
         assert _make(root, "-q", "atlas").returncode == 1, k  # out of date: make will bake again
-        # Back to the old outputs for the next step (the next bake would finish this one's commit first).
-        for leftover in build.glob(".atlas*"):
-            leftover.unlink()
-        for name, data in old.items():
-            (build / name).write_bytes(data)
-            os.utime(build / name, (T0 + 100, T0 + 100))
+        _restore(saved, build)
     done = _make(root, "atlas")
     assert done.returncode == 0, done.stderr
     assert _make(root, "-q", "atlas").returncode == 0
     new = _snapshot(build)
     assert new["atlas.dds"] != old["atlas.dds"] and new["atlas.json"] != old["atlas.json"]
-    assert _temporaries(build) == []
+    assert _leftovers(build) == []
     manifest = (build / "atlas.json").read_text()
     assert '"colour": [0.7, 0.5, 0.3]' in manifest
 
 
-# ---- the journaled commit: checked before the first rename, rolled back, recovered, locked ----
+# ---- checked before anything changes, nothing replaced on a failure, tidied after a kill, locked ----
 
 
 def _chattr(path: Path, flag: str) -> bool:
     """``chattr +i``/``-i`` (root only, and a file system that keeps the flag); False where it cannot."""
     if os.geteuid() != 0 or shutil.which("chattr") is None:
         return False
-    return subprocess.run(["chattr", flag, str(path)], capture_output=True).returncode == 0
+    # chattr cannot flag a link itself: on an output, it flags the generation's file.
+    return subprocess.run(["chattr", flag, os.path.realpath(path)], capture_output=True).returncode == 0
 
 
 def _three(folder: Path, tag: str) -> dict:
     return {folder / name: f"{tag} {name}".encode() for name in ("a.json", "a.wgsl", "a.dds")}
 
 
+@pytest.mark.parametrize("before", ["links", "plain files"])
 @pytest.mark.parametrize("stuck", ["a.json", "a.wgsl", "a.dds"])
-def test_an_immutable_target_refuses_the_commit_before_any_rename(tmp_path, stuck):
+def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path, stuck, before):
     old = _three(tmp_path, "old")
-    for path, data in old.items():
-        path.write_bytes(data)
-    if not _chattr(tmp_path / stuck, "+i"):
+    if before == "links":
+        write_files_atomically(old, primary=tmp_path / "a.dds")
+    else:
+        for path, data in old.items():
+            path.write_bytes(data)
+    state = {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old}
+    if not _chattr(tmp_path / stuck, "+i"):  # on a link: its file in the generation
         pytest.skip("chattr +i needs root and a file system with the immutable flag")
     try:
         with pytest.raises(OutputError, match=rf"{stuck}: cannot replace \(Operation not permitted\); nothing was replaced"):
             write_files_atomically(_three(tmp_path, "new"), primary=tmp_path / "a.dds")
     finally:
         _chattr(tmp_path / stuck, "-i")
-    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == old  # no temporary, backup, journal or lock left
+    assert visible(tmp_path) == {p.name: d for p, d in old.items()}
+    assert {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old} == state  # not even migrated
+    assert sorted(os.listdir(tmp_path / ".a.atlasgen")) == (["current", "gen-1", "lock"] if before == "links" else ["lock"])
 
 
-@pytest.mark.parametrize("failing", [0, 1, 2])
-def test_a_rename_that_fails_rolls_back_every_rename_before_it(tmp_path, monkeypatch, failing):
-    old = _three(tmp_path, "old")
-    for path, data in old.items():
-        path.write_bytes(data)
-    new = {**_three(tmp_path, "new"), tmp_path / "a.glsl": b"new a.glsl"}  # one target that did not exist
-    calls = []
-    real_replace = os.replace
+@pytest.mark.parametrize("before", ["links", "plain files"])
+def test_a_rename_or_link_that_fails_leaves_what_a_reader_sees(tmp_path, monkeypatch, before):
+    """Fail each rename or symlink of a commit in turn (the holding swap, a migration, a new name's link, the swap)."""
+    new_names = ("a.json", "a.wgsl", "a.dds", "a.glsl")  # a.glsl did not exist
+    for failing in range(100):
+        folder = tmp_path / str(failing)
+        folder.mkdir()
+        old = _three(folder, "old")
+        if before == "links":
+            write_files_atomically(old, primary=folder / "a.dds")
+        else:
+            for path, data in old.items():
+                path.write_bytes(data)
+        (folder / "a.separable.bin").write_bytes(b"stale")  # a plain file in every case: migrated, then removed
+        new = {**_three(folder, "new"), folder / "a.glsl": b"new a.glsl"}
+        calls = []
 
-    def replace(src, dst):
-        calls.append(Path(dst).name)
-        if len(calls) == failing + 2:  # after the new file's rename (and `failing` more)
-            raise OSError(5, "Input/output error")
-        real_replace(src, dst)
+        def failing_call(real):
+            def call(*args, **kwargs):
+                calls.append(args[1])
+                if len(calls) == failing + 1:
+                    raise OSError(5, "Input/output error")
+                return real(*args, **kwargs)
 
-    monkeypatch.setattr(atomic.os, "replace", replace)
-    with pytest.raises(OutputError, match="cannot replace .*every output was left as it was"):
-        write_files_atomically(new, primary=tmp_path / "a.dds", remove=[tmp_path / "stale.bin"])
-    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == old
+            return call
+
+        monkeypatch.setattr(atomic.os, "replace", failing_call(os.replace))
+        monkeypatch.setattr(atomic.os, "symlink", failing_call(os.symlink))
+        try:
+            write_files_atomically(new, primary=folder / "a.dds", remove=[folder / "a.separable.bin"])
+        except OutputError as exc:
+            assert str(exc).endswith("cannot replace (Input/output error); every output was left as it was"), str(exc)
+        else:
+            break
+        finally:
+            monkeypatch.undo()
+        assert visible(folder) == {p.name: d for p, d in old.items()} | {"a.separable.bin": b"stale"}, failing
+        assert not [p for p in folder.iterdir() if p.name.endswith(TEMP_SUFFIX)], failing
+        write_files_atomically(new, primary=folder / "a.dds", remove=[folder / "a.separable.bin"])
+        assert visible(folder) == {p.name: d for p, d in new.items()}, failing
+    assert visible(folder) == {name: f"new {name}".encode() for name in new_names}
+    # Holding swap (2 calls), 1 + 3 migrations (2 each: none in the second case), a.glsl's link, the swap (2).
+    assert failing == (2 + 2 * 4 + 1 + 2 if before == "plain files" else 2 + 2 + 1 + 2)
 
 
-def _journal_case(tmp_path: Path, kill_after: int, rollback: bool = False) -> tuple[dict, dict]:
-    """A commit of three files (one removal) stopped, as a kill would, after ``kill_after`` renames."""
-    old = _three(tmp_path, "old")
-    for path, data in old.items():
-        path.write_bytes(data)
-    (tmp_path / "a.separable.bin").write_bytes(b"stale")
-    old[tmp_path / "a.separable.bin"] = b"stale"
-    new = _three(tmp_path, "new")
+def test_a_commit_killed_after_its_swap_is_tidied_by_the_next(tmp_path):
+    """The swap done, the stale links not yet removed: they resolve to nothing (absent to a
+    reader), and the next commit removes them with the generation that held them."""
+    write_files_atomically({tmp_path / "a.separable.bin": b"side", **_three(tmp_path, "old")}, primary=tmp_path / "a.dds")
 
     class Killed(BaseException):
         pass
 
-    renames = []
-
     def hook(step, path):
-        if step == "rename":
-            renames.append(path)
-            if len(renames) > kill_after:
-                raise Killed
+        if step == "remove":
+            raise Killed
 
     atomic.commit_hook = hook
-    real_unlink = atomic._unlink
     try:
-        # A kill leaves every file as it is: no clean-up may run.
-        atomic._unlink = lambda path: None  # type: ignore[assignment]
         with pytest.raises(Killed):
-            write_files_atomically(new, primary=tmp_path / "a.dds", remove=[tmp_path / "a.separable.bin"])
+            write_files_atomically(_three(tmp_path, "new"), primary=tmp_path / "a.dds", remove=[tmp_path / "a.separable.bin"])
     finally:
         atomic.commit_hook = None
-        atomic._unlink = real_unlink  # type: ignore[assignment]
-    if rollback:
-        (tmp_path / ".a.atlasgen.rollback").touch()
-    return old, new
+    assert visible(tmp_path) == {**{p.name: d for p, d in _three(tmp_path, "new").items()}, "a.separable.bin": None}
+    write_files_atomically({tmp_path / "a.dds": b"newer"})
+    assert not os.path.lexists(tmp_path / "a.separable.bin")
+    assert sorted(os.listdir(tmp_path / ".a.atlasgen")) == ["current", "gen-2", "gen-3", "lock"]
 
 
-def _outputs(folder: Path) -> dict:
-    return {p: p.read_bytes() for p in folder.iterdir()}
+def test_a_killed_commits_generation_and_dangling_links_are_removed_by_the_next(tmp_path):
+    write_files_atomically(_three(tmp_path, "old"), primary=tmp_path / "a.dds")
 
+    class Killed(BaseException):
+        pass
 
-@pytest.mark.parametrize("kill_after", [0, 1, 2, 3])
-def test_a_reader_rolls_a_killed_commit_forward(tmp_path, kill_after):
-    _, new = _journal_case(tmp_path, kill_after)
-    assert (tmp_path / ".a.atlasgen.journal").exists()
-    assert atomic.recover_commits(tmp_path) == [tmp_path / ".a.atlasgen.journal"]
-    assert _outputs(tmp_path) == new  # the side-car removed, every temporary and backup gone
+    def hook(step, path):
+        if step == "swap":
+            raise Killed
 
-
-@pytest.mark.parametrize("kill_after", [0, 1, 2, 3])
-def test_a_killed_rollback_is_rolled_back(tmp_path, kill_after):
-    old, _ = _journal_case(tmp_path, kill_after, rollback=True)
-    atomic.recover_commits(tmp_path)
-    assert _outputs(tmp_path) == old
-
-
-def test_a_half_written_journal_is_discarded_with_nothing_renamed(tmp_path):
-    (tmp_path / "a.dds").write_bytes(b"old")
-    (tmp_path / ".a.atlasgen.journal").write_text('{"version": 1, "entries": [{"target": ')
-    write_files_atomically({tmp_path / "a.dds": b"new"})
-    assert _outputs(tmp_path) == {tmp_path / "a.dds": b"new"}
+    atomic.commit_hook = hook
+    real_rmtree, real_discard = atomic.shutil.rmtree, atomic._discard
+    try:
+        atomic.shutil.rmtree = atomic._discard = lambda *a, **k: None  # a kill runs no clean-up
+        with pytest.raises(Killed):
+            write_files_atomically({tmp_path / "a.glsl": b"new glsl", **_three(tmp_path, "new")}, primary=tmp_path / "a.dds")
+    finally:
+        atomic.commit_hook = None
+        atomic.shutil.rmtree, atomic._discard = real_rmtree, real_discard
+    assert visible(tmp_path) == {"a.glsl": None, **{p.name: d for p, d in _three(tmp_path, "old").items()}}
+    write_files_atomically({tmp_path / "a.dds": b"newer"})
+    assert not os.path.lexists(tmp_path / "a.glsl")
+    assert sorted(os.listdir(tmp_path / ".a.atlasgen")) == ["current", "gen-1", "gen-2", "lock"]
+    assert atomic._names(tmp_path / ".a.atlasgen" / "gen-2") == ["a.dds", "a.json", "a.wgsl"]  # the killed one's gone
 
 
 def test_a_second_writer_waits_for_the_lock_then_refuses_with_one_line(tmp_path):
     with atomic.output_lock(tmp_path, "a") as lock:
-        assert lock == tmp_path / ".a.atlasgen.lock" and lock.exists()
+        assert lock == tmp_path / ".a.atlasgen" / "lock"
         with pytest.raises(OutputError) as refused:
             with atomic.output_lock(tmp_path, "a", timeout=0.2):
                 pass
@@ -365,27 +486,24 @@ def test_a_second_writer_waits_for_the_lock_then_refuses_with_one_line(tmp_path)
                                       "(waited 0.2 s); expected one writer at a time")  # fmt: skip
         with atomic.output_lock(tmp_path, "b", timeout=0):  # another set's lock is free
             pass
-    assert not lock.exists()
     with atomic.output_lock(tmp_path, "a", timeout=0):
         pass
 
 
 def test_removed_siblings_go_in_the_same_commit(tmp_path):
-    for name in ("a.dds", "a.glsl", "a.ktx2"):
-        (tmp_path / name).write_bytes(b"old")
+    write_files_atomically({tmp_path / "a.glsl": b"old", tmp_path / "a.dds": b"old"})
+    (tmp_path / "a.ktx2").write_bytes(b"plain")
     write_files_atomically({tmp_path / "a.dds": b"new"}, remove=[tmp_path / "a.glsl", tmp_path / "a.ktx2", tmp_path / "gone"])
-    assert _outputs(tmp_path) == {tmp_path / "a.dds": b"new"}
+    assert visible(tmp_path) == {"a.dds": b"new"}
 
 
-def test_a_killed_commit_whose_target_became_immutable_is_rolled_back(tmp_path):
-    old, _ = _journal_case(tmp_path, 1)  # a.json renamed, a.wgsl and a.dds not yet
-    if not _chattr(tmp_path / "a.dds", "+i"):
+def test_an_immutable_file_the_commit_keeps_is_carried_as_a_copy(tmp_path):
+    write_files_atomically({tmp_path / "a.hlsl": b"kept", tmp_path / "a.dds": b"old"})
+    if not _chattr(tmp_path / "a.hlsl", "+i"):
         pytest.skip("chattr +i needs root and a file system with the immutable flag")
     try:
-        atomic.recover_commits(tmp_path)
-        left = _outputs(tmp_path)
+        write_files_atomically({tmp_path / "a.dds": b"new"})
+        write_files_atomically({tmp_path / "a.dds": b"newer"})  # gen-1's immutable file cannot be collected: it stays
     finally:
-        _chattr(tmp_path / "a.dds", "-i")
-    # Every output as it was; the immutable file's backup (a link to it) cannot be removed, and stays hidden.
-    assert {p: d for p, d in left.items() if not p.name.startswith(".")} == old
-    assert [(p.name.startswith(".a.dds."), d) for p, d in left.items() if p.name.startswith(".")] == [(True, b"old a.dds")]
+        _chattr(tmp_path / ".a.atlasgen" / "gen-1" / "a.hlsl", "-i")
+    assert visible(tmp_path) == {"a.dds": b"newer", "a.hlsl": b"kept"}

@@ -20,7 +20,7 @@ from atlasgen.bake.slots import assign_slices
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.errors import MaterialError, OutputError
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
-from atlasgen.io.atomic import recover_commits, write_files_atomically
+from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.ktx2 import (
@@ -128,7 +128,6 @@ def read_previous_slots(manifest_path) -> dict[str, int]:
     manifest whose names and slices cannot be read; deleting it re-numbers every material.
     """
     path = Path(manifest_path)
-    recover_commits(path.parent)
     return read_slots(path) if path.exists() else {}
 
 
@@ -415,10 +414,10 @@ def write_bake(
     container (``X.ktx2`` for ``X.dds``, :func:`other_container_path`), the includes of
     languages not in ``languages``, and ``X.separable.bin`` when no material is separable.
 
-    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit. The atlas
-    texture, which the Makefile's rules target, is renamed into place last
-    (:func:`atlasgen.io.atomic.write_files_atomically`): a bake killed part-way leaves it
-    stale, so ``make`` bakes again.
+    ``extra_files`` (``{path: bytes}``, e.g. a Make depfile) join the same commit, one rename
+    of the set's ``current`` link (:func:`atlasgen.io.atomic.write_files_atomically`): a bake
+    killed part-way leaves every file old, the atlas texture the Makefile's rules target
+    included, so ``make`` bakes again.
     """
     paths = sibling_paths(dds_path)
     every_sibling = {**paths, "other_container": other_container_path(paths["dds"])}

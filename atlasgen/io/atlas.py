@@ -22,7 +22,6 @@ import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.errors import InputError, ManifestError
-from atlasgen.io.atomic import recover_commits
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
@@ -119,9 +118,7 @@ def read_atlas(path) -> Atlas:
     then against the texture: the header's width, height, layers, mip count, layout and
     encoding must be what the manifest claims (and the atlas contract's 64x32x256), and
     the texture's texels must hash to the manifest's ``atlas_sha256`` (:func:`texel_sha256`),
-    and a KTX2's recorded manifest hash must be this manifest's. Each file is read once,
-    after any commit a killed bake left half-done in the folder is finished
-    (:func:`atlasgen.io.atomic.recover_commits`).
+    and a KTX2's recorded manifest hash must be this manifest's. Each file is read once.
 
     Raises
     ------
@@ -132,7 +129,6 @@ def read_atlas(path) -> Atlas:
         The manifest is not a valid manifest.
     """
     path = Path(path)
-    recover_commits(path.parent)  # a bake killed mid-commit: its set rolled forward first
     if not path.exists():
         raise InputError(f"{path.as_posix()}: no such atlas")
     try:

@@ -1,46 +1,54 @@
-"""All-or-nothing output sets: a journaled commit under a lock.
+"""All-or-nothing output sets: a generation folder swapped by one rename, under a lock.
 
 A command's outputs (a bake's ``X.dds``, ``X.json``, includes, side-car and timings; a
 render's EXR and PNG; a report's pages) change together or not at all, as seen by any
-atlasgen reader and, once any atlasgen command has touched the folder after a crash, by a
-plain file reader too. The files at the documented paths stay plain files. The commit:
+reader, atlasgen or not. Each output at its documented path is a relative symbolic link
+that never changes once made::
 
-1. **Lock.** ``fcntl.flock`` on ``.<key>.atlasgen.lock`` beside the primary output (``key``:
-   the primary's name up to its first dot), waiting up to :data:`LOCK_TIMEOUT_S` for another
-   writer of the same set, then refusing with one line. A leftover journal of a killed
-   writer is recovered first (step 6).
-2. **Stage.** Every new file is written to a temporary beside its target and fsynced.
-3. **Check.** Every existing target (and every file the commit removes) gets a hard-linked
-   backup: this fails, before any rename, for a target that cannot be replaced (immutable,
-   append-only, a read-only file system), so nothing is replaced.
-4. **Journal.** ``.<key>.atlasgen.journal`` names, for every target, its new temporary and
-   its backup; it is fsynced (and its folder) before the first rename.
-5. **Rename** each temporary over its target (removals unlink), the primary last, then fsync
-   the folders, delete the journal, and then the backups. A rename that still fails rolls
-   every renamed target back from its backup before the error is raised: nothing changed.
-6. **Recover.** A journal left by a killed writer is rolled *forward* (the rest of its
-   temporaries renamed, its removals done) by the next writer of the set or by any atlasgen
-   reader of the folder (:func:`recover_commits`); a killed rollback (marked by
-   ``.<key>.atlasgen.rollback``) is rolled back. A journal that is not complete (the writer
-   died writing it, before any rename) is deleted.
+    X.dds -> .X.atlasgen/current/X.dds        images/a.png -> ../.X.atlasgen/current/images/a.png
+    .X.atlasgen/current -> gen-7              .X.atlasgen/gen-7/X.dds, X.json, ...
 
-Ctrl-C is held during steps 4-5 (:func:`atlasgen.interrupts.deferred_interrupts`) and acted
-on once the set is whole. Because the primary (the file a ``make`` rule targets) is renamed
-last, a run killed mid-commit also leaves it stale, so ``make`` runs the command again.
+(``X``: the primary output's name up to its first dot, :func:`set_key`.) A commit, under the
+set's lock (``fcntl.flock`` on ``.X.atlasgen/lock``, waiting up to :data:`LOCK_TIMEOUT_S`):
 
-Temporaries and backups are named ``.<name>.<pid>.<random>.atlasgen.tmp`` beside their
-target; the next write of the same target removes those whose process is gone (never those
-of a live process: it may be a parallel job).
+1. **Check** every file the commit replaces or removes: one marked immutable or append-only
+   (``chattr +i``), or a folder, refuses the commit, so nothing is replaced.
+2. **Write** every new file into a fresh ``gen-<n+1>`` and flush it to disk.
+3. **Migrate**, only where a documented path is not yet this set's link (a plain file of an
+   older atlasgen, a foreign link): a holding generation gets a hard link of it (and of the
+   current generation's files), ``current`` is pointed at it, and the link is renamed over the
+   file. A plain reader sees the same bytes before and after each step.
+4. **Link** each new name (a link into ``current`` that does not resolve yet: absent to a reader).
+5. **Swap**: a temporary link ``current.<pid>.<random>.tmp -> gen-<n+1>`` renamed over
+   ``current``. This one rename is the commit: before it every path resolves to the old
+   generation, after it to the new one.
+6. **Tidy**: the links of names that left the set (stale siblings, ``remove``) now resolve to
+   nothing and are unlinked; generations older than the previous one are removed by the
+   next commit (a reader that resolved ``current`` just before the swap still finds its files).
+
+The new generation holds the files written, plus (hard links of) the previous generation's
+files that were neither rewritten nor removed: files a command did not write are left as they
+were, as with plain files. A run killed at any instant leaves every path resolving into one
+whole generation; the next commit removes what it left. Ctrl-C is held from step 3 to 6.
+Because every new file is new, ``make`` (whose ``stat`` follows the link) sees the targets of
+a commit as fresh, and those of a killed one as stale.
+
+A failure before step 5 leaves what every reader sees as it was (exit 4). Single files
+(:func:`write_file_atomically`: caches, ``atlasgen preview``'s image) stay
+plain files, replaced by one rename of a temporary ``.<name>.<pid>.<random>.atlasgen.tmp``
+beside them; the next write of the same target removes those whose process is gone.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
-import json
 import os
 import re
+import secrets
 import shutil
+import struct
 import tempfile
 import time
 from pathlib import Path
@@ -54,31 +62,31 @@ __all__ = [
     "staged_folder",
     "scratch_folder",
     "remove_stale_temporaries",
-    "recover_commits",
     "output_lock",
     "set_key",
+    "store_path",
     "TEMP_SUFFIX",
-    "LOCK_SUFFIX",
-    "JOURNAL_SUFFIX",
+    "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
 ]
 
-#: Every temporary file or folder this module creates ends with this.
+#: Every temporary file or folder this module creates beside an output ends with this.
 TEMP_SUFFIX = ".atlasgen.tmp"
-#: ``.<key>.atlasgen.lock``: the lock file of an output set, present only while a writer holds it.
-LOCK_SUFFIX = ".atlasgen.lock"
-#: ``.<key>.atlasgen.journal``: present only while a commit renames, or after one was killed.
-JOURNAL_SUFFIX = ".atlasgen.journal"
-#: ``.<key>.atlasgen.rollback``: present only while a failed commit rolls back.
-ROLLBACK_SUFFIX = ".atlasgen.rollback"
+#: ``.<key>.atlasgen``: the folder of an output set's generations, its ``current`` link and its lock.
+STORE_SUFFIX = ".atlasgen"
+CURRENT = "current"
+LOCK_NAME = "lock"
+GENERATION = re.compile(r"gen-(\d+)$")
+#: A generation stores an output outside the primary's folder as ``@up<k>/<rest>`` (``k`` leading ``..``).
+UP = "@up"
 #: Seconds a writer waits for another writer of the same output set (``ATLASGEN_LOCK_TIMEOUT_S``
 #: overrides it) before it refuses with one line.
 LOCK_TIMEOUT_S = 120.0
-JOURNAL_VERSION = 1
 
-#: Test hook: when set, called as ``hook(step, path)`` before each step of a commit,
-#: ``step`` being ``"write"`` (a temporary for ``path``) or ``"rename"`` (onto ``path``, or
-#: its removal). Tests set it to kill the process at every step in turn; it is None otherwise.
+#: Test hook: when set, called as ``hook(step, path)`` before each step of a commit: ``"write"``
+#: (a new file for ``path``), ``"migrate"`` (``path`` turned into its link), ``"link"`` (a new
+#: name's link), ``"swap"`` (the commit, ``path`` the primary), ``"remove"`` (a stale link).
+#: Tests set it to kill the process at every step in turn; it is None otherwise.
 commit_hook = None
 
 
@@ -96,13 +104,22 @@ def _folder(path: Path) -> Path:
 
 
 def set_key(primary) -> str:
-    """The name an output set's lock and journal are called by: the primary's name up to its first dot.
+    """The name an output set's store and lock are called by: the primary's name up to its first dot.
 
     >>> set_key("build/atlas.dds"), set_key("out/report.json"), set_key(".hidden")
     ('atlas', 'report', '.hidden')
     """
     name = Path(primary).name
     return name.split(".", 1)[0] or name
+
+
+def store_path(primary) -> Path:
+    """``.<key>.atlasgen`` beside ``primary``: the folder that holds its set's generations.
+
+    >>> store_path("build/atlas.dds").as_posix()
+    'build/.atlas.atlasgen'
+    """
+    return _folder(Path(primary)) / f".{set_key(primary)}{STORE_SUFFIX}"
 
 
 def _pid_alive(pid: int) -> bool:
@@ -119,7 +136,7 @@ def remove_stale_temporaries(path) -> list[Path]:
     """Remove the temporaries of ``path`` left by runs that died; return what was removed.
 
     Only names this module makes (``.<name>.<pid>.<random>.atlasgen.tmp``) whose pid is no
-    longer running are touched; files and folders alike.
+    longer running are touched; files, links and folders alike.
     """
     path = Path(path)
     folder = _folder(path)
@@ -144,7 +161,7 @@ def remove_stale_temporaries(path) -> list[Path]:
     return removed
 
 
-def _fsync_folder(folder: Path) -> None:
+def _fsync_folder(folder) -> None:
     try:
         fd = os.open(folder, os.O_RDONLY)
     except OSError:
@@ -157,8 +174,9 @@ def _fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
-def _unlink(path) -> None:
-    with contextlib.suppress(FileNotFoundError):
+def _discard(path) -> None:
+    """Remove a link or file if it can be: an immutable one stays, without harm."""
+    with contextlib.suppress(OSError):
         os.unlink(path)
 
 
@@ -171,234 +189,227 @@ def _lock_timeout() -> float:
 
 @contextlib.contextmanager
 def output_lock(folder, key: str, timeout: float | None = None):
-    """Hold ``folder/.<key>.atlasgen.lock`` (``fcntl.flock``, exclusive) for the block.
+    """Hold ``folder/.<key>.atlasgen/lock`` (``fcntl.flock``, exclusive) for the block; yield its path.
 
     Waits up to ``timeout`` seconds (default :data:`LOCK_TIMEOUT_S`, or
-    ``ATLASGEN_LOCK_TIMEOUT_S``) for another process holding it.
+    ``ATLASGEN_LOCK_TIMEOUT_S``) for another process holding it. The lock file stays in the
+    set's store, so a waiter always locks the file the holder locked.
 
     Raises
     ------
     OutputError
         The lock file cannot be opened, or another writer held it for the whole timeout.
     """
-    folder = Path(folder)
-    lock_path = folder / f".{key}{LOCK_SUFFIX}"
+    store = Path(folder) / f".{key}{STORE_SUFFIX}"
+    lock_path = store / LOCK_NAME
     timeout = _lock_timeout() if timeout is None else timeout
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise OutputError(f"{lock_path.as_posix()}: cannot open the output set's lock file ({exc.strerror})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            if time.monotonic() >= deadline:
-                raise OutputError(f"{lock_path.as_posix()}: another atlasgen process is writing this output set "
-                                  f"(waited {timeout:g} s); expected one writer at a time") from None  # fmt: skip
-            time.sleep(0.05)
-            continue
-        try:
-            current = os.stat(lock_path).st_ino
-        except FileNotFoundError:
-            current = None
-        if current == os.fstat(fd).st_ino:
-            break
-        os.close(fd)  # the holder before us removed the file we locked: lock the new one
     try:
+        store.mkdir(parents=True, exist_ok=True)
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise OutputError(f"{lock_path.as_posix()}: cannot open the output set's lock file ({exc.strerror})") from None
+    try:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise OutputError(f"{lock_path.as_posix()}: another atlasgen process is writing this output set "
+                                      f"(waited {timeout:g} s); expected one writer at a time") from None  # fmt: skip
+                time.sleep(0.05)
         yield lock_path
     finally:
-        # Removed while still held, so no lock file is left beside the outputs; a waiter
-        # that locked the removed file notices above and locks afresh.
-        _unlink(lock_path)
-        os.close(fd)
+        os.close(fd)  # closing releases the lock
 
 
-def _read_journal(journal: Path) -> list | None:
-    """The entries of a complete journal, or None for one a killed writer left half-written."""
-    try:
-        data = json.loads(journal.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(data, dict) or data.get("version") != JOURNAL_VERSION or data.get("complete") is not True:
-        return None
-    entries = data.get("entries")
-    ok = isinstance(entries, list) and all(
-        isinstance(e, dict)
-        and isinstance(e.get("target"), str)
-        and all(isinstance(e.get(k), (str, type(None))) for k in ("new", "old"))
-        for e in entries
-    )
-    return entries if ok else None
+# ---- a generation store: .<key>.atlasgen/{lock, current -> gen-<n>, gen-<n>/...} ----
 
 
-def _roll_back(entries: list) -> None:
-    """Undo a commit's renames: every target as its backup had it (or absent, if it had none)."""
-    for entry in reversed(entries):
-        target, new, old = entry["target"], entry["new"], entry["old"]
-        if new is not None and os.path.lexists(new):
-            _discard(new)  # never renamed: the target is still the old file
-            if old is not None:
-                _discard(old)
-            continue
-        if old is not None:
-            if os.path.lexists(old):
-                os.replace(old, target)  # a no-op when both are links of one file ...
-                _discard(old)  # ... which leaves the backup to remove
-        elif new is not None:
-            _unlink(target)  # the target did not exist before this commit
+def _stored_name(home: Path, path: Path) -> str:
+    """Where ``path`` lives inside a generation: its path from the primary's folder ``home``,
+    ``..`` parts (an output outside ``home``, e.g. a ``--preview`` elsewhere) written ``@up<k>/``.
 
-
-def _roll_forward(entries: list) -> None:
-    """Finish a commit whose journal is complete: the remaining renames and removals, then the backups."""
-    for entry in entries:
-        target, new = entry["target"], entry["new"]
-        if new is None:
-            _unlink(target)
-        elif os.path.lexists(new):
-            os.replace(new, target)
-    for folder in dict.fromkeys(os.path.dirname(e["target"]) or "." for e in entries):
-        _fsync_folder(Path(folder))
-
-
-def _remove_backups(entries: list) -> None:
-    for entry in entries:
-        if entry["old"] is not None:
-            _discard(entry["old"])
-
-
-def _discard(path) -> None:
-    """Remove a temporary or a backup if it can be: a backup of an immutable file cannot be, and
-    stays (under a temporary's name) without harm."""
-    with contextlib.suppress(OSError):
-        os.unlink(path)
-
-
-def _recover(journal: Path) -> None:
-    """Roll a leftover journal forward, or back when a rollback was under way; the caller holds the lock."""
-    marker = journal.with_name(journal.name[: -len(JOURNAL_SUFFIX)] + ROLLBACK_SUFFIX)
-    entries = _read_journal(journal) if journal.exists() else None
-    if entries is not None:
-        if marker.exists():
-            _roll_back(entries)
-        else:
-            try:
-                _roll_forward(entries)
-            except OSError:  # a target that can no longer be replaced: back to the old set
-                _mark_rollback(marker)
-                _roll_back(entries)
-            _remove_backups(entries)
-    _unlink(journal)
-    _fsync_folder(_folder(journal))
-    _unlink(marker)
-
-
-def _mark_rollback(marker: Path) -> None:
-    """Create the rollback marker (flushed), so that a roll-back killed half-way is finished as one."""
-    with contextlib.suppress(OSError):
-        os.close(os.open(marker, os.O_WRONLY | os.O_CREAT, 0o644))
-        _fsync_folder(_folder(marker))
-
-
-def _journal_path(folder: Path, key: str) -> Path:
-    return folder / f".{key}{JOURNAL_SUFFIX}"
-
-
-def recover_commits(folder, wait: bool = True) -> list[Path]:
-    """Recover every commit a killed writer left half-done in ``folder``; return their journals.
-
-    Each journal is rolled forward (or a killed rollback back) under its set's lock, so a
-    live writer's commit is waited for, never touched. Readers call this before they read;
-    it does nothing (one ``listdir``) when no journal is there. Errors are left to the
-    reader's own checks (a read-only folder cannot be repaired; the hashes still refuse a mix).
+    >>> _stored_name(Path("/b"), Path("/b/img/a.png")), _stored_name(Path("/b/x"), Path("/b/y/p.png"))
+    ('img/a.png', '@up1/y/p.png')
     """
-    folder = Path(folder) if str(folder) else Path(".")
+    parts = Path(os.path.relpath(os.path.abspath(path), os.path.abspath(home))).parts
+    ups = len(parts) - len(tuple(p for p in parts if p != ".."))
+    return "/".join((f"{UP}{ups}",) * (ups > 0) + parts[ups:])
+
+
+def _target_path(home: Path, stored: str) -> Path:
+    """The output path a generation's ``stored`` name stands for (the inverse of :func:`_stored_name`)."""
+    first, _, rest = stored.partition("/")
+    if first.startswith(UP) and first[len(UP) :].isdigit() and rest:
+        return home.joinpath(*([".."] * int(first[len(UP) :])), rest)
+    return home / stored
+
+
+def _link_text(store: Path, stored: str, path: Path) -> str:
+    """The relative text of ``path``'s link into ``store/current``; from the real folders, as the
+    kernel resolves ``..`` in a link from the folder it is really in."""
+    return os.path.relpath(os.path.join(os.path.realpath(store), CURRENT, stored), os.path.realpath(_folder(path)))
+
+
+def _is_link_to(path: Path, text: str) -> bool:
     try:
-        journals = sorted(p for p in folder.iterdir() if p.name.startswith(".") and p.name.endswith(JOURNAL_SUFFIX))
+        return os.readlink(path) == text
     except OSError:
-        return []
-    done = []
-    for journal in journals:
-        key = journal.name[1 : -len(JOURNAL_SUFFIX)]
-        try:
-            with output_lock(folder, key, None if wait else 0.0):
-                if journal.exists():
-                    _recover(journal)
-                    done.append(journal)
-        except (OSError, OutputError):
-            continue
-    return done
+        return False
 
 
-def _backup(path: Path) -> str | None:
-    """A hard link to the current ``path`` (None if there is none), kept until the commit is done.
+def _names(gen: Path) -> list[str]:
+    """Every stored name of a generation (files and links, folders walked), sorted."""
+    names: list[str] = []
 
-    Linking fails, as the rename would, for an immutable or append-only file or on a
-    read-only file system: the commit stops before its first rename.
-    """
-    if not os.path.lexists(path):
+    def walk(folder: Path, prefix: str) -> None:
+        with os.scandir(folder) as entries:
+            for entry in sorted(entries, key=lambda e: e.name):
+                if entry.is_dir(follow_symlinks=False):
+                    walk(Path(entry.path), f"{prefix}{entry.name}/")
+                else:
+                    names.append(prefix + entry.name)
+
+    with contextlib.suppress(OSError):
+        walk(gen, "")
+    return names
+
+
+def _current(store: Path) -> str | None:
+    """The name of the generation ``store/current`` points at (None before the first commit)."""
+    try:
+        name = os.readlink(store / CURRENT)
+    except OSError:
         return None
-    backup = tempfile.mktemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=_folder(path))
+    return name if GENERATION.match(name) else None
+
+
+def _new_generation(store: Path) -> Path:
+    numbers = [int(m.group(1)) for m in map(GENERATION.match, os.listdir(store)) if m]
+    gen = store / f"gen-{max(numbers, default=0) + 1}"
+    gen.mkdir()
+    return gen
+
+
+def _unchanged(path: Path, exc: OSError) -> OutputError:
+    return OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); every output was left as it was")
+
+
+def _swap(store: Path, gen: Path, primary: Path) -> None:
+    """Point ``store/current`` at ``gen`` by one rename of a fresh link over it: the commit.
+
+    Raises
+    ------
+    OutputError
+        The link cannot be made or renamed; ``current`` is then as it was.
+    """
+    tmp = store / f"{CURRENT}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
     try:
-        os.link(path, backup, follow_symlinks=False)
+        os.symlink(gen.name, tmp)
+        _fsync_folder(store)
+        _step("swap", primary)
+        os.replace(tmp, store / CURRENT)
     except OSError as exc:
-        raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); nothing was replaced") from None
-    return backup
+        _discard(tmp)
+        raise _unchanged(primary, exc) from None
+    _fsync_folder(store)
 
 
-def _write_journal(journal: Path, entries: list, primary: Path) -> None:
-    data = json.dumps({"version": JOURNAL_VERSION, "pid": os.getpid(), "entries": entries, "complete": True}, indent=1)
+def _drop_links(home: Path, store: Path, names, keep: set) -> None:
+    """Unlink this set's links of ``names`` not in ``keep``: they resolve to nothing once the
+    generation that held them is no longer ``current`` (absent to a reader already)."""
+    for stored in _linked(home, store, set(names) - keep):
+        path = _target_path(home, stored)
+        _step("remove", path)
+        _discard(path)
+
+
+def _collect_garbage(home: Path, store: Path, previous: str | None = None) -> None:
+    """Remove what earlier commits left in ``store`` (the caller holds the lock): every generation
+    but ``current`` (and ``previous``), with the links of names only they held (a commit killed
+    after its swap), and killed commits' temporary links."""
+    current = _current(store)
+    keep = set(_names(store / current)) if current else set()
+    for name in sorted(os.listdir(store)):
+        if name in (CURRENT, LOCK_NAME, current, previous):
+            continue
+        entry = store / name
+        if GENERATION.match(name) and entry.is_dir() and not entry.is_symlink():
+            _drop_links(home, store, _names(entry), keep)
+            shutil.rmtree(entry, ignore_errors=True)  # an immutable file stays, and is tried again next time
+        elif not entry.is_dir() or entry.is_symlink():
+            _discard(entry)
+
+
+#: ``FS_IOC_GETFLAGS`` (``_IOR('f', 1, long)``) and the inode flags that forbid replacing a file.
+FS_IOC_GETFLAGS = 0x80086601
+FS_IMMUTABLE_FL, FS_APPEND_FL = 0x10, 0x20
+
+
+def _check_replaceable(path: Path, stored_file: Path) -> None:
+    """Refuse, before anything changes, to replace a file marked immutable or append-only
+    (``chattr +i``/``+a``, which through a link marks the generation's file): swapping
+    ``current`` would replace it all the same, against what the mark asks for. A file system
+    without inode flags has no such files."""
     try:
-        fd = os.open(journal, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(data + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
+        fd = os.open(stored_file, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return
+    try:
+        flags = struct.unpack("i", fcntl.ioctl(fd, FS_IOC_GETFLAGS, bytes(8))[:4])[0]
+    except OSError:
+        return
+    finally:
+        os.close(fd)
+    if flags & (FS_IMMUTABLE_FL | FS_APPEND_FL):
+        raise OutputError(f"{path.as_posix()}: cannot replace ({os.strerror(errno.EPERM)}); nothing was replaced")
+
+
+def _hold(source: Path, held: Path) -> None:
+    """Put what a reader of ``source`` sees at ``held``: a hard link of a file (a copy across file
+    systems), or, for a link, one with the same target made absolute."""
+    held.parent.mkdir(parents=True, exist_ok=True)
+    if source.is_symlink():
+        os.symlink(os.path.join(os.path.abspath(_folder(source)), os.readlink(source)), held)
+        return
+    try:
+        os.link(source, held, follow_symlinks=False)
     except OSError as exc:
-        _unlink(journal)
-        raise OutputError(f"{primary.as_posix()}: cannot write ({exc.strerror}, writing the commit journal {journal.name}); "
-                          "nothing was replaced") from None  # fmt: skip
-    _fsync_folder(_folder(journal))
+        if exc.errno != errno.EXDEV:
+            raise
+        shutil.copy2(source, held)
 
 
-def _commit(journal: Path, entries: list, primary: Path) -> None:
-    """Steps 4-5 of the module's commit: journal, renames (rolled back on failure), clean-up."""
-    _write_journal(journal, entries, primary)
-    done = []
-    for entry in entries:
-        target = Path(entry["target"])
-        _step("rename", target)
-        try:
-            if entry["new"] is None:
-                _unlink(target)
-            else:
-                os.replace(entry["new"], target)
-        except OSError as exc:
-            marker = journal.with_name(journal.name[: -len(JOURNAL_SUFFIX)] + ROLLBACK_SUFFIX)
-            _mark_rollback(marker)
-            _roll_back(entries)
-            _unlink(journal)
-            _unlink(marker)
-            raise OutputError(f"{target.as_posix()}: cannot replace ({exc.strerror}); every output was left as it was") from None
-        done.append(entry)
-    for folder in dict.fromkeys(_folder(Path(e["target"])) for e in entries):
-        _fsync_folder(folder)
-    _unlink(journal)
-    _fsync_folder(_folder(journal))
-    _remove_backups(entries)
+def _write_file(path: Path, data: bytes) -> None:
+    with open(path, "xb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.chmod(path, 0o644)
+
+
+def _link_into(path: Path, text: str) -> None:
+    """Turn ``path`` (a plain file, a foreign link) into the link ``text`` by one rename."""
+    tmp = Path(tempfile.mktemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=_folder(path)))
+    os.symlink(text, tmp)
+    try:
+        os.replace(tmp, path)
+    except OSError:
+        _discard(tmp)
+        raise
 
 
 def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
     """Write ``{path: bytes}`` and remove the files ``remove`` names as one set: all or nothing.
 
-    The journaled commit of this module's docstring, under the set's lock: temporaries
-    written beside their targets and fsynced, every target checked replaceable (a
-    hard-linked backup), a journal, the renames (in the order given, the removals after
-    them and ``primary`` last), the journal deleted. Any failure, before or
-    during the renames, leaves every existing output as it was; a process killed during
-    the renames leaves a journal the next writer or reader rolls forward, and ``primary``
-    stale until then, so a build rule that targets it runs again.
+    The generation commit of this module's docstring, under the set's lock: the new files
+    written into a fresh generation, every file replaced or removed checked replaceable, the
+    documented paths made links (once), and ``current`` swapped to the new generation by one
+    rename. Any failure leaves every output as a reader saw it (a plain file of an older
+    atlasgen may have become a link to the same bytes); a process killed at any instant leaves
+    every output resolving into one generation, old or new.
 
     Parameters
     ----------
@@ -406,15 +417,15 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
         ``{path: bytes}``.
     primary
         The path a build rule targets (a key of ``contents``); default: the last key. Its
-        folder holds the set's lock and journal.
+        folder holds the set's store ``.<key>.atlasgen`` (:func:`store_path`).
     remove
         Paths that must not survive the commit (stale siblings); those absent are skipped.
 
     Raises
     ------
     OutputError
-        A folder cannot be created, a temporary cannot be written, a target cannot be
-        replaced, or another writer holds the set's lock past the timeout.
+        A folder cannot be created, a file cannot be written, a target cannot be replaced
+        (nothing is then replaced), or another writer holds the set's lock past the timeout.
     """
     items = [(Path(p), data) for p, data in contents.items()]
     if not items:
@@ -423,69 +434,167 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
         primary = Path(primary)
         if primary not in {p for p, _ in items}:
             raise ValueError(f"primary {primary} is not one of the files written")
-        items = [item for item in items if item[0] != primary] + [item for item in items if item[0] == primary]
-    primary = items[-1][0]
+    primary = Path(primary) if primary is not None else items[-1][0]
     written = {os.path.abspath(p) for p, _ in items}
     removals = [Path(p) for p in dict.fromkeys(os.path.abspath(p) for p in remove) if p not in written]
     home = _folder(primary)
     try:
         home.mkdir(parents=True, exist_ok=True)
+        for path, _ in items:
+            _folder(path).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"{home.as_posix()}: cannot write output folder ({exc.strerror})") from None
+        raise OutputError(f"{exc.filename or home.as_posix()}: cannot write output folder ({exc.strerror})") from None
     key = set_key(primary)
-    journal = _journal_path(home, key)
     with output_lock(home, key):
-        if journal.exists():
+        store = home / f".{key}{STORE_SUFFIX}"
+        _collect_garbage(home, store)
+        _commit(home, store, primary, items, removals)
+
+
+def _commit(home: Path, store: Path, primary: Path, items: list, removals: list) -> None:
+    """Steps 1-6 of the module's docstring; the caller holds the lock."""
+    names = {path: _stored_name(home, path) for path, _ in items}
+    names.update({path: _stored_name(home, path) for path in removals})
+    texts = {path: _link_text(store, stored, path) for path, stored in names.items()}
+    current = _current(store)
+    old = set(_names(store / current)) if current else set()
+    # Each path: this set's link already, absent, or to be migrated (a plain file, another link).
+    migrate, absent = [], []
+    for path in names:
+        if _is_link_to(path, texts[path]):
+            if names[path] in old:
+                _check_replaceable(path, store / current / names[path])
+        elif not os.path.lexists(path):
+            absent.append(path)
+        elif path.is_dir() and not path.is_symlink():
+            raise OutputError(f"{path.as_posix()}: cannot replace (Is a directory); nothing was replaced")
+        else:
+            migrate.append(path)
+    absent = [path for path in absent if path not in removals]
+    holding = _new_generation(store) if migrate else None  # numbered before the new generation
+    gen = _new_generation(store)
+    done = False
+    made: list[Path] = []
+    try:
+        for path, data in items:
+            _step("write", path)
+            remove_stale_temporaries(path)
+            target = gen / names[path]
             try:
-                _recover(journal)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                _write_file(target, data)
             except OSError as exc:
-                raise OutputError(f"{primary.as_posix()}: cannot finish the commit a killed run left in {journal.name} "
-                                  f"({exc.strerror}); expected its outputs to be replaceable") from None  # fmt: skip
-        staged: list[tuple[str, Path]] = []
-        entries: list[dict[str, str | None]] = []
-        committed = False
-        try:
-            for path, data in items:
-                folder = _folder(path)
-                _step("write", path)
-                try:
-                    folder.mkdir(parents=True, exist_ok=True)
-                    remove_stale_temporaries(path)
-                    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
+                raise OutputError(f"{path.as_posix()}: cannot write ({exc.strerror})") from None
+        _fsync_tree(gen)
+        if holding is not None:
+            try:
+                for stored in _linked(home, store, old):
+                    _carry(store / current / stored, holding / stored)
+            except OSError as exc:
+                raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
+            for path in migrate:
+                try:  # never a name carried above: those paths are this set's links
+                    _hold(path, holding / names[path])
                 except OSError as exc:
-                    raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
-                staged.append((tmp, path))
+                    raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); nothing was replaced") from None
+            _fsync_tree(holding)
+        with deferred_interrupts():
+            if holding is not None:
+                _swap(store, holding, primary)
+                current, old = holding.name, set(_names(holding))
+                holding = None  # current now: not to be removed on failure
+                for path in migrate:
+                    _step("migrate", path)
+                    try:
+                        _link_into(path, texts[path])
+                    except OSError as exc:
+                        raise _unchanged(path, exc) from None
+            fresh = {names[path] for path, _ in items}
+            gone = {names[path] for path in removals}
+            try:
+                for stored in _linked(home, store, old - fresh - gone):
+                    _carry(store / current / stored, gen / stored)
+            except OSError as exc:
+                raise _unchanged(primary, exc) from None
+            for path in absent:
+                _step("link", path)
                 try:
-                    with os.fdopen(fd, "wb") as fh:
-                        fh.write(data)
-                        fh.flush()
-                        os.fsync(fh.fileno())
+                    os.symlink(texts[path], path)
                 except OSError as exc:
-                    raise OutputError(f"{path.as_posix()}: cannot write ({exc.strerror})") from None
-                os.chmod(tmp, 0o644)
-            # Removals go before the primary, so that a killed commit still leaves the primary stale.
-            order: list[tuple[str | None, Path]] = [(tmp, path) for tmp, path in staged[:-1]]
-            order += [(None, p) for p in removals if os.path.lexists(p)]
-            order += [(tmp, path) for tmp, path in staged[-1:]]
-            for new, path in order:
-                entry: dict[str, str | None] = {"target": os.path.abspath(path), "new": new and os.path.abspath(new), "old": None}
-                entries.append(entry)
-                entry["old"] = _backup(path)
-            with deferred_interrupts():
-                _commit(journal, entries, primary)
-            committed = True
-        finally:
-            # A journal still there means renames began and neither finished nor rolled back: its
-            # temporaries and backups are what recovery needs, so they stay.
-            if not committed and not journal.exists():
-                for tmp, _ in staged:
-                    _unlink(tmp)
-                _remove_backups(entries)
+                    raise _unchanged(path, exc) from None
+                made.append(path)
+            for folder in dict.fromkeys(_folder(path) for path in names):
+                _fsync_folder(folder)
+            _swap(store, gen, primary)
+            done = True
+            _drop_links(home, store, sorted(old), set(_names(gen)))
+            _collect_garbage(home, store, previous=current)  # a migration's extra generation
+    finally:
+        if not done:
+            for path in made:
+                _discard(path)
+            for folder in (gen, holding):
+                if folder is not None:
+                    shutil.rmtree(folder, ignore_errors=True)
+
+
+def _linked(home: Path, store: Path, names) -> list[str]:
+    """The ``names`` whose output path is still this set's link (a name whose link was removed
+    or replaced by hand is not carried into the next generation)."""
+    return [s for s in sorted(names) if _is_link_to(p := _target_path(home, s), _link_text(store, s, p))]
+
+
+def _carry(source: Path, dest: Path) -> None:
+    """A file of the current generation into the next, unchanged: a hard link (same bytes, same mtime)."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.link(source, dest, follow_symlinks=False)
+    except OSError:  # an immutable file (or a copy across file systems): the same bytes, copied
+        shutil.copy2(source, dest, follow_symlinks=False)
+
+
+def _fsync_tree(folder: Path) -> None:
+    for sub, _, _ in os.walk(folder):
+        _fsync_folder(sub)
 
 
 def write_file_atomically(path, data: bytes) -> None:
-    """Atomically replace one file; see :func:`write_files_atomically`."""
-    write_files_atomically({path: data})
+    """Atomically replace one plain file: a temporary beside it, flushed, renamed over it.
+
+    A reader sees the old file or the new one, whole; a process killed first leaves a
+    temporary that the next write of ``path`` removes.
+
+    Raises
+    ------
+    OutputError
+        The folder or the temporary cannot be written, or ``path`` cannot be replaced.
+    """
+    path = Path(path)
+    folder = _folder(path)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path)
+        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
+    except OSError as exc:
+        raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
+    try:
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, 0o644)
+        except OSError as exc:
+            raise OutputError(f"{path.as_posix()}: cannot write ({exc.strerror})") from None
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); it was left as it was") from None
+        tmp = None
+        _fsync_folder(folder)
+    finally:
+        if tmp is not None:
+            _discard(tmp)
 
 
 @contextlib.contextmanager
@@ -494,7 +603,7 @@ def staged_folder(folder, primary=None):
 
     On a clean exit every file written under it replaces its counterpart under
     ``folder`` in one all-or-nothing step (:func:`write_files_atomically`), ``primary``
-    (a path relative to ``folder``, the file a build rule targets) renamed last; on an
+    (a path relative to ``folder``, the file a build rule targets) naming the set; on an
     exception nothing under ``folder`` changes. The temporary folder is removed either
     way. Files already in ``folder`` that the writer did not produce are left alone.
 

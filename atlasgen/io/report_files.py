@@ -8,7 +8,6 @@ import math
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
-from atlasgen.io.atomic import recover_commits
 
 __all__ = ["report_json_paths", "read_report_json", "loads_finite_json", "check_number"]
 
@@ -66,7 +65,6 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
 def read_report_json(path: Path, kind: str, command: str):
     """The parsed JSON of one report (no NaN or infinities), or an :class:`InputError` naming the file and the fix."""
     path = Path(path)
-    recover_commits(path.parent)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

@@ -71,8 +71,8 @@ def render_png(radiance: np.ndarray, exposure: float = 1.0, near=None) -> bytes:
 def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
     """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither.
 
-    The PNG is renamed into place last: it is what the Makefile's render rule targets,
-    so a run killed between the two renames is run again.
+    One commit (:func:`atlasgen.io.atomic.write_files_atomically`), the PNG its primary: it is
+    what the Makefile's render rule targets, so a killed run leaves it stale and is run again.
     """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")

@@ -315,7 +315,7 @@ def write_library_report(
         cost_device=table.device,
         cost_unit=table.unit,
     )
-    # Previews, plots and the page that links them, as one set; the page is renamed last.
+    # Previews, plots and the page that links them, as one set; the page is the primary (make's target).
     write_files_atomically(files, primary=index)
     return index
 

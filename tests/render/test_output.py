@@ -61,13 +61,21 @@ def test_written_radiance_is_finite_and_the_exr_carries_no_time_stamp(tmp_path):
     assert spec.getattribute("DateTime") is None and b"DateTime" not in (tmp_path / "a.exr").read_bytes()
 
 
-def test_the_png_the_makefile_targets_is_renamed_last(tmp_path, monkeypatch):
+def test_the_exr_and_png_are_one_set_committed_by_one_swap(tmp_path, monkeypatch):
+    """Both are links into ``.a.atlasgen/current``; the commit is one swap, named by the PNG the
+    Makefile's render rule targets."""
+    import os
+
     from atlasgen.io import atomic
 
-    renames = []
-    monkeypatch.setattr(atomic, "commit_hook", lambda step, path: renames.append(path.name) if step == "rename" else None)
+    steps = []
+    monkeypatch.setattr(atomic, "commit_hook", lambda step, path: steps.append((step, path.name)))
     write_render(tmp_path / "a.exr", np.zeros((2, 2, 3), np.float32))
-    assert renames == ["a.exr", "a.png"]
+    assert [step for step in steps if step[0] != "write"] == [("link", "a.exr"), ("link", "a.png"), ("swap", "a.png")]
+    assert [os.readlink(tmp_path / name) for name in ("a.exr", "a.png")] == [
+        ".a.atlasgen/current/a.exr",
+        ".a.atlasgen/current/a.png",
+    ]
 
 
 def _formula_codes(radiance, exposure):

@@ -59,7 +59,7 @@ def library(tmp_path_factory):
 def check_page(driver, page: Path, shot: str) -> dict:
     """Open ``page``, assert what every report page must satisfy, save a full-page screenshot."""
     driver.get_log("browser")  # drop what earlier pages logged
-    driver.get(page.resolve().as_uri())
+    driver.get(page.absolute().as_uri())  # the documented path: resolved, it is the generation's file
     driver.execute_script("return document.readyState")
     images = driver.execute_script(
         "return Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, i.naturalWidth]);"
