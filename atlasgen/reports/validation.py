@@ -109,8 +109,8 @@ def look_verdict(look: dict, ref: dict | None) -> dict:
     if not look or look.get("reference") is None or ref is None:
         return {"meets_goal": None, "not_judged": None}
     if ref.get("noise_floor_ok") is False:
-        short = [f"{name}: floor {_psnr_text(p.get('noise_floor_db'))} dB" for name, p in (ref.get("parts") or {}).items()
-                 if p.get("noise_floor_ok") is False]  # fmt: skip
+        short = [f"{name}: floor {_psnr_text(p.get('noise_floor_db'))} dB at {p.get('spp', ref.get('spp'))} spp"
+                 for name, p in (ref.get("parts") or {}).items() if p.get("noise_floor_ok") is False]  # fmt: skip
         return {
             "meets_goal": None,
             "not_judged": f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB"
@@ -162,6 +162,7 @@ def report_dict(run) -> dict:
                     part["noise_floor_db"] = _finite(part_floor)
                     psnr_db = math.inf if part["psnr_db"] is None else part["psnr_db"]
                     part["noise_floor_ok"] = bool(part_floor >= psnr_db + NOISE_FLOOR_MARGIN_DB)
+                    part["spp"] = (getattr(ref, "part_spp", None) or {}).get(name, ref.spp)
             if getattr(ref, "mask", None) is not None:
                 refs[kind]["masked_fraction"] = ref.masked_fraction
                 refs[kind]["masked"] = ref.masked
@@ -394,7 +395,8 @@ def noise_floor_failures(data: dict) -> list[str]:
                     where, there = ("", "") if name is None else (f" on the {name}", " there")
                     out.append(f"{row['material']} on {row['scene']}: the {kind} reference's noise floor{where} "
                                f"{_psnr_text(figures.get('noise_floor_db'))} dB is not 10 dB above the PSNR it measures{there} "
-                               f"({_psnr_text(figures.get('psnr_db'))} dB) at {ref.get('spp')} spp; raise --max-physical-spp")  # fmt: skip
+                               f"({_psnr_text(figures.get('psnr_db'))} dB) at {figures.get('spp', ref.get('spp'))} spp; "
+                               f"raise --max-physical-spp")  # fmt: skip
     return out
 
 
@@ -552,7 +554,9 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
                            f"{ref['clipped_pixels']} ({_fmt(ref.get('unclipped_psnr_db'), '.2f')} dB unclipped)",
                 "grazing": _region_text(ref, "grazing"), "rest": _region_text(ref, "rest"),
                 "parts": "; ".join(f"{name}: {_fmt(p['psnr_db'], '.2f')} / {_fmt(p['flip'], '.4f')} ({p['coverage']:.1%})"
-                                   + (f", floor {_fmt(p.get('noise_floor_db'), '.1f')}" if "noise_floor_db" in p else "")
+                                   + (f", floor {_fmt(p.get('noise_floor_db'), '.1f')} at {p.get('spp')} spp"
+                                      + (" (too noisy)" if p.get("noise_floor_ok") is False else "")
+                                      if "noise_floor_db" in p else "")
                                    for name, p in (ref.get("parts") or {}).items()),
                 # A floor is the floor at some sample count: a budgeted run (make demo) stops short.
                 "floor": f"{_fmt(ref.get('noise_floor_db'), '.1f')} at {ref.get('spp')} spp" if "noise_floor_db" in ref else "",

@@ -129,6 +129,7 @@ class ReferenceRender:
     mask: np.ndarray | None = None  # (h, w) True where the comparison leaves pixels out
     masked: str | None = None  # what the mask removes, for the report
     part_floors: dict = field(default_factory=dict)  # part -> the noise floor on its pixels (metrics.parts)
+    part_spp: dict = field(default_factory=dict)  # part -> the samples per pixel its object took (:func:`_converged_by_object`)
 
     @property
     def masked_fraction(self) -> float | None:
@@ -428,11 +429,14 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             phys = physical_reference(entry) if physical else None
             if phys is not None:
                 # A medium's reference shows each object as the physics of its shape (a plane: a slab): scored apart.
-                parts = _object_parts(renderer, bound, entry, aovs) if phys.interior is not None else None
-                if parts:
-                    run.notes.append(PARTS_NOTE.format(", ".join(parts)))
-                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp, renders,
-                                          atlas_image, run.exposure, outside, regions, parts)  # fmt: skip
+                objects = _object_parts(renderer, bound, entry, aovs) if phys.interior is not None else []
+                if objects:
+                    run.notes.append(PARTS_NOTE.format(", ".join(label for label, _, _ in objects)))
+                    ref = _converged_by_object(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                                               renders, atlas_image, run.exposure, outside, regions, objects)  # fmt: skip
+                else:
+                    ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                                              renders, atlas_image, run.exposure, outside, regions)  # fmt: skip
                 run.references["physical"] = ref
                 say(
                     f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
@@ -557,25 +561,61 @@ PARTS_NOTE = (
 )
 
 
-def _object_parts(renderer, scene, entry, aovs) -> dict:
-    """``{label: (h, w) bool}``: the pixels showing ``entry`` in ``aovs`` (the g-buffer of ``scene``), split by
-    the object they show, where two or more objects show it (else ``{}``). Each object is drawn alone by the
-    renderer; a pixel is that object's where its depth there is the whole scene's, the nearest surface.
-    A plane is the "flat part"; a shape shown by two objects is named with each one's index."""
+def _object_parts(renderer, scene, entry, aovs) -> list:
+    """``[(label, object index, (h, w) bool)]``: the pixels showing ``entry`` in ``aovs`` (the g-buffer of
+    ``scene``), split by the object they show, where two or more objects show it (else ``[]``). Each object
+    is drawn alone by the renderer; a pixel is that object's where its depth there is the whole scene's,
+    the nearest surface. A plane is the "flat part"; a shape shown by two objects is named with each
+    one's index."""
     own = material_mask(entry, aovs)
     objects = [o for o in scene.objects if o.material == entry.name]
     if len(objects) < 2:
-        return {}
+        return []
     depth = np.asarray(aovs["depth"])
     shapes = [o.shape for o in objects]
-    out = {}
+    out = []
     for obj in objects:
         alone = renderer.render(replace(scene, objects=[obj]), outlines=False, aovs=True).aovs
         label = "flat part" if obj.shape == "plane" else obj.shape
         if shapes.count(obj.shape) > 1:
             label += f" (objects[{obj.index}])"
-        out[label] = own & material_mask(entry, alone) & (np.asarray(alone["depth"]) == depth)
+        out.append((label, obj.index, own & material_mask(entry, alone) & (np.asarray(alone["depth"]) == depth)))
     return out
+
+
+def _converged_by_object(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure,
+                         outside, regions, objects) -> ReferenceRender:  # fmt: skip
+    """A medium's physical reference converged object by object (``objects``: :func:`_object_parts`), and measured.
+
+    Each object is rendered alone at its own pixels (:func:`render_physical`'s ``only``) and gets the
+    samples its own floor needs against its own error (:func:`_converged_physical` on its pixels): a
+    flat part whose error is large converges in a few hundred samples where the sphere's small one
+    needs thousands. The reference is their sum (each is 0 off its pixels), measured over the
+    material's pixels with the objects as ``parts``; ``part_floors`` are the objects' floors, and
+    the whole comparison's floor follows from them, the display MSE of two seeds adding over pixels:
+
+        F = -10 log10(sum_k n_k 10^(-F_k / 10) / sum_k n_k),  n_k the pixels of part k.
+
+    Each part clearing its floor by the margin makes the whole clear it too (its noise is at most a
+    tenth of its error on every part). ``spp`` is the most any object took, ``part_spp`` each one's.
+    """
+    alone = {}
+    for label, index, part in objects:
+        alone[label] = _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders,
+                                           atlas_image, exposure, outside | ~part, None, only=(index, part))  # fmt: skip
+    image = np.sum([r.image for r in alone.values()], axis=0).astype(np.float32)
+    ref = ReferenceRender("physical", reference.description, image, sum(r.seconds for r in alone.values()),
+                          max(r.spp for r in alone.values()), reference.variant)  # fmt: skip
+    parts = {label: part for label, _, part in objects}
+    measure_physical(ref, atlas_image, exposure, outside, regions, parts)
+    if reference.stochastic:
+        ref.part_floors = {label: r.noise_floor_db for label, r in alone.items()}
+        ref.part_spp = {label: r.spp for label, r in alone.items()}
+        counts = {label: int((part & ~outside).sum()) for label, part in parts.items()}
+        total = sum(counts.values())
+        mse = sum(counts[k] * 10.0 ** (-ref.part_floors[k] / 10.0) for k in counts) / total if total else 0.0
+        ref.noise_floor_db = math.inf if mse == 0.0 else -10.0 * math.log10(mse)
+    return ref
 
 
 def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
@@ -635,7 +675,7 @@ def _look_goal(entry, model, run, physical: bool) -> dict:
 
 
 def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure,
-                        mask=None, regions=None, parts=None) -> ReferenceRender:  # fmt: skip
+                        mask=None, regions=None, only=None) -> ReferenceRender:  # fmt: skip
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
     A stochastic reference renders with seeds 0 and 1 at ``physical_spp`` samples per pixel;
@@ -648,21 +688,18 @@ def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max
     The next total is the n at which F reaches the PSNR + margin + :data:`FLOOR_HEADROOM_DB`
     (the PSNR itself rises a little as the reference's noise goes), at least
     :data:`MIN_SPP_GROWTH` times the last, rounded up to whole passes. The new samples
-    continue the old ones (``first_sample``), so none is rendered twice. With ``parts`` (each
-    object's pixels, :func:`_object_parts`) every part's floor must clear its own PSNR too, and
-    the next total is the largest any figure short of its floor asks for.
+    continue the old ones (``first_sample``), so none is rendered twice. ``only``: converge the
+    render of one object alone (:func:`render_physical`; ``mask`` then leaves out all but its pixels).
     """
     n = physical_spp
-    ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
+    ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders, only=only)
     while True:
-        measure_physical(ref, atlas_image, exposure, mask, regions, parts)
-        # The samples the neediest figure asks for: the whole comparison's, or one part's.
-        targets = [_samples_for_floor(n, floor, p) for _, floor, p in ref.floor_checks() if floor < p + NOISE_FLOOR_MARGIN_DB]
-        target = max((t for t in targets if t is not None), default=None)
+        measure_physical(ref, atlas_image, exposure, mask, regions)
+        target = _samples_for_floor(n, ref.noise_floor_db, None if ref.metrics is None else ref.metrics.psnr)
         if ref.noise_floor_ok is not False or n >= max_spp or target is None:
             break
         more = min(target, max_spp) - n
-        add_physical_samples(mi, scene, entry, reference, manifest, ref, more, spp, renders)
+        add_physical_samples(mi, scene, entry, reference, manifest, ref, more, spp, renders, only)
         n = ref.spp
     ref.image, ref.second_image = mean_of_seeds(ref), None
     return ref
@@ -692,12 +729,13 @@ def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=No
 
 
 def add_physical_samples(mi, scene, entry, reference, manifest, ref: ReferenceRender, more: int, spp: int,
-                         renders: dict | None = None) -> None:  # fmt: skip
+                         renders: dict | None = None, only=None) -> None:  # fmt: skip
     """Continue both seeds of the stochastic render ``ref`` (``ref.spp`` samples each) by ``more``
     samples, [``ref.spp``, ``ref.spp`` + ``more``), so none is rendered twice; each image becomes
-    the sample-weighted mean (n I_n + m I_m) / (n + m) of the old and the new."""
+    the sample-weighted mean (n I_n + m I_m) / (n + m) of the old and the new. ``only``: as
+    :func:`render_physical`'s, the object ``ref`` is a render of."""
     n = ref.spp
-    extra = render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n)
+    extra = render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n, only=only)
     ref.image = (n * ref.image + more * extra.image) / (n + more)
     ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
     ref.seconds += extra.seconds
@@ -826,7 +864,7 @@ def _render_fields(ref: ReferenceRender) -> dict:
 
 
 def render_physical(
-    mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0
+    mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0, only=None
 ) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
@@ -845,6 +883,8 @@ def render_physical(
     reaches :data:`~atlasgen.validate.mitsuba_scene.SLAB_DIFFUSION_LENGTHS` diffusion lengths
     below the plane and beyond its edges, so that light inside it meets no edge or bottom.
     Only the plane's pixels take that render, so the slab's sides and margin are never shown.
+    ``only`` = ``(object index, (h, w) bool pixels)`` renders that one object at those pixels (the
+    g-buffer's, :func:`_converged_by_object`) and nothing else.
 
     Otherwise the objects render together, and where the reference's integrator traces
     visibility (one of its own), the pixels in another object's cast shadow are masked
@@ -879,14 +919,17 @@ def render_physical(
     shown = replace(scene, objects=shown_objects)
     # The objects' material names decide nothing the render shows: their BSDFs and media do.
     unnamed = [replace(s, objects=[replace(o, material="") for o in s.objects]) for s in (scene, shown)]
+    if only is not None and not alone:
+        raise ValueError("render_physical: only one object is rendered alone only where the material lives in a medium")
+    which = None if only is None else (int(only[0]), np.flatnonzero(np.asarray(only[1], dtype=bool)))
     key = None if renders is None else _render_key(mi, variant, unnamed, "each object alone" if alone else "together", bsdfs,
                                                    interiors, n, reference.integrator, reference.stochastic,
-                                                   reference.builtin_only, first_sample)  # fmt: skip
+                                                   reference.builtin_only, first_sample, which)  # fmt: skip
     kept = None if key is None else renders.get(key)
     if kept is not None:
         mi.set_variant("llvm_ad_rgb")
         return ReferenceRender(**kept)
-    ref = _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample)
+    ref = _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample, only)
     if key is not None:
         renders.put(key, _render_fields(ref))
     return ref
@@ -896,14 +939,18 @@ def render_physical(
 _render_physical = render_physical
 
 
-def _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample):
+def _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample, only=None):
     """Render the reference's Mitsuba scene (both seeds where it is stochastic) and its mask: ``shown``
     (``scene`` with each plane of a medium as its slab) object by object where the material lives
-    in a medium (:func:`render_physical`), else all together."""
+    in a medium (:func:`render_physical`; ``only``: one object at the pixels given), else all together."""
     variant = reference.variant
     if reference.interior is not None:
-        # First hits in the scene as the atlas shows it (planes, not slabs), before the variant changes.
-        seen = [object_mask(mi, scene, [o.index]) for o in scene.objects]
+        if only is not None:
+            nothing = np.zeros((scene.height, scene.width), dtype=bool)
+            seen = [np.asarray(only[1], dtype=bool) if o.index == only[0] else nothing for o in scene.objects]
+        else:
+            # First hits in the scene as the atlas shows it (planes, not slabs), before the variant changes.
+            seen = [object_mask(mi, scene, [o.index]) for o in scene.objects]
         mi.set_variant(variant)
         image = np.zeros((scene.height, scene.width, 3), dtype=np.float32)
         second = np.zeros_like(image) if reference.stochastic else None

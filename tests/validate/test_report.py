@@ -169,8 +169,8 @@ def test_a_comparison_split_by_object_reports_and_judges_each_part(written, vali
     (miss,) = [m for m in missed_goals(data) if m.startswith("skin on front: look")]
     assert "sphere: PSNR 41.5 dB" in miss and "flat part: PSNR 27.3 dB, FLIP 0.0700 (missed)" in miss
     # A part short of its floor (the whole one clears its own): the look is not judged, and the part is named.
-    ref["parts"]["sphere"].update(noise_floor_db=45.0, noise_floor_ok=False)
+    ref["parts"]["sphere"].update(noise_floor_db=45.0, noise_floor_ok=False, spp=16)
     ref["noise_floor_ok"] = False
-    assert look_verdict(row["look"], ref)["not_judged"].endswith("floor 60.0 dB (sphere: floor 45.0 dB)")
+    assert look_verdict(row["look"], ref)["not_judged"].endswith("floor 60.0 dB (sphere: floor 45.0 dB at 16 spp)")
     (failure,) = [f for f in noise_floor_failures(data) if f.startswith("skin on front:")]
-    assert "noise floor on the sphere 45.0 dB is not 10 dB above the PSNR it measures there (41.5 dB)" in failure
+    assert "noise floor on the sphere 45.0 dB is not 10 dB above the PSNR it measures there (41.5 dB) at 16 spp" in failure
