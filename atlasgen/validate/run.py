@@ -555,9 +555,10 @@ def _grazing_regions(scene, aovs, own) -> dict:
 
 #: The run's note where the physical comparison is split by object (:func:`_object_parts`).
 PARTS_NOTE = (
-    "the physical reference renders each object alone (no shadows or light between them, as the deferred renderer): "
-    "a sphere of the medium, and under a plane a slab of it, 10 diffusion lengths deep and beyond the plane's edges "
-    "(only the plane's pixels take it: its sides never show); scored apart by object ({}) as well as together"
+    "the physical reference renders each object alone (no shadows or light between them, as the deferred renderer), "
+    "filled with the medium, and a plane as the top of a slab of it, 10 diffusion lengths deep and beyond the plane's "
+    "edges (only the plane's pixels take it: its sides never show); each converges to its own noise floor, and is "
+    "scored apart by object ({}) as well as together"
 )
 
 
