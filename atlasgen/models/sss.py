@@ -14,7 +14,7 @@ from atlasgen.optics.quadrature import gauss_legendre_rule, integrate_gauss_lege
 
 __all__ = ["Subsurface", "preintegrate_ring", "skin_medium", "chandrasekhar_h", "diffuse_albedo",
            "single_scattering_albedo", "SKIN_VARIANCES", "SKIN_WEIGHTS", "SKIN1_SIGMA_S_REDUCED",
-           "SKIN1_SIGMA_A", "SKIN1_IOR"]  # fmt: skip
+           "SKIN1_SIGMA_A", "SKIN1_IOR", "FIT_REFERENCE"]  # fmt: skip
 
 #: d'Eon & Luebke, "Advanced Techniques for Realistic Real-Time Skin Rendering",
 #: GPU Gems 3 ch. 14 (2007), the six-Gaussian skin fit: variances in mm^2 ...
@@ -34,6 +34,8 @@ SKIN_WEIGHTS = (
 SKIN1_SIGMA_S_REDUCED = (0.74, 0.88, 1.01)
 SKIN1_SIGMA_A = (0.032, 0.17, 0.48)
 SKIN1_IOR = 1.3
+#: What the ``from = "physical"`` slice is fitted to (the manifest's ``fit.reference``): spheres only.
+FIT_REFERENCE = "volpathmis through Jensen 2001 Skin1 inside the fitted spheres (fit_radii), index-matched boundary"
 #: World radius of the validation scenes' sphere (unit sphere scaled by 0.5).
 _SPHERE_RADIUS = 0.5
 
@@ -244,8 +246,10 @@ class Subsurface(Model):
     }
 
     def physical_reference(self, values, albedo=(1.0, 1.0, 1.0), gloss=0.5):
-        """Light transport through skin inside the sphere (:func:`skin_medium`), by ``volpathmis``.
+        """Light transport through skin inside the object (:func:`skin_medium`), by ``volpathmis``.
 
+        Validation fills each object showing the material with the medium, and a plane, which
+        cannot hold one, is the top face of a slab of it (:func:`atlasgen.validate.run.render_physical`).
         The medium has Jensen's Skin1 extinction, scaled to the curvature radius, and the
         single-scattering albedo whose diffuse reflectance is the model's ``colour`` times
         the object's albedo (:func:`single_scattering_albedo`), so both describe a skin of
@@ -258,7 +262,7 @@ class Subsurface(Model):
         medium, _ = skin_medium(values["radius"], colour=colour)
         return Reference(
             {"type": "null"},
-            "volpathmis through Jensen 2001 Skin1 inside the sphere, index-matched boundary (plane: diffuse stand-in)",
+            "volpathmis through Jensen 2001 Skin1 inside the object (a plane: a slab of it), index-matched boundary",
             # volpathmis: volpath's expectation with spectral MIS, whose red fireflies are
             # 2.5x rarer, so the reference converges (its noise floor) in a practical spp.
             integrator={"type": "volpathmis", "max_depth": 256, "rr_depth": 64},
@@ -283,7 +287,7 @@ class Subsurface(Model):
         own = self.bake(values).values[0, ..., :3]  # the closed form, to report what the fit gained
         rgba, info, seconds = fitted_sss_slice(ref.interior, integrator, float(values["specular"]), float(gloss),
                                                model_rgb=own)  # fmt: skip
-        fit = {"from": "physical", "reference": ref.description, "gloss": float(gloss),
+        fit = {"from": "physical", "reference": FIT_REFERENCE, "gloss": float(gloss),
                "integrator": "volpathmis", "specular": float(values["specular"]), **info}  # fmt: skip
         return SliceSet(np.array(rgba).reshape(1, *rgba.shape), extra={"fit": fit}, timings={"physical_renders": seconds})
 

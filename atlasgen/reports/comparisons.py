@@ -108,10 +108,11 @@ def manifest_pairs(name: str, fit: dict | None, validation: dict | None = None) 
     for geometry, label in (("validation_sphere", "the validation sphere"), ("flat", "a flat part")):
         if geometry in scored:
             radii = ", ".join(f"{r:g}" for r in fit.get("fit_radii", []))
-            out.append(_pair(name, f"the skin slice against volpath renders: fitted spheres against {label}",
+            out.append(_pair(name, f"the skin slice against the fit's own volpath ray renders: fitted spheres against {label}",
                              (f"in sample (spheres of radius {radii})", _pct(fit.get("relative_rms"))),
-                             (f"out of sample ({label}, radius {scored[geometry]['radius']:g})", _pct(scored[geometry]["relative_rms"])),
-                             _SKIN_WHY))  # fmt: skip
+                             (f"out of sample, the fit's own geometry ({label}, radius {scored[geometry]['radius']:g}; "
+                              f"the validation scenes score the sphere and a flat part apart)",
+                              _pct(scored[geometry]["relative_rms"])), _SKIN_WHY))  # fmt: skip
     if validation is not None:
         out += [p for p in validation_pairs(validation) if p["material"] == name]
     return out

@@ -27,7 +27,7 @@ from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
 from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
-from atlasgen.validate.metrics import flip_heatmap
+from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, flip_heatmap
 
 __all__ = [
     "write_validation",
@@ -104,25 +104,48 @@ def look_verdict(look: dict, ref: dict | None) -> dict:
     {'meets_goal': None, 'not_judged': 'reference at 16 spp, floor 31.3 dB'}
     >>> look_verdict(look, {"psnr_db": 38.0, "flip": 0.02, "noise_floor_ok": False, "noise_floor_db": 41.3, "spp": 16})
     {'meets_goal': True, 'not_judged': None, 'bound': 'a lower bound: reference at 16 spp, floor 41.3 dB'}
+
+    Where the comparison is split by object (``parts``: a sphere and the flat part), every part is
+    judged as the whole is, and the look meets its goal only where the whole and every part do: a
+    part that misses is not hidden in the average. ``parts`` then gives each part's ``meets_goal``.
+
+    >>> parts = {"sphere": {"psnr_db": 42.0, "flip": 0.03}, "flat part": {"psnr_db": 27.0, "flip": 0.06}}
+    >>> look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts})
+    {'meets_goal': False, 'not_judged': None, 'parts': {'sphere': {'meets_goal': True}, 'flat part': {'meets_goal': False}}}
     """
     if not look or look.get("reference") is None or ref is None:
         return {"meets_goal": None, "not_judged": None}
-    short = f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB"
-    met = _meets_look_goal(look["goal"], ref)
+    goal = look["goal"]
+    met = _meets_look_goal(goal, ref)
+    parts = {name: {"meets_goal": _meets_look_goal(goal, p)} for name, p in (ref.get("parts") or {}).items()}
+    if parts:
+        met = met and all(p["meets_goal"] for p in parts.values())
     if ref.get("noise_floor_ok") is False:
-        if met:
-            return {"meets_goal": True, "not_judged": None, "bound": f"a lower bound: {short}"}
-        return {"meets_goal": None, "not_judged": short}
-    return {"meets_goal": met, "not_judged": None}
+        short_parts = [f"{name}: floor {_psnr_text(p.get('noise_floor_db'))} dB at {p.get('spp', ref.get('spp'))} spp"
+                       for name, p in (ref.get("parts") or {}).items() if p.get("noise_floor_ok") is False]  # fmt: skip
+        short = f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB" + (
+            f" ({', '.join(short_parts)})" if short_parts else ""
+        )
+        judged_misses = [name for name, p in (ref.get("parts") or {}).items()
+                         if p.get("noise_floor_ok") is not False and not parts[name]["meets_goal"]]  # fmt: skip
+        if judged_misses:  # a part whose own floor is clear misses: that miss stands
+            return {"meets_goal": False, "not_judged": None, "parts": parts}
+        if not met:
+            return {"meets_goal": None, "not_judged": short}
+        out = {"meets_goal": True, "not_judged": None, "bound": f"a lower bound: {short}"}
+    else:
+        out = {"meets_goal": met, "not_judged": None}
+    if parts:
+        out["parts"] = parts
+    return out
 
 
-def _meets_look_goal(goal: dict, ref: dict) -> bool:
-    """Whether a reference dict's figures meet a look goal: PSNR (and the unclipped PSNR where the
-    reference clips) at least the goal's, mean FLIP at most the goal's."""
-    psnrs = [math.inf if ref.get("psnr_db") is None else ref["psnr_db"]]
-    if ref.get("clipped_pixels"):
-        psnrs.append(math.inf if ref.get("unclipped_psnr_db") is None else ref["unclipped_psnr_db"])
-    flip = ref.get("flip")
+def _meets_look_goal(goal: dict, figures: dict) -> bool:
+    """PSNR (and, where the reference clips, the unclipped PSNR) >= the goal's, and FLIP <= the goal's."""
+    psnrs = [math.inf if figures.get("psnr_db") is None else figures["psnr_db"]]
+    if figures.get("clipped_pixels"):
+        psnrs.append(math.inf if figures.get("unclipped_psnr_db") is None else figures["unclipped_psnr_db"])
+    flip = figures.get("flip")
     return bool(min(psnrs) >= goal["psnr_db"] and (flip is None or not math.isfinite(flip) or flip <= goal["flip"]))
 
 
@@ -150,6 +173,12 @@ def report_dict(run) -> dict:
             if floor is not None:  # a stochastic reference: two seeds against each other
                 refs[kind]["noise_floor_db"] = _finite(floor)
                 refs[kind]["noise_floor_ok"] = ref.noise_floor_ok
+                for name, part_floor in (getattr(ref, "part_floors", None) or {}).items():
+                    part = refs[kind]["parts"][name]
+                    part["noise_floor_db"] = _finite(part_floor)
+                    psnr_db = math.inf if part["psnr_db"] is None else part["psnr_db"]
+                    part["noise_floor_ok"] = bool(part_floor >= psnr_db + NOISE_FLOOR_MARGIN_DB)
+                    part["spp"] = (getattr(ref, "part_spp", None) or {}).get(name, ref.spp)
             if getattr(ref, "mask", None) is not None:
                 refs[kind]["masked_fraction"] = ref.masked_fraction
                 refs[kind]["masked"] = ref.masked
@@ -281,8 +310,8 @@ def _look_text(rows: list) -> tuple[str, str]:
     psnrs = " / ".join(_psnr_text(f["psnr_db"]) for f in figures)
     flips = " / ".join(_fmt(f["flip"], ".3f") for f in figures)
     own = ", the material's own" if judged[0][1].get("goal_source") == "material" else ""
-    text = f"look against {compared}: {psnrs} dB, FLIP {flips} (goal >= {goal['psnr_db']:g} dB, FLIP <= {goal['flip']:g}{own})"
-    missed = [row["scene"] for row, look in judged if look["meets_goal"] is False]
+    text = f"look against {compared}: {psnrs} dB, FLIP {flips}{_parts_text(figures)} (goal >= {goal['psnr_db']:g} dB, FLIP <= {goal['flip']:g}{own})"
+    missed = [row["scene"] + _missed_parts(look) for row, look in judged if look["meets_goal"] is False]
     unjudged = [f"{row['scene']}: {look['not_judged']}" for row, look in judged if look["not_judged"]]
     if missed:
         return "missed", text + f": missed on {', '.join(missed)}" + (
@@ -292,6 +321,25 @@ def _look_text(rows: list) -> tuple[str, str]:
         return "not judged", text + f": not judged on {'; '.join(unjudged)}"
     bounds = [f"{row['scene']}: {look['bound']}" for row, look in judged if look.get("bound")]
     return "met", text + ": met" + (f" ({'; '.join(bounds)})" if bounds else "")
+
+
+def _parts_text(figures: list) -> str:
+    """``; sphere: 42.2 / 37.8 dB, FLIP 0.031 / 0.040, 27% / 31% of the frame; flat part: ...``: the figures of
+    each part of the comparisons (``parts``, by object), scene after scene; "" where none is split."""
+    names = list(dict.fromkeys(name for f in figures for name in (f.get("parts") or {})))
+    out = []
+    for name in names:
+        parts = [(f.get("parts") or {}).get(name) or {} for f in figures]
+        out.append(f"{name}: {' / '.join(_psnr_text(p.get('psnr_db')) if p else 'n/a' for p in parts)} dB, "
+                   f"FLIP {' / '.join(_fmt(p.get('flip'), '.3f') for p in parts)}, "
+                   f"{' / '.join(_fmt(p.get('coverage'), '.0%') for p in parts)} of the frame")  # fmt: skip
+    return "".join(f"; {x}" for x in out)
+
+
+def _missed_parts(look: dict) -> str:
+    """`` (flat part)``: the parts of a missed look that miss its goal, or ""."""
+    missed = [name for name, p in (look.get("parts") or {}).items() if p.get("meets_goal") is False]
+    return f" ({', '.join(missed)})" if missed else ""
 
 
 def describe_materials(data: dict) -> list[str]:
@@ -358,10 +406,24 @@ def noise_floor_failures(data: dict) -> list[str]:
     for row in data.get("results", []):
         for kind, ref in row["references"].items():
             if ref.get("noise_floor_ok") is False:
-                out.append(f"{row['material']} on {row['scene']}: the {kind} reference's noise floor "
-                           f"{_psnr_text(ref['noise_floor_db'])} dB is not 10 dB above the PSNR it measures "
-                           f"({_psnr_text(ref['psnr_db'])} dB) at {ref.get('spp')} spp; raise --max-physical-spp")  # fmt: skip
+                # The figures short of the floor: the whole comparison's, and each part's (by object).
+                short = [(name, p) for name, p in (ref.get("parts") or {}).items() if p.get("noise_floor_ok") is False]
+                if not short or not _whole_floor_ok(ref):
+                    short.insert(0, (None, ref))
+                for name, figures in short:
+                    where, there = ("", "") if name is None else (f" on the {name}", " there")
+                    out.append(f"{row['material']} on {row['scene']}: the {kind} reference's noise floor{where} "
+                               f"{_psnr_text(figures.get('noise_floor_db'))} dB is not 10 dB above the PSNR it measures{there} "
+                               f"({_psnr_text(figures.get('psnr_db'))} dB) at {figures.get('spp', ref.get('spp'))} spp; "
+                               f"raise --max-physical-spp")  # fmt: skip
     return out
+
+
+def _whole_floor_ok(ref: dict) -> bool:
+    """Whether a reference dict's noise floor clears its whole comparison's PSNR by the margin (null = inf)."""
+    floor = math.inf if ref.get("noise_floor_db") is None else ref["noise_floor_db"]
+    psnr_db = math.inf if ref.get("psnr_db") is None else ref["psnr_db"]
+    return bool(floor >= psnr_db + NOISE_FLOOR_MARGIN_DB)
 
 
 def missed_goals(data: dict) -> list[str]:
@@ -383,8 +445,11 @@ def missed_goals(data: dict) -> list[str]:
             look = row.get("look") or {}
             if look.get("meets_goal") is False:
                 ref = row["references"][look["reference"]]
+                parts = "".join(f"; {part}: PSNR {_psnr_text(p['psnr_db'])} dB, FLIP {_fmt(p['flip'], '.4f')}"
+                                + ("" if (look.get("parts") or {}).get(part, {}).get("meets_goal") is not False else " (missed)")
+                                for part, p in (ref.get("parts") or {}).items())  # fmt: skip
                 missed.append(f"{name} on {row['scene']}: look against {look['compared']}: PSNR {_psnr_text(ref['psnr_db'])} dB "
-                              f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {ref['flip']:.4f} "
+                              f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {ref['flip']:.4f}{parts} "
                               f"(goal >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g})")  # fmt: skip
         claimed, budget, _ = _separable_figures(rows)
         if claimed is not None and budget is not None and claimed > budget:
@@ -545,6 +610,11 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
                 "clipped": "" if ref.get("clipped_pixels") is None else
                            f"{ref['clipped_pixels']} ({_fmt(ref.get('unclipped_psnr_db'), '.2f')} dB unclipped)",
                 "grazing": _region_text(ref, "grazing"), "rest": _region_text(ref, "rest"),
+                "parts": "; ".join(f"{name}: {_fmt(p['psnr_db'], '.2f')} / {_fmt(p['flip'], '.4f')} ({p['coverage']:.1%})"
+                                   + (f", floor {_fmt(p.get('noise_floor_db'), '.1f')} at {p.get('spp')} spp"
+                                      + (" (too noisy)" if p.get("noise_floor_ok") is False else "")
+                                      if "noise_floor_db" in p else "")
+                                   for name, p in (ref.get("parts") or {}).items()),
                 # A floor is the floor at some sample count: a budgeted run (make demo) stops short.
                 "floor": f"{_fmt(ref.get('noise_floor_db'), '.1f')} at {ref.get('spp')} spp" if "noise_floor_db" in ref else "",
                 "floor_ok": ref.get("noise_floor_ok"),

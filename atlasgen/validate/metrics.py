@@ -22,7 +22,7 @@ import numpy as np
 from atlasgen.optics.display import display_clip
 
 __all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images", "noise_floor",
-           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics"]  # fmt: skip
+           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics", "part_metrics"]  # fmt: skip
 
 #: A stochastic reference's noise floor must lie this far above the PSNR it measures.
 NOISE_FLOOR_MARGIN_DB = 10.0
@@ -103,6 +103,8 @@ class ImageMetrics:
     regions: dict = field(default_factory=dict)
     #: The PSNR over the whole frame (the background counted), for comparison with earlier figures; None if not measured.
     whole_frame_psnr: float | None = None
+    #: Figures over each object showing the material (:func:`part_metrics`), where the comparison splits them.
+    parts: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         out = {
@@ -120,6 +122,8 @@ class ImageMetrics:
             out["regions"] = self.regions
         if self.whole_frame_psnr is not None:
             out["whole_frame_psnr_db"] = _finite(self.whole_frame_psnr)
+        if self.parts:
+            out["parts"] = self.parts
         return out
 
 
@@ -166,14 +170,31 @@ def region_metrics(ref_ldr, test_ldr, error_map, regions: dict, frame_pixels: in
     return out
 
 
-def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True, mask=None, regions=None) -> ImageMetrics:
+def part_metrics(reference, test, ref_ldr, test_ldr, error_map, parts: dict, exposure: float, frame_pixels: int) -> dict:
+    """:func:`region_metrics` over each part (``(h, w)`` bool, True = in the part: e.g. the pixels of one
+    object), with the reference's ``clipped_pixels`` there and ``unclipped_psnr_db``, the PSNR at the
+    exposure that clips none of the part's reference (:func:`unclipped_exposure`): each part is judged
+    as the whole comparison is."""
+    out = region_metrics(ref_ldr, test_ldr, error_map, parts, frame_pixels)
+    for name, part in parts.items():
+        part = np.asarray(part, dtype=bool)
+        r, t = np.asarray(reference)[part], np.asarray(test)[part]
+        e = unclipped_exposure(r, exposure)
+        unclipped = psnr(display_clip(r, e), display_clip(t, e)) if r.size else math.nan
+        out[name].update(clipped_pixels=clipped_pixels(r, exposure), unclipped_psnr_db=_finite(unclipped))
+    return out
+
+
+def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = True, mask=None, regions=None,
+                   parts=None) -> ImageMetrics:  # fmt: skip
     """RMSE and PSNR of the display images (:func:`display_clip`), mean FLIP and its map; linear RMSE and relative RMS;
     the coverage, the reference's clipped pixels and the PSNR at the exposure that clips none of it.
 
     ``mask`` (``(h, w)`` bool, True = excluded) leaves pixels out of every figure: FLIP is
     computed on the whole image (it looks at neighbourhoods) and averaged over the kept
     pixels only; the map stays whole. ``regions`` (``{name: (h, w) bool}``, True = in the
-    region) adds figures over each region's kept pixels (:func:`region_metrics`).
+    region) adds figures over each region's kept pixels (:func:`region_metrics`), ``parts`` (the same
+    form) figures over each part's kept pixels with their clipping (:func:`part_metrics`).
     """
     keep_mask = np.ones(np.shape(reference)[:2], dtype=bool) if mask is None else ~np.asarray(mask, dtype=bool)
     keep = (keep_mask,)
@@ -186,6 +207,11 @@ def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = Tru
     if regions:
         region_figures = region_metrics(ref_ldr, test_ldr, error_map, {k: np.asarray(r, dtype=bool) & keep_mask
                                                                        for k, r in regions.items()}, keep_mask.size)  # fmt: skip
+    part_figures = {}
+    if parts:
+        part_figures = part_metrics(reference, test, ref_ldr, test_ldr, error_map,
+                                    {k: np.asarray(r, dtype=bool) & keep_mask for k, r in parts.items()}, exposure,
+                                    keep_mask.size)  # fmt: skip
     reference, test = np.asarray(reference)[keep], np.asarray(test)[keep]
     e = unclipped_exposure(reference, exposure)
     unclipped = psnr(display_clip(reference, e), display_clip(test, e)) if reference.size else math.nan
@@ -193,7 +219,7 @@ def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = Tru
                         rmse(reference, test), relative_rms(reference, test), error_map,
                         coverage=float(keep_mask.mean()) if keep_mask.size else 0.0,
                         clipped_pixels=clipped_pixels(reference, exposure), unclipped_exposure=e,
-                        unclipped_psnr=unclipped, regions=region_figures)  # fmt: skip
+                        unclipped_psnr=unclipped, regions=region_figures, parts=part_figures)  # fmt: skip
 
 
 def noise_floor(render_a, render_b, exposure: float = 1.0, mask=None) -> float:

@@ -34,7 +34,9 @@ What is kept identical, so that only the shading differs:
 
 from __future__ import annotations
 
+import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -49,6 +51,9 @@ __all__ = [
     "render_pixel_centres",
     "render_environment_qmc",
     "object_mask",
+    "SLAB_DIFFUSION_LENGTHS",
+    "diffusion_length",
+    "slab_object",
     "DIRECT_INTEGRATOR",
     "SHADOW_INTEGRATOR",
     "register_direct_integrator",
@@ -240,6 +245,47 @@ def object_mask(mi, scene, indices) -> np.ndarray:
     return image[..., 0] > 0.5
 
 
+#: Depth of a plane's slab, and its margin beyond the plane's edges, in the medium's longest
+#: diffusion length (:func:`diffusion_length`): the fluence falls as exp(-z / L), so light that
+#: reaches the slab's bottom or sides carries exp(-10), about 5e-5, of what entered.
+SLAB_DIFFUSION_LENGTHS = 10.0
+
+
+def diffusion_length(medium: dict) -> float:
+    """The longest diffusion length L = 1 / sigma_tr of a ``homogeneous`` medium dict (as
+    :func:`atlasgen.models.sss.skin_medium` writes it), over the RGB channels, in scene units.
+
+    sigma_tr = sqrt(3 sigma_a sigma_t') is the diffusion approximation's effective attenuation
+    (Jensen et al., "A Practical Model for Subsurface Light Transport", SIGGRAPH 2001, eq. 7),
+    with sigma_t' = sigma_t for the isotropic phase function and sigma_a = sigma_t (1 - albedo).
+    A channel that absorbs nothing (albedo 1) has no finite L; every channel's L is capped at
+    100 mean free paths, 100 / sigma_t.
+    """
+    sigma_t = np.asarray(medium["sigma_t"]["value"], dtype=np.float64) * float(medium.get("scale", 1.0))
+    albedo = np.asarray(medium["albedo"]["value"], dtype=np.float64)
+    sigma_a = sigma_t * np.clip(1.0 - albedo, 0.0, 1.0)
+    with np.errstate(divide="ignore"):
+        length = 1.0 / np.sqrt(3.0 * sigma_a * sigma_t)
+    return float(np.max(np.minimum(length, 100.0 / sigma_t)))
+
+
+def slab_object(plane, depth: float):
+    """A ``box`` :class:`~atlasgen.materials.scene.SceneObject` whose top face holds ``plane`` (a
+    ``plane`` object: the square [-1, 1]^2 of the xz plane facing +y, under its transform), grown by
+    ``depth`` beyond each of the plane's edges and ``depth`` deep below it, along its normal.
+
+    In the plane's frame the box is [-(s_x + d), s_x + d] x [-d, 0] x [-(s_z + d), s_z + d]: the
+    box [-1, 1]^3 scaled by (s_x + d, d / 2, s_z + d), in the plane's rotation, and moved down by d / 2
+    along the plane's normal, so that its top face lies exactly in the plane. A medium inside it
+    is a flat part of skin as far as light inside it can tell (:data:`SLAB_DIFFUSION_LENGTHS`)."""
+    sx, _, sz = (float(c) for c in plane.scale)
+    d = float(depth)
+    box = replace(plane, shape="box", scale=(sx + math.copysign(d, sx), 0.5 * d, sz + math.copysign(d, sz)),
+                  translate=(0.0, 0.0, 0.0))  # fmt: skip
+    down = object_matrix(replace(box, scale=(1.0, 1.0, 1.0)))[:3, :3] @ np.array([0.0, -0.5 * d, 0.0])
+    return replace(box, translate=tuple(float(a) for a in np.asarray(plane.translate, dtype=np.float64) + down))
+
+
 def sensor_dict(mi, scene, spp: int = 1, stochastic: bool = False) -> dict:
     """Mitsuba ``perspective`` sensor matching the renderer's camera and image size.
 
@@ -414,7 +460,7 @@ CENTRE_PASS_SPP = 64
 
 
 def render_pixel_centres(
-    mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True, first_sample: int = 0
+    mi, mi_scene, spp: int, seed: int = 0, python_plugins: bool = True, first_sample: int = 0, pixels=None
 ) -> tuple[np.ndarray, float]:
     """Render with every sample's camera ray through its pixel's centre: ``(linear RGB (h, w, 3), seconds)``.
 
@@ -431,6 +477,10 @@ def render_pixel_centres(
     ``first_sample`` numbers the first of the ``spp`` samples: a render of samples
     [n, n + m) draws none of [0, n)'s random numbers, so the two average, weighted n : m,
     to the render of n + m samples.
+
+    ``pixels`` (``(h, w)`` bool) traces only those pixels and leaves the others 0: a reference
+    composed of renders of one object each (:func:`atlasgen.validate.run.render_physical`)
+    traces each object's render where that object is seen, not across the frame.
     """
     import drjit as dr
 
@@ -439,23 +489,33 @@ def render_pixel_centres(
     width, height = (int(c) for c in sensor.film().crop_size())
     integrator = mi_scene.integrator()
     total = np.zeros((height * width, 3), dtype=np.float64)
+    traced = None if pixels is None else np.flatnonzero(np.asarray(pixels, dtype=bool).reshape(-1)).astype(np.uint32)
+    n_pixels = width * height if traced is None else len(traced)
     done, end = int(first_sample), int(first_sample) + int(spp)
+    if n_pixels == 0:
+        done = end
     with dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, not python_plugins):
         while done < end:
             batch = min(CENTRE_PASS_SPP, end - done)
-            count = width * height * batch
+            count = n_pixels * batch
             sampler = sensor.sampler().clone()
             sampler.set_sample_count(batch)
             # One seed per pass and render: passes must not repeat each other's samples.
             sampler.seed(int(seed) * 1_000_003 + done, count)
             pixel = dr.arange(mi.UInt32, count) // batch
+            if traced is not None:
+                pixel = dr.gather(mi.UInt32, mi.UInt32(traced), pixel)
             centre = mi.Point2f((mi.Float(pixel % width) + 0.5) / width, (mi.Float(pixel // width) + 0.5) / height)
             ray, weight = sensor.sample_ray_differential(0.0, sampler.next_1d(), centre, mi.Point2f(0.5, 0.5))
             radiance, _, _ = integrator.sample(mi_scene, sampler, ray, None, True)
             value = weight * radiance
             rgb = mi.spectrum_to_srgb(value, ray.wavelengths) if mi.is_spectral else value
             samples = np.stack([np.array(rgb[k], dtype=np.float64) for k in range(3)], axis=-1)
-            total += samples.reshape(height * width, batch, 3).sum(axis=1)
+            summed = samples.reshape(n_pixels, batch, 3).sum(axis=1)
+            if traced is None:
+                total += summed
+            else:
+                total[traced] += summed
             done += batch
     image = (total / spp).reshape(height, width, 3).astype(np.float32)
     return image, time.perf_counter() - t0

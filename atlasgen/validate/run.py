@@ -46,13 +46,16 @@ from atlasgen.validate.materialx_reference import (
 from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, psnr, relative_rms
 from atlasgen.validate.mitsuba_scene import (
     CENTRE_PASS_SPP,
+    SLAB_DIFFUSION_LENGTHS,
     build_mitsuba_scene,
     cast_shadow_mask,
+    diffusion_length,
     object_mask,
     register_direct_integrator,
     render_environment_qmc,
     render_mitsuba,
     render_pixel_centres,
+    slab_object,
 )
 from atlasgen.validate.rebuild import material_mask, n_dot_v_image, rebuild_images
 from atlasgen.validate.reference_cache import ReferenceCache, render_key
@@ -131,18 +134,33 @@ class ReferenceRender:
     noise_floor_db: float | None = None  # PSNR between the two seeds (:func:`~atlasgen.validate.metrics.noise_floor`)
     mask: np.ndarray | None = None  # (h, w) True where the comparison leaves pixels out
     masked: str | None = None  # what the mask removes, for the report
+    part_floors: dict = field(default_factory=dict)  # part -> the noise floor on its pixels (metrics.parts)
+    part_spp: dict = field(default_factory=dict)  # part -> the samples per pixel its object took (:func:`_converged_by_object`)
 
     @property
     def masked_fraction(self) -> float | None:
         return None if self.mask is None else float(np.mean(self.mask))
 
+    def floor_checks(self) -> list:
+        """``(where, floor dB, PSNR dB)`` of every figure the noise floor must clear: the whole
+        comparison (``where`` None), then each part of it (``metrics.parts``), an empty part's PSNR inf."""
+        if self.noise_floor_db is None or self.metrics is None:
+            return []
+        checks = [(None, self.noise_floor_db, self.metrics.psnr)]
+        for name, floor in self.part_floors.items():
+            psnr_db = (self.metrics.parts.get(name) or {}).get("psnr_db")
+            checks.append((name, floor, math.inf if psnr_db is None else psnr_db))
+        return checks
+
     @property
     def noise_floor_ok(self) -> bool | None:
         """Whether the noise floor lies :data:`NOISE_FLOOR_MARGIN_DB` above the PSNR measured against
-        this reference (``None`` for a deterministic reference)."""
-        if self.noise_floor_db is None or self.metrics is None:
+        this reference, and so does each part's floor above the part's PSNR, where the comparison
+        has parts (``None`` for a deterministic reference)."""
+        checks = self.floor_checks()
+        if not checks:
             return None
-        return bool(self.noise_floor_db >= self.metrics.psnr + NOISE_FLOOR_MARGIN_DB)
+        return all(floor >= p + NOISE_FLOOR_MARGIN_DB for _, floor, p in checks)
 
 
 @dataclass
@@ -420,8 +438,15 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
-                ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp, renders,
-                                          atlas_image, run.exposure, outside, regions)  # fmt: skip
+                # A medium's reference shows each object as the physics of its shape (a plane: a slab): scored apart.
+                objects = _object_parts(renderer, bound, entry, aovs) if phys.interior is not None else []
+                if objects:
+                    run.notes.append(PARTS_NOTE.format(", ".join(label for label, _, _ in objects)))
+                    ref = _converged_by_object(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                                               renders, atlas_image, run.exposure, outside, regions, objects)  # fmt: skip
+                else:
+                    ref = _converged_physical(mi, bound, entry, phys, plan.manifest, physical_spp, max_physical_spp, spp,
+                                              renders, atlas_image, run.exposure, outside, regions)  # fmt: skip
                 run.references["physical"] = ref
                 say(
                     f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
@@ -540,6 +565,72 @@ def _grazing_regions(scene, aovs, own) -> dict:
     return {"grazing": grazing, "rest": own & ~grazing}
 
 
+#: The run's note where the physical comparison is split by object (:func:`_object_parts`).
+PARTS_NOTE = (
+    "the physical reference renders each object alone (no shadows or light between them, as the deferred renderer), "
+    "filled with the medium, and a plane as the top of a slab of it, 10 diffusion lengths deep and beyond the plane's "
+    "edges (only the plane's pixels take it: its sides never show); each converges to its own noise floor, and is "
+    "scored apart by object ({}) as well as together"
+)
+
+
+def _object_parts(renderer, scene, entry, aovs) -> list:
+    """``[(label, object index, (h, w) bool)]``: the pixels showing ``entry`` in ``aovs`` (the g-buffer of
+    ``scene``), split by the object they show, where two or more objects show it (else ``[]``). Each object
+    is drawn alone by the renderer; a pixel is that object's where its depth there is the whole scene's,
+    the nearest surface. A plane is the "flat part"; a shape shown by two objects is named with each
+    one's index."""
+    own = material_mask(entry, aovs)
+    objects = [o for o in scene.objects if o.material == entry.name]
+    if len(objects) < 2:
+        return []
+    depth = np.asarray(aovs["depth"])
+    shapes = [o.shape for o in objects]
+    out = []
+    for obj in objects:
+        alone = renderer.render(replace(scene, objects=[obj]), outlines=False, aovs=True).aovs
+        label = "flat part" if obj.shape == "plane" else obj.shape
+        if shapes.count(obj.shape) > 1:
+            label += f" (objects[{obj.index}])"
+        out.append((label, obj.index, own & material_mask(entry, alone) & (np.asarray(alone["depth"]) == depth)))
+    return out
+
+
+def _converged_by_object(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure,
+                         outside, regions, objects) -> ReferenceRender:  # fmt: skip
+    """A medium's physical reference converged object by object (``objects``: :func:`_object_parts`), and measured.
+
+    Each object is rendered alone at its own pixels (:func:`render_physical`'s ``only``) and gets the
+    samples its own floor needs against its own error (:func:`_converged_physical` on its pixels): a
+    flat part whose error is large converges in a few hundred samples where the sphere's small one
+    needs thousands. The reference is their sum (each is 0 off its pixels), measured over the
+    material's pixels with the objects as ``parts``; ``part_floors`` are the objects' floors, and
+    the whole comparison's floor follows from them, the display MSE of two seeds adding over pixels:
+
+        F = -10 log10(sum_k n_k 10^(-F_k / 10) / sum_k n_k),  n_k the pixels of part k.
+
+    Each part clearing its floor by the margin makes the whole clear it too (its noise is at most a
+    tenth of its error on every part). ``spp`` is the most any object took, ``part_spp`` each one's.
+    """
+    alone = {}
+    for label, index, part in objects:
+        alone[label] = _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders,
+                                           atlas_image, exposure, outside | ~part, None, only=(index, part))  # fmt: skip
+    image = np.sum([r.image for r in alone.values()], axis=0).astype(np.float32)
+    ref = ReferenceRender("physical", reference.description, image, sum(r.seconds for r in alone.values()),
+                          max(r.spp for r in alone.values()), reference.variant)  # fmt: skip
+    parts = {label: part for label, _, part in objects}
+    measure_physical(ref, atlas_image, exposure, outside, regions, parts)
+    if reference.stochastic:
+        ref.part_floors = {label: r.noise_floor_db for label, r in alone.items()}
+        ref.part_spp = {label: r.spp for label, r in alone.items()}
+        counts = {label: int((part & ~outside).sum()) for label, part in parts.items()}
+        total = sum(counts.values())
+        mse = sum(counts[k] * 10.0 ** (-ref.part_floors[k] / 10.0) for k in counts) / total if total else 0.0
+        ref.noise_floor_db = math.inf if mse == 0.0 else -10.0 * math.log10(mse)
+    return ref
+
+
 def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
     """The model reference of ``entry`` on ``scene`` (every object's model reference), from ``renders`` if there."""
     bsdfs = _object_bsdfs(scene, entry, manifest)
@@ -654,9 +745,8 @@ def _look_goal(entry, model, run, physical: bool) -> dict:
     return {**out, "reference": kind, "compared": compared}
 
 
-def _converged_physical(
-    mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure, mask=None, regions=None
-) -> ReferenceRender:
+def _converged_physical(mi, scene, entry, reference, manifest, physical_spp, max_spp, spp, renders, atlas_image, exposure,
+                        mask=None, regions=None, only=None) -> ReferenceRender:  # fmt: skip
     """The physical reference, measured against ``atlas_image``; a stochastic one converged.
 
     A stochastic reference renders with seeds 0 and 1 at ``physical_spp`` samples per pixel;
@@ -669,28 +759,30 @@ def _converged_physical(
     The next total is the n at which F reaches the PSNR + margin + :data:`FLOOR_HEADROOM_DB`
     (the PSNR itself rises a little as the reference's noise goes), at least
     :data:`MIN_SPP_GROWTH` times the last, rounded up to whole passes. The new samples
-    continue the old ones (``first_sample``), so none is rendered twice.
+    continue the old ones (``first_sample``), so none is rendered twice. ``only``: converge the
+    render of one object alone (:func:`render_physical`; ``mask`` then leaves out all but its pixels).
     """
     n = physical_spp
-    ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders)
+    ref = render_physical(mi, scene, entry, reference, manifest, n, spp, renders, only=only)
     while True:
         measure_physical(ref, atlas_image, exposure, mask, regions)
         target = _samples_for_floor(n, ref.noise_floor_db, None if ref.metrics is None else ref.metrics.psnr)
         if ref.noise_floor_ok is not False or n >= max_spp or target is None:
             break
         more = min(target, max_spp) - n
-        add_physical_samples(mi, scene, entry, reference, manifest, ref, more, spp, renders)
+        add_physical_samples(mi, scene, entry, reference, manifest, ref, more, spp, renders, only)
         n = ref.spp
     ref.image, ref.second_image = mean_of_seeds(ref), None
     return ref
 
 
-def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=None, regions=None) -> None:
+def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=None, regions=None, parts=None) -> None:
     """Set ``ref``'s noise floor (the PSNR between its two seeds, where it has two) and the atlas
     image's metrics against the mean of its seeds, leaving out ``ref.mask`` and ``mask`` (True = left out:
     validation passes every pixel that does not show the material), with figures over ``regions``
-    (:func:`~atlasgen.validate.metrics.compare_images`) and the whole-frame PSNR of earlier reports
-    (only ``ref.mask`` left out, the background counted) for comparison."""
+    and ``parts`` (:func:`~atlasgen.validate.metrics.compare_images`; each part gets a noise floor of
+    its own, ``ref.part_floors``) and the whole-frame PSNR of earlier reports (only ``ref.mask`` left
+    out, the background counted) for comparison."""
     own_mask = ref.mask
     if mask is not None:
         mask = mask if ref.mask is None else (ref.mask | mask)
@@ -698,19 +790,23 @@ def measure_physical(ref: ReferenceRender, atlas_image, exposure: float, mask=No
         mask = ref.mask
     if ref.second_image is not None:
         ref.noise_floor_db = noise_floor(ref.image, ref.second_image, exposure, mask)
+        outside = np.zeros(ref.image.shape[:2], dtype=bool) if mask is None else mask
+        ref.part_floors = {name: noise_floor(ref.image, ref.second_image, exposure, outside | ~np.asarray(part, dtype=bool))
+                           for name, part in (parts or {}).items()}  # fmt: skip
     reference = mean_of_seeds(ref)
-    ref.metrics = compare_images(reference, atlas_image, exposure, mask=mask, regions=regions)
+    ref.metrics = compare_images(reference, atlas_image, exposure, mask=mask, regions=regions, parts=parts)
     keep = (slice(None),) if own_mask is None else (~own_mask,)
     ref.metrics.whole_frame_psnr = psnr(display_clip(reference, exposure)[keep], display_clip(atlas_image, exposure)[keep])
 
 
 def add_physical_samples(mi, scene, entry, reference, manifest, ref: ReferenceRender, more: int, spp: int,
-                         renders: dict | None = None) -> None:  # fmt: skip
+                         renders: dict | None = None, only=None) -> None:  # fmt: skip
     """Continue both seeds of the stochastic render ``ref`` (``ref.spp`` samples each) by ``more``
     samples, [``ref.spp``, ``ref.spp`` + ``more``), so none is rendered twice; each image becomes
-    the sample-weighted mean (n I_n + m I_m) / (n + m) of the old and the new."""
+    the sample-weighted mean (n I_n + m I_m) / (n + m) of the old and the new. ``only``: as
+    :func:`render_physical`'s, the object ``ref`` is a render of."""
     n = ref.spp
-    extra = render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n)
+    extra = render_physical(mi, scene, entry, reference, manifest, more, spp, renders, first_sample=n, only=only)
     ref.image = (n * ref.image + more * extra.image) / (n + more)
     ref.second_image = (n * ref.second_image + more * extra.second_image) / (n + more)
     ref.seconds += extra.seconds
@@ -814,20 +910,14 @@ def register_references_for_variant(mi) -> None:
 
 
 def _plane_stand_in(entry, albedo) -> dict:
-    """A diffuse plane (the material's ``colour``, if it has one) for references whose material needs a closed surface."""
+    """A diffuse BSDF of ``entry``'s ``colour`` (if it has one) for another material's object in a reference
+    where that material's own reference cannot run (built-in plugins only, or a spectral variant)."""
     colour = np.asarray(entry.params.get("colour", (1.0, 1.0, 1.0))) * np.asarray(albedo)
     return {"type": "diffuse", "reflectance": {"type": "rgb", "value": colour.tolist()}}
 
 
 #: What the physical comparison leaves out where the reference's integrator traces visibility.
 CAST_SHADOW_NOTE = "cast shadows of other objects (the deferred renderer has none); inter-reflection is not masked"
-
-
-#: What the physical comparison leaves out where the material's own reference cannot cover an object.
-STAND_IN_NOTE = (
-    "the open surfaces showing the material, where a medium's reference has a diffuse stand-in: masked, "
-    "and left out of the reference, so they shadow and light nothing"
-)
 
 
 def _render_key(mi, *decides) -> str | None:
@@ -845,7 +935,7 @@ def _render_fields(ref: ReferenceRender) -> dict:
 
 
 def render_physical(
-    mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0
+    mi, scene, entry, reference, manifest, physical_spp, spp, renders: dict | None = None, first_sample: int = 0, only=None
 ) -> ReferenceRender:
     """The physical ``reference`` of ``entry`` on ``scene``. Objects of other materials keep
     their model reference, or a diffuse stand-in where the integrator needs built-in
@@ -853,10 +943,23 @@ def render_physical(
 
     A stochastic reference is rendered with seeds 0 and 1 (the second for its noise floor),
     samples [``first_sample``, ``first_sample`` + ``physical_spp``) of each.
-    Where the reference's integrator traces visibility (``volpath``), the pixels in another
-    object's cast shadow are masked (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`),
-    and where its material lives in a medium, the open surfaces showing it (a diffuse stand-in
-    in the reference) are masked too (:func:`~atlasgen.validate.mitsuba_scene.object_mask`).
+
+    Where the material lives in a medium (``reference.interior``), every object is rendered
+    alone, each where it is the first surface a pixel-centre ray meets in ``scene``
+    (:func:`~atlasgen.validate.mitsuba_scene.object_mask`), and the renders add up to the
+    reference: the deferred renderer neither shadows nor lights one object by another, and
+    transport between two media (a sphere of skin on a slab of it) would be both. A plane
+    showing the material, which cannot hold a medium, is a slab of it
+    (:func:`~atlasgen.validate.mitsuba_scene.slab_object`): the plane is its top face, and it
+    reaches :data:`~atlasgen.validate.mitsuba_scene.SLAB_DIFFUSION_LENGTHS` diffusion lengths
+    below the plane and beyond its edges, so that light inside it meets no edge or bottom.
+    Only the plane's pixels take that render, so the slab's sides and margin are never shown.
+    ``only`` = ``(object index, (h, w) bool pixels)`` renders that one object at those pixels (the
+    g-buffer's, :func:`_converged_by_object`) and nothing else.
+
+    Otherwise the objects render together, and where the reference's integrator traces
+    visibility (one of its own), the pixels in another object's cast shadow are masked
+    (:func:`~atlasgen.validate.mitsuba_scene.cast_shadow_mask`).
     ``renders`` (a :class:`~atlasgen.validate.reference_cache.ReferenceCache`) holds renders by
     :func:`_render_key`: one already made is not made again (``None``: render, and keep nothing).
     """
@@ -865,40 +968,39 @@ def render_physical(
         # live instance, and NumPy cannot run on symbolic arrays.
         gc.collect()
     variant = reference.variant
-    closed = reference.interior is not None
+    alone = reference.interior is not None
     mi.set_variant(variant)
     register_references_for_variant(mi)
-    bsdfs, interiors, not_the_material = [], [], []
+    bsdfs, interiors, shown_objects = [], [], []
     for o, e in zip(scene.objects, _object_entries(scene, entry, manifest)):
-        mine = e.name == entry.name
-        if mine and o.shape == "plane" and closed:
-            not_the_material.append(o.index)
-        if mine and not (o.shape == "plane" and closed):
+        if e.name == entry.name:
             own = physical_reference(entry, o.albedo, o.gloss)
             bsdfs.append(own.bsdf)
             interiors.append(own.interior)
+            slab = alone and o.shape == "plane" and own.interior is not None
+            shown_objects.append(slab_object(o, SLAB_DIFFUSION_LENGTHS * diffusion_length(own.interior)) if slab else o)
         else:
-            # A medium needs a closed surface: an open plane keeps a diffuse stand-in, as
-            # do other materials' objects where only built-in plugins may run, or where
-            # the variant is spectral (the model references are RGB).
-            stand_in = reference.builtin_only or closed or variant != "llvm_ad_rgb"
+            # Other materials' objects keep a diffuse stand-in where only built-in plugins may
+            # run, or where the variant is spectral (the model references are RGB).
+            stand_in = reference.builtin_only or alone or variant != "llvm_ad_rgb"
             bsdfs.append(_plane_stand_in(e, o.albedo) if stand_in else model_reference(e, o.albedo, o.gloss).bsdf)
             interiors.append(None)
+            shown_objects.append(o)
     n = physical_spp if reference.stochastic else spp
-    # Objects whose pixels are masked (stand-ins for the material) are left out of the render
-    # too: a stand-in would still light the material by inter-reflection, which the deferred
-    # renderer cannot show either.
-    keep = [i for i, o in enumerate(scene.objects) if o.index not in not_the_material]
-    shown = replace(scene, objects=[scene.objects[i] for i in keep])
+    shown = replace(scene, objects=shown_objects)
     # The objects' material names decide nothing the render shows: their BSDFs and media do.
-    unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
-    key = None if renders is None else _render_key(mi, variant, unnamed, keep, bsdfs, interiors, n, reference.integrator,
-                                                   reference.stochastic, reference.builtin_only, first_sample)  # fmt: skip
+    unnamed = [replace(s, objects=[replace(o, material="") for o in s.objects]) for s in (scene, shown)]
+    if only is not None and not alone:
+        raise ValueError("render_physical: only one object is rendered alone only where the material lives in a medium")
+    which = None if only is None else (int(only[0]), np.flatnonzero(np.asarray(only[1], dtype=bool)))
+    key = None if renders is None else _render_key(mi, variant, unnamed, "each object alone" if alone else "together", bsdfs,
+                                                   interiors, n, reference.integrator, reference.stochastic,
+                                                   reference.builtin_only, first_sample, which)  # fmt: skip
     kept = None if key is None else renders.get(key)
     if kept is not None:
         mi.set_variant("llvm_ad_rgb")
         return ReferenceRender(**kept)
-    ref = _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample)
+    ref = _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample, only)
     if key is not None:
         renders.put(key, _render_fields(ref))
     return ref
@@ -908,11 +1010,45 @@ def render_physical(
 _render_physical = render_physical
 
 
-def _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_material, reference, n, first_sample):
-    """Render the reference's Mitsuba scene (both seeds where it is stochastic) and its masks."""
+def _render_physical_scene(mi, scene, shown, bsdfs, interiors, reference, n, first_sample, only=None):
+    """Render the reference's Mitsuba scene (both seeds where it is stochastic) and its mask: ``shown``
+    (``scene`` with each plane of a medium as its slab) object by object where the material lives
+    in a medium (:func:`render_physical`; ``only``: one object at the pixels given), else all together."""
     variant = reference.variant
-    mi_scene = build_mitsuba_scene(mi, shown, [bsdfs[i] for i in keep], n, reference.integrator, [interiors[i] for i in keep],
-                                   stochastic=reference.stochastic)  # fmt: skip
+    if reference.interior is not None:
+        if only is not None:
+            nothing = np.zeros((scene.height, scene.width), dtype=bool)
+            seen = [np.asarray(only[1], dtype=bool) if o.index == only[0] else nothing for o in scene.objects]
+        else:
+            # First hits in the scene as the atlas shows it (planes, not slabs), before the variant changes.
+            seen = [object_mask(mi, scene, [o.index]) for o in scene.objects]
+        mi.set_variant(variant)
+        image = np.zeros((scene.height, scene.width, 3), dtype=np.float32)
+        second = np.zeros_like(image) if reference.stochastic else None
+        seconds = 0.0
+        for k, (obj, pixels) in enumerate(zip(shown.objects, seen)):
+            if not pixels.any():
+                continue
+            alone = replace(shown, objects=[obj])
+            mi_scene = build_mitsuba_scene(mi, alone, [bsdfs[k]], n, reference.integrator, [interiors[k]],
+                                           stochastic=reference.stochastic)  # fmt: skip
+            if reference.stochastic:
+                plugins = not reference.builtin_only
+                # Seeds of their own per object: no two objects' pixels share a random stream.
+                a, t = render_pixel_centres(mi, mi_scene, n, seed=2 * k, python_plugins=plugins, first_sample=first_sample,
+                                            pixels=pixels)  # fmt: skip
+                b, _ = render_pixel_centres(mi, mi_scene, n, seed=2 * k + 1, python_plugins=plugins,
+                                            first_sample=first_sample, pixels=pixels)  # fmt: skip
+                image += a
+                second += b
+            else:
+                a, t = render_mitsuba(mi, mi_scene, n, python_plugins=not reference.builtin_only)
+                image += np.where(pixels[..., None], a, 0.0).astype(np.float32)
+            seconds += t
+            del mi_scene
+        mi.set_variant("llvm_ad_rgb")
+        return ReferenceRender("physical", reference.description, image, seconds, n, variant, second_image=second)
+    mi_scene = build_mitsuba_scene(mi, shown, bsdfs, n, reference.integrator, interiors, stochastic=reference.stochastic)
     second = None
     if reference.stochastic:
         # Every sample through the pixel centre, as the rasteriser shades: many samples
@@ -926,12 +1062,6 @@ def _render_physical_scene(mi, scene, shown, keep, bsdfs, interiors, not_the_mat
     ref = ReferenceRender("physical", reference.description, image, seconds, n, variant, second_image=second)
     if reference.integrator is not None:  # an integrator of its own traces shadow rays
         ref.mask, ref.masked = cast_shadow_mask(mi, scene), CAST_SHADOW_NOTE
-    if not_the_material:
-        # The atlas shows the material there, the reference a diffuse stand-in: comparing
-        # them would measure the stand-in, not the material.
-        stand_ins = object_mask(mi, scene, not_the_material)
-        ref.mask = stand_ins if ref.mask is None else (ref.mask | stand_ins)
-        ref.masked = "; ".join(x for x in (ref.masked, STAND_IN_NOTE) if x)
     mi.set_variant("llvm_ad_rgb")
     return ref
 

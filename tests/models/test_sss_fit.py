@@ -168,8 +168,8 @@ SKIN = 'type = "sss"\nradius = 12.0\ncolour = [0.625, 0.385, 0.241]\n'
 
 
 def _sphere_only(scene: str, folder):
-    """The standard validation scene without its plane (the reference shows a diffuse stand-in
-    there, which no sphere fit is meant to match)."""
+    """The standard validation scene without its plane (the reference is a slab of skin there,
+    flat, which no sphere fit is meant to match)."""
     from importlib.resources import files
 
     text = (files("atlasgen") / "data" / "validation" / f"{scene}.toml").read_text()

@@ -87,7 +87,7 @@ def test_json_and_html_carry_noise_floors_and_masks_and_strict_flags_a_noisy_flo
             if getattr(ref, "mask", None) is not None:
                 assert got["masked_fraction"] == pytest.approx(ref.masked_fraction) and got["masked"]
     html = (out / "index.html").read_text(encoding="utf-8")
-    assert "noise floor dB" in html and "cast shadows" in html
+    assert "noise floor dB" in html and "by object: PSNR / FLIP (coverage), noise floor" in html
     # Each floor is labelled with the samples it was measured at.
     for row in data["results"]:
         ref = row["references"].get("physical", {})
@@ -127,3 +127,57 @@ def test_json_and_html_carry_coverage_clipping_grazing_and_the_look_verdict(writ
     assert s["no_physical_reference"] == ["cel"]
     html = (out / "index.html").read_text()
     assert "N.V &lt; 0.2: PSNR / FLIP" in html and "whole-frame PSNR dB" in html and "coverage" in html
+
+
+def test_a_comparison_split_by_object_reports_and_judges_each_part(written, validation_run):
+    """Skin's sphere and flat part: each in report.json with its figures and noise floor, on the page, and
+    judged apart: a flat part under the look goal makes the look miss on that scene, named with its figure,
+    and a part short of its floor is named as such."""
+    from atlasgen.reports.validation import describe_materials, look_verdict, missed_goals, noise_floor_failures
+
+    out, _ = written
+    data = json.loads((out / "report.json").read_text())
+    rows = [row for row in data["results"] if row["material"] == "skin"]
+    assert {row["scene"] for row in rows} == {"front", "back"}
+    for row, run in (
+        (row, next(r for r in validation_run.runs if (r.material, r.scene) == ("skin", row["scene"]))) for row in rows
+    ):
+        ref, own = row["references"]["physical"], run.references["physical"]
+        assert set(ref["parts"]) == {"sphere", "flat part"}
+        for name, part in ref["parts"].items():
+            assert part["pixels"] == own.metrics.parts[name]["pixels"] > 0
+            assert part["noise_floor_db"] == pytest.approx(own.part_floors[name])
+            assert set(part) >= {"coverage", "psnr_db", "flip", "clipped_pixels", "unclipped_psnr_db", "noise_floor_ok"}
+        assert any(note.startswith("the physical reference renders each object alone") for note in row["notes"])
+    html = (out / "index.html").read_text(encoding="utf-8")
+    assert "flat part: " in html and "sphere: " in html
+    # Make the front's reference converged, its whole comparison and sphere over the goal, its flat part under it.
+    row = next(r for r in rows if r["scene"] == "front")
+    ref = row["references"]["physical"]
+    ref.update(psnr_db=33.0, flip=0.04, clipped_pixels=0, noise_floor_db=60.0, noise_floor_ok=True)
+    ref["parts"]["sphere"].update(psnr_db=41.5, flip=0.03, clipped_pixels=0, noise_floor_db=60.0, noise_floor_ok=True)
+    ref["parts"]["flat part"].update(psnr_db=27.3, flip=0.07, clipped_pixels=0, noise_floor_db=60.0, noise_floor_ok=True)
+    verdict = look_verdict(row["look"], ref)
+    assert verdict["meets_goal"] is False and verdict["parts"] == {
+        "sphere": {"meets_goal": True},
+        "flat part": {"meets_goal": False},
+    }
+    row["look"].update(verdict)
+    (line,) = [x for x in describe_materials(data) if x.startswith("skin:")]
+    assert line.startswith("skin: goals missed: look") and "missed on front (flat part)" in line
+    assert "sphere: 41.5 / " in line and "flat part: 27.3 / " in line
+    (miss,) = [m for m in missed_goals(data) if m.startswith("skin on front: look")]
+    assert "sphere: PSNR 41.5 dB" in miss and "flat part: PSNR 27.3 dB, FLIP 0.0700 (missed)" in miss
+    # The sphere short of its floor: the flat part's miss, against its own clear floor, still stands.
+    ref["parts"]["sphere"].update(noise_floor_db=45.0, noise_floor_ok=False, spp=16)
+    ref["noise_floor_ok"] = False
+    assert look_verdict(row["look"], ref)["meets_goal"] is False
+    # Both parts short of their floors: the look is not judged, and each part is named.
+    ref["parts"]["flat part"].update(noise_floor_db=30.0, noise_floor_ok=False, spp=64)
+    assert look_verdict(row["look"], ref)["not_judged"].endswith(
+        "floor 60.0 dB (sphere: floor 45.0 dB at 16 spp, flat part: floor 30.0 dB at 64 spp)"
+    )
+    failures = [f for f in noise_floor_failures(data) if f.startswith("skin on front:")]
+    assert len(failures) == 2 and any("flat part" in f for f in failures)
+    failure = next(f for f in failures if "sphere" in f)
+    assert "noise floor on the sphere 45.0 dB is not 10 dB above the PSNR it measures there (41.5 dB) at 16 spp" in failure

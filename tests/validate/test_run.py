@@ -140,27 +140,69 @@ def test_stochastic_references_report_their_noise_floor(validation_run):
         assert ref.noise_floor_db is None and ref.noise_floor_ok is None
 
 
-def test_volpath_comparison_masks_cast_shadows_and_stand_ins(validation_run, mitsuba_rgb):
-    """The atlas has no cast shadows, and the reference's open plane is a diffuse stand-in (a
-    medium needs a closed surface): both are left out, and the report says so."""
+def test_a_medium_reference_renders_each_object_alone_with_the_plane_as_a_slab(validation_run, mitsuba_rgb):
+    """Skin's reference masks nothing: the sphere holds the medium and the plane is the top of a slab of it,
+    each rendered alone, so the sphere casts no shadow on the plane (the deferred renderer casts none) and
+    every pixel of either object is compared."""
     from atlasgen.validate.mitsuba_scene import cast_shadow_mask, object_mask
     from atlasgen.validate.scenes import bind_material, load_validation_scene, resize_scene
 
     r, ref = _result(validation_run, "skin", "back", "physical")
-    assert "cast shadows" in ref.masked and "stand-in" in ref.masked
+    assert ref.mask is None and ref.masked is None
     _, scene = load_validation_scene("back")
     scene = bind_material(resize_scene(scene, *TINY), "skin")
     shadows = cast_shadow_mask(mitsuba_rgb, scene)
     plane = object_mask(mitsuba_rgb, scene, [o.index for o in scene.objects if o.shape == "plane"])
     sphere = object_mask(mitsuba_rgb, scene, [o.index for o in scene.objects if o.shape == "sphere"])
-    np.testing.assert_array_equal(ref.mask, shadows | plane)
     assert plane.mean() > 0.2 and sphere.mean() > 0.2 and not (plane & sphere).any()
-    # The shadows fall on the plane; what is left is the sphere the reference models as skin.
-    assert (~ref.mask & (sphere | plane)).sum() == (sphere & ~shadows).sum() > 0
-    lum = lambda image, where: image[where].sum(-1).mean()  # noqa: E731
-    assert lum(ref.image, shadows) < 0.5 * lum(r.atlas_image, shadows)
+    lum = ref.image.sum(-1)
+    # Only the two objects' pixels hold a render, and the slab is lit on the plane's pixels.
+    assert (lum[~(plane | sphere)] == 0).all() and lum[plane].mean() > 0 and lum[sphere].mean() > 0
+    # In the sphere's cast shadow the slab is lit as the plane around it: against the atlas (no shadows
+    # either) the shadowed pixels are no darker than the plane's others, where volpath with the sphere
+    # in the scene made them less than half as bright.
+    shaded, lit = plane & shadows, plane & ~shadows
+    assert shaded.sum() > 3
+    ratio = lambda where: lum[where].mean() / r.atlas_image.sum(-1)[where].mean()  # noqa: E731
+    assert ratio(shaded) > 0.7 * ratio(lit), (ratio(shaded), ratio(lit))
     for material in ("matte", "film"):  # atlasgen_direct traces no shadow rays: nothing to mask
         assert _result(validation_run, material, "back", "physical")[1].mask is None
+
+
+@pytest.mark.parametrize("scene_name", ["front", "back"])
+def test_a_medium_comparison_is_split_by_object_from_the_g_buffer(validation_run, scene_name):
+    """The skin's pixels split into the sphere and the flat part (the plane), each drawn alone by the renderer:
+    together they are the material's pixels, and each holds the pixels whose centre ray meets that object first,
+    by an independent closed form (a ray against the sphere of radius 0.5 at (0, 0.5, 0) and the square plane
+    y = 0 of half-width 1.6), to within the silhouette's pixels, which the tessellation and the raster decide."""
+    from atlasgen.render.camera import pixel_rays
+    from atlasgen.validate.scenes import load_validation_scene, resize_scene
+
+    r, ref = _result(validation_run, "skin", scene_name, "physical")
+    parts = ref.metrics.parts
+    assert set(parts) == {"sphere", "flat part"} and set(ref.part_floors) == set(parts)
+    assert sum(p["coverage"] for p in parts.values()) == pytest.approx(ref.metrics.coverage)
+    _, scene = load_validation_scene(scene_name)
+    scene = resize_scene(scene, *TINY)
+    origin = np.asarray(scene.camera.position, dtype=np.float64)
+    d = pixel_rays(scene.camera, scene.width, scene.height)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    oc = origin - np.array([0.0, 0.5, 0.0])
+    b = (d * oc).sum(-1)
+    disc = b * b - (oc @ oc - 0.25)
+    t_sphere = np.where(disc > 0, -b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
+    t_plane = -origin[1] / d[..., 1]
+    hit = origin + t_plane[..., None] * d
+    on_plane = (t_plane > 0) & (np.abs(hit[..., 0]) <= 1.6) & (np.abs(hit[..., 2]) <= 1.6) & (t_plane < t_sphere)
+    sphere = np.isfinite(t_sphere) & (t_sphere > 0)
+    edge = 0.1 * np.sqrt(sphere.sum())  # a silhouette's worth of pixels: a fraction of its circumference
+    assert abs(parts["sphere"]["pixels"] - sphere.sum()) <= max(2, edge), (parts["sphere"]["pixels"], sphere.sum())
+    assert abs(parts["flat part"]["pixels"] - on_plane.sum()) <= max(2, edge), (parts["flat part"]["pixels"], on_plane.sum())
+    # Every part has its own floor, and the reference's floor rule covers each.
+    for name, floor in ref.part_floors.items():
+        psnr_db = parts[name]["psnr_db"]
+        if ref.noise_floor_ok:
+            assert floor >= psnr_db + 10.0
 
 
 def test_a_reference_short_of_its_floor_gets_the_samples_the_floor_needs():
@@ -180,7 +222,8 @@ def test_a_reference_short_of_its_floor_gets_the_samples_the_floor_needs():
 @pytest.mark.slow
 def test_materials_with_the_same_physics_share_their_reference_render(tmp_path, mitsuba_rgb, gpu_context, monkeypatch):
     """A closed-form skin and a copy of it (the same physics) render their volpath reference once
-    per scene in one run, and both are measured against that one image."""
+    per scene in one run (one render per object: the sphere and the plane's slab, each alone), and
+    both are measured against that one image."""
     from atlasgen.bake.pipeline import bake_atlas, write_bake
     from atlasgen.materials.material import read_materials
     from atlasgen.validate import run as module
@@ -195,12 +238,12 @@ def test_materials_with_the_same_physics_share_their_reference_render(tmp_path, 
     render = module._render_physical_scene
     monkeypatch.setattr(module, "_render_physical_scene", lambda *a: rendered.append(a[0]) or render(*a))
     run = module.validate_atlas(dds, scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=4)
-    assert len(rendered) == 1
+    assert len(rendered) == 2
     a, b = (r.references["physical"] for r in run.runs)
     assert a.image is not b.image and np.array_equal(a.image, b.image) and a.spp == b.spp == 4
     # Nothing outlives the run: the next one renders its reference again.
     module.validate_atlas(dds, ["skin-a"], scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=4)
-    assert len(rendered) == 2
+    assert len(rendered) == 4
 
 
 def test_every_comparison_covers_the_materials_pixels_and_splits_off_grazing_ones(validation_run):
