@@ -49,25 +49,38 @@ def expect_rejected(write_material):
 def separable_atlas(tmp_path_factory):
     """An sRGB atlas with separable materials (f_cos and f_proxy targets) and a Lambert LUT, on disk
     (for the separable maths' tests and for its shader code's, tests/shaders/test_separable.py)."""
-    from atlasgen.bake.pipeline import bake_atlas, write_bake
-    from atlasgen.materials.material import read_materials
+    return _shared_bake(tmp_path_factory, "separable-atlas", SEPARABLE_ATLAS)
 
-    folder = tmp_path_factory.mktemp("separable_atlas")
-    mats = folder / "materials"
-    mats.mkdir()
-    files = {
-        "lut": 'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n',
-        "sharp": 'type = "separable"\nsource = "ggx"\nalpha = 0.05\nterms = 3\ntarget = "f_cos"\n',
-        "plastic": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nfresnel = "exact"\ndiffuse = [0.4, 0.1, 0.05]\nterms = 2\ntarget = "f_proxy"\n',
-        "phong": 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nspecular = [0.9, 0.6, 0.3]\nterms = 2\nparametrization = "in_out"\n',
-    }
-    for name, text in files.items():
-        (mats / f"{name}.toml").write_text(textwrap.dedent(text))
-    materials = read_materials([mats])
-    result = bake_atlas(materials)
-    path = folder / "atlas.dds"
-    write_bake(result, path)
-    return path, result
+
+#: The materials of :func:`separable_atlas`.
+SEPARABLE_ATLAS = {
+    "lut": 'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n',
+    "sharp": 'type = "separable"\nsource = "ggx"\nalpha = 0.05\nterms = 3\ntarget = "f_cos"\n',
+    "plastic": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nfresnel = "exact"\ndiffuse = [0.4, 0.1, 0.05]\nterms = 2\ntarget = "f_proxy"\n',
+    "phong": 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nspecular = [0.9, 0.6, 0.3]\nterms = 2\nparametrization = "in_out"\n',
+}
+
+
+def _shared_bake(tmp_path_factory, name: str, files: dict):
+    """``(atlas.dds path, BakeResult)`` of ``files`` (``{stem: TOML text}``), baked once per test run
+    for every xdist worker (:func:`shared_folder`); each worker reads the pickled result, so all of
+    them test the same bake."""
+    import pickle
+
+    def build(folder):
+        from atlasgen.bake.pipeline import bake_atlas, write_bake
+        from atlasgen.materials.material import read_materials
+
+        mats = folder / "materials"
+        mats.mkdir()
+        for stem, text in files.items():
+            (mats / f"{stem}.toml").write_text(textwrap.dedent(text))
+        result = bake_atlas(read_materials([mats]))
+        write_bake(result, folder / "atlas.dds")
+        (folder / "result.pickle").write_bytes(pickle.dumps(result))
+
+    folder = shared_folder(tmp_path_factory, name, build)
+    return folder / "atlas.dds", pickle.loads((folder / "result.pickle").read_bytes())
 
 
 @pytest.fixture
@@ -145,11 +158,58 @@ FIXTURE_MARKERS = {
 }
 
 
+#: Session fixtures built once per test run for every worker (:func:`shared_folder`) whose users run
+#: in one xdist worker (the group named here): a second worker would only wait for the first to
+#: build it, while under a group it runs the rest of the suite meanwhile.
+FIXTURE_GROUPS = {
+    "validation_run": "validation-run",
+    "shipped_library_cache": "shipped-library",
+}
+
+#: Fixture scopes that pytest-xdist would pay once per worker that runs a test of the module.
+_MODULE_SCOPES = {"module", "class", "package"}
+
+
+def _uses_a_module_fixture(item) -> bool:
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs and defs[-1].scope in _MODULE_SCOPES for defs in info.name2fixturedefs.values())
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups (it suffixes node ids with them)
 def pytest_collection_modifyitems(config, items):
     for item in items:
         for fixture, marker in FIXTURE_MARKERS.items():
             if fixture in getattr(item, "fixturenames", ()):
                 item.add_marker(marker)
+        if item.get_closest_marker("xdist_group") is not None:  # a test's own group wins
+            continue
+        group = next((g for fixture, g in FIXTURE_GROUPS.items() if fixture in getattr(item, "fixturenames", ())), None)
+        # A module's shared fixture (a bake, a Mitsuba run, a browser) is set up once per worker
+        # that runs one of its tests: under --dist loadgroup the module's tests that use one go to
+        # one worker, so it is paid once.
+        if group is None and _uses_a_module_fixture(item):
+            group = item.nodeid.split("::")[0]
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+    if getattr(config.option, "loadgroup", False):  # set in xdist workers under --dist loadgroup
+        _suffix_groups(items)
+
+
+def _suffix_groups(items) -> None:
+    """Give each test in an ``xdist_group`` the node id ``<id>@<group>`` that ``--dist loadgroup``
+    schedules by. pytest-xdist 3.8 sets ``item._nodeid``, which pytest 9 no longer reads (a node's
+    id is ``item._id``), so without this every group would be split across the workers and its
+    shared fixtures paid in each. Done here, where this hook runs first (tryfirst), once the
+    markers above are set; xdist's own pass then finds the suffix already there or sets the
+    attribute pytest ignores."""
+    from _pytest.nodeid import NodeId
+
+    for item in items:
+        names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default")) for m in item.iter_markers("xdist_group")})
+        if names and "@" not in item.nodeid:
+            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(names)}")
 
 
 ROOT = Path(__file__).resolve().parents[1]
