@@ -195,6 +195,7 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.xdist_group(group))
     if getattr(config.option, "loadgroup", False):  # set in xdist workers under --dist loadgroup
         _suffix_groups(items)
+        _order_longest_first(items, getattr(config, "workerinput", {}).get(_DURATIONS_KEY) or {})
 
 
 def _suffix_groups(items) -> None:
@@ -210,6 +211,58 @@ def _suffix_groups(items) -> None:
         names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default")) for m in item.iter_markers("xdist_group")})
         if names and "@" not in item.nodeid:
             item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(names)}")
+
+
+# ---- xdist scheduling: the longest work first ------------------------------------------------
+#: Where the last runs' seconds per test (setup, call and teardown) are kept (.pytest_cache).
+_DURATIONS_KEY = "atlasgen/durations"
+_durations: dict = {}
+
+
+def _base_id(nodeid: str) -> str:
+    return nodeid.split("@", 1)[0]
+
+
+def _order_longest_first(items, durations: dict) -> None:
+    """Order the work units (an xdist group, or a test alone) by how long they took last time,
+    longest first, then by size; ties keep the collection order. With --no-loadscope-reorder
+    (pyproject.toml) xdist hands them out in this order, so a long test does not start last and
+    leave the other core idle. A unit's tests keep their order, and a group goes to one worker at
+    once, so a module's fixtures are still set up once; only tests alone (function-scoped
+    fixtures only) move. Without timings (a fresh clone) the largest groups go first, as xdist
+    orders them itself."""
+    units: dict = {}
+    for item in items:
+        key = item.nodeid.rsplit("@", 1)[1] if "@" in item.nodeid else item.nodeid
+        units.setdefault(key, []).append(item)
+
+    def cost(unit):
+        return -sum(float(durations.get(_base_id(i.nodeid), 0.0)) for i in unit), -len(unit)
+
+    items[:] = [item for unit in sorted(units.values(), key=cost) for item in unit]
+
+
+try:  # pytest-xdist's hook (the controller's): every worker orders by the same timings
+    import xdist  # noqa: F401
+
+    def pytest_configure_node(node):
+        cache = getattr(node.config, "cache", None)
+        node.workerinput[_DURATIONS_KEY] = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
+
+except ImportError:
+    pass
+
+
+def pytest_runtest_logreport(report):
+    # In the controller every worker's reports arrive here too; a worker's are its own.
+    _durations[_base_id(report.nodeid)] = _durations.get(_base_id(report.nodeid), 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    cache = getattr(session.config, "cache", None)
+    if cache is None or hasattr(session.config, "workerinput") or not _durations:
+        return
+    cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **{k: round(v, 3) for k, v in _durations.items()}})
 
 
 ROOT = Path(__file__).resolve().parents[1]
