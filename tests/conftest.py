@@ -158,12 +158,14 @@ FIXTURE_MARKERS = {
 }
 
 
-#: Session fixtures built once per test run for every worker (:func:`shared_folder`) whose users run
-#: in one xdist worker (the group named here): a second worker would only wait for the first to
-#: build it, while under a group it runs the rest of the suite meanwhile.
+#: Session fixtures whose users run in one xdist worker (the group named here). The first two are
+#: built once per run for every worker (:func:`shared_folder`): a second worker would only wait
+#: for the first to build them, while under a group it runs the rest of the suite meanwhile. The
+#: renderer's pipelines cannot leave their process: a group compiles them once, not per worker.
 FIXTURE_GROUPS = {
     "validation_run": "validation-run",
     "shipped_library_cache": "shipped-library",
+    "renderer": "renderer",
 }
 
 #: Fixture scopes that pytest-xdist would pay once per worker that runs a test of the module.
@@ -183,34 +185,47 @@ def pytest_collection_modifyitems(config, items):
         for fixture, marker in FIXTURE_MARKERS.items():
             if fixture in getattr(item, "fixturenames", ()):
                 item.add_marker(marker)
-        if item.get_closest_marker("xdist_group") is not None:  # a test's own group wins
-            continue
-        group = next((g for fixture, g in FIXTURE_GROUPS.items() if fixture in getattr(item, "fixturenames", ())), None)
-        # A module's shared fixture (a bake, a Mitsuba run, a browser) is set up once per worker
-        # that runs one of its tests: under --dist loadgroup the module's tests that use one go to
-        # one worker, so it is paid once.
-        if group is None and _uses_a_module_fixture(item):
-            group = item.nodeid.split("::")[0]
-        if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
     if getattr(config.option, "loadgroup", False):  # set in xdist workers under --dist loadgroup
         _suffix_groups(items)
         _order_longest_first(items, getattr(config, "workerinput", {}).get(_DURATIONS_KEY) or {})
 
 
+def _own_group(item) -> str | None:
+    """The test's own ``xdist_group`` name(s), joined as pytest-xdist joins them, or None."""
+    names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default")) for m in item.iter_markers("xdist_group")})
+    return "_".join(names) if names else None
+
+
+def _fixture_group(item) -> str | None:
+    return next((g for fixture, g in FIXTURE_GROUPS.items() if fixture in getattr(item, "fixturenames", ())), None)
+
+
 def _suffix_groups(items) -> None:
-    """Give each test in an ``xdist_group`` the node id ``<id>@<group>`` that ``--dist loadgroup``
-    schedules by. pytest-xdist 3.8 sets ``item._nodeid``, which pytest 9 no longer reads (a node's
-    id is ``item._id``), so without this every group would be split across the workers and its
-    shared fixtures paid in each. Done here, where this hook runs first (tryfirst), once the
-    markers above are set; xdist's own pass then finds the suffix already there or sets the
-    attribute pytest ignores."""
+    """Give each test of a group the node id ``<id>@<group>`` that ``--dist loadgroup`` schedules by.
+
+    A test's group: its own ``xdist_group``, taken whole into a :data:`FIXTURE_GROUPS` group where
+    one of its tests uses that fixture (tests/test_install.py's wheel and the library's bake cache);
+    else the group of a :data:`FIXTURE_GROUPS` fixture it uses; else, where it uses a module-scoped
+    fixture (a bake, a Mitsuba run, a browser), its module, so that the fixture is set up in one
+    worker once. pytest-xdist 3.8 marks a group by setting ``item._nodeid``, which pytest 9 no
+    longer reads (a node's id is ``item._id``): without this every group would be split across
+    the workers and its shared fixtures paid in each. xdist's own pass runs after this hook
+    (tryfirst) and sets the attribute pytest ignores."""
     from _pytest.nodeid import NodeId
 
+    merged: dict = {}
     for item in items:
-        names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default")) for m in item.iter_markers("xdist_group")})
-        if names and "@" not in item.nodeid:
-            item._id = NodeId.parse(f"{item.nodeid}@{'_'.join(names)}")
+        own, fixture = _own_group(item), _fixture_group(item)
+        if own is not None and fixture is not None:
+            merged.setdefault(own, fixture)
+    for item in items:
+        own = _own_group(item)
+        if own is not None:
+            group = merged.get(own, own)
+        else:
+            group = _fixture_group(item) or (item.nodeid.split("::")[0] if _uses_a_module_fixture(item) else None)
+        if group is not None and "@" not in item.nodeid:
+            item._id = NodeId.parse(f"{item.nodeid}@{group}")
 
 
 # ---- xdist scheduling: the longest work first ------------------------------------------------
