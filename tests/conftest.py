@@ -158,14 +158,13 @@ FIXTURE_MARKERS = {
 }
 
 
-#: Session fixtures whose users run in one xdist worker (the group named here). The first two are
-#: built once per run for every worker (:func:`shared_folder`): a second worker would only wait
-#: for the first to build them, while under a group it runs the rest of the suite meanwhile. The
-#: renderer's pipelines cannot leave their process: a group compiles them once, not per worker.
+#: Session fixtures whose users run in one xdist worker (the group named here). Both are built once
+#: per run for every worker (:func:`shared_folder`): a second worker would only wait for the first
+#: to build them, while under a group it runs the rest of the suite meanwhile. (The renderer's
+#: pipelines are not worth a group: tests/render took no less CPU with one, 2026-12-02.)
 FIXTURE_GROUPS = {
     "validation_run": "validation-run",
     "shipped_library_cache": "shipped-library",
-    "renderer": "renderer",
 }
 
 #: Fixture scopes that pytest-xdist would pay once per worker that runs a test of the module.
