@@ -224,7 +224,11 @@ def _suffix_groups(items) -> None:
         else:
             group = _fixture_group(item) or (item.nodeid.split("::")[0] if _uses_a_module_fixture(item) else None)
         if group is not None and "@" not in item.nodeid:
-            item._id = NodeId.parse(f"{item.nodeid}@{group}")
+            # The suffix goes into the last name, outside any [params], so that the id's string
+            # rebuilt from its parts (the controller's report) is the same string.
+            *names, last = item._id.names
+            params = "" if item._id.params is None else f"[{item._id.params}]"
+            item._id = NodeId(path=item._id.path, names=(*names, f"{last}{params}@{group}"))
 
 
 # ---- xdist scheduling: the longest work first ------------------------------------------------
