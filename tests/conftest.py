@@ -49,25 +49,38 @@ def expect_rejected(write_material):
 def separable_atlas(tmp_path_factory):
     """An sRGB atlas with separable materials (f_cos and f_proxy targets) and a Lambert LUT, on disk
     (for the separable maths' tests and for its shader code's, tests/shaders/test_separable.py)."""
-    from atlasgen.bake.pipeline import bake_atlas, write_bake
-    from atlasgen.materials.material import read_materials
+    return _shared_bake(tmp_path_factory, "separable-atlas", SEPARABLE_ATLAS)
 
-    folder = tmp_path_factory.mktemp("separable_atlas")
-    mats = folder / "materials"
-    mats.mkdir()
-    files = {
-        "lut": 'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n',
-        "sharp": 'type = "separable"\nsource = "ggx"\nalpha = 0.05\nterms = 3\ntarget = "f_cos"\n',
-        "plastic": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nfresnel = "exact"\ndiffuse = [0.4, 0.1, 0.05]\nterms = 2\ntarget = "f_proxy"\n',
-        "phong": 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nspecular = [0.9, 0.6, 0.3]\nterms = 2\nparametrization = "in_out"\n',
-    }
-    for name, text in files.items():
-        (mats / f"{name}.toml").write_text(textwrap.dedent(text))
-    materials = read_materials([mats])
-    result = bake_atlas(materials)
-    path = folder / "atlas.dds"
-    write_bake(result, path)
-    return path, result
+
+#: The materials of :func:`separable_atlas`.
+SEPARABLE_ATLAS = {
+    "lut": 'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n',
+    "sharp": 'type = "separable"\nsource = "ggx"\nalpha = 0.05\nterms = 3\ntarget = "f_cos"\n',
+    "plastic": 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nfresnel = "exact"\ndiffuse = [0.4, 0.1, 0.05]\nterms = 2\ntarget = "f_proxy"\n',
+    "phong": 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nspecular = [0.9, 0.6, 0.3]\nterms = 2\nparametrization = "in_out"\n',
+}
+
+
+def _shared_bake(tmp_path_factory, name: str, files: dict):
+    """``(atlas.dds path, BakeResult)`` of ``files`` (``{stem: TOML text}``), baked once per test run
+    for every xdist worker (:func:`shared_folder`); each worker reads the pickled result, so all of
+    them test the same bake."""
+    import pickle
+
+    def build(folder):
+        from atlasgen.bake.pipeline import bake_atlas, write_bake
+        from atlasgen.materials.material import read_materials
+
+        mats = folder / "materials"
+        mats.mkdir()
+        for stem, text in files.items():
+            (mats / f"{stem}.toml").write_text(textwrap.dedent(text))
+        result = bake_atlas(read_materials([mats]))
+        write_bake(result, folder / "atlas.dds")
+        (folder / "result.pickle").write_bytes(pickle.dumps(result))
+
+    folder = shared_folder(tmp_path_factory, name, build)
+    return folder / "atlas.dds", pickle.loads((folder / "result.pickle").read_bytes())
 
 
 @pytest.fixture
@@ -145,11 +158,129 @@ FIXTURE_MARKERS = {
 }
 
 
+#: Session fixtures whose users run in one xdist worker (the group named here). Both are built once
+#: per run for every worker (:func:`shared_folder`): a second worker would only wait for the first
+#: to build them, while under a group it runs the rest of the suite meanwhile. (The renderer's
+#: pipelines are not worth a group: tests/render took no less CPU with one, 2026-12-02.)
+FIXTURE_GROUPS = {
+    "validation_run": "validation-run",
+    "shipped_library_cache": "shipped-library",
+}
+
+#: Fixture scopes that pytest-xdist would pay once per worker that runs a test of the module.
+_MODULE_SCOPES = {"module", "class", "package"}
+
+
+def _uses_a_module_fixture(item) -> bool:
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs and defs[-1].scope in _MODULE_SCOPES for defs in info.name2fixturedefs.values())
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups (it suffixes node ids with them)
 def pytest_collection_modifyitems(config, items):
     for item in items:
         for fixture, marker in FIXTURE_MARKERS.items():
             if fixture in getattr(item, "fixturenames", ()):
                 item.add_marker(marker)
+    if getattr(config.option, "loadgroup", False):  # set in xdist workers under --dist loadgroup
+        _suffix_groups(items)
+        _order_longest_first(items, getattr(config, "workerinput", {}).get(_DURATIONS_KEY) or {})
+
+
+def _own_group(item) -> str | None:
+    """The test's own ``xdist_group`` name(s), joined as pytest-xdist joins them, or None."""
+    names = sorted({str(m.args[0] if m.args else m.kwargs.get("name", "default")) for m in item.iter_markers("xdist_group")})
+    return "_".join(names) if names else None
+
+
+def _fixture_group(item) -> str | None:
+    return next((g for fixture, g in FIXTURE_GROUPS.items() if fixture in getattr(item, "fixturenames", ())), None)
+
+
+def _suffix_groups(items) -> None:
+    """Give each test of a group the node id ``<id>@<group>`` that ``--dist loadgroup`` schedules by.
+
+    A test's group: its own ``xdist_group``, taken whole into a :data:`FIXTURE_GROUPS` group where
+    one of its tests uses that fixture (tests/test_install.py's wheel and the library's bake cache);
+    else the group of a :data:`FIXTURE_GROUPS` fixture it uses; else, where it uses a module-scoped
+    fixture (a bake, a Mitsuba run, a browser), its module, so that the fixture is set up in one
+    worker once. pytest-xdist 3.8 marks a group by setting ``item._nodeid``, which pytest 9 no
+    longer reads (a node's id is ``item._id``): without this every group would be split across
+    the workers and its shared fixtures paid in each. xdist's own pass runs after this hook
+    (tryfirst) and sets the attribute pytest ignores."""
+    from _pytest.nodeid import NodeId
+
+    merged: dict = {}
+    for item in items:
+        own, fixture = _own_group(item), _fixture_group(item)
+        if own is not None and fixture is not None:
+            merged.setdefault(own, fixture)
+    for item in items:
+        own = _own_group(item)
+        if own is not None:
+            group = merged.get(own, own)
+        else:
+            group = _fixture_group(item) or (item.nodeid.split("::")[0] if _uses_a_module_fixture(item) else None)
+        if group is not None and "@" not in item.nodeid:
+            # The suffix goes into the last name, outside any [params], so that the id's string
+            # rebuilt from its parts (the controller's report) is the same string.
+            *names, last = item._id.names
+            params = "" if item._id.params is None else f"[{item._id.params}]"
+            item._id = NodeId(path=item._id.path, names=(*names, f"{last}{params}@{group}"))
+
+
+# ---- xdist scheduling: the longest work first ------------------------------------------------
+#: Where the last runs' seconds per test (setup, call and teardown) are kept (.pytest_cache).
+_DURATIONS_KEY = "atlasgen/durations"
+_durations: dict = {}
+
+
+def _base_id(nodeid: str) -> str:
+    return nodeid.split("@", 1)[0]
+
+
+def _order_longest_first(items, durations: dict) -> None:
+    """Order the work units (an xdist group, or a test alone) by how long they took last time,
+    longest first, then by size; ties keep the collection order. With --no-loadscope-reorder
+    (pyproject.toml) xdist hands them out in this order, so a long test does not start last and
+    leave the other core idle. A unit's tests keep their order, and a group goes to one worker at
+    once, so a module's fixtures are still set up once; only tests alone (function-scoped
+    fixtures only) move. Without timings (a fresh clone) the largest groups go first, as xdist
+    orders them itself."""
+    units: dict = {}
+    for item in items:
+        key = item.nodeid.rsplit("@", 1)[1] if "@" in item.nodeid else item.nodeid
+        units.setdefault(key, []).append(item)
+
+    def cost(unit):
+        return -sum(float(durations.get(_base_id(i.nodeid), 0.0)) for i in unit), -len(unit)
+
+    items[:] = [item for unit in sorted(units.values(), key=cost) for item in unit]
+
+
+try:  # pytest-xdist's hook (the controller's): every worker orders by the same timings
+    import xdist  # noqa: F401
+
+    def pytest_configure_node(node):
+        cache = getattr(node.config, "cache", None)
+        node.workerinput[_DURATIONS_KEY] = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
+
+except ImportError:
+    pass
+
+
+def pytest_runtest_logreport(report):
+    # In the controller every worker's reports arrive here too; a worker's are its own.
+    _durations[_base_id(report.nodeid)] = _durations.get(_base_id(report.nodeid), 0.0) + report.duration
+
+
+def pytest_sessionfinish(session):
+    cache = getattr(session.config, "cache", None)
+    if cache is None or hasattr(session.config, "workerinput") or not _durations:
+        return
+    cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **{k: round(v, 3) for k, v in _durations.items()}})
 
 
 ROOT = Path(__file__).resolve().parents[1]

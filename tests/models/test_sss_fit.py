@@ -202,7 +202,9 @@ def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_con
     dds = tmp_path / "atlas.dds"
     write_bake(bake_atlas(read_materials([folder]), cache_dir=cache), dds)
     scenes = [_sphere_only(s, tmp_path) for s in ("front", "back")]
-    run = validate_atlas(dds, scenes=scenes, resolution=(64, 48), physical_spp=256, max_physical_spp=256)
+    # 32x24: the volpath references are most of the test's CPU, and each PSNR here came within
+    # 0.5 dB of 64x48's (2026-12-02), several dB clear of both bounds: PSNR is a mean over pixels.
+    run = validate_atlas(dds, scenes=scenes, resolution=(32, 24), physical_spp=256, max_physical_spp=256)
     psnr = {(r.material, r.scene): r.references["physical"].metrics.psnr for r in run.runs}
     for scene in {r.scene for r in run.runs}:
         # With the reference's own noise in both (a floor near 35 dB at this spp).

@@ -122,9 +122,16 @@ CONVERGED_CASES = {
 }
 
 
-def _converged(factors, src, lobe_alpha, quantized):
-    s = sample_error_pairs(400_000, 99, lobe_alpha)  # independent of both bake samples
+def _converged_sample(src, lobe_alpha):
+    """400 000 pairs independent of both bake samples, and the source's f cos at them: one for every
+    target and storage of a case (they depend on neither)."""
+    s = sample_error_pairs(400_000, 99, lobe_alpha)
     ref, _ = reference_values(src, s)
+    return s, ref
+
+
+def _converged(factors, sample, quantized):
+    s, ref = sample
     judged = quantize_factors(factors) if quantized else factors
     return errors_by_terms(judged, ref, s.l, s.v, log=not quantized, weight=s.weight)
 
@@ -137,10 +144,11 @@ def test_every_reported_figure_agrees_with_a_converged_estimate(name):
     result = approximate_brdf(src, max_error=0.02, grids=(16, 32))
     assert (result.selection.seed, result.report.seed) == (SELECTION_SEED, ERROR_SEED)
     chosen = {c["target"]: c for c in result.candidates if c["grid"] == result.grid}
+    sample = _converged_sample(src, result.report.lobe_alpha)
     for target, reported in result.errors_by_terms.items():
         factors = _full_factors(src, result, target)
         for quantized, figures in ((False, reported), (True, result.errors_8bit_by_terms[target])):
-            converged = _converged(factors, src, result.report.lobe_alpha, quantized)
+            converged = _converged(factors, sample, quantized)
             for mine, truth in zip(figures, converged):
                 for key in ("relative_rms", "log_error"):
                     if key in mine:

@@ -25,16 +25,22 @@ position = [0, 0.3, 3]
 target = [0, 0, 0]
 fov = 30
 [image]
-width = 20
-height = 16
+width = {width}
+height = {height}
 [[objects]]
 shape = "sphere"
 material = "m"
 """
 
 
-def _scene(environment):
-    return parse_scene(tomllib.loads(textwrap.dedent(SPHERE.format(environment=environment))), "test.toml", None)
+def _scene(environment, width=20, height=16):
+    text = SPHERE.format(environment=environment, width=width, height=height)
+    return parse_scene(tomllib.loads(textwrap.dedent(text)), "test.toml", None)
+
+
+#: The CPU breakdown integrates the whole environment at every pixel: a smaller image than the
+#: GPU tests' (80 pixels, every one on the sphere, against the 50 asked for) is as good a test, and cheaper.
+SMALL = (10, 8)
 
 
 def _sphere_aovs(scene, slot: int, gloss: float = 0.6):
@@ -62,7 +68,7 @@ def atlas():
 def test_the_parts_sum_to_the_total_cpu_error_and_a_uniform_environment_is_exact_for_the_diffuse_term(atlas):
     entry = atlas.manifest.materials[GLOSSY]
     for environment in ('environment = "sky"', "environment = [0.5, 1.0, 2.0]"):
-        scene = _scene(environment)
+        scene = _scene(environment, *SMALL)
         aovs = _sphere_aovs(scene, GLOSSY)
         parts = environment_parts(atlas.levels, atlas.srgb, entry, scene, aovs, EnvironmentData.of(scene.environment))
         assert parts.mask.sum() > 50
@@ -84,7 +90,7 @@ def test_the_parts_sum_to_the_total_cpu_error_and_a_uniform_environment_is_exact
 
 @pytest.mark.slow
 def test_a_lambert_slice_under_a_uniform_environment_integrates_to_albedo_times_radiance(atlas):
-    scene = _scene("environment = [0.5, 1.0, 2.0]")
+    scene = _scene("environment = [0.5, 1.0, 2.0]", *SMALL)
     aovs = _sphere_aovs(scene, LAMBERT)
     parts = environment_parts(atlas.levels, atlas.srgb, atlas.manifest.materials[LAMBERT], scene, aovs)
     expected = np.array([0.8, 0.6, 0.4]) * np.array([0.5, 1.0, 2.0])

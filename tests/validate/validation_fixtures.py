@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pickle
 import textwrap
 
 import pytest
+
+from tests.conftest import shared_folder
 
 #: One material per LUT model type; names are what the tests look up.
 MATERIALS = {
@@ -23,18 +26,20 @@ TINY = (40, 30)
 
 @pytest.fixture(scope="session")
 def validation_atlas(tmp_path_factory):
-    """``atlas.dds`` (with manifest and include) holding :data:`MATERIALS`."""
-    from atlasgen.bake.pipeline import bake_atlas, write_bake
-    from atlasgen.materials.material import read_materials
+    """``atlas.dds`` (with manifest and include) holding :data:`MATERIALS`, baked once per test run
+    for every xdist worker (:func:`tests.conftest.shared_folder`): the tests only read it."""
 
-    root = tmp_path_factory.mktemp("validation")
-    folder = root / "materials"
-    folder.mkdir()
-    for name, text in MATERIALS.items():
-        (folder / f"{name}.toml").write_text(textwrap.dedent(text))
-    dds = root / "atlas.dds"
-    write_bake(bake_atlas(read_materials([folder])), dds)
-    return dds
+    def build(root):
+        from atlasgen.bake.pipeline import bake_atlas, write_bake
+        from atlasgen.materials.material import read_materials
+
+        folder = root / "materials"
+        folder.mkdir()
+        for name, text in MATERIALS.items():
+            (folder / f"{name}.toml").write_text(textwrap.dedent(text))
+        write_bake(bake_atlas(read_materials([folder])), root / "atlas.dds")
+
+    return shared_folder(tmp_path_factory, "validation-atlas", build) / "atlas.dds"
 
 
 @pytest.fixture(scope="session")
@@ -51,14 +56,23 @@ def mitsuba_rgb():
 
 
 @pytest.fixture(scope="session")
-def validation_run(validation_atlas, mitsuba_rgb, gpu_context):
+def validation_run(validation_atlas, mitsuba_rgb, gpu_context, tmp_path_factory):
     """validate_atlas at :data:`TINY`: every test material on ``front`` (with physical
-    references), and the ones with back-lighting or the gate on ``back``."""
-    from atlasgen.validate.run import validate_atlas
+    references), and the ones with back-lighting or the gate on ``back``.
 
-    # An explicit cap (16x the start): the library's default lets references grow to 8192 spp.
-    run = validate_atlas(validation_atlas, scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=64)
-    back = validate_atlas(validation_atlas, ["matte", "skin", "leaf", "film"], scenes=["back"], resolution=TINY, physical_spp=4,
-                          max_physical_spp=64)  # fmt: skip
-    run.runs += back.runs
-    return run
+    Run once per test run: the first xdist worker to ask pickles it for the others (its Mitsuba
+    and GPU renders are a good part of a minute of CPU), and every worker reads that pickle, so
+    they all test the same object."""
+
+    def build(folder):
+        from atlasgen.validate.run import validate_atlas
+
+        # An explicit cap (16x the start): the library's default lets references grow to 8192 spp.
+        run = validate_atlas(validation_atlas, scenes=["front"], resolution=TINY, physical_spp=4, max_physical_spp=64)
+        back = validate_atlas(validation_atlas, ["matte", "skin", "leaf", "film"], scenes=["back"], resolution=TINY,
+                              physical_spp=4, max_physical_spp=64)  # fmt: skip
+        run.runs += back.runs
+        (folder / "run.pickle").write_bytes(pickle.dumps(run))
+
+    folder = shared_folder(tmp_path_factory, "validation-run", build)
+    return pickle.loads((folder / "run.pickle").read_bytes())
