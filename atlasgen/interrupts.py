@@ -3,37 +3,12 @@
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import threading
 
+from atlasgen.start_up import exit_on_interrupt, install_start_up_interrupts
+
 __all__ = ["deferred_interrupts", "exit_on_interrupt", "install_start_up_interrupts", "end_start_up_interrupts"]
-
-#: What Ctrl-C prints, and the status it ends with (128 + SIGINT, :data:`atlasgen.errors.EXIT_INTERRUPTED`).
-INTERRUPTED_LINE = b"atlasgen: interrupted\n"
-INTERRUPTED_STATUS = 130
-
-
-def exit_on_interrupt(signum, frame) -> None:
-    """SIGINT handler of the start-up: the one line, then exit 130 at once.
-
-    While the command line imports its modules nothing has been written, so there is
-    nothing to clean up, and an exception raised there would print Python's traceback
-    (the import machinery's frames): ``os._exit`` ends the process instead.
-    """
-    os.write(2, INTERRUPTED_LINE)
-    os._exit(INTERRUPTED_STATUS)
-
-
-def install_start_up_interrupts() -> None:
-    """Make Ctrl-C :func:`exit_on_interrupt` until :func:`end_start_up_interrupts`.
-
-    Done by ``atlasgen.cli`` (``cli/__init__.py``), the first module of the command line's
-    package to run, before ``cli/main.py`` imports click, NumPy and the library. Only where
-    SIGINT still has Python's own handler, in the main thread.
-    """
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        signal.signal(signal.SIGINT, exit_on_interrupt)
 
 
 def end_start_up_interrupts() -> None:
