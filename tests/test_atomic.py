@@ -17,6 +17,7 @@ from atlasgen.io import atomic
 from atlasgen.io.atlas import RERUN
 from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_file_atomically, write_files_atomically
 from atlasgen.render.atlas_texture import read_render_atlas
+from tests.plain_reader import read_plainly
 
 ROOT = Path(__file__).resolve().parents[1]
 OUTPUTS = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl", "atlas.timings.json", "atlas-preview.png")
@@ -46,17 +47,6 @@ def record_steps(monkeypatch):
     steps = []
     monkeypatch.setattr(atomic, "commit_hook", lambda step, path: steps.append((step, Path(path).name)))
     return steps
-
-
-def plain(folder: Path, names) -> dict:
-    """What a reader that knows nothing of atlasgen sees: the bytes at each path, None where it cannot open one."""
-    seen = {}
-    for name in names:
-        try:
-            seen[name] = (folder / name).read_bytes()
-        except FileNotFoundError:
-            seen[name] = None
-    return seen
 
 
 def visible(folder: Path) -> dict:
@@ -164,9 +154,12 @@ def test_plain_files_of_an_older_atlasgen_become_links_to_the_same_bytes_first(t
         (tmp_path / name).write_bytes(f"old {name}".encode())
     (tmp_path / "user.dds").write_bytes(b"user's")
     os.symlink("user.dds", tmp_path / "a.wgsl")  # a link of someone else's: its target's bytes are what a reader sees
-    old = plain(tmp_path, (*names, "a.wgsl"))
+    old = read_plainly(tmp_path, (*names, "a.wgsl"))
     seen = []
-    atomic.commit_hook = lambda step, path: (record_steps.append((step, Path(path).name)), seen.append(plain(tmp_path, old)))
+    atomic.commit_hook = lambda step, path: (
+        record_steps.append((step, Path(path).name)),
+        seen.append(read_plainly(tmp_path, old)),
+    )
     try:
         write_files_atomically({tmp_path / "a.json": b"new json", tmp_path / "a.wgsl": b"new wgsl", tmp_path / "a.dds": b"new dds"},
                                primary=tmp_path / "a.dds", remove=[tmp_path / "a.glsl"])  # fmt: skip
@@ -174,7 +167,7 @@ def test_plain_files_of_an_older_atlasgen_become_links_to_the_same_bytes_first(t
         atomic.commit_hook = None
     assert [s for s, _ in record_steps] == ["write"] * 3 + ["swap"] + ["migrate"] * 4 + ["swap", "remove"]
     assert all(view == old for view in seen[:-1])  # every step up to the second swap: the old set
-    assert plain(tmp_path, old) == {"a.json": b"new json", "a.glsl": None, "a.dds": b"new dds", "a.wgsl": b"new wgsl"}
+    assert read_plainly(tmp_path, old) == {"a.json": b"new json", "a.glsl": None, "a.dds": b"new dds", "a.wgsl": b"new wgsl"}
     assert not os.path.lexists(tmp_path / "a.glsl") and (tmp_path / "user.dds").read_bytes() == b"user's"
 
 

@@ -32,6 +32,7 @@ import pytest
 
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import STORE_SUFFIX, TEMP_SUFFIX
+from tests.plain_reader import read_plainly
 
 pytestmark = [pytest.mark.slow, pytest.mark.skipif(shutil.which("strace") is None, reason="strace is not installed")]
 
@@ -54,17 +55,6 @@ def atlasgen(args, inject: str | None = None, trace: Path | None = None) -> subp
             strace.insert(1, "--seccomp-bpf")
         command = strace + (["-e", f"inject={inject}"] if inject else []) + command
     return subprocess.run(command, env=ENV, capture_output=True, text=True, timeout=600)
-
-
-def view(folder: Path, names) -> dict:
-    """What a plain reader sees: the bytes at each documented path (None: it cannot open one)."""
-    seen = {}
-    for name in names:
-        try:
-            seen[name] = (folder / name).read_bytes()
-        except FileNotFoundError:
-            seen[name] = None
-    return seen
 
 
 def outputs(folder: Path) -> set:
@@ -138,8 +128,8 @@ def drive(args, folder: Path, primary: str, set_old, set_new, immutable=(), befo
     assert atlasgen(args, trace=log).returncode == 0
     calls = commit_calls(log, folder)
     names = old_names | outputs(folder)
-    new = view(folder, names)
-    old = view(saved, names)
+    new = read_plainly(folder, names)
+    old = read_plainly(saved, names)
     assert old[primary] != new[primary]
     changed = [name for name in names if old[name] != new[name]]
 
@@ -158,19 +148,19 @@ def drive(args, folder: Path, primary: str, set_old, set_new, immutable=(), befo
         save(saved, folder)
         killed = atlasgen(args, inject=f"{syscall}:error=EIO:signal=SIGKILL:when={n}")
         assert killed.returncode in (137, -9), (line, killed.returncode, killed.stderr)
-        gen = generation(view(folder, names))
+        gen = generation(read_plainly(folder, names))
         save(saved, folder)
         failed = atlasgen(args, inject=f"{syscall}:error=EIO:when={n}")
         if failed.returncode == 4:
             assert re.search(r"cannot (replace|write) \(Input/output error\)", one_line(failed)), (line, failed.stderr)
-            assert view(folder, names) == old, line
+            assert read_plainly(folder, names) == old, line
         else:
             assert failed.returncode == 0, (line, failed.stderr)  # a call after the commit: tidying
-            assert generation(view(folder, names)) == "new", line
+            assert generation(read_plainly(folder, names)) == "new", line
         seen.append((syscall, gen, failed.returncode))
     if tidy:  # after the last kill, the next run finds what it left, tidies it and commits
         assert atlasgen(args).returncode == 0
-        assert generation(view(folder, names)) == "new"
+        assert generation(read_plainly(folder, names)) == "new"
         assert not [p for p in folder.rglob("*") if p.name.endswith(TEMP_SUFFIX)]
     frozen = []
     for name in immutable:
@@ -183,7 +173,7 @@ def drive(args, folder: Path, primary: str, set_old, set_new, immutable=(), befo
             chattr(folder / name, "-i")
         assert refused.returncode == 4, (name, refused.stderr)
         assert one_line(refused).endswith(f"{name}: cannot replace (Operation not permitted); nothing was replaced")
-        assert view(folder, names) == old, name
+        assert read_plainly(folder, names) == old, name
         frozen.append(name)
     return {"calls": seen, "immutable": frozen}
 
@@ -352,14 +342,14 @@ def test_two_bakes_of_one_target_at_once_leave_one_generation(tmp_path):
         (folder / "snow.toml").write_text('type = "lambert"\nid = 9\n')
         reference = tmp_path / f"reference-{name}"
         assert atlasgen(["bake", folder, "-o", reference / "atlas.dds", "-q"]).returncode == 0
-        builds[name] = (folder, view(reference, outputs(reference)))
+        builds[name] = (folder, read_plainly(reference, outputs(reference)))
     out = tmp_path / "build" / "atlas.dds"
     stable = ("atlas.dds", "atlas.json", "atlas.wgsl", "atlas.glsl", "atlas.hlsl")
     for _ in range(2):
         runs = [subprocess.Popen([sys.executable, "-m", "atlasgen", "bake", str(folder), "-o", str(out), "-q"], env=ENV,
                                  stderr=subprocess.PIPE, text=True) for folder, _ in builds.values()]  # fmt: skip
         assert [run.wait(timeout=300) for run in runs] == [0, 0], [run.stderr.read() for run in runs]
-        now = view(out.parent, outputs(out.parent))
+        now = read_plainly(out.parent, outputs(out.parent))
         assert sorted(now) == sorted(builds["a"][1]), sorted(now)  # no temporary left
         assert [n for n, (_, ref) in builds.items() if all(now[f] == ref[f] for f in stable)], "a mixed set"
         assert len(os.listdir(out.parent / f".atlas{STORE_SUFFIX}")) <= 4  # lock, current, two generations

@@ -457,13 +457,14 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
     names.update({path: _stored_name(home, path) for path in removals})
     texts = {path: _link_text(store, stored, path) for path, stored in names.items()}
     current = _current(store)
-    old = set(_names(store / current)) if current else set()
+    live = store / current if current else store  # the current generation (no names in it without one)
+    old = set(_names(live)) if current else set()
     # Each path: this set's link already, absent, or to be migrated (a plain file, another link).
     migrate, absent = [], []
     for path in names:
         if _is_link_to(path, texts[path]):
             if names[path] in old:
-                _check_replaceable(path, store / current / names[path])
+                _check_replaceable(path, live / names[path])
         elif not os.path.lexists(path):
             absent.append(path)
         elif path.is_dir() and not path.is_symlink():
@@ -489,7 +490,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
         if holding is not None:
             try:
                 for stored in _linked(home, store, old):
-                    _carry(store / current / stored, holding / stored)
+                    _carry(live / stored, holding / stored)
             except OSError as exc:
                 raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
             for path in migrate:
@@ -513,7 +514,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
             gone = {names[path] for path in removals}
             try:
                 for stored in _linked(home, store, old - fresh - gone):
-                    _carry(store / current / stored, gen / stored)
+                    _carry(live / stored, gen / stored)
             except OSError as exc:
                 raise _unchanged(primary, exc) from None
             for path in absent:
@@ -533,9 +534,9 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
         if not done:
             for path in made:
                 _discard(path)
-            for folder in (gen, holding):
-                if folder is not None:
-                    shutil.rmtree(folder, ignore_errors=True)
+            for leftover in (gen, holding):
+                if leftover is not None:
+                    shutil.rmtree(leftover, ignore_errors=True)
 
 
 def _linked(home: Path, store: Path, names) -> list[str]:
@@ -574,7 +575,8 @@ def write_file_atomically(path, data: bytes) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(path)
-        fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
+        fd, made = tempfile.mkstemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
+        tmp: str | None = made
     except OSError as exc:
         raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
     try:
@@ -583,11 +585,11 @@ def write_file_atomically(path, data: bytes) -> None:
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
-            os.chmod(tmp, 0o644)
+            os.chmod(made, 0o644)
         except OSError as exc:
             raise OutputError(f"{path.as_posix()}: cannot write ({exc.strerror})") from None
         try:
-            os.replace(tmp, path)
+            os.replace(made, path)
         except OSError as exc:
             raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); it was left as it was") from None
         tmp = None
