@@ -45,6 +45,7 @@ from atlasgen.errors import BackendError
 from atlasgen.separable.materialx_oracle import (
     GL_LOCK,
     SURFACE_MODELS,
+    compile_program,
     declare_refraction_two_sided,
     generate_surface_stages,
     gl_context,
@@ -214,11 +215,7 @@ def forward_program(category: str) -> _Program:
     vertex, pixel = generate_surface_stages(category, tuple(LIGHT_TYPES.values()), MAX_LIGHTS)
     pixel = adapt_forward_pixel_stage(pixel)
     with GL_LOCK, gl_context() as ctx:
-        try:
-            program = ctx.program(vertex_shader=vertex, fragment_shader=pixel)
-        except Exception as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise BackendError(f"MaterialX's {category} forward shader does not compile here: {first}") from None
+        program = compile_program(ctx, vertex, pixel, f"MaterialX's {category} forward shader")
     return _Program(category, program, frozenset(program))
 
 

@@ -214,6 +214,15 @@ def generate_surface_stages(category: str, lights=(("directional_light", 1),), m
     return shader.getSourceCode(mx_shader.VERTEX_STAGE), shader.getSourceCode(mx_shader.PIXEL_STAGE)
 
 
+def compile_program(ctx, vertex: str, pixel: str, what: str):
+    """``ctx.program`` of the two stages; a compile error is one line naming ``what`` (a BackendError)."""
+    try:
+        return ctx.program(vertex_shader=vertex, fragment_shader=pixel)
+    except Exception as exc:  # moderngl raises its own error types with the driver's whole log
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise BackendError(f"{what} does not compile here: {first}") from None
+
+
 def _generate(category: str) -> str:
     """MaterialX's GLSL pixel stage for one node of ``category`` with every input a uniform and one directional light (id 1)."""
     return generate_surface_stages(category)[1]
@@ -337,11 +346,7 @@ def materialx_oracle(category: str) -> MaterialXOracle:
         raise BackendError(f"no MaterialX oracle for {category!r}; expected one of {', '.join(SURFACE_MODELS)}")
     pixel = adapt_pixel_stage(_generate(category))
     with GL_LOCK, gl_context() as ctx:
-        try:
-            program = ctx.program(vertex_shader=VERTEX_STAGE, fragment_shader=pixel)
-        except Exception as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise BackendError(f"MaterialX's {category} shader does not compile here: {first}") from None
+        program = compile_program(ctx, VERTEX_STAGE, pixel, f"MaterialX's {category} shader")
         corners = ctx.buffer(np.array([-1.0, -1.0, 3.0, -1.0, -1.0, 3.0], dtype="f4").tobytes())
         triangle = ctx.vertex_array(program, [(corners, "2f", "i_corner")])
     return MaterialXOracle(category, pixel, program, frozenset(program), triangle)
