@@ -389,7 +389,10 @@ def errors_by_terms(
     ref = np.ascontiguousarray(np.asarray(reference, dtype=np.float64).T)
     # All K at once, channel-major like ``products``: cumulative sums over terms, then
     # the shader's clamp and weight, in place (these arrays are K x 3 x 100 000).
-    approx = np.cumsum(products[: wanted[-1]], axis=0)
+    # A running sum, term by term: it adds in np.cumsum's order, several times faster on this layout.
+    approx = np.array(products[: wanted[-1]], order="C")
+    for k in range(1, approx.shape[0]):
+        approx[k] += approx[k - 1]
     if len(wanted) < approx.shape[0]:
         approx = approx[np.asarray(wanted) - 1]
     np.maximum(approx, 0.0, out=approx)

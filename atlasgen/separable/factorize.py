@@ -161,19 +161,22 @@ def factorize_nmf(
     g = np.zeros((terms, channels, n1))
     h = np.zeros((terms, channels, n2))
     eps = 1e-12
-    for c in range(channels):
-        if not np.any(a[c]):
-            continue
-        u, s, vt, root = _signed_top_singular(a[c], terms)
-        keep = s.size
-        wmat = np.abs(u) * root[None, :] + eps  # (n1, K)
-        hmat = np.abs(vt) * root[:, None] + eps  # (K, n2)
-        x = a[c]
+    active = [c for c in range(channels) if np.any(a[c])]
+    if active:
+        starts = [_signed_top_singular(a[c], terms) for c in active]
+        keep = starts[0][1].size  # min(terms, n1) for every channel
+        wmat = np.stack([np.abs(u) * root[None, :] + eps for u, _, _, root in starts])  # (C, n1, K)
+        hmat = np.stack([np.abs(vt) * root[:, None] + eps for _, _, vt, root in starts])  # (C, K, n2)
+        x = a[active]
+        # The channels' updates as stacked products: one BLAS call per channel as before, a third of
+        # the interpreter's work (the matrices are tiny, so that is what the iterations cost).
         for _ in range(iterations):
-            hmat *= (wmat.T @ x) / (wmat.T @ wmat @ hmat + eps)
-            wmat *= (x @ hmat.T) / (wmat @ (hmat @ hmat.T) + eps)
-        g[:keep, c] = wmat.T / r1[None, :]
-        h[:keep, c] = hmat / r2[None, :]
+            wt = wmat.transpose(0, 2, 1)
+            hmat *= (wt @ x) / (wt @ wmat @ hmat + eps)
+            ht = hmat.transpose(0, 2, 1)
+            wmat *= (x @ ht) / (wmat @ (hmat @ ht) + eps)
+        g[:keep, active] = (wmat / r1[None, :, None]).transpose(2, 0, 1)
+        h[:keep, active] = (hmat / r2[None, None, :]).transpose(1, 0, 2)
     return Factors(g, h.reshape(terms, channels, side, side), parametrization, np.zeros((channels, terms)))
 
 
