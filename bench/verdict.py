@@ -57,7 +57,8 @@ def measure() -> dict:
     from atlasgen.bake.pipeline import bake_atlas, write_bake
     from atlasgen.materials.material import read_materials
     from atlasgen.reports.validation import report_dict
-    from atlasgen.validate.run import GOAL_LOOK_FLIP, GOAL_LOOK_PSNR_DB, MAX_PHYSICAL_SPP as DEFAULT_MAX, validate_atlas
+    from atlasgen.validate.run import GOAL_LOOK_FLIP, GOAL_LOOK_PSNR_DB, validate_atlas
+    from atlasgen.validate.run import MAX_PHYSICAL_SPP as DEFAULT_MAX
 
     bake_cache, reference_cache = ROOT / "build" / "cache", ROOT / "build" / "cache" / "references"
     with tempfile.TemporaryDirectory() as tmp:
