@@ -26,9 +26,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-# ``atlasgen validate``'s defaults: the verdict is the one a user gets.
-PHYSICAL_SPP = 64
-MAX_PHYSICAL_SPP = None  # atlasgen.validate.run.MAX_PHYSICAL_SPP
 SCENES = ("front", "back")
 
 
@@ -57,8 +54,9 @@ def measure() -> dict:
     from atlasgen.bake.pipeline import bake_atlas, write_bake
     from atlasgen.materials.material import read_materials
     from atlasgen.reports.validation import report_dict
-    from atlasgen.validate.run import GOAL_LOOK_FLIP, GOAL_LOOK_PSNR_DB, validate_atlas
-    from atlasgen.validate.run import MAX_PHYSICAL_SPP as DEFAULT_MAX
+
+    # ``atlasgen validate``'s defaults: the verdict is the one a user gets.
+    from atlasgen.validate.run import GOAL_LOOK_FLIP, GOAL_LOOK_PSNR_DB, MAX_PHYSICAL_SPP, PHYSICAL_SPP, validate_atlas
 
     bake_cache, reference_cache = ROOT / "build" / "cache", ROOT / "build" / "cache" / "references"
     with tempfile.TemporaryDirectory() as tmp:
@@ -84,7 +82,7 @@ def measure() -> dict:
         library.setdefault(r.material, {})[r.scene] = _figures(r.references[look["reference"]], look, parts)
     return {
         "physical_spp": PHYSICAL_SPP,
-        "max_physical_spp": MAX_PHYSICAL_SPP or DEFAULT_MAX,
+        "max_physical_spp": MAX_PHYSICAL_SPP,
         "goal": {"psnr_db": GOAL_LOOK_PSNR_DB, "flip": GOAL_LOOK_FLIP},
         "library": library,
         "first_run_s": first_s,
@@ -142,11 +140,9 @@ def markdown(data: dict) -> str:
             )
             for part, p in (f.get("parts") or {}).items():
                 part_floor = "" if p.get("noise_floor_db") is None else f" ({_db(p['noise_floor_db'])})"
-                verdict = ("not judged (floor short)" if p.get("noise_floor_ok") is False
-                           else "met" if p.get("meets_goal") else "**missed**")  # fmt: skip
                 lines.append(
                     f"| {name}: {part} | {scene} | | | {_db(p.get('psnr_db'))} | {p['flip']:.3f} | "
-                    f"{p['coverage']:.0%} | | | | {p.get('spp', f['spp'])}{part_floor} | {verdict} |"
+                    f"{p['coverage']:.0%} | | | | {p.get('spp', f['spp'])}{part_floor} | {_verdict(p)} |"
                 )
     lines += [
         "",

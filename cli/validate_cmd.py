@@ -19,7 +19,7 @@ from atlasgen.reports.validation import (
     write_validation,
 )
 from atlasgen.validate.reference_cache import DEFAULT_REFERENCE_CACHE
-from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, validate_atlas
+from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, PHYSICAL_SPP, validate_atlas
 
 __all__ = ["validate"]
 
@@ -45,7 +45,7 @@ def _resolution(ctx, param, value):
               help="Validation scene: a standard name (front, back) or a scene TOML with material = \"$material\". Repeatable.")  # fmt: skip
 @click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
-@click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=64, show_default=True,
+@click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=PHYSICAL_SPP, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
 @click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=MAX_PHYSICAL_SPP, show_default=True,
               help="The most samples per pixel a stochastic physical reference grows to: the default lets every shipped reference clear its noise floor; a reference that stops short is named in the summary (and fails --strict).")  # fmt: skip

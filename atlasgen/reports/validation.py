@@ -107,37 +107,57 @@ def look_verdict(look: dict, ref: dict | None) -> dict:
 
     Where the comparison is split by object (``parts``: a sphere and the flat part), every part is
     judged as the whole is, and the look meets its goal only where the whole and every part do: a
-    part that misses is not hidden in the average. ``parts`` then gives each part's ``meets_goal``.
+    part that misses is not hidden in the average. ``parts`` then gives each part's ``meets_goal`` and
+    ``not_judged``, by the same rule.
 
     >>> parts = {"sphere": {"psnr_db": 42.0, "flip": 0.03}, "flat part": {"psnr_db": 27.0, "flip": 0.06}}
-    >>> look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts})
-    {'meets_goal': False, 'not_judged': None, 'parts': {'sphere': {'meets_goal': True}, 'flat part': {'meets_goal': False}}}
+    >>> v = look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts})
+    >>> v["meets_goal"], v["parts"]["sphere"], v["parts"]["flat part"]
+    (False, {'meets_goal': True, 'not_judged': None}, {'meets_goal': False, 'not_judged': None})
+    >>> parts["flat part"].update(noise_floor_ok=False, noise_floor_db=33.0, spp=64)
+    >>> look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts, "noise_floor_ok": False,
+    ...                     "noise_floor_db": 36.0, "spp": 64})["parts"]["flat part"]
+    {'meets_goal': None, 'not_judged': 'floor 33.0 dB at 64 spp'}
     """
     if not look or look.get("reference") is None or ref is None:
         return {"meets_goal": None, "not_judged": None}
     goal = look["goal"]
-    met = _meets_look_goal(goal, ref)
-    parts = {name: {"meets_goal": _meets_look_goal(goal, p)} for name, p in (ref.get("parts") or {}).items()}
-    if parts:
-        met = met and all(p["meets_goal"] for p in parts.values())
-    if ref.get("noise_floor_ok") is False:
-        short_parts = [f"{name}: floor {_psnr_text(p.get('noise_floor_db'))} dB at {p.get('spp', ref.get('spp'))} spp"
-                       for name, p in (ref.get("parts") or {}).items() if p.get("noise_floor_ok") is False]  # fmt: skip
-        short = f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB" + (
-            f" ({', '.join(short_parts)})" if short_parts else ""
-        )
-        judged_misses = [name for name, p in (ref.get("parts") or {}).items()
-                         if p.get("noise_floor_ok") is not False and not parts[name]["meets_goal"]]  # fmt: skip
-        if judged_misses:  # a part whose own floor is clear misses: that miss stands
-            return {"meets_goal": False, "not_judged": None, "parts": parts}
-        if not met:
-            return {"meets_goal": None, "not_judged": short}
+    whole = _meets_look_goal(goal, ref)
+    parts = {name: _part_verdict(goal, p, ref.get("spp")) for name, p in (ref.get("parts") or {}).items()}
+    whole_short = ref.get("noise_floor_ok") is False
+    short_parts = [f"{name}: {p['not_judged']}" for name, p in parts.items() if p["not_judged"]]
+    floors = [f"{name}: {floor}" for name, p in (ref.get("parts") or {}).items() if (floor := _short_floor(p, ref.get("spp")))]
+    short = f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB" + (
+        f" ({', '.join(floors)})" if floors else ""
+    )
+    if any(p["meets_goal"] is False for p in parts.values()) or (not whole and not whole_short):
+        out = {"meets_goal": False, "not_judged": None}  # a miss the floor can show stands
+    elif not whole or short_parts:
+        out = {"meets_goal": None, "not_judged": short if whole_short else ", ".join(short_parts)}
+    elif whole_short:
         out = {"meets_goal": True, "not_judged": None, "bound": f"a lower bound: {short}"}
     else:
-        out = {"meets_goal": met, "not_judged": None}
+        out = {"meets_goal": True, "not_judged": None}
     if parts:
         out["parts"] = parts
     return out
+
+
+def _short_floor(part: dict, spp) -> str | None:
+    """The text 'floor F dB at N spp' where a part's reference is short of its noise floor, else None."""
+    if part.get("noise_floor_ok") is not False:
+        return None
+    return f"floor {_psnr_text(part.get('noise_floor_db'))} dB at {part.get('spp', spp)} spp"
+
+
+def _part_verdict(goal: dict, part: dict, spp) -> dict:
+    """One part's ``{"meets_goal", "not_judged"}``, by :func:`look_verdict`'s rule: a part short of its
+    noise floor that misses is not judged; one that meets its goal even so is met (a lower bound)."""
+    met = _meets_look_goal(goal, part)
+    short = _short_floor(part, spp)
+    if short and not met:
+        return {"meets_goal": None, "not_judged": short}
+    return {"meets_goal": met, "not_judged": None}
 
 
 def _meets_look_goal(goal: dict, figures: dict) -> bool:

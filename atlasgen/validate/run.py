@@ -73,6 +73,7 @@ __all__ = [
     "GOAL_LOOK_FLIP",
     "GRAZING_N_DOT_V",
     "MAX_PHYSICAL_SPP",
+    "PHYSICAL_SPP",
     "ReferenceRender",
     "MaterialRun",
     "ValidationRun",
@@ -103,6 +104,8 @@ ENVIRONMENT_MASK_NOTE = "every pixel that does not show the material (the backgr
 #: (:mod:`.reference_cache`) keeps a second run from rendering them again.
 MIN_SPP_GROWTH = 2
 MAX_PHYSICAL_SPP = 8192
+#: Samples per pixel a stochastic physical reference starts with (two seeds of it give its floor).
+PHYSICAL_SPP = 64
 #: dB the predicted floor aims above PSNR + margin: the PSNR rises as the reference's noise falls.
 FLOOR_HEADROOM_DB = 1.0
 ATLAS_TIMING_FRAMES = 3
@@ -337,7 +340,7 @@ def _time_atlas(renderer, scene) -> tuple[np.ndarray, float, dict]:
     return np.asarray(image, dtype=np.float32), statistics.median(times), warm.aovs
 
 
-def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = 64,
+def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int = 1, physical_spp: int = PHYSICAL_SPP,
                    max_physical_spp: int | None = None, resolution=None, physical: bool = True, progress=None, on_material=None,
                    bake_cache=None, reference_cache=None) -> ValidationRun:  # fmt: skip
     """Render every material on every scene, through the atlas and with Mitsuba; measure.

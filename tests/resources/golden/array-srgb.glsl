@@ -37,7 +37,7 @@ const uint MATERIAL_TOON_HERO = 22u;  // toon, 1 slice(s)
 
 // Per slice: (rgb_scale, alpha_scale, rgb_bias, alpha_bias); linear = texel * scale + bias.
 
-const vec4 ATLAS_SCALE_BIAS[256] = vec4[256](
+vec4 ATLAS_SCALE_BIAS[256] = vec4[256](
     vec4(0.8300649523735046, 0.7675188183784485, 0.0, 0.0),
     vec4(0.5901889204978943, 0.45782235264778137, 0.0, 0.0),
     vec4(0.25908246636390686, 0.7613746523857117, 0.0, 0.0),
@@ -296,7 +296,7 @@ const vec4 ATLAS_SCALE_BIAS[256] = vec4[256](
     vec4(1.0, 1.0, 0.0, 0.0)
 );
 
-const uint ATLAS_FLAGS[256] = uint[256](
+uint ATLAS_FLAGS[256] = uint[256](
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 3u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
@@ -475,7 +475,7 @@ vec3 atlas_env_prefiltered(texture2D env, sampler env_sampler, vec3 d, float lev
 // Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
 // (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
 
-const vec4 SEPARABLE_TABLE[81] = vec4[81](
+vec4 SEPARABLE_TABLE[81] = vec4[81](
     vec4(4.0, 81.0, 32.0, 2.0),
     vec4(5.0, 5.0, 4.0, 0.0),
     vec4(9.0, 25.0, 3.0, 0.0),

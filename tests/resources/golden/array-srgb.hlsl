@@ -37,7 +37,7 @@ static const uint MATERIAL_TOON_HERO = 22u;  // toon, 1 slice(s)
 
 // Per slice: (rgb_scale, alpha_scale, rgb_bias, alpha_bias); linear = texel * scale + bias.
 
-static const float4 ATLAS_SCALE_BIAS[256] = {
+static float4 ATLAS_SCALE_BIAS[256] = {
     float4(0.8300649523735046, 0.7675188183784485, 0.0, 0.0),
     float4(0.5901889204978943, 0.45782235264778137, 0.0, 0.0),
     float4(0.25908246636390686, 0.7613746523857117, 0.0, 0.0),
@@ -296,7 +296,7 @@ static const float4 ATLAS_SCALE_BIAS[256] = {
     float4(1.0, 1.0, 0.0, 0.0),
 };
 
-static const uint ATLAS_FLAGS[256] = {
+static uint ATLAS_FLAGS[256] = {
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 3u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
     0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u,
@@ -475,7 +475,7 @@ float3 atlas_env_prefiltered(Texture2D<float4> env, SamplerState env_sampler, fl
 // Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
 // (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
 
-static const float4 SEPARABLE_TABLE[81] = {
+static float4 SEPARABLE_TABLE[81] = {
     float4(4.0, 81.0, 32.0, 2.0),
     float4(5.0, 5.0, 4.0, 0.0),
     float4(9.0, 25.0, 3.0, 0.0),
