@@ -115,20 +115,22 @@ def look_verdict(look: dict, ref: dict | None) -> dict:
     >>> v["meets_goal"], v["parts"]["sphere"], v["parts"]["flat part"]
     (False, {'meets_goal': True, 'not_judged': None}, {'meets_goal': False, 'not_judged': None})
     >>> parts["flat part"].update(noise_floor_ok=False, noise_floor_db=33.0, spp=64)
-    >>> look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts, "noise_floor_ok": False,
-    ...                     "noise_floor_db": 36.0, "spp": 64})["parts"]["flat part"]
-    {'meets_goal': None, 'not_judged': 'floor 33.0 dB at 64 spp'}
+    >>> v = look_verdict(look, {"psnr_db": 31.0, "flip": 0.045, "parts": parts, "noise_floor_ok": False,
+    ...                         "noise_floor_db": 36.0, "spp": 64})
+    >>> v["meets_goal"], v["not_judged"], v["parts"]["flat part"]
+    (None, 'reference at 64 spp, floor 36.0 dB (flat part: floor 33.0 dB at 64 spp)', {'meets_goal': None, 'not_judged': 'floor 33.0 dB at 64 spp'})
     """
     if not look or look.get("reference") is None or ref is None:
         return {"meets_goal": None, "not_judged": None}
     goal = look["goal"]
     whole = _meets_look_goal(goal, ref)
-    parts = {name: _part_verdict(goal, p, ref.get("spp")) for name, p in (ref.get("parts") or {}).items()}
+    floors = {name: _short_floor(p, ref.get("spp")) for name, p in (ref.get("parts") or {}).items()}
+    parts = {name: _part_verdict(goal, p, floors[name]) for name, p in (ref.get("parts") or {}).items()}
     whole_short = ref.get("noise_floor_ok") is False
     short_parts = [f"{name}: {p['not_judged']}" for name, p in parts.items() if p["not_judged"]]
-    floors = [f"{name}: {floor}" for name, p in (ref.get("parts") or {}).items() if (floor := _short_floor(p, ref.get("spp")))]
+    short_floors = [f"{name}: {floor}" for name, floor in floors.items() if floor]
     short = f"reference at {ref.get('spp')} spp, floor {_psnr_text(ref.get('noise_floor_db'))} dB" + (
-        f" ({', '.join(floors)})" if floors else ""
+        f" ({', '.join(short_floors)})" if short_floors else ""
     )
     if any(p["meets_goal"] is False for p in parts.values()) or (not whole and not whole_short):
         out = {"meets_goal": False, "not_judged": None}  # a miss the floor can show stands
@@ -150,11 +152,11 @@ def _short_floor(part: dict, spp) -> str | None:
     return f"floor {_psnr_text(part.get('noise_floor_db'))} dB at {part.get('spp', spp)} spp"
 
 
-def _part_verdict(goal: dict, part: dict, spp) -> dict:
+def _part_verdict(goal: dict, part: dict, short: str | None) -> dict:
     """One part's ``{"meets_goal", "not_judged"}``, by :func:`look_verdict`'s rule: a part short of its
-    noise floor that misses is not judged; one that meets its goal even so is met (a lower bound)."""
+    noise floor (``short``, :func:`_short_floor`) that misses is not judged; one that meets its goal even
+    so is met (a lower bound)."""
     met = _meets_look_goal(goal, part)
-    short = _short_floor(part, spp)
     if short and not met:
         return {"meets_goal": None, "not_judged": short}
     return {"meets_goal": met, "not_judged": None}
