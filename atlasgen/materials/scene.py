@@ -41,7 +41,7 @@ __all__ = [
     "shading_gloss",
 ]
 
-#: Lights one frame can take; they live in one storage buffer read by one lighting pass.
+#: Lights one frame can take; they live in one texture (a row each) read by one lighting pass.
 MAX_LIGHTS = 1024
 SHAPES = ("sphere", "plane", "box", "torus", "mesh")
 #: The ``[environment]`` keys that only the built-in sky uses (:class:`atlasgen.optics.sky.SkyParameters`).

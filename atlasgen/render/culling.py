@@ -6,8 +6,10 @@ view depth of the tile's covered pixels and keeps each light whose sphere (posit
 wholly outside one of the tile's four side planes or its depth range; unbounded lights are always
 kept. The lighting pass then loops over its tile's list only.
 
-Lists live in one storage buffer: per tile, ``capacity + 1`` u32, the count first, then the indices
-in light order. The count is the true one: a tile with more lights than ``capacity`` keeps its first
+Lists live in one ``r32uint`` texture array (:func:`create_tile_texture`): texel (k, tx) of layer ty
+is word k of tile (tx, ty)'s list, ``capacity + 1`` words, the count first, then the indices in light
+order. A texture, not a storage buffer: lavapipe reads a storage buffer at a per-pixel index lane by
+lane, each with a bounds check, and a texel fetch as one vector gather (a third of the lighting pass). The count is the true one: a tile with more lights than ``capacity`` keeps its first
 ``capacity`` and the lighting pass loops over every light there instead, so a list is never
 silently truncated (:func:`overflowing_tiles` counts such tiles).
 
@@ -37,6 +39,8 @@ __all__ = [
     "pack_cull",
     "pack_light_spheres",
     "decode_tile_lists",
+    "create_tile_texture",
+    "upload_light_spheres",
     "overflowing_tiles",
     "cull_tiles_reference",
     "lights_reaching",
@@ -117,8 +121,57 @@ class TileLists:
         return self.counts > self.capacity
 
 
+def upload_light_spheres(device, scene):
+    """cull.wgsl's ``light_spheres``: :func:`pack_light_spheres` as an ``rgba32float`` texture, one texel a
+    light (a texture, as the tile lists are: per-invocation storage reads are slow on lavapipe)."""
+    import wgpu
+
+    data = pack_light_spheres(scene)
+    count = len(data) // 16
+    texture = device.create_texture(
+        label="light spheres",
+        size=(count, 1, 1),
+        format=wgpu.TextureFormat.rgba32float,
+        usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST,
+    )
+    device.queue.write_texture(
+        {"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
+        data,
+        {"offset": 0, "bytes_per_row": len(data), "rows_per_image": 1},
+        (count, 1, 1),
+    )
+    return texture
+
+
+def create_tile_texture(device, width: int, height: int, capacity: int):
+    """The tile lists' texture of a ``width`` x ``height`` frame: ``capacity + 1`` texels wide, a row
+    per tile of a row of tiles, a layer per row of tiles."""
+    import wgpu
+
+    nx, ny = tile_grid(width, height)
+    return device.create_texture(
+        label="tile lights",
+        size=(capacity + 1, nx, ny),
+        format=wgpu.TextureFormat.r32uint,
+        usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_SRC,
+    )
+
+
+def read_tile_texture(device, texture, width: int, height: int, capacity: int) -> TileLists:
+    """The tile lists the texture of :func:`create_tile_texture` holds."""
+    nx, ny = tile_grid(width, height)
+    row = round_up(256, 4 * (capacity + 1))  # WebGPU copies rows at multiples of 256 bytes
+    data = device.queue.read_texture(
+        {"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
+        {"offset": 0, "bytes_per_row": row, "rows_per_image": nx},
+        (capacity + 1, nx, ny),
+    )
+    words = np.frombuffer(data, dtype=np.uint32).reshape(ny, nx, row // 4)[..., : capacity + 1]
+    return decode_tile_lists(np.ascontiguousarray(words).tobytes(), width, height, capacity)
+
+
 def decode_tile_lists(data: bytes, width: int, height: int, capacity: int) -> TileLists:
-    """The tile lists of a ``width`` x ``height`` frame from the tile buffer's bytes."""
+    """The tile lists of a ``width`` x ``height`` frame from their words, tile by tile in rows of tiles."""
     nx, ny = tile_grid(width, height)
     words = np.frombuffer(data, dtype=np.uint32)[: nx * ny * (capacity + 1)].reshape(ny, nx, capacity + 1)
     counts = words[..., 0].astype(np.int64)
@@ -237,9 +290,13 @@ class CullingPass:
             label="cull",
             entries=[
                 {"binding": 0, "visibility": compute, "buffer": {"type": "uniform"}},
-                {"binding": 1, "visibility": compute, "buffer": {"type": "read-only-storage"}},
+                {"binding": 1, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
                 {"binding": 2, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
-                {"binding": 3, "visibility": compute, "buffer": {"type": "storage"}},
+                {
+                    "binding": 3,
+                    "visibility": compute,
+                    "storage_texture": {"access": "write-only", "format": "r32uint", "view_dimension": "2d-array"},
+                },
                 {
                     "binding": 4,
                     "visibility": compute,
@@ -253,15 +310,15 @@ class CullingPass:
             compute={"module": module, "entry_point": "cs_cull"},
         )
 
-    def bind_group(self, frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer):
-        """``sphere_buffer`` holds :func:`pack_light_spheres`; ``tile_buffer`` receives the lists."""
+    def bind_group(self, frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer):
+        """``sphere_texture`` (:func:`upload_light_spheres`) holds the lights' spheres; ``tile_texture`` (:func:`create_tile_texture`) receives the lists."""
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
                 {"binding": 0, "resource": {"buffer": frame_buffer}},
-                {"binding": 1, "resource": {"buffer": sphere_buffer}},
+                {"binding": 1, "resource": sphere_texture.create_view()},
                 {"binding": 2, "resource": gbuffer.normal_depth.create_view()},
-                {"binding": 3, "resource": {"buffer": tile_buffer}},
+                {"binding": 3, "resource": tile_texture.create_view(dimension="2d-array")},
                 {"binding": 4, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
             ],
         )

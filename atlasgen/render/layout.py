@@ -90,7 +90,7 @@ LIGHT = Struct(
         Field("cos_outer", F32, "LIGHT_SPOT: cos(outer angle); beyond it the light sends nothing"),
         Field("cone", vec4(), "LIGHT_SPOT: x: outer angle (rad), y: 1 / (outer - inner angle) (1/rad)"),
     ],
-    doc="One element of the lights storage array (pack_lights in atlasgen/render/lighting.py).",
+    doc="One light: a row of the lighting pass's light texture, 16 bytes a texel (pack_lights in atlasgen/render/lighting.py).",
 )
 
 #: Pixels along each side of a culling tile (16 x 16 tiles, as Andersson 2011); the culling pass's workgroup size.
@@ -120,6 +120,7 @@ _DECLARATIONS = {
     "Frame": FRAME.wgsl,
     "Object": OBJECT.wgsl,
     "Light": LIGHT.wgsl,
+    "read_light": lambda: LIGHT.texel_reader_wgsl("read_light", "light_texels"),
     "Environment": ENVIRONMENT.wgsl,
     "Cull": CULL.wgsl,
     "TILE_SIZE": lambda: wgsl_constant("TILE_SIZE", U32, TILE_SIZE, "Pixels along each side of a light-culling tile."),

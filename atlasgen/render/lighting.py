@@ -37,13 +37,14 @@ from atlasgen.shaders.passes import assemble_shader
 __all__ = [
     "LightingPass",
     "pack_lights",
+    "upload_lights",
     "pack_light",
     "material_dispatch_wgsl",
     "light_kinds_wgsl",
     "LIGHT_STRIDE",
 ]
 
-#: Bytes per light in the storage buffer.
+#: Bytes per light: one row of the light texture.
 LIGHT_STRIDE = LIGHT.size
 
 
@@ -123,6 +124,28 @@ def pack_lights(lights) -> bytes:
     return LIGHT.pack_array([pack_light(light) for light in lights] or [_NO_LIGHT])
 
 
+def upload_lights(device, lights):
+    """The ``rgba32uint`` texture the lighting pass reads its lights from: row i is light i's
+    :func:`pack_lights` bytes, ``LIGHT.size / 16`` texels (read by the generated ``read_light``)."""
+    import wgpu
+
+    data = pack_lights(lights)
+    width, height = LIGHT.size // 16, len(data) // LIGHT.size
+    texture = device.create_texture(
+        label="lights",
+        size=(width, height, 1),
+        format=wgpu.TextureFormat.rgba32uint,
+        usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST,
+    )
+    device.queue.write_texture(
+        {"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
+        data,
+        {"offset": 0, "bytes_per_row": LIGHT.size, "rows_per_image": height},
+        (width, height, 1),
+    )
+    return texture
+
+
 class LightingPass:
     """Full-screen lighting pipelines sharing one shader.
 
@@ -149,7 +172,7 @@ class LightingPass:
             label="lighting",
             entries=[
                 {"binding": 0, "visibility": frag, "buffer": {"type": "uniform"}},
-                {"binding": 1, "visibility": frag, "buffer": {"type": "read-only-storage"}},
+                {"binding": 1, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 2, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
                 {"binding": 3, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
                 {"binding": 4, "visibility": frag, "texture": {"sample_type": "uint"}},
@@ -163,7 +186,7 @@ class LightingPass:
                     "visibility": frag,
                     "texture": {"sample_type": "unfilterable-float", "view_dimension": "2d-array"},
                 },
-                {"binding": 11, "visibility": frag, "buffer": {"type": "read-only-storage"}},
+                {"binding": 11, "visibility": frag, "texture": {"sample_type": "uint", "view_dimension": "2d-array"}},
                 # The include's per-bake tables (atlasgen/render/atlas_data.py STORAGE).
                 *({"binding": b, "visibility": frag, "buffer": {"type": "read-only-storage"}} for _, b in STORAGE.values()),
             ],
@@ -215,16 +238,16 @@ class LightingPass:
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_buffer, gbuffer, atlas_texture, environment, tile_buffer, tables):
+    def bind_group(self, frame_buffer, light_texture, gbuffer, atlas_texture, environment, tile_texture, tables):
         """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
-        ``tile_buffer``: the tile light lists (:mod:`atlasgen.render.culling`), read where ``Frame.counts.y`` is 1;
+        ``tile_texture``: the tile light lists (:func:`atlasgen.render.culling.create_tile_texture`), read where ``Frame.counts.y`` is 1;
         ``tables``: the include's storage tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
         env_buffer, env_texture, env_tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
                 {"binding": 0, "resource": {"buffer": frame_buffer}},
-                {"binding": 1, "resource": {"buffer": light_buffer}},
+                {"binding": 1, "resource": light_texture.create_view()},
                 {"binding": 2, "resource": gbuffer.albedo_gloss.create_view()},
                 {"binding": 3, "resource": gbuffer.normal_depth.create_view()},
                 {"binding": 4, "resource": gbuffer.material.create_view()},
@@ -234,7 +257,7 @@ class LightingPass:
                 {"binding": 8, "resource": env_texture.create_view()},
                 {"binding": 9, "resource": self.env_sampler},
                 {"binding": 10, "resource": env_tables.create_view(dimension="2d-array")},
-                {"binding": 11, "resource": {"buffer": tile_buffer}},
+                {"binding": 11, "resource": tile_texture.create_view(dimension="2d-array")},
                 *({"binding": STORAGE[name][1], "resource": {"buffer": buffer}} for name, buffer in tables.items()),
             ],
         )

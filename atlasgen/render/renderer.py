@@ -32,17 +32,18 @@ from atlasgen.render.culling import (
     DEFAULT_TILE_CAPACITY,
     CullingPass,
     TileLists,
-    decode_tile_lists,
+    create_tile_texture,
     pack_cull,
-    pack_light_spheres,
+    read_tile_texture,
     tile_grid,
     tile_rectangle,
+    upload_light_spheres,
 )
 from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
-from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights
+from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, upload_lights
 from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.render.translucency import screen_rectangle, sort_back_to_front, translucent_steps
@@ -277,7 +278,7 @@ class Renderer:
             data=pack_frame(scene, len(self.atlas.levels), mip_bias, self.tile_capacity if culled else None),
             usage=wgpu.BufferUsage.UNIFORM,
         )
-        light_buffer = device.create_buffer_with_data(data=pack_lights(scene.lights), usage=wgpu.BufferUsage.STORAGE)
+        light_texture = upload_lights(device, scene.lights)
         object_data = bytearray()
         draws, centres, rectangles = [], [], []
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
@@ -314,26 +315,23 @@ class Renderer:
         cull_tiles += [
             tile_rectangle(rectangles[i], scene.width, scene.height) if rectangles[i] else (0, 0, 0, 0) for i in translucent
         ]
-        nx, ny = tile_grid(scene.width, scene.height)
-        tile_buffer = device.create_buffer(
-            size=4 * nx * ny * (self.tile_capacity + 1) if culled else 16,
-            usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC,
-        )
+        # An unculled frame never reads its lists: a 1 x 1 x 1 stand-in.
+        tile_texture = create_tile_texture(device, *((scene.width, scene.height, self.tile_capacity) if culled else (1, 1, 0)))
         cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
-        sphere_buffer = device.create_buffer_with_data(data=pack_light_spheres(scene), usage=wgpu.BufferUsage.STORAGE)
+        sphere_texture = upload_light_spheres(device, scene)
         cull_group = (
-            self.culling_pass.bind_group(frame_buffer, sphere_buffer, gbuffer, tile_buffer, cull_buffer) if culled else None
+            self.culling_pass.bind_group(frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer) if culled else None
         )
         lighting_group = lighting_pass.bind_group(
-            frame_buffer, light_buffer, gbuffer, self.atlas_texture, environment, tile_buffer, self.atlas_tables
+            frame_buffer, light_texture, gbuffer, self.atlas_texture, environment, tile_texture, self.atlas_tables
         )
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: skip it when none is in view.
         wants_outlines = any(entry.flag("outline") for entry in entries)
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, wants_outlines,
-                              (frame_buffer, light_buffer, object_buffer, environment, cull_buffer, sphere_buffer),
-                              culled, cull_group, cull_tiles, tile_buffer)  # fmt: skip
+                              (frame_buffer, light_texture, object_buffer, environment, cull_buffer, sphere_texture),
+                              culled, cull_group, cull_tiles, tile_texture)  # fmt: skip
 
     # ---- encoding ----------------------------------------------------------------------
 
@@ -476,7 +474,7 @@ class Renderer:
         if not frame.culled:
             return None
         g = frame.gbuffer
-        return decode_tile_lists(bytes(self.device.queue.read_buffer(frame.tile_buffer)), g.width, g.height, self.tile_capacity)
+        return read_tile_texture(self.device, frame.tile_texture, g.width, g.height, self.tile_capacity)
 
     def read_radiance(self, frame) -> np.ndarray:
         w, h = frame.gbuffer.width, frame.gbuffer.height
@@ -517,7 +515,7 @@ class _PreparedFrame:
     culled: bool = False  # lit through tile light lists
     cull_group: object = None
     cull_tiles: list = field(default_factory=list)  # per culling dispatch: tile rectangle (x0, y0, nx, ny)
-    tile_buffer: object = None
+    tile_texture: object = None
 
 
 class _Tracer:

@@ -22,9 +22,11 @@
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per light: camera-space centre (x along right, y along up, z along forward from the eye), range (0: unbounded).
-@group(0) @binding(1) var<storage, read> light_spheres: array<vec4<f32>>;
+// Texel i: light i's sphere.
+@group(0) @binding(1) var light_spheres: texture_2d<f32>;
 @group(0) @binding(2) var normal_depth_tex: texture_2d<f32>;
-@group(0) @binding(3) var<storage, read_write> tile_lights: array<u32>;
+// Word k of tile (tx, ty)'s list: texel (k, tx) of layer ty (atlasgen/render/culling.py).
+@group(0) @binding(3) var tile_lights: texture_storage_2d_array<r32uint, write>;
 @group(0) @binding(4) var<uniform> cull: Cull;
 
 // @declare Cull
@@ -97,7 +99,7 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     let bottom = plane_normal(-ndc_hi.y * frame.right.w);
 
     for (var i = index; i < frame.counts.x; i = i + INVOCATIONS) {
-        let sphere = light_spheres[i];
+        let sphere = textureLoad(light_spheres, vec2<u32>(i, 0u), 0);
         var keep = covered;
         if (covered && sphere.w > 0.0) {
             let r = sphere.w * RANGE_SLACK;
@@ -112,7 +114,6 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     workgroupBarrier();
     // Each invocation writes the lights of its words, after those of the words before them.
     let capacity = frame.counts.w;
-    let base = (tile.y * frame.counts.z + tile.x) * (capacity + 1u);
     let words = (frame.counts.x + 31u) / 32u;
     var offset = 0u;
     var counted = 0u;
@@ -127,16 +128,16 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
                 break;
             }
             if (offset < capacity) {
-                tile_lights[base + 1u + offset] = w * 32u + firstTrailingBit(bits);
+                textureStore(tile_lights, vec2<u32>(1u + offset, tile.x), tile.y, vec4<u32>(w * 32u + firstTrailingBit(bits)));
             }
             offset = offset + 1u;
             bits = bits & (bits - 1u);
         }
         if (w == words - 1u) {
-            tile_lights[base] = offset;
+            textureStore(tile_lights, vec2<u32>(0u, tile.x), tile.y, vec4<u32>(offset));
         }
     }
     if (words == 0u && index == 0u) {
-        tile_lights[base] = 0u;
+        textureStore(tile_lights, vec2<u32>(0u, tile.x), tile.y, vec4<u32>(0u));
     }
 }

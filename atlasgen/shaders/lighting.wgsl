@@ -22,7 +22,7 @@
 // L += E * albedo * f cos.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var<storage, read> lights: array<Light>;
+@group(0) @binding(1) var light_texels: texture_2d<u32>;
 @group(0) @binding(2) var albedo_gloss_tex: texture_2d<f32>;
 @group(0) @binding(3) var normal_depth_tex: texture_2d<f32>;
 @group(0) @binding(4) var material_tex: texture_2d<u32>;
@@ -32,7 +32,7 @@
 @group(0) @binding(8) var env_tex: texture_2d<f32>;
 @group(0) @binding(9) var env_sampler: sampler;
 @group(0) @binding(10) var env_tables: texture_2d_array<f32>;
-@group(0) @binding(11) var<storage, read> tile_lights: array<u32>;
+@group(0) @binding(11) var tile_lights: texture_2d_array<u32>;
 
 // @declare Environment
 
@@ -95,6 +95,7 @@ fn environment_radiance(material: u32, custom: bool, n: vec3<f32>, v: vec3<f32>,
 }
 
 // @declare Light
+// @declare read_light
 // @declare LightType
 // @declare TILE_SIZE
 
@@ -115,42 +116,43 @@ struct LightSample {
 // directional and spot code is compiled in only for scenes that have such lights (DIRECTIONAL_LIGHTS,
 // SPOT_LIGHTS: constants the renderer prepends, atlasgen/render/lighting.py).
 fn light_at(index: u32, world: vec3<f32>) -> LightSample {
-    let d = lights[index].position - world;
+    let light = read_light(index);
+    let d = light.position - world;
     let d2 = max(dot(d, d), 1e-12);
-    let range = lights[index].range;
+    let range = light.range;
     let x = select(0.0, d2 / (range * range), range > 0.0);
     let w = 1.0 - x * x;
-    var out = LightSample(d * inverseSqrt(d2), lights[index].radiant / d2 * (w * w), x < 1.0);
+    var out = LightSample(d * inverseSqrt(d2), light.radiant / d2 * (w * w), x < 1.0);
     if (DIRECTIONAL_LIGHTS || SPOT_LIGHTS) {
-        let kind = lights[index].kind;
+        let kind = light.kind;
         if (DIRECTIONAL_LIGHTS && kind == LIGHT_DIRECTIONAL) {
-            out = LightSample(-lights[index].direction, lights[index].radiant, true);
+            out = LightSample(-light.direction, light.radiant, true);
         }
         if (SPOT_LIGHTS && kind == LIGHT_SPOT) {
-            let cos_theta = dot(-out.l, lights[index].direction);
-            let cone = lights[index].cone;
+            let cos_theta = dot(-out.l, light.direction);
+            let cone = light.cone;
             let s = clamp((cone.x - acos(clamp(cos_theta, -1.0, 1.0))) * cone.y, 0.0, 1.0);
             out.irradiance = out.irradiance * s;
-            out.reaches = out.reaches && cos_theta > lights[index].cos_outer;
+            out.reaches = out.reaches && cos_theta > light.cos_outer;
         }
     }
     return out;
 }
 
 // The index of the k-th light a pixel sums: its tile list's k-th entry, or k itself in the full loop.
-fn light_index(k: u32, listed: bool, base: u32) -> u32 {
+fn light_index(k: u32, listed: bool, tile: vec2<u32>) -> u32 {
     if (listed) {
-        return tile_lights[base + 1u + k];
+        return textureLoad(tile_lights, vec2<u32>(1u + k, tile.x), tile.y, 0).r;
     }
     return k;
 }
 
 // The first light from the k-th of the pixel's list on that reaches it, k moved past it; reaches is false
 // when none is left. A do-while (see fs_main): it reads one entry even of an empty list, with reaches false.
-fn next_light(k: ptr<function, u32>, count: u32, listed: bool, base: u32, world: vec3<f32>) -> LightSample {
+fn next_light(k: ptr<function, u32>, count: u32, listed: bool, tile: vec2<u32>, world: vec3<f32>) -> LightSample {
     var arrival: LightSample;
     loop {
-        arrival = light_at(light_index(*k, listed, base), world);
+        arrival = light_at(light_index(*k, listed, tile), world);
         arrival.reaches = arrival.reaches && *k < count;
         *k = *k + 1u;
         if (arrival.reaches || *k >= count) {
@@ -205,12 +207,10 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     }
     // The tile's list (count, then indices), unless the frame has none or the list overflowed.
     var count = frame.counts.x;
-    var base = 0u;
+    let tile = vec2<u32>(pixel) / TILE_SIZE;
     var listed = false;
     if (frame.counts.y != 0u) {
-        let tile = vec2<u32>(pixel) / TILE_SIZE;
-        base = (tile.y * frame.counts.z + tile.x) * (frame.counts.w + 1u);
-        let listed_count = tile_lights[base];
+        let listed_count = textureLoad(tile_lights, vec2<u32>(0u, tile.x), tile.y, 0).r;
         if (listed_count <= frame.counts.w) {
             count = listed_count;
             listed = true;
@@ -224,13 +224,13 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     // one pixel of a SIMD block, not once per entry of the tile's list; the sums keep the list's order.
     if (custom) {
         var k = 0u;
-        var arrival = next_light(&k, count, listed, base, world);
+        var arrival = next_light(&k, count, listed, tile, world);
         loop {
             if (arrival.reaches) {
                 // The model's own code returns f cos in 1/sr (a factored BRDF): no 1/pi here.
                 radiance += arrival.irradiance * albedo_gloss.rgb * material_f_cos(atlas, atlas_sampler, material, n, arrival.l, v);
             }
-            arrival = next_light(&k, count, listed, base, world);
+            arrival = next_light(&k, count, listed, tile, world);
             if (!arrival.reaches) {
                 break;
             }
@@ -239,14 +239,14 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
         let sb = atlas_scale_bias(material);
         let nearest = (atlas_material_flags(material) & ATLAS_FLAG_NEAREST) != 0u;
         var k = 0u;
-        var arrival = next_light(&k, count, listed, base, world);
+        var arrival = next_light(&k, count, listed, tile, world);
         loop {
             if (arrival.reaches) {
                 let l = arrival.l;
                 let a = atlas_sample_fetched(atlas, atlas_sampler, material, dot(n, l), n_dot_v, lod, nearest, sb);
                 radiance += arrival.irradiance * (albedo_gloss.rgb * a.rgb / ATLAS_PI + a.a * specular(n, l, v, alpha));
             }
-            arrival = next_light(&k, count, listed, base, world);
+            arrival = next_light(&k, count, listed, tile, world);
             if (!arrival.reaches) {
                 break;
             }

@@ -328,3 +328,72 @@ def test_gpu_agrees_on_uniform_rules(gpu_device):
     gpu_device.take_errors()
     assert [v[1] for v in verdicts] == [v[2] for v in verdicts], verdicts
     assert [v[2] for v in verdicts] == [False, False, False, True, True, True]
+
+
+def _read_texels_on_gpu(ctx, struct, values):
+    """Upload ``struct.pack_array(values)`` as an rgba32uint texture, a row per element, and copy
+    every scalar of every element out through the generated ``texel_reader_wgsl``."""
+    import wgpu
+
+    leaves = [list(_leaves(struct, f"e{i}", v)) for i, v in enumerate(values)]
+    body = "".join(f"    let e{i} = read_element({i}u);\n" for i in range(len(values)))
+    flat = [leaf for element in leaves for leaf in element]
+    body += "\n".join(f"    dst[{k}] = bitcast<u32>({expr});" for k, (expr, _) in enumerate(flat))
+    code = (
+        struct.wgsl()
+        + "@group(0) @binding(0) var elements: texture_2d<u32>;\n"
+        + "@group(0) @binding(1) var<storage, read_write> dst: array<u32>;\n"
+        + struct.texel_reader_wgsl("read_element", "elements")
+        + f"@compute @workgroup_size(1)\nfn main() {{\n{body}\n}}\n"
+    )
+    device = ctx.device
+    data = struct.pack_array(values)
+    size = (struct.size // 16, len(values), 1)
+    texture = device.create_texture(
+        size=size, format=wgpu.TextureFormat.rgba32uint, usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST
+    )
+    device.queue.write_texture({"texture": texture}, data, {"bytes_per_row": struct.size, "rows_per_image": len(values)}, size)
+    dst = device.create_buffer(size=4 * len(flat), usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC)
+    pipeline = device.create_compute_pipeline(
+        layout="auto", compute={"module": device.create_shader_module(code=code), "entry_point": "main"}
+    )
+    group = device.create_bind_group(
+        layout=pipeline.get_bind_group_layout(0),
+        entries=[{"binding": 0, "resource": texture.create_view()}, {"binding": 1, "resource": {"buffer": dst}}],
+    )
+    encoder = device.create_command_encoder()
+    compute = encoder.begin_compute_pass()
+    compute.set_pipeline(pipeline)
+    compute.set_bind_group(0, group)
+    compute.dispatch_workgroups(1)
+    compute.end()
+    device.queue.submit([encoder.finish()])
+    got = np.frombuffer(device.queue.read_buffer(dst), dtype="<u4")
+    return got, np.array([bits for _, bits in flat], dtype="<u4"), [expr for expr, _ in flat]
+
+
+@pytest.mark.gpu
+@pytest.mark.slow
+def test_gpu_texel_reader_reads_what_was_packed(gpu_device):
+    """The lighting pass reads its lights from texture rows, not a storage buffer: every member of
+    every row must come back bit for bit, including the u32 ``kind`` between two bitcast floats."""
+    rng = np.random.default_rng(5)
+    values = [_random_value(LIGHT, rng) for _ in range(4)]
+    got, expected, exprs = _read_texels_on_gpu(gpu_device, LIGHT, values)
+    gpu_device.take_errors()
+    wrong = [f"{e}: {g:#010x} != {x:#010x}" for e, g, x in zip(exprs, got, expected) if g != x]
+    assert not wrong, f"{len(wrong)} of {len(exprs)} scalars differ, first: {wrong[:3]}"
+
+
+def test_texel_reader_refuses_what_texels_cannot_hold():
+    # WGSL alignment keeps every scalar and vector inside one 16-byte texel; only a size that is
+    # not whole texels, or a matrix, array or nested struct member, cannot be read this way.
+    with pytest.raises(ValueError, match="not a whole number"):
+        Struct("Odd", [Field("a", vec2())]).texel_reader_wgsl("f", "t")
+    with pytest.raises(ValueError, match="within one texel"):
+        Struct("Mat", [Field("m", mat4x4)]).texel_reader_wgsl("f", "t")
+    with pytest.raises(ValueError, match="within one texel"):
+        Struct("Arr", [Field("w", Array(vec4(), 2))]).texel_reader_wgsl("f", "t")
+    text = LIGHT.texel_reader_wgsl("read_light", "light_texels")
+    assert text.count("textureLoad(light_texels") == LIGHT.size // 16
+    assert "bitcast<vec3<f32>>(t0.xyz), t0.w," in text
