@@ -3,8 +3,8 @@
 The screen is cut into :data:`~atlasgen.render.layout.TILE_SIZE` x ``TILE_SIZE`` tiles (Andersson 2011;
 Olsson & Assarsson 2011). After a g-buffer pass, one compute workgroup per tile takes the min and max
 view depth of the tile's covered pixels and keeps each light whose sphere (position, range) is not
-wholly outside one of the tile's four side planes or its depth range; unbounded lights are always
-kept. The lighting pass then loops over its tile's list only.
+wholly outside one of the tile's four side planes, nor outside the box that bounds the tile's frustum
+between those depths; unbounded lights are always kept. The lighting pass then loops over its tile's list only.
 
 Lists live in one ``r32uint`` texture array (:func:`create_tile_texture`): texel (k, tx) of layer ty
 is word k of tile (tx, ty)'s list, ``capacity + 1`` words, the count first, then the indices in light
@@ -190,9 +190,10 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
     The CPU statement of cull.wgsl's test, in float64: for the tile's covered pixels (finite
     ``depth``, view depth along the camera's forward axis) with depth range [z_min, z_max], a
     light of centre c (camera space x, y, z) and radius r = ``slack`` * range is kept unless
-    z + r < z_min or z - r > z_max, or c lies more than r outside one of the four planes
-    through the eye and the tile's pixel edges (distance (x - a z) / sqrt(1 + a^2) for an
-    edge of slope a). Unbounded lights are kept in every covered tile; a tile no object covers
+    c lies more than r outside one of the four planes through the eye and the tile's pixel
+    edges (distance (x - a z) / sqrt(1 + a^2) for an edge of slope a), or farther than r from
+    the box [min a z, max a z] x [min b z, max b z] x [z_min, z_max] over the tile's x slopes a,
+    y slopes b and z in {z_min, z_max}, which holds every covered point of the tile. Unbounded lights are kept in every covered tile; a tile no object covers
     gets none. ``tiles`` (a ``(x0, y0, nx, ny)`` tile rectangle) limits the tiles.
     """
     width, height = scene.width, scene.height
@@ -221,9 +222,11 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
                 continue
             left, right_ = (px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x
             top, bottom = -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y
+            z = np.array([d.min(), d.max()])
+            xs, ys = np.outer([left, right_], z), np.outer([bottom, top], z)
+            gap = [c - np.clip(c, lo, hi) for c, lo, hi in ((cx, xs.min(), xs.max()), (cy, ys.min(), ys.max()), (cz, *z))]
             keep = (
-                (cz + radius >= d.min())
-                & (cz - radius <= d.max())
+                (gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2 <= radius**2)
                 & (outside(cx, cz, left) >= -radius)
                 & (-outside(cx, cz, right_) >= -radius)
                 & (outside(cy, cz, bottom) >= -radius)
