@@ -38,9 +38,11 @@ def _timed(command: str) -> dict:
     cpu0, t0 = _children_cpu(), time.perf_counter()
     done = subprocess.run(command, shell=True, cwd=ROOT, capture_output=True, text=True)
     wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
-    tail = (done.stdout + done.stderr).strip().splitlines()[-1:] or [""]
     if done.returncode != 0:
-        raise RuntimeError(f"{command!r} exited {done.returncode}: {tail[0]}")
+        # pytest's short summary names the failing tests; keep them, since the run is not repeatable.
+        lines = (done.stdout + done.stderr).strip().splitlines()
+        failed = [line for line in lines if line.startswith(("FAILED ", "ERROR "))]
+        raise RuntimeError(f"{command!r} exited {done.returncode}: " + "; ".join(failed or lines[-1:]))
     passed = re.search(r"(\d+) passed", done.stdout)
     return {
         "command": command,

@@ -37,7 +37,7 @@ import math
 import re
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -106,9 +106,10 @@ _OUTPUT = re.compile(r"^out\s+vec4\s+(?P<name>\w+)\s*;", re.M)
 _BLOCK = re.compile(r"in\s+VertexData\s*\{(?P<body>[^}]*)\}\s*vd\s*;")
 
 
-@dataclass(frozen=True)
-class ForwardLight:
-    """One light as the renderer's scene has it: ``type`` ``"point"`` (``position``, radiant intensity
+class ForwardLight(Protocol):
+    """What the forward render reads of a light: the renderer's own scene light
+    (:class:`atlasgen.materials.scene.Light`, which ``separable/`` must not import), as a protocol so
+    that its fields are declared once. ``type`` ``"point"`` (``position``, radiant intensity
     ``intensity`` x ``colour``, ``range``: ``inf`` for none), ``"spot"`` (a point light with an axis
     ``direction`` and cone half-angles ``inner_angle`` < ``outer_angle`` in degrees) or ``"directional"``
     (``direction`` it travels, irradiance ``intensity`` x ``colour``)."""
@@ -116,11 +117,11 @@ class ForwardLight:
     type: str
     colour: tuple
     intensity: float
-    position: tuple | None = None
-    direction: tuple | None = None
-    range: float = math.inf
-    inner_angle: float = 0.0
-    outer_angle: float = 0.0
+    position: tuple | None
+    direction: tuple | None
+    range: float
+    inner_angle: float
+    outer_angle: float
 
 
 @dataclass

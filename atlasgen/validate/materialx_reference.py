@@ -42,18 +42,11 @@ def is_materialx_entry(entry) -> bool:
 
 
 def forward_lights(scene) -> list[ForwardLight] | None:
-    """The scene's lights as the forward render binds them, or ``None`` where one has no MaterialX
-    light shader here (the Mitsuba route then stays the reference)."""
-    out = []
-    for light in scene.lights:
-        if light.type not in ("point", "spot", "directional"):
-            return None
-        out.append(ForwardLight(light.type, tuple(light.colour), float(light.intensity),
-                                position=None if light.position is None else tuple(light.position),
-                                direction=None if light.direction is None else tuple(light.direction),
-                                range=float(light.range), inner_angle=float(light.inner_angle),
-                                outer_angle=float(light.outer_angle)))  # fmt: skip
-    return out
+    """The scene's lights as the forward render binds them (each one is a :class:`ForwardLight`),
+    or ``None`` where one has no MaterialX light shader here (the Mitsuba route then stays the reference)."""
+    if any(light.type not in ("point", "spot", "directional") for light in scene.lights):
+        return None
+    return list(scene.lights)
 
 
 def gl_view_projection(camera, width: int, height: int) -> np.ndarray:

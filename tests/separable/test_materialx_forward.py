@@ -17,13 +17,12 @@ pytest.importorskip("moderngl")
 pytestmark = pytest.mark.slow  # compiling a surface model's program costs seconds of CPU on a cold shader cache
 
 from atlasgen.errors import BackendError  # noqa: E402
-from atlasgen.materials.scene import Camera  # noqa: E402
+from atlasgen.materials.scene import Camera, Light  # noqa: E402
 from atlasgen.optics.falloff import spot_factor, windowed_irradiance  # noqa: E402
 from atlasgen.render.camera import pixel_rays  # noqa: E402
 from atlasgen.render.meshes import make_plane, make_sphere  # noqa: E402
 from atlasgen.separable.materialx_forward import (  # noqa: E402
     ForwardDraw,
-    ForwardLight,
     adapt_forward_pixel_stage,
     render_materialx_forward,
     vertex_tangents,
@@ -71,9 +70,7 @@ def _unit(x):
 
 def test_lambert_under_a_directional_light_is_e_cos_over_pi(gl):
     d = _unit([0.55, -0.35, -0.75])
-    image = _render(
-        gl, LAMBERT, [_draw(make_plane(), 1.6)], [ForwardLight("directional", (1.0, 0.9, 0.5), 0.8, direction=tuple(d))]
-    )
+    image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [Light("directional", (1.0, 0.9, 0.5), 0.8, direction=tuple(d))])
     covered = image.covered
     assert covered.mean() > 0.3  # the plane fills a good part of the frame
     want = 0.8 * np.array([1.0, 0.9, 0.5]) * -d[1] / np.pi
@@ -84,7 +81,7 @@ def test_lambert_under_a_directional_light_is_e_cos_over_pi(gl):
 
 def test_a_sphere_pixel_is_e_cos_over_pi_at_its_shaded_normal_times_the_albedo(gl):
     d = _unit([0.3, -0.6, -0.7])
-    image = _render(gl, LAMBERT, _scene(), [ForwardLight("directional", (1.0, 1.0, 1.0), 1.3, direction=tuple(d))])
+    image = _render(gl, LAMBERT, _scene(), [Light("directional", (1.0, 1.0, 1.0), 1.3, direction=tuple(d))])
     n = image.normal[image.covered].astype(np.float64)
     albedo = np.where(image.position[image.covered][:, 1:2] > 1e-4, [1.0, 0.7, 0.4], [1.0, 1.0, 1.0])
     want = (1.3 * np.clip(n @ -d, 0.0, None) / np.pi)[:, None] * albedo
@@ -93,7 +90,7 @@ def test_a_sphere_pixel_is_e_cos_over_pi_at_its_shaded_normal_times_the_albedo(g
 
 def test_the_pixels_are_the_renderers_pixel_centres(gl):
     """The shaded position lies on the camera ray through the pixel's centre (atlasgen.render.camera.pixel_rays)."""
-    image = _render(gl, LAMBERT, _scene(), [ForwardLight("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, -1.0, 0.0))])
+    image = _render(gl, LAMBERT, _scene(), [Light("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, -1.0, 0.0))])
     rays = pixel_rays(CAMERA, *SIZE)[image.covered]
     to_point = image.position[image.covered] - np.asarray(CAMERA.position)
     cosine = np.sum(rays * to_point, -1) / (np.linalg.norm(rays, axis=-1) * np.linalg.norm(to_point, axis=-1))
@@ -103,7 +100,7 @@ def test_the_pixels_are_the_renderers_pixel_centres(gl):
 def test_a_ranged_point_light_falls_off_as_inverse_square_times_the_window(gl):
     """atlasgen's falloff, I W(d, r) / d^2 (MaterialX's own point light divides by (d + 1)^2)."""
     position, intensity, light_range = np.array([0.4, 1.0, 0.6]), 3.0, 2.0
-    light = ForwardLight("point", (1.0, 1.0, 1.0), intensity, position=tuple(position), range=light_range)
+    light = Light("point", (1.0, 1.0, 1.0), intensity, position=tuple(position), range=light_range)
     image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [light])
     x = image.position[image.covered].astype(np.float64)
     to_light = position - x
@@ -115,9 +112,7 @@ def test_a_ranged_point_light_falls_off_as_inverse_square_times_the_window(gl):
 
 def test_a_point_light_without_a_range_is_the_plain_inverse_square(gl):
     position = np.array([1.6, 2.4, 2.6])
-    image = _render(
-        gl, LAMBERT, [_draw(make_plane(), 1.6)], [ForwardLight("point", (1.0, 1.0, 1.0), 13.0, position=tuple(position))]
-    )
+    image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [Light("point", (1.0, 1.0, 1.0), 13.0, position=tuple(position))])
     x = image.position[image.covered].astype(np.float64)
     to_light = position - x
     d2 = np.sum(to_light**2, -1)
@@ -138,8 +133,8 @@ def test_the_forward_render_equals_the_oracle_at_each_pixels_n_l_v(gl):
     from the oracle, with l, v in the frame of the pixel's shaded normal."""
     d = _unit([0.55, -0.35, -0.75])
     point = np.array([1.6, 2.4, 2.6])
-    lights = [ForwardLight("point", (1.0, 1.0, 1.0), 13.0, position=tuple(point)),
-              ForwardLight("directional", (0.9, 0.95, 1.0), 0.8, direction=tuple(d))]  # fmt: skip
+    lights = [Light("point", (1.0, 1.0, 1.0), 13.0, position=tuple(point)),
+              Light("directional", (0.9, 0.95, 1.0), 0.8, direction=tuple(d))]  # fmt: skip
     image = _render(gl, GOLD, _scene(), lights)
     covered = image.covered
     n = image.normal[covered].astype(np.float64)
@@ -163,7 +158,7 @@ def test_the_forward_render_equals_the_oracle_at_each_pixels_n_l_v(gl):
 
 def test_a_back_face_is_shaded_with_the_flipped_normal_as_the_renderer_does(gl):
     below = Camera(position=(0.0, -2.0, 2.5), target=(0.0, 0.0, 0.0), fov=40.0)
-    up = ForwardLight("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, 1.0, 0.0))  # travelling up: lights the underside
+    up = Light("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, 1.0, 0.0))  # travelling up: lights the underside
     image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [up], camera=below)
     covered = image.covered
     assert covered.mean() > 0.2
@@ -173,7 +168,7 @@ def test_a_back_face_is_shaded_with_the_flipped_normal_as_the_renderer_does(gl):
 
 def test_an_object_of_another_material_occludes_and_stays_black(gl):
     d = (0.0, -1.0, 0.0)
-    light = [ForwardLight("directional", (1.0, 1.0, 1.0), 1.0, direction=d)]
+    light = [Light("directional", (1.0, 1.0, 1.0), 1.0, direction=d)]
     alone = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], light)
     blocker = _draw(make_sphere(32), 0.5, (0.0, 0.5, 0.0), albedo=(0.0, 0.0, 0.0))
     both = _render(gl, LAMBERT, [_draw(make_plane(), 1.6), blocker], light)
@@ -185,7 +180,7 @@ def test_an_object_of_another_material_occludes_and_stays_black(gl):
 
 
 def test_inputs_are_reset_between_renders(gl):
-    light = [ForwardLight("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, -1.0, 0.0))]
+    light = [Light("directional", (1.0, 1.0, 1.0), 1.0, direction=(0.0, -1.0, 0.0))]
     first = _render(gl, LAMBERT, _scene(), light).radiance
     _render(gl, GOLD, _scene(), light)
     np.testing.assert_array_equal(_render(gl, LAMBERT, _scene(), light).radiance, first)
@@ -194,7 +189,7 @@ def test_inputs_are_reset_between_renders(gl):
 def test_a_spot_light_is_the_point_falloff_times_atlasgens_cone(gl):
     """Mitsuba's spot, as atlasgen's renderer: linear in the angle from the inner to the outer cone."""
     position, axis = np.array([0.3, 1.5, 0.2]), _unit([0.2, -1.0, 0.1])
-    light = ForwardLight("spot", (1.0, 0.8, 0.6), 4.0, position=tuple(position), direction=tuple(axis), range=3.0,
+    light = Light("spot", (1.0, 0.8, 0.6), 4.0, position=tuple(position), direction=tuple(axis), range=3.0,
                          inner_angle=15.0, outer_angle=35.0)  # fmt: skip
     image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [light])
     x = image.position[image.covered].astype(np.float64)
@@ -213,7 +208,7 @@ def test_a_spot_light_is_the_point_falloff_times_atlasgens_cone(gl):
 
 
 def test_a_light_it_cannot_bind_is_refused(gl):
-    area = ForwardLight("area", (1.0, 1.0, 1.0), 1.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0))
+    area = Light("area", (1.0, 1.0, 1.0), 1.0, position=(0.0, 2.0, 0.0), direction=(0.0, -1.0, 0.0))
     with pytest.raises(BackendError, match="no 'area' light; expected one of directional, point, spot"):
         _render(gl, LAMBERT, _scene(), [area])
     assert gl.error == "GL_NO_ERROR"
