@@ -59,12 +59,22 @@ class OutlinePass:
             ],
         )
 
-    def encode(self, encoder, target, bind_group, timestamps=None):
+    def encode(self, encoder, target, bind_group, rectangles=None, timestamps=None):
+        """Draw the pass over ``rectangles`` (``(x, y, w, h)`` scissors), or the whole target for ``None``.
+
+        An outline pixel is a flagged object's pixel or a 4-neighbour of one, so the screen
+        rectangles of the flagged objects (:func:`~atlasgen.render.translucency.screen_rectangle`,
+        padded by a pixel) hold every pixel the pass can write: drawing only there gives the
+        full-screen image at the cost of what is outlined. Overlaps are drawn twice, to the same colour.
+        """
         pass_ = encoder.begin_render_pass(
             color_attachments=[{"view": target.create_view(), "load_op": "load", "store_op": "store"}],
             timestamp_writes=timestamps,
         )
         pass_.set_pipeline(self.pipeline)
         pass_.set_bind_group(0, bind_group)
-        pass_.draw(3)
+        for rectangle in [None] if rectangles is None else rectangles:
+            if rectangle is not None:
+                pass_.set_scissor_rect(*rectangle)
+            pass_.draw(3)
         pass_.end()

@@ -326,10 +326,11 @@ class Renderer:
             frame_buffer, light_texture, gbuffer, self.atlas_texture, environment, tile_texture, self.atlas_tables
         )
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
-        # The outline pass only draws next to flagged materials: skip it when none is in view.
-        wants_outlines = any(entry.flag("outline") for entry in entries)
+        # The outline pass only draws next to flagged materials: over their objects' rectangles, and
+        # not at all when none is on screen.
+        outline_rectangles = [r for r, entry in zip(rectangles, entries) if r is not None and entry.flag("outline")]
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
-                              draws, opaque, translucent, rectangles, wants_outlines,
+                              draws, opaque, translucent, rectangles, outline_rectangles,
                               (frame_buffer, light_texture, object_buffer, environment, cull_buffer, sphere_texture),
                               culled, cull_group, cull_tiles, tile_texture)  # fmt: skip
 
@@ -371,9 +372,9 @@ class Renderer:
                 cull=cull(1 + n) if frame.culled else None)]  # fmt: skip
         if trace is not None:
             steps.append((None, bool(frame.translucent)))
-        if outlines and frame.wants_outlines:
+        if outlines and frame.outline_rectangles:
             steps.append(("outlines", lambda encoder, timestamps=None: self.outline_pass.encode(
-                encoder, frame.hdr, frame.outline_group, timestamps)))  # fmt: skip
+                encoder, frame.hdr, frame.outline_group, frame.outline_rectangles, timestamps)))  # fmt: skip
         return steps
 
     def encode_frame(self, frame: _PreparedFrame, outlines: bool = True, trace=None):
@@ -510,7 +511,7 @@ class _PreparedFrame:
     opaque: list
     translucent: list
     rectangles: list  # per object: screen rectangle (x, y, w, h) of its bounding box, None if off screen
-    wants_outlines: bool  # some object's material has flags.outline
+    outline_rectangles: list  # screen rectangles of the objects whose material has flags.outline
     keepalive: tuple
     culled: bool = False  # lit through tile light lists
     cull_group: object = None

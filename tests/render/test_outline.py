@@ -71,3 +71,53 @@ def test_no_outline_for_materials_that_do_not_ask(renderer, scene_from, material
 def test_outlines_can_be_switched_off(renderer, scene_from):
     result = renderer.render(scene_from(SCENE.format(shape="sphere", material="toon")), outlines=False)
     assert not outline_pixels(result).any()
+
+
+TWO_OUTLINED = """
+[camera]
+position = [0, 0, 6]
+target = [0, 0, 0]
+fov = 40
+[image]
+width = 96
+height = 64
+[render]
+mip_distance = 100.0
+outline_colour = [0.0, 100.0, 0.0]
+[[lights]]
+type = "directional"
+direction = [0.3, -0.4, -1]
+intensity = 3.0
+[[objects]]
+shape = "sphere"
+material = "toon"
+translate = [-2.6, 0.3, 0]
+[[objects]]
+shape = "box"
+material = "toon"
+translate = [1.2, -0.4, 0.5]
+rotate = [30, 40, 0]
+scale = 0.6
+[[objects]]
+shape = "sphere"
+material = "lambert"
+translate = [0.2, 0.6, -0.5]
+"""
+
+
+def test_outlines_drawn_over_the_flagged_objects_rectangles_equal_the_full_screen_pass(renderer, scene_from, monkeypatch):
+    """The pass is scissored to the outlined objects' screen rectangles (one partly off screen,
+    one touching an unflagged object): the frame is the full-screen pass's, bit for bit."""
+    from atlasgen.render.outline import OutlinePass
+
+    scene = scene_from(TWO_OUTLINED)
+    rectangles = renderer.prepare(scene).outline_rectangles
+    assert len(rectangles) == 2
+    assert sum(w * h for _, _, w, h in rectangles) < 0.5 * scene.width * scene.height  # the scissor does cut
+    scissored = renderer.render(scene)
+    full_screen = OutlinePass.encode
+    monkeypatch.setattr(OutlinePass, "encode", lambda self, enc, target, group, rectangles=None, timestamps=None:
+                        full_screen(self, enc, target, group, None, timestamps))  # fmt: skip
+    whole = renderer.render(scene)
+    assert outline_pixels(whole).sum() > 50
+    np.testing.assert_array_equal(scissored.radiance, whole.radiance)

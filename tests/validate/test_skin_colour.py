@@ -25,7 +25,7 @@ def test_the_shipped_skin_has_skin1s_colour():
     np.testing.assert_allclose(single_scattering_albedo(colour), s / (s + a), atol=1e-3)
 
 
-def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm):
+def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm, shipped_library_cache):
     """Front scene, 64x48: over the sphere (the geometry the slice is fitted around; the plane is a
     slab of skin, flat, which it is not) the mean linear RGB of the shipped skin's model reference
     (its fitted slice in the renderer's equation) and of the volpath reference agree within 7% per
