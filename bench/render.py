@@ -40,7 +40,7 @@ GOAL_1024_OVER_1 = 3.0
 GOAL_BRUTE_OVER_CULLED_256 = 10.0
 PASSES = ("gbuffer", "culling", "lighting", "translucency", "outlines")
 
-# LUT materials (no Mitsuba needed) used when build/atlas.dds is absent.
+# The scene's LUT materials, from build/atlas.dds, or baked in memory when it is absent.
 FALLBACK_MATERIALS = ("terracotta", "red-plastic", "glazed-ceramic", "skin", "toon-hero", "beetle-shell")
 
 
@@ -180,9 +180,9 @@ def run() -> dict:
     atlas, atlas_source = load_atlas()
     renderer = Renderer(atlas)
     device = renderer.ctx.name
-    # LUT materials: the common case. (Separable ones cost more per pixel; the demo shows them.)
-    names = [m.name for m in atlas.manifest.materials if m.factors is None]
-    names = names or atlas.manifest.names
+    # The same LUT materials whichever atlas was found, so that the scene is the same (toon-hero's
+    # outlines included): LUT slices are the common case; separable ones cost more per pixel.
+    names = [name for name in FALLBACK_MATERIALS if name in atlas.manifest.names] or atlas.manifest.names
     rows = []
     method = ""
     for lights in LIGHTS:

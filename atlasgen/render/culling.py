@@ -6,6 +6,10 @@ view depth of the tile's covered pixels and keeps each light whose sphere (posit
 wholly outside one of the tile's four side planes, nor outside the box that bounds the tile's frustum
 between those depths; unbounded lights are always kept. The lighting pass then loops over its tile's list only.
 
+A coarse step runs first, once per frame: per block of ``COARSE_TILES`` x ``COARSE_TILES`` tiles, a bit
+mask of the lights not wholly outside the block's side planes; each
+tile then tests only its block's lights. No depths enter it, so the translucent layers' culls reuse it.
+
 Lists live in one ``r32uint`` texture array (:func:`create_tile_texture`): texel (k, tx) of layer ty
 is word k of tile (tx, ty)'s list, ``capacity + 1`` words, the count first, then the indices in light
 order. A texture, not a storage buffer: lavapipe reads a storage buffer at a per-pixel index lane by
@@ -25,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from atlasgen.render.camera import camera_basis, pixel_rays, tangents
-from atlasgen.render.layout import CULL, TILE_SIZE, UNIFORM_OFFSET_ALIGNMENT, declaration_wgsl
+from atlasgen.render.layout import COARSE_TILES, CULL, LIGHT_MASK_WORDS, TILE_SIZE, UNIFORM_OFFSET_ALIGNMENT, declaration_wgsl
 from atlasgen.shaders.passes import assemble_shader
 from atlasgen.shaders.structs import round_up
 
@@ -33,8 +37,10 @@ __all__ = [
     "DEFAULT_TILE_CAPACITY",
     "CULL_STRIDE",
     "CullingPass",
+    "CullBindings",
     "TileLists",
     "tile_grid",
+    "block_grid",
     "tile_rectangle",
     "pack_cull",
     "pack_light_spheres",
@@ -193,8 +199,11 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
     c lies more than r outside one of the four planes through the eye and the tile's pixel
     edges (distance (x - a z) / sqrt(1 + a^2) for an edge of slope a), or farther than r from
     the box [min a z, max a z] x [min b z, max b z] x [z_min, z_max] over the tile's x slopes a,
-    y slopes b and z in {z_min, z_max}, which holds every covered point of the tile. Unbounded lights are kept in every covered tile; a tile no object covers
-    gets none. ``tiles`` (a ``(x0, y0, nx, ny)`` tile rectangle) limits the tiles.
+    y slopes b and z in {z_min, z_max}, which holds every covered point of the tile; nor is it kept
+    when c lies more than r outside one of the four planes of the tile's block of ``COARSE_TILES`` x
+    ``COARSE_TILES`` tiles (the coarse step). Unbounded lights
+    are kept in every covered tile; a tile no object covers gets none. ``tiles`` (a ``(x0, y0, nx, ny)``
+    tile rectangle) limits the tiles.
     """
     width, height = scene.width, scene.height
     right, up, forward = camera_basis(scene.camera)
@@ -209,6 +218,18 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
 
     def outside(s, z, a):
         return (s - a * z) / math.sqrt(1.0 + a * a)
+
+    def within_planes(px0, py0, px1, py1):
+        left, right_ = (px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x
+        top, bottom = -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y
+        return (
+            (outside(cx, cz, left) >= -radius)
+            & (-outside(cx, cz, right_) >= -radius)
+            & (outside(cy, cz, bottom) >= -radius)
+            & (-outside(cy, cz, top) >= -radius)
+        )
+
+    block = COARSE_TILES * TILE_SIZE
 
     out = {}
     for ty in range(y0, y0 + ny):
@@ -225,12 +246,11 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
             z = np.array([d.min(), d.max()])
             xs, ys = np.outer([left, right_], z), np.outer([bottom, top], z)
             gap = [c - np.clip(c, lo, hi) for c, lo, hi in ((cx, xs.min(), xs.max()), (cy, ys.min(), ys.max()), (cz, *z))]
+            bx0, by0 = (px0 // block) * block, (py0 // block) * block
             keep = (
                 (gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2 <= radius**2)
-                & (outside(cx, cz, left) >= -radius)
-                & (-outside(cx, cz, right_) >= -radius)
-                & (outside(cy, cz, bottom) >= -radius)
-                & (-outside(cy, cz, top) >= -radius)
+                & within_planes(px0, py0, px1, py1)
+                & within_planes(bx0, by0, min(bx0 + block, width), min(by0 + block, height))
             )
             out[(tx, ty)] = unbounded | {bounded[k] for k in np.flatnonzero(keep)}
     return out
@@ -278,8 +298,28 @@ def lights_reaching(scene, depth: np.ndarray, candidates=None) -> np.ndarray:
     return out
 
 
+@dataclass
+class CullBindings:
+    """What one frame's culling binds: the coarse step's and the tiles' bind groups, and the blocks' masks."""
+
+    coarse: object
+    fine: object
+    masks: object  # the r32uint texture array of the blocks' light masks (kept alive with the groups)
+    blocks: tuple[int, int]  # (blocks per row, rows of blocks)
+
+
+def block_grid(width: int, height: int) -> tuple[int, int]:
+    """``(blocks per row, rows of blocks)`` of the coarse step over ``width`` x ``height`` pixels.
+
+    >>> block_grid(1280, 720)
+    (20, 12)
+    """
+    nx, ny = tile_grid(width, height)
+    return -(-nx // COARSE_TILES), -(-ny // COARSE_TILES)
+
+
 class CullingPass:
-    """The compute pipeline of cull.wgsl and the bindings it reads."""
+    """The compute pipelines of cull.wgsl (the coarse step and the tiles) and the bindings they read."""
 
     def __init__(self, device):
         import wgpu
@@ -289,11 +329,13 @@ class CullingPass:
             label="cull", code=assemble_shader("common.wgsl", "cull.wgsl", declare=declaration_wgsl)
         )
         compute = wgpu.ShaderStage.COMPUTE
+        frame = {"binding": 0, "visibility": compute, "buffer": {"type": "uniform"}}
+        spheres = {"binding": 1, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}}
         self.layout = device.create_bind_group_layout(
             label="cull",
             entries=[
-                {"binding": 0, "visibility": compute, "buffer": {"type": "uniform"}},
-                {"binding": 1, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
+                frame,
+                spheres,
                 {"binding": 2, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
                 {
                     "binding": 3,
@@ -305,6 +347,19 @@ class CullingPass:
                     "visibility": compute,
                     "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": CULL.size},
                 },
+                {"binding": 5, "visibility": compute, "texture": {"sample_type": "uint", "view_dimension": "2d-array"}},
+            ],
+        )
+        self.coarse_layout = device.create_bind_group_layout(
+            label="cull coarse",
+            entries=[
+                frame,
+                spheres,
+                {
+                    "binding": 6,
+                    "visibility": compute,
+                    "storage_texture": {"access": "write-only", "format": "r32uint", "view_dimension": "2d-array"},
+                },
             ],
         )
         self.pipeline = device.create_compute_pipeline(
@@ -312,25 +367,52 @@ class CullingPass:
             layout=device.create_pipeline_layout(bind_group_layouts=[self.layout]),
             compute={"module": module, "entry_point": "cs_cull"},
         )
+        self.coarse_pipeline = device.create_compute_pipeline(
+            label="cull coarse",
+            layout=device.create_pipeline_layout(bind_group_layouts=[self.coarse_layout]),
+            compute={"module": module, "entry_point": "cs_coarse"},
+        )
 
-    def bind_group(self, frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer):
+    def bind_group(self, frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer) -> CullBindings:
         """``sphere_texture`` (:func:`upload_light_spheres`) holds the lights' spheres; ``tile_texture`` (:func:`create_tile_texture`) receives the lists."""
-        return self.device.create_bind_group(
+        import wgpu
+
+        blocks = block_grid(gbuffer.width, gbuffer.height)
+        masks = self.device.create_texture(
+            label="cull block masks",
+            size=(LIGHT_MASK_WORDS, *blocks),
+            format=wgpu.TextureFormat.r32uint,
+            usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.TEXTURE_BINDING,
+        )
+        frame = {"binding": 0, "resource": {"buffer": frame_buffer}}
+        spheres = {"binding": 1, "resource": sphere_texture.create_view()}
+        fine = self.device.create_bind_group(
             layout=self.layout,
             entries=[
-                {"binding": 0, "resource": {"buffer": frame_buffer}},
-                {"binding": 1, "resource": sphere_texture.create_view()},
+                frame,
+                spheres,
                 {"binding": 2, "resource": gbuffer.normal_depth.create_view()},
                 {"binding": 3, "resource": tile_texture.create_view(dimension="2d-array")},
                 {"binding": 4, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
+                {"binding": 5, "resource": masks.create_view(dimension="2d-array")},
             ],
         )
+        coarse = self.device.create_bind_group(
+            layout=self.coarse_layout,
+            entries=[frame, spheres, {"binding": 6, "resource": masks.create_view(dimension="2d-array")}],
+        )
+        return CullBindings(coarse, fine, masks, blocks)
 
-    def encode(self, encoder, bind_group, step: int, tiles, timestamps=None) -> None:
-        """Record one dispatch culling the tile rectangle ``tiles`` = (x0, y0, nx, ny) with the
-        ``step``-th ``Cull`` uniform (0: the opaque layer; k: the k-th translucent object)."""
+    def encode(self, encoder, bindings: CullBindings, step: int, tiles, timestamps=None) -> None:
+        """Record the dispatch culling the tile rectangle ``tiles`` = (x0, y0, nx, ny) with the
+        ``step``-th ``Cull`` uniform (0: the opaque layer, after the coarse step over the whole
+        screen; k: the k-th translucent object, which reuses the blocks' masks)."""
         pass_ = encoder.begin_compute_pass(timestamp_writes=timestamps)
+        if step == 0:
+            pass_.set_pipeline(self.coarse_pipeline)
+            pass_.set_bind_group(0, bindings.coarse)
+            pass_.dispatch_workgroups(*bindings.blocks, 1)
         pass_.set_pipeline(self.pipeline)
-        pass_.set_bind_group(0, bind_group, [step * CULL_STRIDE])
+        pass_.set_bind_group(0, bindings.fine, [step * CULL_STRIDE])
         pass_.dispatch_workgroups(int(tiles[2]), int(tiles[3]), 1)
         pass_.end()

@@ -19,6 +19,7 @@ __all__ = [
     "LIGHT",
     "CULL",
     "TILE_SIZE",
+    "COARSE_TILES",
     "LIGHT_MASK_WORDS",
     "ENVIRONMENT",
     "LightType",
@@ -96,6 +97,10 @@ LIGHT = Struct(
 #: Pixels along each side of a culling tile (16 x 16 tiles, as Andersson 2011); the culling pass's workgroup size.
 TILE_SIZE = 16
 
+#: Tiles along each side of a block of the coarse culling step (4 x 4 tiles, 64 x 64 pixels): a few
+#: hundred blocks at 720p, few enough that testing every light against each block costs little.
+COARSE_TILES = 4
+
 #: u32 words of the culling pass's per-tile bit mask of lights: one bit per light the renderer takes.
 LIGHT_MASK_WORDS = MAX_LIGHTS // 32
 
@@ -124,6 +129,9 @@ _DECLARATIONS = {
     "Environment": ENVIRONMENT.wgsl,
     "Cull": CULL.wgsl,
     "TILE_SIZE": lambda: wgsl_constant("TILE_SIZE", U32, TILE_SIZE, "Pixels along each side of a light-culling tile."),
+    "COARSE_TILES": lambda: wgsl_constant(
+        "COARSE_TILES", U32, COARSE_TILES, "Tiles along each side of a block of the coarse culling step."
+    ),
     "LIGHT_MASK_WORDS": lambda: wgsl_constant(
         "LIGHT_MASK_WORDS", U32, LIGHT_MASK_WORDS, "u32 words of a tile's bit mask of lights (one bit per light)."
     ),
