@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import textwrap
 import time
@@ -234,6 +235,10 @@ def _suffix_groups(items) -> None:
 # ---- xdist scheduling: the longest work first ------------------------------------------------
 #: Where the last runs' seconds per test (setup, call and teardown) are kept (.pytest_cache).
 _DURATIONS_KEY = "atlasgen/durations"
+#: The same seconds as one full run measured them, kept in the repository, for a run that has no
+#: .pytest_cache of its own (a fresh clone, CI): without them the work is handed out in collection
+#: order, and a long group can start last. ``ATLASGEN_WRITE_DURATIONS=1 make test`` rewrites it.
+_SHIPPED_DURATIONS = Path(__file__).resolve().parent / "durations.json"
 _durations: dict = {}
 
 
@@ -247,8 +252,8 @@ def _order_longest_first(items, durations: dict) -> None:
     (pyproject.toml) xdist hands them out in this order, so a long test does not start last and
     leave the other core idle. A unit's tests keep their order, and a group goes to one worker at
     once, so a module's fixtures are still set up once; only tests alone (function-scoped
-    fixtures only) move. Without timings (a fresh clone) the largest groups go first, as xdist
-    orders them itself."""
+    fixtures only) move. A fresh clone, with no .pytest_cache, orders by the timings kept in
+    tests/durations.json; a test none of them knows counts as 0 s."""
     units: dict = {}
     for item in items:
         key = item.nodeid.rsplit("@", 1)[1] if "@" in item.nodeid else item.nodeid
@@ -265,7 +270,8 @@ try:  # pytest-xdist's hook (the controller's): every worker orders by the same 
 
     def pytest_configure_node(node):
         cache = getattr(node.config, "cache", None)
-        node.workerinput[_DURATIONS_KEY] = cache.get(_DURATIONS_KEY, {}) if cache is not None else {}
+        shipped = json.loads(_SHIPPED_DURATIONS.read_text()) if _SHIPPED_DURATIONS.exists() else {}
+        node.workerinput[_DURATIONS_KEY] = {**shipped, **(cache.get(_DURATIONS_KEY, {}) if cache is not None else {})}
 
 except ImportError:
     pass
@@ -280,7 +286,12 @@ def pytest_sessionfinish(session):
     cache = getattr(session.config, "cache", None)
     if cache is None or hasattr(session.config, "workerinput") or not _durations:
         return
-    cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **{k: round(v, 3) for k, v in _durations.items()}})
+    measured = {k: round(v, 3) for k, v in _durations.items()}
+    cache.set(_DURATIONS_KEY, {**cache.get(_DURATIONS_KEY, {}), **measured})
+    if os.environ.get("ATLASGEN_WRITE_DURATIONS") == "1":
+        # Tests under a tenth of a second hardly move the order: they are left out (0 s).
+        kept = {k: round(v, 1) for k, v in sorted(measured.items()) if v >= 0.1}
+        _SHIPPED_DURATIONS.write_text(json.dumps(kept, indent=0) + "\n")
 
 
 ROOT = Path(__file__).resolve().parents[1]

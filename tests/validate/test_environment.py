@@ -149,7 +149,7 @@ def test_a_separable_material_under_a_uniform_environment_is_its_split_sum_and_n
     path, _ = separable_atlas
     atlas = read_render_atlas(path)
     radiance = np.array([0.5, 1.0, 2.0])
-    scene = _scene("environment = [0.5, 1.0, 2.0]")
+    scene = _scene("environment = [0.5, 1.0, 2.0]", *SMALL)
     entry = atlas.manifest.entry_named("plastic")
     parts = separable_environment_parts(atlas.levels, atlas.srgb, entry, scene, _sphere_aovs(scene, entry.first_slice))
     assert parts.mask.sum() > 50
@@ -164,7 +164,7 @@ def test_a_separable_material_under_a_uniform_environment_is_its_split_sum_and_n
     assert figures["sh_band_limit"]["psnr_db"] is None  # no diffuse part: its error is exactly zero
     assert figures["total"]["psnr_db"] == pytest.approx(figures["split_sum"]["psnr_db"], rel=1e-12)
 
-    sky = _scene('environment = "sky"')
+    sky = _scene('environment = "sky"', *SMALL)
     under_sky = break_down_environment(
         separable_environment_parts(atlas.levels, atlas.srgb, entry, sky, _sphere_aovs(sky, entry.first_slice))
     )
