@@ -73,36 +73,28 @@ def test_outlines_can_be_switched_off(renderer, scene_from):
     assert not outline_pixels(result).any()
 
 
-TWO_OUTLINED = """
-[camera]
-position = [0, 0, 6]
-target = [0, 0, 0]
-fov = 40
-[image]
-width = 96
-height = 64
-[render]
-mip_distance = 100.0
-outline_colour = [0.0, 100.0, 0.0]
-[[lights]]
-type = "directional"
-direction = [0.3, -0.4, -1]
-intensity = 3.0
+#: SCENE's camera and light over a toon sphere partly off screen, a toon box and a lambert sphere.
+TWO_OUTLINED = (
+    SCENE[: SCENE.index("[[objects]]")]
+    + """
 [[objects]]
 shape = "sphere"
 material = "toon"
-translate = [-2.6, 0.3, 0]
+translate = [-1.9, 0.2, 0]
+scale = 0.6
 [[objects]]
 shape = "box"
 material = "toon"
-translate = [1.2, -0.4, 0.5]
+translate = [0.9, -0.4, 0.3]
 rotate = [30, 40, 0]
-scale = 0.6
+scale = 0.4
 [[objects]]
 shape = "sphere"
 material = "lambert"
-translate = [0.2, 0.6, -0.5]
+translate = [0.1, 0.5, -0.4]
+scale = 0.5
 """
+)
 
 
 def test_outlines_drawn_over_the_flagged_objects_rectangles_equal_the_full_screen_pass(renderer, scene_from, monkeypatch):
