@@ -280,8 +280,10 @@ class Renderer:
         )
         light_texture = upload_lights(device, scene.lights)
         object_data = bytearray()
-        draws, centres, rectangles = [], [], []
+        draws, centres, rectangles, farthest = [], [], [], []
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
+        _, _, forward = camera_basis(scene.camera)
+        eye = np.asarray(scene.camera.position, dtype=np.float64)
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj, scene.path)
             model = object_matrix(obj)
@@ -289,6 +291,7 @@ class Renderer:
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
             centres.append(0.5 * (world.min(0) + world.max(0)))
+            farthest.append(float(np.max((world - eye) @ forward)))
             rectangles.append(screen_rectangle(world, view_proj, scene.width, scene.height))
             draws.append((mesh, len(draws)))
         if not object_data:
@@ -308,7 +311,10 @@ class Renderer:
             {LightType[light.type.upper()] for light in scene.lights},
         )
         environment = self.environment.bindings(scene, entries, custom)
-        opaque = [i for i, o in enumerate(scene.objects) if not o.translucent]
+        # Opaque objects nearest first, by their bounding box's farthest view depth (a floor behind
+        # everything goes last): the depth test then rejects covered pixels before shading them,
+        # instead of shading a floor that spheres overwrite. Only exact depth ties could tell.
+        opaque = sorted((i for i, o in enumerate(scene.objects) if not o.translucent), key=lambda i: (farthest[i], i))
         translucent = sort_back_to_front(scene.objects, centres, scene.camera)
         # Culling dispatch 0 covers the screen; dispatch 1 + n the tiles of translucent object n's rectangle.
         cull_tiles = [tile_rectangle(None, scene.width, scene.height)]
