@@ -120,7 +120,18 @@ class GBufferPass:
         )  # fmt: skip
         layout = device.create_pipeline_layout(bind_group_layouts=[frame_layout, self.object_layout])
         stencil = {"compare": "always", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "replace"}
-        self.pipeline = device.create_render_pipeline(
+        # Two pipelines: two-sided for open meshes (a plane seen from below is shaded with the flipped
+        # normal), back faces culled for closed ones, whose back faces the depth test would reject
+        # anyway: half their triangles never reach set-up and binning (on lavapipe, the spheres of
+        # the renderer benchmark cost a third less).
+        self.pipelines = {closed: self._pipeline(device, module, layout, stencil, "back" if closed else "none")
+                          for closed in (False, True)}  # fmt: skip
+
+    @staticmethod
+    def _pipeline(device, module, layout, stencil, cull_mode: str):
+        import wgpu
+
+        return device.create_render_pipeline(
             label="gbuffer",
             layout=layout,
             vertex={
@@ -128,7 +139,7 @@ class GBufferPass:
                 "entry_point": "vs_main",
                 "buffers": [vertex_buffer_layout()],
             },  # fmt: skip
-            primitive={"topology": "triangle-list", "front_face": "ccw", "cull_mode": "none"},
+            primitive={"topology": "triangle-list", "front_face": "ccw", "cull_mode": cull_mode},
             depth_stencil={
                 "format": wgpu.TextureFormat.depth24plus_stencil8,
                 "depth_write_enabled": True,
@@ -170,10 +181,13 @@ class GBufferPass:
             },
             timestamp_writes=timestamps,
         )
-        pass_.set_pipeline(self.pipeline)
-        pass_.set_bind_group(0, frame_group)
-        pass_.set_stencil_reference(stencil_reference)
+        current = None
         for mesh, slot in draws:
+            if mesh.closed is not current:
+                current = mesh.closed
+                pass_.set_pipeline(self.pipelines[current])
+                pass_.set_bind_group(0, frame_group)
+                pass_.set_stencil_reference(stencil_reference)
             pass_.set_bind_group(1, object_group, [slot * OBJECT_UNIFORM_STRIDE])
             pass_.set_vertex_buffer(0, mesh.vertices)
             pass_.set_index_buffer(mesh.indices, "uint32")

@@ -52,11 +52,14 @@ def vertex_buffer_layout() -> dict:
 
 @dataclass
 class Mesh:
-    """``positions`` and ``normals`` are ``(n, 3)`` float32, ``indices`` ``(m, 3)`` uint32."""
+    """``positions`` and ``normals`` are ``(n, 3)`` float32, ``indices`` ``(m, 3)`` uint32. ``closed``: a
+    watertight surface wound counter-clockwise seen from outside, whose back faces the g-buffer
+    pass may cull (from outside, a closed surface's back faces always lie behind its front ones)."""
 
     positions: np.ndarray
     normals: np.ndarray
     indices: np.ndarray
+    closed: bool = False
 
     def interleaved(self) -> np.ndarray:
         """``(n, 6)`` float32 rows in :data:`VERTEX_ATTRIBUTES`' order: the vertex buffer."""
@@ -73,11 +76,12 @@ def sanitize_normals(normals: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def _mesh(positions, normals, indices) -> Mesh:
+def _mesh(positions, normals, indices, closed: bool = False) -> Mesh:
     return Mesh(
         np.ascontiguousarray(positions, dtype=np.float32),
         sanitize_normals(normals),
         np.ascontiguousarray(indices, dtype=np.uint32).reshape(-1, 3),
+        closed,
     )
 
 
@@ -99,7 +103,7 @@ def make_sphere(segments: int = 64) -> Mesh:
     phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)
     t, p = np.meshgrid(theta, phi, indexing="ij")
     pos = np.stack([np.sin(t) * np.sin(p), np.cos(t), np.sin(t) * np.cos(p)], -1).reshape(-1, 3)
-    return _mesh(pos, pos, _grid_indices(rings, segments, wrap_cols=False))
+    return _mesh(pos, pos, _grid_indices(rings, segments, wrap_cols=False), closed=True)
 
 
 def make_plane() -> Mesh:
@@ -124,7 +128,7 @@ def make_box() -> Mesh:
                 positions.append(n + a * u + b * v)
                 normals.append(n)
             indices += [[base, base + 1, base + 2], [base + 2, base + 1, base + 3]]
-    return _mesh(positions, normals, indices)
+    return _mesh(positions, normals, indices, closed=True)
 
 
 def make_torus(minor_radius: float = 0.25, segments: int = 64) -> Mesh:
@@ -137,7 +141,7 @@ def make_torus(minor_radius: float = 0.25, segments: int = 64) -> Mesh:
     normal = np.stack([np.cos(vv) * np.sin(uu), np.sin(vv), np.cos(vv) * np.cos(uu)], -1)
     pos = centre + minor_radius * normal
     idx = _grid_indices(segments, minor_segments, wrap_cols=False)
-    return _mesh(pos.reshape(-1, 3), normal.reshape(-1, 3), idx)
+    return _mesh(pos.reshape(-1, 3), normal.reshape(-1, 3), idx, closed=True)
 
 
 @dataclass(frozen=True)

@@ -92,6 +92,7 @@ class _GpuMesh:
     indices: object
     index_count: int
     bounds: np.ndarray  # (2, 3) object-space min, max
+    closed: bool = False  # drawn with back faces culled (Mesh.closed)
 
 
 def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None, tile_capacity: int | None = None) -> bytes:
@@ -243,7 +244,7 @@ class Renderer:
             vertices = self.device.create_buffer_with_data(data=mesh.interleaved(), usage=wgpu.BufferUsage.VERTEX | usage)
             indices = self.device.create_buffer_with_data(data=mesh.indices.ravel(), usage=wgpu.BufferUsage.INDEX | usage)
             bounds = np.stack([mesh.positions.min(0), mesh.positions.max(0)]).astype(np.float64)
-            self._meshes[key] = _GpuMesh(vertices, indices, int(mesh.indices.size), bounds)
+            self._meshes[key] = _GpuMesh(vertices, indices, int(mesh.indices.size), bounds, bool(mesh.closed))
         return self._meshes[key]
 
     def _gbuffer(self, width, height):

@@ -175,3 +175,49 @@ def test_set_atlas_renders_what_a_new_renderer_would(gpu_device, write_material,
     assert np.abs(texels_only - before).max() > 0.05 and np.abs(new_scale - texels_only).max() > 0.05
     for got, fresh in ((texels_only, same_peak), (new_scale, new_peak), (recompiled, more)):
         np.testing.assert_array_equal(got, Renderer(fresh, gpu_device).render(scene, aovs=False).radiance)
+
+
+CLOSED_AND_OPEN = """
+[[objects]]
+shape = "sphere"
+material = "lambert"
+translate = [-1.1, 0.2, 0]
+scale = 0.6
+[[objects]]
+shape = "box"
+material = "glossy"
+translate = [0.9, 0.3, -0.3]
+rotate = [20, 35, 0]
+scale = 0.5
+[[objects]]
+shape = "torus"
+material = "plain"
+translate = [0.0, -0.5, 0.8]
+rotate = [60, 0, 0]
+scale = 0.6
+[[objects]]
+shape = "plane"
+material = "lambert"
+translate = [0, 1.6, 0]
+scale = 20
+"""
+
+
+def test_culling_the_back_faces_of_closed_meshes_changes_nothing_and_planes_stay_two_sided(renderer, scene_from):
+    """Sphere, box and torus are drawn with back faces culled: the frame and g-buffer are those of the
+    two-sided pipeline, bit for bit (a mesh wound inwards would show its far side). A plane is open: the
+    one above the camera's target is seen from below, shaded with its flipped normal."""
+    scene = scene_from(SCENE + CLOSED_AND_OPEN)
+    culled = renderer.render(scene, outlines=False)
+    pipelines = dict(renderer.gbuffer_pass.pipelines)
+    renderer.gbuffer_pass.pipelines[True] = pipelines[False]
+    try:
+        two_sided = renderer.render(scene, outlines=False)
+    finally:
+        renderer.gbuffer_pass.pipelines.update(pipelines)
+    np.testing.assert_array_equal(culled.radiance, two_sided.radiance)
+    for name in ("id", "depth", "normal"):
+        np.testing.assert_array_equal(culled.aov(name), two_sided.aov(name))
+    assert len(np.unique(culled.aov("id"))) == 4  # three materials and the background
+    # The plane overhead (y = 1.6, the camera at 1.0) fills the top row, its normal turned down to the eye.
+    assert (culled.aov("normal")[0, :, 1] < -0.99).all()
