@@ -122,8 +122,8 @@ class GBufferPass:
         stencil = {"compare": "always", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "replace"}
         # Two pipelines: two-sided for open meshes (a plane seen from below is shaded with the flipped
         # normal), back faces culled for closed ones, whose back faces the depth test would reject
-        # anyway: half their triangles never reach set-up and binning (on lavapipe, the spheres of
-        # the renderer benchmark cost a third less).
+        # anyway: half their triangles never reach set-up and binning, which on lavapipe cost a
+        # finely tessellated sphere more than its pixels.
         self.pipelines = {closed: self._pipeline(device, module, layout, stencil, "back" if closed else "none")
                           for closed in (False, True)}  # fmt: skip
 

@@ -25,8 +25,8 @@
 //    block of tiles the lights not wholly outside the block's four side planes (no depths: the
 //    translucent layers' culls reuse it), as a bit mask per block. Step 2 then tests only the
 //    lights of its block's mask: a light the block drops cannot reach any of its pixels, since
-//    every tile's frustum lies inside its block's. In the renderer benchmark's 256-light scene
-//    a block keeps about a tenth of the lights, and the fine pass tests that tenth.
+//    every tile's frustum lies inside its block's. With many short-ranged lights a block keeps
+//    few of them, and the fine pass tests only those.
 //
 // On a software GPU every barrier costs a switch of all invocations, so there are three, and
 // a quarter as many invocations as pixels.
