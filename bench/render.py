@@ -41,7 +41,7 @@ GOAL_BRUTE_OVER_CULLED_256 = 10.0
 PASSES = ("gbuffer", "culling", "lighting", "translucency", "outlines")
 
 # The scene's LUT materials, from build/atlas.dds, or baked in memory when it is absent.
-FALLBACK_MATERIALS = ("terracotta", "red-plastic", "glazed-ceramic", "skin", "toon-hero", "beetle-shell")
+SCENE_MATERIALS = ("terracotta", "red-plastic", "glazed-ceramic", "skin", "toon-hero", "beetle-shell")
 
 
 def load_atlas():
@@ -56,12 +56,12 @@ def load_atlas():
     from atlasgen.bake.pipeline import bake_atlas
     from atlasgen.materials.material import read_materials
 
-    files = [ROOT / "materials" / f"{name}.toml" for name in FALLBACK_MATERIALS]
+    files = [ROOT / "materials" / f"{name}.toml" for name in SCENE_MATERIALS]
     # A bake cache under build/: the fitted slices (skin's volumetric fit takes minutes on a loaded
     # machine) are baked once per code version, not once per benchmark run.
     result = bake_atlas(read_materials([f for f in files if f.exists()]), cache_dir=ROOT / "build" / "bench-bake-cache")
     atlas = RenderAtlas(result.levels, result.dxgi_format == 29, result.manifest, result.include, "in-memory bake")
-    return atlas, "in-memory bake of " + ", ".join(FALLBACK_MATERIALS)
+    return atlas, "in-memory bake of " + ", ".join(SCENE_MATERIALS)
 
 
 def light_positions(count: int, seed: int = 22) -> np.ndarray:
@@ -182,7 +182,7 @@ def run() -> dict:
     device = renderer.ctx.name
     # The same LUT materials whichever atlas was found, so that the scene is the same (toon-hero's
     # outlines included): LUT slices are the common case; separable ones cost more per pixel.
-    names = [name for name in FALLBACK_MATERIALS if name in atlas.manifest.names] or atlas.manifest.names
+    names = [name for name in SCENE_MATERIALS if name in atlas.manifest.names] or atlas.manifest.names
     rows = []
     method = ""
     for lights in LIGHTS:

@@ -219,9 +219,12 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
     def outside(s, z, a):
         return (s - a * z) / math.sqrt(1.0 + a * a)
 
-    def within_planes(px0, py0, px1, py1):
-        left, right_ = (px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x
-        top, bottom = -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y
+    def edge_slopes(px0, py0, px1, py1):
+        """x / z of the rectangle's left and right edges, y / z of its top and bottom ones."""
+        return ((px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x,
+                -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y)  # fmt: skip
+
+    def within_planes(left, right_, top, bottom):
         return (
             (outside(cx, cz, left) >= -radius)
             & (-outside(cx, cz, right_) >= -radius)
@@ -241,16 +244,15 @@ def cull_tiles_reference(scene, depth: np.ndarray, slack: float = 1.0, tiles=Non
             if d.size == 0:
                 out[(tx, ty)] = set()
                 continue
-            left, right_ = (px0 / width * 2 - 1) * tan_x, (px1 / width * 2 - 1) * tan_x
-            top, bottom = -(py0 / height * 2 - 1) * tan_y, -(py1 / height * 2 - 1) * tan_y
+            left, right_, top, bottom = slopes = edge_slopes(px0, py0, px1, py1)
             z = np.array([d.min(), d.max()])
             xs, ys = np.outer([left, right_], z), np.outer([bottom, top], z)
             gap = [c - np.clip(c, lo, hi) for c, lo, hi in ((cx, xs.min(), xs.max()), (cy, ys.min(), ys.max()), (cz, *z))]
             bx0, by0 = (px0 // block) * block, (py0 // block) * block
             keep = (
                 (gap[0] ** 2 + gap[1] ** 2 + gap[2] ** 2 <= radius**2)
-                & within_planes(px0, py0, px1, py1)
-                & within_planes(bx0, by0, min(bx0 + block, width), min(by0 + block, height))
+                & within_planes(*slopes)
+                & within_planes(*edge_slopes(bx0, by0, min(bx0 + block, width), min(by0 + block, height)))
             )
             out[(tx, ty)] = unbounded | {bounded[k] for k in np.flatnonzero(keep)}
     return out

@@ -181,13 +181,14 @@ class GBufferPass:
             },
             timestamp_writes=timestamps,
         )
+        # Both pipelines share one layout: the frame's group and the stencil reference outlive a switch.
+        pass_.set_bind_group(0, frame_group)
+        pass_.set_stencil_reference(stencil_reference)
         current = None
         for mesh, slot in draws:
             if mesh.closed is not current:
                 current = mesh.closed
                 pass_.set_pipeline(self.pipelines[current])
-                pass_.set_bind_group(0, frame_group)
-                pass_.set_stencil_reference(stencil_reference)
             pass_.set_bind_group(1, object_group, [slot * OBJECT_UNIFORM_STRIDE])
             pass_.set_vertex_buffer(0, mesh.vertices)
             pass_.set_index_buffer(mesh.indices, "uint32")

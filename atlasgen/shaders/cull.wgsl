@@ -2,15 +2,21 @@
 // Assarsson 2011, "Tiled Shading"): one workgroup per TILE_SIZE x TILE_SIZE screen tile
 // builds the list of lights that can reach the tile's pixels, for the lighting pass.
 //
+// 0. First, once per frame (cs_coarse), a coarse pass keeps for each COARSE_TILES x COARSE_TILES
+//    block of tiles the lights not wholly outside the block's four side planes (no depths: the
+//    translucent layers' culls reuse it), as a bit mask per block. Step 2 then tests only the
+//    lights of its block's mask: a light the block drops cannot reach any of its pixels, since
+//    every tile's frustum lies inside its block's. With many short-ranged lights a block keeps
+//    few of them, and the fine pass tests only those.
 // 1. Depth bounds: each of the CULL_GROUP x CULL_GROUP invocations reads the view depth of its
 //    2 x 2 pixels from the g-buffer; the workgroup keeps the min and max over the pixels some
 //    object covers (empty pixels hold FAR_DEPTH). Positive floats order as their bits, so
 //    atomicMax on the bits (and on their complement, for the min) orders the depths. The
 //    workgroup's memory is cleared first: lavapipe hands the next workgroup what the last left
 //    (the mask's words are each written whole in step 2).
-// 2. Each light of the tile's block (step 0) whose sphere (centre in camera space, range; light_spheres, filled by the CPU,
-//    atlasgen/render/culling.py pack_light_spheres) is kept unless it lies wholly outside one
-//    of the tile's four side planes through the eye, or wholly outside the camera-space box
+// 2. Each light of the tile's block (step 0) is kept unless its sphere (centre in camera space,
+//    range; light_spheres, filled by the CPU, atlasgen/render/culling.py pack_light_spheres)
+//    lies wholly outside one of the tile's four side planes through the eye, or wholly outside the camera-space box
 //    that bounds the tile's frustum between z_min and z_max. The planes alone keep a large
 //    sphere near a tile's corner that misses the tile (7.6 lights a tile where 3.7 reach one
 //    of its pixels, in the renderer benchmark's 256-light scene); the box, which bounds a thin
@@ -20,13 +26,6 @@
 //    order as the full loop: count first, then up to capacity indices. The count is the
 //    true number, even beyond the capacity: the lighting pass then loops over every
 //    light for that tile instead (never a silently truncated list).
-//
-// 0. First, once per frame (cs_coarse), a coarse pass keeps for each COARSE_TILES x COARSE_TILES
-//    block of tiles the lights not wholly outside the block's four side planes (no depths: the
-//    translucent layers' culls reuse it), as a bit mask per block. Step 2 then tests only the
-//    lights of its block's mask: a light the block drops cannot reach any of its pixels, since
-//    every tile's frustum lies inside its block's. With many short-ranged lights a block keeps
-//    few of them, and the fine pass tests only those.
 //
 // On a software GPU every barrier costs a switch of all invocations, so there are three, and
 // a quarter as many invocations as pixels.
@@ -69,8 +68,16 @@ fn plane_normal(a: f32) -> vec2<f32> {
     return vec2<f32>(1.0, -a) * inverseSqrt(1.0 + a * a);
 }
 
-// The four side planes through the eye and the pixel rectangle [lo, hi): (left, right) in the
-// (x, z) plane, then (top, bottom) in the (y, z) plane, each facing inwards.
+// The edges of the pixel rectangle [lo, hi) as camera-space slopes: x / z of its left and right
+// edges, then y / z of its bottom and top ones (image y runs along -up).
+fn edge_slopes(lo: vec2<f32>, hi: vec2<f32>) -> vec4<f32> {
+    let ndc_lo = lo * frame.viewport.zw * 2.0 - 1.0;
+    let ndc_hi = hi * frame.viewport.zw * 2.0 - 1.0;
+    return vec4<f32>(vec2<f32>(ndc_lo.x, ndc_hi.x) * frame.forward.w, vec2<f32>(-ndc_hi.y, -ndc_lo.y) * frame.right.w);
+}
+
+// The four side planes through the eye and edges of those slopes: (left, right) in the (x, z)
+// plane, then (top, bottom) in the (y, z) plane, each facing inwards.
 struct SidePlanes {
     left: vec2<f32>,
     right: vec2<f32>,
@@ -78,11 +85,8 @@ struct SidePlanes {
     bottom: vec2<f32>,
 }
 
-fn side_planes(lo: vec2<f32>, hi: vec2<f32>) -> SidePlanes {
-    let ndc_lo = lo * frame.viewport.zw * 2.0 - 1.0;
-    let ndc_hi = hi * frame.viewport.zw * 2.0 - 1.0;
-    return SidePlanes(plane_normal(ndc_lo.x * frame.forward.w), -plane_normal(ndc_hi.x * frame.forward.w),
-                      -plane_normal(-ndc_lo.y * frame.right.w), plane_normal(-ndc_hi.y * frame.right.w));
+fn side_planes(slopes: vec4<f32>) -> SidePlanes {
+    return SidePlanes(plane_normal(slopes.x), -plane_normal(slopes.y), -plane_normal(slopes.w), plane_normal(slopes.z));
 }
 
 // Whether a sphere (camera-space centre, radius r) is not wholly outside any of the planes.
@@ -101,7 +105,7 @@ fn cs_coarse(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_
     workgroupBarrier();
     let size = vec2<u32>(frame.viewport.xy);
     let lo = group.xy * (TILE_SIZE * COARSE_TILES);
-    let planes = side_planes(vec2<f32>(lo), vec2<f32>(min(lo + TILE_SIZE * COARSE_TILES, size)));
+    let planes = side_planes(edge_slopes(vec2<f32>(lo), vec2<f32>(min(lo + TILE_SIZE * COARSE_TILES, size))));
     for (var i = index; i < frame.counts.x; i = i + INVOCATIONS) {
         let sphere = textureLoad(light_spheres, vec2<u32>(i, 0u), 0);
         let r = sphere.w * RANGE_SLACK;
@@ -147,16 +151,11 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     let z_max = bitcast<f32>(atomicLoad(&depth_max));
     let covered = atomicLoad(&depth_max) != 0u;
 
-    // The tile's side planes, and its edges as slopes: camera-space x / z from its left and right
-    // pixel edges, y / z from its top and bottom ones (image y runs along -up).
-    let lo = vec2<f32>(tile * TILE_SIZE);
-    let hi = vec2<f32>(min((tile + 1u) * TILE_SIZE, size));
-    let planes = side_planes(lo, hi);
-    let ndc_lo = lo * frame.viewport.zw * 2.0 - 1.0;
-    let ndc_hi = hi * frame.viewport.zw * 2.0 - 1.0;
+    let slopes = edge_slopes(vec2<f32>(tile * TILE_SIZE), vec2<f32>(min((tile + 1u) * TILE_SIZE, size)));
+    let planes = side_planes(slopes);
     // x = a z over the tile's slopes a and z in [z_min, z_max]: the box holds the four edges' ends.
-    let slope_x = vec2<f32>(ndc_lo.x, ndc_hi.x) * frame.forward.w;
-    let slope_y = vec2<f32>(-ndc_hi.y, -ndc_lo.y) * frame.right.w;
+    let slope_x = slopes.xy;
+    let slope_y = slopes.zw;
     let near_x = slope_x * z_min;
     let far_x = slope_x * z_max;
     let near_y = slope_y * z_min;

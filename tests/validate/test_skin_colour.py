@@ -29,7 +29,9 @@ def test_model_and_volpath_reference_agree_in_mean_colour(mitsuba_llvm, shipped_
     """Front scene, 64x48: over the sphere (the geometry the slice is fitted around; the plane is a
     slab of skin, flat, which it is not) the mean linear RGB of the shipped skin's model reference
     (its fitted slice in the renderer's equation) and of the volpath reference agree within 7% per
-    channel at 64 spp (the closed form's blue is 12% off: why it ships fitted)."""
+    channel at 64 spp (the closed form's blue is 12% off: why it ships fitted). It asks for the
+    shipped library's bake cache only to run in that group's worker, whose process has the skin's
+    fit memoised (atlasgen.models.sss_fit.fitted_sss_slice): alone it would fit again."""
     from atlasgen.validate.mitsuba_scene import build_mitsuba_scene, object_mask, render_mitsuba
     from atlasgen.validate.references import model_reference, physical_reference, register_references
     from atlasgen.validate.run import _render_physical
