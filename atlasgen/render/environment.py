@@ -58,6 +58,7 @@ __all__ = [
     "decode_render_slice",
     "material_tables",
     "pack_environment",
+    "shows_environment",
     "upload_environment",
     "upload_tables",
 ]
@@ -174,6 +175,12 @@ def material_tables(levels, srgb: bool, entry: MaterialEntry, custom_lighting: b
     out[:, _SH_COLUMN : _SH_COLUMN + SH_ORDER + 1, :3] = slice_sh_table(values, nearest=nearest)
     out[:, _SPECULAR_COLUMN:_SEPARABLE_COLUMN, :] = slice_specular_table(values, nearest=nearest).reshape(HEIGHT, -1, 4)
     return out.astype(np.float32)
+
+
+def shows_environment(scene) -> bool:
+    """Whether ``scene``'s background pixels show its environment (it has one and gives no background
+    colour); otherwise they are the constant background colour."""
+    return scene.environment is not None and not scene.background_given
 
 
 def pack_environment(data: EnvironmentData | None, show_background: bool) -> bytes:
@@ -310,6 +317,6 @@ class EnvironmentLighting:
             return self._placeholder
         data, texture = self._entry(scene.environment)
         buffer = device.create_buffer_with_data(
-            data=pack_environment(data, not scene.background_given), usage=wgpu.BufferUsage.UNIFORM
+            data=pack_environment(data, shows_environment(scene)), usage=wgpu.BufferUsage.UNIFORM
         )
         return buffer, texture, self.tables(entries, custom)

@@ -149,7 +149,9 @@ def upload_lights(device, lights):
 class LightingPass:
     """Full-screen lighting pipelines sharing one shader.
 
-    ``opaque`` writes every pixel (background where no object is). ``translucent``
+    ``opaque`` writes every pixel (background where no object is); ``covered`` only those some object
+    covers, the depth test rejecting the rest before they are shaded (a frame whose background is a
+    constant colour: the target is cleared to it). ``translucent``
     runs only where the stencil equals 1 (the pixels the current translucent object
     won in the g-buffer) and blends with the object's opacity as blend constant:
     out = opacity * lit + (1 - opacity) * frame.
@@ -210,7 +212,7 @@ class LightingPass:
             mipmap_filter="linear",
         )
 
-        def pipeline(label, stencil_compare, blend):
+        def pipeline(label, stencil_compare, blend, covered=False):
             stencil = {"compare": stencil_compare, "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "keep"}
             target = {"format": wgpu.TextureFormat.rgba16float}
             if blend:
@@ -221,12 +223,12 @@ class LightingPass:
             return device.create_render_pipeline(
                 label=label,
                 layout=pipeline_layout,
-                vertex={"module": module, "entry_point": "vs_fullscreen", "buffers": []},
+                vertex={"module": module, "entry_point": "vs_fullscreen_far" if covered else "vs_fullscreen", "buffers": []},
                 primitive={"topology": "triangle-list", "cull_mode": "none"},
                 depth_stencil={
                     "format": wgpu.TextureFormat.depth24plus_stencil8,
                     "depth_write_enabled": False,
-                    "depth_compare": "always",
+                    "depth_compare": "greater" if covered else "always",
                     "stencil_front": stencil,
                     "stencil_back": stencil,
                     "stencil_read_mask": 0xFF,
@@ -236,6 +238,7 @@ class LightingPass:
             )
 
         self.opaque = pipeline("lighting-opaque", "always", blend=False)
+        self.covered = pipeline("lighting-covered", "always", blend=False, covered=True)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
     def bind_group(self, frame_buffer, light_texture, gbuffer, atlas_texture, environment, tile_texture, tables):
@@ -262,10 +265,13 @@ class LightingPass:
             ],
         )
 
-    def encode(self, encoder, target, gbuffer, bind_group, background=None, opacity=None, scissor=None, timestamps=None):
+    def encode(self, encoder, target, gbuffer, bind_group, background=None, opacity=None, scissor=None, timestamps=None,
+               shade_background=True):  # fmt: skip
         """Record one full-screen lighting pass into ``target`` (an ``rgba16float`` texture).
 
-        ``opacity=None``: the opaque pass, clearing the target to ``background``.
+        ``opacity=None``: the opaque pass, clearing the target to ``background``; with ``shade_background``
+        false it shades only the pixels some object covers (the background stays the clear colour), else
+        every pixel (an environment seen behind the objects).
         Otherwise: the translucent pass, stencil-masked and blended with ``opacity``.
         ``scissor`` (x, y, w, h) limits the pass to the object's screen rectangle: the
         stencil alone would give the same image, but a software rasteriser still runs
@@ -286,7 +292,7 @@ class LightingPass:
             },
             timestamp_writes=timestamps,
         )  # fmt: skip
-        pass_.set_pipeline(self.translucent if translucent else self.opaque)
+        pass_.set_pipeline(self.translucent if translucent else self.opaque if shade_background else self.covered)
         pass_.set_bind_group(0, bind_group)
         if scissor is not None:
             pass_.set_scissor_rect(*scissor)

@@ -40,7 +40,7 @@ from atlasgen.render.culling import (
     upload_light_spheres,
 )
 from atlasgen.render.device import get_device
-from atlasgen.render.environment import EnvironmentLighting
+from atlasgen.render.environment import EnvironmentLighting, shows_environment
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, upload_lights
@@ -363,7 +363,7 @@ class Renderer:
 
         def opaque_lighting(encoder, timestamps=None):
             frame.lighting_pass.encode(encoder, frame.hdr, g, frame.lighting_group, background=frame.scene.background,
-                                       timestamps=timestamps)  # fmt: skip
+                                       timestamps=timestamps, shade_background=shows_environment(frame.scene))  # fmt: skip
 
         steps = [("gbuffer", opaque_gbuffer)]
         if frame.culled:
@@ -401,7 +401,14 @@ class Renderer:
     def encode_lighting(self, frame: _PreparedFrame):
         """One command buffer holding only the opaque lighting pass (for benchmarks)."""
         encoder = self.device.create_command_encoder()
-        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background)
+        frame.lighting_pass.encode(
+            encoder,
+            frame.hdr,
+            frame.gbuffer,
+            frame.lighting_group,
+            background=frame.scene.background,
+            shade_background=shows_environment(frame.scene),
+        )
         return encoder.finish()
 
     def submit(self, command_buffers) -> None:

@@ -221,3 +221,33 @@ def test_culling_the_back_faces_of_closed_meshes_changes_nothing_and_planes_stay
     assert len(np.unique(culled.aov("id"))) == 4  # three materials and the background
     # The plane overhead (y = 1.6, the camera at 1.0) fills the top row, its normal turned down to the eye.
     assert (culled.aov("normal")[0, :, 1] < -0.99).all()
+
+
+def test_the_opaque_lighting_pass_shades_only_covered_pixels_unless_the_environment_shows(renderer, scene_from):
+    """Behind the objects of a scene without a visible environment is the target's clear colour: the
+    lighting triangle lies on the far plane and the depth test (``greater``) keeps the shader off every
+    pixel no object covers. Shown by re-running the pass cleared to a colour the shader never writes:
+    the background keeps it and the covered pixels are the frame's; shading every pixel paints the
+    scene's background over it."""
+    sphere = '[[objects]]\nshape = "sphere"\nmaterial = "glossy"\n'
+    scene = scene_from(SCENE.replace("height = 56", "height = 56\nbackground = [0.25, 0.5, 0.75]") + sphere)
+    frame = renderer.prepare(scene)
+    renderer.submit(renderer.encode_frame(frame, outlines=False))
+    shaded = renderer.read_radiance(frame)
+    covered = renderer.read_aovs(frame)["id"] != 0xFFFF
+    assert 0.1 < covered.mean() < 0.9
+
+    def relit(shade_background):
+        encoder = renderer.device.create_command_encoder()
+        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=(5.0, 6.0, 7.0),
+                                   shade_background=shade_background)  # fmt: skip
+        renderer.submit([encoder.finish()])
+        return renderer.read_radiance(frame)
+
+    skipped = relit(False)
+    np.testing.assert_array_equal(skipped[covered], shaded[covered])
+    assert (skipped[~covered] == [5.0, 6.0, 7.0]).all()
+    everywhere = relit(True)
+    np.testing.assert_array_equal(everywhere[covered], shaded[covered])
+    np.testing.assert_array_equal(everywhere[~covered], shaded[~covered])
+    np.testing.assert_allclose(shaded[~covered], np.broadcast_to([0.25, 0.5, 0.75], shaded[~covered].shape), rtol=1e-3)
