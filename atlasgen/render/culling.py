@@ -29,7 +29,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from atlasgen.render.camera import camera_basis, pixel_rays, tangents
-from atlasgen.render.layout import COARSE_TILES, CULL, LIGHT_MASK_WORDS, TILE_SIZE, UNIFORM_OFFSET_ALIGNMENT, declaration_wgsl
+from atlasgen.render.layout import (
+    COARSE_TILES,
+    CULL,
+    CULL_GROUP_TILES,
+    LIGHT_MASK_WORDS,
+    TILE_SIZE,
+    UNIFORM_OFFSET_ALIGNMENT,
+    declaration_wgsl,
+)
 from atlasgen.shaders.passes import assemble_shader
 from atlasgen.shaders.structs import round_up
 
@@ -90,8 +98,8 @@ def tile_rectangle(rectangle, width: int, height: int) -> tuple[int, int, int, i
 def pack_cull(rectangles) -> bytes:
     """The ``Cull`` uniforms (:data:`~atlasgen.render.layout.CULL`) of each tile rectangle, ``CULL_STRIDE`` apart."""
     out = bytearray()
-    for x0, y0, _, _ in rectangles:
-        data = CULL.pack(origin=[x0, y0, 0, 0])
+    for x0, y0, nx, ny in rectangles:
+        data = CULL.pack(origin=[x0, y0, x0 + nx, y0 + ny])
         out += data + bytes(CULL_STRIDE - len(data))
     return bytes(out)
 
@@ -416,5 +424,5 @@ class CullingPass:
             pass_.dispatch_workgroups(*bindings.blocks, 1)
         pass_.set_pipeline(self.pipeline)
         pass_.set_bind_group(0, bindings.fine, [step * CULL_STRIDE])
-        pass_.dispatch_workgroups(int(tiles[2]), int(tiles[3]), 1)
+        pass_.dispatch_workgroups(-(-int(tiles[2]) // CULL_GROUP_TILES), -(-int(tiles[3]) // CULL_GROUP_TILES), 1)
         pass_.end()

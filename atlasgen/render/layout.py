@@ -20,6 +20,7 @@ __all__ = [
     "CULL",
     "TILE_SIZE",
     "COARSE_TILES",
+    "CULL_GROUP_TILES",
     "LIGHT_MASK_WORDS",
     "ENVIRONMENT",
     "LightType",
@@ -101,12 +102,16 @@ TILE_SIZE = 16
 #: hundred blocks at 720p, few enough that testing every light against each block costs little.
 COARSE_TILES = 4
 
+#: Tiles along each side of the square of tiles one culling workgroup takes (4 x 4, a coarse block
+#: when aligned to one): lavapipe spends more on a workgroup's set-up and barriers than on culling one tile.
+CULL_GROUP_TILES = 4
+
 #: u32 words of the culling pass's per-tile bit mask of lights: one bit per light the renderer takes.
 LIGHT_MASK_WORDS = MAX_LIGHTS // 32
 
 CULL = Struct(
     "Cull",
-    [Field("origin", vec4(U32), "x, y: the first tile of the rectangle this dispatch culls; z, w unused")],
+    [Field("origin", vec4(U32), "x, y: the first tile of the rectangle this dispatch culls; z, w: one past its last")],
     address_space="uniform",
     doc="One culling dispatch, at a dynamic offset (pack_cull in atlasgen/render/culling.py).",
 )
@@ -129,6 +134,9 @@ _DECLARATIONS = {
     "Environment": ENVIRONMENT.wgsl,
     "Cull": CULL.wgsl,
     "TILE_SIZE": lambda: wgsl_constant("TILE_SIZE", U32, TILE_SIZE, "Pixels along each side of a light-culling tile."),
+    "CULL_GROUP_TILES": lambda: wgsl_constant(
+        "CULL_GROUP_TILES", U32, CULL_GROUP_TILES, "Tiles along each side of the square one culling workgroup takes."
+    ),
     "COARSE_TILES": lambda: wgsl_constant(
         "COARSE_TILES", U32, COARSE_TILES, "Tiles along each side of a block of the coarse culling step."
     ),

@@ -1,6 +1,7 @@
 // Tiled light culling (Andersson 2011, "DirectX 11 Rendering in Battlefield 3"; Olsson &
-// Assarsson 2011, "Tiled Shading"): one workgroup per TILE_SIZE x TILE_SIZE screen tile
-// builds the list of lights that can reach the tile's pixels, for the lighting pass.
+// Assarsson 2011, "Tiled Shading"): for each TILE_SIZE x TILE_SIZE screen tile, the list of lights
+// that can reach the tile's pixels, for the lighting pass; one workgroup takes a square of
+// CULL_GROUP_TILES x CULL_GROUP_TILES tiles.
 //
 // 0. First, once per frame (cs_coarse), a coarse pass keeps for each COARSE_TILES x COARSE_TILES
 //    block of tiles the lights not wholly outside the block's four side planes (no depths: the
@@ -8,8 +9,8 @@
 //    lights of its block's mask: a light the block drops cannot reach any of its pixels, since
 //    every tile's frustum lies inside its block's. With many short-ranged lights a block keeps
 //    few of them, and the fine pass tests only those.
-// 1. Depth bounds: each of the CULL_GROUP x CULL_GROUP invocations reads the view depth of its
-//    2 x 2 pixels from the g-buffer; the workgroup keeps the min and max over the pixels some
+// 1. Depth bounds: each of a tile's 4 x 4 invocations reads the view depth of its SPAN x SPAN
+//    pixels from the g-buffer; the workgroup keeps each tile's min and max over the pixels some
 //    object covers (empty pixels hold FAR_DEPTH). Positive floats order as their bits, so
 //    atomicMax on the bits (and on their complement, for the min) orders the depths. The
 //    workgroup's memory is cleared first: lavapipe hands the next workgroup what the last left
@@ -27,8 +28,9 @@
 //    true number, even beyond the capacity: the lighting pass then loops over every
 //    light for that tile instead (never a silently truncated list).
 //
-// On a software GPU every barrier costs a switch of all invocations, so there are three, and
-// a quarter as many invocations as pixels.
+// On a software GPU every barrier costs a switch of all invocations, and a workgroup's set-up more
+// than culling a tile: so there are three barriers, a sixteenth as many invocations as pixels, and
+// a workgroup takes 16 tiles.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per light: camera-space centre (x along right, y along up, z along forward from the eye), range (0: unbounded).
@@ -47,19 +49,26 @@
 // @declare TILE_SIZE
 // @declare LIGHT_MASK_WORDS
 // @declare COARSE_TILES
+// @declare CULL_GROUP_TILES
 
 // The sphere test is loosened by this share of the range: float32 rounding in the planes
 // must never cull a light that reaches a pixel, and where it only just does, it adds ~0.
 const RANGE_SLACK: f32 = 1.001;
-// Invocations along each side of the workgroup: each reads 2 x 2 pixels of the tile.
-const CULL_GROUP: u32 = TILE_SIZE / 2u;
+// A workgroup culls CULL_GROUP_TILES x CULL_GROUP_TILES tiles (on a software GPU a workgroup's set-up and
+// barriers cost more than its work), with CULL_GROUP x CULL_GROUP invocations, 4 x 4 to a tile, each
+// reading SPAN x SPAN pixels of its tile.
+const CULL_GROUP: u32 = CULL_GROUP_TILES * 4u;
 const INVOCATIONS: u32 = CULL_GROUP * CULL_GROUP;
+const GROUP_TILE_COUNT: u32 = CULL_GROUP_TILES * CULL_GROUP_TILES;
+const SPAN: u32 = TILE_SIZE / 4u;
 // Depths at or beyond this are the g-buffer's clear value (FAR_DEPTH, 3e38): no object there.
 const EMPTY_DEPTH: f32 = 1.0e38;
 
-var<workgroup> depth_min_complement: atomic<u32>;
-var<workgroup> depth_max: atomic<u32>;
-var<workgroup> mask: array<atomic<u32>, LIGHT_MASK_WORDS>;
+// Per tile of the workgroup (its slot, row by row): the depth bounds and the mask of kept lights
+// (cs_coarse uses the first LIGHT_MASK_WORDS words for its block's).
+var<workgroup> depth_min_complement: array<atomic<u32>, GROUP_TILE_COUNT>;
+var<workgroup> depth_max: array<atomic<u32>, GROUP_TILE_COUNT>;
+var<workgroup> mask: array<atomic<u32>, GROUP_TILE_COUNT * LIGHT_MASK_WORDS>;
 
 // The unit normal (in the (s, z) plane) of the plane through the eye that holds the camera's up
 // (or right) axis and the screen line at slope a: dot(normal, (s, z)) = (s - a z) / sqrt(1 + a^2),
@@ -123,17 +132,22 @@ fn cs_coarse(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_
 @compute @workgroup_size(CULL_GROUP, CULL_GROUP)
 fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
            @builtin(local_invocation_index) index: u32) {
-    let tile = cull.origin.xy + group.xy;
-    if (index == 0u) {
-        atomicStore(&depth_min_complement, 0u);
-        atomicStore(&depth_max, 0u);
+    if (index < GROUP_TILE_COUNT) {
+        atomicStore(&depth_min_complement[index], 0u);
+        atomicStore(&depth_max[index], 0u);
     }
     workgroupBarrier();
     let size = vec2<u32>(frame.viewport.xy);
+    // The workgroup's first tile, and one past the last tile of the rectangle this dispatch culls.
+    let first = cull.origin.xy + group.xy * CULL_GROUP_TILES;
+    let end = cull.origin.zw;
+    // The invocation's SPAN x SPAN pixels, all in one tile of the workgroup's: its slot.
+    let corner = first * TILE_SIZE + local.xy * SPAN;
+    let own = local.xy / (CULL_GROUP / CULL_GROUP_TILES);
     var lo_bits = 0xffffffffu;
     var hi_bits = 0u;
-    for (var k = 0u; k < 4u; k = k + 1u) {
-        let pixel = tile * TILE_SIZE + local.xy * 2u + vec2<u32>(k & 1u, k >> 1u);
+    for (var k = 0u; k < SPAN * SPAN; k = k + 1u) {
+        let pixel = corner + vec2<u32>(k % SPAN, k / SPAN);
         if (all(pixel < size)) {
             let depth = textureLoad(normal_depth_tex, vec2<i32>(pixel), 0).w;
             if (depth < EMPTY_DEPTH) {
@@ -143,31 +157,36 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
         }
     }
     if (hi_bits != 0u) {
-        atomicMax(&depth_min_complement, ~lo_bits);
-        atomicMax(&depth_max, hi_bits);
+        let slot = own.y * CULL_GROUP_TILES + own.x;
+        atomicMax(&depth_min_complement[slot], ~lo_bits);
+        atomicMax(&depth_max[slot], hi_bits);
     }
     workgroupBarrier();
-    let z_min = bitcast<f32>(~atomicLoad(&depth_min_complement));
-    let z_max = bitcast<f32>(atomicLoad(&depth_max));
-    let covered = atomicLoad(&depth_max) != 0u;
 
-    let slopes = edge_slopes(vec2<f32>(tile * TILE_SIZE), vec2<f32>(min((tile + 1u) * TILE_SIZE, size)));
-    let planes = side_planes(slopes);
-    // x = a z over the tile's slopes a and z in [z_min, z_max]: the box holds the four edges' ends.
-    let slope_x = slopes.xy;
-    let slope_y = slopes.zw;
-    let near_x = slope_x * z_min;
-    let far_x = slope_x * z_max;
-    let near_y = slope_y * z_min;
-    let far_y = slope_y * z_max;
-    let box_lo = vec3<f32>(min(near_x.x, far_x.x), min(near_y.x, far_y.x), z_min);
-    let box_hi = vec3<f32>(max(near_x.y, far_x.y), max(near_y.y, far_y.y), z_max);
-
-    // Each invocation takes whole words of its block's mask (no two write one word): only the
+    // Each invocation takes whole words of a tile's mask (no two write one word): only the tile's
     // block's lights are tested.
-    let block = tile / COARSE_TILES;
     let words = (frame.counts.x + 31u) / 32u;
-    for (var w = index; w < words; w = w + INVOCATIONS) {
+    for (var item = index; item < GROUP_TILE_COUNT * words; item = item + INVOCATIONS) {
+        let slot = item / words;
+        let w = item % words;
+        let tile = first + vec2<u32>(slot % CULL_GROUP_TILES, slot / CULL_GROUP_TILES);
+        let z_min = bitcast<f32>(~atomicLoad(&depth_min_complement[slot]));
+        let z_max = bitcast<f32>(atomicLoad(&depth_max[slot]));
+        let covered = atomicLoad(&depth_max[slot]) != 0u && all(tile < end);
+
+        let slopes = edge_slopes(vec2<f32>(tile * TILE_SIZE), vec2<f32>(min((tile + 1u) * TILE_SIZE, size)));
+        let planes = side_planes(slopes);
+        // x = a z over the tile's slopes a and z in [z_min, z_max]: the box holds the four edges' ends.
+        let slope_x = slopes.xy;
+        let slope_y = slopes.zw;
+        let near_x = slope_x * z_min;
+        let far_x = slope_x * z_max;
+        let near_y = slope_y * z_min;
+        let far_y = slope_y * z_max;
+        let box_lo = vec3<f32>(min(near_x.x, far_x.x), min(near_y.x, far_y.x), z_min);
+        let box_hi = vec3<f32>(max(near_x.y, far_x.y), max(near_y.y, far_y.y), z_max);
+
+        let block = tile / COARSE_TILES;
         var bits = select(0u, textureLoad(coarse_masks, vec2<u32>(w, block.x), block.y, 0).r, covered);
         var kept = 0u;
         loop {
@@ -187,34 +206,47 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
                 kept = kept | (1u << b);
             }
         }
-        atomicStore(&mask[w], kept);
+        atomicStore(&mask[slot * LIGHT_MASK_WORDS + w], kept);
     }
     workgroupBarrier();
-    // Each invocation writes the lights of its words, after those of the words before them.
+    // Each invocation writes the lights of its words, after those of its tile's words before them.
     let capacity = frame.counts.w;
     var offset = 0u;
     var counted = 0u;
-    for (var w = index; w < words; w = w + INVOCATIONS) {
-        for (; counted < w; counted = counted + 1u) {
-            offset = offset + countOneBits(atomicLoad(&mask[counted]));
+    var counting = GROUP_TILE_COUNT;
+    for (var item = index; item < GROUP_TILE_COUNT * words; item = item + INVOCATIONS) {
+        let slot = item / words;
+        let w = item % words;
+        let tile = first + vec2<u32>(slot % CULL_GROUP_TILES, slot / CULL_GROUP_TILES);
+        if (slot != counting) {
+            counting = slot;
+            offset = 0u;
+            counted = 0u;
         }
-        var bits = atomicLoad(&mask[w]);
+        for (; counted < w; counted = counted + 1u) {
+            offset = offset + countOneBits(atomicLoad(&mask[slot * LIGHT_MASK_WORDS + counted]));
+        }
+        var bits = atomicLoad(&mask[slot * LIGHT_MASK_WORDS + w]);
         counted = w + 1u;
+        let inside = all(tile < end);
         loop {
             if (bits == 0u) {
                 break;
             }
-            if (offset < capacity) {
+            if (offset < capacity && inside) {
                 textureStore(tile_lights, vec2<u32>(1u + offset, tile.x), tile.y, vec4<u32>(w * 32u + firstTrailingBit(bits)));
             }
             offset = offset + 1u;
             bits = bits & (bits - 1u);
         }
-        if (w == words - 1u) {
+        if (w == words - 1u && inside) {
             textureStore(tile_lights, vec2<u32>(0u, tile.x), tile.y, vec4<u32>(offset));
         }
     }
-    if (words == 0u && index == 0u) {
-        textureStore(tile_lights, vec2<u32>(0u, tile.x), tile.y, vec4<u32>(0u));
+    if (words == 0u && index < GROUP_TILE_COUNT) {
+        let tile = first + vec2<u32>(index % CULL_GROUP_TILES, index / CULL_GROUP_TILES);
+        if (all(tile < end)) {
+            textureStore(tile_lights, vec2<u32>(0u, tile.x), tile.y, vec4<u32>(0u));
+        }
     }
 }

@@ -132,7 +132,7 @@ def render_both(renderer, scene, **kw):
 def test_tile_helpers():
     assert tile_grid(160, 96) == (10, 6)
     assert tile_rectangle((15, 16, 2, 17), 160, 96) == (0, 1, 2, 2)
-    assert list(CULL.decode(pack_cull([(3, 4, 1, 1)])[: CULL.size])["origin"]) == [3, 4, 0, 0]
+    assert list(CULL.decode(pack_cull([(3, 4, 1, 2)])[: CULL.size])["origin"]) == [3, 4, 4, 6]
     assert len(pack_cull([(0, 0, 1, 1)] * 3)) == 3 * 256
 
 
