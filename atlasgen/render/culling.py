@@ -10,12 +10,14 @@ A coarse step runs first, once per frame: per block of ``COARSE_TILES`` x ``COAR
 mask of the lights not wholly outside the block's side planes; each
 tile then tests only its block's lights. No depths enter it, so the translucent layers' culls reuse it.
 
-Lists live in one ``r32uint`` texture array (:func:`create_tile_texture`): texel (k, tx) of layer ty
-is word k of tile (tx, ty)'s list, ``capacity + 1`` words, the count first, then the indices in light
-order. A texture, not a storage buffer: lavapipe reads a storage buffer at a per-pixel index lane by
-lane, each with a bounds check, and a texel fetch as one vector gather (a third of the lighting pass). The count is the true one: a tile with more lights than ``capacity`` keeps its first
-``capacity`` and the lighting pass loops over every light there instead, so a list is never
-silently truncated (:func:`overflowing_tiles` counts such tiles).
+Lists live in one ``rgba32uint`` texture array (:func:`create_tile_texture`): row tx of layer ty is tile
+(tx, ty)'s list, its count first, then for each light, in light order, a copy of the light's first
+``ENTRY_TEXELS`` texels (position, range, radiant and its index), so the lighting pass reads a listed light
+in two fetches and no dependent one. A texture, not a storage buffer: lavapipe reads a storage buffer at a
+per-pixel index lane by lane, each with a bounds check, and a texel fetch as one vector gather. The
+texture's last layer holds every light's texels, for the full loop. The count is the true one: a tile with
+more lights than ``capacity`` keeps its first ``capacity`` and the lighting pass loops over every light there
+instead, so a list is never silently truncated (:func:`overflowing_tiles` counts such tiles).
 
 Each translucent layer is culled again after its own g-buffer pass, over the tiles of its screen
 rectangle, so its lists hold the lights that reach its depths, not the opaque layer's.
@@ -33,6 +35,8 @@ from atlasgen.render.layout import (
     COARSE_TILES,
     CULL,
     CULL_GROUP_TILES,
+    ENTRY_TEXELS,
+    LIGHT,
     LIGHT_MASK_WORDS,
     TILE_SIZE,
     UNIFORM_OFFSET_ALIGNMENT,
@@ -54,6 +58,8 @@ __all__ = [
     "pack_light_spheres",
     "decode_tile_lists",
     "create_tile_texture",
+    "list_width",
+    "tile_texture_size",
     "upload_light_spheres",
     "overflowing_tiles",
     "cull_tiles_reference",
@@ -157,39 +163,87 @@ def upload_light_spheres(device, scene):
     return texture
 
 
-def create_tile_texture(device, width: int, height: int, capacity: int):
-    """The tile lists' texture of a ``width`` x ``height`` frame: ``capacity + 1`` texels wide, a row
-    per tile of a row of tiles, a layer per row of tiles."""
+def list_width(capacity: int) -> int:
+    """Texels along a row of the tile-list texture: a tile's count, then :data:`~atlasgen.render.layout.ENTRY_TEXELS`
+    per light it lists, rounded up to a power of two (lighting.wgsl finds a light's own texels with a mask and a
+    shift), and at least one light's row.
+
+    >>> list_width(255), list_width(4), list_width(0)
+    (512, 16, 4)
+    """
+    return max(LIGHT.size // 16, 1 << (ENTRY_TEXELS * capacity).bit_length())
+
+
+def tile_texture_size(width: int, height: int, capacity: int, lights: int, culled: bool = True) -> tuple[int, int, int]:
+    """``(texels per row, rows, layers)`` of the tile-list texture of a ``width`` x ``height`` frame of ``lights``
+    lights: a row per tile of a row of tiles and a layer per row of tiles (none where the frame is not culled), then
+    one last layer holding every light's texels in light order, :func:`list_width` to a row.
+
+    >>> tile_texture_size(1280, 720, 255, 1024)
+    (512, 80, 46)
+    >>> tile_texture_size(1280, 720, 255, 1024, culled=False)
+    (4, 1024, 1)
+    """
+    texels = list_width(capacity if culled else 0)
+    nx, ny = tile_grid(width, height) if culled else (0, 0)
+    return texels, max(nx, -(-max(lights, 1) * (LIGHT.size // 16) // texels)), ny + 1
+
+
+def create_tile_texture(device, width: int, height: int, capacity: int, lights: bytes, culled: bool = True):
+    """The ``rgba32uint`` texture array of a frame's tile lists (:func:`tile_texture_size`), its last layer
+    filled with ``lights`` (:func:`atlasgen.render.lighting.pack_lights`), which the full loop and a tile
+    that overflowed read.
+
+    Texel 0 of tile (tx, ty)'s list is row tx of layer ty, its x the count; entry k is the ``ENTRY_TEXELS``
+    texels from 1 + k ``ENTRY_TEXELS``, copies of the light's own first texels: the lighting pass reads a
+    listed light without first reading its index (a dependent fetch, a tenth of the pass on lavapipe)."""
     import wgpu
 
-    nx, ny = tile_grid(width, height)
-    return device.create_texture(
+    texels, rows, layers = tile_texture_size(width, height, capacity, len(lights) // LIGHT.size, culled)
+    texture = device.create_texture(
         label="tile lights",
-        size=(capacity + 1, nx, ny),
-        format=wgpu.TextureFormat.r32uint,
-        usage=wgpu.TextureUsage.STORAGE_BINDING | wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_SRC,
+        size=(texels, rows, layers),
+        format=wgpu.TextureFormat.rgba32uint,
+        usage=wgpu.TextureUsage.STORAGE_BINDING
+        | wgpu.TextureUsage.TEXTURE_BINDING
+        | wgpu.TextureUsage.COPY_SRC
+        | wgpu.TextureUsage.COPY_DST,
     )
+    data = lights + bytes(-len(lights) % (16 * texels))
+    device.queue.write_texture(
+        {"texture": texture, "mip_level": 0, "origin": (0, 0, layers - 1)},
+        data,
+        {"offset": 0, "bytes_per_row": 16 * texels, "rows_per_image": len(data) // (16 * texels)},
+        (texels, len(data) // (16 * texels), 1),
+    )
+    return texture
 
 
 def read_tile_texture(device, texture, width: int, height: int, capacity: int) -> TileLists:
     """The tile lists the texture of :func:`create_tile_texture` holds."""
     nx, ny = tile_grid(width, height)
-    row = round_up(256, 4 * (capacity + 1))  # WebGPU copies rows at multiples of 256 bytes
+    texels = list_width(capacity)
+    row = round_up(256, 16 * texels)  # WebGPU copies rows at multiples of 256 bytes
     data = device.queue.read_texture(
         {"texture": texture, "mip_level": 0, "origin": (0, 0, 0)},
         {"offset": 0, "bytes_per_row": row, "rows_per_image": nx},
-        (capacity + 1, nx, ny),
+        (texels, nx, ny),
     )
-    words = np.frombuffer(data, dtype=np.uint32).reshape(ny, nx, row // 4)[..., : capacity + 1]
+    words = np.frombuffer(data, dtype=np.uint32).reshape(ny, nx, row // 4)[..., : 4 * texels]
     return decode_tile_lists(np.ascontiguousarray(words).tobytes(), width, height, capacity)
 
 
 def decode_tile_lists(data: bytes, width: int, height: int, capacity: int) -> TileLists:
-    """The tile lists of a ``width`` x ``height`` frame from their words, tile by tile in rows of tiles."""
+    """The tile lists of a ``width`` x ``height`` frame from their texels (four words each), :func:`list_width`
+    to a tile, tile by tile in rows of tiles: the count, then each entry's copy of its light's texels, which
+    name it by its ``index``."""
     nx, ny = tile_grid(width, height)
-    words = np.frombuffer(data, dtype=np.uint32)[: nx * ny * (capacity + 1)].reshape(ny, nx, capacity + 1)
-    counts = words[..., 0].astype(np.int64)
-    lists = [[words[ty, tx, 1 : 1 + min(int(counts[ty, tx]), capacity)].tolist() for tx in range(nx)] for ty in range(ny)]
+    texels = list_width(capacity)
+    words = np.frombuffer(data, dtype=np.uint32)[: nx * ny * texels * 4].reshape(ny, nx, texels, 4)
+    counts = words[..., 0, 0].astype(np.int64)
+    texel, component = LIGHT.texel_of("index")
+    names = words[:, :, 1 + texel : 1 + ENTRY_TEXELS * capacity : ENTRY_TEXELS, component]
+    lists = [[names[ty, tx, : min(int(counts[ty, tx]), capacity)].tolist() for tx in range(nx)] for ty in range(ny)]
     return TileLists(counts, lists, capacity)
 
 
@@ -350,7 +404,7 @@ class CullingPass:
                 {
                     "binding": 3,
                     "visibility": compute,
-                    "storage_texture": {"access": "write-only", "format": "r32uint", "view_dimension": "2d-array"},
+                    "storage_texture": {"access": "write-only", "format": "rgba32uint", "view_dimension": "2d-array"},
                 },
                 {
                     "binding": 4,
@@ -358,6 +412,7 @@ class CullingPass:
                     "buffer": {"type": "uniform", "has_dynamic_offset": True, "min_binding_size": CULL.size},
                 },
                 {"binding": 5, "visibility": compute, "texture": {"sample_type": "uint", "view_dimension": "2d-array"}},
+                {"binding": 7, "visibility": compute, "texture": {"sample_type": "uint"}},
             ],
         )
         self.coarse_layout = device.create_bind_group_layout(
@@ -383,8 +438,10 @@ class CullingPass:
             compute={"module": module, "entry_point": "cs_coarse"},
         )
 
-    def bind_group(self, frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer) -> CullBindings:
-        """``sphere_texture`` (:func:`upload_light_spheres`) holds the lights' spheres; ``tile_texture`` (:func:`create_tile_texture`) receives the lists."""
+    def bind_group(self, frame_buffer, sphere_texture, light_texture, gbuffer, tile_texture, cull_buffer) -> CullBindings:
+        """``sphere_texture`` (:func:`upload_light_spheres`) holds the lights' spheres and ``light_texture``
+        (:func:`atlasgen.render.lighting.upload_lights`) their rows, which the lists copy; ``tile_texture``
+        (:func:`create_tile_texture`) receives the lists."""
         import wgpu
 
         blocks = block_grid(gbuffer.width, gbuffer.height)
@@ -405,6 +462,7 @@ class CullingPass:
                 {"binding": 3, "resource": tile_texture.create_view(dimension="2d-array")},
                 {"binding": 4, "resource": {"buffer": cull_buffer, "offset": 0, "size": CULL.size}},
                 {"binding": 5, "resource": masks.create_view(dimension="2d-array")},
+                {"binding": 7, "resource": light_texture.create_view()},
             ],
         )
         coarse = self.device.create_bind_group(

@@ -11,7 +11,20 @@ from __future__ import annotations
 import enum
 
 from atlasgen.materials.scene import MAX_LIGHTS
-from atlasgen.shaders.structs import F32, U32, Array, Field, Struct, mat4x4, round_up, vec3, vec4, wgsl_constant, wgsl_constants
+from atlasgen.shaders.structs import (
+    F32,
+    U32,
+    Array,
+    Field,
+    Struct,
+    mat4x4,
+    round_up,
+    vec2,
+    vec3,
+    vec4,
+    wgsl_constant,
+    wgsl_constants,
+)
 
 __all__ = [
     "FRAME",
@@ -21,6 +34,7 @@ __all__ = [
     "TILE_SIZE",
     "COARSE_TILES",
     "CULL_GROUP_TILES",
+    "ENTRY_TEXELS",
     "LIGHT_MASK_WORDS",
     "ENVIRONMENT",
     "LightType",
@@ -59,6 +73,11 @@ FRAME = Struct(
         Field(
             "counts", vec4(U32), "x: number of lights, y: 1 where lighting reads tile lists, z: tiles per row, w: list capacity"
         ),
+        Field(
+            "lists",
+            vec4(U32),
+            "tile-list texture: x: the layer of every light's row, y: log2 of its width in texels, z, w unused",
+        ),
         Field("outline_colour", vec4(), "radiance written on outline pixels"),
         Field("outline", vec4(), "x: relative inverse-depth threshold, y: cos(normal threshold)"),
     ],
@@ -85,15 +104,22 @@ LIGHT = Struct(
     "Light",
     [
         Field("position", vec3(), "LIGHT_POINT, LIGHT_SPOT: the position"),
-        Field("kind", U32, "a LIGHT_* constant"),
-        Field("radiant", vec3(), "colour * intensity: I in W/sr (point, spot: on the axis) or E in W/m^2 (directional)"),
         Field("range", F32, "distance at which the windowed falloff reaches 0; 0: unbounded"),
+        Field("radiant", vec3(), "colour * intensity: I in W/sr (point, spot: on the axis) or E in W/m^2 (directional)"),
+        Field("index", U32, "the light's place in the scene's list: a tile list's copy of these texels names it"),
         Field("direction", vec3(), "LIGHT_DIRECTIONAL: the direction of travel; LIGHT_SPOT: the unit axis"),
         Field("cos_outer", F32, "LIGHT_SPOT: cos(outer angle); beyond it the light sends nothing"),
-        Field("cone", vec4(), "LIGHT_SPOT: x: outer angle (rad), y: 1 / (outer - inner angle) (1/rad)"),
+        Field("cone", vec2(), "LIGHT_SPOT: x: outer angle (rad), y: 1 / (outer - inner angle) (1/rad)"),
+        Field("kind", U32, "a LIGHT_* constant"),
     ],
-    doc="One light: a row of the lighting pass's light texture, 16 bytes a texel (pack_lights in atlasgen/render/lighting.py).",
+    doc="One light: 16 bytes a texel, in a row of the cull pass's light texture and of the tile-list texture's last "
+    "layer (pack_lights in atlasgen/render/lighting.py).",
 )
+
+#: Texels of a :data:`LIGHT` that a tile list copies per entry: everything a point light is shaded
+#: with (position, range, radiant) and the index that names it. The rest (a spot or directional
+#: light's axis, cone and kind) is read through the index from the lights' own rows.
+ENTRY_TEXELS = 2
 
 #: Pixels along each side of a culling tile (16 x 16 tiles, as Andersson 2011); the culling pass's workgroup size.
 TILE_SIZE = 16
@@ -126,11 +152,27 @@ ENVIRONMENT = Struct(
     doc="The scene's environment (pack_environment in atlasgen/render/environment.py).",
 )
 
+
+def _light_texel_wgsl(i: int) -> str:
+    """lighting.wgsl's read of texel ``i`` of the ``k``-th light of a tile's list (``listed``) or of the
+    scene: from the list's entry for the texels it copies, else from the light's own row, by its index."""
+    if i < ENTRY_TEXELS:
+        return f"light_texel(k, {i}u, listed, tile)"
+    texel, component = LIGHT.texel_of("index")
+    if texel >= ENTRY_TEXELS:
+        raise ValueError("a tile list's entry must hold the light's index")
+    return f"light_texel(t{texel}.{'xyzw'[component]}, {i}u, false, tile)"
+
+
 _DECLARATIONS = {
     "Frame": FRAME.wgsl,
     "Object": OBJECT.wgsl,
     "Light": LIGHT.wgsl,
-    "read_light": lambda: LIGHT.texel_reader_wgsl("read_light", "light_texels"),
+    "read_light": lambda: LIGHT.texel_reader_wgsl(
+        "read_light", fetch=_light_texel_wgsl, params="k: u32, listed: bool, tile: vec2<u32>"
+    ),
+    "LIGHT_TEXELS": lambda: wgsl_constant("LIGHT_TEXELS", U32, LIGHT.size // 16, "16-byte texels of a Light."),
+    "ENTRY_TEXELS": lambda: wgsl_constant("ENTRY_TEXELS", U32, ENTRY_TEXELS, "Texels of a Light a tile list copies per entry."),
     "Environment": ENVIRONMENT.wgsl,
     "Cull": CULL.wgsl,
     "TILE_SIZE": lambda: wgsl_constant("TILE_SIZE", U32, TILE_SIZE, "Pixels along each side of a light-culling tile."),

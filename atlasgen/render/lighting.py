@@ -97,13 +97,14 @@ def light_kinds_wgsl(kinds) -> str:
 
 #: What an empty scene's light buffer holds: WebGPU rejects zero-size buffers.
 _NO_LIGHT = {"position": (0.0, 0.0, 0.0), "kind": LightType.DIRECTIONAL, "radiant": (0.0, 0.0, 0.0), "range": 0.0,
-             "direction": (0.0, 0.0, -1.0), "cos_outer": 0.0, "cone": (0.0, 0.0, 0.0, 0.0)}  # fmt: skip
+             "direction": (0.0, 0.0, -1.0), "cos_outer": 0.0, "cone": (0.0, 0.0), "index": 0}  # fmt: skip
 
 
-def pack_light(light) -> dict:
-    """One :data:`~atlasgen.render.layout.LIGHT` element's fields for a scene light (range 0: unbounded)."""
+def pack_light(light, index: int = 0) -> dict:
+    """One :data:`~atlasgen.render.layout.LIGHT` element's fields for a scene light, the ``index``-th (range 0: unbounded)."""
     item = {
         **_NO_LIGHT,
+        "index": index,
         "kind": LightType[light.type.upper()],
         "radiant": np.asarray(light.colour, dtype=np.float64) * light.intensity,
         "range": light.range if light.bounded else 0.0,
@@ -115,18 +116,19 @@ def pack_light(light) -> dict:
     if light.type == "spot":
         outer, inner = math.radians(light.outer_angle), math.radians(light.inner_angle)
         item["cos_outer"] = math.cos(outer)
-        item["cone"] = (outer, 1.0 / (outer - inner), 0.0, 0.0)
+        item["cone"] = (outer, 1.0 / (outer - inner))
     return item
 
 
 def pack_lights(lights) -> bytes:
     """The ``Light`` array (:data:`~atlasgen.render.layout.LIGHT`) of a scene's lights; never empty."""
-    return LIGHT.pack_array([pack_light(light) for light in lights] or [_NO_LIGHT])
+    return LIGHT.pack_array([pack_light(light, i) for i, light in enumerate(lights)] or [_NO_LIGHT])
 
 
 def upload_lights(device, lights):
-    """The ``rgba32uint`` texture the lighting pass reads its lights from: row i is light i's
-    :func:`pack_lights` bytes, ``LIGHT.size / 16`` texels (read by the generated ``read_light``)."""
+    """The ``rgba32uint`` texture the culling pass copies lights into the tile lists from: row i is light i's
+    :func:`pack_lights` bytes, ``LIGHT.size / 16`` texels. (The lighting pass reads the lights from the lists'
+    texture, :func:`atlasgen.render.culling.create_tile_texture`.)"""
     import wgpu
 
     data = pack_lights(lights)
@@ -174,7 +176,6 @@ class LightingPass:
             label="lighting",
             entries=[
                 {"binding": 0, "visibility": frag, "buffer": {"type": "uniform"}},
-                {"binding": 1, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 2, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
                 {"binding": 3, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
                 {"binding": 4, "visibility": frag, "texture": {"sample_type": "uint"}},
@@ -241,16 +242,15 @@ class LightingPass:
         self.covered = pipeline("lighting-covered", "always", blend=False, covered=True)
         self.translucent = pipeline("lighting-translucent", "equal", blend=True)
 
-    def bind_group(self, frame_buffer, light_texture, gbuffer, atlas_texture, environment, tile_texture, tables):
+    def bind_group(self, frame_buffer, gbuffer, atlas_texture, environment, tile_texture, tables):
         """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
-        ``tile_texture``: the tile light lists (:func:`atlasgen.render.culling.create_tile_texture`), read where ``Frame.counts.y`` is 1;
+        ``tile_texture``: the tile light lists and every light (:func:`atlasgen.render.culling.create_tile_texture`), the lists read where ``Frame.counts.y`` is 1;
         ``tables``: the include's storage tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
         env_buffer, env_texture, env_tables = environment
         return self.device.create_bind_group(
             layout=self.layout,
             entries=[
                 {"binding": 0, "resource": {"buffer": frame_buffer}},
-                {"binding": 1, "resource": light_texture.create_view()},
                 {"binding": 2, "resource": gbuffer.albedo_gloss.create_view()},
                 {"binding": 3, "resource": gbuffer.normal_depth.create_view()},
                 {"binding": 4, "resource": gbuffer.material.create_view()},

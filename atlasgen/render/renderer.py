@@ -37,13 +37,14 @@ from atlasgen.render.culling import (
     read_tile_texture,
     tile_grid,
     tile_rectangle,
+    tile_texture_size,
     upload_light_spheres,
 )
 from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting, shows_environment
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
-from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, upload_lights
+from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights, upload_lights
 from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.render.translucency import screen_rectangle, sort_back_to_front, translucent_steps
@@ -105,6 +106,7 @@ def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None, til
     s = scene.settings
     depth_threshold, normal_cos = outline_parameters(s)
     bias = s.mip_bias if mip_bias is None else mip_bias
+    texels, _, layers = tile_texture_size(w, h, tile_capacity or 0, len(scene.lights), tile_capacity is not None)
     return FRAME.pack(
         view_proj=view_proj,
         eye=[*cam.position, 1.0],
@@ -117,6 +119,7 @@ def pack_frame(scene: Scene, mip_levels: int, mip_bias: float | None = None, til
         counts=[len(scene.lights), 0, 0, 0]
         if tile_capacity is None
         else [len(scene.lights), 1, tile_grid(w, h)[0], tile_capacity],
+        lists=[layers - 1, texels.bit_length() - 1, 0, 0],
         outline_colour=[*s.outline_colour, 1.0],
         outline=[depth_threshold, normal_cos, 0.0, 0.0],
     )
@@ -322,15 +325,19 @@ class Renderer:
         cull_tiles += [
             tile_rectangle(rectangles[i], scene.width, scene.height) if rectangles[i] else (0, 0, 0, 0) for i in translucent
         ]
-        # An unculled frame never reads its lists: a 1 x 1 x 1 stand-in.
-        tile_texture = create_tile_texture(device, *((scene.width, scene.height, self.tile_capacity) if culled else (1, 1, 0)))
+        # An unculled frame reads only the texture's layer of every light.
+        tile_texture = create_tile_texture(
+            device, scene.width, scene.height, self.tile_capacity if culled else 0, pack_lights(scene.lights), culled
+        )
         cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
         sphere_texture = upload_light_spheres(device, scene)
         cull_group = (
-            self.culling_pass.bind_group(frame_buffer, sphere_texture, gbuffer, tile_texture, cull_buffer) if culled else None
+            self.culling_pass.bind_group(frame_buffer, sphere_texture, light_texture, gbuffer, tile_texture, cull_buffer)
+            if culled
+            else None
         )
         lighting_group = lighting_pass.bind_group(
-            frame_buffer, light_texture, gbuffer, self.atlas_texture, environment, tile_texture, self.atlas_tables
+            frame_buffer, gbuffer, self.atlas_texture, environment, tile_texture, self.atlas_tables
         )
         outline_group = self.outline_pass.bind_group(frame_buffer, gbuffer)
         # The outline pass only draws next to flagged materials: over their objects' rectangles, and

@@ -24,7 +24,8 @@
 //    tile tightly, cuts that to 4.8. Unbounded lights (range 0: directional, or no range
 //    given) are always kept. Kept lights set their bit in a workgroup mask.
 // 3. The mask is written out in light order, so a tile's list sums its lights in the same
-//    order as the full loop: count first, then up to capacity indices. The count is the
+//    order as the full loop: count first, then up to capacity entries, each a copy of its
+//    light's first ENTRY_TEXELS texels (what shading a point light reads, and its index). The count is the
 //    true number, even beyond the capacity: the lighting pass then loops over every
 //    light for that tile instead (never a silently truncated list).
 //
@@ -37,19 +38,23 @@
 // Texel i: light i's sphere.
 @group(0) @binding(1) var light_spheres: texture_2d<f32>;
 @group(0) @binding(2) var normal_depth_tex: texture_2d<f32>;
-// Word k of tile (tx, ty)'s list: texel (k, tx) of layer ty (atlasgen/render/culling.py).
-@group(0) @binding(3) var tile_lights: texture_storage_2d_array<r32uint, write>;
+// Tile (tx, ty)'s list: row tx of layer ty, the count in texel 0, then ENTRY_TEXELS texels per light
+// (atlasgen/render/culling.py create_tile_texture).
+@group(0) @binding(3) var tile_lights: texture_storage_2d_array<rgba32uint, write>;
 @group(0) @binding(4) var<uniform> cull: Cull;
 // Word w of block (bx, by)'s mask of lights: texel (w, bx) of layer by, written by cs_coarse
 // (binding 6, its own bind group) and read by cs_cull (binding 5).
 @group(0) @binding(5) var coarse_masks: texture_2d_array<u32>;
 @group(0) @binding(6) var coarse_out: texture_storage_2d_array<r32uint, write>;
+// Row i: light i's Light texels (atlasgen/render/lighting.py pack_lights); a list copies the first ENTRY_TEXELS.
+@group(0) @binding(7) var light_texels: texture_2d<u32>;
 
 // @declare Cull
 // @declare TILE_SIZE
 // @declare LIGHT_MASK_WORDS
 // @declare COARSE_TILES
 // @declare CULL_GROUP_TILES
+// @declare ENTRY_TEXELS
 
 // The sphere test is loosened by this share of the range: float32 rounding in the planes
 // must never cull a light that reaches a pixel, and where it only just does, it adds ~0.
@@ -234,7 +239,11 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
                 break;
             }
             if (offset < capacity && inside) {
-                textureStore(tile_lights, vec2<u32>(1u + offset, tile.x), tile.y, vec4<u32>(w * 32u + firstTrailingBit(bits)));
+                let light = w * 32u + firstTrailingBit(bits);
+                for (var i = 0u; i < ENTRY_TEXELS; i = i + 1u) {
+                    let texel = textureLoad(light_texels, vec2<u32>(i, light), 0);
+                    textureStore(tile_lights, vec2<u32>(1u + offset * ENTRY_TEXELS + i, tile.x), tile.y, texel);
+                }
             }
             offset = offset + 1u;
             bits = bits & (bits - 1u);

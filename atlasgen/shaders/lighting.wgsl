@@ -22,7 +22,6 @@
 // L += E * albedo * f cos.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var light_texels: texture_2d<u32>;
 @group(0) @binding(2) var albedo_gloss_tex: texture_2d<f32>;
 @group(0) @binding(3) var normal_depth_tex: texture_2d<f32>;
 @group(0) @binding(4) var material_tex: texture_2d<u32>;
@@ -95,9 +94,28 @@ fn environment_radiance(material: u32, custom: bool, n: vec3<f32>, v: vec3<f32>,
 }
 
 // @declare Light
-// @declare read_light
 // @declare LightType
 // @declare TILE_SIZE
+// @declare LIGHT_TEXELS
+// @declare ENTRY_TEXELS
+
+// Texel i of the k-th light of the pixel's tile list (listed), or else of the scene's light k. Tile (tx, ty)'s
+// list is row tx of layer ty: its count, then ENTRY_TEXELS texels per light, copies of the light's first ones;
+// every light's own texels follow each other along the rows of the layer frame.lists.x, 2^frame.lists.y texels
+// to a row (atlasgen/render/culling.py create_tile_texture). Both addresses are computed and one texel is
+// fetched: lavapipe would run both fetches of an if.
+fn light_texel(k: u32, i: u32, listed: bool, tile: vec2<u32>) -> vec4<u32> {
+    let p = k * LIGHT_TEXELS + i;
+    let own = vec3<u32>(p & ((1u << frame.lists.y) - 1u), p >> frame.lists.y, frame.lists.x);
+    let entry = vec3<u32>(1u + k * ENTRY_TEXELS + i, tile.x, tile.y);
+    let at = select(own, entry, listed);
+    return textureLoad(tile_lights, at.xy, at.z, 0);
+}
+
+// read_light(k, listed, tile): the k-th light of the tile's list, or the scene's light k (generated from
+// the Light struct, atlasgen/render/layout.py): the texels an entry copies from the list, the rest from
+// the light's own row through its index (compiled out where nothing reads them, as in a scene of point lights).
+// @declare read_light
 
 // What a light sends to a surface point: the unit direction l towards it and the irradiance
 // E normal to l; reaches is false where it sends nothing (beyond its range or outer cone).
@@ -115,8 +133,8 @@ struct LightSample {
 // light is read and windowed without branches (x = 0 without a range gives W = 1 exactly), and the
 // directional and spot code is compiled in only for scenes that have such lights (DIRECTIONAL_LIGHTS,
 // SPOT_LIGHTS: constants the renderer prepends, atlasgen/render/lighting.py).
-fn light_at(index: u32, world: vec3<f32>) -> LightSample {
-    let light = read_light(index);
+fn light_at(k: u32, listed: bool, tile: vec2<u32>, world: vec3<f32>) -> LightSample {
+    let light = read_light(k, listed, tile);
     let d = light.position - world;
     let d2 = max(dot(d, d), 1e-12);
     let range = light.range;
@@ -139,20 +157,12 @@ fn light_at(index: u32, world: vec3<f32>) -> LightSample {
     return out;
 }
 
-// The index of the k-th light a pixel sums: its tile list's k-th entry, or k itself in the full loop.
-fn light_index(k: u32, listed: bool, tile: vec2<u32>) -> u32 {
-    if (listed) {
-        return textureLoad(tile_lights, vec2<u32>(1u + k, tile.x), tile.y, 0).r;
-    }
-    return k;
-}
-
 // The first light from the k-th of the pixel's list on that reaches it, k moved past it; reaches is false
 // when none is left. A do-while (see fs_main): it reads one entry even of an empty list, with reaches false.
 fn next_light(k: ptr<function, u32>, count: u32, listed: bool, tile: vec2<u32>, world: vec3<f32>) -> LightSample {
     var arrival: LightSample;
     loop {
-        arrival = light_at(light_index(*k, listed, tile), world);
+        arrival = light_at(*k, listed, tile, world);
         arrival.reaches = arrival.reaches && *k < count;
         *k = *k + 1u;
         if (arrival.reaches || *k >= count) {
@@ -210,7 +220,7 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
     let tile = vec2<u32>(pixel) / TILE_SIZE;
     var listed = false;
     if (frame.counts.y != 0u) {
-        let listed_count = textureLoad(tile_lights, vec2<u32>(0u, tile.x), tile.y, 0).r;
+        let listed_count = textureLoad(tile_lights, vec2<u32>(0u, tile.x), tile.y, 0).x;
         if (listed_count <= frame.counts.w) {
             count = listed_count;
             listed = true;

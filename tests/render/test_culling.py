@@ -10,12 +10,14 @@ from atlasgen.render.culling import (
     cull_tiles_reference,
     decode_tile_lists,
     lights_reaching,
+    list_width,
     overflowing_tiles,
     pack_cull,
     tile_grid,
     tile_rectangle,
+    tile_texture_size,
 )
-from atlasgen.render.layout import CULL, TILE_SIZE
+from atlasgen.render.layout import CULL, LIGHT, TILE_SIZE
 
 #: Floor far behind, two opaque spheres, and (``{translucent}``) a glass sphere near the camera.
 SCENE = """
@@ -137,12 +139,27 @@ def test_tile_helpers():
 
 
 def test_decoded_lists_keep_the_true_count_and_at_most_capacity_indices():
-    words = np.zeros((1, 2, 4), dtype=np.uint32)  # a 32 x 16 frame: two tiles, capacity 3
-    words[0, 0, :3] = [2, 7, 9]
-    words[0, 1] = [5, 1, 2, 3]  # five lights, three held: an overflowed tile
-    lists = decode_tile_lists(words.tobytes(), 32, 16, 3)
+    # A 32 x 16 frame (two tiles) at capacity 3: a tile's row is 8 texels (1 + 2 x 3, up to a power of
+    # two), the count first, then each entry copies its light's texels 0 and 1. Bytes 16..31 of a light
+    # are radiant then its index (offset 28): texel 1, word 3.
+    rows = np.arange(10 * 16, dtype=np.uint32).reshape(10, 4, 4) + 1000
+    rows[:, 1, 3] = np.arange(10)
+    texels = np.zeros((1, 2, 8, 4), dtype=np.uint32)
+    texels[0, 0, 0, 0] = 2
+    texels[0, 0, 1:5] = rows[[7, 9], :2].reshape(4, 4)
+    texels[0, 1, 0, 0] = 5  # five lights, three held: an overflowed tile
+    texels[0, 1, 1:7] = rows[[1, 2, 3], :2].reshape(6, 4)
+    lists = decode_tile_lists(texels.tobytes(), 32, 16, 3)
     assert lists.counts.tolist() == [[2, 5]] and lists.lists == [[[7, 9], [1, 2, 3]]]
     assert lists.overflowed().tolist() == [[False, True]] and overflowing_tiles(lists) == 1
+
+
+def test_tile_texture_rows_hold_a_list_or_every_light():
+    assert list_width(255) == 512 and list_width(3) == 8 and list_width(0) == LIGHT.size // 16
+    # 80 x 45 tiles, then one layer for every light: 1024 lights of 4 texels fill 8 rows of 512.
+    assert tile_texture_size(1280, 720, 255, 1024) == (512, 80, 46)
+    assert tile_texture_size(32, 16, 255, 1024) == (512, 8, 2)
+    assert tile_texture_size(32, 16, 0, 3, culled=False) == (4, 3, 1)
 
 
 def test_culled_frame_equals_the_brute_force_frame(renderer, scene_from):

@@ -141,18 +141,19 @@ def test_pack_lights_layout():
     lights = [Light("point", (1.0, 0.5, 0.25), 4.0, position=(1.0, 2.0, 3.0)),
               Light("directional", (1.0, 1.0, 1.0), 2.0, direction=(0.0, -1.0, 0.0)),
               Light("spot", (1.0, 1.0, 1.0), 1.0, (0.0, 1.0, 0.0), (0.0, -1.0, 0.0), 5.0, 20.0, 30.0)]  # fmt: skip
-    # WGSL layout: each vec3 is followed by a 4-byte scalar in its last 4 bytes; cone aligns to 16; size 64.
-    light = np.dtype({"names": ["position", "kind", "radiant", "range", "direction", "cos_outer", "cone"],
-                      "formats": [("<f4", 3), "<u4", ("<f4", 3), "<f4", ("<f4", 3), "<f4", ("<f4", 4)],
-                      "offsets": [0, 12, 16, 28, 32, 44, 48], "itemsize": 64})  # fmt: skip
+    # WGSL layout: each vec3 is followed by a 4-byte scalar in its last 4 bytes; then cone (a vec2) and kind; size 64.
+    light = np.dtype({"names": ["position", "range", "radiant", "index", "direction", "cos_outer", "cone", "kind"],
+                      "formats": [("<f4", 3), "<f4", ("<f4", 3), "<u4", ("<f4", 3), "<f4", ("<f4", 2), "<u4"],
+                      "offsets": [0, 12, 16, 28, 32, 44, 48, 56], "itemsize": 64})  # fmt: skip
     data = np.frombuffer(pack_lights(lights), dtype=light)
     np.testing.assert_array_equal(data["position"], [[1, 2, 3], [0, 0, 0], [0, 1, 0]])
     np.testing.assert_array_equal(data["direction"], [[0, 0, -1], [0, -1, 0], [0, -1, 0]])
     assert data["kind"].tolist() == [1, 0, 2]  # LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT
+    assert data["index"].tolist() == [0, 1, 2]  # what names a light in a tile list's copy
     np.testing.assert_array_equal(data["radiant"], [[4, 2, 1], [2, 2, 2], [1, 1, 1]])
     assert data["range"].tolist() == [0.0, 0.0, 5.0]  # 0: unbounded
     np.testing.assert_allclose(data["cos_outer"][2], np.cos(np.radians(30)), rtol=1e-7)
-    np.testing.assert_allclose(data["cone"][2], [np.radians(30), 1 / np.radians(10), 0, 0], rtol=1e-6)
+    np.testing.assert_allclose(data["cone"][2], [np.radians(30), 1 / np.radians(10)], rtol=1e-6)
     assert len(pack_lights([])) == 64  # never a zero-size buffer
 
 

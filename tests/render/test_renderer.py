@@ -123,12 +123,17 @@ def test_empty_scene_is_background(renderer, scene_from):
 
 def test_frame_uniform_layout(scene_from):
     data = np.frombuffer(pack_frame(scene_from(SCENE), 7, mip_bias=1.25), dtype=np.float32)
-    assert data.size == 56
+    assert data.size == 60
     assert data[16:19].tolist() == [0.5, 1.0, 4.0]  # eye
     assert data[32:36].tolist() == [72, 56, np.float32(1 / 72), np.float32(1 / 56)]  # viewport
     assert data[40:43].tolist() == [1.25, 100.0, 6.0]  # bias, mip distance, last level
     assert np.frombuffer(data[44:48].tobytes(), dtype=np.uint32).tolist() == [1, 0, 0, 0]  # one light
-    assert data[52] == np.float32(0.05)  # outline depth threshold
+    # Not culled: the tile-list texture is one layer of every light's four texels, a light a row.
+    assert np.frombuffer(data[48:52].tobytes(), dtype=np.uint32).tolist() == [0, 2, 0, 0]
+    assert data[56] == np.float32(0.05)  # outline depth threshold
+    culled = np.frombuffer(pack_frame(scene_from(SCENE), 7, tile_capacity=255), dtype=np.uint32)
+    # 72 x 56 pixels: 5 x 4 tiles, lists of 512 texels, and every light in layer 4.
+    assert culled[44:48].tolist() == [1, 1, 5, 255] and culled[48:52].tolist() == [4, 9, 0, 0]
 
 
 def test_a_given_mesh_is_drawn_without_reading_its_file(renderer, scene_from, tmp_path):

@@ -220,8 +220,8 @@ def test_struct_text():
     text = LIGHT.wgsl()
     body = text[text.index("struct Light {") :]
     members = [line.split("//")[0].strip() for line in body.splitlines()[1:-1]]
-    assert members == ["position: vec3<f32>,", "kind: u32,", "radiant: vec3<f32>,", "range: f32,", "direction: vec3<f32>,",
-                       "cos_outer: f32,", "cone: vec4<f32>,"]  # fmt: skip
+    assert members == ["position: vec3<f32>,", "range: f32,", "radiant: vec3<f32>,", "index: u32,", "direction: vec3<f32>,",
+                       "cos_outer: f32,", "cone: vec2<f32>,", "kind: u32,"]  # fmt: skip
     assert body.splitlines()[-1] == "};" and "size 64, align 16" in text
 
 
@@ -396,4 +396,7 @@ def test_texel_reader_refuses_what_texels_cannot_hold():
         Struct("Arr", [Field("w", Array(vec4(), 2))]).texel_reader_wgsl("f", "t")
     text = LIGHT.texel_reader_wgsl("read_light", "light_texels")
     assert text.count("textureLoad(light_texels") == LIGHT.size // 16
-    assert "bitcast<vec3<f32>>(t0.xyz), t0.w," in text
+    assert "bitcast<vec3<f32>>(t0.xyz), bitcast<f32>(t0.w), bitcast<vec3<f32>>(t1.xyz), t1.w," in text
+    # Texels fetched elsewhere, a later one through a word of an earlier one.
+    text = LIGHT.texel_reader_wgsl("f", fetch=lambda i: f"g(k, {i}u)" if i < 2 else f"g(t1.w, {i}u)", params="k: u32")
+    assert "fn f(k: u32) -> Light {" in text and "let t1 = g(k, 1u);" in text and "let t3 = g(t1.w, 3u);" in text
