@@ -123,16 +123,25 @@ def per_pixel(renderer, scene):
     return float(counts.mean()), int(counts.max()), float(tiles.mean()), int(tiles.max()), overflowing_tiles(lists)
 
 
-def calibrated_range(renderer, names, lights: int) -> float:
-    """The range giving about TARGET_PER_PIXEL lights per covered pixel: the first guess, rescaled twice by the
-    measured mean (a light's footprint grows about as r^2), opaque scene."""
+def calibrated_range(renderer, names, lights: int, tolerance: float = 0.05, tries: int = 8) -> float:
+    """The range giving TARGET_PER_PIXEL lights per covered pixel (opaque scene) within ``tolerance``:
+    from the first guess, a secant step in log r, log mean at a time (a light above the floor reaches
+    more of it as r grows than r^2 says, less when short), ``tries`` renders at most; the range of the
+    closest mean if none is within."""
     r = first_range(lights)
     if lights <= 1:
         return r
-    for _ in range(2):  # twice: lights above the floor reach less of it than r^2 says
+    tried = []
+    for _ in range(tries):
         mean = per_pixel(renderer, bench_scene(names, lights, 0, r))[0]
-        r *= math.sqrt(TARGET_PER_PIXEL / max(mean, 1e-3))
-    return r
+        tried.append((abs(math.log(max(mean, 1e-3) / TARGET_PER_PIXEL)), r, mean))
+        if abs(mean / TARGET_PER_PIXEL - 1.0) <= tolerance:
+            return r
+        slope = 2.0  # mean ~ r^2 for lights on the floor
+        if len(tried) >= 2 and tried[-2][2] > 0 and tried[-2][1] != r and tried[-2][2] != mean:
+            slope = min(max(math.log(mean / tried[-2][2]) / math.log(r / tried[-2][1]), 0.5), 4.0)
+        r *= (TARGET_PER_PIXEL / max(mean, 1e-3)) ** (1.0 / slope)
+    return min(tried)[1]
 
 
 def time_ms(fn, repeats: int = REPEATS, warmup: int = WARMUP) -> tuple[float, float]:
