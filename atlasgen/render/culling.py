@@ -400,7 +400,7 @@ class CullingPass:
             entries=[
                 frame,
                 spheres,
-                {"binding": 2, "visibility": compute, "texture": {"sample_type": "unfilterable-float"}},
+                {"binding": 2, "visibility": compute, "texture": {"sample_type": "uint"}},
                 {
                     "binding": 3,
                     "visibility": compute,

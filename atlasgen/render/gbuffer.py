@@ -6,7 +6,8 @@ Targets (all at the output resolution):
 target              format                contents
 ==================  ====================  ===========================================
 ``albedo_gloss``    ``rgba16float``       linear albedo (rgb), gloss (a)
-``normal_depth``    ``rgba32float``       world unit normal (xyz), view depth (w)
+``normal_depth``    ``rg32uint``          world unit normal, octahedral, two snorm16
+                                          (x); view depth's float bits (y)
 ``material``        ``r16uint``           atlas slice; cleared to 0xFFFF = no object
 ``depth_stencil``   ``depth24plus-        z-buffer; stencil marks the pixels of the
                     stencil8``            translucent object being composited
@@ -14,6 +15,9 @@ target              format                contents
 
 View depth is the distance along the camera's forward axis, so the lighting pass
 rebuilds the surface point as ``eye + ray * depth`` without inverting a projection.
+The normal's octahedral form (Cigolle et al. 2014) loses at most about 1e-4 rad; the
+shaders' ``encode_normal_depth`` / ``decode_normal`` (common.wgsl) and
+:func:`encode_normals` / :func:`decode_normals` here are its two statements.
 """
 
 from __future__ import annotations
@@ -26,10 +30,49 @@ from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, d
 from atlasgen.render.meshes import vertex_buffer_layout
 from atlasgen.shaders.passes import assemble_shader
 
-__all__ = ["GBuffer", "GBufferPass", "pack_object"]
+__all__ = ["GBuffer", "GBufferPass", "pack_object", "encode_normals", "decode_normals", "FAR_DEPTH"]
 
-#: Depth cleared into ``normal_depth.w`` where nothing is drawn.
+#: Depth cleared into ``normal_depth`` where nothing is drawn (its float32 bits: the target is ``rg32uint``).
 FAR_DEPTH = 3.0e38
+
+
+def _sign_not_zero(v: np.ndarray) -> np.ndarray:
+    return np.where(v >= 0.0, 1.0, -1.0)
+
+
+def encode_normals(n) -> np.ndarray:
+    """The ``rg32uint`` x word of unit normals ``n`` (..., 3): the octahedral map (Cigolle et al. 2014),
+
+        p = (n_x, n_y) / (|n_x| + |n_y| + |n_z|),  folded to (1 - |p_y|, 1 - |p_x|) sign(p) where n_z < 0,
+
+    as two snorm16 (WGSL ``pack2x16snorm``: round(clamp(p, -1, 1) 32767), x in the low half).
+
+    >>> hex(int(encode_normals([0.0, 0.0, 1.0])))
+    '0x0'
+    >>> hex(int(encode_normals([1.0, 0.0, 0.0])))
+    '0x7fff'
+    """
+    n = np.asarray(n, dtype=np.float64)
+    p = n[..., :2] / np.abs(n).sum(-1, keepdims=True)
+    p = np.where(n[..., 2:3] < 0.0, (1.0 - np.abs(p[..., ::-1])) * _sign_not_zero(p), p)
+    q = np.round(np.clip(p, -1.0, 1.0) * 32767.0).astype(np.int64) & 0xFFFF
+    return (q[..., 0] | (q[..., 1] << 16)).astype(np.uint32)
+
+
+def decode_normals(words) -> np.ndarray:
+    """Unit normals (..., 3) from :func:`encode_normals`' words: WGSL ``unpack2x16snorm`` (max(q / 32767, -1)),
+    the octahedron unfolded and the vector normalised, as ``decode_normal`` in common.wgsl does.
+
+    >>> decode_normals(encode_normals([0.0, -0.6, -0.8])).round(4).tolist()
+    [0.0, -0.6, -0.8]
+    """
+    w = np.asarray(words, dtype=np.uint32)
+    q = np.stack([w & 0xFFFF, w >> 16], -1).astype(np.uint16).view(np.int16).astype(np.float64)
+    p = np.maximum(q / 32767.0, -1.0)
+    v = np.concatenate([p, 1.0 - np.abs(p).sum(-1, keepdims=True)], -1)
+    folded = (1.0 - np.abs(v[..., 1::-1])) * _sign_not_zero(v[..., :2])
+    v = np.where(v[..., 2:3] < 0.0, np.concatenate([folded, v[..., 2:3]], -1), v)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 @dataclass
@@ -56,7 +99,7 @@ class GBuffer:
             width,
             height,
             make("albedo_gloss", wgpu.TextureFormat.rgba16float),
-            make("normal_depth", wgpu.TextureFormat.rgba32float),
+            make("normal_depth", wgpu.TextureFormat.rg32uint),
             make("material", wgpu.TextureFormat.r16uint),
             make(
                 "depth_stencil",
@@ -73,7 +116,7 @@ class GBuffer:
                 "view": self.normal_depth.create_view(),
                 "load_op": op,
                 "store_op": "store",
-                "clear_value": (0, 0, 0, FAR_DEPTH),
+                "clear_value": (0, int(np.float32(FAR_DEPTH).view(np.uint32)), 0, 0),
             },  # fmt: skip
             {
                 "view": self.material.create_view(),
@@ -154,7 +197,7 @@ class GBufferPass:
                 "entry_point": "fs_main",
                 "targets": [
                     {"format": wgpu.TextureFormat.rgba16float},
-                    {"format": wgpu.TextureFormat.rgba32float},
+                    {"format": wgpu.TextureFormat.rg32uint},
                     {"format": wgpu.TextureFormat.r16uint},
                 ],
             },

@@ -177,7 +177,7 @@ class LightingPass:
             entries=[
                 {"binding": 0, "visibility": frag, "buffer": {"type": "uniform"}},
                 {"binding": 2, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
-                {"binding": 3, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
+                {"binding": 3, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 4, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 5, "visibility": frag, "texture": {"sample_type": "float", "view_dimension": "2d-array"}},
                 {"binding": 6, "visibility": frag, "sampler": {"type": "filtering"}},

@@ -37,7 +37,7 @@ class OutlinePass:
             label="outline",
             entries=[
                 {"binding": 0, "visibility": frag, "buffer": {"type": "uniform"}},
-                {"binding": 1, "visibility": frag, "texture": {"sample_type": "unfilterable-float"}},
+                {"binding": 1, "visibility": frag, "texture": {"sample_type": "uint"}},
                 {"binding": 2, "visibility": frag, "texture": {"sample_type": "uint"}},
             ],
         )

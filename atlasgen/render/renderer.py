@@ -42,7 +42,7 @@ from atlasgen.render.culling import (
 )
 from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting, shows_environment
-from atlasgen.render.gbuffer import GBuffer, GBufferPass, pack_object
+from atlasgen.render.gbuffer import GBuffer, GBufferPass, decode_normals, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights, upload_lights
 from atlasgen.render.meshes import Mesh, build_mesh
@@ -505,12 +505,12 @@ class Renderer:
     def read_aovs(self, frame) -> dict:
         g = frame.gbuffer
         albedo_gloss = self._read(g.albedo_gloss, 8, np.float16, 4, g.width, g.height).astype(np.float32)
-        normal_depth = self._read(g.normal_depth, 16, np.float32, 4, g.width, g.height)
+        normal_depth = self._read(g.normal_depth, 8, np.uint32, 2, g.width, g.height)
         ids = self._read(g.material, 2, np.uint16, 1, g.width, g.height)[..., 0]
         empty = ids == NO_MATERIAL
-        depth = np.where(empty, np.inf, normal_depth[..., 3]).astype(np.float32)
+        depth = np.where(empty, np.inf, normal_depth[..., 1].view(np.float32)).astype(np.float32)
         return {
-            "normal": np.where(empty[..., None], 0.0, normal_depth[..., :3]).astype(np.float32),
+            "normal": np.where(empty[..., None], 0.0, decode_normals(normal_depth[..., 0])).astype(np.float32),
             "depth": depth,
             "id": ids,
             "albedo": albedo_gloss[..., :3],

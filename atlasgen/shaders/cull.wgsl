@@ -37,7 +37,7 @@
 // Per light: camera-space centre (x along right, y along up, z along forward from the eye), range (0: unbounded).
 // Texel i: light i's sphere.
 @group(0) @binding(1) var light_spheres: texture_2d<f32>;
-@group(0) @binding(2) var normal_depth_tex: texture_2d<f32>;
+@group(0) @binding(2) var normal_depth_tex: texture_2d<u32>;
 // Tile (tx, ty)'s list: row tx of layer ty, the count in texel 0, then ENTRY_TEXELS texels per light
 // (atlasgen/render/culling.py create_tile_texture).
 @group(0) @binding(3) var tile_lights: texture_storage_2d_array<rgba32uint, write>;
@@ -154,7 +154,7 @@ fn cs_cull(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     for (var k = 0u; k < SPAN * SPAN; k = k + 1u) {
         let pixel = corner + vec2<u32>(k % SPAN, k / SPAN);
         if (all(pixel < size)) {
-            let depth = textureLoad(normal_depth_tex, vec2<i32>(pixel), 0).w;
+            let depth = decode_depth(textureLoad(normal_depth_tex, vec2<i32>(pixel), 0).xy);
             if (depth < EMPTY_DEPTH) {
                 lo_bits = min(lo_bits, bitcast<u32>(depth));
                 hi_bits = max(hi_bits, bitcast<u32>(depth));

@@ -25,7 +25,7 @@ fn vs_main(@location(0) position: vec3<f32>, @location(1) normal: vec3<f32>) -> 
 
 struct GBufferOut {
     @location(0) albedo_gloss: vec4<f32>,
-    @location(1) normal_depth: vec4<f32>,  // world-space unit normal, view depth along forward
+    @location(1) normal_depth: vec2<u32>,  // world-space unit normal, view depth along forward (encode_normal_depth)
     @location(2) material: u32,
 };
 
@@ -57,7 +57,7 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBufferOut {
     }
     var out: GBufferOut;
     out.albedo_gloss = object.albedo_gloss;
-    out.normal_depth = vec4<f32>(n, dot(in.world - frame.eye.xyz, frame.forward.xyz));
+    out.normal_depth = encode_normal_depth(n, dot(in.world - frame.eye.xyz, frame.forward.xyz));
     out.material = object.material.x;
     return out;
 }

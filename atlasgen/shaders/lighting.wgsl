@@ -23,7 +23,7 @@
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var albedo_gloss_tex: texture_2d<f32>;
-@group(0) @binding(3) var normal_depth_tex: texture_2d<f32>;
+@group(0) @binding(3) var normal_depth_tex: texture_2d<u32>;
 @group(0) @binding(4) var material_tex: texture_2d<u32>;
 @group(0) @binding(5) var atlas: texture_2d_array<f32>;
 @group(0) @binding(6) var atlas_sampler: sampler;
@@ -197,9 +197,9 @@ fn fs_main(@builtin(position) coord: vec4<f32>) -> @location(0) vec4<f32> {
         return vec4<f32>(frame.background.rgb, 1.0);
     }
     let albedo_gloss = textureLoad(albedo_gloss_tex, pixel, 0);
-    let normal_depth = textureLoad(normal_depth_tex, pixel, 0);
-    let n = normal_depth.xyz;
-    let depth = normal_depth.w;
+    let normal_depth = textureLoad(normal_depth_tex, pixel, 0).xy;
+    let n = decode_normal(normal_depth);
+    let depth = decode_depth(normal_depth);
 
     // The pixel's ray has unit length along forward, so eye + ray * depth is the surface.
     let ndc = coord.xy * frame.viewport.zw * 2.0 - 1.0;

@@ -10,7 +10,7 @@
 // Normal test: dot(n_centre, n_neighbour) below cos(threshold) marks a crease.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var normal_depth_tex: texture_2d<f32>;
+@group(0) @binding(1) var normal_depth_tex: texture_2d<u32>;
 @group(0) @binding(2) var material_tex: texture_2d<u32>;
 
 fn wants_outline(material: u32) -> bool {
@@ -28,9 +28,9 @@ fn load_sample(p: vec2<i32>) -> Sample {
     let q = clamp(p, vec2<i32>(0), size - 1);
     var s: Sample;
     s.material = textureLoad(material_tex, q, 0).r;
-    let nd = textureLoad(normal_depth_tex, q, 0);
-    s.normal = nd.xyz;
-    s.inv_depth = select(1.0 / max(nd.w, 1e-30), 0.0, s.material == NO_MATERIAL);
+    let nd = textureLoad(normal_depth_tex, q, 0).xy;
+    s.normal = decode_normal(nd);
+    s.inv_depth = select(1.0 / max(decode_depth(nd), 1e-30), 0.0, s.material == NO_MATERIAL);
     return s;
 }
 
