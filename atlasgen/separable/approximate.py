@@ -369,6 +369,7 @@ def search_terms(
     measure: str = "relative_log_rms",
     max_terms: int = MAX_AUTO_TERMS,
     srgb: bool = True,
+    target_measure: str | None = "relative_rms",
 ):
     """Separable candidates K = 1, 2, ... of each factorization and target, judged on ``selection``.
 
@@ -380,6 +381,10 @@ def search_terms(
     (Eckart & Young 1936); NMF is factored anew for each K, since its terms have no order.
     The search stops after the first K at which a candidate meets ``budget`` within its
     uncertainty (:func:`~atlasgen.separable.error.upper_bound`): every larger K costs more.
+    With ``target_measure``, each factorization keeps at each K only the target of the least
+    ``target_measure`` (the estimate): the target a fixed K of that factorization is baked with
+    (:func:`_choose`), so the budget chooses K and the factorization, never a target the same K
+    would not store.
 
     Returns ``(candidates, nonfinite)``: dicts ``{"factorization", "target", "terms", "grid",
     "relative_rms", "relative_rms_se", "relative_log_rms", "relative_log_rms_se"}`` in
@@ -398,6 +403,7 @@ def search_terms(
     out = []
     for k in range(1, max_terms + 1):
         for method in methods:
+            tried = []
             for target in targets:
                 if method == "svd":
                     if target not in prefixes:
@@ -409,7 +415,10 @@ def search_terms(
                     factors = factorize(matrices[target], w1, w2, k, p.name, method)
                     factors.target = target
                     error = judged(factors, [k])[0]
-                out.append({"factorization": method, "target": target, "grid": int(grid), **error})
+                tried.append({"factorization": method, "target": target, "grid": int(grid), **error})
+            if target_measure is not None:
+                tried = [min(tried, key=lambda c: c[target_measure])]
+            out += tried
         if any(upper_bound(c, measure) <= budget for c in out if c["terms"] == k):
             break
     return out, nonfinite

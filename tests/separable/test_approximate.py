@@ -109,3 +109,23 @@ def test_the_term_search_weighs_both_factorizations_and_stops_at_the_first_k_tha
     budget = min(upper_bound(c, "relative_log_rms") for c in found if c["terms"] == 2)
     stopped, _ = search_terms(source, "half_diff", budget, selection, reference, targets=("f_cos",), max_terms=3)
     assert max(c["terms"] for c in stopped) == 2 and stopped == found[:4]
+
+
+@pytest.mark.slow
+def test_the_term_search_keeps_per_k_the_target_a_fixed_k_would_store():
+    """Both targets are factored at each K; with ``target_measure`` only the one of less relative RMS
+    stays a candidate, as a fixed K of that factorization chooses (``_choose``): the budget then picks K
+    and the factorization, never a target that K would not be baked with."""
+    from atlasgen.separable.approximate import search_terms
+    from atlasgen.separable.error import SELECTION_SEED, error_sample_for
+
+    source = analytic("ggx", alpha=0.15, fresnel="schlick", f0=(0.9, 0.6, 0.3))
+    selection = error_sample_for(source, SELECTION_SEED, count=20_000)
+    reference = source.f_cos(*selection.pairs)
+    every, _ = search_terms(source, "half_diff", 0.0, selection, reference, max_terms=2, target_measure=None)
+    kept, _ = search_terms(source, "half_diff", 0.0, selection, reference, max_terms=2)
+    assert [(c["terms"], c["factorization"]) for c in every] == [(k, m) for k in (1, 2) for m in ("svd", "nmf") for _ in (0, 1)]
+    expected = [min((c for c in every if (c["terms"], c["factorization"]) == (k, m)), key=lambda c: c["relative_rms"])
+                for k in (1, 2) for m in ("svd", "nmf")]  # fmt: skip
+    assert kept == expected
+    assert {c["target"] for c in every} == {"f_cos", "f_proxy"}
