@@ -131,17 +131,18 @@ def calibrated_range(renderer, names, lights: int, tolerance: float = 0.05, trie
     r = first_range(lights)
     if lights <= 1:
         return r
-    tried = []
+    tried = []  # (|log(mean / target)|, log r, log mean)
     for _ in range(tries):
-        mean = per_pixel(renderer, bench_scene(names, lights, 0, r))[0]
-        tried.append((abs(math.log(max(mean, 1e-3) / TARGET_PER_PIXEL)), r, mean))
+        mean = max(per_pixel(renderer, bench_scene(names, lights, 0, r))[0], 1e-3)
+        miss = math.log(TARGET_PER_PIXEL / mean)
         if abs(mean / TARGET_PER_PIXEL - 1.0) <= tolerance:
             return r
         slope = 2.0  # mean ~ r^2 for lights on the floor
-        if len(tried) >= 2 and tried[-2][2] > 0 and tried[-2][1] != r and tried[-2][2] != mean:
-            slope = min(max(math.log(mean / tried[-2][2]) / math.log(r / tried[-2][1]), 0.5), 4.0)
-        r *= (TARGET_PER_PIXEL / max(mean, 1e-3)) ** (1.0 / slope)
-    return min(tried)[1]
+        if tried and tried[-1][1] != math.log(r) and tried[-1][2] != math.log(mean):
+            slope = min(max((math.log(mean) - tried[-1][2]) / (math.log(r) - tried[-1][1]), 0.5), 4.0)
+        tried.append((abs(miss), math.log(r), math.log(mean)))
+        r *= math.exp(miss / slope)
+    return math.exp(min(tried)[1])
 
 
 def time_ms(fn, repeats: int = REPEATS, warmup: int = WARMUP) -> tuple[float, float]:

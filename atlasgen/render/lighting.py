@@ -125,13 +125,12 @@ def pack_lights(lights) -> bytes:
     return LIGHT.pack_array([pack_light(light, i) for i, light in enumerate(lights)] or [_NO_LIGHT])
 
 
-def upload_lights(device, lights):
+def upload_lights(device, data: bytes):
     """The ``rgba32uint`` texture the culling pass copies lights into the tile lists from: row i is light i's
-    :func:`pack_lights` bytes, ``LIGHT.size / 16`` texels. (The lighting pass reads the lights from the lists'
-    texture, :func:`atlasgen.render.culling.create_tile_texture`.)"""
+    bytes of ``data`` (:func:`pack_lights`), ``LIGHT.size / 16`` texels. (The lighting pass reads the lights
+    from the lists' texture, :func:`atlasgen.render.culling.create_tile_texture`.)"""
     import wgpu
 
-    data = pack_lights(lights)
     width, height = LIGHT.size // 16, len(data) // LIGHT.size
     texture = device.create_texture(
         label="lights",

@@ -282,7 +282,6 @@ class Renderer:
             data=pack_frame(scene, len(self.atlas.levels), mip_bias, self.tile_capacity if culled else None),
             usage=wgpu.BufferUsage.UNIFORM,
         )
-        light_texture = upload_lights(device, scene.lights)
         object_data = bytearray()
         draws, centres, rectangles, farthest = [], [], [], []
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
@@ -325,10 +324,11 @@ class Renderer:
         cull_tiles += [
             tile_rectangle(rectangles[i], scene.width, scene.height) if rectangles[i] else (0, 0, 0, 0) for i in translucent
         ]
-        # An unculled frame reads only the texture's layer of every light.
-        tile_texture = create_tile_texture(
-            device, scene.width, scene.height, self.tile_capacity if culled else 0, pack_lights(scene.lights), culled
-        )
+        # An unculled frame reads only the texture's layer of every light; a culled one's lists copy the
+        # lights' rows from their own texture (a pass cannot read the texture it writes).
+        lights = pack_lights(scene.lights)
+        tile_texture = create_tile_texture(device, scene.width, scene.height, self.tile_capacity if culled else 0, lights, culled)
+        light_texture = upload_lights(device, lights) if culled else None
         cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
         sphere_texture = upload_light_spheres(device, scene)
         cull_group = (
@@ -369,8 +369,7 @@ class Renderer:
             return encode
 
         def opaque_lighting(encoder, timestamps=None):
-            frame.lighting_pass.encode(encoder, frame.hdr, g, frame.lighting_group, background=frame.scene.background,
-                                       timestamps=timestamps, shade_background=shows_environment(frame.scene))  # fmt: skip
+            self._encode_opaque_lighting(encoder, frame, timestamps)
 
         steps = [("gbuffer", opaque_gbuffer)]
         if frame.culled:
@@ -408,15 +407,15 @@ class Renderer:
     def encode_lighting(self, frame: _PreparedFrame):
         """One command buffer holding only the opaque lighting pass (for benchmarks)."""
         encoder = self.device.create_command_encoder()
-        frame.lighting_pass.encode(
-            encoder,
-            frame.hdr,
-            frame.gbuffer,
-            frame.lighting_group,
-            background=frame.scene.background,
-            shade_background=shows_environment(frame.scene),
-        )
+        self._encode_opaque_lighting(encoder, frame)
         return encoder.finish()
+
+    @staticmethod
+    def _encode_opaque_lighting(encoder, frame: _PreparedFrame, timestamps=None) -> None:
+        """The opaque lighting pass: over every pixel where the background shows the environment, else
+        over the pixels some object covers, the rest cleared to the background colour."""
+        frame.lighting_pass.encode(encoder, frame.hdr, frame.gbuffer, frame.lighting_group, background=frame.scene.background,
+                                   timestamps=timestamps, shade_background=shows_environment(frame.scene))  # fmt: skip
 
     def submit(self, command_buffers) -> None:
         """Submit and wait until the GPU is done.

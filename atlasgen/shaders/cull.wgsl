@@ -19,9 +19,9 @@
 //    range; light_spheres, filled by the CPU, atlasgen/render/culling.py pack_light_spheres)
 //    lies wholly outside one of the tile's four side planes through the eye, or wholly outside the camera-space box
 //    that bounds the tile's frustum between z_min and z_max. The planes alone keep a large
-//    sphere near a tile's corner that misses the tile (7.6 lights a tile where 3.7 reach one
-//    of its pixels, in the renderer benchmark's 256-light scene); the box, which bounds a thin
-//    tile tightly, cuts that to 4.8. Unbounded lights (range 0: directional, or no range
+//    sphere near a tile's corner that misses the tile; the box, which bounds a thin tile tightly,
+//    drops most of those (bench/render.py reports the lights per tile against the lights that
+//    reach a pixel). Unbounded lights (range 0: directional, or no range
 //    given) are always kept. Kept lights set their bit in a workgroup mask.
 // 3. The mask is written out in light order, so a tile's list sums its lights in the same
 //    order as the full loop: count first, then up to capacity entries, each a copy of its
