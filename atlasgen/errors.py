@@ -57,6 +57,11 @@ class FieldError(InputError):
         where = f"{self.path}: field '{field}'" if field else self.path
         super().__init__(f"{where}: {expected}")
 
+    def __reduce__(self):
+        # Rebuilt from its own arguments, not from the message, so that an error raised in a bake
+        # worker process (atlasgen.bake.workers) reaches the command as the same typed error.
+        return type(self), (self.path, self.field, self.expected)
+
 
 class MaterialError(FieldError):
     """A material definition is invalid.

@@ -24,9 +24,10 @@ from pathlib import Path
 import click
 
 from atlasgen import __version__
-from atlasgen.bake.cache import cache_path, fill_cache
+from atlasgen.bake.cache import cache_path
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
+from atlasgen.bake.workers import available_cpus, fill_cache
 from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.interrupts import end_start_up_interrupts
@@ -232,6 +233,14 @@ def app(ctx, debug):
     help="Fail (exit 7, nothing written) when a material warns: its measured error over 20%, a dropped delta lobe, "
     "tolerated non-finite samples.",
 )
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Bake up to N materials at once, each in its own process; the outputs are the same bytes for any N. "
+    "[default: one per CPU]",
+)
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
 def bake(
@@ -251,6 +260,7 @@ def bake(
     allow_empty,
     mtlx_flatten,
     strict,
+    jobs,
     verbosity,
 ):
     """Bake material definitions (files or folders; default: materials/) into an atlas.
@@ -270,8 +280,9 @@ def bake(
     materials = select_scene_materials(every_material, scene) if scene is not None else every_material
     # Every output path is checked before anything (the cache included) is written.
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)
+    jobs = available_cpus() if jobs is None else jobs
     if cache_only:
-        filled = fill_cache(cache_dir, materials)
+        filled = fill_cache(cache_dir, materials, jobs)
         if verbosity == VERBOSE:
             click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
                        f"up to date {', '.join(filled['hits']) or 'none'}", err=True)  # fmt: skip
@@ -290,7 +301,7 @@ def bake(
             if time.monotonic() - started > PROGRESS_AFTER_S:
                 report(name, done[0], len(materials))
 
-        result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir)
+        result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir, jobs=jobs)
     if strict and result.material_warnings:
         count = len(result.material_warnings)
         raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, nothing written: "

@@ -333,7 +333,7 @@ def shipped_library_cache(tmp_path_factory, mitsuba_llvm):
     this cache, as ``make atlas`` does. The cache's own correctness (a cached bake is the bake)
     is tests/test_cache.py's.
     """
-    from atlasgen.bake.cache import fill_cache
+    from atlasgen.bake.workers import fill_cache
     from atlasgen.materials.material import read_materials
 
     return shared_folder(

@@ -12,8 +12,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from atlasgen.bake.cache import cache_key, cache_path, fill_cache, load_cached
+from atlasgen.bake.cache import cache_key, cache_path, load_cached
 from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.bake.workers import fill_cache
 from atlasgen.errors import InputError
 from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials

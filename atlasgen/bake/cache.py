@@ -6,7 +6,6 @@ import functools
 import hashlib
 import io
 import json
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -28,7 +27,8 @@ __all__ = [
     "store_cached",
     "load_or_bake",
     "load_or_draft",
-    "fill_cache",
+    "load_timed",
+    "bake_timed",
     "BAKE_RELEVANT",
 ]
 
@@ -129,6 +129,23 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     return path
 
 
+def load_timed(cache_dir, material, warnings=None) -> SliceSet | None:
+    """:func:`load_cached` with the time it took in ``timings["loaded_from_cache_s"]``; None without a ``cache_dir``."""
+    t0 = time.perf_counter()
+    slices = load_cached(cache_dir, material, warnings) if cache_dir is not None else None
+    if slices is not None:
+        slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
+    return slices
+
+
+def bake_timed(material) -> SliceSet:
+    """:func:`~atlasgen.bake.adaptive.bake_material` with its wall time in ``timings["bake_s"]``."""
+    t0 = time.perf_counter()
+    slices = bake_material(material)
+    slices.timings["bake_s"] = time.perf_counter() - t0
+    return slices
+
+
 def load_or_bake(cache_dir, material, warnings=None) -> tuple[SliceSet, bool]:
     """The material's slices and whether they came from the cache.
 
@@ -136,14 +153,10 @@ def load_or_bake(cache_dir, material, warnings=None) -> tuple[SliceSet, bool]:
     ``cache_dir``, stored; ``cache_dir = None`` always bakes. An unreadable entry adds a
     line to ``warnings`` (:func:`load_cached`).
     """
-
-    t0 = time.perf_counter()
-    slices = load_cached(cache_dir, material, warnings) if cache_dir is not None else None
+    slices = load_timed(cache_dir, material, warnings)
     if slices is not None:
-        slices.timings["loaded_from_cache_s"] = time.perf_counter() - t0
         return slices, True
-    slices = bake_material(material)
-    slices.timings["bake_s"] = time.perf_counter() - t0
+    slices = bake_timed(material)
     if cache_dir is not None:
         store_cached(cache_dir, material, slices, slices.timings["bake_s"])
     return slices, False
@@ -178,20 +191,3 @@ def load_or_draft(cache_dir, material, warnings=None) -> tuple[SliceSet, bool, C
         return full
 
     return draft.slices, False, complete
-
-
-def fill_cache(cache_dir, materials) -> dict:
-    """Bake into the cache each material whose entry is missing or stale; leave the rest.
-
-    An up-to-date entry has its time stamp refreshed, so that ``make``, which asked for
-    it because the material file is newer, does not ask again. Returns
-    ``{"baked": [names], "hits": [names], "warnings": [lines]}``, the warnings naming
-    unreadable entries that were baked again.
-    """
-    baked, hits, warnings = [], [], []
-    for material in materials:
-        _, hit = load_or_bake(cache_dir, material, warnings)
-        if hit:
-            os.utime(cache_path(cache_dir, material))
-        (hits if hit else baked).append(material.name)
-    return {"baked": baked, "hits": hits, "warnings": warnings}

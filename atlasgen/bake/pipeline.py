@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen import __version__
-from atlasgen.bake.cache import load_or_bake, load_or_draft
+from atlasgen.bake.cache import load_or_draft
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
 from atlasgen.bake.quality import MaterialWarning, assess_material
 from atlasgen.bake.slots import assign_slices
+from atlasgen.bake.workers import load_or_bake_all
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
 from atlasgen.errors import MaterialError, OutputError
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
@@ -195,6 +196,7 @@ def bake_atlas(
     cache_dir=None,
     drafts: bool = False,
     baked=None,
+    jobs: int = 1,
 ) -> BakeResult:
     """Bake validated materials into an RGBA8 atlas.
 
@@ -220,25 +222,31 @@ def bake_atlas(
         the figures still to measure; ``BakeResult.drafts`` holds the completions. For a preview only.
     baked
         ``name -> SliceSet`` already baked (a draft's completion), used instead of the cache or a bake.
+    jobs
+        Bake the materials the cache lacks in up to this many processes
+        (:func:`~atlasgen.bake.workers.load_or_bake_all`); the atlas is the same bytes for any number.
     """
     if layout not in ("array", "volume"):
         raise ValueError(f"layout must be 'array' or 'volume', not {layout!r}")
     t_start = time.perf_counter()
     srgb = not linear
+    given = baked or {}
     baked = []
     timings = {"materials": {}}
     cache_hits, baked_names, cache_warnings = [], [], []
     completions = {}
+    whole = [] if drafts else [m for m in materials if m.name not in given]
+    loaded = dict(zip((m.name for m in whole), load_or_bake_all(cache_dir, whole, jobs, cache_warnings, progress), strict=True))
     for material in materials:
         model = material.model
-        if baked is not None and material.name in baked:
-            slices, hit = baked[material.name], False
+        if material.name in given:
+            slices, hit = given[material.name], False
         elif drafts:
             slices, hit, complete = load_or_draft(cache_dir, material, cache_warnings)
             if complete is not None:
                 completions[material.name] = complete
         else:
-            slices, hit = load_or_bake(cache_dir, material, cache_warnings)
+            slices, hit = loaded[material.name]
         (cache_hits if hit else baked_names).append(material.name)
         values = np.asarray(slices.values, dtype=np.float64)
         if values.ndim != 4 or values.shape[1:] != (HEIGHT, WIDTH, 4) or values.shape[0] < 1:
@@ -259,7 +267,7 @@ def bake_atlas(
         baked.append((material, slices, values, encoded))
         # bake_s is the model's bake as measured when it ran, also for cache hits.
         timings["materials"][material.name] = {**slices.timings, "encode_s": time.perf_counter() - t_encode}
-        if progress:
+        if progress and material.name not in loaded:
             progress(material.name)
 
     requests = [(m.name, v.shape[0], m.id, m.source) for m, _, v, _ in baked]

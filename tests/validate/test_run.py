@@ -339,8 +339,8 @@ def test_validation_reads_the_atlas_once_and_takes_fitted_slices_from_the_bake_c
     cache, so the physics fit never runs; a material file named by hashing its bytes, never parsed."""
     import atlasgen.io.atlas as atlas_io
     import atlasgen.models.physical_fit as physical_fit
-    from atlasgen.bake.cache import fill_cache
     from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.bake.workers import fill_cache
     from atlasgen.materials.material import read_materials
     from atlasgen.validate import run as module
 

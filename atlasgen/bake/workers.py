@@ -1,0 +1,88 @@
+"""Materials the bake cache lacks, baked side by side in worker processes.
+
+A material's bake is independent of every other's and, on this project's machines, CPU-bound
+Python and NumPy (the fits, the factorizations, a MaterialX oracle on llvmpipe), so a document of
+many materials bakes in about 1/N of the time on N cores. Each material is baked whole in one
+worker, by the same code as in process (:func:`atlasgen.bake.adaptive.bake_material`), so the
+slices are the same bytes whatever the number of jobs; the cache is read and written here, in
+the calling process only.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+
+from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
+from atlasgen.models.base import SliceSet
+
+__all__ = ["available_cpus", "load_or_bake_all", "fill_cache"]
+
+
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the platform has one)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+def load_or_bake_all(cache_dir, materials, jobs: int = 1, warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
+    """:func:`~atlasgen.bake.cache.load_or_bake` for each of ``materials``, in their order: ``(slices, hit)``.
+
+    The materials the cache lacks (all of them without a ``cache_dir``) are baked in up to
+    ``jobs`` processes, one material to a process at a time, and stored in the cache as each
+    returns. With ``jobs`` 1, or one material to bake, they are baked here, one after another.
+    The first material in order whose bake raises stops the rest: the error is raised here as
+    the worker raised it, after the bakes already running have finished (those are cached), and
+    bakes not yet started are cancelled. ``progress`` is called with each material's name, in
+    order, once its slices are here.
+    """
+    results: list = [None] * len(materials)
+    todo = []
+    for i, material in enumerate(materials):
+        slices = load_timed(cache_dir, material, warnings)
+        if slices is None:
+            todo.append(i)
+        else:
+            results[i] = (slices, True)
+    jobs = max(1, min(int(jobs), len(todo)))
+    if jobs == 1:
+        baked = (bake_timed(materials[i]) for i in todo)
+        pool = None
+    else:
+        # spawn: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
+        pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
+        baked = pool.map(bake_timed, [materials[i] for i in todo])
+    try:
+        for i, material in enumerate(materials):
+            if results[i] is None:
+                slices = next(baked)
+                if cache_dir is not None:
+                    store_cached(cache_dir, material, slices, slices.timings["bake_s"])
+                results[i] = (slices, False)
+            if progress is not None:
+                progress(material.name)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    return results
+
+
+def fill_cache(cache_dir, materials, jobs: int = 1) -> dict:
+    """Bake into the cache each material whose entry is missing or stale, in up to ``jobs``
+    processes (:func:`load_or_bake_all`); leave the rest.
+
+    An up-to-date entry has its time stamp refreshed, so that ``make``, which asked for
+    it because the material file is newer, does not ask again. Returns
+    ``{"baked": [names], "hits": [names], "warnings": [lines]}``, the warnings naming
+    unreadable entries that were baked again.
+    """
+    warnings: list = []
+    results = load_or_bake_all(cache_dir, materials, jobs, warnings)
+    baked, hits = [], []
+    for material, (_, hit) in zip(materials, results, strict=True):
+        if hit:
+            os.utime(cache_path(cache_dir, material))
+        (hits if hit else baked).append(material.name)
+    return {"baked": baked, "hits": hits, "warnings": warnings}
