@@ -76,7 +76,8 @@ def test_model_output_is_checked_per_material(write_material, tmp_path, monkeypa
     write_material("fine", 'type = "fresnel"\n')
     write_material("odd", 'type = "lambert"\n')
     _model_output(monkeypatch, np.array(texel))
-    res = CliRunner().invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(tmp_path / "a.dds")])
+    # -j 1: the patched model exists in this process only, not in bake workers.
+    res = CliRunner().invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(tmp_path / "a.dds"), "-j", "1"])
     assert res.exit_code == 3
     (line,) = res.stderr.splitlines()
     assert f"{(tmp_path / 'materials' / 'odd.toml').as_posix()}: material 'odd': {expected}" in line

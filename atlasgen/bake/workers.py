@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+import pickle
+import signal
+import warnings
 
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.models.base import SliceSet
@@ -27,33 +29,56 @@ def available_cpus() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-def load_or_bake_all(cache_dir, materials, jobs: int = 1, warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
+def _start_worker(filters) -> None:
+    """A bake worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
+    and Ctrl-C left to the caller, which stops the workers (a worker's own KeyboardInterrupt would print a traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    warnings.filters[:] = filters
+
+
+def _picklable_filters() -> list:
+    """The warning filters a spawned worker can be given: the caller's, less any that do not pickle."""
+    keep = []
+    for entry in warnings.filters:
+        try:
+            pickle.dumps(entry)
+        except Exception:  # noqa: BLE001 - a filter on a class defined where a worker cannot import it
+            continue
+        keep.append(entry)
+    return keep
+
+
+def _start_pool(jobs: int):
+    """``jobs`` bake workers, spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse."""
+    context = multiprocessing.get_context("spawn")
+    return context.Pool(jobs, initializer=_start_worker, initargs=(_picklable_filters(),))
+
+
+def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
     """:func:`~atlasgen.bake.cache.load_or_bake` for each of ``materials``, in their order: ``(slices, hit)``.
 
     The materials the cache lacks (all of them without a ``cache_dir``) are baked in up to
     ``jobs`` processes, one material to a process at a time, and stored in the cache as each
-    returns. With ``jobs`` 1, or one material to bake, they are baked here, one after another.
-    The first material in order whose bake raises stops the rest: the error is raised here as
-    the worker raised it, after the bakes already running have finished (those are cached), and
-    bakes not yet started are cancelled. ``progress`` is called with each material's name, in
-    order, once its slices are here.
+    returns, in order. With ``jobs`` 1, or one material to bake, they are baked here, one after
+    another. The first material in order whose bake raises stops the workers: its error is raised
+    here as the worker raised it. So does Ctrl-C, which the workers leave to this process.
+    ``progress`` is called with each material's name, in order, once its slices are here.
     """
     results: list = [None] * len(materials)
     todo = []
     for i, material in enumerate(materials):
-        slices = load_timed(cache_dir, material, warnings)
+        slices = load_timed(cache_dir, material, cache_warnings)
         if slices is None:
             todo.append(i)
         else:
             results[i] = (slices, True)
     jobs = max(1, min(int(jobs), len(todo)))
+    pool = None
     if jobs == 1:
         baked = (bake_timed(materials[i]) for i in todo)
-        pool = None
     else:
-        # spawn: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
-        pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"))
-        baked = pool.map(bake_timed, [materials[i] for i in todo])
+        pool = _start_pool(jobs)
+        baked = pool.imap(bake_timed, [materials[i] for i in todo])
     try:
         for i, material in enumerate(materials):
             if results[i] is None:
@@ -63,9 +88,14 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, warnings=None, progres
                 results[i] = (slices, False)
             if progress is not None:
                 progress(material.name)
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+        raise
     finally:
         if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+            pool.close()
+            pool.join()
     return results
 
 
@@ -78,11 +108,11 @@ def fill_cache(cache_dir, materials, jobs: int = 1) -> dict:
     ``{"baked": [names], "hits": [names], "warnings": [lines]}``, the warnings naming
     unreadable entries that were baked again.
     """
-    warnings: list = []
-    results = load_or_bake_all(cache_dir, materials, jobs, warnings)
+    lines: list = []
+    results = load_or_bake_all(cache_dir, materials, jobs, lines)
     baked, hits = [], []
     for material, (_, hit) in zip(materials, results, strict=True):
         if hit:
             os.utime(cache_path(cache_dir, material))
         (hits if hit else baked).append(material.name)
-    return {"baked": baked, "hits": hits, "warnings": warnings}
+    return {"baked": baked, "hits": hits, "warnings": lines}

@@ -3,8 +3,16 @@ first failing material's own error, the progress in order, and typed errors acro
 
 from __future__ import annotations
 
+import os
 import pickle
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +28,7 @@ from atlasgen.errors import FieldError, ManifestError, MaterialError, SceneError
 from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
 
+SHOWCASE = Path(__file__).resolve().parents[2] / "materials" / "materialx-showcase.mtlx"
 LIBRARY = {
     "clay": 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n',
     "shell": 'type = "iridescent"\nthickness = 420.0\n',
@@ -37,13 +46,8 @@ def library(write_material):
 def test_two_jobs_bake_the_bytes_of_one_and_fill_the_cache_once(tmp_path, library, monkeypatch):
     serial = bake_atlas(library, jobs=1)
     pools = []
-
-    class Spy(workers.ProcessPoolExecutor):
-        def __init__(self, jobs, **kwargs):
-            pools.append(jobs)
-            super().__init__(jobs, **kwargs)
-
-    monkeypatch.setattr(workers, "ProcessPoolExecutor", Spy)
+    start = workers._start_pool
+    monkeypatch.setattr(workers, "_start_pool", lambda jobs: pools.append(jobs) or start(jobs))
     seen = []
     parallel = bake_atlas(library, jobs=2, cache_dir=tmp_path / "cache", progress=seen.append)
     assert all(np.array_equal(a, b) for a, b in zip(serial.levels, parallel.levels, strict=True))
@@ -72,7 +76,7 @@ def test_one_job_or_one_material_to_bake_stays_in_process(tmp_path, library, mon
     def no_pool(*args, **kwargs):
         raise AssertionError("a process pool was started")
 
-    monkeypatch.setattr(workers, "ProcessPoolExecutor", no_pool)
+    monkeypatch.setattr(workers, "_start_pool", no_pool)
     fill_cache(tmp_path, library[:1], jobs=4)
     assert fill_cache(tmp_path, library, jobs=1)["hits"] == [library[0].name]
     assert all(cache_path(tmp_path, m).is_file() for m in library)
@@ -103,3 +107,67 @@ def test_jobs_must_be_a_positive_count(tmp_path, write_material):
     clay = write_material("clay", LIBRARY["clay"])
     res = CliRunner().invoke(app, ["bake", str(clay), "-o", str(tmp_path / "a.dds"), "-j", "0"])
     assert res.exit_code == 2 and "'-j' / '--jobs'" in res.stderr
+
+
+def _worker_state():
+    """In a bake worker: whether it ignores SIGINT, and the action of its first warning filter."""
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN, [entry[0] for entry in warnings.filters[:1]]
+
+
+def test_workers_leave_ctrl_c_to_the_caller_and_take_its_warning_filters():
+    """The CLI shows warnings only as its own lines, and one line for Ctrl-C: a worker printing either
+    itself (a RuntimeWarning, a KeyboardInterrupt traceback) would break both."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pool = workers._start_pool(1)
+        try:
+            state = pool.apply(_worker_state)
+        finally:
+            pool.terminate()
+            pool.join()
+    assert state == (True, ["ignore"])
+
+
+def _workers_of(pid: int) -> list[int]:
+    """The live bake workers (spawned multiprocessing children) of process ``pid``, from /proc."""
+    found = []
+    for task in Path(f"/proc/{pid}/task").glob("*/children"):
+        for child in task.read_text().split():
+            try:
+                command = Path(f"/proc/{child}/cmdline").read_bytes()
+            except OSError:
+                continue
+            if b"spawn_main" in command:
+                found.append(int(child))
+    return found
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the process tree from /proc")
+def test_workers_print_nothing_of_their_own_and_ctrl_c_stops_them_in_one_line(tmp_path):
+    """The CLI shows no library warning, and Ctrl-C is one line and 130 (docs/cli.md): so with workers too."""
+    pytest.importorskip("MaterialX")
+    pytest.importorskip("moderngl")
+    doc = tmp_path / "showcase.mtlx"
+    shutil.copy(SHOWCASE, doc)
+    out = tmp_path / "build" / "atlas.dds"
+    command = [sys.executable, "-m", "atlasgen", "bake", str(doc), "-o", str(out), "-j", "2", "-q"]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    old = out.read_bytes()
+    # Its own process group, signalled whole: what a terminal's Ctrl-C does.
+    child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(_workers_of(child.pid)) < 2 and time.monotonic() < deadline and child.poll() is None:
+            time.sleep(0.05)
+        workers_seen = _workers_of(child.pid)
+        assert len(workers_seen) == 2, "no workers started"
+        time.sleep(1.0)  # inside the materials' bakes
+        os.killpg(child.pid, signal.SIGINT)
+        _, stderr = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 130 and stderr == "atlasgen: interrupted\n", stderr
+    assert not [pid for pid in workers_seen if Path(f"/proc/{pid}").exists()], "a worker outlived the command"
+    assert out.read_bytes() == old
