@@ -2,10 +2,11 @@
 
 A material's bake is independent of every other's and, on this project's machines, CPU-bound
 Python and NumPy (the fits, the factorizations, a MaterialX oracle on llvmpipe), so a document of
-many materials bakes in about 1/N of the time on N cores. Each material is baked whole in one
-worker, by the same code as in process (:func:`atlasgen.bake.adaptive.bake_material`), so the
-slices are the same bytes whatever the number of jobs; the cache is read and written here, in
-the calling process only.
+many slow materials bakes in nearly 1/N of the time on N cores. Baking starts in the calling
+process, and only what is left once it has taken :data:`POOL_AFTER_S` goes to workers, so a quick
+bake pays for no worker's start-up. Each material is baked whole in one process, by the same code
+(:func:`atlasgen.bake.adaptive.bake_material`), so the slices are the same bytes whatever the number
+of jobs; the cache is read and written here, in the calling process only.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import multiprocessing
 import os
 import pickle
 import signal
+import time
 import warnings
 
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
@@ -57,12 +59,13 @@ def _start_pool(jobs: int):
 def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
     """:func:`~atlasgen.bake.cache.load_or_bake` for each of ``materials``, in their order: ``(slices, hit)``.
 
-    The materials the cache lacks (all of them without a ``cache_dir``) are baked in up to
-    ``jobs`` processes, one material to a process at a time, and stored in the cache as each
-    returns, in order. With ``jobs`` 1, or one material to bake, they are baked here, one after
-    another. The first material in order whose bake raises stops the workers: its error is raised
-    here as the worker raised it. So does Ctrl-C, which the workers leave to this process.
-    ``progress`` is called with each material's name, in order, once its slices are here.
+    The materials the cache lacks (all of them without a ``cache_dir``) are baked here, one after
+    another, until baking has taken :data:`POOL_AFTER_S`; those still to bake are then baked in up
+    to ``jobs`` worker processes, one material to a process at a time (:func:`_baked_in_order`).
+    Each is stored in the cache as it returns, in order. The first material in order whose bake
+    raises stops the workers: its error is raised here as the worker raised it. So does Ctrl-C,
+    which the workers leave to this process. ``progress`` is called with each material's name, in
+    order, once its slices are here.
     """
     results: list = [None] * len(materials)
     todo = []
@@ -72,13 +75,7 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
             todo.append(i)
         else:
             results[i] = (slices, True)
-    jobs = max(1, min(int(jobs), len(todo)))
-    pool = None
-    if jobs == 1:
-        baked = (bake_timed(materials[i]) for i in todo)
-    else:
-        pool = _start_pool(jobs)
-        baked = pool.imap(bake_timed, [materials[i] for i in todo])
+    baked = _baked_in_order([materials[i] for i in todo], jobs)
     try:
         for i, material in enumerate(materials):
             if results[i] is None:
@@ -88,15 +85,34 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
                 results[i] = (slices, False)
             if progress is not None:
                 progress(material.name)
-    except BaseException:
-        if pool is not None:
-            pool.terminate()
-        raise
     finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
+        baked.close()  # stops the workers, if any are left
     return results
+
+
+#: Seconds of baking in process after which the materials still to bake go to worker processes. Starting
+#: one costs about a second of CPU (a fresh interpreter importing NumPy and the models), more than a whole
+#: bake of most closed-form materials, so a quick bake never starts one.
+POOL_AFTER_S = 2.0
+
+
+def _baked_in_order(materials: list, jobs: int):
+    """Each material's :func:`~atlasgen.bake.cache.bake_timed` slices, in order: here until baking has
+    taken :data:`POOL_AFTER_S` with two or more left and ``jobs`` > 1, then from a pool of workers."""
+    started = time.perf_counter()
+    for k, material in enumerate(materials):
+        left = len(materials) - k
+        if jobs > 1 and left >= 2 and time.perf_counter() - started >= POOL_AFTER_S:
+            break
+        yield bake_timed(material)
+    else:
+        return
+    pool = _start_pool(min(jobs, left))
+    try:
+        yield from pool.imap(bake_timed, materials[k:])
+    finally:
+        pool.terminate()  # every result is in, or the caller stopped asking (an error, Ctrl-C)
+        pool.join()
 
 
 def fill_cache(cache_dir, materials, jobs: int = 1) -> dict:

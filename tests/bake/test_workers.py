@@ -13,6 +13,7 @@ import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -45,6 +46,7 @@ def library(write_material):
 @pytest.mark.slow
 def test_two_jobs_bake_the_bytes_of_one_and_fill_the_cache_once(tmp_path, library, monkeypatch):
     serial = bake_atlas(library, jobs=1)
+    monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # workers from the first material on
     pools = []
     start = workers._start_pool
     monkeypatch.setattr(workers, "_start_pool", lambda jobs: pools.append(jobs) or start(jobs))
@@ -63,7 +65,8 @@ def test_two_jobs_bake_the_bytes_of_one_and_fill_the_cache_once(tmp_path, librar
 
 
 @pytest.mark.slow
-def test_the_first_failing_material_s_own_error_is_raised_and_the_bakes_before_it_are_cached(tmp_path, library):
+def test_the_first_failing_material_s_own_error_is_raised_and_the_bakes_before_it_are_cached(tmp_path, library, monkeypatch):
+    monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)
     broken = replace(library[1], params={**library[1].params, "thickness": "thick"})
     materials = [library[0], broken, *library[2:]]
     with pytest.raises(ValueError, match="'thick'"):
@@ -80,6 +83,22 @@ def test_one_job_or_one_material_to_bake_stays_in_process(tmp_path, library, mon
     fill_cache(tmp_path, library[:1], jobs=4)
     assert fill_cache(tmp_path, library, jobs=1)["hits"] == [library[0].name]
     assert all(cache_path(tmp_path, m).is_file() for m in library)
+
+
+@pytest.mark.slow
+def test_workers_start_once_baking_here_has_taken_pool_after_s(library, monkeypatch):
+    """A quick bake never pays for a worker's start-up: the first materials bake here, and the pool,
+    of no more workers than materials left, takes the rest once POOL_AFTER_S has passed."""
+    ticks = iter(range(100))
+    monkeypatch.setattr(workers, "time", SimpleNamespace(perf_counter=lambda: 1.5 * next(ticks)))
+    pools = []
+    start = workers._start_pool
+    monkeypatch.setattr(workers, "_start_pool", lambda jobs: pools.append(jobs) or start(jobs))
+    mixed = load_or_bake_all(None, library, jobs=4)
+    assert pools == [3]  # material 0 here (1.5 s < 2 s), then 3 s: the other three in three workers
+    serial = load_or_bake_all(None, library, jobs=1)
+    assert all(np.array_equal(a.values, b.values) for (a, _), (b, _) in zip(mixed, serial, strict=True))
+    assert pools == [3]
 
 
 def test_slices_given_to_the_bake_are_used_not_baked_again(library, monkeypatch):
