@@ -27,7 +27,7 @@ from atlasgen import __version__
 from atlasgen.bake.cache import cache_path
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
-from atlasgen.bake.workers import available_cpus, fill_cache
+from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
 from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.interrupts import end_start_up_interrupts
@@ -238,8 +238,8 @@ def app(ctx, debug):
     "--jobs",
     type=click.IntRange(min=1),
     default=None,
-    help="Bake up to N materials at once, each in its own process; the outputs are the same bytes for any N. "
-    "[default: one per CPU]",
+    help=f"Bake up to N materials at once, each in its own process, once baking has run {POOL_AFTER_S:g} s (a quick "
+    "bake starts none); the outputs are the same bytes for any N.  [default: one per CPU]",
 )
 @verbosity_options(verbose="Also print each material's slices and whether it was baked or loaded from the cache.")
 @fail_on_errors
