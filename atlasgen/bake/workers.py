@@ -17,6 +17,7 @@ import pickle
 import signal
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.models.base import SliceSet
@@ -50,10 +51,14 @@ def _picklable_filters() -> list:
     return keep
 
 
-def _start_pool(jobs: int):
-    """``jobs`` bake workers, spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse."""
+def _start_pool(jobs: int) -> ProcessPoolExecutor:
+    """``jobs`` bake workers, spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
+
+    concurrent.futures rather than multiprocessing.Pool: a Pool's terminate() can deadlock
+    (python/cpython#73945, #96995; a CI run here hung in it).
+    """
     context = multiprocessing.get_context("spawn")
-    return context.Pool(jobs, initializer=_start_worker, initargs=(_picklable_filters(),))
+    return ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
 
 
 def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
@@ -63,9 +68,9 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
     another, until baking has taken :data:`POOL_AFTER_S`; those still to bake are then baked in up
     to ``jobs`` worker processes, one material to a process at a time (:func:`_baked_in_order`).
     Each is stored in the cache as it returns, in order. The first material in order whose bake
-    raises stops the workers: its error is raised here as the worker raised it. So does Ctrl-C,
-    which the workers leave to this process. ``progress`` is called with each material's name, in
-    order, once its slices are here.
+    raises stops the pool: its error is raised here as the worker raised it, once the bakes already
+    running have finished. So does Ctrl-C, which the workers leave to this process. ``progress`` is
+    called with each material's name, in order, once its slices are here.
     """
     results: list = [None] * len(materials)
     todo = []
@@ -86,7 +91,7 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
             if progress is not None:
                 progress(material.name)
     finally:
-        baked.close()  # stops the workers, if any are left
+        baked.close()  # the workers, if any, end (:func:`_baked_in_order`)
     return results
 
 
@@ -109,10 +114,12 @@ def _baked_in_order(materials: list, jobs: int):
         return
     pool = _start_pool(min(jobs, left))
     try:
-        yield from pool.imap(bake_timed, materials[k:])
+        yield from pool.map(bake_timed, materials[k:])
     finally:
-        pool.terminate()  # every result is in, or the caller stopped asking (an error, Ctrl-C)
-        pool.join()
+        # After an error or a Ctrl-C, what has not started is dropped and the bakes running are let
+        # finish: ending a worker mid-bake can cut its result in the pipe, and the executor then
+        # waits for the rest of it forever (a test here hung so). A Ctrl-C waits for one bake at most.
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def fill_cache(cache_dir, materials, jobs: int = 1) -> dict:

@@ -138,12 +138,8 @@ def test_workers_leave_ctrl_c_to_the_caller_and_take_its_warning_filters():
     itself (a RuntimeWarning, a KeyboardInterrupt traceback) would break both."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        pool = workers._start_pool(1)
-        try:
-            state = pool.apply(_worker_state)
-        finally:
-            pool.terminate()
-            pool.join()
+        with workers._start_pool(1) as pool:
+            state = pool.submit(_worker_state).result()
     assert state == (True, ["ignore"])
 
 
