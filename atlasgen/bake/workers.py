@@ -34,7 +34,8 @@ def available_cpus() -> int:
 
 def _start_worker(filters) -> None:
     """A bake worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
-    and Ctrl-C left to the caller, which stops the workers (a worker's own KeyboardInterrupt would print a traceback)."""
+    and Ctrl-C left to the caller, which drops the bakes not started (a worker's own KeyboardInterrupt would
+    print a traceback)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     warnings.filters[:] = filters
 

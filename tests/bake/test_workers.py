@@ -80,6 +80,7 @@ def test_one_job_or_one_material_to_bake_stays_in_process(tmp_path, library, mon
         raise AssertionError("a process pool was started")
 
     monkeypatch.setattr(workers, "_start_pool", no_pool)
+    monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # so only the job and material counts keep the pool away
     fill_cache(tmp_path, library[:1], jobs=4)
     assert fill_cache(tmp_path, library, jobs=1)["hits"] == [library[0].name]
     assert all(cache_path(tmp_path, m).is_file() for m in library)
