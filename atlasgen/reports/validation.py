@@ -564,8 +564,9 @@ def materialx_summary(rows: list) -> dict | None:
     """What the page says of a material imported from MaterialX, from its rows' ``materialx`` records:
     its source document and name in it, its surface model, the representation chosen, its error against
     the oracle ± SE (the manifest's: 8-bit relative RMS of f cos on a sample independent of the fit),
-    what the table could not hold or was flattened, the per-scene PSNR against the oracle's image, and
-    where there is one its shading over its physical reference's; ``None`` for any other material."""
+    what the table could not hold or was flattened, the per-scene PSNR against the oracle's image (with the
+    pixels it leaves out, normals facing away from the camera, and the PSNR counting them), and where there is
+    one its shading over its physical reference's; ``None`` for any other material."""
     records = [(row, row["materialx"]) for row in rows if row.get("materialx")]
     if not records:
         return None
@@ -581,7 +582,9 @@ def materialx_summary(rows: list) -> dict | None:
         "scenes": [{"scene": row["scene"], "psnr": _psnr_text((row["references"].get("model") or {}).get("psnr_db")),
                     "reference": m.get("reference"),
                     "agreement": _psnr_text((m.get("forward_vs_mitsuba_plugin") or {}).get("psnr_db"))
-                    if m.get("forward_vs_mitsuba_plugin") else None}
+                    if m.get("forward_vs_mitsuba_plugin") else None,
+                    "facing_away": (m.get("facing_away") or {}).get("pixels") or 0,
+                    "counting_them": _psnr_text((m.get("facing_away") or {}).get("psnr_db_counting_them"))}
                    for row, m in records],
         "ratio": None,
     }  # fmt: skip

@@ -64,6 +64,7 @@ from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, bind_material, load_v
 
 __all__ = [
     "DEFAULT_SCENES",
+    "FACING_AWAY_NOTE",
     "ENVIRONMENT_SCENES",
     "GOAL_ENVIRONMENT_PSNR_DB",
     "ATLAS_TIMING_FRAMES",
@@ -75,6 +76,7 @@ __all__ = [
     "MAX_PHYSICAL_SPP",
     "PHYSICAL_SPP",
     "ReferenceRender",
+    "facing_away_mask",
     "MaterialRun",
     "ValidationRun",
     "is_material_file",
@@ -120,6 +122,12 @@ GOAL_LOOK_FLIP = 0.05
 GRAZING_N_DOT_V = 0.2
 #: What every comparison on the validation scenes leaves out.
 BACKGROUND_NOTE = "the pixels that do not show the material (background, other materials)"
+#: What a MaterialX forward reference leaves out besides the background (:func:`facing_away_mask`).
+FACING_AWAY_NOTE = (
+    "{} of the material's pixels whose interpolated normal faces away from the camera (N.V <= 0, at silhouettes): "
+    "outside the atlas's domain (v = N.V in 0..1), where MaterialX's shader clamps N.V to M_FLOAT_EPS and shades "
+    "them as grazing, and the renderer's separable rebuild, like Mitsuba's BSDFs, gives 0"
+)
 
 
 @dataclass
@@ -433,7 +441,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             outside, regions = ~own, _grazing_regions(bound, aovs, own)
             ref = _model_render(mi, bound, entry, plan.manifest, spp, renders)
             if is_materialx_entry(entry):
-                ref = _materialx_model(run, bound, entry, model, ref, outside)
+                ref = _materialx_model(run, bound, entry, model, ref, outside, facing_away_mask(bound, aovs, own))
             measure_physical(ref, atlas_image, run.exposure, outside, regions)
             run.references["model"] = ref
             _check_rebuilds(run, model, plan.atlas, entry, bound, aovs, float_slices)
@@ -560,6 +568,17 @@ def _float_slices(entry, bake_cache):
     return slices.values
 
 
+def facing_away_mask(scene, aovs, own) -> np.ndarray:
+    """``(h, w)`` bool: the pixels of ``own`` whose g-buffer normal faces away from the camera (N.V <= 0).
+
+    Interpolated vertex normals do so at a silhouette. No BRDF is defined there, so each renderer has its
+    convention; validation leaves these pixels out where the reference's convention differs from the atlas's
+    (:data:`FACING_AWAY_NOTE`)."""
+    n_dot_v = n_dot_v_image(scene, aovs, own)
+    with np.errstate(invalid="ignore"):
+        return own & (n_dot_v <= 0.0)
+
+
 def _grazing_regions(scene, aovs, own) -> dict:
     """The material's pixels split at :data:`GRAZING_N_DOT_V` (N.V from the g-buffer normal and the camera)."""
     n_dot_v = n_dot_v_image(scene, aovs, own)
@@ -652,13 +671,17 @@ def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
     return ref
 
 
-def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside) -> ReferenceRender:
+def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside, facing_away) -> ReferenceRender:
     """The model reference of a MaterialX material: the scene forward-rendered with MaterialX's shader
     (:func:`~atlasgen.validate.materialx_reference.render_forward_reference`), where the lighting is the
     atlas's and only the BRDF differs. The oracle through Mitsuba's ``atlasgen_brdf`` plugin (``plugin``)
     stays beside it as a cross-check: ``run.materialx`` records how far the two images of the same
     shading differ on the material's pixels (only the geometry can: rasterised against ray-traced shading
-    points and normals). A scene with a light the forward render cannot bind keeps ``plugin``."""
+    points and normals). A scene with a light the forward render cannot bind keeps ``plugin``.
+
+    The forward reference leaves out ``facing_away`` (:func:`facing_away_mask`): MaterialX's shader
+    shades a normal facing away from the camera as a grazing one, which no table indexed by N.V in 0..1
+    holds (:data:`FACING_AWAY_NOTE`); the cross-check leaves them out too."""
     spec = entry.params["materialx"]
     run.materialx = {"document": spec.get("document"), "material": spec.get("material"), "category": spec.get("category"),
                      "representation": model.describe_representation(entry).split(": ", 1)[-1],
@@ -671,7 +694,7 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside)
                          "reference is the oracle through Mitsuba's atlasgen_brdf plugin")  # fmt: skip
         return plugin
     image, seconds, _ = forward
-    agree = compare_images(plugin.image, image, run.exposure, with_flip=False, mask=outside)
+    agree = compare_images(plugin.image, image, run.exposure, with_flip=False, mask=outside | facing_away)
     run.materialx["reference"] = "forward"
     run.materialx["forward_vs_mitsuba_plugin"] = {"psnr_db": _finite_or_none(agree.psnr),
                                                   "linear_relative_rms": agree.linear_relative_rms,
@@ -679,8 +702,15 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside)
     run.notes.append(f"model reference: MaterialX's shader forward-rendered under the scene's lights; the oracle through "
                      f"Mitsuba's plugin (intersections at the pixel centres) gives the same pixels to "
                      f"{_psnr_text(agree.psnr)} dB PSNR, relative RMS {agree.linear_relative_rms:.2e}")  # fmt: skip
-    return ReferenceRender("model", f"{FORWARD_DESCRIPTION}; {model_reference(entry).description}", image, seconds, 1,
-                           "moderngl")  # fmt: skip
+    ref = ReferenceRender("model", f"{FORWARD_DESCRIPTION}; {model_reference(entry).description}", image, seconds, 1,
+                          "moderngl")  # fmt: skip
+    count = int(np.count_nonzero(facing_away))
+    run.materialx["facing_away"] = {"pixels": count, "psnr_db_counting_them": None}
+    if count:
+        ref.mask, ref.masked = facing_away, FACING_AWAY_NOTE.format(count)
+        counted = compare_images(image, run.atlas_image, run.exposure, with_flip=False, mask=outside)
+        run.materialx["facing_away"]["psnr_db_counting_them"] = _finite_or_none(counted.psnr)
+    return ref
 
 
 def _psnr_text(psnr) -> str:
@@ -865,9 +895,12 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
     quantization); ``gpu_vs_8bit``: the GPU image against the 8-bit rebuild (the
     renderer's own precision, half-float output, f32 filtering).
     """
-    model_image = _only_material(run.references["model"].image, entry, aovs)
+    model = run.references["model"]
+    model_image = _only_material(model.image, entry, aovs)
     atlas_image = _only_material(run.atlas_image, entry, aovs)
     outside = ~material_mask(entry, aovs)
+    if model.mask is not None:  # the split explains the model comparison's figure, so it leaves out what that does
+        outside = outside | model.mask
     out = {}
     for key, image in (("table_float", table_float), ("table_8bit", table_8bit)):
         m = compare_images(model_image, image, run.exposure, mask=outside)

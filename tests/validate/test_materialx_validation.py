@@ -12,6 +12,7 @@ import pytest
 from atlasgen.materials.scene import Light
 from atlasgen.render.camera import pixel_rays
 from atlasgen.validate.materialx_reference import forward_lights, gl_view_projection
+from atlasgen.validate.run import facing_away_mask
 from atlasgen.validate.scenes import load_validation_scene
 from tests.validate.validation_fixtures import TINY
 
@@ -56,6 +57,23 @@ def test_every_light_of_a_scene_is_handed_down_as_the_renderer_has_it():
     assert forward_lights(dataclasses.replace(scene, lights=[dataclasses.replace(spot, type="area")])) is None
 
 
+def test_the_pixels_whose_normal_faces_away_from_the_camera_are_those_with_n_dot_v_at_most_0():
+    """Normals built to make N.V = -0.3, -1e-3, 1e-3 and 0.5 with the pixel's own ray; only the first two are left
+    out, and only where the material shows."""
+    _, scene = load_validation_scene("back")
+    w, h = scene.width, scene.height
+    v = -pixel_rays(scene.camera, w, h)
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    side = np.cross(v, [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side, axis=-1, keepdims=True)
+    wanted = np.resize(np.array([-0.3, -1e-3, 1e-3, 0.5]), (h, w))
+    normal = wanted[..., None] * v + np.sqrt(1.0 - wanted**2)[..., None] * side
+    own = np.ones((h, w), dtype=bool)
+    own[:, : w // 2] = False
+    mask = facing_away_mask(scene, {"normal": normal, "depth": np.full((h, w), 3.0)}, own)
+    np.testing.assert_array_equal(mask, own & (wanted <= 0.0))
+
+
 @pytest.fixture(scope="module")
 def gold_run(tmp_path_factory, mitsuba_rgb, gpu_context):
     pytest.importorskip("MaterialX")
@@ -89,6 +107,36 @@ def test_the_model_reference_is_the_forward_render_and_the_mitsuba_route_agrees(
     assert x["reference"] == "forward" and x["document"].endswith("gold.mtlx") and x["material"] == "gold"
     assert x["forward_vs_mitsuba_plugin"]["psnr_db"] > 60.0  # the same shading, rasterised against ray-traced
     assert result.claimed["relative_rms_8bit_se"] > 0.0
+
+
+@pytest.mark.slow
+def test_the_forward_reference_leaves_out_normals_facing_away_where_materialx_shades_them_as_grazing(gold_run):
+    """At 128x96 the back scene's sphere has silhouette pixels whose interpolated normal faces away from the camera:
+    MaterialX's shader clamps N.V there and lights them, the separable atlas gives 0. The comparison leaves exactly
+    those out and says how many; without them the cross-check and the PSNR are those of the rest."""
+    from atlasgen.validate.metrics import display_clip, psnr
+    from atlasgen.validate.run import validate_atlas
+
+    _, root = gold_run
+    run = validate_atlas(root / "atlas.dds", scenes=["back"], resolution=(128, 96), physical=False)
+    (result,) = run.runs
+    model = result.references["model"]
+    assert model.mask is not None and model.mask.any()
+    count = int(model.mask.sum())
+    assert model.masked.startswith(f"{count} of the material's pixels") and "N.V <= 0" in model.masked
+    shown = model.image[model.mask].max(axis=-1)
+    assert np.all(shown > 0.0) and np.all(result.atlas_image[model.mask] == 0.0)  # the two conventions differ there
+    kept = ~model.mask & (result.atlas_image.max(axis=-1) > 0.0)
+    e = result.exposure
+    rest = psnr(display_clip(model.image, e)[kept], display_clip(result.atlas_image, e)[kept])
+    assert model.metrics.psnr >= rest - 1.0  # not dragged down by the two conventions' pixels
+    facing = result.materialx["facing_away"]
+    assert facing["pixels"] == count and facing["psnr_db_counting_them"] < model.metrics.psnr
+    from atlasgen.reports.validation import write_validation
+
+    html = write_validation(run, root / "report-back")["html"].read_text()
+    assert f"{count} pixel" in html and f"{facing['psnr_db_counting_them']:.1f} dB counting them" in html
+    assert result.materialx["forward_vs_mitsuba_plugin"]["psnr_db"] > 60.0
 
 
 @pytest.mark.slow
