@@ -344,8 +344,9 @@ def run() -> dict:
             "where a LUT cannot reach (A is a scalar: a coloured or layered highlight needs terms). Every figure "
             "leaves out the material's pixels whose interpolated normal faces away from the camera (N.V <= 0, at a "
             "silhouette), where MaterialX's shader clamps N.V and shades them as grazing and the atlas, indexed by "
-            "N.V in 0..1, gives 0 (docs/materialx.md, Validation); 'N.V <= 0' counts them per scene, with auto's "
-            "PSNR counting them in brackets where there are any.",
+            "N.V in 0..1, has no value (its separable rebuild gives 0, a LUT slice repeats its N.V = 0 row; "
+            "docs/materialx.md, Validation); 'N.V <= 0' counts them per scene, with auto's PSNR counting them in "
+            "brackets where there are any.",
             "",
             "| material | class | auto chose | auto | K = 8 SVD | K = 8 NMF | LUT | N.V <= 0 | goal | verdict |",
             "|---|---|---|---|---|---|---|---|---|---|",
