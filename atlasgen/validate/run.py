@@ -126,7 +126,8 @@ BACKGROUND_NOTE = "the pixels that do not show the material (background, other m
 FACING_AWAY_NOTE = (
     "{} of the material's pixels whose interpolated normal faces away from the camera (N.V <= 0, at silhouettes): "
     "outside the atlas's domain (v = N.V in 0..1), where MaterialX's shader clamps N.V to M_FLOAT_EPS and shades "
-    "them as grazing, and the renderer's separable rebuild, like Mitsuba's BSDFs, gives 0"
+    "them as grazing, while the renderer's separable rebuild, like Mitsuba's BSDFs, gives 0 and a LUT slice repeats "
+    "its N.V = 0 row"
 )
 
 
