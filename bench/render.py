@@ -30,7 +30,9 @@ ROOT = Path(__file__).resolve().parent.parent
 WIDTH, HEIGHT = 1280, 720
 LIGHTS = (1, 16, 64, 256, 1024)
 TRANSLUCENT = (0, 4)
-WARMUP, REPEATS = 1, 5
+# Eleven frames, not five: on a shared 2-CPU machine one frame in five can be slowed by another process, and the
+# 1-light frame is every ratio's denominator.
+WARMUP, REPEATS = 1, 11
 #: Lights reaching the mean covered pixel, from 16 lights up.
 TARGET_PER_PIXEL = 4.0
 #: The issue's goals, as ratios of medians in one run (and one absolute figure on this machine).
@@ -38,6 +40,10 @@ GOAL_MS = 150.0  # 16 lights + 4 translucent objects on this machine's software 
 GOAL_256_OVER_1 = 2.0
 GOAL_1024_OVER_1 = 3.0
 GOAL_BRUTE_OVER_CULLED_256 = 10.0
+#: Issue 22's goal for the lighting pass at 1280x720 with 256 ranged lights on a real GPU, and the talk's own figure
+#: for its material-lookup lighting pass on the Xbox 360 (both quoted, in ms).
+GOAL_GPU_LIGHTING_MS = 0.1
+TALK_XBOX_360_MS = 0.5
 PASSES = ("gbuffer", "culling", "lighting", "translucency", "outlines")
 
 # The scene's LUT materials, from build/atlas.dds, or baked in memory when it is absent.
@@ -176,9 +182,20 @@ def pass_times(renderer, frame, repeats: int = REPEATS) -> tuple[dict, str]:
 
 
 def _brute_repeats(lights: int) -> tuple[int, int]:
-    """(warm-up, repeats) of the full loop: one frame where it takes tens of seconds (256 lights and up on a
-    loaded software GPU; its pipelines are the culled frame's, already warm), three below."""
-    return (0, 1) if lights >= 256 else (1, 3)
+    """(warm-up, repeats) of the full loop: one frame at 1024 lights, where it takes seconds on a software GPU
+    (its pipelines are the culled frame's, already warm), three after one below, 256 included: its ratio is a goal."""
+    return (0, 1) if lights >= 1024 else (1, 3)
+
+
+def _gpu_goal_line(software: bool, device: str, lighting_ms: float, method: str, verdict: str) -> str:
+    """The goal line for the lighting pass on a real GPU: measured where this run's adapter is one, else why not."""
+    goal = f"goal: at most {GOAL_GPU_LIGHTING_MS:g} ms; the talk quotes about {TALK_XBOX_360_MS:g} ms on the Xbox 360"
+    if software:
+        return (f"- The lighting pass at {WIDTH}x{HEIGHT} with 256 ranged lights on a real GPU ({goal}): **not measured**, "
+                f"this run's adapter is a software rasteriser ({device}).")  # fmt: skip
+    timing = "GPU timestamps" if method == "timestamps" else "fences, submission overhead included"
+    return (f"- The lighting pass at {WIDTH}x{HEIGHT} with 256 ranged lights on this GPU ({device}; {timing}): "
+            f"{lighting_ms:.3f} ms ({goal}), {verdict}.")  # fmt: skip
 
 
 def run() -> dict:
@@ -190,6 +207,7 @@ def run() -> dict:
     atlas, atlas_source = load_atlas()
     renderer = Renderer(atlas)
     device = renderer.ctx.name
+    software = renderer.ctx.is_software  # a CPU rasteriser (lavapipe) cannot measure the real-GPU goal
     # The same LUT materials whichever atlas was found, so that the scene is the same (toon-hero's
     # outlines included): LUT slices are the common case; separable ones cost more per pixel.
     names = [name for name in SCENE_MATERIALS if name in atlas.manifest.names] or atlas.manifest.names
@@ -233,6 +251,8 @@ def run() -> dict:
         "brute_over_culled_256": [speedup_256, GOAL_BRUTE_OVER_CULLED_256, speedup_256 >= GOAL_BRUTE_OVER_CULLED_256],
         "frame_16_lights_4_translucent_ms": [goal_row["frame_ms"], GOAL_MS, goal_row["frame_ms"] <= GOAL_MS],
     }
+    if not software:
+        goals["gpu_lighting_256_ms"] = [lit_culled, GOAL_GPU_LIGHTING_MS, lit_culled <= GOAL_GPU_LIGHTING_MS]
 
     def met(key):
         return "met" if goals[key][2] else "**not met**"
@@ -246,8 +266,8 @@ def run() -> dict:
         f"(one light's range covers it all; from 16 up the range is calibrated to about {TARGET_PER_PIXEL:.0f} lights per "
         f"covered pixel). Culled: 16x16 tiles, lists built on the GPU against each tile's depth bounds, each translucent "
         f"layer culled again. Full loop: the same lights and frame with culling off, in the same run (the baseline). "
-        f"Frames: median of {REPEATS} after {WARMUP} warm-up (the full loop: median of 3 after 1 below 256 lights, "
-        f"one frame from 256 up, where it takes seconds), "
+        f"Frames: median of {REPEATS} after {WARMUP} warm-up (the full loop: median of 3 after 1 up to 256 lights, "
+        f"one frame at 1024, where it takes seconds), "
         f"submitted and waited for, no read-back. Lights per pixel are counted from the g-buffer read back, lights per "
         f"tile from the lists read back (covered tiles). Atlas: {atlas_source}. Device: {device}.",
         "",
@@ -287,8 +307,7 @@ def run() -> dict:
         f"outlines: {one - row(1, 0)['passes_ms']['lighting']:.1f} ms of the 1-light frame) costs both about the same and bounds the frame's ratio.",
         f"- 16 lights with 4 translucent objects at most {GOAL_MS:.0f} ms: {goal_row['frame_ms']:.1f} ms "
         f"(fastest {goal_row['frame_min_ms']:.1f} ms), {met('frame_16_lights_4_translucent_ms')}.",
-        "- The lighting pass at 1280x720 with 256 ranged lights on a real GPU (goal: at most 0.1 ms; the talk quotes about "
-        "0.5 ms on the Xbox 360): **not measured**, no GPU machine was lent to this run.",
+        _gpu_goal_line(software, device, lit_culled, method, met("gpu_lighting_256_ms") if not software else ""),
         "",
         f"Device validation errors during the benchmark: {len(errors)}.",
         "",
@@ -309,7 +328,7 @@ def run() -> dict:
             "goals": goals,
             "goal_ms": GOAL_MS,
             "goal_met": goals["frame_16_lights_4_translucent_ms"][2],
-            "real_gpu_lighting_ms": None,
+            "real_gpu_lighting_ms": None if software else lit_culled,
             "validation_errors": errors,
         },
     }
