@@ -54,7 +54,15 @@ def _timed(command: str) -> dict:
 
 
 def _minutes(seconds: float) -> str:
-    return f"{int(seconds // 60)} min {seconds % 60:.0f} s" if seconds >= 60 else f"{seconds:.1f} s"
+    """Seconds as the table gives them, rounded once (179.6 s is 3 min 0 s, never 2 min 60 s).
+
+    >>> _minutes(179.6), _minutes(59.94), _minutes(312.2)
+    ('3 min 0 s', '59.9 s', '5 min 12 s')
+    """
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    whole = round(seconds)
+    return f"{whole // 60} min {whole % 60} s"
 
 
 def run() -> dict:
@@ -64,22 +72,29 @@ def run() -> dict:
     suite = _timed("make test")
     _timed("make clean")
     demo = _timed("make demo")
-    rows = [("`make test PYTEST_ARGS='-m \"not slow\"'`", fast, "fast", f"median of {FAST_RUNS}"),
-            ("`make test`", suite, "suite", "one run"), ("`make demo` after `make clean`", demo, "demo", "one run")]  # fmt: skip
+    when = datetime.date.today().isoformat()
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    data = {"fast": fast, "fast_runs": fast_runs, "suite": suite, "demo": demo, "goals_s": GOALS, "date": when, "commit": commit}
+    return {"markdown": markdown(data), "data": data}
+
+
+def markdown(data: dict) -> str:
+    """The section's text from its data (``bench/run.py --rewrite workflow``), and the README's table with it."""
+    goals = data["goals_s"]
+    rows = [("`make test PYTEST_ARGS='-m \"not slow\"'`", data["fast"], "fast", f"median of {data['fast']['runs']}"),
+            ("`make test`", data["suite"], "suite", "one run"),
+            ("`make demo` after `make clean`", data["demo"], "demo", "one run")]  # fmt: skip
     table = ["| command | tests | wall | CPU (user + sys, all processes) | goal | met | runs | load before |",
              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for label, r, goal, runs in rows:
         table.append(f"| {label} | {r['tests'] or ''} | {_minutes(r['wall_s'])} | {_minutes(r['cpu_s'])} | "
-                     f"{_minutes(GOALS[goal])} | {'yes' if r['wall_s'] <= GOALS[goal] else '**no**'} | {runs} | {r['load_before']:.2f} |")  # fmt: skip
-    when = datetime.date.today().isoformat()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    text = "\n".join([f"Measured by `make bench-workflow` (`bench/workflow.py`) on {when} at {commit}, {os.cpu_count()} cores:", "",
-                      *table]) + "\n"  # fmt: skip
+                     f"{_minutes(goals[goal])} | {'yes' if r['wall_s'] <= goals[goal] else '**no**'} | {runs} | {r['load_before']:.2f} |")  # fmt: skip
+    text = "\n".join([f"Measured by `make bench-workflow` (`bench/workflow.py`) on {data['date']} at {data['commit']}, "
+                      f"{os.cpu_count()} cores:", "", *table]) + "\n"  # fmt: skip
     readme = ROOT / "README.md"
     if _README_MARK.search(readme.read_text()):
         readme.write_text(_README_MARK.sub(lambda m: m.group(1) + text + m.group(2), readme.read_text()))
-    data = {"fast": fast, "fast_runs": fast_runs, "suite": suite, "demo": demo, "goals_s": GOALS, "date": when, "commit": commit}
-    return {"markdown": "## Developer workflow: fast subset, whole suite, demo\n\n" + text, "data": data}
+    return "## Developer workflow: fast subset, whole suite, demo\n\n" + text
 
 
 if __name__ == "__main__":
