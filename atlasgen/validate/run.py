@@ -439,10 +439,11 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                 runs.append(run)
                 continue
             own = material_mask(entry, aovs)
-            outside, regions = ~own, _grazing_regions(bound, aovs, own)
+            n_dot_v = n_dot_v_image(bound, aovs, own)
+            outside, regions = ~own, _grazing_regions(own, n_dot_v)
             ref = _model_render(mi, bound, entry, plan.manifest, spp, renders)
             if is_materialx_entry(entry):
-                ref = _materialx_model(run, bound, entry, model, ref, outside, facing_away_mask(bound, aovs, own))
+                ref = _materialx_model(run, bound, entry, model, ref, outside, facing_away_mask(own, n_dot_v))
             measure_physical(ref, atlas_image, run.exposure, outside, regions)
             run.references["model"] = ref
             _check_rebuilds(run, model, plan.atlas, entry, bound, aovs, float_slices)
@@ -569,20 +570,19 @@ def _float_slices(entry, bake_cache):
     return slices.values
 
 
-def facing_away_mask(scene, aovs, own) -> np.ndarray:
-    """``(h, w)`` bool: the pixels of ``own`` whose g-buffer normal faces away from the camera (N.V <= 0).
+def facing_away_mask(own, n_dot_v) -> np.ndarray:
+    """``(h, w)`` bool: the pixels of ``own`` whose g-buffer normal faces away from the camera, N.V <= 0
+    (``n_dot_v``: :func:`~atlasgen.validate.rebuild.n_dot_v_image`, NaN off ``own``).
 
     Interpolated vertex normals do so at a silhouette. No BRDF is defined there, so each renderer has its
     convention; validation leaves these pixels out where the reference's convention differs from the atlas's
     (:data:`FACING_AWAY_NOTE`)."""
-    n_dot_v = n_dot_v_image(scene, aovs, own)
     with np.errstate(invalid="ignore"):
         return own & (n_dot_v <= 0.0)
 
 
-def _grazing_regions(scene, aovs, own) -> dict:
-    """The material's pixels split at :data:`GRAZING_N_DOT_V` (N.V from the g-buffer normal and the camera)."""
-    n_dot_v = n_dot_v_image(scene, aovs, own)
+def _grazing_regions(own, n_dot_v) -> dict:
+    """The material's pixels split at :data:`GRAZING_N_DOT_V` (``n_dot_v`` from the g-buffer normal and the camera)."""
     with np.errstate(invalid="ignore"):
         grazing = own & (n_dot_v < GRAZING_N_DOT_V)
     return {"grazing": grazing, "rest": own & ~grazing}

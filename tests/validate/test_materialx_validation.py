@@ -12,6 +12,7 @@ import pytest
 from atlasgen.materials.scene import Light
 from atlasgen.render.camera import pixel_rays
 from atlasgen.validate.materialx_reference import forward_lights, gl_view_projection
+from atlasgen.validate.rebuild import n_dot_v_image
 from atlasgen.validate.run import facing_away_mask
 from atlasgen.validate.scenes import load_validation_scene
 from tests.validate.validation_fixtures import TINY
@@ -70,7 +71,7 @@ def test_the_pixels_whose_normal_faces_away_from_the_camera_are_those_with_n_dot
     normal = wanted[..., None] * v + np.sqrt(1.0 - wanted**2)[..., None] * side
     own = np.ones((h, w), dtype=bool)
     own[:, : w // 2] = False
-    mask = facing_away_mask(scene, {"normal": normal, "depth": np.full((h, w), 3.0)}, own)
+    mask = facing_away_mask(own, n_dot_v_image(scene, {"normal": normal, "depth": np.full((h, w), 3.0)}, own))
     np.testing.assert_array_equal(mask, own & (wanted <= 0.0))
 
 
@@ -114,7 +115,7 @@ def test_the_forward_reference_leaves_out_normals_facing_away_where_materialx_sh
     """At 128x96 the back scene's sphere has silhouette pixels whose interpolated normal faces away from the camera:
     MaterialX's shader clamps N.V there and lights them, the separable atlas gives 0. The comparison leaves exactly
     those out and says how many; without them the cross-check and the PSNR are those of the rest."""
-    from atlasgen.validate.metrics import display_clip, psnr
+    from atlasgen.validate.metrics import display_clip
     from atlasgen.validate.run import validate_atlas
 
     _, root = gold_run
@@ -126,12 +127,14 @@ def test_the_forward_reference_leaves_out_normals_facing_away_where_materialx_sh
     assert model.masked.startswith(f"{count} of the material's pixels") and "N.V <= 0" in model.masked
     shown = model.image[model.mask].max(axis=-1)
     assert np.all(shown > 0.0) and np.all(result.atlas_image[model.mask] == 0.0)  # the two conventions differ there
-    kept = ~model.mask & (result.atlas_image.max(axis=-1) > 0.0)
-    e = result.exposure
-    rest = psnr(display_clip(model.image, e)[kept], display_clip(result.atlas_image, e)[kept])
-    assert model.metrics.psnr >= rest - 1.0  # not dragged down by the two conventions' pixels
     facing = result.materialx["facing_away"]
     assert facing["pixels"] == count and facing["psnr_db_counting_them"] < model.metrics.psnr
+    # The two figures differ by exactly those pixels: the squared error counting them is the rest's plus theirs.
+    e = result.exposure
+    theirs = float(((display_clip(model.image, e) - display_clip(result.atlas_image, e))[model.mask] ** 2).mean(-1).sum())
+    kept = round(model.metrics.coverage * model.mask.size)
+    mse_rest, mse_all = 10.0 ** (-model.metrics.psnr / 10.0), 10.0 ** (-facing["psnr_db_counting_them"] / 10.0)
+    assert mse_all * (kept + count) == pytest.approx(mse_rest * kept + theirs, rel=1e-6)
     from atlasgen.reports.validation import write_validation
 
     html = write_validation(run, root / "report-back")["html"].read_text()
