@@ -28,6 +28,7 @@ from atlasgen.cli.main import app
 from atlasgen.errors import FieldError, ManifestError, MaterialError, SceneError
 from atlasgen.io.manifest import format_manifest
 from atlasgen.materials.material import read_materials
+from tests.terminal import as_in_a_terminal
 
 SHOWCASE = Path(__file__).resolve().parents[2] / "materials" / "materialx-showcase.mtlx"
 LIBRARY = {
@@ -172,7 +173,8 @@ def test_ctrl_c_stops_the_workers_in_one_line_and_leaves_the_old_atlas(tmp_path,
     shutil.copy(SHOWCASE, doc)
     command = [sys.executable, "-m", "atlasgen", "bake", str(doc), "-o", str(out), "-j", "2", "-q"]
     # Its own process group, signalled whole: what a terminal's Ctrl-C does.
-    child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                             preexec_fn=as_in_a_terminal)  # fmt: skip
     try:
         deadline = time.monotonic() + 120
         while len(_workers_of(child.pid)) < 2 and time.monotonic() < deadline and child.poll() is None:

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 
 from atlasgen.cli.main import app
 from atlasgen.errors import EXIT_CODES
+from tests.terminal import as_in_a_terminal
 
 
 @pytest.fixture
@@ -172,7 +173,8 @@ def test_ctrl_c_at_any_instant_of_start_up_is_one_line_and_130(tmp_path):
     # Spread over the whole run as this machine takes it (a fixed list ran past a fast machine's bake).
     for delay in (0.02, *(round(whole * f, 3) for f in (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.75, 0.9))):
         child = subprocess.Popen([sys.executable, "-m", "atlasgen", "bake", str(folder), "-o", str(out), "-q"],
-                                 stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})  # fmt: skip
+                                 stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+                                 preexec_fn=as_in_a_terminal)  # fmt: skip
         time.sleep(delay)
         child.send_signal(signal.SIGINT)
         _, stderr = child.communicate(timeout=120)
