@@ -277,32 +277,25 @@ def _examples() -> dict:
 GOAL_LIBRARY_S = 60.0
 
 
-def _stage_lines(shipped: dict, shipped_s: float, library_name, library) -> list[str]:
+def _stage_lines(shipped: dict, shipped_s: float, library: dict) -> list[str]:
     """The table of where the serial bakes' wall time goes (:class:`_StageClock`), and the goal's two lines."""
-    lines = [
+    total, oracle = library["seconds"], library["oracle_s"]
+    return [
         "Where the wall time of the bakes one material after another goes (s, and the share), each second to the "
         "innermost stage running: the oracle's calls inside the LUT candidate's fit count as the oracle's.",
         "",
-        f"| stage | {SHIPPED.name} | {library_name} |",
+        f"| stage | {SHIPPED.name} | {EXAMPLES.name} |",
         "|---|---:|---:|",
-    ]
-    total = library["seconds"] if library else float("nan")
-    for stage, seconds in shipped.items():
-        other = library["stages"][stage] if library else float("nan")
-        lines.append(f"| {stage} | {seconds:.1f} ({seconds / shipped_s:.0%}) | {other:.1f} ({other / total:.0%}) |")
-    if library is None:
-        return lines
-    oracle = library["oracle_s"]
-    lines += [
+        *(f"| {stage} | {seconds:.1f} ({seconds / shipped_s:.0%}) | {library['stages'][stage]:.1f} "
+          f"({library['stages'][stage] / total:.0%}) |" for stage, seconds in shipped.items()),
         "",
-        f"Goals for the whole library ({library['materials']} materials, {library_name}):",
+        f"Goals for the whole library ({library['materials']} materials, {EXAMPLES.name}):",
         "",
         f"- Under {GOAL_LIBRARY_S:.0f} s: {total:.1f} s one after another, {library['jobs_seconds']:.1f} s with "
         f"{library['jobs']} jobs, {'met' if total <= GOAL_LIBRARY_S else '**not met**'}.",
         f"- Of which the oracle is most: {oracle:.1f} s, {oracle / total:.0%} of the bake one after another, "
         f"{'met' if oracle > total / 2 else '**not met**'}; the fitting (the stages above but the oracle's) is the rest.",
-    ]
-    return lines
+    ]  # fmt: skip
 
 
 def run() -> dict:
@@ -374,7 +367,6 @@ def run() -> dict:
             ok = abs(e["ratio"] - 1.0) <= 0.10
             err_rows.append(f"| {name} | {label} | {e['claimed']:.4f} ± {e['claimed_se']:.4f} | {e['independent']:.4f} ± "
                             f"{e['independent_se']:.4f} | {e['ratio']:.3f} | {'yes' if ok else '**no**'} |")  # fmt: skip
-    library_name, library = next(((n, e) for n, e in examples.items() if "stages" in e), (None, None))
     ex_rows = []
     for name, e in examples.items():
         if "refused" in e:
@@ -395,16 +387,15 @@ def run() -> dict:
             f"The shipped document ({SHIPPED.relative_to(ROOT).as_posix()}, {len(shipped)} materials) bakes in "
             f"**{shipped_s:.1f} s** in process ({shipped_cpu_s:.1f} s of CPU, every thread of the process, llvmpipe's "
             f"included; the machine is shared, so the wall time is the larger), {oracle_s:.1f} s of the wall time "
-            f"({oracle_s / shipped_s:.0%}) in the oracle (generating, compiling and shading MaterialX's GLSL on llvmpipe); "
-            "the rest is the fitting: the LUT candidate's gloss search, the NMF and SVD terms and their error "
-            f"estimates. The oracle shaded {oracle_pairs} (l, v) pairs in {shading_s:.2f} s, "
+            f"({oracle_s / shipped_s:.0%}) in the oracle (generating, compiling and shading MaterialX's GLSL on llvmpipe; the "
+            f"table below gives the rest). The oracle shaded {oracle_pairs} (l, v) pairs in {shading_s:.2f} s, "
             f"{1e6 * shading_s / max(oracle_pairs, 1):.2f} µs a pair (one full-screen triangle over a texture of pairs); "
             f"at the cost issue 23's probe measured (a GL_POINT a pair, about {1e6 * PROBE_SECONDS_PER_PAIR:.0f} µs) they "
             f"would take {oracle_pairs * PROBE_SECONDS_PER_PAIR:.0f} s. `atlasgen bake`'s default ({jobs} jobs here, one per CPU: the materials left once baking in "
             f"process has taken {POOL_AFTER_S:g} s go to worker processes) bakes it in {shipped_jobs_s:.1f} s "
             f"({shipped_s / shipped_jobs_s:.2f}x), {'the same bytes' if same_bytes else '**other bytes**'}.",
             "",
-            *_stage_lines(shipped_stages, shipped_s, library_name, library),
+            *_stage_lines(shipped_stages, shipped_s, examples[EXAMPLES.name]),
             "",
             "### PSNR against the oracle on the validation scenes (front / back, dB)",
             "",

@@ -344,9 +344,7 @@ def markdown(data) -> str:
         "no culling scheme changes them, and they bound the frame's ratio.",
         f"- 16 lights with 4 translucent objects at most {GOAL_MS:.0f} ms: {goal_row['frame_ms']:.1f} ms "
         f"(fastest {goal_row['frame_min_ms']:.1f} ms), {met('frame_16_lights_4_translucent_ms')}.",
-        _gpu_goal_line(
-            software, data["device"], lit_culled, data["timing"], met("gpu_lighting_256_ms") if not software else ""
-        ),  # fmt: skip
+        _gpu_goal_line(software, data["device"], lit_culled, data["timing"], met("gpu_lighting_256_ms") if not software else ""),
         "",
         f"Device validation errors during the benchmark: {len(data['validation_errors'])}.",
         "",
