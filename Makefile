@@ -11,7 +11,7 @@ BUILD := build
 APT_PACKAGES := libllvm19 mesa-vulkan-drivers libegl1 libegl-mesa0 libgl1-mesa-dri glslang-tools chromium chromium-driver
 export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 
-.PHONY: setup apt demo test lint fuzz bench bench-workflow clean atlas render validate report pins tags
+.PHONY: setup apt demo test lint fuzz bench bench-workflow device-prepare clean atlas render validate report pins tags
 
 # ---- incremental content pipeline -------------------------------------------------------------
 # Each material file bakes into its own cache entry (build/cache/<stem>.npz); the atlas is then
@@ -255,6 +255,11 @@ bench: setup
 # its figures go to BENCHMARKS.md and the README's "Timings" table (bench/workflow.py).
 bench-workflow: setup
 	$(PY) bench/run.py workflow
+
+# What a lent GPU machine needs to run the render benchmark there in one call (bench/device_run.sh):
+# the wheels, the Vulkan loader and the atlas, packed into .device/ (README, "Benchmarks on a lent GPU").
+device-prepare: $(BUILD)/atlas.dds
+	PY=$(PY) bash bench/device_prepare.sh
 
 clean:
 	rm -rf $(BUILD) .pytest_cache .hypothesis

@@ -288,10 +288,13 @@ def markdown(data) -> str:
     def met(key):
         return "met" if goals[key][2] else "**not met**"
 
+    # Milliseconds to a tenth on lavapipe; a real GPU's passes take hundredths or less.
+    ms = ".1f" if software else ".3f"
+
     timing = ("GPU timestamp queries (`timestamp-query`, each pass's start and end)" if data["timing"] == "timestamps"
               else "fences (each pass submitted alone and waited for; includes submission overhead)")  # fmt: skip
     md = [
-        "## Renderer (deferred, WebGPU): ranged lights culled per tile",
+        "## Renderer (deferred, WebGPU): ranged lights culled per tile" + ("" if software else ", on a real GPU"),
         "",
         f"{data['width']}x{data['height']}, floor + 6 opaque spheres (+ 4 translucent spheres), ranged point lights "
         f"scattered over the scene (one light's range covers it all; from 16 up the range is calibrated to about "
@@ -308,8 +311,8 @@ def markdown(data) -> str:
     ]
     md += [
         f"| {r['lights']} | {r['translucent']} | {r['range']:.2f} | {r['lights_per_pixel_mean']:.2f} | {r['lights_per_pixel_max']} "
-        f"| {r['lights_per_tile_mean']:.1f} | {r['lights_per_tile_max']} | {r['overflowing_tiles']} | {r['frame_ms']:.1f} "
-        f"| {r['frame_min_ms']:.1f} | {r['brute_ms']:.1f} | {r['brute_ms'] / r['frame_ms']:.1f}x |"
+        f"| {r['lights_per_tile_mean']:.1f} | {r['lights_per_tile_max']} | {r['overflowing_tiles']} | {r['frame_ms']:{ms}} "
+        f"| {r['frame_min_ms']:{ms}} | {r['brute_ms']:{ms}} | {r['brute_ms'] / r['frame_ms']:.1f}x |"
         for r in rows
     ]
     md += [
@@ -323,28 +326,47 @@ def markdown(data) -> str:
     ]
     md += [
         f"| {r['lights']} | {r['translucent']} | "
-        + " | ".join(f"{r['passes_ms'][p]:.1f}" if p in r["passes_ms"] else "–" for p in PASSES)
+        + " | ".join(f"{r['passes_ms'][p]:{ms}}" if p in r["passes_ms"] else "–" for p in PASSES)
         + " |"
         for r in rows
     ]
+    load = f"load average {data['load_average']:.2f} on {data['cpus']} CPUs when the section started"
+    gpu_line = _gpu_goal_line(software, data["device"], lit_culled, data["timing"],
+                              met("gpu_lighting_256_ms") if not software else "")  # fmt: skip
+    if not software:
+        # The issue sets its ratio and 150 ms goals on lavapipe (the section measured here by `make bench`); on a real
+        # GPU they are figures beside its own goal.
+        md += [
+            "",
+            f"Goal ({load}):",
+            "",
+            gpu_line,
+            "",
+            f"Beside it (the issue judges these on lavapipe): 256 lights {goals['frame_256_over_1'][0]:.2f}x and 1024 "
+            f"lights {goals['frame_1024_over_1'][0]:.2f}x the 1-light frame; the full loop at 256 lights "
+            f"{goals['brute_over_culled_256'][0]:.1f}x the culled frame (lighting pass alone {lit_brute / lit_culled:.1f}x); "
+            f"16 lights with 4 translucent objects {goal_row['frame_ms']:.2f} ms.",
+        ]
+    else:
+        md += [
+            "",
+            f"Goals (medians, ratios within this run; {load}):",
+            "",
+            f"- 256 lights at most {GOAL_256_OVER_1:.0f}x the 1-light frame: {goals['frame_256_over_1'][0]:.2f}x, "
+            f"{met('frame_256_over_1')}.",
+            f"- 1024 lights at most {GOAL_1024_OVER_1:.0f}x the 1-light frame: {goals['frame_1024_over_1'][0]:.2f}x, "
+            f"{met('frame_1024_over_1')}.",
+            f"- Culled at least {GOAL_BRUTE_OVER_CULLED_256:.0f}x faster than the full loop at 256 lights, frame against "
+            f"frame: {goals['brute_over_culled_256'][0]:.1f}x, {met('brute_over_culled_256')}. The work on the lights "
+            f"alone: the culling and lighting passes, {light_work:.1f} ms culled, against the full loop's lighting pass, "
+            f"{lit_brute:.1f} ms (one frame), {lit_brute / light_work:.1f}x (the lighting pass alone "
+            f"{lit_brute / lit_culled:.1f}x). The g-buffer and outline passes ({shared:.1f} ms) are the same in both frames: "
+            "no culling scheme changes them, and they bound the frame's ratio.",
+            f"- 16 lights with 4 translucent objects at most {GOAL_MS:.0f} ms: {goal_row['frame_ms']:.1f} ms "
+            f"(fastest {goal_row['frame_min_ms']:.1f} ms), {met('frame_16_lights_4_translucent_ms')}.",
+            gpu_line,
+        ]
     md += [
-        "",
-        f"Goals (medians, ratios within this run; load average {data['load_average']:.2f} on {data['cpus']} CPUs when "
-        "the section started):",
-        "",
-        f"- 256 lights at most {GOAL_256_OVER_1:.0f}x the 1-light frame: {goals['frame_256_over_1'][0]:.2f}x, "
-        f"{met('frame_256_over_1')}.",
-        f"- 1024 lights at most {GOAL_1024_OVER_1:.0f}x the 1-light frame: {goals['frame_1024_over_1'][0]:.2f}x, "
-        f"{met('frame_1024_over_1')}.",
-        f"- Culled at least {GOAL_BRUTE_OVER_CULLED_256:.0f}x faster than the full loop at 256 lights, frame against "
-        f"frame: {goals['brute_over_culled_256'][0]:.1f}x, {met('brute_over_culled_256')}. The work on the lights "
-        f"alone: the culling and lighting passes, {light_work:.1f} ms culled, against the full loop's lighting pass, "
-        f"{lit_brute:.1f} ms (one frame), {lit_brute / light_work:.1f}x (the lighting pass alone "
-        f"{lit_brute / lit_culled:.1f}x). The g-buffer and outline passes ({shared:.1f} ms) are the same in both frames: "
-        "no culling scheme changes them, and they bound the frame's ratio.",
-        f"- 16 lights with 4 translucent objects at most {GOAL_MS:.0f} ms: {goal_row['frame_ms']:.1f} ms "
-        f"(fastest {goal_row['frame_min_ms']:.1f} ms), {met('frame_16_lights_4_translucent_ms')}.",
-        _gpu_goal_line(software, data["device"], lit_culled, data["timing"], met("gpu_lighting_256_ms") if not software else ""),
         "",
         f"Device validation errors during the benchmark: {len(data['validation_errors'])}.",
         "",

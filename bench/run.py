@@ -30,6 +30,9 @@ SECTIONS = [
     "environment_cost",
     "materialx",
 ]
+#: Sections measured elsewhere and brought in with ``--import`` (a lent GPU machine: bench/device_run.sh).
+#: A full run keeps them as they were imported; each module words its data with ``markdown(data)``.
+IMPORTED = ["render_gpu"]
 
 
 #: Each section's text in BENCHMARKS.md starts with this marker, so one section can be re-run alone.
@@ -67,11 +70,36 @@ def _rewrite(names) -> int:
     return _update(names, results, parts)
 
 
+def _save(path: str, name: str) -> int:
+    """``bench/run.py --save FILE NAME``: run one section and write its data to FILE alone, as a lent GPU
+    machine does (bench/device_run.sh): that machine's copy of the tree is thrown away, so BENCHMARKS.md is
+    left to ``--import`` here."""
+    out = importlib.import_module(name).run()
+    Path(path).write_text(json.dumps(out["data"], indent=2) + "\n")
+    print(out["markdown"])
+    print(f"bench: wrote {name}'s data to {path}", file=sys.stderr)
+    return 0
+
+
+def _import(name: str, path: str) -> int:
+    """``bench/run.py --import NAME FILE``: section NAME (one of :data:`IMPORTED`) from the data another
+    machine measured (``--save``), worded by its module, into BENCHMARKS.md and BENCHMARKS.json."""
+    if name not in IMPORTED:
+        print(f"bench: {name} is not a section measured elsewhere (one of {', '.join(IMPORTED)})", file=sys.stderr)
+        return 2
+    data = json.loads(Path(path).read_text())
+    return _update([name], {name: data}, [importlib.import_module(name).markdown(data)])
+
+
 def main(argv=None) -> int:
     names = (argv if argv is not None else sys.argv[1:]) or SECTIONS
     sys.path.insert(0, str(ROOT / "bench"))
     if names[0] == "--rewrite":
         return _rewrite(names[1:])
+    if names[0] == "--save" and len(names) == 3:
+        return _save(names[1], names[2])
+    if names[0] == "--import" and len(names) == 3:
+        return _import(names[1], names[2])
     results, parts = {}, []
     for name in names:
         print(f"bench: {name} ...", file=sys.stderr, flush=True)
@@ -92,6 +120,12 @@ def main(argv=None) -> int:
         f"Python {platform.python_version()}. Every figure below is measured by `bench/*.py` in that run.",
         "",
     ]
+    # The sections measured elsewhere stay as the last import left them.
+    old = json.loads((ROOT / "BENCHMARKS.json").read_text()) if (ROOT / "BENCHMARKS.json").exists() else {}
+    for name in IMPORTED:
+        if name in old:
+            names, results[name] = [*names, name], old[name]
+            parts.append(importlib.import_module(name).markdown(old[name]))
     parts = [f"{_MARK.format(name)}\n{part}" for name, part in zip(names, parts)]
     (ROOT / "BENCHMARKS.md").write_text("\n".join(header + parts) + "\n")
     (ROOT / "BENCHMARKS.json").write_text(json.dumps(results, indent=2) + "\n")
