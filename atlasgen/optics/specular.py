@@ -94,7 +94,7 @@ def specular_f_cos(gloss: float, n_dot_l, n_dot_v, n_dot_h, lv_degenerate=None) 
     nl = np.asarray(n_dot_l, dtype=np.float64)
     alpha = float(specular_alpha(gloss))
     lit = np.clip(nl, 0.0, 1.0)
-    with np.errstate(divide="ignore"):  # V is infinite only where N.L = N.V = 0, masked below
+    with np.errstate(divide="ignore", invalid="ignore"):  # V is infinite only where N.L = N.V = 0 (times N.L = 0), masked below
         lobe = ggx_distribution(n_dot_h, alpha) * smith_visibility_correlated_ggx(lit, n_dot_v, alpha) * lit
     lobe = np.where(nl > 0.0, lobe, 0.0)
     if lv_degenerate is not None:

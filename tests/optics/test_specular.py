@@ -143,6 +143,20 @@ def test_renderer_equation_splits_into_diffuse_over_pi_and_the_scaled_lobe():
     assert np.isfinite(got[4]).all() and got[4, 0] > got[0, 0]  # finite at N.V = 0 (V = 0.5 / (N.L alpha))
 
 
+def test_the_lobe_is_zero_where_both_cosines_are_zero_without_a_warning():
+    """N.L = N.V = 0 makes V infinite, times N.L = 0: the lobe is 0 there, as in the shader, and the
+    masked 0 * inf is no RuntimeWarning for a caller of the library (the CLI hides warnings; a script
+    does not)."""
+    import warnings
+
+    nl = np.array([0.0, 0.0, -0.2])
+    nv = np.array([0.0, 0.5, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = specular_f_cos(0.5, nl, nv, np.array([0.7, 0.7, 0.7]))
+    assert got.tolist() == [0.0, 0.0, 0.0]
+
+
 def test_half_vector_cosine_closed_forms():
     """N.H = cos of the half angle: l at 60 degrees and v at 0 in one plane give cos 30 degrees;
     l = v gives N.L; l = -v has no half vector (0, flagged); a per-pair normal is honoured."""

@@ -139,8 +139,9 @@ def reference_radiance(atlas, scene, aovs, rays, specular: bool = True) -> np.nd
             n_dot_h = np.sum(n * h, -1)
             nl = np.clip(n_dot_l, 0.0, 1.0)
             d = a2 / (np.pi * (n_dot_h**2 * (a2 - 1.0) + 1.0) ** 2)
-            vis = 0.5 / (nl * np.sqrt(nv * nv * (1.0 - a2) + a2) + nv * np.sqrt(nl * nl * (1.0 - a2) + a2))
-            spec = np.where((n_dot_l > 0) & (n_dot_h > 0), d * vis * nl, 0.0)
+            with np.errstate(divide="ignore", invalid="ignore"):  # V is infinite where N.L = N.V = 0: masked
+                vis = 0.5 / (nl * np.sqrt(nv * nv * (1.0 - a2) + a2) + nv * np.sqrt(nl * nl * (1.0 - a2) + a2))
+                spec = np.where((n_dot_l > 0) & (n_dot_h > 0), d * vis * nl, 0.0)
             contrib = e * (albedo * a[..., :3] / np.pi + (a[..., 3] * spec * specular)[..., None])
             out[mask] += contrib[mask]
     out[~covered] = scene.background
