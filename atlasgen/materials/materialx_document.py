@@ -13,6 +13,9 @@ one LUT slice and K separable terms whose error against the oracle meets it; doc
   it, unless ``flatten`` says what to use instead: ``"default"`` (the nodedef's default) or a
   ``{input: value}`` table (others still refused). What was flattened is recorded in
   ``materialx.flattened``.
+- A constant input must be of its nodedef's type, parse, be finite and lie within the nodedef's
+  ``uimin``..``uimax``; elements of one parent must have unique names (MaterialX's reader keeps the
+  first of two and drops the other silently). Each is refused with one line naming it otherwise.
 - Inputs the table's equation has no room for (emission, opacity, transmission) are named in
   ``materialx.not_in_table``, never dropped silently: the oracle shades the reflection with
   emission 0 and opacity 1, and the report lists them.
@@ -23,13 +26,14 @@ MaterialX is imported inside functions (the ``materialx`` extra).
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
-from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults
+from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults, surface_ranges
 
 __all__ = ["DEFAULT_BUDGET", "ERROR_MEASURE", "SAMPLING_GRID", "NOT_IN_TABLE", "is_materialx_file",
            "read_materialx_document"]  # fmt: skip
@@ -131,6 +135,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     except Exception as exc:  # noqa: BLE001 - MaterialX raises its own exception types
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
+    _refuse_duplicate_names(shown, data)
     doc.importLibrary(load_materialx_libraries())
     nodes = doc.getMaterialNodes()
     if not nodes:
@@ -161,9 +166,75 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     return out
 
 
+def _refuse_duplicate_names(shown: str, data: bytes) -> None:
+    """Refuse two elements of one parent with one name: MaterialX's reader keeps the first and drops
+    the second without a word, so a copied material block left unrenamed would vanish from the atlas."""
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.fromstring(data)
+    except ElementTree.ParseError as exc:  # MaterialX read it, but expat will not (an entity expansion, say)
+        raise MaterialError(shown, None, f"malformed MaterialX document: XML parse error ({exc})") from None
+    for parent in root.iter():
+        seen: dict = {}
+        for child in parent:
+            name = child.get("name")
+            if name is None:
+                continue
+            if name in seen:
+                raise MaterialError(shown, name, f"expected unique names among the children of <{parent.tag}>, found "
+                                    f"<{seen[name]}> and <{child.tag}> both named {name!r}")  # fmt: skip
+            seen[name] = child.tag
+
+
+#: What a value of each MaterialX type must be, for the one-line refusals.
+_EXPECTED = {"float": "a finite number", "integer": "an integer", "boolean": "true or false",
+             "color3": "3 finite numbers", "color4": "4 finite numbers", "vector2": "2 finite numbers",
+             "vector3": "3 finite numbers", "vector4": "4 finite numbers"}  # fmt: skip
+
+
+def _shown(values) -> str:
+    return ", ".join(f"{v:g}" for v in values)
+
+
+def _checked(shown: str, field: str, kind: str, value, limits):
+    """``value`` (plain) if it is finite and within the nodedef's ``limits`` (low, high), else refused on one line."""
+    if isinstance(value, bool) or isinstance(value, str):
+        return value
+    components = [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
+    if not all(math.isfinite(v) for v in components):
+        raise MaterialError(shown, field, f"expected {_EXPECTED.get(kind, 'finite numbers')}, got {_shown(components)}")
+    low, high = limits if limits is not None else (None, None)
+    for bound, outside in ((low, lambda v, b: v < b), (high, lambda v, b: v > b)):
+        if bound is not None and any(outside(v, b) for v, b in zip(components, bound, strict=False)):
+            if low is not None and high is not None:
+                span = f"within {_shown(low)} .. {_shown(high)} (the nodedef's uimin .. uimax)"
+            else:
+                span = f"at least {_shown(low)} (the nodedef's uimin)" if low else f"at most {_shown(high)} (the nodedef's uimax)"
+            raise MaterialError(shown, field, f"expected {kind} {span}, got {_shown(components)}")
+    return value
+
+
+def _constant(shown: str, field: str, inp, kind: str, limits):
+    """A constant input's plain value, or None where it has none (the nodedef's default then applies);
+    refused on one line where its type is not the nodedef's, or it does not parse, is not finite or
+    lies outside the nodedef's limits."""
+    given_kind = inp.getType()
+    if given_kind != kind:
+        raise MaterialError(shown, field, f"expected type {kind} (the nodedef's), got {given_kind!r}")
+    value = inp.getValue()
+    if value is None:
+        text = inp.getValueString()
+        if not text.strip():
+            return None
+        raise MaterialError(shown, field, f"expected {_EXPECTED.get(kind, 'a ' + kind + ' value')}, got {text!r}")
+    return _checked(shown, field, kind, _plain(value), limits)
+
+
 def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:
     """The ``materialx`` table of one shader node: its constant inputs, what was flattened, what the table cannot hold."""
     defaults = surface_defaults(category)
+    ranges = surface_ranges(category)
     inputs, flattened = {}, {}
     for inp in shader.getInputs():
         key = inp.getName()
@@ -177,6 +248,8 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
                     shown, f"{material}.{key}", f"driven by {driver}; expected a constant value (or bake it at its default: atlasgen bake --flatten default"
                     ")"
                 )  # fmt: skip
+            if given is not None and key in defaults:
+                given = _checked(shown, f"{material}.{key}", defaults[key][0], given, ranges.get(key))
             value = given if given is not None else (defaults[key][1] if key in defaults else None)
             flattened[key] = {"driven_by": driver, "value": value}
             if value is not None:
@@ -184,7 +257,9 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             continue
         if key not in defaults:
             raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of {', '.join(defaults)}")
-        inputs[key] = _plain(inp.getValue())
+        value = _constant(shown, f"{material}.{key}", inp, defaults[key][0], ranges.get(key))
+        if value is not None:
+            inputs[key] = value
     oracle_inputs = dict(inputs)
     not_in_table = []
     for key, (neutral, what) in NOT_IN_TABLE[category].items():

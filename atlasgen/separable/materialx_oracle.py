@@ -48,6 +48,7 @@ __all__ = [
     "materialx_oracle",
     "evaluate_materialx_f_cos",
     "surface_defaults",
+    "surface_ranges",
     "load_materialx_libraries",
     "varyings_of",
     "vertex_data_for",
@@ -121,6 +122,30 @@ def _defaults(category: str) -> tuple:
 def surface_defaults(category: str) -> dict:
     """``{input: (type, default)}`` of a surface shader node's nodedef: what an unset input is."""
     return {name: (kind, value) for name, kind, value in _defaults(category)}
+
+
+def _bound(text: str):
+    return tuple(float(x) for x in text.split(",")) if text.strip() else None
+
+
+@cache
+def surface_ranges(category: str) -> dict:
+    """``{input: (low, high)}`` of a surface shader node's nodedef: its ``uimin`` and ``uimax``, each a
+    tuple of floats (one per component) or None where the nodedef sets none. These are the inputs'
+    hard limits (``uisoftmin``/``uisoftmax`` are the soft ones a user may pass), e.g. 0..1 for
+    weights, roughnesses and colours, and ior >= 1 for glTF."""
+    mx, _, _ = _materialx()
+    doc = mx.createDocument()
+    doc.importLibrary(load_materialx_libraries())
+    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
+    if nodedef is None:
+        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
+    out = {}
+    for inp in nodedef.getActiveInputs():
+        low, high = _bound(inp.getAttribute("uimin")), _bound(inp.getAttribute("uimax"))
+        if low is not None or high is not None:
+            out[inp.getName()] = (low, high)
+    return out
 
 
 _BLOCK = re.compile(r"in\s+VertexData\s*\{(?P<body>[^}]*)\}\s*vd\s*;")

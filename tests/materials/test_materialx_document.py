@@ -100,3 +100,69 @@ def test_bad_documents_are_refused_on_one_line(tmp_path, body, field, expected):
     message = str(info.value)
     where = f"{path.as_posix()}: field '{field}'" if field else path.as_posix()
     assert "\n" not in message and message.startswith(f"{where}: {expected}"), message
+
+
+def _open(inputs: str) -> str:
+    return _material("M", "open_pbr_surface", inputs)
+
+
+@pytest.mark.parametrize(
+    ("inputs", "field", "expected"),
+    [
+        ('<input name="base_color" type="color3" value="abc" />', "M.base_color", "expected 3 finite numbers, got 'abc'"),
+        ('<input name="base_color" type="color3" value="0.5, 0.5" />', "M.base_color",
+         "expected 3 finite numbers, got '0.5, 0.5'"),
+        ('<input name="specular_roughness" type="float" value="nan" />', "M.specular_roughness",
+         "expected a finite number, got 'nan'"),
+        ('<input name="specular_roughness" type="float" value="-3" />', "M.specular_roughness",
+         "expected float within 0 .. 1 (the nodedef's uimin .. uimax), got -3"),
+        ('<input name="base_color" type="color3" value="0.2, 1.5, 0.2" />', "M.base_color",
+         "expected color3 within 0, 0, 0 .. 1, 1, 1 (the nodedef's uimin .. uimax), got 0.2, 1.5, 0.2"),
+        ('<input name="thin_film_thickness" type="float" value="-1" />', "M.thin_film_thickness",
+         "expected float at least 0 (the nodedef's uimin), got -1"),
+        ('<input name="base_color" type="float" value="0.5" />', "M.base_color",
+         "expected type color3 (the nodedef's), got 'float'"),
+    ],
+)  # fmt: skip
+def test_a_constant_input_must_parse_be_finite_and_lie_within_the_nodedef_s_limits(tmp_path, inputs, field, expected):
+    path = _document(tmp_path, _open(inputs))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == f"{path.as_posix()}: field '{field}': {expected}"
+
+
+def test_limits_are_the_nodedef_s_own_and_inclusive(tmp_path):
+    """At the limits (0 and 1, and glTF's ior of 1) and far above a one-sided one, inputs read as given."""
+    body = "\n".join([
+        _open('<input name="specular_roughness" type="float" value="0" /><input name="base_metalness" type="float" '
+              'value="1" /><input name="thin_film_thickness" type="float" value="40" />'),
+        _material("G", "gltf_pbr", '<input name="ior" type="float" value="1" />'),
+    ])  # fmt: skip
+    m, g = read_material_file(_document(tmp_path, body))
+    assert m.params["materialx"]["inputs"] == {"specular_roughness": 0.0, "base_metalness": 1.0, "thin_film_thickness": 40.0}
+    assert g.params["materialx"]["inputs"] == {"ior": 1.0}
+
+
+def test_an_input_without_a_value_takes_the_nodedef_s_default(tmp_path):
+    spec = read_material_file(_document(tmp_path, _open('<input name="base_color" type="color3" />')))[0].params["materialx"]
+    assert spec["inputs"] == {} and spec["oracle_inputs"] == {}
+
+
+def test_a_flattened_value_meets_the_same_limits(tmp_path):
+    path = _document(tmp_path, TEXTURED)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path, {"base_color": [0.1, 2.0, 0.3]})
+    assert str(info.value).startswith(f"{path.as_posix()}: field 'Tex.base_color': expected color3 within 0, 0, 0 .. 1, 1, 1")
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path, {"base_color": [float("nan"), 0.2, 0.3]})
+    assert str(info.value) == f"{path.as_posix()}: field 'Tex.base_color': expected 3 finite numbers, got nan, 0.2, 0.3"
+
+
+def test_two_elements_of_one_name_are_refused_not_dropped(tmp_path):
+    """MaterialX's reader keeps the first of two same-named elements and drops the second silently."""
+    body = _open('<input name="base_color" type="color3" value="0.1, 0.2, 0.3" />')
+    path = _document(tmp_path, body + "\n" + body.replace("0.1, 0.2, 0.3", "0.3, 0.2, 0.1"))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'SR_M': expected unique names among the children of "
+                               "<materialx>, found <open_pbr_surface> and <open_pbr_surface> both named 'SR_M'")  # fmt: skip
