@@ -60,6 +60,11 @@ NOT_IN_TABLE = {
     "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity")},
 }  # fmt: skip
 #: Per surface model: (roughness input, weight input or None) of each microfacet lobe.
+#: A surfacematerial's inputs beside its surface shader: what each would change that the table cannot hold.
+MATERIAL_NOT_IN_TABLE = {
+    "backsurfaceshader": "a back face is shaded with the front surface's slice (the renderer flips its normal)",
+    "displacementshader": "displacement moves geometry, which an atlas slice does not hold",
+}
 _LOBES = {
     "standard_surface": (("specular_roughness", "specular"), ("coat_roughness", "coat")),
     "open_pbr_surface": (("specular_roughness", "specular_weight"), ("coat_roughness", "coat_weight")),
@@ -156,6 +161,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
                 f"surface shader {category!r} is not supported; expected one of {', '.join(SURFACE_MODELS)}",
             )
         spec = _read_shader(shown, name, category, shader, flatten)
+        spec["not_in_table"] += _material_not_in_table(node)
         raw = {"source": "materialx", "materialx": spec, "representation": "auto", "max_error": DEFAULT_BUDGET,
                "grid": SAMPLING_GRID}  # fmt: skip
         params = validate_params(model.params, raw, shown)
@@ -163,6 +169,20 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
                     "content_hash": hashlib.sha256(data + b"\0" + name.encode()).hexdigest(),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
+    return out
+
+
+def _material_not_in_table(node) -> list[str]:
+    """The surfacematerial's own inputs the table has no room for (:data:`MATERIAL_NOT_IN_TABLE`), each
+    ``"input = what drives it: why"``, as the shader's are; any other input is named as unknown to atlasgen."""
+    out = []
+    for inp in node.getInputs():
+        key = inp.getName()
+        if key == "surfaceshader":
+            continue
+        driver = _driver(inp) or (repr(inp.getValueString()) if inp.getValueString() else None)
+        if driver is not None:
+            out.append(f"{key} = {driver}: {MATERIAL_NOT_IN_TABLE.get(key, 'an input of the material atlasgen does not bake')}")
     return out
 
 

@@ -166,3 +166,16 @@ def test_two_elements_of_one_name_are_refused_not_dropped(tmp_path):
         read_material_file(path)
     assert str(info.value) == (f"{path.as_posix()}: field 'SR_M': expected unique names among the children of "
                                "<materialx>, found <open_pbr_surface> and <open_pbr_surface> both named 'SR_M'")  # fmt: skip
+
+
+def test_a_material_s_back_surface_and_displacement_are_named_not_dropped(tmp_path):
+    body = (_open('<input name="base_color" type="color3" value="0.5, 0.5, 0.5" />')
+            .replace('nodename="SR_M" />', 'nodename="SR_M" /><input name="backsurfaceshader" type="surfaceshader" '
+                     'nodename="SR_M" /><input name="displacementshader" type="displacementshader" nodename="D" />')
+            + '\n<displacement name="D" type="displacementshader"><input name="displacement" type="float" value="0.3" />'
+            "</displacement>")  # fmt: skip
+    spec = read_material_file(_document(tmp_path, body))[0].params["materialx"]
+    assert spec["not_in_table"] == [
+        "backsurfaceshader = node 'SR_M': a back face is shaded with the front surface's slice (the renderer flips its normal)",
+        "displacementshader = node 'D': displacement moves geometry, which an atlas slice does not hold",
+    ]
