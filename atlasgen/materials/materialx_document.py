@@ -16,6 +16,10 @@ one LUT slice and K separable terms whose error against the oracle meets it; doc
 - A constant input must be of its nodedef's type, parse, be finite and lie within the nodedef's
   ``uimin``..``uimax``; elements of one parent must have unique names (MaterialX's reader keeps the
   first of two and drops the other silently). Each is refused with one line naming it otherwise.
+- A lobe no slice can hold is refused, naming its input: an anisotropic one (the slice is indexed
+  by N.L and N.V, not the azimuth) and one sharper than :data:`ROUGHNESS_MIN` (a mirror), each
+  where its weight is above 0, as a separable material refuses a Mitsuba BSDF's anisotropy and
+  delta lobes.
 - Inputs the table's equation has no room for (emission, opacity, transmission) are named in
   ``materialx.not_in_table``, never dropped silently: the oracle shades the reflection with
   emission 0 and opacity 1, and the report lists them.
@@ -29,14 +33,15 @@ import hashlib
 import math
 from pathlib import Path
 
+from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
 from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults, surface_ranges
 
-__all__ = ["DEFAULT_BUDGET", "ERROR_MEASURE", "SAMPLING_GRID", "NOT_IN_TABLE", "is_materialx_file",
-           "read_materialx_document"]  # fmt: skip
+__all__ = ["DEFAULT_BUDGET", "ERROR_MEASURE", "SAMPLING_GRID", "NOT_IN_TABLE", "MATERIAL_NOT_IN_TABLE", "ROUGHNESS_MIN",
+           "is_materialx_file", "read_materialx_document"]  # fmt: skip
 
 #: What ``representation = "auto"`` judges a document's candidates by: the relative log RMS of f cos
 #: against the oracle (:func:`atlasgen.separable.error.relative_log_errors`), which follows what the
@@ -71,6 +76,19 @@ _LOBES = {
     "gltf_pbr": (("roughness", None), ("clearcoat_roughness", "clearcoat")),
     "UsdPreviewSurface": (("roughness", None), ("clearcoatRoughness", "clearcoat")),
 }
+
+
+#: Per surface model: (anisotropy input, weight input or None) of each lobe that has one.
+_ANISOTROPY = {
+    "standard_surface": (("specular_anisotropy", "specular"), ("coat_anisotropy", "coat")),
+    "open_pbr_surface": (("specular_roughness_anisotropy", "specular_weight"), ("coat_roughness_anisotropy", "coat_weight")),
+    "gltf_pbr": (("anisotropy_strength", None),),
+    "UsdPreviewSurface": (),
+}  # fmt: skip
+#: The least roughness of a lobe with weight: alpha = roughness^2 at the renderer's sharpest lobe
+#: (:data:`~atlasgen.contract.SPECULAR_ALPHA_MIN`). Below it a lobe is a mirror: its peak is narrower than
+#: any texel of a slice or a factor, and the fit's error estimate runs to 1e14 %.
+ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
 
 
 def is_materialx_file(path) -> bool:
@@ -251,6 +269,32 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
     return _checked(shown, field, kind, _plain(value), limits)
 
 
+def _refuse_lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict, defaults: dict) -> None:
+    """One line for the first anisotropic or mirror-sharp lobe of weight above 0 (:data:`_ANISOTROPY`,
+    :data:`ROUGHNESS_MIN`), naming the input and whether its value is the nodedef's default."""
+
+    def value(key):
+        return float(inputs[key] if key in inputs else defaults[key][1])
+
+    def where(weight):
+        return "" if weight is None else f" where {weight} > 0"
+
+    def given(key):
+        return f"{value(key):g}" + ("" if key in inputs else " (the nodedef's default)")
+
+    for key, weight in _ANISOTROPY[category]:
+        if key in defaults and value(key) != 0.0 and (weight is None or value(weight) > 0.0):
+            raise MaterialError(shown, f"{material}.{key}", f"expected 0{where(weight)}, got {given(key)}: an anisotropic "
+                                "lobe varies with the azimuth, which a slice indexed by N.L and N.V does not hold; "
+                                "set it to 0 to bake the isotropic lobe")  # fmt: skip
+    for key, weight in _LOBES[category]:
+        if key in defaults and value(key) < ROUGHNESS_MIN and (weight is None or value(weight) > 0.0):
+            raise MaterialError(shown, f"{material}.{key}", f"expected at least {ROUGHNESS_MIN:g}{where(weight)} (alpha "
+                                f"{SPECULAR_ALPHA_MIN:g}, the renderer's sharpest lobe), got {given(key)}: a sharper lobe is "
+                                f"a mirror, which no slice holds; set it to {ROUGHNESS_MIN:g} or more to bake a sharp lobe in "
+                                "its place")  # fmt: skip
+
+
 def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:
     """The ``materialx`` table of one shader node: its constant inputs, what was flattened, what the table cannot hold."""
     defaults = surface_defaults(category)
@@ -280,6 +324,7 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
         value = _constant(shown, f"{material}.{key}", inp, defaults[key][0], ranges.get(key))
         if value is not None:
             inputs[key] = value
+    _refuse_lobes_no_slice_holds(shown, material, category, inputs, defaults)
     oracle_inputs = dict(inputs)
     not_in_table = []
     for key, (neutral, what) in NOT_IN_TABLE[category].items():

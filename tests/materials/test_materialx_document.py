@@ -26,7 +26,8 @@ def _material(name, category, inputs: str):
 
 FOUR = "\n".join([
     _material("Std", "standard_surface", '<input name="base_color" type="color3" value="0.8, 0.1, 0.1" />'),
-    _material("Open", "open_pbr_surface", '<input name="coat_weight" type="float" value="1" />'),
+    _material("Open", "open_pbr_surface", '<input name="coat_weight" type="float" value="1" />'
+              '<input name="coat_roughness" type="float" value="0.2" />'),
     _material("Gltf", "gltf_pbr", '<input name="metallic" type="float" value="1" />'),
     _material("Usd", "UsdPreviewSurface", '<input name="roughness" type="float" value="0.3" />'),
 ])  # fmt: skip
@@ -134,12 +135,12 @@ def test_a_constant_input_must_parse_be_finite_and_lie_within_the_nodedef_s_limi
 def test_limits_are_the_nodedef_s_own_and_inclusive(tmp_path):
     """At the limits (0 and 1, and glTF's ior of 1) and far above a one-sided one, inputs read as given."""
     body = "\n".join([
-        _open('<input name="specular_roughness" type="float" value="0" /><input name="base_metalness" type="float" '
+        _open('<input name="coat_roughness" type="float" value="0" /><input name="base_metalness" type="float" '
               'value="1" /><input name="thin_film_thickness" type="float" value="40" />'),
         _material("G", "gltf_pbr", '<input name="ior" type="float" value="1" />'),
     ])  # fmt: skip
     m, g = read_material_file(_document(tmp_path, body))
-    assert m.params["materialx"]["inputs"] == {"specular_roughness": 0.0, "base_metalness": 1.0, "thin_film_thickness": 40.0}
+    assert m.params["materialx"]["inputs"] == {"coat_roughness": 0.0, "base_metalness": 1.0, "thin_film_thickness": 40.0}
     assert g.params["materialx"]["inputs"] == {"ior": 1.0}
 
 
@@ -179,3 +180,38 @@ def test_a_material_s_back_surface_and_displacement_are_named_not_dropped(tmp_pa
         "backsurfaceshader = node 'SR_M': a back face is shaded with the front surface's slice (the renderer flips its normal)",
         "displacementshader = node 'D': displacement moves geometry, which an atlas slice does not hold",
     ]
+
+
+@pytest.mark.parametrize(
+    ("body", "field", "expected"),
+    [
+        (_open('<input name="specular_roughness_anisotropy" type="float" value="0.8" />'), "M.specular_roughness_anisotropy",
+         "expected 0 where specular_weight > 0, got 0.8: an anisotropic lobe varies with the azimuth"),
+        (_material("M", "gltf_pbr", '<input name="anisotropy_strength" type="float" value="0.5" />'), "M.anisotropy_strength",
+         "expected 0, got 0.5: an anisotropic lobe"),
+        (_open('<input name="specular_roughness" type="float" value="0.02" />'), "M.specular_roughness",
+         "expected at least 0.045 where specular_weight > 0 (alpha 0.002, the renderer's sharpest lobe), got 0.02: "
+         "a sharper lobe is a mirror, which no slice holds; set it to 0.045 or more"),
+        # OpenPBR's coat is a mirror unless its roughness is given, and USD's nearly so.
+        (_open('<input name="coat_weight" type="float" value="1" />'), "M.coat_roughness",
+         "expected at least 0.045 where coat_weight > 0 (alpha 0.002, the renderer's sharpest lobe), got 0 (the nodedef's default)"),
+        (_material("M", "UsdPreviewSurface", '<input name="clearcoat" type="float" value="0.5" />'), "M.clearcoatRoughness",
+         "expected at least 0.045 where clearcoat > 0 (alpha 0.002, the renderer's sharpest lobe), got 0.01 (the nodedef's default)"),
+    ],
+)  # fmt: skip
+def test_a_lobe_no_slice_holds_is_refused_naming_its_input(tmp_path, body, field, expected):
+    path = _document(tmp_path, body)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{path.as_posix()}: field '{field}': {expected}"), str(info.value)
+
+
+def test_a_lobe_of_no_weight_or_at_the_least_roughness_reads(tmp_path):
+    """A mirror-sharp or anisotropic lobe of weight 0 adds nothing; 0.045 is the least roughness that reads."""
+    body = "\n".join([
+        _open('<input name="coat_weight" type="float" value="0" /><input name="coat_roughness" type="float" value="0" />'
+              '<input name="specular_roughness" type="float" value="0.045" />'),
+        _material("N", "open_pbr_surface", '<input name="specular_weight" type="float" value="0" />'
+                  '<input name="specular_roughness_anisotropy" type="float" value="0.9" />'),
+    ])  # fmt: skip
+    assert [m.name for m in read_material_file(_document(tmp_path, body))] == ["M", "N"]
