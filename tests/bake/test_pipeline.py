@@ -82,3 +82,27 @@ def test_a_second_writer_of_the_set_is_refused_after_the_lock_timeout(tmp_path, 
     assert res.stderr.splitlines() == [f"atlasgen: error: {lock.as_posix()}: another atlasgen process is writing this "
                                        "output set (waited 0.1 s); expected one writer at a time"]  # fmt: skip
     assert _names(out.parent) == []
+
+
+@pytest.mark.parametrize(
+    ("count", "ids", "expected"),
+    [(257, {}, "the materials need 257 slices; expected at most 256"),
+     (2, {"m0": 5, "m1": 5}, r"slice 5 \(explicit id\) conflicts with material 'm0'")],
+)  # fmt: skip
+def test_what_no_atlas_holds_is_refused_before_anything_is_baked(tmp_path, monkeypatch, count, ids, expected):
+    """More materials than slices, or two explicit ids on one slice: the slot check runs before the bakes,
+    which for a MaterialX library of 300 materials would take a quarter of an hour first."""
+    from atlasgen.bake import pipeline
+    from atlasgen.errors import MaterialError
+
+    for i in range(count):
+        extra = f"id = {ids[f'm{i}']}\n" if f"m{i}" in ids else ""
+        (tmp_path / f"m{i}.toml").write_text(f'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n{extra}')
+    materials = read_materials([tmp_path])
+
+    def no_bake(*args, **kwargs):
+        raise AssertionError("a material was baked before the slots were checked")
+
+    monkeypatch.setattr(pipeline, "load_or_bake_all", no_bake)
+    with pytest.raises(MaterialError, match=expected):
+        bake_atlas(materials, "array")
