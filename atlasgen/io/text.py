@@ -6,7 +6,17 @@ from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["read_input_bytes", "read_input_text"]
+__all__ = ["decode_utf8", "read_input_bytes", "read_input_text"]
+
+
+def decode_utf8(data: bytes) -> str:
+    """``data`` as UTF-8 text, a leading byte-order mark dropped: Windows editors (Notepad among them)
+    write one, and TOML's parser would take it for the first statement. Raises UnicodeDecodeError.
+
+    >>> decode_utf8(b"\\xef\\xbb\\xbftype = 1") == decode_utf8(b"type = 1") == "type = 1"
+    True
+    """
+    return data.decode("utf-8-sig")
 
 
 def read_input_bytes(path, missing: str = "no such file") -> bytes:
@@ -40,7 +50,7 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
     """
     shown = Path(path).as_posix()
     try:
-        return Path(path).read_bytes().decode("utf-8")
+        return decode_utf8(Path(path).read_bytes())
     except FileNotFoundError:
         raise InputError(f"{shown}: {missing}") from None
     except IsADirectoryError:

@@ -11,7 +11,7 @@ from pathlib import Path
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
-from atlasgen.io.text import read_input_bytes
+from atlasgen.io.text import decode_utf8, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
@@ -129,7 +129,7 @@ def read_material(path) -> Material:
     shown = path.as_posix()
     data = read_input_bytes(path)
     try:
-        raw = tomllib.loads(data.decode("utf-8"))
+        raw = tomllib.loads(decode_utf8(data))
     except UnicodeDecodeError:
         raise MaterialError(shown, None, "expected UTF-8 TOML text") from None
     except tomllib.TOMLDecodeError as exc:

@@ -1,0 +1,41 @@
+"""Reading user-written text inputs: a UTF-8 byte-order mark, as Windows editors write, is no statement."""
+
+from __future__ import annotations
+
+import doctest
+
+import pytest
+
+from atlasgen.errors import MaterialError
+from atlasgen.io import text
+from atlasgen.materials.material import read_material_file
+from atlasgen.materials.scene import read_scene
+
+BOM = b"\xef\xbb\xbf"
+SCENE = (b'[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\nfov = 30\n[image]\nwidth = 8\nheight = 8\n'
+         b'[[lights]]\ntype = "directional"\ndirection = [0, 0, -1]\nintensity = 2\n'
+         b'[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')  # fmt: skip
+
+
+def test_the_examples_in_the_docstrings_hold():
+    result = doctest.testmod(text)
+    assert result.attempted > 0 and result.failed == 0
+
+
+def test_a_material_and_a_scene_read_the_same_with_a_byte_order_mark(tmp_path):
+    plain, marked = tmp_path / "plain", tmp_path / "marked"
+    for folder, head in ((plain, b""), (marked, BOM)):
+        folder.mkdir()
+        (folder / "clay.toml").write_bytes(head + b'type = "lambert"\ncolour = [0.6, 0.5, 0.4]\n')
+        (folder / "scene.toml").write_bytes(head + SCENE)
+    a, b = read_material_file(plain / "clay.toml")[0], read_material_file(marked / "clay.toml")[0]
+    assert a.params == b.params and a.name == b.name == "clay"
+    assert a.content_hash != b.content_hash  # the hash is of the file's bytes, as ever
+    assert read_scene(plain / "scene.toml").lights == read_scene(marked / "scene.toml").lights
+
+
+def test_a_mark_is_dropped_only_at_the_start(tmp_path):
+    path = tmp_path / "clay.toml"
+    path.write_bytes(b'type = "lambert"\n' + BOM + b'colour = [0.6, 0.5, 0.4]\n')
+    with pytest.raises(MaterialError, match="malformed TOML"):
+        read_material_file(path)
