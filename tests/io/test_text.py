@@ -36,6 +36,6 @@ def test_a_material_and_a_scene_read_the_same_with_a_byte_order_mark(tmp_path):
 
 def test_a_mark_is_dropped_only_at_the_start(tmp_path):
     path = tmp_path / "clay.toml"
-    path.write_bytes(b'type = "lambert"\n' + BOM + b'colour = [0.6, 0.5, 0.4]\n')
+    path.write_bytes(b'type = "lambert"\n' + BOM + b"colour = [0.6, 0.5, 0.4]\n")
     with pytest.raises(MaterialError, match="malformed TOML"):
         read_material_file(path)
