@@ -32,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import math
 from pathlib import Path
+from xml.etree import ElementTree
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.errors import MaterialError
@@ -207,8 +208,6 @@ def _material_not_in_table(node) -> list[str]:
 def _refuse_duplicate_names(shown: str, data: bytes) -> None:
     """Refuse two elements of one parent with one name: MaterialX's reader keeps the first and drops
     the second without a word, so a copied material block left unrenamed would vanish from the atlas."""
-    from xml.etree import ElementTree
-
     try:
         root = ElementTree.fromstring(data)
     except ElementTree.ParseError as exc:  # MaterialX read it, but expat will not (an entity expansion, say)
