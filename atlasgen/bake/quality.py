@@ -7,9 +7,10 @@ A material warns, with one line naming it, the error and its cause where known, 
   ``fit.relative_rms`` (a slice fitted to a physical reference: ``type = "bsdf"``, ``from =
   "physical"``, skin's volpath fit) or ``errors_8bit.relative_rms`` (a separable material's
   factors as stored, against its BRDF). The cause is anisotropy when ``fit.anisotropic`` is
-  set (``accept_anisotropy = true``), else an unreachable fit: the representation cannot follow
-  its reference (skin at a curvature radius far from the pre-integration's, a lobe the renderer's
-  cannot take);
+  set (``accept_anisotropy = true``), else what the model knows no slice holds
+  (:meth:`~atlasgen.models.base.Model.fit_limits`: a MaterialX lobe sharper than the renderer's), else
+  an unreachable fit: the representation cannot follow its reference (skin at a curvature radius far
+  from the pre-integration's, a lobe the renderer's cannot take);
 - it dropped a smooth (delta) lobe (``rough_only = true``) holding more than that share of its
   albedo at some view angle (``fit.dropped_delta_fraction``): the fit's own figure never sees it;
 - a separable ``max_error`` budget was not met (``max_error_met = false``);
@@ -96,8 +97,10 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
         warn("anisotropy", error, f"relative RMS error {100 * (error or 0.0):.1f}% of {what}: the BSDF is anisotropic "
                                   "(accept_anisotropy = true), which an (N.L, N.V) slice holds in one tangent frame only")  # fmt: skip
     elif error is not None and error > threshold:
-        warn("unreachable fit", error, f"relative RMS error {100 * error:.1f}% of {what} > {100 * threshold:g}%: "
-                                       "an unreachable fit (the representation cannot follow its reference)")  # fmt: skip
+        model = getattr(material, "model", None)
+        limits = model.fit_limits(material.params) if model is not None else []
+        because = "; ".join(limits) or "an unreachable fit (the representation cannot follow its reference)"
+        warn("unreachable fit", error, f"relative RMS error {100 * error:.1f}% of {what} > {100 * threshold:g}%: {because}")
     dropped = fit.get("dropped_delta_fraction") or []
     worst = max(dropped, key=lambda row: row["fraction"], default=None)
     if worst is not None and worst["fraction"] > threshold:

@@ -17,9 +17,10 @@ one LUT slice and K separable terms whose error against the oracle meets it; doc
   ``uimin``..``uimax``; elements of one parent must have unique names (MaterialX's reader keeps the
   first of two and drops the other silently). Each is refused with one line naming it otherwise.
 - A lobe no slice can hold is refused, naming its input: an anisotropic one (the slice is indexed
-  by N.L and N.V, not the azimuth) and one sharper than :data:`ROUGHNESS_MIN` (a mirror), each
-  where its weight is above 0, as a separable material refuses a Mitsuba BSDF's anisotropy and
-  delta lobes.
+  by N.L and N.V, not the azimuth) and a mirror (roughness 0, a delta lobe), each where its weight
+  is above 0, as a separable material refuses a Mitsuba BSDF's anisotropy and delta lobes. A lobe
+  sharper than :data:`ROUGHNESS_MIN` bakes, named in ``materialx.sharp_lobes`` and
+  ``not_in_table``; the bake's error warning gives it as the cause.
 - Inputs the table's equation has no room for (emission, opacity, transmission) are named in
   ``materialx.not_in_table``, never dropped silently: the oracle shades the reflection with
   emission 0 and opacity 1, and the report lists them.
@@ -86,9 +87,9 @@ _ANISOTROPY = {
     "gltf_pbr": (("anisotropy_strength", None),),
     "UsdPreviewSurface": (),
 }  # fmt: skip
-#: The least roughness of a lobe with weight: alpha = roughness^2 at the renderer's sharpest lobe
-#: (:data:`~atlasgen.contract.SPECULAR_ALPHA_MIN`). Below it a lobe is a mirror: its peak is narrower than
-#: any texel of a slice or a factor, and the fit's error estimate runs to 1e14 %.
+#: The roughness of the renderer's sharpest lobe, alpha = roughness^2 = :data:`~atlasgen.contract.SPECULAR_ALPHA_MIN`.
+#: A sharper lobe's peak falls between a slice's texels (the distribution's OpenPBR car paint has a coat of 0.02,
+#: whose fit errs by 130 %); at roughness 0, a mirror, the fit's error estimate runs to 1e14 %.
 ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
 
 
@@ -268,9 +269,10 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
     return _checked(shown, field, kind, _plain(value), limits)
 
 
-def _refuse_lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict, defaults: dict) -> None:
-    """One line for the first anisotropic or mirror-sharp lobe of weight above 0 (:data:`_ANISOTROPY`,
-    :data:`ROUGHNESS_MIN`), naming the input and whether its value is the nodedef's default."""
+def _lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict, defaults: dict) -> list[str]:
+    """One line for the first anisotropic or mirror lobe (roughness 0) of weight above 0 (:data:`_ANISOTROPY`),
+    naming the input and whether its value is the nodedef's default; else a clause for each lobe of weight
+    sharper than :data:`ROUGHNESS_MIN`, which bakes."""
 
     def value(key):
         return float(inputs[key] if key in inputs else defaults[key][1])
@@ -286,12 +288,17 @@ def _refuse_lobes_no_slice_holds(shown: str, material: str, category: str, input
             raise MaterialError(shown, f"{material}.{key}", f"expected 0{where(weight)}, got {given(key)}: an anisotropic "
                                 "lobe varies with the azimuth, which a slice indexed by N.L and N.V does not hold; "
                                 "set it to 0 to bake the isotropic lobe")  # fmt: skip
+    sharp = []
     for key, weight in _LOBES[category]:
-        if key in defaults and value(key) < ROUGHNESS_MIN and (weight is None or value(weight) > 0.0):
-            raise MaterialError(shown, f"{material}.{key}", f"expected at least {ROUGHNESS_MIN:g}{where(weight)} (alpha "
-                                f"{SPECULAR_ALPHA_MIN:g}, the renderer's sharpest lobe), got {given(key)}: a sharper lobe is "
-                                f"a mirror, which no slice holds; set it to {ROUGHNESS_MIN:g} or more to bake a sharp lobe in "
-                                "its place")  # fmt: skip
+        if key not in defaults or value(key) >= ROUGHNESS_MIN or (weight is not None and value(weight) <= 0.0):
+            continue
+        if value(key) <= 0.0:
+            raise MaterialError(shown, f"{material}.{key}", f"expected above 0{where(weight)}, got {given(key)}: a mirror "
+                                "(a delta lobe), which no slice holds; give it a roughness, at least "
+                                f"{ROUGHNESS_MIN:g} for the renderer's sharpest lobe (alpha {SPECULAR_ALPHA_MIN:g})")  # fmt: skip
+        sharp.append(f"{key} = {given(key)}: a lobe sharper than the renderer's sharpest (roughness {ROUGHNESS_MIN:g}, "
+                     f"alpha {SPECULAR_ALPHA_MIN:g}), whose highlight falls between the slice's texels")  # fmt: skip
+    return sharp
 
 
 def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:
@@ -323,9 +330,9 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
         value = _constant(shown, f"{material}.{key}", inp, defaults[key][0], ranges.get(key))
         if value is not None:
             inputs[key] = value
-    _refuse_lobes_no_slice_holds(shown, material, category, inputs, defaults)
+    sharp_lobes = _lobes_no_slice_holds(shown, material, category, inputs, defaults)
     oracle_inputs = dict(inputs)
-    not_in_table = []
+    not_in_table = list(sharp_lobes)
     for key, (neutral, what) in NOT_IN_TABLE[category].items():
         value = inputs.get(key, defaults[key][1] if key in defaults else None)
         reference = neutral if neutral is not None else 0.0
@@ -334,5 +341,6 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             if neutral is not None:
                 oracle_inputs[key] = list(neutral) if isinstance(neutral, tuple) else neutral
     return {"document": shown, "material": material, "category": category, "inputs": inputs, "oracle_inputs": oracle_inputs,
-            "flattened": flattened, "not_in_table": not_in_table, "alpha": _lobe_alpha(category, inputs, defaults),
+            "flattened": flattened, "not_in_table": not_in_table, "sharp_lobes": sharp_lobes,
+            "alpha": _lobe_alpha(category, inputs, defaults),
             "error_measure": ERROR_MEASURE}  # fmt: skip

@@ -335,6 +335,12 @@ class Model:
         """
         return None
 
+    def fit_limits(self, values: dict) -> list[str]:
+        """What this material asks of a slice that no slice holds, one clause each, known before it is
+        baked: the bake's error warning (:func:`atlasgen.bake.quality.assess_material`) gives them as its
+        cause instead of "an unreachable fit". The default: none known."""
+        return []
+
     def radiance_rebuilds(self, entry: MaterialEntry, atlas, float_slices=None) -> dict[str, RadianceRebuild]:
         """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
         atlas's stored texels (what the GPU samples) and, where it can be computed,

@@ -21,8 +21,8 @@ from atlasgen.separable.materialx_oracle import SURFACE_MODELS
 __all__ = ["SPEC_KEYS", "check_materialx_spec", "describe_materialx", "materialx_mitsuba_bsdf", "artistic_ior"]
 
 #: Keys of a ``materialx`` table; the first four are required.
-SPEC_KEYS = ("document", "material", "category", "oracle_inputs", "inputs", "flattened", "not_in_table", "alpha",
-             "error_measure")  # fmt: skip
+SPEC_KEYS = ("document", "material", "category", "oracle_inputs", "inputs", "flattened", "not_in_table", "sharp_lobes",
+             "alpha", "error_measure")  # fmt: skip
 #: What ``materialx.error_measure`` may say ``representation = "auto"`` judges by (the separable model's ``error_measure``).
 ERROR_MEASURES = ("relative_rms", "relative_log_rms")
 
@@ -51,7 +51,7 @@ def check_materialx_spec(spec, path) -> dict:
     if spec.get("error_measure", "relative_rms") not in ERROR_MEASURES:
         raise MaterialError(path, "materialx.error_measure", f"expected one of {', '.join(ERROR_MEASURES)}, "
                                                               f"got {spec['error_measure']!r}")  # fmt: skip
-    return {"inputs": dict(spec["oracle_inputs"]), "flattened": {}, "not_in_table": [], "alpha": None, **spec}
+    return {"inputs": dict(spec["oracle_inputs"]), "flattened": {}, "not_in_table": [], "sharp_lobes": [], "alpha": None, **spec}
 
 
 def describe_materialx(spec: dict) -> str:

@@ -294,6 +294,11 @@ class Separable(Model):
         out[..., :3] = rgb
         return out
 
+    def fit_limits(self, values: dict) -> list[str]:
+        """A MaterialX source's lobes sharper than the renderer's sharpest (``materialx.sharp_lobes``)."""
+        spec = values.get("materialx") or {}
+        return list(spec.get("sharp_lobes") or [])
+
     def slice_count(self, values: dict) -> int:
         """K when fixed (and one transmission slice for a back-light); with ``max_error`` only
         the bake knows (len of its slices)."""

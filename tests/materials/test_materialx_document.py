@@ -189,14 +189,12 @@ def test_a_material_s_back_surface_and_displacement_are_named_not_dropped(tmp_pa
          "expected 0 where specular_weight > 0, got 0.8: an anisotropic lobe varies with the azimuth"),
         (_material("M", "gltf_pbr", '<input name="anisotropy_strength" type="float" value="0.5" />'), "M.anisotropy_strength",
          "expected 0, got 0.5: an anisotropic lobe"),
-        (_open('<input name="specular_roughness" type="float" value="0.02" />'), "M.specular_roughness",
-         "expected at least 0.045 where specular_weight > 0 (alpha 0.002, the renderer's sharpest lobe), got 0.02: "
-         "a sharper lobe is a mirror, which no slice holds; set it to 0.045 or more"),
-        # OpenPBR's coat is a mirror unless its roughness is given, and USD's nearly so.
+        (_open('<input name="specular_roughness" type="float" value="0" />'), "M.specular_roughness",
+         "expected above 0 where specular_weight > 0, got 0: a mirror (a delta lobe), which no slice holds; give it a "
+         "roughness, at least 0.045 for the renderer's sharpest lobe (alpha 0.002)"),
+        # OpenPBR's coat is a mirror unless its roughness is given.
         (_open('<input name="coat_weight" type="float" value="1" />'), "M.coat_roughness",
-         "expected at least 0.045 where coat_weight > 0 (alpha 0.002, the renderer's sharpest lobe), got 0 (the nodedef's default)"),
-        (_material("M", "UsdPreviewSurface", '<input name="clearcoat" type="float" value="0.5" />'), "M.clearcoatRoughness",
-         "expected at least 0.045 where clearcoat > 0 (alpha 0.002, the renderer's sharpest lobe), got 0.01 (the nodedef's default)"),
+         "expected above 0 where coat_weight > 0, got 0 (the nodedef's default): a mirror"),
     ],
 )  # fmt: skip
 def test_a_lobe_no_slice_holds_is_refused_naming_its_input(tmp_path, body, field, expected):
@@ -207,11 +205,32 @@ def test_a_lobe_no_slice_holds_is_refused_naming_its_input(tmp_path, body, field
 
 
 def test_a_lobe_of_no_weight_or_at_the_least_roughness_reads(tmp_path):
-    """A mirror-sharp or anisotropic lobe of weight 0 adds nothing; 0.045 is the least roughness that reads."""
+    """A mirror or anisotropic lobe of weight 0 adds nothing; at 0.045 a lobe is as sharp as the renderer's."""
     body = "\n".join([
         _open('<input name="coat_weight" type="float" value="0" /><input name="coat_roughness" type="float" value="0" />'
               '<input name="specular_roughness" type="float" value="0.045" />'),
         _material("N", "open_pbr_surface", '<input name="specular_weight" type="float" value="0" />'
                   '<input name="specular_roughness_anisotropy" type="float" value="0.9" />'),
     ])  # fmt: skip
-    assert [m.name for m in read_material_file(_document(tmp_path, body))] == ["M", "N"]
+    materials = read_material_file(_document(tmp_path, body))
+    assert [m.name for m in materials] == ["M", "N"]
+    assert [m.params["materialx"]["sharp_lobes"] for m in materials] == [[], []]
+
+
+def test_a_lobe_sharper_than_the_renderer_s_bakes_named_as_the_cause_of_its_error(tmp_path):
+    """MaterialX's own OpenPBR car paint has a coat of roughness 0.02; USD's clear coat is 0.01 by default."""
+    from atlasgen.bake.quality import assess_material
+
+    body = "\n".join([
+        _open('<input name="coat_weight" type="float" value="1" /><input name="coat_roughness" type="float" value="0.02" />'),
+        _material("U", "UsdPreviewSurface", '<input name="clearcoat" type="float" value="0.5" />'),
+    ])  # fmt: skip
+    paint, usd = read_material_file(_document(tmp_path, body))
+    clause = ": a lobe sharper than the renderer's sharpest (roughness 0.045, alpha 0.002), whose highlight falls between"
+    assert paint.params["materialx"]["sharp_lobes"][0].startswith("coat_roughness = 0.02" + clause)
+    assert usd.params["materialx"]["sharp_lobes"][0].startswith("clearcoatRoughness = 0.01 (the nodedef's default)" + clause)
+    assert paint.params["materialx"]["not_in_table"] == paint.params["materialx"]["sharp_lobes"]
+    (warning,) = assess_material(paint, {"errors_8bit": {"relative_rms": 1.3}})
+    assert warning.cause == "unreachable fit" and warning.detail.startswith(
+        "relative RMS error 130.0% of its stored factors > 20%: coat_roughness = 0.02: a lobe sharper"
+    )
