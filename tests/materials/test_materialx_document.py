@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 pytest.importorskip("MaterialX")
@@ -234,3 +236,25 @@ def test_a_lobe_sharper_than_the_renderer_s_bakes_named_as_the_cause_of_its_erro
     assert warning.cause == "unreachable fit" and warning.detail.startswith(
         "relative RMS error 130.0% of its stored factors > 20%: coat_roughness = 0.02: a lobe sharper"
     )
+
+
+RESOURCES = Path(__file__).resolve().parents[1] / "resources" / "materialx"
+
+
+@pytest.mark.parametrize("path", sorted(RESOURCES.glob("*.mtlx")), ids=lambda p: p.name)
+def test_every_copy_of_materialx_s_examples_reads_or_is_refused_on_one_line(path):
+    """Issue 23's library: our copies of the distribution's example materials (bench/materialx.py bakes them).
+    A document reads whole, or its first material the atlas cannot take is refused on one line naming it."""
+    try:
+        materials = read_material_file(path)
+    except MaterialError as exc:
+        message = str(exc)
+        assert "\n" not in message and message.startswith(f"{path.as_posix()}: field '"), message
+        assert not path.name.startswith("examples"), message  # the baked library reads whole
+    else:
+        assert not path.name.startswith("refused") and materials
+
+
+def test_the_baked_library_covers_all_four_surface_models():
+    categories = {m.params["materialx"]["category"] for m in read_material_file(RESOURCES / "examples.mtlx")}
+    assert categories == {"standard_surface", "open_pbr_surface", "gltf_pbr", "UsdPreviewSurface"}
