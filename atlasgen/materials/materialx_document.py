@@ -66,12 +66,12 @@ NOT_IN_TABLE = {
                  "transmission": (None, "transmission (the reflection that remains is baked)")},
     "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity")},
 }  # fmt: skip
-#: Per surface model: (roughness input, weight input or None) of each microfacet lobe.
 #: A surfacematerial's inputs beside its surface shader: what each would change that the table cannot hold.
 MATERIAL_NOT_IN_TABLE = {
     "backsurfaceshader": "a back face is shaded with the front surface's slice (the renderer flips its normal)",
     "displacementshader": "displacement moves geometry, which an atlas slice does not hold",
 }
+#: Per surface model: (roughness input, weight input or None) of each microfacet lobe.
 _LOBES = {
     "standard_surface": (("specular_roughness", "specular"), ("coat_roughness", "coat")),
     "open_pbr_surface": (("specular_roughness", "specular_weight"), ("coat_roughness", "coat_weight")),
