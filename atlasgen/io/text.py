@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["decode_utf8", "read_input_bytes", "read_input_text"]
+__all__ = ["decode_utf8", "parse_toml", "read_input_bytes", "read_input_text"]
 
 
 def decode_utf8(data: bytes) -> str:
@@ -59,3 +60,17 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
         raise error(shown, None, f"expected {expected}, got bytes that are not UTF-8") from None
     except OSError as exc:
         raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+
+
+def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:
+    """``text`` parsed as TOML, or ``error(shown, None, "malformed TOML: ...")`` on one line.
+
+    tomllib recurses once per level of nested arrays and inline tables, so a file nested a
+    thousand deep ends in Python's RecursionError, which is a malformed file, not a bug.
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(shown, None, f"malformed TOML: {exc}") from None
+    except RecursionError:
+        raise error(shown, None, "malformed TOML: arrays or inline tables nested too deeply to read") from None

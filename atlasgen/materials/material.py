@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import hashlib
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
-from atlasgen.io.text import decode_utf8, read_input_bytes
+from atlasgen.io.text import decode_utf8, parse_toml, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
@@ -129,11 +128,10 @@ def read_material(path) -> Material:
     shown = path.as_posix()
     data = read_input_bytes(path)
     try:
-        raw = tomllib.loads(decode_utf8(data))
+        text = decode_utf8(data)
     except UnicodeDecodeError:
         raise MaterialError(shown, None, "expected UTF-8 TOML text") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise MaterialError(shown, None, f"malformed TOML: {exc}") from None
+    raw = parse_toml(text, shown, MaterialError)
 
     type_name = raw.get("type")
     known = model_types()

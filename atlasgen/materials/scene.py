@@ -9,7 +9,6 @@ know which atlas it will be rendered with.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -19,7 +18,7 @@ from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
 from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
-from atlasgen.io.text import read_input_text
+from atlasgen.io.text import parse_toml, read_input_text
 from atlasgen.materials.environment import Environment
 from atlasgen.optics.sky import SkyParameters
 
@@ -405,11 +404,7 @@ def read_scene(path) -> Scene:
     path = Path(path)
     shown = path.as_posix()
     text = read_input_text(path, "no such scene file", "UTF-8 TOML text", SceneError)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(shown, None, f"malformed TOML: {exc}") from None
-    return parse_scene(data, shown, path.parent)
+    return parse_scene(parse_toml(text, shown, SceneError), shown, path.parent)
 
 
 def resolve_materials(scene: Scene, manifest: Manifest, atlas_name: str = "atlas") -> list[MaterialEntry]:

@@ -6,7 +6,7 @@ import doctest
 
 import pytest
 
-from atlasgen.errors import MaterialError
+from atlasgen.errors import MaterialError, SceneError
 from atlasgen.io import text
 from atlasgen.materials.material import read_material_file
 from atlasgen.materials.scene import read_scene
@@ -39,3 +39,17 @@ def test_a_mark_is_dropped_only_at_the_start(tmp_path):
     path.write_bytes(b'type = "lambert"\n' + BOM + b"colour = [0.6, 0.5, 0.4]\n")
     with pytest.raises(MaterialError, match="malformed TOML"):
         read_material_file(path)
+
+
+@pytest.mark.parametrize("nested", ["[" * 1000 + "]" * 1000, "{a = " * 2000 + "1" + "}" * 2000])
+def test_a_file_nested_too_deeply_is_malformed_not_a_bug(tmp_path, nested):
+    """tomllib recurses once a level: a thousand levels end in RecursionError, which is the file's fault."""
+    material = tmp_path / "deep.toml"
+    material.write_text(f'type = "lambert"\ncolour = {nested}\n')
+    with pytest.raises(MaterialError) as info:
+        read_material_file(material)
+    assert str(info.value) == f"{material.as_posix()}: malformed TOML: arrays or inline tables nested too deeply to read"
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f"[camera]\nposition = {nested}\n")
+    with pytest.raises(SceneError, match="nested too deeply"):
+        read_scene(scene)
