@@ -15,7 +15,7 @@ from atlasgen import __version__
 from atlasgen.bake.cache import load_or_draft
 from atlasgen.bake.mips import build_array_mips, build_volume_mips
 from atlasgen.bake.preview import render_contact_sheet
-from atlasgen.bake.quality import MaterialWarning, assess_material
+from atlasgen.bake.quality import MaterialWarning, assess_material, assess_storage
 from atlasgen.bake.slots import assign_slices
 from atlasgen.bake.workers import load_or_bake_all
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
@@ -344,6 +344,7 @@ def bake_atlas(
         for extra in (slices.extra, encoded.extra, material.model.finalize(material.params, slices, encoded, dec)):
             model_fields.update(_jsonable(extra))
         material_warnings.extend(assess_material(material, model_fields))
+        material_warnings.extend(assess_storage(material, values, levels[0][first : first + n], encoded))
         entries.append(entry.with_fields(model_fields, material.source))
     entries.sort(key=lambda e: e.first_slice)
 

@@ -15,7 +15,10 @@ A material warns, with one line naming it, the error and its cause where known, 
   albedo at some view angle (``fit.dropped_delta_fraction``): the fit's own figure never sees it;
 - a separable ``max_error`` budget was not met (``max_error_met = false``);
 - the bake replaced non-finite samples by 0 that the material tolerates
-  (``nonfinite_tolerance``); more than it tolerates are a :class:`~atlasgen.errors.MaterialError`.
+  (``nonfinite_tolerance``); more than it tolerates are a :class:`~atlasgen.errors.MaterialError`;
+- its stored slices lost to 8 bits most of what it gave: over :data:`LOST_WARNING_THRESHOLD` of the
+  texels whose RGB (or A) is above 0 are stored as code 0 (:func:`assess_storage`), as when a scale
+  far beyond the slice's range stores a lambert black.
 
 ``atlasgen bake --strict`` turns any of them into a failure (exit status
 :attr:`atlasgen.errors.BakeWarnings.exit_code`, nothing written). None of the shipped materials
@@ -26,13 +29,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from atlasgen.errors import MaterialError
 
-__all__ = ["ERROR_WARNING_THRESHOLD", "MaterialWarning", "assess_material", "count_nonfinite"]
+__all__ = ["ERROR_WARNING_THRESHOLD", "LOST_WARNING_THRESHOLD", "MaterialWarning", "assess_material", "assess_storage",
+           "count_nonfinite"]  # fmt: skip
 
 #: Relative RMS of f cos (or of skin's radiance) above which a baked material warns: the error at
 #: which a material visibly differs from its reference (no shipped material reaches it).
 ERROR_WARNING_THRESHOLD = 0.2
+#: Share of the texel channels a model gave a value above 0 that may be stored as code 0 before the
+#: material warns. The shipped materials stay well under it (skin, whose faint wrap below the horizon rounds to 0,
+#: loses the most).
+LOST_WARNING_THRESHOLD = 0.5
 
 
 @dataclass(frozen=True)
@@ -40,8 +50,8 @@ class MaterialWarning:
     """One material's warning, handed from the bake to the CLI (which prints ``str(warning)``).
 
     ``figure`` is the measured error (a fraction) and ``cause`` what is known of why:
-    ``"anisotropy"``, ``"dropped delta lobe"``, ``"unreachable fit"``, ``"missed budget"`` or
-    ``"non-finite samples"``; ``detail`` the rest of the line.
+    ``"anisotropy"``, ``"dropped delta lobe"``, ``"unreachable fit"``, ``"missed budget"``,
+    ``"non-finite samples"`` or ``"lost to 8 bits"``; ``detail`` the rest of the line.
     """
 
     source: str
@@ -111,4 +121,26 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
     if extra.get("max_error_met") is False:
         warn("missed budget", error, f"missed its max_error budget {extra.get('max_error'):g}: "
                                      f"relative RMS {100 * (error or 0.0):.1f}% (an unreachable fit)")  # fmt: skip
+    return out
+
+
+def assess_storage(material, values: np.ndarray, codes: np.ndarray, encoded) -> list[MaterialWarning]:
+    """A warning for RGB and for A where over :data:`LOST_WARNING_THRESHOLD` of the texels the model gave a
+    value above 0 (``values``, linear, ``(n, H, W, 4)``) are stored as code 0 (``codes``, the 8-bit level 0):
+    the slice's scale put them below 8 bits' least step. Factors (``encoded.extra``'s ``factor_*``) carry a
+    bias of their own, so their code 0 is not 0: they are not judged here."""
+    if any(key.startswith("factor_") for key in (encoded.extra or {})):
+        return []
+    out = []
+    for what, channels, column, field in (("RGB", slice(0, 3), 0, "rgb_scale"), ("A", slice(3, 4), 1, "alpha_scale")):
+        positive = values[..., channels] > 0.0
+        if not positive.any():
+            continue
+        lost = float((positive & (codes[..., channels] == 0)).sum() / positive.sum())
+        if lost > LOST_WARNING_THRESHOLD:
+            scale = float(np.max(np.asarray(encoded.scale)[:, column]))
+            out.append(MaterialWarning(material.source, material.name, "lost to 8 bits", lost,
+                                       f"{100 * lost:.1f}% of the texels whose {what} is above 0 are stored as 0: the "
+                                       f"slice's {what} scale {scale:.4g} ({field} = {getattr(material, field, 'auto')}) "
+                                       "puts them below 8 bits' least step"))  # fmt: skip
     return out

@@ -81,3 +81,28 @@ def test_nonfinite_tolerance_is_a_checked_material_field(expect_rejected, write_
 
     expect_rejected("lambert", "nonfinite_tolerance = -1", "nonfinite_tolerance", "expected an integer >= 0")
     assert read_material(write_material("ok", 'type = "lambert"\nnonfinite_tolerance = 5\n')).nonfinite_tolerance == 5
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ('type = "lambert"\nrgb_scale = 3e38\n', "100.0% of the texels whose RGB is above 0 are stored as 0: the slice's RGB "
+                                                  "scale 3e+38 (rgb_scale = 3e+38)"),
+        # F/F0 spans 40401:1 at ior 1.01: the faint face-on A falls below the least step of 8 bits.
+        ('type = "fresnel"\nior = 1.01\nnormalise = true\n', "62.8% of the texels whose A is above 0 are stored as 0: "
+                                                              "the slice's A scale 4.04e+04 (alpha_scale = auto)"),
+        ('type = "lambert"\nrgb_scale = 100\n', None),
+        ('type = "fresnel"\nior = 1.5\n', None),
+    ],
+)  # fmt: skip
+def test_a_slice_stored_mostly_as_zero_warns(tmp_path, text, expected):
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+
+    (tmp_path / "m.toml").write_text(text)
+    warnings = [w for w in bake_atlas(read_materials([tmp_path])).material_warnings if w.cause == "lost to 8 bits"]
+    if expected is None:
+        assert warnings == []
+    else:
+        (warning,) = warnings
+        assert warning.detail.startswith(expected), warning.detail
