@@ -77,6 +77,22 @@ class Toon(Model):
                 "colours",
                 f"expected {len(thresholds) + 1} colours (one more than the {len(thresholds)} thresholds), got {len(colours)}",
             )
+        self._check_every_band_is_baked(values, path)
+
+    def _check_every_band_is_baked(self, values, path):
+        """Refuse a band no texel centre of the N.L axis falls in (its colour would not be baked): two
+        thresholds closer than a texel, or snapped (nearest sampling) to one texel edge."""
+        thresholds = self.steps(values)[0]
+        centres = -1.0 + 2.0 * np.arange(WIDTH) / (WIDTH - 1)
+        baked = set(np.searchsorted(thresholds, centres, side="right").tolist())
+        for band in range(len(thresholds) + 1):
+            if band not in baked:
+                lo = "-1" if band == 0 else f"thresholds[{band - 1}] = {values['thresholds'][band - 1]:g}"
+                hi = "1" if band == len(thresholds) else f"thresholds[{band}] = {values['thresholds'][band]:g}"
+                raise MaterialError(path, "thresholds", f"expected every band to hold a texel of the N.L axis ({WIDTH} "
+                                    f"texels, {2 / (WIDTH - 1):.4f} apart), but colours[{band}]'s band, from {lo} to "
+                                    f"{hi}, holds none ({values['sampling']} sampling), so its colour would not be baked; "
+                                    "move the thresholds apart")  # fmt: skip
 
     def flags(self, values):
         return {"outline": bool(values["outline"]), "nearest": values["sampling"] == "nearest"}

@@ -2,10 +2,11 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from atlasgen.contract import texel_centres
+from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
 from atlasgen.models import get_model
 
@@ -105,11 +106,17 @@ def params_strategy(draw):
 @settings(max_examples=50, deadline=None)
 def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slice):
     params = validate_params(MODEL.params, raw, "hypothesis")
-    MODEL.check(params, "hypothesis")
+    try:
+        MODEL.check(params, "hypothesis")
+    except MaterialError as exc:  # two thresholds within a texel: refused, naming the band
+        assert "holds none" in str(exc)
+        assume(False)
     values = valid_slice(MODEL, params)
     # Every texel holds one of the declared colours: the table never blends bands itself.
     allowed = {tuple(c) for c in raw["colours"]} | {tuple(raw["silhouette_colour"])}
     assert {tuple(t) for t in values[0, :, :, :3].reshape(-1, 3).tolist()} <= allowed
+    # And every band's colour is baked: the top row (N.V = 1) lies above any silhouette.
+    assert {tuple(c) for c in raw["colours"]} <= {tuple(t) for t in values[0, -1, :, :3].tolist()}
 
 
 @pytest.mark.parametrize(
@@ -123,7 +130,14 @@ def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slic
         ('colours = [[0,0,0],"#zzzzzz",[1,1,1]]', "colours[1]", "'#rrggbb'"),
         ("outline = 1", "outline", "expected true or false"),
         ("outlines = true", "outlines", "did you mean 'outline'?"),
+        # A band narrower than a texel of the N.L axis would not be baked, however it is sampled.
+        (f"thresholds = [0.0, 0.001]\n{THREE}", "thresholds",
+         "expected every band to hold a texel of the N.L axis (64 texels, 0.0317 apart), but colours[1]'s band, from "
+         "thresholds[0] = 0 to thresholds[1] = 0.001, holds none (nearest sampling)"),
+        (f'thresholds = [0.0, 0.001]\nsampling = "linear"\n{THREE}', "thresholds", "holds none (linear sampling)"),
+        ('thresholds = [-1.0]\nsampling = "linear"\ncolours = [[0,0,0],[1,1,1]]', "thresholds",
+         "colours[0]'s band, from -1 to thresholds[0] = -1, holds none (linear sampling)"),
     ],
-)
+)  # fmt: skip
 def test_bad_parameters_are_rejected(expect_rejected, body, field, expected):
     expect_rejected("toon", body, field, expected)
