@@ -160,6 +160,9 @@ def read_material(path) -> Material:
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
     params = validate_params(model.params, model_raw, shown)
     model.check(params, shown)
+    for key, when in model.unused_fields(params).items():
+        if key in model_raw:
+            raise MaterialError(shown, key, f"only read {when}; expected no {key} (its value would be dropped)")
     if error_budget is not None:
         params = model.apply_budget(params, float(error_budget), shown)
     fit_from = raw.get("from", "model")

@@ -335,6 +335,12 @@ class Model:
         """
         return None
 
+    def unused_fields(self, values: dict) -> dict[str, str]:
+        """Fields these ``values`` leave unread, each with when it is read (one clause, e.g. "with
+        source = 'blinn_phong'"): a material file that gives one is refused, since its value would be
+        dropped without a word. The default: every field is read."""
+        return {}
+
     def fit_limits(self, values: dict) -> list[str]:
         """What this material asks of a slice that no slice holds, one clause each, known before it is
         baked: the bake's error warning (:func:`atlasgen.bake.quality.assess_material`) gives them as its

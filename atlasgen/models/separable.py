@@ -77,6 +77,18 @@ SOURCES = ("ggx", "beckmann", "blinn_phong", "ward", "lambert", "mitsuba", "thin
 #: Sources the lighting shader can evaluate in closed form (``representation = "analytic"``).
 ANALYTIC_SHADER_SOURCES = ("ggx", "beckmann", "lambert")
 REPRESENTATIONS = ("separable", "analytic", "auto", "lut")
+#: The fields each source reads (:func:`atlasgen.separable.source.make_source`); a file giving one its
+#: source does not read is refused (:meth:`Separable.unused_fields`).
+SOURCE_FIELDS = {
+    "ggx": {"alpha", "fresnel", "f0", "ior", "specular", "diffuse"},
+    "beckmann": {"alpha", "fresnel", "f0", "ior", "specular", "diffuse"},
+    "blinn_phong": {"exponent", "specular", "diffuse"},
+    "ward": {"alpha", "specular", "diffuse"},
+    "lambert": {"diffuse"},
+    "mitsuba": {"bsdf"},
+    "thin_film": {"film", "alpha", "diffuse"},
+    "materialx": {"materialx"},
+}
 
 
 #: Keys of a ``source = "thin_film"`` material's ``film`` table (the iridescent model's parameters
@@ -292,6 +304,20 @@ class Separable(Model):
         rgb = np.where((nl > 0.0)[..., None] & np.isfinite(rgb), rgb, 0.0)
         out = np.zeros(nl.shape + (4,))
         out[..., :3] = rgb
+        return out
+
+    def unused_fields(self, values: dict) -> dict[str, str]:
+        """The source's fields another source reads (:data:`SOURCE_FIELDS`), and the Fresnel choice's:
+        ``f0`` is read with ``fresnel = "schlick"`` only, ``ior`` with ``"exact"`` only."""
+        source = values["source"]
+        out = {}
+        for key in sorted(set().union(*SOURCE_FIELDS.values()) - SOURCE_FIELDS[source]):
+            readers = [s for s, keys in SOURCE_FIELDS.items() if key in keys]
+            out[key] = f"with source = {' or '.join(repr(s) for s in readers)}, but source is {source!r}"
+        if "fresnel" in SOURCE_FIELDS[source]:
+            for key, fresnel in (("f0", "schlick"), ("ior", "exact")):
+                if values["fresnel"] != fresnel:
+                    out[key] = f"with fresnel = {fresnel!r}, but fresnel is {values['fresnel']!r}"
         return out
 
     def fit_limits(self, values: dict) -> list[str]:

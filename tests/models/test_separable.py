@@ -31,8 +31,15 @@ MODEL = get_model("separable")
         ('parametrization = "polar"', "parametrization", "half_diff"),
         ('source = "phong"', "source", "blinn_phong"),
         ("alpha = 0", "alpha", "> 0"),
+        # A field the source (or the Fresnel choice) does not read would be dropped without a word.
+        ('source = "ggx"\nexponent = 50', "exponent",
+         "only read with source = 'blinn_phong', but source is 'ggx'; expected no exponent (its value would be dropped)"),
+        ('source = "lambert"\nalpha = 0.3', "alpha", "only read with source = 'ggx' or 'beckmann' or 'ward' or 'thin_film'"),
+        ('source = "blinn_phong"\nfresnel = "exact"', "fresnel", "but source is 'blinn_phong'"),
+        ('fresnel = "exact"\nf0 = [0.9, 0.1, 0.1]', "f0", "only read with fresnel = 'schlick', but fresnel is 'exact'"),
+        ('ior = 1.7', "ior", "only read with fresnel = 'exact', but fresnel is 'schlick'"),
     ],
-)
+)  # fmt: skip
 def test_bad_parameters_are_one_line_errors(expect_rejected, body, field, expected):
     expect_rejected("separable", body, field, expected)
 
