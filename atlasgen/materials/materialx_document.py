@@ -40,7 +40,13 @@ from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
-from atlasgen.separable.materialx_oracle import SURFACE_MODELS, load_materialx_libraries, surface_defaults, surface_ranges
+from atlasgen.separable.materialx_oracle import (
+    SURFACE_MODELS,
+    load_materialx_libraries,
+    surface_defaults,
+    surface_inputs,
+    surface_ranges,
+)
 
 __all__ = ["DEFAULT_BUDGET", "ERROR_MEASURE", "SAMPLING_GRID", "NOT_IN_TABLE", "MATERIAL_NOT_IN_TABLE", "ROUGHNESS_MIN",
            "is_materialx_file", "read_materialx_document"]  # fmt: skip
@@ -71,20 +77,22 @@ MATERIAL_NOT_IN_TABLE = {
     "backsurfaceshader": "a back face is shaded with the front surface's slice (the renderer flips its normal)",
     "displacementshader": "displacement moves geometry, which an atlas slice does not hold",
 }
-#: Per surface model: (roughness input, weight input or None) of each microfacet lobe.
+#: standard_surface's specular roughness shapes three lobes: the dielectric's (weight ``specular``), the
+#: metal's (``metalness``) and the transmission's (``transmission``); any of them weighted shows it.
+_SS_MAIN = ("specular", "metalness", "transmission")
+#: Per surface model: (roughness input, the weight inputs of the lobes it shapes; none: always shown) of
+#: each microfacet roughness.
 _LOBES = {
-    "standard_surface": (("specular_roughness", "specular"), ("coat_roughness", "coat")),
-    "open_pbr_surface": (("specular_roughness", "specular_weight"), ("coat_roughness", "coat_weight")),
-    "gltf_pbr": (("roughness", None), ("clearcoat_roughness", "clearcoat")),
-    "UsdPreviewSurface": (("roughness", None), ("clearcoatRoughness", "clearcoat")),
+    "standard_surface": (("specular_roughness", _SS_MAIN), ("coat_roughness", ("coat",))),
+    "open_pbr_surface": (("specular_roughness", ("specular_weight",)), ("coat_roughness", ("coat_weight",))),
+    "gltf_pbr": (("roughness", ()), ("clearcoat_roughness", ("clearcoat",))),
+    "UsdPreviewSurface": (("roughness", ()), ("clearcoatRoughness", ("clearcoat",))),
 }
-
-
-#: Per surface model: (anisotropy input, weight input or None) of each lobe that has one.
+#: Per surface model: (anisotropy input, the weight inputs of the lobes it shapes) of each that has one.
 _ANISOTROPY = {
-    "standard_surface": (("specular_anisotropy", "specular"), ("coat_anisotropy", "coat")),
-    "open_pbr_surface": (("specular_roughness_anisotropy", "specular_weight"), ("coat_roughness_anisotropy", "coat_weight")),
-    "gltf_pbr": (("anisotropy_strength", None),),
+    "standard_surface": (("specular_anisotropy", _SS_MAIN), ("coat_anisotropy", ("coat",))),
+    "open_pbr_surface": (("specular_roughness_anisotropy", ("specular_weight",)), ("coat_roughness_anisotropy", ("coat_weight",))),
+    "gltf_pbr": (("anisotropy_strength", ()),),
     "UsdPreviewSurface": (),
 }  # fmt: skip
 #: The roughness of the renderer's sharpest lobe, alpha = roughness^2 = :data:`~atlasgen.contract.SPECULAR_ALPHA_MIN`.
@@ -124,8 +132,8 @@ def _differs(value, neutral) -> bool:
 def _lobe_alpha(category: str, inputs: dict, defaults: dict) -> float:
     """The narrowest microfacet lobe's GGX alpha = roughness^2 (MaterialX's mx_roughness_anisotropy), at least 1e-3."""
     alphas = []
-    for rough, weight in _LOBES[category]:
-        w = 1.0 if weight is None else float(inputs.get(weight, defaults.get(weight, (None, 1.0))[1]))
+    for rough, weights in _LOBES[category]:
+        w = max((float(inputs.get(k, defaults.get(k, (None, 1.0))[1])) for k in weights), default=1.0)
         if w > 0.0 and rough in defaults:
             alphas.append(float(inputs.get(rough, defaults[rough][1])) ** 2)
     return max(min(alphas, default=0.25), 1e-3)
@@ -225,6 +233,8 @@ def _refuse_duplicate_names(shown: str, data: bytes) -> None:
             seen[name] = child.tag
 
 
+#: Why an input its nodedef declares without a default is named rather than used.
+_NO_DEFAULT = "the oracle shades with the geometry's own normal and tangent and no volume, so the slice holds no value of it"
 #: What a value of each MaterialX type must be, for the one-line refusals.
 _EXPECTED = {"float": "a finite number", "integer": "an integer", "boolean": "true or false",
              "color3": "3 finite numbers", "color4": "4 finite numbers", "vector2": "2 finite numbers",
@@ -277,20 +287,28 @@ def _lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict
     def value(key):
         return float(inputs[key] if key in inputs else defaults[key][1])
 
+    def weighted(weights):
+        """The first of the lobes' weights above 0 ("" where the lobe is always shown), or None if none is."""
+        if not weights:
+            return ""
+        return next((k for k in weights if k in defaults and value(k) > 0.0), None)
+
     def where(weight):
-        return "" if weight is None else f" where {weight} > 0"
+        return f" where {weight} > 0" if weight else ""
 
     def given(key):
         return f"{value(key):g}" + ("" if key in inputs else " (the nodedef's default)")
 
-    for key, weight in _ANISOTROPY[category]:
-        if key in defaults and value(key) != 0.0 and (weight is None or value(weight) > 0.0):
+    for key, weights in _ANISOTROPY[category]:
+        weight = weighted(weights)
+        if key in defaults and value(key) != 0.0 and weight is not None:
             raise MaterialError(shown, f"{material}.{key}", f"expected 0{where(weight)}, got {given(key)}: an anisotropic "
                                 "lobe varies with the azimuth, which a slice indexed by N.L and N.V does not hold; "
                                 "set it to 0 to bake the isotropic lobe")  # fmt: skip
     sharp = []
-    for key, weight in _LOBES[category]:
-        if key not in defaults or value(key) >= ROUGHNESS_MIN or (weight is not None and value(weight) <= 0.0):
+    for key, weights in _LOBES[category]:
+        weight = weighted(weights)
+        if key not in defaults or value(key) >= ROUGHNESS_MIN or weight is None:
             continue
         if value(key) <= 0.0:
             raise MaterialError(shown, f"{material}.{key}", f"expected above 0{where(weight)}, got {given(key)}: a mirror "
@@ -305,7 +323,7 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
     """The ``materialx`` table of one shader node: its constant inputs, what was flattened, what the table cannot hold."""
     defaults = surface_defaults(category)
     ranges = surface_ranges(category)
-    inputs, flattened = {}, {}
+    inputs, flattened, no_default = {}, {}, []
     for inp in shader.getInputs():
         key = inp.getName()
         if key not in defaults and inp.getValue() is None and _driver(inp) is None:
@@ -326,13 +344,22 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
                 inputs[key] = value
             continue
         if key not in defaults:
-            raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of {', '.join(defaults)}")
+            declared = surface_inputs(category)
+            if key not in declared:
+                raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of "
+                                    f"{', '.join(declared)}")  # fmt: skip
+            # Declared without a default (a geometric normal or tangent, glTF's attenuation distance): the
+            # oracle shades the geometry's own frame and no volume, so a value given is named, not used.
+            value = _constant(shown, f"{material}.{key}", inp, declared[key], ranges.get(key))
+            if value is not None:
+                no_default.append(f"{key} = {_shown(value if isinstance(value, list) else [value])}: {_NO_DEFAULT}")
+            continue
         value = _constant(shown, f"{material}.{key}", inp, defaults[key][0], ranges.get(key))
         if value is not None:
             inputs[key] = value
     sharp_lobes = _lobes_no_slice_holds(shown, material, category, inputs, defaults)
     oracle_inputs = dict(inputs)
-    not_in_table = list(sharp_lobes)
+    not_in_table = list(sharp_lobes) + no_default
     for key, (neutral, what) in NOT_IN_TABLE[category].items():
         value = inputs.get(key, defaults[key][1] if key in defaults else None)
         reference = neutral if neutral is not None else 0.0

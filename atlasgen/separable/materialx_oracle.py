@@ -49,6 +49,7 @@ __all__ = [
     "evaluate_materialx_f_cos",
     "surface_defaults",
     "surface_ranges",
+    "surface_inputs",
     "load_materialx_libraries",
     "varyings_of",
     "vertex_data_for",
@@ -122,6 +123,19 @@ def _defaults(category: str) -> tuple:
 def surface_defaults(category: str) -> dict:
     """``{input: (type, default)}`` of a surface shader node's nodedef: what an unset input is."""
     return {name: (kind, value) for name, kind, value in _defaults(category)}
+
+
+@cache
+def surface_inputs(category: str) -> dict:
+    """``{input: type}`` of every input a surface shader node's nodedef declares, those without a
+    default value too (the geometric ``normal`` and ``tangent``, glTF's ``attenuation_distance``)."""
+    mx, _, _ = _materialx()
+    doc = mx.createDocument()
+    doc.importLibrary(load_materialx_libraries())
+    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
+    if nodedef is None:
+        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
+    return {inp.getName(): inp.getType() for inp in nodedef.getActiveInputs()}
 
 
 def _bound(text: str):

@@ -258,3 +258,37 @@ def test_every_copy_of_materialx_s_examples_reads_or_is_refused_on_one_line(path
 def test_the_baked_library_covers_all_four_surface_models():
     categories = {m.params["materialx"]["category"] for m in read_material_file(RESOURCES / "examples.mtlx")}
     assert categories == {"standard_surface", "open_pbr_surface", "gltf_pbr", "UsdPreviewSurface"}
+
+
+@pytest.mark.parametrize(
+    ("inputs", "field", "expected"),
+    [
+        ('<input name="specular" type="float" value="0" /><input name="metalness" type="float" value="1" />'
+         '<input name="specular_anisotropy" type="float" value="0.65" />', "M.specular_anisotropy",
+         "expected 0 where metalness > 0, got 0.65"),
+        ('<input name="specular" type="float" value="0" /><input name="transmission" type="float" value="1" />'
+         '<input name="specular_roughness" type="float" value="0" />', "M.specular_roughness",
+         "expected above 0 where transmission > 0, got 0"),
+    ],
+)  # fmt: skip
+def test_standard_surface_s_metal_and_transmission_share_the_specular_roughness(tmp_path, inputs, field, expected):
+    """MaterialX's standard_surface shapes its metal and transmission lobes with specular_roughness and
+    specular_anisotropy too: a lobe is weighted by metalness or transmission even where specular is 0."""
+    path = _document(tmp_path, _material("M", "standard_surface", inputs))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{path.as_posix()}: field '{field}': {expected}")
+
+
+def test_an_input_declared_without_a_default_is_named_not_used(tmp_path):
+    """glTF's normal, clearcoat_normal and attenuation_distance have no default value: the oracle never sets them."""
+    body = _material("G", "gltf_pbr", '<input name="normal" type="vector3" value="0, 0, 1" />'
+                     '<input name="attenuation_distance" type="float" value="100000" />')  # fmt: skip
+    spec = read_material_file(_document(tmp_path, body))[0].params["materialx"]
+    assert [line.split(":")[0] for line in spec["not_in_table"]] == ["normal = 0, 0, 1", "attenuation_distance = 100000"]
+    assert spec["inputs"] == {} and spec["oracle_inputs"] == {}
+    # Declared inputs keep their nodedef type and limits; an undeclared one is still unknown.
+    with pytest.raises(MaterialError, match="field 'G.attenuation_distance': expected float at least 0"):
+        read_material_file(_document(tmp_path, body.replace("100000", "-1")))
+    with pytest.raises(MaterialError, match="field 'G.normal_map': unknown input of gltf_pbr"):
+        read_material_file(_document(tmp_path, body.replace('"normal"', '"normal_map"')))
