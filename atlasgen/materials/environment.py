@@ -7,7 +7,7 @@ unshadowed and unoccluded, as the scene's lights are.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,12 @@ class Environment:
     intensity: float = 1.0
     rotate: float = 0.0
     sky: SkyParameters | None = None
+    #: The scene file that gave it, for the one-line refusals (not part of what it is: no cache key holds it).
+    scene: str = field(default="<scene>", compare=False, repr=False)
+
+
+#: The most radiance the renderer's environment texture holds: rgba16float's largest finite value.
+HALF_MAX = 65504.0
 
 
 def sky_parameters(env: Environment) -> SkyParameters:
@@ -60,18 +66,32 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
     intensity.
     """
     if env.source == "uniform":
-        value = np.asarray(env.radiance, dtype=np.float64) * env.intensity
-        return np.broadcast_to(value, (height, width, 3)).astype(np.float32)
-    if env.source == "file":
+        image = np.broadcast_to(np.asarray(env.radiance, dtype=np.float64) * env.intensity, (height, width, 3))
+    elif env.source == "file":
         if env.file is None:
             raise ValueError("a file environment needs its file")
         pixels = read_environment_file(env.file, SceneError)
         same = pixels.shape[:2] == (height, width) and env.rotate == 0.0
         image = pixels.astype(np.float64) if same else resample_equirect(pixels, height, width, env.rotate).astype(np.float64)
-        return (image * env.intensity).astype(np.float32)
-    if env.source == "sky":
-        return (sky_image(height, width, sky_parameters(env)).astype(np.float64) * env.intensity).astype(np.float32)
-    raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
+        image = image * env.intensity
+    elif env.source == "sky":
+        image = sky_image(height, width, sky_parameters(env)).astype(np.float64) * env.intensity
+    else:
+        raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
+    _refuse_beyond_half(env, float(np.max(image)))
+    return image.astype(np.float32)
+
+
+def _refuse_beyond_half(env: Environment, peak: float) -> None:
+    """One line where the image's radiance exceeds :data:`HALF_MAX`: the renderer's rgba16float texture would
+    hold infinity there, and its prefiltered levels and harmonics NaN, which render black."""
+    if peak <= HALF_MAX:
+        return
+    what = {"uniform": "the radiance", "file": f"the image {env.file.as_posix() if env.file else ''}",
+            "sky": "the sky (its sun's disc: sun_irradiance over the disc's solid angle)"}[env.source]  # fmt: skip
+    raise SceneError(env.scene, "environment", f"{what} reaches {peak:.6g} W/(m^2 sr) with intensity, beyond the "
+                     f"{HALF_MAX:g} the renderer's half-float environment texture holds; expected at most {HALF_MAX:g} "
+                     "(lower intensity)")  # fmt: skip
 
 
 def mitsuba_emitter(env: Environment, sky_height: int = 512) -> dict:

@@ -281,8 +281,12 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
     elif "file" in raw:
         raise SceneError(r.path, f"{name}.file", f"only used with shape = 'mesh', not {shape!r}")
     scale = r.vec3(raw, "scale", f"{name}.scale", default=(1.0, 1.0, 1.0))
-    if any(s == 0 for s in scale):
-        r.fail(f"{name}.scale", "non-zero scale factors", raw.get("scale"))
+    # A mirroring scale turns a closed shape's faces inside out (their back faces are culled) and its
+    # normals with them; 0 in float32 (1e-300, say) flattens it to nothing, as 0 would.
+    if any(s < 0 for s in scale):
+        r.fail(f"{name}.scale", "positive scale factors (a negative one mirrors the shape inside out)", raw.get("scale"))
+    if any(np.float32(s) == 0 for s in scale):
+        r.fail(f"{name}.scale", "non-zero scale factors, in float32 too", raw.get("scale"))
     return SceneObject(
         index=i,
         shape=shape,
@@ -326,7 +330,7 @@ def _read_environment(r: _Reader, raw, base: Path) -> Environment:
     """The ``environment`` key: a source alone, or an ``[environment]`` table with ``source`` and its settings."""
     if not isinstance(raw, dict):
         source, radiance, file = _environment_source(r, raw, "environment", base)
-        return Environment(source, radiance, file, sky=SkyParameters() if source == "sky" else None)
+        return Environment(source, radiance, file, sky=SkyParameters() if source == "sky" else None, scene=r.path)
     r.table(raw, "environment", ("source", "intensity", "rotate", *SKY_KEYS))
     if "source" not in raw:
         raise SceneError(r.path, "environment.source", f"missing; expected {_ENVIRONMENT_EXPECTED}")
@@ -337,7 +341,7 @@ def _read_environment(r: _Reader, raw, base: Path) -> Environment:
         for key in SKY_KEYS:
             if key in raw:
                 raise SceneError(r.path, f"environment.{key}", f'only used with source = "sky", not {shown(raw["source"])}')
-        return Environment(source, radiance, file, intensity, rotate)
+        return Environment(source, radiance, file, intensity, rotate, scene=r.path)
     d = SkyParameters()
     sun = r.vec3(raw, "sun_direction", "environment.sun_direction", default=d.sun_direction, nonzero=True)
     sky = SkyParameters(
@@ -349,7 +353,7 @@ def _read_environment(r: _Reader, raw, base: Path) -> Environment:
         horizon=r.vec3(raw, "horizon", "environment.horizon", default=d.horizon, lo=0.0),
         ground=r.vec3(raw, "ground", "environment.ground", default=d.ground, lo=0.0),
     )
-    return Environment(source, radiance, file, intensity, rotate, sky)
+    return Environment(source, radiance, file, intensity, rotate, sky, scene=r.path)
 
 
 def parse_scene(data: dict, path="<scene>", base=None) -> Scene:

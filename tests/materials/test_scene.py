@@ -137,3 +137,43 @@ def test_any_value_parses_or_is_refused_on_one_line(value):
         assert len(value) == 3 and all(0.0 <= float(c) and math.isfinite(float(c)) for c in value)
     else:
         assert value == "sky" and env.source == "sky"
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("environment = [70000, 1, 1]", "the radiance reaches 70000 W/(m^2 sr) with intensity, beyond the 65504"),
+        ("[environment]\nsource = [40000, 1, 1]\nintensity = 2", "the radiance reaches 80000"),
+        ('[environment]\nsource = "sky"\nsun_irradiance = 3e38', "the sky (its sun's disc: sun_irradiance over"),
+    ],
+)  # fmt: skip
+def test_an_environment_beyond_half_float_is_refused_when_it_is_built(text, words):
+    """The renderer uploads the environment as rgba16float: beyond 65504 it would hold infinity, and its
+    prefiltered levels NaN, which rendered the whole image black (the refusal names the scene)."""
+    from atlasgen.materials.environment import environment_image
+
+    env = _scene(text).environment
+    with pytest.raises(SceneError) as info:
+        environment_image(env, 32, 64)
+    assert str(info.value).startswith(f"scenes/x.toml: field 'environment': {words}"), str(info.value)
+
+
+def test_an_environment_at_half_float_s_largest_value_is_built():
+    from atlasgen.materials.environment import environment_image
+
+    assert environment_image(_scene("environment = [65504, 1, 1]").environment, 8, 16).max() == 65504.0
+    assert environment_image(_scene('environment = "sky"').environment, 32, 64).max() <= 65504.0
+
+
+@pytest.mark.parametrize(
+    ("scale", "words"),
+    [("-1.0", "expected positive scale factors (a negative one mirrors the shape inside out), got -1.0"),
+     ("[-1.0, 1.0, 1.0]", "positive scale factors"),
+     ("1e-300", "expected non-zero scale factors, in float32 too, got 1e-300")],
+)  # fmt: skip
+def test_a_mirroring_or_vanishing_scale_is_refused(scale, words):
+    """A negative factor turned a closed shape inside out (its front faces culled: a dark sphere); one that is 0 in
+    float32 flattened it to nothing."""
+    with pytest.raises(SceneError) as info:
+        parse_scene(tomllib.loads(f'{CAMERA}[[objects]]\nshape = "sphere"\nmaterial = "m"\nscale = {scale}\n'), "scenes/x.toml")
+    assert str(info.value).startswith(f"scenes/x.toml: field 'objects[0].scale': expected {words.removeprefix('expected ')}")
