@@ -7,6 +7,7 @@ replaces them by the face normal, so degenerate input never produces NaN pixels.
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -287,9 +288,19 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     if not path.is_file():
         raise SceneError(scene_path, field, f"no such mesh file {path.as_posix()!r}; expected an OBJ or PLY file")
     try:
-        loaded = trimesh.load(str(path), force="mesh", process=False)
+        if path.suffix.lower() == ".obj":
+            # OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it
+            # does not depend on: decode here, keeping what UTF-8 cannot say as U+FFFD (comments and names only).
+            text = path.read_bytes().decode("utf-8", errors="replace")
+            loaded = trimesh.load(io.StringIO(text), file_type="obj", force="mesh", process=False)
+        else:
+            loaded = trimesh.load(str(path), force="mesh", process=False)
+    except IndexError:  # trimesh's OBJ reader indexing a vertex past the end
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
+                                            "expected face indices within its vertices") from None  # fmt: skip
     except Exception as exc:  # trimesh raises many types for malformed files
-        raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r} ({type(exc).__name__}: {exc})") from None
+        raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r}; expected an OBJ or PLY file "
+                                            f"({type(exc).__name__}: {exc})") from None  # fmt: skip
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
     if faces.size == 0:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has no triangles; expected a triangle mesh")

@@ -207,3 +207,20 @@ def test_the_material_balls_ply_holds_its_vertices_normals_and_faces(tmp_path):
     np.testing.assert_array_equal(loaded.vertices, mesh.positions)
     np.testing.assert_array_equal(loaded.faces, mesh.indices)
     np.testing.assert_allclose(loaded.vertex_normals, mesh.normals, atol=1e-6)
+
+
+def test_an_obj_with_a_comment_outside_utf8_reads(tmp_path):
+    """OBJ is text; a Latin-1 byte in a comment sent trimesh to a charset detector it does not install."""
+    path = tmp_path / "latin1.obj"
+    path.write_bytes(b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    mesh = read_mesh(path)
+    assert mesh.positions.shape == (3, 3) and mesh.indices.reshape(-1).tolist() == [0, 1, 2]
+
+
+def test_a_face_naming_a_missing_vertex_says_what_was_expected(tmp_path):
+    path = tmp_path / "bad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n")
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "scenes/x.toml", "objects[0].file")
+    assert str(info.value) == (f"scenes/x.toml: field 'objects[0].file': mesh {path.as_posix()!r} has a face naming a vertex "
+                               "it does not have; expected face indices within its vertices")  # fmt: skip
