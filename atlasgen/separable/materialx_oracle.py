@@ -109,15 +109,22 @@ def _value(value):
 
 
 @cache
-def _defaults(category: str) -> tuple:
+def _active_inputs(category: str) -> tuple:
+    """``(name, type, value, uimin, uimax)`` of each active input of the nodedef MaterialX's generator picks
+    for a surface shader node (plain values: MaterialX's elements die with their document)."""
     mx, _, _ = _materialx()
     doc = mx.createDocument()
     doc.importLibrary(load_materialx_libraries())
-    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()  # the version the generator picks
+    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
     if nodedef is None:
         raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
-    return tuple((inp.getName(), inp.getType(), _value(inp.getValue())) for inp in nodedef.getActiveInputs()
-                 if inp.getValue() is not None)  # fmt: skip
+    return tuple((inp.getName(), inp.getType(), _value(inp.getValue()) if inp.getValue() is not None else None,
+                  inp.getAttribute("uimin"), inp.getAttribute("uimax")) for inp in nodedef.getActiveInputs())  # fmt: skip
+
+
+@cache
+def _defaults(category: str) -> tuple:
+    return tuple((name, kind, value) for name, kind, value, _, _ in _active_inputs(category) if value is not None)
 
 
 def surface_defaults(category: str) -> dict:
@@ -129,13 +136,7 @@ def surface_defaults(category: str) -> dict:
 def surface_inputs(category: str) -> dict:
     """``{input: type}`` of every input a surface shader node's nodedef declares, those without a
     default value too (the geometric ``normal`` and ``tangent``, glTF's ``attenuation_distance``)."""
-    mx, _, _ = _materialx()
-    doc = mx.createDocument()
-    doc.importLibrary(load_materialx_libraries())
-    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
-    if nodedef is None:
-        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
-    return {inp.getName(): inp.getType() for inp in nodedef.getActiveInputs()}
+    return {name: kind for name, kind, *_ in _active_inputs(category)}
 
 
 def _bound(text: str):
@@ -148,17 +149,11 @@ def surface_ranges(category: str) -> dict:
     tuple of floats (one per component) or None where the nodedef sets none. These are the inputs'
     hard limits (``uisoftmin``/``uisoftmax`` are the soft ones a user may pass), e.g. 0..1 for
     weights, roughnesses and colours, and ior >= 1 for glTF."""
-    mx, _, _ = _materialx()
-    doc = mx.createDocument()
-    doc.importLibrary(load_materialx_libraries())
-    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
-    if nodedef is None:
-        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
     out = {}
-    for inp in nodedef.getActiveInputs():
-        low, high = _bound(inp.getAttribute("uimin")), _bound(inp.getAttribute("uimax"))
+    for name, _, _, uimin, uimax in _active_inputs(category):
+        low, high = _bound(uimin), _bound(uimax)
         if low is not None or high is not None:
-            out[inp.getName()] = (low, high)
+            out[name] = (low, high)
     return out
 
 
