@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from atlasgen.contract import HEIGHT, WIDTH
+from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
 from atlasgen.io.fields import Param
 from atlasgen.models.base import Model
@@ -83,7 +83,7 @@ class Toon(Model):
         """Refuse a band no texel centre of the N.L axis falls in (its colour would not be baked): two
         thresholds closer than a texel, or snapped (nearest sampling) to one texel edge."""
         thresholds = self.steps(values)[0]
-        centres = -1.0 + 2.0 * np.arange(WIDTH) / (WIDTH - 1)
+        centres = texel_centres()[0]
         baked = set(np.searchsorted(thresholds, centres, side="right").tolist())
         for band in range(len(thresholds) + 1):
             if band not in baked:
