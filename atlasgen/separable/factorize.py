@@ -29,7 +29,7 @@ __all__ = [
 FACTORIZATIONS = ("svd", "nmf", "nd")
 #: Multiplicative updates of :func:`factorize_nmf`. At 300 a sharp GGX metal's 8-term NMF (MaterialX
 #: gold, alpha 0.0625) was still far from converged in its weighted error and in the scenes' images;
-#: 1000 takes most of what 3000 gains, at a tenth of a second per 32 x 1024 matrix.
+#: 1000 takes most of what 3000 gains.
 NMF_ITERATIONS = 1000
 
 
@@ -165,16 +165,18 @@ def factorize_nmf(
     if active:
         starts = [_signed_top_singular(a[c], terms) for c in active]
         keep = starts[0][1].size  # min(terms, n1) for every channel
-        wmat = np.stack([np.abs(u) * root[None, :] + eps for u, _, _, root in starts])  # (C, n1, K)
-        hmat = np.stack([np.abs(vt) * root[:, None] + eps for _, _, vt, root in starts])  # (C, K, n2)
-        x = a[active]
-        # The channels' updates as stacked products: one BLAS call per channel as before, a third of
-        # the interpreter's work (the matrices are tiny, so that is what the iterations cost).
+        # Single precision: the updates reach the same factors as in double to five digits (the
+        # weighted error of MaterialX gold, car paint, pearl and velvet at K = 4 and 8), in 0.6 of the time.
+        wmat = np.stack([np.abs(u) * root[None, :] + eps for u, _, _, root in starts]).astype(np.float32)  # (C, n1, K)
+        hmat = np.stack([np.abs(vt) * root[:, None] + eps for _, _, vt, root in starts]).astype(np.float32)  # (C, K, n2)
+        x = a[active].astype(np.float32)
+        eps32 = np.float32(eps)
+        # The channels' updates as stacked products: one call for every channel.
         for _ in range(iterations):
             wt = wmat.transpose(0, 2, 1)
-            hmat *= (wt @ x) / (wt @ wmat @ hmat + eps)
+            hmat *= (wt @ x) / (wt @ wmat @ hmat + eps32)
             ht = hmat.transpose(0, 2, 1)
-            wmat *= (x @ ht) / (wmat @ (hmat @ ht) + eps)
+            wmat *= (x @ ht) / (wmat @ (hmat @ ht) + eps32)
         g[:keep, active] = (wmat / r1[None, :, None]).transpose(2, 0, 1)
         h[:keep, active] = (hmat / r2[None, None, :]).transpose(1, 0, 2)
     return Factors(g, h.reshape(terms, channels, side, side), parametrization, np.zeros((channels, terms)))
