@@ -107,6 +107,10 @@ def _design(diffuse, lobe):
     return b
 
 
+#: The (i, j), i <= j, of the Gram matrix B^T W B that :func:`_design`'s zeros leave non-zero.
+_GRAM_ENTRIES = ((0, 0), (1, 1), (2, 2), (3, 3), (0, 3), (1, 3), (2, 3))
+
+
 def project_slice_texels(target, diffuse, lobe, weights, ridge: float = RIDGE) -> np.ndarray:
     """The non-negative least-squares slice value (r, g, b, A) of each texel.
 
@@ -126,10 +130,15 @@ def project_slice_texels(target, diffuse, lobe, weights, ridge: float = RIDGE) -
     ``(..., 4)``: linear RGBA >= 0, the minimiser of the module's weighted residual.
     """
     b = _design(diffuse, lobe)
-    w = np.asarray(weights, dtype=np.float64)[..., None, None]
+    bw = b * np.asarray(weights, dtype=np.float64)[..., None, None]
     t = np.asarray(target, dtype=np.float64)
-    gram = np.einsum("...sci,...scj->...ij", b * w, b)
-    rhs = np.einsum("...sci,...sc->...i", b * w, t)
+    # G = B^T W B and h = B^T W t entry by entry: the RGB unknowns act on one channel each, so
+    # G's off-diagonal RGB entries are zero and are not summed (half the time of one einsum over
+    # all sixteen, and the same sums, term for term).
+    gram = np.zeros(b.shape[:-3] + (4, 4))
+    for i, j in _GRAM_ENTRIES:
+        gram[..., i, j] = gram[..., j, i] = np.einsum("...sc,...sc->...", bw[..., i], b[..., j])
+    rhs = np.stack([np.einsum("...sc,...sc->...", bw[..., i], t) for i in range(4)], axis=-1)
     lam = ridge * np.diagonal(gram, axis1=-2, axis2=-1).max(axis=-1)
     return solve_nonnegative_least_squares(gram + lam[..., None, None] * np.diag([0.0, 0.0, 0.0, 1.0]), rhs)
 
@@ -213,7 +222,9 @@ def refine_specular_scale(target, diffuse, lobe, weights, rgb, ridge: float = RI
 def weighted_residual(target, diffuse, lobe, weights, rgba) -> np.ndarray:
     """sum_s w_s sum_c (t_c - D_c r_c - S_c A)^2 per texel for slice values ``rgba`` ``(..., 4)``."""
     rgba = np.asarray(rgba, dtype=np.float64)
-    b = _design(diffuse, lobe)
-    fit = np.einsum("...sci,...i->...sc", b, rgba)
+    d = np.asarray(diffuse, dtype=np.float64)
+    s = np.broadcast_to(np.asarray(lobe, dtype=np.float64), d.shape)
+    # D_c r_c + S_c A: the design matrix's product without its zeros (the same sums).
+    fit = d * rgba[..., None, :3] + s * rgba[..., None, 3:]
     err = np.asarray(target, dtype=np.float64) - fit
     return (np.asarray(weights, dtype=np.float64)[..., None] * err * err).sum(axis=(-2, -1))
