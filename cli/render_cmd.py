@@ -17,8 +17,8 @@ AOVS = ("normal", "depth", "id", "albedo")
 
 
 @click.command("render")
-@click.argument("scene", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--atlas", type=click.Path(path_type=Path, dir_okay=False), default=Path("build/atlas.dds"),
+@click.argument("scene", type=click.Path(path_type=Path))
+@click.option("--atlas", type=click.Path(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True,
               help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip

@@ -55,7 +55,7 @@ def _resolution(ctx, param, value):
 @click.option("--environment", is_flag=True,
               help="Also validate environment lighting: the scenes env-uniform (Mitsuba constant) and env-sky (envmap), "
                    "a lone 64x64 sphere, on the material's pixels, against the model reference.")  # fmt: skip
-@click.option("--atlas", type=click.Path(path_type=Path, dir_okay=False), default=Path("build/atlas.dds"),
+@click.option("--atlas", type=click.Path(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip

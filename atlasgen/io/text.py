@@ -2,12 +2,36 @@
 
 from __future__ import annotations
 
+import stat
 import tomllib
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["decode_utf8", "parse_toml", "read_input_bytes", "read_input_text"]
+__all__ = ["decode_utf8", "parse_toml", "read_input_bytes", "read_input_text", "special_file_kind"]
+
+#: What a path that is neither a regular file nor a folder is, by its stat mode, as a refusal names it.
+_SPECIAL_KINDS = ((stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+                  (stat.S_ISBLK, "a block device"))  # fmt: skip
+
+
+def special_file_kind(path) -> str | None:
+    """What ``path`` is when it is a named pipe, socket or device ("a named pipe", ...), else None.
+
+    Such an input is refused before it is opened: reading a named pipe waits for a writer
+    that may never come, and a device has no end.
+    """
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError:
+        return None  # missing or unreadable: the read itself says which
+    return next((kind for test, kind in _SPECIAL_KINDS if test(mode)), None)
+
+
+def _refuse_special(path) -> None:
+    kind = special_file_kind(path)
+    if kind is not None:
+        raise InputError(f"{Path(path).as_posix()}: expected a regular file, got {kind}")
 
 
 def decode_utf8(data: bytes) -> str:
@@ -27,8 +51,10 @@ def read_input_bytes(path, missing: str = "no such file") -> bytes:
     ------
     InputError
         ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
-        system refuses it (a directory included).
+        system refuses it (a directory included); ``path: expected a regular file, got ...`` for
+        a named pipe, socket or device (:func:`special_file_kind`).
     """
+    _refuse_special(path)
     try:
         return Path(path).read_bytes()
     except FileNotFoundError:
@@ -44,12 +70,13 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
     ------
     InputError
         ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
-        system refuses it.
+        system refuses it; ``path: expected a regular file, got ...`` for a named pipe, socket or device.
     FieldError
         ``error`` (e.g. :class:`~atlasgen.errors.SceneError`), ``path: expected {expected}``,
         when it is a directory or not UTF-8.
     """
     shown = Path(path).as_posix()
+    _refuse_special(path)
     try:
         return decode_utf8(Path(path).read_bytes())
     except FileNotFoundError:

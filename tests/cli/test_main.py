@@ -102,6 +102,20 @@ def test_missing_input_path(runner, tmp_path):
     assert res.exit_code == 3 and "nowhere: no such file or folder" in res.stderr
 
 
+def test_a_folder_given_as_a_scene_or_an_atlas_is_bad_input(runner, tmp_path):
+    """Exit 3 with the reader's line, as a missing scene gets, not click's usage error (2)."""
+    folder = tmp_path / "scene.toml"
+    folder.mkdir()
+    res = runner.invoke(app, ["render", str(folder), "-o", str(tmp_path / "a.exr")])
+    assert res.exit_code == 3 and res.stderr.strip().endswith(f"{folder.as_posix()}: expected UTF-8 TOML text, got a directory")
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "demo.toml"
+    for command in (["render", str(scene), "--atlas", str(folder), "-o", str(tmp_path / "a.exr")],
+                    ["validate", "--atlas", str(folder)]):  # fmt: skip
+        res = runner.invoke(app, command)
+        assert res.exit_code == 3, res.stderr
+        assert res.stderr.strip().endswith(f"{folder.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory")
+
+
 def test_unwritable_output_folder(runner, library, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")

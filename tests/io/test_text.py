@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import doctest
+import os
+import subprocess
+import sys
 
 import pytest
 
-from atlasgen.errors import MaterialError, SceneError
+from atlasgen.errors import InputError, MaterialError, SceneError
 from atlasgen.io import text
 from atlasgen.materials.material import read_material_file
 from atlasgen.materials.scene import read_scene
@@ -53,3 +56,19 @@ def test_a_file_nested_too_deeply_is_malformed_not_a_bug(tmp_path, nested):
     scene.write_text(f"[camera]\nposition = {nested}\n")
     with pytest.raises(SceneError, match="nested too deeply"):
         read_scene(scene)
+
+
+def test_a_named_pipe_is_named_and_refused_before_it_is_opened(tmp_path):
+    """Opening a named pipe for reading waits for a writer: every reader refuses one on one line instead.
+    The commands run in a child process with a timeout, so a reader that opened the pipe fails the test."""
+    fifo = tmp_path / "clay.toml"
+    os.mkfifo(fifo)
+    assert text.special_file_kind(fifo) == "a named pipe"
+    assert text.special_file_kind(tmp_path) is None and text.special_file_kind(tmp_path / "missing") is None
+    for command, expected in ((["bake", str(fifo), "-o", str(tmp_path / "a.dds")], "expected a material file or a folder"),
+                              (["render", str(fifo), "-o", str(tmp_path / "a.exr")], "expected a regular file")):  # fmt: skip
+        out = subprocess.run([sys.executable, "-m", "atlasgen", *command], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 3
+        assert out.stderr.strip().splitlines() == [f"atlasgen: error: {fifo.as_posix()}: {expected}, got a named pipe"]
+    with pytest.raises(InputError, match="expected a regular file, got a named pipe"):
+        text.read_input_bytes(fifo)
