@@ -20,6 +20,7 @@ __all__ = [
     "GoalsMissed",
     "BakeWarnings",
     "did_you_mean",
+    "shorten",
     "EXIT_OK",
     "EXIT_INTERNAL",
     "EXIT_USAGE",
@@ -27,6 +28,17 @@ __all__ = [
     "EXIT_CODES",
     "REPORT_BUGS_TO",
 ]
+
+
+def shorten(text: str, limit: int = 80) -> str:
+    """``text`` for a one-line message, its head and its length where it is longer than ``limit``.
+
+    >>> shorten("k" * 100)
+    'kkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkkk... (100 characters)'
+    >>> shorten("ior")
+    'ior'
+    """
+    return text if len(text) <= limit else f"{text[: limit - 12]}... ({len(text)} characters)"
 
 
 class AtlasgenError(Exception):
@@ -54,7 +66,8 @@ class FieldError(InputError):
         self.path = str(path)
         self.field = field
         self.expected = expected
-        where = f"{self.path}: field '{field}'" if field else self.path
+        # A field named by a file (an unknown key) may be any length: the line shows its head.
+        where = f"{self.path}: field '{shorten(field)}'" if field else self.path
         super().__init__(f"{where}: {expected}")
 
     def __reduce__(self):

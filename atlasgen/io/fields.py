@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from atlasgen.errors import FieldError, MaterialError, did_you_mean
+from atlasgen.errors import FieldError, MaterialError, did_you_mean, shorten
 from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
@@ -56,8 +56,7 @@ def to_float32(value) -> float:
 
 def shown(value, limit: int = 80) -> str:
     """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer)."""
-    text = repr(value)
-    return text if len(text) <= limit else f"{text[: limit - 12]}... ({len(text)} characters)"
+    return shorten(repr(value), limit)
 
 
 def parse_colour(value, path, name, error: type[FieldError] = MaterialError):
