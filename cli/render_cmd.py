@@ -31,12 +31,15 @@ AOVS = ("normal", "depth", "id", "albedo")
 @fail_on_errors
 def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
+    s = read_scene(scene)  # read again by the render: a few ms, and the render's own reading stays whole
     if verbosity == VERBOSE:
-        s = read_scene(scene)
         materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"
         click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {len(s.objects)} objects, {len(s.lights)} lights; "
                    f"materials {materials}", err=True)  # fmt: skip
     written = render_scene_file(scene, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
     if verbosity != QUIET:
+        # After the render: a scene that fails gets its one error line and nothing else.
+        for warning in s.warnings() if aov is None else []:
+            click.echo(f"atlasgen: warning: {warning}", err=True)
         for path in written:
             click.echo(f"wrote {path.as_posix()}")

@@ -139,6 +139,16 @@ class Scene:
     #: Whether ``[image].background`` was given: without it, a scene with an environment shows the environment there.
     background_given: bool = False
 
+    def warnings(self) -> list[str]:
+        """What a valid scene renders that its author likely did not mean, one line each.
+
+        A scene with neither lights nor an environment is valid (its g-buffer layers, ``--aov``,
+        are whole), but its lit image is the background and black objects.
+        """
+        if not self.lights and self.environment is None:
+            return [f"{self.path}: no [[lights]] and no [environment]: every object renders black"]
+        return []
+
 
 class _Reader:
     """Scene fields through the one field validator (:class:`atlasgen.io.fields.Param`), with

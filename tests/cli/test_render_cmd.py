@@ -69,6 +69,26 @@ def test_render_writes_exr_png_and_aov(gpu_device, atlas, tmp_path):
     assert set(np.unique(pixels)) == {9.0, 65535.0}
 
 
+@pytest.mark.slow
+def test_a_scene_without_lights_or_environment_warns_after_rendering(gpu_device, atlas, tmp_path):
+    """Valid, and black: the lit render says so once, after its outputs; an AOV, which needs no light, does not."""
+    unlit = SCENE.format(material="snow").replace('[[lights]]\ntype = "directional"\ndirection = [0, 0, -1]\n'
+                                                  'intensity = 3.14159265\n', "")  # fmt: skip
+    scene = write_scene(tmp_path, unlit)
+    out = tmp_path / "out.exr"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert res.stderr.splitlines() == [
+        f"atlasgen: warning: {scene}: no [[lights]] and no [environment]: every object renders black"
+    ]
+    assert read_exr(out)[0][15, 20, :3].max() == 0.0
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "n.exr"), "--aov", "normal"])
+    assert res.exit_code == 0 and res.stderr == ""
+    lit = write_scene(tmp_path, SCENE.format(material="snow"), "lit.toml")
+    res = CliRunner().invoke(app, ["render", str(lit), "--atlas", str(atlas), "-o", str(out)])
+    assert res.exit_code == 0 and res.stderr == ""
+
+
 @pytest.mark.parametrize(
     "scene_text, words",
     [
