@@ -291,8 +291,10 @@ def _stage_lines(shipped: dict, shipped_s: float, library: dict) -> list[str]:
         "",
         f"Goals for the whole library ({library['materials']} materials, {EXAMPLES.name}):",
         "",
-        f"- Under {GOAL_LIBRARY_S:.0f} s: {total:.1f} s one after another, {library['jobs_seconds']:.1f} s with "
-        f"{library['jobs']} jobs, {'met' if total <= GOAL_LIBRARY_S else '**not met**'}.",
+        f"- Under {GOAL_LIBRARY_S:.0f} s, as `atlasgen bake` bakes it by default ({library['jobs']} jobs, one per CPU): "
+        f"{library['jobs_seconds']:.1f} s, {'met' if library['jobs_seconds'] <= GOAL_LIBRARY_S else '**not met**'}. "
+        f"One after another (`--jobs 1`): {total:.1f} s, {'also under' if total <= GOAL_LIBRARY_S else '**over**'} "
+        f"{GOAL_LIBRARY_S:.0f} s.",
         f"- Of which the oracle is most: {oracle:.1f} s, {oracle / total:.0%} of the bake one after another, "
         f"{'met' if oracle > total / 2 else '**not met**'}; the fitting (the stages above but the oracle's) is the rest.",
     ]  # fmt: skip
