@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
+from atlasgen.io.text import special_file_kind
 
 __all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "read_environment_file"]
 
@@ -50,6 +51,8 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         exists = Path(path).is_file()
     except (OSError, ValueError):  # a NUL character, a name too long
         exists = False
+    if not exists and special_file_kind(path) is not None:
+        raise error(shown, None, f"expected an OpenEXR or Radiance HDR image, got {special_file_kind(path)}")
     if not exists:
         raise InputError(f"{shown}: no such environment image")
     inp = oiio.ImageInput.open(str(path))

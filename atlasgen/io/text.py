@@ -23,8 +23,8 @@ def special_file_kind(path) -> str | None:
     """
     try:
         mode = Path(path).stat().st_mode
-    except OSError:
-        return None  # missing or unreadable: the read itself says which
+    except (OSError, ValueError):  # missing or unreadable (a NUL character, a name too long): the read says which
+        return None
     return next((kind for test, kind in _SPECIAL_KINDS if test(mode)), None)
 
 

@@ -18,7 +18,7 @@ from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
 from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
-from atlasgen.io.text import parse_toml, read_input_text
+from atlasgen.io.text import parse_toml, read_input_text, special_file_kind
 from atlasgen.materials.environment import Environment
 from atlasgen.optics.sky import SkyParameters
 
@@ -284,6 +284,9 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
             exists = file.is_file()
         except (OSError, ValueError):  # a NUL character, a name too long
             exists = False
+        kind = None if exists else special_file_kind(file)
+        if kind is not None:
+            raise SceneError(r.path, f"{name}.file", f"expected an OBJ or PLY file, got {kind} ({file.as_posix()!r})")
         if not exists:
             raise SceneError(r.path, f"{name}.file", f"no such mesh file {file.as_posix()!r}; expected an OBJ or PLY file")
         if file.suffix.lower() not in (".obj", ".ply"):
@@ -331,6 +334,9 @@ def _environment_source(r: _Reader, raw, name: str, base: Path):
         exists = file.is_file()
     except (OSError, ValueError):  # a NUL character, a name too long
         exists = False
+    kind = None if exists else special_file_kind(file)
+    if kind is not None:
+        raise SceneError(r.path, name, f"expected an .exr or .hdr file, got {kind} ({file.as_posix()!r})")
     if not exists:
         raise SceneError(r.path, name, f"no such environment image {file.as_posix()!r}; expected an .exr or .hdr file")
     return "file", (0.0, 0.0, 0.0), file

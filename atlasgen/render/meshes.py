@@ -16,6 +16,7 @@ import numpy as np
 
 from atlasgen.errors import SceneError
 from atlasgen.io.fields import FLOAT32_MAX
+from atlasgen.io.text import special_file_kind
 
 __all__ = [
     "Mesh",
@@ -285,6 +286,8 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     import trimesh
 
     path = Path(path)
+    if special_file_kind(path) is not None:  # a named pipe would wait for a writer
+        raise SceneError(scene_path, field, f"expected an OBJ or PLY file, got {special_file_kind(path)} ({path.as_posix()!r})")
     if not path.is_file():
         raise SceneError(scene_path, field, f"no such mesh file {path.as_posix()!r}; expected an OBJ or PLY file")
     try:

@@ -74,3 +74,11 @@ def test_a_missing_file_is_an_input_error(tmp_path):
         read_environment_file(tmp_path / "gone.exr")
     with pytest.raises(FieldError):  # the default error class
         read_environment_file(_bad(tmp_path, "junk.hdr", raw=b"#?RADIANCE\nbroken"))
+
+
+def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
+    import os
+
+    os.mkfifo(tmp_path / "sky.exr")
+    with pytest.raises(SceneError, match="sky.exr: expected an OpenEXR or Radiance HDR image, got a named pipe"):
+        read_environment_file(tmp_path / "sky.exr", SceneError)

@@ -177,3 +177,15 @@ def test_a_mirroring_or_vanishing_scale_is_refused(scale, words):
     with pytest.raises(SceneError) as info:
         parse_scene(tomllib.loads(f'{CAMERA}[[objects]]\nshape = "sphere"\nmaterial = "m"\nscale = {scale}\n'), "scenes/x.toml")
     assert str(info.value).startswith(f"scenes/x.toml: field 'objects[0].scale': expected {words.removeprefix('expected ')}")
+
+
+def test_a_named_pipe_as_mesh_or_environment_is_named(tmp_path):
+    """A named pipe is neither missing nor readable (it would wait for a writer): the line says what it is."""
+    import os
+
+    for name in ("m.obj", "sky.exr"):
+        os.mkfifo(tmp_path / name)
+    _rejects('environment = "sky.exr"', "environment", f"expected an .exr or .hdr file, got a named pipe ('{(tmp_path / 'sky.exr').as_posix()}')",
+             base=tmp_path)  # fmt: skip
+    _rejects('[[objects]]\nshape = "mesh"\nfile = "m.obj"\nmaterial = "clay"', "objects[0].file",
+             f"expected an OBJ or PLY file, got a named pipe ('{(tmp_path / 'm.obj').as_posix()}')", base=tmp_path)  # fmt: skip

@@ -224,3 +224,11 @@ def test_a_face_naming_a_missing_vertex_says_what_was_expected(tmp_path):
         read_mesh(path, "scenes/x.toml", "objects[0].file")
     assert str(info.value) == (f"scenes/x.toml: field 'objects[0].file': mesh {path.as_posix()!r} has a face naming a vertex "
                                "it does not have; expected face indices within its vertices")  # fmt: skip
+
+
+def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
+    import os
+
+    os.mkfifo(tmp_path / "m.obj")
+    with pytest.raises(SceneError, match=r"objects\[1\].file': expected an OBJ or PLY file, got a named pipe"):
+        read_mesh(tmp_path / "m.obj", "s.toml", "objects[1].file")
