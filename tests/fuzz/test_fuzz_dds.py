@@ -15,6 +15,7 @@ from tests.fuzz.strategies import FUZZ, check_result, damage_dds, dds_damage, tr
 pytestmark = pytest.mark.slow
 
 SCENE = '[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\n[image]\nwidth = 8\nheight = 6\n' \
+        '[[lights]]\ntype = "directional"\ndirection = [0, 0, -1]\nintensity = 1\n' \
         '[[objects]]\nshape = "sphere"\nmaterial = "clay"\n'  # fmt: skip
 
 
