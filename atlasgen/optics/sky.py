@@ -77,4 +77,6 @@ def sky_image(height: int, width: int, params: SkyParameters | None = None) -> n
     if power > 0.0 and p.sun_irradiance > 0.0:
         sun = (p.sun_irradiance / power) * profile[..., None] * np.asarray(p.sun_colour, dtype=np.float64)
         sky = sky + sun
-    return sky.astype(np.float32)
+    # A sun beyond float32 becomes inf, which the environment's check refuses (half-float's range, Environment).
+    with np.errstate(over="ignore"):
+        return sky.astype(np.float32)

@@ -64,7 +64,10 @@ class BrdfSource:
         v = np.asarray(v, dtype=np.float64)
         if self._f_cos is not None:
             return self._shape(l, self._f_cos(l, v))
-        return self._shape(l, self._f(l, v)) * np.maximum(l[..., 2], 0.0)[..., None]
+        # A non-finite f (a broken BSDF's NaN or inf; inf times a zero cosine is NaN) is counted and
+        # masked by the callers (sample_matrices, reference_values), so its arithmetic is not warned about.
+        with np.errstate(invalid="ignore"):
+            return self._shape(l, self._f(l, v)) * np.maximum(l[..., 2], 0.0)[..., None]
 
     def f(self, l, v) -> np.ndarray:
         """f itself; from f cos it is (f cos) / max(cos theta_l, 1e-4), so keep l above the horizon."""
