@@ -147,6 +147,7 @@ def test_any_value_parses_or_is_refused_on_one_line(value):
         ('[environment]\nsource = "sky"\nsun_irradiance = 3e38', "the sky (its sun's disc: sun_irradiance over"),
     ],
 )  # fmt: skip
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # the overflow is expected, and refused, not warned about
 def test_an_environment_beyond_half_float_is_refused_when_it_is_built(text, words):
     """The renderer uploads the environment as rgba16float: beyond 65504 it would hold infinity, and its
     prefiltered levels NaN, which rendered the whole image black (the refusal names the scene)."""

@@ -31,6 +31,7 @@ def _poison(l, v):
 
 
 @pytest.mark.slow
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # counted and masked, not warned about
 def test_nonfinite_samples_are_masked_counted_and_reported():
     base = analytic("ggx", alpha=0.3)
 
