@@ -9,7 +9,7 @@ import click
 from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
 from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
 from atlasgen.materials.scene import read_scene
-from atlasgen.render import render_scene_file
+from atlasgen.render import render_scene
 
 __all__ = ["render"]
 
@@ -31,12 +31,12 @@ AOVS = ("normal", "depth", "id", "albedo")
 @fail_on_errors
 def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
-    s = read_scene(scene)  # read again by the render: a few ms, and the render's own reading stays whole
+    s = read_scene(scene)
     if verbosity == VERBOSE:
         materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"
         click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {len(s.objects)} objects, {len(s.lights)} lights; "
                    f"materials {materials}", err=True)  # fmt: skip
-    written = render_scene_file(scene, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
+    written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
     if verbosity != QUIET:
         # After the render: a scene that fails gets its one error line and nothing else.
         for warning in s.warnings() if aov is None else []:

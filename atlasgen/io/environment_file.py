@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
-from atlasgen.io.text import special_file_kind
+from atlasgen.io.text import MISSING, path_kind
 
 __all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "read_environment_file"]
 
@@ -47,14 +47,11 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
     shown = Path(path).as_posix()
     if Path(path).suffix.lower() not in ENVIRONMENT_SUFFIXES:
         raise error(shown, None, f"expected an OpenEXR (.exr) or Radiance HDR (.hdr) environment image, got {Path(path).name!r}")
-    try:
-        exists = Path(path).is_file()
-    except (OSError, ValueError):  # a NUL character, a name too long
-        exists = False
-    if not exists and special_file_kind(path) is not None:
-        raise error(shown, None, f"expected an OpenEXR or Radiance HDR image, got {special_file_kind(path)}")
-    if not exists:
+    kind = path_kind(path)
+    if kind == MISSING:
         raise InputError(f"{shown}: no such environment image")
+    if kind is not None:
+        raise error(shown, None, f"expected an OpenEXR or Radiance HDR image, got {kind}")
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         reason = " ".join(oiio.geterror().split()) or "unreadable"

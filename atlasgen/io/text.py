@@ -8,24 +8,38 @@ from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["decode_utf8", "parse_toml", "read_input_bytes", "read_input_text", "special_file_kind"]
+__all__ = ["MISSING", "decode_utf8", "parse_toml", "path_kind", "read_input_bytes", "read_input_text", "special_file_kind"]
 
 #: What a path that is neither a regular file nor a folder is, by its stat mode, as a refusal names it.
 _SPECIAL_KINDS = ((stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
                   (stat.S_ISBLK, "a block device"))  # fmt: skip
+#: What :func:`path_kind` says of a path with nothing there, or a name the system cannot take.
+MISSING = "missing"
 
 
-def special_file_kind(path) -> str | None:
-    """What ``path`` is when it is a named pipe, socket or device ("a named pipe", ...), else None.
+def path_kind(path) -> str | None:
+    """None where ``path`` is a regular file, else what it is, for a reader's refusal: :data:`MISSING`
+    (nothing there, or a name the system cannot take: a NUL character, one too long), "a directory",
+    "a named pipe", "a socket", "a character device" or "a block device".
 
-    Such an input is refused before it is opened: reading a named pipe waits for a writer
-    that may never come, and a device has no end.
+    A reader asks before it opens: reading a named pipe waits for a writer that may never come,
+    and a device has no end.
     """
     try:
         mode = Path(path).stat().st_mode
-    except (OSError, ValueError):  # missing or unreadable (a NUL character, a name too long): the read says which
+    except (OSError, ValueError):
+        return MISSING
+    if stat.S_ISREG(mode):
         return None
-    return next((kind for test, kind in _SPECIAL_KINDS if test(mode)), None)
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    return next((kind for test, kind in _SPECIAL_KINDS if test(mode)), "not a regular file")
+
+
+def special_file_kind(path) -> str | None:
+    """What ``path`` is when it is a named pipe, socket or device (:func:`path_kind`), else None."""
+    kind = path_kind(path)
+    return None if kind in (None, MISSING, "a directory") else kind
 
 
 def _refuse_special(path) -> None:

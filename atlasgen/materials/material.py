@@ -10,7 +10,7 @@ from pathlib import Path
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
-from atlasgen.io.text import decode_utf8, parse_toml, read_input_bytes, special_file_kind
+from atlasgen.io.text import MISSING, decode_utf8, parse_toml, path_kind, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
@@ -224,12 +224,12 @@ def find_material_files(paths) -> list[Path]:
         p = Path(p)
         if p.is_dir():
             files.extend(sorted([*p.glob("*.toml"), *p.glob("*.mtlx")]))
-        elif p.is_file():
+        elif (kind := path_kind(p)) is None:
             files.append(p)
-        elif special_file_kind(p) is not None:
-            raise InputError(f"{p.as_posix()}: expected a material file or a folder, got {special_file_kind(p)}")
-        else:
+        elif kind == MISSING:
             raise InputError(f"{p.as_posix()}: no such file or folder")
+        else:
+            raise InputError(f"{p.as_posix()}: expected a material file or a folder, got {kind}")
     return files
 
 

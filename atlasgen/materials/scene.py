@@ -18,7 +18,7 @@ from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
 from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
-from atlasgen.io.text import parse_toml, read_input_text, special_file_kind
+from atlasgen.io.text import MISSING, parse_toml, path_kind, read_input_text
 from atlasgen.materials.environment import Environment
 from atlasgen.optics.sky import SkyParameters
 
@@ -280,15 +280,11 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
         if not isinstance(text, str) or not text:
             r.fail(f"{name}.file", "a path to an OBJ or PLY mesh", text)
         file = Path(text) if Path(text).is_absolute() else base / text
-        try:
-            exists = file.is_file()
-        except (OSError, ValueError):  # a NUL character, a name too long
-            exists = False
-        kind = None if exists else special_file_kind(file)
+        kind = path_kind(file)
+        if kind == MISSING:
+            raise SceneError(r.path, f"{name}.file", f"no such mesh file {file.as_posix()!r}; expected an OBJ or PLY file")
         if kind is not None:
             raise SceneError(r.path, f"{name}.file", f"expected an OBJ or PLY file, got {kind} ({file.as_posix()!r})")
-        if not exists:
-            raise SceneError(r.path, f"{name}.file", f"no such mesh file {file.as_posix()!r}; expected an OBJ or PLY file")
         if file.suffix.lower() not in (".obj", ".ply"):
             raise SceneError(r.path, f"{name}.file", f"expected an .obj or .ply file, got {file.name!r}")
     elif "file" in raw:
@@ -330,15 +326,11 @@ def _environment_source(r: _Reader, raw, name: str, base: Path):
     file = Path(raw) if Path(raw).is_absolute() else base / raw
     if file.suffix.lower() not in ENVIRONMENT_SUFFIXES:
         raise SceneError(r.path, name, f'expected an OpenEXR (.exr) or Radiance HDR (.hdr) image, or "sky", got {raw!r}')
-    try:
-        exists = file.is_file()
-    except (OSError, ValueError):  # a NUL character, a name too long
-        exists = False
-    kind = None if exists else special_file_kind(file)
+    kind = path_kind(file)
+    if kind == MISSING:
+        raise SceneError(r.path, name, f"no such environment image {file.as_posix()!r}; expected an .exr or .hdr file")
     if kind is not None:
         raise SceneError(r.path, name, f"expected an .exr or .hdr file, got {kind} ({file.as_posix()!r})")
-    if not exists:
-        raise SceneError(r.path, name, f"no such environment image {file.as_posix()!r}; expected an .exr or .hdr file")
     return "file", (0.0, 0.0, 0.0), file
 
 

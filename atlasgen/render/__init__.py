@@ -11,16 +11,16 @@ from pathlib import Path
 
 from atlasgen.errors import OutputError
 from atlasgen.io.output_paths import check_output_paths
-from atlasgen.materials.scene import read_scene, resolve_materials
+from atlasgen.materials.scene import resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.output import write_aov, write_render
 from atlasgen.render.renderer import AOVS, Renderer
 
-__all__ = ["render_scene_file"]
+__all__ = ["render_scene"]
 
 
-def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=None, outlines=True) -> list[Path]:
-    """Render a scene file with a baked atlas and write the result; return the paths written.
+def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlines=True) -> list[Path]:
+    """Render a scene (:func:`~atlasgen.materials.scene.read_scene`) with a baked atlas and write the result; return the paths written.
 
     Without ``aov``: ``output_path`` (linear EXR) and the same path with ``.png``
     (tone-mapped sRGB, the scene's exposure). With ``aov`` (normal, depth, id, albedo):
@@ -29,7 +29,7 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
     Raises
     ------
     InputError, SceneError
-        Missing or invalid scene, mesh, atlas, manifest or include; unknown material.
+        Missing or invalid mesh, atlas, manifest or include; unknown material.
     BackendError
         No GPU adapter, or the device reported an error.
     OutputError
@@ -40,7 +40,6 @@ def render_scene_file(scene_path, atlas_path, output_path, aov=None, mip_bias=No
         raise ValueError(f"aov must be one of {AOVS}, not {aov!r}")
     if output_path.suffix.lower() != ".exr":
         raise OutputError(f"{output_path.as_posix()}: expected an .exr output path")
-    scene = read_scene(scene_path)
     _check_render_outputs(output_path, aov, scene, atlas_path)
     atlas = read_render_atlas(atlas_path)
     resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU

@@ -16,7 +16,7 @@ import numpy as np
 
 from atlasgen.errors import SceneError
 from atlasgen.io.fields import FLOAT32_MAX
-from atlasgen.io.text import special_file_kind
+from atlasgen.io.text import MISSING, path_kind
 
 __all__ = [
     "Mesh",
@@ -286,10 +286,11 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     import trimesh
 
     path = Path(path)
-    if special_file_kind(path) is not None:  # a named pipe would wait for a writer
-        raise SceneError(scene_path, field, f"expected an OBJ or PLY file, got {special_file_kind(path)} ({path.as_posix()!r})")
-    if not path.is_file():
+    kind = path_kind(path)
+    if kind == MISSING:
         raise SceneError(scene_path, field, f"no such mesh file {path.as_posix()!r}; expected an OBJ or PLY file")
+    if kind is not None:
+        raise SceneError(scene_path, field, f"expected an OBJ or PLY file, got {kind} ({path.as_posix()!r})")
     try:
         if path.suffix.lower() == ".obj":
             # OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it

@@ -65,6 +65,14 @@ def test_a_named_pipe_is_named_and_refused_before_it_is_opened(tmp_path):
     os.mkfifo(fifo)
     assert text.special_file_kind(fifo) == "a named pipe"
     assert text.special_file_kind(tmp_path) is None and text.special_file_kind(tmp_path / "missing") is None
+    assert [text.path_kind(p) for p in (fifo, tmp_path, tmp_path / "missing", tmp_path / "a\0b")] == [
+        "a named pipe",
+        "a directory",
+        text.MISSING,
+        text.MISSING,
+    ]
+    (tmp_path / "plain.toml").write_text("")
+    assert text.path_kind(tmp_path / "plain.toml") is None
     for command, expected in ((["bake", str(fifo), "-o", str(tmp_path / "a.dds")], "expected a material file or a folder"),
                               (["render", str(fifo), "-o", str(tmp_path / "a.exr")], "expected a regular file")):  # fmt: skip
         out = subprocess.run([sys.executable, "-m", "atlasgen", *command], capture_output=True, text=True, timeout=60)

@@ -190,3 +190,6 @@ def test_a_named_pipe_as_mesh_or_environment_is_named(tmp_path):
              base=tmp_path)  # fmt: skip
     _rejects('[[objects]]\nshape = "mesh"\nfile = "m.obj"\nmaterial = "clay"', "objects[0].file",
              f"expected an OBJ or PLY file, got a named pipe ('{(tmp_path / 'm.obj').as_posix()}')", base=tmp_path)  # fmt: skip
+    (tmp_path / "folder.obj").mkdir()
+    _rejects('[[objects]]\nshape = "mesh"\nfile = "folder.obj"\nmaterial = "clay"', "objects[0].file",
+             f"expected an OBJ or PLY file, got a directory ('{(tmp_path / 'folder.obj').as_posix()}')", base=tmp_path)  # fmt: skip
