@@ -4,6 +4,7 @@ killed at any step leaves the primary stale or the whole new set, and the next r
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import subprocess
@@ -372,6 +373,28 @@ def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path
     assert visible(tmp_path) == {p.name: d for p, d in old.items()}
     assert {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old} == state  # not even migrated
     assert sorted(os.listdir(tmp_path / ".a.atlasgen")) == (["current", "gen-1", "lock"] if before == "links" else ["lock"])
+
+
+@pytest.mark.parametrize("before", ["links", "plain files"])
+def test_a_store_that_cannot_take_a_generation_refuses_the_commit(tmp_path, monkeypatch, before):
+    """The store read-only or marked immutable (``chattr +i``): one OutputError, nothing replaced."""
+    old = _three(tmp_path, "old")
+    if before == "links":
+        write_files_atomically(old, primary=tmp_path / "a.dds")
+    else:
+        for path, data in old.items():
+            path.write_bytes(data)
+    real_mkdir = Path.mkdir
+
+    def mkdir(self, *args, **kwargs):
+        if self.name.startswith("gen-"):
+            raise PermissionError(errno.EPERM, os.strerror(errno.EPERM), str(self))
+        return real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", mkdir)
+    with pytest.raises(OutputError, match=r"\.a\.atlasgen: cannot write \(Operation not permitted\); nothing was replaced"):
+        write_files_atomically(_three(tmp_path, "new"), primary=tmp_path / "a.dds")
+    assert visible(tmp_path) == {p.name: d for p, d in old.items()}
 
 
 @pytest.mark.parametrize("before", ["links", "plain files"])

@@ -93,18 +93,22 @@ ATLAS_SUFFIXES = (".dds", ".ktx2")
 
 
 def sibling_paths(dds_path) -> dict:
-    """The files written beside ``X.dds`` (or ``X.ktx2``, kept under the key ``"dds"``): manifest, include and timings."""
+    """The files written beside ``X.dds`` (or ``X.ktx2``, kept under the key ``"dds"``): manifest, include and timings.
+
+    >>> sorted(p.as_posix() for p in sibling_paths("out/hero.v2.ktx2").values())[:3]
+    ['out/hero.v2.glsl', 'out/hero.v2.hlsl', 'out/hero.v2.json']
+    """
     p = Path(dds_path)
     check_suffix(p, "the atlas (-o)", ATLAS_SUFFIXES)
-    stem = p.with_suffix("")
+    # Only the container's suffix is replaced: "a.b.dds" keeps "a.b", or it would write over a.dds's files.
     return {
         "dds": p,
-        "manifest": stem.with_suffix(".json"),
-        "include": stem.with_suffix(".wgsl"),
-        "glsl": stem.with_suffix(".glsl"),
-        "hlsl": stem.with_suffix(".hlsl"),
-        "separable": stem.with_suffix(".separable.bin"),
-        "timings": Path(str(stem) + ".timings.json"),
+        "manifest": p.with_suffix(".json"),
+        "include": p.with_suffix(".wgsl"),
+        "glsl": p.with_suffix(".glsl"),
+        "hlsl": p.with_suffix(".hlsl"),
+        "separable": p.with_suffix(".separable.bin"),
+        "timings": p.with_suffix(".timings.json"),
     }
 
 

@@ -44,6 +44,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import math
 import os
 import re
 import secrets
@@ -53,7 +54,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from atlasgen.errors import OutputError
+from atlasgen.errors import InputError, OutputError, shorten
 from atlasgen.interrupts import deferred_interrupts
 
 __all__ = [
@@ -181,10 +182,18 @@ def _discard(path) -> None:
 
 
 def _lock_timeout() -> float:
-    try:
-        return float(os.environ.get("ATLASGEN_LOCK_TIMEOUT_S", LOCK_TIMEOUT_S))
-    except ValueError:
+    """``ATLASGEN_LOCK_TIMEOUT_S`` if set, else :data:`LOCK_TIMEOUT_S`; a value that is no finite
+    number of seconds >= 0 is refused rather than read as "wait forever" (nan, inf) or ignored."""
+    text = os.environ.get("ATLASGEN_LOCK_TIMEOUT_S")
+    if text is None:
         return LOCK_TIMEOUT_S
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = math.nan
+    if not (math.isfinite(seconds) and seconds >= 0.0):
+        raise InputError(f"ATLASGEN_LOCK_TIMEOUT_S: expected a finite number of seconds >= 0, got {shorten(repr(text))}")
+    return seconds
 
 
 @contextlib.contextmanager
@@ -472,8 +481,14 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
         else:
             migrate.append(path)
     absent = [path for path in absent if path not in removals]
-    holding = _new_generation(store) if migrate else None  # numbered before the new generation
-    gen = _new_generation(store)
+    holding = None
+    try:
+        holding = _new_generation(store) if migrate else None  # numbered before the new generation
+        gen = _new_generation(store)
+    except OSError as exc:  # the store itself is read-only or marked immutable
+        if holding is not None:
+            shutil.rmtree(holding, ignore_errors=True)
+        raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
     done = False
     made: list[Path] = []
     try:

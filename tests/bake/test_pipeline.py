@@ -84,6 +84,19 @@ def test_a_second_writer_of_the_set_is_refused_after_the_lock_timeout(tmp_path, 
     assert _names(out.parent) == []
 
 
+@pytest.mark.parametrize("value", ["nan", "inf", "1e999", "-1", "abc", ""])
+def test_a_lock_timeout_that_is_no_number_of_seconds_is_refused(tmp_path, write_material, monkeypatch, value):
+    """nan or inf would wait forever on a held lock, and a word was silently read as 120 s."""
+    write_material("clay", 'type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    monkeypatch.setenv("ATLASGEN_LOCK_TIMEOUT_S", value)
+    res = CliRunner().invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"])
+    assert res.exit_code == 3, res.output
+    assert res.stderr.splitlines() == ["atlasgen: error: ATLASGEN_LOCK_TIMEOUT_S: expected a finite number of seconds "
+                                       f">= 0, got {value!r}"]  # fmt: skip
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("count", "ids", "expected"),
     [(257, {}, "the materials need 257 slices; expected at most 256"),

@@ -149,3 +149,18 @@ def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, com
     else:
         _refused(tmp_path, [*command, "-o", str(blocker)], "the report folder (-o) is an existing file; expected a folder path")
     _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
+
+
+def test_a_dotted_atlas_name_keeps_its_files_apart_from_the_shorter_name(tmp_path, library):
+    """``hero.v2.dds`` writes ``hero.v2.json`` and its includes, never ``hero.json``: another atlas's files."""
+    out = tmp_path / "build"
+    _bake(tmp_path, library)  # build/atlas.dds, and its siblings
+    baked = _tree_hash(out)
+    res = CliRunner().invoke(app, ["bake", str(library / "clay.toml"), "-o", str(out / "atlas.v2.dds"), "-q"])
+    assert res.exit_code == 0, res.output
+    after = _tree_hash(out)
+    assert {k: v for k, v in after.items() if k in baked} == baked
+    for suffix in (".json", ".wgsl", ".glsl", ".hlsl", ".timings.json"):
+        assert (out / f"atlas.v2{suffix}").is_file(), suffix
+    info = CliRunner().invoke(app, ["info", str(out / "atlas.v2.dds")])
+    assert info.exit_code == 0 and "clay" in info.output, info.output
