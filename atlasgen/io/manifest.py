@@ -32,7 +32,7 @@ from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, MAPPING, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
-from atlasgen.io.text import read_input_text
+from atlasgen.io.text import loads_json, read_input_text
 
 __all__ = [
     "read_slots",
@@ -797,7 +797,7 @@ def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> No
 def parse_manifest(text: str, shown: str = "<manifest>") -> Manifest:
     """A manifest from its JSON text; ``shown`` names the file in refusals."""
     try:
-        data = json.loads(text)
+        data = loads_json(text)
     except ValueError as exc:
         raise ManifestError(shown, None, f"expected an atlas manifest (JSON), got malformed JSON ({exc})") from None
     return Manifest.from_json(data, shown)
@@ -825,7 +825,7 @@ def read_slots(path) -> dict[str, int]:
     shown = Path(path).as_posix()
     text = read_input_text(path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
     try:
-        data = json.loads(text)
+        data = loads_json(text)
     except ValueError as exc:
         raise ManifestError(shown, None, f"expected an atlas manifest (JSON), got malformed JSON ({exc})") from None
     materials = data.get("materials") if isinstance(data, dict) else None

@@ -3,11 +3,11 @@ and the checks that keep a hand-edited or damaged figure out of a merged report.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
+from atlasgen.io.text import loads_json
 
 __all__ = ["report_json_paths", "read_report_json", "loads_finite_json", "check_number"]
 
@@ -29,7 +29,7 @@ def loads_finite_json(text: str, path) -> object:
     """
     path = Path(path)
     try:
-        return json.loads(text, parse_constant=_refuse_constant(path))
+        return loads_json(text, parse_constant=_refuse_constant(path))
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
 

@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import json
 import stat
 import tomllib
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError
 
-__all__ = ["MISSING", "decode_utf8", "parse_toml", "path_kind", "read_input_bytes", "read_input_text", "special_file_kind"]
+__all__ = [
+    "MISSING",
+    "decode_utf8",
+    "loads_json",
+    "parse_toml",
+    "path_kind",
+    "read_input_bytes",
+    "read_input_text",
+    "special_file_kind",
+]
 
 #: What a path that is neither a regular file nor a folder is, by its stat mode, as a refusal names it.
 _SPECIAL_KINDS = ((stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
@@ -101,6 +111,21 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
         raise error(shown, None, f"expected {expected}, got bytes that are not UTF-8") from None
     except OSError as exc:
         raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
+
+
+def loads_json(text: str, **kwargs) -> object:
+    """``json.loads(text, **kwargs)``, with arrays or objects nested too deeply for Python's decoder
+    raised as the ValueError a malformed file raises, so every reader refuses both on one line.
+
+    >>> loads_json("[" * 100000 + "]" * 100000)
+    Traceback (most recent call last):
+    ...
+    ValueError: arrays or objects nested too deeply to read
+    """
+    try:
+        return json.loads(text, **kwargs)
+    except RecursionError:
+        raise ValueError("arrays or objects nested too deeply to read") from None
 
 
 def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:

@@ -34,6 +34,7 @@ from atlasgen.io.manifest import (
     format_manifest,
     parse_manifest,
     read_manifest,
+    read_slots,
     write_manifest,
 )  # fmt: skip
 
@@ -395,6 +396,12 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
 
 def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
     assert "got malformed JSON (Expecting value" in _refusal(tmp_path, "not json")
+    # Nested past Python's recursion limit: a malformed file too, not a RecursionError (exit 1, "a bug").
+    deep = "[" * 100000 + "]" * 100000
+    assert "got malformed JSON (arrays or objects nested too deeply to read)" in _refusal(tmp_path, deep)
+    (tmp_path / "build" / "atlas.json").write_text(deep)
+    with pytest.raises(ManifestError, match="nested too deeply"):
+        read_slots(tmp_path / "build" / "atlas.json")
     assert "UTF-8" in _refusal(tmp_path, b"\xff\xfe{}")
     with pytest.raises(ManifestError, match=r"build: expected an atlas manifest \(a UTF-8 JSON file\), got a directory"):
         read_manifest(tmp_path / "build")
