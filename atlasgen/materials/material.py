@@ -48,7 +48,7 @@ class Material:
     type: str
     params: dict
     source: str  # path as given, POSIX separators
-    content_hash: str  # sha256 of the file's bytes
+    content_hash: str  # sha256 of the file's bytes (and of the files it includes)
     id: int | None = None
     description: str = ""
     rgb_scale: object = "auto"
@@ -61,6 +61,8 @@ class Material:
     #: The ``[validate]`` table: a look goal of the material's own (``psnr_db``, ``flip``), or None for the defaults.
     look_goal: dict | None = None
     extra: dict = field(default_factory=dict)
+    #: The files the definition includes (a MaterialX document's ``xi:include``), POSIX: a rebuild depends on them.
+    includes: tuple[str, ...] = ()
 
     @property
     def model(self):

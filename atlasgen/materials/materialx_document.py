@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -99,6 +100,8 @@ _ANISOTROPY = {
 #: A sharper lobe's peak falls between a slice's texels (the distribution's OpenPBR car paint has a coat of 0.02,
 #: whose fit errs by 130 %); at roughness 0, a mirror, the fit's error estimate runs to 1e14 %.
 ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
+#: An include element's tag as ElementTree names it (MaterialX reads ``xi:include`` in this namespace).
+XINCLUDE = "{http://www.w3.org/2001/XInclude}include"
 
 
 def is_materialx_file(path) -> bool:
@@ -160,15 +163,26 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     path = Path(path)
     shown = path.as_posix()
     data = read_input_bytes(path)
-    doc = mx.createDocument()
     try:
-        mx.readFromXmlString(doc, data.decode("utf-8"), mx.FileSearchPath(str(path.parent)))
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise MaterialError(shown, None, "expected UTF-8 MaterialX XML") from None
+    # What the document includes is read here first: MaterialX's reader would wait forever on a named
+    # pipe, and it drops an included element whose name is taken without a word.
+    documents = [(shown, _parse_xml(shown, data))]
+    included = _included_files(path, documents[0][1])
+    documents += [(p.as_posix(), tree) for p, _, tree in included]
+    doc = mx.createDocument()
+    try:
+        mx.readFromXmlString(doc, text, mx.FileSearchPath(str(path.parent)))
     except Exception as exc:  # noqa: BLE001 - MaterialX raises its own exception types
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
-    _refuse_duplicate_names(shown, data)
+    _refuse_duplicate_names(documents)
+    # The document's bytes and every included file's: a change to either re-bakes (the cache's key).
+    digest = hashlib.sha256(data)
+    for _, included_data, _ in included:
+        digest.update(b"\0" + included_data)
     doc.importLibrary(load_materialx_libraries())
     nodes = doc.getMaterialNodes()
     if not nodes:
@@ -195,7 +209,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         params = validate_params(model.params, raw, shown)
         model.check(params, shown)
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
-                    "content_hash": hashlib.sha256(data + b"\0" + name.encode()).hexdigest(),
+                    "content_hash": _with_name(digest, name), "includes": tuple(p.as_posix() for p, _, _ in included),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
     return out
 
@@ -214,23 +228,73 @@ def _material_not_in_table(node) -> list[str]:
     return out
 
 
-def _refuse_duplicate_names(shown: str, data: bytes) -> None:
-    """Refuse two elements of one parent with one name: MaterialX's reader keeps the first and drops
-    the second without a word, so a copied material block left unrenamed would vanish from the atlas."""
+def _with_name(digest, name: str) -> str:
+    """The hex digest of what ``digest`` has read, then a NUL and ``name``: one material of the document."""
+    copy = digest.copy()
+    copy.update(b"\0" + name.encode())
+    return copy.hexdigest()
+
+
+def _parse_xml(shown: str, data: bytes):
+    """The XML tree of a document MaterialX read; expat refuses what MaterialX may not (an entity expansion, say)."""
     try:
-        root = ElementTree.fromstring(data)
-    except ElementTree.ParseError as exc:  # MaterialX read it, but expat will not (an entity expansion, say)
+        return ElementTree.fromstring(data)
+    except ElementTree.ParseError as exc:
         raise MaterialError(shown, None, f"malformed MaterialX document: XML parse error ({exc})") from None
-    for parent in root.iter():
-        seen: dict = {}
-        for child in parent:
-            name = child.get("name")
-            if name is None:
+
+
+def _included_files(path: Path, root) -> list:
+    """``(path, bytes, tree)`` of every file the document at ``path`` includes (``xi:include``, and what those
+    include), each once, in document order. An ``href`` is looked up as MaterialX does: beside the file that
+    includes it, then beside the document. One found nowhere, or a cycle, is left to MaterialX to refuse.
+
+    Raises
+    ------
+    InputError
+        An included path is a named pipe, a device, a folder or unreadable (:func:`read_input_bytes`).
+    MaterialError
+        An included file is not XML.
+    """
+    out: list = []
+    seen = {os.path.realpath(path)}
+
+    def visit(folder: Path, tree) -> None:
+        for element in tree.iter(XINCLUDE):
+            href = element.get("href")
+            found = next((p for p in (folder / href, path.parent / href) if os.path.lexists(p)), None) if href else None
+            if found is None or os.path.realpath(found) in seen:
                 continue
-            if name in seen:
-                raise MaterialError(shown, name, f"expected unique names among the children of <{parent.tag}>, found "
-                                    f"<{seen[name]}> and <{child.tag}> both named {name!r}")  # fmt: skip
-            seen[name] = child.tag
+            seen.add(os.path.realpath(found))
+            data = read_input_bytes(found)
+            included = _parse_xml(found.as_posix(), data)
+            out.append((found, data, included))
+            visit(found.parent, included)
+
+    visit(path.parent, root)
+    return out
+
+
+def _refuse_duplicate_names(documents: list) -> None:
+    """Refuse two elements of one parent with one name, and one name at the top of a document and of a file
+    it includes (``documents``: ``(shown, tree)``, the document first): MaterialX's reader keeps the first and
+    drops the other without a word, so a copied material block left unrenamed would vanish from the atlas."""
+    top: dict = {}
+    for shown, root in documents:
+        for parent in root.iter():
+            seen: dict = {}
+            for child in parent:
+                name = child.get("name")
+                if name is None:
+                    continue
+                if name in seen:
+                    raise MaterialError(shown, name, f"expected unique names among the children of <{parent.tag}>, "
+                                        f"found <{seen[name]}> and <{child.tag}> both named {name!r}")  # fmt: skip
+                seen[name] = child.tag
+        for child in root:
+            name = child.get("name")
+            if name is not None and top.setdefault(name, shown) != shown:
+                raise MaterialError(documents[0][0], name, f"expected unique names in a document and the files it "
+                                    f"includes, found {name!r} in both {top[name]} and {shown}")  # fmt: skip
 
 
 #: Why an input its nodedef declares without a default is named rather than used.

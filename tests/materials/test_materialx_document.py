@@ -10,7 +10,7 @@ pytest.importorskip("MaterialX")
 
 pytestmark = pytest.mark.slow  # loading MaterialX's libraries costs about a second of CPU
 
-from atlasgen.errors import MaterialError  # noqa: E402
+from atlasgen.errors import InputError, MaterialError  # noqa: E402
 from atlasgen.materials.material import find_material_files, read_material_file, read_materials  # noqa: E402
 
 
@@ -169,6 +169,55 @@ def test_two_elements_of_one_name_are_refused_not_dropped(tmp_path):
         read_material_file(path)
     assert str(info.value) == (f"{path.as_posix()}: field 'SR_M': expected unique names among the children of "
                                "<materialx>, found <open_pbr_surface> and <open_pbr_surface> both named 'SR_M'")  # fmt: skip
+
+
+def _including(tmp_path, href: str, body: str = "", name: str = "main.mtlx"):
+    path = tmp_path / name
+    path.write_text('<?xml version="1.0"?>\n<materialx version="1.39" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+                    f'<xi:include href="{href}" />\n{body}\n</materialx>\n')  # fmt: skip
+    return path
+
+
+def test_an_included_file_s_materials_join_and_its_bytes_key_the_cache(tmp_path):
+    """A document's includes are read with it: their materials bake, a change to one changes the
+    materials' content hash (the cache's key), and each is listed for the depfile."""
+    (tmp_path / "lib").mkdir()
+    leaf = _document(tmp_path / "lib", _material("Red", "standard_surface", ""), "red.mtlx")
+    _including(tmp_path / "lib", "red.mtlx", name="mid.mtlx")  # nested: found beside the file that includes it
+    path = _including(tmp_path, "lib/mid.mtlx", _material("Blue", "standard_surface", ""))
+    before = read_material_file(path)
+    assert [m.name for m in before] == ["Red", "Blue"]
+    assert before[0].includes == ((tmp_path / "lib" / "mid.mtlx").as_posix(), leaf.as_posix())
+    leaf.write_text(leaf.read_text().replace('type="material"', 'type="material" doc="changed"'))
+    after = read_material_file(path)
+    assert all(a.content_hash != b.content_hash for a, b in zip(after, before))
+
+
+def test_a_name_taken_by_an_included_file_is_refused_not_dropped(tmp_path):
+    """MaterialX keeps the included element and drops the document's own of the same name silently."""
+    red = _document(tmp_path, _material("M", "standard_surface", '<input name="base_color" type="color3" value="1, 0, 0" />'),
+                    "red.mtlx")  # fmt: skip
+    path = _including(tmp_path, "red.mtlx", _material("M", "standard_surface", ""))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'SR_M': expected unique names in a document and the files it "
+                               f"includes, found 'SR_M' in both {path.as_posix()} and {red.as_posix()}")  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", ["a named pipe", "a directory"])
+def test_an_included_pipe_or_folder_is_refused_not_waited_on(tmp_path, kind):
+    import os
+
+    target = tmp_path / "inc.mtlx"
+    if kind == "a named pipe":
+        os.mkfifo(target)
+    else:
+        target.mkdir()
+    path = _including(tmp_path, "inc.mtlx", _material("M", "standard_surface", ""))
+    with pytest.raises(InputError) as info:
+        read_material_file(path)
+    expected = "expected a regular file, got a named pipe" if kind == "a named pipe" else "cannot read (Is a directory)"
+    assert str(info.value) == f"{target.as_posix()}: {expected}"
 
 
 def test_a_material_s_back_surface_and_displacement_are_named_not_dropped(tmp_path):
