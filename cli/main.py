@@ -28,7 +28,7 @@ from atlasgen.bake.cache import cache_path
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
@@ -167,11 +167,11 @@ def app(ctx, debug):
 
 
 @app.command()
-@click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
+@click.argument("paths", nargs=-1, type=PathArg(path_type=Path))
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/atlas.dds"),
     show_default=True,
     help="Atlas to write, X.dds or X.ktx2; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.",
@@ -185,18 +185,18 @@ def app(ctx, debug):
 )
 @click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28, VK 37) instead of sRGB (DXGI 29, VK 43).")
 @click.option("--zstd", is_flag=True, help="Supercompress each mip level with Zstandard (needs -o X.ktx2).")
-@click.option("--preview", type=click.Path(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
-@click.option("--scene", type=click.Path(path_type=Path), default=None, help="Bake only the materials this scene references.")
+@click.option("--preview", type=PathArg(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
+@click.option("--scene", type=PathArg(path_type=Path), default=None, help="Bake only the materials this scene references.")
 @click.option(
     "--ids-from",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=None,
     help="Take slice IDs from this manifest (e.g. the full library's build/atlas.json).",
 )
 @click.option(
     "--cache",
     "cache_dir",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=None,
     help="Per-material cache folder: unchanged materials are loaded, not re-baked.",
 )
@@ -211,7 +211,7 @@ def app(ctx, debug):
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
 @click.option(
     "--depfile",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=None,
     help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).",
 )
@@ -290,7 +290,16 @@ def bake(
             for warning in filled["warnings"]:
                 click.echo(f"atlasgen: warning: {warning}", err=True)
         return
-    previous = read_previous_slots(ids_from) if ids_from is not None else {}
+    extra_files = {}
+    if depfile is not None:
+        # Formatted before the bake (a path make cannot read is refused first) and written in the same
+        # commit as the atlas: a depfile that cannot be written fails the bake before the atlas is replaced.
+        inputs = [m.source for m in materials] + [p for m in materials for p in m.includes]
+        inputs += [scene] if scene is not None else []
+        if cache_dir is not None:
+            inputs += [cache_path(cache_dir, m) for m in materials]
+        extra_files[depfile] = format_depfile(output, inputs).encode()
+    previous = read_previous_slots(ids_from, missing_ok=False) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
     with MaterialProgress("baked", verbosity) as report:
         started, done = time.monotonic(), [0]
@@ -306,15 +315,6 @@ def bake(
         count = len(result.material_warnings)
         raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, nothing written: "
                            + "; ".join(str(w) for w in result.material_warnings))  # fmt: skip
-    extra_files = {}
-    if depfile is not None:
-        # Written in the same commit as the atlas: a depfile that cannot be written fails
-        # the bake before the atlas is replaced.
-
-        inputs = [m.source for m in materials] + ([scene] if scene is not None else [])
-        if cache_dir is not None:
-            inputs += [cache_path(cache_dir, m) for m in materials]
-        extra_files[depfile] = format_depfile(output, inputs).encode()
     write_bake(result, output, preview, zstd, languages, extra_files)
     if verbosity == VERBOSE:
         for line in _describe_materials(result):
@@ -342,7 +342,7 @@ def _describe_materials(result) -> list[str]:
 
 
 @app.command()
-@click.argument("atlas", type=click.Path(path_type=Path))
+@click.argument("atlas", type=PathArg(path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @verbosity_options(quiet="Print only the one-line description (text format).",
                    verbose="Also print each material's description and source file (text format).")  # fmt: skip

@@ -7,9 +7,19 @@ import sys
 
 import click
 
-__all__ = ["QUIET", "NORMAL", "VERBOSE", "verbosity_options", "MaterialProgress"]
+__all__ = ["QUIET", "NORMAL", "VERBOSE", "PathArg", "verbosity_options", "MaterialProgress"]
 
 QUIET, NORMAL, VERBOSE = -1, 0, 1
+
+
+class PathArg(click.Path):
+    """``click.Path`` that refuses an empty string: pathlib reads ``""`` as ``.``, so ``bake ""`` baked the
+    current folder and ``-o ""`` named it."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and not value:
+            self.fail("expected a path, got an empty string", param, ctx)
+        return super().convert(value, param, ctx)
 
 
 def verbosity_options(quiet: str = "Print only errors.", verbose: str = "Print more detail."):

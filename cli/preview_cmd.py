@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors, one_line_message
-from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
 from atlasgen.preview.watch import describe_label, describe_update, watch_preview
@@ -20,11 +20,11 @@ def _steps(timings: dict) -> str:
 
 
 @click.command("preview")
-@click.argument("paths", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
+@click.argument("paths", nargs=-1, required=True, type=PathArg(path_type=Path))
+@click.option("-o", "--output", type=PathArg(path_type=Path, dir_okay=False), default=None,
               help="PNG to write.  [default: build/preview/NAME.png, NAME the material file's stem or the folder's "
                    "name; build/preview/contact-sheet.png for several]")  # fmt: skip
-@click.option("--cache", "cache_dir", type=click.Path(path_type=Path, file_okay=False), default=DEFAULT_CACHE_DIR,
+@click.option("--cache", "cache_dir", type=PathArg(path_type=Path, file_okay=False), default=DEFAULT_CACHE_DIR,
               show_default=True, help="Per-material bake cache, the one make fills: unchanged materials are loaded, "
                                       "not baked again.")  # fmt: skip
 @click.option("--no-cache", is_flag=True, help="Bake every material, and store nothing.")

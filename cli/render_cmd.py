@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.materials.scene import read_scene
 from atlasgen.render import render_scene
 
@@ -17,10 +17,10 @@ AOVS = ("normal", "depth", "id", "albedo")
 
 
 @click.command("render")
-@click.argument("scene", type=click.Path(path_type=Path))
-@click.option("--atlas", type=click.Path(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
+@click.argument("scene", type=PathArg(path_type=Path))
+@click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip
-@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), required=True,
+@click.option("-o", "--output", type=PathArg(path_type=Path, dir_okay=False), required=True,
               help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip
 @click.option("--aov", type=click.Choice(AOVS), default=None,
               help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
@@ -31,7 +31,7 @@ def report():
     "-m",
     "--materials",
     "materials_dir",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("materials"),
     show_default=True,
     help="Folder (or TOML file) of materials to pick from.",
@@ -39,14 +39,14 @@ def report():
 @click.option("--library", is_flag=True, help="Pick from the material library installed with atlasgen instead of --materials.")
 @click.option(
     "--atlas",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=None,
     help="Also measure these materials as stored in this atlas (X.dds with X.json beside it).",
 )
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/report/separable"),
     show_default=True,
     help="Folder for index.html (with its plots), index.md (a text summary) and report.json.",
@@ -99,14 +99,14 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 @report.command("library")
 @click.option(
     "--atlas",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/atlas.dds"),
     show_default=True,
     help="Baked atlas (X.dds with X.json and X.timings.json beside it).",
 )
 @click.option(
     "--validation",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/validation"),
     show_default=True,
     help="Folder of `atlasgen validate` (report.json, index.html), used when present.",
@@ -114,7 +114,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 @click.option(
     "--separable",
     "separable_dir",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/report/separable"),
     show_default=True,
     help="Folder of `atlasgen report separable`, linked when present.",
@@ -122,7 +122,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 @click.option(
     "-o",
     "--output",
-    type=click.Path(path_type=Path),
+    type=PathArg(path_type=Path),
     default=Path("build/report"),
     show_default=True,
     help="Folder for index.html, slice previews, the cost plots and the Pareto charts (their candidates "

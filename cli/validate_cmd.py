@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, verbosity_options
+from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.validation import (
@@ -55,13 +55,13 @@ def _resolution(ctx, param, value):
 @click.option("--environment", is_flag=True,
               help="Also validate environment lighting: the scenes env-uniform (Mitsuba constant) and env-sky (envmap), "
                    "a lone 64x64 sphere, on the material's pixels, against the model reference.")  # fmt: skip
-@click.option("--atlas", type=click.Path(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
+@click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
-@click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), default=Path("build/validation"),
+@click.option("-o", "--output", type=PathArg(path_type=Path, file_okay=False), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
-@click.option("--cache", "bake_cache", type=click.Path(path_type=Path, file_okay=False), default=Path("build/cache"),
+@click.option("--cache", "bake_cache", type=PathArg(path_type=Path, file_okay=False), default=Path("build/cache"),
               show_default=True, help="The bake's cache (atlasgen bake --cache): float slices are read from a material's current entry there instead of being computed or fitted again.")  # fmt: skip
-@click.option("--reference-cache", type=click.Path(path_type=Path, file_okay=False), default=DEFAULT_REFERENCE_CACHE,
+@click.option("--reference-cache", type=PathArg(path_type=Path, file_okay=False), default=DEFAULT_REFERENCE_CACHE,
               show_default=True, help="Folder of reference renders, keyed by everything that decides each image: a second run renders nothing it holds.")  # fmt: skip
 @click.option("--no-reference-cache", is_flag=True, help="Keep reference renders for this run only.")
 @click.option("--merge", is_flag=True,

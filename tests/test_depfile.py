@@ -8,9 +8,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from atlasgen.errors import InputError
 from atlasgen.io.depfile import format_depfile, write_depfile
 
-names = st.text(alphabet="abcXYZ019_-.# $", min_size=1, max_size=12).filter(lambda s: s.strip(" .") and not s.startswith("-"))
+names = st.text(alphabet="abcXYZ019_-.# $:", min_size=1, max_size=12).filter(lambda s: s.strip(" .") and not s.startswith("-"))
 
 
 @given(st.lists(names, min_size=1, max_size=5, unique=True))
@@ -22,7 +23,7 @@ def test_every_prerequisite_gets_an_empty_rule(prerequisites):
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
 def test_make_rebuilds_on_a_newer_prerequisite_and_survives_a_deleted_one(tmp_path):
-    inputs = [tmp_path / "in one.toml", tmp_path / "in#2.toml", tmp_path / "cost$.npz"]
+    inputs = [tmp_path / "in one.toml", tmp_path / "in#2.toml", tmp_path / "cost$.npz", tmp_path / "c:d.mtlx"]
     for i, path in enumerate(inputs):
         path.write_text(str(i))
         os.utime(path, (1_000, 1_000))
@@ -42,6 +43,17 @@ def test_make_rebuilds_on_a_newer_prerequisite_and_survives_a_deleted_one(tmp_pa
     os.utime(inputs[1], (3_000, 3_000))
     assert make().stdout == "rebuilt\n"  # the escaped '#' name is a real prerequisite
     os.utime(inputs[1], (1_000, 1_000))
+    os.utime(inputs[3], (3_000, 3_000))
+    assert make().stdout == "rebuilt\n"  # and the escaped ':' one
+    os.utime(inputs[3], (1_000, 1_000))
     inputs[0].unlink()
     result = make()
     assert result.returncode == 0 and result.stdout == "rebuilt\n", result.stderr
+
+
+def test_a_path_with_a_line_break_is_refused_on_one_line():
+    """Make ends a rule at a line break, and no escape exists for one."""
+    with pytest.raises(InputError) as info:
+        format_depfile("out.dds", ["ok.toml", "a\nb.toml"])
+    assert str(info.value) == ("--depfile: cannot write 'a\\nb.toml' as a make prerequisite (make ends a rule at a line "
+                               "break); expected paths without line breaks")  # fmt: skip

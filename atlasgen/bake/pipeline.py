@@ -125,15 +125,17 @@ def other_container_path(atlas_path) -> Path:
     return p.with_suffix(".dds" if p.suffix.lower() == ".ktx2" else ".ktx2")
 
 
-def read_previous_slots(manifest_path) -> dict[str, int]:
+def read_previous_slots(manifest_path, missing_ok: bool = True) -> dict[str, int]:
     """``name -> first_slice`` from an existing manifest of any format version, so re-bakes
-    keep IDs stable (:func:`atlasgen.io.manifest.read_slots`).
+    keep IDs stable (:func:`atlasgen.io.manifest.read_slots`); ``{}`` where there is none and
+    ``missing_ok`` (the atlas's own manifest before its first bake, not a named ``--ids-from``).
 
     Raises :class:`~atlasgen.errors.ManifestError` (naming the file and the field) for a
-    manifest whose names and slices cannot be read; deleting it re-numbers every material.
+    manifest whose names and slices cannot be read, deleting it re-numbers every material;
+    :class:`~atlasgen.errors.InputError` for a missing one unless ``missing_ok``.
     """
     path = Path(manifest_path)
-    return read_slots(path) if path.exists() else {}
+    return read_slots(path) if path.exists() or not missing_ok else {}
 
 
 def _jsonable(value):

@@ -4,14 +4,31 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_file_atomically
 
 __all__ = ["format_depfile", "write_depfile"]
 
 
 def _escape(path) -> str:
-    # Make splits prerequisites on spaces and reads ``#`` as a comment and ``$`` as a variable.
-    return Path(path).as_posix().replace("$", "$$").replace("#", r"\#").replace(" ", r"\ ")
+    r"""``path`` as make reads it back: ``$`` doubled, ``#``, space and ``:`` escaped with a backslash.
+
+    Make splits prerequisites on spaces, reads ``#`` as a comment, ``$`` as a variable and ``:`` as
+    the end of a rule's targets. A line break cannot be escaped (make ends the rule there).
+
+    >>> print(_escape("out/a b:c#1$.toml"))
+    out/a\ b\:c\#1$$.toml
+
+    Raises
+    ------
+    InputError
+        ``path`` holds a line break.
+    """
+    text = Path(path).as_posix()
+    if "\n" in text or "\r" in text:
+        raise InputError(f"--depfile: cannot write {text!r} as a make prerequisite (make ends a rule at a line break); "
+                         "expected paths without line breaks")  # fmt: skip
+    return text.replace("$", "$$").replace("#", r"\#").replace(" ", r"\ ").replace(":", r"\:")
 
 
 def format_depfile(target, prerequisites) -> str:
@@ -21,6 +38,11 @@ def format_depfile(target, prerequisites) -> str:
     deleted: the output is then rebuilt instead of the build stopping with "No rule to
     make target". A prerequisite that has a pattern rule keeps it, since a rule
     without a recipe does not replace one.
+
+    Raises
+    ------
+    InputError
+        A path holds a line break, which a depfile cannot hold.
     """
     prerequisites = list(dict.fromkeys(_escape(p) for p in prerequisites))
     lines = [" \\\n  ".join([f"{_escape(target)}:", *prerequisites]), ""]

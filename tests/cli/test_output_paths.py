@@ -164,3 +164,16 @@ def test_a_dotted_atlas_name_keeps_its_files_apart_from_the_shorter_name(tmp_pat
         assert (out / f"atlas.v2{suffix}").is_file(), suffix
     info = CliRunner().invoke(app, ["info", str(out / "atlas.v2.dds")])
     assert info.exit_code == 0 and "clay" in info.output, info.output
+
+
+def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, library, monkeypatch):
+    monkeypatch.chdir(library)  # where "" would have baked every material
+    _refused(tmp_path, ["bake", "", "-o", str(tmp_path / "a.dds")], "Invalid value for '[PATHS]...': expected a path, "
+             "got an empty string", code=2)  # fmt: skip
+    _refused(tmp_path, ["bake", str(library), "-o", ""], "expected a path, got an empty string", code=2)
+
+
+def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
+    """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],
+             f"{(tmp_path / 'none.json').as_posix()}: no such manifest", code=3)  # fmt: skip
