@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.images import encode_exr, encode_png, write_exr
+from atlasgen.io.images import encode_exr, encode_png
 from atlasgen.optics.display import display_aces
 from atlasgen.optics.quantize import quantize_rgba
 
@@ -102,5 +102,8 @@ def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
 
 
 def write_aov(path, name: str, value: np.ndarray) -> None:
-    """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), replaced atomically."""
-    write_exr(path, *aov_channels(name, value))
+    """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), in one commit that also
+    removes the PNG an earlier render wrote beside it: that PNG shows a lit image this EXR no longer holds."""
+    path = Path(path)
+    write_files_atomically({path: encode_exr(*aov_channels(name, value), near=path)}, primary=path,
+                           remove=[path.with_suffix(".png")])  # fmt: skip

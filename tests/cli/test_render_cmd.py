@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -67,6 +69,11 @@ def test_render_writes_exr_png_and_aov(gpu_device, atlas, tmp_path):
     pixels, spec = read_exr(ids)
     assert list(spec.channelnames) == ["id"]
     assert set(np.unique(pixels)) == {9.0, 65535.0}
+    # An AOV over a lit render's EXR: the lit PNG beside it goes in the same commit, not left showing another run.
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out), "--aov", "depth"])
+    assert res.exit_code == 0, res.output
+    assert list(read_exr(out)[1].channelnames) == ["Z"]
+    assert not os.path.lexists(out.with_suffix(".png"))
 
 
 @pytest.mark.slow
