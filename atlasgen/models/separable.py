@@ -160,7 +160,10 @@ class Separable(Model):
     model_reference_is_physical = True
     params = (
         Param("source", "ggx", "choice", choices=SOURCES, doc="the BRDF to factor"),
-        Param("alpha", 0.2, "float", lo=0.0, hi=4.0, lo_open=True, doc="roughness (GGX, Beckmann, Ward)"),
+        # Below 1e-6 the lobe's peak overflows the float32 evaluation (alpha^4 underflows near 1e-10),
+        # so the source yields NaN and inf, and the refusal named the wrong field; down to it, a lobe
+        # sharper than the sampling resolves bakes with its error warned about.
+        Param("alpha", 0.2, "float", lo=1e-6, hi=4.0, doc="roughness (GGX, Beckmann, Ward), at least 1e-6"),
         Param("fresnel", "schlick", "choice", choices=("schlick", "exact", "none"), doc="microfacet Fresnel"),
         Param("f0", (0.04, 0.04, 0.04), "colour", doc="Schlick's normal-incidence reflectance"),
         Param("ior", 1.5, "float", lo=1.0, hi=10.0, lo_open=True, doc="dielectric index for exact Fresnel"),

@@ -30,7 +30,7 @@ MODEL = get_model("separable")
         ('factorization = "nd"\nterms = 2', "terms", "expected 1"),
         ('parametrization = "polar"', "parametrization", "half_diff"),
         ('source = "phong"', "source", "blinn_phong"),
-        ("alpha = 0", "alpha", "> 0"),
+        ("alpha = 0", "alpha", ">= 1e-06"),
         # A field the source (or the Fresnel choice) does not read would be dropped without a word.
         ('source = "ggx"\nexponent = 50', "exponent",
          "only read with source = 'blinn_phong', but source is 'ggx'; expected no exponent (its value would be dropped)"),
@@ -260,3 +260,12 @@ def test_lut_only_bake_imports_no_separable_model_nor_heavy_backends(write_mater
 def test_slice_count_declares_the_budget_mode_upper_bound(load):
     assert MODEL.slice_count(load("separable", "terms = 5").params) == 5
     assert MODEL.slice_count(load("separable", "max_error = 0.1").params) == 8
+
+
+@pytest.mark.parametrize("alpha", [1e-10, 1e-45, 5e-7])
+def test_a_roughness_whose_peak_overflows_float32_is_refused_naming_alpha(write_material, tmp_path, alpha):
+    """Below 1e-6 the source's samples go non-finite, which was refused as the source's fault (field 'type')."""
+    path = write_material("sharp", f'type = "separable"\nsource = "ggx"\nalpha = {alpha!r}\n')
+    with pytest.raises(MaterialError) as info:
+        read_materials([path])
+    assert str(info.value) == f"{path.as_posix()}: field 'alpha': expected a finite number >= 1e-06 and <= 4, got {alpha:g}"
