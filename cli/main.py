@@ -230,7 +230,7 @@ def app(ctx, debug):
 @click.option(
     "--strict",
     is_flag=True,
-    help="Fail (exit 7, nothing written) when a material warns: its measured error over 20%, a dropped delta lobe, "
+    help="Fail (exit 7, no atlas or side file written; --cache keeps what was baked) when a material warns: its measured error over 20%, a dropped delta lobe, "
     "tolerated non-finite samples.",
 )
 @click.option(
@@ -313,7 +313,7 @@ def bake(
         result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir, jobs=jobs)
     if strict and result.material_warnings:
         count = len(result.material_warnings)
-        raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, nothing written: "
+        raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, no atlas written: "
                            + "; ".join(str(w) for w in result.material_warnings))  # fmt: skip
     write_bake(result, output, preview, zstd, languages, extra_files)
     if verbosity == VERBOSE:

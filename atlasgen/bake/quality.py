@@ -21,7 +21,7 @@ A material warns, with one line naming it, the error and its cause where known, 
   far beyond the slice's range stores a lambert black.
 
 ``atlasgen bake --strict`` turns any of them into a failure (exit status
-:attr:`atlasgen.errors.BakeWarnings.exit_code`, nothing written). None of the shipped materials
+:attr:`atlasgen.errors.BakeWarnings.exit_code`, no atlas written; a cache keeps what was baked). None of the shipped materials
 warns (tests/bake/test_quality.py reads the goldens' manifest).
 """
 

@@ -24,7 +24,7 @@ def test_a_consented_loss_warns_and_strict_fails_writing_nothing(mitsuba_llvm, w
     strict = CliRunner().invoke(app, args + ["--strict"])
     assert strict.exit_code == BakeWarnings.exit_code == 7, strict.output
     (line,) = strict.stderr.splitlines()
-    assert line.startswith("atlasgen: error: --strict: 1 material warning, nothing written: ") and cause in line, line
+    assert line.startswith("atlasgen: error: --strict: 1 material warning, no atlas written: ") and cause in line, line
     assert "odd.toml: material 'odd'" in line and not (tmp_path / "out").exists()
 
     plain = CliRunner().invoke(app, args)
