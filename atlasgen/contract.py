@@ -6,6 +6,8 @@ from here, so the contract is written down exactly once.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 __all__ = [
@@ -18,6 +20,7 @@ __all__ = [
     "MAPPING",
     "SPECULAR_ALPHA_MIN",
     "SPECULAR_LOBE",
+    "NAME_PATTERN",
     "texel_centres",
     "texel_grid",
     "atlas_uv",
@@ -44,6 +47,10 @@ MAPPING = {
     "layer": "array: layer = material_id; volume: w = (material_id + 0.5) / 256",
     "value": "linear = texel * scale + bias, per slice: (rgb_scale, rgb_bias) for RGB, (alpha_scale, alpha_bias) for A",
 }
+
+#: A material's name: a letter, then letters, digits, '-' or '_', at most 63 in all. It names the
+#: material in shader code (e.g. ``separable_f_cos_NAME``) and in the manifest.
+NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Smallest GGX roughness the renderer uses: keeps D's peak 1 / (pi alpha^2) finite in f32
 #: and the highlight of a gloss-1 object at least a few texels of a 16-bit g-buffer wide.

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Literal, TypeGuard, overload
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, MAPPING, SPECULAR_LOBE
+from atlasgen.contract import FORMAT_VERSION, MAPPING, NAME_PATTERN, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.text import loads_json, read_input_text
@@ -643,7 +643,11 @@ class MaterialEntry:
         has_factors = any(k in data for k in SeparableFactors.keys())
         known = set(COMMON_KEYS) | {"representation", "fit"} | set(SeparableFactors.keys())
         return cls(
-            name=f.nonempty("name"),
+            name=f.take(
+                "name",
+                "a material name (a letter, then letters, digits, '-' or '_'; at most 63)",
+                lambda v: isinstance(v, str) and NAME_PATTERN.match(v) is not None,
+            ),
             id=entry_id,
             constant=f.nonempty("constant"),
             first_slice=first,

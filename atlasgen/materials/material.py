@@ -7,6 +7,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
@@ -27,7 +28,6 @@ __all__ = [
     "COMMON_KEYS",
 ]
 
-NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Keys every material file may carry besides its model's parameters.
 COMMON_KEYS = ("name", "type", "id", "description", "rgb_scale", "alpha_scale", "error_budget", "from", "fit_gloss",

@@ -302,7 +302,7 @@ REFUSED = {
         "materials[3].id",
         "expected the entry's first_slice (3), got 9",
     ),
-    "missing name": (_with(lambda d: d["materials"][1].pop("name")), "materials[1].name", "missing; expected a non-empty string"),
+    "missing name": (_with(lambda d: d["materials"][1].pop("name")), "materials[1].name", "missing; expected a material name"),
     "bad scale": (_with(_set(["materials", 0, "scale"], [[1.0]])), "materials[0].scale[0]", "[rgb, alpha] pair"),
     "flag not bool": (_with(_set(["materials", 0, "flags"], {"outline": 1})), "materials[0].flags", "true/false"),
     "factor table": (
@@ -392,6 +392,9 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
     message = _refusal(tmp_path, move(4, 5))
     assert "field 'materials[5].first_slice'" in message and "slice 5, also 'red-plastic''s" in message
     assert "expected a unique name" in _refusal(tmp_path, _with(_set(["materials", 1, "name"], "beetle-shell")))
+    # A name is the material's shader identifier too: a tampered one is refused, shown escaped on the one line.
+    message = _refusal(tmp_path, _with(_set(["materials", 1, "name"], "a\n\u0000b")))
+    assert "field 'materials[1].name': expected a material name (a letter, then letters" in message
 
 
 def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
@@ -417,3 +420,9 @@ def test_info_refuses_a_corrupt_manifest_beside_the_atlas_in_one_line(tmp_path):
     assert res.exit_code == InputError.exit_code
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and "atlas.json: field 'format_version'" in lines[0], res.output
+
+
+def test_the_schema_s_name_pattern_is_the_contract_s():
+    from atlasgen.contract import NAME_PATTERN
+
+    assert _schema("manifest").schema["$defs"]["material"]["properties"]["name"]["pattern"] == NAME_PATTERN.pattern
