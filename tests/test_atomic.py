@@ -353,15 +353,21 @@ def _three(folder: Path, tag: str) -> dict:
     return {folder / name: f"{tag} {name}".encode() for name in ("a.json", "a.wgsl", "a.dds")}
 
 
-@pytest.mark.parametrize("before", ["links", "plain files"])
-@pytest.mark.parametrize("stuck", ["a.json", "a.wgsl", "a.dds"])
-def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path, stuck, before):
-    old = _three(tmp_path, "old")
+def _old_set(folder: Path, before: str) -> dict:
+    """:func:`_three` "old" files in ``folder``, committed as this module's links or written as plain files."""
+    old = _three(folder, "old")
     if before == "links":
-        write_files_atomically(old, primary=tmp_path / "a.dds")
+        write_files_atomically(old, primary=folder / "a.dds")
     else:
         for path, data in old.items():
             path.write_bytes(data)
+    return old
+
+
+@pytest.mark.parametrize("before", ["links", "plain files"])
+@pytest.mark.parametrize("stuck", ["a.json", "a.wgsl", "a.dds"])
+def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path, stuck, before):
+    old = _old_set(tmp_path, before)
     state = {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old}
     if not _chattr(tmp_path / stuck, "+i"):  # on a link: its file in the generation
         pytest.skip("chattr +i needs root and a file system with the immutable flag")
@@ -378,12 +384,7 @@ def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path
 @pytest.mark.parametrize("before", ["links", "plain files"])
 def test_a_store_that_cannot_take_a_generation_refuses_the_commit(tmp_path, monkeypatch, before):
     """The store read-only or marked immutable (``chattr +i``): one OutputError, nothing replaced."""
-    old = _three(tmp_path, "old")
-    if before == "links":
-        write_files_atomically(old, primary=tmp_path / "a.dds")
-    else:
-        for path, data in old.items():
-            path.write_bytes(data)
+    old = _old_set(tmp_path, before)
     real_mkdir = Path.mkdir
 
     def mkdir(self, *args, **kwargs):

@@ -39,7 +39,7 @@ def test_common_fields_must_fit_float32(expect_rejected, body, field, expected):
 
 
 @pytest.mark.parametrize("type_name,body,field,expected", [
-    ("separable", "alpha = 1e-50", "alpha", "got 1e-50 (0 in float32)"),
+    ("separable", "source = \"blinn_phong\"\nexponent = 1e-50", "exponent", "got 1e-50 (0 in float32)"),
     ("separable", f"terms = {HUGE_INT}", "terms", "expected an integer >= 1 and <= 32"),
     ("separable", "terms = 4294967297", "terms", "got 4294967297"),
     ("sss", "variances = [1e-300]\nweights = [[1, 1, 1]]", "variances[0]", "got 1e-300 (0 in float32)"),
