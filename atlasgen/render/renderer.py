@@ -293,6 +293,10 @@ class Renderer:
             object_data += pack_object(model, obj.albedo, shading_gloss(obj.gloss, entry), entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
+            if not np.all(np.abs(world) <= np.finfo(np.float32).max):
+                # Each field fits float32, but their product may not: the GPU's vertices would be inf, the object not drawn.
+                raise SceneError(scene.path, f"objects[{obj.index}]", "expected the object within float32's range once "
+                                 f"scaled, rotated and translated, got a bounding-box corner at {float(np.max(np.abs(world))):.3g}")  # fmt: skip
             centres.append(0.5 * (world.min(0) + world.max(0)))
             farthest.append(float(np.max((world - eye) @ forward)))
             rectangles.append(screen_rectangle(world, view_proj, scene.width, scene.height))

@@ -154,3 +154,16 @@ def test_quiet_prints_nothing_and_verbose_describes_the_scene(gpu_device, atlas,
         assert res.stderr == f"{scene.as_posix()}: 40x30, 1 objects, 1 lights; materials snow\n"
         assert res.stdout.splitlines() == [f"wrote {out.as_posix()}", f"wrote {out.with_suffix('.png').as_posix()}"]
     assert gpu_device.take_errors() == []
+
+
+@pytest.mark.slow
+def test_an_object_beyond_float32_once_transformed_is_refused_not_rendered_black(gpu_device, atlas, tmp_path):
+    """scale and translate each fit float32; the transformed sphere does not, and would draw nothing."""
+    scene = write_scene(tmp_path, SCENE.format(material="snow") + "scale = 3e38\ntranslate = [3e38, 0, 0]\n")
+    out = tmp_path / "out.exr"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out)])
+    assert res.exit_code == 3, res.output
+    assert res.stderr.splitlines() == [f"atlasgen: error: {scene.as_posix()}: field 'objects[0]': expected the object within "
+                                       "float32's range once scaled, rotated and translated, got a bounding-box corner at "
+                                       "6e+38"]  # fmt: skip
+    assert not out.exists()
