@@ -210,3 +210,44 @@ def test_thin_sheet_and_thin_film_materials_get_pareto_charts(tmp_path, write_ma
     assert "<li>skin: LUT only, no chart: the reference is light transport" in text
     assert "No separable candidate: no separable source holds a thin sheet" in text
     assert "the error covers l over the whole sphere" in text
+
+
+@pytest.mark.slow
+def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, write_material):
+    """A folder where a file belongs was an internal error (IsADirectoryError), so was a page that is no path;
+    a report that is a list and timings that are a string named the wrong type; a negative bake time showed."""
+    from atlasgen.errors import FieldError, InputError
+
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    timings = tmp_path / "atlas.timings.json"
+    good_timings = timings.read_text()
+    vdir = tmp_path / "validation"
+    vdir.mkdir()
+
+    def refusal(**kwargs) -> str:
+        with pytest.raises(InputError) as info:
+            write_library_report(atlas, tmp_path / "report", physical=False, **kwargs)
+        assert "\n" not in str(info.value) and not (tmp_path / "report").exists()
+        return str(info.value)
+
+    (vdir / "report.json").mkdir()
+    assert refusal(validation_dir=vdir) == f"{(vdir / 'report.json').as_posix()}: cannot read (Is a directory)"
+    (vdir / "report.json").rmdir()
+    (vdir / "report.json").write_text("[]")
+    assert refusal(validation_dir=vdir).endswith("expected a validation report (a JSON object), got list")
+    row = {"material": "clay", "scene": "front", "references": {}, "page": 5}
+    (vdir / "report.json").write_text(json.dumps({"results": [row]}))
+    assert "field 'results[0].page': expected a page path as atlasgen validate writes it, got 5" in refusal(validation_dir=vdir)
+    timings.unlink()
+    timings.mkdir()
+    assert refusal() == f"{timings.as_posix()}: cannot read (Is a directory)"
+    timings.rmdir()
+    timings.write_text('"x"')
+    assert refusal().endswith("expected a bake's timings (a JSON object), got str")
+    data = json.loads(good_timings)
+    data["materials"]["clay"]["bake_s"] = -5
+    timings.write_text(json.dumps(data))
+    with pytest.raises(FieldError, match=r"field 'materials.clay.bake_s': expected a number >= 0, got -5"):
+        write_library_report(atlas, tmp_path / "report", physical=False)

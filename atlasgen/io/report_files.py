@@ -6,10 +6,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from atlasgen.errors import FieldError, InputError
-from atlasgen.io.text import loads_json
+from atlasgen.errors import FieldError, InputError, shorten
+from atlasgen.io.text import MISSING, loads_json, path_kind, read_input_bytes
 
-__all__ = ["report_json_paths", "read_report_json", "loads_finite_json", "check_number"]
+__all__ = ["report_json_paths", "read_json_file", "read_report_json", "loads_finite_json", "check_number"]
 
 
 def _refuse_constant(path: Path):
@@ -19,8 +19,19 @@ def _refuse_constant(path: Path):
     return refuse
 
 
+def _finite_float(path: Path):
+    def parse(text: str) -> float:
+        value = float(text)
+        if not math.isfinite(value):  # 1e999: valid JSON, but beyond a double (Python reads it as inf)
+            raise InputError(f"{path.as_posix()}: expected finite numbers, got {shorten(text)} (beyond a double's range)")
+        return value
+
+    return parse
+
+
 def loads_finite_json(text: str, path) -> object:
-    """``json.loads`` that refuses ``NaN``, ``Infinity`` and ``-Infinity`` (Python's extensions to JSON).
+    """``json.loads`` that refuses ``NaN``, ``Infinity`` and ``-Infinity`` (Python's extensions to JSON),
+    and a number too large for a double (``1e999``, which Python would read as infinity).
 
     Raises
     ------
@@ -29,14 +40,14 @@ def loads_finite_json(text: str, path) -> object:
     """
     path = Path(path)
     try:
-        return loads_json(text, parse_constant=_refuse_constant(path))
+        return loads_json(text, parse_constant=_refuse_constant(path), parse_float=_finite_float(path))
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
 
 
-def check_number(path, field: str, value, allow_none: bool = True):
-    """``value`` if it is a finite number (or ``None``, with ``allow_none``); else a one-line
-    :class:`~atlasgen.errors.FieldError` naming the file and the field.
+def check_number(path, field: str, value, allow_none: bool = True, minimum: float | None = None):
+    """``value`` if it is a finite number (or ``None``, with ``allow_none``), at least ``minimum`` if given;
+    else a one-line :class:`~atlasgen.errors.FieldError` naming the file and the field.
 
     >>> check_number("t.json", "bake_s", 0.5), check_number("t.json", "bake_s", None)
     (0.5, None)
@@ -45,6 +56,8 @@ def check_number(path, field: str, value, allow_none: bool = True):
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FieldError(Path(path).as_posix(), field, f"expected a finite number{' or null' * allow_none}, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise FieldError(Path(path).as_posix(), field, f"expected a number >= {minimum:g}, got {value!r}")
     return value
 
 
@@ -62,15 +75,26 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
     return paths
 
 
+def read_json_file(path):
+    """The parsed JSON of ``path`` (:func:`loads_finite_json`).
+
+    Raises
+    ------
+    InputError
+        One line naming the file: missing, a folder, a pipe or device, unreadable, not UTF-8, malformed.
+    """
+    path = Path(path)
+    data = read_input_bytes(path)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    return loads_finite_json(text, path)
+
+
 def read_report_json(path: Path, kind: str, command: str):
     """The parsed JSON of one report (no NaN or infinities), or an :class:`InputError` naming the file and the fix."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path.as_posix()}: no such {kind} report; run {command} -o {path.parent.as_posix()} first") from None
-    except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
-    except ValueError as exc:
-        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
-    return loads_finite_json(text, path)
+    if path_kind(path) == MISSING:
+        raise InputError(f"{path.as_posix()}: no such {kind} report; run {command} -o {path.parent.as_posix()} first")
+    return read_json_file(path)

@@ -10,7 +10,7 @@ from atlasgen.errors import FieldError, InputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
-from atlasgen.io.report_files import check_number, loads_finite_json
+from atlasgen.io.report_files import check_number, read_json_file
 from atlasgen.models import get_model
 from atlasgen.reports.comparisons import manifest_pairs
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, pareto_front, plot_style, render_page
@@ -77,25 +77,24 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
 
 
 def _read_json(path):
+    """The JSON at ``path``, or None where there is nothing (:func:`~atlasgen.io.report_files.read_json_file`)."""
     path = Path(path)
     if not path.exists():
         return None
-    try:
-        text = path.read_text(encoding="utf-8")
-    except ValueError as exc:
-        raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
-    return loads_finite_json(text, path)
+    return read_json_file(path)
 
 
 def _bake_seconds(timings, path, name: str) -> float | None:
     """``materials.<name>.bake_s`` of a bake's timings file: a finite number, or None where absent."""
-    materials = timings.get("materials", {}) if isinstance(timings, dict) else None
+    if not isinstance(timings, dict):
+        raise FieldError(Path(path).as_posix(), None, f"expected a bake's timings (a JSON object), got {type(timings).__name__}")
+    materials = timings.get("materials", {})
     if not isinstance(materials, dict):
         raise FieldError(Path(path).as_posix(), "materials", f"expected an object of per-material timings, got {materials!r}")
     entry = materials.get(name) or {}
     if not isinstance(entry, dict):
         raise FieldError(Path(path).as_posix(), f"materials.{name}", f"expected an object of timings, got {entry!r}")
-    return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"))
+    return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"), minimum=0.0)
 
 
 def _validation_rows(validation: dict | None, name: str) -> list[dict]:
@@ -237,9 +236,10 @@ def write_library_report(
     timings = _read_json(timings_path) or {}
     validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
     if validation is not None:  # only its results are read: their figures must be numbers
-        check_result_figures(
-            Path(validation_dir) / "report.json", validation.get("results", []) if isinstance(validation, dict) else None
-        )
+        if not isinstance(validation, dict):
+            raise FieldError((Path(validation_dir) / "report.json").as_posix(), None,
+                             f"expected a validation report (a JSON object), got {type(validation).__name__}")  # fmt: skip
+        check_result_figures(Path(validation_dir) / "report.json", validation.get("results", []))
     out_dir = Path(out_dir)
 
     rows, files = [], {}

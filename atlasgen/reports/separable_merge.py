@@ -15,7 +15,7 @@ import json
 from dataclasses import MISSING, fields
 from pathlib import Path
 
-from atlasgen.errors import InputError
+from atlasgen.errors import InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.report_files import read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
@@ -41,8 +41,26 @@ def _read_studies(path: Path) -> list:
             got = ", ".join(sorted(item)) if isinstance(item, dict) else type(item).__name__
             raise InputError(f"{path.as_posix()}: entry {index} is not a material study (expected the fields "
                              f"{', '.join(sorted(required))}; got {got})")  # fmt: skip
+        if not isinstance(item["name"], str) or not item["name"]:
+            raise InputError(f"{path.as_posix()}: entry {index}: expected a material name, got {shorten(repr(item['name']))}")
         studies.append(MaterialStudy(**item))
     return studies
+
+
+def _charts(study: MaterialStudy) -> dict:
+    """The study's charts as the HTML page takes them (sizes and labels; the images are its plots)."""
+    return {kind: Chart(b"", c["width"], c["height"], tuple(c["labels"])) for kind, c in study.charts.items()}
+
+
+def _check_formats(study: MaterialStudy, path: Path, index: int, plots: dict) -> None:
+    """Format ``study`` alone as the merge will, so that a hand-edited field deeper than the study's keys
+    (a figure made a string, a chart without its height) is refused naming its file and entry, on one line."""
+    try:
+        format_separable_report([study], {study.name: plots})
+        format_separable_html([study], {study.name: plots}, {study.name: _charts(study)})
+    except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+        raise InputError(f"{path.as_posix()}: entry {index} ({shorten(repr(study.name))}) is not a material study as "
+                         f"atlasgen report separable writes it ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
 
 
 def merge_separable_reports(sources, output) -> dict:
@@ -79,7 +97,7 @@ def merge_separable_reports(sources, output) -> dict:
     paths = report_json_paths(sources, "separable", "atlasgen report separable")
     studies, files, seen, plots = [], {}, {}, {}
     for path in paths:
-        for study in _read_studies(path):
+        for index, study in enumerate(_read_studies(path)):
             if study.name in seen:
                 raise InputError(f"{path.as_posix()}: material {study.name!r} is also in {seen[study.name].as_posix()}")
             seen[study.name] = path
@@ -93,12 +111,10 @@ def merge_separable_reports(sources, output) -> dict:
                         f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})"
                     ) from None
                 plots[study.name][kind] = output / png.name
+            _check_formats(study, path, index, plots[study.name])
             studies.append(study)
     files[output / "index.md"] = format_separable_report(studies, plots).encode()
-    charts = {
-        s.name: {kind: Chart(b"", c["width"], c["height"], tuple(c["labels"])) for kind, c in s.charts.items()} for s in studies
-    }
-    files[output / "index.html"] = format_separable_html(studies, plots, charts)
+    files[output / "index.html"] = format_separable_html(studies, plots, {s.name: _charts(s) for s in studies})
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     write_files_atomically(files, primary=output / "index.md")  # the Makefile's target

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import FieldError, InputError
+from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
@@ -747,21 +747,56 @@ def _check_figures(path: Path, data: dict) -> None:
         missing = [k for k in keys if k not in data[part]]
         if missing:
             raise FieldError(path.as_posix(), f"{part}.{missing[0]}", "missing; expected the key atlasgen validate writes")
-    check_result_figures(path, data["results"])
+    for key in _SETTINGS_KEYS:  # the sample counts, compared between the merged runs and printed
+        check_number(path, f"settings.{key}", data["settings"][key], minimum=1)
+    scenes = data["settings"].get("scenes", [])
+    if not isinstance(scenes, list) or not all(isinstance(s, dict) and isinstance(s.get("name"), str) for s in scenes):
+        raise FieldError(path.as_posix(), "settings.scenes", f"expected a list of scenes, each an object with a 'name', "
+                         f"got {shorten(repr(scenes))}")  # fmt: skip
+    check_result_figures(path, data["results"], merged=True)
 
 
-def check_result_figures(path, results) -> None:
-    """Refuse validation ``results`` whose figures are not finite numbers (or null), naming the field."""
+#: Per key of a result (and of each of its references), what a merge or the library page reads it as:
+#: (the type, its name in a refusal, whether it may be absent or null).
+_ROW_FIELDS = {"material": (str, "a material name", False), "scene": (str, "a scene name", False),
+               "atlas_image": (str, "an image path", True), "page": (str, "a page path", True),
+               "notes": (list, "a list of notes", True), "look": (dict, "an object", True),
+               "error_breakdown": (dict, "an object", True)}  # fmt: skip
+_REFERENCE_FIELDS = {"images": (dict, "an object of image paths", True)}
+#: What a merge needs besides: the images whose paths it rebases (the library page links none of them).
+_MERGED_FIELDS = ("atlas_image", "images")
+
+
+def _check_fields(path, where: str, data: dict, table: dict, required=()) -> None:
+    for key, (kind, expected, optional) in table.items():
+        value = data.get(key)
+        if (value is None and optional and key not in required) or (isinstance(value, kind) and value != ""):
+            continue
+        got = "missing" if key not in data else f"got {shorten(repr(value))}"
+        raise FieldError(Path(path).as_posix(), f"{where}.{key}", f"expected {expected} as atlasgen validate writes it, {got}")
+
+
+def check_result_figures(path, results, merged: bool = False) -> None:
+    """Refuse validation ``results`` whose figures are not finite numbers (or null), or whose names, paths
+    and parts are not of the types atlasgen validate writes, naming the field; with ``merged``, also
+    results without the image paths a merge rebases."""
+    required = _MERGED_FIELDS if merged else ()
     if not isinstance(results, list):
         raise FieldError(Path(path).as_posix(), "results", f"expected a list of results, got {type(results).__name__}")
     for i, row in enumerate(results):
         if not isinstance(row, dict) or not isinstance(row.get("references"), dict):
             raise FieldError(Path(path).as_posix(), f"results[{i}]", "expected a result with 'references'")
+        _check_fields(path, f"results[{i}]", row, _ROW_FIELDS, required)
+        if not all(isinstance(note, str) for note in row.get("notes") or []):
+            raise FieldError(Path(path).as_posix(), f"results[{i}].notes", "expected a list of strings")
         for key in _ROW_NUMBERS:
             check_number(path, f"results[{i}].{key}", row.get(key))
         for kind, ref in row["references"].items():
             if not isinstance(ref, dict):
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}", "expected an object of figures")
+            _check_fields(path, f"results[{i}].references.{kind}", ref, _REFERENCE_FIELDS, required)
+            if not all(isinstance(v, str) and v for v in (ref.get("images") or {}).values()):
+                raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}.images", "expected image paths")
             for key in _REFERENCE_NUMBERS:
                 check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
 
@@ -839,7 +874,14 @@ def merge_validation_reports(sources, out_dir) -> dict:
         "results": rows,
         "merged_from": [_rebase(".", p.parent, out_dir) for p in paths],
     }
-    files = _page_files(data, out_dir)
+    try:
+        files = _page_files(data, out_dir)
+    except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+        # The fields the merge reads are checked above; this catches a hand edit deeper in a result
+        # (a look's goal, a region's figures) that the page cannot print, still as one line.
+        shown = ", ".join(p.as_posix() for p in paths)
+        raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
+                         f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
     write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 

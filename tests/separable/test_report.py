@@ -1,6 +1,7 @@
 """The separable report: every promised plot and table, from measured data; the CLI's error paths."""
 
 import json
+import shutil
 
 import pytest
 from click.testing import CliRunner
@@ -148,3 +149,65 @@ def test_merging_an_empty_report_is_refused(tmp_path):
     assert res.exit_code == 3
     assert res.output.splitlines() == [f"atlasgen: error: {(source / 'report.json').as_posix()}: an empty separable report "
                                        "(expected at least one material study)"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def lobe_study(tmp_path_factory):
+    """One study of a Blinn-Phong lobe, as ``make report`` writes each material's, to edit by hand."""
+    from atlasgen.cli.report_cmd import report
+
+    root = tmp_path_factory.mktemp("study")
+    (root / "lobe.toml").write_text('type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n')
+    res = CliRunner().invoke(report, ["separable", str(root / "lobe.toml"), "--repeats", "1", "-o", str(root / "lobe"), "-q"])
+    assert res.exit_code == 0, res.output
+    return root / "lobe"
+
+
+def _set(data, keys, value):
+    for key in keys[:-1]:
+        data = data[key]
+    data[keys[-1]] = value
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("keys", "value", "expected"), [
+    (["by_resolution"], "x", "entry 0 ('lobe') is not a material study as atlasgen report separable writes it"),
+    (["by_terms"], None, "entry 0 ('lobe') is not a material study"),
+    (["charts"], {"terms": {"width": "a"}}, "entry 0 ('lobe') is not a material study"),
+    (["charts"], [1, 2], "entry 0 ('lobe') is not a material study"),
+    (["chosen"], "x", "entry 0 ('lobe') is not a material study"),
+    (["chosen", "float", "relative_rms"], "big", "entry 0 ('lobe') is not a material study"),
+    (["name"], [1], "entry 0: expected a material name, got [1]"),
+])  # fmt: skip
+def test_a_hand_edited_study_is_refused_on_one_line_not_an_internal_error(lobe_study, tmp_path, keys, value, expected):
+    from atlasgen.cli.report_cmd import report
+
+    data = json.loads((lobe_study / "report.json").read_text())
+    _set(data[0], keys, value)
+    edited = tmp_path / "edited"
+    shutil.copytree(lobe_study, edited, symlinks=False)
+    (edited / "report.json").unlink()
+    (edited / "report.json").write_text(json.dumps(data))
+    res = CliRunner().invoke(report, ["separable", "--merge", str(edited), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 3, res.output
+    lines = res.output.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"atlasgen: error: {(edited / 'report.json').as_posix()}: ") and \
+        expected in lines[0], lines  # fmt: skip
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_a_number_beyond_a_double_is_refused_not_merged_as_infinity(lobe_study, tmp_path):
+    """1e999 is valid JSON that Python reads as inf: merged, it wrote "Infinity", which no reader takes back."""
+    from atlasgen.cli.report_cmd import report
+
+    text = (lobe_study / "report.json").read_text()
+    figure = json.loads(text)[0]["chosen"]["float"]["relative_rms"]
+    edited = tmp_path / "edited"
+    shutil.copytree(lobe_study, edited, symlinks=False)
+    (edited / "report.json").unlink()
+    (edited / "report.json").write_text(text.replace(repr(figure), "1e999", 1))
+    res = CliRunner().invoke(report, ["separable", "--merge", str(edited), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 3, res.output
+    assert res.output.splitlines() == [f"atlasgen: error: {(edited / 'report.json').as_posix()}: expected finite "
+                                       "numbers, got 1e999 (beyond a double's range)"]  # fmt: skip

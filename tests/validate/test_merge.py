@@ -124,3 +124,75 @@ def test_reports_with_other_settings_or_the_same_material_twice_are_refused(merg
     with pytest.raises(InputError, match="no validation reports to merge"):
         merge_validation_reports([], tmp_path / "merged")
     assert not (tmp_path / "merged").exists()
+
+
+def _edited(merged, tmp_path, change) -> Path:
+    """A copy of one material's report.json with ``change`` applied to its parsed JSON."""
+    out, parts, _ = merged
+    data = json.loads((out / "materials" / next(iter(parts)) / "report.json").read_text())
+    change(data)
+    folder = tmp_path / "edited"
+    folder.mkdir(parents=True)
+    (folder / "report.json").write_text(json.dumps(data))
+    return folder
+
+
+def _pop(*keys):
+    def change(data):
+        target = data
+        for key in keys[:-1]:
+            target = target[key] if not isinstance(target, dict) or key in target else next(iter(target.values()))
+        target.pop(keys[-1])
+
+    return change
+
+
+def _put(value, *keys):
+    def change(data):
+        target = data
+        for key in keys[:-1]:
+            target = target[key] if key != "*" else next(iter(target.values()))
+        target[keys[-1]] = value
+
+    return change
+
+
+@pytest.mark.parametrize(("change", "field", "expected"), [
+    (_pop("results", 0, "material"), "results[0].material", "expected a material name as atlasgen validate writes it, missing"),
+    (_put([1], "results", 0, "material"), "results[0].material", "got [1]"),
+    (_pop("results", 0, "atlas_image"), "results[0].atlas_image", "missing"),
+    (_put(5, "results", 0, "atlas_image"), "results[0].atlas_image", "expected an image path"),
+    (_put("x", "results", 0, "look"), "results[0].look", "expected an object"),
+    (_put(5, "results", 0, "notes"), "results[0].notes", "expected a list of notes"),
+    (_put("x", "results", 0, "error_breakdown"), "results[0].error_breakdown", "expected an object"),
+    (_put(5, "results", 0, "page"), "results[0].page", "expected a page path"),
+    (_put([1], "results", 0, "references", "*", "images"), ".images", "expected an object of image paths"),
+    (_put({"a": 1}, "results", 0, "references", "*", "images"), ".images", "expected image paths"),
+    (_put("x", "settings", "scenes"), "settings.scenes", "expected a list of scenes"),
+    (_put("many", "settings", "spp"), "settings.spp", "expected a finite number"),
+])  # fmt: skip
+def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, change, field, expected):
+    """Each of these was an internal error (KeyError, TypeError, AttributeError) or merged silently."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    folder = _edited(merged, tmp_path, change)
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    message = str(info.value)
+    assert message.startswith(f"{(folder / 'report.json').as_posix()}: field '") and field in message and \
+        expected in message and "\n" not in message, message  # fmt: skip
+    assert not (tmp_path / "merged").exists()
+
+
+def test_a_field_the_page_cannot_print_is_one_line_naming_the_file(merged, tmp_path):
+    """Deeper than the checked fields (the settings' goals): the page's own failure, one line."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    for i, change in enumerate((_put("x", "settings", "goals"), _put([1], "settings", "goals"))):
+        folder = _edited(merged, tmp_path / str(i), change)
+        with pytest.raises(InputError) as info:
+            merge_validation_reports([folder], tmp_path / "merged")
+        assert str(info.value).startswith(f"{(folder / 'report.json').as_posix()}: a field is not what atlasgen validate "
+                                          "writes, so the merged page cannot be written (")  # fmt: skip
+        assert "\n" not in str(info.value)
+    assert not (tmp_path / "merged").exists()
