@@ -385,11 +385,12 @@ def describe_materials(data: dict) -> list[str]:
         if checked:
             psnrs = [m["psnr_db"] for m in checked if m["psnr_db"] is not None]
             worst_psnr = min(psnrs) if psnrs else None
+            flips = [m["flip"] for m in checked if m["flip"] is not None]
             met = sum(1 for m in checked if m["meets_goal"])
             if met < len(checked):
                 missed.append("storage")
             parts.append(f"storage {met}/{len(checked)} met ({_goals_text(goals)}; worst {_psnr_text(worst_psnr)} dB, "
-                         f"FLIP {max(m['flip'] for m in checked):.4f})")  # fmt: skip
+                         f"FLIP {_fmt(max(flips) if flips else None, '.4f')})")  # fmt: skip
         look, look_text = _look_text(rows)
         if look_text:
             parts.append(look_text)
@@ -463,7 +464,7 @@ def missed_goals(data: dict) -> list[str]:
             model = row["references"].get("model") or {}
             if model.get("meets_goal") is False:
                 missed.append(f"{name} on {row['scene']}: PSNR {_psnr_text(model['psnr_db'])} dB, "
-                              f"FLIP {model['flip']:.4f} ({_goals_text(goals)})")  # fmt: skip
+                              f"FLIP {_fmt(model['flip'], '.4f')} ({_goals_text(goals)})")  # fmt: skip
             look = row.get("look") or {}
             if look.get("meets_goal") is False:
                 ref = row["references"][look["reference"]]
@@ -471,7 +472,7 @@ def missed_goals(data: dict) -> list[str]:
                                 + ("" if (look.get("parts") or {}).get(part, {}).get("meets_goal") is not False else " (missed)")
                                 for part, p in (ref.get("parts") or {}).items())  # fmt: skip
                 missed.append(f"{name} on {row['scene']}: look against {look['compared']}: PSNR {_psnr_text(ref['psnr_db'])} dB "
-                              f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {ref['flip']:.4f}{parts} "
+                              f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {_fmt(ref['flip'], '.4f')}{parts} "
                               f"(goal >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g})")  # fmt: skip
         claimed, budget, _ = _separable_figures(rows)
         if claimed is not None and budget is not None and claimed > budget:
@@ -500,8 +501,9 @@ def speed_error_chart(data: dict) -> Chart:
             xs, ys = [], []
             for row in data["results"]:
                 ref = row["references"].get(kind)
-                # No ratio where the atlas frame took no measurable time (report_dict stores None).
-                if ref is None or ref["speed_ratio"] is None:
+                # No ratio where the atlas frame took no measurable time (report_dict stores None), and no FLIP
+                # where no pixel of the material was scored (a frame too small to show it: the mean of nothing).
+                if ref is None or ref["speed_ratio"] is None or ref["flip"] is None or not math.isfinite(ref["flip"]):
                     continue
                 xs.append(ref["speed_ratio"])
                 ys.append(max(ref["flip"], 1e-4))  # log axis: a perfect match still gets a point
@@ -513,7 +515,10 @@ def speed_error_chart(data: dict) -> Chart:
         label_points(ax, [(-p[0], p[1]) for p in front], [p[2] for p in front])
         goal = data["settings"]["goals"]["flip"]
         ax.axhline(goal, color="grey", linestyle="--", linewidth=1, label=f"goal: mean FLIP <= {goal}")
-        ax.set_xscale("log")
+        if points:
+            ax.set_xscale("log")
+        else:  # no result with both figures (a frame too small to show the material): a log axis would have no value
+            ax.text(0.5, 0.5, "no result has both a speed ratio and a FLIP", transform=ax.transAxes, ha="center")
         ax.set_yscale("log")
         ax.set_xlabel("reference render cost: Mitsuba render time / atlas frame time")
         ax.set_ylabel("mean FLIP of the atlas image (lower is better)")
@@ -555,7 +560,7 @@ def _figures(row: dict, size: tuple) -> list[dict]:
             continue
         figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}",
                         "width": width, "height": height})  # fmt: skip
-        figures.append({"src": ref["images"]["flip"], "caption": f"FLIP atlas vs {kind}: {ref['flip']:.4f}",
+        figures.append({"src": ref["images"]["flip"], "caption": f"FLIP atlas vs {kind}: {_fmt(ref['flip'], '.4f')}",
                         "width": width, "height": height})  # fmt: skip
     return figures
 
@@ -627,8 +632,8 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
             metric_rows.append({
                 "material": row["material"], "anchor": _anchor(row["material"]), "type": row["type"],
                 "scene": row["scene"], "atlas_ms": f"{1000 * row['atlas_seconds']:.1f}", "kind": kind,
-                "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": f"{ref['rmse']:.5f}",
-                "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": f"{ref['flip']:.4f}",
+                "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": _fmt(ref["rmse"], ".5f"),
+                "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": _fmt(ref["flip"], ".4f"),
                 "goal": ref["meets_goal"] if ref.get("meets_goal") is not None else ref.get("look_goal"),
                 "whole_frame": _fmt(ref.get("whole_frame_psnr_db"), ".2f"),
                 "coverage": _fmt(ref.get("coverage"), ".1%"),
@@ -655,11 +660,11 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
                     "scene": row["scene"],
                     "figures": [
                         _fmt(b["table_float"]["psnr_db"], ".2f"),
-                        f"{b['table_float']['flip']:.4f}",
+                        _fmt(b["table_float"]["flip"], ".4f"),
                         _fmt(b["table_8bit"]["psnr_db"], ".2f"),
-                        f"{b['table_8bit']['flip']:.4f}",
+                        _fmt(b["table_8bit"]["flip"], ".4f"),
                         _fmt(model["psnr_db"], ".2f"),
-                        f"{model['flip']:.4f}",
+                        _fmt(model["flip"], ".4f"),
                         _fmt(b["gpu_vs_8bit"]["psnr_db"], ".2f"),
                     ],
                 }

@@ -108,10 +108,12 @@ class ImageMetrics:
 
     def as_dict(self) -> dict:
         out = {
-            "rmse": self.rmse,
+            # Every figure is a mean over the compared pixels: None, not NaN, where there are none (a frame
+            # too small to show the material), which JSON can hold and the pages print as n/a.
+            "rmse": _finite(self.rmse),
             "psnr_db": _finite(self.psnr),
-            "flip": self.flip,
-            "linear_rmse": self.linear_rmse,
+            "flip": _finite(self.flip),
+            "linear_rmse": _finite(self.linear_rmse),
             "linear_relative_rms": _finite(self.linear_relative_rms),
             "coverage": self.coverage,
             "clipped_pixels": self.clipped_pixels,

@@ -247,9 +247,13 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
         entries.append(entry)
     if not entries:
         raise InputError(f"{atlas_path.as_posix()}: the atlas holds no materials to validate")
-    loaded = []
+    loaded, given = [], {}
     for s in scenes:
         name, scene = load_validation_scene(s)
+        if name in given:  # a scene's name names its results' images and rows: a second would overwrite the first's
+            raise InputError(f"--scene {s}: a second scene named {name!r} (the first: --scene {given[name]}); expected "
+                             "scenes of distinct names")  # fmt: skip
+        given[name] = s
         if resolution is not None:
             scene = resize_scene(scene, *resolution)
         for obj in scene.objects:  # objects with a fixed material: it must be in the atlas
@@ -905,9 +909,10 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
     out = {}
     for key, image in (("table_float", table_float), ("table_8bit", table_8bit)):
         m = compare_images(model_image, image, run.exposure, mask=outside)
-        out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": m.flip, "linear_relative_rms": m.linear_relative_rms}
+        out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": _finite_or_none(m.flip),
+                    "linear_relative_rms": _finite_or_none(m.linear_relative_rms)}  # fmt: skip
     m = compare_images(table_8bit, atlas_image, run.exposure, with_flip=False, mask=outside)
-    out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": _finite_or_none(m.linear_relative_rms)}
     run.breakdown = out
 
 

@@ -31,6 +31,18 @@ def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, t
     assert data["settings"]["scenes"][0]["width"] == 24
 
 
+@pytest.mark.slow
+def test_a_frame_that_shows_no_pixel_of_the_material_reports_no_figures(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    """At 2x1 the sphere covers no pixel: the means of nothing were NaN, which broke the plot's log axis and
+    the JSON (exit 1, 'a bug'). They are null now, printed n/a, and the goal is not met."""
+    out = tmp_path / "v"
+    result = CliRunner().invoke(app, ["validate", "matte", "--scene", "front", "--resolution", "2x1", "--no-physical",
+                                      "--atlas", str(validation_atlas), "-o", str(out), "-q"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    model = json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]
+    assert model["coverage"] == 0.0 and model["flip"] is None and model["psnr_db"] is None and not model["meets_goal"]
+
+
 @pytest.mark.parametrize(
     "args, code, message",
     [

@@ -85,6 +85,22 @@ def test_unknown_scene_and_scene_without_placeholder(validation_atlas, tmp_path)
         plan_validation(validation_atlas, ["matte"], [str(path)])
 
 
+@pytest.mark.slow
+def test_two_scenes_of_one_name_are_refused(validation_atlas, tmp_path):
+    """A scene's name names its rows and images: a second 'front' showed the first's images beside its own figures."""
+    from atlasgen.validate.run import plan_validation
+
+    own = tmp_path / "x" / "front.toml"
+    own.parent.mkdir()
+    own.write_text('[camera]\nposition = [0, 0, 3]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "$material"\n')
+    with pytest.raises(InputError) as info:
+        plan_validation(validation_atlas, ["matte"], ["front", str(own)])
+    assert str(info.value) == (f"--scene {own}: a second scene named 'front' (the first: --scene front); expected "
+                               "scenes of distinct names")  # fmt: skip
+    with pytest.raises(InputError, match="a second scene named 'back'"):
+        plan_validation(validation_atlas, ["matte"], ["back", "back"])
+
+
 @pytest.mark.mitsuba  # needs drjit
 def test_missing_llvm_backend_names_libllvm19(monkeypatch):
     dr = pytest.importorskip("drjit")
