@@ -7,9 +7,11 @@ import sys
 
 import click
 
-__all__ = ["QUIET", "NORMAL", "VERBOSE", "PathArg", "verbosity_options", "MaterialProgress"]
+__all__ = ["QUIET", "NORMAL", "VERBOSE", "MAX_SPP", "PathArg", "verbosity_options", "MaterialProgress"]
 
 QUIET, NORMAL, VERBOSE = -1, 0, 1
+#: The most samples per pixel a command takes: past it a CPU reference runs for days, not a bounded while.
+MAX_SPP = 65536
 
 
 class PathArg(click.Path):

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors, one_line_message
-from atlasgen.cli.options import QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.cli.options import MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
 from atlasgen.preview.watch import describe_label, describe_update, watch_preview
@@ -38,7 +38,7 @@ def _steps(timings: dict) -> str:
 @click.option(
     "--reference-spp",
     "max_spp",
-    type=click.IntRange(4),
+    type=click.IntRange(4, MAX_SPP),
     default=256,
     show_default=True,
     help="The most samples per pixel (per seed) a reference is refined to.",

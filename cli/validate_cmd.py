@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.validation import (
@@ -24,7 +24,6 @@ from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, PHYSICAL
 __all__ = ["validate"]
 
 #: Mitsuba's sample count is a 32-bit integer; far more than a validation ever needs.
-MAX_SPP = 65536
 
 
 def _resolution(ctx, param, value):

@@ -113,3 +113,15 @@ def test_a_watch_prints_the_label_once_measured_and_its_failure_on_one_line(tmp_
     failure = "atlasgen: error: clay.toml: report sample; failed (the picture stands without its error figures; watching)"
     assert res.stderr.splitlines()[-1] == failure
     assert res.stdout.splitlines() == ([] if verbosity else ["error figures measured in 0.210 s"])
+
+
+def test_the_reference_s_samples_are_bounded_as_validate_s_are(tmp_path):
+    """An unbounded --reference-spp ran a CPU reference for as long as it was asked: days."""
+    from atlasgen.cli.main import app
+
+    (tmp_path / "grey.toml").write_text('type = "lambert"\n')
+    res = CliRunner().invoke(
+        app, ["preview", str(tmp_path / "grey.toml"), "--reference-spp", "65537", "-o", str(tmp_path / "p.png")]
+    )
+    assert res.exit_code == 2
+    assert "'--reference-spp': 65537 is not in the range 4<=x<=65536" in res.output
