@@ -251,3 +251,20 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     timings.write_text(json.dumps(data))
     with pytest.raises(FieldError, match=r"field 'materials.clay.bake_s': expected a number >= 0, got -5"):
         write_library_report(atlas, tmp_path / "report", physical=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("which", ["validation_dir", "separable_dir"])
+def test_the_page_may_not_be_written_into_a_report_it_reads(tmp_path, write_material, which):
+    """-o R/sep --separable R/sep replaced the separable report's index.html with the library page: two sets mixed."""
+    from atlasgen.errors import OutputError
+
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "index.html").write_text("<html>theirs</html>")
+    with pytest.raises(OutputError, match=r"theirs: the report folder \(-o\) is the .* report \(--.*\)'s folder"):
+        write_library_report(atlas, tmp_path / "." / "theirs", physical=False, **{which: theirs})
+    assert (theirs / "index.html").read_text() == "<html>theirs</html>"

@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from atlasgen.bake.preview import slice_png
-from atlasgen.errors import FieldError, InputError
+from atlasgen.errors import FieldError, InputError, OutputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
@@ -227,8 +227,17 @@ def write_library_report(
     run-time cost against error versus the physical reference (:mod:`atlasgen.reports.pareto`),
     their candidates cached under ``out_dir/pareto`` and computed in up to ``jobs`` processes.
     Every file is replaced atomically.
-    """
 
+    Raises
+    ------
+    OutputError
+        ``out_dir`` is the validation or separable report's own folder: its ``index.html`` is theirs.
+    """
+    for folder, role in ((validation_dir, "the validation report (--validation)"),
+                         (separable_dir, "the separable report (--separable)")):  # fmt: skip
+        if folder is not None and os.path.realpath(folder) == os.path.realpath(out_dir):
+            raise OutputError(f"{Path(out_dir).as_posix()}: the report folder (-o) is {role}'s folder, whose index.html "
+                              "it would overwrite; expected a folder of its own")  # fmt: skip
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
