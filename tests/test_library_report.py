@@ -14,6 +14,14 @@ def read_json(path):
     return json.loads(path.read_text())
 
 
+def _clay_atlas(tmp_path, write_material):
+    """tmp_path/atlas.dds of one lambert material, 'clay' (its timings file beside it)."""
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    return atlas
+
+
 @pytest.mark.slow
 def test_every_referenced_image_exists(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n')
@@ -52,9 +60,7 @@ def test_every_referenced_image_exists(tmp_path, write_material):
 def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     import json
 
-    write_material("clay", 'type = "lambert"\n')
-    atlas = tmp_path / "atlas.dds"
-    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    atlas = _clay_atlas(tmp_path, write_material)
     vdir = tmp_path / "validation"
     vdir.mkdir()
     (vdir / "index.html").write_text("<html></html>")
@@ -124,9 +130,7 @@ def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, wri
 
 @pytest.mark.slow
 def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material):
-    write_material("clay", 'type = "lambert"\n')
-    atlas = tmp_path / "atlas.dds"
-    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    atlas = _clay_atlas(tmp_path, write_material)
     sep = tmp_path / "separable"
     sep.mkdir()
     (sep / "index.md").write_text("# text summary")
@@ -218,9 +222,7 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     a report that is a list and timings that are a string named the wrong type; a negative bake time showed."""
     from atlasgen.errors import FieldError, InputError
 
-    write_material("clay", 'type = "lambert"\n')
-    atlas = tmp_path / "atlas.dds"
-    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    atlas = _clay_atlas(tmp_path, write_material)
     timings = tmp_path / "atlas.timings.json"
     good_timings = timings.read_text()
     vdir = tmp_path / "validation"
@@ -259,9 +261,7 @@ def test_the_page_may_not_be_written_into_a_report_it_reads(tmp_path, write_mate
     """-o R/sep --separable R/sep replaced the separable report's index.html with the library page: two sets mixed."""
     from atlasgen.errors import OutputError
 
-    write_material("clay", 'type = "lambert"\n')
-    atlas = tmp_path / "atlas.dds"
-    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    atlas = _clay_atlas(tmp_path, write_material)
     theirs = tmp_path / "theirs"
     theirs.mkdir()
     (theirs / "index.html").write_text("<html>theirs</html>")
