@@ -15,6 +15,7 @@ import importlib.util
 import json
 import math
 import os
+import signal
 import sys
 import time
 import traceback
@@ -373,6 +374,11 @@ def main(argv=None):
         raise
     except BaseException as exc:  # noqa: BLE001
         exit_for(exc)
+    finally:
+        # The command has ended (its outputs committed or left, its line printed): a Ctrl-C from here on
+        # could only turn its exit into a traceback from Python's shutdown, or a silent death by SIGINT.
+        if _launched_as_the_command_line():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.exit(status if isinstance(status, int) else 0)
 
 

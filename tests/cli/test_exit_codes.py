@@ -194,3 +194,23 @@ def test_ctrl_c_at_any_instant_of_start_up_is_one_line_and_130(tmp_path):
         for name, data in old.items():
             (out.parent / name).write_bytes(data)
     assert list(outcomes.values()).count("atlasgen") >= 3, outcomes
+
+
+LATE_CTRL_C = """
+import atexit, os, runpy, signal, sys
+atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT))  # a Ctrl-C as the interpreter shuts down
+sys.argv = ["atlasgen", *sys.argv[1:]]
+runpy.run_module("atlasgen", run_name="__main__", alter_sys=True)  # as `python -m atlasgen`
+"""
+
+
+@pytest.mark.slow
+def test_a_ctrl_c_after_the_command_ended_changes_nothing(tmp_path):
+    """A bake that had committed and exited 0 printed Python's KeyboardInterrupt traceback from its shutdown
+    (or died by SIGINT: exit 130, no line). Once the command has ended, Ctrl-C is ignored."""
+    (tmp_path / "clay.toml").write_text('type = "lambert"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    done = subprocess.run([sys.executable, "-c", LATE_CTRL_C, "bake", str(tmp_path / "clay.toml"), "-o", str(out), "-q"],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert (done.returncode, done.stdout, done.stderr) == (0, "", "")
+    assert out.is_file()
