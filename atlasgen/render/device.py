@@ -13,6 +13,7 @@ import tempfile
 from dataclasses import dataclass, field
 
 from atlasgen.errors import BackendError
+from atlasgen.interrupts import deferred_interrupts
 from atlasgen.render.ffi_types import cached_declarations
 from atlasgen.render.ffi_types import install as install_fast_types
 
@@ -92,15 +93,19 @@ def create_device(power_preference: str = "high-performance") -> GpuContext:
     except ImportError:
         raise BackendError(INSTALL_HINT) from None
     install_fast_types(ffi)
-    try:
-        adapter = wgpu.gpu.request_adapter_sync(power_preference=power_preference)
-    except Exception as exc:  # wgpu-native raises RuntimeError when no backend loads
-        raise BackendError(f"{INSTALL_HINT} ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
-    if adapter is None:
-        raise BackendError(INSTALL_HINT)
-    # Timestamp queries time the frame's passes (atlasgen.render.timing) where the adapter has them.
-    features = [f for f in ("timestamp-query",) if f in adapter.features]
-    device = adapter.request_device_sync(label="atlasgen", required_features=features)
+    # A Ctrl-C landing in wgpu-native's adapter or device callback is raised inside a cffi callback: cffi
+    # prints it as "Exception ignored" with a traceback, and wgpu then fails on an assertion (exit 1 or 5).
+    # Held until both are made, it is one KeyboardInterrupt here (atlasgen.interrupts).
+    with deferred_interrupts():
+        try:
+            adapter = wgpu.gpu.request_adapter_sync(power_preference=power_preference)
+        except Exception as exc:  # wgpu-native raises RuntimeError when no backend loads
+            raise BackendError(f"{INSTALL_HINT} ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+        if adapter is None:
+            raise BackendError(INSTALL_HINT)
+        # Timestamp queries time the frame's passes (atlasgen.render.timing) where the adapter has them.
+        features = [f for f in ("timestamp-query",) if f in adapter.features]
+        device = adapter.request_device_sync(label="atlasgen", required_features=features)
     ctx = GpuContext(adapter, device)
     handler = _ErrorCollector(ctx.errors)
     logging.getLogger("wgpu").addHandler(handler)
