@@ -10,7 +10,8 @@ import click
 __all__ = ["QUIET", "NORMAL", "VERBOSE", "MAX_SPP", "PathArg", "verbosity_options", "MaterialProgress"]
 
 QUIET, NORMAL, VERBOSE = -1, 0, 1
-#: The most samples per pixel a command takes: past it a CPU reference runs for days, not a bounded while.
+#: The most samples per pixel a command takes (Mitsuba's count is a 32-bit integer): far more than a
+#: validation or a preview's reference needs, and past it a CPU reference runs for days.
 MAX_SPP = 65536
 
 

@@ -23,8 +23,6 @@ from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, PHYSICAL
 
 __all__ = ["validate"]
 
-#: Mitsuba's sample count is a 32-bit integer; far more than a validation ever needs.
-
 
 def _resolution(ctx, param, value):
     if value is None:

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError, shorten
-from atlasgen.io.text import MISSING, loads_json, path_kind, read_input_bytes
+from atlasgen.io.text import decode_utf8, loads_json, read_input_bytes
 
 __all__ = ["report_json_paths", "read_json_file", "read_report_json", "loads_finite_json", "check_number"]
 
@@ -75,18 +75,19 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
     return paths
 
 
-def read_json_file(path):
-    """The parsed JSON of ``path`` (:func:`loads_finite_json`).
+def read_json_file(path, missing: str = "no such file"):
+    """The parsed JSON of ``path`` (:func:`loads_finite_json`), a leading byte-order mark dropped.
 
     Raises
     ------
     InputError
-        One line naming the file: missing, a folder, a pipe or device, unreadable, not UTF-8, malformed.
+        One line naming the file: missing (``path: {missing}``), a folder, a pipe or device,
+        unreadable, not UTF-8, malformed.
     """
     path = Path(path)
-    data = read_input_bytes(path)
+    data = read_input_bytes(path, missing)
     try:
-        text = data.decode("utf-8")
+        text = decode_utf8(data)
     except UnicodeDecodeError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
     return loads_finite_json(text, path)
@@ -95,6 +96,4 @@ def read_json_file(path):
 def read_report_json(path: Path, kind: str, command: str):
     """The parsed JSON of one report (no NaN or infinities), or an :class:`InputError` naming the file and the fix."""
     path = Path(path)
-    if path_kind(path) == MISSING:
-        raise InputError(f"{path.as_posix()}: no such {kind} report; run {command} -o {path.parent.as_posix()} first")
-    return read_json_file(path)
+    return read_json_file(path, f"no such {kind} report; run {command} -o {path.parent.as_posix()} first")

@@ -262,9 +262,10 @@ def _included_files(path: Path, root) -> list:
         for element in tree.iter(XINCLUDE):
             href = element.get("href")
             found = next((p for p in (folder / href, path.parent / href) if os.path.lexists(p)), None) if href else None
-            if found is None or os.path.realpath(found) in seen:
+            real = None if found is None else os.path.realpath(found)
+            if real is None or real in seen:
                 continue
-            seen.add(os.path.realpath(found))
+            seen.add(real)
             data = read_input_bytes(found)
             included = _parse_xml(found.as_posix(), data)
             out.append((found, data, included))

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import BackendError, SceneError
+from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.materials.scene import MAX_LIGHTS, Scene, object_matrix, resolve_materials, shading_gloss
 from atlasgen.models import get_model
 from atlasgen.render.atlas_data import RendererInclude, upload_tables
@@ -293,7 +294,7 @@ class Renderer:
             object_data += pack_object(model, obj.albedo, shading_gloss(obj.gloss, entry), entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])
             world = (model @ corners.T).T[:, :3]
-            if not np.all(np.abs(world) <= np.finfo(np.float32).max):
+            if not np.all(np.abs(world) <= FLOAT32_MAX):
                 # Each field fits float32, but their product may not: the GPU's vertices would be inf, the object not drawn.
                 raise SceneError(scene.path, f"objects[{obj.index}]", "expected the object within float32's range once "
                                  f"scaled, rotated and translated, got a bounding-box corner at {float(np.max(np.abs(world))):.3g}")  # fmt: skip

@@ -52,15 +52,30 @@ def _charts(study: MaterialStudy) -> dict:
     return {kind: Chart(b"", c["width"], c["height"], tuple(c["labels"])) for kind, c in study.charts.items()}
 
 
-def _check_formats(study: MaterialStudy, path: Path, index: int, plots: dict) -> None:
-    """Format ``study`` alone as the merge will, so that a hand-edited field deeper than the study's keys
-    (a figure made a string, a chart without its height) is refused naming its file and entry, on one line."""
-    try:
-        format_separable_report([study], {study.name: plots})
-        format_separable_html([study], {study.name: plots}, {study.name: _charts(study)})
-    except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
-        raise InputError(f"{path.as_posix()}: entry {index} ({shorten(repr(study.name))}) is not a material study as "
-                         f"atlasgen report separable writes it ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+#: What formatting a study raises where a hand edit changed a field's type or dropped a key beneath its top level.
+_MALFORMED = (KeyError, TypeError, AttributeError, ValueError, IndexError)
+
+
+def _formatted(studies: list, plots: dict) -> tuple[bytes, bytes]:
+    """The merged ``index.md`` and ``index.html`` of ``studies``."""
+    markdown = format_separable_report(studies, plots).encode()
+    return markdown, format_separable_html(studies, plots, {s.name: _charts(s) for s in studies})
+
+
+def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
+    """Raise an InputError naming the first study of ``origins`` (``(study, path, index)``) that cannot be
+    formatted alone: a hand-edited field deeper than the study's keys (a figure made a string, a chart
+    without its height), on one line; ``exc``, the merge's own failure, where each can."""
+    for study, path, index in origins:
+        try:
+            _formatted([study], {study.name: plots[study.name]})
+        except _MALFORMED as own:
+            exc, where = own, f"{path.as_posix()}: entry {index} ({shorten(repr(study.name))})"
+            break
+    else:
+        where = ", ".join(dict.fromkeys(path.as_posix() for _, path, _ in origins))
+    raise InputError(f"{where} is not a material study as atlasgen report separable writes it "
+                     f"({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
 
 
 def merge_separable_reports(sources, output) -> dict:
@@ -95,7 +110,7 @@ def merge_separable_reports(sources, output) -> dict:
     """
     output = Path(output)
     paths = report_json_paths(sources, "separable", "atlasgen report separable")
-    studies, files, seen, plots = [], {}, {}, {}
+    files, seen, plots, origins = {}, {}, {}, []  # origins: (study, its report.json, its entry there)
     for path in paths:
         for index, study in enumerate(_read_studies(path)):
             if study.name in seen:
@@ -111,10 +126,12 @@ def merge_separable_reports(sources, output) -> dict:
                         f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})"
                     ) from None
                 plots[study.name][kind] = output / png.name
-            _check_formats(study, path, index, plots[study.name])
-            studies.append(study)
-    files[output / "index.md"] = format_separable_report(studies, plots).encode()
-    files[output / "index.html"] = format_separable_html(studies, plots, {s.name: _charts(s) for s in studies})
+            origins.append((study, path, index))
+    studies = [study for study, _, _ in origins]
+    try:
+        files[output / "index.md"], files[output / "index.html"] = _formatted(studies, plots)
+    except _MALFORMED as exc:  # a study edited by hand: found one by one only now, so a good merge formats once
+        _refuse_malformed(origins, plots, exc)
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     write_files_atomically(files, primary=output / "index.md")  # the Makefile's target

@@ -503,7 +503,7 @@ def speed_error_chart(data: dict) -> Chart:
                 ref = row["references"].get(kind)
                 # No ratio where the atlas frame took no measurable time (report_dict stores None), and no FLIP
                 # where no pixel of the material was scored (a frame too small to show it: the mean of nothing).
-                if ref is None or ref["speed_ratio"] is None or ref["flip"] is None or not math.isfinite(ref["flip"]):
+                if ref is None or ref["speed_ratio"] is None or ref["flip"] is None:
                     continue
                 xs.append(ref["speed_ratio"])
                 ys.append(max(ref["flip"], 1e-4))  # log axis: a perfect match still gets a point
