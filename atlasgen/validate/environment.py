@@ -29,7 +29,6 @@ evaluates it (:func:`separable_environment_parts`); the whole error is then the 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,7 +46,7 @@ from atlasgen.optics.equirect import texel_directions, texel_solid_angles
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.specular import specular_f_cos
 from atlasgen.render.environment import EnvironmentData, custom_f_cos, decode_render_slice, separable_albedo_table
-from atlasgen.validate.metrics import compare_images
+from atlasgen.validate.metrics import compare_images, finite_or_none
 from atlasgen.validate.rebuild import _pixel_geometry, material_mask
 
 __all__ = ["EnvironmentParts", "environment_parts", "separable_environment_parts", "break_down_environment"]
@@ -163,7 +162,7 @@ def _brute_force(values, nearest, image, n, v, nv, gloss):
 
 def _psnr_dict(reference, test, exposure, mask) -> dict:
     m = compare_images(reference, test, exposure, with_flip=False, mask=~mask)
-    return {"psnr_db": m.psnr if math.isfinite(m.psnr) else None, "linear_relative_rms": m.linear_relative_rms}
+    return {"psnr_db": finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
 
 
 def break_down_environment(parts: EnvironmentParts, exposure: float = 1.0) -> dict:

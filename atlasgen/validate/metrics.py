@@ -22,7 +22,7 @@ import numpy as np
 from atlasgen.optics.display import display_clip
 
 __all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images", "noise_floor",
-           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics", "part_metrics"]  # fmt: skip
+           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics", "part_metrics", "finite_or_none"]  # fmt: skip
 
 #: A stochastic reference's noise floor must lie this far above the PSNR it measures.
 NOISE_FLOOR_MARGIN_DB = 10.0
@@ -110,26 +110,32 @@ class ImageMetrics:
         out = {
             # Every figure is a mean over the compared pixels: None, not NaN, where there are none (a frame
             # too small to show the material), which JSON can hold and the pages print as n/a.
-            "rmse": _finite(self.rmse),
-            "psnr_db": _finite(self.psnr),
-            "flip": _finite(self.flip),
-            "linear_rmse": _finite(self.linear_rmse),
-            "linear_relative_rms": _finite(self.linear_relative_rms),
+            "rmse": finite_or_none(self.rmse),
+            "psnr_db": finite_or_none(self.psnr),
+            "flip": finite_or_none(self.flip),
+            "linear_rmse": finite_or_none(self.linear_rmse),
+            "linear_relative_rms": finite_or_none(self.linear_relative_rms),
             "coverage": self.coverage,
             "clipped_pixels": self.clipped_pixels,
-            "unclipped_exposure": _finite(self.unclipped_exposure),
-            "unclipped_psnr_db": _finite(self.unclipped_psnr),
+            "unclipped_exposure": finite_or_none(self.unclipped_exposure),
+            "unclipped_psnr_db": finite_or_none(self.unclipped_psnr),
         }
         if self.regions:
             out["regions"] = self.regions
         if self.whole_frame_psnr is not None:
-            out["whole_frame_psnr_db"] = _finite(self.whole_frame_psnr)
+            out["whole_frame_psnr_db"] = finite_or_none(self.whole_frame_psnr)
         if self.parts:
             out["parts"] = self.parts
         return out
 
 
-def _finite(x):
+def finite_or_none(x):
+    """``x`` where it is a finite number, else ``None``: JSON's null, where a figure of nothing (a mean over no
+    pixels) or a perfect match (PSNR of identical images) has no finite value.
+
+    >>> finite_or_none(31.5), finite_or_none(float("inf")), finite_or_none(float("nan")), finite_or_none(None)
+    (31.5, None, None, None)
+    """
     return x if x is not None and math.isfinite(x) else None
 
 
@@ -167,8 +173,8 @@ def region_metrics(ref_ldr, test_ldr, error_map, regions: dict, frame_pixels: in
         n = int(region.sum())
         p = psnr(ref_ldr[region], test_ldr[region]) if n else math.nan
         f = float(error_map[region].mean()) if n and error_map is not None else math.nan
-        out[name] = {"coverage": n / frame_pixels if frame_pixels else 0.0, "pixels": n, "psnr_db": _finite(p),
-                     "flip": _finite(f)}  # fmt: skip
+        out[name] = {"coverage": n / frame_pixels if frame_pixels else 0.0, "pixels": n, "psnr_db": finite_or_none(p),
+                     "flip": finite_or_none(f)}  # fmt: skip
     return out
 
 
@@ -183,7 +189,7 @@ def part_metrics(reference, test, ref_ldr, test_ldr, error_map, parts: dict, exp
         r, t = np.asarray(reference)[part], np.asarray(test)[part]
         e = unclipped_exposure(r, exposure)
         unclipped = psnr(display_clip(r, e), display_clip(t, e)) if r.size else math.nan
-        out[name].update(clipped_pixels=clipped_pixels(r, exposure), unclipped_psnr_db=_finite(unclipped))
+        out[name].update(clipped_pixels=clipped_pixels(r, exposure), unclipped_psnr_db=finite_or_none(unclipped))
     return out
 
 

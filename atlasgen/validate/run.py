@@ -43,7 +43,14 @@ from atlasgen.validate.materialx_reference import (
     oracle_over_physical_bsdf,
     render_forward_reference,
 )
-from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, compare_images, noise_floor, psnr, relative_rms
+from atlasgen.validate.metrics import (
+    NOISE_FLOOR_MARGIN_DB,
+    compare_images,
+    finite_or_none,
+    noise_floor,
+    psnr,
+    relative_rms,
+)
 from atlasgen.validate.mitsuba_scene import (
     CENTRE_PASS_SPP,
     SLAB_DIFFUSION_LENGTHS,
@@ -555,10 +562,10 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
     out = break_down_environment(parts, run.exposure)
     keep = ~parts.mask
     m = compare_images(ref.image, parts.exact, run.exposure, with_flip=False, mask=keep)
-    out["exact_vs_reference"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    out["exact_vs_reference"] = {"psnr_db": finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
     m = compare_images(parts.approx, np.where(parts.mask[..., None], run.atlas_image, 0.0), run.exposure, with_flip=False,
                        mask=keep)  # fmt: skip
-    out["gpu_vs_cpu"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
+    out["gpu_vs_cpu"] = {"psnr_db": finite_or_none(m.psnr), "linear_relative_rms": m.linear_relative_rms}
     run.environment_breakdown = out
 
 
@@ -701,7 +708,7 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside,
     image, seconds, _ = forward
     agree = compare_images(plugin.image, image, run.exposure, with_flip=False, mask=outside | facing_away)
     run.materialx["reference"] = "forward"
-    run.materialx["forward_vs_mitsuba_plugin"] = {"psnr_db": _finite_or_none(agree.psnr),
+    run.materialx["forward_vs_mitsuba_plugin"] = {"psnr_db": finite_or_none(agree.psnr),
                                                   "linear_relative_rms": agree.linear_relative_rms,
                                                   "plugin_seconds": plugin.seconds}  # fmt: skip
     run.notes.append(f"model reference: MaterialX's shader forward-rendered under the scene's lights; the oracle through "
@@ -714,7 +721,7 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside,
     if count:
         ref.mask, ref.masked = facing_away, FACING_AWAY_NOTE.format(count)
         counted = compare_images(image, run.atlas_image, run.exposure, with_flip=False, mask=outside)
-        run.materialx["facing_away"]["psnr_db_counting_them"] = _finite_or_none(counted.psnr)
+        run.materialx["facing_away"]["psnr_db_counting_them"] = finite_or_none(counted.psnr)
     return ref
 
 
@@ -909,20 +916,16 @@ def _break_down(run, entry, table_float, table_8bit, aovs) -> None:
     out = {}
     for key, image in (("table_float", table_float), ("table_8bit", table_8bit)):
         m = compare_images(model_image, image, run.exposure, mask=outside)
-        out[key] = {"psnr_db": _finite_or_none(m.psnr), "flip": _finite_or_none(m.flip),
-                    "linear_relative_rms": _finite_or_none(m.linear_relative_rms)}  # fmt: skip
+        out[key] = {"psnr_db": finite_or_none(m.psnr), "flip": finite_or_none(m.flip),
+                    "linear_relative_rms": finite_or_none(m.linear_relative_rms)}  # fmt: skip
     m = compare_images(table_8bit, atlas_image, run.exposure, with_flip=False, mask=outside)
-    out["gpu_vs_8bit"] = {"psnr_db": _finite_or_none(m.psnr), "linear_relative_rms": _finite_or_none(m.linear_relative_rms)}
+    out["gpu_vs_8bit"] = {"psnr_db": finite_or_none(m.psnr), "linear_relative_rms": finite_or_none(m.linear_relative_rms)}
     run.breakdown = out
 
 
 def _only_material(image, entry, aovs) -> np.ndarray:
     """``image`` with every pixel not covered by ``entry``'s slices set to 0 (the CPU rebuilds cover only those)."""
     return np.where(material_mask(entry, aovs)[..., None], image, 0.0).astype(np.float32)
-
-
-def _finite_or_none(x: float):
-    return x if math.isfinite(x) else None
 
 
 def _check_claims(run, entry, claimed, rebuild, aovs) -> None:
