@@ -816,6 +816,39 @@ def _joined(values) -> str:
     return "; ".join(dict.fromkeys(str(v) for v in values))
 
 
+#: What formatting a page raises on a field that is not what atlasgen validate writes.
+_MALFORMED = (KeyError, TypeError, AttributeError, ValueError, IndexError)
+
+
+def _page_error(data: dict, rows: list, out_dir: Path) -> Exception | None:
+    """What summing up and formatting a page of ``data`` with only ``rows`` raises on a field atlasgen validate
+    would not write, if anything."""
+    try:
+        _page_files({**data, "summary": _summary(rows), "results": rows}, out_dir)
+    except _MALFORMED as exc:
+        return exc
+    return None
+
+
+def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc: Exception) -> None:
+    """Raise an InputError naming the first result of ``reports`` (read from ``paths``) that a page of its own
+    cannot print either, on one line; all the files and the merge's own failure ``exc`` where a page of no results
+    fails too (a field every report shares, such as the settings). Only a failed merge pays for these pages."""
+    if _page_error(data, [], out_dir) is None:
+        rows = iter(data["results"])  # the merged rows, in the order the merge took them from each report
+        for path, report in zip(paths, reports):
+            for i, _ in enumerate(report["results"]):
+                row = next(rows)
+                own = _page_error(data, [row], out_dir)
+                if own is not None:
+                    raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({row['material']} on {row['scene']}) is "
+                                     "not a result as atlasgen validate writes it, so the merged page cannot be written "
+                                     f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+    shown = ", ".join(p.as_posix() for p in paths)
+    raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
+                     f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+
+
 def merge_validation_reports(sources, out_dir) -> dict:
     """Merge per-material validation reports into one ``index.html``, ``report.json`` and plot.
 
@@ -875,18 +908,17 @@ def merge_validation_reports(sources, out_dir) -> dict:
         "environment": environment,
         # The work the merged page stands for: the sum of the runs it is made of.
         "total_seconds": sum(r["total_seconds"] for r in reports),
-        "summary": _summary(rows),
+        "summary": None,  # below, where a hand-edited result that it cannot read is refused on one line
         "results": rows,
         "merged_from": [_rebase(".", p.parent, out_dir) for p in paths],
     }
     try:
+        data["summary"] = _summary(rows)
         files = _page_files(data, out_dir)
-    except (KeyError, TypeError, AttributeError, ValueError, IndexError) as exc:
+    except _MALFORMED as exc:
         # The fields the merge reads are checked above; this catches a hand edit deeper in a result
         # (a look's goal, a region's figures) that the page cannot print, still as one line.
-        shown = ", ".join(p.as_posix() for p in paths)
-        raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
-                         f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+        _refuse_malformed(data, paths, reports, out_dir, exc)
     write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -195,4 +196,26 @@ def test_a_field_the_page_cannot_print_is_one_line_naming_the_file(merged, tmp_p
         assert str(info.value).startswith(f"{(folder / 'report.json').as_posix()}: a field is not what atlasgen validate "
                                           "writes, so the merged page cannot be written (")  # fmt: skip
         assert "\n" not in str(info.value)
+    assert not (tmp_path / "merged").exists()
+
+
+def test_a_result_the_page_cannot_print_is_named_by_file_and_entry(merged, tmp_path):
+    """Two reports, the second's first result edited below the checked fields: the refusal names that
+    report and that result, not every merged file; nothing is written."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    out, parts, _ = merged
+    first, second = (out / "materials" / m for m in list(parts)[:2])
+    data = json.loads((second / "report.json").read_text())
+    row = data["results"][0]
+    row["error_breakdown"] = {**row["error_breakdown"], "table_float": "x"}  # an object of figures, made a string
+    edited = tmp_path / "edited"
+    shutil.copytree(second, edited)
+    (edited / "report.json").write_text(json.dumps(data))
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([first, edited], tmp_path / "merged")
+    message = str(info.value)
+    assert message.startswith(f"{(edited / 'report.json').as_posix()}: field 'results[0]' ({row['material']} on "
+                              f"{row['scene']}) is not a result as atlasgen validate writes it"), message  # fmt: skip
+    assert first.as_posix() not in message and "\n" not in message
     assert not (tmp_path / "merged").exists()
