@@ -134,5 +134,7 @@ def merge_separable_reports(sources, output) -> dict:
         _refuse_malformed(origins, plots, exc)
     # The same serialisation as a single run's report.json.
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
-    write_files_atomically(files, primary=output / "index.md")  # the Makefile's target
+    # The set a single run's report names (report.json): a merge into a folder that holds one replaces
+    # that set under its lock, rather than writing the same paths as a second set under another.
+    write_files_atomically(files, primary=output / "report.json")
     return {"markdown": output / "index.md", "html": output / "index.html", "json": output / "report.json", "plots": plots}

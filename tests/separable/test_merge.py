@@ -45,6 +45,23 @@ def test_merging_one_report_reproduces_it_byte_for_byte(reports, tmp_path):
 
 
 @pytest.mark.slow
+def test_a_merge_over_a_single_report_is_the_same_output_set(reports, tmp_path):
+    """One folder, one set: a merge written where a single run's report was keeps its store and lock, so the two
+    commands never write the same paths under two locks, and no stale generation is left behind."""
+    import shutil
+
+    from atlasgen.io.atomic import STORE_SUFFIX
+
+    _, folders = reports
+    folder = tmp_path / "report"
+    shutil.copytree(folders["lobe"], folder, symlinks=True)
+    merge_separable_reports([folders["lobe"], folders["sheen"]], folder)
+    stores = sorted(p.name for p in folder.iterdir() if p.name.endswith(STORE_SUFFIX))
+    assert stores == [p.name for p in folders["lobe"].iterdir() if p.name.endswith(STORE_SUFFIX)], stores
+    assert len(json.loads((folder / "report.json").read_text())) == 2
+
+
+@pytest.mark.slow
 def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports):
     out, folders = reports
     written = merge_separable_reports([folders["lobe"], folders["sheen"]], out)
