@@ -123,8 +123,11 @@ $(BUILD)/materials.list:
 $(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
 
+# The bake also writes build/cache/<stem>.mtlx.d, which makes the stamp depend on the files the
+# document includes (xi:include) as well.
+-include $(patsubst %,$(CACHE_DIR)/%.mtlx.d,$(MTLX_STEMS))
 $(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(BAKE_CODE) | $(VENV)/.stamp
-	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q && touch $@
+	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(@:.stamp=.d) --depfile-target $@ -q && touch $@
 
 $(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png

@@ -33,6 +33,7 @@ from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verb
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
+from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.depfile import format_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
@@ -217,6 +218,13 @@ def app(ctx, debug):
     help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).",
 )
 @click.option(
+    "--depfile-target",
+    type=PathArg(path_type=Path),
+    default=None,
+    help="The make target --depfile names (as gcc's -MT): default the atlas (-o). --cache-only writes no atlas, so "
+    "with --depfile it needs one (a stamp file): the target against each material file and the files it includes.",
+)
+@click.option(
     "--library", is_flag=True, help="Also bake the material library installed with atlasgen (alone when no PATHS are given)."
 )
 @click.option("--allow-empty", is_flag=True, help="Allow replacing an atlas that has materials with an empty one.")
@@ -257,6 +265,7 @@ def bake(
     include_languages,
     cache_only,
     depfile,
+    depfile_target,
     library,
     allow_empty,
     mtlx_flatten,
@@ -272,6 +281,10 @@ def bake(
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     if cache_only and cache_dir is None:
         raise click.UsageError("--cache-only needs --cache DIR")
+    if depfile_target is not None and depfile is None:
+        raise click.UsageError("--depfile-target needs --depfile FILE")
+    if cache_only and depfile is not None and depfile_target is None:
+        raise click.UsageError("--depfile with --cache-only needs --depfile-target: no atlas is written for it to name")
     languages = tuple(dict.fromkeys(lang.strip().lower() for lang in include_languages.split(",") if lang.strip()))
     unknown = [lang for lang in languages if lang not in ("wgsl", "glsl", "hlsl")]
     if unknown:
@@ -283,7 +296,11 @@ def bake(
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)
     jobs = available_cpus() if jobs is None else jobs
     if cache_only:
+        # Formatted first, so that a path make cannot read is refused before anything is baked.
+        dependencies = format_depfile(depfile_target, _material_inputs(materials)).encode() if depfile else None
         filled = fill_cache(cache_dir, materials, jobs)
+        if dependencies is not None:
+            write_file_atomically(depfile, dependencies)
         if verbosity == VERBOSE:
             click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
                        f"up to date {', '.join(filled['hits']) or 'none'}", err=True)  # fmt: skip
@@ -295,11 +312,10 @@ def bake(
     if depfile is not None:
         # Formatted before the bake (a path make cannot read is refused first) and written in the same
         # commit as the atlas: a depfile that cannot be written fails the bake before the atlas is replaced.
-        inputs = [m.source for m in materials] + [p for m in materials for p in m.includes]
-        inputs += [scene] if scene is not None else []
+        inputs = _material_inputs(materials) + ([scene] if scene is not None else [])
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
-        extra_files[depfile] = format_depfile(output, inputs).encode()
+        extra_files[depfile] = format_depfile(depfile_target or output, inputs).encode()
     previous = read_previous_slots(ids_from, missing_ok=False) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
     with MaterialProgress("baked", verbosity) as report:
@@ -324,6 +340,11 @@ def bake(
         for warning in [*result.warnings, *result.material_warnings]:
             click.echo(f"atlasgen: warning: {warning}", err=True)
         click.echo(result.describe(output, zstd))
+
+
+def _material_inputs(materials) -> list:
+    """The files a bake of ``materials`` reads: each material's file, then the files MaterialX documents include."""
+    return [m.source for m in materials] + [p for m in materials for p in m.includes]
 
 
 def _describe_materials(result) -> list[str]:

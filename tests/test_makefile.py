@@ -284,3 +284,33 @@ def test_a_renderer_shader_file_rerenders_without_rebaking(tree):
     commands = _commands(tree, "atlas", "render")
     assert sorted(_scene_jobs(commands)) == [("render", "one"), ("render", "two")]
     assert not any(" bake " in c for c in commands)
+
+
+def test_a_file_a_materialx_document_includes_rebakes_the_document(tree):
+    """The document's stamp depends on what its bake's depfile lists: a change to an included file re-bakes the
+    document (and so re-validates it), one to a file it does not include nothing."""
+    (tree / "materials" / "shared").mkdir()
+    for name in ("doc.mtlx", "shared/base.mtlx", "shared/unused.mtlx"):
+        (tree / "materials" / name).write_text("")
+    stamp = tree / "build" / "cache" / "doc.mtlx.stamp"
+    report = tree / "build" / "validation" / "materials" / "doc" / "report.json"
+    report.parent.mkdir(parents=True)
+    for path in (stamp, report):
+        path.write_text("")
+    write_depfile(stamp.with_suffix(".d"), "build/cache/doc.mtlx.stamp", ["materials/doc.mtlx", "materials/shared/base.mtlx"])
+    _make(tree, "-n", "atlas")  # reads the Makefile: the material list now names the document
+    for path in [tree / "materials" / "doc.mtlx", *(tree / "materials" / "shared").iterdir()]:
+        os.utime(path, (T0, T0))
+    for path in (stamp, stamp.with_suffix(".d"), report, tree / "build" / "materials.list", tree / "build" / "atlas.dds"):
+        os.utime(path, (T_BUILT, T_BUILT))
+    assert _commands(tree, "atlas", "validate") == []
+    _touch(tree / "materials" / "shared" / "unused.mtlx")
+    assert _commands(tree, "atlas", "validate") == []
+    _touch(tree / "materials" / "shared" / "base.mtlx")
+    commands = _commands(tree, "atlas", "validate")
+    bake = next(c for c in commands if "--cache-only" in c)
+    assert (
+        "bake materials/doc.mtlx " in bake
+        and "--depfile build/cache/doc.mtlx.d --depfile-target build/cache/doc.mtlx.stamp" in bake
+    )
+    assert _validated(commands) == ["materials/doc.mtlx"]

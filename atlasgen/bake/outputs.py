@@ -21,8 +21,8 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     no output (atlas, manifest, include, timings, preview, depfile, cache entries) is a
     folder, lies under a file, names an input (a material or scene file, ``--ids-from``)
     or another output; and an atlas whose manifest lists materials is not replaced by an
-    empty one unless ``allow_empty``. With ``cache_only`` only the cache entries are written,
-    and checked. ``library`` is every material read (``materials`` being those a scene
+    empty one unless ``allow_empty``. With ``cache_only`` only the cache entries and the depfile
+    are written, and checked. ``library`` is every material read (``materials`` being those a scene
     selected from it): all of their files are inputs.
 
     Raises
@@ -44,8 +44,8 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         ]
         if preview is not None:
             outputs.append((preview, "--preview"))
-        if depfile is not None:
-            outputs.append((depfile, "--depfile"))
+    if depfile is not None:
+        outputs.append((depfile, "--depfile"))
     if cache_dir is not None:
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
     inputs = [(m.source, f"the material file of {m.name!r}") for m in (materials if library is None else library)]

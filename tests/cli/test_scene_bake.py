@@ -88,3 +88,18 @@ def test_the_depfile_names_exactly_the_scene_materials_and_their_cache_entries(t
         (cache / "charlie.npz").as_posix(),
     }
     assert all((cache / f"{n}.npz").is_file() for n in ("alpha", "charlie")) and not (cache / "bravo.npz").exists()
+
+
+def test_a_cache_only_bake_writes_a_depfile_for_the_target_it_is_given(tmp_path, write_material):
+    """--cache-only writes no atlas: its depfile names the --depfile-target (the Makefile's stamp of a MaterialX
+    document) against the material files; without one it is refused before anything is baked."""
+    write_material("alpha", 'type = "lambert"\n')
+    source, dep, cache = tmp_path / "materials" / "alpha.toml", tmp_path / "cache" / "alpha.d", tmp_path / "cache"
+    refused = _bake(source, "--cache", cache, "--cache-only", "--depfile", dep)
+    assert refused.exit_code == 2 and "--depfile with --cache-only needs --depfile-target" in refused.stderr
+    assert not cache.exists()
+    stamp = cache / "alpha.stamp"
+    res = _bake(source, "--cache", cache, "--cache-only", "--depfile", dep, "--depfile-target", stamp, "-q")
+    assert res.exit_code == 0, res.output
+    assert dep.read_text() == f"{stamp.as_posix()}: \\\n  {source.as_posix()}\n\n{source.as_posix()}:\n"
+    assert (cache / "alpha.npz").is_file() and not stamp.exists()
