@@ -23,6 +23,7 @@ import warnings
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from atlasgen import __version__
 from atlasgen.bake.cache import cache_path
@@ -210,7 +211,7 @@ def app(ctx, debug):
     metavar="LANGS",
     help="Shader includes to write beside the atlas, comma-separated: wgsl, glsl, hlsl.",
 )
-@click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas.")
+@click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas (its options are refused).")
 @click.option(
     "--depfile",
     type=PathArg(path_type=Path),
@@ -277,6 +278,8 @@ def bake(
 
     A file is a TOML material or a MaterialX document (.mtlx), whose every surfacematerial is baked from
     MaterialX's own shader."""
+    if cache_only:
+        _refuse_atlas_options(click.get_current_context())
     if zstd and output.suffix.lower() != ".ktx2":
         raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
     if cache_only and cache_dir is None:
@@ -340,6 +343,20 @@ def bake(
         for warning in [*result.warnings, *result.material_warnings]:
             click.echo(f"atlasgen: warning: {warning}", err=True)
         click.echo(result.describe(output, zstd))
+
+
+#: bake's options that shape only the atlas and its side files, which --cache-only does not write.
+_ATLAS_ONLY_OPTIONS = ("output", "layout", "linear", "zstd", "preview", "ids_from", "include_languages", "allow_empty",
+                       "strict")  # fmt: skip
+
+
+def _refuse_atlas_options(ctx) -> None:
+    """Refuse an atlas option given with --cache-only, rather than ignore it (--strict's warnings, say, are
+    measured on the assembled atlas)."""
+    for param in ctx.command.params:
+        if param.name in _ATLAS_ONLY_OPTIONS and ctx.get_parameter_source(param.name) is not ParameterSource.DEFAULT:
+            raise click.UsageError(f"{param.opts[-1]} has no effect with --cache-only, which writes no atlas (only "
+                                   "the cache and --depfile); expected one or the other")  # fmt: skip
 
 
 def _material_inputs(materials) -> list:

@@ -2,6 +2,7 @@
 
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
@@ -103,3 +104,14 @@ def test_a_cache_only_bake_writes_a_depfile_for_the_target_it_is_given(tmp_path,
     assert res.exit_code == 0, res.output
     assert dep.read_text() == f"{stamp.as_posix()}: \\\n  {source.as_posix()}\n\n{source.as_posix()}:\n"
     assert (cache / "alpha.npz").is_file() and not stamp.exists()
+
+
+@pytest.mark.parametrize("option", [("-o", "x.dds"), ("--preview", "p.png"), ("--strict",), ("--linear",),
+                                    ("--include", "wgsl"), ("--ids-from", "a.json"), ("--zstd",), ("--layout", "volume")])  # fmt: skip
+def test_an_atlas_option_with_cache_only_is_refused_not_ignored(tmp_path, write_material, option):
+    write_material("alpha", 'type = "lambert"\n')
+    cache = tmp_path / "cache"
+    res = _bake(tmp_path / "materials" / "alpha.toml", "--cache", cache, "--cache-only", *option)
+    long_name = {"-o": "--output"}.get(option[0], option[0])
+    assert res.exit_code == 2 and f"{long_name} has no effect with --cache-only, which writes no atlas" in res.stderr
+    assert not cache.exists()
