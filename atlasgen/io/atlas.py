@@ -25,7 +25,7 @@ from atlasgen.errors import InputError, ManifestError
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
-from atlasgen.io.text import read_input_text
+from atlasgen.io.text import read_input_bytes, read_input_text
 from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
@@ -111,6 +111,11 @@ def as_atlas(atlas) -> Atlas:
     return atlas if isinstance(atlas, Atlas) else read_atlas(atlas)
 
 
+#: Bytes an atlas file may have: the whole 64x32x256 RGBA8 mip chain is 2.8 MB uncompressed, so this leaves
+#: room for any header and key/value data, and a device, or a file that is no atlas, is refused before it is read.
+MAX_ATLAS_BYTES = 16 * 2**20
+
+
 def read_atlas(path) -> Atlas:
     """Read ``X.dds`` (or ``X.ktx2``) and, if present, its manifest ``X.json``, checked as a pair.
 
@@ -129,14 +134,9 @@ def read_atlas(path) -> Atlas:
         The manifest is not a valid manifest.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path.as_posix()}: no such atlas")
-    try:
-        data = path.read_bytes()
-    except IsADirectoryError:
-        raise InputError(f"{path.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory") from None
-    except OSError as exc:
-        raise InputError(f"{path.as_posix()}: cannot read ({exc.strerror})") from None
+    if path.is_dir():
+        raise InputError(f"{path.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory")
+    data = read_input_bytes(path, "no such atlas", (MAX_ATLAS_BYTES, "an atlas texture (DDS or KTX2)"))
     image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
     if not manifest_path.exists():

@@ -55,8 +55,9 @@ SUPERCOMPRESSION_NAMES = {SUPERCOMPRESSION_NONE: "none", SUPERCOMPRESSION_ZSTD: 
 ZSTD_LEVEL = 19
 #: RGBA8: the texel block is one 4-byte texel, so levels align to lcm(4, 4) = 4.
 TEXEL_BLOCK_SIZE = 4
-#: A reader refuses files whose levels would inflate to more than this (a decompression bomb).
-MAX_UNCOMPRESSED_BYTES = 1 << 30
+#: A reader refuses files whose levels would inflate to more than this (a decompression bomb): 64 MiB holds a
+#: 4096x4096 RGBA8 texture, and the atlas is 2.8 MB. At 1 GiB a 33 KB file took 2 GB of memory, inflated and copied.
+MAX_UNCOMPRESSED_BYTES = 64 << 20
 #: The largest width, height or depth a reader accepts (Vulkan's ``maxImageDimension2D`` is
 #: at least 4096, and 16384 on desktop GPUs; 65536 leaves room).
 MAX_EXTENT = 1 << 16
@@ -340,6 +341,8 @@ def _inflate(path: Path, level: int, frame: bytes, expected: int) -> bytes:
             out += chunk
     except zstandard.ZstdError as exc:
         raise _field_error(path, name, f"corrupt Zstandard data ({exc})") from None
+    except MemoryError:  # within the limit, yet more than this machine has free
+        raise _field_error(path, name, f"cannot inflate {expected} bytes in the memory available") from None
     if len(out) > expected:
         raise _field_error(path, name, f"inflates to more than uncompressedByteLength {expected} bytes")
     if len(out) < expected:

@@ -32,6 +32,7 @@ from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, MAPPING, NAME_PATTERN, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.fields import fits_float32
 from atlasgen.io.text import loads_json, read_input_text
 
 __all__ = [
@@ -60,6 +61,8 @@ _MISSING = object()
 _ENCODINGS = {"srgb": 29, "linear": 28}  # encoding -> its DXGI format (docs/atlas-format.md)
 _LAYOUTS = ("array", "volume")
 _SHA256 = re.compile(r"[0-9a-f]{64}")
+#: A material's ``constant``: the includes declare it by this name in WGSL, GLSL and HLSL.
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,254}")
 
 
 def _is_sha256(value) -> bool:
@@ -129,9 +132,15 @@ class _Fields:
         return self.take(key, f"an integer >= {minimum}", lambda v: _is_int(v) and v >= minimum, optional)
 
     def number(self, key, optional=False, nullable=False, minimum=None):
+        """A finite number: NaN and Infinity are JSON to Python's reader, and no figure the bake writes."""
         if minimum is None:
-            return self.take(key, "a number", _is_number, optional, nullable)
-        return self.take(key, f"a number >= {minimum}", lambda v: _is_number(v) and v >= minimum, optional, nullable)
+            return self.take(key, "a finite number", _is_finite, optional, nullable)
+        return self.take(key, f"a finite number >= {minimum}", lambda v: _is_finite(v) and v >= minimum, optional, nullable)
+
+    def shader_number(self, key, positive=False):
+        """A number the include writes into shader code as a float32 literal (and, if ``positive``, above 0)."""
+        expected = "a number > 0 that float32 holds" if positive else "a number float32 holds"
+        return self.take(key, expected, lambda v: fits_float32(v) and (not positive or v > 0))
 
     def string(self, key, optional=False, choices=None):
         if choices is not None:
@@ -501,15 +510,17 @@ class AnalyticRepresentation(_Record):
 
     @classmethod
     def from_json(cls, f: _Fields) -> AnalyticRepresentation:
-        return cls(kind=f.string("kind"), distribution=f.nonempty("distribution"), alpha=f.number("alpha"),
+        return cls(kind=f.string("kind"), distribution=f.nonempty("distribution"), alpha=f.shader_number("alpha", positive=True),
                    fresnel=f.nonempty("fresnel"), f0=_rgb(f, "f0"),
-                   ior=f.number("ior"), specular=_rgb(f, "specular"), diffuse=_rgb(f, "diffuse"),
+                   ior=f.shader_number("ior", positive=True), specular=_rgb(f, "specular"), diffuse=_rgb(f, "diffuse"),
                    auto=f.mapping("auto", optional=True))  # fmt: skip
 
 
 def _rgb(f: _Fields, key: str) -> list:
     return f.take(
-        key, "an RGB triple of finite numbers", lambda v: isinstance(v, list) and len(v) == 3 and all(_is_finite(x) for x in v)
+        key,
+        "an RGB triple of numbers float32 holds",
+        lambda v: isinstance(v, list) and len(v) == 3 and all(fits_float32(x) for x in v),
     )
 
 
@@ -553,7 +564,8 @@ def _read_representation(f: _Fields):
 
 
 def _scale_pair(v) -> bool:
-    return isinstance(v, list) and len(v) == 2 and all(_is_finite(x) for x in v)
+    # Shader constants: a scale beyond float32 would be infinity on the GPU, every texel of the slice with it.
+    return isinstance(v, list) and len(v) == 2 and all(fits_float32(x) for x in v)
 
 
 #: The fields every material entry has, in the order the bake writes them.
@@ -633,7 +645,7 @@ class MaterialEntry:
         f = _Fields(shown, where, data)
         slice_count = f.integer("slice_count", 1)
         pairs = f"a list of {slice_count} (one per slice)"
-        pair = (_scale_pair, "an [rgb, alpha] pair of finite numbers")
+        pair = (_scale_pair, "an [rgb, alpha] pair of numbers float32 holds")
         first = f.integer("first_slice", 0)
         entry_id = f.integer("id", 0)
         if entry_id != first:
@@ -649,7 +661,11 @@ class MaterialEntry:
                 lambda v: isinstance(v, str) and NAME_PATTERN.match(v) is not None,
             ),
             id=entry_id,
-            constant=f.nonempty("constant"),
+            constant=f.take(
+                "constant",
+                "a shader identifier (a letter or '_', then letters, digits or '_')",
+                lambda v: isinstance(v, str) and _IDENTIFIER.fullmatch(v) is not None,
+            ),
             first_slice=first,
             slice_count=slice_count,
             type=f.nonempty("type"),

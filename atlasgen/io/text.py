@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 import stat
 import tomllib
 from pathlib import Path
@@ -68,19 +70,24 @@ def decode_utf8(data: bytes) -> str:
     return data.decode("utf-8-sig")
 
 
-def read_input_bytes(path, missing: str = "no such file") -> bytes:
-    """The bytes of ``path`` (a reader that hashes them before it parses them).
+def read_input_bytes(path, missing: str = "no such file", limit: tuple[int, str] | None = None) -> bytes:
+    """The bytes of ``path`` (a reader that hashes them before it parses them); with ``limit``,
+    ``(most bytes, what the file should be)``, a larger file is refused before it is read.
 
     Raises
     ------
     InputError
         ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
         system refuses it (a directory included); ``path: expected a regular file, got ...`` for
-        a named pipe, socket or device (:func:`special_file_kind`).
+        a named pipe, socket or device (:func:`special_file_kind`); ``path: N bytes, ...`` for one
+        over the ``limit``.
     """
     _refuse_special(path)
     try:
-        return Path(path).read_bytes()
+        with open(path, "rb") as file:
+            if limit is not None and (size := os.fstat(file.fileno()).st_size) > limit[0]:
+                raise InputError(f"{Path(path).as_posix()}: {size} bytes; expected {limit[1]}, at most {limit[0]} bytes")
+            return file.read()
     except FileNotFoundError:
         raise InputError(f"{Path(path).as_posix()}: {missing}") from None
     except OSError as exc:
@@ -113,19 +120,58 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
         raise InputError(f"{shown}: cannot read ({exc.strerror})") from None
 
 
+#: A JSON escape of a UTF-16 surrogate: a pair decodes to one character, a lone one to no text at all.
+_SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
+
+
+def _parse_int(text: str) -> int:
+    value = int(text)
+    if value.bit_length() > 1024:  # beyond a double: any reader's float() or isfinite() would raise
+        raise ValueError(f"an integer of {len(text)} digits, beyond any number a double holds")
+    return value
+
+
+def _refuse_lone_surrogates(data) -> None:
+    """Raise ValueError where a string of ``data`` (a key or a value, at any depth) holds a lone surrogate."""
+    stack = [data]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack += [*item.keys(), *item.values()]
+        elif isinstance(item, list):
+            stack += item
+        elif isinstance(item, str):
+            try:
+                item.encode("utf-8")
+            except UnicodeEncodeError:
+                raise ValueError(f"the string {ascii(item)[:40]} holds a lone UTF-16 surrogate, which is no text") from None
+
+
 def loads_json(text: str, **kwargs) -> object:
-    """``json.loads(text, **kwargs)``, with arrays or objects nested too deeply for Python's decoder
-    raised as the ValueError a malformed file raises, so every reader refuses both on one line.
+    r"""``json.loads(text, **kwargs)``, refusing as the ValueError a malformed file raises, so that every
+    reader refuses it on one line: arrays or objects nested too deeply for Python's decoder, an integer
+    beyond a double (``math.isfinite`` raises on one) and a string holding a lone surrogate escape
+    (``"\ud800"``: valid JSON, but no text any file, terminal or shader can hold).
 
     >>> loads_json("[" * 100000 + "]" * 100000)
     Traceback (most recent call last):
     ...
     ValueError: arrays or objects nested too deeply to read
+    >>> loads_json('{"name": "\\ud83d\\ude00", "n": 12}')  # a surrogate pair is one character
+    {'name': '😀', 'n': 12}
+    >>> loads_json('["\\ud800"]')
+    Traceback (most recent call last):
+    ...
+    ValueError: the string '\ud800' holds a lone UTF-16 surrogate, which is no text
     """
+    kwargs.setdefault("parse_int", _parse_int)
     try:
-        return json.loads(text, **kwargs)
+        data = json.loads(text, **kwargs)
     except RecursionError:
         raise ValueError("arrays or objects nested too deeply to read") from None
+    if _SURROGATE_ESCAPE.search(text):  # only then can a decoded string hold one
+        _refuse_lone_surrogates(data)
+    return data
 
 
 def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:

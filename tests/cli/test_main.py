@@ -2,6 +2,7 @@
 
 import hashlib
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -114,6 +115,17 @@ def test_a_folder_given_as_a_scene_or_an_atlas_is_bad_input(runner, tmp_path):
         res = runner.invoke(app, command)
         assert res.exit_code == 3, res.stderr
         assert res.stderr.strip().endswith(f"{folder.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory")
+
+
+def test_an_atlas_that_is_a_pipe_a_device_or_too_large_is_refused_before_it_is_read(runner, tmp_path):
+    """``info`` read a named pipe forever and /dev/zero until memory ran out (exit 1)."""
+    pipe, big = tmp_path / "pipe.dds", tmp_path / "big.ktx2"
+    os.mkfifo(pipe)
+    big.write_bytes(b"\0" * (16 * 2**20 + 1))
+    for path, expected in ((big, "16777217 bytes; expected an atlas texture (DDS or KTX2), at most 16777216 bytes"),
+                           (pipe, "expected a regular file, got a named pipe")):  # fmt: skip
+        res = runner.invoke(app, ["info", str(path)])
+        assert res.exit_code == 3 and res.stderr.strip() == f"atlasgen: error: {path.as_posix()}: {expected}", res.stderr
 
 
 def test_unwritable_output_folder(runner, library, tmp_path):

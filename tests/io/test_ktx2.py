@@ -329,6 +329,11 @@ DAMAGED = {
     "pixelWidth 0": (lambda: _put(_tiny(), 20, "<I", 0), "'pixelWidth': 0; expected 1 to 65536"),
     "pixelWidth 0xFFFFFFFF": (lambda: _put(_tiny(), 20, "<I", 0xFFFFFFFF), "'pixelWidth': 4294967295"),
     "pixelHeight 0": (lambda: _put(_tiny(), 24, "<I", 0), "'pixelHeight': 0"),
+    # 110 MB inflated, of a few bytes: refused before any level is read (at 1 GiB, a 33 KB file took 2 GB).
+    "layerCount beyond the limit": (
+        lambda: _put(_tiny(), 32, "<I", 2_500_000),
+        "'layerCount': 4x2x0 with 2500000 layers and 3 levels exceeds the 67108864-byte limit",
+    ),
     "pixelHeight 0xFFFFFFFF": (lambda: _put(_tiny(), 24, "<I", 0xFFFFFFFF), "'pixelHeight': 4294967295"),
 }
 
