@@ -248,6 +248,12 @@ class Model:
         return []
 
     @classmethod
+    def entry_gap(cls, entry: MaterialEntry) -> tuple[str, str] | None:
+        """``(field, what was expected)`` where ``entry`` lacks what this model's shader code is generated
+        from (a hand-edited manifest: a LUT entry given this model's type), else None."""
+        return None
+
+    @classmethod
     def include_data(cls, entries: list[MaterialEntry]) -> bytes:
         """The binary side-car this model type writes beside the atlas (the separable model:
         ``X.separable.bin``, its rebuild's data table), or ``b""`` for none."""

@@ -672,6 +672,16 @@ class Separable(Model):
         return separable_declarations(entries) + (analytic_declarations() if analytic else []) + ([LUT_F_COS] if lut else [])
 
     @classmethod
+    def entry_gap(cls, entry) -> tuple[str, str] | None:
+        """Factors to rebuild, unless the entry is held as one LUT slice or in closed form."""
+        if entry.factors is None and not isinstance(entry.representation, (AnalyticRepresentation, LutRepresentation)):
+            return (
+                "factor_scale",
+                "a separable entry's factors (factor_scale, factor_bias, ...) or a LUT or analytic representation",
+            )
+        return None
+
+    @classmethod
     def include_data(cls, entries: list) -> bytes:
         """``X.separable.bin``: the include's ``SEPARABLE_TABLE`` for engines that upload it as a buffer."""
         return separable_table_bytes(entries)

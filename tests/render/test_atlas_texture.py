@@ -59,3 +59,33 @@ def test_volume_atlas_is_refused(baked):
 def test_levels_must_be_uint8_rgba():
     with pytest.raises(InputError, match="uint8"):
         RenderAtlas([np.zeros((1, 2, 2, 4), dtype=np.float32)], True, {}, "")
+
+
+@pytest.mark.parametrize(("edit", "field", "expected"), [
+    ({"type": "nosuchmodel"}, "materials[0].type", "expected one of the models atlasgen knows ("),
+    ({"type": "separable"}, "materials[0].factor_scale", "missing; expected a separable entry's factors"),
+])  # fmt: skip
+def test_an_entry_its_model_cannot_shade_is_refused_naming_the_field(baked, edit, field, expected):
+    """The renderer generates its include from the manifest: an edited type reached get_model (KeyError, exit 1)
+    or the shader compiler. The include's hash line is rewritten, as a careful hand edit would."""
+    import hashlib
+    import json
+
+    from atlasgen.errors import ManifestError
+    from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
+
+    path = baked()
+    manifest = path.with_suffix(".json")
+    data = json.loads(manifest.read_text())
+    data["materials"][0].update(edit)
+    text = json.dumps(data)
+    manifest.unlink()  # a link into the bake's output set: replaced, not written through
+    manifest.write_text(text)
+    include = path.with_suffix(".wgsl")
+    lines = include.read_text().split("\n")
+    body = "\n".join([INCLUDE_HASH_PREFIX + hashlib.sha256(text.encode()).hexdigest(), *lines[1:]])
+    include.unlink()
+    include.write_text(body)
+    with pytest.raises(ManifestError) as info:
+        read_render_atlas(path)
+    assert str(info.value).startswith(f"{manifest.as_posix()}: field '{field}': {expected}"), str(info.value)
