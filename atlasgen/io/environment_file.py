@@ -15,12 +15,15 @@ import numpy as np
 from atlasgen.errors import FieldError, InputError
 from atlasgen.io.text import MISSING, path_kind
 
-__all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "read_environment_file"]
+__all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "MAX_ENVIRONMENT_HEIGHT", "read_environment_file"]
 
 #: The file types an environment may be, by suffix (lower case).
 ENVIRONMENT_SUFFIXES = (".exr", ".hdr")
 #: Fewest rows: 4 rows (8x4) put a row at each pole and two in between.
 MIN_ENVIRONMENT_HEIGHT = 4
+#: Most rows: an 8K image (8192x4096). Its float64 copies while it is resampled take a few GB already; a
+#: 16K one took 8 GB, and a small compressed file can declare one. The renderer shades with a 256x128 copy.
+MAX_ENVIRONMENT_HEIGHT = 4096
 #: OpenImageIO's names of those formats.
 _FORMATS = {"openexr": "OpenEXR", "hdr": "Radiance HDR"}
 
@@ -40,7 +43,8 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
     FieldError
         ``error`` (e.g. :class:`~atlasgen.errors.SceneError`), one line naming ``path``: not an
         .exr or .hdr file, not readable as one, not RGB(A), not 2:1, fewer than 4 rows, or
-        holding a non-finite or negative value (the message says how many and where).
+        larger than :data:`MAX_ENVIRONMENT_HEIGHT`, or holding a non-finite or negative value (the message
+        says how many and where).
     """
     import OpenImageIO as oiio
 
@@ -69,6 +73,9 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         if spec.height < MIN_ENVIRONMENT_HEIGHT:
             raise error(shown, None, f"expected at least {2 * MIN_ENVIRONMENT_HEIGHT}x{MIN_ENVIRONMENT_HEIGHT} texels, "
                                      f"got {spec.width}x{spec.height}")  # fmt: skip
+        if spec.height > MAX_ENVIRONMENT_HEIGHT:
+            raise error(shown, None, f"expected at most {2 * MAX_ENVIRONMENT_HEIGHT}x{MAX_ENVIRONMENT_HEIGHT} texels "
+                                     f"(downsample it first), got {spec.width}x{spec.height}")  # fmt: skip
         pixels = inp.read_image(0, 0, 0, 3, oiio.FLOAT)
         if pixels is None:
             reason = " ".join(inp.geterror().split()) or "unreadable"

@@ -225,7 +225,8 @@ def resample_equirect(image, height: int, width: int, degrees: float = 0.0) -> n
         rows = _axis_average_matrix(hs, height, lambda th: th * (hs - 1) / np.pi, lambda th: th * (height - 1) / np.pi,
                                     breaks, _row_stencil, _row_stencil, np.sin)  # fmt: skip
     # Columns: target column i reads the source at phi_i + a (L'(phi) = L(phi + a), R_y shifts phi by -a).
-    a = math.radians(degrees) / (2.0 * np.pi)  # in turns
+    # In turns, whole turns taken off first (exactly): 1e20 degrees would leave no column index an integer holds.
+    a = math.radians(math.fmod(degrees, 360.0)) / (2.0 * np.pi)
     if width >= ws:
         src_x = ((np.arange(width) + 0.5) / width + a) * ws - 0.5
         cols = _axis_point_matrix(ws, src_x, _column_stencil)

@@ -52,7 +52,7 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
 
 def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
     """Refuse outputs that would overwrite an input (the scene, the atlas and the files
-    beside it, a mesh) or a folder, before anything is rendered."""
+    beside it, a mesh, the environment image) or a folder, before anything is rendered."""
     atlas_path = Path(atlas_path)
     outputs = [(output_path, "the render (-o)")]
     if aov is None:
@@ -64,4 +64,6 @@ def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
         (atlas_path.with_suffix(".wgsl"), "the atlas's include"),
     ]
     inputs += [(obj.file, f"the mesh of objects[{obj.index}]") for obj in scene.objects if obj.file is not None]
+    if scene.environment is not None and scene.environment.file is not None:
+        inputs.append((scene.environment.file, "the scene's environment image"))
     check_output_paths(outputs, inputs)

@@ -131,6 +131,16 @@ def test_a_render_may_not_write_over_a_folder(tmp_path, library):
                         "--aov", "depth"], "no such atlas", code=3)  # fmt: skip
 
 
+def test_a_render_may_not_write_over_the_scene_s_environment_image(tmp_path):
+    """Found by a hostile-input hunt: -o sky.exr replaced the image the scene lights with, exit 0."""
+    (tmp_path / "sky.exr").write_bytes(b"an image")
+    scene = tmp_path / "s.toml"
+    scene.write_text('environment = "sky.exr"\n[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n'
+                     '[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')  # fmt: skip
+    _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "a.dds"), "-o", str(tmp_path / "sky.exr")],
+             "the render (-o) would overwrite the scene's environment image")  # fmt: skip
+
+
 def test_a_material_the_scene_does_not_use_is_still_an_input(tmp_path, library):
     """Found by the fuzz suite: with --scene, only the selected materials counted as inputs,
     so a depfile could overwrite another material file of the folder that was read."""

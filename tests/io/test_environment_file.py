@@ -82,3 +82,16 @@ def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
     os.mkfifo(tmp_path / "sky.exr")
     with pytest.raises(SceneError, match="sky.exr: expected an OpenEXR or Radiance HDR image, got a named pipe"):
         read_environment_file(tmp_path / "sky.exr", SceneError)
+
+
+def test_an_image_larger_than_the_limit_is_refused_before_its_pixels_are_read(tmp_path, monkeypatch):
+    """A 3 MB EXR can declare 32768x16384 texels: the read ended in MemoryError (exit 1). The limit is
+    lowered here so that a small file stands for one over it."""
+    import atlasgen.io.environment_file as module
+
+    monkeypatch.setattr(module, "MAX_ENVIRONMENT_HEIGHT", 4)
+    path = _bad(tmp_path, "big.exr", pixels=np.ones((8, 16, 3), np.float32))
+    with pytest.raises(SceneError) as info:
+        read_environment_file(path, SceneError)
+    assert str(info.value) == f"{path.as_posix()}: expected at most 8x4 texels (downsample it first), got 16x8"
+    assert read_environment_file(_bad(tmp_path, "ok.exr", np.ones((4, 8, 3), np.float32))).shape == (4, 8, 3)  # at it

@@ -2,6 +2,7 @@
 angles, the lookup, rotation and resampling, and the agreement with Mitsuba itself."""
 
 import doctest
+import math
 
 import numpy as np
 import pytest
@@ -139,3 +140,14 @@ def test_the_docstrings_examples_hold():
     from atlasgen.optics import equirect
 
     assert doctest.testmod(equirect).failed == 0
+
+
+@pytest.mark.parametrize("degrees", [1e20, -3.5e17, 360.0 * 2**60 + 90.0])
+def test_a_huge_angle_turns_as_its_remainder_of_a_whole_turn(degrees):
+    """1e20 degrees cast a column index beyond int64: the environment came out all zero, exit 0."""
+    rng = np.random.default_rng(3)
+    image = rng.uniform(0.1, 1.0, (8, 16, 3))
+    for width in (16, 32, 8):  # the point and the averaging paths
+        turned = resample_equirect(image, 8, width, degrees)
+        np.testing.assert_array_equal(turned, resample_equirect(image, 8, width, math.fmod(degrees, 360.0)))
+        assert turned.min() > 0.09
