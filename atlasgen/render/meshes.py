@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -276,6 +277,14 @@ def encode_mesh_ply(mesh: Mesh) -> bytes:
     return shape.export(file_type="ply", encoding="binary", vertex_normal=True)
 
 
+#: Most triangles a mesh file may have: 8M draw in seconds on a software GPU; the 16M of a 300 MB PLY took
+#: 4 GB of memory in the buffers built from them.
+MAX_MESH_TRIANGLES = 8_000_000
+#: A vertex (or texture or normal) index 0 on an OBJ face line, which counts from 1: trimesh reads it as
+#: another vertex, silently.
+_OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n]*?(?<=[ \t/])0(?=[/ \t\r]|$)")
+
+
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     """Read an OBJ or PLY file with trimesh; vertex normals from the file, else area-weighted.
 
@@ -296,9 +305,16 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
             # OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it
             # does not depend on: decode here, keeping what UTF-8 cannot say as U+FFFD (comments and names only).
             text = path.read_bytes().decode("utf-8", errors="replace")
+            zero = _OBJ_ZERO_INDEX.search(text)
+            if zero is not None:
+                line = text.count("\n", 0, zero.start()) + 1
+                raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} line {line}: a face names index 0; expected "
+                                                    "indices from 1 (OBJ counts from 1, or back from -1)")  # fmt: skip
             loaded = trimesh.load(io.StringIO(text), file_type="obj", force="mesh", process=False)
         else:
             loaded = trimesh.load(str(path), force="mesh", process=False)
+    except SceneError:
+        raise
     except IndexError:  # trimesh's OBJ reader indexing a vertex past the end
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
                                             "expected face indices within its vertices") from None  # fmt: skip
@@ -308,7 +324,13 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
     if faces.size == 0:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has no triangles; expected a triangle mesh")
+    if len(faces) > MAX_MESH_TRIANGLES:
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has {len(faces)} triangles; expected at most "
+                                            f"{MAX_MESH_TRIANGLES}")  # fmt: skip
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has vertices that are not points; "
+                                            "expected x y z on every vertex line")  # fmt: skip
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has faces that are not triangles of its vertices")
     with np.errstate(invalid="ignore"):
@@ -321,6 +343,9 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     # faces contribute nothing, and a vertex used only by them gets a zero normal.
     with np.errstate(invalid="ignore", divide="ignore"):
         normals = np.asarray(loaded.vertex_normals, dtype=np.float64)
+    if normals.shape != vertices.shape:  # trimesh keeps a vertex line of two numbers out of the normals it reads
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has {len(vertices)} vertices but {len(normals)} "
+                                            "normals; expected x y z on every vertex line")  # fmt: skip
     return _mesh(vertices, normals, faces)
 
 

@@ -232,3 +232,33 @@ def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
     os.mkfifo(tmp_path / "m.obj")
     with pytest.raises(SceneError, match=r"objects\[1\].file': expected an OBJ or PLY file, got a named pipe"):
         read_mesh(tmp_path / "m.obj", "s.toml", "objects[1].file")
+
+
+@pytest.mark.parametrize(("text", "mended", "expected"), [
+    # OBJ counts from 1: trimesh read index 0 as some other vertex, and the triangle came out degenerate, unseen.
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "f 1 2 3", "line 4: a face names index 0; expected indices from 1"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//0\n", "f 1//1 2//1 3//1", "line 5: a face names index 0"),
+    # A vertex line of two numbers: trimesh's vertices and normals disagreed, and building the mesh raised (exit 1).
+    ("v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n", "v 0 1 0\nf 1 2 3", "; expected x y z on every vertex line"),
+])  # fmt: skip
+def test_an_obj_that_is_not_what_it_says_is_refused_on_one_line(tmp_path, text, mended, expected):
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    message = str(info.value)
+    assert message.startswith(f"s.toml: field 'objects[0].file': mesh {path.as_posix()!r}") and expected in message, message
+    last = text.rstrip("\n").rsplit("\n", 2 if mended.startswith("v") else 1)[0]
+    path.write_text(f"{last}\n{mended}\n")
+    assert read_mesh(path).indices.size == 3  # the same file, mended, reads
+
+
+def test_a_mesh_over_the_triangle_limit_is_refused(tmp_path, monkeypatch):
+    """A 300 MB PLY of 16M triangles ended in MemoryError (exit 1); the limit is lowered here to stand for it."""
+    import atlasgen.render.meshes as meshes
+
+    monkeypatch.setattr(meshes, "MAX_MESH_TRIANGLES", 1)
+    path = tmp_path / "quad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
+    with pytest.raises(SceneError, match=r"has 2 triangles; expected at most 1$"):
+        read_mesh(path, "s.toml", "objects[0].file")
