@@ -47,6 +47,15 @@ SHAPES = ("sphere", "plane", "box", "torus", "mesh")
 SKY_KEYS = ("sun_direction", "sun_irradiance", "sun_colour", "sun_radius", "zenith", "horizon", "ground")
 
 
+#: Narrowest field of view, degrees: at 1e-10 a pixel spans less than float32 can place a vertex by, and
+#: the image loses most of what it shows; 1e-6 still draws it whole.
+MIN_FOV_DEGREES = 1e-4
+#: Widest far / near ratio: the perspective depth of a point is about 1 - near / distance, which float32 and a
+#: 24-bit depth buffer round to 1 for every distance as near / far shrinks: at 1e-7 / 1000 the floor vanished,
+#: at 1e-5 / 1000 it still drew.
+MAX_FAR_OVER_NEAR = 1e7
+
+
 @dataclass(frozen=True)
 class Camera:
     """A look-at pinhole camera; ``fov`` is the horizontal field of view in degrees, ``up`` a
@@ -215,9 +224,13 @@ def _read_camera(r: _Reader, raw) -> Camera:
     up = tuple(float(c) for c in _direction(up))
     if np.linalg.norm(np.cross(_direction(forward), up)) < 1e-6:
         raise SceneError(r.path, "camera.up", "expected a direction not parallel to target - position")
-    fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=0.0, hi=179.0, lo_open=True)
+    fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=MIN_FOV_DEGREES, hi=179.0)
     near = r.number(raw, "near", "camera.near", default=0.05, lo=0.0, lo_open=True)
     far = r.number(raw, "far", "camera.far", default=1000.0, lo=near, lo_open=True)
+    if far > MAX_FAR_OVER_NEAR * near:
+        raise SceneError(r.path, "camera.near", f"expected at least camera.far / {MAX_FAR_OVER_NEAR:g} = "
+                         f"{far / MAX_FAR_OVER_NEAR:.3g} (the depth buffer cannot tell depths apart across a wider "
+                         f"range: the objects would vanish), got {near:g}")  # fmt: skip
     return Camera(position, target, up, fov, near, far)
 
 

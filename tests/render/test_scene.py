@@ -198,3 +198,16 @@ def test_ranged_point_and_spot_lights(scene_from):
     assert (point.range, point.bounded) == (3.5, True)
     assert spot.direction == (0.0, -1.0, 0.0) and (spot.inner_angle, spot.outer_angle, spot.range) == (30.0, 40.0, 9.0)
     assert unbounded.range == float("inf") and not unbounded.bounded  # no range: reaches everywhere, as before
+
+
+@pytest.mark.parametrize(("camera", "field", "words"), [
+    # Found by a hostile-input hunt: each rendered with exit 0 and most of the scene missing.
+    ("fov = 1e-10", "camera.fov", "expected a finite number >= 0.0001 and <= 179, got 1e-10"),
+    ("near = 1e-7", "camera.near", "expected at least camera.far / 1e+07 = 0.0001 (the depth buffer cannot tell"),
+    ("near = 1e-3\nfar = 1e5", "camera.near", "= 0.01 ("),
+])  # fmt: skip
+def test_a_camera_the_gpu_cannot_resolve_is_refused(scene_from, camera, field, words):
+    with pytest.raises(SceneError) as info:
+        scene_from(f"[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n{camera}\n", path="x.toml")
+    assert str(info.value).startswith(f"x.toml: field '{field}': ") and words in str(info.value), str(info.value)
+    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfov = 1e-4\nnear = 1e-4\n")  # at the limits
