@@ -101,13 +101,47 @@ def _damaged(data: bytes, key: str) -> dict:
     np.savez(wrong_shape, values=np.zeros((1, 2, 2, 4)), meta=np.array(meta))
     npy = io.BytesIO()
     np.save(npy, np.zeros(3))
+    beyond_float32 = io.BytesIO()  # no bake writes these: it refuses a material whose slice scale float32 cannot hold
+    np.savez(beyond_float32, values=np.full((1, 32, 64, 4), 1e300), meta=np.array(meta))
     return {
         "truncated": data[: len(data) // 2],
         "empty": b"",
         "garbage": b"PK\x03\x04" + b"\xff" * 100,
         "npy": npy.getvalue(),
         "wrong shape": wrong_shape.getvalue(),
+        "beyond float32": beyond_float32.getvalue(),
+        "too many slices": _too_many_slices(key),
     }
+
+
+def _too_many_slices(key: str, slices: int = 4000) -> bytes:
+    """A small compressed entry whose values inflate to 4000 slices, 524 MB, where an atlas holds 256."""
+    import io
+
+    buffer = io.BytesIO()
+    meta = json.dumps({"key": key, "extra": {}, "timings": {}})
+    np.savez_compressed(buffer, values=np.zeros((slices, 32, 64, 4)), meta=np.array(meta))
+    return buffer.getvalue()
+
+
+def test_a_cache_entry_of_more_slices_than_an_atlas_holds_is_refused_before_it_is_inflated(tmp_path, write_material):
+    """A 2.5 MB entry declaring 40000 slices took 2.6 GB of memory to load; the header says so first."""
+    import tracemalloc
+
+    write_material("a", 'type = "lambert"\n')
+    material = read_materials([tmp_path / "materials"])[0]
+    entry = cache_path(tmp_path / "cache", material)
+    entry.parent.mkdir()
+    entry.write_bytes(_too_many_slices(cache_key(material)))
+    warnings = []
+    tracemalloc.start()
+    try:
+        assert load_cached(tmp_path / "cache", material, warnings) is None
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 5_000_000 and warnings[0].endswith("(ValueError: slices of shape (4000, 32, 64, 4) float64); "
+                                                    "baking material 'a' again")  # fmt: skip
 
 
 @pytest.mark.slow

@@ -7,6 +7,7 @@ import hashlib
 import io
 import json
 import time
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,8 +15,9 @@ import numpy as np
 
 from atlasgen import __version__
 from atlasgen.bake.adaptive import bake_material, draft_material
-from atlasgen.contract import HEIGHT, WIDTH
+from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.models.base import SliceSet
 
 __all__ = [
@@ -75,14 +77,42 @@ def cache_path(cache_dir, material) -> Path:
     return Path(cache_dir) / f"{stem}.npz"
 
 
+#: Bytes an entry's metadata may inflate to; a bake writes a few kB.
+_MAX_META_BYTES = 16 << 20
+#: The .npy header readers by format version (NumPy writes 1.0, or 2.0 for a header over 64 kB).
+_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+
+
+def _check_shape(shape, dtype) -> None:
+    """Raise ValueError unless ``shape`` and ``dtype`` are a model's slices: (n, H, W, 4) floats, n <= LAYERS."""
+    if dtype.kind != "f" or len(shape) != 4 or not 1 <= shape[0] <= LAYERS or tuple(shape[1:]) != (HEIGHT, WIDTH, 4):
+        raise ValueError(f"slices of shape {tuple(shape)} {dtype}")
+
+
+def _check_archive(path: Path) -> None:
+    """Raise ValueError for an archive whose members would inflate beyond what a bake writes, read from its
+    headers alone: a 2.5 MB entry declaring 40000 slices took 2.6 GB of memory to load."""
+    with zipfile.ZipFile(path) as archive:
+        meta = archive.getinfo("meta.npy")
+        if meta.file_size > _MAX_META_BYTES:
+            raise ValueError(f"metadata of {meta.file_size} bytes")
+        with archive.open("values.npy") as member:
+            version = np.lib.format.read_magic(member)
+            read_header = _NPY_HEADERS.get(version)
+            if read_header is None:
+                raise ValueError(f".npy format version {version}")
+            shape, _, dtype = read_header(member)
+    _check_shape(shape, dtype)
+
+
 def _check_entry(values: np.ndarray, meta) -> None:
-    """Raise ValueError unless the stored slices look like a model's: (n, H, W, 4), finite."""
+    """Raise ValueError unless the stored slices look like a model's: (n, H, W, 4), finite in float32 (a bake
+    refuses a material whose slices are not, so no bake wrote them)."""
     if not isinstance(meta, dict) or not isinstance(meta.get("extra"), dict) or not isinstance(meta.get("timings"), dict):
         raise ValueError("malformed metadata")
-    if values.dtype.kind != "f" or values.ndim != 4 or values.shape[0] < 1 or values.shape[1:] != (HEIGHT, WIDTH, 4):
-        raise ValueError(f"slices of shape {values.shape} {values.dtype}")
-    if not np.isfinite(values).all():
-        raise ValueError("non-finite slices")
+    _check_shape(values.shape, values.dtype)
+    if not (np.abs(values) <= FLOAT32_MAX).all():  # NaN compares False
+        raise ValueError("slices not finite in float32")
 
 
 def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
@@ -96,6 +126,7 @@ def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
     if not path.is_file():
         return None
     try:
+        _check_archive(path)
         loaded = np.load(path, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
             raise ValueError("not an .npz archive")
