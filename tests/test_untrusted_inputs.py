@@ -20,7 +20,8 @@ from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
 
 #: Byte offsets of the DDS header fields (after the 4-byte magic; DirectXTex DDS.h).
-FIELDS = {"height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "arraySize": 140}
+FIELDS = {"height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "caps2": 112, "resourceDimension": 132,
+          "miscFlag": 136, "arraySize": 140, "miscFlags2": 144}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +55,15 @@ CASES = [
     ("volume", "depth", 0xFFFFFFFF, "header fields width, height, depth and mipMapCount describe"),
     ("volume", "depth", 0, "header field depth is 0"),
     ("volume", "mipMapCount", 0xFFFFFFFF, "expected at most 9 for 64x32x256"),
+    # Another kind of texture than the one the reader returned, to DirectXTex (a cube map, a 1D texture):
+    # each was read as the 2D array, exit 0.
+    ("array", "resourceDimension", 2, "header field resourceDimension is 2; expected 3 (a 2D array) or 4 (a volume)"),
+    ("array", "miscFlag", 0x4, "header field miscFlag is 0x4; expected no TEXTURECUBE bit"),
+    ("array", "caps2", 0x200000, "header field caps2 is 0x200000; expected the VOLUME bit (0x200000) clear"),
+    ("array", "resourceDimension", 4, "; expected the VOLUME bit (0x200000) set, as resourceDimension 4 says"),
+    ("volume", "caps2", 0, "header field caps2 is 0x0; expected the VOLUME bit (0x200000) set"),
+    ("volume", "arraySize", 2, "header field arraySize is 2; expected 1 in a volume"),
+    ("array", "miscFlags2", 7, "header field miscFlags2 is 0x7; expected an alpha mode of 0 to 4 in its low bits"),
 ]
 
 

@@ -39,8 +39,11 @@ DDSCAPS_COMPLEX, DDSCAPS_TEXTURE, DDSCAPS_MIPMAP = 0x8, 0x1000, 0x400000
 DDSCAPS2_VOLUME = 0x200000
 DDPF_FOURCC = 0x4
 DIMENSION_TEXTURE2D, DIMENSION_TEXTURE3D = 3, 4
-#: The atlas's alpha is a specular scale, not coverage: DDS_ALPHA_MODE_CUSTOM.
+#: The atlas's alpha is a specular scale, not coverage: DDS_ALPHA_MODE_CUSTOM, the last of the modes.
 ALPHA_MODE_CUSTOM = 4
+#: miscFlags2's alpha-mode bits, and miscFlag's cube-map bit (DDS_HEADER_DXT10).
+DDS_ALPHA_MODE_MASK = 0x7
+DDS_RESOURCE_MISC_TEXTURECUBE = 0x4
 
 
 @dataclass
@@ -140,14 +143,30 @@ def read_dds(path, data: bytes | None = None) -> DDSImage:
     caps2 = struct.unpack_from("<I", data, 4 + 108)[0]
     if size != 124 or fourcc != b"DX10":
         raise InputError(f"{shown}: expected a DDS with a DX10 header")
-    dxgi_format, dimension, _misc, array_size, _misc2 = struct.unpack_from("<5I", data, 128)
+    dxgi_format, dimension, misc, array_size, misc2 = struct.unpack_from("<5I", data, 128)
     if dxgi_format not in DXGI_NAMES:
         raise InputError(f"{shown}: DXGI format {dxgi_format} is not RGBA8")
-    volume = dimension == DIMENSION_TEXTURE3D and bool(caps2 & DDSCAPS2_VOLUME)
+    volume = dimension == DIMENSION_TEXTURE3D
     mip_count = max(1, mip_count if flags & DDSD_MIPMAPCOUNT else 1)
 
     def bad(field, value, expected):
         raise InputError(f"{shown}: header field {field} is {value}; expected {expected}")
+
+    # What DirectXTex would read otherwise: another kind of texture than the one this reader returns.
+    if dimension not in (DIMENSION_TEXTURE2D, DIMENSION_TEXTURE3D):
+        bad("resourceDimension", dimension, f"{DIMENSION_TEXTURE2D} (a 2D array) or {DIMENSION_TEXTURE3D} (a volume)")
+    if misc & DDS_RESOURCE_MISC_TEXTURECUBE:
+        bad("miscFlag", hex(misc), "no TEXTURECUBE bit (0x4): the atlas is no cube map")
+    if bool(caps2 & DDSCAPS2_VOLUME) != volume:
+        bad(
+            "caps2",
+            hex(caps2),
+            f"the VOLUME bit (0x200000) {'set' if volume else 'clear'}, as resourceDimension {dimension} says",
+        )
+    if volume and array_size != 1:
+        bad("arraySize", array_size, "1 in a volume")
+    if misc2 & DDS_ALPHA_MODE_MASK > ALPHA_MODE_CUSTOM:
+        bad("miscFlags2", hex(misc2), f"an alpha mode of 0 to {ALPHA_MODE_CUSTOM} in its low bits")
 
     if width < 1:
         bad("width", width, "at least 1")
