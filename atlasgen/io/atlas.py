@@ -184,6 +184,10 @@ def _check_pair(path: Path, image, manifest_path: Path, manifest: Manifest, mani
     if manifest.atlas_sha256 != texel_sha256(image.levels):
         refuse("atlas_sha256", f"does not match {shown} (the two are from different bakes)")
     recorded = getattr(image, "key_values", {}).get(KTX2_MANIFEST_KEY)
+    if isinstance(image, KTX2Image) and recorded is None:
+        # Every KTX2 the bake writes records it: without it, an edited manifest would pass as this atlas's.
+        raise InputError(f"{shown}: KTX2 key {KTX2_MANIFEST_KEY!r}: missing; expected the SHA-256 of {shown_manifest}, "
+                         f"which atlasgen bake records; {RERUN}")  # fmt: skip
     if recorded is not None and recorded.rstrip(b"\0").decode("ascii", "replace") != manifest_sha256:
         raise InputError(
             f"{shown}: KTX2 key {KTX2_MANIFEST_KEY!r}: does not match {shown_manifest} "

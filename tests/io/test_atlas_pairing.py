@@ -177,3 +177,18 @@ def test_a_ktx2_refuses_a_manifest_other_than_the_one_it_records(tmp_path):
     message = _refusal(out)
     assert message.startswith(f"{out.as_posix()}: KTX2 key 'atlasgen.manifest_sha256': does not match {manifest.as_posix()}")
     assert message.endswith(RERUN) and "\n" not in message
+
+
+def test_a_ktx2_without_its_recorded_manifest_hash_is_refused(tmp_path):
+    """Found by a hostile-input hunt: with the key/value data emptied (kvdByteLength 0), the check above was
+    skipped, and an edited manifest passed as the atlas's."""
+    import struct
+
+    out = _bake(tmp_path, "build", suffix=".ktx2")
+    data = bytearray(out.read_bytes())
+    struct.pack_into("<II", data, 56, 0, 0)  # kvdByteOffset, kvdByteLength: no key/value data at all
+    out.unlink()
+    out.write_bytes(bytes(data))
+    message = _refusal(out)
+    assert message.startswith(f"{out.as_posix()}: KTX2 key 'atlasgen.manifest_sha256': missing; expected the SHA-256 of "
+                              f"{out.with_suffix('.json').as_posix()}")  # fmt: skip
