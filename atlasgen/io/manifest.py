@@ -344,8 +344,11 @@ class SeparableTransmission(_Record):
 
     @classmethod
     def from_json(cls, f: _Fields, slice_count: int) -> SeparableTransmission:
+        if slice_count < 2:  # the slice after at least one term's: the entry itself is short, whatever the slice says
+            raise ManifestError(f.shown, f.where, f"expected an entry of at least 2 slices (a term and this one), "
+                                f"got slice_count {slice_count}")  # fmt: skip
         offset = f.take("slice", f"{slice_count - 1} (the entry's last slice, after its terms)",
-                        lambda v: _is_int(v) and slice_count >= 2 and v == slice_count - 1)  # fmt: skip
+                        lambda v: _is_int(v) and v == slice_count - 1)  # fmt: skip
         errors = f.child("errors_8bit_sphere", optional=True)
         return cls(slice=offset, estimator=f.string("estimator", optional=True), pairs=f.integer("pairs", 1, optional=True),
                    seed=f.integer("seed", 0, optional=True),

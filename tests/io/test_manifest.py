@@ -333,6 +333,16 @@ REFUSED = {
         "expected 3 (the entry's last slice, after its terms), got 1",
     ),
     "encoding": (_with(_set(["encoding"], "hdr")), "encoding", "one of 'srgb', 'linear'"),
+    # It said "expected 0 (the entry's last slice, after its terms), got 0".
+    "transmission of a one-slice entry": (
+        _with(
+            lambda d: d["materials"][5].update(
+                slice_count=1, transmission={"slice": 0}, factor_scale=[], factor_bias=[], scale=[[1.0, 1.0]], bias=[[0.0, 0.0]]
+            )
+        ),
+        "materials[5].transmission",
+        "expected an entry of at least 2 slices (a term and this one), got slice_count 1",
+    ),
     "scale beyond float32": (
         _with(_set(["materials", 0, "scale"], [[1e39, 1.0]])),
         "materials[0].scale[0]",
@@ -374,7 +384,8 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
 
 #: What the schema cannot say: id = first_slice, the DXGI/encoding pairing and the transmission slice's place,
 #: and what JSON itself cannot hold (Python's reader takes Infinity, a 400-digit integer and a lone surrogate).
-_BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "not a finite figure",
+_BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
+                      "not a finite figure",
                       "an integer beyond a double", "a lone surrogate"}  # fmt: skip
 
 
