@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -32,14 +33,16 @@ MISSING = "missing"
 def path_kind(path) -> str | None:
     """None where ``path`` is a regular file, else what it is, for a reader's refusal: :data:`MISSING`
     (nothing there, or a name the system cannot take: a NUL character, one too long), "a directory",
-    "a named pipe", "a socket", "a character device" or "a block device".
+    "a named pipe", "a socket", "a character device", "a block device" or "a symbolic link loop".
 
     A reader asks before it opens: reading a named pipe waits for a writer that may never come,
     and a device has no end.
     """
     try:
         mode = Path(path).stat().st_mode
-    except (OSError, ValueError):
+    except OSError as exc:
+        return "a symbolic link loop" if exc.errno == errno.ELOOP else MISSING
+    except ValueError:
         return MISSING
     if stat.S_ISREG(mode):
         return None

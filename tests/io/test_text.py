@@ -80,3 +80,17 @@ def test_a_named_pipe_is_named_and_refused_before_it_is_opened(tmp_path):
         assert out.stderr.strip().splitlines() == [f"atlasgen: error: {fifo.as_posix()}: {expected}, got a named pipe"]
     with pytest.raises(InputError, match="expected a regular file, got a named pipe"):
         text.read_input_bytes(fifo)
+
+
+def test_a_symbolic_link_loop_is_named_not_called_missing(tmp_path):
+    """It was "no such mesh file": the file is there, as a link that never ends."""
+    from atlasgen.render.meshes import read_mesh
+
+    loop = tmp_path / "m.obj"
+    loop.symlink_to(tmp_path / "m2.obj")
+    (tmp_path / "m2.obj").symlink_to(loop)
+    assert text.path_kind(loop) == "a symbolic link loop" == text.special_file_kind(loop)
+    with pytest.raises(SceneError, match=r"expected an OBJ or PLY file, got a symbolic link loop"):
+        read_mesh(loop, "s.toml", "objects[0].file")
+    with pytest.raises(InputError, match=r"m.obj: expected a regular file, got a symbolic link loop$"):
+        text.read_input_bytes(loop)
