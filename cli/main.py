@@ -216,7 +216,8 @@ def app(ctx, debug):
     "--depfile",
     type=PathArg(path_type=Path),
     default=None,
-    help="Also write a Make dependency file: the atlas against each baked material file (and its cache entry).",
+    help="Also write a Make dependency file: the atlas (or --depfile-target) against each material file, the files "
+    "MaterialX documents include, and with --cache each cache entry (not with --cache-only, which fills them).",
 )
 @click.option(
     "--depfile-target",

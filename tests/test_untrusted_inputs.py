@@ -20,8 +20,8 @@ from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
 
 #: Byte offsets of the DDS header fields (after the 4-byte magic; DirectXTex DDS.h).
-FIELDS = {"height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "caps2": 112, "resourceDimension": 132,
-          "miscFlag": 136, "arraySize": 140, "miscFlags2": 144}  # fmt: skip
+FIELDS = {"flags": 8, "height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "caps2": 112,
+          "resourceDimension": 132, "miscFlag": 136, "arraySize": 140, "miscFlags2": 144}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -59,9 +59,8 @@ CASES = [
     # each was read as the 2D array, exit 0.
     ("array", "resourceDimension", 2, "header field resourceDimension is 2; expected 3 (a 2D array) or 4 (a volume)"),
     ("array", "miscFlag", 0x4, "header field miscFlag is 0x4; expected no TEXTURECUBE bit"),
-    ("array", "caps2", 0x200000, "header field caps2 is 0x200000; expected the VOLUME bit (0x200000) clear"),
-    ("array", "resourceDimension", 4, "; expected the VOLUME bit (0x200000) set, as resourceDimension 4 says"),
-    ("volume", "caps2", 0, "header field caps2 is 0x0; expected the VOLUME bit (0x200000) set"),
+    ("array", "resourceDimension", 4, "header field flags is 0x2100f; expected the DDSD_DEPTH bit (0x800000) in a volume"),
+    ("volume", "flags", 0x2100F, "header field flags is 0x2100f; expected the DDSD_DEPTH bit (0x800000)"),
     ("volume", "arraySize", 2, "header field arraySize is 2; expected 1 in a volume"),
     ("array", "miscFlags2", 7, "header field miscFlags2 is 0x7; expected an alpha mode of 0 to 4 in its low bits"),
 ]
@@ -75,6 +74,14 @@ def test_every_dds_size_field_is_checked_before_allocating(tmp_path, atlases, la
         read_dds(path)
     message = str(info.value)
     assert message.startswith(f"{path.as_posix()}: ") and expected in message and "\n" not in message
+
+
+@pytest.mark.parametrize(("layout", "caps2"), [("array", 0x200000), ("volume", 0)])
+def test_caps2_is_ignored_as_directxtex_ignores_it_in_a_dx10_header(tmp_path, atlases, layout, caps2):
+    """The resource dimension (with DDSD_DEPTH) says what the texture is; a VOLUME cap, set or clear, changes nothing."""
+    path = tmp_path / "caps2.dds"
+    path.write_bytes(_patched(atlases[layout], "caps2", caps2))
+    assert read_dds(path).layout == layout
 
 
 def test_a_huge_mip_count_fails_at_once_under_a_memory_limit(tmp_path, atlases):

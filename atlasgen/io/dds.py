@@ -140,7 +140,6 @@ def read_dds(path, data: bytes | None = None) -> DDSImage:
         raise InputError(f"{shown}: not a DDS file (bad magic or truncated header)")
     size, flags, height, width, _pitch, depth, mip_count = struct.unpack_from("<7I", data, 4)
     fourcc = data[84:88]  # ddspf.fourCC: header offset 72 + 8, after the 4-byte magic
-    caps2 = struct.unpack_from("<I", data, 4 + 108)[0]
     if size != 124 or fourcc != b"DX10":
         raise InputError(f"{shown}: expected a DDS with a DX10 header")
     dxgi_format, dimension, misc, array_size, misc2 = struct.unpack_from("<5I", data, 128)
@@ -152,17 +151,15 @@ def read_dds(path, data: bytes | None = None) -> DDSImage:
     def bad(field, value, expected):
         raise InputError(f"{shown}: header field {field} is {value}; expected {expected}")
 
-    # What DirectXTex would read otherwise: another kind of texture than the one this reader returns.
+    # As DirectXTex reads a DX10 header (LoadFromDDSMemory): the resource dimension says what the texture is,
+    # a 3D one needs the DDSD_DEPTH flag and one array element, and a cube flag makes a 2D one a cube map.
+    # Anything else it refuses, or reads as another texture than the one returned here. caps2 it ignores.
     if dimension not in (DIMENSION_TEXTURE2D, DIMENSION_TEXTURE3D):
         bad("resourceDimension", dimension, f"{DIMENSION_TEXTURE2D} (a 2D array) or {DIMENSION_TEXTURE3D} (a volume)")
     if misc & DDS_RESOURCE_MISC_TEXTURECUBE:
         bad("miscFlag", hex(misc), "no TEXTURECUBE bit (0x4): the atlas is no cube map")
-    if bool(caps2 & DDSCAPS2_VOLUME) != volume:
-        bad(
-            "caps2",
-            hex(caps2),
-            f"the VOLUME bit (0x200000) {'set' if volume else 'clear'}, as resourceDimension {dimension} says",
-        )
+    if volume and not flags & DDSD_DEPTH:
+        bad("flags", hex(flags), f"the DDSD_DEPTH bit ({DDSD_DEPTH:#x}) in a volume (resourceDimension {dimension})")
     if volume and array_size != 1:
         bad("arraySize", array_size, "1 in a volume")
     if misc2 & DDS_ALPHA_MODE_MASK > ALPHA_MODE_CUSTOM:

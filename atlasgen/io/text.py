@@ -7,6 +7,7 @@ import json
 import os
 import re
 import stat
+import sys
 import tomllib
 from pathlib import Path
 
@@ -129,8 +130,8 @@ _SURROGATE_ESCAPE = re.compile(r"\\u[dD][89a-fA-F]")
 
 def _parse_int(text: str) -> int:
     value = int(text)
-    if value.bit_length() > 1024:  # beyond a double: any reader's float() or isfinite() would raise
-        raise ValueError(f"an integer of {len(text)} digits, beyond any number a double holds")
+    if abs(value) > sys.float_info.max:  # beyond a double: any reader's float() or isfinite() would raise
+        raise ValueError(f"an integer of {len(text.lstrip('-'))} digits, beyond any number a double holds")
     return value
 
 

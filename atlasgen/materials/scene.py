@@ -357,7 +357,9 @@ def _read_environment(r: _Reader, raw, base: Path) -> Environment:
         raise SceneError(r.path, "environment.source", f"missing; expected {_ENVIRONMENT_EXPECTED}")
     source, radiance, file = _environment_source(r, raw["source"], "environment.source", base)
     intensity = r.number(raw, "intensity", "environment.intensity", default=1.0, lo=0.0)
-    rotate = r.number(raw, "rotate", "environment.rotate", default=0.0)
+    # Whole turns off, exactly, once for every reader (the image's resampling, the sky's sun, Mitsuba's emitter):
+    # 1e20 degrees is a column index no integer holds, and float32's 1e20 another angle than float64's.
+    rotate = math.fmod(r.number(raw, "rotate", "environment.rotate", default=0.0), 360.0)
     if source != "sky":
         for key in SKY_KEYS:
             if key in raw:

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import importlib
 
+from atlasgen.errors import ManifestError, shorten
 from atlasgen.models.base import Model
 
-__all__ = ["MODEL_TYPES", "get_model", "register_model", "unregister_model", "model_types"]
+__all__ = ["MODEL_TYPES", "get_model", "register_model", "unregister_model", "model_types", "check_manifest_models"]
 
 #: TOML ``type`` -> "module:Class" (shipped, imported on first use) or a registered class.
 #: Import is deferred so a LUT-only bake never pulls in what the separable model needs
@@ -66,3 +67,15 @@ def unregister_model(type_name: str) -> None:
     """Forget a model type (tests that register a model of their own clean up with it)."""
     MODEL_TYPES.pop(type_name, None)
     _cache.pop(type_name, None)
+
+
+def check_manifest_models(manifest, shown: str) -> None:
+    """Refuse a manifest (read from ``shown``) with an entry whose model this atlasgen lacks, or which its model
+    cannot use (:meth:`~atlasgen.models.base.Model.check_entry`): a hand-edited manifest reaches every command
+    that asks an entry's model for something (the renderer's shader code, the reports, validation), and each
+    would fail deep inside instead, on no line of its own."""
+    for i, entry in enumerate(manifest.materials):
+        if entry.type not in MODEL_TYPES:
+            raise ManifestError(shown, f"materials[{i}].type", f"expected one of the models atlasgen knows "
+                                f"({', '.join(sorted(MODEL_TYPES))}), got {shorten(repr(entry.type))}")  # fmt: skip
+        get_model(entry.type).check_entry(entry, shown, f"materials[{i}]")

@@ -248,10 +248,10 @@ class Model:
         return []
 
     @classmethod
-    def entry_gap(cls, entry: MaterialEntry) -> tuple[str, str] | None:
-        """``(field, what was expected)`` where ``entry`` lacks what this model's shader code is generated
-        from (a hand-edited manifest: a LUT entry given this model's type), else None."""
-        return None
+    def check_entry(cls, entry: MaterialEntry, shown: str, where: str) -> None:
+        """Raise :class:`~atlasgen.errors.ManifestError` (naming ``shown`` and the field under ``where``) where a
+        manifest ``entry`` of this model's type lacks what its shader code and reports are made from, or holds
+        what the model would refuse: a hand-edited manifest (a LUT entry given this model's type)."""
 
     @classmethod
     def include_data(cls, entries: list[MaterialEntry]) -> bytes:

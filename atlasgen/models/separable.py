@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from atlasgen.errors import MaterialError
+from atlasgen.errors import ManifestError, MaterialError
 from atlasgen.io.atlas import as_atlas
 from atlasgen.io.fields import Param
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
@@ -672,14 +672,16 @@ class Separable(Model):
         return separable_declarations(entries) + (analytic_declarations() if analytic else []) + ([LUT_F_COS] if lut else [])
 
     @classmethod
-    def entry_gap(cls, entry) -> tuple[str, str] | None:
-        """Factors to rebuild, unless the entry is held as one LUT slice or in closed form."""
-        if entry.factors is None and not isinstance(entry.representation, (AnalyticRepresentation, LutRepresentation)):
-            return (
-                "factor_scale",
-                "a separable entry's factors (factor_scale, factor_bias, ...) or a LUT or analytic representation",
-            )
-        return None
+    def check_entry(cls, entry, shown: str, where: str) -> None:
+        """Factors to rebuild, unless the entry is held as one LUT slice or in closed form; a closed form's
+        roughness and index within this model's own bounds (its shader code divides by alpha^4)."""
+        rep = entry.representation
+        if entry.factors is None and not isinstance(rep, (AnalyticRepresentation, LutRepresentation)):
+            raise ManifestError(shown, f"{where}.factor_scale", "missing; expected a separable entry's factors "
+                                "(factor_scale, factor_bias, ...) or a LUT or analytic representation")  # fmt: skip
+        if isinstance(rep, AnalyticRepresentation):
+            for param in (p for p in cls.params if p.name in ("alpha", "ior")):
+                param.coerce(getattr(rep, param.name), shown, ManifestError, f"{where}.representation.{param.name}")
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:

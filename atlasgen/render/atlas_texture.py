@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import FieldError, InputError, ManifestError, shorten
+from atlasgen.errors import FieldError, InputError
 from atlasgen.io.atlas import check_include, read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.io.text import read_input_text
-from atlasgen.models import MODEL_TYPES, get_model
+from atlasgen.models import check_manifest_models
 
 __all__ = ["RenderAtlas", "read_render_atlas", "upload_atlas"]
 
@@ -66,20 +66,8 @@ def read_render_atlas(dds_path, atlas=None) -> RenderAtlas:
         include_path, "no shader include beside the atlas; re-run atlasgen bake", "a WGSL include (UTF-8 text)", FieldError
     )
     check_include(atlas, include_path, include)
-    _check_models(atlas.manifest, dds_path.with_suffix(".json").as_posix())
+    check_manifest_models(atlas.manifest, dds_path.with_suffix(".json").as_posix())
     return RenderAtlas(list(atlas.image.levels), atlas.srgb, atlas.manifest, include, shown)
-
-
-def _check_models(manifest: Manifest, shown: str) -> None:
-    """Refuse an entry whose model this atlasgen lacks, or which lacks what its model's shader code is made
-    from: the renderer generates its include from the manifest, so a hand edit would reach the shader compiler."""
-    for i, entry in enumerate(manifest.materials):
-        if entry.type not in MODEL_TYPES:
-            raise ManifestError(shown, f"materials[{i}].type", f"expected one of the models atlasgen knows "
-                                f"({', '.join(sorted(MODEL_TYPES))}), got {shorten(repr(entry.type))}")  # fmt: skip
-        gap = get_model(entry.type).entry_gap(entry)
-        if gap is not None:
-            raise ManifestError(shown, f"materials[{i}].{gap[0]}", f"missing; expected {gap[1]} (type {entry.type!r})")
 
 
 def upload_atlas(ctx, atlas: RenderAtlas):

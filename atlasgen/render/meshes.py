@@ -280,9 +280,9 @@ def encode_mesh_ply(mesh: Mesh) -> bytes:
 #: Most triangles a mesh file may have: 8M draw in seconds on a software GPU; the 16M of a 300 MB PLY took
 #: 4 GB of memory in the buffers built from them.
 MAX_MESH_TRIANGLES = 8_000_000
-#: A vertex (or texture or normal) index 0 on an OBJ face line, which counts from 1: trimesh reads it as
-#: another vertex, silently.
-_OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n]*?(?<=[ \t/])0(?=[/ \t\r]|$)")
+#: A vertex (or texture or normal) index 0 on an OBJ face line, however written (00, -0, +0), before any
+#: comment: OBJ counts from 1, and trimesh reads 0 as another vertex, silently.
+_OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n#]*?(?<=[ \t/])[+-]?0+(?=[/ \t\r#]|$)")
 
 
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:

@@ -11,7 +11,7 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, read_json_file
-from atlasgen.models import get_model
+from atlasgen.models import check_manifest_models, get_model
 from atlasgen.reports.comparisons import manifest_pairs
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, pareto_front, plot_style, render_page
 from atlasgen.reports.pareto import (
@@ -241,6 +241,7 @@ def write_library_report(
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
+    check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
     timings = _read_json(timings_path) or {}
     validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None

@@ -27,7 +27,7 @@ from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
 from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
-from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, flip_heatmap
+from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, finite_or_none, flip_heatmap
 
 __all__ = [
     "write_validation",
@@ -65,10 +65,6 @@ def _display_png(rgb01) -> bytes:
 def image_name(material: str, scene: str, what: str) -> str:
     """Relative path of one report image, e.g. ``images/skin__front__atlas.png``."""
     return f"images/{material}__{scene}__{what}.png"
-
-
-def _finite(x):
-    return None if x is None or (isinstance(x, float) and not math.isfinite(x)) else x
 
 
 def _goal(run, ref, goals) -> bool | None:
@@ -183,7 +179,7 @@ def report_dict(run) -> dict:
                 "variant": ref.variant,
                 "spp": ref.spp,
                 "seconds": ref.seconds,
-                "speed_ratio": _finite(ref.seconds / r.atlas_seconds if r.atlas_seconds > 0 else math.inf),
+                "speed_ratio": finite_or_none(ref.seconds / r.atlas_seconds if r.atlas_seconds > 0 else math.inf),
                 **ref.metrics.as_dict(),
                 "meets_goal": _goal(r, ref, goals),
                 "images": {
@@ -193,11 +189,11 @@ def report_dict(run) -> dict:
             }
             floor = getattr(ref, "noise_floor_db", None)
             if floor is not None:  # a stochastic reference: two seeds against each other
-                refs[kind]["noise_floor_db"] = _finite(floor)
+                refs[kind]["noise_floor_db"] = finite_or_none(floor)
                 refs[kind]["noise_floor_ok"] = ref.noise_floor_ok
                 for name, part_floor in (getattr(ref, "part_floors", None) or {}).items():
                     part = refs[kind]["parts"][name]
-                    part["noise_floor_db"] = _finite(part_floor)
+                    part["noise_floor_db"] = finite_or_none(part_floor)
                     psnr_db = math.inf if part["psnr_db"] is None else part["psnr_db"]
                     part["noise_floor_ok"] = bool(part_floor >= psnr_db + NOISE_FLOOR_MARGIN_DB)
                     part["spp"] = (getattr(ref, "part_spp", None) or {}).get(name, ref.spp)

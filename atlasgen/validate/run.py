@@ -31,7 +31,7 @@ from atlasgen.io.atlas import Atlas, read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.materials.material import read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
-from atlasgen.models import get_model
+from atlasgen.models import check_manifest_models, get_model
 from atlasgen.optics.display import display_clip
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
@@ -233,6 +233,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
+    check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
     entries_by_name = {e.name: e for e in atlas.manifest.materials}
     if materials:
         names = list(dict.fromkeys(n for m in materials for n in _material_names(m, atlas, entries_by_name)))

@@ -229,3 +229,21 @@ def test_info_quiet_and_verbose(runner, library, tmp_path):
     assert verbose[: len(normal) - 2] == normal[:-2]
     assert verbose[-1].strip() == f"(no description); from {(library / 'snow.toml').as_posix()}"
     assert len(verbose) == len(normal) + 2
+
+
+def test_every_command_that_asks_an_entry_s_model_refuses_an_unknown_one(runner, library, tmp_path):
+    """A manifest edited to a type no model has: report library and validate ended in KeyError (exit 1)."""
+    atlas = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(library), "-o", str(atlas), "-q"]).exit_code == 0
+    manifest = atlas.with_suffix(".json")
+    data = json.loads(manifest.read_text())
+    data["materials"][0]["type"] = "nosuchmodel"
+    manifest.unlink()  # a link into the bake's output set: replaced, not written through
+    manifest.write_text(json.dumps(data))
+    for command in (["report", "library", "--atlas", str(atlas), "-o", str(tmp_path / "report"), "--no-physical"],
+                    ["validate", "--atlas", str(atlas), "-o", str(tmp_path / "validation")]):  # fmt: skip
+        res = runner.invoke(app, command)
+        assert res.exit_code == 3, (command, res.output)
+        assert res.stderr.strip().startswith(f"atlasgen: error: {manifest.as_posix()}: field 'materials[0].type': expected "
+                                             "one of the models atlasgen knows (")  # fmt: skip
+    assert not (tmp_path / "report").exists() and not (tmp_path / "validation").exists()

@@ -107,7 +107,8 @@ def test_a_cache_only_bake_writes_a_depfile_for_the_target_it_is_given(tmp_path,
 
 
 @pytest.mark.parametrize("option", [("-o", "x.dds"), ("--preview", "p.png"), ("--strict",), ("--linear",),
-                                    ("--include", "wgsl"), ("--ids-from", "a.json"), ("--zstd",), ("--layout", "volume")])  # fmt: skip
+                                    ("--include", "wgsl"), ("--ids-from", "a.json"), ("--zstd",), ("--layout", "volume"),
+                                    ("--allow-empty",)])  # fmt: skip
 def test_an_atlas_option_with_cache_only_is_refused_not_ignored(tmp_path, write_material, option):
     write_material("alpha", 'type = "lambert"\n')
     cache = tmp_path / "cache"

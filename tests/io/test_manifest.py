@@ -359,6 +359,11 @@ REFUSED = {
         "materials[0].quantization_error.max",
         "expected a finite number >= 0, got inf",
     ),
+    "an integer just beyond a double": (
+        json.dumps(_golden("array-srgb")).replace('"scale": [[', f'"scale": [[{2**1024 - 1}, ', 1),
+        None,
+        "malformed JSON (an integer of 309 digits, beyond any number a double holds)",
+    ),
     "an integer beyond a double": (
         json.dumps(_golden("array-srgb")).replace('"scale": [[', '"scale": [[1' + "0" * 400 + ", ", 1),
         None,
@@ -386,7 +391,7 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
 #: and what JSON itself cannot hold (Python's reader takes Infinity, a 400-digit integer and a lone surrogate).
 _BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
                       "not a finite figure",
-                      "an integer beyond a double", "a lone surrogate"}  # fmt: skip
+                      "an integer beyond a double", "an integer just beyond a double", "a lone surrogate"}  # fmt: skip
 
 
 @pytest.mark.parametrize("case", sorted(set(REFUSED) - _BEYOND_THE_SCHEMA))

@@ -2,7 +2,6 @@
 angles, the lookup, rotation and resampling, and the agreement with Mitsuba itself."""
 
 import doctest
-import math
 
 import numpy as np
 import pytest
@@ -142,12 +141,22 @@ def test_the_docstrings_examples_hold():
     assert doctest.testmod(equirect).failed == 0
 
 
-@pytest.mark.parametrize("degrees", [1e20, -3.5e17, 360.0 * 2**60 + 90.0])
-def test_a_huge_angle_turns_as_its_remainder_of_a_whole_turn(degrees):
-    """1e20 degrees cast a column index beyond int64: the environment came out all zero, exit 0."""
+@pytest.mark.parametrize(("degrees", "remainder"), [(1e20, 280.0), (-3.5e17, -80.0), (810.0, 90.0)])
+def test_a_huge_angle_turns_as_its_remainder_of_a_whole_turn(degrees, remainder):
+    """1e20 degrees cast a column index beyond int64: the environment came out all zero, exit 0. The
+    remainders are worked out by hand: 1e20 = 277777777777777777 x 360 + 280 (1e20 is exact in a double)."""
     rng = np.random.default_rng(3)
     image = rng.uniform(0.1, 1.0, (8, 16, 3))
     for width in (16, 32, 8):  # the point and the averaging paths
         turned = resample_equirect(image, 8, width, degrees)
-        np.testing.assert_array_equal(turned, resample_equirect(image, 8, width, math.fmod(degrees, 360.0)))
+        np.testing.assert_array_equal(turned, resample_equirect(image, 8, width, remainder))
         assert turned.min() > 0.09
+
+
+def test_a_scene_s_environment_rotate_is_read_as_its_remainder(tmp_path):
+    """Once, where the scene is read, so that the image, the sky's sun and Mitsuba's emitter turn alike."""
+    from atlasgen.materials.scene import read_scene
+
+    scene = tmp_path / "s.toml"
+    scene.write_text("[environment]\nsource = [1, 1, 1]\nrotate = 1e20\n[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n")
+    assert read_scene(scene).environment.rotate == 280.0

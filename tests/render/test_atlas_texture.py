@@ -64,6 +64,10 @@ def test_levels_must_be_uint8_rgba():
 @pytest.mark.parametrize(("edit", "field", "expected"), [
     ({"type": "nosuchmodel"}, "materials[0].type", "expected one of the models atlasgen knows ("),
     ({"type": "separable"}, "materials[0].factor_scale", "missing; expected a separable entry's factors"),
+    # A closed form below the model's own bound: its shader code divides by alpha^4, which float32 rounds to 0.
+    ({"type": "separable", "representation": {"kind": "analytic", "distribution": "ggx", "alpha": 1e-20, "fresnel": "none",
+      "f0": [1, 1, 1], "ior": 1.5, "specular": [1, 1, 1], "diffuse": [0, 0, 0]}},
+     "materials[0].representation.alpha", "expected a finite number >= 1e-06 and <= 4, got 1e-20"),
 ])  # fmt: skip
 def test_an_entry_its_model_cannot_shade_is_refused_naming_the_field(baked, edit, field, expected):
     """The renderer generates its include from the manifest: an edited type reached get_model (KeyError, exit 1)

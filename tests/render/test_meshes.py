@@ -238,6 +238,8 @@ def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
     # OBJ counts from 1: trimesh read index 0 as some other vertex, and the triangle came out degenerate, unseen.
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "f 1 2 3", "line 4: a face names index 0; expected indices from 1"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//0\n", "f 1//1 2//1 3//1", "line 5: a face names index 0"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 00 2 3\n", "f 1 2 3", "line 4: a face names index 0"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 -0 3\n", "f 1 -2 3", "line 4: a face names index 0"),
     # A vertex line of two numbers: trimesh's vertices and normals disagreed, and building the mesh raised (exit 1).
     ("v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n", "v 0 1 0\nf 1 2 3", "; expected x y z on every vertex line"),
 ])  # fmt: skip
