@@ -30,7 +30,7 @@ from atlasgen.bake.cache import cache_path
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
@@ -159,7 +159,7 @@ def fail_on_errors(func):
     return wrapper
 
 
-@click.group(cls=LazyGroup, invoke_without_command=True, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, invoke_without_command=True, context_settings=HELP_OPTIONS)
 @click.version_option(__version__, prog_name="atlasgen")
 @click.option("--debug", is_flag=True, help="On an internal error, also print the traceback (as ATLASGEN_DEBUG=1 does).")
 @click.pass_context

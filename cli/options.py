@@ -7,11 +7,15 @@ import sys
 
 import click
 
-__all__ = ["QUIET", "NORMAL", "VERBOSE", "MAX_SPP", "PathArg", "verbosity_options", "MaterialProgress"]
+__all__ = ["QUIET", "NORMAL", "VERBOSE", "MAX_SPP", "HELP_OPTIONS", "PathArg", "verbosity_options", "MaterialProgress"]
 
 QUIET, NORMAL, VERBOSE = -1, 0, 1
 #: The most samples per pixel a command takes (Mitsuba's count is a 32-bit integer): far more than a
 #: validation or a preview's reference needs, and past it a CPU reference runs for days.
+#: Every command's context settings: -h as well as --help. Each command module declares them itself, since
+#: click builds (and keeps) a command's help option from the context it is first asked in, and a command run
+#: on its own (a test's CliRunner) has no parent context to inherit them from.
+HELP_OPTIONS = {"help_option_names": ["-h", "--help"]}
 MAX_SPP = 65536
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors, one_line_message
-from atlasgen.cli.options import MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
 from atlasgen.preview.watch import describe_label, describe_update, watch_preview
@@ -19,7 +19,7 @@ def _steps(timings: dict) -> str:
     return ", ".join(f"{name} {seconds:.3f} s" for name, seconds in timings.items())
 
 
-@click.command("preview")
+@click.command("preview", context_settings=HELP_OPTIONS)
 @click.argument("paths", nargs=-1, required=True, type=PathArg(path_type=Path))
 @click.option("-o", "--output", type=PathArg(path_type=Path, dir_okay=False), default=None,
               help="PNG to write.  [default: build/preview/NAME.png, NAME the material file's stem or the folder's "

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.materials.scene import read_scene
 from atlasgen.render import render_scene
 
@@ -16,7 +16,7 @@ __all__ = ["render"]
 AOVS = ("normal", "depth", "id", "albedo")
 
 
-@click.command("render")
+@click.command("render", context_settings=HELP_OPTIONS)
 @click.argument("scene", type=PathArg(path_type=Path))
 @click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip

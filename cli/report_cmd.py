@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
@@ -20,7 +20,7 @@ from atlasgen.reports.separable_merge import merge_separable_reports
 __all__ = ["report", "library", "separable"]
 
 
-@click.group()
+@click.group(context_settings=HELP_OPTIONS)
 def report():
     """Measured reports on baked materials."""
 

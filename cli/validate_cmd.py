@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import fail_on_errors
-from atlasgen.cli.options import MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.validation import (
@@ -36,7 +36,7 @@ def _resolution(ctx, param, value):
     return w, h
 
 
-@click.command("validate")
+@click.command("validate", context_settings=HELP_OPTIONS)
 @click.argument("materials", nargs=-1)
 @click.option("--scene", "scenes", multiple=True, default=("front", "back"), show_default=True,
               help="Validation scene: a standard name (front, back) or a scene TOML with material = \"$material\". Repeatable.")  # fmt: skip
