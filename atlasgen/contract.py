@@ -49,7 +49,8 @@ MAPPING = {
 }
 
 #: A material's name: a letter, then letters, digits, '-' or '_', at most 63 in all. It names the
-#: material in shader code (e.g. ``separable_f_cos_NAME``) and in the manifest.
+#: material in shader code (e.g. ``separable_f_cos_NAME``) and in the manifest. Match it with
+#: ``fullmatch``: Python's ``$`` also matches before a final line break ("abc\n"), JSON Schema's does not.
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
 
 #: Smallest GGX roughness the renderer uses: keeps D's peak 1 / (pi alpha^2) finite in f32

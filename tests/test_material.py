@@ -43,6 +43,13 @@ def test_duplicate_names_are_rejected(write_material, tmp_path):
         read_materials([tmp_path / "materials"])
 
 
+def test_a_name_ending_in_a_line_break_is_refused(write_material, tmp_path):
+    """Python's ``$`` matches before a final line break: "abc\\n" was baked beside "abc", two rows named alike."""
+    write_material("a", 'type = "lambert"\nname = "abc\\n"\n')
+    with pytest.raises(MaterialError, match=r"a\.toml: field 'name': expected a letter then .*, got 'abc\\n'$"):
+        read_materials([tmp_path / "materials"])
+
+
 def test_names_colliding_as_shader_constants_are_duplicates(write_material, tmp_path):
     write_material("gold-film", 'type = "lambert"\n')
     write_material("gold_film", 'type = "lambert"\n')

@@ -661,7 +661,7 @@ class MaterialEntry:
             name=f.take(
                 "name",
                 "a material name (a letter, then letters, digits, '-' or '_'; at most 63)",
-                lambda v: isinstance(v, str) and NAME_PATTERN.match(v) is not None,
+                lambda v: isinstance(v, str) and NAME_PATTERN.fullmatch(v) is not None,
             ),
             id=entry_id,
             constant=f.take(

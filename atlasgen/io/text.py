@@ -11,7 +11,7 @@ import sys
 import tomllib
 from pathlib import Path
 
-from atlasgen.errors import FieldError, InputError
+from atlasgen.errors import FieldError, InputError, shorten
 
 __all__ = [
     "MISSING",
@@ -190,3 +190,5 @@ def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:
         raise error(shown, None, f"malformed TOML: {exc}") from None
     except RecursionError:
         raise error(shown, None, "malformed TOML: arrays or inline tables nested too deeply to read") from None
+    except ValueError as exc:  # tomllib lets int() refuse an integer of over 4300 digits as a plain ValueError
+        raise error(shown, None, f"malformed TOML: {shorten(str(exc))}") from None

@@ -143,7 +143,7 @@ def read_material(path) -> Material:
         raise MaterialError(shown, "type", f"unknown model {short(type_name)}; expected one of " + ", ".join(known))
 
     name = raw.get("name", path.stem)
-    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         raise MaterialError(shown, "name", f"expected a letter then letters, digits, '-' or '_' (at most 63), got {short(name)}")
 
     material_id = raw.get("id")
@@ -209,7 +209,7 @@ def read_material_file(path, materialx_flatten=None) -> list[Material]:
         return [read_material(path)]
     out = []
     for fields in read_materialx_document(path, materialx_flatten):
-        if not NAME_PATTERN.match(fields["name"]):
+        if not NAME_PATTERN.fullmatch(fields["name"]):
             raise MaterialError(fields["source"], fields["name"],
                                 "expected a material name of a letter then letters, digits, '-' or '_' (at most 63)")  # fmt: skip
         out.append(Material(**fields))

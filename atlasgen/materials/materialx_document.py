@@ -31,7 +31,6 @@ MaterialX is imported inside functions (the ``materialx`` extra).
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from pathlib import Path
 from xml.etree import ElementTree
@@ -41,6 +40,7 @@ from atlasgen.errors import MaterialError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
+from atlasgen.models.materialx import EXPECTED_VALUES, check_input_value, shown_values
 from atlasgen.separable.materialx_oracle import (
     SURFACE_MODELS,
     load_materialx_libraries,
@@ -300,32 +300,6 @@ def _refuse_duplicate_names(documents: list) -> None:
 
 #: Why an input its nodedef declares without a default is named rather than used.
 _NO_DEFAULT = "the oracle shades with the geometry's own normal and tangent and no volume, so the slice holds no value of it"
-#: What a value of each MaterialX type must be, for the one-line refusals.
-_EXPECTED = {"float": "a finite number", "integer": "an integer", "boolean": "true or false",
-             "color3": "3 finite numbers", "color4": "4 finite numbers", "vector2": "2 finite numbers",
-             "vector3": "3 finite numbers", "vector4": "4 finite numbers"}  # fmt: skip
-
-
-def _shown(values) -> str:
-    return ", ".join(f"{v:g}" for v in values)
-
-
-def _checked(shown: str, field: str, kind: str, value, limits):
-    """``value`` (plain) if it is finite and within the nodedef's ``limits`` (low, high), else refused on one line."""
-    if isinstance(value, bool) or isinstance(value, str):
-        return value
-    components = [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
-    if not all(math.isfinite(v) for v in components):
-        raise MaterialError(shown, field, f"expected {_EXPECTED.get(kind, 'finite numbers')}, got {_shown(components)}")
-    low, high = limits if limits is not None else (None, None)
-    for bound, outside in ((low, lambda v, b: v < b), (high, lambda v, b: v > b)):
-        if bound is not None and any(outside(v, b) for v, b in zip(components, bound, strict=False)):
-            if low is not None and high is not None:
-                span = f"within {_shown(low)} .. {_shown(high)} (the nodedef's uimin .. uimax)"
-            else:
-                span = f"at least {_shown(low)} (the nodedef's uimin)" if low else f"at most {_shown(high)} (the nodedef's uimax)"
-            raise MaterialError(shown, field, f"expected {kind} {span}, got {_shown(components)}")
-    return value
 
 
 def _constant(shown: str, field: str, inp, kind: str, limits):
@@ -340,8 +314,8 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
         text = inp.getValueString()
         if not text.strip():
             return None
-        raise MaterialError(shown, field, f"expected {_EXPECTED.get(kind, 'a ' + kind + ' value')}, got {text!r}")
-    return _checked(shown, field, kind, _plain(value), limits)
+        raise MaterialError(shown, field, f"expected {EXPECTED_VALUES.get(kind, 'a ' + kind + ' value')}, got {text!r}")
+    return check_input_value(shown, field, kind, _plain(value), limits)
 
 
 def _lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict, defaults: dict) -> list[str]:
@@ -402,7 +376,7 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
                     ")"
                 )  # fmt: skip
             if given is not None and key in defaults:
-                given = _checked(shown, f"{material}.{key}", defaults[key][0], given, ranges.get(key))
+                given = check_input_value(shown, f"{material}.{key}", defaults[key][0], given, ranges.get(key))
             value = given if given is not None else (defaults[key][1] if key in defaults else None)
             flattened[key] = {"driven_by": driver, "value": value}
             if value is not None:
@@ -417,7 +391,7 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             # oracle shades the geometry's own frame and no volume, so a value given is named, not used.
             value = _constant(shown, f"{material}.{key}", inp, declared[key], ranges.get(key))
             if value is not None:
-                no_default.append(f"{key} = {_shown(value if isinstance(value, list) else [value])}: {_NO_DEFAULT}")
+                no_default.append(f"{key} = {shown_values(value if isinstance(value, list) else [value])}: {_NO_DEFAULT}")
             continue
         value = _constant(shown, f"{material}.{key}", inp, defaults[key][0], ranges.get(key))
         if value is not None:

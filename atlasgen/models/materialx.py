@@ -11,12 +11,14 @@ that is a faithful physical stand-in where one exists (``roughconductor`` for a
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-from atlasgen.errors import MaterialError
-from atlasgen.separable.materialx_oracle import SURFACE_MODELS
+from atlasgen.errors import MaterialError, did_you_mean
+from atlasgen.io.fields import shown
+from atlasgen.separable.materialx_oracle import SURFACE_MODELS, surface_inputs, surface_ranges
 
 __all__ = ["SPEC_KEYS", "check_materialx_spec", "describe_materialx", "materialx_mitsuba_bsdf", "artistic_ior"]
 
@@ -29,6 +31,40 @@ ERROR_MEASURES = ("relative_rms", "relative_log_rms")
 #: standard_surface inputs that must be at these values for a Mitsuba BSDF to be faithful to it.
 _PLAIN = {"coat": 0.0, "sheen": 0.0, "thin_film_thickness": 0.0, "specular_anisotropy": 0.0, "transmission": 0.0,
           "subsurface": 0.0}  # fmt: skip
+
+
+#: What a value of each MaterialX type must be, for the one-line refusals.
+EXPECTED_VALUES = {"float": "a finite number", "integer": "an integer", "boolean": "true or false",
+             "color3": "3 finite numbers", "color4": "4 finite numbers", "vector2": "2 finite numbers",
+             "vector3": "3 finite numbers", "vector4": "4 finite numbers"}  # fmt: skip
+
+
+def shown_values(values) -> str:
+    return ", ".join(f"{v:g}" for v in values)
+
+
+def check_input_value(shown: str, field: str, kind: str, value, limits):
+    """``value`` (plain) if it is finite and within the nodedef's ``limits`` (low, high), else refused on one line."""
+    if isinstance(value, bool) or isinstance(value, str):
+        return value
+    components = [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
+    if not all(math.isfinite(v) for v in components):
+        raise MaterialError(
+            shown, field, f"expected {EXPECTED_VALUES.get(kind, 'finite numbers')}, got {shown_values(components)}"
+        )
+    low, high = limits if limits is not None else (None, None)
+    for bound, outside in ((low, lambda v, b: v < b), (high, lambda v, b: v > b)):
+        if bound is not None and any(outside(v, b) for v, b in zip(components, bound, strict=False)):
+            if low is not None and high is not None:
+                span = f"within {shown_values(low)} .. {shown_values(high)} (the nodedef's uimin .. uimax)"
+            else:
+                span = (
+                    f"at least {shown_values(low)} (the nodedef's uimin)"
+                    if low
+                    else f"at most {shown_values(high)} (the nodedef's uimax)"
+                )
+            raise MaterialError(shown, field, f"expected {kind} {span}, got {shown_values(components)}")
+    return value
 
 
 def check_materialx_spec(spec, path) -> dict:
@@ -48,10 +84,57 @@ def check_materialx_spec(spec, path) -> dict:
         raise MaterialError(path, "materialx.category", f"expected one of {', '.join(SURFACE_MODELS)}, got {spec['category']!r}")
     if not isinstance(spec["oracle_inputs"], dict):
         raise MaterialError(path, "materialx.oracle_inputs", "expected a table of constant inputs")
+    for key in ("document", "material"):
+        if not isinstance(spec[key], str) or not spec[key]:
+            raise MaterialError(path, f"materialx.{key}", f"expected a non-empty string, got {shown(spec[key])}")
+    _check_oracle_inputs(spec["category"], spec["oracle_inputs"], path)
+    if spec.get("alpha") is not None and not (_is_number(spec["alpha"]) and 0 < spec["alpha"] < math.inf):
+        raise MaterialError(path, "materialx.alpha", f"expected a finite number > 0, got {shown(spec['alpha'])}")
+    if not all(isinstance(lobe, str) for lobe in _listed(spec.get("sharp_lobes", []))):
+        raise MaterialError(path, "materialx.sharp_lobes", f"expected a list of input names, got {shown(spec['sharp_lobes'])}")
     if spec.get("error_measure", "relative_rms") not in ERROR_MEASURES:
         raise MaterialError(path, "materialx.error_measure", f"expected one of {', '.join(ERROR_MEASURES)}, "
                                                               f"got {spec['error_measure']!r}")  # fmt: skip
     return {"inputs": dict(spec["oracle_inputs"]), "flattened": {}, "not_in_table": [], "sharp_lobes": [], "alpha": None, **spec}
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _listed(value):
+    """``value`` if it is a list, else a list holding a non-string (refused by the caller's check)."""
+    return value if isinstance(value, list) else [None]
+
+
+#: Components of a MaterialX vector or colour type.
+_COMPONENTS = {"color3": 3, "color4": 4, "vector2": 2, "vector3": 3, "vector4": 4}
+
+
+def _of_kind(kind: str, value) -> bool:
+    """Whether ``value`` (as TOML gives it) has the shape of a MaterialX ``kind``."""
+    if kind in _COMPONENTS:
+        return isinstance(value, list | tuple) and len(value) == _COMPONENTS[kind] and all(_is_number(v) for v in value)
+    if kind == "boolean":
+        return isinstance(value, bool)
+    if kind in ("string", "filename"):
+        return isinstance(value, str)
+    return _is_number(value) and (kind != "integer" or isinstance(value, int))
+
+
+def _check_oracle_inputs(category: str, inputs: dict, path) -> None:
+    """Refuse an oracle input its nodedef does not declare, or one not of the input's type, finite and within its
+    limits (:func:`check_input_value`): the oracle would drop the first silently and fail deep on the rest. The
+    .mtlx reader writes these already checked; a material file written by hand is checked here."""
+    kinds, ranges = surface_inputs(category), surface_ranges(category)
+    for name, value in inputs.items():
+        field = f"materialx.oracle_inputs.{name}"
+        if name not in kinds:
+            raise MaterialError(path, field, f"unknown input of {category}{did_you_mean(name, kinds)}")
+        if not _of_kind(kinds[name], value):
+            raise MaterialError(path, field, f"expected {EXPECTED_VALUES.get(kinds[name], 'a ' + kinds[name])} "
+                                f"({kinds[name]}, the nodedef's type), got {shown(value)}")  # fmt: skip
+        check_input_value(path, field, kinds[name], value, ranges.get(name))
 
 
 def describe_materialx(spec: dict) -> str:

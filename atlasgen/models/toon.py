@@ -6,7 +6,7 @@ import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
-from atlasgen.io.fields import Param
+from atlasgen.io.fields import Param, shown
 from atlasgen.models.base import Model
 
 __all__ = ["Toon"]
@@ -70,7 +70,7 @@ class Toon(Model):
     def check(self, values, path):
         thresholds, colours = values["thresholds"], values["colours"]
         if any(b <= a for a, b in zip(thresholds, thresholds[1:])):
-            raise MaterialError(path, "thresholds", f"expected strictly ascending values, got {list(thresholds)}")
+            raise MaterialError(path, "thresholds", f"expected strictly ascending values, got {shown(list(thresholds))}")
         if len(colours) != len(thresholds) + 1:
             raise MaterialError(
                 path,

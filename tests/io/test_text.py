@@ -94,3 +94,17 @@ def test_a_symbolic_link_loop_is_named_not_called_missing(tmp_path):
         read_mesh(loop, "s.toml", "objects[0].file")
     with pytest.raises(InputError, match=r"m.obj: expected a regular file, got a symbolic link loop$"):
         text.read_input_bytes(loop)
+
+
+def test_an_integer_tomllib_will_not_convert_is_malformed_not_a_bug(tmp_path):
+    """Over 4300 digits, int() refuses the literal with a plain ValueError, which escaped as an internal error."""
+    material = tmp_path / "huge.toml"
+    material.write_text('type = "fresnel"\nior = ' + "1" * 5000 + "\n")
+    with pytest.raises(MaterialError) as info:
+        read_material_file(material)
+    message = str(info.value)
+    assert message.startswith(f"{material.as_posix()}: malformed TOML: Exceeds the limit (4300 digits)") and len(message) < 300
+    scene = tmp_path / "scene.toml"
+    scene.write_text("[camera]\nposition = [" + "9" * 5000 + ", 0, 0]\n")
+    with pytest.raises(SceneError, match="malformed TOML: Exceeds the limit"):
+        read_scene(scene)

@@ -168,3 +168,34 @@ def test_a_log_measured_auto_claims_its_log_error_against_the_budget_not_the_rel
         0.0004,
         0.04,
     )
+
+
+_SPEC = ('type = "separable"\nsource = "materialx"\nterms = 1\n[materialx]\ndocument = "x.mtlx"\nmaterial = "M"\n'
+         'category = "standard_surface"\n')  # fmt: skip
+
+
+@pytest.mark.parametrize(("table", "field", "expected"), [
+    # Found by a hostile-input hunt: a hand-written table ended in an internal error (a struct.pack or float()
+    # failure, exit 1), or baked the nodedef's defaults while the manifest claimed the inputs given.
+    ("oracle_inputs = { base_color = [1.0, 2.0] }", "materialx.oracle_inputs.base_color",
+     "expected 3 finite numbers (color3, the nodedef's type), got [1.0, 2.0]"),
+    ('oracle_inputs = { base_color = "red" }', "materialx.oracle_inputs.base_color", "got 'red'"),
+    ("oracle_inputs = { base_colour = [1.0, 0.0, 0.0] }", "materialx.oracle_inputs.base_colour",
+     "unknown input of standard_surface (did you mean 'base_color'?)"),
+    ("oracle_inputs = { base = 1e300 }", "materialx.oracle_inputs.base", "expected float within 0 .. 1"),
+    ('oracle_inputs = { base = 0.5 }\nalpha = "zz"', "materialx.alpha", "expected a finite number > 0, got 'zz'"),
+    ("oracle_inputs = {}\nsharp_lobes = \"abc\"", "materialx.sharp_lobes", "expected a list of input names"),
+])  # fmt: skip
+def test_a_hand_written_materialx_table_is_checked_against_its_nodedef(tmp_path, table, field, expected):
+    pytest.importorskip("MaterialX")
+    from atlasgen.errors import MaterialError
+    from atlasgen.materials.material import read_material
+
+    path = tmp_path / "m.toml"
+    path.write_text(_SPEC + table + "\n")
+    with pytest.raises(MaterialError) as info:
+        read_material(path)
+    message = str(info.value)
+    assert message.startswith(f"{path.as_posix()}: field '{field}': ") and expected in message, message
+    path.write_text(_SPEC + "oracle_inputs = { base = 0.5, base_color = [1.0, 0.0, 0.0] }\n")
+    assert read_material(path).name == "m"  # the same table, well formed, reads

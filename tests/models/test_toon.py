@@ -141,3 +141,10 @@ def test_random_valid_parameters_give_finite_non_negative_slices(raw, valid_slic
 )  # fmt: skip
 def test_bad_parameters_are_rejected(expect_rejected, body, field, expected):
     expect_rejected("toon", body, field, expected)
+
+
+def test_a_long_threshold_list_is_shortened_in_its_refusal(expect_rejected):
+    """A million-byte error line once: the list is shortened as every other value in a message is."""
+    message = expect_rejected("toon", "thresholds = [" + "0.0, " * 20000 + "0.0]", "thresholds",
+                              "expected strictly ascending values, got [0.0, 0.0,")  # fmt: skip
+    assert len(message) < 300, len(message)
