@@ -103,11 +103,14 @@ def cached_declarations(cache_dir=None):
         if _private(folder):
             try:
                 state = pickle.loads(path.read_bytes())
+            except (OSError, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError):
+                state = None
+            # Checked whole before any field is set: a pickle of another shape (a damaged or foreign entry) set
+            # half the parser, and the parse that followed failed on it (exit 1 on every render, for good).
+            if isinstance(state, tuple) and [type(v) for v in state] == [type(getattr(self, f)) for f in fields]:
                 for name, value in zip(fields, state, strict=True):
                     setattr(self, name, value)
                 return None
-            except (OSError, pickle.UnpicklingError, EOFError, ValueError, TypeError, AttributeError):
-                pass
         out = original(self, csource, override, packed, pack, dllexport)
         if not self._recomplete:
             with contextlib.suppress(OSError, pickle.PicklingError, TypeError, AttributeError):

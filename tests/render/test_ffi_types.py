@@ -102,12 +102,16 @@ def test_cached_declarations_give_a_fresh_parser_what_the_parse_declared(tmp_pat
     assert str(loaded.typeof("Callback")) == str(parsed.typeof("Callback"))
     monkeypatch.undo()
 
-    # A damaged entry is parsed again (and replaced); a folder others may write to is never read.
-    entry.write_bytes(b"not a pickle")
-    with cached_declarations(cache):
-        again = cffi.FFI()
-        again.cdef(HEADER)
-    assert _declared(again) == _declared(parsed) and entry.read_bytes() != b"not a pickle"
+    # A damaged entry is parsed again (and replaced), as is a pickle of another shape, which used to set half the
+    # parser before failing (exit 1 on every render); a folder others may write to is never read.
+    import pickle
+
+    for damage in (b"not a pickle", pickle.dumps({"a": 1}), pickle.dumps((1, 2, 3, 4)), pickle.dumps(("x",))):
+        entry.write_bytes(damage)
+        with cached_declarations(cache):
+            again = cffi.FFI()
+            again.cdef(HEADER)
+        assert _declared(again) == _declared(parsed) and entry.read_bytes() != damage
     cache.chmod(0o777)
     monkeypatch.setattr("pickle.loads", lambda data: pytest.fail("read a pickle from a shared folder"))
     with cached_declarations(cache):
