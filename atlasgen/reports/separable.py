@@ -17,6 +17,7 @@ import numpy as np
 from atlasgen.errors import InputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import staged_folder
+from atlasgen.materials.material import check_unique_names
 from atlasgen.models.separable import Separable
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
@@ -449,10 +450,10 @@ def write_separable_report(
 
     The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
     written paths. ``on_material(name, done, total)``, when given, is called after each
-    material's study. Raises :class:`InputError` when no material is separable,
-    :class:`OutputError` when the folder cannot be written.
+    material's study. Raises :class:`InputError` when no material is separable or two share a name (their
+    studies would share one set of plots), :class:`OutputError` when the folder cannot be written.
     """
-
+    check_unique_names(list(materials))
     others = [m for m in materials if not isinstance(m.model, Separable)]
     materials = [m for m in materials if isinstance(m.model, Separable)]
     if not materials:

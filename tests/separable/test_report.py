@@ -127,6 +127,21 @@ def test_a_named_material_that_is_not_separable_is_named_with_its_type(write_mat
                                        "'lambert', not separable; expected type = \"separable\""]  # fmt: skip
 
 
+def test_a_name_and_a_file_of_the_same_material_name_are_refused(write_material, tmp_path):
+    """Found by a hostile-input hunt: both were studied, into one set of plots under one name, exit 0."""
+    from atlasgen.cli.report_cmd import report
+
+    write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n')
+    other = tmp_path / "alt" / "lobe.toml"
+    other.parent.mkdir()
+    other.write_text('type = "separable"\nsource = "blinn_phong"\nexponent = 20.0\nterms = 2\n')
+    res = CliRunner().invoke(report, ["separable", "lobe", str(other), "-m", str(tmp_path / "materials"),
+                                      "-o", str(tmp_path / "r")])  # fmt: skip
+    assert res.exit_code == 3 and not (tmp_path / "r").exists()
+    assert res.output.splitlines() == [f"atlasgen: error: {other.as_posix()}: field 'name': duplicate material name "
+                                       f"'lobe' (also in {(tmp_path / 'materials' / 'lobe.toml').as_posix()})"]  # fmt: skip
+
+
 def test_a_missing_atlas_is_refused_not_reported_as_not_in_atlas(write_material, tmp_path):
     from atlasgen.cli.report_cmd import report
 
