@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -214,6 +215,20 @@ def check_include(atlas: Atlas, include_path, text: str) -> None:
                          f"(the two are from different bakes); {RERUN}")  # fmt: skip
 
 
+#: Control characters: a line break, a carriage return, NUL, the escape that starts a terminal's colour codes.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def _printable(text: str) -> str:
+    r"""``text`` with each control character written as its escape, so that a manifest's own strings (a material's
+    description, its type) keep ``info``'s lines one line each and leave the terminal as it was.
+
+    >>> print(_printable("line one\nline two\x1b[31m red\x00"))
+    line one\nline two\x1b[31m red\x00
+    """
+    return _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), text)
+
+
 def _scale_text(entry: MaterialEntry) -> str:
     """The first slice's ``rgb_scale,alpha_scale``, for ``atlasgen info``."""
     return "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in entry.scale[:1])
@@ -244,11 +259,12 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
                  f"{manifest.slices_used} slices used")  # fmt: skip
     for e in manifest.materials:
         lines.append(
-            f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {e.type:<11} "
+            f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {_printable(e.type):<11} "
             f"scale {_scale_text(e):<18} qerr max {e.quantization_error.max:.4f}"
         )
         if verbose:
-            lines.append(f"         {e.description or '(no description)'}; from {atlas.source_path(e).as_posix()}")
+            described = _printable(e.description or "(no description)")
+            lines.append(f"         {described}; from {_printable(atlas.source_path(e).as_posix())}")
     return "\n".join(lines)
 
 

@@ -245,6 +245,16 @@ def test_info_quiet_and_verbose(runner, library, tmp_path):
     assert len(verbose) == len(normal) + 2
 
 
+def test_info_keeps_a_description_s_control_characters_on_its_line(runner, tmp_path):
+    """A description is free text: its line break and a terminal escape broke info -v's lines."""
+    material = tmp_path / "clay.toml"
+    material.write_text('type = "lambert"\ndescription = "line one\\nline two\\u001b[31m red"\n')
+    out = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(material), "-o", str(out), "-q"]).exit_code == 0
+    lines = runner.invoke(app, ["info", str(out), "-v"]).stdout.splitlines()
+    assert lines[-1].strip() == f"line one\\nline two\\x1b[31m red; from {material.as_posix()}", lines
+
+
 def test_every_command_that_asks_an_entry_s_model_refuses_an_unknown_one(runner, library, tmp_path):
     """A manifest edited to a type no model has: report library and validate ended in KeyError (exit 1)."""
     atlas = tmp_path / "a.dds"
