@@ -31,7 +31,7 @@ from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
-from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings
+from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings, shorten
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.atomic import write_file_atomically
@@ -292,7 +292,8 @@ def bake(
     languages = tuple(dict.fromkeys(lang.strip().lower() for lang in include_languages.split(",") if lang.strip()))
     unknown = [lang for lang in languages if lang not in ("wgsl", "glsl", "hlsl")]
     if unknown:
-        raise click.UsageError(f"--include: unknown language {unknown[0]!r}; expected wgsl, glsl or hlsl, comma-separated")
+        raise click.UsageError(f"--include: unknown language {shorten(repr(unknown[0]))}; expected wgsl, glsl or hlsl, "
+                               "comma-separated")  # fmt: skip
     sources = list(paths) + ([shipped_library()] if library else [])
     every_material = read_materials(sources or [Path("materials")], materialx_flatten=mtlx_flatten)
     materials = select_scene_materials(every_material, scene) if scene is not None else every_material

@@ -116,3 +116,12 @@ def test_an_atlas_option_with_cache_only_is_refused_not_ignored(tmp_path, write_
     long_name = {"-o": "--output"}.get(option[0], option[0])
     assert res.exit_code == 2 and f"{long_name} has no effect with --cache-only, which writes no atlas" in res.stderr
     assert not cache.exists()
+
+
+def test_an_unknown_include_language_is_named_on_a_short_line(tmp_path, write_material):
+    """A 100,000-character value was echoed whole, a 100 kB error line."""
+    write_material("alpha", 'type = "lambert"\n')
+    for value, shown in (("wgsl,metal", "'metal'"), ("x" * 100_000, "'xxxxxxxx")):
+        res = _bake(tmp_path / "materials" / "alpha.toml", "-o", tmp_path / "a.dds", "--include", value)
+        assert res.exit_code == 2 and f"--include: unknown language {shown}" in res.stderr, res.stderr
+        assert len(res.stderr) < 300 and not (tmp_path / "a.dds").exists()
