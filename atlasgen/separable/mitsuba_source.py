@@ -9,9 +9,10 @@ import re
 
 import numpy as np
 
-from atlasgen.errors import BackendError, MaterialError, did_you_mean
+from atlasgen.errors import BackendError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, shown
+from atlasgen.io.text import special_file_kind
 
 __all__ = [
     "VARIANT",
@@ -243,6 +244,31 @@ def _check_meaningful(spec: dict, path, field: str) -> None:
                                                       "(its Fresnel reflectance is 0/0)")  # fmt: skip
 
 
+#: Most texels a ``bitmap`` texture may declare, 8192 x 8192: Mitsuba allocates what the file's header says, and
+#: an 875 KB PNG declaring 30000 x 30000 crashed the bake (SIGSEGV: no line at all).
+MAX_BITMAP_TEXELS = 8192 * 8192
+
+
+def _check_bitmap(spec: dict, path, field: str) -> None:
+    """Refuse a ``bitmap`` texture whose header declares more than :data:`MAX_BITMAP_TEXELS`, read from the header
+    alone (a file that does not open is left to Mitsuba, whose complaint names it)."""
+    filename = spec.get("filename")
+    if spec.get("type") != "bitmap" or not isinstance(filename, str) or special_file_kind(filename) is not None:
+        return
+    import OpenImageIO as oiio
+
+    image = oiio.ImageInput.open(filename)
+    if image is None:
+        return
+    try:
+        width, height = image.spec().width, image.spec().height
+    finally:
+        image.close()
+    if width * height > MAX_BITMAP_TEXELS:
+        raise MaterialError(path, f"{field}.filename", f"expected a texture of at most {MAX_BITMAP_TEXELS} texels, "
+                            f"got {width} x {height} in {shorten(filename)}")  # fmt: skip
+
+
 def _check_bsdf_values(spec: dict, path, field: str) -> None:
     """Every number of the (nested) BSDF table finite in float32, every roughness in range,
     every ``type`` a plugin name, every colour and weight meaningful (:func:`_check_meaningful`):
@@ -250,6 +276,7 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
     plugin = spec.get("type")
     if not isinstance(plugin, str) or not plugin:
         raise MaterialError(path, f"{field}.type", f"expected a Mitsuba plugin name (a string), got {shown(plugin)}")
+    _check_bitmap(spec, path, field)
     for key, value in spec.items():
         where = f"{field}.{key}"
         if isinstance(value, dict):

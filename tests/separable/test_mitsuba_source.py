@@ -257,3 +257,22 @@ def test_a_rough_bsdf_has_no_delta_fraction(mitsuba_llvm):
     from atlasgen.separable.mitsuba_source import delta_fractions
 
     assert [r["fraction"] for r in delta_fractions({"type": "roughplastic", "alpha": 0.2})] == [0.0] * 4
+
+
+def test_a_bitmap_texture_larger_than_the_limit_is_refused_from_its_header(tmp_path, monkeypatch):
+    """An 875 KB PNG declaring 30000 x 30000 texels crashed the bake (SIGSEGV, no line): Mitsuba allocates what the
+    header says. The limit is lowered here so that an 8 x 8 image stands for one over it."""
+    import numpy as np
+
+    import atlasgen.separable.mitsuba_source as source
+    from atlasgen.errors import MaterialError
+    from atlasgen.io.images import write_png
+
+    texture = tmp_path / "tex.png"
+    write_png(texture, np.full((8, 8, 3), 128, np.uint8))
+    monkeypatch.setattr(source, "MAX_BITMAP_TEXELS", 63)
+    spec = {"type": "diffuse", "reflectance": {"type": "bitmap", "filename": str(texture)}}
+    with pytest.raises(MaterialError) as info:
+        source.load_mitsuba_bsdf(spec, "materials/bad.toml")
+    assert str(info.value) == ("materials/bad.toml: field 'bsdf.reflectance.filename': expected a texture of at most 63 "
+                               f"texels, got 8 x 8 in {texture}")  # fmt: skip
