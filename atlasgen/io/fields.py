@@ -21,6 +21,7 @@ from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
     "Param",
+    "is_number",
     "check_keys",
     "validate_params",
     "parse_colour",
@@ -40,9 +41,18 @@ FLOAT32_MAX = struct.unpack("<f", b"\xff\xff\x7f\x7f")[0]
 INT32_MAX = 2**31 - 1
 
 
+def is_number(value) -> bool:
+    """True for an int or a float, not a bool (which Python counts as an int).
+
+    >>> is_number(1), is_number(2.5), is_number(True), is_number("1")
+    (True, True, False, False)
+    """
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def fits_float32(value) -> bool:
     """True for an int or float (not a bool) that float32 holds finitely: abs(x) <= FLOAT32_MAX."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if not is_number(value):
         return False
     if isinstance(value, int):
         return abs(value) <= FLOAT32_MAX  # compared exactly: a 400-digit integer is no float

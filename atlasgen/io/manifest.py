@@ -32,7 +32,7 @@ from atlasgen import __version__
 from atlasgen.contract import FORMAT_VERSION, MAPPING, NAME_PATTERN, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
-from atlasgen.io.fields import fits_float32
+from atlasgen.io.fields import fits_float32, is_number
 from atlasgen.io.text import loads_json, read_input_text
 
 __all__ = [
@@ -89,12 +89,8 @@ def _is_int(value) -> TypeGuard[int]:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _is_finite(value) -> bool:
-    return _is_number(value) and math.isfinite(value)
+    return is_number(value) and math.isfinite(value)
 
 
 class _Fields:
@@ -277,7 +273,7 @@ def _lists_of_objects(v) -> bool:
 
 
 def _lists_of_numbers(v) -> bool:
-    return isinstance(v, list) and all(_is_number(x) for x in v)
+    return isinstance(v, list) and all(is_number(x) for x in v)
 
 
 @dataclass(kw_only=True)
@@ -551,7 +547,7 @@ class Fit:
     @classmethod
     def from_json(cls, f: _Fields) -> Fit:
         return cls(source=f.string("from", choices=("physical", "bsdf", "auto")),
-                   gloss=f.take("gloss", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
+                   gloss=f.take("gloss", "a number in [0, 1]", lambda v: is_number(v) and 0 <= v <= 1),
                    details=dict(f.data))  # fmt: skip
 
 
@@ -679,7 +675,7 @@ class MaterialEntry:
             scale=f.array("scale", pairs, pair, slice_count),
             bias=f.array("bias", pairs, pair, slice_count),
             flags=f.mapping("flags", values=lambda v: isinstance(v, bool), expected="an object of true/false flags"),
-            clamped_fraction=f.take("clamped_fraction", "a number in [0, 1]", lambda v: _is_number(v) and 0 <= v <= 1),
+            clamped_fraction=f.take("clamped_fraction", "a number in [0, 1]", lambda v: is_number(v) and 0 <= v <= 1),
             quantization_error=ErrorSummary.from_json(f.child("quantization_error")),
             representation=None if representation is None else _read_representation(representation),
             factors=SeparableFactors.from_json(f, slice_count) if has_factors else None,

@@ -16,7 +16,7 @@ import numpy as np
 
 from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
-from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, shown
+from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, is_number, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import MISSING, parse_toml, path_kind, read_input_text
 from atlasgen.materials.environment import Environment
@@ -191,7 +191,7 @@ class _Reader:
 
     def vec3(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, nonzero=False):
         value = raw.get(key, default)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and key == "scale":
+        if is_number(value) and key == "scale":
             value = [value] * 3
         param = Param(name, default, "vec3", _bound(lo), _bound(hi), nonzero=nonzero)
         return self._field({key: value}, key, name, None, param, "[x, y, z]")

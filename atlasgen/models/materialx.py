@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from atlasgen.errors import MaterialError, did_you_mean
-from atlasgen.io.fields import shown
+from atlasgen.io.fields import is_number, shown
 from atlasgen.separable.materialx_oracle import SURFACE_MODELS, surface_inputs, surface_ranges
 
 __all__ = ["SPEC_KEYS", "check_materialx_spec", "describe_materialx", "materialx_mitsuba_bsdf", "artistic_ior"]
@@ -43,14 +43,14 @@ def shown_values(values) -> str:
     return ", ".join(f"{v:g}" for v in values)
 
 
-def check_input_value(shown: str, field: str, kind: str, value, limits):
+def check_input_value(path, field: str, kind: str, value, limits):
     """``value`` (plain) if it is finite and within the nodedef's ``limits`` (low, high), else refused on one line."""
     if isinstance(value, bool) or isinstance(value, str):
         return value
     components = [float(v) for v in value] if isinstance(value, list | tuple) else [float(value)]
     if not all(math.isfinite(v) for v in components):
         raise MaterialError(
-            shown, field, f"expected {EXPECTED_VALUES.get(kind, 'finite numbers')}, got {shown_values(components)}"
+            path, field, f"expected {EXPECTED_VALUES.get(kind, 'finite numbers')}, got {shown_values(components)}"
         )
     low, high = limits if limits is not None else (None, None)
     for bound, outside in ((low, lambda v, b: v < b), (high, lambda v, b: v > b)):
@@ -63,7 +63,7 @@ def check_input_value(shown: str, field: str, kind: str, value, limits):
                     if low
                     else f"at most {shown_values(high)} (the nodedef's uimax)"
                 )
-            raise MaterialError(shown, field, f"expected {kind} {span}, got {shown_values(components)}")
+            raise MaterialError(path, field, f"expected {kind} {span}, got {shown_values(components)}")
     return value
 
 
@@ -88,23 +88,15 @@ def check_materialx_spec(spec, path) -> dict:
         if not isinstance(spec[key], str) or not spec[key]:
             raise MaterialError(path, f"materialx.{key}", f"expected a non-empty string, got {shown(spec[key])}")
     _check_oracle_inputs(spec["category"], spec["oracle_inputs"], path)
-    if spec.get("alpha") is not None and not (_is_number(spec["alpha"]) and 0 < spec["alpha"] < math.inf):
+    if spec.get("alpha") is not None and not (is_number(spec["alpha"]) and 0 < spec["alpha"] < math.inf):
         raise MaterialError(path, "materialx.alpha", f"expected a finite number > 0, got {shown(spec['alpha'])}")
-    if not all(isinstance(lobe, str) for lobe in _listed(spec.get("sharp_lobes", []))):
+    sharp = spec.get("sharp_lobes", [])
+    if not isinstance(sharp, list) or not all(isinstance(lobe, str) for lobe in sharp):
         raise MaterialError(path, "materialx.sharp_lobes", f"expected a list of input names, got {shown(spec['sharp_lobes'])}")
     if spec.get("error_measure", "relative_rms") not in ERROR_MEASURES:
         raise MaterialError(path, "materialx.error_measure", f"expected one of {', '.join(ERROR_MEASURES)}, "
                                                               f"got {spec['error_measure']!r}")  # fmt: skip
     return {"inputs": dict(spec["oracle_inputs"]), "flattened": {}, "not_in_table": [], "sharp_lobes": [], "alpha": None, **spec}
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _listed(value):
-    """``value`` if it is a list, else a list holding a non-string (refused by the caller's check)."""
-    return value if isinstance(value, list) else [None]
 
 
 #: Components of a MaterialX vector or colour type.
@@ -114,12 +106,12 @@ _COMPONENTS = {"color3": 3, "color4": 4, "vector2": 2, "vector3": 3, "vector4": 
 def _of_kind(kind: str, value) -> bool:
     """Whether ``value`` (as TOML gives it) has the shape of a MaterialX ``kind``."""
     if kind in _COMPONENTS:
-        return isinstance(value, list | tuple) and len(value) == _COMPONENTS[kind] and all(_is_number(v) for v in value)
+        return isinstance(value, list | tuple) and len(value) == _COMPONENTS[kind] and all(is_number(v) for v in value)
     if kind == "boolean":
         return isinstance(value, bool)
     if kind in ("string", "filename"):
         return isinstance(value, str)
-    return _is_number(value) and (kind != "integer" or isinstance(value, int))
+    return is_number(value) and (kind != "integer" or isinstance(value, int))
 
 
 def _check_oracle_inputs(category: str, inputs: dict, path) -> None:

@@ -285,6 +285,23 @@ MAX_MESH_TRIANGLES = 8_000_000
 _OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n#]*?(?<=[ \t/])[+-]?0+(?=[/ \t\r#]|$)")
 
 
+def _obj_text(path: Path, scene_path, field) -> str:
+    """An OBJ file's text, refused where a face names index 0.
+
+    OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it does
+    not depend on: decoded here, what UTF-8 cannot say kept as U+FFFD (comments and names only)."""
+    try:
+        text = path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r} ({exc.strerror})") from None
+    zero = _OBJ_ZERO_INDEX.search(text)
+    if zero is not None:
+        line = text.count("\n", 0, zero.start()) + 1
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} line {line}: a face names index 0; expected "
+                                            "indices from 1 (OBJ counts from 1, or back from -1)")  # fmt: skip
+    return text
+
+
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     """Read an OBJ or PLY file with trimesh; vertex normals from the file, else area-weighted.
 
@@ -300,21 +317,12 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
         raise SceneError(scene_path, field, f"no such mesh file {path.as_posix()!r}; expected an OBJ or PLY file")
     if kind is not None:
         raise SceneError(scene_path, field, f"expected an OBJ or PLY file, got {kind} ({path.as_posix()!r})")
+    text = _obj_text(path, scene_path, field) if path.suffix.lower() == ".obj" else None
     try:
-        if path.suffix.lower() == ".obj":
-            # OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it
-            # does not depend on: decode here, keeping what UTF-8 cannot say as U+FFFD (comments and names only).
-            text = path.read_bytes().decode("utf-8", errors="replace")
-            zero = _OBJ_ZERO_INDEX.search(text)
-            if zero is not None:
-                line = text.count("\n", 0, zero.start()) + 1
-                raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} line {line}: a face names index 0; expected "
-                                                    "indices from 1 (OBJ counts from 1, or back from -1)")  # fmt: skip
+        if text is not None:
             loaded = trimesh.load(io.StringIO(text), file_type="obj", force="mesh", process=False)
         else:
             loaded = trimesh.load(str(path), force="mesh", process=False)
-    except SceneError:
-        raise
     except IndexError:  # trimesh's OBJ reader indexing a vertex past the end
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
                                             "expected face indices within its vertices") from None  # fmt: skip

@@ -11,7 +11,7 @@ import numpy as np
 
 from atlasgen.errors import BackendError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
-from atlasgen.io.fields import fits_float32, shown
+from atlasgen.io.fields import fits_float32, is_number, shown
 from atlasgen.io.text import special_file_kind
 
 __all__ = [
@@ -210,15 +210,15 @@ def _colour_numbers(value) -> list | None:
     """The numbers of a colour property (a number, ``{type = "rgb", value = [r, g, b]}``, or a
     ``{type = "spectrum"}`` of one value or ``[[wavelength, value], ...]``), or None for another form
     (a texture): Mitsuba reads those itself."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
+    if is_number(value):
         return [value]
     if not isinstance(value, dict):
         return None
     inner = value.get("value")
     if value.get("type") == "rgb" and isinstance(inner, list):
-        return [x for x in inner if isinstance(x, (int, float)) and not isinstance(x, bool)]
+        return [x for x in inner if is_number(x)]
     if value.get("type") == "spectrum":
-        if isinstance(inner, (int, float)) and not isinstance(inner, bool):
+        if is_number(inner):
             return [inner]
         if isinstance(inner, list):
             return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], (int, float))]
@@ -235,7 +235,7 @@ def _check_meaningful(spec: dict, path, field: str) -> None:
             raise MaterialError(path, f"{field}.{key}", f"expected {noun} >= 0 in every channel, got {shown(spec[key])}")
     for key in WEIGHT_KEYS:
         value = spec.get(key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and not 0.0 <= value <= 1.0:
+        if is_number(value) and not 0.0 <= value <= 1.0:
             raise MaterialError(path, f"{field}.{key}", f"expected a weight in [0, 1], got {shown(value)}")
     if spec.get("type") in _CONDUCTORS and "eta" in spec and "k" in spec:
         eta, k = _colour_numbers(spec["eta"]), _colour_numbers(spec["k"])
@@ -284,9 +284,9 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
             continue
         numbers = value if isinstance(value, list) else [value]
         for number in numbers:
-            if isinstance(number, (int, float)) and not isinstance(number, bool) and not fits_float32(number):
+            if is_number(number) and not fits_float32(number):
                 raise MaterialError(path, where, f"expected a finite float32 number, got {shown(value)}")
-        if key in ROUGHNESS_RANGES and isinstance(value, (int, float)) and not isinstance(value, bool):
+        if key in ROUGHNESS_RANGES and is_number(value):
             lo, hi = ROUGHNESS_RANGES[key]
             ok = (value > lo or (key == "roughness" and value == lo)) and value <= hi
             if not ok:
