@@ -110,7 +110,8 @@ def test_a_truncated_dds_names_its_length(tmp_path, atlases, length):
 
 
 def _damaged(data: bytes, key: str) -> dict:
-    """Ways a cache entry breaks: truncation, garbage, another file type, wrong contents."""
+    """Ways a cache entry breaks: truncation, garbage, another file type, wrong contents, contents edited
+    in a whole archive."""
     import io
 
     wrong_shape = io.BytesIO()
@@ -120,7 +121,15 @@ def _damaged(data: bytes, key: str) -> dict:
     np.save(npy, np.zeros(3))
     beyond_float32 = io.BytesIO()  # no bake writes these: it refuses a material whose slice scale float32 cannot hold
     np.savez(beyond_float32, values=np.full((1, 32, 64, 4), 1e300), meta=np.array(meta))
+    with np.load(io.BytesIO(data)) as good:
+        values, good_meta = np.array(good["values"]), json.loads(str(good["meta"]))
+    edited = io.BytesIO()  # an extra of another model: the manifest blamed the material file for it
+    np.savez(edited, values=values, meta=np.array(json.dumps({**good_meta, "extra": {"representation": "x"}})))
+    repeated = io.BytesIO()  # five slices for a one-slice lambert were baked into the atlas as they were
+    np.savez(repeated, values=np.repeat(values, 5, axis=0), meta=np.array(json.dumps(good_meta)))
     return {
+        "another extra": edited.getvalue(),
+        "more slices": repeated.getvalue(),
         "truncated": data[: len(data) // 2],
         "empty": b"",
         "garbage": b"PK\x03\x04" + b"\xff" * 100,

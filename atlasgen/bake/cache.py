@@ -64,8 +64,23 @@ def tool_fingerprint() -> str:
     return digest.hexdigest()
 
 
+#: The entry's layout: part of the key, so entries an older layout wrote are stale rather than damaged.
+#: 2: the metadata holds a digest of the entry (:func:`_entry_digest`).
+CACHE_FORMAT = 2
+
+
 def cache_key(material) -> str:
-    return hashlib.sha256(f"{material.content_hash}:{tool_fingerprint()}".encode()).hexdigest()
+    return hashlib.sha256(f"{material.content_hash}:{tool_fingerprint()}:{CACHE_FORMAT}".encode()).hexdigest()
+
+
+def _entry_digest(values: np.ndarray, meta: dict) -> str:
+    """SHA-256 of the slices (float64, C order) and the metadata but its digest: a hand-edited or damaged
+    entry whose zip and arrays still read (an ``extra`` of another model, 5 slices for a 1-slice lambert)
+    would otherwise reach the manifest as the bake's, and be blamed on the material file."""
+    digest = hashlib.sha256(json.dumps({k: v for k, v in meta.items() if k != "digest"}, sort_keys=True).encode())
+    digest.update(repr(values.shape).encode())
+    digest.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return digest.hexdigest()
 
 
 def cache_path(cache_dir, material) -> Path:
@@ -107,12 +122,15 @@ def _check_archive(path: Path) -> None:
 
 def _check_entry(values: np.ndarray, meta) -> None:
     """Raise ValueError unless the stored slices look like a model's: (n, H, W, 4), finite in float32 (a bake
-    refuses a material whose slices are not, so no bake wrote them)."""
+    refuses a material whose slices are not, so no bake wrote them), and the entry is the one the bake stored
+    (its digest)."""
     if not isinstance(meta, dict) or not isinstance(meta.get("extra"), dict) or not isinstance(meta.get("timings"), dict):
         raise ValueError("malformed metadata")
     _check_shape(values.shape, values.dtype)
     if not (np.abs(values) <= FLOAT32_MAX).all():  # NaN compares False
         raise ValueError("slices not finite in float32")
+    if meta.get("digest") != _entry_digest(values, meta):
+        raise ValueError("contents differ from what the bake stored")
 
 
 def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
@@ -153,8 +171,10 @@ def store_cached(cache_dir, material, slices: SliceSet, bake_seconds: float) -> 
     """
     timings = {**slices.timings, "bake_s": bake_seconds}
     meta = {"key": cache_key(material), "name": material.name, "extra": slices.extra, "timings": timings}
+    values = np.asarray(slices.values, dtype=np.float64)
+    meta["digest"] = _entry_digest(values, meta)
     buffer = io.BytesIO()
-    np.savez(buffer, values=np.asarray(slices.values, dtype=np.float64), meta=np.array(json.dumps(meta)))
+    np.savez(buffer, values=values, meta=np.array(json.dumps(meta)))
     path = cache_path(cache_dir, material)
     write_file_atomically(path, buffer.getvalue())
     return path
