@@ -302,6 +302,50 @@ def _obj_text(path: Path, scene_path, field) -> str:
     return text
 
 
+#: Bytes of a PLY property's scalar type (the PLY format's names and their sized aliases).
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+              "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}  # fmt: skip
+#: Bytes a PLY header may take before ``end_header``: a header is a few hundred.
+_PLY_HEADER_BYTES = 64 << 10
+
+
+def _check_ply_counts(path: Path, scene_path, field) -> None:
+    """Refuse a PLY whose header declares more elements than its body can hold, or more faces than a mesh may
+    have: trimesh read an ASCII file declaring 2e9 vertices as one without triangles, and a binary one
+    as "unexpected length". A header it cannot parse is left to trimesh's own message."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(_PLY_HEADER_BYTES)
+        size = path.stat().st_size
+    except OSError:
+        return
+    end = head.find(b"end_header")
+    lines = head[:end].decode("ascii", errors="replace").split("\n") if end >= 0 else []
+    words = [line.split() for line in lines]
+    fmt = next((w[1] for w in words if len(w) >= 2 and w[0] == "format"), None)
+    if not words or words[0] != ["ply"] or fmt is None:
+        return
+    text = fmt == "ascii"
+    elements = []  # (name, count, least bytes of one element)
+    for w in words:
+        if len(w) == 3 and w[0] == "element" and w[2].isdigit():
+            elements.append([w[1], int(w[2]), 0])
+        elif elements and len(w) >= 3 and w[0] == "property":
+            # A list takes at least its count (an empty list); an ASCII value at least a digit and a separator.
+            elements[-1][2] += 2 if text else _PLY_SIZES.get(w[2] if w[1] == "list" else w[1], 1)
+    faces = sum(count for name, count, _ in elements if name == "face")
+    if faces > MAX_MESH_TRIANGLES:
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} declares {faces} faces; expected at most "
+                                            f"{MAX_MESH_TRIANGLES} triangles")  # fmt: skip
+    need = sum(count * least for _, count, least in elements) - text  # the last value needs no separator
+    have = size - head.index(b"\n", end) - 1 if b"\n" in head[end:] else 0
+    if need > have:
+        declared = ", ".join(f"element {name} {count}" for name, count, _ in elements)
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: its header declares {declared}, at least "
+                                            f"{need} bytes, and {have} follow it; expected the counts of the "
+                                            "elements the file holds")  # fmt: skip
+
+
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     """Read an OBJ or PLY file with trimesh; vertex normals from the file, else area-weighted.
 
@@ -318,6 +362,8 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     if kind is not None:
         raise SceneError(scene_path, field, f"expected an OBJ or PLY file, got {kind} ({path.as_posix()!r})")
     text = _obj_text(path, scene_path, field) if path.suffix.lower() == ".obj" else None
+    if text is None:
+        _check_ply_counts(path, scene_path, field)
     try:
         if text is not None:
             loaded = trimesh.load(io.StringIO(text), file_type="obj", force="mesh", process=False)

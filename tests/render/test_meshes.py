@@ -264,3 +264,36 @@ def test_a_mesh_over_the_triangle_limit_is_refused(tmp_path, monkeypatch):
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
     with pytest.raises(SceneError, match=r"has 2 triangles; expected at most 1$"):
         read_mesh(path, "s.toml", "objects[0].file")
+
+
+def _ply(vertices: int, faces: int, fmt: str) -> bytes:
+    """A PLY of one triangle whose header declares ``vertices`` and ``faces`` (3 and 1 are the truth)."""
+    import struct
+
+    header = (f"ply\nformat {fmt} 1.0\nelement vertex {vertices}\nproperty float x\nproperty float y\n"
+              f"property float z\nelement face {faces}\nproperty list uchar int vertex_indices\nend_header\n")  # fmt: skip
+    if fmt == "ascii":
+        return (header + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2").encode()  # no final line break: the last value needs none
+    return header.encode() + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<B3i", 3, 0, 1, 2)
+
+
+@pytest.mark.parametrize(("fmt", "vertices", "faces", "expected"), [
+    # trimesh read this one as a mesh without triangles
+    ("ascii", 2_000_000_000, 1, "its header declares element vertex 2000000000, element face 1, at least 12000000001 "
+                                "bytes, and 25 follow it; expected the counts of the elements the file holds"),
+    ("ascii", 30, 1, "element vertex 30, element face 1, at least 181 bytes, and 25 follow it"),
+    # and these as "PLY is unexpected length!"
+    ("binary_little_endian", 2_000_000_000, 1, "element vertex 2000000000, element face 1, at least 24000000001 bytes"),
+    ("binary_little_endian", 5, 1, "element vertex 5, element face 1, at least 61 bytes, and 49 follow it"),
+    ("binary_big_endian", 3, 2_000_000_000, "declares 2000000000 faces; expected at most 8000000 triangles"),
+])  # fmt: skip
+def test_a_ply_declaring_more_than_it_holds_is_refused_on_one_line(tmp_path, fmt, vertices, faces, expected):
+    path = tmp_path / "m.ply"
+    path.write_bytes(_ply(vertices, faces, fmt))
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    message = str(info.value)
+    assert message.startswith(f"s.toml: field 'objects[0].file': mesh {path.as_posix()!r}") and expected in message, message
+    if fmt != "binary_big_endian":  # the triangle is written little-endian
+        path.write_bytes(_ply(3, 1, fmt))
+        assert read_mesh(path).indices.reshape(-1).tolist() == [0, 1, 2]  # the truthful header reads
