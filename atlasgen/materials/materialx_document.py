@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from pathlib import Path
 from xml.etree import ElementTree
 
@@ -102,6 +103,14 @@ _ANISOTROPY = {
 ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
 #: An include element's tag as ElementTree names it (MaterialX reads ``xi:include`` in this namespace).
 XINCLUDE = "{http://www.w3.org/2001/XInclude}include"
+#: MaterialX's reader takes an element for an include by its literal tag, ``xi:include``, whatever the
+#: prefix is bound to; ElementTree by its namespace. Both must agree (see :func:`_check_include_tags`).
+_INCLUDE_TAG = re.compile(r"<([A-Za-z_][\w.-]*:)?include(?=[\s/>])")
+_COMMENT = re.compile(r"<!--.*?-->", re.S)
+#: Bytes a document or a file it includes may have: a material library is kilobytes; a 60 MB one took
+#: 340 MB to read, and a 6 GB one was read whole into memory.
+MAX_DOCUMENT_BYTES = 16 << 20
+_DOCUMENT_LIMIT = (MAX_DOCUMENT_BYTES, "a MaterialX document")
 
 
 def is_materialx_file(path) -> bool:
@@ -162,19 +171,19 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
 
     path = Path(path)
     shown = path.as_posix()
-    data = read_input_bytes(path)
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise MaterialError(shown, None, "expected UTF-8 MaterialX XML") from None
+    data = read_input_bytes(path, limit=_DOCUMENT_LIMIT)
+    text = _decode(shown, data)
     # What the document includes is read here first: MaterialX's reader would wait forever on a named
     # pipe, and it drops an included element whose name is taken without a word.
     documents = [(shown, _parse_xml(shown, data))]
+    _check_include_tags(shown, text, documents[0][1])
     included = _included_files(path, documents[0][1])
     documents += [(p.as_posix(), tree) for p, _, tree in included]
     doc = mx.createDocument()
     try:
-        mx.readFromXmlString(doc, text, mx.FileSearchPath(str(path.parent)))
+        mx.readFromXmlString(doc, text, mx.FileSearchPath(str(path.parent)), _include_options(mx, path, included))
+    except MaterialError:
+        raise
     except Exception as exc:  # noqa: BLE001 - MaterialX raises its own exception types
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
@@ -243,36 +252,87 @@ def _parse_xml(shown: str, data: bytes):
         raise MaterialError(shown, None, f"malformed MaterialX document: XML parse error ({exc})") from None
 
 
+def _decode(shown: str, data: bytes) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise MaterialError(shown, None, "expected UTF-8 MaterialX XML") from None
+
+
+def _check_include_tags(shown: str, text: str, root) -> None:
+    """Refuse an include MaterialX and ElementTree would read differently: MaterialX takes ``<xi:include>``
+    for one by its literal tag, so ``xi`` bound to another namespace included a file this reader never saw
+    (its materials baked, its bytes in no cache key), and ``<foo:include>`` bound to XInclude the reverse."""
+    tags = _INCLUDE_TAG.findall(_COMMENT.sub("", text))
+    literal = sum(prefix == "xi:" for prefix in tags)
+    namespaced = [e for e in root.iter() if isinstance(e.tag, str) and e.tag.rpartition("}")[2] == "include"]
+    if any(prefix not in ("xi:", "") for prefix in tags) or literal != len(namespaced) or any(
+            e.tag != XINCLUDE for e in namespaced):  # fmt: skip
+        raise MaterialError(shown, "xi:include", "expected each include written <xi:include href=...> with "
+                            f"xmlns:xi=\"{XINCLUDE[1:].partition('}')[0]}\", as MaterialX reads them")  # fmt: skip
+
+
+def _find_include(href: str, folder: Path, document: Path) -> Path | None:
+    """Where an ``href`` is looked up: beside the file that includes it, then beside the document; never the
+    working folder or ``MATERIALX_SEARCH_PATH``, where MaterialX's own reader would look next."""
+    return next((p for p in (folder / href, document.parent / href) if os.path.lexists(p)), None) if href else None
+
+
 def _included_files(path: Path, root) -> list:
     """``(path, bytes, tree)`` of every file the document at ``path`` includes (``xi:include``, and what those
-    include), each once, in document order. An ``href`` is looked up as MaterialX does: beside the file that
-    includes it, then beside the document. One found nowhere, or a cycle, is left to MaterialX to refuse.
+    include), each once, in document order (:func:`_find_include`). A cycle is left to MaterialX to refuse.
 
     Raises
     ------
     InputError
-        An included path is a named pipe, a device, a folder or unreadable (:func:`read_input_bytes`).
+        An included path is a named pipe, a device, a folder, unreadable or over the size limit
+        (:func:`read_input_bytes`).
     MaterialError
-        An included file is not XML.
+        An ``href`` is found nowhere, or an included file is not UTF-8 XML.
     """
     out: list = []
     seen = {os.path.realpath(path)}
 
-    def visit(folder: Path, tree) -> None:
+    def visit(shown: str, folder: Path, tree) -> None:
         for element in tree.iter(XINCLUDE):
-            href = element.get("href")
-            found = next((p for p in (folder / href, path.parent / href) if os.path.lexists(p)), None) if href else None
-            real = None if found is None else os.path.realpath(found)
-            if real is None or real in seen:
+            href = element.get("href") or ""
+            found = _find_include(href, folder, path)
+            if found is None:
+                raise MaterialError(shown, "xi:include", f"expected a file beside it or beside the document, found "
+                                    f"none for href {href!r}")  # fmt: skip
+            real = os.path.realpath(found)
+            if real in seen:
                 continue
             seen.add(real)
-            data = read_input_bytes(found)
+            data = read_input_bytes(found, limit=_DOCUMENT_LIMIT)
+            text = _decode(found.as_posix(), data)
             included = _parse_xml(found.as_posix(), data)
+            _check_include_tags(found.as_posix(), text, included)
             out.append((found, data, included))
-            visit(found.parent, included)
+            visit(found.as_posix(), found.parent, included)
 
-    visit(path.parent, root)
+    visit(path.as_posix(), path.parent, root)
     return out
+
+
+def _include_options(mx, path: Path, included: list):
+    """MaterialX read options whose includes are the bytes :func:`_included_files` read and hashed, found as
+    it found them: MaterialX's own reader opens each file again (a named pipe hangs it) and looks further
+    (the working folder), so a document could bake a material no check or cache key saw."""
+    by_path = {os.path.realpath(found): data for found, data, _ in included}
+
+    def read_include(sub, filename, search_path, options) -> None:
+        href = filename.asString()
+        found = _find_include(href, Path(search_path.asString()), path)
+        data = by_path.get(os.path.realpath(found)) if found is not None else None
+        if data is None:  # every file but the document was read above: a cycle back to it
+            raise MaterialError(path.as_posix(), "xi:include", f"expected no include cycle, got href {href!r} leading "
+                                "back to the document")  # fmt: skip
+        mx.readFromXmlString(sub, data.decode("utf-8"), mx.FileSearchPath(str(found.parent)), options)
+
+    options = mx.XmlReadOptions()
+    options.readXIncludeFunction = read_include
+    return options
 
 
 def _refuse_duplicate_names(documents: list) -> None:

@@ -204,6 +204,70 @@ def test_a_name_taken_by_an_included_file_is_refused_not_dropped(tmp_path):
                                f"includes, found 'SR_M' in both {path.as_posix()} and {red.as_posix()}")  # fmt: skip
 
 
+def test_an_include_found_only_where_materialx_would_look_further_is_refused(tmp_path, monkeypatch):
+    """MaterialX's own reader looks for an href in the working folder too: run from there, a document baked
+    a material of a file no check, cache key or depfile saw, and a named pipe there hung the bake."""
+    import os
+
+    work = tmp_path / "work"
+    work.mkdir()
+    _document(work, _material("M", "standard_surface", '<input name="base_color" type="color3" value="0, 1, 0" />'),
+              "lib.mtlx")  # fmt: skip
+    os.mkfifo(work / "pipe.mtlx")
+    (tmp_path / "docs").mkdir()
+    monkeypatch.chdir(work)
+    for href in ("lib.mtlx", "pipe.mtlx"):
+        path = _including(tmp_path / "docs", href, _material("N", "standard_surface", ""))
+        with pytest.raises(MaterialError) as info:
+            read_material_file(path)
+        assert str(info.value) == (f"{path.as_posix()}: field 'xi:include': expected a file beside it or beside the "
+                                   f"document, found none for href {href!r}")  # fmt: skip
+
+
+@pytest.mark.parametrize("head", [
+    # MaterialX reads the literal tag xi:include whatever xi is bound to, ElementTree by the namespace.
+    '<materialx version="1.39" xmlns:xi="urn:not-xinclude">\n<xi:include href="red.mtlx" />',
+    '<materialx version="1.39" xmlns:inc="http://www.w3.org/2001/XInclude">\n<inc:include href="red.mtlx" />',
+    '<materialx version="1.39">\n<include xmlns="http://www.w3.org/2001/XInclude" href="red.mtlx" />',
+])  # fmt: skip
+def test_an_include_materialx_and_the_checks_would_read_differently_is_refused(tmp_path, head):
+    _document(tmp_path, _material("R", "standard_surface", ""), "red.mtlx")
+    path = tmp_path / "main.mtlx"
+    path.write_text(f'<?xml version="1.0"?>\n{head}\n{_material("M", "standard_surface", "")}\n</materialx>\n')
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'xi:include': expected each include written <xi:include "
+                               'href=...> with xmlns:xi="http://www.w3.org/2001/XInclude", as MaterialX reads them')  # fmt: skip
+    commented = '<!-- <xi:include href="red.mtlx" /> -->'  # an include commented out is no include
+    path.write_text(f'<?xml version="1.0"?>\n<materialx version="1.39">\n{commented}\n'
+                    f'{_material("M", "standard_surface", "")}\n</materialx>\n')  # fmt: skip
+    assert [m.name for m in read_material_file(path)] == ["M"]
+
+
+def test_a_document_or_include_over_the_size_limit_is_refused_unread(tmp_path, monkeypatch):
+    """A 6 GB document was read whole into memory (MemoryError, exit 1); the limit is lowered here to stand for it."""
+    import atlasgen.materials.materialx_document as reader
+
+    red = _document(tmp_path, _material("R", "standard_surface", "<!-- " + "x" * 1000 + " -->"), "red.mtlx")
+    path = _including(tmp_path, "red.mtlx", _material("M", "standard_surface", ""))
+    monkeypatch.setattr(reader, "_DOCUMENT_LIMIT", (path.stat().st_size, "a MaterialX document"))
+    size, limit = red.stat().st_size, path.stat().st_size
+    with pytest.raises(InputError) as info:
+        read_material_file(path)
+    assert str(info.value) == f"{red.as_posix()}: {size} bytes; expected a MaterialX document, at most {limit} bytes"
+    monkeypatch.setattr(reader, "_DOCUMENT_LIMIT", (10, "a MaterialX document"))
+    with pytest.raises(InputError, match=r"main.mtlx: \d+ bytes; expected a MaterialX document, at most 10 bytes$"):
+        read_material_file(path)
+
+
+def test_an_include_cycle_back_to_the_document_is_refused(tmp_path):
+    path = _including(tmp_path, "main.mtlx", _material("M", "standard_surface", ""))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'xi:include': expected no include cycle, got href "
+                               "'main.mtlx' leading back to the document")  # fmt: skip
+
+
 @pytest.mark.parametrize("kind", ["a named pipe", "a directory"])
 def test_an_included_pipe_or_folder_is_refused_not_waited_on(tmp_path, kind):
     import os
