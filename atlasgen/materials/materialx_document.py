@@ -13,9 +13,11 @@ one LUT slice and K separable terms whose error against the oracle meets it; doc
   it, unless ``flatten`` says what to use instead: ``"default"`` (the nodedef's default) or a
   ``{input: value}`` table (others still refused). What was flattened is recorded in
   ``materialx.flattened``.
-- A constant input must be of its nodedef's type, parse, be finite and lie within the nodedef's
-  ``uimin``..``uimax``; elements of one parent must have unique names (MaterialX's reader keeps the
-  first of two and drops the other silently). Each is refused with one line naming it otherwise.
+- A constant input must be of its nodedef's type, parse whole, be finite, lie within the nodedef's
+  ``uimin``..``uimax`` and need no colour-space or unit conversion; the shader node's nodedef must be
+  the oracle's; elements of one parent must have unique names (MaterialX's reader keeps the
+  first of two and drops the other silently), none empty, and no material may hide in a node
+  graph; the document must pass MaterialX's own validation. Each is refused with one line otherwise.
 - A lobe no slice can hold is refused, naming its input: an anisotropic one (the slice is indexed
   by N.L and N.V, not the azimuth) and a mirror (roughness 0, a delta lobe), each where its weight
   is above 0, as a separable material refuses a Mitsuba BSDF's anisotropy and delta lobes. A lobe
@@ -37,7 +39,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN
-from atlasgen.errors import MaterialError
+from atlasgen.errors import MaterialError, shorten
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import read_input_bytes
 from atlasgen.models import get_model
@@ -47,6 +49,7 @@ from atlasgen.separable.materialx_oracle import (
     load_materialx_libraries,
     surface_defaults,
     surface_inputs,
+    surface_nodedef,
     surface_ranges,
 )
 
@@ -220,6 +223,13 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
                     "content_hash": _with_name(digest, name), "includes": tuple(p.as_posix() for p, _, _ in included),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
+    # Last, so that the checks above name their own field: what MaterialX itself finds wrong (a connection
+    # to an output the node does not have, say), which its generator would otherwise shade regardless.
+    # An input with no value is read as the nodedef's default, as MaterialX's generator shades it.
+    _, message = doc.validate()
+    faults = [line.strip() for line in message.splitlines() if line.strip() and not line.strip().startswith(_NO_VALUE)]
+    if faults:
+        raise MaterialError(shown, None, f"expected a document MaterialX validates, got: {shorten(faults[0])}")
     return out
 
 
@@ -347,6 +357,12 @@ def _refuse_duplicate_names(documents: list) -> None:
                 name = child.get("name")
                 if name is None:
                     continue
+                if not name:  # MaterialX names it itself (surfacematerial1), a name the document never gave
+                    raise MaterialError(shown, f"<{child.tag}>", "expected a name, got an empty one")
+                if child.tag == "surfacematerial" and parent is not root:
+                    # MaterialX lists only a document's top-level materials: this one would vanish from the atlas.
+                    raise MaterialError(shown, name, f"expected a surfacematerial at the top of the document, found "
+                                        f"one inside <{parent.tag} name={parent.get('name')!r}>")  # fmt: skip
                 if name in seen:
                     raise MaterialError(shown, name, f"expected unique names among the children of <{parent.tag}>, "
                                         f"found <{seen[name]}> and <{child.tag}> both named {name!r}")  # fmt: skip
@@ -356,6 +372,51 @@ def _refuse_duplicate_names(documents: list) -> None:
             if name is not None and top.setdefault(name, shown) != shown:
                 raise MaterialError(documents[0][0], name, f"expected unique names in a document and the files it "
                                     f"includes, found {name!r} in both {top[name]} and {shown}")  # fmt: skip
+
+
+#: A component of a MaterialX value string: what C's strtof reads whole (nan and inf are refused later, as
+#: not finite). MaterialX's own parser reads a leading number and drops the rest: "1,2,3" for a float
+#: baked 1, "0x1" baked 0, "0.5abc" baked 0.5.
+_NUMBER = re.compile(r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|(?i:nan|inf(?:inity)?))\s*")
+_INTEGER = re.compile(r"\s*[+-]?\d+\s*")
+_COMPONENTS = {"float": 1, "vector2": 2, "color3": 3, "vector3": 3, "color4": 4, "vector4": 4}
+#: What ``Document.validate`` says of an input given neither a value nor a connection.
+_NO_VALUE = "Node input binds no value or connection"
+#: The colour space the oracle's values are in: MaterialX's default working space, linear Rec. 709.
+_LINEAR = "lin_rec709"
+
+
+def _value_parses(kind: str, text: str) -> bool:
+    """Whether ``text`` is a whole value of ``kind``, every character read (see :data:`_NUMBER`).
+
+    >>> _value_parses("float", "0.5"), _value_parses("float", "1,2,3"), _value_parses("color3", "1, 0.5, .2")
+    (True, False, True)
+    >>> _value_parses("integer", "1.5"), _value_parses("color3", "0.5, 0.5, 0.5,"), _value_parses("boolean", "true")
+    (False, False, True)
+    """
+    if kind == "integer":
+        return _INTEGER.fullmatch(text) is not None
+    if kind == "boolean":
+        return text.strip() in ("true", "false")
+    count = _COMPONENTS.get(kind)
+    if count is None:
+        return True
+    parts = text.split(",")
+    return len(parts) == count and all(_NUMBER.fullmatch(part) for part in parts)
+
+
+def _check_units(shown: str, field: str, inp, declared) -> None:
+    """Refuse a colour space or unit the value would have to be converted from: the oracle is handed the
+    value as written, where MaterialX's generator converts it (an sRGB 0.5 is 0.214 linear; a thickness in
+    nanometres is 1000 times one in the nodedef's micrometres)."""
+    space = inp.getActiveColorSpace() if inp.getType().startswith("color") else ""
+    if space and space != _LINEAR:
+        raise MaterialError(shown, field, f"expected a linear colour (colorspace {_LINEAR}), got colorspace {space!r}; "
+                            "atlasgen bakes values as written, with no colour transform")  # fmt: skip
+    unit, expected = inp.getUnit(), declared.getUnit() if declared is not None else ""
+    if unit and unit != expected:
+        raise MaterialError(shown, field, f"expected {'unit ' + repr(expected) if expected else 'no unit'} (the nodedef's), "
+                            f"got unit {unit!r}; atlasgen bakes values as written, with no unit conversion")  # fmt: skip
 
 
 #: Why an input its nodedef declares without a default is named rather than used.
@@ -369,6 +430,9 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
     given_kind = inp.getType()
     if given_kind != kind:
         raise MaterialError(shown, field, f"expected type {kind} (the nodedef's), got {given_kind!r}")
+    text = inp.getValueString()
+    if text.strip() and not _value_parses(kind, text):
+        raise MaterialError(shown, field, f"expected {EXPECTED_VALUES.get(kind, 'a ' + kind + ' value')}, got {text!r}")
     value = inp.getValue()
     if value is None:
         text = inp.getValueString()
@@ -422,11 +486,28 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
     """The ``materialx`` table of one shader node: its constant inputs, what was flattened, what the table cannot hold."""
     defaults = surface_defaults(category)
     ranges = surface_ranges(category)
+    declared = surface_inputs(category)
+    # Inputs first: MaterialX finds no nodedef for a node with an unknown input or one of another type.
+    for inp in shader.getInputs():
+        key = inp.getName()
+        if key not in declared:
+            raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of "
+                                f"{', '.join(declared)}")  # fmt: skip
+        if inp.getType() != declared[key]:
+            raise MaterialError(shown, f"{material}.{key}", f"expected type {declared[key]} (the nodedef's), got "
+                                f"{inp.getType()!r}")  # fmt: skip
+    nodedef, expected = shader.getNodeDef(), surface_nodedef(category)
+    if nodedef is None or nodedef.getName() != expected:
+        # A nodedef, version or type attribute picks another nodedef (an older version's defaults, say), or none.
+        got = repr(nodedef.getName()) if nodedef is not None else "none MaterialX can find"
+        raise MaterialError(shown, f"{material}.surfaceshader", f"expected the nodedef the oracle shades, {expected}, "
+                            f"got {got} (from the node's nodedef, version or type)")  # fmt: skip
     inputs, flattened, no_default = {}, {}, []
     for inp in shader.getInputs():
         key = inp.getName()
         if key not in defaults and inp.getValue() is None and _driver(inp) is None:
             continue  # a geometric input left at its default (normal, tangent)
+        _check_units(shown, f"{material}.{key}", inp, nodedef.getActiveInput(key))
         driver = _driver(inp)
         if driver is not None:
             given = flatten.get(key) if isinstance(flatten, dict) else None
@@ -443,10 +524,6 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
                 inputs[key] = value
             continue
         if key not in defaults:
-            declared = surface_inputs(category)
-            if key not in declared:
-                raise MaterialError(shown, f"{material}.{key}", f"unknown input of {category}; expected one of "
-                                    f"{', '.join(declared)}")  # fmt: skip
             # Declared without a default (a geometric normal or tangent, glTF's attenuation distance): the
             # oracle shades the geometry's own frame and no volume, so a value given is named, not used.
             value = _constant(shown, f"{material}.{key}", inp, declared[key], ranges.get(key))

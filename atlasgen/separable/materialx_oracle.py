@@ -50,6 +50,7 @@ __all__ = [
     "surface_defaults",
     "surface_ranges",
     "surface_inputs",
+    "surface_nodedef",
     "load_materialx_libraries",
     "varyings_of",
     "vertex_data_for",
@@ -120,6 +121,19 @@ def _active_inputs(category: str) -> tuple:
         raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
     return tuple((inp.getName(), inp.getType(), _value(inp.getValue()) if inp.getValue() is not None else None,
                   inp.getAttribute("uimin"), inp.getAttribute("uimax")) for inp in nodedef.getActiveInputs())  # fmt: skip
+
+
+@cache
+def surface_nodedef(category: str) -> str:
+    """The name of the nodedef MaterialX picks for a surface shader node given no ``nodedef``, ``version``
+    or ``type`` of its own: the one the oracle shades (``ND_standard_surface_surfaceshader``, say)."""
+    mx, _, _ = _materialx()
+    doc = mx.createDocument()
+    doc.importLibrary(load_materialx_libraries())
+    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
+    if nodedef is None:
+        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
+    return nodedef.getName()
 
 
 @cache

@@ -125,6 +125,20 @@ def _open(inputs: str) -> str:
          "expected float at least 0 (the nodedef's uimin), got -1"),
         ('<input name="base_color" type="float" value="0.5" />', "M.base_color",
          "expected type color3 (the nodedef's), got 'float'"),
+        # MaterialX's parser reads a leading number and drops the rest: these baked 1, 0, 0.5 and a colour.
+        ('<input name="base_weight" type="float" value="1,2,3" />', "M.base_weight", "expected a finite number, got '1,2,3'"),
+        ('<input name="base_weight" type="float" value="0x1" />', "M.base_weight", "expected a finite number, got '0x1'"),
+        ('<input name="base_weight" type="float" value="0.5abc" />', "M.base_weight",
+         "expected a finite number, got '0.5abc'"),
+        ('<input name="base_color" type="color3" value="0.5, 0.5, 0.5," />', "M.base_color",
+         "expected 3 finite numbers, got '0.5, 0.5, 0.5,'"),
+        # The oracle is handed values as written, where MaterialX's generator converts them.
+        ('<input name="base_color" type="color3" value="0.5, 0.5, 0.5" colorspace="srgb_texture" />', "M.base_color",
+         "expected a linear colour (colorspace lin_rec709), got colorspace 'srgb_texture'; atlasgen bakes values as "
+         "written, with no colour transform"),
+        ('<input name="thin_film_thickness" type="float" value="450" unit="nanometer" unittype="distance" />',
+         "M.thin_film_thickness", "expected no unit (the nodedef's), got unit 'nanometer'; atlasgen bakes values as "
+         "written, with no unit conversion"),
     ],
 )  # fmt: skip
 def test_a_constant_input_must_parse_be_finite_and_lie_within_the_nodedef_s_limits(tmp_path, inputs, field, expected):
@@ -132,6 +146,57 @@ def test_a_constant_input_must_parse_be_finite_and_lie_within_the_nodedef_s_limi
     with pytest.raises(MaterialError) as info:
         read_material_file(path)
     assert str(info.value) == f"{path.as_posix()}: field '{field}': {expected}"
+
+
+def test_an_integer_input_must_be_a_whole_integer_and_linear_colours_read(tmp_path):
+    path = _document(tmp_path, _material("U", "UsdPreviewSurface", '<input name="useSpecularWorkflow" type="integer" '
+                                         'value="1.5" />'))  # fmt: skip
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == f"{path.as_posix()}: field 'U.useSpecularWorkflow': expected an integer, got '1.5'"
+    linear = _document(tmp_path, _open('<input name="base_color" type="color3" value="0.5, 0.25, 0.5" '
+                                       'colorspace="lin_rec709" />'), "linear.mtlx")  # fmt: skip
+    assert read_material_file(linear)[0].params["materialx"]["inputs"] == {"base_color": [0.5, 0.25, 0.5]}
+
+
+@pytest.mark.parametrize(("root", "shader", "field", "expected"), [
+    # MaterialX's generator picks the nodedef from these; the oracle shades the current one.
+    ('version="1.39"', 'nodedef="ND_open_pbr_surface_surfaceshader"', "M.surfaceshader",
+     "expected the nodedef the oracle shades, ND_standard_surface_surfaceshader, got 'ND_open_pbr_surface_surfaceshader' "
+     "(from the node's nodedef, version or type)"),
+    ('version="1.39"', 'version="1.0.0"', "M.surfaceshader", "got 'ND_standard_surface_surfaceshader_100'"),
+    ('version="1.39"', 'version="9.9"', "M.surfaceshader", "got none MaterialX can find"),
+    ('version="1.39" colorspace="srgb_texture"', "", "M.base_color", "got colorspace 'srgb_texture'"),
+])  # fmt: skip
+def test_a_shader_the_oracle_would_not_shade_as_written_is_refused(tmp_path, root, shader, field, expected):
+    path = tmp_path / "m.mtlx"
+    body = _material("M", "standard_surface", '<input name="base_color" type="color3" value="0.5, 0.5, 0.5" />')
+    body = body.replace('type="surfaceshader">', f'type="surfaceshader" {shader}>', 1)
+    path.write_text(f'<?xml version="1.0"?>\n<materialx {root}>\n{body}\n</materialx>\n')
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{path.as_posix()}: field '{field}': ") and expected in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize(("body", "expected"), [
+    # MaterialX invented the name surfacematerial1, and dropped a material inside a node graph from its list.
+    (_material("M", "standard_surface", "").replace('name="M"', 'name=""'),
+     "field '<surfacematerial>': expected a name, got an empty one"),
+    ('<nodegraph name="NG">' + _material("M", "standard_surface", "") + "</nodegraph>\n" + _material("N", "standard_surface", ""),
+     "field 'M': expected a surfacematerial at the top of the document, found one inside <nodegraph name='NG'>"),
+    # What MaterialX's validation finds and no check above names: a connection to an output the node lacks.
+    (_material("M", "standard_surface", "").replace('nodename="SR_M"', 'nodename="SR_M" output="nope"'),
+     "expected a document MaterialX validates, got: No output found for port connection"),
+    # --flatten default took an unknown driven input for one it flattened.
+    (_material("M", "standard_surface", '<input name="bogus" type="float" nodename="T" />')
+     + '\n<constant name="T" type="float"><input name="value" type="float" value="1" /></constant>',
+     "field 'M.bogus': unknown input of standard_surface"),
+])  # fmt: skip
+def test_what_materialx_would_drop_rename_or_find_invalid_is_refused(tmp_path, body, expected):
+    path = _document(tmp_path, body)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path, "default")
+    assert str(info.value).startswith(f"{path.as_posix()}: {expected}"), str(info.value)
 
 
 def test_limits_are_the_nodedef_s_own_and_inclusive(tmp_path):
@@ -405,3 +470,12 @@ def test_an_input_declared_without_a_default_is_named_not_used(tmp_path):
         read_material_file(_document(tmp_path, body.replace("100000", "-1")))
     with pytest.raises(MaterialError, match="field 'G.normal_map': unknown input of gltf_pbr"):
         read_material_file(_document(tmp_path, body.replace('"normal"', '"normal_map"')))
+
+
+def test_the_module_s_doctests_pass():
+    import doctest
+
+    import atlasgen.materials.materialx_document as reader
+
+    result = doctest.testmod(reader)
+    assert result.attempted > 0 and result.failed == 0
