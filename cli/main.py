@@ -35,7 +35,7 @@ from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, Atl
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.atomic import write_file_atomically
-from atlasgen.io.depfile import format_depfile
+from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
 
@@ -302,7 +302,7 @@ def bake(
     jobs = available_cpus() if jobs is None else jobs
     if cache_only:
         # Formatted first, so that a path make cannot read is refused before anything is baked.
-        dependencies = format_depfile(depfile_target, _material_inputs(materials)).encode() if depfile else None
+        dependencies = encode_depfile(depfile_target, _material_inputs(materials)) if depfile else None
         filled = fill_cache(cache_dir, materials, jobs)
         if dependencies is not None:
             write_file_atomically(depfile, dependencies)
@@ -320,7 +320,7 @@ def bake(
         inputs = _material_inputs(materials) + ([scene] if scene is not None else [])
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
-        extra_files[depfile] = format_depfile(depfile_target or output, inputs).encode()
+        extra_files[depfile] = encode_depfile(depfile_target or output, inputs)
     previous = read_previous_slots(ids_from, missing_ok=False) if ids_from is not None else {}
     previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
     with MaterialProgress("baked", verbosity) as report:

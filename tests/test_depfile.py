@@ -23,7 +23,9 @@ def test_every_prerequisite_gets_an_empty_rule(prerequisites):
 
 @pytest.mark.skipif(shutil.which("make") is None, reason="GNU make is not installed")
 def test_make_rebuilds_on_a_newer_prerequisite_and_survives_a_deleted_one(tmp_path):
-    inputs = [tmp_path / "in one.toml", tmp_path / "in#2.toml", tmp_path / "cost$.npz", tmp_path / "c:d.mtlx"]
+    # The last name is no UTF-8 (an output folder named so wrote no depfile: an internal error).
+    inputs = [tmp_path / "in one.toml", tmp_path / "in#2.toml", tmp_path / "cost$.npz", tmp_path / "c:d.mtlx",
+              tmp_path / os.fsdecode(b"x\xff.npz")]  # fmt: skip
     for i, path in enumerate(inputs):
         path.write_text(str(i))
         os.utime(path, (1_000, 1_000))
@@ -46,6 +48,9 @@ def test_make_rebuilds_on_a_newer_prerequisite_and_survives_a_deleted_one(tmp_pa
     os.utime(inputs[3], (3_000, 3_000))
     assert make().stdout == "rebuilt\n"  # and the escaped ':' one
     os.utime(inputs[3], (1_000, 1_000))
+    os.utime(inputs[4], (3_000, 3_000))
+    assert make().stdout == "rebuilt\n"  # and the one whose name is no UTF-8
+    os.utime(inputs[4], (1_000, 1_000))
     inputs[0].unlink()
     result = make()
     assert result.returncode == 0 and result.stdout == "rebuilt\n", result.stderr

@@ -7,7 +7,7 @@ from pathlib import Path
 from atlasgen.errors import InputError
 from atlasgen.io.atomic import write_file_atomically
 
-__all__ = ["format_depfile", "write_depfile"]
+__all__ = ["encode_depfile", "format_depfile", "write_depfile"]
 
 
 def _escape(path) -> str:
@@ -50,7 +50,18 @@ def format_depfile(target, prerequisites) -> str:
     return "\n".join(lines) + "\n"
 
 
+def encode_depfile(target, prerequisites) -> bytes:
+    """:func:`format_depfile` as the bytes of a file: each path's own bytes, as make reads names, even where
+    a name is no UTF-8 (Python holds such a byte as a lone surrogate, which UTF-8 cannot encode).
+
+    >>> import os
+    >>> encode_depfile(os.fsdecode(b"out/X\\xff.dds"), ["a.toml"])
+    b'out/X\\xff.dds: \\\\\\n  a.toml\\n\\na.toml:\\n'
+    """
+    return format_depfile(target, prerequisites).encode("utf-8", "surrogateescape")
+
+
 def write_depfile(path, target, prerequisites) -> Path:
-    """Write :func:`format_depfile` to ``path`` atomically; returns the path."""
-    write_file_atomically(path, format_depfile(target, prerequisites).encode())
+    """Write :func:`encode_depfile` to ``path`` atomically; returns the path."""
+    write_file_atomically(path, encode_depfile(target, prerequisites))
     return Path(path)

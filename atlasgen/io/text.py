@@ -15,6 +15,7 @@ from atlasgen.errors import FieldError, InputError, shorten
 
 __all__ = [
     "MISSING",
+    "check_path_text",
     "decode_utf8",
     "loads_json",
     "parse_toml",
@@ -72,6 +73,24 @@ def decode_utf8(data: bytes) -> str:
     True
     """
     return data.decode("utf-8-sig")
+
+
+def check_path_text(path) -> None:
+    """Refuse a path whose name is no UTF-8 text (a byte such as 0xff, which Python keeps as a lone
+    surrogate): the manifest, the depfile and the include comments record a material's path as text,
+    and a manifest holding one could not be read back, by atlasgen or an engine.
+
+    >>> check_path_text("materials/gold.toml")
+    >>> check_path_text(os.fsdecode(b"materials/bad\\xff.toml"))
+    Traceback (most recent call last):
+    ...
+    atlasgen.errors.InputError: materials/bad\\udcff.toml: expected a file name in UTF-8
+    """
+    try:
+        os.fspath(path).encode("utf-8")
+    except UnicodeEncodeError:
+        shown = Path(path).as_posix().encode("utf-8", "backslashreplace").decode("utf-8")
+        raise InputError(f"{shown}: expected a file name in UTF-8") from None
 
 
 def read_input_bytes(path, missing: str = "no such file", limit: tuple[int, str] | None = None) -> bytes:

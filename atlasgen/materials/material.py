@@ -11,7 +11,7 @@ from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
-from atlasgen.io.text import MISSING, decode_utf8, parse_toml, path_kind, read_input_bytes
+from atlasgen.io.text import MISSING, check_path_text, decode_utf8, parse_toml, path_kind, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
 from atlasgen.models import get_model, model_types
@@ -84,6 +84,8 @@ _ID = Param("id", None, "int", 0, 255, doc="slice index")
 _POSITIVE = Param("", None, "float", 0.0, lo_open=True)
 _FIT_GLOSS = Param("fit_gloss", FIT_GLOSS, "float", 0.0, 1.0, doc="renderer gloss a from = 'physical' slice is fitted for")
 _SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
+#: A material file is a few hundred bytes (a toon threshold list a few kB); a 6 GB one was read whole.
+_MATERIAL_LIMIT = (16 << 20, "a material file")
 _NONFINITE = Param("nonfinite_tolerance", 0, "int", 0, doc="non-finite source samples the bake may replace by 0")
 _LOOK_PSNR = Param(
     "validate.psnr_db", None, "float", 0.0, lo_open=True, doc="look goal: least PSNR (dB) against the physical reference"
@@ -128,7 +130,7 @@ def read_material(path) -> Material:
     """
     path = Path(path)
     shown = path.as_posix()
-    data = read_input_bytes(path)
+    data = read_input_bytes(path, limit=_MATERIAL_LIMIT)
     try:
         text = decode_utf8(data)
     except UnicodeDecodeError:
@@ -205,6 +207,7 @@ def read_material_file(path, materialx_flatten=None) -> list[Material]:
     """The materials of one file: a TOML material file's one, or every ``surfacematerial`` of a
     MaterialX document (``.mtlx``, :mod:`atlasgen.materials.materialx_document`; ``materialx_flatten``
     says what driven inputs become)."""
+    check_path_text(path)
     if not is_materialx_file(path):
         return [read_material(path)]
     out = []

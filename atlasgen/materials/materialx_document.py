@@ -41,7 +41,7 @@ from xml.etree import ElementTree
 from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.errors import MaterialError, shorten
 from atlasgen.io.fields import validate_params
-from atlasgen.io.text import read_input_bytes
+from atlasgen.io.text import check_path_text, read_input_bytes
 from atlasgen.models import get_model
 from atlasgen.models.materialx import EXPECTED_VALUES, check_input_value, shown_values
 from atlasgen.separable.materialx_oracle import (
@@ -310,6 +310,7 @@ def _included_files(path: Path, root) -> list:
             if found is None:
                 raise MaterialError(shown, "xi:include", f"expected a file beside it or beside the document, found "
                                     f"none for href {href!r}")  # fmt: skip
+            check_path_text(found)  # the depfile and the manifest's includes record it
             real = os.path.realpath(found)
             if real in seen:
                 continue

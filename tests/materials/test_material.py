@@ -40,3 +40,18 @@ def test_a_bad_validate_table_gets_one_line_naming_the_file_and_field(tmp_path, 
         read_material(path)
     message = str(info.value)
     assert "\n" not in message and message.startswith(path.as_posix()) and field in message and expected in message
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".mtlx"])
+def test_a_material_file_whose_name_is_no_utf8_is_refused_on_one_line(tmp_path, suffix):
+    """A manifest recording such a name (a lone surrogate) could not be read back: every later bake to the
+    same -o, and `info`, failed on it until the folder was deleted."""
+    import os
+
+    from atlasgen.errors import InputError
+    from atlasgen.materials.material import read_materials
+
+    (tmp_path / os.fsdecode(b"bad\xff" + suffix.encode())).write_text('type = "lambert"\n')
+    with pytest.raises(InputError) as info:
+        read_materials([tmp_path])
+    assert str(info.value) == f"{tmp_path.as_posix()}/bad\\udcff{suffix}: expected a file name in UTF-8"
