@@ -60,6 +60,8 @@ sees them change together, at one instant, even if the command is killed
   the link marks the generation's file), an output path that is a folder, or a failing rename
   stops the command before the commit: `X.dds: cannot replace (Operation not permitted); nothing
   was replaced`. Exit 130 (Ctrl-C, held while the commit runs) leaves each set whole, old or new.
+  An output path inside a store (`-o v/.report.atlasgen/current`, or through a link into one) is
+  refused the same way: it would have changed a committed generation in place.
 - **Plain files of an older atlasgen** are taken over first without a visible change: a holding
   generation gets a hard link of each, `current` points at it, and a link is renamed over each
   file (the same bytes before and after), then the commit swaps as above.

@@ -93,6 +93,33 @@ def test_an_output_outside_the_primarys_folder_is_linked_too(tmp_path):
     assert not os.path.lexists(elsewhere)
 
 
+@pytest.mark.parametrize("inside", [".v.atlasgen/current", ".v.atlasgen", "linked", "linked/images"])
+def test_an_output_inside_a_set_s_store_is_refused_before_anything_changes(tmp_path, inside):
+    """-o into another set's generations wrote into a committed generation in place: the set's own link
+    (v/report.json) changed without a commit."""
+    folder = tmp_path / "v"
+    write_files_atomically({folder / "images" / "a.png": b"a", folder / "report.json": b"{}"},
+                           primary=folder / "report.json")  # fmt: skip
+    (folder / "linked").symlink_to(".v.atlasgen/current")
+    before = _snapshot(tmp_path)
+    for write in (lambda p: write_files_atomically({p: b"other"}), lambda p: write_file_atomically(p, b"other")):
+        with pytest.raises(OutputError) as info:
+            write(folder / inside / "report.json")
+        assert str(info.value).endswith(": inside .v.atlasgen, the generations of an output set; expected a path "
+                                        "outside atlasgen's .*.atlasgen folders; nothing was replaced")  # fmt: skip
+        assert _snapshot(tmp_path) == before and (folder / "report.json").read_bytes() == b"{}"
+
+
+def _snapshot(root: Path) -> dict:
+    """Every path under ``root`` (links not followed) and what it holds: a link's text, a file's bytes."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for name in dirnames + filenames:
+            path = Path(dirpath) / name
+            out[path] = os.readlink(path) if path.is_symlink() else path.read_bytes() if path.is_file() else None
+    return out
+
+
 def test_default_primary_is_the_last_file_given(tmp_path):
     write_files_atomically({tmp_path / "x": b"1", tmp_path / "y": b"2"})
     assert (tmp_path / ".y.atlasgen").is_dir()

@@ -410,6 +410,22 @@ def _link_into(path: Path, text: str) -> None:
         raise
 
 
+def _is_store(name: str) -> bool:
+    return name.startswith(".") and name.endswith(STORE_SUFFIX) and len(name) > len(STORE_SUFFIX) + 1
+
+
+def _refuse_inside_store(path: Path) -> None:
+    """Refuse an output inside an output set's store (``-o v1/.report.atlasgen/current``, or a folder
+    linked into one): it was written into a committed generation in place, which changed the files of
+    the set's links (``v1/report.json``) without a commit, outside the lock."""
+    folder = os.path.abspath(_folder(path))
+    for shown in (folder, os.path.realpath(folder)):
+        store = next((part for part in Path(shown).parts if _is_store(part)), None)
+        if store is not None:
+            raise OutputError(f"{path.as_posix()}: inside {store}, the generations of an output set; expected a path "
+                              "outside atlasgen's .*.atlasgen folders; nothing was replaced")  # fmt: skip
+
+
 def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
     """Write ``{path: bytes}`` and remove the files ``remove`` names as one set: all or nothing.
 
@@ -446,6 +462,8 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
     primary = Path(primary) if primary is not None else items[-1][0]
     written = {os.path.abspath(p) for p, _ in items}
     removals = [Path(p) for p in dict.fromkeys(os.path.abspath(p) for p in remove) if p not in written]
+    for path, _ in items:
+        _refuse_inside_store(path)
     home = _folder(primary)
     try:
         home.mkdir(parents=True, exist_ok=True)
@@ -587,6 +605,7 @@ def write_file_atomically(path, data: bytes) -> None:
     """
     path = Path(path)
     folder = _folder(path)
+    _refuse_inside_store(path)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(path)
