@@ -110,6 +110,18 @@ def test_an_output_inside_a_set_s_store_is_refused_before_anything_changes(tmp_p
         assert _snapshot(tmp_path) == before and (folder / "report.json").read_bytes() == b"{}"
 
 
+def test_a_whole_set_leaves_no_file_of_the_previous_one(tmp_path):
+    """A report re-run for other materials kept the images of the ones it no longer shows."""
+    folder = tmp_path / "v"
+    write_files_atomically({folder / "images" / "a.png": b"a", folder / "report.json": b"1"}, primary=folder / "report.json")
+    write_files_atomically({folder / "images" / "b.png": b"b", folder / "report.json": b"2"}, primary=folder / "report.json")
+    assert (folder / "images" / "a.png").read_bytes() == b"a"  # by default a set keeps what it did not rewrite
+    write_files_atomically({folder / "images" / "c.png": b"c", folder / "report.json": b"3"}, primary=folder / "report.json",
+                           whole=True)  # fmt: skip
+    assert sorted(p.name for p in (folder / "images").iterdir()) == ["c.png"]
+    assert read_plainly(folder, ["report.json", "images/a.png"]) == {"report.json": b"3", "images/a.png": None}
+
+
 def _snapshot(root: Path) -> dict:
     """Every path under ``root`` (links not followed) and what it holds: a link's text, a file's bytes."""
     out = {}

@@ -426,7 +426,7 @@ def _refuse_inside_store(path: Path) -> None:
                               "outside atlasgen's .*.atlasgen folders; nothing was replaced")  # fmt: skip
 
 
-def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
+def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False) -> None:
     """Write ``{path: bytes}`` and remove the files ``remove`` names as one set: all or nothing.
 
     The generation commit of this module's docstring, under the set's lock: the new files
@@ -445,6 +445,9 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
         folder holds the set's store ``.<key>.atlasgen`` (:func:`store_path`).
     remove
         Paths that must not survive the commit (stale siblings); those absent are skipped.
+    whole
+        The files written are the whole set: the previous generation's other files are not carried
+        over, and their links are removed (a report's images of materials it no longer shows).
 
     Raises
     ------
@@ -475,10 +478,10 @@ def write_files_atomically(contents: dict, primary=None, remove=()) -> None:
     with output_lock(home, key):
         store = home / f".{key}{STORE_SUFFIX}"
         _collect_garbage(home, store)
-        _commit(home, store, primary, items, removals)
+        _commit(home, store, primary, items, removals, whole)
 
 
-def _commit(home: Path, store: Path, primary: Path, items: list, removals: list) -> None:
+def _commit(home: Path, store: Path, primary: Path, items: list, removals: list, whole: bool = False) -> None:
     """Steps 1-6 of the module's docstring; the caller holds the lock."""
     names = {path: _stored_name(home, path) for path, _ in items}
     names.update({path: _stored_name(home, path) for path in removals})
@@ -546,7 +549,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list)
             fresh = {names[path] for path, _ in items}
             gone = {names[path] for path in removals}
             try:
-                for stored in _linked(home, store, old - fresh - gone):
+                for stored in _linked(home, store, set() if whole else old - fresh - gone):
                     _carry(live / stored, gen / stored)
             except OSError as exc:
                 raise _unchanged(primary, exc) from None
