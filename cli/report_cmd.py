@@ -137,7 +137,9 @@ def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews, and Pareto
     charts of run-time cost against error versus the physical reference."""
     check_output_folder(output, "the report folder (-o)")
-    page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical)
+    # Figures validated on another bake of a material are not shown as its: one line each, loud even with -q.
+    page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical,
+                                warn=lambda line: click.echo(f"atlasgen: warning: {line}", err=True))  # fmt: skip
     if verbosity == VERBOSE:
         inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))
         for what, path in inputs:

@@ -103,6 +103,7 @@ def validate(
     error against its error_budget, where it has one.
     """
     check_output_folder(output, "the report folder (-o)")
+    warnings = []
     if merge:
         written = merge_validation_reports([Path(m) for m in materials], output)
     else:
@@ -120,12 +121,13 @@ def validate(
                                  on_material=on_material, bake_cache=bake_cache,
                                  reference_cache=None if no_reference_cache else reference_cache)  # fmt: skip
         written = write_validation(run, output)
+        warnings = run.warnings  # reference-cache entries not used (damaged, or not a render of this size)
 
     if verbosity != QUIET:
         for line in describe_materials(written["data"]):
             click.echo(line)
     click.echo(summary_line(written["data"], written["html"]))
-    for line in noise_floor_failures(written["data"]):  # loud even without --strict: the figure is noise-limited
+    for line in [*warnings, *noise_floor_failures(written["data"])]:  # loud even without --strict: noise-limited figures
         click.echo(f"warning: {line}", err=True)
     missed = missed_goals(written["data"])
     if strict and missed:

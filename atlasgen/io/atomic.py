@@ -637,14 +637,15 @@ def write_file_atomically(path, data: bytes) -> None:
 
 
 @contextlib.contextmanager
-def staged_folder(folder, primary=None):
+def staged_folder(folder, primary=None, whole: bool = False):
     """A fresh temporary folder beside ``folder``, for a writer that is not atomic itself.
 
     On a clean exit every file written under it replaces its counterpart under
     ``folder`` in one all-or-nothing step (:func:`write_files_atomically`), ``primary``
     (a path relative to ``folder``, the file a build rule targets) naming the set; on an
     exception nothing under ``folder`` changes. The temporary folder is removed either
-    way. Files already in ``folder`` that the writer did not produce are left alone.
+    way. Files already in ``folder`` that the writer did not produce are left alone, unless
+    ``whole``: then the set's earlier files the writer did not produce are removed.
 
     Raises
     ------
@@ -663,7 +664,7 @@ def staged_folder(folder, primary=None):
         yield staging
         files = {folder / p.relative_to(staging): p.read_bytes() for p in sorted(staging.rglob("*")) if p.is_file()}
         target = folder / primary if primary is not None and (folder / primary) in files else None
-        write_files_atomically(files, primary=target)
+        write_files_atomically(files, primary=target, whole=whole)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 

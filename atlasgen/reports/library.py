@@ -25,6 +25,7 @@ from atlasgen.reports.pareto import (
 )
 from atlasgen.reports.validation import check_result_figures
 from atlasgen.separable.auto import cost_key, read_lighting_cost
+from atlasgen.validate.identity import atlas_identity, identity_problem
 
 __all__ = ["write_library_report"]
 
@@ -95,6 +96,46 @@ def _bake_seconds(timings, path, name: str) -> float | None:
     if not isinstance(entry, dict):
         raise FieldError(Path(path).as_posix(), f"materials.{name}", f"expected an object of timings, got {entry!r}")
     return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"), minimum=0.0)
+
+
+def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> tuple[dict | None, dict]:
+    """The validation report with only the results measured on the materials of ``atlas`` as they are now, and
+    ``{material: note}`` for each material whose results were not (:mod:`atlasgen.validate.identity`).
+
+    A material whose recorded identity differs was validated on another bake of it: its results are dropped, and
+    its note says so. A report that records none (written before atlasgen recorded it) cannot be checked: its
+    results stay, marked unverified. ``warn`` gets one line per material dropped and one for an unverifiable report.
+    """
+    if validation is None:
+        return None, {}
+    shown = report_path.as_posix()
+    kept, notes, unverified = [], {}, []
+    current = {e.name: atlas_identity(atlas, e) for e in atlas.manifest.materials}
+    for row in validation.get("results", []):
+        name = row.get("material")
+        if name not in current:
+            kept.append(row)  # not in this atlas: nothing on the page reads it
+            continue
+        if not isinstance(row.get("atlas_identity"), dict):
+            kept.append(row)
+            if name not in unverified:
+                unverified.append(name)
+                notes[name] = ("unverified", f"{shown} records no identity of the atlas it validated (written by an older "
+                               "atlasgen), so these figures may be of another bake of it; re-run atlasgen validate")  # fmt: skip
+            continue
+        why = identity_problem(row["atlas_identity"], current[name])
+        if why is None:
+            kept.append(row)
+        elif name not in notes:
+            notes[name] = ("stale", f"not validated on this atlas: {shown} measured another bake of it, and {why}; "
+                               "re-run atlasgen validate")  # fmt: skip
+            warn(f"{shown}: the validation figures of {name!r} were measured on another bake of it than "
+                 f"{atlas.manifest_path.as_posix()}'s ({why}); not shown: re-run atlasgen validate")  # fmt: skip
+    if unverified:
+        warn(f"{shown}: records no identity of the atlas it validated (written by an older atlasgen), so the figures of "
+             f"{', '.join(unverified)} cannot be checked against {atlas.manifest_path.as_posix()}; shown as unverified: "
+             "re-run atlasgen validate")  # fmt: skip
+    return {**validation, "results": kept}, notes
 
 
 def _validation_rows(validation: dict | None, name: str) -> list[dict]:
@@ -216,14 +257,17 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
 
 
 def write_library_report(
-    atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True, jobs: int = MAX_JOBS
+    atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True, jobs: int = MAX_JOBS, warn=None
 ) -> Path:
     """Write ``out_dir/index.html`` (+ slice previews and a speed-against-error plot).
 
     Every figure on the page is read from files the toolchain measured: the manifest
     (errors, representation), the timings file (bake time), and, when present,
     ``validation_dir/report.json`` (errors against Mitsuba references; a merged report
-    also links each material's own validation page). With ``physical``, the Pareto charts of
+    also links each material's own validation page). Only figures measured on the materials of this
+    atlas as they are are shown as validated: a material validated on another bake of it reads "not
+    validated", and the figures of a report that records no identity are marked unverified (each
+    said on one line to ``warn``, where given). With ``physical``, the Pareto charts of
     run-time cost against error versus the physical reference (:mod:`atlasgen.reports.pareto`),
     their candidates cached under ``out_dir/pareto`` and computed in up to ``jobs`` processes.
     Every file is replaced atomically.
@@ -250,6 +294,8 @@ def write_library_report(
             raise FieldError((Path(validation_dir) / "report.json").as_posix(), None,
                              f"expected a validation report (a JSON object), got {type(validation).__name__}")  # fmt: skip
         check_result_figures(Path(validation_dir) / "report.json", validation.get("results", []))
+    validation, validation_notes = _check_identity(validation, atlas, Path(validation_dir or ".") / "report.json",
+                                                   warn or (lambda line: None))  # fmt: skip
     out_dir = Path(out_dir)
 
     rows, files = [], {}
@@ -302,6 +348,7 @@ def write_library_report(
             "refs": [{"reference": r["reference"], "psnr": _fmt(r["psnr"], ".1f"), "flip": _fmt(r["flip"], ".4f"),
                       "speed": _fmt(r["speed_ratio"], ".1f") + "x"} for r in refs],
             "pages": [p for p in own if p], "previews": previews, "chart": chart,
+            "validation_note": validation_notes.get(entry.name),
             "runtime": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".3g"),
                          "chosen": c["chosen"]} for c in candidates],
         })  # fmt: skip
@@ -326,7 +373,7 @@ def write_library_report(
         cost_unit=table.unit,
     )
     # Previews, plots and the page that links them, as one set; the page is the primary (make's target).
-    write_files_atomically(files, primary=index)
+    write_files_atomically(files, primary=index, whole=True)
     return index
 
 

@@ -462,7 +462,11 @@ def write_separable_report(
         raise InputError("; ".join(f"{m.source}: field 'type': material {m.name!r} is {m.type!r}, not separable"
                                    for m in others) + f'; expected type = "{Separable.type_name}"')  # fmt: skip
     if atlas_path is not None:
-        read_atlas(atlas_path)  # a missing or damaged atlas is refused, not reported as "not in atlas"
+        # A missing or damaged atlas, or one without its manifest, is refused, not reported as "not in atlas".
+        if read_atlas(atlas_path).manifest is None:
+            shown = Path(atlas_path).as_posix()
+            raise InputError(f"{shown}: no manifest beside the atlas (expected {Path(atlas_path).with_suffix('.json').as_posix()}); "
+                             f"re-run atlasgen bake -o {shown}")  # fmt: skip
     folder = Path(output)
     studies = []
     for done, m in enumerate(materials, 1):
@@ -471,7 +475,7 @@ def write_separable_report(
             on_material(m.name, done, len(materials))
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
-    with staged_folder(folder, primary="report.json") as staging:
+    with staged_folder(folder, primary="report.json", whole=True) as staging:
         charts: dict = {s.name: {} for s in studies}
         plots = {s.name: _plots(s, staging, charts[s.name]) for s in studies}
         for s in studies:

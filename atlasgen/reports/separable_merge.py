@@ -136,5 +136,5 @@ def merge_separable_reports(sources, output) -> dict:
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     # The set a single run's report names (report.json): a merge into a folder that holds one replaces
     # that set under its lock, rather than writing the same paths as a second set under another.
-    write_files_atomically(files, primary=output / "report.json")
+    write_files_atomically(files, primary=output / "report.json", whole=True)
     return {"markdown": output / "index.md", "html": output / "index.html", "json": output / "report.json", "plots": plots}

@@ -27,7 +27,7 @@ from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
 from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
-from atlasgen.validate.metrics import NOISE_FLOOR_MARGIN_DB, finite_or_none, flip_heatmap
+from atlasgen.validate.metrics import NO_PIXELS, NOISE_FLOOR_MARGIN_DB, finite_or_none, flip_heatmap
 
 __all__ = [
     "write_validation",
@@ -44,6 +44,7 @@ __all__ = [
     "check_result_figures",
     "look_verdict",
     "materialx_summary",
+    "not_measured",
 ]
 
 #: Figure size of the speed/error plot in inches (shown at 100 CSS px per inch).
@@ -69,12 +70,40 @@ def image_name(material: str, scene: str, what: str) -> str:
 
 def _goal(run, ref, goals) -> bool | None:
     """Whether a material meets the model-reference goals (None where they don't apply:
-    other references, and models whose manifest claims its own error, ``Model.validation_goals``)."""
+    other references, and models whose manifest claims its own error, ``Model.validation_goals``;
+    and where the comparison measures nothing, :func:`_unmeasured_verdict`)."""
     if ref.kind != "model" or not run.goals:
         return None
     if getattr(run, "goal_psnr_db", None) is not None:  # an environment map: its PSNR goal alone (issue #20)
-        return bool(ref.metrics.psnr >= run.goal_psnr_db)
-    return bool(ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"])
+        met = ref.metrics.psnr >= run.goal_psnr_db
+    else:
+        met = ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"]
+    return _unmeasured_verdict(bool(met), getattr(ref.metrics, "not_measured", None), ref.metrics.psnr)
+
+
+def _unmeasured_verdict(met: bool, not_measured: str | None, psnr_db) -> bool | None:
+    """``met`` where the comparison measures the material; else None (not measured), or False where its figures
+    miss even so (the atlas shows light where the reference is black): never met on nothing.
+
+    >>> _unmeasured_verdict(True, None, 50.0), _unmeasured_verdict(True, "black", None), _unmeasured_verdict(False, "black", 9.0)
+    (True, None, False)
+    >>> _unmeasured_verdict(False, "no pixel", float("nan")) is None
+    True
+    """
+    if not_measured is None:
+        return met
+    measured = psnr_db is not None and not (isinstance(psnr_db, float) and math.isnan(psnr_db))
+    return False if measured and not met else None
+
+
+def not_measured(ref: dict | None) -> str | None:
+    """Why a report.json comparison measures nothing of the material (``not_measured``: no pixel compared, or a
+    black reference), or None; a report written before the field says it by a ``coverage`` of 0."""
+    if not ref:
+        return None
+    if ref.get("not_measured"):
+        return str(ref["not_measured"])
+    return NO_PIXELS if ref.get("coverage") == 0 else None
 
 
 def look_verdict(look: dict, ref: dict | None) -> dict:
@@ -120,6 +149,10 @@ def look_verdict(look: dict, ref: dict | None) -> dict:
         return {"meets_goal": None, "not_judged": None}
     goal = look["goal"]
     whole = _meets_look_goal(goal, ref)
+    why = not_measured(ref)
+    if why is not None:  # nothing of the material measured: no verdict, unless the figures miss even so
+        met = _unmeasured_verdict(whole, why, ref.get("psnr_db") if ref.get("coverage") != 0 else None)
+        return {"meets_goal": met, "not_judged": None if met is False else f"not measured: {why}"}
     floors = {name: _short_floor(p, ref.get("spp")) for name, p in (ref.get("parts") or {}).items()}
     parts = {name: _part_verdict(goal, p, floors[name]) for name, p in (ref.get("parts") or {}).items()}
     whole_short = ref.get("noise_floor_ok") is False
@@ -152,6 +185,8 @@ def _part_verdict(goal: dict, part: dict, short: str | None) -> dict:
     """One part's ``{"meets_goal", "not_judged"}``, by :func:`look_verdict`'s rule: a part short of its
     noise floor (``short``, :func:`_short_floor`) that misses is not judged; one that meets its goal even
     so is met (a lower bound)."""
+    if part.get("pixels") == 0:  # an object out of view: nothing of it measured, no verdict
+        return {"meets_goal": None, "not_judged": None}
     met = _meets_look_goal(goal, part)
     if short and not met:
         return {"meets_goal": None, "not_judged": short}
@@ -195,7 +230,8 @@ def report_dict(run) -> dict:
                     part = refs[kind]["parts"][name]
                     part["noise_floor_db"] = finite_or_none(part_floor)
                     psnr_db = math.inf if part["psnr_db"] is None else part["psnr_db"]
-                    part["noise_floor_ok"] = bool(part_floor >= psnr_db + NOISE_FLOOR_MARGIN_DB)
+                    # An object that shows no pixel has no error for its floor to clear.
+                    part["noise_floor_ok"] = bool(part_floor >= psnr_db + NOISE_FLOOR_MARGIN_DB) if part.get("pixels") else None
                     part["spp"] = (getattr(ref, "part_spp", None) or {}).get(name, ref.spp)
             if getattr(ref, "mask", None) is not None:
                 refs[kind]["masked_fraction"] = ref.masked_fraction
@@ -227,6 +263,9 @@ def report_dict(run) -> dict:
             row["look"] = look
         if getattr(r, "materialx", None) is not None:
             row["materialx"] = r.materialx
+        identity = (getattr(run, "identity", None) or {}).get(r.material)
+        if identity is not None:  # what the figures were measured on (atlasgen.validate.identity)
+            row["atlas_identity"] = identity
         rows.append(row)
     return {
         "atlas": run.atlas,
@@ -240,14 +279,22 @@ def report_dict(run) -> dict:
 
 def _summary(rows: list) -> dict:
     """The goals line, from the JSON rows (so a merged report recomputes it the same way): over
-    the model-reference results the goals apply to (``meets_goal`` not null)."""
+    the model-reference results the goals apply to (``meets_goal`` not null), and the comparisons
+    that measure nothing of the material (``not_measured``), which meet no goal."""
     lut = [ref for row in rows if (ref := row["references"].get("model")) is not None and ref["meets_goal"] is not None]
     looks = [row for row in rows if (row.get("look") or {}).get("reference") is not None]
+    measured = [x for x in lut if not_measured(x) is None]
     return {
         "lut_results": len(lut),
         "lut_meeting_goals": sum(1 for x in lut if x["meets_goal"]),
-        "worst_lut_psnr_db": min((x["psnr_db"] for x in lut if x["psnr_db"] is not None), default=None),
-        "worst_lut_flip": max((x["flip"] for x in lut), default=None),
+        "worst_lut_psnr_db": min((x["psnr_db"] for x in measured if x["psnr_db"] is not None), default=None),
+        "worst_lut_flip": max((x["flip"] for x in measured if x["flip"] is not None), default=None),
+        "not_measured": [
+            f"{row['material']}/{row['scene']} ({kind})"
+            for row in rows
+            for kind, ref in row["references"].items()
+            if not_measured(ref) is not None
+        ],  # fmt: skip
         "look_results": len(looks),
         "look_meeting_goals": sum(1 for row in looks if row["look"]["meets_goal"]),
         "look_not_judged": [f"{row['material']}/{row['scene']}" for row in looks if row["look"]["not_judged"]],
@@ -272,7 +319,7 @@ def summary_line(data: dict, html_path) -> str:
     s = _summary(data["results"])  # recomputed: a report written before the look goals has none of its fields
     parts = [f"{len(data['results'])} material/scene results"]
     parts.append(f"{s['lut_meeting_goals']}/{s['lut_results']} LUT results meet the storage goals" if s["lut_results"]
-                 else "no LUT goals apply")  # fmt: skip
+                 else "no LUT goal judged" if s["not_measured"] else "no LUT goals apply")  # fmt: skip
     if s["look_results"]:
         judged = s["look_results"] - len(s["look_not_judged"])
         parts.append(f"{s['look_meeting_goals']}/{judged} looks meet their goal against physics"
@@ -282,6 +329,8 @@ def summary_line(data: dict, html_path) -> str:
     if s["short_of_noise_floor"]:
         parts.append(f"{len(s['short_of_noise_floor'])} reference(s) short of their noise floor: "
                      f"{', '.join(s['short_of_noise_floor'])}")  # fmt: skip
+    if s["not_measured"]:
+        parts.append(f"{len(s['not_measured'])} comparison(s) measure nothing of the material: {', '.join(s['not_measured'])}")
     parts.append(f"{data['total_seconds']:.1f} s")
     return f"{Path(html_path).as_posix()} ({', '.join(parts)})"
 
@@ -300,6 +349,17 @@ def _goals_text(goals: dict) -> str:
 
 def _psnr_text(psnr) -> str:
     return "inf" if psnr is None else f"{psnr:.1f}"
+
+
+def _ref_psnr_text(ref: dict) -> str:
+    """A comparison's PSNR: "n/a" where it measures nothing of the material (:func:`not_measured`), not "inf"."""
+    return "n/a" if _unmeasured_match(ref) else _psnr_text(ref.get("psnr_db"))
+
+
+def _unmeasured_match(ref: dict) -> bool:
+    """Whether a comparison measures nothing and finds no difference either (no pixel, or black against black):
+    its PSNR and FLIP say nothing of the material, and the lines print n/a for them."""
+    return ref.get("psnr_db") is None and not_measured(ref) is not None
 
 
 def _separable_figures(rows: list) -> tuple:
@@ -325,8 +385,8 @@ def _look_text(rows: list) -> tuple[str, str]:
     figures = [row["references"][look["reference"]] for row, look in judged]
     compared = judged[0][1]["compared"]
     goal = judged[0][1]["goal"]
-    psnrs = " / ".join(_psnr_text(f["psnr_db"]) for f in figures)
-    flips = " / ".join(_fmt(f["flip"], ".3f") for f in figures)
+    psnrs = " / ".join(_ref_psnr_text(f) for f in figures)
+    flips = " / ".join("n/a" if _unmeasured_match(f) else _fmt(f["flip"], ".3f") for f in figures)
     own = ", the material's own" if judged[0][1].get("goal_source") == "material" else ""
     text = f"look against {compared}: {psnrs} dB, FLIP {flips}{_parts_text(figures)} (goal >= {goal['psnr_db']:g} dB, FLIP <= {goal['flip']:g}{own})"
     missed = [row["scene"] + _missed_parts(look) for row, look in judged if look["meets_goal"] is False]
@@ -336,7 +396,8 @@ def _look_text(rows: list) -> tuple[str, str]:
             f"; not judged on {'; '.join(unjudged)}" if unjudged else ""
         )
     if unjudged:
-        return "not judged", text + f": not judged on {'; '.join(unjudged)}"
+        unmeasured = all(look["not_judged"].startswith("not measured") for _, look in judged if look["not_judged"])
+        return "not measured" if unmeasured else "not judged", text + f": not judged on {'; '.join(unjudged)}"
     bounds = [f"{row['scene']}: {look['bound']}" for row, look in judged if look.get("bound")]
     return "met", text + ": met" + (f" ({'; '.join(bounds)})" if bounds else "")
 
@@ -376,17 +437,24 @@ def describe_materials(data: dict) -> list[str]:
     lines = []
     for name, rows in _rows_by_material(data).items():
         parts, missed = [], []
-        models = [row["references"]["model"] for row in rows if "model" in row["references"]]
-        checked = [m for m in models if m.get("meets_goal") is not None]
+        models = [(row, row["references"]["model"]) for row in rows if "model" in row["references"]]
+        checked = [m for _, m in models if m.get("meets_goal") is not None]
+        # Model comparisons that measure nothing of the material (no goal judged on them): said, never met.
+        unmeasured = [f"{row['scene']}: {not_measured(m)}" for row, m in models
+                      if m.get("meets_goal") is None and not_measured(m) is not None]  # fmt: skip
         if checked:
-            psnrs = [m["psnr_db"] for m in checked if m["psnr_db"] is not None]
+            figures = [m for m in checked if not_measured(m) is None]
+            psnrs = [m["psnr_db"] for m in figures if m["psnr_db"] is not None]
             worst_psnr = min(psnrs) if psnrs else None
-            flips = [m["flip"] for m in checked if m["flip"] is not None]
+            flips = [m["flip"] for m in figures if m["flip"] is not None]
             met = sum(1 for m in checked if m["meets_goal"])
             if met < len(checked):
                 missed.append("storage")
             parts.append(f"storage {met}/{len(checked)} met ({_goals_text(goals)}; worst {_psnr_text(worst_psnr)} dB, "
-                         f"FLIP {_fmt(max(flips) if flips else None, '.4f')})")  # fmt: skip
+                         f"FLIP {_fmt(max(flips) if flips else None, '.4f')})"
+                         + (f", not measured on {'; '.join(unmeasured)}" if unmeasured else ""))  # fmt: skip
+        elif unmeasured:
+            parts.append(f"nothing measured against its model reference on {'; '.join(unmeasured)}")
         look, look_text = _look_text(rows)
         if look_text:
             parts.append(look_text)
@@ -404,8 +472,11 @@ def describe_materials(data: dict) -> list[str]:
         if not parts:
             lines.append(f"{name}: no goals apply ({rows[0]['type']})")
             continue
+        unjudged = (["model reference"] if unmeasured else []) + (["look"] if look == "not measured" else [])
         if missed:
             head = f"goals missed: {', '.join(missed)}"
+        elif unjudged:
+            head = f"not measured: {', '.join(unjudged)}"
         elif look == "not judged":
             head = "look not judged"
         elif look == "none" and look_text:
@@ -451,15 +522,21 @@ def missed_goals(data: dict) -> list[str]:
     A LUT result misses when its model-reference PSNR or mean FLIP misses the goals; a
     separable material misses when the error its manifest claims exceeds its budget; any
     comparison misses when its stochastic reference's noise floor is not 10 dB above the
-    error it measures (:func:`noise_floor_failures`).
+    error it measures (:func:`noise_floor_failures`); and a model comparison, or the one a look is
+    judged on, that measures nothing of the material (:func:`not_measured`) is no goal met.
     """
     goals = data["settings"]["goals"]
     missed = noise_floor_failures(data)
     for name, rows in _rows_by_material(data).items():
         for row in rows:
+            for kind, ref in row["references"].items():  # no goal is met on nothing: --strict counts it
+                if not_measured(ref) is not None and ref.get("meets_goal") is not False and (
+                        kind == "model" or kind == (row.get("look") or {}).get("reference")):  # fmt: skip
+                    missed.append(f"{name} on {row['scene']}: nothing measured against the {kind} reference "
+                                  f"({not_measured(ref)})")  # fmt: skip
             model = row["references"].get("model") or {}
             if model.get("meets_goal") is False:
-                missed.append(f"{name} on {row['scene']}: PSNR {_psnr_text(model['psnr_db'])} dB, "
+                missed.append(f"{name} on {row['scene']}: PSNR {_ref_psnr_text(model)} dB, "
                               f"FLIP {_fmt(model['flip'], '.4f')} ({_goals_text(goals)})")  # fmt: skip
             look = row.get("look") or {}
             if look.get("meets_goal") is False:
@@ -467,7 +544,7 @@ def missed_goals(data: dict) -> list[str]:
                 parts = "".join(f"; {part}: PSNR {_psnr_text(p['psnr_db'])} dB, FLIP {_fmt(p['flip'], '.4f')}"
                                 + ("" if (look.get("parts") or {}).get(part, {}).get("meets_goal") is not False else " (missed)")
                                 for part, p in (ref.get("parts") or {}).items())  # fmt: skip
-                missed.append(f"{name} on {row['scene']}: look against {look['compared']}: PSNR {_psnr_text(ref['psnr_db'])} dB "
+                missed.append(f"{name} on {row['scene']}: look against {look['compared']}: PSNR {_ref_psnr_text(ref)} dB "
                               f"(at the unclipped exposure {_psnr_text(ref.get('unclipped_psnr_db'))} dB), FLIP {_fmt(ref['flip'], '.4f')}{parts} "
                               f"(goal >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g})")  # fmt: skip
         claimed, budget, _ = _separable_figures(rows)
@@ -631,6 +708,7 @@ def _html(data: dict, plot: Chart | None = None) -> bytes:
                 "seconds": f"{ref['seconds']:.3f}", "speed": _fmt(ref["speed_ratio"], ".1f"), "rmse": _fmt(ref["rmse"], ".5f"),
                 "psnr": _fmt(ref["psnr_db"], ".2f"), "flip": _fmt(ref["flip"], ".4f"),
                 "goal": ref["meets_goal"] if ref.get("meets_goal") is not None else ref.get("look_goal"),
+                "not_measured": not_measured(ref),
                 "whole_frame": _fmt(ref.get("whole_frame_psnr_db"), ".2f"),
                 "coverage": _fmt(ref.get("coverage"), ".1%"),
                 "clipped": "" if ref.get("clipped_pixels") is None else
@@ -762,7 +840,7 @@ def _check_figures(path: Path, data: dict) -> None:
 _ROW_FIELDS = {"material": (str, "a material name", False), "scene": (str, "a scene name", False),
                "atlas_image": (str, "an image path", True), "page": (str, "a page path", True),
                "notes": (list, "a list of notes", True), "look": (dict, "an object", True),
-               "error_breakdown": (dict, "an object", True)}  # fmt: skip
+               "error_breakdown": (dict, "an object", True), "atlas_identity": (dict, "an object", True)}  # fmt: skip
 _REFERENCE_FIELDS = {"images": (dict, "an object of image paths", True)}
 #: What a merge needs besides: the images whose paths it rebases (the library page links none of them).
 _MERGED_FIELDS = ("atlas_image", "images")
@@ -915,7 +993,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
         # The fields the merge reads are checked above; this catches a hand edit deeper in a result
         # (a look's goal, a region's figures) that the page cannot print, still as one line.
         _refuse_malformed(data, paths, reports, out_dir, exc)
-    write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
+    write_files_atomically(files, primary=out_dir / "report.json", whole=True)  # the Makefile's target
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 
 
@@ -926,6 +1004,6 @@ def write_validation(run, out_dir) -> dict:
     """
     out_dir = Path(out_dir)
     files = build_report(run, out_dir)
-    write_files_atomically(files, primary=out_dir / "report.json")  # the Makefile's target
+    write_files_atomically(files, primary=out_dir / "report.json", whole=True)  # the Makefile's target
     data = json.loads(files[out_dir / "report.json"])
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}

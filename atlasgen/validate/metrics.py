@@ -22,7 +22,12 @@ import numpy as np
 from atlasgen.optics.display import display_clip
 
 __all__ = ["rmse", "psnr", "relative_rms", "flip", "flip_heatmap", "ImageMetrics", "compare_images", "noise_floor",
-           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics", "part_metrics", "finite_or_none"]  # fmt: skip
+           "NOISE_FLOOR_MARGIN_DB", "unclipped_exposure", "clipped_pixels", "region_metrics", "part_metrics", "finite_or_none",
+           "not_measured_reason", "NO_PIXELS", "BLACK_REFERENCE"]  # fmt: skip
+
+#: Why a comparison measures nothing (:attr:`ImageMetrics.not_measured`).
+NO_PIXELS = "no pixel of the material is compared"
+BLACK_REFERENCE = "the reference is black on every compared pixel, unlit or of albedo 0"
 
 #: A stochastic reference's noise floor must lie this far above the PSNR it measures.
 NOISE_FLOOR_MARGIN_DB = 10.0
@@ -105,6 +110,10 @@ class ImageMetrics:
     whole_frame_psnr: float | None = None
     #: Figures over each object showing the material (:func:`part_metrics`), where the comparison splits them.
     parts: dict = field(default_factory=dict)
+    #: Why the comparison measures nothing of the material, where it does not (:func:`not_measured_reason`): no
+    #: pixel compared, or a reference black on every compared pixel. No goal is met on it: a verdict on it is
+    #: "not measured", or a miss where the figures show the atlas differs from the black reference all the same.
+    not_measured: str | None = None
 
     def as_dict(self) -> dict:
         out = {
@@ -126,6 +135,8 @@ class ImageMetrics:
             out["whole_frame_psnr_db"] = finite_or_none(self.whole_frame_psnr)
         if self.parts:
             out["parts"] = self.parts
+        if self.not_measured is not None:
+            out["not_measured"] = self.not_measured
         return out
 
 
@@ -223,11 +234,35 @@ def compare_images(reference, test, exposure: float = 1.0, with_flip: bool = Tru
     reference, test = np.asarray(reference)[keep], np.asarray(test)[keep]
     e = unclipped_exposure(reference, exposure)
     unclipped = psnr(display_clip(reference, e), display_clip(test, e)) if reference.size else math.nan
+    why = not_measured_reason(reference)
+    if why is not None:  # the means of nothing are NaN, and so is an error relative to a black reference
+        with np.errstate(invalid="ignore"):
+            figures = (math.nan,) * 4 if not reference.size else (rmse(ref_ldr[keep], test_ldr[keep]),
+                                                                 psnr(ref_ldr[keep], test_ldr[keep]), mean, rmse(reference, test))  # fmt: skip
+        return ImageMetrics(*figures, math.nan, error_map, coverage=float(keep_mask.mean()) if keep_mask.size else 0.0,
+                            clipped_pixels=0, unclipped_exposure=e, unclipped_psnr=unclipped, regions=region_figures,
+                            parts=part_figures, not_measured=why)  # fmt: skip
     return ImageMetrics(rmse(ref_ldr[keep], test_ldr[keep]), psnr(ref_ldr[keep], test_ldr[keep]), mean,
                         rmse(reference, test), relative_rms(reference, test), error_map,
                         coverage=float(keep_mask.mean()) if keep_mask.size else 0.0,
                         clipped_pixels=clipped_pixels(reference, exposure), unclipped_exposure=e,
                         unclipped_psnr=unclipped, regions=region_figures, parts=part_figures)  # fmt: skip
+
+
+def not_measured_reason(reference) -> str | None:
+    """Why a comparison against ``reference`` (its compared pixels, ``(n, 3)``) measures nothing of the material,
+    or ``None``: no pixel (:data:`NO_PIXELS`), or none that is not black (:data:`BLACK_REFERENCE`), where an atlas
+    image that is black too would match it perfectly whatever its slices hold.
+
+    >>> not_measured_reason(np.zeros((0, 3))) == NO_PIXELS, not_measured_reason(np.zeros((4, 3))) == BLACK_REFERENCE
+    (True, True)
+    >>> not_measured_reason(np.array([[0.0, 0.0, 0.0], [0.0, 0.2, 0.0]])) is None
+    True
+    """
+    x = np.asarray(reference)
+    if not x.size:
+        return NO_PIXELS
+    return BLACK_REFERENCE if not np.any(np.nan_to_num(x, nan=0.0) != 0.0) else None
 
 
 def noise_floor(render_a, render_b, exposure: float = 1.0, mask=None) -> float:

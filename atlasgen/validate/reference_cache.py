@@ -10,8 +10,12 @@ of the same validation replays the convergence from the cache and renders nothin
 whose error asks for more samples reuses every pass it shares with an earlier one.
 
 On disk an entry is ``<folder>/<key>.npz`` (images, masks and a JSON record), written atomically;
-the default folder is ``build/cache/references/`` (``atlasgen validate --reference-cache``). An
-entry that cannot be read is as good as absent: the reference renders again and replaces it.
+the default folder is ``build/cache/references/`` (``atlasgen validate --reference-cache``). The record
+holds the SHA-256 of every array (dtype, shape and bytes). An entry that cannot be read, or whose
+contents are not a render of the size asked for (an image not float32 ``(h, w, 3)`` or not finite, a
+mask not bool ``(h, w)``, a record of other fields or types, an array that does not hash to its
+record's digest) is as good as absent: the reference renders again and replaces it, and
+:attr:`ReferenceCache.rejected` says which entry and why (``atlasgen validate`` warns).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import functools
 import hashlib
 import io
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +33,14 @@ import numpy as np
 from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.io.atomic import write_file_atomically
 
-__all__ = ["ReferenceCache", "render_key", "reference_code_fingerprint", "REFERENCE_CODE", "DEFAULT_REFERENCE_CACHE"]
+__all__ = [
+    "ReferenceCache",
+    "render_key",
+    "reference_code_fingerprint",
+    "array_digest",
+    "REFERENCE_CODE",
+    "DEFAULT_REFERENCE_CACHE",
+]
 
 #: Where ``atlasgen validate`` keeps reference renders unless told otherwise.
 DEFAULT_REFERENCE_CACHE = Path("build/cache/references")
@@ -39,6 +51,17 @@ REFERENCE_CODE = ("validate/mitsuba_scene.py", "validate/references.py", "valida
                   "validate/scenes.py", "validate/reference_cache.py", "render/meshes.py", "render/environment.py")  # fmt: skip
 #: Arrays of a render, each stored where present.
 _ARRAYS = ("image", "second_image", "mask")
+#: The record's fields of a render (:func:`atlasgen.validate.run._render_fields`) and what each must be.
+_RECORD = {"kind": (str,), "description": (str,), "seconds": (int, float), "spp": (int,), "variant": (str,),
+           "masked": (str, type(None))}  # fmt: skip
+
+
+def array_digest(array: np.ndarray) -> str:
+    """SHA-256 of an array's dtype, shape and C-order bytes: what a cache entry records of each of its arrays."""
+    a = np.ascontiguousarray(array)
+    digest = hashlib.sha256(f"{a.dtype.str}{list(a.shape)}".encode())
+    digest.update(a.tobytes())
+    return digest.hexdigest()
 
 
 @functools.cache
@@ -89,24 +112,28 @@ class ReferenceCache:
 
     Values are dicts of a render's fields (``image``, ``second_image``, ``mask``: arrays or None; the
     rest JSON); :meth:`get` returns a copy, so the caller may grow and measure it. ``hits``,
-    ``loaded`` (hits read from disk) and ``stored`` count what happened, for the report.
+    ``loaded`` (hits read from disk) and ``stored`` count what happened, for the report; ``rejected``
+    lists the entries on disk that were there but not used (``"<path>: <why>; rendered again"``).
     """
 
     def __init__(self, folder=None):
         self.folder = None if folder is None else Path(folder)
         self._memory: dict[str, dict] = {}
         self.hits = self.loaded = self.stored = 0
+        self.rejected: list[str] = []
 
     def _path(self, key: str) -> Path:
         assert self.folder is not None
         return self.folder / f"{key}.npz"
 
-    def get(self, key: str | None) -> dict | None:
+    def get(self, key: str | None, size: tuple[int, int] | None = None) -> dict | None:
+        """The render kept under ``key`` (a copy), or None. ``size`` = ``(height, width)``: the frame the render
+        must have (an entry on disk of another size, or whose contents do not check out, is a miss)."""
         if key is None:
             return None
         fields = self._memory.get(key)
         if fields is None and self.folder is not None:
-            fields = self._load(key)
+            fields = self._load(key, size)
             if fields is not None:
                 self._memory[key] = fields
                 self.loaded += 1
@@ -123,12 +150,13 @@ class ReferenceCache:
             return
         arrays = {k: np.asarray(fields[k]) for k in _ARRAYS if fields.get(k) is not None}
         record = {k: v for k, v in fields.items() if k not in _ARRAYS}
+        digests = {k: array_digest(a) for k, a in arrays.items()}
         buffer = io.BytesIO()
-        np.savez(buffer, record=np.array(json.dumps({"key": key, **record})), **arrays)
+        np.savez(buffer, record=np.array(json.dumps({"key": key, "digests": digests, **record})), **arrays)
         write_file_atomically(self._path(key), buffer.getvalue())
         self.stored += 1
 
-    def _load(self, key: str) -> dict | None:
+    def _load(self, key: str, size=None) -> dict | None:
         path = self._path(key)
         if not path.is_file():
             return None
@@ -136,13 +164,54 @@ class ReferenceCache:
             with np.load(path, allow_pickle=False) as data:
                 record = json.loads(str(data["record"]))
                 if not isinstance(record, dict) or record.pop("key", None) != key:
-                    return None
+                    return self._reject(path, "its record is not this entry's (another key)")
                 arrays = {k: (np.array(data[k]) if k in data.files else None) for k in _ARRAYS}
-        except Exception:  # noqa: BLE001 - a damaged entry (zipfile, numpy, json errors) is as good as absent
-            return None
-        if arrays["image"] is None:
-            return None
+        except Exception as exc:  # noqa: BLE001 - a damaged entry (zipfile, numpy, json errors) is as good as absent
+            return self._reject(path, f"unreadable ({type(exc).__name__})")
+        why = _entry_problem(record, arrays, size)
+        if why is not None:
+            return self._reject(path, why)
+        record.pop("digests")
         return {**record, **arrays}
+
+    def _reject(self, path: Path, why: str) -> None:
+        self.rejected.append(f"{path.as_posix()}: {why}; rendered again")
+        return None
+
+
+def _entry_problem(record: dict, arrays: dict, size=None) -> str | None:
+    """What is wrong with a cache entry read from disk (its JSON ``record`` without the key, its ``arrays``),
+    for a render of ``size`` = ``(height, width)`` where given; None where it is a render as stored."""
+    digests = record.get("digests")
+    if not isinstance(digests, dict):
+        return "its record has no digests of its images (an entry of another atlasgen)"
+    fields = {k: v for k, v in record.items() if k != "digests"}
+    if set(fields) != set(_RECORD):
+        return f"its record has fields {sorted(fields)}; expected {sorted(_RECORD)}"
+    for name, kinds in _RECORD.items():
+        value = fields[name]
+        if not isinstance(value, kinds) or isinstance(value, bool):
+            return f"its record's {name!r} is {type(value).__name__}; expected {' or '.join(k.__name__ for k in kinds)}"
+    if fields["spp"] < 1 or not (math.isfinite(fields["seconds"]) and fields["seconds"] >= 0):
+        return "its record's sample count or seconds are not a render's"
+    image = arrays["image"]
+    if image is None:
+        return "no image"
+    frame = image.shape[:2] if size is None else tuple(int(x) for x in size)
+    for name, array in arrays.items():
+        if array is None:
+            continue
+        is_mask = name == "mask"
+        shape, dtype = (frame, np.dtype(bool)) if is_mask else ((*frame, 3), np.dtype(np.float32))
+        if array.shape != shape or array.dtype != dtype:
+            return f"{name} is {array.dtype} {'x'.join(map(str, array.shape))}; expected {dtype} {'x'.join(map(str, shape))}"
+        if not is_mask and not np.isfinite(array).all():
+            return f"{name} has {int(np.count_nonzero(~np.isfinite(array)))} values that are not finite"
+        if digests.get(name) != array_digest(array):
+            return f"{name} does not match its record's digest (changed since it was stored)"
+    if set(digests) != {k for k, a in arrays.items() if a is not None}:
+        return "its arrays are not the ones its record's digests name"
+    return None
 
 
 def _copy(fields: dict) -> dict:

@@ -37,6 +37,7 @@ from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
 from atlasgen.validate.backend import load_mitsuba
 from atlasgen.validate.environment import break_down_environment, environment_parts
+from atlasgen.validate.identity import atlas_identity
 from atlasgen.validate.materialx_reference import (
     FORWARD_DESCRIPTION,
     is_materialx_entry,
@@ -67,7 +68,13 @@ from atlasgen.validate.mitsuba_scene import (
 from atlasgen.validate.rebuild import material_mask, n_dot_v_image, rebuild_images
 from atlasgen.validate.reference_cache import ReferenceCache, render_key
 from atlasgen.validate.references import entry_model, model_reference, physical_reference, register_references
-from atlasgen.validate.scenes import MATERIAL_PLACEHOLDER, bind_material, load_validation_scene, resize_scene
+from atlasgen.validate.scenes import (
+    MATERIAL_PLACEHOLDER,
+    STANDARD_SCENES,
+    bind_material,
+    load_validation_scene,
+    resize_scene,
+)
 
 __all__ = [
     "DEFAULT_SCENES",
@@ -162,12 +169,16 @@ class ReferenceRender:
 
     def floor_checks(self) -> list:
         """``(where, floor dB, PSNR dB)`` of every figure the noise floor must clear: the whole
-        comparison (``where`` None), then each part of it (``metrics.parts``), an empty part's PSNR inf."""
+        comparison (``where`` None), then each part of it (``metrics.parts``) that shows a pixel, a perfect
+        match's PSNR inf."""
         if self.noise_floor_db is None or self.metrics is None:
             return []
         checks = [(None, self.noise_floor_db, self.metrics.psnr)]
         for name, floor in self.part_floors.items():
-            psnr_db = (self.metrics.parts.get(name) or {}).get("psnr_db")
+            part = self.metrics.parts.get(name) or {}
+            if part.get("pixels") == 0:  # an object out of view: no error of its own to clear
+                continue
+            psnr_db = part.get("psnr_db")
             checks.append((name, floor, math.inf if psnr_db is None else psnr_db))
         return checks
 
@@ -177,7 +188,7 @@ class ReferenceRender:
         this reference, and so does each part's floor above the part's PSNR, where the comparison
         has parts (``None`` for a deterministic reference)."""
         checks = self.floor_checks()
-        if not checks:
+        if not checks or getattr(self.metrics, "not_measured", None) is not None:  # no error measured: no floor to clear
             return None
         return all(floor >= p + NOISE_FLOOR_MARGIN_DB for _, floor, p in checks)
 
@@ -210,6 +221,8 @@ class ValidationRun:
     settings: dict
     environment: dict
     seconds: float = 0.0
+    warnings: list = field(default_factory=list)  # one line each, for the command to print (reference-cache entries not used)
+    identity: dict = field(default_factory=dict)  # material -> what identifies it in the atlas validated (:mod:`.identity`)
 
 
 @dataclass
@@ -418,6 +431,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     register_references(mi)
     renderer = Renderer(read_render_atlas(plan.atlas_path, atlas=plan.atlas))
     errors_before = len(renderer.ctx.errors)
+    _check_visible(renderer, plan, resolution)
     say = progress or (lambda text: None)
 
     runs = []
@@ -447,7 +461,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                 _check_environment(run, mi, renderer, entry, plan.manifest, bound, aovs, model.custom_lighting)
                 ref = run.references["model"]
                 say(f"{entry.name} / {scene_name}: environment reference {ref.seconds:.2f} s at {ref.spp} spp, "
-                    f"PSNR {ref.metrics.psnr:.1f} dB, noise floor {ref.noise_floor_db:.1f} dB")  # fmt: skip
+                    f"{_psnr_said(ref.metrics)}, noise floor {ref.noise_floor_db:.1f} dB")  # fmt: skip
                 runs.append(run)
                 continue
             own = material_mask(entry, aovs)
@@ -459,7 +473,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             measure_physical(ref, atlas_image, run.exposure, outside, regions)
             run.references["model"] = ref
             _check_rebuilds(run, model, plan.atlas, entry, bound, aovs, float_slices)
-            say(f"{entry.name} / {scene_name}: model reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB")
+            say(f"{entry.name} / {scene_name}: model reference {ref.seconds:.2f} s, {_psnr_said(ref.metrics)}")
 
             phys = physical_reference(entry) if physical else None
             if phys is not None:
@@ -474,7 +488,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
                                               renders, atlas_image, run.exposure, outside, regions)  # fmt: skip
                 run.references["physical"] = ref
                 say(
-                    f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, PSNR {ref.metrics.psnr:.1f} dB"
+                    f"{entry.name} / {scene_name}: physical reference {ref.seconds:.2f} s, {_psnr_said(ref.metrics)}"
                     + (f", noise floor {ref.noise_floor_db:.1f} dB" if ref.noise_floor_db is not None else "")
                 )
             if run.materialx is not None and "physical" in run.references:
@@ -495,6 +509,7 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         "reference_cache": None if reference_cache is None else Path(reference_cache).as_posix(),
         "reference_renders_from_cache": renders.hits,
         "reference_renders_stored": renders.stored,
+        "reference_renders_rejected": len(renders.rejected),
         "float_slices_from_bake_cache": bake_hits,
     }
     settings = {
@@ -511,7 +526,27 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
             "grazing_n_dot_v": GRAZING_N_DOT_V,
         },
     }
-    return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start)
+    identity = {e.name: atlas_identity(plan.atlas, e) for e in plan.entries}
+    return ValidationRun(plan.atlas_path.as_posix(), runs, settings, environment, time.perf_counter() - t_start,
+                         warnings=list(renders.rejected), identity=identity)  # fmt: skip
+
+
+def _check_visible(renderer, plan, resolution=None) -> None:
+    """Refuse a scene on which a material to validate shows no pixel (its objects out of view, or a frame too
+    small to cover one pixel centre), before any reference renders: every figure would be a mean over
+    nothing. One g-buffer per material and scene (a frame of the rasteriser: milliseconds)."""
+    by_name = {e.name: e for e in plan.manifest.materials}
+    for entry in plan.entries:
+        for name, scene in plan.scenes:
+            bound = with_fitted_surfaces(bind_material(scene, entry.name), by_name)
+            aovs = renderer.render(bound, outlines=False, aovs=True).aovs
+            if material_mask(entry, aovs).any():
+                continue
+            shown = name if name in STANDARD_SCENES else Path(scene.path).as_posix()
+            size = " (--resolution)" if resolution is not None else ""
+            raise InputError(f"scene {shown!r}: no pixel of its {scene.width}x{scene.height} frame{size} shows material "
+                             f"{entry.name!r} (nothing to compare); expected a scene in which it is visible (an object "
+                             f"with material = {MATERIAL_PLACEHOLDER!r} in view of the camera, covering a pixel centre)")  # fmt: skip
 
 
 def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_lighting: bool) -> None:
@@ -672,7 +707,7 @@ def _model_render(mi, scene, entry, manifest, spp, renders) -> ReferenceRender:
     unnamed = replace(scene, objects=[replace(o, material="") for o in scene.objects])
     key = _render_key(mi, "model", "llvm_ad_rgb", unnamed, bsdfs, spp)
     description = model_reference(entry).description
-    kept = renders.get(key) if renders is not None else None
+    kept = renders.get(key, (scene.height, scene.width)) if renders is not None else None
     if kept is not None:
         return ReferenceRender(**{**kept, "description": description})
     mi_scene = build_mitsuba_scene(mi, scene, bsdfs, spp)
@@ -724,6 +759,13 @@ def _materialx_model(run, scene, entry, model, plugin: ReferenceRender, outside,
         counted = compare_images(image, run.atlas_image, run.exposure, with_flip=False, mask=outside)
         run.materialx["facing_away"]["psnr_db_counting_them"] = finite_or_none(counted.psnr)
     return ref
+
+
+def _psnr_said(metrics) -> str:
+    """``PSNR 41.2 dB`` for a progress line; what was not measured where nothing was (never "inf" or "nan")."""
+    if metrics.not_measured is not None and not math.isfinite(metrics.psnr):
+        return f"nothing measured ({metrics.not_measured})"
+    return f"PSNR {_psnr_text(metrics.psnr)} dB"
 
 
 def _psnr_text(psnr) -> str:
@@ -1042,7 +1084,7 @@ def render_physical(
     key = None if renders is None else _render_key(mi, variant, unnamed, "each object alone" if alone else "together", bsdfs,
                                                    interiors, n, reference.integrator, reference.stochastic,
                                                    reference.builtin_only, first_sample, which)  # fmt: skip
-    kept = None if key is None else renders.get(key)
+    kept = None if key is None else renders.get(key, (scene.height, scene.width))
     if kept is not None:
         mi.set_variant("llvm_ad_rgb")
         return ReferenceRender(**kept)

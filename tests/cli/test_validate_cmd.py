@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -31,16 +32,82 @@ def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, t
     assert data["settings"]["scenes"][0]["width"] == 24
 
 
+def _front_scene(tmp_path, name, **replace):
+    """A copy of the standard front scene at ``tmp_path/<name>.toml``, with lines replaced (``key=(old, new)``)."""
+    from atlasgen.validate.scenes import scene_folder
+
+    text = (scene_folder() / "front.toml").read_text()
+    for old, new in replace.values():
+        assert old in text
+        text = text.replace(old, new)
+    return _write(tmp_path / f"{name}.toml", text)
+
+
+@pytest.mark.parametrize(
+    "scenes, shown, size",
+    [
+        (["--scene", "front", "--resolution", "2x1"], "front", "2x1 frame (--resolution)"),
+        (["--scene", "AWAY", "--resolution", "32x24"], "AWAY", "32x24 frame (--resolution)"),
+        (["--scene", "front", "--scene", "AWAY"], "AWAY", "128x96 frame"),
+    ],
+    ids=["too-small-a-frame", "camera-looking-away", "second-scene-looking-away"],
+)
 @pytest.mark.slow
-def test_a_frame_that_shows_no_pixel_of_the_material_reports_no_figures(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
-    """At 2x1 the sphere covers no pixel: the means of nothing were NaN, which broke the plot's log axis and
-    the JSON (exit 1, 'a bug'). They are null now, printed n/a, and the goal is not met."""
+def test_a_scene_that_shows_no_pixel_of_the_material_is_refused(validation_atlas, mitsuba_rgb, gpu_device, tmp_path,  # noqa: F811
+                                                                 monkeypatch, scenes, shown, size):  # fmt: skip
+    """Every figure of such a scene is a mean over nothing: it was reported as "worst inf dB", linear relative RMS 0.0,
+    a goal decided on nothing, or ended in an internal error (a None compared with a float in the summary). It is
+    refused before any reference renders, exit 3, one line naming the scene and the material; nothing is written."""
+    from atlasgen.validate import run as module
+
+    away = _front_scene(tmp_path, "away", camera=("target = [0.0, 0.42, 0.0]", "target = [0.0, 0.42, 10.0]"))
+    scenes = [str(away) if s == "AWAY" else s for s in scenes]
+    shown = away.as_posix() if shown == "AWAY" else shown
+
+    def refuse(*a, **k):
+        raise AssertionError("a reference rendered before the scene was checked")
+
+    monkeypatch.setattr(module, "render_mitsuba", refuse)
     out = tmp_path / "v"
-    result = CliRunner().invoke(app, ["validate", "matte", "--scene", "front", "--resolution", "2x1", "--no-physical",
-                                      "--atlas", str(validation_atlas), "-o", str(out), "-q"])  # fmt: skip
+    result = CliRunner().invoke(app, ["validate", "matte", *scenes, "--no-physical", "--atlas", str(validation_atlas),
+                                      "-o", str(out), "--no-reference-cache"])  # fmt: skip
+    assert result.exit_code == 3, result.output
+    assert result.output == (f"atlasgen: error: scene {shown!r}: no pixel of its {size} shows material 'matte' (nothing "
+                             "to compare); expected a scene in which it is visible (an object with material = '$material' "
+                             "in view of the camera, covering a pixel centre)\n")  # fmt: skip
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_a_black_scene_meets_no_goal_and_prints_no_inf(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    """Albedo 0 on every object: atlas and references are black on every pixel of the material, a "perfect" match
+    that measures nothing. It was "all goals met ... worst inf dB"; now each comparison says it measures nothing,
+    no goal is met (none missed either), the lines say "not measured" with no inf, and --strict counts it."""
+    black = _front_scene(tmp_path, "black", sphere=("albedo = [1.0, 1.0, 1.0]", "albedo = [0.0, 0.0, 0.0]"),
+                         plane=("albedo = [0.6, 0.6, 0.6]", "albedo = [0.0, 0.0, 0.0]"))  # fmt: skip
+    args = ["validate", "matte", "--scene", str(black), "--scene", "front", "--resolution", "24x18",
+            "--atlas", str(validation_atlas), "--no-reference-cache"]  # fmt: skip
+    result = CliRunner().invoke(app, [*args, "-o", str(tmp_path / "v")])
     assert result.exit_code == 0, result.output
-    model = json.loads((out / "report.json").read_text())["results"][0]["references"]["model"]
-    assert model["coverage"] == 0.0 and model["flip"] is None and model["psnr_db"] is None and not model["meets_goal"]
+    assert "inf" not in result.stdout and "all goals met" not in result.stdout
+    line = result.stdout.splitlines()[0]
+    assert line.startswith("matte: not measured: model reference, look; storage 1/1 met") and (
+        "not measured on black: the reference is black on every compared pixel, unlit or of albedo 0" in line
+    )
+    assert "not judged on black: not measured: the reference is black" in line
+    assert ("2 comparison(s) measure nothing of the material: matte/black (model), matte/black (physical)"
+            in result.stdout.splitlines()[-1])  # fmt: skip
+    black_row, front_row = json.loads((tmp_path / "v" / "report.json").read_text())["results"]
+    for ref in black_row["references"].values():
+        assert ref["not_measured"] == "the reference is black on every compared pixel, unlit or of albedo 0"
+        assert ref["meets_goal"] is None and ref["psnr_db"] is None and ref["linear_relative_rms"] is None
+    assert black_row["look"]["meets_goal"] is None
+    assert all("not_measured" not in ref for ref in front_row["references"].values())
+    assert front_row["references"]["model"]["meets_goal"] is not None
+    strict = CliRunner().invoke(app, [*args, "-o", str(tmp_path / "strict"), "--strict"])
+    assert strict.exit_code == 6
+    assert "matte on black: nothing measured against the model reference" in strict.stderr
+    assert gpu_device.take_errors() == []
 
 
 @pytest.mark.parametrize(
@@ -266,4 +333,77 @@ def test_the_reference_cache_defaults_to_build_cache_references_and_serves_a_sec
     assert environment["reference_cache"] == "build/cache/references"
     result = runner.invoke(app, [*args, "-o", "third", "--no-reference-cache", "--reference-cache", str(tmp_path / "elsewhere")])
     assert result.exit_code == 0 and not (tmp_path / "elsewhere").exists()
+    assert gpu_device.take_errors() == []
+
+
+def _spoil_nan(image):
+    return np.full_like(image, np.nan)
+
+
+def _spoil_small(image):
+    return np.ones((3, 3, 3), dtype=np.float32)
+
+
+def _spoil_scaled(image):
+    return image * np.float32(0.5)
+
+
+@pytest.mark.mitsuba
+@pytest.mark.parametrize(
+    "spoil, why",
+    [
+        (_spoil_nan, "image has 1296 values that are not finite"),
+        (_spoil_small, "image is float32 3x3x3; expected float32 18x24x3"),
+        (_spoil_scaled, "image does not match its record's digest (changed since it was stored)"),
+    ],
+    ids=["all-nan", "another-size", "scaled"],
+)
+@pytest.mark.slow
+def test_a_reference_cache_entry_whose_image_is_not_a_render_is_rendered_again(validation_atlas, mitsuba_rgb, gpu_device,  # noqa: F811
+                                                                               tmp_path, spoil, why):  # fmt: skip
+    """An entry whose image was all NaN gave made-up figures (11.8 dB, FLIP 0.684), one of another size an internal
+    error, a scaled one its scaled figures: each is a miss now, rendered again with one warning naming it, and the
+    figures are those of a fresh render."""
+    runner = CliRunner()
+    cache = tmp_path / "references"
+    args = ["validate", "matte", *TINY_RUN, "--atlas", str(validation_atlas), "-q", "--reference-cache", str(cache)]
+    assert runner.invoke(app, [*args, "-o", "first"]).exit_code == 0
+    (entry,) = cache.glob("*.npz")
+    with np.load(entry) as data:
+        arrays = dict(data)
+    arrays["image"] = spoil(arrays["image"])
+    np.savez(entry, **arrays)
+    result = runner.invoke(app, [*args, "-o", "second"])
+    assert result.exit_code == 0, result.output
+    assert result.stderr.splitlines() == [f"warning: {entry.as_posix()}: {why}; rendered again"]
+    first, second = (json.loads((tmp_path / d / "report.json").read_text()) for d in ("first", "second"))
+    assert second["environment"]["reference_renders_rejected"] == 1 and second["environment"]["reference_renders_stored"] == 1
+    model = [d["results"][0]["references"]["model"] for d in (first, second)]
+    assert model[1]["psnr_db"] == model[0]["psnr_db"] and model[1]["flip"] == model[0]["flip"]
+    # The entry stored again is a render: a third run uses it and warns of nothing.
+    third = runner.invoke(app, [*args, "-o", "third"])
+    assert third.exit_code == 0 and third.stderr == ""
+    assert json.loads((tmp_path / "third" / "report.json").read_text())["environment"]["reference_renders_from_cache"] == 1
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.slow
+def test_the_report_records_what_identifies_each_validated_material(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    """report.json names the atlas and the material its figures were measured on (atlasgen.validate.identity), so
+    a reader given an atlas can tell them current (atlasgen report library)."""
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.validate.identity import atlas_identity
+
+    out = tmp_path / "v"
+    result = CliRunner().invoke(app, ["validate", "matte", "coat", *TINY_RUN, "--atlas", str(validation_atlas), "-o", str(out),
+                                      "-q", "--no-reference-cache"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    atlas = read_atlas(validation_atlas)
+    rows = json.loads((out / "report.json").read_text())["results"]
+    assert [r["material"] for r in rows] == ["matte", "coat"]
+    for row in rows:
+        identity = atlas_identity(atlas, atlas.material(row["material"]))
+        assert row["atlas_identity"] == identity and identity["manifest_sha256"] == atlas.manifest_sha256
+        assert identity["content_hash"] == atlas.material(row["material"]).content_hash
+    assert rows[0]["atlas_identity"]["material_sha256"] != rows[1]["atlas_identity"]["material_sha256"]
     assert gpu_device.take_errors() == []
