@@ -117,3 +117,16 @@ def test_a_timings_file_with_a_non_number_bake_time_is_refused_with_one_line(tmp
         _bake_seconds({"materials": {"clay": {"bake_s": "slow"}}}, path, "clay")
     with pytest.raises(FieldError, match=r"field 'materials': expected an object"):
         _bake_seconds({"materials": [1]}, path, "clay")
+
+
+def test_a_report_over_the_size_limit_is_refused_unread(tmp_path, monkeypatch):
+    """A 48 MB report.json of empty objects took 1.27 GB to read; the limit is lowered here to stand for it."""
+    from atlasgen.io import report_files
+
+    path = tmp_path / "report.json"
+    path.write_text('{"results": [], "pad": [' + ", ".join(["{}"] * 50) + "]}")
+    monkeypatch.setattr(report_files, "REPORT_LIMIT", (100, "a report written by atlasgen"))
+    with pytest.raises(InputError) as refused:
+        read_report_json(path, "validation", "atlasgen validate")
+    size = path.stat().st_size
+    assert str(refused.value) == f"{path.as_posix()}: {size} bytes; expected a report written by atlasgen, at most 100 bytes"

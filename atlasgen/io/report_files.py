@@ -75,6 +75,10 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
     return paths
 
 
+#: Bytes a report's JSON may have: a merged library's is hundreds of kB; a 48 MB one took 1.27 GB to read.
+REPORT_LIMIT = (64 << 20, "a report written by atlasgen")
+
+
 def read_json_file(path, missing: str = "no such file"):
     """The parsed JSON of ``path`` (:func:`loads_finite_json`), a leading byte-order mark dropped.
 
@@ -82,10 +86,10 @@ def read_json_file(path, missing: str = "no such file"):
     ------
     InputError
         One line naming the file: missing (``path: {missing}``), a folder, a pipe or device,
-        unreadable, not UTF-8, malformed.
+        unreadable, over :data:`REPORT_LIMIT`, not UTF-8, malformed.
     """
     path = Path(path)
-    data = read_input_bytes(path, missing)
+    data = read_input_bytes(path, missing, limit=REPORT_LIMIT)
     try:
         text = decode_utf8(data)
     except UnicodeDecodeError as exc:
