@@ -20,6 +20,7 @@ import numpy as np
 
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.fields import is_number
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
@@ -819,7 +820,7 @@ _REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "line
 
 def _check_figures(path: Path, data: dict) -> None:
     """Refuse a report whose figures are not finite numbers (or null), naming the field."""
-    check_number(path, "total_seconds", data["total_seconds"], allow_none=False)
+    check_number(path, "total_seconds", data["total_seconds"], allow_none=False, minimum=0)
     for part, keys in (("environment", _ENVIRONMENT_KEYS), ("settings", _SETTINGS_KEYS)):
         if not isinstance(data[part], dict):
             raise FieldError(path.as_posix(), part, f"expected an object, got {type(data[part]).__name__}")
@@ -833,6 +834,30 @@ def _check_figures(path: Path, data: dict) -> None:
         raise FieldError(path.as_posix(), "settings.scenes", f"expected a list of scenes, each an object with a 'name', "
                          f"got {shorten(repr(scenes))}")  # fmt: skip
     check_result_figures(path, data["results"], merged=True)
+    _check_verdicts(path, data)
+
+
+def _check_verdicts(path: Path, data: dict) -> None:
+    """Refuse a model reference whose recorded verdict is not what its figures and the goals give (:func:`_goal`'s
+    rule): a merge prints the verdicts it reads, so an edited ``meets_goal`` (true beside 20 dB) passed as "all goals
+    met". Figures JSON writes as null (an infinite or undefined PSNR) leave the verdict as recorded."""
+    goals = data["settings"].get("goals")
+    if not isinstance(goals, dict) or not all(is_number(goals.get(k)) for k in ("psnr_db", "flip")):
+        return  # the page's own check names such goals
+    for i, row in enumerate(data["results"]):
+        ref = row["references"].get("model")
+        if not isinstance(ref, dict) or not isinstance(ref.get("meets_goal"), bool):
+            continue
+        psnr, flip, own = ref.get("psnr_db"), ref.get("flip"), row.get("goal_psnr_db")
+        if not (is_number(psnr) and is_number(flip)):
+            continue
+        met = psnr >= own if is_number(own) else psnr >= goals["psnr_db"] and flip <= goals["flip"]
+        expected = _unmeasured_verdict(bool(met), not_measured(ref), psnr)
+        if expected is not None and expected != ref["meets_goal"]:
+            goal = f"PSNR >= {own:g} dB" if is_number(own) else _goals_text(goals)
+            raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected "
+                             f"{str(expected).lower()} from its figures (PSNR {psnr:.1f} dB, FLIP {flip:.4f}) and the goals "
+                             f"({goal}), got {str(ref['meets_goal']).lower()}; re-run atlasgen validate")  # fmt: skip
 
 
 #: Per key of a result (and of each of its references), what a merge or the library page reads it as:

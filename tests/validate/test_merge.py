@@ -185,6 +185,25 @@ def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, chan
     assert not (tmp_path / "merged").exists()
 
 
+def test_a_verdict_its_figures_do_not_give_is_refused(merged, tmp_path):
+    """An edited meets_goal (true beside 20 dB and FLIP 0.5) merged as "all goals met"; a negative time printed."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    def forged(data):
+        ref = next(r for r in data["results"] if r["references"].get("model", {}).get("meets_goal") is True)["references"]
+        ref["model"].update(psnr_db=20.0, flip=0.5)
+
+    folder = _edited(merged, tmp_path / "verdict", forged)
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    assert ".references.model.meets_goal': expected false from its figures (PSNR 20.0 dB, FLIP 0.5000) and the goals " \
+        "(PSNR >= " in str(info.value) and str(info.value).endswith("got true; re-run atlasgen validate"), str(info.value)  # fmt: skip
+    folder = _edited(merged, tmp_path / "seconds", _put(-5, "total_seconds"))
+    with pytest.raises(InputError, match=r"field 'total_seconds': expected a number >= 0, got -5$"):
+        merge_validation_reports([folder], tmp_path / "merged")
+    assert not (tmp_path / "merged").exists()
+
+
 def test_a_field_the_page_cannot_print_is_one_line_naming_the_file(merged, tmp_path):
     """Deeper than the checked fields (the settings' goals): the page's own failure, one line."""
     from atlasgen.reports.validation import merge_validation_reports
