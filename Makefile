@@ -120,13 +120,23 @@ endif
 $(BUILD)/materials.list:
 	@mkdir -p $(@D) && echo "$(MATERIAL_FILES)" > $@
 
-$(CACHE_DIR)/%.npz: materials/%.toml $(BAKE_CODE) | $(VENV)/.stamp
+# build/hashes/<file>.sha256: each material file's content hash, rewritten only when the content changes.
+# Its time stamp moves with the content, not the file's: two files swapped by renaming (every name and
+# time stamp kept) or an older file copied in with its time (cp -p, rsync -a, tar) re-bake.
+HASH_DIR := $(BUILD)/hashes
+ifeq ($(filter clean,$(MAKECMDGOALS)),)
+$(foreach f,$(MATERIAL_FILES),$(shell $(call write_if_changed,$(firstword $(shell sha256sum $(f))),$(HASH_DIR)/$(f).sha256)))
+endif
+$(HASH_DIR)/%.sha256: %
+	@mkdir -p $(@D) && sha256sum $< | cut -c1-64 > $@
+
+$(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
 
 # The bake also writes build/cache/<stem>.mtlx.d, which makes the stamp depend on the files the
 # document includes (xi:include) as well.
 -include $(patsubst %,$(CACHE_DIR)/%.mtlx.d,$(MTLX_STEMS))
-$(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(BAKE_CODE) | $(VENV)/.stamp
+$(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(@:.stamp=.d) --depfile-target $@ -q && touch $@
 
 $(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
@@ -267,3 +277,9 @@ device-prepare: $(BUILD)/atlas.dds
 clean:
 	rm -rf $(BUILD) .pytest_cache .hypothesis
 	find . -name __pycache__ -prune -exec rm -rf {} +
+
+# atlasgen commits each output set whole (docs/cli.md, "Outputs"): a run interrupted just after its
+# commit exits 130 with the new set in place. make's default for an interrupted recipe, deleting its
+# target, then removed build/atlas.dds and left the rest of the new set without it.
+.PRECIOUS: $(CACHE_DIR)/%.npz $(BUILD)/atlas.dds $(SCENE_ATLASES) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
+	$(VALIDATION)/report.json $(SEPARABLE_STUDIES) $(SEPARABLE_REPORT)/index.md $(BUILD)/report/index.html

@@ -299,7 +299,8 @@ def test_a_file_a_materialx_document_includes_rebakes_the_document(tree):
         path.write_text("")
     write_depfile(stamp.with_suffix(".d"), "build/cache/doc.mtlx.stamp", ["materials/doc.mtlx", "materials/shared/base.mtlx"])
     _make(tree, "-n", "atlas")  # reads the Makefile: the material list now names the document
-    for path in [tree / "materials" / "doc.mtlx", *(tree / "materials" / "shared").iterdir()]:
+    hashed = tree / "build" / "hashes" / "materials" / "doc.mtlx.sha256"  # written as the Makefile was read
+    for path in [tree / "materials" / "doc.mtlx", hashed, *(tree / "materials" / "shared").iterdir()]:
         os.utime(path, (T0, T0))
     for path in (stamp, stamp.with_suffix(".d"), report, tree / "build" / "materials.list", tree / "build" / "atlas.dds"):
         os.utime(path, (T_BUILT, T_BUILT))
@@ -314,3 +315,32 @@ def test_a_file_a_materialx_document_includes_rebakes_the_document(tree):
         and "--depfile build/cache/doc.mtlx.d --depfile-target build/cache/doc.mtlx.stamp" in bake
     )
     assert _validated(commands) == ["materials/doc.mtlx"]
+
+
+def test_a_material_whose_content_changed_rebakes_whatever_its_time_stamp(tree):
+    """Two files swapped by renaming keep every name and time stamp, as does an older file copied in with
+    its time (cp -p): make saw nothing to do, and the atlas kept the old materials."""
+    clay, snow = tree / "materials" / "clay.toml", tree / "materials" / "snow.toml"
+    clay.write_text('type = "lambert"\ncolour = [0.9, 0.2, 0.1]\n')
+    os.utime(clay, (T0, T0))  # older than its cache entry, as a swapped file is
+    commands = _commands(tree, "atlas", "validate")
+    assert [c for c in commands if "--cache-only" in c] == [
+        ".venv/bin/atlasgen bake materials/clay.toml --cache build/cache --cache-only -q"
+    ] and _validated(commands) == ["materials/clay.toml"], commands
+    assert snow.read_text() == 'type = "lambert"\n'
+
+
+def test_outputs_atlasgen_commits_are_kept_when_make_is_interrupted(tree):
+    """A run interrupted just after its commit exits 130 with the new set in place; make deleted build/atlas.dds."""
+    database = _make(tree, "-p", "-q", "atlas").stdout
+    precious = next(line for line in database.splitlines() if line.startswith(".PRECIOUS:")).split()[1:]
+    for target in (
+        "build/atlas.dds",
+        "build/cache/%.npz",
+        "build/scenes/one.dds",
+        "build/scenes/one.png",
+        "build/validation/report.json",
+        "build/validation/materials/clay/report.json",
+        "build/report/index.html",
+    ):
+        assert target in precious, (target, precious)
