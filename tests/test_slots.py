@@ -17,6 +17,17 @@ def test_explicit_then_previous_then_lowest_free():
     assert slots == {"b": 0, "d": 5, "a": 1, "c": 2}
 
 
+def test_a_material_that_grew_into_the_next_one_s_slices_moves_not_the_next_one():
+    """A MaterialX velvet of 7 slices (25..31) grew to 8: it took red-plastic's slice 32, red-plastic moved to 51,
+    and scene atlases baked with red-plastic at 32 went stale, though red-plastic had not changed."""
+    previous = {"a": 0, "mx_velvet": 25, "red-plastic": 32, "z": 33}
+    slots = assign_slices([req("a"), req("mx_velvet", 8), req("red-plastic"), req("z", 2)], previous)
+    assert slots == {"a": 0, "red-plastic": 32, "z": 33, "mx_velvet": 1}  # the lowest free run of 8
+    # Shrunk, or grown into free slices, it stays.
+    assert assign_slices([req("a"), req("mx_velvet", 6), req("red-plastic"), req("z")], previous)["mx_velvet"] == 25
+    assert assign_slices([req("mx_velvet", 10)], previous)["mx_velvet"] == 25
+
+
 def test_overlapping_explicit_ids_conflict():
     with pytest.raises(MaterialError, match="y.toml: field 'id'.*conflicts with material 'x'"):
         assign_slices([req("x", 3, explicit=10), req("y", explicit=12)])

@@ -24,8 +24,8 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
         ``name -> first_slice`` from the previous manifest, if any.
 
     A material with an explicit ``id`` gets exactly that slice; one that was in the
-    previous manifest keeps its slice when it still fits there; the rest take the
-    lowest free run of slices. Two explicit ids that overlap are a conflict, and so is
+    previous manifest keeps its slice when it still fits there, unless its run grew into
+    another's (that one keeps its slice); the rest take the lowest free run of slices. Two explicit ids that overlap are a conflict, and so is
     an explicit id that lands on a slice the previous manifest gave to a material
     still present (moving that one would silently change its ID in every scene).
 
@@ -64,9 +64,16 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
         if explicit is not None:
             claim(name, explicit, count, src, "explicit id")
     explicit_names = {name for name, _, explicit, _ in requests if explicit is not None}
+    # Where each material still present began in the previous manifest. A run that now reaches another's
+    # first slice grew (the previous runs did not overlap): it moves, and the other keeps its ID. In name
+    # order instead, a grown material took the next one's place and moved that one, though it had not
+    # changed, and a scene atlas baked with its old ID went stale.
+    homes = {previous[name]: name for name, _, explicit, _ in requests if explicit is None and name in previous}
     for name, count, explicit, src in requests:
         if explicit is None and name in previous:
             start = previous[name]
+            if any(homes.get(s, name) != name for s in _span(start + 1, count - 1)):
+                continue
             taken = [s for s in _span(start, count) if s in owner]
             if start + count <= layers and not taken:
                 claim(name, start, count, src, "previous manifest")
