@@ -248,10 +248,15 @@ def test_strict_passes_when_every_goal_is_met_and_merge_checks_again(validation_
         assert result.stdout.startswith(f"{material}: storage goals met; storage 1/1 met (PSNR >= 0 dB, FLIP <= 1;")
     merge = ["validate", "--merge", str(tmp_path / "matte"), str(tmp_path / "coat"), "-o", str(tmp_path / "all"), "--strict"]
     assert runner.invoke(app, merge).exit_code == 0
-    # The merge judges the goals the runs recorded: a stricter record fails it.
+    # The merge judges the goals the runs recorded: a record that misses fails it.
     report = tmp_path / "coat" / "report.json"
     data = json.loads(report.read_text())
-    data["results"][0]["references"]["model"]["meets_goal"] = False
+    model = data["results"][0]["references"]["model"]
+    model["meets_goal"] = False
+    report.write_text(json.dumps(data))
+    result = runner.invoke(app, merge)  # a verdict its figures do not give: not what validate writes
+    assert result.exit_code == 3 and "meets_goal': expected true from its figures" in result.stderr, result.stderr
+    model["psnr_db"] = -1.0  # below the goal of 0 dB: the verdict follows
     report.write_text(json.dumps(data))
     result = runner.invoke(app, merge)
     assert result.exit_code == 6 and "1 goal(s) missed: coat on front: PSNR" in result.stderr
