@@ -110,30 +110,29 @@ def _value(value):
 
 
 @cache
+def _nodedef(category: str) -> tuple:
+    """``(name, active inputs)`` of the nodedef MaterialX's generator picks for a surface shader node given no
+    ``nodedef``, ``version`` or ``type`` of its own: each input ``(name, type, value, uimin, uimax)`` (plain
+    values: MaterialX's elements die with their document)."""
+    mx, _, _ = _materialx()
+    doc = mx.createDocument()
+    doc.importLibrary(load_materialx_libraries())
+    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
+    if nodedef is None:
+        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
+    inputs = tuple((inp.getName(), inp.getType(), _value(inp.getValue()) if inp.getValue() is not None else None,
+                    inp.getAttribute("uimin"), inp.getAttribute("uimax")) for inp in nodedef.getActiveInputs())  # fmt: skip
+    return nodedef.getName(), inputs
+
+
 def _active_inputs(category: str) -> tuple:
-    """``(name, type, value, uimin, uimax)`` of each active input of the nodedef MaterialX's generator picks
-    for a surface shader node (plain values: MaterialX's elements die with their document)."""
-    mx, _, _ = _materialx()
-    doc = mx.createDocument()
-    doc.importLibrary(load_materialx_libraries())
-    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
-    if nodedef is None:
-        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
-    return tuple((inp.getName(), inp.getType(), _value(inp.getValue()) if inp.getValue() is not None else None,
-                  inp.getAttribute("uimin"), inp.getAttribute("uimax")) for inp in nodedef.getActiveInputs())  # fmt: skip
+    return _nodedef(category)[1]
 
 
-@cache
 def surface_nodedef(category: str) -> str:
-    """The name of the nodedef MaterialX picks for a surface shader node given no ``nodedef``, ``version``
-    or ``type`` of its own: the one the oracle shades (``ND_standard_surface_surfaceshader``, say)."""
-    mx, _, _ = _materialx()
-    doc = mx.createDocument()
-    doc.importLibrary(load_materialx_libraries())
-    nodedef = doc.addNode(category, NODE_NAME, "surfaceshader").getNodeDef()
-    if nodedef is None:
-        raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
-    return nodedef.getName()
+    """The name of the nodedef the oracle shades for a surface shader node (``ND_standard_surface_surfaceshader``,
+    say): the one MaterialX picks for a node with no ``nodedef``, ``version`` or ``type`` of its own."""
+    return _nodedef(category)[0]
 
 
 @cache
