@@ -139,7 +139,9 @@ $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_
 $(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(@:.stamp=.d) --depfile-target $@ -q && touch $@
 
-$(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) | $(VENV)/.stamp
+# The bake command's own defaults (--include, --layout) live in the CLI: a change to them re-assembles.
+BAKE_COMMAND := $(wildcard cli/main.py cli/options.py)
+$(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png
 
 # ---- scenes: each renders from its own atlas, holding only the materials it uses -------------

@@ -344,3 +344,14 @@ def test_outputs_atlasgen_commits_are_kept_when_make_is_interrupted(tree):
         "build/report/index.html",
     ):
         assert target in precious, (target, precious)
+
+
+def test_the_bake_command_s_defaults_re_assemble_the_atlas(tree):
+    """cli/main.py holds bake's defaults (the include languages, the layout); a change to it did nothing."""
+    (tree / "cli").mkdir()
+    (tree / "cli" / "main.py").write_text("")
+    os.utime(tree / "cli" / "main.py", (T0, T0))
+    assert _commands(tree, "atlas") == []
+    _touch(tree / "cli" / "main.py")
+    commands = _commands(tree, "atlas")
+    assert len(commands) == 1 and " -o build/atlas.dds " in commands[0] and "--cache-only" not in commands[0], commands
