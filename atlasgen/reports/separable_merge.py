@@ -15,9 +15,9 @@ import json
 from dataclasses import MISSING, fields
 from pathlib import Path
 
-from atlasgen.errors import InputError, shorten
+from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.report_files import read_report_json, report_json_paths
+from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
 from atlasgen.reports.separable import MaterialStudy, format_separable_html, format_separable_report
 
@@ -43,8 +43,32 @@ def _read_studies(path: Path) -> list:
                              f"{', '.join(sorted(required))}; got {got})")  # fmt: skip
         if not isinstance(item["name"], str) or not item["name"]:
             raise InputError(f"{path.as_posix()}: entry {index}: expected a material name, got {shorten(repr(item['name']))}")
+        _check_chosen(path, f"[{index}]", item)
         studies.append(MaterialStudy(**item))
     return studies
+
+
+def _check_chosen(path: Path, where: str, item: dict) -> None:
+    """Refuse a study whose summary row would print what no study measures: the merged table printed a
+    relative RMS of -0.5 as "-50.00%" and ``terms = "three"`` as written (``validate --merge`` refuses both)."""
+    chosen = item["chosen"]
+    if not isinstance(chosen, dict):
+        raise FieldError(path.as_posix(), f"{where}.chosen", f"expected an object, got {type(chosen).__name__}")
+    for key in ("terms", "grid"):
+        value = chosen.get(key)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise FieldError(
+                path.as_posix(), f"{where}.chosen.{key}", f"expected a whole number >= 1, got {shorten(repr(value))}"
+            )
+    for part in ("float", "8bit_srgb"):
+        figures = chosen.get(part)
+        if not isinstance(figures, dict):
+            raise FieldError(path.as_posix(), f"{where}.chosen.{part}", f"expected an object, got {shorten(repr(figures))}")
+        check_number(path, f"{where}.chosen.{part}.relative_rms", figures.get("relative_rms"), allow_none=False, minimum=0)
+    timings = item["timings"]
+    if isinstance(timings, dict):
+        for key, value in timings.items():
+            check_number(path, f"{where}.timings.{key}", value, minimum=0)
 
 
 def _charts(study: MaterialStudy) -> dict:

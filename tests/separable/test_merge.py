@@ -85,6 +85,30 @@ def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports)
         assert f"{100 * study['chosen']['float']['relative_rms']:.2f}%" in text
 
 
+@pytest.mark.parametrize(("keys", "value", "expected"), [
+    (("chosen", "8bit_srgb", "relative_rms"), -0.5, "field '[0].chosen.8bit_srgb.relative_rms': expected a number >= 0, got -0.5"),
+    (("chosen", "terms"), "three", "field '[0].chosen.terms': expected a whole number >= 1, got 'three'"),
+    (("chosen", "grid"), 0, "field '[0].chosen.grid': expected a whole number >= 1, got 0"),
+    (("timings", "svd_s"), -1, "field '[0].timings.svd_s': expected a number >= 0, got -1"),
+])  # fmt: skip
+@pytest.mark.slow
+def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys, value, expected):
+    """The merged table printed a relative RMS of -0.5 as "-50.00%" and terms = "three" as written, exit 0."""
+    _, folders = reports
+    data = json.loads((folders["lobe"] / "report.json").read_text())
+    target = data[0]
+    for key in keys[:-1]:
+        target = target[key]
+    target[keys[-1]] = value
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    (edited / "report.json").write_text(json.dumps(data))
+    with pytest.raises(InputError) as info:
+        merge_separable_reports([edited], tmp_path / "merged")
+    assert str(info.value) == f"{(edited / 'report.json').as_posix()}: {expected}"
+    assert not (tmp_path / "merged").exists()
+
+
 @pytest.mark.slow
 def test_bad_sources_are_refused_and_nothing_is_written(reports, tmp_path):
     _, folders = reports

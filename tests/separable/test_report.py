@@ -190,8 +190,8 @@ def _set(data, keys, value):
     (["by_terms"], None, "entry 0 ('lobe') is not a material study"),
     (["charts"], {"terms": {"width": "a"}}, "entry 0 ('lobe') is not a material study"),
     (["charts"], [1, 2], "entry 0 ('lobe') is not a material study"),
-    (["chosen"], "x", "entry 0 ('lobe') is not a material study"),
-    (["chosen", "float", "relative_rms"], "big", "entry 0 ('lobe') is not a material study"),
+    (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
+    (["chosen", "float", "relative_rms"], "big", "field '[0].chosen.float.relative_rms': expected a finite number, got 'big'"),
     (["name"], [1], "entry 0: expected a material name, got [1]"),
 ])  # fmt: skip
 def test_a_hand_edited_study_is_refused_on_one_line_not_an_internal_error(lobe_study, tmp_path, keys, value, expected):
