@@ -30,6 +30,10 @@ STEMS := $(patsubst materials/%.toml,%,$(TOML_FILES))
 MTLX_STEMS := $(patsubst materials/%.mtlx,%,$(MTLX_FILES))
 CACHE_DIR := $(BUILD)/cache
 CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS)) $(patsubst %,$(CACHE_DIR)/%.mtlx.stamp,$(MTLX_STEMS))
+# Every file the bake always writes, as one grouped target: one deleted (build/atlas.json) re-assembles,
+# where only atlas.dds was a target and make saw nothing to do. (atlas.separable.bin is written only
+# for separable materials, so it is not one of them.)
+ATLAS_SET := $(addprefix $(BUILD)/atlas,.dds .json .wgsl .glsl .hlsl .timings.json -preview.png)
 # Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
 # below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
 # agree); __init__.py holds the version, which is part of every key.
@@ -105,7 +109,7 @@ pins: apt
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	ATLASGEN_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -n 0 tests/test_golden.py tests/io/test_ktx2.py
 
-atlas: $(BUILD)/atlas.dds
+atlas: $(ATLAS_SET)
 
 # Rewritten only when the set of material files changes, so removing one re-assembles the atlas
 # and re-merges the reports. It is refreshed while the Makefile is read, not by a rule that always
@@ -141,8 +145,8 @@ $(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 
 
 # The bake command's own defaults (--include, --layout) live in the CLI: a change to them re-assembles.
 BAKE_COMMAND := $(wildcard cli/main.py cli/options.py)
-$(BUILD)/atlas.dds: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(VENV)/.stamp
-	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $@ --preview $(BUILD)/atlas-preview.png
+$(ATLAS_SET) &: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(VENV)/.stamp
+	$(ATLASGEN) bake $(MATERIAL_FILES) --cache $(CACHE_DIR) -o $(BUILD)/atlas.dds --preview $(BUILD)/atlas-preview.png
 
 # ---- scenes: each renders from its own atlas, holding only the materials it uses -------------
 # build/scenes/X.dds is assembled from the cache with the library's slice IDs (--ids-from), so a
@@ -283,5 +287,5 @@ clean:
 # atlasgen commits each output set whole (docs/cli.md, "Outputs"): a run interrupted just after its
 # commit exits 130 with the new set in place. make's default for an interrupted recipe, deleting its
 # target, then removed build/atlas.dds and left the rest of the new set without it.
-.PRECIOUS: $(CACHE_DIR)/%.npz $(BUILD)/atlas.dds $(SCENE_ATLASES) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
+.PRECIOUS: $(CACHE_DIR)/%.npz $(ATLAS_SET) $(SCENE_ATLASES) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
 	$(VALIDATION)/report.json $(SEPARABLE_STUDIES) $(SEPARABLE_REPORT)/index.md $(BUILD)/report/index.html

@@ -29,8 +29,8 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="GNU make i
 
 def _outputs(build: Path) -> list[Path]:
     """Every file the pipeline's rules name as a target (what `make demo` leaves behind)."""
-    out = [build / "atlas.dds", build / "validation" / "report.json", build / "report" / "separable" / "index.md",
-           build / "report" / "index.html"]  # fmt: skip
+    out = [build / "validation" / "report.json", build / "report" / "separable" / "index.md", build / "report" / "index.html"]
+    out += [build / f"atlas{suffix}" for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl", ".timings.json", "-preview.png")]
     out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
@@ -355,3 +355,11 @@ def test_the_bake_command_s_defaults_re_assemble_the_atlas(tree):
     _touch(tree / "cli" / "main.py")
     commands = _commands(tree, "atlas")
     assert len(commands) == 1 and " -o build/atlas.dds " in commands[0] and "--cache-only" not in commands[0], commands
+
+
+@pytest.mark.parametrize("name", ["atlas.json", "atlas.wgsl", "atlas-preview.png"])
+def test_a_deleted_file_of_the_atlas_s_set_re_assembles_it(tree, name):
+    """Only atlas.dds was a target: with build/atlas.json deleted, make saw nothing to do."""
+    (tree / "build" / name).unlink()
+    commands = _commands(tree, "atlas")
+    assert len(commands) == 1 and " -o build/atlas.dds --preview build/atlas-preview.png" in commands[0], commands
