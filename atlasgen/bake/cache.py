@@ -17,6 +17,7 @@ from atlasgen import __version__
 from atlasgen.bake.adaptive import bake_material, draft_material
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.digest import update_with_array
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.models.base import SliceSet
 
@@ -78,8 +79,7 @@ def _entry_digest(values: np.ndarray, meta: dict) -> str:
     entry whose zip and arrays still read (an ``extra`` of another model, 5 slices for a 1-slice lambert)
     would otherwise reach the manifest as the bake's, and be blamed on the material file."""
     digest = hashlib.sha256(json.dumps({k: v for k, v in meta.items() if k != "digest"}, sort_keys=True).encode())
-    digest.update(repr(values.shape).encode())
-    digest.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    update_with_array(digest, np.asarray(values, dtype=np.float64))
     return digest.hexdigest()
 
 

@@ -41,7 +41,7 @@ from xml.etree import ElementTree
 from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.errors import MaterialError, shorten
 from atlasgen.io.fields import validate_params
-from atlasgen.io.text import check_path_text, read_input_bytes
+from atlasgen.io.text import check_path_text, decode_utf8, read_input_bytes
 from atlasgen.models import get_model
 from atlasgen.models.materialx import EXPECTED_VALUES, check_input_value, shown_values
 from atlasgen.separable.materialx_oracle import (
@@ -264,7 +264,7 @@ def _parse_xml(shown: str, data: bytes):
 
 def _decode(shown: str, data: bytes) -> str:
     try:
-        return data.decode("utf-8")
+        return decode_utf8(data)
     except UnicodeDecodeError:
         raise MaterialError(shown, None, "expected UTF-8 MaterialX XML") from None
 

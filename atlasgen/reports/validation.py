@@ -75,11 +75,22 @@ def _goal(run, ref, goals) -> bool | None:
     and where the comparison measures nothing, :func:`_unmeasured_verdict`)."""
     if ref.kind != "model" or not run.goals:
         return None
-    if getattr(run, "goal_psnr_db", None) is not None:  # an environment map: its PSNR goal alone (issue #20)
-        met = ref.metrics.psnr >= run.goal_psnr_db
-    else:
-        met = ref.metrics.psnr >= goals["psnr_db"] and ref.metrics.flip <= goals["flip"]
-    return _unmeasured_verdict(bool(met), getattr(ref.metrics, "not_measured", None), ref.metrics.psnr)
+    met = _storage_met(ref.metrics.psnr, ref.metrics.flip, goals, getattr(run, "goal_psnr_db", None))
+    return _unmeasured_verdict(met, getattr(ref.metrics, "not_measured", None), ref.metrics.psnr)
+
+
+def _storage_met(psnr_db: float, flip: float, goals: dict, goal_psnr_db: float | None = None) -> bool:
+    """Whether a model comparison meets the storage goals: PSNR and FLIP against ``goals``, or an environment
+    map's own PSNR goal alone (``goal_psnr_db``, issue #20).
+
+    >>> _storage_met(46.0, 0.005, {"psnr_db": 45, "flip": 0.01}), _storage_met(46.0, 0.02, {"psnr_db": 45, "flip": 0.01})
+    (True, False)
+    >>> _storage_met(31.0, 0.5, {"psnr_db": 45, "flip": 0.01}, goal_psnr_db=30.0)
+    True
+    """
+    if goal_psnr_db is not None:
+        return bool(psnr_db >= goal_psnr_db)
+    return bool(psnr_db >= goals["psnr_db"] and flip <= goals["flip"])
 
 
 def _unmeasured_verdict(met: bool, not_measured: str | None, psnr_db) -> bool | None:
@@ -851,8 +862,8 @@ def _check_verdicts(path: Path, data: dict) -> None:
         psnr, flip, own = ref.get("psnr_db"), ref.get("flip"), row.get("goal_psnr_db")
         if not (is_number(psnr) and is_number(flip)):
             continue
-        met = psnr >= own if is_number(own) else psnr >= goals["psnr_db"] and flip <= goals["flip"]
-        expected = _unmeasured_verdict(bool(met), not_measured(ref), psnr)
+        expected = _unmeasured_verdict(_storage_met(psnr, flip, goals, own if is_number(own) else None),
+                                       not_measured(ref), psnr)  # fmt: skip
         if expected is not None and expected != ref["meets_goal"]:
             goal = f"PSNR >= {own:g} dB" if is_number(own) else _goals_text(goals)
             raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected "

@@ -32,12 +32,12 @@ import numpy as np
 
 from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.digest import array_digest
 
 __all__ = [
     "ReferenceCache",
     "render_key",
     "reference_code_fingerprint",
-    "array_digest",
     "REFERENCE_CODE",
     "DEFAULT_REFERENCE_CACHE",
 ]
@@ -54,14 +54,6 @@ _ARRAYS = ("image", "second_image", "mask")
 #: The record's fields of a render (:func:`atlasgen.validate.run._render_fields`) and what each must be.
 _RECORD = {"kind": (str,), "description": (str,), "seconds": (int, float), "spp": (int,), "variant": (str,),
            "masked": (str, type(None))}  # fmt: skip
-
-
-def array_digest(array: np.ndarray) -> str:
-    """SHA-256 of an array's dtype, shape and C-order bytes: what a cache entry records of each of its arrays."""
-    a = np.ascontiguousarray(array)
-    digest = hashlib.sha256(f"{a.dtype.str}{list(a.shape)}".encode())
-    digest.update(a.tobytes())
-    return digest.hexdigest()
 
 
 @functools.cache

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from atlasgen.validate.reference_cache import ReferenceCache, array_digest
+from atlasgen.io.digest import array_digest
+from atlasgen.validate.reference_cache import ReferenceCache
 
 KEY = "ab" * 32
 SIZE = (6, 8)

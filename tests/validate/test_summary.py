@@ -146,3 +146,13 @@ def test_a_material_without_a_physical_reference_says_so():
     assert line == ("cel: storage goals met; storage 2/2 met (PSNR >= 45 dB, FLIP <= 0.01; worst 50.0 dB, "
                     "FLIP 0.0050); no physical reference (an artistic model)")  # fmt: skip
     assert "no physical reference: cel" in summary_line(data, "v/index.html")
+
+
+def test_the_report_module_s_doctests_pass():
+    """The verdict rules (_storage_met, _unmeasured_verdict, look_verdict) by their worked examples."""
+    import doctest
+
+    from atlasgen.reports import validation
+
+    result = doctest.testmod(validation)
+    assert result.attempted > 0 and result.failed == 0
