@@ -149,7 +149,8 @@ def test_a_failed_write_leaves_every_output_and_no_temporary(tmp_path, monkeypat
 
     monkeypatch.setattr(atomic, "commit_hook", fail_on_second_write)
     with pytest.raises(OSError):
-        write_files_atomically({tmp_path / "a": b"new a", tmp_path / "b": b"new b", tmp_path / "c": b"new c"})
+        write_files_atomically({tmp_path / "a": b"new a", tmp_path / "b": b"new b", tmp_path / "c": b"new c"},
+                               primary=tmp_path / "b")  # the same set as the first write's  # fmt: skip
     assert visible(tmp_path) == old
     assert sorted(os.listdir(tmp_path / ".b.atlasgen")) == ["current", "gen-1", "lock"]
 
@@ -209,6 +210,24 @@ def test_plain_files_of_an_older_atlasgen_become_links_to_the_same_bytes_first(t
     assert all(view == old for view in seen[:-1])  # every step up to the second swap: the old set
     assert read_plainly(tmp_path, old) == {"a.json": b"new json", "a.glsl": None, "a.dds": b"new dds", "a.wgsl": b"new wgsl"}
     assert not os.path.lexists(tmp_path / "a.glsl") and (tmp_path / "user.dds").read_bytes() == b"user's"
+
+
+def test_a_path_of_another_output_set_is_refused_and_nothing_changes(tmp_path):
+    """Two commands pointed at one folder (``report library -o out`` then ``validate -o out``) share
+    index.html: the second took it over, and the first set's pages were left beside the second's index,
+    a mixed folder. It is refused on one line naming the path, before anything is written; a path of
+    the same set written through another folder's name is not."""
+    out = tmp_path / "out"
+    write_files_atomically({out / "index.html": b"library", out / "img" / "gold.png": b"png"}, primary=out / "index.html")
+    before = read_plainly(out, ("index.html", "img/gold.png", "report.json"))
+    with pytest.raises(OutputError) as caught:
+        write_files_atomically({out / "index.html": b"validation", out / "report.json": b"{}"}, primary=out / "report.json")
+    message = str(caught.value)
+    assert message.startswith(f"{(out / 'index.html').as_posix()}: ") and ".index.atlasgen" in message and "\n" not in message
+    assert read_plainly(out, before) == before and not os.path.lexists(out / "report.json")
+    os.symlink("out", tmp_path / "alias")  # the same set, through a linked folder: its own link, rewritten
+    write_files_atomically({tmp_path / "alias" / "index.html": b"library 2"}, primary=tmp_path / "alias" / "index.html")
+    assert (out / "index.html").read_bytes() == b"library 2" and (out / "img" / "gold.png").read_bytes() == b"png"
 
 
 def test_a_reader_holding_a_file_open_keeps_its_generation(tmp_path):

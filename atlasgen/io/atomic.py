@@ -12,7 +12,9 @@ that never changes once made::
 set's lock (``fcntl.flock`` on ``.X.atlasgen/lock``, waiting up to :data:`LOCK_TIMEOUT_S`):
 
 1. **Check** every file the commit replaces or removes: one marked immutable or append-only
-   (``chattr +i``), or a folder, refuses the commit, so nothing is replaced.
+   (``chattr +i``), a folder, or another set's link (two commands' outputs pointed at one folder,
+   which would leave the other set's files beside this one's) refuses the commit, so nothing is
+   replaced.
 2. **Write** every new file into a fresh ``gen-<n+1>`` and flush it to disk.
 3. **Migrate**, only where a documented path is not yet this set's link (a plain file of an
    older atlasgen, a foreign link): a holding generation gets a hard link of it (and of the
@@ -426,6 +428,26 @@ def _refuse_inside_store(path: Path) -> None:
                               "outside atlasgen's .*.atlasgen folders; nothing was replaced")  # fmt: skip
 
 
+def _refuse_another_sets(path: Path, store: Path) -> None:
+    """Refuse to take over a path that is another output set's link (``out/index.html`` of
+    ``report library``, written again by ``validate -o out``): the other set would keep its other
+    files beside this set's page, a folder of two commands' outputs mixed. Links of no set (a
+    user's own) are migrated as before."""
+    try:
+        text = os.readlink(path)
+    except OSError:
+        return
+    parts = Path(text).parts
+    at = next((i for i, part in enumerate(parts[:-1]) if _is_store(part) and parts[i + 1] == CURRENT), None)
+    if at is None:
+        return
+    # From the real folders, as the kernel resolves the link (and as _link_text wrote it).
+    other = os.path.normpath(os.path.join(os.path.realpath(_folder(path)), *parts[: at + 1]))
+    if other != os.path.realpath(store):
+        raise OutputError(f"{path.as_posix()}: already written by another command's outputs ({Path(other).name} beside it); "
+                          "expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
+
+
 def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False) -> None:
     """Write ``{path: bytes}`` and remove the files ``remove`` names as one set: all or nothing.
 
@@ -500,6 +522,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
         elif path.is_dir() and not path.is_symlink():
             raise OutputError(f"{path.as_posix()}: cannot replace (Is a directory); nothing was replaced")
         else:
+            _refuse_another_sets(path, store)
             migrate.append(path)
     absent = [path for path in absent if path not in removals]
     holding = None
