@@ -69,3 +69,30 @@ def test_a_document_s_materials_get_one_cache_entry_each(tmp_path):
     assert cache_path(tmp_path, material("a", "materials/a.toml")) == tmp_path / "a.npz"
     assert cache_path(tmp_path, material("Gold", "materials/lib.mtlx")) == tmp_path / "lib.Gold.npz"
     assert cache_path(tmp_path, material("Car", "materials/lib.mtlx")) == tmp_path / "lib.Car.npz"
+
+
+@pytest.mark.slow
+def test_editing_one_material_of_a_document_rebakes_that_one(tmp_path):
+    """A document's materials are keyed by their own values (materialx_document.material_digest), not
+    by the document's bytes: editing one input of one material re-bakes it alone (a 36-material
+    library took a minute to re-bake for a one-number edit), and the other keeps its bytes."""
+    pytest.importorskip("MaterialX")
+
+    def document(roughness: str):
+        path = tmp_path / "lib.mtlx"
+        path.write_text('<?xml version="1.0"?>\n<materialx version="1.39">\n' + "".join(
+            f'<standard_surface name="SR_{name}" type="surfaceshader">'
+            f'<input name="base_color" type="color3" value="{colour}" /><input name="specular" type="float" value="0" />'
+            f'<input name="specular_roughness" type="float" value="{r}" /></standard_surface>'
+            f'<surfacematerial name="{name}" type="material">'
+            f'<input name="surfaceshader" type="surfaceshader" nodename="SR_{name}" /></surfacematerial>\n'
+            for name, colour, r in (("Clay", "0.6, 0.4, 0.3", "0.5"), ("Paint", "0.1, 0.2, 0.6", roughness))
+        ) + "</materialx>\n")  # fmt: skip
+        return path
+
+    cache = tmp_path / "cache"
+    first = bake_atlas(read_materials([document("0.5")]), cache_dir=cache)
+    assert sorted(first.timings["cache"]["baked"]) == ["Clay", "Paint"]
+    edited = bake_atlas(read_materials([document("0.3")]), cache_dir=cache)
+    assert edited.timings["cache"] == {"hits": ["Clay"], "baked": ["Paint"]}
+    assert np.array_equal(first.levels[0][0], edited.levels[0][0])

@@ -33,6 +33,7 @@ MaterialX is imported inside functions (the ``materialx`` extra).
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 from pathlib import Path
@@ -157,7 +158,7 @@ def _lobe_alpha(category: str, inputs: dict, defaults: dict) -> float:
 def read_materialx_document(path, flatten=None) -> list[dict]:
     """Every ``surfacematerial`` of a ``.mtlx`` document, in document order, as the fields of a
     :class:`~atlasgen.materials.material.Material`: ``name``, ``type``, ``params`` (validated),
-    ``source``, ``content_hash`` (of the document's bytes and the name), ``description``.
+    ``source``, ``content_hash`` (:func:`material_digest`), ``description``.
 
     ``flatten``: ``None`` (refuse driven inputs), ``"default"`` or ``{input: value}`` (see the module).
 
@@ -191,10 +192,6 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
     _refuse_duplicate_names(documents)
-    # The document's bytes and every included file's: a change to either re-bakes (the cache's key).
-    digest = hashlib.sha256(data)
-    for _, included_data, _ in included:
-        digest.update(b"\0" + included_data)
     doc.importLibrary(load_materialx_libraries())
     nodes = doc.getMaterialNodes()
     if not nodes:
@@ -216,12 +213,15 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
             )
         spec = _read_shader(shown, name, category, shader, flatten)
         spec["not_in_table"] += _material_not_in_table(node)
+        # The file's name, not the path as given: the manifest's ``source`` locates the file, and a
+        # path as given made the manifest (and the content hash) depend on the working folder.
+        spec["document"] = path.name
         raw = {"source": "materialx", "materialx": spec, "representation": "auto", "max_error": DEFAULT_BUDGET,
                "grid": SAMPLING_GRID}  # fmt: skip
         params = validate_params(model.params, raw, shown)
         model.check(params, shown)
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
-                    "content_hash": _with_name(digest, name), "includes": tuple(p.as_posix() for p, _, _ in included),
+                    "content_hash": material_digest(name, params), "includes": tuple(p.as_posix() for p, _, _ in included),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
     # Last, so that the checks above name their own field: what MaterialX itself finds wrong (a connection
     # to an output the node does not have, say), which its generator would otherwise shade regardless.
@@ -247,11 +247,24 @@ def _material_not_in_table(node) -> list[str]:
     return out
 
 
-def _with_name(digest, name: str) -> str:
-    """The hex digest of what ``digest`` has read, then a NUL and ``name``: one material of the document."""
-    copy = digest.copy()
-    copy.update(b"\0" + name.encode())
-    return copy.hexdigest()
+def material_digest(name: str, params: dict) -> str:
+    """SHA-256 of one material as read: its name and its validated parameters (the document's file
+    name, its constant inputs, what was flattened, what the table cannot hold, the representation),
+    as canonical JSON; the manifest's ``params`` hold the same, so anyone can check it.
+
+    A material's bake is a function of these alone (the oracle shades the nodedef generated for its
+    category with these inputs), so this is the cache's key and the manifest's ``content_hash``:
+    editing one material of a document, or a file it includes, re-bakes the materials whose values
+    changed, and the others keep their slices and their validation. No path enters it: the same
+    document gives the same hashes wherever it lies and wherever atlasgen runs.
+
+    >>> material_digest("gold", {"materialx": {"inputs": {"base": 1.0}}}) == material_digest("gold", {"materialx": {"inputs": {"base": 1.0}}})
+    True
+    >>> material_digest("gold", {"materialx": {"inputs": {"base": 1.0}}}) == material_digest("gold", {"materialx": {"inputs": {"base": 0.5}}})
+    False
+    """
+    text = json.dumps({"name": name, "params": params}, sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _parse_xml(shown: str, data: bytes):

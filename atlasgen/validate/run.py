@@ -306,7 +306,7 @@ def _material_names(item, atlas, entries_by_name) -> list[str]:
 
     A TOML file's bytes are hashed, not parsed: the entry whose ``source`` is this file, or else whose
     content hash is the file's, names it. Only a file no entry matches is parsed (a MaterialX
-    document's entries hash its bytes with each material's name), for its names and the message
+    document's entries hash each material's name and values, not the file's bytes), for its names and the message
     (a missing or invalid file fails there, naming the file)."""
     if not is_material_file(item):
         return [str(item)]

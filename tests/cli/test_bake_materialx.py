@@ -44,3 +44,23 @@ def test_bake_a_document_and_report_it(tmp_path, monkeypatch):
     section = page[page.index("Imported from MaterialX") :]
     assert "lib.mtlx" in section and "standard_surface" in section and "emission = 0.5: emission" in section
     assert "± " in section  # the error against the oracle with its standard error
+
+
+def test_a_document_bakes_to_the_same_bytes_from_any_working_folder(tmp_path, monkeypatch):
+    """The manifest's ``params.materialx.document`` held the path as given (``lib/lib.mtlx`` from the
+    parent, ``lib.mtlx`` from the folder), so the outputs depended on where atlasgen ran; the name
+    alone is kept (``source`` locates the file), and the content hash, keyed on it, is the same too:
+    the second bake, from the other folder, loads from the cache."""
+    from atlasgen.cli.main import main
+
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "lib.mtlx").write_text(DOCUMENT)
+    cache = str(tmp_path / "cache")
+    for folder, document, out in ((tmp_path, "lib/lib.mtlx", "a/X.dds"), (tmp_path / "lib", "lib.mtlx", "../b/X.dds")):
+        monkeypatch.chdir(folder)
+        with pytest.raises(SystemExit) as done:
+            main(["bake", document, "-o", out, "-q", "--cache", cache])
+        assert done.value.code in (0, None)
+    for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl"):
+        assert (tmp_path / "a" / f"X{suffix}").read_bytes() == (tmp_path / "b" / f"X{suffix}").read_bytes(), suffix
+    assert json.loads((tmp_path / "a" / "X.json").read_text())["materials"][0]["params"]["materialx"]["document"] == "lib.mtlx"

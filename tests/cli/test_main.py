@@ -214,8 +214,9 @@ def test_bake_library_bakes_the_installed_library(runner, tmp_path, monkeypatch,
     manifest = json.loads((tmp_path / "build" / "atlas.json").read_text())
     shipped = sorted([*shipped_library().glob("*.toml"), *shipped_library().glob("*.mtlx")])
     # A TOML file is one material named by its stem, hashed by its bytes; a MaterialX document is
-    # one per surfacematerial, in document order, hashed by its bytes and the material's name
-    # (read here with the standard library's XML parser, not atlasgen's reader).
+    # one per surfacematerial (read here with the standard library's XML parser, not atlasgen's
+    # reader), hashed by its name and the parameters the manifest shows, as canonical JSON.
+    entries = {m["name"]: m for m in manifest["materials"]}
     expected = []
     for p in shipped:
         data = p.read_bytes()
@@ -224,7 +225,9 @@ def test_bake_library_bakes_the_installed_library(runner, tmp_path, monkeypatch,
         else:
             for node in ElementTree.fromstring(data).iter("surfacematerial"):
                 name = node.get("name")
-                expected.append((name, hashlib.sha256(data + b"\0" + name.encode()).hexdigest()))
+                shown = {"name": name, "params": entries[name]["params"]}
+                assert shown["params"]["materialx"]["document"] == p.name  # no path: the same wherever it lies
+                expected.append((name, hashlib.sha256(json.dumps(shown, sort_keys=True).encode()).hexdigest()))
     assert any(p.suffix == ".mtlx" for p in shipped)
     # Slots, and so the manifest's entries, go in name order (atlasgen/bake/slots.py).
     assert [(m["name"], m["content_hash"]) for m in manifest["materials"]] == sorted(expected)

@@ -42,7 +42,7 @@ def test_every_surface_model_reads_with_the_document_names(tmp_path):
     for m in materials:
         spec = m.params["materialx"]
         assert m.type == "separable" and m.params["source"] == "materialx" and m.source == path.as_posix()
-        assert spec["document"] == path.as_posix() and spec["material"] == m.name
+        assert spec["document"] == path.name and spec["material"] == m.name
     assert materials[0].params["materialx"]["inputs"] == {"base_color": pytest.approx([0.8, 0.1, 0.1])}
     assert materials[1].params["materialx"]["category"] == "open_pbr_surface"
     assert len({m.content_hash for m in materials}) == 4  # one cache entry each
@@ -243,9 +243,10 @@ def _including(tmp_path, href: str, body: str = "", name: str = "main.mtlx"):
     return path
 
 
-def test_an_included_file_s_materials_join_and_its_bytes_key_the_cache(tmp_path):
-    """A document's includes are read with it: their materials bake, a change to one changes the
-    materials' content hash (the cache's key), and each is listed for the depfile."""
+def test_an_included_file_s_materials_join_and_their_values_key_the_cache(tmp_path):
+    """A document's includes are read with it: their materials bake, each is listed for the depfile,
+    and a change to an included material's value changes that material's content hash (the cache's
+    key) and no other's; an edit that changes no value (a doc string) changes none."""
     (tmp_path / "lib").mkdir()
     leaf = _document(tmp_path / "lib", _material("Red", "standard_surface", ""), "red.mtlx")
     _including(tmp_path / "lib", "red.mtlx", name="mid.mtlx")  # nested: found beside the file that includes it
@@ -254,8 +255,13 @@ def test_an_included_file_s_materials_join_and_its_bytes_key_the_cache(tmp_path)
     assert [m.name for m in before] == ["Red", "Blue"]
     assert before[0].includes == ((tmp_path / "lib" / "mid.mtlx").as_posix(), leaf.as_posix())
     leaf.write_text(leaf.read_text().replace('type="material"', 'type="material" doc="changed"'))
+    assert [m.content_hash for m in read_material_file(path)] == [m.content_hash for m in before]
+    leaf.write_text(
+        leaf.read_text().replace("></standard_surface>", '><input name="base" type="float" value="0.5" /></standard_surface>')
+    )
     after = read_material_file(path)
-    assert all(a.content_hash != b.content_hash for a, b in zip(after, before))
+    assert after[0].params["materialx"]["inputs"] == {"base": 0.5}
+    assert after[0].content_hash != before[0].content_hash and after[1].content_hash == before[1].content_hash
 
 
 def test_a_name_taken_by_an_included_file_is_refused_not_dropped(tmp_path):
