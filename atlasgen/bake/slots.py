@@ -25,9 +25,10 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
 
     A material with an explicit ``id`` gets exactly that slice; one that was in the
     previous manifest keeps its slice when it still fits there, unless its run grew into
-    another's (that one keeps its slice); the rest take the lowest free run of slices. Two explicit ids that overlap are a conflict, and so is
-    an explicit id that lands on a slice the previous manifest gave to a material
-    still present (moving that one would silently change its ID in every scene).
+    another's (that one keeps its slice); the rest take the lowest free run of slices.
+    Two explicit ids that overlap are a conflict, and so is an explicit id that lands on a
+    slice the previous manifest gave to a material still present (moving that one would
+    silently change its ID in every scene).
 
     Raises
     ------

@@ -352,7 +352,7 @@ def _include_options(mx, path: Path, included: list):
         if data is None:  # every file but the document was read above: a cycle back to it
             raise MaterialError(path.as_posix(), "xi:include", f"expected no include cycle, got href {href!r} leading "
                                 "back to the document")  # fmt: skip
-        mx.readFromXmlString(sub, data.decode("utf-8"), mx.FileSearchPath(str(found.parent)), options)
+        mx.readFromXmlString(sub, decode_utf8(data), mx.FileSearchPath(str(found.parent)), options)
 
     options = mx.XmlReadOptions()
     options.readXIncludeFunction = read_include
@@ -445,13 +445,10 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
     if given_kind != kind:
         raise MaterialError(shown, field, f"expected type {kind} (the nodedef's), got {given_kind!r}")
     text = inp.getValueString()
-    if text.strip() and not _value_parses(kind, text):
-        raise MaterialError(shown, field, f"expected {EXPECTED_VALUES.get(kind, 'a ' + kind + ' value')}, got {text!r}")
+    if not text.strip():
+        return None
     value = inp.getValue()
-    if value is None:
-        text = inp.getValueString()
-        if not text.strip():
-            return None
+    if value is None or not _value_parses(kind, text):
         raise MaterialError(shown, field, f"expected {EXPECTED_VALUES.get(kind, 'a ' + kind + ' value')}, got {text!r}")
     return check_input_value(shown, field, kind, _plain(value), limits)
 
