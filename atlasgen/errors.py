@@ -25,6 +25,8 @@ __all__ = [
     "EXIT_INTERNAL",
     "EXIT_USAGE",
     "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
+    "Terminated",
     "EXIT_CODES",
     "REPORT_BUGS_TO",
 ]
@@ -137,6 +139,18 @@ EXIT_INTERNAL = 1
 EXIT_USAGE = 2
 #: 128 + SIGINT, as a shell reports a process that Ctrl-C ended.
 EXIT_INTERRUPTED = 130
+#: 128 + SIGTERM, as a shell reports a process that ``kill`` ended.
+EXIT_TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM to the command line (``kill``, a CI job's time-out, an IDE's stop button).
+
+    An interrupt like Ctrl-C, so that every clean-up a Ctrl-C runs runs for it too (a bake's
+    workers stopped, an output set left whole); the CLI prints one line and exits
+    :data:`EXIT_TERMINATED`.
+    """
+
 
 #: Where the internal-error message asks users to report the bug.
 REPORT_BUGS_TO = "the atlasgen maintainers (README.md)"
@@ -174,5 +188,10 @@ EXIT_CODES = (
     (
         EXIT_INTERRUPTED,
         "interrupted (Ctrl-C, at any instant once atlasgen's code runs); each output set is left whole, old or new",
+    ),
+    (
+        EXIT_TERMINATED,
+        "terminated (SIGTERM: `kill`, a job's time-out), at any instant once atlasgen's code runs; as Ctrl-C, "
+        "each output set is left whole and no bake worker outlives the command",
     ),
 )

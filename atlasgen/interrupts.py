@@ -1,4 +1,4 @@
-"""Ctrl-C: one line from the first byte of the command line's start-up, and held while native libraries start up."""
+"""Ctrl-C and SIGTERM: one line from the first byte of the command line's start-up, and held while native libraries start up."""
 
 from __future__ import annotations
 
@@ -6,40 +6,71 @@ import contextlib
 import signal
 import threading
 
-from atlasgen.start_up import exit_on_interrupt, install_start_up_interrupts
+from atlasgen.errors import Terminated
+from atlasgen.start_up import exit_on_interrupt, exit_on_terminate, install_start_up_interrupts
 
-__all__ = ["deferred_interrupts", "exit_on_interrupt", "install_start_up_interrupts", "end_start_up_interrupts"]
+__all__ = [
+    "deferred_interrupts",
+    "exit_on_interrupt",
+    "install_start_up_interrupts",
+    "end_start_up_interrupts",
+    "raise_terminated",
+]
 
 
-def end_start_up_interrupts() -> None:
-    """Back to Python's handler (Ctrl-C raises :class:`KeyboardInterrupt`, which a command turns into one line)."""
-    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is exit_on_interrupt:
+def raise_terminated(signum, frame) -> None:
+    """The command line's SIGTERM handler once started: raise :class:`~atlasgen.errors.Terminated`, so a
+    command's clean-up runs as for Ctrl-C (Python's default would end the process at once, its bake
+    workers left running)."""
+    raise Terminated
+
+
+def end_start_up_interrupts(command_line: bool = False) -> None:
+    """Back to Python's handler: Ctrl-C raises :class:`KeyboardInterrupt`, which a command turns into one line.
+
+    SIGTERM: with ``command_line``, :func:`raise_terminated`; imported as a library, Python's default.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGINT) is exit_on_interrupt:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGTERM) is exit_on_terminate:
+        signal.signal(signal.SIGTERM, raise_terminated if command_line else signal.SIG_DFL)
+
+
+#: The signals :func:`deferred_interrupts` holds, and what each is raised as once the block is done.
+_HELD = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: Terminated}
 
 
 @contextlib.contextmanager
 def deferred_interrupts():
-    """Hold SIGINT until the block ends, then raise :class:`KeyboardInterrupt`.
+    """Hold SIGINT (and SIGTERM where it raises) until the block ends, then raise the interrupt.
 
     Mitsuba's and Dr.Jit's start-up (their C++ modules' initialisation, the LLVM
     backend's) does not survive an exception raised in the middle of it: interrupted
     there, it fails with ``SystemError``, ``NameError`` or a crash, which would read as a
     missing backend. Inside the block a Ctrl-C is only noted; it is raised once the block
-    is done, or instead of whatever exception the block ends with. Outside the main
-    thread, or where SIGINT is ignored, the block runs as it is.
+    is done, or instead of whatever exception the block ends with (a SIGTERM as
+    :class:`~atlasgen.errors.Terminated`). Outside the main thread, or for a signal that is
+    ignored or has its default action (SIGTERM outside the command line), it is left as it is.
     """
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, None):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
     pending = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: pending.append(signum))
+    previous = {}
+    for signum in _HELD:
+        handler = signal.getsignal(signum)
+        if handler not in (signal.SIG_IGN, signal.SIG_DFL, None):
+            previous[signum] = signal.signal(signum, lambda number, frame: pending.append(number))
     try:
         yield
     except BaseException:
         if pending:
-            raise KeyboardInterrupt from None
+            raise _HELD[pending[-1]] from None
         raise
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     if pending:
-        raise KeyboardInterrupt
+        raise _HELD[pending[-1]]

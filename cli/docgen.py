@@ -25,7 +25,7 @@ def render_exit_codes() -> str:
             "|---|---|",
             *rows,
             "",
-            "Every failure is one line on stderr (`atlasgen: error: ...`, `atlasgen: interrupted`, `atlasgen: internal "
+            "Every failure is one line on stderr (`atlasgen: error: ...`, `atlasgen: interrupted`, `atlasgen: terminated`, `atlasgen: internal "
             "error: ...`). Diagnostics (errors, warnings, progress) go to stderr; results (the bake's one-line summary, "
             "`info`) go to stdout.",
             "",
@@ -59,7 +59,8 @@ sees them change together, at one instant, even if the command is killed
 - **Exit 4 changes nothing.** A file marked immutable or append-only (`chattr +i`, which through
   the link marks the generation's file), an output path that is a folder, or a failing rename
   stops the command before the commit: `X.dds: cannot replace (Operation not permitted); nothing
-  was replaced`. Exit 130 (Ctrl-C, held while the commit runs) leaves each set whole, old or new.
+  was replaced`. Exit 130 (Ctrl-C, held while the commit runs) or 143 (SIGTERM, held alike) leaves each
+  set whole, old or new.
   An output path inside a store (`-o v/.report.atlasgen/current`, or through a link into one) is
   refused the same way: it would have changed a committed generation in place.
 - **Plain files of an older atlasgen** are taken over first without a visible change: a holding

@@ -31,7 +31,16 @@ from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
-from atlasgen.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, REPORT_BUGS_TO, AtlasgenError, BakeWarnings, shorten
+from atlasgen.errors import (
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    EXIT_TERMINATED,
+    REPORT_BUGS_TO,
+    AtlasgenError,
+    BakeWarnings,
+    Terminated,
+    shorten,
+)
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.atomic import write_file_atomically
@@ -87,6 +96,9 @@ def exit_for(exc: BaseException):
     if isinstance(exc, AtlasgenError):
         click.echo(f"atlasgen: error: {one_line_message(exc)}", err=True)
         sys.exit(exc.exit_code)
+    if isinstance(exc, Terminated):
+        click.echo("atlasgen: terminated", err=True)
+        sys.exit(EXIT_TERMINATED)
     if isinstance(exc, KeyboardInterrupt):
         click.echo("atlasgen: interrupted", err=True)
         sys.exit(EXIT_INTERRUPTED)
@@ -404,21 +416,23 @@ def main(argv=None):
     # Not click's standalone mode, so that what ends the run outside a command (a Ctrl-C
     # while the arguments are parsed, an unknown top-level option) is one line too.
     try:
-        # From here a Ctrl-C raises KeyboardInterrupt, so a command's clean-up runs; before
-        # it, since the first import of atlasgen.cli, it ended the process with the same line.
-        end_start_up_interrupts()
+        # From here a Ctrl-C raises KeyboardInterrupt (and SIGTERM, from the command line, Terminated),
+        # so a command's clean-up runs; before it, since the first import of atlasgen.cli, either
+        # ended the process with the same line.
+        end_start_up_interrupts(command_line=_launched_as_the_command_line())
         status = app.main(args=argv, prog_name="atlasgen", standalone_mode=False)
     except click.Abort as exc:  # click's form of a KeyboardInterrupt
-        exit_for(KeyboardInterrupt() if isinstance(exc.__context__, KeyboardInterrupt) else exc)
+        exit_for(exc.__context__ if isinstance(exc.__context__, KeyboardInterrupt) else exc)
     except (SystemExit, click.exceptions.Exit):
         raise
     except BaseException as exc:  # noqa: BLE001
         exit_for(exc)
     finally:
-        # The command has ended (its outputs committed or left, its line printed): a Ctrl-C from here on
+        # The command has ended (its outputs committed or left, its line printed): a Ctrl-C (or SIGTERM) from here on
         # could only turn its exit into a traceback from Python's shutdown, or a silent death by SIGINT.
         if _launched_as_the_command_line():
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
     sys.exit(status if isinstance(status, int) else 0)
 
 

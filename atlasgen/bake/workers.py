@@ -15,6 +15,7 @@ import multiprocessing
 import os
 import pickle
 import signal
+import threading
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
@@ -22,7 +23,7 @@ from concurrent.futures import ProcessPoolExecutor
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.models.base import SliceSet
 
-__all__ = ["available_cpus", "load_or_bake_all", "fill_cache"]
+__all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "start_worker_pool"]
 
 
 def available_cpus() -> int:
@@ -33,11 +34,31 @@ def available_cpus() -> int:
 
 
 def _start_worker(filters) -> None:
-    """A bake worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
-    and Ctrl-C left to the caller, which drops the bakes not started (a worker's own KeyboardInterrupt would
-    print a traceback)."""
+    """A worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
+    Ctrl-C left to the caller, which drops the work not started (a worker's own KeyboardInterrupt would
+    print a traceback), and an end with the caller's (:func:`_end_with_parent`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     warnings.filters[:] = filters
+    _end_with_parent()
+
+
+def _end_with_parent() -> None:
+    """End this worker as soon as the process that started it has ended, however it ended.
+
+    A caller killed (``kill``, a CI job's time-out, an IDE's stop button: SIGTERM or SIGKILL to it
+    alone) runs no clean-up, and its workers would otherwise finish their bake, then block for ever
+    writing the result to a pipe nobody reads, each holding its few hundred MB. The parent's sentinel
+    (a pipe whose other end only the parent holds) becomes readable when it ends, whatever the cause.
+    """
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+
+    def watch() -> None:
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="atlasgen-end-with-parent", daemon=True).start()
 
 
 def _picklable_filters() -> list:
@@ -52,8 +73,9 @@ def _picklable_filters() -> list:
     return keep
 
 
-def _start_pool(jobs: int) -> ProcessPoolExecutor:
-    """``jobs`` bake workers, spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
+def start_worker_pool(jobs: int) -> ProcessPoolExecutor:
+    """``jobs`` worker processes (the bake's, the reports' measurements), set up by :func:`_start_worker`;
+    spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
 
     concurrent.futures rather than multiprocessing.Pool: a Pool's terminate() can deadlock
     (python/cpython#73945, #96995; a CI run here hung in it).
@@ -113,7 +135,7 @@ def _baked_in_order(materials: list, jobs: int):
         yield bake_timed(material)
     else:
         return
-    pool = _start_pool(min(jobs, left))
+    pool = start_worker_pool(min(jobs, left))
     try:
         yield from pool.map(bake_timed, materials[k:])
     finally:

@@ -49,8 +49,8 @@ def test_two_jobs_bake_the_bytes_of_one_and_fill_the_cache_once(tmp_path, librar
     serial = bake_atlas(library, jobs=1)
     monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # workers from the first material on
     pools = []
-    start = workers._start_pool
-    monkeypatch.setattr(workers, "_start_pool", lambda jobs: pools.append(jobs) or start(jobs))
+    start = workers.start_worker_pool
+    monkeypatch.setattr(workers, "start_worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
     seen = []
     parallel = bake_atlas(library, jobs=2, cache_dir=tmp_path / "cache", progress=seen.append)
     assert all(np.array_equal(a, b) for a, b in zip(serial.levels, parallel.levels, strict=True))
@@ -80,7 +80,7 @@ def test_one_job_or_one_material_to_bake_stays_in_process(tmp_path, library, mon
     def no_pool(*args, **kwargs):
         raise AssertionError("a process pool was started")
 
-    monkeypatch.setattr(workers, "_start_pool", no_pool)
+    monkeypatch.setattr(workers, "start_worker_pool", no_pool)
     monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # so only the job and material counts keep the pool away
     fill_cache(tmp_path, library[:1], jobs=4)
     assert fill_cache(tmp_path, library, jobs=1)["hits"] == [library[0].name]
@@ -94,8 +94,8 @@ def test_workers_start_once_baking_here_has_taken_pool_after_s(library, monkeypa
     ticks = iter(range(100))
     monkeypatch.setattr(workers, "time", SimpleNamespace(perf_counter=lambda: 1.5 * next(ticks)))
     pools = []
-    start = workers._start_pool
-    monkeypatch.setattr(workers, "_start_pool", lambda jobs: pools.append(jobs) or start(jobs))
+    start = workers.start_worker_pool
+    monkeypatch.setattr(workers, "start_worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
     mixed = load_or_bake_all(None, library, jobs=4)
     assert pools == [3]  # material 0 here (1.5 s < 2 s), then 3 s: the other three in three workers
     serial = load_or_bake_all(None, library, jobs=1)
@@ -140,7 +140,7 @@ def test_workers_leave_ctrl_c_to_the_caller_and_take_its_warning_filters():
     itself (a RuntimeWarning, a KeyboardInterrupt traceback) would break both."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with workers._start_pool(1) as pool:
+        with workers.start_worker_pool(1) as pool:
             state = pool.submit(_worker_state).result()
     assert state == (True, ["ignore"])
 
@@ -189,3 +189,51 @@ def test_ctrl_c_stops_the_workers_in_one_line_and_leaves_the_old_atlas(tmp_path,
     assert child.returncode == 130 and stderr == "atlasgen: interrupted\n", stderr
     assert not [pid for pid in workers_seen if Path(f"/proc/{pid}").exists()], "a worker outlived the command"
     assert out.read_bytes() == old
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the process tree from /proc")
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_a_kill_of_the_command_alone_ends_its_workers(tmp_path, signum):
+    """``kill`` (a CI job's time-out, an IDE's stop button) signals the command alone, not its process group.
+    Its workers used to finish their bake, then block for ever writing the result to a pipe nobody read, each
+    holding a few hundred MB: SIGTERM now stops them as Ctrl-C does (one line, 143), and even a SIGKILL, which
+    runs no clean-up, ends them (each worker watches its parent, atlasgen.bake.workers._end_with_parent)."""
+    pytest.importorskip("MaterialX")
+    pytest.importorskip("moderngl")
+    doc = tmp_path / "showcase.mtlx"
+    shutil.copy(SHOWCASE, doc)
+    out = tmp_path / "build" / "atlas.dds"
+    command = [sys.executable, "-m", "atlasgen", "bake", str(doc), "-o", str(out), "-j", "2", "-q"]
+    child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(_workers_of(child.pid)) < 2 and time.monotonic() < deadline and child.poll() is None:
+            time.sleep(0.05)
+        workers_seen = _workers_of(child.pid)
+        assert len(workers_seen) == 2, "no workers started"
+        time.sleep(1.0)  # inside the materials' bakes
+        child.send_signal(signum)
+        _, stderr = child.communicate(timeout=60)
+        deadline = time.monotonic() + 30
+        while [pid for pid in workers_seen if _alive(pid)] and time.monotonic() < deadline:
+            time.sleep(0.1)
+    finally:
+        child.kill()
+        for pid in workers_seen:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    if signum == signal.SIGTERM:
+        assert (child.returncode, stderr) == (143, "atlasgen: terminated\n"), stderr
+    else:
+        assert child.returncode == -signal.SIGKILL
+    assert not [pid for pid in workers_seen if _alive(pid)], "a worker outlived the command"
+    assert not out.parent.exists() or not any(out.parent.iterdir())
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, ended but not yet reaped by init, counts as ended)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False

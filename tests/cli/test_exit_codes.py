@@ -8,12 +8,13 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
-from atlasgen.errors import EXIT_CODES
+from atlasgen.errors import EXIT_CODES, Terminated
 from tests.terminal import as_in_a_terminal
 
 
@@ -29,6 +30,10 @@ def _boom(*args, **kwargs):
 
 def _interrupt(*args, **kwargs):
     raise KeyboardInterrupt
+
+
+def _terminate(*args, **kwargs):
+    raise Terminated  # what atlasgen.interrupts.raise_terminated raises on SIGTERM
 
 
 def _run(tmp_path, library, monkeypatch, code):
@@ -71,6 +76,8 @@ def _run(tmp_path, library, monkeypatch, code):
         args = ["bake", str(library), "-o", out, "--strict"]
     elif code == 130:
         monkeypatch.setattr("atlasgen.cli.main.read_materials", _interrupt)
+    elif code == 143:
+        monkeypatch.setattr("atlasgen.cli.main.read_materials", _terminate)
     return CliRunner().invoke(app, args)
 
 
@@ -85,7 +92,7 @@ def test_every_documented_exit_code_is_reached_with_one_line(tmp_path, library, 
         return
     assert len(lines) == 1, res.stderr
     expected = {1: "atlasgen: internal error (ZeroDivisionError: a bug; over two lines); this is a bug",
-                130: "atlasgen: interrupted"}.get(code, "atlasgen: error: ")  # fmt: skip
+                130: "atlasgen: interrupted", 143: "atlasgen: terminated"}.get(code, "atlasgen: error: ")  # fmt: skip
     assert lines[0].startswith(expected), lines[0]
 
 
@@ -167,6 +174,56 @@ def test_ctrl_c_while_the_start_up_handler_is_imported_is_one_line(entry):
     assert (child.returncode, child.stderr.splitlines()) == (130, ["atlasgen: interrupted"]), child.stderr
 
 
+_TERMINATE_WHILE_IMPORTING_CLICK = """
+import os, signal, sys
+
+class TerminateWhileImporting:
+    # SIGTERM (a `kill`) while the command line imports click: after the start-up handler, before the library.
+    def find_spec(self, name, path=None, target=None):
+        if name == "click":
+            os.kill(os.getpid(), signal.SIGTERM)
+        return None
+
+sys.meta_path.insert(0, TerminateWhileImporting())
+"""
+
+
+@pytest.mark.parametrize("entry", ["import runpy; runpy._run_module_as_main('atlasgen')",
+                                   "import atlasgen.cli.main as m; m.main()"],
+                         ids=["python -m atlasgen", "the installed script"])  # fmt: skip
+def test_sigterm_during_start_up_is_one_line_and_143(entry):
+    """Python's own SIGTERM ends a process silently; atlasgen's start-up says why it ended, as for Ctrl-C."""
+    child = subprocess.run([sys.executable, "-c", _TERMINATE_WHILE_IMPORTING_CLICK + entry, "--help"],
+                           capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert (child.returncode, child.stderr.splitlines(), child.stdout) == (143, ["atlasgen: terminated"], ""), child.stderr
+
+
+@pytest.mark.slow
+def test_sigterm_during_a_command_is_one_line_and_143_and_leaves_the_old_atlas(tmp_path):
+    """Once the command runs, SIGTERM is raised as :class:`~atlasgen.errors.Terminated` (its clean-up runs);
+    a bake of a slow material killed in its fit leaves the old set whole."""
+    pytest.importorskip("MaterialX")
+    pytest.importorskip("moderngl")
+    showcase = Path(__file__).resolve().parents[2] / "materials" / "materialx-showcase.mtlx"
+    out = tmp_path / "build" / "atlas.dds"
+    (tmp_path / "clay.toml").write_text('type = "lambert"\n')
+    assert (
+        subprocess.run([sys.executable, "-m", "atlasgen", "bake", str(tmp_path / "clay.toml"), "-o", str(out), "-q"]).returncode
+        == 0
+    )
+    old = {p.name: p.read_bytes() for p in out.parent.iterdir() if p.is_file()}
+    child = subprocess.Popen([sys.executable, "-m", "atlasgen", "bake", str(showcase), "-o", str(out), "-j", "1", "-q"],
+                             stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        time.sleep(3.0)  # inside the first material's fit (the four take 10 s or more)
+        child.send_signal(signal.SIGTERM)
+        _, stderr = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert (child.returncode, stderr) == (143, "atlasgen: terminated\n"), stderr
+    assert {p.name: p.read_bytes() for p in out.parent.iterdir() if p.is_file()} == old
+
+
 def _frames_in(stderr: str, roots) -> list[str]:
     return [line for line in stderr.splitlines() if line.strip().startswith("File ") and any(str(r) in line for r in roots)]
 
@@ -178,8 +235,6 @@ def test_ctrl_c_at_any_instant_of_start_up_is_one_line_and_130(tmp_path):
     runs (atlasgen/cli/__init__.py, before click, NumPy or the library), one line and 130.
     Before it, in Python's own start-up (site and its .pth files), Python decides; such a
     landing is counted apart, and none of its frames may be atlasgen's."""
-    from pathlib import Path
-
     import atlasgen
     from atlasgen.io.atlas import read_atlas
 
