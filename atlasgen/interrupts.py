@@ -52,7 +52,7 @@ def deferred_interrupts():
     missing backend. Inside the block a Ctrl-C is only noted; it is raised once the block
     is done, or instead of whatever exception the block ends with (a SIGTERM as
     :class:`~atlasgen.errors.Terminated`). Outside the main thread, or for a signal that is
-    ignored or has its default action (SIGTERM outside the command line), it is left as it is.
+    ignored (or SIGTERM with its default action, outside the command line), it is left as it is.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -61,7 +61,8 @@ def deferred_interrupts():
     previous = {}
     for signum in _HELD:
         handler = signal.getsignal(signum)
-        if handler not in (signal.SIG_IGN, signal.SIG_DFL, None):
+        # SIGTERM with its default action (a library's process) ends the process: nothing to hold.
+        if handler not in (signal.SIG_IGN, None) and not (signum == signal.SIGTERM and handler == signal.SIG_DFL):
             previous[signum] = signal.signal(signum, lambda number, frame: pending.append(number))
     try:
         yield
