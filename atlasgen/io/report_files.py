@@ -7,9 +7,17 @@ import math
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError, shorten
+from atlasgen.io.output_paths import check_output_paths
 from atlasgen.io.text import decode_utf8, loads_json, read_input_bytes
 
-__all__ = ["report_json_paths", "read_json_file", "read_report_json", "loads_finite_json", "check_number"]
+__all__ = [
+    "report_json_paths",
+    "check_merge_output",
+    "read_json_file",
+    "read_report_json",
+    "loads_finite_json",
+    "check_number",
+]
 
 
 def _refuse_constant(path: Path):
@@ -73,6 +81,21 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
     if not paths:
         raise InputError(f"no {kind} reports to merge; expected folders written by {command} -o")
     return paths
+
+
+def check_merge_output(paths, output) -> None:
+    """Refuse a merge whose output folder is one of its sources (``--merge A B -o B``).
+
+    The sources may live inside the output folder, but the merged ``report.json`` must not replace a
+    source's own: the source would then hold the merge, and a later merge of it would count every
+    material of the others twice.
+
+    Raises
+    ------
+    OutputError
+        One line naming the output and the source (exit 4), before anything is read or written.
+    """
+    check_output_paths([(Path(output) / "report.json", "the merged report")], [(p, "a --merge source") for p in paths])
 
 
 #: Bytes a report's JSON may have: a merged library's is hundreds of kB; a 48 MB one took 1.27 GB to read.

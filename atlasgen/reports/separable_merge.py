@@ -17,7 +17,7 @@ from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
+from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
 from atlasgen.reports.separable import MaterialStudy, format_separable_html, format_separable_report
 
@@ -134,6 +134,7 @@ def merge_separable_reports(sources, output) -> dict:
     """
     output = Path(output)
     paths = report_json_paths(sources, "separable", "atlasgen report separable")
+    check_merge_output(paths, output)
     files, seen, plots, origins = {}, {}, {}, []  # origins: (study, its report.json, its entry there)
     for path in paths:
         for index, study in enumerate(_read_studies(path)):

@@ -22,7 +22,7 @@ from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.fields import is_number
 from atlasgen.io.images import encode_png
-from atlasgen.io.report_files import check_number, read_report_json, report_json_paths
+from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
@@ -991,6 +991,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
     """
     out_dir = Path(out_dir)
     paths = report_json_paths(sources, "validation", "atlasgen validate")
+    check_merge_output(paths, out_dir)
     reports = [read_validation_report(p) for p in paths]
     first = reports[0]
     rows, seen = [], {}

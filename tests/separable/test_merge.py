@@ -110,6 +110,20 @@ def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys
 
 
 @pytest.mark.slow
+def test_a_merge_into_one_of_its_sources_is_refused_and_changes_nothing(reports, tmp_path):
+    """``report separable --merge A B -o B`` replaced B's own report.json with the merge (exit 0)."""
+    import shutil
+
+    _, folders = reports
+    target = tmp_path / "sheen"
+    shutil.copytree(folders["sheen"], target, symlinks=True)
+    before = {p: p.read_bytes() for p in target.rglob("*") if p.is_file()}
+    with pytest.raises(OutputError, match=r"sheen/report.json: the merged report would overwrite a --merge source"):
+        merge_separable_reports([folders["lobe"], target], target)
+    assert {p: p.read_bytes() for p in target.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.slow
 def test_bad_sources_are_refused_and_nothing_is_written(reports, tmp_path):
     _, folders = reports
     out = tmp_path / "merged"

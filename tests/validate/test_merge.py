@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from atlasgen.errors import InputError
+from atlasgen.errors import InputError, OutputError
 from tests.html_links import PageLinks
 
 
@@ -125,6 +125,23 @@ def test_reports_with_other_settings_or_the_same_material_twice_are_refused(merg
     with pytest.raises(InputError, match="no validation reports to merge"):
         merge_validation_reports([], tmp_path / "merged")
     assert not (tmp_path / "merged").exists()
+
+
+@pytest.mark.parametrize("named", ["folder", "report.json"])
+def test_a_merge_into_one_of_its_sources_is_refused_and_changes_nothing(merged, tmp_path, named):
+    """``validate --merge A B -o B`` replaced B's own report with the merge, so a later merge of B counted
+    A's materials twice: the merged report may not replace a source's (exit 4, before anything is written)."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    out, parts, _ = merged
+    first, second = (tmp_path / m for m in list(parts)[:2])
+    for folder in (first, second):
+        shutil.copytree(out / "materials" / folder.name, folder)
+    before = {p: p.read_bytes() for p in second.rglob("*") if p.is_file()}
+    source = second if named == "folder" else second / "report.json"
+    with pytest.raises(OutputError, match=r"report.json: the merged report would overwrite a --merge source"):
+        merge_validation_reports([first, source], second / "." if named == "folder" else second)
+    assert {p: p.read_bytes() for p in second.rglob("*") if p.is_file()} == before
 
 
 def _edited(merged, tmp_path, change) -> Path:
