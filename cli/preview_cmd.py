@@ -69,7 +69,7 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
     the PNG.
 
     Exit codes as every command's; a bad material file gives its one line (3) and leaves the PNG as
-    it was.
+    it was. A material the atlas holds badly is shown with the line `atlasgen bake` warns with.
     """
     output = output or default_output(paths)
     cache = None if no_cache else cache_dir
@@ -78,16 +78,34 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
         return
     shown = Previewer(cache).write(paths, output, reference=reference, max_spp=max_spp)
     if verbosity != QUIET:
+        _warn(shown.bake, set())
         click.echo(f"wrote {output.as_posix()} ({', '.join(shown.names)}) in {shown.seconds:.2f} s")
     if verbosity == VERBOSE:
         click.echo(f"  {_steps(shown.timings)}", err=True)
 
 
+def _warn(result, printed: set) -> None:
+    """The bake's warnings, as ``atlasgen bake`` prints them: a material the atlas holds badly (its measured
+    error over the threshold, texels lost to 8 bits, ...) is never shown without its line. ``printed``: the
+    lines already printed for this picture (a watch's draft picture, then its measured labels)."""
+    if result is None:
+        return
+    for warning in [*result.warnings, *result.material_warnings]:
+        line = f"atlasgen: warning: {warning}"
+        if line not in printed:
+            printed.add(line)
+            click.echo(line, err=True)
+
+
 def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> None:
+    printed: set = set()
+
     def report(update) -> None:
+        printed.clear()
         if update.error is not None:
             click.echo(f"atlasgen: error: {one_line_message(update.error)} (kept the last picture; watching)", err=True)
         elif verbosity != QUIET:
+            _warn(update.preview.bake, printed)
             click.echo(describe_update(update, output, steps=verbosity == VERBOSE))
 
     def labelled(preview, error) -> None:
@@ -95,6 +113,7 @@ def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> No
             click.echo(f"atlasgen: error: {one_line_message(error)} (the picture stands without its error figures; watching)",
                        err=True)  # fmt: skip
         elif verbosity != QUIET:
+            _warn(preview.bake, printed)  # the drafts' warnings, measured only now
             click.echo(describe_label(preview))
 
     def refined(name, shot) -> None:

@@ -115,6 +115,45 @@ def test_a_watch_prints_the_label_once_measured_and_its_failure_on_one_line(tmp_
     assert res.stdout.splitlines() == ([] if verbosity else ["error figures measured in 0.210 s"])
 
 
+@pytest.mark.slow
+def test_a_material_the_atlas_holds_badly_is_shown_with_the_bake_s_warning(gpu_device, tmp_path, write_material):
+    """A material ``bake`` warns about was previewed in silence: black balls, exit 0, no line."""
+    lost = write_material("lost", 'type = "lambert"\nrgb_scale = 3e38\n')
+    out = str(tmp_path / "lost.png")
+    res = CliRunner().invoke(app, ["preview", str(lost), "--no-cache", "-o", out])
+    assert res.exit_code == 0, res.output
+    warning = f"atlasgen: warning: {lost.as_posix()}: material 'lost': 100.0% of the texels whose RGB is above 0 are stored as 0"
+    assert [line[: len(warning)] for line in res.stderr.splitlines()] == [warning], res.stderr
+    quiet = CliRunner().invoke(app, ["preview", str(lost), "--no-cache", "-o", out, "-q"])
+    assert (quiet.exit_code, quiet.output) == (0, "")  # -q: errors only, as bake's
+
+
+def test_a_watch_warns_once_a_picture_and_again_for_the_next(tmp_path, monkeypatch, write_material):
+    """Each picture's warnings once: the draft picture's, then those its measured labels add, and again
+    for the next save's picture."""
+    from types import SimpleNamespace
+
+    from atlasgen.cli import preview_cmd
+    from atlasgen.preview.previewer import Preview
+    from atlasgen.preview.watch import Update
+
+    clay = write_material("clay", CLAY)
+    draft = Preview(b"", ["clay"], bake=SimpleNamespace(warnings=[], material_warnings=["clay.toml: lost to 8 bits"]))
+    measured = Preview(b"", ["clay"], label_timings={"measure": 0.2},
+                       bake=SimpleNamespace(warnings=[], material_warnings=["clay.toml: lost to 8 bits", "clay.toml: 30%"]))  # fmt: skip
+
+    def fake_watch(paths, output, cache, on_update, on_label, **_):
+        for changed in ([], ["clay.toml"]):
+            on_update(Update(changed, draft, timings={"total": 0.1}))
+            on_label(measured, None)
+
+    monkeypatch.setattr(preview_cmd, "watch_preview", fake_watch)
+    res = CliRunner().invoke(app, ["preview", str(clay), "--watch", "-o", str(tmp_path / "clay.png")])
+    assert res.exit_code == 0, res.output
+    warnings = [line for line in res.stderr.splitlines() if line.startswith("atlasgen: warning: ")]
+    assert warnings == ["atlasgen: warning: clay.toml: lost to 8 bits", "atlasgen: warning: clay.toml: 30%"] * 2
+
+
 def test_the_reference_s_samples_are_bounded_as_validate_s_are(tmp_path):
     """An unbounded --reference-spp ran a CPU reference for as long as it was asked: days."""
     from atlasgen.cli.main import app
