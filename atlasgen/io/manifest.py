@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Literal, TypeGuard, overload
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, MAPPING, NAME_PATTERN, SPECULAR_LOBE
+from atlasgen.contract import FORMAT_VERSION, LAYERS, MAPPING, NAME_PATTERN, SPECULAR_LOBE
 from atlasgen.errors import ManifestError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.fields import fits_float32, is_number
@@ -839,7 +839,9 @@ def read_manifest(path) -> Manifest:
 def read_slots(path) -> dict[str, int]:
     """``name -> first_slice`` of a manifest of any format version, for keeping slice IDs
     stable across a re-bake: an atlas written by an older atlasgen must not stop the bake
-    that replaces it. Only the names and first slices are read, and checked.
+    that replaces it. Only the names and first slices are read, and checked: each name once, each
+    first slice one of the atlas's ``LAYERS`` and no other name's (a slice 300, or two materials on
+    one, would be no ID to keep).
     """
     shown = Path(path).as_posix()
     text = read_input_text(path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
@@ -851,12 +853,21 @@ def read_slots(path) -> dict[str, int]:
     if not isinstance(materials, list):
         raise ManifestError(shown, "materials", f"expected a list of materials, got {_describe(materials)}")
     slots: dict[str, int] = {}
+    owners: dict[int, str] = {}
     for i, entry in enumerate(materials):
         name = entry.get("name") if isinstance(entry, dict) else None
         first = entry.get("first_slice") if isinstance(entry, dict) else None
         if not isinstance(name, str) or not _is_int(first) or first < 0:
             raise ManifestError(shown, f"materials[{i}]", "expected an object with a 'name' and a 'first_slice' >= 0")
+        if first >= LAYERS:
+            raise ManifestError(shown, f"materials[{i}].first_slice", f"expected a slice below {LAYERS}, got {first}")
+        if name in slots:
+            raise ManifestError(shown, f"materials[{i}].name", f"expected each material once, got {name!r} twice")
+        if first in owners:
+            raise ManifestError(shown, f"materials[{i}].first_slice",
+                                f"expected a slice of its own, got {first}, {owners[first]!r}'s")  # fmt: skip
         slots[name] = first
+        owners[first] = name
     return slots
 
 

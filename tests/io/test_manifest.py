@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import gzip
 import json
+import re
 from importlib.resources import files
 from pathlib import Path
 
@@ -441,6 +442,26 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
     # A name is the material's shader identifier too: a tampered one is refused, shown escaped on the one line.
     message = _refusal(tmp_path, _with(_set(["materials", 1, "name"], "a\n\u0000b")))
     assert "field 'materials[1].name': expected a material name (a letter, then letters" in message
+
+
+@pytest.mark.parametrize(("materials", "field", "expected"), [
+    ([{"name": "a", "first_slice": 300}], "materials[0].first_slice", "expected a slice below 256, got 300"),
+    ([{"name": "a", "first_slice": 1}, {"name": "a", "first_slice": 2}], "materials[1].name",
+     "expected each material once, got 'a' twice"),
+    ([{"name": "a", "first_slice": 1}, {"name": "b", "first_slice": 1}], "materials[1].first_slice",
+     "expected a slice of its own, got 1, 'a''s"),
+], ids=["slice beyond the atlas", "a name twice", "a slice twice"])  # fmt: skip
+def test_ids_to_keep_are_ids_an_atlas_can_hold(tmp_path, materials, field, expected):
+    """``--ids-from`` (and the atlas's own manifest) read names and first slices only, of any format version;
+    a slice 300 was silently dropped (the material renumbered) and a name given twice kept its last slice."""
+    path = tmp_path / "atlas.json"
+    path.write_text(json.dumps({"format_version": 1, "materials": materials}))
+    with pytest.raises(ManifestError, match=re.escape(f"field '{field}': {expected}")):
+        read_slots(path)
+    path.write_text(
+        json.dumps({"format_version": 1, "materials": [{"name": "a", "first_slice": 255}, {"name": "b", "first_slice": 0}]})
+    )
+    assert read_slots(path) == {"a": 255, "b": 0}
 
 
 def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
