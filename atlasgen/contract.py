@@ -21,6 +21,7 @@ __all__ = [
     "SPECULAR_ALPHA_MIN",
     "SPECULAR_LOBE",
     "NAME_PATTERN",
+    "material_constant",
     "texel_centres",
     "texel_grid",
     "atlas_uv",
@@ -52,6 +53,17 @@ MAPPING = {
 #: material in shader code (e.g. ``separable_f_cos_NAME``) and in the manifest. Match it with
 #: ``fullmatch``: Python's ``$`` also matches before a final line break ("abc\n"), JSON Schema's does not.
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,62}$")
+
+
+def material_constant(name: str) -> str:
+    """The shader constant every include declares a material's ID by: ``MATERIAL_`` and the name in
+    capitals, each character but a letter or digit as ``_`` (the manifest's ``constant``).
+
+    >>> material_constant("gold-film")
+    'MATERIAL_GOLD_FILM'
+    """
+    return "MATERIAL_" + re.sub(r"[^A-Z0-9]", "_", name.upper())
+
 
 #: Smallest GGX roughness the renderer uses: keeps D's peak 1 / (pi alpha^2) finite in f32
 #: and the highlight of a gloss-1 object at least a few texels of a 16-bit g-buffer wide.

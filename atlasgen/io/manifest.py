@@ -29,8 +29,8 @@ from pathlib import Path
 from typing import Literal, TypeGuard, overload
 
 from atlasgen import __version__
-from atlasgen.contract import FORMAT_VERSION, LAYERS, MAPPING, NAME_PATTERN, SPECULAR_LOBE
-from atlasgen.errors import ManifestError
+from atlasgen.contract import FORMAT_VERSION, LAYERS, MAPPING, NAME_PATTERN, SPECULAR_LOBE, material_constant
+from atlasgen.errors import ManifestError, shorten
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.fields import fits_float32, is_number
 from atlasgen.io.text import loads_json, read_input_text
@@ -80,7 +80,10 @@ def _describe(value) -> str:
     if isinstance(value, dict):
         return "an object"
     if isinstance(value, list):
-        return f"a list of {len(value)}" if value else "an empty list"
+        if not value:
+            return "an empty list"
+        text = json.dumps(value)  # [[1e+300, 1.0, 1.0], ...] says more than "a list of 2"
+        return text if len(text) <= 80 else text[:77] + "..."
     text = json.dumps(value) if isinstance(value, str) else repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
 
@@ -356,9 +359,10 @@ _VIEW_FRACTION = (lambda v: isinstance(v, dict) and _is_finite(v.get("view_deg")
 
 
 def _factor_table(v) -> bool:
-    """``[[r, g, b], [r, g, b]]``: one value per colour channel of the g and the h factor."""
+    """``[[r, g, b], [r, g, b]]``: one value per colour channel of the g and the h factor, each a float32 (the
+    renderer's and the include's storage tables hold them as such: 1e300 would be infinity there)."""
     return (isinstance(v, list) and len(v) == 2
-            and all(isinstance(c, list) and len(c) == 3 and all(_is_finite(x) for x in c) for c in v))  # fmt: skip
+            and all(isinstance(c, list) and len(c) == 3 and all(fits_float32(x) for x in c) for c in v))  # fmt: skip
 
 
 @dataclass(kw_only=True)
@@ -411,7 +415,7 @@ class SeparableFactors(_Record):
         transmission = None if found is None else SeparableTransmission.from_json(found, slice_count)
         terms = slice_count - (transmission is not None)
         table = f"a list of {terms} (one per term)"
-        cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values")
+        cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values, each a float32")
         errors = f.child("errors", optional=True)
         errors_8bit = f.child("errors_8bit", optional=True)
         return cls(
@@ -767,6 +771,7 @@ class Manifest(_Record):
         f.array("materials", "a list of material objects")  # each checked below, by index
         materials = [MaterialEntry.from_json(m, shown, f"materials[{i}]") for i, m in enumerate(data["materials"])]
         _check_slices(shown, materials, dimensions.layers)
+        _check_constants(shown, materials)
         lobe = f.mapping("specular_lobe", values=lambda v: isinstance(v, str), expected="an object of strings")
         if lobe.get("name") != SPECULAR_LOBE["name"]:
             # A was made for one lobe; shading it with another gives other materials.
@@ -808,6 +813,22 @@ def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> No
             if s in owner:
                 raise ManifestError(shown, f"{where}.first_slice", f"expected free slices, got slice {s}, also {owner[s]!r}'s")
             owner[s] = m.name
+
+
+def _check_constants(shown: str, materials: list[MaterialEntry]) -> None:
+    """Each material's ``constant`` the one its name gives (:func:`~atlasgen.contract.material_constant`), and no
+    other material's: every include declares it, beside its own functions, in three shading languages, so any
+    other identifier could be a keyword or a name the include already declares, and two alike a redefinition."""
+    owner: dict[str, str] = {}
+    for i, m in enumerate(materials):
+        expected = material_constant(m.name)
+        if m.constant != expected:
+            raise ManifestError(shown, f"materials[{i}].constant", f"expected {expected!r} (MATERIAL_ and the name in "
+                                f"capitals, other characters as '_'), got {shorten(repr(m.constant))}")  # fmt: skip
+        if m.constant in owner:
+            raise ManifestError(shown, f"materials[{i}].constant", f"expected a constant of its own, got {m.constant!r}, "
+                                f"also {owner[m.constant]!r}'s (names that differ only in case or '-' and '_')")  # fmt: skip
+        owner[m.constant] = m.name
 
 
 # ---- reading and writing -------------------------------------------------------------------------

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from atlasgen.contract import NAME_PATTERN
+from atlasgen.contract import NAME_PATTERN, material_constant
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
@@ -74,8 +73,8 @@ class Material:
 
     @property
     def constant_name(self) -> str:
-        """Shader-constant spelling of the name, e.g. ``gold-film`` -> ``MATERIAL_GOLD_FILM``."""
-        return "MATERIAL_" + re.sub(r"[^A-Z0-9]", "_", self.name.upper())
+        """Shader-constant spelling of the name, e.g. ``gold-film`` -> ``MATERIAL_GOLD_FILM`` (:func:`~atlasgen.contract.material_constant`)."""
+        return material_constant(self.name)
 
 
 #: The keys every material file may have besides its model's, checked by the one field validator.

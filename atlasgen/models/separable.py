@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from atlasgen.errors import ManifestError, MaterialError
+from atlasgen.errors import ManifestError, MaterialError, shorten
 from atlasgen.io.atlas import as_atlas
 from atlasgen.io.fields import Param
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation
@@ -60,7 +60,7 @@ from atlasgen.separable.source import film_transmits, make_source
 from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode_factor_slices, factors_to_slices
 from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
 from atlasgen.shaders.lang import Function, Let, Return, float_literal
-from atlasgen.shaders.separable import separable_declarations, separable_table_bytes
+from atlasgen.shaders.separable import TARGETS, separable_declarations, separable_table_bytes
 from atlasgen.shaders.separable_analytic import analytic_call, analytic_declarations
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
@@ -673,12 +673,19 @@ class Separable(Model):
 
     @classmethod
     def check_entry(cls, entry, shown: str, where: str) -> None:
-        """Factors to rebuild, unless the entry is held as one LUT slice or in closed form; a closed form's
-        roughness and index within this model's own bounds (its shader code divides by alpha^4)."""
+        """Factors to rebuild, unless the entry is held as one LUT slice or in closed form, in a parametrization
+        and of a target the rebuild knows; a closed form's roughness and index within this model's own bounds
+        (its shader code divides by alpha^4)."""
         rep = entry.representation
         if entry.factors is None and not isinstance(rep, (AnalyticRepresentation, LutRepresentation)):
             raise ManifestError(shown, f"{where}.factor_scale", "missing; expected a separable entry's factors "
                                 "(factor_scale, factor_bias, ...) or a LUT or analytic representation")  # fmt: skip
+        if entry.factors is not None:
+            for field, value, known in (("parametrization", entry.factors.parametrization, PARAMETRIZATIONS),
+                                        ("target", entry.factors.target, TARGETS)):  # fmt: skip
+                if value not in known:
+                    raise ManifestError(shown, f"{where}.{field}",
+                                        f"expected one of {', '.join(known)}, got {shorten(repr(value))}")  # fmt: skip
         if isinstance(rep, AnalyticRepresentation):
             for param in (p for p in cls.params if p.name in ("alpha", "ior")):
                 param.coerce(getattr(rep, param.name), shown, ManifestError, f"{where}.representation.{param.name}")

@@ -347,7 +347,7 @@ REFUSED = {
     "scale beyond float32": (
         _with(_set(["materials", 0, "scale"], [[1e39, 1.0]])),
         "materials[0].scale[0]",
-        "an [rgb, alpha] pair of numbers float32 holds, got a list of 2",
+        "an [rgb, alpha] pair of numbers float32 holds, got [1e+39, 1.0]",
     ),
     "constant not an identifier": (
         _with(_set(["materials", 0, "constant"], "X; } fn evil() {")),
@@ -376,6 +376,23 @@ REFUSED = {
         "holds a lone UTF-16 surrogate, which is no text",
     ),
     "dxgi mismatch": (_with(_set(["dxgi_format"], 28)), "dxgi_format", "29 (the DXGI format of srgb encoding), got 28"),
+    # The includes declare each constant in three languages beside their own functions: a keyword, an include
+    # function's name or another material's constant failed the renderer's shader compile (exit 1).
+    "constant not the name's": (
+        _with(_set(["materials", 1, "constant"], "atlas_sample")),
+        "materials[1].constant",
+        "(MATERIAL_ and the name in capitals, other characters as '_'), got 'atlas_sample'",
+    ),
+    "two names, one constant": (
+        _with(lambda d: [d["materials"][i].update(name=n, constant="MATERIAL_X_Y") for i, n in ((0, "x-y"), (1, "x_y"))]),
+        "materials[1].constant",
+        "expected a constant of its own, got 'MATERIAL_X_Y', also 'x-y''s",
+    ),
+    "factor beyond float32": (
+        _with(_set(["materials", 5, "factor_scale", 0, 1, 2], 1e300)),
+        "materials[5].factor_scale[0]",
+        "per-channel values, each a float32, got [[",
+    ),
 }
 
 
@@ -391,6 +408,7 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
 #: What the schema cannot say: id = first_slice, the DXGI/encoding pairing and the transmission slice's place,
 #: and what JSON itself cannot hold (Python's reader takes Infinity, a 400-digit integer and a lone surrogate).
 _BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
+                      "constant not the name's", "two names, one constant",
                       "not a finite figure",
                       "an integer beyond a double", "an integer just beyond a double", "a lone surrogate"}  # fmt: skip
 
@@ -399,6 +417,15 @@ _BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice
 def test_the_schema_refuses_what_the_reader_refuses(case):
     content = REFUSED[case][0]
     assert list(_schema("manifest").iter_errors(content)) != []
+
+
+def test_the_schema_names_the_parametrizations_and_targets_the_rebuild_knows():
+    """The schema is hand-written; the separable model refuses a name its rebuild lacks (parametrization, target)."""
+    from atlasgen.separable.parametrization import PARAMETRIZATIONS
+    from atlasgen.shaders.separable import TARGETS
+
+    entry = _schema("manifest").schema["$defs"]["material"]["properties"]
+    assert (entry["parametrization"]["enum"], entry["target"]["enum"]) == (list(PARAMETRIZATIONS), list(TARGETS))
 
 
 def test_a_transmission_slice_is_the_last_slice_and_the_terms_are_the_rest():

@@ -61,9 +61,18 @@ def test_levels_must_be_uint8_rgba():
         RenderAtlas([np.zeros((1, 2, 2, 4), dtype=np.float32)], True, {}, "")
 
 
+#: One separable term's factor tables: what a one-slice entry needs to be read as separable.
+ONE_TERM = {"factor_scale": [[[1.0, 1.0, 1.0], [1.0, 1.0, 1.0]]], "factor_bias": [[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]]}
+
+
 @pytest.mark.parametrize(("edit", "field", "expected"), [
     ({"type": "nosuchmodel"}, "materials[0].type", "expected one of the models atlasgen knows ("),
     ({"type": "separable"}, "materials[0].factor_scale", "missing; expected a separable entry's factors"),
+    # Names the rebuild looks up (a KeyError and a ValueError, exit 1, before).
+    ({"type": "separable", "parametrization": "polar", **ONE_TERM}, "materials[0].parametrization",
+     "expected one of half_diff, half_diff_sqrt_h, "),
+    ({"type": "separable", "parametrization": "half_diff", "target": "nope", **ONE_TERM}, "materials[0].target",
+     "expected one of f_cos, f_proxy, got 'nope'"),
     # A closed form below the model's own bound: its shader code divides by alpha^4, which float32 rounds to 0.
     ({"type": "separable", "representation": {"kind": "analytic", "distribution": "ggx", "alpha": 1e-20, "fresnel": "none",
       "f0": [1, 1, 1], "ior": 1.5, "specular": [1, 1, 1], "diffuse": [0, 0, 0]}},
