@@ -109,6 +109,29 @@ def test_a_truncated_dds_names_its_length(tmp_path, atlases, length):
         read_dds(path)
 
 
+def _forged(values: np.ndarray, meta: dict) -> dict:
+    """Entries edited and given the digest of their new contents (which finds damage, not a forgery): each
+    failed the bake (a fit record of 5: exit 1), wrote invalid JSON (NaN seconds in X.timings.json) or
+    baked five slices for a one-slice lambert."""
+    import io
+
+    from atlasgen.bake.cache import _entry_digest
+
+    def signed(values, **changes) -> bytes:
+        edited = {**meta, **changes}
+        edited["digest"] = _entry_digest(values, edited)
+        buffer = io.BytesIO()
+        np.savez(buffer, values=values, meta=np.array(json.dumps(edited)))
+        return buffer.getvalue()
+
+    return {
+        "forged: more slices": signed(np.repeat(values, 5, axis=0)),
+        "forged: seconds as text": signed(values, timings={**meta["timings"], "bake_s": "abc"}),
+        "forged: NaN seconds": signed(values, timings={**meta["timings"], "bake_s": float("nan")}),
+        "forged: a fit record of 5": signed(values, extra={**meta["extra"], "fit": 5}),
+    }
+
+
 def _damaged(data: bytes, key: str) -> dict:
     """Ways a cache entry breaks: truncation, garbage, another file type, wrong contents, contents edited
     in a whole archive."""
@@ -128,6 +151,7 @@ def _damaged(data: bytes, key: str) -> dict:
     repeated = io.BytesIO()  # five slices for a one-slice lambert were baked into the atlas as they were
     np.savez(repeated, values=np.repeat(values, 5, axis=0), meta=np.array(json.dumps(good_meta)))
     return {
+        **_forged(values, good_meta),
         "another extra": edited.getvalue(),
         "more slices": repeated.getvalue(),
         "truncated": data[: len(data) // 2],

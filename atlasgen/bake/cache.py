@@ -6,6 +6,7 @@ import functools
 import hashlib
 import io
 import json
+import math
 import time
 import zipfile
 from collections.abc import Callable
@@ -18,7 +19,7 @@ from atlasgen.bake.adaptive import bake_material, draft_material
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import update_with_array
-from atlasgen.io.fields import FLOAT32_MAX
+from atlasgen.io.fields import FLOAT32_MAX, is_number
 from atlasgen.models.base import SliceSet
 
 __all__ = [
@@ -120,13 +121,22 @@ def _check_archive(path: Path) -> None:
     _check_shape(shape, dtype)
 
 
-def _check_entry(values: np.ndarray, meta) -> None:
-    """Raise ValueError unless the stored slices look like a model's: (n, H, W, 4), finite in float32 (a bake
-    refuses a material whose slices are not, so no bake wrote them), and the entry is the one the bake stored
-    (its digest)."""
+def _check_entry(values: np.ndarray, meta, most_slices: int) -> None:
+    """Raise ValueError unless the stored slices look like the material's model's: (n, H, W, 4) with n at most
+    ``most_slices`` (what the model bakes), finite in float32 (a bake refuses a material whose slices are
+    not, so no bake wrote them), with finite timings and a fit record that is a record, and the entry is the
+    one the bake stored (its digest). The digest finds damage, not an entry forged with a digest of its own:
+    so what the bake reads of the metadata before the manifest's typed reading checks the rest is checked here."""
     if not isinstance(meta, dict) or not isinstance(meta.get("extra"), dict) or not isinstance(meta.get("timings"), dict):
         raise ValueError("malformed metadata")
+    if not all(is_number(t) and math.isfinite(t) and t >= 0 for t in meta["timings"].values()):
+        raise ValueError("timings that are not seconds")
+    fit = meta["extra"].get("fit")
+    if fit is not None and not isinstance(fit, dict):
+        raise ValueError("a fit record that is not an object")
     _check_shape(values.shape, values.dtype)
+    if values.shape[0] > most_slices:
+        raise ValueError(f"{values.shape[0]} slices where the model bakes at most {most_slices}")
     if not (np.abs(values) <= FLOAT32_MAX).all():  # NaN compares False
         raise ValueError("slices not finite in float32")
     if meta.get("digest") != _entry_digest(values, meta):
@@ -153,7 +163,7 @@ def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
             if isinstance(meta, dict) and meta.get("key") != cache_key(material):
                 return None
             values = np.array(data["values"])
-        _check_entry(values, meta)
+        _check_entry(values, meta, material.slice_count)
     except Exception as exc:  # noqa: BLE001 - zipfile, numpy and json raise many types for a damaged file
         if warnings is not None:
             reason = str(exc).splitlines()[0][:80] if str(exc) else ""
