@@ -1,5 +1,7 @@
 """Reading material files: every bad input is a one-line error naming file, field and expectation."""
 
+import os
+
 import pytest
 
 from atlasgen.errors import InputError, MaterialError
@@ -55,6 +57,16 @@ def test_names_colliding_as_shader_constants_are_duplicates(write_material, tmp_
     write_material("gold_film", 'type = "lambert"\n')
     with pytest.raises(MaterialError, match="duplicate material name"):
         read_materials([tmp_path / "materials"])
+
+
+def test_a_folder_s_hidden_files_are_not_its_materials(write_material, tmp_path):
+    """An editor's lock link (Emacs's ``.#clay.toml``, pointing nowhere) failed the folder's whole bake, and a
+    hidden copy was baked beside the material; make's ``$(wildcard materials/*.toml)`` leaves both out."""
+    write_material("clay", 'type = "lambert"\n')
+    folder = tmp_path / "materials"
+    os.symlink("user@host.1234:1700000000", folder / ".#clay.toml")
+    (folder / ".clay.toml").write_text('type = "lambert"\n')
+    assert [m.name for m in read_materials([folder])] == ["clay"]
 
 
 def test_missing_path(tmp_path):

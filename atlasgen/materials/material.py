@@ -23,6 +23,7 @@ __all__ = [
     "read_material_file",
     "find_material_files",
     "check_unique_names",
+    "is_material_file_name",
     "select_scene_materials",
     "COMMON_KEYS",
 ]
@@ -218,8 +219,20 @@ def read_material_file(path, materialx_flatten=None) -> list[Material]:
     return out
 
 
+def is_material_file_name(name: str) -> bool:
+    """Whether a folder's entry called ``name`` is one of its material files: ``*.toml`` or ``*.mtlx``, not
+    hidden. Hidden names are editors' (Emacs's lock link ``.#clay.toml``, which points nowhere) and are
+    what make's ``$(wildcard materials/*.toml)`` leaves out too.
+
+    >>> [is_material_file_name(n) for n in ("clay.toml", "lib.mtlx", ".#clay.toml", "clay.toml~")]
+    [True, True, False, False]
+    """
+    return not name.startswith(".") and name.endswith((".toml", ".mtlx"))
+
+
 def find_material_files(paths) -> list[Path]:
-    """Expand files and folders (``*.toml`` and ``*.mtlx``, sorted, non-recursive) into a file list.
+    """Expand files and folders (their material files, :func:`is_material_file_name`, sorted, non-recursive)
+    into a file list.
 
     Sorting makes the bake order, and so the atlas, independent of the file system.
     """
@@ -227,7 +240,7 @@ def find_material_files(paths) -> list[Path]:
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            files.extend(sorted([*p.glob("*.toml"), *p.glob("*.mtlx")]))
+            files.extend(sorted((f for f in p.iterdir() if is_material_file_name(f.name)), key=lambda f: f.name))
         elif (kind := path_kind(p)) is None:
             files.append(p)
         elif kind == MISSING:

@@ -4,10 +4,10 @@ The folders holding the material files (and the files they name) are watched wit
 not the files themselves: editors that save by writing a new file and renaming it over the old
 one (vim, most IDEs) replace the file a watch on it would follow, while the folder sees the
 new one arrive. Events are kept only for the files the preview reads (a folder given as a
-source: every ``*.toml`` directly in it), so the PNG's own writes, editors' swap files and
-backups never trigger an update. A batch of events (watchfiles groups those STEP_MS apart) is one
-update. An update that fails (a bad edit) reports its error on one line and leaves the last
-good picture in place; the watch goes on.
+source: its material files, :func:`~atlasgen.materials.material.is_material_file_name`), so the
+PNG's own writes, editors' swap files, lock links and backups never trigger an update. A batch of
+events (watchfiles groups those STEP_MS apart) is one update. An update that fails (a bad edit)
+reports its error on one line and leaves the last good picture in place; the watch goes on.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from pathlib import Path
 from atlasgen.errors import AtlasgenError, BackendError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.images import encode_png
+from atlasgen.materials.material import is_material_file_name
 from atlasgen.preview.label import error_text
 from atlasgen.preview.previewer import (
     DEFAULT_CACHE_DIR,
@@ -96,7 +97,7 @@ class _Sources:
         for path in preview.inputs:
             key = os.path.abspath(path)
             self.shown.setdefault(key, Path(path).as_posix())
-            if path not in self.given and path.suffix.lower() != ".toml":
+            if path not in self.given and not is_material_file_name(Path(path).name):
                 self.referenced.add(key)
 
     def folders(self) -> list[str]:
@@ -104,7 +105,7 @@ class _Sources:
 
     def wants(self, path: str) -> bool:
         key = os.path.abspath(path)
-        return key in self.shown or (os.path.dirname(key) in self.folders_given and key.lower().endswith(".toml"))
+        return key in self.shown or (os.path.dirname(key) in self.folders_given and is_material_file_name(os.path.basename(key)))
 
     def name(self, path: str) -> str:
         key = os.path.abspath(path)

@@ -55,3 +55,12 @@ def test_a_material_file_whose_name_is_no_utf8_is_refused_on_one_line(tmp_path, 
     with pytest.raises(InputError) as info:
         read_materials([tmp_path])
     assert str(info.value) == f"{tmp_path.as_posix()}/bad\\udcff{suffix}: expected a file name in UTF-8"
+
+
+def test_the_docstrings_examples_hold():
+    import doctest
+
+    from atlasgen.materials import material
+
+    result = doctest.testmod(material)
+    assert result.attempted > 0 and result.failed == 0

@@ -119,6 +119,8 @@ def test_a_folder_takes_new_material_files(write_material, tmp_path):
 
     def script(next_update):
         assert next_update().preview.names == ["clay"]
+        # Emacs's lock link while clay.toml is edited: hidden and pointing nowhere, it is no material file.
+        os.symlink("user@host.1234:1700000000", folder / ".#clay.toml")
         (folder / "snow.toml").write_text('type = "lambert"\n')
         update = next_update()
         assert update.changed == [os.path.relpath(folder / "snow.toml")] and update.preview.names == ["clay", "snow"]
