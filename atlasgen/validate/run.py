@@ -610,7 +610,9 @@ def _float_slices(entry, bake_cache):
     keyed by the material file's content hash, as the manifest records it, and the bake code), or None."""
     if bake_cache is None:
         return None
-    material = SimpleNamespace(name=entry.name, source=entry.source, content_hash=entry.content_hash)
+    material = SimpleNamespace(
+        name=entry.name, source=entry.source, content_hash=entry.content_hash, slice_count=entry.slice_count
+    )
     slices = load_cached(bake_cache, material)
     if slices is None or slices.values.shape[0] != entry.slice_count:
         return None
