@@ -54,8 +54,11 @@ def test_a_name_ending_in_a_line_break_is_refused(write_material, tmp_path):
 
 def test_names_colliding_as_shader_constants_are_duplicates(write_material, tmp_path):
     write_material("gold-film", 'type = "lambert"\n')
-    write_material("gold_film", 'type = "lambert"\n')
-    with pytest.raises(MaterialError, match="duplicate material name"):
+    write_material("Gold_film", 'type = "lambert"\n')
+    # Sorted by name, "G" before "g": the lower-case file is the second.
+    with pytest.raises(MaterialError, match=r"gold-film.toml: field 'name': duplicate material name 'gold-film': "
+                       r"'Gold_film' \(in .*Gold_film.toml\) is the same shader constant MATERIAL_GOLD_FILM; "
+                       r"expected names that differ in more than case or '-' against '_'$"):  # fmt: skip
         read_materials([tmp_path / "materials"])
 
 

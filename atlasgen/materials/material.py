@@ -261,7 +261,12 @@ def check_unique_names(materials: list[Material]) -> list[Material]:
     for m in materials:
         key = m.constant_name
         if key in seen:
-            raise MaterialError(m.source, "name", f"duplicate material name {m.name!r} (also in {seen[key].source})")
+            other = seen[key]
+            if other.name == m.name:
+                raise MaterialError(m.source, "name", f"duplicate material name {m.name!r} (also in {other.source})")
+            raise MaterialError(m.source, "name", f"duplicate material name {m.name!r}: {other.name!r} (in {other.source}) "
+                                f"is the same shader constant {key}; expected names that differ in more than case or "
+                                "'-' against '_'")  # fmt: skip
         seen[key] = m
     return materials
 
