@@ -149,17 +149,19 @@ def test_ctrl_c_while_mitsuba_starts_is_an_interruption(tmp_path, mitsuba_llvm, 
     assert stderr.splitlines() == ["atlasgen: interrupted"], stderr
 
 
-_INTERRUPT_WHILE_FINDING = """
-import os, signal, sys
+def _signal_while_finding(module: str, signum: int) -> str:
+    """Code that sends ``signum`` to its own process at the instant Python looks ``module`` up (a finder put
+    first on ``sys.meta_path``): a signal landing at one exact instant of start-up, every time."""
+    return f"""
+import os, sys
 
-class InterruptWhileFinding:
-    # Ctrl-C at the instant Python looks for start_up.py: the one instant no handler can cover.
+class SignalWhileFinding:
     def find_spec(self, name, path=None, target=None):
-        if name == "atlasgen.start_up":
-            os.kill(os.getpid(), signal.SIGINT)
+        if name == {module!r}:
+            os.kill(os.getpid(), {int(signum)})
         return None
 
-sys.meta_path.insert(0, InterruptWhileFinding())
+sys.meta_path.insert(0, SignalWhileFinding())
 """
 
 
@@ -169,23 +171,10 @@ def test_ctrl_c_while_the_start_up_handler_is_imported_is_one_line(entry):
     """CI's stop 43: a SIGINT 20 ms into ``python -m atlasgen`` landed while start_up.py itself
     was found and read, and printed a traceback through atlasgen/__main__.py. Landing there
     (made certain by a finder that sends it) is one line and 130, by either way in."""
-    child = subprocess.run([sys.executable, "-c", _INTERRUPT_WHILE_FINDING + entry], stderr=subprocess.PIPE,
-                           text=True, preexec_fn=as_in_a_terminal, timeout=60)  # fmt: skip
+    # Ctrl-C at the instant Python looks for start_up.py: the one instant no handler can cover.
+    child = subprocess.run([sys.executable, "-c", _signal_while_finding("atlasgen.start_up", signal.SIGINT) + entry],
+                           stderr=subprocess.PIPE, text=True, preexec_fn=as_in_a_terminal, timeout=60)  # fmt: skip
     assert (child.returncode, child.stderr.splitlines()) == (130, ["atlasgen: interrupted"]), child.stderr
-
-
-_TERMINATE_WHILE_IMPORTING_CLICK = """
-import os, signal, sys
-
-class TerminateWhileImporting:
-    # SIGTERM (a `kill`) while the command line imports click: after the start-up handler, before the library.
-    def find_spec(self, name, path=None, target=None):
-        if name == "click":
-            os.kill(os.getpid(), signal.SIGTERM)
-        return None
-
-sys.meta_path.insert(0, TerminateWhileImporting())
-"""
 
 
 @pytest.mark.parametrize("entry", ["import runpy; runpy._run_module_as_main('atlasgen')",
@@ -193,7 +182,8 @@ sys.meta_path.insert(0, TerminateWhileImporting())
                          ids=["python -m atlasgen", "the installed script"])  # fmt: skip
 def test_sigterm_during_start_up_is_one_line_and_143(entry):
     """Python's own SIGTERM ends a process silently; atlasgen's start-up says why it ended, as for Ctrl-C."""
-    child = subprocess.run([sys.executable, "-c", _TERMINATE_WHILE_IMPORTING_CLICK + entry, "--help"],
+    # SIGTERM (a `kill`) while the command line imports click: after the start-up handler, before the library.
+    child = subprocess.run([sys.executable, "-c", _signal_while_finding("click", signal.SIGTERM) + entry, "--help"],
                            capture_output=True, text=True, timeout=60)  # fmt: skip
     assert (child.returncode, child.stderr.splitlines(), child.stdout) == (143, ["atlasgen: terminated"], ""), child.stderr
 
