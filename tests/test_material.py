@@ -32,6 +32,9 @@ def test_defaults_are_filled_and_hex_colours_decoded(write_material):
         ('type = "lambert"\nname = "9lives"\n', "name", "expected a letter"),
         ('type = "lambert"\nrgb_scale = -1\n', "rgb_scale", 'expected "auto" or a finite number > 0'),
         ('type = "lambert"\nalpha_scale = nan\n', "alpha_scale", 'expected "auto" or a finite number > 0'),
+        # A TOML date as the file wrote it, not Python's datetime.date(1979, 5, 27).
+        ('type = "lambert"\ncolour = 1979-05-27\n', "colour", "of 3 numbers in [0, 1], got a date 1979-05-27"),
+        ('type = "lambert"\ncolour = 07:32:00\n', "colour", "got a time 07:32:00"),
     ],
 )
 def test_bad_definitions(expect_rejected, text, field, expected):

@@ -8,6 +8,7 @@ Integers must fit a shader's ``i32``.
 
 from __future__ import annotations
 
+import datetime
 import math
 import string
 import struct
@@ -65,7 +66,15 @@ def to_float32(value) -> float:
 
 
 def shown(value, limit: int = 80) -> str:
-    """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer)."""
+    """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer); a TOML date or time
+    as the file wrote it, not as Python's ``datetime`` repr.
+
+    >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2])
+    ('a date 1979-05-27', '[0.5, 2]')
+    """
+    if isinstance(value, datetime.date | datetime.time):  # datetime.datetime is a date
+        kind = "date and time" if isinstance(value, datetime.datetime) else "date" if isinstance(value, datetime.date) else "time"
+        return shorten(f"a {kind} {value.isoformat()}", limit)
     return shorten(repr(value), limit)
 
 
