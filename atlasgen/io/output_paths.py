@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 
 from atlasgen.errors import OutputError
+from atlasgen.io.text import special_file_kind
 
 __all__ = ["check_output_folder", "check_output_paths", "check_suffix"]
 
@@ -34,6 +35,12 @@ def _blocking_file(path: Path) -> Path | None:
         if parent.exists():
             return None if parent.is_dir() else parent
     return None
+
+
+def _blocked(folder: Path, blocker: Path) -> OutputError:
+    """The refusal of an output folder that ``blocker``, an existing file on its path, stands in for."""
+    kind = special_file_kind(blocker) or "a file"
+    return OutputError(f"{folder.as_posix()}: cannot write output folder ({blocker.as_posix()} is {kind})")
 
 
 def check_output_paths(outputs, inputs=()) -> None:
@@ -61,7 +68,7 @@ def check_output_paths(outputs, inputs=()) -> None:
             raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
         blocker = _blocking_file(path)
         if blocker is not None:
-            raise OutputError(f"{path.parent.as_posix()}: cannot write output folder ({blocker.as_posix()} is a file)")
+            raise _blocked(path.parent, blocker)
         key = _key(path)
         if key in seen:
             other, other_role = seen[key]
@@ -86,7 +93,8 @@ def check_output_folder(path, role: str) -> None:
     before the command renders or measures anything."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise OutputError(f"{path.as_posix()}: {role} is an existing file; expected a folder path")
+        kind = special_file_kind(path) or "an existing file"
+        raise OutputError(f"{path.as_posix()}: {role} is {kind}; expected a folder path")
     blocker = _blocking_file(path)
     if blocker is not None:
-        raise OutputError(f"{path.as_posix()}: cannot write output folder ({blocker.as_posix()} is a file)")
+        raise _blocked(path, blocker)

@@ -161,6 +161,19 @@ def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, com
     _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
 
 
+def test_a_cache_folder_that_is_a_named_pipe_is_named_so(tmp_path, library):
+    """A FIFO given as --cache was refused as "a file": true to Unix, but no help to find it."""
+    import os
+
+    pipe = tmp_path / "cache"
+    os.mkfifo(pipe)
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--cache", str(pipe)],
+             f"cannot write output folder ({pipe.as_posix()} is a named pipe)")  # fmt: skip
+    report = tmp_path / "report"
+    os.mkfifo(report)
+    _refused(tmp_path, ["report", "library", "-o", str(report)], "(-o) is a named pipe; expected a folder path")
+
+
 def test_a_dotted_atlas_name_keeps_its_files_apart_from_the_shorter_name(tmp_path, library):
     """``hero.v2.dds`` writes ``hero.v2.json`` and its includes, never ``hero.json``: another atlas's files."""
     out = tmp_path / "build"
