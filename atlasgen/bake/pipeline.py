@@ -241,10 +241,10 @@ def bake_atlas(
     timings = {"materials": {}}
     cache_hits, baked_names, cache_warnings = [], [], []
     completions = {}
-    # Every material takes at least one slice: more materials than slices, or explicit ids in conflict, are
-    # refused now, not after minutes of baking (a separable material's slice count is known only once baked,
-    # and assign_slices refuses with more slices whatever refuses with fewer).
-    assign_slices([(m.name, 1, m.id, m.source) for m in materials], previous_slots)
+    # Every material takes at least its fewest slices (a fixed K's K, one for the rest): more than the atlas
+    # holds, or explicit ids in conflict, are refused now, not after minutes of baking (an auto material's slice
+    # count is known only once baked, and assign_slices refuses with more slices whatever refuses with fewer).
+    assign_slices([(m.name, m.model.fewest_slices(m.params), m.id, m.source) for m in materials], previous_slots)
     whole = [] if drafts else [m for m in materials if m.name not in given]
     loaded = dict(zip((m.name for m in whole), load_or_bake_all(cache_dir, whole, jobs, cache_warnings, progress), strict=True))
     for material in materials:

@@ -205,7 +205,13 @@ class Model:
         return {}
 
     def slice_count(self, values: dict) -> int:
+        """The slices a bake of ``values`` gives, or the most it may give where only the bake knows."""
         return 1
+
+    def fewest_slices(self, values: dict) -> int:
+        """The fewest slices a bake of ``values`` may give: :meth:`slice_count` where the count is fixed. The
+        bake refuses materials that cannot fit the atlas even so before it bakes any of them."""
+        return self.slice_count(values)
 
     def bake(self, values: dict) -> SliceSet:
         """Evaluate at the texel centres of one slice.

@@ -336,6 +336,13 @@ class Separable(Model):
         terms = values["terms"] if values["terms"] is not None else MAX_AUTO_TERMS
         return terms + _transmits(values)
 
+    def fewest_slices(self, values: dict) -> int:
+        """K (and the transmission slice) when fixed; else one: ``auto`` may choose a LUT slice or a closed
+        form, and a budget may be met by one term."""
+        if values["representation"] == "separable" and values["terms"] is not None:
+            return values["terms"] + _transmits(values)
+        return 1 + (values["representation"] == "separable" and _transmits(values))
+
     # -- bake -------------------------------------------------------------------------------------
     def bake(self, values: dict) -> SliceSet:
         """K factor slices (``representation = "separable"``), one preview slice for the closed form

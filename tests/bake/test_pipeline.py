@@ -100,14 +100,31 @@ def test_a_lock_timeout_that_is_no_number_of_seconds_is_refused(tmp_path, write_
 @pytest.mark.parametrize(
     ("count", "ids", "expected"),
     [(257, {}, "the materials need 257 slices; expected at most 256"),
-     (2, {"m0": 5, "m1": 5}, r"slice 5 \(explicit id\) conflicts with material 'm0'")],
+     (2, {"m0": 5, "m1": 5}, r"slice 5 \(explicit id\) conflicts with material 'm0'"),
+     # Nine separable materials of 32 terms each: their slice counts are fixed, so known before any bake.
+     (9, "terms = 32", "the materials need 288 slices; expected at most 256"),
+     # Auto materials may take one slice each: 190 of them and 8 of 8 terms (64) fit as far as is known.
+     (0, "fits", None)],
+    ids=["257 materials", "one explicit id twice", "9 x 32 terms", "auto may fit"],
 )  # fmt: skip
 def test_what_no_atlas_holds_is_refused_before_anything_is_baked(tmp_path, monkeypatch, count, ids, expected):
-    """More materials than slices, or two explicit ids on one slice: the slot check runs before the bakes,
-    which for a MaterialX library of 300 materials would take a quarter of an hour first."""
+    """More slices than the atlas holds, or two explicit ids on one slice: the slot check runs before the
+    bakes, which for a MaterialX library of 300 materials would take a quarter of an hour first. Fixed
+    separable term counts count in full (9 materials of 32 terms were refused only after all 9 bakes)."""
     from atlasgen.bake import pipeline
     from atlasgen.errors import MaterialError
 
+    separable = 'type = "separable"\nsource = "ggx"\nalpha = 0.3\n'
+    if ids == "terms = 32":
+        for i in range(count):
+            (tmp_path / f"s{i}.toml").write_text(separable + "terms = 32\n")
+        ids, count = {}, 0
+    elif ids == "fits":
+        for i in range(190):
+            (tmp_path / f"a{i}.toml").write_text(separable + 'representation = "auto"\n')
+        for i in range(8):
+            (tmp_path / f"s{i}.toml").write_text(separable + "terms = 8\n")
+        ids = {}
     for i in range(count):
         extra = f"id = {ids[f'm{i}']}\n" if f"m{i}" in ids else ""
         (tmp_path / f"m{i}.toml").write_text(f'type = "lambert"\ncolour = [0.5, 0.5, 0.5]\n{extra}')
@@ -117,5 +134,9 @@ def test_what_no_atlas_holds_is_refused_before_anything_is_baked(tmp_path, monke
         raise AssertionError("a material was baked before the slots were checked")
 
     monkeypatch.setattr(pipeline, "load_or_bake_all", no_bake)
+    if expected is None:
+        with pytest.raises(AssertionError, match="was baked before"):  # past the check, at the bakes
+            bake_atlas(materials, "array")
+        return
     with pytest.raises(MaterialError, match=expected):
         bake_atlas(materials, "array")
