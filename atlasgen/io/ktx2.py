@@ -297,9 +297,12 @@ def _field_error(path: Path, name: str, problem: str) -> InputError:
     return InputError(f"{path.as_posix()}: KTX2 field '{name}': {problem}")
 
 
-def _check_span(path: Path, name: str, offset: int, length: int, size: int) -> None:
+def _check_span(path: Path, name: str, offset: int, length: int, size: int, offset_name: str | None = None) -> None:
+    """Refuse a span past the end of the file, naming ``offset_name`` (the span's offset field) where the offset
+    itself lies past it, else ``name`` (its length field)."""
     if offset + length > size:
-        raise _field_error(path, name, f"bytes {offset}..{offset + length} lie past the end of the {size}-byte file")
+        field = offset_name if offset_name is not None and offset > size else name
+        raise _field_error(path, field, f"bytes {offset}..{offset + length} lie past the end of the {size}-byte file")
 
 
 def _read_key_values(path: Path, data: bytes, offset: int, length: int) -> dict:
@@ -397,9 +400,9 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
         raise _field_error(path, "supercompressionScheme", f"{scheme}; expected 0 (none) or 2 (Zstandard)")
     index_end = HEADER.size + LEVEL_INDEX_ENTRY.size * mip_count
     _check_span(path, "levels", HEADER.size, index_end - HEADER.size, size)
-    _check_span(path, "dfdByteLength", dfd_offset, dfd_length, size)
-    _check_span(path, "kvdByteLength", kvd_offset, kvd_length, size)
-    _check_span(path, "sgdByteLength", sgd_offset, sgd_length, size)
+    _check_span(path, "dfdByteLength", dfd_offset, dfd_length, size, "dfdByteOffset")
+    _check_span(path, "kvdByteLength", kvd_offset, kvd_length, size, "kvdByteOffset")
+    _check_span(path, "sgdByteLength", sgd_offset, sgd_length, size, "sgdByteOffset")
     if dfd_offset < index_end or dfd_length < 4 or struct.unpack_from("<I", data, dfd_offset)[0] != dfd_length:
         raise _field_error(path, "dfdByteOffset", f"no Data Format Descriptor of {dfd_length} bytes at byte {dfd_offset}")
     _check_descriptor(path, data[dfd_offset : dfd_offset + dfd_length], vk_format)
@@ -425,7 +428,7 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
             )
         if uncompressed != expected:
             raise _field_error(path, f"{name}.uncompressedByteLength", f"{uncompressed}; expected {expected} for {shape}")
-        _check_span(path, f"{name}.byteLength", offset, length, size)
+        _check_span(path, f"{name}.byteLength", offset, length, size, f"{name}.byteOffset")
         if scheme == SUPERCOMPRESSION_NONE:
             if length != expected:
                 raise _field_error(path, f"{name}.byteLength", f"{length}; expected {expected}")
