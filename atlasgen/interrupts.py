@@ -38,8 +38,12 @@ def end_start_up_interrupts(command_line: bool = False) -> None:
         signal.signal(signal.SIGTERM, raise_terminated if command_line else signal.SIG_DFL)
 
 
-#: The signals :func:`deferred_interrupts` holds, and what each is raised as once the block is done.
-_HELD = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: Terminated}
+#: The signals :func:`deferred_interrupts` holds: what each is raised as once the block is done, and the
+#: dispositions it is left alone under (ignored; SIGTERM's default, a library's process, which it ends).
+_HELD = {
+    signal.SIGINT: (KeyboardInterrupt, (signal.SIG_IGN, None)),
+    signal.SIGTERM: (Terminated, (signal.SIG_IGN, signal.SIG_DFL, None)),
+}
 
 
 @contextlib.contextmanager
@@ -59,19 +63,17 @@ def deferred_interrupts():
         return
     pending = []
     previous = {}
-    for signum in _HELD:
-        handler = signal.getsignal(signum)
-        # SIGTERM with its default action (a library's process) ends the process: nothing to hold.
-        if handler not in (signal.SIG_IGN, None) and not (signum == signal.SIGTERM and handler == signal.SIG_DFL):
+    for signum, (_, left_alone) in _HELD.items():
+        if signal.getsignal(signum) not in left_alone:
             previous[signum] = signal.signal(signum, lambda number, frame: pending.append(number))
     try:
         yield
     except BaseException:
         if pending:
-            raise _HELD[pending[-1]] from None
+            raise _HELD[pending[-1]][0] from None
         raise
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
     if pending:
-        raise _HELD[pending[-1]]
+        raise _HELD[pending[-1]][0]

@@ -47,6 +47,7 @@ from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
+from atlasgen.start_up import INTERRUPTED_LINE, TERMINATED_LINE
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "one_line_message", "FiniteFloatRange"]
 
@@ -91,17 +92,31 @@ def one_line_message(text) -> str:
     return "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
 
 
+def echo_warning(line) -> None:
+    """One warning's line on stderr: ``atlasgen: warning: ...``."""
+    click.echo(f"atlasgen: warning: {line}", err=True)
+
+
+def echo_warnings(warnings, printed: set | None = None) -> None:
+    """:func:`echo_warning` for each of ``warnings``; with ``printed`` (the lines already shown, updated),
+    only those not among them."""
+    for warning in warnings:
+        if printed is not None:
+            if str(warning) in printed:
+                continue
+            printed.add(str(warning))
+        echo_warning(warning)
+
+
 def exit_for(exc: BaseException):
     """Print the one line for an exception that ended a command, and exit with its status."""
     if isinstance(exc, AtlasgenError):
         click.echo(f"atlasgen: error: {one_line_message(exc)}", err=True)
         sys.exit(exc.exit_code)
-    if isinstance(exc, Terminated):
-        click.echo("atlasgen: terminated", err=True)
-        sys.exit(EXIT_TERMINATED)
-    if isinstance(exc, KeyboardInterrupt):
-        click.echo("atlasgen: interrupted", err=True)
-        sys.exit(EXIT_INTERRUPTED)
+    if isinstance(exc, KeyboardInterrupt):  # the start-up's lines, once the command runs too
+        terminated = isinstance(exc, Terminated)
+        click.echo((TERMINATED_LINE if terminated else INTERRUPTED_LINE).decode(), err=True, nl=False)
+        sys.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
     if isinstance(exc, click.ClickException):
         ctx = getattr(exc, "ctx", None)
         hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
@@ -322,8 +337,7 @@ def bake(
             click.echo(f"cache {cache_dir.as_posix()}: baked {', '.join(filled['baked']) or 'none'}; "
                        f"up to date {', '.join(filled['hits']) or 'none'}", err=True)  # fmt: skip
         if verbosity != QUIET:
-            for warning in filled["warnings"]:
-                click.echo(f"atlasgen: warning: {warning}", err=True)
+            echo_warnings(filled["warnings"])
         return
     extra_files = {}
     if depfile is not None:
@@ -354,8 +368,7 @@ def bake(
         for line in _describe_materials(result):
             click.echo(line, err=True)
     if verbosity != QUIET:
-        for warning in [*result.warnings, *result.material_warnings]:
-            click.echo(f"atlasgen: warning: {warning}", err=True)
+        echo_warnings([*result.warnings, *result.material_warnings])
         click.echo(result.describe(output, zstd))
 
 

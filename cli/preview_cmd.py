@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import fail_on_errors, one_line_message
+from atlasgen.cli.main import echo_warnings, fail_on_errors, one_line_message
 from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
@@ -87,14 +87,9 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
 def _warn(result, printed: set) -> None:
     """The bake's warnings, as ``atlasgen bake`` prints them: a material the atlas holds badly (its measured
     error over the threshold, texels lost to 8 bits, ...) is never shown without its line. ``printed``: the
-    lines already printed for this picture (a watch's draft picture, then its measured labels)."""
-    if result is None:
-        return
-    for warning in [*result.warnings, *result.material_warnings]:
-        line = f"atlasgen: warning: {warning}"
-        if line not in printed:
-            printed.add(line)
-            click.echo(line, err=True)
+    warnings already printed for this picture (a watch's draft picture, then its measured labels)."""
+    if result is not None:
+        echo_warnings([*result.warnings, *result.material_warnings], printed)
 
 
 def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import FiniteFloatRange, fail_on_errors
+from atlasgen.cli.main import FiniteFloatRange, echo_warnings, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, PathArg, verbosity_options
 from atlasgen.materials.scene import read_scene
 from atlasgen.render import render_scene
@@ -39,7 +39,6 @@ def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
     if verbosity != QUIET:
         # After the render: a scene that fails gets its one error line and nothing else.
-        for warning in s.warnings() if aov is None else []:
-            click.echo(f"atlasgen: warning: {warning}", err=True)
+        echo_warnings(s.warnings() if aov is None else [])
         for path in written:
             click.echo(f"wrote {path.as_posix()}")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.main import echo_warning, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
@@ -139,7 +139,7 @@ def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     check_output_folder(output, "the report folder (-o)")
     # Figures validated on another bake of a material are not shown as its: one line each, loud even with -q.
     page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical,
-                                warn=lambda line: click.echo(f"atlasgen: warning: {line}", err=True))  # fmt: skip
+                                warn=echo_warning)  # fmt: skip
     if verbosity == VERBOSE:
         inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))
         for what, path in inputs:

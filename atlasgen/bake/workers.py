@@ -11,6 +11,7 @@ of jobs; the cache is read and written here, in the calling process only.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import pickle
@@ -23,7 +24,7 @@ from concurrent.futures import ProcessPoolExecutor
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.models.base import SliceSet
 
-__all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "start_worker_pool"]
+__all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "worker_pool"]
 
 
 def available_cpus() -> int:
@@ -73,15 +74,23 @@ def _picklable_filters() -> list:
     return keep
 
 
-def start_worker_pool(jobs: int) -> ProcessPoolExecutor:
+@contextlib.contextmanager
+def worker_pool(jobs: int):
     """``jobs`` worker processes (the bake's, the reports' measurements), set up by :func:`_start_worker`;
     spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
 
     concurrent.futures rather than multiprocessing.Pool: a Pool's terminate() can deadlock
-    (python/cpython#73945, #96995; a CI run here hung in it).
+    (python/cpython#73945, #96995; a CI run here hung in it). On leaving the block, after an error or
+    a Ctrl-C too, what has not started is dropped and the work running is let finish: ending a worker
+    mid-task can cut its result in the pipe, and the executor then waits for the rest of it forever (a
+    test here hung so). A Ctrl-C waits for one task at most.
     """
     context = multiprocessing.get_context("spawn")
-    return ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
+    pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
@@ -135,14 +144,8 @@ def _baked_in_order(materials: list, jobs: int):
         yield bake_timed(material)
     else:
         return
-    pool = start_worker_pool(min(jobs, left))
-    try:
+    with worker_pool(min(jobs, left)) as pool:
         yield from pool.map(bake_timed, materials[k:])
-    finally:
-        # After an error or a Ctrl-C, what has not started is dropped and the bakes running are let
-        # finish: ending a worker mid-bake can cut its result in the pipe, and the executor then
-        # waits for the rest of it forever (a test here hung so). A Ctrl-C waits for one bake at most.
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def fill_cache(cache_dir, materials, jobs: int = 1) -> dict:

@@ -72,9 +72,9 @@ def shown(value, limit: int = 80) -> str:
     >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2])
     ('a date 1979-05-27', '[0.5, 2]')
     """
-    if isinstance(value, datetime.date | datetime.time):  # datetime.datetime is a date
-        kind = "date and time" if isinstance(value, datetime.datetime) else "date" if isinstance(value, datetime.date) else "time"
-        return shorten(f"a {kind} {value.isoformat()}", limit)
+    for kind, cls in (("date and time", datetime.datetime), ("date", datetime.date), ("time", datetime.time)):
+        if isinstance(value, cls):  # a datetime is a date too: it is tried first
+            return shorten(f"a {kind} {value.isoformat()}", limit)
     return shorten(repr(value), limit)
 
 

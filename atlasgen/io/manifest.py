@@ -79,13 +79,12 @@ def _describe(value) -> str:
         return json.dumps(value)
     if isinstance(value, dict):
         return "an object"
-    if isinstance(value, list):
-        if not value:
-            return "an empty list"
-        text = json.dumps(value)  # [[1e+300, 1.0, 1.0], ...] says more than "a list of 2"
-        return text if len(text) <= 80 else text[:77] + "..."
-    text = json.dumps(value) if isinstance(value, str) else repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
+    if value == []:
+        return "an empty list"
+    # A list shown too: [[1e+300, 1.0, 1.0], ...] says more than "a list of 2".
+    text = json.dumps(value) if isinstance(value, str | list) else repr(value)
+    limit = 80 if isinstance(value, list) else 40
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _is_int(value) -> TypeGuard[int]:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from atlasgen.bake.adaptive import bake_supersampled
 from atlasgen.bake.cache import tool_fingerprint
-from atlasgen.bake.workers import start_worker_pool
+from atlasgen.bake.workers import worker_pool
 from atlasgen.errors import AtlasgenError
 from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
@@ -122,12 +122,8 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
     jobs = max(1, min(int(jobs), len(todo), os.cpu_count() or 1))
     work = [(e.type, e.params, _gloss(e)) for e, _ in todo]
     if jobs > 1:
-        pool = start_worker_pool(jobs)
-        try:
+        with worker_pool(jobs) as pool:
             results = list(pool.map(_compute, work))
-        finally:
-            # After an error or a Ctrl-C, the measurements not started are dropped (as the bake's workers).
-            pool.shutdown(wait=True, cancel_futures=True)
     else:
         results = [_compute(w) for w in work]
     for (entry, key), result in zip(todo, results):

@@ -49,8 +49,8 @@ def test_two_jobs_bake_the_bytes_of_one_and_fill_the_cache_once(tmp_path, librar
     serial = bake_atlas(library, jobs=1)
     monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # workers from the first material on
     pools = []
-    start = workers.start_worker_pool
-    monkeypatch.setattr(workers, "start_worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
+    start = workers.worker_pool
+    monkeypatch.setattr(workers, "worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
     seen = []
     parallel = bake_atlas(library, jobs=2, cache_dir=tmp_path / "cache", progress=seen.append)
     assert all(np.array_equal(a, b) for a, b in zip(serial.levels, parallel.levels, strict=True))
@@ -80,7 +80,7 @@ def test_one_job_or_one_material_to_bake_stays_in_process(tmp_path, library, mon
     def no_pool(*args, **kwargs):
         raise AssertionError("a process pool was started")
 
-    monkeypatch.setattr(workers, "start_worker_pool", no_pool)
+    monkeypatch.setattr(workers, "worker_pool", no_pool)
     monkeypatch.setattr(workers, "POOL_AFTER_S", 0.0)  # so only the job and material counts keep the pool away
     fill_cache(tmp_path, library[:1], jobs=4)
     assert fill_cache(tmp_path, library, jobs=1)["hits"] == [library[0].name]
@@ -94,8 +94,8 @@ def test_workers_start_once_baking_here_has_taken_pool_after_s(library, monkeypa
     ticks = iter(range(100))
     monkeypatch.setattr(workers, "time", SimpleNamespace(perf_counter=lambda: 1.5 * next(ticks)))
     pools = []
-    start = workers.start_worker_pool
-    monkeypatch.setattr(workers, "start_worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
+    start = workers.worker_pool
+    monkeypatch.setattr(workers, "worker_pool", lambda jobs: pools.append(jobs) or start(jobs))
     mixed = load_or_bake_all(None, library, jobs=4)
     assert pools == [3]  # material 0 here (1.5 s < 2 s), then 3 s: the other three in three workers
     serial = load_or_bake_all(None, library, jobs=1)
@@ -140,7 +140,7 @@ def test_workers_leave_ctrl_c_to_the_caller_and_take_its_warning_filters():
     itself (a RuntimeWarning, a KeyboardInterrupt traceback) would break both."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with workers.start_worker_pool(1) as pool:
+        with workers.worker_pool(1) as pool:
             state = pool.submit(_worker_state).result()
     assert state == (True, ["ignore"])
 
