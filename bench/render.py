@@ -6,12 +6,15 @@ covers the whole scene; from 16 lights up, the ranges are chosen so that about
 ``TARGET_PER_PIXEL`` lights reach the mean pixel, and the mean and maximum are measured (lights
 per pixel from the g-buffer read back, lights per tile from the culling pass's lists read back).
 
-Each frame figure is the median of ``REPEATS`` frames after ``WARMUP`` (shader compilation and
-first-touch costs excluded): every pass from the g-buffer to the outlines, submitted and waited
+Each frame figure is the median of about ``REPEATS`` frames after ``WARMUP`` (shader compilation
+and first-touch costs excluded): every pass from the g-buffer to the outlines, submitted and waited
 for, no read-back. The baseline is the same frame with culling off (every light tested at every
-pixel), in the same run; it gets fewer repeats where it takes seconds. Pass times come from GPU
-timestamp queries where the device has them, else from fences (each pass submitted and waited
-for alone); the section says which. The machine is shared: the goals are ratios within one run.
+pixel), in the same run; it gets fewer frames where it takes seconds. Culled and full-loop frames
+are interleaved (:func:`paired_ms`): each full-loop frame follows a few culled ones and is divided
+by their median, so a change in the machine's load between the two falls on both, and the spread
+of those ratios is the figure's uncertainty. Pass times come from GPU timestamp queries where the
+device has them, else from fences (each pass submitted and waited for alone); the section says
+which. The machine is shared: the goals are ratios within one run.
 
 Run alone: ``python bench/run.py render`` (or ``python bench/render.py`` to print it).
 """
@@ -151,20 +154,32 @@ def calibrated_range(renderer, names, lights: int, tolerance: float = 0.05, trie
     return math.exp(min(tried)[1])
 
 
-def time_ms(fn, repeats: int = REPEATS, warmup: int = WARMUP) -> tuple[float, float]:
-    """(median, fastest) of ``repeats`` calls after ``warmup``, in ms.
+def paired_ms(culled, brute, pairs: int, warmup: int = WARMUP, repeats: int = REPEATS) -> dict:
+    """Culled and full-loop frames interleaved: ``pairs`` times, ceil(``repeats`` / ``pairs``) culled frames then one
+    full-loop frame, after ``warmup`` of each (``culled``, ``brute``: functions that draw one frame and wait).
 
-    The fastest run is reported too: on a shared machine other processes inflate the
-    median of a CPU-rasterised frame, and the minimum shows what the code itself costs.
+    Returns the frame times (ms) and, per pair, the full-loop frame over the median of the culled frames just before
+    it: on a shared machine the load drifts over a run, and a ratio of two medians taken minutes apart would carry the
+    drift, where each pair's frames see about the same load.
     """
     for _ in range(warmup):
-        fn()
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1000.0)
-    return statistics.median(times), min(times)
+        culled()
+        brute()
+    per_pair = -(-repeats // pairs)
+    culled_ms, brute_ms, ratios = [], [], []
+    for _ in range(pairs):
+        group = [_timed_ms(culled) for _ in range(per_pair)]
+        full = _timed_ms(brute)
+        culled_ms += group
+        brute_ms.append(full)
+        ratios.append(full / statistics.median(group))
+    return {"culled": culled_ms, "brute": brute_ms, "ratios": ratios}
+
+
+def _timed_ms(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return (time.perf_counter() - t0) * 1000.0
 
 
 def pass_times(renderer, frame, repeats: int = REPEATS) -> tuple[dict, str]:
@@ -182,7 +197,7 @@ def pass_times(renderer, frame, repeats: int = REPEATS) -> tuple[dict, str]:
 
 
 def _brute_repeats(lights: int) -> tuple[int, int]:
-    """(warm-up, repeats) of the full loop: one frame at 1024 lights, where it takes seconds on a software GPU
+    """(warm-up, frames) of the full loop: one frame at 1024 lights, where it takes seconds on a software GPU
     (its pipelines are the culled frame's, already warm), three after one below, 256 included: its ratio is a goal."""
     return (0, 1) if lights >= 1024 else (1, 3)
 
@@ -219,21 +234,25 @@ def run() -> dict:
             scene = bench_scene(names, lights, translucent, light_range)
             mean_px, max_px, mean_tile, max_tile, overflow = per_pixel(renderer, scene)
             frame = renderer.prepare(scene)
-            frame_ms, frame_min = time_ms(lambda: renderer.submit(renderer.encode_frame(frame)))
-            passes, method = pass_times(renderer, frame)
             brute = renderer.prepare(scene, culling=False)
-            warmup, repeats = _brute_repeats(lights)
-            brute_ms, brute_min = time_ms(lambda: renderer.submit(renderer.encode_frame(brute)), repeats, warmup)
+            warmup, pairs = _brute_repeats(lights)
+            timed = paired_ms(lambda: renderer.submit(renderer.encode_frame(frame)),
+                              lambda: renderer.submit(renderer.encode_frame(brute)), pairs, max(warmup, WARMUP))  # fmt: skip
+            frame_ms, frame_min = statistics.median(timed["culled"]), min(timed["culled"])
+            brute_ms, brute_min = statistics.median(timed["brute"]), min(timed["brute"])
+            passes, method = pass_times(renderer, frame)
             # The full loop's passes once, at the goal's count: what the lighting pass alone gains.
             brute_passes = pass_times(renderer, brute, repeats=1)[0] if lights == 256 else {}
             rows.append({"lights": lights, "translucent": translucent, "range": light_range,
                          "lights_per_pixel_mean": mean_px, "lights_per_pixel_max": max_px,
                          "lights_per_tile_mean": mean_tile, "lights_per_tile_max": max_tile, "overflowing_tiles": overflow,
                          "frame_ms": frame_ms, "frame_min_ms": frame_min, "brute_ms": brute_ms, "brute_min_ms": brute_min,
-                         "brute_repeats": repeats, "passes_ms": passes, "brute_passes_ms": brute_passes,
+                         "brute_repeats": pairs, "frames": len(timed["culled"]), "ratios": timed["ratios"],
+                         "passes_ms": passes, "brute_passes_ms": brute_passes,
                          "device": device})  # fmt: skip
             print(f"bench render: {lights} lights, {translucent} translucent: range {light_range:.2f}, "
                   f"{mean_px:.2f} lights/pixel (max {max_px}), frame {frame_ms:.1f} ms, full loop {brute_ms:.1f} ms, "
+                  f"ratios {', '.join(f'{x:.2f}' for x in timed['ratios'])}, "
                   f"passes {passes}", file=sys.stderr, flush=True)  # fmt: skip
     errors = renderer.ctx.take_errors()
     data = {"device": device, "software": software, "load_average": load, "cpus": cpus, "width": WIDTH, "height": HEIGHT,
@@ -255,12 +274,25 @@ def _software(data) -> bool:
     return data["software"] if "software" in data else "gpu_lighting_256_ms" not in data.get("goals", {})
 
 
+def full_loop_ratio(row) -> float:
+    """The full loop over the culled frame: the median of the interleaved pairs' ratios (:func:`paired_ms`), or, in
+    data measured before the pairs, the ratio of the two medians."""
+    return statistics.median(row["ratios"]) if row.get("ratios") else row["brute_ms"] / row["frame_ms"]
+
+
+def _ratio_cell(row) -> str:
+    """The full loop over the culled frame, with the range of the pairs' ratios where there are several."""
+    ratios = row.get("ratios") or []
+    spread = f" ({min(ratios):.1f}–{max(ratios):.1f})" if len(ratios) > 1 else ""
+    return f"{full_loop_ratio(row):.1f}x{spread}"
+
+
 def judge(data) -> dict:
     """Each goal: [measured, goal, met], from the rows of one run."""
     rows = data["rows"]
     one, at_256 = _row(rows, 1, 0), _row(rows, 256, 0)
     ratio_256, ratio_1024 = at_256["frame_ms"] / one["frame_ms"], _row(rows, 1024, 0)["frame_ms"] / one["frame_ms"]
-    speedup_256 = at_256["brute_ms"] / at_256["frame_ms"]
+    speedup_256 = full_loop_ratio(at_256)
     goal_row = _row(rows, 16, 4)
     goals = {
         "frame_256_over_1": [ratio_256, GOAL_256_OVER_1, ratio_256 <= GOAL_256_OVER_1],
@@ -272,6 +304,24 @@ def judge(data) -> dict:
         lit = at_256["passes_ms"]["lighting"]
         goals["gpu_lighting_256_ms"] = [lit, GOAL_GPU_LIGHTING_MS, lit <= GOAL_GPU_LIGHTING_MS]
     return goals
+
+
+def _frames_text(data) -> str:
+    """How the frame figures were measured: interleaved pairs (:func:`paired_ms`), or, in older data, apart."""
+    rows = data["rows"]
+    if not all(r.get("ratios") for r in rows):
+        return (f"Frames: median of {data['repeats']} after {data['warmup']} warm-up (the full loop: median of 3 after 1 "
+                "up to 256 lights, one frame at 1024, where it takes seconds), submitted and waited for, no read-back.")  # fmt: skip
+    few = min(rows, key=lambda r: r["brute_repeats"])
+    many = max(rows, key=lambda r: r["brute_repeats"])
+    fewer = (f" ({few['brute_repeats']} time, {few['frames']} culled frames, at {few['lights']} lights, where the full "
+             "loop takes seconds)") if few["brute_repeats"] < many["brute_repeats"] else ""  # fmt: skip
+    return (f"Frames, each submitted and waited for, no read-back, after {data['warmup']} warm-up of each kind: "
+            f"{many['brute_repeats']} times, {many['frames'] // many['brute_repeats']} culled frames then one full-loop "
+            f"frame{fewer}. The culled figure is the median of its {many['frames']} frames, the full loop's of its "
+            f"{many['brute_repeats']}, and 'full loop / culled' the median of the pairs' ratios, each full-loop frame over "
+            "the median of the culled frames just before it, so that a change in the shared machine's load falls on both; "
+            "their range is in brackets.")  # fmt: skip
 
 
 def markdown(data) -> str:
@@ -300,9 +350,8 @@ def markdown(data) -> str:
         f"scattered over the scene (one light's range covers it all; from 16 up the range is calibrated to about "
         f"{TARGET_PER_PIXEL:.0f} lights per covered pixel). Culled: 16x16 tiles, lists built on the GPU against each "
         f"tile's depth bounds, each translucent layer culled again. Full loop: the same lights and frame with culling off, "
-        f"in the same run (the baseline). Frames: median of {data['repeats']} after {data['warmup']} warm-up (the full "
-        f"loop: median of 3 after 1 up to 256 lights, one frame at 1024, where it takes seconds), "
-        f"submitted and waited for, no read-back. Lights per pixel are counted from the g-buffer read back, lights per "
+        f"in the same run (the baseline). {_frames_text(data)} "
+        f"Lights per pixel are counted from the g-buffer read back, lights per "
         f"tile from the lists read back (covered tiles). Atlas: {data['atlas']}. Device: {data['device']}.",
         "",
         "| point lights | translucent | range | lights/pixel mean | max | lights/tile mean | max | overflowing tiles "
@@ -312,7 +361,7 @@ def markdown(data) -> str:
     md += [
         f"| {r['lights']} | {r['translucent']} | {r['range']:.2f} | {r['lights_per_pixel_mean']:.2f} | {r['lights_per_pixel_max']} "
         f"| {r['lights_per_tile_mean']:.1f} | {r['lights_per_tile_max']} | {r['overflowing_tiles']} | {r['frame_ms']:{ms}} "
-        f"| {r['frame_min_ms']:{ms}} | {r['brute_ms']:{ms}} | {r['brute_ms'] / r['frame_ms']:.1f}x |"
+        f"| {r['frame_min_ms']:{ms}} | {r['brute_ms']:{ms}} | {_ratio_cell(r)} |"
         for r in rows
     ]
     md += [
@@ -357,7 +406,7 @@ def markdown(data) -> str:
             f"- 1024 lights at most {GOAL_1024_OVER_1:.0f}x the 1-light frame: {goals['frame_1024_over_1'][0]:.2f}x, "
             f"{met('frame_1024_over_1')}.",
             f"- Culled at least {GOAL_BRUTE_OVER_CULLED_256:.0f}x faster than the full loop at 256 lights, frame against "
-            f"frame: {goals['brute_over_culled_256'][0]:.1f}x, {met('brute_over_culled_256')}. The work on the lights "
+            f"frame: {_ratio_cell(at_256)}, {met('brute_over_culled_256')}. The work on the lights "
             f"alone: the culling and lighting passes, {light_work:.1f} ms culled, against the full loop's lighting pass, "
             f"{lit_brute:.1f} ms (one frame), {lit_brute / light_work:.1f}x (the lighting pass alone "
             f"{lit_brute / lit_culled:.1f}x). The g-buffer and outline passes ({shared:.1f} ms) are the same in both frames: "

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.bake.pipeline import BakeResult, bake_atlas
-from atlasgen.errors import InputError
+from atlasgen.contract import LAYERS
+from atlasgen.errors import InputError, MaterialError
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
@@ -225,6 +226,7 @@ class Previewer:
             shown = ", ".join(Path(p).as_posix() for p in paths)
             raise InputError(f"{shown}: no material files; expected .toml files, or folders holding them")
         check_unique_names([*materials, self.floor])
+        self._check_room(materials)
         inputs = [Path(m.source) for m in materials] + [f for m in materials for f in referenced_files(m)]
         t1 = time.perf_counter()
         timings["read"] = t1 - t0
@@ -274,6 +276,16 @@ class Previewer:
             spent["render"] += t_render - t
             spent["label"] += time.perf_counter() - t_render
         return shots, spent
+
+    def _check_room(self, materials) -> None:
+        """Refuse, naming the floor, materials that leave its slice no room: the bake's own refusal would count the
+        floor among the materials given (:func:`~atlasgen.bake.slots.assign_slices`, fewest slices as there)."""
+        floor = self.floor.model.fewest_slices(self.floor.params)
+        needed = sum(m.model.fewest_slices(m.params) for m in materials)
+        if needed + floor > LAYERS:
+            last = max(materials, key=lambda m: m.name)  # the one the bake's name order leaves without room
+            raise MaterialError(last.source, None, f"the materials need {needed} slices and the preview's floor {floor}; "
+                                f"expected at most {LAYERS - floor} for the materials (the atlas has {LAYERS})")  # fmt: skip
 
     def complete(self, preview: Preview, references: dict | None = None) -> Preview:
         """Measure the figures ``preview``'s drafts left out (``Preview.pending``: their completions, which

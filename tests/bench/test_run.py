@@ -85,3 +85,39 @@ def test_an_imported_section_is_written_and_kept_by_a_full_run(bench, tmp_path, 
     assert "## Fake" in text and "0.050 ms" in text
     data = json.loads((tmp_path / "BENCHMARKS.json").read_text())
     assert data["fake_section"] == {"x": 1} and data["render_gpu"]["software"] is False
+
+
+def test_paired_frames_interleave_and_divide_each_full_loop_frame_by_the_culled_frames_before_it(bench, monkeypatch):
+    _, render = bench
+    calls = []
+    # Scripted frame times: the load doubles half-way, after the first pair.
+    times = iter([10.0, 12.0, 11.0, 100.0, 20.0, 24.0, 22.0, 200.0])
+    monkeypatch.setattr(render, "_timed_ms", lambda fn: (fn(), next(times))[1])
+    timed = render.paired_ms(lambda: calls.append("c"), lambda: calls.append("b"), pairs=2, warmup=1, repeats=5)
+    assert calls == ["c", "b"] + ["c", "c", "c", "b"] * 2
+    assert timed["culled"] == [10.0, 12.0, 11.0, 20.0, 24.0, 22.0] and timed["brute"] == [100.0, 200.0]
+    # Each pair sees one load: the ratio of each is 100 / 11, where the medians taken apart would give 150 / 16.5.
+    assert timed["ratios"] == pytest.approx([100.0 / 11.0, 200.0 / 22.0])
+
+
+def test_the_256_light_goal_is_the_median_of_the_pairs_ratios_with_their_range(bench):
+    _, render = bench
+    data = render_data(render, software=True, lighting_256_ms=5.0)
+    for row in data["rows"]:
+        row["brute_repeats"], row["frames"], row["ratios"] = (1, 11, [12.0]) if row["lights"] == 1024 else (3, 12, [12.0] * 3)
+    at_256 = next(r for r in data["rows"] if r["lights"] == 256 and r["translucent"] == 0)
+    at_256["ratios"] = [9.0, 10.5, 30.0]  # the medians' ratio, 60 / 5, would be 12
+    goal = render.judge(data)["brute_over_culled_256"]
+    assert goal == [10.5, render.GOAL_BRUTE_OVER_CULLED_256, True]
+    text = render.markdown(data)
+    assert "frame against frame: 10.5x (9.0–30.0), met." in text
+    assert "3 times, 4 culled frames then one full-loop frame (1 time, 11 culled frames, at 1024 lights" in text
+    at_256["ratios"] = [9.0, 9.5, 30.0]
+    assert render.judge(data)["brute_over_culled_256"][2] is False
+
+
+def test_data_measured_before_the_pairs_is_judged_on_the_ratio_of_its_medians(bench):
+    _, render = bench
+    data = render_data(render, software=True, lighting_256_ms=5.0)
+    assert render.judge(data)["brute_over_culled_256"][0] == pytest.approx(12.0)
+    assert "Frames: median of 11 after 1 warm-up" in render.markdown(data)

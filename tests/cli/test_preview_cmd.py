@@ -39,6 +39,19 @@ def test_bad_input_is_one_line_and_the_picture_stays(tmp_path, monkeypatch, writ
     assert old.read_bytes() == b"the last good picture"
 
 
+def test_materials_that_leave_the_floor_no_slice_are_refused_naming_the_floor(tmp_path, monkeypatch):
+    # 256 one-slice materials fill the atlas: the preview's floor needs one more.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "many").mkdir()
+    for i in range(256):
+        (tmp_path / "many" / f"clay{i:03d}.toml").write_text(CLAY)
+    res = CliRunner().invoke(app, ["preview", "many", "-o", "many.png", "--cache", str(tmp_path / "cache")])
+    assert res.exit_code == 3, res.output
+    assert res.stderr == ("atlasgen: error: many/clay255.toml: the materials need 256 slices and the preview's floor 1; "
+                          "expected at most 255 for the materials (the atlas has 256)\n")  # fmt: skip
+    assert not (tmp_path / "many.png").exists()
+
+
 def test_paths_are_required():
     res = CliRunner().invoke(app, ["preview"])
     assert res.exit_code == 2 and "Missing argument 'PATHS...'" in res.stderr
