@@ -147,6 +147,11 @@ def _guarded(call):
 
 
 class LazyGroup(click.Group):
+    def make_context(self, info_name, args, parent=None, **extra):
+        # The top level's arguments are parsed in here, before invoke's guard: click's own main would catch a
+        # Ctrl-C (or SIGTERM) landing here and echo an empty line before the one line.
+        return _guarded(lambda: super(LazyGroup, self).make_context(info_name, args, parent, **extra))
+
     def invoke(self, ctx):
         # The sub-command's arguments are parsed and its module imported in here too.
         return _guarded(lambda: click.Group.invoke(self, ctx))

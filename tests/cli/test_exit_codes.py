@@ -188,6 +188,25 @@ def test_sigterm_during_start_up_is_one_line_and_143(entry):
     assert (child.returncode, child.stderr.splitlines(), child.stdout) == (143, ["atlasgen: terminated"], ""), child.stderr
 
 
+@pytest.mark.parametrize(("signum", "status", "line"), [(signal.SIGINT, 130, "atlasgen: interrupted"),
+                                                        (signal.SIGTERM, 143, "atlasgen: terminated")],
+                         ids=["Ctrl-C", "SIGTERM"])  # fmt: skip
+def test_a_signal_while_the_top_level_arguments_are_parsed_is_one_line(signum, status, line):
+    """The suite's start-up sweep once read an empty line before 'atlasgen: interrupted': click's own main
+    catches a KeyboardInterrupt raised while it parses the top level's arguments, outside the commands'
+    guard, and echoes a newline before its Abort. Here the signal is made to land there."""
+    code = ("import os, click\n"
+            "parse = click.Group.parse_args\n"
+            "def landing(self, ctx, args):\n"
+            f"    os.kill(os.getpid(), {int(signum)})\n"
+            "    return parse(self, ctx, args)\n"
+            "click.Group.parse_args = landing\n"
+            "import runpy, sys; sys.argv = ['atlasgen', '--help']; runpy._run_module_as_main('atlasgen')\n")  # fmt: skip
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, preexec_fn=as_in_a_terminal,
+                           timeout=60)  # fmt: skip
+    assert (child.returncode, child.stderr, child.stdout) == (status, line + "\n", ""), child.stderr
+
+
 @pytest.mark.slow
 def test_sigterm_during_a_command_is_one_line_and_143_and_leaves_the_old_atlas(tmp_path):
     """Once the command runs, SIGTERM is raised as :class:`~atlasgen.errors.Terminated` (its clean-up runs);
