@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from atlasgen.cli.main import fail_on_errors
+from atlasgen.cli.main import echo_warnings, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
@@ -103,6 +103,10 @@ def validate(
     error against its error_budget, where it has one.
     """
     check_output_folder(output, "the report folder (-o)")
+    given = click.get_current_context().get_parameter_source("max_physical_spp") is not click.core.ParameterSource.DEFAULT
+    if given and max_physical_spp < physical_spp:  # defaulted, it rises to --physical-spp (validate_atlas)
+        raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",
+                                 param_hint="'--max-physical-spp'")  # fmt: skip
     warnings = []
     if merge:
         written = merge_validation_reports([Path(m) for m in materials], output)
@@ -116,7 +120,7 @@ def validate(
             scenes = tuple(dict.fromkeys((*scenes, *ENVIRONMENT_SCENES)))
         with MaterialProgress("validated", verbosity) as on_material:
             run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
-                                 max_physical_spp=max_physical_spp,
+                                 max_physical_spp=max_physical_spp if given else None,
                                  resolution=resolution, physical=not no_physical, progress=progress,
                                  on_material=on_material, bake_cache=bake_cache,
                                  reference_cache=None if no_reference_cache else reference_cache)  # fmt: skip
@@ -127,8 +131,7 @@ def validate(
         for line in describe_materials(written["data"]):
             click.echo(line)
     click.echo(summary_line(written["data"], written["html"]))
-    for line in [*warnings, *noise_floor_failures(written["data"])]:  # loud even without --strict: noise-limited figures
-        click.echo(f"warning: {line}", err=True)
+    echo_warnings([*warnings, *noise_floor_failures(written["data"])])  # loud even without --strict: noise-limited figures
     missed = missed_goals(written["data"])
     if strict and missed:
         raise GoalsMissed(f"{Path(written['html']).as_posix()}: {len(missed)} goal(s) missed: {'; '.join(missed)}")

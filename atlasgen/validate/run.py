@@ -393,7 +393,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         Mitsuba samples per pixel of the model references (1 = the pixel centre, what
         the rasteriser samples; a square number k^2 averages a k x k grid).
     max_physical_spp
-        The most samples per pixel a stochastic reference grows to (default :data:`MAX_PHYSICAL_SPP`).
+        The most samples per pixel a stochastic reference grows to (default :data:`MAX_PHYSICAL_SPP`, and
+        :data:`MAX_ENVIRONMENT_SPP` for an environment scene's reference; given, it caps both).
     physical_spp
         Samples per pixel of the stochastic physical references (``volpath``, spectral
         ones). Each is rendered twice, with seeds 0 and 1, for its noise floor.
@@ -424,6 +425,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     """
     if spp < 1 or physical_spp < 1:
         raise InputError(f"spp: expected a positive sample count, got {spp if spp < 1 else physical_spp}")
+    # An environment scene's reference grows to its own default cap, or to the maximum given (the option the
+    # noise-floor warning points to); a physical reference to at least the samples it starts with.
+    max_environment_spp = MAX_ENVIRONMENT_SPP if max_physical_spp is None else max(int(max_physical_spp), ENVIRONMENT_SPP)
     max_physical_spp = max(MAX_PHYSICAL_SPP if max_physical_spp is None else int(max_physical_spp), physical_spp)
     t_start = time.perf_counter()
     plan = plan_validation(atlas_path, materials, scenes, resolution, bake_cache)
@@ -458,7 +462,8 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
 
             mi.set_variant("llvm_ad_rgb")
             if bound.environment is not None:
-                _check_environment(run, mi, renderer, entry, plan.manifest, bound, aovs, model.custom_lighting)
+                _check_environment(run, mi, renderer, entry, plan.manifest, bound, aovs, model.custom_lighting,
+                                   max_environment_spp)  # fmt: skip
                 ref = run.references["model"]
                 say(f"{entry.name} / {scene_name}: environment reference {ref.seconds:.2f} s at {ref.spp} spp, "
                     f"{_psnr_said(ref.metrics)}, noise floor {ref.noise_floor_db:.1f} dB")  # fmt: skip
@@ -549,7 +554,9 @@ def _check_visible(renderer, plan, resolution=None) -> None:
                              f"with material = {MATERIAL_PLACEHOLDER!r} in view of the camera, covering a pixel centre)")  # fmt: skip
 
 
-def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_lighting: bool) -> None:
+def _check_environment(
+    run, mi, renderer, entry, manifest, scene, aovs, custom_lighting: bool, max_spp: int = MAX_ENVIRONMENT_SPP
+) -> None:
     """The model reference of an environment scene, converged, on the material's pixels; and the CPU breakdown.
 
     The reference is stochastic: a scene lit by its environment alone by
@@ -557,7 +564,7 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
     shifted Halton points, which converges far faster for a glossy lobe), one with lights too by
     :func:`~atlasgen.validate.mitsuba_scene.render_pixel_centres` (``atlasgen_direct``'s MIS estimate); seeds 0 and 1 from
     :data:`ENVIRONMENT_SPP` samples per pixel each, grown as physical references are
-    (:func:`_samples_for_floor`) up to :data:`MAX_ENVIRONMENT_SPP`. Every figure covers the pixels whose
+    (:func:`_samples_for_floor`) up to ``max_spp``. Every figure covers the pixels whose
     g-buffer ID is the material's only (the background is not the material). A table material also
     gets its error split into the SH band limit and the split sum (:mod:`atlasgen.validate.environment`).
     """
@@ -578,9 +585,9 @@ def _check_environment(run, mi, renderer, entry, manifest, scene, aovs, custom_l
         floor = noise_floor(image, second, run.exposure, mask)
         metrics = compare_images(0.5 * (image + second), run.atlas_image, run.exposure, mask=mask)
         wanted = _samples_for_floor(n, floor, metrics.psnr)
-        if floor >= metrics.psnr + NOISE_FLOOR_MARGIN_DB or n >= MAX_ENVIRONMENT_SPP or wanted is None:
+        if floor >= metrics.psnr + NOISE_FLOOR_MARGIN_DB or n >= max_spp or wanted is None:
             break
-        target = min(wanted, MAX_ENVIRONMENT_SPP)
+        target = min(wanted, max_spp)
     del mi_scene
     source = model_reference(entry).description
     how = ", BSDF and emitter sampled on shifted Halton points" if qmc else ""

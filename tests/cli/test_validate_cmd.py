@@ -118,6 +118,12 @@ def test_a_black_scene_meets_no_goal_and_prints_no_inf(validation_atlas, mitsuba
         (["matte", "--scene", "sideways"], 3, "unknown validation scene; expected one of front, back"),
         (["matte", "--resolution", "big"], 2, "expected WIDTHxHEIGHT"),
         (["matte", "--spp", "0"], 2, "--spp"),
+        # It was raised to --physical-spp in silence, and the report recorded a maximum nobody asked for.
+        (
+            ["matte", "--physical-spp", "64", "--max-physical-spp", "4"],
+            2,
+            "Invalid value for '--max-physical-spp': expected at least --physical-spp (64), got 4",
+        ),
     ],
 )
 @pytest.mark.slow
@@ -380,7 +386,7 @@ def test_a_reference_cache_entry_whose_image_is_not_a_render_is_rendered_again(v
     np.savez(entry, **arrays)
     result = runner.invoke(app, [*args, "-o", "second"])
     assert result.exit_code == 0, result.output
-    assert result.stderr.splitlines() == [f"warning: {entry.as_posix()}: {why}; rendered again"]
+    assert result.stderr.splitlines() == [f"atlasgen: warning: {entry.as_posix()}: {why}; rendered again"]
     first, second = (json.loads((tmp_path / d / "report.json").read_text()) for d in ("first", "second"))
     assert second["environment"]["reference_renders_rejected"] == 1 and second["environment"]["reference_renders_stored"] == 1
     model = [d["results"][0]["references"]["model"] for d in (first, second)]
@@ -411,4 +417,22 @@ def test_the_report_records_what_identifies_each_validated_material(validation_a
         assert row["atlas_identity"] == identity and identity["manifest_sha256"] == atlas.manifest_sha256
         assert identity["content_hash"] == atlas.material(row["material"]).content_hash
     assert rows[0]["atlas_identity"]["material_sha256"] != rows[1]["atlas_identity"]["material_sha256"]
+    assert gpu_device.take_errors() == []
+
+
+@pytest.mark.mitsuba
+@pytest.mark.slow
+def test_max_physical_spp_caps_an_environment_reference(validation_atlas, mitsuba_rgb, gpu_device, tmp_path):  # noqa: F811
+    """An environment reference stopped at a fixed 4096 spp while the noise-floor warning said to raise
+    --max-physical-spp, which changed nothing (so --strict could never pass there). A lambert under the
+    sky is short of its floor at 64 spp: it grows to the maximum given, and no further."""
+    args = ["validate", "matte", "--scene", "env-sky", "--no-physical", "--resolution", "16x12", "--no-reference-cache",
+            "--atlas", str(validation_atlas)]  # fmt: skip
+    result = CliRunner().invoke(app, [*args, "--max-physical-spp", "128", "-o", "v"])
+    assert result.exit_code == 0, result.output
+    ((row,),) = [json.loads((tmp_path / "v" / "report.json").read_text())["results"]]
+    reference = row["references"]["model"]
+    assert reference["spp"] == 128 and reference["noise_floor_ok"] is False
+    (warning,) = [line for line in result.stderr.splitlines() if "noise floor" in line]
+    assert warning.startswith("atlasgen: warning: matte on env-sky: ") and warning.endswith("raise --max-physical-spp")
     assert gpu_device.take_errors() == []
