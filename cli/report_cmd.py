@@ -64,7 +64,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     With --merge they are folders of earlier reports (e.g. one per material), combined
     without measuring again.
     """
-    check_output_folder(output, "the report folder (-o)")
+    check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     if merge:
         merged = merge_separable_reports([Path(n) for n in names], output)["html"]
         if verbosity != QUIET:
@@ -136,7 +136,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
 def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews, and Pareto
     charts of run-time cost against error versus the physical reference."""
-    check_output_folder(output, "the report folder (-o)")
+    check_output_folder(output, "the report folder (-o)", writes=("index.html",))
     # Figures validated on another bake of a material are not shown as its: one line each, loud even with -q.
     page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical,
                                 warn=echo_warning)  # fmt: skip

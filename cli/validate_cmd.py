@@ -102,7 +102,7 @@ def validate(
     reference on every scene (PSNR and mean FLIP); each separable material's claimed
     error against its error_budget, where it has one.
     """
-    check_output_folder(output, "the report folder (-o)")
+    check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     given = click.get_current_context().get_parameter_source("max_physical_spp") is not click.core.ParameterSource.DEFAULT
     if given and max_physical_spp < physical_spp:  # defaulted, it rises to --physical-spp (validate_atlas)
         raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",

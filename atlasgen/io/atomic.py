@@ -68,6 +68,8 @@ __all__ = [
     "output_lock",
     "set_key",
     "store_path",
+    "refuse_inside_store",
+    "refuse_another_sets",
     "TEMP_SUFFIX",
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
@@ -416,12 +418,14 @@ def _is_store(name: str) -> bool:
     return name.startswith(".") and name.endswith(STORE_SUFFIX) and len(name) > len(STORE_SUFFIX) + 1
 
 
-def _refuse_inside_store(path: Path) -> None:
+def refuse_inside_store(path, folder: bool = False) -> None:
     """Refuse an output inside an output set's store (``-o v1/.report.atlasgen/current``, or a folder
     linked into one): it was written into a committed generation in place, which changed the files of
-    the set's links (``v1/report.json``) without a commit, outside the lock."""
-    folder = os.path.abspath(_folder(path))
-    for shown in (folder, os.path.realpath(folder)):
+    the set's links (``v1/report.json``) without a commit, outside the lock. ``path`` is an output file,
+    or with ``folder`` an output folder. Commands check it before their work (atlasgen.io.output_paths)."""
+    path = Path(path)
+    where = os.path.abspath(path if folder else _folder(path))
+    for shown in (where, os.path.realpath(where)):
         store = next((part for part in Path(shown).parts if _is_store(part)), None)
         if store is not None:
             raise OutputError(f"{path.as_posix()}: inside {store}, the generations of an output set; expected a path "
@@ -446,6 +450,15 @@ def _refuse_another_sets(path: Path, store: Path) -> None:
     if other != os.path.realpath(store):
         raise OutputError(f"{path.as_posix()}: already written by another command's outputs ({Path(other).name} beside it); "
                           "expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
+
+
+def refuse_another_sets(paths, primary) -> None:
+    """Refuse, before a command's work, to write ``paths`` (the fixed files of the set whose primary is
+    ``primary``) where one is another output set's link: :func:`write_files_atomically` refuses it at the
+    commit, after the work, and a report would have left its folders and lock behind by then."""
+    store = store_path(primary)
+    for path in paths:
+        _refuse_another_sets(Path(path), store)
 
 
 def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False) -> None:
@@ -488,7 +501,7 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     written = {os.path.abspath(p) for p, _ in items}
     removals = [Path(p) for p in dict.fromkeys(os.path.abspath(p) for p in remove) if p not in written]
     for path, _ in items:
-        _refuse_inside_store(path)
+        refuse_inside_store(path)
     home = _folder(primary)
     try:
         home.mkdir(parents=True, exist_ok=True)
@@ -631,7 +644,7 @@ def write_file_atomically(path, data: bytes) -> None:
     """
     path = Path(path)
     folder = _folder(path)
-    _refuse_inside_store(path)
+    refuse_inside_store(path)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(path)

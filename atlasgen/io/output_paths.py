@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 
 from atlasgen.errors import OutputError
+from atlasgen.io.atomic import refuse_another_sets, refuse_inside_store
 from atlasgen.io.text import special_file_kind
 
 __all__ = ["check_output_folder", "check_output_paths", "check_suffix"]
@@ -69,6 +70,7 @@ def check_output_paths(outputs, inputs=()) -> None:
         blocker = _blocking_file(path)
         if blocker is not None:
             raise _blocked(path.parent, blocker)
+        refuse_inside_store(path)
         key = _key(path)
         if key in seen:
             other, other_role = seen[key]
@@ -88,9 +90,10 @@ def check_suffix(path, role: str, suffixes) -> None:
         raise OutputError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")
 
 
-def check_output_folder(path, role: str) -> None:
-    """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one,
-    before the command renders or measures anything."""
+def check_output_folder(path, role: str, writes=(), primary=None) -> None:
+    """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one, or inside an
+    output set's store, before the command renders or measures anything; and one where a file the command
+    always writes (``writes``, names in the folder; its set's primary one ``primary``) is another command's."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         kind = special_file_kind(path) or "an existing file"
@@ -98,3 +101,6 @@ def check_output_folder(path, role: str) -> None:
     blocker = _blocking_file(path)
     if blocker is not None:
         raise _blocked(path, blocker)
+    refuse_inside_store(path, folder=True)
+    if writes:
+        refuse_another_sets([path / name for name in writes], path / (primary or writes[0]))

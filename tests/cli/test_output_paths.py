@@ -161,6 +161,36 @@ def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, com
     _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
 
 
+@pytest.mark.parametrize("command", [["bake"], ["report", "library"], ["validate", "--merge"]])
+def test_an_output_inside_a_set_s_store_is_refused_before_any_work(tmp_path, library, command):
+    """Such a path was refused only when written, after the work: a report's progress line came first, two lines."""
+    _bake(tmp_path, library)
+    inside = tmp_path / "build" / ".atlas.atlasgen" / "current"
+    if command == ["bake"]:
+        args = ["bake", str(library), "-o", str(inside / "x.dds"), "--cache", str(tmp_path / "cache")]  # filled by a bake
+    else:
+        args = [*command, *([str(tmp_path)] if "--merge" in command else []), "-o", str(inside)]
+    _refused(tmp_path, args, f"{inside.as_posix()}{'/x.dds' if command == ['bake'] else ''}: inside .atlas.atlasgen, "
+             "the generations of an output set; expected a path outside atlasgen's .*.atlasgen folders")  # fmt: skip
+
+
+@pytest.mark.parametrize(("other_primary", "command"), [("report.json", ["report", "library"]),
+                                                       ("index.html", ["validate", "--merge"]),
+                                                       ("index.html", ["report", "separable", "--merge"])])  # fmt: skip
+def test_a_report_folder_holding_another_command_s_page_is_refused_before_any_work(tmp_path, other_primary, command):
+    """report library into validate's folder was refused only at its commit, after its work, and left its lock and
+    two empty folders in the other command's folder."""
+    from atlasgen.io.atomic import write_files_atomically
+
+    out = tmp_path / "out"
+    write_files_atomically({out / "index.html": b"<p>another command's page</p>", out / "report.json": b"{}"},
+                           primary=out / other_primary, whole=True)  # fmt: skip
+    args = [*command, *([str(tmp_path / "runs")] if "--merge" in command else []), "-o", str(out)]
+    first = "index.html" if command == ["report", "library"] else "report.json"  # the first file it writes
+    _refused(tmp_path, args, f"{(out / first).as_posix()}: already written by another command's outputs "
+             f"(.{other_primary.split('.')[0]}.atlasgen beside it); expected a folder of its own")  # fmt: skip
+
+
 def test_a_cache_folder_that_is_a_named_pipe_is_named_so(tmp_path, library):
     """A FIFO given as --cache was refused as "a file": true to Unix, but no help to find it."""
     import os
