@@ -302,6 +302,11 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
             raise SceneError(r.path, f"{name}.file", f"expected an .obj or .ply file, got {file.name!r}")
     elif "file" in raw:
         raise SceneError(r.path, f"{name}.file", f"only used with shape = 'mesh', not {shape!r}")
+    # Tessellation the shape does not have is a slip (a sphere's segments set on the box below it), not a no-op.
+    for key, users in (("segments", ("sphere", "torus")), ("minor_radius", ("torus",))):
+        if key in raw and shape not in users:
+            shown = " or ".join(repr(u) for u in users)
+            raise SceneError(r.path, f"{name}.{key}", f"only used with shape = {shown}, not {shape!r}")
     scale = r.vec3(raw, "scale", f"{name}.scale", default=(1.0, 1.0, 1.0))
     # A mirroring scale turns a closed shape's faces inside out (their back faces are culled) and its
     # normals with them; 0 in float32 (1e-300, say) flattens it to nothing, as 0 would.

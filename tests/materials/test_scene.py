@@ -180,6 +180,19 @@ def test_a_mirroring_or_vanishing_scale_is_refused(scale, words):
     assert str(info.value).startswith(f"scenes/x.toml: field 'objects[0].scale': expected {words.removeprefix('expected ')}")
 
 
+@pytest.mark.parametrize(
+    ("shape", "key", "users"),
+    [("box", "segments", "'sphere' or 'torus'"), ("plane", "segments", "'sphere' or 'torus'"),
+     ("sphere", "minor_radius", "'torus'"), ("box", "minor_radius", "'torus'")],
+)  # fmt: skip
+def test_tessellation_a_shape_does_not_have_is_refused(shape, key, users):
+    """segments on a box, or minor_radius on a sphere, was read and ignored: a slip (set on the wrong object),
+    refused as 'file' on a sphere always was."""
+    _rejects(f'[[objects]]\nshape = "{shape}"\nmaterial = "clay"\n{key} = 8', f"objects[0].{key}",
+             f"only used with shape = {users}, not '{shape}'")  # fmt: skip
+    assert _scene('[[objects]]\nshape = "torus"\nmaterial = "clay"\nsegments = 8\nminor_radius = 0.3').objects[0].segments == 8
+
+
 def test_a_named_pipe_as_mesh_or_environment_is_named(tmp_path):
     """A named pipe is neither missing nor readable (it would wait for a writer): the line says what it is."""
     import os
