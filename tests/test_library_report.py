@@ -239,6 +239,15 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     (vdir / "report.json").rmdir()
     (vdir / "report.json").write_text("[]")
     assert refusal(validation_dir=vdir).endswith("expected a validation report (a JSON object), got list")
+    # null and {} were read as no validation at all, and a file given as the folder as a folder without one.
+    (vdir / "report.json").write_text("null")
+    assert refusal(validation_dir=vdir).endswith("expected a validation report (a JSON object), got null")
+    (vdir / "report.json").write_text("{}")
+    assert refusal(validation_dir=vdir).endswith(
+        "field 'results': missing; expected the list of results atlasgen validate writes"
+    )
+    assert refusal(validation_dir=timings) == (f"{timings.as_posix()}: the validation report (--validation) is a file; "
+                                               "expected the folder atlasgen validate -o wrote")  # fmt: skip
     row = {"material": "clay", "scene": "front", "references": {}, "page": 5}
     (vdir / "report.json").write_text(json.dumps({"results": [row]}))
     assert "field 'results[0].page': expected a page path as atlasgen validate writes it, got 5" in refusal(validation_dir=vdir)

@@ -11,6 +11,7 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, read_json_file
+from atlasgen.io.text import special_file_kind
 from atlasgen.models import check_manifest_models, get_model
 from atlasgen.reports.comparisons import manifest_pairs
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, pareto_front, plot_style, render_page
@@ -83,6 +84,31 @@ def _read_json(path):
     if not path.exists():
         return None
     return read_json_file(path)
+
+
+def _read_validation(folder) -> dict | None:
+    """``folder/report.json`` of atlasgen validate, or None where the folder has none (a library not validated yet).
+
+    Only its results are read, so only they are checked (their figures must be numbers); a folder that is a
+    file, a report that is no JSON object (``null`` read as none) or has no results is refused, naming it."""
+    if folder is None:
+        return None
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        kind = special_file_kind(folder) or "a file"
+        raise InputError(f"{folder.as_posix()}: the validation report (--validation) is {kind}; expected the folder "
+                         "atlasgen validate -o wrote")  # fmt: skip
+    path = folder / "report.json"
+    if not path.exists():
+        return None
+    validation = read_json_file(path)
+    if not isinstance(validation, dict):
+        got = "null" if validation is None else type(validation).__name__
+        raise FieldError(path.as_posix(), None, f"expected a validation report (a JSON object), got {got}")
+    if "results" not in validation:
+        raise FieldError(path.as_posix(), "results", "missing; expected the list of results atlasgen validate writes")
+    check_result_figures(path, validation["results"])
+    return validation
 
 
 def _bake_seconds(timings, path, name: str) -> float | None:
@@ -288,12 +314,7 @@ def write_library_report(
     check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
     timings = _read_json(timings_path) or {}
-    validation = _read_json(Path(validation_dir) / "report.json") if validation_dir else None
-    if validation is not None:  # only its results are read: their figures must be numbers
-        if not isinstance(validation, dict):
-            raise FieldError((Path(validation_dir) / "report.json").as_posix(), None,
-                             f"expected a validation report (a JSON object), got {type(validation).__name__}")  # fmt: skip
-        check_result_figures(Path(validation_dir) / "report.json", validation.get("results", []))
+    validation = _read_validation(validation_dir)
     validation, validation_notes = _check_identity(validation, atlas, Path(validation_dir or ".") / "report.json",
                                                    warn or (lambda line: None))  # fmt: skip
     out_dir = Path(out_dir)
