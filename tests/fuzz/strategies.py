@@ -229,9 +229,12 @@ def scene_toml(draw, materials=("clay", "gloss"), mesh_files=("mesh.obj",)) -> b
                 st.sampled_from(mesh_files) if clean else st.one_of(st.sampled_from(mesh_files), st.text(max_size=10))
             )
         segments = st.integers(3, 32) if clean else st.one_of(st.integers(3, 32), edge_numbers, weird)
+        # A clean scene gives tessellation only to the shapes that have it (others refuse it).
+        tessellation = [("segments", segments)] if not clean or shape in ("sphere", "torus") else []
+        tessellation += [("minor_radius", _num(clean, 0.01, 1))] if not clean or shape == "torus" else []
         _optional(draw, obj, [("translate", _vec(clean)), ("rotate", _vec(clean, -360, 360)), ("scale", _vec(clean, 0.1, 3)),
                               ("albedo", _vec(clean, 0.0, 1.0)), ("gloss", _num(clean, 0, 1)), ("opacity", _num(clean, 0, 1)),
-                              ("segments", segments), ("minor_radius", _num(clean, 0.01, 1))], 4)  # fmt: skip
+                              *tessellation], 4)  # fmt: skip
         objects.append(obj)
     data = {"camera": camera, "image": image}
     if render:
