@@ -352,8 +352,11 @@ def bake(
         if cache_dir is not None:
             inputs += [cache_path(cache_dir, m) for m in materials]
         extra_files[depfile] = encode_depfile(depfile_target or output, inputs)
-    previous = read_previous_slots(ids_from, missing_ok=False) if ids_from is not None else {}
-    previous.update(read_previous_slots(sibling_paths(output)["manifest"]))
+    # The atlas's own last IDs keep it stable, but --ids-from's win: a scene atlas takes the library's IDs even
+    # where the library moved a material since the scene was last baked.
+    previous = read_previous_slots(sibling_paths(output)["manifest"])
+    if ids_from is not None:
+        previous.update(read_previous_slots(ids_from, missing_ok=False))
     with MaterialProgress("baked", verbosity) as report:
         started, done = time.monotonic(), [0]
 

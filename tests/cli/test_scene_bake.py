@@ -48,6 +48,28 @@ def test_scene_atlas_holds_exactly_its_materials_with_stable_ids(tmp_path, write
     assert "MATERIAL_ALPHA" not in out.with_suffix(".wgsl").read_text()
 
 
+def test_a_scene_atlas_baked_again_takes_the_library_s_new_ids(tmp_path, write_material):
+    """The scene atlas's own old manifest outranked --ids-from: once the library was renumbered (its manifest
+    deleted, a material added before the others by name), a re-baked scene kept its old IDs, and one g-buffer
+    ID meant two materials in the two atlases."""
+    for name in ("bravo", "delta"):
+        write_material(name, 'type = "lambert"\n')
+    library, full, out = tmp_path / "materials", tmp_path / "full.dds", tmp_path / "scene.dds"
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE.format(first="delta", second="bravo"))
+    assert _bake(library, "-o", full, "-q").exit_code == 0
+    assert _bake(library, "--scene", scene, "--ids-from", full.with_suffix(".json"), "-o", out, "-q").exit_code == 0
+    write_material("alpha", 'type = "lambert"\n')
+    full.with_suffix(".json").unlink()
+    assert _bake(library, "-o", full, "-q").exit_code == 0  # renumbered by name: alpha 0, bravo 1, delta 2
+    res = _bake(library, "--scene", scene, "--ids-from", full.with_suffix(".json"), "-o", out, "-q")
+    assert res.exit_code == 0, res.output
+    ids = {path: {m["name"]: m["id"] for m in json.loads(path.read_text())["materials"]}
+           for path in (full.with_suffix(".json"), out.with_suffix(".json"))}  # fmt: skip
+    assert ids[full.with_suffix(".json")] == {"alpha": 0, "bravo": 1, "delta": 2}
+    assert ids[out.with_suffix(".json")] == {"bravo": 1, "delta": 2}
+
+
 def test_scene_with_an_unknown_material_is_refused(tmp_path, write_material):
     write_material("alpha", 'type = "lambert"\n')
     scene = tmp_path / "scene.toml"
