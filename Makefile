@@ -131,8 +131,10 @@ HASH_DIR := $(BUILD)/hashes
 ifeq ($(filter clean,$(MAKECMDGOALS)),)
 $(foreach f,$(MATERIAL_FILES),$(shell $(call write_if_changed,$(firstword $(shell sha256sum $(f))),$(HASH_DIR)/$(f).sha256)))
 endif
+# A material a scene's depfile still names after it was deleted reaches here too: no hash then (an empty one
+# was left before, under sha256sum's own line), and the bake that reads it says what is missing, on one line.
 $(HASH_DIR)/%.sha256: %
-	@mkdir -p $(@D) && sha256sum $< | cut -c1-64 > $@
+	@mkdir -p $(@D) && if [ -e $< ]; then sha256sum $< | cut -c1-64 > $@.tmp && mv -f $@.tmp $@; fi
 
 $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
