@@ -154,9 +154,10 @@ def calibrated_range(renderer, names, lights: int, tolerance: float = 0.05, trie
     return math.exp(min(tried)[1])
 
 
-def paired_ms(culled, brute, pairs: int, warmup: int = WARMUP, repeats: int = REPEATS) -> dict:
+def paired_ms(culled, brute, pairs: int, brute_warmup: int, warmup: int = WARMUP, repeats: int = REPEATS) -> dict:
     """Culled and full-loop frames interleaved: ``pairs`` times, ceil(``repeats`` / ``pairs``) culled frames then one
-    full-loop frame, after ``warmup`` of each (``culled``, ``brute``: functions that draw one frame and wait).
+    full-loop frame, after ``warmup`` culled and ``brute_warmup`` full-loop frames (``culled``, ``brute``: functions
+    that draw one frame and wait).
 
     Returns the frame times (ms) and, per pair, the full-loop frame over the median of the culled frames just before
     it: on a shared machine the load drifts over a run, and a ratio of two medians taken minutes apart would carry the
@@ -164,6 +165,7 @@ def paired_ms(culled, brute, pairs: int, warmup: int = WARMUP, repeats: int = RE
     """
     for _ in range(warmup):
         culled()
+    for _ in range(brute_warmup):
         brute()
     per_pair = -(-repeats // pairs)
     culled_ms, brute_ms, ratios = [], [], []
@@ -235,9 +237,9 @@ def run() -> dict:
             mean_px, max_px, mean_tile, max_tile, overflow = per_pixel(renderer, scene)
             frame = renderer.prepare(scene)
             brute = renderer.prepare(scene, culling=False)
-            warmup, pairs = _brute_repeats(lights)
+            brute_warmup, pairs = _brute_repeats(lights)
             timed = paired_ms(lambda: renderer.submit(renderer.encode_frame(frame)),
-                              lambda: renderer.submit(renderer.encode_frame(brute)), pairs, max(warmup, WARMUP))  # fmt: skip
+                              lambda: renderer.submit(renderer.encode_frame(brute)), pairs, brute_warmup)  # fmt: skip
             frame_ms, frame_min = statistics.median(timed["culled"]), min(timed["culled"])
             brute_ms, brute_min = statistics.median(timed["brute"]), min(timed["brute"])
             passes, method = pass_times(renderer, frame)
@@ -247,7 +249,7 @@ def run() -> dict:
                          "lights_per_pixel_mean": mean_px, "lights_per_pixel_max": max_px,
                          "lights_per_tile_mean": mean_tile, "lights_per_tile_max": max_tile, "overflowing_tiles": overflow,
                          "frame_ms": frame_ms, "frame_min_ms": frame_min, "brute_ms": brute_ms, "brute_min_ms": brute_min,
-                         "brute_repeats": pairs, "frames": len(timed["culled"]), "ratios": timed["ratios"],
+                         "brute_repeats": pairs, "brute_warmup": brute_warmup, "frames": len(timed["culled"]), "ratios": timed["ratios"],
                          "passes_ms": passes, "brute_passes_ms": brute_passes,
                          "device": device})  # fmt: skip
             print(f"bench render: {lights} lights, {translucent} translucent: range {light_range:.2f}, "
@@ -314,8 +316,10 @@ def _frames_text(data) -> str:
                 "up to 256 lights, one frame at 1024, where it takes seconds), submitted and waited for, no read-back.")  # fmt: skip
     few = min(rows, key=lambda r: r["brute_repeats"])
     many = max(rows, key=lambda r: r["brute_repeats"])
+    cold = few.get("brute_warmup", data["warmup"]) == 0  # data of the first paired run warmed the full loop too
     fewer = (f" ({few['brute_repeats']} time, {few['frames']} culled frames, at {few['lights']} lights, where the full "
-             "loop takes seconds)") if few["brute_repeats"] < many["brute_repeats"] else ""  # fmt: skip
+             f"loop takes seconds{' and is not warmed up: its pipelines are the culled frames' if cold else ''})"
+             if few["brute_repeats"] < many["brute_repeats"] else "")  # fmt: skip
     return (f"Frames, each submitted and waited for, no read-back, after {data['warmup']} warm-up of each kind: "
             f"{many['brute_repeats']} times, {many['frames'] // many['brute_repeats']} culled frames then one full-loop "
             f"frame{fewer}. The culled figure is the median of its {many['frames']} frames, the full loop's of its "

@@ -19,7 +19,7 @@ from atlasgen.reports.validation import (
     write_validation,
 )
 from atlasgen.validate.reference_cache import DEFAULT_REFERENCE_CACHE
-from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_PHYSICAL_SPP, PHYSICAL_SPP, validate_atlas
+from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_ENVIRONMENT_SPP, MAX_PHYSICAL_SPP, PHYSICAL_SPP, validate_atlas
 
 __all__ = ["validate"]
 
@@ -44,8 +44,8 @@ def _resolution(ctx, param, value):
               help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=PHYSICAL_SPP, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
-@click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=MAX_PHYSICAL_SPP, show_default=True,
-              help="The most samples per pixel a stochastic physical reference grows to: the default lets every shipped reference clear its noise floor; a reference that stops short is named in the summary (and fails --strict).")  # fmt: skip
+@click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,
+              help=f"The most samples per pixel a stochastic physical reference grows to (default {MAX_PHYSICAL_SPP}, which lets every shipped reference clear its noise floor); a reference that stops short is named in the summary (and fails --strict). Given, it caps an environment scene's reference too (left out, that one stops at {MAX_ENVIRONMENT_SPP}).")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
@@ -103,8 +103,7 @@ def validate(
     error against its error_budget, where it has one.
     """
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
-    given = click.get_current_context().get_parameter_source("max_physical_spp") is not click.core.ParameterSource.DEFAULT
-    if given and max_physical_spp < physical_spp:  # defaulted, it rises to --physical-spp (validate_atlas)
+    if max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it (validate_atlas)
         raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",
                                  param_hint="'--max-physical-spp'")  # fmt: skip
     warnings = []
@@ -120,7 +119,7 @@ def validate(
             scenes = tuple(dict.fromkeys((*scenes, *ENVIRONMENT_SCENES)))
         with MaterialProgress("validated", verbosity) as on_material:
             run = validate_atlas(atlas, materials or None, scenes, spp=spp, physical_spp=physical_spp,
-                                 max_physical_spp=max_physical_spp if given else None,
+                                 max_physical_spp=max_physical_spp,
                                  resolution=resolution, physical=not no_physical, progress=progress,
                                  on_material=on_material, bake_cache=bake_cache,
                                  reference_cache=None if no_reference_cache else reference_cache)  # fmt: skip

@@ -90,10 +90,10 @@ def check_suffix(path, role: str, suffixes) -> None:
         raise OutputError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")
 
 
-def check_output_folder(path, role: str, writes=(), primary=None) -> None:
+def check_output_folder(path, role: str, writes=()) -> None:
     """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one, or inside an
     output set's store, before the command renders or measures anything; and one where a file the command
-    always writes (``writes``, names in the folder; its set's primary one ``primary``) is another command's."""
+    always writes (``writes``, names in the folder, its set's primary first) is another command's."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         kind = special_file_kind(path) or "an existing file"
@@ -103,4 +103,4 @@ def check_output_folder(path, role: str, writes=(), primary=None) -> None:
         raise _blocked(path, blocker)
     refuse_inside_store(path, folder=True)
     if writes:
-        refuse_another_sets([path / name for name in writes], path / (primary or writes[0]))
+        refuse_another_sets([path / name for name in writes], path / writes[0])

@@ -93,11 +93,17 @@ def test_paired_frames_interleave_and_divide_each_full_loop_frame_by_the_culled_
     # Scripted frame times: the load doubles half-way, after the first pair.
     times = iter([10.0, 12.0, 11.0, 100.0, 20.0, 24.0, 22.0, 200.0])
     monkeypatch.setattr(render, "_timed_ms", lambda fn: (fn(), next(times))[1])
-    timed = render.paired_ms(lambda: calls.append("c"), lambda: calls.append("b"), pairs=2, warmup=1, repeats=5)
+    timed = render.paired_ms(lambda: calls.append("c"), lambda: calls.append("b"), pairs=2, brute_warmup=1, warmup=1,
+                             repeats=5)  # fmt: skip
     assert calls == ["c", "b"] + ["c", "c", "c", "b"] * 2
     assert timed["culled"] == [10.0, 12.0, 11.0, 20.0, 24.0, 22.0] and timed["brute"] == [100.0, 200.0]
     # Each pair sees one load: the ratio of each is 100 / 11, where the medians taken apart would give 150 / 16.5.
     assert timed["ratios"] == pytest.approx([100.0 / 11.0, 200.0 / 22.0])
+    # Where the full loop takes seconds it is not warmed up (its pipelines are the culled frames').
+    calls.clear()
+    times = iter([1.0, 10.0])
+    render.paired_ms(lambda: calls.append("c"), lambda: calls.append("b"), pairs=1, brute_warmup=0, warmup=1, repeats=1)
+    assert calls == ["c", "c", "b"]
 
 
 def test_the_256_light_goal_is_the_median_of_the_pairs_ratios_with_their_range(bench):
