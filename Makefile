@@ -158,13 +158,25 @@ $(ATLAS_SET) &: $(CACHED) $(BUILD)/materials.list $(ASSEMBLY_CODE) $(BAKE_COMMAN
 SCENE_FILES := $(sort $(wildcard scenes/*.toml))
 SCENE_ATLASES := $(patsubst scenes/%.toml,$(BUILD)/scenes/%.dds,$(SCENE_FILES))
 SCENE_IMAGES := $(SCENE_ATLASES:.dds=.png)
+# Every file a scene's bake always writes, one set per scene: a deleted build/scenes/X.json re-bakes
+# the set, where only X.dds was a target and the render failed on the missing manifest.
+SCENE_SUFFIXES := .dds .json .wgsl .glsl .hlsl .timings.json
+SCENE_SETS := $(foreach a,$(SCENE_ATLASES),$(addprefix $(a:.dds=),$(SCENE_SUFFIXES)))
 -include $(SCENE_ATLASES:.dds=.d)
+# A scene atlas whose depfile is gone: make no longer knows which materials it holds, so a change to
+# one of them would leave it stale. It is baked again, which writes the depfile. (The depfile cannot
+# be a target itself: make would then bake scenes to remake it while reading the Makefile, for any goal.)
+SCENES_WITHOUT_DEPFILE := $(foreach a,$(SCENE_ATLASES),$(if $(wildcard $(a)),$(if $(wildcard $(a:.dds=.d)),,$(a))))
+.PHONY: no-depfile
+$(SCENES_WITHOUT_DEPFILE): no-depfile
 
-$(SCENE_ATLASES): $(BUILD)/scenes/%.dds: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
-	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(@:.dds=.d) -o $@ -q
+# A pattern rule with several targets makes one set: one recipe writes them all.
+$(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(BUILD)/scenes/%.glsl $(BUILD)/scenes/%.hlsl \
+$(BUILD)/scenes/%.timings.json &: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
-render: $(SCENE_IMAGES)
-$(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(wildcard scenes/meshes/*) $(RENDER_CODE) | $(VENV)/.stamp
+render: $(SCENE_SETS) $(SCENE_IMAGES)
+$(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(wildcard scenes/meshes/*) $(RENDER_CODE) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
@@ -289,5 +301,5 @@ clean:
 # atlasgen commits each output set whole (docs/cli.md, "Outputs"): a run interrupted just after its
 # commit exits 130 with the new set in place. make's default for an interrupted recipe, deleting its
 # target, then removed build/atlas.dds and left the rest of the new set without it.
-.PRECIOUS: $(CACHE_DIR)/%.npz $(ATLAS_SET) $(SCENE_ATLASES) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
+.PRECIOUS: $(CACHE_DIR)/%.npz $(ATLAS_SET) $(SCENE_SETS) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
 	$(VALIDATION)/report.json $(SEPARABLE_STUDIES) $(SEPARABLE_REPORT)/index.md $(BUILD)/report/index.html

@@ -21,6 +21,8 @@ MATERIALS = ("clay", "snow", "separable-gold")
 SEPARABLE = ("separable-gold",)
 #: Scene -> the materials it uses, as the bake's --depfile records them.
 SCENES = {"one": ("clay",), "two": ("snow", "separable-gold")}
+#: What a scene's bake writes, one set (the Makefile's SCENE_SUFFIXES).
+SCENE_SET = ("dds", "json", "wgsl", "glsl", "hlsl", "timings.json")
 T0 = 1_700_000_000  # sources
 T_BUILT = T0 + 100  # every output, all equally new: make treats them as up to date
 
@@ -34,7 +36,7 @@ def _outputs(build: Path) -> list[Path]:
     out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
-    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in ("dds", "png", "d")]
+    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("png", "d")]
     return out
 
 
@@ -260,6 +262,60 @@ def test_a_changed_scene_rebakes_and_rerenders_only_itself(tree):
     # Library IDs, the shared cache, and a fresh dependency file.
     assert "--ids-from build/atlas.json" in bake and "--cache build/cache" in bake
     assert "--depfile build/scenes/one.d" in bake and " -o build/scenes/one.dds" in bake
+
+
+_FAKE_ATLASGEN = """#!{python}
+# Stands in for atlasgen in a real (not dry) make run: logs each call and touches what it would write.
+import sys, pathlib
+args = sys.argv[1:]
+with open({log!r}, "a") as log:
+    log.write(" ".join(args) + "\\n")
+out = pathlib.Path(args[args.index("-o") + 1])
+if args[0] == "bake":
+    for suffix in {suffixes!r}:
+        out.with_suffix("." + suffix).write_text("")
+    if "--depfile" in args:
+        pathlib.Path(args[args.index("--depfile") + 1]).write_text(out.as_posix() + ":\\n")
+else:
+    out.with_suffix(".png").write_text("")
+"""
+
+
+def _make_with_fake_atlasgen(root: Path, *goals: str) -> list[str]:
+    """Run make for real with a stand-in atlasgen (:data:`_FAKE_ATLASGEN`); the calls it received."""
+    import sys
+
+    fake, log = root / "fake-atlasgen", root / "calls.log"
+    fake.write_text(_FAKE_ATLASGEN.format(python=sys.executable, log=str(log), suffixes=SCENE_SET))
+    fake.chmod(0o755)
+    log.write_text("")
+    result = _make(root, *goals, f"ATLASGEN={fake}")
+    assert result.returncode == 0, result.stderr
+    return log.read_text().splitlines()
+
+
+@pytest.mark.parametrize("suffix", SCENE_SET[1:])
+def test_a_deleted_file_of_a_scene_set_rebakes_that_set_once(tree, suffix):
+    """A scene's bake writes one set: any of its files deleted re-bakes it (one bake for the whole set) and
+    re-renders the scene, in one run; where only X.dds was a target, a deleted X.json made the render fail."""
+    (tree / "build" / "scenes" / f"one.{suffix}").unlink()
+    assert _make(tree, "-q", "render").returncode == 1
+    calls = _make_with_fake_atlasgen(tree, "render")
+    assert [c.split()[0] for c in calls] == ["bake", "render"] and "--scene scenes/one.toml" in calls[0], calls
+    assert "scenes/one.toml" in calls[1]
+    assert _make(tree, "-q", "render").returncode == 0
+
+
+def test_a_scene_atlas_whose_depfile_is_gone_is_baked_again(tree):
+    """Without build/scenes/X.d make does not know the scene's materials, so a change to one of them would
+    leave X.dds stale: it is baked again (which writes the depfile), and only that scene."""
+    (tree / "build" / "scenes" / "two.d").unlink()
+    assert _commands(tree, "atlas") == []  # no other goal bakes a scene to remake a depfile
+    assert _make(tree, "-q", "render").returncode == 1
+    calls = _make_with_fake_atlasgen(tree, "render")
+    assert [c.split()[0] for c in calls] == ["bake", "render"] and "--scene scenes/two.toml" in calls[0], calls
+    assert (tree / "build" / "scenes" / "two.d").exists()
+    assert _make(tree, "-q", "render").returncode == 0
 
 
 def test_the_makefile_bake_code_is_what_the_cache_key_hashes(tree):
