@@ -417,17 +417,27 @@ class SeparableFactors(_Record):
         cell = (_factor_table, "[[r, g, b], [r, g, b]]: the g and h factor's per-channel values, each a float32")
         errors = f.child("errors", optional=True)
         errors_8bit = f.child("errors_8bit", optional=True)
+        factor_scale = f.array("factor_scale", table, cell, terms)
+        factor_bias = f.array("factor_bias", table, cell, terms)
+        stated = f.integer("terms", 1, optional=True)
+        if stated is not None and stated != terms:
+            # An engine loops over 'terms' factor pairs: one more than the slices hold reads the next material.
+            f.fail(
+                "terms",
+                f"{terms}, the entry's term slices (slice_count{' less the transmission slice' if transmission else ''})",
+                stated,
+            )
         return cls(
             brdf_source=f.string("brdf_source", optional=True),
             parametrization=f.nonempty("parametrization"),
             factorization=f.string("factorization", optional=True),
             target=f.string("target", optional=True) or "f_cos",
-            terms=f.integer("terms", 1, optional=True),
+            terms=stated,
             sampling_grid=f.integer("sampling_grid", 1, optional=True),
             factor_resolution=f.integer("factor_resolution", 1, optional=True),
             channel_layout=f.string("channel_layout", optional=True),
-            factor_scale=f.array("factor_scale", table, cell, terms),
-            factor_bias=f.array("factor_bias", table, cell, terms),
+            factor_scale=factor_scale,
+            factor_bias=factor_bias,
             nonfinite_samples=f.integer("nonfinite_samples", 0, optional=True),
             nonfinite_reference=f.integer("nonfinite_reference", 0, optional=True),
             errors=None if errors is None else SeparableErrors.from_json(errors),

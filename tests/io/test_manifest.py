@@ -388,6 +388,24 @@ REFUSED = {
         "materials[1].constant",
         "expected a constant of its own, got 'MATERIAL_X_Y', also 'x-y''s",
     ),
+    # An engine that loops over 'terms' factor pairs read one slice of the next material.
+    "terms not the term slices": (
+        _with(_set(["materials", 5, "terms"], 5)),
+        "materials[5].terms",
+        "expected 4, the entry's term slices (slice_count), got 5",
+    ),
+    "terms counting the transmission slice": (
+        _with(
+            lambda d: d["materials"][5].update(
+                transmission={"slice": 3},
+                terms=4,
+                factor_scale=d["materials"][5]["factor_scale"][:3],
+                factor_bias=d["materials"][5]["factor_bias"][:3],
+            )
+        ),
+        "materials[5].terms",
+        "expected 3, the entry's term slices (slice_count less the transmission slice), got 4",
+    ),
     "factor beyond float32": (
         _with(_set(["materials", 5, "factor_scale", 0, 1, 2], 1e300)),
         "materials[5].factor_scale[0]",
@@ -409,6 +427,7 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
 #: and what JSON itself cannot hold (Python's reader takes Infinity, a 400-digit integer and a lone surrogate).
 _BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
                       "constant not the name's", "two names, one constant",
+                      "terms not the term slices", "terms counting the transmission slice",
                       "not a finite figure",
                       "an integer beyond a double", "an integer just beyond a double", "a lone surrogate"}  # fmt: skip
 
@@ -434,6 +453,7 @@ def test_a_transmission_slice_is_the_last_slice_and_the_terms_are_the_rest():
     def add(data):
         entry = data["materials"][5]
         entry["factor_scale"], entry["factor_bias"] = entry["factor_scale"][:-1], entry["factor_bias"][:-1]
+        entry["terms"] = entry["slice_count"] - 1  # as the bake writes it: K terms, then the transmission slice
         entry["transmission"] = {
             "slice": entry["slice_count"] - 1,
             "pairs": 10,
