@@ -831,6 +831,9 @@ _REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "line
 
 def _check_figures(path: Path, data: dict) -> None:
     """Refuse a report whose figures are not finite numbers (or null), naming the field."""
+    if not isinstance(data["atlas"], str) or not data["atlas"]:  # the page and a merge print it as the atlas's path
+        raise FieldError(path.as_posix(), "atlas", f"expected the atlas's path as atlasgen validate writes it, "
+                                                   f"got {shorten(repr(data['atlas']))}")  # fmt: skip
     check_number(path, "total_seconds", data["total_seconds"], allow_none=False, minimum=0)
     for part, keys in (("environment", _ENVIRONMENT_KEYS), ("settings", _SETTINGS_KEYS)):
         if not isinstance(data[part], dict):

@@ -188,6 +188,8 @@ def _put(value, *keys):
     (_put({"a": 1}, "results", 0, "references", "*", "images"), ".images", "expected image paths"),
     (_put("x", "settings", "scenes"), "settings.scenes", "expected a list of scenes"),
     (_put("many", "settings", "spp"), "settings.spp", "expected a finite number"),
+    (_put(3, "atlas"), "atlas", "expected the atlas's path as atlasgen validate writes it, got 3"),
+    (_put("", "atlas"), "atlas", "got ''"),
 ])  # fmt: skip
 def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, change, field, expected):
     """Each of these was an internal error (KeyError, TypeError, AttributeError) or merged silently."""
