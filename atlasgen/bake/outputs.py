@@ -48,7 +48,10 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         outputs.append((depfile, "--depfile"))
     if cache_dir is not None:
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
-    inputs = [(m.source, f"the material file of {m.name!r}") for m in (materials if library is None else library)]
+    read = materials if library is None else library
+    inputs = [(m.source, f"the material file of {m.name!r}") for m in read]
+    # A MaterialX document's xi:includes are read as much as the document is: an output there would replace one.
+    inputs += [(Path(f), f"a file the material file of {m.name!r} includes") for m in read for f in m.includes]
     if scene is not None:
         inputs.append((scene, "the scene (--scene)"))
         inputs += [(obj.file, f"the mesh of the scene's objects[{obj.index}]")

@@ -230,3 +230,25 @@ def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
     """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],
              f"{(tmp_path / 'none.json').as_posix()}: no such manifest", code=3)  # fmt: skip
+
+
+@pytest.mark.parametrize("output", ["--depfile", "--preview", "-o"])
+def test_a_file_a_materialx_document_includes_is_an_input_too(tmp_path, output):
+    """An output where the document's xi:include points replaced the included file (exit 0): the overlap check
+    knew the document, not what it includes."""
+    pytest.importorskip("MaterialX")
+    suffix = {"--depfile": ".d", "--preview": ".png", "-o": ".wgsl"}[output]
+    included = tmp_path / f"lib{suffix}"
+    included.write_text('<?xml version="1.0"?>\n<materialx version="1.39">\n'
+                        '<standard_surface name="SR_red" type="surfaceshader" />\n'
+                        '<surfacematerial name="red" type="material">'
+                        '<input name="surfaceshader" type="surfaceshader" nodename="SR_red" /></surfacematerial>\n'
+                        '</materialx>\n')  # fmt: skip
+    document = tmp_path / "main.mtlx"
+    document.write_text('<?xml version="1.0"?>\n<materialx version="1.39" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+                        f'<xi:include href="{included.name}" />\n</materialx>\n')  # fmt: skip
+    atlas = tmp_path / ("lib.dds" if output == "-o" else "a.dds")
+    args = ["bake", str(document), "-o", str(atlas), "-q"] + ([] if output == "-o" else [output, str(included)])
+    role = {"--depfile": "--depfile", "--preview": "--preview", "-o": "the include written beside the atlas"}[output]
+    line = _refused(tmp_path, args, f"{role} would overwrite a file the material file of 'red' includes")
+    assert included.as_posix() in line
