@@ -192,7 +192,9 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
     _refuse_duplicate_names(documents)
-    doc.importLibrary(load_materialx_libraries())
+    libraries = load_materialx_libraries()
+    _refuse_library_names(documents, doc, libraries)
+    doc.importLibrary(libraries)
     nodes = doc.getMaterialNodes()
     if not nodes:
         raise MaterialError(shown, None, "expected at least one surfacematerial node, found none")
@@ -491,6 +493,19 @@ def _lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict
         sharp.append(f"{key} = {given(key)}: a lobe sharper than the renderer's sharpest (roughness {ROUGHNESS_MIN:g}, "
                      f"alpha {SPECULAR_ALPHA_MIN:g}), whose highlight falls between the slice's texels")  # fmt: skip
     return sharp
+
+
+def _refuse_library_names(documents, doc, libraries) -> None:
+    """Refuse an element of the document (or a file it includes; ``documents``: ``(shown, tree)``, the document
+    first) named as one of MaterialX's standard libraries: importing the libraries keeps the document's, so a
+    nodedef ``ND_standard_surface_surfaceshader`` of its own gave the node other defaults in MaterialX, while the
+    oracle shades the library's, and the bake differed from what MaterialX shows without a word."""
+    for element in doc.getChildren():
+        name = element.getName()
+        if libraries.getChild(name) is not None:
+            where = next((shown for shown, tree in documents if any(c.get("name") == name for c in tree)), documents[0][0])
+            raise MaterialError(where, name, f"expected no element named as one of MaterialX's standard libraries' (the "
+                                f"oracle shades the library's), got <{element.getCategory()}> {name!r}")  # fmt: skip
 
 
 def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:

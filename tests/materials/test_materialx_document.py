@@ -485,3 +485,26 @@ def test_the_module_s_doctests_pass():
 
     result = doctest.testmod(reader)
     assert result.attempted > 0 and result.failed == 0
+
+
+_SHADOW = ('<nodedef name="ND_standard_surface_surfaceshader" node="standard_surface">'
+           '<input name="base_color" type="color3" value="1, 0, 0" /><output name="out" type="surfaceshader" /></nodedef>')  # fmt: skip
+
+
+@pytest.mark.parametrize("included", [False, True])
+def test_an_element_named_as_a_standard_library_s_is_refused(tmp_path, included):
+    """Importing the libraries keeps the document's own ND_standard_surface_surfaceshader: MaterialX then gives the
+    node a red base_color by default, while the oracle shades the library's grey, and the bake was grey, exit 0."""
+    body = _material("P", "standard_surface", "")
+    if included:
+        shadow = _document(tmp_path, _SHADOW, "defs.mtlx")
+        path = _including(tmp_path, "defs.mtlx", body)
+    else:
+        shadow = path = _document(tmp_path, _SHADOW + "\n" + body)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    message = str(info.value)
+    assert message.endswith(": field 'ND_standard_surface_surfaceshader': expected no element named as one of "
+                            "MaterialX's standard libraries' (the oracle shades the library's), got <nodedef> "
+                            "'ND_standard_surface_surfaceshader'"), message  # fmt: skip
+    assert shadow.name in message.split(": field")[0]
