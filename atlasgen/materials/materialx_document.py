@@ -504,8 +504,8 @@ def _refuse_library_names(documents, doc, libraries) -> None:
         name = element.getName()
         if libraries.getChild(name) is not None:
             where = next((shown for shown, tree in documents if any(c.get("name") == name for c in tree)), documents[0][0])
-            raise MaterialError(where, name, f"expected no element named as one of MaterialX's standard libraries' (the "
-                                f"oracle shades the library's), got <{element.getCategory()}> {name!r}")  # fmt: skip
+            raise MaterialError(where, name, f"expected no element named as one of MaterialX's standard libraries' (they "
+                                f"are loaded already, and the oracle shades theirs), got <{element.getCategory()}> {name!r}")  # fmt: skip
 
 
 def _read_shader(shown: str, material: str, category: str, shader, flatten) -> dict:

@@ -505,6 +505,6 @@ def test_an_element_named_as_a_standard_library_s_is_refused(tmp_path, included)
         read_material_file(path)
     message = str(info.value)
     assert message.endswith(": field 'ND_standard_surface_surfaceshader': expected no element named as one of "
-                            "MaterialX's standard libraries' (the oracle shades the library's), got <nodedef> "
+                            "MaterialX's standard libraries' (they are loaded already, and the oracle shades theirs), got <nodedef> "
                             "'ND_standard_surface_surfaceshader'"), message  # fmt: skip
     assert shadow.name in message.split(": field")[0]
