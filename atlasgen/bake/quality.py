@@ -51,7 +51,7 @@ class MaterialWarning:
 
     ``figure`` is the measured error (a fraction) and ``cause`` what is known of why:
     ``"anisotropy"``, ``"dropped delta lobe"``, ``"unreachable fit"``, ``"missed budget"``,
-    ``"non-finite samples"`` or ``"lost to 8 bits"``; ``detail`` the rest of the line.
+    ``"non-finite samples"``, ``"not in the table"`` or ``"lost to 8 bits"``; ``detail`` the rest of the line.
     """
 
     source: str
@@ -93,6 +93,10 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
         raise MaterialError(material.source, _field_at_fault(material),
                             f"material {material.name!r}: the source gave {nonfinite} non-finite samples (NaN or inf); "
                             f"expected finite ones, or nonfinite_tolerance >= {nonfinite} to bake them as 0")  # fmt: skip
+    model = getattr(material, "model", None)
+    unheld = model.unheld_inputs(material.params) if model is not None else []
+    if unheld:
+        warn("not in the table", None, f"baked without what its slices cannot hold: {'; '.join(unheld)}")
     if nonfinite:
         warn("non-finite samples", None, f"{nonfinite} non-finite samples (NaN or inf) baked as 0 "
                                          f"(nonfinite_tolerance = {tolerance})")  # fmt: skip
@@ -107,7 +111,6 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
         warn("anisotropy", error, f"relative RMS error {100 * (error or 0.0):.1f}% of {what}: the BSDF is anisotropic "
                                   "(accept_anisotropy = true), which an (N.L, N.V) slice holds in one tangent frame only")  # fmt: skip
     elif error is not None and error > threshold:
-        model = getattr(material, "model", None)
         limits = model.fit_limits(material.params) if model is not None else []
         because = "; ".join(limits) or "an unreachable fit (the representation cannot follow its reference)"
         warn("unreachable fit", error, f"relative RMS error {100 * error:.1f}% of {what} > {100 * threshold:g}%: {because}")

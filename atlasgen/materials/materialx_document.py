@@ -25,7 +25,7 @@ one LUT slice and K separable terms whose error against the oracle meets it; doc
   ``not_in_table``; the bake's error warning gives it as the cause.
 - Inputs the table's equation has no room for (emission, opacity, transmission) are named in
   ``materialx.not_in_table``, never dropped silently: the oracle shades the reflection with
-  emission 0 and opacity 1, and the report lists them.
+  emission 0 and opacity 1, the bake warns, and the report lists them.
 
 MaterialX is imported inside functions (the ``materialx`` extra).
 """

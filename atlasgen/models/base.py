@@ -359,6 +359,12 @@ class Model:
         cause instead of "an unreachable fit". The default: none known."""
         return []
 
+    def unheld_inputs(self, values: dict) -> list[str]:
+        """What the material's definition asks for that its slices do not hold at all, and the bake leaves out,
+        one clause each (a MaterialX document's emission or opacity): the bake warns with them
+        (:func:`atlasgen.bake.quality.assess_material`), so nothing is dropped without a word. The default: none."""
+        return []
+
     def radiance_rebuilds(self, entry: MaterialEntry, atlas, float_slices=None) -> dict[str, RadianceRebuild]:
         """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
         atlas's stored texels (what the GPU samples) and, where it can be computed,

@@ -328,6 +328,13 @@ class Separable(Model):
         spec = values.get("materialx") or {}
         return list(spec.get("sharp_lobes") or [])
 
+    def unheld_inputs(self, values: dict) -> list[str]:
+        """A MaterialX source's ``materialx.not_in_table`` but its sharp lobes: those are baked, as well as a slice
+        holds them, and the error warning names them (:meth:`fit_limits`)."""
+        spec = values.get("materialx") or {}
+        sharp = set(spec.get("sharp_lobes") or [])
+        return [clause for clause in spec.get("not_in_table") or [] if clause not in sharp]
+
     def slice_count(self, values: dict) -> int:
         """K when fixed (and one transmission slice for a back-light); with ``max_error`` only
         the bake knows (len of its slices)."""

@@ -106,3 +106,23 @@ def test_a_slice_stored_mostly_as_zero_warns(tmp_path, text, expected):
     else:
         (warning,) = warnings
         assert warning.detail.startswith(expected), warning.detail
+
+
+def test_what_a_materialx_material_asks_and_no_slice_holds_warns_sharp_lobes_aside():
+    """A document's emission, opacity and transmission were named only in the manifest: an invisible, emissive
+    material baked as an opaque reflector without a word, --strict included. The separable model's hook lists
+    them (sharp lobes are baked, and the error warning names those)."""
+    from atlasgen.models import get_model
+
+    sharp = "specular_roughness = 0.02: a lobe sharper than the renderer's sharpest"
+    spec = {"not_in_table": [sharp, "emission = 1.0: emission", "opacity = [0.0, 0.0, 0.0]: opacity"],
+            "sharp_lobes": [sharp]}  # fmt: skip
+    material = SimpleNamespace(source="lib.mtlx", name="glow", params={"materialx": spec}, nonfinite_tolerance=0,
+                               model=get_model("separable"))  # fmt: skip
+    (w,) = assess_material(material, {"errors_8bit": {"relative_rms": 0.03}})
+    assert w.cause == "not in the table" and w.figure is None
+    assert str(w) == ("lib.mtlx: material 'glow': baked without what its slices cannot hold: emission = 1.0: emission; "
+                      "opacity = [0.0, 0.0, 0.0]: opacity")  # fmt: skip
+    spec["not_in_table"] = [sharp]
+    assert assess_material(material, {"errors_8bit": {"relative_rms": 0.03}}) == []
+    assert get_model("lambert").unheld_inputs({}) == []
