@@ -89,11 +89,14 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
 
     nonfinite = count_nonfinite(extra)
     tolerance = int(getattr(material, "nonfinite_tolerance", 0) or 0)
-    if nonfinite > tolerance:
-        raise MaterialError(material.source, _field_at_fault(material),
-                            f"material {material.name!r}: the source gave {nonfinite} non-finite samples (NaN or inf); "
-                            f"expected finite ones, or nonfinite_tolerance >= {nonfinite} to bake them as 0")  # fmt: skip
     model = getattr(material, "model", None)
+    if nonfinite > tolerance:
+        fault = model.nonfinite_fault(material.params) if model is not None else None
+        field, expected = fault or (_field_at_fault(material),
+                                    f"expected finite ones, or nonfinite_tolerance >= {nonfinite} to bake them as 0")  # fmt: skip
+        raise MaterialError(material.source, field,
+                            f"material {material.name!r}: the source gave {nonfinite} non-finite samples (NaN or inf); "
+                            f"{expected}")  # fmt: skip
     unheld = model.unheld_inputs(material.params) if model is not None else []
     if unheld:
         warn("not in the table", None, f"baked without what its slices cannot hold: {'; '.join(unheld)}")

@@ -365,6 +365,13 @@ class Model:
         (:func:`atlasgen.bake.quality.assess_material`), so nothing is dropped without a word. The default: none."""
         return []
 
+    def nonfinite_fault(self, values: dict) -> tuple[str, str] | None:
+        """Where a bake that met non-finite samples of this material's source points the user: ``(field, what was
+        expected)``, for a definition that cannot set ``nonfinite_tolerance`` (a MaterialX document) or whose
+        input at fault the model can tell. The default, None: the material file's ``type`` (or ``bsdf``), and
+        ``nonfinite_tolerance`` as the way to bake them as 0."""
+        return None
+
     def radiance_rebuilds(self, entry: MaterialEntry, atlas, float_slices=None) -> dict[str, RadianceRebuild]:
         """CPU twins of the lighting pass for ``entry``, by what they read: ``"8bit"`` the
         atlas's stored texels (what the GPU samples) and, where it can be computed,

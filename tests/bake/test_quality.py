@@ -126,3 +126,23 @@ def test_what_a_materialx_material_asks_and_no_slice_holds_warns_sharp_lobes_asi
     spec["not_in_table"] = [sharp]
     assert assess_material(material, {"errors_8bit": {"relative_rms": 0.03}}) == []
     assert get_model("lambert").unheld_inputs({}) == []
+
+
+@pytest.mark.parametrize(("inputs", "field", "tail"), [
+    ({"base_color": (0.8, 0.8, 0.8), "specular_IOR": 3e38}, "p.specular_IOR", "; got specular_IOR = 3e+38, far out of range"),
+    ({"base_color": (0.8, 0.8, 0.8)}, "p", "turns into finite values"),
+])  # fmt: skip
+def test_non_finite_samples_of_a_materialx_material_name_its_input_not_a_toml_field(inputs, field, tail):
+    """The refusal named field 'type' and offered nonfinite_tolerance, a TOML key no document can set; it names the
+    document's material and, where one is far out of range, the input (a specular_IOR of 3e38 overflows the oracle)."""
+    from atlasgen.models import get_model
+
+    spec = {"material": "p", "inputs": inputs, "not_in_table": [], "sharp_lobes": []}
+    material = SimpleNamespace(source="lib.mtlx", name="p", params={"materialx": spec}, nonfinite_tolerance=0,
+                               model=get_model("separable"))  # fmt: skip
+    with pytest.raises(MaterialError) as info:
+        assess_material(material, {"nonfinite_samples": 12})
+    message = str(info.value)
+    assert message.startswith(f"lib.mtlx: field '{field}': material 'p': the source gave 12 non-finite samples (NaN or "
+                              "inf); expected inputs MaterialX's shader (float32 GLSL) turns into finite values")  # fmt: skip
+    assert message.endswith(tail) and "nonfinite_tolerance" not in message
