@@ -76,6 +76,22 @@ def _field_at_fault(material) -> str:
     return "bsdf" if material.params.get("bsdf") else "type"
 
 
+def check_nonfinite(material, extra: dict) -> None:
+    """Raise :class:`MaterialError` naming the field at fault (:meth:`~atlasgen.models.base.Model.nonfinite_fault`,
+    else the material file's ``type`` or ``bsdf``) when the bake replaced more non-finite samples than
+    ``material.nonfinite_tolerance`` allows (``extra``: the model's manifest fields so far)."""
+    nonfinite = count_nonfinite(extra)
+    if nonfinite <= int(getattr(material, "nonfinite_tolerance", 0) or 0):
+        return
+    model = getattr(material, "model", None)
+    fault = model.nonfinite_fault(material.params) if model is not None else None
+    field, expected = fault or (_field_at_fault(material),
+                                f"expected finite ones, or nonfinite_tolerance >= {nonfinite} to bake them as 0")  # fmt: skip
+    raise MaterialError(material.source, field,
+                        f"material {material.name!r}: the source gave {nonfinite} non-finite samples (NaN or inf); "
+                        f"{expected}")  # fmt: skip
+
+
 def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRESHOLD) -> list[MaterialWarning]:
     """The warnings of one baked material from its manifest fields ``extra`` (the model's, merged).
 
@@ -87,16 +103,10 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
     def warn(cause, figure, detail):
         out.append(MaterialWarning(material.source, material.name, cause, figure, detail))
 
+    check_nonfinite(material, extra)
     nonfinite = count_nonfinite(extra)
     tolerance = int(getattr(material, "nonfinite_tolerance", 0) or 0)
     model = getattr(material, "model", None)
-    if nonfinite > tolerance:
-        fault = model.nonfinite_fault(material.params) if model is not None else None
-        field, expected = fault or (_field_at_fault(material),
-                                    f"expected finite ones, or nonfinite_tolerance >= {nonfinite} to bake them as 0")  # fmt: skip
-        raise MaterialError(material.source, field,
-                            f"material {material.name!r}: the source gave {nonfinite} non-finite samples (NaN or inf); "
-                            f"{expected}")  # fmt: skip
     unheld = model.unheld_inputs(material.params) if model is not None else []
     if unheld:
         warn("not in the table", None, f"baked without what its slices cannot hold: {'; '.join(unheld)}")

@@ -22,6 +22,7 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor
 
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
+from atlasgen.bake.quality import check_nonfinite
 from atlasgen.models.base import SliceSet
 
 __all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "worker_pool"]
@@ -120,6 +121,8 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
                 if cache_dir is not None:
                     store_cached(cache_dir, material, slices, slices.timings["bake_s"])
                 results[i] = (slices, False)
+            # A material the assembly will refuse is not reported as baked first (a second line on stderr).
+            check_nonfinite(material, results[i][0].extra)
             if progress is not None:
                 progress(material.name)
     finally:

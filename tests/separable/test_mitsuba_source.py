@@ -145,8 +145,10 @@ def test_nan_and_inf_from_a_mitsuba_bsdf_are_masked_counted_and_reported(mitsuba
     mi.register_bsdf("atlasgen_test_broken", lambda props: BrokenBSDF(props))
     body = 'type = "separable"\nsource = "mitsuba"\nbsdf = { type = "atlasgen_test_broken" }\nterms = 2\n'
     write_material("broken", body)
+    reported = []
     with pytest.raises(MaterialError, match=r"broken.toml: field 'bsdf': .* non-finite samples .*nonfinite_tolerance >= "):
-        bake_atlas(read_materials([tmp_path / "materials"]))
+        bake_atlas(read_materials([tmp_path / "materials"]), progress=reported.append)
+    assert reported == []  # refused as its slices arrive: never reported baked first (a second line on stderr)
     write_material("broken", body + "nonfinite_tolerance = 1000000\n")
     result = bake_atlas(read_materials([tmp_path / "materials"]))
     (warning,) = [w for w in result.material_warnings if w.cause == "non-finite samples"]
