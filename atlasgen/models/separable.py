@@ -336,14 +336,15 @@ class Separable(Model):
         return [clause for clause in spec.get("not_in_table") or [] if clause not in sharp]
 
     def nonfinite_fault(self, values: dict) -> tuple[str, str] | None:
-        """A MaterialX source: the material's input of the largest magnitude at or above 1e6, where one is (an
+        """A MaterialX source: the material's input of the largest magnitude at or above 1e6, where one is (a
         ``specular_IOR`` of 3e38 overflows the oracle's float32 GLSL), else the material; a document has no
         ``nonfinite_tolerance`` to offer."""
         spec = values.get("materialx")
         if not spec:
             return None
-        size = {key: float(np.max(np.abs(np.asarray(value, dtype=float)))) for key, value in (spec.get("inputs") or {}).items()
-                if isinstance(value, int | float | tuple | list) and not isinstance(value, bool)}  # fmt: skip
+        numbers = {key: np.abs(np.asarray(value, dtype=float)) for key, value in (spec.get("inputs") or {}).items()
+                   if isinstance(value, int | float | tuple | list) and not isinstance(value, bool)}  # fmt: skip
+        size = {key: float(a.max()) for key, a in numbers.items() if a.size}
         key = max((k for k, v in size.items() if v >= 1e6), key=lambda k: size[k], default=None)
         expected = "expected inputs MaterialX's shader (float32 GLSL) turns into finite values"
         if key is None:
