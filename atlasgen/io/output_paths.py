@@ -64,22 +64,31 @@ def check_output_paths(outputs, inputs=()) -> None:
     inputs = [(Path(p), role) for p, role in inputs]
     seen: dict[str, tuple[Path, str]] = {}
     for path, role in outputs:
-        shown = path.as_posix()
-        if path.is_dir():
-            raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
-        blocker = _blocking_file(path)
-        if blocker is not None:
-            raise _blocked(path.parent, blocker)
-        refuse_inside_store(path)
-        key = _key(path)
-        if key in seen:
-            other, other_role = seen[key]
-            raise OutputError(f"{shown}: both {other_role} and {role}; expected a different path for each output")
-        seen[key] = (path, role)
-        for source, source_role in inputs:
-            if _same_file(path, source):
-                raise OutputError(f"{shown}: {role} would overwrite {source_role} ({source.as_posix()}); "
-                                  "expected an output path that is not an input")  # fmt: skip
+        try:
+            _check_output(path, role, inputs, seen)
+        except OSError as exc:  # a name the system cannot take (too long, say): stat() itself fails
+            raise OutputError(f"{path.as_posix()}: {role}: cannot write ({exc.strerror or type(exc).__name__}); "
+                              "expected a path the file system can hold") from None  # fmt: skip
+
+
+def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
+    """:func:`check_output_paths` for one output, ``seen`` holding the outputs checked before it."""
+    shown = path.as_posix()
+    if path.is_dir():
+        raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
+    blocker = _blocking_file(path)
+    if blocker is not None:
+        raise _blocked(path.parent, blocker)
+    refuse_inside_store(path)
+    key = _key(path)
+    if key in seen:
+        other, other_role = seen[key]
+        raise OutputError(f"{shown}: both {other_role} and {role}; expected a different path for each output")
+    seen[key] = (path, role)
+    for source, source_role in inputs:
+        if _same_file(path, source):
+            raise OutputError(f"{shown}: {role} would overwrite {source_role} ({source.as_posix()}); "
+                              "expected an output path that is not an input")  # fmt: skip
 
 
 def check_suffix(path, role: str, suffixes) -> None:

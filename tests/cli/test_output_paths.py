@@ -252,3 +252,14 @@ def test_a_file_a_materialx_document_includes_is_an_input_too(tmp_path, output):
     role = {"--depfile": "--depfile", "--preview": "--preview", "-o": "the include written beside the atlas"}[output]
     line = _refused(tmp_path, args, f"{role} would overwrite a file the material file of 'red' includes")
     assert included.as_posix() in line
+
+
+@pytest.mark.parametrize("option", ["-o", "--depfile", "--preview"])
+def test_a_name_the_file_system_cannot_hold_is_one_line_not_an_internal_error(tmp_path, library, option):
+    """A 244-character stem: stat() of X.timings.json raised ENAMETOOLONG through the overlap check, exit 1."""
+    long = "a" * 260  # NAME_MAX is 255
+    path = {"-o": f"{long[:244]}.dds", "--depfile": f"{long}.d", "--preview": f"{long}.png"}[option]
+    args = ["bake", str(library), "-o", str(tmp_path / ("a.dds" if option != "-o" else path)), "-q"]
+    args += [option, str(tmp_path / path)] if option != "-o" else []
+    line = _refused(tmp_path, args, "cannot write (File name too long); expected a path the file system can hold")
+    assert line.startswith(f"atlasgen: error: {tmp_path.as_posix()}/aaa")
