@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import SceneError
+from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.text import MISSING, path_kind
 
@@ -269,9 +270,18 @@ def make_material_ball(segments: int = 96) -> Mesh:
     return revolve_profile(MATERIAL_BALL_PROFILE, segments)
 
 
+def import_trimesh():
+    """trimesh, imported with Ctrl-C and SIGTERM held (:func:`~atlasgen.interrupts.deferred_interrupts`): its modules
+    import their optional dependencies under ``except BaseException``, so an interrupt landing while it loads was
+    swallowed, and the command ran on to exit 0 (or failed later on trimesh's placeholder for what it missed)."""
+    with deferred_interrupts():
+        import trimesh
+    return trimesh
+
+
 def encode_mesh_ply(mesh: Mesh) -> bytes:
     """A binary PLY of ``mesh`` with its vertex normals, written by trimesh (for ``shape = "mesh"`` scenes)."""
-    import trimesh
+    trimesh = import_trimesh()
 
     shape = trimesh.Trimesh(vertices=mesh.positions, faces=mesh.indices, vertex_normals=mesh.normals, process=False)
     return shape.export(file_type="ply", encoding="binary", vertex_normal=True)
@@ -353,7 +363,7 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     missing, unreadable, has no triangles, has a vertex that is not finite in float32 (the
     vertex buffer's type) or a face that names a vertex it does not have.
     """
-    import trimesh
+    trimesh = import_trimesh()
 
     path = Path(path)
     kind = path_kind(path)

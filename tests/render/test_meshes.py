@@ -297,3 +297,28 @@ def test_a_ply_declaring_more_than_it_holds_is_refused_on_one_line(tmp_path, fmt
     if fmt != "binary_big_endian":  # the triangle is written little-endian
         path.write_bytes(_ply(3, 1, fmt))
         assert read_mesh(path).indices.reshape(-1).tolist() == [0, 1, 2]  # the truthful header reads
+
+
+def test_a_ctrl_c_while_trimesh_loads_is_raised_once_it_has_loaded(tmp_path, monkeypatch):
+    """trimesh imports its optional modules under ``except BaseException``: a Ctrl-C landing there was swallowed and
+    the render ran on to exit 0. A stand-in module does what trimesh does; the interrupt comes out after the import."""
+    import signal
+    import sys
+
+    from atlasgen.render.meshes import import_trimesh
+
+    (tmp_path / "trimesh.py").write_text(
+        "import os, signal\ntry:\n    os.kill(os.getpid(), signal.SIGINT)\n    import _no_such_optional_module\n"
+        "except BaseException:\n    pass\nLOADED = True\n"
+    )
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # raises KeyboardInterrupt
+    monkeypatch.syspath_prepend(str(tmp_path))
+    real = sys.modules.pop("trimesh", None)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            import_trimesh()
+        assert sys.modules["trimesh"].LOADED  # the import itself ran to its end
+    finally:
+        sys.modules.pop("trimesh", None)
+        if real is not None:
+            sys.modules["trimesh"] = real
