@@ -33,7 +33,9 @@ CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS)) $(patsubst %,$(CACHE_DIR)/%.
 # Every file the bake always writes, as one grouped target: one deleted (build/atlas.json) re-assembles,
 # where only atlas.dds was a target and make saw nothing to do. (atlas.separable.bin is written only
 # for separable materials, so it is not one of them.)
-ATLAS_SET := $(addprefix $(BUILD)/atlas,.dds .json .wgsl .glsl .hlsl .timings.json -preview.png)
+# What every bake writes beside its atlas (-o X.dds), the library's and each scene's.
+BAKE_SUFFIXES := .dds .json .wgsl .glsl .hlsl .timings.json
+ATLAS_SET := $(addprefix $(BUILD)/atlas,$(BAKE_SUFFIXES) -preview.png)
 # Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
 # below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
 # agree); __init__.py holds the version, which is part of every key.
@@ -160,8 +162,7 @@ SCENE_ATLASES := $(patsubst scenes/%.toml,$(BUILD)/scenes/%.dds,$(SCENE_FILES))
 SCENE_IMAGES := $(SCENE_ATLASES:.dds=.png)
 # Every file a scene's bake always writes, one set per scene: a deleted build/scenes/X.json re-bakes
 # the set, where only X.dds was a target and the render failed on the missing manifest.
-SCENE_SUFFIXES := .dds .json .wgsl .glsl .hlsl .timings.json
-SCENE_SETS := $(foreach a,$(SCENE_ATLASES),$(addprefix $(a:.dds=),$(SCENE_SUFFIXES)))
+SCENE_SETS := $(foreach a,$(SCENE_ATLASES),$(addprefix $(a:.dds=),$(BAKE_SUFFIXES)))
 -include $(SCENE_ATLASES:.dds=.d)
 # A scene atlas whose depfile is gone: make no longer knows which materials it holds, so a change to
 # one of them would leave it stale. It is baked again, which writes the depfile. (The depfile cannot
@@ -171,8 +172,7 @@ SCENES_WITHOUT_DEPFILE := $(foreach a,$(SCENE_ATLASES),$(if $(wildcard $(a)),$(i
 $(SCENES_WITHOUT_DEPFILE): no-depfile
 
 # A pattern rule with several targets makes one set: one recipe writes them all.
-$(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(BUILD)/scenes/%.glsl $(BUILD)/scenes/%.hlsl \
-$(BUILD)/scenes/%.timings.json &: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
 render: $(SCENE_SETS) $(SCENE_IMAGES)

@@ -21,7 +21,7 @@ MATERIALS = ("clay", "snow", "separable-gold")
 SEPARABLE = ("separable-gold",)
 #: Scene -> the materials it uses, as the bake's --depfile records them.
 SCENES = {"one": ("clay",), "two": ("snow", "separable-gold")}
-#: What a scene's bake writes, one set (the Makefile's SCENE_SUFFIXES).
+#: What a scene's bake writes, one set (the Makefile's BAKE_SUFFIXES).
 SCENE_SET = ("dds", "json", "wgsl", "glsl", "hlsl", "timings.json")
 T0 = 1_700_000_000  # sources
 T_BUILT = T0 + 100  # every output, all equally new: make treats them as up to date

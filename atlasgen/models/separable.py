@@ -342,9 +342,8 @@ class Separable(Model):
         spec = values.get("materialx")
         if not spec:
             return None
-        numbers = {key: np.abs(np.asarray(value, dtype=float)) for key, value in (spec.get("inputs") or {}).items()
-                   if isinstance(value, int | float | tuple | list) and not isinstance(value, bool)}  # fmt: skip
-        size = {key: float(a.max()) for key, a in numbers.items() if a.size}
+        size = {key: float(np.max(np.abs(value))) for key, value in (spec.get("inputs") or {}).items()
+                if isinstance(value, int | float | tuple | list) and not isinstance(value, bool) and np.size(value)}  # fmt: skip
         key = max((k for k, v in size.items() if v >= 1e6), key=lambda k: size[k], default=None)
         expected = "expected inputs MaterialX's shader (float32 GLSL) turns into finite values"
         if key is None:
