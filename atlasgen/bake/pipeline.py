@@ -403,8 +403,14 @@ def encode_atlas_texture(result: BakeResult, path, manifest_bytes: bytes, zstd: 
 def relative_source(source: str, manifest_dir) -> str:
     """A material file as the manifest stores it: relative to the manifest's folder, with
     forward slashes, so the manifest's bytes do not depend on the working directory (or
-    leak an absolute path); :meth:`atlasgen.io.atlas.Atlas.source_path` resolves it back."""
-    return Path(os.path.relpath(os.path.abspath(source), os.path.abspath(manifest_dir))).as_posix()
+    leak an absolute path); :meth:`atlasgen.io.atlas.Atlas.source_path` resolves it back.
+
+    Both folders are resolved first: a ``..`` is followed from a folder's real place, so a path
+    through a symlinked folder would be wrong and would make the bytes depend on the route taken.
+    The file's own name is kept, so a symlinked material file is named as the user named it."""
+    folder, name = os.path.split(os.path.abspath(source))
+    real_source = os.path.join(os.path.realpath(folder), name)
+    return Path(os.path.relpath(real_source, os.path.realpath(manifest_dir))).as_posix()
 
 
 def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[bytes, Manifest, bytes]:

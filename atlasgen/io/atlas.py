@@ -71,8 +71,12 @@ class Atlas:
         return self.path.with_suffix(".json")
 
     def source_path(self, entry: MaterialEntry) -> Path:
-        """The material file of ``entry``: its ``source`` is relative to the manifest's folder."""
-        return Path(os.path.normpath(self.manifest_path.parent / entry.source))
+        """The material file of ``entry``: its ``source`` is relative to the manifest's folder, from
+        that folder's real place (a ``..`` out of a symlinked folder leaves its target). Spelled
+        from the path the atlas was opened by where that reaches the same file."""
+        spelled = Path(os.path.normpath(self.manifest_path.parent / entry.source))
+        real = Path(os.path.normpath(Path(os.path.realpath(self.manifest_path.parent)) / entry.source))
+        return spelled if os.path.realpath(spelled) == os.path.realpath(real) else real
 
     def material(self, name: str) -> MaterialEntry:
         """The manifest entry of ``name``; InputError listing the known names otherwise."""

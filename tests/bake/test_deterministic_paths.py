@@ -71,3 +71,24 @@ def test_readers_resolve_sources_against_the_manifests_folder(tmp_path, monkeypa
                                    "--scene", "nonexistent", "-o", "out"])  # fmt: skip
     assert "changed since" not in res.output and "is not in" not in res.output, res.output
     assert res.exit_code != 0 and "nonexistent" in res.output, res.output  # it got as far as the scenes
+
+
+def test_a_symlinked_output_folder_gives_the_real_folders_bytes_and_sources(tmp_path, monkeypatch):
+    # The link sits deeper than its target: a ``..`` counted from the link's own path would
+    # name another file, and the manifest's bytes would depend on the route to the folder.
+    project = tmp_path / "project"
+    (project / "materials").mkdir(parents=True)
+    (project / "materials" / "clay.toml").write_text('type = "lambert"\n')
+    (project / "build").mkdir()
+    (tmp_path / "a" / "b" / "c").mkdir(parents=True)
+    link = tmp_path / "a" / "b" / "c" / "build"
+    link.symlink_to(project / "build", target_is_directory=True)
+    _bake(project, ["materials/clay.toml", "-o", "build/atlas.dds"], monkeypatch)
+    real = [(project / "build" / f"atlas{s}").read_bytes() for s in SUFFIXES]
+    _bake(tmp_path, ["project/materials/clay.toml", "-o", str(link / "linked.dds")], monkeypatch)
+    linked = [(project / "build" / f"linked{s}").read_bytes() for s in SUFFIXES]
+    assert json.loads(linked[1])["materials"][0]["source"] == "../materials/clay.toml"
+    assert linked[1:] == real[1:] and linked[0] == real[0]
+    # Read through the link, the source is found where the manifest means it.
+    atlas = read_atlas(link / "linked.dds")
+    assert atlas.source_path(atlas.material("clay")).resolve() == (project / "materials" / "clay.toml").resolve()
