@@ -12,12 +12,16 @@ of jobs; the cache is read and written here, in the calling process only.
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import os
 import pickle
+import shutil
 import signal
+import tempfile
 import threading
 import time
+import traceback
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 
@@ -25,7 +29,7 @@ from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.bake.quality import check_nonfinite
 from atlasgen.models.base import SliceSet
 
-__all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "worker_pool"]
+__all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "worker_pool", "Workers", "WorkerTraceback"]
 
 
 def available_cpus() -> int:
@@ -75,23 +79,79 @@ def _picklable_filters() -> list:
     return keep
 
 
+class WorkerTraceback(Exception):
+    """The traceback a worker's error was raised with, as text: the ``__cause__`` of that error
+    when it is raised again in the calling process (shown by ``--debug``)."""
+
+
+def _outcome_to_file(function, folder: str, item) -> str:
+    """In a worker: ``function(item)``, or the error it raised, pickled to a new file in ``folder``;
+    the file's name.
+
+    Only the name crosses the executor's pipe. A message shorter than PIPE_BUF is written in one
+    piece, so a worker ended at any instant cannot leave half a result in the pipe, which the
+    executor would wait for the rest of for ever; that is what lets :func:`worker_pool` end its
+    workers at once instead of letting their tasks finish.
+    """
+    try:
+        outcome = (True, function(item), None)
+    except Exception as exc:  # noqa: BLE001 - raised again in the caller, as it was raised here
+        outcome = (False, exc, traceback.format_exc())
+    handle, path = tempfile.mkstemp(dir=folder, suffix=".pickle")
+    with os.fdopen(handle, "wb") as file:
+        pickle.dump(outcome, file, protocol=pickle.HIGHEST_PROTOCOL)
+    return os.path.basename(path)
+
+
+class Workers:
+    """A pool of worker processes whose results come back through files (:func:`_outcome_to_file`)."""
+
+    def __init__(self, executor: ProcessPoolExecutor, folder: str):
+        self._executor = executor
+        self._folder = folder
+
+    def map(self, function, items):
+        """``function(item)`` for each of ``items``, in their order, computed in the workers (as
+        :meth:`concurrent.futures.Executor.map`); the first error raised is raised here."""
+        for name in self._executor.map(functools.partial(_outcome_to_file, function, self._folder), items):
+            path = os.path.join(self._folder, name)
+            with open(path, "rb") as file:
+                ok, value, remote = pickle.load(file)
+            os.unlink(path)
+            if not ok:
+                raise value from WorkerTraceback(remote)
+            yield value
+
+    def end(self) -> None:
+        """End every worker now, whatever it is running (safe: see :func:`_outcome_to_file`)."""
+        for process in list((getattr(self._executor, "_processes", None) or {}).values()):
+            with contextlib.suppress(OSError, ValueError):
+                process.kill()
+
+
 @contextlib.contextmanager
 def worker_pool(jobs: int):
-    """``jobs`` worker processes (the bake's, the reports' measurements), set up by :func:`_start_worker`;
-    spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
+    """``jobs`` worker processes (the bake's, the reports' measurements) as :class:`Workers`, set up by
+    :func:`_start_worker`; spawned: a forked Mitsuba/LLVM runtime or EGL context is not safe to reuse.
 
     concurrent.futures rather than multiprocessing.Pool: a Pool's terminate() can deadlock
-    (python/cpython#73945, #96995; a CI run here hung in it). On leaving the block, after an error or
-    a Ctrl-C too, what has not started is dropped and the work running is let finish: ending a worker
-    mid-task can cut its result in the pipe, and the executor then waits for the rest of it forever (a
-    test here hung so). A Ctrl-C waits for one task at most.
+    (python/cpython#73945, #96995; a CI run here hung in it). Leaving the block normally waits for
+    the workers to exit. Leaving it on an error, a Ctrl-C, a SIGTERM or a closed generator drops what
+    has not started and ends the workers at once: a Ctrl-C or ``kill`` is answered in a moment, not
+    once the longest bake running (skin's fit: about 30 s) has finished.
     """
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
+    folder = tempfile.mkdtemp(prefix="atlasgen-workers-")
+    executor = ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
+    workers = Workers(executor, folder)
     try:
-        yield pool
+        yield workers
+    except BaseException:
+        workers.end()
+        raise
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        executor.shutdown(wait=True, cancel_futures=True)
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, progress=None) -> list[tuple[SliceSet, bool]]:
@@ -101,8 +161,8 @@ def load_or_bake_all(cache_dir, materials, jobs: int = 1, cache_warnings=None, p
     another, until baking has taken :data:`POOL_AFTER_S`; those still to bake are then baked in up
     to ``jobs`` worker processes, one material to a process at a time (:func:`_baked_in_order`).
     Each is stored in the cache as it returns, in order. The first material in order whose bake
-    raises stops the pool: its error is raised here as the worker raised it, once the bakes already
-    running have finished. So does Ctrl-C, which the workers leave to this process. ``progress`` is
+    raises stops the pool: its error is raised here as the worker raised it, and the bakes still
+    running are ended. So does Ctrl-C, which the workers leave to this process. ``progress`` is
     called with each material's name, in order, once its slices are here.
     """
     results: list = [None] * len(materials)

@@ -130,7 +130,7 @@ def test_jobs_must_be_a_positive_count(tmp_path, write_material):
     assert res.exit_code == 2 and "'-j' / '--jobs'" in res.stderr
 
 
-def _worker_state():
+def _worker_state(_=None):
     """In a bake worker: whether it ignores SIGINT, and the action of its first warning filter."""
     return signal.getsignal(signal.SIGINT) == signal.SIG_IGN, [entry[0] for entry in warnings.filters[:1]]
 
@@ -141,7 +141,7 @@ def test_workers_leave_ctrl_c_to_the_caller_and_take_its_warning_filters():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with workers.worker_pool(1) as pool:
-            state = pool.submit(_worker_state).result()
+            state = next(pool.map(_worker_state, [None]))
     assert state == (True, ["ignore"])
 
 
@@ -225,3 +225,47 @@ def _alive(pid: int) -> bool:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
     except OSError:
         return False
+
+
+def _sleep_or_fail(task):
+    """A worker's task: ``("sleep", s)`` sleeps s seconds; ``("fail", s)`` raises ValueError after s."""
+    what, seconds = task
+    time.sleep(seconds)
+    if what == "fail":
+        raise ValueError("the first task's own error")
+    return seconds
+
+
+def _on_alarm(signum, frame):
+    raise KeyboardInterrupt
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the process tree from /proc")
+@pytest.mark.parametrize("leaving", ["an error", "an interrupt"])
+def test_leaving_the_pool_early_ends_the_running_workers_at_once(leaving, monkeypatch):
+    """A Ctrl-C, a SIGTERM or an error used to wait for every task already running: a ``-j 2`` bake
+    took up to 30 s (skin's fit) to answer a ``kill``. Results now come back through files, so the
+    workers can be ended at any instant without cutting a message in the executor's pipe."""
+    tasks = [("fail", 1.0), ("sleep", 300.0)] if leaving == "an error" else [("sleep", 300.0), ("sleep", 300.0)]
+    expected = ValueError if leaving == "an error" else KeyboardInterrupt
+    if leaving == "an interrupt":
+        previous = signal.signal(signal.SIGALRM, _on_alarm)
+        signal.setitimer(signal.ITIMER_REAL, 8.0)  # the workers spawned and inside their tasks
+    started = time.monotonic()
+    seen = []
+    try:
+        with pytest.raises(expected) as raised:
+            with workers.worker_pool(2) as pool:
+                for value in pool.map(_sleep_or_fail, tasks):
+                    seen.append(value)
+    finally:
+        if leaving == "an interrupt":
+            signal.setitimer(signal.ITIMER_REAL, 0.0)
+            signal.signal(signal.SIGALRM, previous)
+    assert time.monotonic() - started < 60.0, "the pool waited for a task still running"
+    assert seen == [] and not _workers_of(os.getpid()), "a worker outlived the pool"
+    if leaving == "an error":
+        # The worker's own traceback stays with the error, for --debug.
+        assert isinstance(raised.value.__cause__, workers.WorkerTraceback)
+        assert "_sleep_or_fail" in str(raised.value.__cause__)
