@@ -580,6 +580,12 @@ def _scale_pair(v) -> bool:
     return isinstance(v, list) and len(v) == 2 and all(fits_float32(x) for x in v)
 
 
+def _positive_scale_pair(v) -> bool:
+    # A slice's scale maps UNORM8's codes onto [0, peak]: the bake's is always above 0 (1 for a black slice),
+    # and a zero or negative one would blank or invert every texel in an engine that trusts it.
+    return _scale_pair(v) and all(x > 0 for x in v)
+
+
 #: The fields every material entry has, in the order the bake writes them.
 COMMON_KEYS = ("name", "id", "constant", "first_slice", "slice_count", "type", "source", "content_hash",
                "description", "params", "scale", "bias", "flags", "clamped_fraction", "quantization_error")  # fmt: skip
@@ -658,6 +664,7 @@ class MaterialEntry:
         slice_count = f.integer("slice_count", 1)
         pairs = f"a list of {slice_count} (one per slice)"
         pair = (_scale_pair, "an [rgb, alpha] pair of numbers float32 holds")
+        positive_pair = (_positive_scale_pair, "an [rgb, alpha] pair of numbers above 0 that float32 holds")
         first = f.integer("first_slice", 0)
         entry_id = f.integer("id", 0)
         if entry_id != first:
@@ -685,7 +692,7 @@ class MaterialEntry:
             content_hash=f.string("content_hash"),
             description=f.string("description"),
             params=f.mapping("params"),
-            scale=f.array("scale", pairs, pair, slice_count),
+            scale=f.array("scale", pairs, positive_pair, slice_count),
             bias=f.array("bias", pairs, pair, slice_count),
             flags=f.mapping("flags", values=lambda v: isinstance(v, bool), expected="an object of true/false flags"),
             clamped_fraction=f.take("clamped_fraction", "a number in [0, 1]", lambda v: is_number(v) and 0 <= v <= 1),

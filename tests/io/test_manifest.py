@@ -159,10 +159,11 @@ def _manifests(draw):
                 errors_8bit=draw(st.none() | st.builds(BrdfError, relative_rms=_numbers, log_error=_numbers)),
             )  # fmt: skip
         pair = st.lists(_numbers, min_size=2, max_size=2)
+        scale_pair = st.lists(st.floats(min_value=1e-30, max_value=1e6) | st.integers(1, 1000), min_size=2, max_size=2)
         entries.append(MaterialEntry(
             name=f"m{i}", id=first, constant=f"MATERIAL_M{i}", first_slice=first, slice_count=n,
             type=draw(st.sampled_from(["lambert", "separable", "toon"])), description=draw(st.text(max_size=8)),
-            scale=draw(st.lists(pair, min_size=n, max_size=n)), bias=draw(st.lists(pair, min_size=n, max_size=n)),
+            scale=draw(st.lists(scale_pair, min_size=n, max_size=n)), bias=draw(st.lists(pair, min_size=n, max_size=n)),
             flags=draw(st.dictionaries(st.sampled_from(["outline", "nearest"]), st.booleans())),
             clamped_fraction=draw(st.floats(0.0, 1.0)), factors=factors,
             quantization_error=ErrorSummary(max=draw(st.floats(0, 10)), rms=draw(st.floats(0, 10))),
@@ -347,7 +348,17 @@ REFUSED = {
     "scale beyond float32": (
         _with(_set(["materials", 0, "scale"], [[1e39, 1.0]])),
         "materials[0].scale[0]",
-        "an [rgb, alpha] pair of numbers float32 holds, got [1e+39, 1.0]",
+        "an [rgb, alpha] pair of numbers above 0 that float32 holds, got [1e+39, 1.0]",
+    ),
+    "zero scale": (
+        _with(_set(["materials", 0, "scale"], [[0.0, 1.0]])),
+        "materials[0].scale[0]",
+        "an [rgb, alpha] pair of numbers above 0 that float32 holds, got [0.0, 1.0]",
+    ),
+    "negative scale": (
+        _with(_set(["materials", 0, "scale"], [[1.0, -0.5]])),
+        "materials[0].scale[0]",
+        "an [rgb, alpha] pair of numbers above 0 that float32 holds, got [1.0, -0.5]",
     ),
     "constant not an identifier": (
         _with(_set(["materials", 0, "constant"], "X; } fn evil() {")),
