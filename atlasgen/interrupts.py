@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 import threading
 
 from atlasgen.errors import Terminated
@@ -15,6 +17,7 @@ __all__ = [
     "install_start_up_interrupts",
     "end_start_up_interrupts",
     "raise_terminated",
+    "raise_unraisable_interrupts",
 ]
 
 
@@ -29,6 +32,8 @@ def end_start_up_interrupts(command_line: bool = False) -> None:
     """Back to Python's handler: Ctrl-C raises :class:`KeyboardInterrupt`, which a command turns into one line.
 
     SIGTERM: with ``command_line``, :func:`raise_terminated`; imported as a library, Python's default.
+    The command line also takes back an interrupt that lands where Python cannot raise it
+    (:func:`raise_unraisable_interrupts`).
     """
     if threading.current_thread() is not threading.main_thread():
         return
@@ -36,6 +41,37 @@ def end_start_up_interrupts(command_line: bool = False) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if signal.getsignal(signal.SIGTERM) is exit_on_terminate:
         signal.signal(signal.SIGTERM, raise_terminated if command_line else signal.SIG_DFL)
+    if command_line:
+        raise_unraisable_interrupts()
+
+
+def raise_unraisable_interrupts() -> None:
+    """Install a :data:`sys.unraisablehook` that sends an interrupt Python could not raise back to this process.
+
+    A Ctrl-C or SIGTERM whose handler runs inside a finalizer or a weakref callback (the garbage
+    collector's, wgpu's and trimesh's objects have them) raises there, where Python can only print
+    "Exception ignored in ..." with a traceback and carry on: the command then ran to the end and
+    replaced its outputs. The hook sends the same signal again, so that its handler runs in the
+    command's own code, as any other interrupt does. It is sent from another thread a moment later:
+    sent from the hook, the handler would run at the hook's next instruction, inside the hook, where
+    an exception is as unraisable as in the callback. Every other unraisable error goes to the hook
+    that was installed before.
+    """
+    previous = sys.unraisablehook
+    if getattr(previous, "raises_interrupts", False):
+        return
+
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt):
+            signum = signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT
+            resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
+            resend.daemon = True  # a command already ending is not held up for it
+            resend.start()
+            return
+        previous(unraisable)
+
+    hook.raises_interrupts = True  # type: ignore[attr-defined]
+    sys.unraisablehook = hook
 
 
 #: The signals :func:`deferred_interrupts` holds: what each is raised as once the block is done, and the

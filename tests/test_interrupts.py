@@ -53,3 +53,47 @@ def test_the_start_up_handlers_exit_with_the_cli_s_statuses():
     assert (start_up.INTERRUPTED_STATUS, start_up.TERMINATED_STATUS) == (EXIT_INTERRUPTED, EXIT_TERMINATED)
     assert (start_up.INTERRUPTED_STATUS, start_up.TERMINATED_STATUS) == (128 + signal.SIGINT, 128 + signal.SIGTERM)
     assert start_up.TERMINATED_LINE == b"atlasgen: terminated\n"
+
+
+#: A command line's start (atlasgen.cli.main.main), then a signal landing inside a weakref callback, where
+#: Python can only print it, then the command's own code, which must see the interrupt.
+_UNRAISABLE = """
+import gc, os, signal, sys, time, weakref
+from atlasgen.errors import Terminated
+from atlasgen.interrupts import end_start_up_interrupts, raise_terminated
+if sys.argv[2] == "hooked":
+    end_start_up_interrupts(command_line=True)
+signal.signal(signal.SIGTERM, raise_terminated)
+signum = int(sys.argv[1])
+class Thing: pass
+def callback(_):
+    os.kill(os.getpid(), signum)  # the handler runs here, inside the callback
+    for _ in range(1000): pass
+thing = Thing()
+ref = weakref.ref(thing, callback)
+try:
+    del thing
+    gc.collect()
+    time.sleep(0.5)
+    print("ran on")
+except Terminated:
+    print("terminated")
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+@pytest.mark.parametrize(("signum", "seen"), [(signal.SIGINT, "interrupted"), (signal.SIGTERM, "terminated")])
+def test_an_interrupt_inside_a_weakref_callback_reaches_the_command(signum, seen):
+    """Once in 17 signals a render printed Python's "Exception ignored" traceback for an interrupt that landed in
+    a weakref callback, then ran on to exit 0 and replaced its outputs."""
+    import subprocess
+    import sys
+
+    run = lambda how: subprocess.run([sys.executable, "-c", _UNRAISABLE, str(int(signum)), how],  # noqa: E731
+                                     capture_output=True, text=True, timeout=60)  # fmt: skip
+    hooked = run("hooked")
+    assert (hooked.stdout, hooked.stderr) == (seen + "\n", ""), hooked.stderr
+    # Without the hook the interrupt is lost: the stand-in reproduces what the render did.
+    bare = run("bare")
+    assert bare.stdout == "ran on\n" and "Exception ignored" in bare.stderr
