@@ -246,6 +246,11 @@ def _read_light(r: _Reader, raw, i) -> Light:
         r.fail(f"{name}.type", "'point', 'spot' or 'directional'", kind)
     colour = r.vec3(raw, "colour", f"{name}.colour", default=(1.0, 1.0, 1.0), lo=0.0)
     intensity = r.number(raw, "intensity", f"{name}.intensity", lo=0.0)
+    # The renderer takes colour x intensity as one float32: beyond it the product is infinite, and the
+    # GPU's inf x 0 (a pixel the light does not face) is NaN, written as black over the other lights too.
+    if max(colour) * intensity > FLOAT32_MAX:
+        raise SceneError(r.path, f"{name}.intensity", f"expected colour x intensity within float32 (at most "
+                                                      f"{FLOAT32_MAX:.8g}), got {max(colour)!r} x {intensity!r}")  # fmt: skip
     if kind != "spot":
         for key in _SPOT_KEYS:
             if key in raw:

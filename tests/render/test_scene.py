@@ -99,6 +99,12 @@ opacity = 0.25
             "below outer_angle",
         ),
         ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
+        # Each within float32, their product not: the light's packed radiance was infinite, its unlit pixels NaN.
+        (
+            "[[lights]]\ntype = 'point'\ncolour = [10, 1, 1]\nintensity = 1e38\nposition = [0, 0, 0]\n",
+            "lights[0].intensity",
+            "colour x intensity within float32 (at most 3.4028235e+38), got 10.0 x 1e+38",
+        ),
         ("[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, 0]\n", "lights[0].direction", "not all zero"),
         ("[image]\nwidth = 0\n", "image.width", "an integer >= 1 and <= 8192"),
         ("[render]\nmip_distance = 0\n", "render.mip_distance", "> 0"),
