@@ -124,6 +124,18 @@ def test_scene_numbers_must_fit_float32(tmp_path, change, field, expected):
     assert message.startswith(f"{path.as_posix()}: field '{field}': ") and expected in message and len(message) < 300
 
 
+def test_a_camera_close_to_its_target_is_a_small_scene_s_camera(tmp_path):
+    """The camera's target was compared with an absolute tolerance of 1e-8: a camera 5e-9 from it was refused."""
+    from atlasgen.materials.scene import read_scene
+
+    path = tmp_path / "s.toml"
+    path.write_text("[camera]\nposition = [0, 0, 5e-9]\ntarget = [0, 0, 0]\nnear = 1e-10\nfar = 1e-8\n")
+    assert read_scene(path).camera.position == (0.0, 0.0, 5e-9)
+    path.write_text("[camera]\nposition = [0, 0, 1]\ntarget = [0, 0, 1.00000001]\n")  # one point in float32
+    with pytest.raises(SceneError, match=r"field 'camera.target': expected a point different"):
+        read_scene(path)
+
+
 def test_a_camera_offset_beyond_float32_is_refused(tmp_path):
     from atlasgen.materials.scene import read_scene
 
@@ -182,7 +194,8 @@ def test_mitsuba_bsdf_tables_are_checked(expect_rejected, mitsuba_llvm, bsdf, fi
 @pytest.mark.slow
 def test_adversarial_scenes_render_only_finite_pixels(tmp_path, gpu_device):
     """The largest float32 intensities, lights and objects far away or inside each other,
-    degenerate meshes and scales: every pixel of the EXR and of the PNG's source is finite."""
+    degenerate meshes and scales: every pixel of the EXR and of the PNG's source is finite. (A light
+    whose colour x intensity passes float32 is refused: tests/render/test_scene.py.)"""
     import OpenImageIO as oiio
 
     from atlasgen.cli.main import app
@@ -205,7 +218,7 @@ def test_adversarial_scenes_render_only_finite_pixels(tmp_path, gpu_device):
             type = "directional"
             direction = [0, -1, -1]
             intensity = {big}
-            colour = [{big}, {big}, {big}]
+            colour = [1, 0.5, 1]
             [[objects]]
             shape = "sphere"
             material = "gloss"

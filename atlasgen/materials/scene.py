@@ -214,7 +214,9 @@ def _read_camera(r: _Reader, raw) -> Camera:
     position = r.vec3(raw, "position", "camera.position")
     target = r.vec3(raw, "target", "camera.target")
     up = r.vec3(raw, "up", "camera.up", default=(0.0, 1.0, 0.0), nonzero=True)
-    if np.allclose(position, target):
+    # Compared in float32, the renderer's precision, and with no absolute tolerance: a camera 5e-9 from its
+    # target is a small scene's camera, not the same point.
+    if np.array_equal(np.float32(position), np.float32(target)):
         raise SceneError(r.path, "camera.target", "expected a point different from camera.position")
     forward = np.subtract(target, position)
     if np.abs(forward).max() > FLOAT32_MAX:
