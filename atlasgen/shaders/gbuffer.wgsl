@@ -29,12 +29,21 @@ struct GBufferOut {
     @location(2) material: u32,
 };
 
+// v over its largest component: the same direction at a length in [1, sqrt 3], so that dot(v, v) neither
+// overflows nor underflows. An object scaled by 1e11 has normals of length 1e-11 through its normal
+// matrix and faces of area 1e22 a pixel, and one flattened by 1e-30 normals of 1e30: the squares
+// passed float32's range, and every pixel got the zero vector's fallback normal.
+fn rescaled(v: vec3<f32>) -> vec3<f32> {
+    let m = max(max(abs(v.x), abs(v.y)), abs(v.z));
+    return select(v, v / m, m > 0.0);
+}
+
 @fragment
 fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> GBufferOut {
     // Derivatives must be taken in uniform control flow, so before any branch.
-    let face = cross(dpdx(in.world), dpdy(in.world));
+    let face = cross(rescaled(dpdx(in.world)), rescaled(dpdy(in.world)));
     let to_eye = frame.eye.xyz - in.world;
-    var n = in.normal;
+    var n = rescaled(in.normal);
     let len2 = dot(n, n);
     if (len2 > 1e-20) {
         n = n * inverseSqrt(len2);

@@ -64,3 +64,69 @@ def test_the_gpu_packs_the_normals_the_numpy_decoder_reads(renderer, scene_from)
     exact = points / np.linalg.norm(points, axis=-1, keepdims=True)
     angle = np.arccos(np.clip((result.aov("normal")[on] * exact).sum(-1), -1.0, 1.0))
     assert on.sum() > 300 and np.median(angle) < 2e-3 and angle.max() < 2e-2
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("size", [1e11, 1e-11])
+def test_a_sphere_of_any_size_keeps_its_normals(renderer, scene_from, size):
+    """The same view of a sphere scaled by 1e11 (and 1e-11), the camera with it: its normal matrix
+    scales normals by 1/size, and the squared length of a 1e-11 normal (or of a face's 1e22
+    cross product) passed float32's range, so every pixel got the fallback normal (0, 0, -1)."""
+    from atlasgen.render.camera import pixel_rays
+
+    s = repr(size)
+    scene = scene_from(
+        f"""
+        [camera]
+        position = [{0.3 * size!r}, {0.8 * size!r}, {3.0 * size!r}]
+        target = [0, 0, 0]
+        fov = 50
+        near = {0.05 * size!r}
+        far = {10.0 * size!r}
+        [image]
+        width = 64
+        height = 48
+        [[lights]]
+        type = "directional"
+        direction = [0, -1, -1]
+        intensity = 2
+        [[objects]]
+        shape = "sphere"
+        material = "lambert"
+        segments = 256
+        scale = {s}
+        """
+    )
+    result = renderer.render(scene)
+    on = result.aov("id") != 0xFFFF
+    points = np.asarray(scene.camera.position) + pixel_rays(scene.camera, 64, 48)[on] * result.aov("depth")[on][:, None]
+    exact = points / np.linalg.norm(points, axis=-1, keepdims=True)
+    angle = np.arccos(np.clip((result.aov("normal")[on] * exact).sum(-1), -1.0, 1.0))
+    assert on.sum() > 300 and np.median(angle) < 2e-3 and angle.max() < 2e-2
+
+
+@pytest.mark.gpu
+def test_a_flattened_sphere_faces_along_its_flat_axis(renderer, scene_from):
+    """A sphere scaled by [1, 1e-30, 1] is a disc facing +y: its normal matrix scales y by 1e30, whose
+    square overflowed float32, and the disc's top went unlit under a light from above."""
+    scene = scene_from(
+        """
+        [camera]
+        position = [0, 5, 0.1]
+        target = [0, 0, 0]
+        [image]
+        width = 48
+        height = 48
+        [[lights]]
+        type = "directional"
+        direction = [0, -1, 0]
+        intensity = 2
+        [[objects]]
+        shape = "sphere"
+        material = "lambert"
+        scale = [1, 1e-30, 1]
+        """
+    )
+    result = renderer.render(scene)
+    on = result.aov("id") != 0xFFFF
+    assert on.sum() > 300 and np.all(result.aov("normal")[on][:, 1] > 0.999)
