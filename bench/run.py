@@ -91,9 +91,29 @@ def _import(name: str, path: str) -> int:
     return _update([name], {name: data}, [importlib.import_module(name).markdown(data)])
 
 
+#: Sections run alone only (``make bench-workflow``): a full run leaves them as they were.
+ALONE = ["workflow"]
+USAGE = (
+    "usage: bench/run.py [SECTION...] | --rewrite SECTION... | --save FILE SECTION | --import SECTION FILE\n"
+    f"sections: {', '.join(SECTIONS + ALONE)}; measured elsewhere: {', '.join(IMPORTED)}"
+)
+
+
+def _unknown(names) -> list:
+    """The names that are no section (an option misspelt, ``--help``): run, they would each be written
+    into BENCHMARKS.md as a failed section."""
+    return [n for n in names if n not in SECTIONS + ALONE]
+
+
 def main(argv=None) -> int:
     names = (argv if argv is not None else sys.argv[1:]) or SECTIONS
     sys.path.insert(0, str(ROOT / "bench"))
+    if names[0] in ("-h", "--help"):
+        print(USAGE)
+        return 0
+    if names[0] not in ("--rewrite", "--save", "--import") and _unknown(names):
+        print(f"bench: no section {', '.join(map(repr, _unknown(names)))}; nothing written\n{USAGE}", file=sys.stderr)
+        return 2
     if names[0] == "--rewrite":
         return _rewrite(names[1:])
     if names[0] == "--save" and len(names) == 3:

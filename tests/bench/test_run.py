@@ -127,3 +127,17 @@ def test_data_measured_before_the_pairs_is_judged_on_the_ratio_of_its_medians(be
     data = render_data(render, software=True, lighting_256_ms=5.0)
     assert render.judge(data)["brute_over_culled_256"][0] == pytest.approx(12.0)
     assert "Frames: median of 11 after 1 warm-up" in render.markdown(data)
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["render", "--only"], ["rendr"]])
+def test_a_name_that_is_no_section_writes_nothing(bench, tmp_path, monkeypatch, capsys, argv):
+    """`bench/run.py --help` used to run '--help' as a section, and write it into BENCHMARKS.md and
+    BENCHMARKS.json as a failed one."""
+    run, _ = bench
+    monkeypatch.setattr(run, "ROOT", tmp_path)
+    monkeypatch.setattr(run, "SECTIONS", ["render"])
+    status = run.main(argv)
+    assert status == (0 if argv == ["--help"] else 2)
+    assert not (tmp_path / "BENCHMARKS.md").exists() and not (tmp_path / "BENCHMARKS.json").exists()
+    printed = capsys.readouterr()
+    assert "usage: bench/run.py" in printed.out + printed.err
