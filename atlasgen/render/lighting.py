@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from atlasgen.errors import SceneError
+from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
 from atlasgen.render.atlas_data import STORAGE
@@ -36,6 +38,7 @@ from atlasgen.shaders.passes import assemble_shader
 
 __all__ = [
     "LightingPass",
+    "check_light_distances",
     "pack_lights",
     "upload_lights",
     "pack_light",
@@ -118,6 +121,38 @@ def pack_light(light, index: int = 0) -> dict:
         item["cos_outer"] = math.cos(outer)
         item["cone"] = (outer, 1.0 / (outer - inner))
     return item
+
+
+#: The farthest a point or spot light reaches a surface in the lighting pass: it squares the distance in float32.
+FARTHEST_REACH = math.sqrt(FLOAT32_MAX)
+#: The smallest positive half float: irradiance below it is 0 in the renderer's frame buffer either way.
+HALF_TINY = 2.0**-24
+
+
+def check_light_distances(scene, boxes) -> None:
+    """Refuse a point or spot light that the lighting pass would lose on part of an object.
+
+    The pass squares the distance d from a light to a surface point in float32, which overflows
+    beyond :data:`FARTHEST_REACH` (1.8e19): the point then gets nothing, where I / d^2 may still be
+    seen (3e38 W/sr at 1e20 gives 0.03 W/m^2, and the image came out black). A light is refused
+    where part of an object's box lies beyond that reach, inside its range, and the irradiance it
+    would send the nearest such point is at least :data:`HALF_TINY`; a light far away and faint,
+    which sends nothing either way, is kept. ``boxes``: each object's world-space ``(min, max)``.
+    """
+    for i, light in enumerate(scene.lights):
+        if light.position is None or light.range <= FARTHEST_REACH:
+            continue
+        position = np.asarray(light.position, dtype=np.float64)
+        radiant = max(light.colour) * light.intensity
+        for k, (low, high) in enumerate(boxes):
+            farthest = float(np.linalg.norm(np.maximum(np.abs(position - low), np.abs(position - high))))
+            if farthest <= FARTHEST_REACH:
+                continue
+            nearest = float(np.linalg.norm(np.clip(position, low, high) - position))
+            if radiant / max(nearest, FARTHEST_REACH) ** 2 >= HALF_TINY:
+                raise SceneError(scene.path, f"lights[{i}].position", f"expected within {FARTHEST_REACH:.3g} of the "
+                                 f"objects it lights (the renderer squares distances in float32), got {farthest:.3g} "
+                                 f"from a corner of objects[{k}]")  # fmt: skip
 
 
 def pack_lights(lights) -> bytes:

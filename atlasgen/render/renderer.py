@@ -45,7 +45,7 @@ from atlasgen.render.device import get_device
 from atlasgen.render.environment import EnvironmentLighting, shows_environment
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, decode_normals, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
-from atlasgen.render.lighting import LightingPass, material_dispatch_wgsl, pack_lights, upload_lights
+from atlasgen.render.lighting import LightingPass, check_light_distances, material_dispatch_wgsl, pack_lights, upload_lights
 from atlasgen.render.meshes import Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.render.translucency import screen_rectangle, sort_back_to_front, translucent_steps
@@ -284,7 +284,7 @@ class Renderer:
             usage=wgpu.BufferUsage.UNIFORM,
         )
         object_data = bytearray()
-        draws, centres, rectangles, farthest = [], [], [], []
+        draws, centres, rectangles, farthest, boxes = [], [], [], [], []
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
         _, _, forward = camera_basis(scene.camera)
         eye = np.asarray(scene.camera.position, dtype=np.float64)
@@ -298,10 +298,12 @@ class Renderer:
                 # Each field fits float32, but their product may not: the GPU's vertices would be inf, the object not drawn.
                 raise SceneError(scene.path, f"objects[{obj.index}]", "expected the object within float32's range once "
                                  f"scaled, rotated and translated, got a bounding-box corner at {float(np.max(np.abs(world))):.3g}")  # fmt: skip
+            boxes.append((world.min(0), world.max(0)))
             centres.append(0.5 * (world.min(0) + world.max(0)))
             farthest.append(float(np.max((world - eye) @ forward)))
             rectangles.append(screen_rectangle(world, view_proj, scene.width, scene.height))
             draws.append((mesh, len(draws)))
+        check_light_distances(scene, boxes)
         if not object_data:
             object_data = bytearray(OBJECT_UNIFORM_STRIDE)
         object_buffer = device.create_buffer_with_data(data=bytes(object_data), usage=wgpu.BufferUsage.UNIFORM)

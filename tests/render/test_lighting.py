@@ -242,3 +242,51 @@ def test_light_kinds_compiled_per_scene_add_linearly(renderer, scene_from, kind)
     assert len({key[2] for key in renderer._lighting_passes}) >= 2  # two kind sets, two shaders
     # The frame is rgba16float: each sum is rounded to half precision (2^-11 relative) once or twice.
     np.testing.assert_allclose(both, points + other, rtol=2e-3, atol=1e-4)
+
+
+_FAR_LIGHT = """
+[camera]
+position = [0, 0, 5]
+target = [0, 0, 0]
+[image]
+width = 32
+height = 24
+[[lights]]
+type = "point"
+position = [0, 0, {distance!r}]
+intensity = {intensity!r}
+{extra}
+[[objects]]
+shape = "sphere"
+material = "lambert"
+"""
+
+
+@pytest.mark.parametrize(("distance", "intensity", "extra", "refused"), [
+    (1e20, 3e38, "", True),  # 0.03 W/m^2 at the sphere, which the pass squared to infinity: a black image
+    (1e20, 1e30, "", False),  # 1e-10 W/m^2: below the smallest half float, nothing to lose
+    (3e38, 3e38, "", False),  # 3e-39 W/m^2 at the nearest point
+    (1e20, 3e38, "range = 1e19", False),  # its range ends before the squares overflow
+    (1e19, 3e36, "", False),  # the same irradiance, within reach
+])  # fmt: skip
+def test_a_light_beyond_float32_s_reach_of_an_object_it_lights_is_refused(scene_from, distance, intensity, extra, refused):
+    from atlasgen.errors import SceneError
+    from atlasgen.render.lighting import check_light_distances
+
+    scene = scene_from(_FAR_LIGHT.format(distance=distance, intensity=intensity, extra=extra), path="scenes/far.toml")
+    boxes = [(np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0]))]  # the unit sphere's box
+    if not refused:
+        check_light_distances(scene, boxes)
+        return
+    with pytest.raises(SceneError) as info:
+        check_light_distances(scene, boxes)
+    assert str(info.value).startswith("scenes/far.toml: field 'lights[0].position': expected within 1.84e+19 of the")
+
+
+@pytest.mark.gpu
+def test_the_renderer_refuses_a_light_it_would_lose_before_drawing(renderer, scene_from):
+    from atlasgen.errors import SceneError
+
+    scene = scene_from(_FAR_LIGHT.format(distance=1e20, intensity=3e38, extra=""), path="scenes/far.toml")
+    with pytest.raises(SceneError, match=r"lights\[0\].position.*objects\[0\]"):
+        renderer.render(scene)
