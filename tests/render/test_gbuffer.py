@@ -33,12 +33,23 @@ def test_octahedral_words_follow_the_map():
     assert encode_normals(n) == (-32767 & 0xFFFF) | (round(4 / 7 * 32767) << 16)
 
 
+def _angles_from_the_sphere_s_normals(renderer, scene):
+    """The covered pixels of a render of a sphere at the origin, and the angle of each pixel's normal, read
+    back through decode_normals, from the sphere's exact normal at the pixel's surface point."""
+    from atlasgen.render.camera import pixel_rays
+
+    result = renderer.render(scene)
+    on = result.aov("id") != 0xFFFF
+    rays = pixel_rays(scene.camera, scene.width, scene.height)[on]
+    points = np.asarray(scene.camera.position) + rays * result.aov("depth")[on][:, None]
+    exact = points / np.linalg.norm(points, axis=-1, keepdims=True)
+    return on, np.arccos(np.clip((result.aov("normal")[on] * exact).sum(-1), -1.0, 1.0))
+
+
 @pytest.mark.gpu
 def test_the_gpu_packs_the_normals_the_numpy_decoder_reads(renderer, scene_from):
     """Every covered pixel's normal, read back through decode_normals, against the sphere's exact
     normal at the pixel's surface point: an encoder that swapped or dropped a half would miss by far."""
-    from atlasgen.render.camera import pixel_rays
-
     scene = scene_from(
         """
         [camera]
@@ -58,11 +69,7 @@ def test_the_gpu_packs_the_normals_the_numpy_decoder_reads(renderer, scene_from)
         segments = 256
         """
     )
-    result = renderer.render(scene)
-    on = result.aov("id") != 0xFFFF
-    points = np.asarray(scene.camera.position) + pixel_rays(scene.camera, 64, 48)[on] * result.aov("depth")[on][:, None]
-    exact = points / np.linalg.norm(points, axis=-1, keepdims=True)
-    angle = np.arccos(np.clip((result.aov("normal")[on] * exact).sum(-1), -1.0, 1.0))
+    on, angle = _angles_from_the_sphere_s_normals(renderer, scene)
     assert on.sum() > 300 and np.median(angle) < 2e-3 and angle.max() < 2e-2
 
 
@@ -72,8 +79,6 @@ def test_a_sphere_of_any_size_keeps_its_normals(renderer, scene_from, size):
     """The same view of a sphere scaled by 1e11 (and 1e-11), the camera with it: its normal matrix
     scales normals by 1/size, and the squared length of a 1e-11 normal (or of a face's 1e22
     cross product) passed float32's range, so every pixel got the fallback normal (0, 0, -1)."""
-    from atlasgen.render.camera import pixel_rays
-
     s = repr(size)
     scene = scene_from(
         f"""
@@ -97,11 +102,7 @@ def test_a_sphere_of_any_size_keeps_its_normals(renderer, scene_from, size):
         scale = {s}
         """
     )
-    result = renderer.render(scene)
-    on = result.aov("id") != 0xFFFF
-    points = np.asarray(scene.camera.position) + pixel_rays(scene.camera, 64, 48)[on] * result.aov("depth")[on][:, None]
-    exact = points / np.linalg.norm(points, axis=-1, keepdims=True)
-    angle = np.arccos(np.clip((result.aov("normal")[on] * exact).sum(-1), -1.0, 1.0))
+    on, angle = _angles_from_the_sphere_s_normals(renderer, scene)
     assert on.sum() > 300 and np.median(angle) < 2e-3 and angle.max() < 2e-2
 
 
