@@ -75,7 +75,7 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
         image = pixels.astype(np.float64) if same else resample_equirect(pixels, height, width, env.rotate).astype(np.float64)
         image = image * env.intensity
     elif env.source == "sky":
-        image = sky_image(height, width, sky_parameters(env)).astype(np.float64) * env.intensity
+        image = sky_image(height, width, sky_parameters(env), scale=env.intensity).astype(np.float64)
     else:
         raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
     _refuse_beyond_half(env, float(np.max(image)))

@@ -60,8 +60,10 @@ def _smoothstep(e0, e1, x):
     return t * t * (3.0 - 2.0 * t)
 
 
-def sky_image(height: int, width: int, params: SkyParameters | None = None) -> np.ndarray:
-    """The sky of ``params`` as an equirectangular float32 image ``(height, width, 3)`` (Mitsuba's convention)."""
+def sky_image(height: int, width: int, params: SkyParameters | None = None, scale: float = 1.0) -> np.ndarray:
+    """The sky of ``params`` times ``scale`` as an equirectangular float32 image ``(height, width, 3)``
+    (Mitsuba's convention). ``scale`` (an environment's intensity) applies before the image is float32:
+    a sun of 1e38 W/m^2 at intensity 1e-37 is 10 W/m^2, not an infinity times 1e-37."""
     p = SkyParameters() if params is None else params
     d = texel_directions(height, width)
     up = d[..., 1:2]
@@ -79,4 +81,4 @@ def sky_image(height: int, width: int, params: SkyParameters | None = None) -> n
         sky = sky + sun
     # A sun beyond float32 becomes inf, which the environment's check refuses (half-float's range, Environment).
     with np.errstate(over="ignore"):
-        return sky.astype(np.float32)
+        return (sky * scale).astype(np.float32)

@@ -66,6 +66,19 @@ def test_the_sky_turns_its_sun_and_scales():
     np.testing.assert_allclose(irradiance, 8.0 * np.asarray(sky.sun_colour), rtol=1e-5)
 
 
+def _sun_peak(intensity: float, irradiance: float) -> float:
+    """The peak of the sun's disc alone in a 64x128 sky environment, where its few texels hold tens of
+    W/(m^2 sr) for each W/m^2 of sun_irradiance: the sky with it less the sky without."""
+    sky = [environment_image(Environment("sky", intensity=intensity, sky=SkyParameters(sun_irradiance=e)), 64, 128)
+           for e in (irradiance, 0.0)]  # fmt: skip
+    return float((sky[0].astype(np.float64) - sky[1]).max())
+
+
+def test_a_sun_beyond_float32_at_a_small_intensity_is_the_sky_of_their_product():
+    """A sun of 1e38 W/m^2 at intensity 1e-37 (10 W/m^2) was built in float32 first, infinite, and refused."""
+    assert _sun_peak(1e-37, 1e38) == pytest.approx(_sun_peak(1.0, 10.0), rel=1e-5)
+
+
 @pytest.mark.slow
 def test_mitsubas_emitters_are_the_same_environment(tmp_path, mitsuba_llvm):
     mi = mitsuba_llvm
