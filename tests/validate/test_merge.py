@@ -257,3 +257,16 @@ def test_a_result_the_page_cannot_print_is_named_by_file_and_entry(merged, tmp_p
                               f"{row['scene']}) is not a result as atlasgen validate writes it"), message  # fmt: skip
     assert first.as_posix() not in message and "\n" not in message
     assert not (tmp_path / "merged").exists()
+
+
+def test_the_summary_s_sentences_are_spaced(merged):
+    """The template's trim_blocks ate the newline between sentences that follow an ``{% if %}``: the page read
+    "worst mean FLIP 0.0122.21 of 26 judged looks" and "skin/back.No physical reference"."""
+    import re
+
+    out, _, written = merged
+    text = (out / "index.html").read_text(encoding="utf-8")
+    summary = re.sub(r"<[^>]+>", "", text.split('<h2 id="summary">', 1)[1].split("</p>", 1)[0])
+    data = written["data"]["summary"]
+    assert data["look_results"] and data["no_physical_reference"], "the run must hold both sentences"
+    assert not re.search(r"\d\.\d+\.\d|[a-z)]\.[A-Z]", summary), summary
