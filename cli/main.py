@@ -376,7 +376,11 @@ def bake(
         for line in _describe_materials(result):
             click.echo(line, err=True)
     if verbosity != QUIET:
-        echo_warnings([*result.warnings, *result.material_warnings])
+        # An empty atlas is allowed (a fresh one, or --allow-empty), but a folder or name given by mistake
+        # should not pass without a word: the line below names no material count.
+        nothing = [] if every_material else [f"{', '.join(Path(p).as_posix() for p in sources or ['materials'])}: "
+                                             "no material files; the atlas holds no materials"]  # fmt: skip
+        echo_warnings([*nothing, *result.warnings, *result.material_warnings])
         click.echo(result.describe(output, zstd))
 
 

@@ -94,6 +94,13 @@ def test_an_empty_folder_does_not_empty_an_atlas_without_allow_empty(tmp_path, l
     # An empty atlas may be re-baked empty, and a new one made empty, without the flag.
     assert CliRunner().invoke(app, ["bake", str(empty), "-o", str(out), "-q"]).exit_code == 0
     assert CliRunner().invoke(app, ["bake", str(empty), "-o", str(tmp_path / "new.dds"), "-q"]).exit_code == 0
+    # Allowed, but not without a word: a folder given by mistake baked an empty atlas with exit 0 and no line.
+    res = CliRunner().invoke(app, ["bake", str(empty), "-o", str(tmp_path / "new.dds")])
+    assert (
+        res.exit_code == 0
+        and res.stderr == f"atlasgen: warning: {empty.as_posix()}: no material files; the atlas holds no materials\n"
+    )
+    assert "warning" not in CliRunner().invoke(app, ["bake", str(library), "-o", str(tmp_path / "full.dds")]).stderr
 
 
 def test_a_depfile_under_a_file_fails_before_the_atlas_is_replaced(tmp_path, library):
