@@ -277,3 +277,23 @@ def test_the_page_may_not_be_written_into_a_report_it_reads(tmp_path, write_mate
     with pytest.raises(OutputError, match=r"theirs: the report folder \(-o\) is the .* report \(--.*\)'s folder"):
         write_library_report(atlas, tmp_path / "." / "theirs", physical=False, **{which: theirs})
     assert (theirs / "index.html").read_text() == "<html>theirs</html>"
+
+
+def test_an_auto_choice_s_candidates_are_told_apart_and_only_the_baked_one_is_chosen():
+    """A first user read mx_car_paint's `separable:8` twice in its cost table (0.211 and 0.0903, the SVD and the
+    NMF candidate), both bold as chosen, under a caption that called them the manifest's error (0.0282)."""
+    from types import SimpleNamespace
+
+    from atlasgen.reports.library import _runtime_candidates
+
+    kind = "estimated relative log RMS of f cos, 8-bit, {}"
+    auto = {"chosen": "separable:8", "error_measure": "relative_log_rms", "candidates": [
+        {"representation": "lut", "cost": 11.2, "error": 0.17, "error_kind": "relative log RMS of f cos, one 8-bit slice"},
+        {"representation": "separable:8", "cost": 67.1, "error": 0.211, "factorization": "svd", "error_kind": kind.format("SVD")},
+        {"representation": "separable:8", "cost": 67.1, "error": 0.0903, "factorization": "nmf", "error_kind": kind.format("NMF")},
+    ]}  # fmt: skip
+    entry = SimpleNamespace(representation=SimpleNamespace(auto=auto), factors=SimpleNamespace(factorization="nmf", terms=8))
+    rows = _runtime_candidates(entry, table=None)
+    assert [r["representation"] for r in rows] == ["lut", "separable:8 (svd)", "separable:8 (nmf)"]
+    assert [r["chosen"] for r in rows] == [False, False, True]
+    assert rows[2]["measure"] == kind.format("NMF") and rows[2]["error"] == 0.0903

@@ -52,30 +52,36 @@ def _cost_key(entry: MaterialEntry, terms=None) -> str:
 
 
 def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
-    """What ``entry`` could be drawn as, each ``{"representation", "cost", "error", "chosen"}``:
-    the ``auto`` choice's candidates as recorded; a separable material's K = 1..8 at its grid
+    """What ``entry`` could be drawn as, each ``{"representation", "cost", "error", "measure", "chosen"}``:
+    the ``auto`` choice's candidates as recorded, each factorization its own (in the measure of the
+    material's error budget, which is not the manifest's); a separable material's K = 1..8 at its grid
     and target (estimated 8-bit relative RMS of f cos); else the one representation baked, its
     error the manifest's (quantisation RMS for a LUT, 0 for a closed form)."""
     rep = entry.representation
-    chosen = _cost_key(entry)
     # A LUT chosen by ``representation = "auto"`` records the choice beside its LUT representation.
     auto = getattr(rep, "auto", None)
     if auto:
-        return [{"representation": c["representation"], "cost": c["cost"], "error": c["error"],
-                 "chosen": c["representation"] == auto["chosen"]} for c in auto["candidates"]]  # fmt: skip
+        # An SVD and an NMF candidate share a K: each is named by its factorization, and only the one baked is chosen.
+        baked = entry.factors.factorization if entry.factors is not None else None
+        return [{"representation": c["representation"] + (f" ({c['factorization']})" if c.get("factorization") else ""),
+                 "cost": c["cost"], "error": c["error"], "measure": c.get("error_kind") or auto.get("error_measure"),
+                 "chosen": c["representation"] == auto["chosen"] and c.get("factorization") in (None, baked)}
+                for c in auto["candidates"]]  # fmt: skip
     if isinstance(rep, SeparableRepresentation):
         curve = next((c.get("relative_rms_by_terms") for c in rep.candidates
                       if c.get("grid") == rep.sampling_grid and c.get("target") == rep.target), None)  # fmt: skip
         if curve:
             return [{"representation": _cost_key(entry, k + 1), "cost": table.costs.get(_cost_key(entry, k + 1)),
-                     "error": e, "chosen": k + 1 == rep.terms} for k, e in enumerate(curve)]  # fmt: skip
+                     "error": e, "measure": "estimated relative RMS of f cos, 8-bit", "chosen": k + 1 == rep.terms}
+                    for k, e in enumerate(curve)]  # fmt: skip
     if isinstance(rep, AnalyticRepresentation):
-        error = 0.0
+        error, measure = 0.0, "0: a closed form evaluated in the shader"
     elif entry.factors is not None and entry.factors.errors_8bit is not None:
-        error = entry.factors.errors_8bit.relative_rms
+        error, measure = entry.factors.errors_8bit.relative_rms, "estimated relative RMS of f cos, 8-bit"
     else:
-        error = entry.quantization_error.rms
-    return [{"representation": chosen, "cost": table.costs.get(chosen), "error": error, "chosen": True}]
+        error, measure = entry.quantization_error.rms, "quantisation RMS"
+    chosen = _cost_key(entry)
+    return [{"representation": chosen, "cost": table.costs.get(chosen), "error": error, "measure": measure, "chosen": True}]
 
 
 def _read_json(path):
@@ -372,6 +378,7 @@ def write_library_report(
             "validation_note": validation_notes.get(entry.name),
             "runtime": [{"representation": c["representation"], "cost": _fmt(c["cost"], ".3g"), "error": _fmt(c["error"], ".3g"),
                          "chosen": c["chosen"]} for c in candidates],
+            "runtime_measures": list(dict.fromkeys(c["measure"] for c in candidates if c["measure"])),
         })  # fmt: skip
     pairs = [
         p
