@@ -1,7 +1,8 @@
 """``atlasgen report separable``: an HTML page, a Markdown summary and PNG plots of error against terms, grid, bits and time.
 
-Every figure is measured here, by the running code, at the fixed error pairs
-(:func:`atlasgen.separable.error.sample_hemisphere_pairs`). matplotlib is imported
+Every figure is measured here, by the running code, on the bake's own report sample
+(:func:`atlasgen.separable.error.error_sample_for`: the source's lobe-sampled pairs, weighted back to
+the uniform measure), so the chosen figures are the manifest's, with their standard errors. matplotlib is imported
 lazily (Agg backend), inside :func:`write_separable_report`.
 """
 
@@ -22,7 +23,7 @@ from atlasgen.models.separable import Separable
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
-from atlasgen.separable.error import errors_by_terms, measure_errors, sample_hemisphere_pairs
+from atlasgen.separable.error import ERROR_SEED, error_sample_for, errors_by_terms, measure_errors
 from atlasgen.separable.factorize import factorize
 from atlasgen.separable.parametrization import PARAMETRIZATIONS, get_parametrization
 from atlasgen.separable.rebuild import evaluate_separable
@@ -78,9 +79,13 @@ def study_material(
     """Measure one separable material: the chosen bake, and every comparison the report plots."""
     params = material.params
     source = make_source(params, material.source)
-    pairs = sample_hemisphere_pairs()
+    # The bake's two samples (Separable._draft_separable): candidates chosen on the selection sample, every
+    # figure measured on the report sample, both lobe-sampled and weighted back to uniform (uniform pairs miss a
+    # glossy lobe's peak: docs/separable.md), so the chosen figures are the manifest's.
+    pairs = error_sample_for(source, ERROR_SEED)
     reference, _ = reference_values(source, pairs)
-    l, v = pairs
+    l, v = pairs.pairs
+    w = pairs.weight
     name = params["parametrization"]
     p = get_parametrization(name)
 
@@ -88,13 +93,14 @@ def study_material(
     chosen = approximate_brdf(
         source,
         name,
-        terms=params["terms"],
+        terms=1 if params["factorization"] == "nd" else params["terms"],
         max_error=params["max_error"],
         method=params["factorization"],
         target=params["target"],
-        reference=reference,
-        pairs=pairs,
+        resolution=FACTOR_RESOLUTION,
         grids=grids,
+        report=pairs,
+        report_reference=reference,
     )
     full = approximate_brdf(source, name, terms=MAX_AUTO_TERMS, target="auto", reference=reference, pairs=pairs)
     by_terms = {
@@ -126,7 +132,7 @@ def study_material(
         seconds = _median_time(run, repeats)
         f = run()
         f.target = target
-        for e in errors_by_terms(f, reference, l, v, (1, 2, 4, 8)):
+        for e in errors_by_terms(f, reference, l, v, (1, 2, 4, 8), weight=w):
             by_res.append({"resolution": res, "terms": e["terms"], "relative_rms": e["relative_rms"], "seconds": seconds})
 
     mats, _ = sample_matrices(source, p, FACTOR_RESOLUTION, (target,))
@@ -135,15 +141,15 @@ def study_material(
     for k in NMF_TERMS:
         f = factorize(mats[target], w1, w2, k, name, "nmf")
         f.target = target
-        e = errors_by_terms(f, reference, l, v, (k,))[0]
-        e8 = errors_by_terms(quantize_factors(f), reference, l, v, (k,))[0]
+        e = errors_by_terms(f, reference, l, v, (k,), weight=w)[0]
+        e8 = errors_by_terms(quantize_factors(f), reference, l, v, (k,), weight=w)[0]
         nmf.append({"terms": k, "relative_rms": e["relative_rms"], "relative_rms_8bit": e8["relative_rms"]})
     f = factorize(mats[target], w1, w2, 1, name, "nd")
     f.target = target
     nd = {
         "terms": 1,
-        "relative_rms": errors_by_terms(f, reference, l, v, (1,))[0]["relative_rms"],
-        "relative_rms_8bit": errors_by_terms(quantize_factors(f), reference, l, v, (1,))[0]["relative_rms"],
+        "relative_rms": errors_by_terms(f, reference, l, v, (1,), weight=w)[0]["relative_rms"],
+        "relative_rms_8bit": errors_by_terms(quantize_factors(f), reference, l, v, (1,), weight=w)[0]["relative_rms"],
     }
 
     def stage_times():
@@ -163,7 +169,7 @@ def study_material(
     if atlas_path is not None:
         try:
             got = evaluate_separable(atlas_path, material.name, np.array([0.0, 0.0, 1.0]), l, v, cosine=True)
-            atlas = {"path": Path(atlas_path).as_posix(), **measure_errors(reference, got)}
+            atlas = {"path": Path(atlas_path).as_posix(), **measure_errors(reference, got, w)}
         except InputError as exc:
             atlas = {"path": Path(atlas_path).as_posix(), "missing": str(exc)}
 
@@ -277,13 +283,21 @@ def _pct(x) -> str:
     return f"{100 * x:.2f}%"
 
 
+def _pct_se(figures: dict, key: str) -> str:
+    """``figures[key]`` as a percentage, with its standard error (``key + "_se"``) where it has one."""
+    se = figures.get(f"{key}_se")
+    return _pct(figures[key]) + ("" if se is None else f" ± {100 * se:.2f}%")
+
+
 def format_separable_report(studies: list, plots: dict) -> str:
     lines = [
         "# Separable BRDFs: error against terms, grid, bits and time",
         "",
         "Generated by `atlasgen report separable`. Every figure is measured by the running code: relative RMS",
-        "and Löw 2012 log error of f cos(theta_l) over 100,000 (l, v) pairs uniform on the hemisphere (fixed",
-        "seed); 8-bit figures quantize the factors as an sRGB atlas stores them. See docs/separable.md.",
+        "and Löw 2012 log error of f cos(theta_l) over the hemisphere, estimated as the bake estimates it (100,000",
+        "(l, v) pairs drawn from the source's lobe and weighted back to uniform, fixed seed; ± one standard error),",
+        "so the chosen figures are the manifest's; 8-bit figures quantize the factors as an sRGB atlas stores them.",
+        "See docs/separable.md.",
         "",
         "| material | parametrization | target | K | sampling grid | float rel. RMS | 8-bit rel. RMS | log error | sample + SVD + quantize on 32 (ms) | atlas rel. RMS |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -362,15 +376,15 @@ def format_separable_report(studies: list, plots: dict) -> str:
 
 def _summary_cells(s: MaterialStudy) -> list:
     t = s.timings
-    atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct(s.atlas["relative_rms"])
+    atlas = "" if s.atlas is None else (s.atlas.get("missing", "") and "not in atlas") or _pct_se(s.atlas, "relative_rms")
     return [
         s.name,
         s.chosen["parametrization"],
         s.chosen["target"],
         s.chosen["terms"],
         s.chosen["grid"],
-        _pct(s.chosen["float"]["relative_rms"]),
-        _pct(s.chosen["8bit_srgb"]["relative_rms"]),
+        _pct_se(s.chosen["float"], "relative_rms"),
+        _pct_se(s.chosen["8bit_srgb"], "relative_rms"),
         f"{s.chosen['float']['log_error']:.4g}",
         f"{1e3 * (t['sample_s'] + t['svd_s'] + t['quantize_s']):.1f}",
         atlas,
