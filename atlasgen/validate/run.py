@@ -994,7 +994,7 @@ def _check_claims(run, entry, claimed, rebuild, aovs) -> None:
     }
     if claimed.get("relative_rms_8bit") is not None:
         run.notes.append(
-            f"manifest claims relative RMS {claimed['relative_rms_8bit']:.4f} (8-bit; f cos over uniform (l, v) pairs); "
+            f"manifest claims relative RMS {claimed['relative_rms_8bit']:.4f} (8-bit; f cos over the hemisphere); "
             f"in this scene the rebuild differs from the source BSDF by {in_scene:.4f} (radiance-weighted), and the GPU "
             f"image from the rebuild by {gpu:.4f}"
         )
