@@ -519,8 +519,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
     }
     settings = {
         "spp": spp,
-        "physical_spp": physical_spp,
-        "max_physical_spp": max_physical_spp,
+        # None where no physical reference was rendered (--no-physical): the page then says so, not an spp.
+        "physical_spp": physical_spp if physical else None,
+        "max_physical_spp": max_physical_spp if physical else None,
         "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
         "goals": {
             "psnr_db": GOAL_PSNR_DB,

@@ -30,6 +30,10 @@ def test_validate_writes_the_report(validation_atlas, mitsuba_rgb, gpu_device, t
     data = json.loads((out / "report.json").read_text())
     assert [r["material"] for r in data["results"]] == ["matte"]
     assert data["settings"]["scenes"][0]["width"] == 24
+    # With --no-physical none is rendered: the page said "64 spp (stochastic physical references)" even so.
+    assert data["settings"]["physical_spp"] is None
+    page = (out / "index.html").read_text(encoding="utf-8")
+    assert "no physical references (<code>--no-physical</code>)" in page and "stochastic physical" not in page
 
 
 def _front_scene(tmp_path, name, **replace):
