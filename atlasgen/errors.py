@@ -16,6 +16,7 @@ __all__ = [
     "SceneError",
     "ManifestError",
     "OutputError",
+    "OutputNameError",
     "BackendError",
     "GoalsMissed",
     "BakeWarnings",
@@ -104,6 +105,13 @@ class OutputError(AtlasgenError):
     exit_code = 4
 
 
+class OutputNameError(OutputError):
+    """An output named with an extension of another kind (``-o atlas.png``): a bad option value, so a usage
+    error's status (docs/cli.md), though it is an output's error to the code that catches it."""
+
+    exit_code = 2
+
+
 class BackendError(AtlasgenError):
     """An optional backend (Mitsuba's LLVM variant, a GPU adapter) is missing."""
 
@@ -163,7 +171,11 @@ EXIT_CODES = (
         "internal error (a bug): one line names the exception; `atlasgen --debug ...` or "
         "`ATLASGEN_DEBUG=1` shows the traceback to report",
     ),
-    (EXIT_USAGE, "usage error: an unknown option or a bad option value"),
+    (
+        EXIT_USAGE,
+        "usage error: an unknown option or a bad option value (an output named with another kind's "
+        "extension, such as `-o atlas.png`, included)",
+    ),
     (
         InputError.exit_code,
         "bad input: a material, scene, atlas or cache file, a missing path; the message names the "

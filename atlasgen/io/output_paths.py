@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from atlasgen.errors import OutputError
+from atlasgen.errors import OutputError, OutputNameError
 from atlasgen.io.atomic import refuse_another_sets, refuse_inside_store
 from atlasgen.io.text import special_file_kind
 
@@ -96,7 +96,7 @@ def check_suffix(path, role: str, suffixes) -> None:
     path = Path(path)
     if path.suffix.lower() not in suffixes:
         expected = " or ".join(suffixes)
-        raise OutputError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")
+        raise OutputNameError(f"{path.as_posix()}: {role} must end in {expected}, not {path.suffix or 'no extension'!r}")
 
 
 def check_output_folder(path, role: str, writes=()) -> None:

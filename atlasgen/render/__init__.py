@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from atlasgen.errors import OutputError
+from atlasgen.errors import OutputNameError
 from atlasgen.io.output_paths import check_output_paths
 from atlasgen.materials.scene import resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
@@ -39,7 +39,7 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
     if aov is not None and aov not in AOVS:
         raise ValueError(f"aov must be one of {AOVS}, not {aov!r}")
     if output_path.suffix.lower() != ".exr":
-        raise OutputError(f"{output_path.as_posix()}: expected an .exr output path")
+        raise OutputNameError(f"{output_path.as_posix()}: expected an .exr output path")
     _check_render_outputs(output_path, aov, scene, atlas_path)
     atlas = read_render_atlas(atlas_path)
     resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU

@@ -46,8 +46,9 @@ def _run(tmp_path, library, monkeypatch, code):
         args = ["bake", str(library), "--layout", "spiral"]
     elif code == 3:
         (library / "bad.toml").write_text('type = "lambert"\ncolour = [2, 0, 0]\n')
-    elif code == 4:
-        args = ["bake", str(library), "-o", str(tmp_path / "a.json")]
+    elif code == 4:  # an output folder that is a file (a wrong extension is a usage error, 2)
+        (tmp_path / "a-file").write_text("not a folder")
+        args = ["bake", str(library), "-o", str(tmp_path / "a-file" / "a.dds")]
     elif code == 5:
         from atlasgen.errors import BackendError
 

@@ -43,7 +43,7 @@ def _bake(tmp_path, library, *extra):
 
 def test_an_output_may_not_be_an_input(tmp_path, library):
     material = library / "clay.toml"
-    _refused(tmp_path, ["bake", str(material), "-o", str(material)], "must end in .dds or .ktx2, not '.toml'")
+    _refused(tmp_path, ["bake", str(material), "-o", str(material)], "must end in .dds or .ktx2, not '.toml'", code=2)
     line = _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--depfile", str(material)],
                     "--depfile would overwrite the material file of 'clay'")  # fmt: skip
     assert material.as_posix() in line
@@ -76,10 +76,10 @@ def test_an_output_may_not_be_a_folder(tmp_path, library):
 
 
 def test_the_atlas_extension_must_match(tmp_path, library):
-    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x.json")], "the atlas (-o) must end in .dds or .ktx2")
-    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x")], "not 'no extension'")
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x.json")], "the atlas (-o) must end in .dds or .ktx2", code=2)
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x")], "not 'no extension'", code=2)
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "x.dds"), "--preview", str(tmp_path / "p.jpg")],
-             "--preview must end in .png")  # fmt: skip
+             "--preview must end in .png", code=2)  # fmt: skip
 
 
 @pytest.mark.slow

@@ -21,7 +21,7 @@ CLAY = 'type = "lambert"\ncolour = [0.7, 0.5, 0.3]\n'
     "body, args, code, words",
     [
         ('type = "lambert"\ncolour = [0.7, 0.5]\n', [], 3, "field 'colour'"),
-        (CLAY, ["-o", "clay.jpg"], 4, "the preview (-o) must end in .png"),
+        (CLAY, ["-o", "clay.jpg"], 2, "the preview (-o) must end in .png"),
         (CLAY, ["missing.toml"], 3, "missing.toml: no such file or folder"),
     ],
     ids=["bad material", "not a png", "missing file"],

@@ -139,6 +139,17 @@ def test_missing_atlas(tmp_path):
     assert res.exit_code == 3 and "no such atlas" in res.stderr
 
 
+def test_an_output_of_another_kind_is_a_usage_error(atlas, tmp_path):
+    """``-o x.png`` is a bad option value (exit 2, docs/cli.md), not an output that cannot be written (4)."""
+    scene = write_scene(tmp_path, SCENE.format(material="clay"))
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "x.png")])
+    assert (res.exit_code, res.stderr) == (
+        2,
+        f"atlasgen: error: {(tmp_path / 'x.png').as_posix()}: expected an .exr output path\n",
+    )
+    assert not (tmp_path / "x.png").exists()
+
+
 @pytest.mark.gpu
 @pytest.mark.parametrize("flag", ["-q", "-v"])
 @pytest.mark.slow
