@@ -20,7 +20,7 @@ def test_defaults_are_filled_and_hex_colours_decoded(write_material):
     "text, field, expected",
     [
         ('type = "lambert"\ncolour = [1, 2', None, "malformed TOML"),
-        ('type = "lambertian"\n', "type", "unknown model 'lambertian'; expected one of lambert"),
+        ('type = "lambertian"\n', "type", "unknown model 'lambertian' (did you mean 'lambert'?); expected one of lambert"),
         ("colour = [1, 1, 1]\n", "type", "missing"),
         ('type = "lambert"\ncolor = [1, 1, 1]\n', "color", "unknown key (did you mean 'colour'?)"),
         ('type = "lambert"\ncolour = [nan, 1, 1]\n', "colour", "finite numbers in [0, 1]"),

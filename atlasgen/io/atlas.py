@@ -141,7 +141,12 @@ def read_atlas(path) -> Atlas:
     path = Path(path)
     if path.is_dir():
         raise InputError(f"{path.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory")
-    data = read_input_bytes(path, "no such atlas", (MAX_ATLAS_BYTES, "an atlas texture (DDS or KTX2)"))
+    if path.suffix.lower() == ".json":  # the manifest, which a first user may take for the atlas
+        raise InputError(f"{path.as_posix()}: expected the atlas texture (.dds or .ktx2) beside this manifest, "
+                         "not the manifest")  # fmt: skip
+    # A first user in a fresh folder is told what makes one: `atlasgen bake -o X` alone reads ./materials.
+    missing = f"no such atlas; bake one first (atlasgen bake MATERIAL_FILES_OR_FOLDERS -o {path.as_posix()})"
+    data = read_input_bytes(path, missing, (MAX_ATLAS_BYTES, "an atlas texture (DDS or KTX2)"))
     image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
     if not manifest_path.exists():

@@ -142,7 +142,8 @@ def read_material(path) -> Material:
     if type_name is None:
         raise MaterialError(shown, "type", "missing; expected one of " + ", ".join(known))
     if not isinstance(type_name, str) or type_name not in known:
-        raise MaterialError(shown, "type", f"unknown model {short(type_name)}; expected one of " + ", ".join(known))
+        hint = did_you_mean(type_name, known) if isinstance(type_name, str) else ""
+        raise MaterialError(shown, "type", f"unknown model {short(type_name)}{hint}; expected one of " + ", ".join(known))
 
     name = raw.get("name", path.stem)
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):

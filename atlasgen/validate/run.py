@@ -241,9 +241,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
     Each material's float slices are taken from ``bake_cache`` where its entry is current
     (:func:`_float_slices`) before any reference is built, so a fitted slice is not fitted again."""
     atlas_path = Path(atlas_path)
-    if not atlas_path.exists():
-        raise InputError(f"{atlas_path.as_posix()}: no such atlas; bake one first (atlasgen bake -o {atlas_path.as_posix()})")
-    atlas = read_atlas(atlas_path)
+    atlas = read_atlas(atlas_path)  # a missing one: "no such atlas; bake one first (...)"
     if atlas.manifest is None:
         raise InputError(f"{atlas_path.as_posix()}: no manifest beside the atlas; re-run atlasgen bake")
     check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())

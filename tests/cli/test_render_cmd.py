@@ -136,7 +136,11 @@ def test_no_adapter(atlas, tmp_path, monkeypatch):
 def test_missing_atlas(tmp_path):
     scene = write_scene(tmp_path, SCENE.format(material="clay"))
     res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(tmp_path / "x.dds"), "-o", str(tmp_path / "o.exr")])
-    assert res.exit_code == 3 and "no such atlas" in res.stderr
+    assert res.exit_code == 3 and "no such atlas; bake one first (atlasgen bake MATERIAL_FILES_OR_FOLDERS -o" in res.stderr
+    # The manifest given for the atlas is named as what it is.
+    (tmp_path / "x.json").write_text("{}")
+    res = CliRunner().invoke(app, ["info", str(tmp_path / "x.json")])
+    assert res.exit_code == 3 and "expected the atlas texture (.dds or .ktx2) beside this manifest" in res.stderr
 
 
 def test_an_output_of_another_kind_is_a_usage_error(atlas, tmp_path):

@@ -150,7 +150,10 @@ def test_a_missing_atlas_is_refused_not_reported_as_not_in_atlas(write_material,
     res = CliRunner().invoke(report, ["separable", "lobe", "-m", str(tmp_path / "materials"), "--atlas", str(missing),
                                       "-o", str(tmp_path / "r")])  # fmt: skip
     assert res.exit_code == 3
-    assert res.output.splitlines() == [f"atlasgen: error: {missing.as_posix()}: no such atlas"]
+    assert res.output.splitlines() == [
+        f"atlasgen: error: {missing.as_posix()}: no such atlas; bake one first "
+        f"(atlasgen bake MATERIAL_FILES_OR_FOLDERS -o {missing.as_posix()})"
+    ]
     assert not (tmp_path / "r").exists()
 
 
