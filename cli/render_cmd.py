@@ -8,6 +8,7 @@ import click
 
 from atlasgen.cli.main import FiniteFloatRange, echo_warnings, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.io.fields import counted
 from atlasgen.materials.scene import read_scene
 from atlasgen.render import render_scene
 
@@ -34,7 +35,8 @@ def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
     s = read_scene(scene)
     if verbosity == VERBOSE:
         materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"
-        click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {len(s.objects)} objects, {len(s.lights)} lights; "
+        click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {counted(len(s.objects), 'object')}, "
+                   f"{counted(len(s.lights), 'light')}; "
                    f"materials {materials}", err=True)  # fmt: skip
     written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
     if verbosity != QUIET:

@@ -24,6 +24,7 @@ import numpy as np
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
 from atlasgen.errors import InputError, ManifestError
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
+from atlasgen.io.fields import counted
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
 from atlasgen.io.text import read_input_bytes, read_input_text
@@ -264,8 +265,8 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
     manifest = atlas.manifest
     if manifest is None:
         return "\n".join(lines + ["  no manifest beside it"])
-    lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, {len(manifest.materials)} materials, "
-                 f"{manifest.slices_used} slices used")  # fmt: skip
+    lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, "
+                 f"{counted(len(manifest.materials), 'material')}, {counted(manifest.slices_used, 'slice')} used")  # fmt: skip
     for e in manifest.materials:
         lines.append(
             f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {_printable(e.type):<11} "

@@ -31,6 +31,7 @@ __all__ = [
     "fits_float32",
     "to_float32",
     "shown",
+    "counted",
     "check_table_bounds",
     "MAX_TABLE_DEPTH",
     "MAX_TABLE_ENTRIES",
@@ -63,6 +64,15 @@ def fits_float32(value) -> bool:
 def to_float32(value) -> float:
     """``value`` rounded to the nearest float32 (``value`` must satisfy :func:`fits_float32`)."""
     return struct.unpack("<f", struct.pack("<f", float(value)))[0]
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless the count is 1 (every noun here takes an s).
+
+    >>> counted(1, "material"), counted(0, "light"), counted(3, "slice")
+    ('1 material', '0 lights', '3 slices')
+    """
+    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def shown(value, limit: int = 80) -> str:

@@ -166,7 +166,7 @@ def test_quiet_prints_nothing_and_verbose_describes_the_scene(gpu_device, atlas,
     if flag == "-q":
         assert res.output == ""
     else:
-        assert res.stderr == f"{scene.as_posix()}: 40x30, 1 objects, 1 lights; materials snow\n"
+        assert res.stderr == f"{scene.as_posix()}: 40x30, 1 object, 1 light; materials snow\n"
         assert res.stdout.splitlines() == [f"wrote {out.as_posix()}", f"wrote {out.with_suffix('.png').as_posix()}"]
     assert gpu_device.take_errors() == []
 
