@@ -99,8 +99,10 @@ def validate(
 
     Prints one line per material naming what was measured against which goal, then
     the summary line. The goals: each LUT material's image against its model
-    reference on every scene (PSNR and mean FLIP); each separable material's claimed
-    error against its error_budget, where it has one.
+    reference on every scene (storage: PSNR and mean FLIP); every material's look
+    against its physical reference, or a separable one's source BSDF (a looser PSNR and
+    FLIP, judged where the reference's noise floor allows); each separable material's
+    claimed error against its error_budget, where it has one.
     """
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     if max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it (validate_atlas)
