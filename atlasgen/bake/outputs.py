@@ -7,6 +7,7 @@ from pathlib import Path
 from atlasgen.bake.cache import cache_path
 from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_paths
 from atlasgen.errors import OutputError
+from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.materials.scene import read_scene
 
@@ -46,6 +47,7 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
             outputs.append((preview, "--preview"))
     if depfile is not None:
         outputs.append((depfile, "--depfile"))
+    committed = [path for path, _ in outputs]  # the files of the atlas's output set (the cache entries are not)
     if cache_dir is not None:
         outputs += [(cache_path(cache_dir, m), f"the cache entry of {m.name!r}") for m in materials]
     read = materials if library is None else library
@@ -59,6 +61,10 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     if ids_from is not None and Path(ids_from).resolve() != paths["manifest"].resolve():
         inputs.append((ids_from, "--ids-from"))
     check_output_paths(outputs, inputs)
+    if not cache_only:
+        # An output that is another set's link (--depfile build/atlas.dds beside a scene atlas) is refused at the
+        # commit too, but by then the lock had made this set's store: refused here, the bake leaves nothing behind.
+        refuse_another_sets([*committed, *paths.values()], paths["dds"])
     if not materials and not allow_empty and not cache_only:
         existing = read_previous_slots(paths["manifest"])
         if existing or (paths["dds"].exists() and not paths["manifest"].exists()):

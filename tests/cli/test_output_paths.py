@@ -270,3 +270,12 @@ def test_a_name_the_file_system_cannot_hold_is_one_line_not_an_internal_error(tm
     args += [option, str(tmp_path / path)] if option != "-o" else []
     line = _refused(tmp_path, args, "cannot write (File name too long); expected a path the file system can hold")
     assert line.startswith(f"atlasgen: error: {tmp_path.as_posix()}/aaa")
+
+
+def test_an_output_that_is_another_sets_link_is_refused_before_the_lock(tmp_path, library):
+    """Found by the output-path fuzz test: `bake -o build/x.dds --depfile build/atlas.dds` (another bake's link)
+    was refused at the commit, after the lock had made build/.x.atlasgen: a failure that left a folder behind."""
+    _bake(tmp_path, library)
+    out = tmp_path / "build"
+    _refused(tmp_path, ["bake", str(library), "-o", str(out / "x.dds"), "--depfile", str(out / "atlas.dds")],
+             "already written by another command's outputs")  # fmt: skip
