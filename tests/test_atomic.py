@@ -225,6 +225,8 @@ def test_a_path_of_another_output_set_is_refused_and_nothing_changes(tmp_path):
     message = str(caught.value)
     assert message.startswith(f"{(out / 'index.html').as_posix()}: ") and ".index.atlasgen" in message and "\n" not in message
     assert read_plainly(out, before) == before and not os.path.lexists(out / "report.json")
+    # Refused before the lock, which makes the set's store: a refusal under it left an empty store behind.
+    assert not os.path.lexists(out / ".report.atlasgen")
     os.symlink("out", tmp_path / "alias")  # the same set, through a linked folder: its own link, rewritten
     write_files_atomically({tmp_path / "alias" / "index.html": b"library 2"}, primary=tmp_path / "alias" / "index.html")
     assert (out / "index.html").read_bytes() == b"library 2" and (out / "img" / "gold.png").read_bytes() == b"png"

@@ -502,6 +502,9 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     removals = [Path(p) for p in dict.fromkeys(os.path.abspath(p) for p in remove) if p not in written]
     for path, _ in items:
         refuse_inside_store(path)
+    # Before the lock, which makes this set's store: refused under it only (as _commit does again, for a link
+    # changed meanwhile), a path that is another set's link left an empty store behind on every command.
+    refuse_another_sets([p for p, _ in items], primary)
     home = _folder(primary)
     try:
         home.mkdir(parents=True, exist_ok=True)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from atlasgen.errors import OutputNameError
+from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.output_paths import check_output_paths
 from atlasgen.materials.scene import resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
@@ -52,7 +53,7 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
 
 def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
     """Refuse outputs that would overwrite an input (the scene, the atlas and the files
-    beside it, a mesh, the environment image) or a folder, before anything is rendered."""
+    beside it, a mesh, the environment image), a folder, or another command's outputs, before anything is rendered."""
     atlas_path = Path(atlas_path)
     outputs = [(output_path, "the render (-o)")]
     if aov is None:
@@ -67,3 +68,5 @@ def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
     if scene.environment is not None and scene.environment.file is not None:
         inputs.append((scene.environment.file, "the scene's environment image"))
     check_output_paths(outputs, inputs)
+    # Before the render, not at its commit; the set's primary is the PNG where one is written (render/output.py).
+    refuse_another_sets([path for path, _ in outputs], outputs[-1][0])

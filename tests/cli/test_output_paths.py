@@ -279,3 +279,20 @@ def test_an_output_that_is_another_sets_link_is_refused_before_the_lock(tmp_path
     out = tmp_path / "build"
     _refused(tmp_path, ["bake", str(library), "-o", str(out / "x.dds"), "--depfile", str(out / "atlas.dds")],
              "already written by another command's outputs")  # fmt: skip
+
+
+def test_a_render_onto_another_sets_link_is_refused_before_it_renders(tmp_path, library, monkeypatch):
+    """render -o build/x.exr, whose PNG build/x.png is a bake's --preview, rendered the whole frame before its
+    commit refused it, and left build/.x.atlasgen behind."""
+    import atlasgen.render
+
+    _bake(tmp_path, library, "--preview", str(tmp_path / "build" / "x.png"))
+    scene = tmp_path / "scene.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+
+    def no_render(*args, **kwargs):
+        raise AssertionError("the atlas was read for rendering")
+
+    monkeypatch.setattr(atlasgen.render, "read_render_atlas", no_render)
+    _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "build" / "atlas.dds"), "-o",
+                        str(tmp_path / "build" / "x.exr")], "x.png: already written by another command's outputs")  # fmt: skip
