@@ -247,7 +247,10 @@ class Chart:
 def figure_chart(fig) -> Chart:
     """:func:`figure_png` of ``fig`` with the labels :func:`label_points` recorded on its axes placed over
     it: each point's position in the laid-out figure, in CSS px (``CSS_PX_PER_INCH`` per inch)."""
-    fig.canvas.draw()  # lays out (constrained layout) and fixes every transform
+    fig.canvas.draw()  # autoscales, so that place_axes sizes the margins from the tick labels in view
+    # The labels' points are taken where the PNG draws them: inside the margins figure_png sets, not the
+    # default subplot's (whose right margin is 0.55 in wider: labels sat up to 50 px off their points).
+    place_axes(fig)
     width_in, height_in = fig.get_size_inches()
     css = CSS_PX_PER_INCH / fig.dpi
     width, height = round(width_in * CSS_PX_PER_INCH), round(height_in * CSS_PX_PER_INCH)

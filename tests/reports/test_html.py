@@ -92,3 +92,35 @@ def test_placed_axes_keep_every_text_inside_the_figure_and_off_the_axes(size):
         assert text == "everything drawn" or not box.overlaps(axes_box), (
             f"{text!r} at {box.extents} overlaps the axes {axes_box.extents}"
         )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("size", [(3.8, 2.8), (7.0, 4.5)])  # the library page's two chart sizes
+def test_a_point_label_is_anchored_where_the_png_draws_its_point(size):
+    """figure_chart's label anchors against the markers found in its own PNG: a red marker in each
+    corner of a log-log chart, each label's (x, y) at its marker's centre, in CSS px."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from atlasgen.reports.html import PLOT_DPI, figure_chart, label_points
+
+    points = [(1.0, 1e-4), (100.0, 1e-1)]
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=size)
+        ax.scatter(*zip(*points), color="red", s=30)
+        ax.set(xscale="log", yscale="log", xlabel="lighting cost", ylabel="error", title="title")
+        label_points(ax, points, ["low", "high"])
+        chart = figure_chart(fig)
+    image = np.asarray(Image.open(io.BytesIO(chart.png)).convert("RGB")).astype(int)
+    red = (image[..., 0] > 200) & (image[..., 1] < 80) & (image[..., 2] < 80)
+    ys, xs = np.nonzero(red)
+    per_css_px = PLOT_DPI / CSS_PX_PER_INCH
+    for label, left in zip(chart.labels, (True, False)):
+        side = xs < image.shape[1] / 2 if left else xs >= image.shape[1] / 2
+        centre = xs[side].mean() / per_css_px, ys[side].mean() / per_css_px
+        assert label["x"] == pytest.approx(centre[0], abs=1.5) and label["y"] == pytest.approx(centre[1], abs=1.5), (
+            label,
+            centre,
+        )
