@@ -34,6 +34,8 @@ __all__ = [
     "plot_width",
     "pareto_front",
     "label_points",
+    "legend_beside",
+    "series_style",
     "place_labels",
     "figure_chart",
     "Chart",
@@ -135,7 +137,7 @@ def place_axes(fig) -> None:
         left = (tick_pt["y"] + _tick_label_chars(ax.yaxis) * _CHAR_EM * y_ticks + float(rcParams["axes.labelpad"])
                 + _text_lines(ax.yaxis.label) * ax.yaxis.label.get_fontsize() * _LINE_SPACING)  # fmt: skip
         above = float(rcParams["axes.titlepad"]) + _text_lines(ax.title) * ax.title.get_fontsize() * _LINE_SPACING
-        right = 0.5 * _tick_label_chars(ax.xaxis) * _CHAR_EM * x_ticks
+        right = max(0.5 * _tick_label_chars(ax.xaxis) * _CHAR_EM * x_ticks, ax.__dict__.get("_legend_beside_pt", 0.0))
         pt = 1.0 / 72.0
         ax.set_position([
             (left + _EDGE_PT) * pt / width,
@@ -143,6 +145,46 @@ def place_axes(fig) -> None:
             1.0 - (left + right + 2 * _EDGE_PT) * pt / width,
             1.0 - (below + above + 2 * _EDGE_PT) * pt / height,
         ])  # fmt: skip
+
+
+#: Markers of a legend's series after the colour cycle's ten colours: with each colour, 40 series look different.
+_SERIES_MARKERS = ("o", "s", "^", "D")
+
+
+def series_style(i: int) -> dict:
+    """Colour and marker of the ``i``-th series of a scatter plot: the colour cycle's ten colours
+    with one marker, then again with the next, so that no two of 40 series look alike.
+
+    >>> series_style(0), series_style(13)
+    ({'color': 'C0', 'marker': 'o'}, {'color': 'C3', 'marker': 's'})
+    """
+    return {"color": f"C{i % 10}", "marker": _SERIES_MARKERS[(i // 10) % len(_SERIES_MARKERS)]}
+
+
+def legend_beside(ax) -> tuple[float, float]:
+    """Draw ``ax``'s legend in one column to the right of the axes and reserve its width for
+    :func:`place_axes`; returns ``(width, height)`` in inches: the width to widen the figure by and the
+    least figure height that holds the legend (a web page scrolls down, not sideways).
+
+    Both are estimated as place_axes estimates text: the handle, its pad and the longest label
+    (``_CHAR_EM`` ems a character) across; ``_LINE_SPACING + labelspacing`` ems a row down; the frame's pads around.
+    """
+    from matplotlib import rcParams
+    from matplotlib.font_manager import FontProperties
+
+    handles, labels = ax.get_legend_handles_labels()
+    if not labels:
+        return 0.0, 0.0
+    em = FontProperties(size=rcParams["legend.fontsize"]).get_size_in_points()
+    pad, spacing = float(rcParams["legend.borderpad"]), float(rcParams["legend.labelspacing"])
+    # Half an em from the axes' top right corner (borderaxespad): the legend moves with the axes.
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.0, 1.0), borderaxespad=0.5)
+    across = (0.5 + 2 * pad + float(rcParams["legend.handlelength"]) + float(rcParams["legend.handletextpad"])
+              + max(len(t) for t in labels) * _CHAR_EM + 0.5) * em  # fmt: skip
+    down = (0.5 + 2 * pad + len(labels) * (_LINE_SPACING + spacing) - spacing) * em
+    ax.__dict__["_legend_beside_pt"] = across
+    title = float(rcParams["axes.titlepad"]) + _text_lines(ax.title) * ax.title.get_fontsize() * _LINE_SPACING
+    return across / 72.0, (down + title + 2 * _EDGE_PT) / 72.0
 
 
 def figure_png(fig) -> bytes:

@@ -14,7 +14,17 @@ from atlasgen.io.report_files import check_number, read_json_file
 from atlasgen.io.text import special_file_kind
 from atlasgen.models import check_manifest_models, get_model
 from atlasgen.reports.comparisons import manifest_pairs
-from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, pareto_front, plot_style, render_page
+from atlasgen.reports.html import (
+    CSS_PX_PER_INCH,
+    Chart,
+    figure_chart,
+    label_points,
+    legend_beside,
+    pareto_front,
+    plot_style,
+    render_page,
+    series_style,
+)
 from atlasgen.reports.pareto import (
     MAX_JOBS,
     baked_candidate,
@@ -415,11 +425,13 @@ def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = Fa
 
         fig, ax = plt.subplots(figsize=size)
         points = []
-        for name, candidates in series.items():
+        for i, (name, candidates) in enumerate(series.items()):
             xs = [c["cost"] for c in candidates]
             ys = [max(c["error"], floor) for c in candidates]
-            ax.scatter(xs, ys, label=name if label_all else None, facecolors=["C0" if c["chosen"] else "none" for c in candidates]
-                       if not label_all else None, edgecolors="C0" if not label_all else None)  # fmt: skip
+            if label_all:  # one point a material, told apart by its colour and marker in the legend
+                ax.scatter(xs, ys, label=name, **series_style(i))
+            else:
+                ax.scatter(xs, ys, facecolors=["C0" if c["chosen"] else "none" for c in candidates], edgecolors="C0")
             points += [(x, y, name if label_all else c["representation"]) for x, y, c in zip(xs, ys, candidates)]
         front = [points[i] for i in pareto_front([(p[0], p[1]) for p in points])]
         label_points(ax, [(p[0], p[1]) for p in front], [p[2] for p in front])
@@ -434,6 +446,8 @@ def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = Fa
         ax.set_ylabel("error (rel. RMS)" if small else "error (rel. RMS of f cos; LUT: quantisation RMS)")
         # The device's name is long: on its own line of the title, where it wraps no axis.
         ax.set_title(title if small else f"{title}\non {table.device}", fontsize="medium")
-        if label_all and len(series) <= 12:
-            ax.legend(fontsize="small")
+        if label_all:
+            # Beside the axes, every material named: inside them a legend hid the points, and over 12 there was none.
+            across, down = legend_beside(ax)
+            fig.set_size_inches(size[0] + across, max(size[1], down))
         return figure_chart(fig)

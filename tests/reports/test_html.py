@@ -124,3 +124,33 @@ def test_a_point_label_is_anchored_where_the_png_draws_its_point(size):
             label,
             centre,
         )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("count", [3, 16, 40])
+def test_a_legend_beside_the_axes_names_every_series_inside_the_figure_and_off_the_axes(count):
+    """The library chart's legend (legend_beside): one entry per series, each series its own colour and marker,
+    the legend wholly inside the widened figure and clear of the axes, whatever the count (it once had none
+    beyond 12 series, and the colour cycle repeats after 10)."""
+    from atlasgen.reports.html import legend_beside, place_axes, series_style
+
+    names = [f"separable-rough-metal-{i}" if i % 3 == 0 else f"m{i}" for i in range(count)]
+    with plot_style() as plt:
+        fig, ax = plt.subplots(figsize=(7.0, 4.5))
+        for i, name in enumerate(names):
+            ax.scatter([1.0 + i], [10.0 ** -(i % 6)], label=name, **series_style(i))
+        ax.set(xscale="log", yscale="log", xlabel="lighting cost", ylabel="error", title="title\non a device")
+        across, down = legend_beside(ax)
+        fig.set_size_inches(7.0 + across, max(4.5, down))
+        place_axes(fig)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        legend = ax.get_legend()
+        box, axes_box, figure_box = legend.get_window_extent(renderer), ax.get_window_extent(renderer), fig.bbox
+        shown = [t.get_text() for t in legend.get_texts()]
+        plt.close(fig)
+    assert shown == names
+    assert len({tuple(series_style(i).values()) for i in range(count)}) == count
+    assert box.x0 >= figure_box.x0 and box.y0 >= figure_box.y0 and box.x1 <= figure_box.x1 and box.y1 <= figure_box.y1, (
+        box.extents, figure_box.extents)  # fmt: skip
+    assert not box.overlaps(axes_box), (box.extents, axes_box.extents)
