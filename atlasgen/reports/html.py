@@ -104,12 +104,16 @@ def _text_lines(text) -> int:
 
 
 def _tick_label_chars(axis) -> int:
-    """Characters of the widest major tick label in view, mathtext markup left out (``10^{-3}``
-    counts 5): the formatter's strings, without drawing a tick."""
+    """Characters of the widest tick label in view, mathtext markup left out (``10^{-3}`` counts 5,
+    ``4\\times10^{-2}`` 6): the formatters' strings, without drawing a tick. Minor ticks count too: a
+    log axis spanning less than a decade labels them (``4x10^-2``) and may show no major label at all."""
     low, high = sorted(axis.get_view_interval())
-    locs = [x for x in axis.get_majorticklocs() if low <= x <= high]
-    labels = axis.get_major_formatter().format_ticks(locs) if locs else []
-    plain = [re.sub(r"\\mathdefault|[{}$^\\]", "", label) for label in labels]
+    labels = []
+    for locs, formatter in ((axis.get_majorticklocs(), axis.get_major_formatter()),
+                            (axis.get_minorticklocs(), axis.get_minor_formatter())):  # fmt: skip
+        shown = [x for x in locs if low <= x <= high]
+        labels += formatter.format_ticks(shown) if shown else []
+    plain = [re.sub(r"\\mathdefault|[{}$^\\]", "", label.replace("\\times", "x")) for label in labels]
     return max((len(t) for t in plain), default=0)
 
 

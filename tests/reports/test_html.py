@@ -63,15 +63,19 @@ def test_placed_labels_stay_inside_and_do_not_overlap_where_there_is_room(points
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("size", [(4.2, 3.0), (7.5, 5.0)])
-def test_placed_axes_keep_every_text_inside_the_figure_and_off_the_axes(size):
-    # The report plots' worst case: log axes over many decades (10^-6 ... 10^2), two-line title
-    # and y label, a two-line x label (the Pareto charts').
+@pytest.mark.parametrize(
+    ("size", "errors"),
+    [((4.2, 3.0), (1e-6, 1e2)), ((7.5, 5.0), (1e-6, 1e2)), ((3.8, 2.8), (0.036, 0.0475))],
+)
+def test_placed_axes_keep_every_text_inside_the_figure_and_off_the_axes(size, errors):
+    # The report plots' worst cases: log axes over many decades (10^-6 ... 10^2), two-line title
+    # and y label, a two-line x label (the Pareto charts'); and errors within one decade, where the
+    # minor ticks carry the only labels (4 x 10^-2: a library cell's chart once cut them and its y label off).
     from atlasgen.reports.html import place_axes
 
     with plot_style() as plt:
         fig, ax = plt.subplots(figsize=size)
-        ax.loglog([1e-1, 1e3], [1e-6, 1e2], "o")
+        ax.loglog([1e-1, 1e3], errors, "o")
         ax.set_title("first line of a title\nsecond line", fontsize="medium")
         ax.set_xlabel("lighting pass cost (ns)\non a device")
         ax.set_ylabel("rel. RMS\n(exact: drawn at 1e-06)")
@@ -82,7 +86,9 @@ def test_placed_axes_keep_every_text_inside_the_figure_and_off_the_axes(size):
         texts = [ax.title, ax.xaxis.label, ax.yaxis.label]
         for axis, coordinate in ((ax.xaxis, 0), (ax.yaxis, 1)):  # the tick labels drawn: those in view
             low, high = sorted(axis.get_view_interval())
-            texts += [t for t in axis.get_ticklabels() if t.get_text() and low <= t.get_position()[coordinate] <= high]
+            for minor in (False, True):
+                texts += [t for t in axis.get_ticklabels(minor=minor)
+                          if t.get_text() and low <= t.get_position()[coordinate] <= high]  # fmt: skip
         boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
         boxes.append(("everything drawn", ax.get_tightbbox(renderer)))
         plt.close(fig)
