@@ -649,11 +649,22 @@ def _figures(row: dict, size: tuple) -> list[dict]:
                 {"src": None, "caption": f"no FLIP map against a {kind} reference", "width": width, "height": height},
             ]
             continue
-        figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}",
+        figures.append({"src": ref["images"]["reference"], "caption": f"{_KIND_LABEL[kind]}: {ref['description']}{_noise(ref)}",
                         "width": width, "height": height})  # fmt: skip
         figures.append({"src": ref["images"]["flip"], "caption": f"FLIP atlas vs {kind}: {_fmt(ref['flip'], '.4f')}",
                         "width": width, "height": height})  # fmt: skip
     return figures
+
+
+def _noise(ref: dict) -> str:
+    """What a stochastic reference's image carries: its samples per pixel and noise floor (two seeds
+    against each other), and each object's of a comparison split by object; "" for an exact reference."""
+    if ref.get("noise_floor_db") is None:
+        return ""
+    parts = [f"{name} {p['spp']} spp, {_fmt(p.get('noise_floor_db'), '.1f')} dB"
+             for name, p in (ref.get("parts") or {}).items() if p.get("noise_floor_db") is not None]  # fmt: skip
+    return (f" ({ref['spp']} spp, noise floor {_fmt(ref['noise_floor_db'], '.1f')} dB"
+            + (f"; {', '.join(parts)}" if parts else "") + ")")  # fmt: skip
 
 
 def materialx_summary(rows: list) -> dict | None:

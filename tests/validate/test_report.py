@@ -7,6 +7,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
+from markupsafe import escape
 
 from atlasgen.errors import OutputError
 
@@ -151,6 +152,13 @@ def test_a_comparison_split_by_object_reports_and_judges_each_part(written, vali
         assert any(note.startswith("the physical reference renders each object alone") for note in row["notes"])
     html = (out / "index.html").read_text(encoding="utf-8")
     assert "flat part: " in html and "sphere: " in html
+    # The reference image's caption says how converged it is: its spp and floor, and each part's.
+    for row in rows:
+        ref = row["references"]["physical"]
+        caption = (f"{ref['spp']} spp, noise floor {ref['noise_floor_db']:.1f} dB; "
+                   + ", ".join(f"{n} {p['spp']} spp, {p['noise_floor_db']:.1f} dB" for n, p in ref["parts"].items()))  # fmt: skip
+        assert f"{escape(ref['description'])} ({caption})</figcaption>" in html
+        assert f"{escape(row['references']['model']['description'])}</figcaption>" in html  # exact: no spp
     # Make the front's reference converged, its whole comparison and sphere over the goal, its flat part under it.
     row = next(r for r in rows if r["scene"] == "front")
     ref = row["references"]["physical"]
