@@ -247,10 +247,12 @@ def _label_box(text: str, x: float, y: float, offset) -> tuple:
 
 
 def place_labels(points, width: float, height: float, margin: float = 3.0) -> list[dict]:
-    """Greedy label placement: each ``(x, y, text)`` point (CSS px from the image's top-left) gets the
-    first of the candidate boxes around it (:data:`_LABEL_OFFSETS`, then farther) that stays inside
-    ``width`` x ``height`` and keeps ``margin`` px from every label placed before it; where none does,
-    the least overlapping. Returns ``[{"text", "left", "top", "x", "y"}]`` in CSS px.
+    """Greedy label placement: each ``(x, y, text)`` point (CSS px from the image's top-left), in the
+    order given, gets the first of the candidate boxes around it (:data:`_LABEL_OFFSETS`, then farther)
+    that stays inside ``width`` x ``height`` and keeps ``margin`` px from every label placed before it;
+    where none does, the point goes unlabelled (labels written over one another read as neither, and
+    every chart's table lists each point). Returns ``[{"text", "left", "top", "x", "y"}]`` in CSS px,
+    for the points labelled.
 
     >>> [(l["left"], l["top"]) for l in place_labels([(100, 100, "a"), (102, 100, "b")], 400, 300)]
     [(106.0, 80.0), (108.0, 104.0)]
@@ -272,6 +274,8 @@ def place_labels(points, width: float, height: float, margin: float = 3.0) -> li
                     break
             if best[0] == 0.0:
                 break
+        if best[0] > 0.0:
+            continue
         box = best[1]
         placed.append(box)
         out.append({"text": text, "left": round(float(box[0]), 1), "top": round(float(box[1]), 1),

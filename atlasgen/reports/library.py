@@ -43,7 +43,7 @@ __all__ = ["write_library_report"]
 #: The library's cost/error plot: its file and its size in inches (shown at 100 CSS px per inch).
 _PLOT = "cost-vs-error.png"
 _PLOT_SIZE = (7.0, 4.5)
-_SMALL_PLOT_SIZE = (3.8, 2.8)
+_SMALL_PLOT_SIZE = (3.6, 2.8)
 #: The Pareto charts against the physical reference: the library's, and one per material under ``pareto/``.
 _PARETO_PLOT = "pareto.png"
 _PARETO_DIR = "pareto"
@@ -352,7 +352,7 @@ def write_library_report(
         chart = None
         if candidates:
             src = f"cost/{name}.png"
-            drawn = _plot_cost_error({name: candidates}, table, _SMALL_PLOT_SIZE, f"{name}: run-time cost against error")
+            drawn = _plot_cost_error({name: candidates}, table, _SMALL_PLOT_SIZE, name)
             files[out_dir / src] = drawn.png
             chart = {"src": src, "chart": drawn}
             chosen_points += [(name, c) for c in candidates if c["chosen"]]
@@ -381,7 +381,7 @@ def write_library_report(
         page_rows.append({
             "first_slice": entry.first_slice, "name": entry.name, "type": entry.type,
             "representation": get_model(entry.type).describe_representation(entry),
-            "bake_ms": _fmt(None if bake_s is None else bake_s * 1e3, ".2f"), "quantisation": f"{q.max:.4f} / {q.rms:.4f}",
+            "bake_s": _fmt(bake_s, ".3g"), "quantisation": (f"{q.max:.4f}", f"{q.rms:.4f}"),
             "refs": [{"reference": r["reference"], "psnr": _fmt(r["psnr"], ".1f"), "flip": _fmt(r["flip"], ".4f"),
                       "speed": _fmt(r["speed_ratio"], ".1f") + "x"} for r in refs],
             "pages": [p for p in own if p], "previews": previews, "chart": chart,
@@ -418,7 +418,7 @@ def write_library_report(
 def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = False) -> Chart:
     """Run-time cost (the shipped cost table, :func:`atlasgen.separable.auto.read_lighting_cost`)
     against error, one marker per candidate; the chosen representation is filled, the Pareto
-    front (nothing both cheaper and closer) labelled."""
+    front (nothing both cheaper and closer) labelled where there is room, the chosen one first."""
     floor = 1e-6  # a closed form's error is 0: drawn on the axis's floor
     with plot_style() as plt:
         from matplotlib import ticker
@@ -432,8 +432,10 @@ def _plot_cost_error(series: dict, table, size, title: str, label_all: bool = Fa
                 ax.scatter(xs, ys, label=name, **series_style(i))
             else:
                 ax.scatter(xs, ys, facecolors=["C0" if c["chosen"] else "none" for c in candidates], edgecolors="C0")
-            points += [(x, y, name if label_all else c["representation"]) for x, y, c in zip(xs, ys, candidates)]
+            points += [(x, y, name if label_all else c["representation"], c["chosen"]) for x, y, c in zip(xs, ys, candidates)]
         front = [points[i] for i in pareto_front([(p[0], p[1]) for p in points])]
+        # The chosen representation's label first: where the front is crowded, later labels give way.
+        front.sort(key=lambda p: not p[3])
         label_points(ax, [(p[0], p[1]) for p in front], [p[2] for p in front])
         ax.set_xscale("log")
         ax.set_yscale("log")

@@ -152,6 +152,13 @@ def test_validation_pages(browser, library, gpu_device, mitsuba_llvm):
     assert zoomed == [144, 108, "pixelated"]
     assert browser.execute_script("return document.documentElement.scrollWidth") <= WIDTH
     assert shown["height"] > 0
+    # The library page with validation's figures beside each material: its widest table fits the page
+    # (1392 px of columns once, in a scroll box that hid each material's cost chart).
+    from atlasgen.reports.library import write_library_report
+
+    index = write_library_report(atlas, root / "build" / "report-validated", validation_dir=out, physical=False)
+    check_page(browser, index, "library-validated")
+    assert browser.execute_script("return document.querySelectorAll('table.inner').length") >= len(MATERIALS)
 
 
 def test_the_checks_catch_a_clipped_chart_and_overlapping_labels(browser, tmp_path):

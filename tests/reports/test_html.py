@@ -160,3 +160,18 @@ def test_a_legend_beside_the_axes_names_every_series_inside_the_figure_and_off_t
     assert box.x0 >= figure_box.x0 and box.y0 >= figure_box.y0 and box.x1 <= figure_box.x1 and box.y1 <= figure_box.y1, (
         box.extents, figure_box.extents)  # fmt: skip
     assert not box.overlaps(axes_box), (box.extents, axes_box.extents)
+
+
+def test_labels_with_no_room_are_left_out_in_order_never_written_over_another():
+    """Eight long labels on points a few px apart in a 280 x 180 chart (a crowded Pareto front): the first is
+    always placed, those that would overlap a placed one are left out, and no two placed ones intersect."""
+    points = [(120.0 + 4 * i, 90.0 + 3 * i, f"separable:{i + 1} (nmf)") for i in range(8)]
+    labels = place_labels(points, 280, 180)
+    assert labels[0]["text"] == points[0][2] and 1 < len(labels) < len(points)
+    assert [label["text"] for label in labels] == [t for _, _, t in points if t in {label["text"] for label in labels}]
+    boxes = [(label["left"], label["top"], label["left"] + len(label["text"]) * 7.4 + 6, label["top"] + LABEL_LINE_PX)
+             for label in labels]  # fmt: skip
+    for i, a in enumerate(boxes):
+        assert a[0] >= 0 and a[1] >= 0 and a[2] <= 280 and a[3] <= 180
+        for b in boxes[i + 1 :]:
+            assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), (a, b)
