@@ -393,8 +393,10 @@ def _refuse_duplicate_names(documents: list) -> None:
 #: A component of a MaterialX value string: what C's strtof reads whole (nan and inf are refused later, as
 #: not finite). MaterialX's own parser reads a leading number and drops the rest: "1,2,3" for a float
 #: baked 1, "0x1" baked 0, "0.5abc" baked 0.5.
-_NUMBER = re.compile(r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|(?i:nan|inf(?:inity)?))\s*")
-_INTEGER = re.compile(r"\s*[+-]?\d+\s*")
+#: ASCII only, as strtof reads in the C locale: Python's \d and \s also match other scripts' digits and
+#: spaces, and "0.4" followed by an Arabic-Indic five passed the check and was baked as 0.4.
+_NUMBER = re.compile(r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|(?i:nan|inf(?:inity)?))\s*", re.ASCII)
+_INTEGER = re.compile(r"\s*[+-]?\d+\s*", re.ASCII)
 _COMPONENTS = {"float": 1, "vector2": 2, "color3": 3, "vector3": 3, "color4": 4, "vector4": 4}
 #: What ``Document.validate`` says of an input given neither a value nor a connection.
 _NO_VALUE = "Node input binds no value or connection"
@@ -409,6 +411,8 @@ def _value_parses(kind: str, text: str) -> bool:
     (True, False, True)
     >>> _value_parses("integer", "1.5"), _value_parses("color3", "0.5, 0.5, 0.5,"), _value_parses("boolean", "true")
     (False, False, True)
+    >>> _value_parses("float", "0.4\u0665"), _value_parses("integer", "\u0661"), _value_parses("float", "\u00a00.5")
+    (False, False, False)
     """
     if kind == "integer":
         return _INTEGER.fullmatch(text) is not None

@@ -175,3 +175,12 @@ def test_labels_with_no_room_are_left_out_in_order_never_written_over_another():
         assert a[0] >= 0 and a[1] >= 0 and a[2] <= 280 and a[3] <= 180
         for b in boxes[i + 1 :]:
             assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), (a, b)
+
+
+def test_the_module_s_doctests_pass():
+    import doctest
+
+    from atlasgen.reports import html
+
+    result = doctest.testmod(html)
+    assert result.attempted >= 2 and result.failed == 0
