@@ -26,6 +26,7 @@ __all__ = [
     "is_material_file_name",
     "select_scene_materials",
     "COMMON_KEYS",
+    "MAX_MATERIAL_BYTES",
 ]
 
 
@@ -85,7 +86,9 @@ _POSITIVE = Param("", None, "float", 0.0, lo_open=True)
 _FIT_GLOSS = Param("fit_gloss", FIT_GLOSS, "float", 0.0, 1.0, doc="renderer gloss a from = 'physical' slice is fitted for")
 _SCALE = Param("", "auto", "float", 0.0, lo_open=True, alternative="auto")
 #: A material file is a few hundred bytes (a toon threshold list a few kB); a 6 GB one was read whole.
-_MATERIAL_LIMIT = (16 << 20, "a material file")
+#: The largest material file read (a MaterialX document's own limit is the same).
+MAX_MATERIAL_BYTES = 16 << 20
+_MATERIAL_LIMIT = (MAX_MATERIAL_BYTES, "a material file")
 _NONFINITE = Param("nonfinite_tolerance", 0, "int", 0, doc="non-finite source samples the bake may replace by 0")
 _LOOK_PSNR = Param(
     "validate.psnr_db", None, "float", 0.0, lo_open=True, doc="look goal: least PSNR (dB) against the physical reference"

@@ -29,7 +29,8 @@ from atlasgen.bake.cache import load_cached
 from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
 from atlasgen.io.atlas import Atlas, read_atlas
 from atlasgen.io.manifest import Manifest
-from atlasgen.materials.material import read_material_file
+from atlasgen.io.text import path_kind
+from atlasgen.materials.material import MAX_MATERIAL_BYTES, read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
 from atlasgen.models import check_manifest_models, get_model
 from atlasgen.optics.display import display_clip
@@ -310,10 +311,15 @@ def _material_names(item, atlas, entries_by_name) -> list[str]:
         return [str(item)]
     atlas_path = atlas.path
     path = Path(item)
-    try:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError:
-        digest = None
+    digest = None
+    # Only a regular file of a material file's size is hashed: a named pipe would wait for a writer for ever and a
+    # device has no end. Anything else is left to read_material_file, which refuses it on one line.
+    if path_kind(path) is None:
+        try:
+            if path.stat().st_size <= MAX_MATERIAL_BYTES:
+                digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError:
+            pass
     if digest is not None:
         here = Path(path).resolve()
         by_source = [e for e in entries_by_name.values() if atlas.source_path(e).resolve() == here]

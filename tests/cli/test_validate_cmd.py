@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 
 import numpy as np
@@ -180,6 +181,27 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
     assert gpu_device.take_errors() == []
 
 
+#: Named pipes (:func:`_fifo`) that a reader blocked on.
+_WAITED_ON: set = set()
+
+
+def _fifo(path):
+    """A named pipe at ``path``. Should a reader block on it, a writer opens and closes it after 30 s and
+    records it in :data:`_WAITED_ON`, so that the test fails rather than hangs the suite."""
+    import threading
+
+    def release():
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))  # ENXIO where no reader waits
+        except OSError:
+            return
+        _WAITED_ON.add(path)
+
+    os.mkfifo(path)
+    threading.Timer(30.0, release).start()
+    return path
+
+
 @pytest.mark.parametrize(
     "make_arg, message",
     [
@@ -190,8 +212,11 @@ def test_a_material_file_validates_that_material_and_merge_combines_runs(validat
             "matte.toml: changed since",
         ),
         (lambda tmp, folder: _write(tmp / "other.toml", 'type = "lambert"\n'), "material 'other' is not in"),
+        # Hashed before it was parsed, a named pipe was read for ever (a hostile sweep's hang).
+        (lambda tmp, folder: _fifo(tmp / "pipe.mtlx"), "expected a regular file, got a named pipe"),
+        (lambda tmp, folder: _fifo(tmp / "pipe.toml"), "expected a regular file, got a named pipe"),
     ],
-    ids=["missing", "changed-since-the-bake", "not-in-the-atlas"],
+    ids=["missing", "changed-since-the-bake", "not-in-the-atlas", "a-named-pipe-document", "a-named-pipe-material"],
 )
 @pytest.mark.slow
 def test_a_bad_material_file_gets_one_line_naming_it(validation_atlas, tmp_path, make_arg, message):  # noqa: F811
@@ -202,6 +227,7 @@ def test_a_bad_material_file_gets_one_line_naming_it(validation_atlas, tmp_path,
     assert result.output.count("\n") == 1 and result.output.startswith(f"atlasgen: error: {path.as_posix()}: ")
     assert message in result.output
     assert not out.exists()
+    assert path not in _WAITED_ON, "validate waited on a named pipe for a writer"
 
 
 def test_merge_of_a_folder_without_a_report_names_it(tmp_path):
