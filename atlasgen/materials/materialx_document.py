@@ -68,6 +68,9 @@ DEFAULT_BUDGET = 0.04
 #: materials also try, never erred less on the shipped document, and each grid costs the oracle's
 #: evaluations, so the bake tries only this one (both targets, f cos and f times a proxy, still).
 SAMPLING_GRID = 32
+#: Inputs that MaterialX's own shader graphs leave unused (glTF's and USD's ``occlusion``, USD's ``displacement``)
+#: are named as well: otherwise a value given would vanish without a word.
+_OCCLUSION = "occlusion (MaterialX's shader leaves it unused, and an occlusion map varies over a surface, which a slice does not)"
 #: Per surface model: input -> (the value the oracle shades with, what the table cannot hold).
 NOT_IN_TABLE = {
     "standard_surface": {"emission": (0.0, "emission"), "opacity": ((1.0, 1.0, 1.0), "opacity"),
@@ -75,8 +78,11 @@ NOT_IN_TABLE = {
     "open_pbr_surface": {"emission_luminance": (0.0, "emission"), "geometry_opacity": (1.0, "opacity"),
                          "transmission_weight": (None, "transmission (the reflection that remains is baked)")},
     "gltf_pbr": {"emissive": ((0.0, 0.0, 0.0), "emission"), "alpha": (1.0, "opacity"),
-                 "transmission": (None, "transmission (the reflection that remains is baked)")},
-    "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity")},
+                 "transmission": (None, "transmission (the reflection that remains is baked)"),
+                 "occlusion": (1.0, _OCCLUSION)},
+    "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity"),
+                          "displacement": (0.0, "displacement (it moves geometry, which a slice does not hold)"),
+                          "occlusion": (1.0, _OCCLUSION)},
 }  # fmt: skip
 #: A surfacematerial's inputs beside its surface shader: what each would change that the table cannot hold.
 MATERIAL_NOT_IN_TABLE = {

@@ -87,6 +87,23 @@ def test_inputs_the_table_cannot_hold_are_named_and_left_out_of_the_oracle(tmp_p
 
 
 @pytest.mark.parametrize(
+    ("category", "inputs", "named"),
+    [
+        ("UsdPreviewSurface", '<input name="displacement" type="float" value="5" />'
+                              '<input name="occlusion" type="float" value="0.5" />', ["displacement", "occlusion"]),
+        ("gltf_pbr", '<input name="occlusion" type="float" value="0.25" />', ["occlusion"]),
+        ("UsdPreviewSurface", '<input name="occlusion" type="float" value="1" />', []),  # its default: nothing lost
+    ],
+    ids=["usd-displacement-and-occlusion", "gltf-occlusion", "usd-occlusion-at-its-default"],
+)  # fmt: skip
+def test_inputs_the_shader_graph_leaves_unused_are_named_not_dropped(tmp_path, category, inputs, named):
+    """MaterialX's glTF and USD graphs never read ``occlusion`` (nor USD's ``displacement``): a value given was baked
+    away without a word (found by a hostile sweep). Each is now named, unless it is the nodedef's default."""
+    spec = read_material_file(_document(tmp_path, _material("M", category, inputs)))[0].params["materialx"]
+    assert [line.split(" =")[0] for line in spec["not_in_table"]] == named
+
+
+@pytest.mark.parametrize(
     ("body", "field", "expected"),
     [
         (_material("Ph", "standard_surface", "").replace("standard_surface", "surface_unlit"), "Ph.surfaceshader",
