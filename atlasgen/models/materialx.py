@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from atlasgen.errors import MaterialError, did_you_mean
-from atlasgen.io.fields import is_number, shown
+from atlasgen.io.fields import FLOAT32_MAX, is_number, shown
 from atlasgen.separable.materialx_oracle import SURFACE_MODELS, surface_inputs, surface_ranges
 
 __all__ = ["SPEC_KEYS", "check_materialx_spec", "describe_materialx", "materialx_mitsuba_bsdf", "artistic_ior"]
@@ -39,8 +39,23 @@ EXPECTED_VALUES = {"float": "a finite number", "integer": "an integer", "boolean
              "vector3": "3 finite numbers", "vector4": "4 finite numbers"}  # fmt: skip
 
 
+def _shown(v: float) -> str:
+    short = f"{v:g}"
+    if float(short) == v or not abs(v) <= FLOAT32_MAX:
+        return short
+    # MaterialX holds values in float32: the shortest text that reads back as the same float32.
+    single = np.float32(v)
+    return short if np.float32(float(short)) == single else str(single)
+
+
 def shown_values(values) -> str:
-    return ", ".join(f"{v:g}" for v in values)
+    """Values as a message shows them: short (``%g``) where that is the value (as MaterialX's float32 holds it),
+    else as many digits as it takes, so that a refusal never shows a value inside the range it was refused for.
+
+    >>> shown_values([1.0, 0.25, 1e39]), shown_values([float(np.float32(1.0000001))]), shown_values([float("nan")])
+    ('1, 0.25, 1e+39', '1.0000001', 'nan')
+    """
+    return ", ".join(_shown(float(v)) for v in values)
 
 
 def check_input_value(path, field: str, kind: str, value, limits):

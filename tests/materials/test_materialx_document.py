@@ -136,6 +136,12 @@ def _open(inputs: str) -> str:
          "expected a finite number, got 'nan'"),
         ('<input name="specular_roughness" type="float" value="-3" />', "M.specular_roughness",
          "expected float within 0 .. 1 (the nodedef's uimin .. uimax), got -3"),
+        # Shown to %g, this value read "got 1", inside the range it was refused for.
+        ('<input name="specular_roughness" type="float" value="1.0000001" />', "M.specular_roughness",
+         "expected float within 0 .. 1 (the nodedef's uimin .. uimax), got 1.0000001"),
+        # Digits of another script: "0.4" and an Arabic-Indic five was baked as 0.4.
+        ('<input name="specular_roughness" type="float" value="0.4\u0665" />', "M.specular_roughness",
+         "expected a finite number, got '0.4\u0665'"),
         ('<input name="base_color" type="color3" value="0.2, 1.5, 0.2" />', "M.base_color",
          "expected color3 within 0, 0, 0 .. 1, 1, 1 (the nodedef's uimin .. uimax), got 0.2, 1.5, 0.2"),
         ('<input name="thin_film_thickness" type="float" value="-1" />', "M.thin_film_thickness",

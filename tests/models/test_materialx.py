@@ -199,3 +199,12 @@ def test_a_hand_written_materialx_table_is_checked_against_its_nodedef(tmp_path,
     assert message.startswith(f"{path.as_posix()}: field '{field}': ") and expected in message, message
     path.write_text(_SPEC + "oracle_inputs = { base = 0.5, base_color = [1.0, 0.0, 0.0] }\n")
     assert read_material(path).name == "m"  # the same table, well formed, reads
+
+
+def test_the_module_s_doctests_pass():
+    import doctest
+
+    from atlasgen.models import materialx
+
+    result = doctest.testmod(materialx)
+    assert result.attempted >= 1 and result.failed == 0
