@@ -244,7 +244,15 @@ def find_material_files(paths) -> list[Path]:
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            files.extend(sorted((f for f in p.iterdir() if is_material_file_name(f.name)), key=lambda f: f.name))
+            entries = sorted(p.iterdir(), key=lambda f: f.name)
+            # A folder's material files are found by their lower-case extension, as make's materials/*.toml finds
+            # them: one spelt otherwise was left out without a word, though named on its own it bakes.
+            for f in entries:
+                if not is_material_file_name(f.name) and is_material_file_name(f.name.lower()):
+                    ext = f.suffix.lower()
+                    raise InputError(f"{f.as_posix()}: expected a material file's extension in lower case ({ext}), "
+                                     f"as a folder's material files are found; rename it")  # fmt: skip
+            files.extend(f for f in entries if is_material_file_name(f.name))
         elif (kind := path_kind(p)) is None:
             files.append(p)
         elif kind == MISSING:

@@ -55,6 +55,19 @@ def test_a_folder_lists_documents_beside_toml_files(tmp_path):
     assert [m.name for m in read_materials([tmp_path])] == ["a", "Std", "Open", "Gltf", "Usd"]
 
 
+@pytest.mark.parametrize("name", ["b.MTLX", "b.Toml"])
+def test_a_folder_s_material_file_with_an_upper_case_extension_is_refused_not_skipped(tmp_path, name):
+    """It was left out without a word (exit 0, the rest baked), though named on its own it bakes."""
+    (tmp_path / "a.toml").write_text('type = "lambert"\n')
+    (tmp_path / name).write_text('type = "lambert"\n')
+    with pytest.raises(InputError) as info:
+        find_material_files([tmp_path])
+    assert str(info.value) == (f"{(tmp_path / name).as_posix()}: expected a material file's extension in lower case "
+                               f"({name[1:].lower()}), as a folder's material files are found; rename it")  # fmt: skip
+    (tmp_path / name).rename(tmp_path / name.lower())
+    assert [p.name for p in find_material_files([tmp_path])] == ["a.toml", name.lower()]
+
+
 TEXTURED = '<image name="tex" type="color3"><input name="file" type="filename" value="a.png" /></image>\n' + _material(
     "Tex", "standard_surface", '<input name="base_color" type="color3" nodename="tex" />'
 )
