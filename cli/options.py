@@ -21,7 +21,13 @@ MAX_SPP = 65536
 
 class PathArg(click.Path):
     """``click.Path`` that refuses an empty string: pathlib reads ``""`` as ``.``, so ``bake ""`` baked the
-    current folder and ``-o ""`` named it."""
+    current folder and ``-o ""`` named it. It leaves readability to the library's readers: click refused an
+    unreadable file as a usage error (exit 2, three lines of usage and message), where a reader says
+    ``path: cannot read (Permission denied)`` on one line, exit 3, as for any input it cannot read."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("readable", False)
+        super().__init__(*args, **kwargs)
 
     def convert(self, value, param, ctx):
         if isinstance(value, str) and not value:

@@ -296,3 +296,14 @@ def test_a_render_onto_another_sets_link_is_refused_before_it_renders(tmp_path, 
     monkeypatch.setattr(atlasgen.render, "read_render_atlas", no_render)
     _refused(tmp_path, ["render", str(scene), "--atlas", str(tmp_path / "build" / "atlas.dds"), "-o",
                         str(tmp_path / "build" / "x.exr")], "x.png: already written by another command's outputs")  # fmt: skip
+
+
+def test_an_unreadable_input_is_left_to_the_reader_not_a_usage_error(tmp_path, library, monkeypatch):
+    """click's Path refused a file os.access calls unreadable as a usage error (exit 2); the readers refuse what
+    they cannot read on one line, exit 3, as for any bad input. (Root reads through chmod 000, so os.access is made
+    to say no: the command then goes on to the reader, which reads the file.)"""
+    import os
+
+    monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)
+    res = CliRunner().invoke(app, ["bake", str(library / "clay.toml"), "-o", str(tmp_path / "a.dds"), "-q"])
+    assert res.exit_code == 0, res.output
