@@ -346,9 +346,13 @@ class Separable(Model):
                 if isinstance(value, int | float | tuple | list) and not isinstance(value, bool) and np.size(value)}  # fmt: skip
         key = max((k for k, v in size.items() if v >= 1e6), key=lambda k: size[k], default=None)
         expected = "expected inputs MaterialX's shader (float32 GLSL) turns into finite values"
-        if key is None:
-            return spec["material"], expected
-        return f"{spec['material']}.{key}", f"{expected}; got {key} = {size[key]:g}, far out of range"
+        if key is not None:
+            return f"{spec['material']}.{key}", f"{expected}; got {key} = {size[key]:g}, far out of range"
+        # An index of refraction near 0 (the nodedefs allow 0) divides by zero in the shader's Fresnel.
+        ior = min((k for k, v in size.items() if "ior" in k.lower() and v < 1e-3), key=lambda k: size[k], default=None)
+        if ior is not None:
+            return f"{spec['material']}.{ior}", f"{expected}; got {ior} = {size[ior]:g}, an index of refraction near 0"
+        return spec["material"], expected
 
     def slice_count(self, values: dict) -> int:
         """K when fixed (and one transmission slice for a back-light); with ``max_error`` only

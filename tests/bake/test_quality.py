@@ -131,6 +131,9 @@ def test_what_a_materialx_material_asks_and_no_slice_holds_warns_sharp_lobes_asi
 @pytest.mark.parametrize(("inputs", "field", "tail"), [
     ({"base_color": (0.8, 0.8, 0.8), "specular_IOR": 3e38}, "p.specular_IOR", "; got specular_IOR = 3e+38, far out of range"),
     ({"base_color": (0.8, 0.8, 0.8)}, "p", "turns into finite values"),
+    # The nodedefs allow an IOR of 0, which divides by zero in the shader's Fresnel: named, not just the material.
+    ({"specular_IOR": 1.5, "coat_IOR": 0.0}, "p.coat_IOR", "; got coat_IOR = 0, an index of refraction near 0"),
+    ({"specular_ior": 1e-30}, "p.specular_ior", "; got specular_ior = 1e-30, an index of refraction near 0"),
 ])  # fmt: skip
 def test_non_finite_samples_of_a_materialx_material_name_its_input_not_a_toml_field(inputs, field, tail):
     """The refusal named field 'type' and offered nonfinite_tolerance, a TOML key no document can set; it names the
