@@ -56,10 +56,32 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
             error = error or out.geterror() or "the encoder failed"
             # OpenImageIO names its own file, the scratch copy; the user's file is the output.
             raise OutputError(f"{shown} ({error.replace(path, Path(near).as_posix()) if near is not None else error})")
+        # A failure in the last flush, at close, is not reported (OpenImageIO's close returns True): with the
+        # file size limit at 4 KiB a 5 KB EXR came back cut at 4096 bytes and was committed. What is returned
+        # must decode whole, to the shape written.
+        problem = _decode_problem(oiio, path, pixels.shape)
+        if problem is not None:
+            raise OutputError(f"{shown} (the file written does not read back: {problem})")
         try:
             return Path(path).read_bytes()
         except OSError as exc:
             raise OutputError(f"{shown} ({exc.strerror})") from None
+
+
+def _decode_problem(oiio, path: str, shape) -> str | None:
+    """None where the image file at ``path`` decodes whole to ``shape`` ``(h, w, c)``, else what is wrong."""
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        return oiio.geterror() or "unreadable"
+    try:
+        pixels = image.read_image()
+        error = image.geterror()
+    finally:
+        image.close()
+    if pixels is None or error:
+        return error or "its pixels do not decode"
+    got = np.shape(pixels) if np.ndim(pixels) == 3 else (*np.shape(pixels), 1)
+    return None if tuple(got) == tuple(shape) else f"{got} pixels, expected {tuple(shape)}"
 
 
 def encode_png(codes: np.ndarray, near=None, compression: int | None = None) -> bytes:

@@ -169,3 +169,33 @@ def test_a_full_disk_names_the_output_and_leaves_nothing(full_folder):
     message = str(refused.value)
     assert message.startswith(f"{out.as_posix()}: cannot write (") and "atlasgen.tmp" not in message, message
     assert "\n" not in message and list(full_folder.iterdir()) == []
+
+
+def test_an_exr_cut_short_at_its_last_flush_is_refused_not_returned(tmp_path):
+    """With the file size limit at 4 KiB, a 5 KB EXR's last chunk failed to write when the file was closed, which
+    OpenImageIO does not report: the cut file came back (4096 bytes) and `render` committed it, exit 0. A child
+    process sets the limit (Python ignores SIGXFSZ, so the write fails with EFBIG instead of killing it)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(f"""
+        import resource
+        import numpy as np
+        from atlasgen.errors import OutputError
+        from atlasgen.io.images import encode_exr
+        pixels = np.broadcast_to(np.linspace(0, 1, 64, dtype=np.float32)[None, :, None], (200, 64, 3)).copy()
+        assert 4096 < len(encode_exr(pixels)) < 8192  # the case: one chunk past the limit
+        resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+        try:
+            data = encode_exr(pixels, near={str(tmp_path / "r.exr")!r})
+        except OutputError as exc:
+            print("refused:", exc)
+        else:
+            print("returned", len(data), "bytes")
+    """)  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == (f"refused: {(tmp_path / 'r.exr').as_posix()}: cannot write (the file written does not "
+                                   "read back: Some scanline chunks were missing or corrupted)")  # fmt: skip
+    assert list(tmp_path.iterdir()) == []
