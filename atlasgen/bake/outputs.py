@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from atlasgen.bake.cache import cache_path
@@ -58,7 +59,9 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
         inputs.append((scene, "the scene (--scene)"))
         inputs += [(obj.file, f"the mesh of the scene's objects[{obj.index}]")
                    for obj in read_scene(scene).objects if obj.file is not None]  # fmt: skip
-    if ids_from is not None and Path(ids_from).resolve() != paths["manifest"].resolve():
+    # realpath, not resolve(): Python 3.11's resolve raises RuntimeError on a symbolic link loop (an internal error,
+    # exit 1); the loop is then refused by the manifest's reader on one line.
+    if ids_from is not None and os.path.realpath(ids_from) != os.path.realpath(paths["manifest"]):
         inputs.append((ids_from, "--ids-from"))
     check_output_paths(outputs, inputs)
     if not cache_only:

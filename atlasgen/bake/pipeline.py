@@ -135,7 +135,8 @@ def read_previous_slots(manifest_path, missing_ok: bool = True) -> dict[str, int
     :class:`~atlasgen.errors.InputError` for a missing one unless ``missing_ok``.
     """
     path = Path(manifest_path)
-    return read_slots(path) if path.exists() or not missing_ok else {}
+    # A link that loops or points nowhere is read, and refused, not taken for no manifest (exists() is False).
+    return read_slots(path) if os.path.lexists(path) or not missing_ok else {}
 
 
 def _jsonable(value):

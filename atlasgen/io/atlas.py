@@ -150,7 +150,9 @@ def read_atlas(path) -> Atlas:
     data = read_input_bytes(path, missing, (MAX_ATLAS_BYTES, "an atlas texture (DDS or KTX2)"))
     image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
-    if not manifest_path.exists():
+    # lexists: a link beside the atlas that loops or points nowhere is a broken manifest, refused by the reader
+    # below on one line, not an atlas without one (exists() is False for both, and info said "no manifest").
+    if not os.path.lexists(manifest_path):
         return Atlas(path, image, None)
     text = read_input_text(manifest_path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
     manifest = parse_manifest(text, manifest_path.as_posix())

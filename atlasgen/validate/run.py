@@ -17,6 +17,7 @@ from __future__ import annotations
 import gc
 import hashlib
 import math
+import os
 import statistics
 import time
 from dataclasses import dataclass, field, replace
@@ -321,8 +322,9 @@ def _material_names(item, atlas, entries_by_name) -> list[str]:
         except OSError:
             pass
     if digest is not None:
-        here = Path(path).resolve()
-        by_source = [e for e in entries_by_name.values() if atlas.source_path(e).resolve() == here]
+        # realpath: resolve() raises RuntimeError where another entry's material file has become a link loop.
+        here = os.path.realpath(path)
+        by_source = [e for e in entries_by_name.values() if os.path.realpath(atlas.source_path(e)) == here]
         by_hash = [e for e in entries_by_name.values() if e.content_hash == digest]
         match = next((e for e in by_source if e.content_hash == digest), None) or (by_hash[0] if len(by_hash) == 1 else None)
         if match is not None:

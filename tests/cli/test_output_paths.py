@@ -307,3 +307,21 @@ def test_an_unreadable_input_is_left_to_the_reader_not_a_usage_error(tmp_path, l
     monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)
     res = CliRunner().invoke(app, ["bake", str(library / "clay.toml"), "-o", str(tmp_path / "a.dds"), "-q"])
     assert res.exit_code == 0, res.output
+
+
+def test_a_manifest_that_is_a_symbolic_link_loop_is_refused_on_one_line(tmp_path, library):
+    """--ids-from on a loop was an internal error (Python 3.11's resolve() raises RuntimeError), and info took an
+    x.json that loops for no manifest at all (exit 0): each is now the reader's one-line refusal, exit 3."""
+    loop = tmp_path / "loop.json"
+    loop.symlink_to("loop.json")
+    _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(loop)],
+             f"{loop.as_posix()}: expected a regular file, got a symbolic link loop", code=3)  # fmt: skip
+    out = tmp_path / "out"
+    _bake(out, library)
+    manifest = out / "build" / "atlas.json"
+    manifest.unlink()
+    manifest.symlink_to("atlas.json")
+    expected = f"{manifest.as_posix()}: expected a regular file, got a symbolic link loop"
+    _refused(tmp_path, ["bake", str(library), "-o", str(out / "build" / "atlas.dds")], expected, code=3)
+    res = CliRunner().invoke(app, ["info", str(out / "build" / "atlas.dds")])
+    assert res.exit_code == 3 and res.stderr.strip() == f"atlasgen: error: {expected}", res.output
