@@ -27,8 +27,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from atlasgen.bake.cache import load_cached
-from atlasgen.errors import BackendError, InputError, SceneError, did_you_mean
+from atlasgen.errors import BackendError, InputError, ManifestError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.atlas import Atlas, read_atlas
+from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import Manifest
 from atlasgen.io.text import path_kind
 from atlasgen.materials.material import MAX_MATERIAL_BYTES, read_material_file
@@ -263,8 +264,10 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
         if slices is not None:
             float_slices[name] = slices
             entry_model(entry, slices)  # a fitted slice's table, for every FittedSlice of this material
-        model_reference(entry)  # raises InputError when no reference is possible
+        # Before the reference is built from them: a manifest's params are read as the model reads a material file's.
         _check_params_current(atlas_path, entry)
+        _check_param_values(atlas_path, atlas.manifest.materials.index(entry), entry)
+        model_reference(entry)  # raises InputError when no reference is possible
         entries.append(entry)
     if not entries:
         raise InputError(f"{atlas_path.as_posix()}: the atlas holds no materials to validate")
@@ -356,6 +359,20 @@ def _check_params_current(atlas_path, entry) -> None:
             f"{atlas_path.with_suffix('.json').as_posix()}: material {entry.name!r}: parameters do not match the "
             f"current '{entry.type}' model ({what}); expected an atlas baked by this atlasgen: re-run atlasgen bake"
         )
+
+
+def _check_param_values(atlas_path, index: int, entry) -> None:
+    """Refuse a manifest entry whose parameter values its model would refuse in a material file, naming
+    ``materials[index].params.<name>``: the manifest's reader checks their names only, and a hand-edited
+    ``"ior": "glass"`` reached the Fresnel code (an internal error), a NaN Mitsuba's (naming ``<bsdf>``)."""
+    schema = get_model(entry.type).params
+    # An optional parameter left unset is written as null: read as absent, as in a material file.
+    unset = {p.name for p in schema if p.default is None}
+    given = {k: v for k, v in entry.params.items() if not (v is None and k in unset)}
+    try:
+        validate_params(schema, given, atlas_path.with_suffix(".json").as_posix())
+    except MaterialError as exc:
+        raise ManifestError(exc.path, f"materials[{index}].params.{exc.field}", exc.expected) from None
 
 
 def _object_entries(scene, entry, manifest) -> list:

@@ -140,6 +140,40 @@ def test_bad_input_gets_one_clear_line_and_writes_nothing(validation_atlas, tmp_
     assert not out.exists()
 
 
+@pytest.mark.parametrize(("value", "got"), [('"glass"', "got 'glass'"), ("NaN", "got nan (not finite)"), ("0.5", "got 0.5")])
+def test_a_manifest_parameter_its_model_would_refuse_is_named_before_any_reference(
+    validation_atlas,  # noqa: F811
+    tmp_path,
+    value,
+    got,
+):
+    """A consistent hand edit (the includes' hash lines follow the manifest) of coat's ior: "glass" reached the Fresnel
+    code (an internal error, exit 1) and NaN Mitsuba's, named '<bsdf>'. Each is refused as a material file's would be,
+    naming the manifest's field."""
+    import hashlib
+    import shutil
+
+    from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
+
+    for f in validation_atlas.parent.glob("atlas.*"):
+        shutil.copy(f, tmp_path / f.name)
+    manifest = tmp_path / "atlas.json"
+    data = json.loads(manifest.read_text())
+    index = next(i for i, m in enumerate(data["materials"]) if m["name"] == "coat")
+    data["materials"][index]["params"]["ior"] = json.loads(value, parse_constant=float)
+    text = json.dumps(data, indent=2)
+    manifest.write_text(text)
+    digest = hashlib.sha256(text.encode()).hexdigest()
+    for include in tmp_path.glob("atlas.[wgh]*sl"):
+        include.write_text(f"{INCLUDE_HASH_PREFIX}{digest}\n" + include.read_text().split("\n", 1)[1])
+    out = tmp_path / "v"
+    result = CliRunner().invoke(app, ["validate", "coat", "--atlas", str(tmp_path / "atlas.dds"), "-o", str(out), "-q"])
+    assert result.exit_code == 3, result.output
+    assert result.stderr == (f"atlasgen: error: {manifest.as_posix()}: field 'materials[{index}].params.ior': expected a "
+                             f"finite number >= 1.01 and <= 4, {got}\n")  # fmt: skip
+    assert not out.exists()
+
+
 def test_missing_atlas_says_to_bake_first(tmp_path):
     result = CliRunner().invoke(app, ["validate", "--atlas", str(tmp_path / "none.dds"), "-o", str(tmp_path / "v")])
     assert result.exit_code == 3 and "bake one first" in result.output
