@@ -22,12 +22,12 @@ from typing import Any
 import numpy as np
 
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
-from atlasgen.errors import InputError, ManifestError
+from atlasgen.errors import InputError
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.fields import counted
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
-from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest
-from atlasgen.io.text import read_input_bytes, read_input_text
+from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest, read_manifest_text
+from atlasgen.io.text import read_input_bytes
 from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
@@ -154,7 +154,7 @@ def read_atlas(path) -> Atlas:
     # below on one line, not an atlas without one (exists() is False for both, and info said "no manifest").
     if not os.path.lexists(manifest_path):
         return Atlas(path, image, None)
-    text = read_input_text(manifest_path, "no such manifest", "an atlas manifest (a UTF-8 JSON file)", ManifestError)
+    text = read_manifest_text(manifest_path)
     manifest = parse_manifest(text, manifest_path.as_posix())
     manifest_sha256 = hashlib.sha256(text.encode("utf-8")).hexdigest()
     _check_pair(path, image, manifest_path, manifest, manifest_sha256)

@@ -117,8 +117,8 @@ def read_input_bytes(path, missing: str = "no such file", limit: tuple[int, str]
         raise InputError(f"{Path(path).as_posix()}: cannot read ({exc.strerror})") from None
 
 
-def read_input_text(path, missing: str, expected: str, error: type[FieldError]) -> str:
-    """The UTF-8 text of ``path``.
+def read_input_text(path, missing: str, expected: str, error: type[FieldError], limit: int | None = None) -> str:
+    """The UTF-8 text of ``path``; with ``limit``, a file of more bytes is refused before it is read.
 
     Raises
     ------
@@ -127,12 +127,15 @@ def read_input_text(path, missing: str, expected: str, error: type[FieldError]) 
         system refuses it; ``path: expected a regular file, got ...`` for a named pipe, socket or device.
     FieldError
         ``error`` (e.g. :class:`~atlasgen.errors.SceneError`), ``path: expected {expected}``,
-        when it is a directory or not UTF-8.
+        when it is a directory, not UTF-8, or over ``limit``.
     """
     shown = Path(path).as_posix()
     _refuse_special(path)
     try:
-        return decode_utf8(Path(path).read_bytes())
+        with open(path, "rb") as file:
+            if limit is not None and (size := os.fstat(file.fileno()).st_size) > limit:
+                raise error(shown, None, f"expected {expected}, at most {limit} bytes, got {size} bytes")
+            return decode_utf8(file.read())
     except FileNotFoundError:
         raise InputError(f"{shown}: {missing}") from None
     except IsADirectoryError:

@@ -551,3 +551,19 @@ def test_the_schema_s_name_pattern_is_the_contract_s():
     from atlasgen.contract import NAME_PATTERN
 
     assert _schema("manifest").schema["$defs"]["material"]["properties"]["name"]["pattern"] == NAME_PATTERN.pattern
+
+
+def test_a_manifest_over_the_size_limit_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """A 100 MB manifest took 10 s and 0.66 GB to read; one over MAX_MANIFEST_BYTES is refused on one line by every
+    reader of manifests (read_manifest, read_slots, read_atlas), the size taken before the text is read."""
+    from atlasgen.io import manifest as manifest_module
+    from atlasgen.io.manifest import read_slots
+
+    monkeypatch.setattr(manifest_module, "MAX_MANIFEST_BYTES", 100)
+    path = tmp_path / "x.json"
+    path.write_text("{" + " " * 100 + "}")
+    expected = f"{path.as_posix()}: expected an atlas manifest (a UTF-8 JSON file), at most 100 bytes, got 102 bytes"
+    for read in (manifest_module.read_manifest, read_slots):
+        with pytest.raises(ManifestError) as info:
+            read(path)
+        assert str(info.value) == expected
