@@ -324,16 +324,19 @@ def _material_names(item, atlas, entries_by_name) -> list[str]:
                 digest = hashlib.sha256(path.read_bytes()).hexdigest()
         except OSError:
             pass
+    # realpath: resolve() raises RuntimeError where another entry's material file has become a link loop.
+    here = os.path.realpath(path)
+    by_source = [e for e in entries_by_name.values() if os.path.realpath(atlas.source_path(e)) == here]
     if digest is not None:
-        # realpath: resolve() raises RuntimeError where another entry's material file has become a link loop.
-        here = os.path.realpath(path)
-        by_source = [e for e in entries_by_name.values() if os.path.realpath(atlas.source_path(e)) == here]
         by_hash = [e for e in entries_by_name.values() if e.content_hash == digest]
         match = next((e for e in by_source if e.content_hash == digest), None) or (by_hash[0] if len(by_hash) == 1 else None)
         if match is not None:
             return [match.name]
+    # A document baked with --flatten default is read as it was baked: its entries record what was flattened
+    # (read plainly, the driven input was refused, with a hint to flatten that validate has no option for).
+    flattened = any(((e.params.get("materialx") or {}).get("flattened")) for e in by_source)
     names = []
-    for material in read_material_file(item):  # InputError / MaterialError naming the file
+    for material in read_material_file(item, "default" if flattened else None):  # errors name the file
         entry = entries_by_name.get(material.name)
         if entry is None:
             known = ", ".join(sorted(entries_by_name)) or "none"

@@ -170,3 +170,26 @@ def test_the_page_shows_the_document_representation_error_and_ratio(gold_run):
     assert (
         row["materialx"]["oracle_over_physical"]["bsdf_min_max"] == run.runs[0].materialx["oracle_over_physical"]["bsdf_min_max"]
     )
+
+
+@pytest.mark.slow  # one MaterialX bake: the oracle's shader
+def test_a_document_baked_with_flatten_default_validates_by_its_file_name(tmp_path):
+    """`atlasgen validate lib.mtlx` read the document without flattening, so a material baked with --flatten default
+    was refused as "driven by node ...; ... atlasgen bake --flatten default", the way it had been baked. The manifest
+    records what was flattened, and the document is read as it was baked."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+    from atlasgen.io.atlas import read_atlas
+    from atlasgen.validate.run import _material_names
+
+    document = Path(__file__).resolve().parents[1] / "resources" / "materialx" / "textured.mtlx"
+    atlas_path = tmp_path / "x.dds"
+    baked = CliRunner().invoke(app, ["bake", str(document), "--flatten", "default", "-o", str(atlas_path), "-q"])
+    assert baked.exit_code == 0, baked.output
+    atlas = read_atlas(atlas_path)
+    entries = {e.name: e for e in atlas.manifest.materials}
+    assert all(e.params["materialx"]["flattened"] for e in entries.values())
+    assert _material_names(document, atlas, entries) == sorted(entries, key=lambda n: entries[n].first_slice)
