@@ -237,8 +237,23 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     _, message = doc.validate()
     faults = [line.strip() for line in message.splitlines() if line.strip() and not line.strip().startswith(_NO_VALUE)]
     if faults:
-        raise MaterialError(shown, None, f"expected a document MaterialX validates, got: {shorten(faults[0])}")
+        raise MaterialError(shown, None, f"expected a document MaterialX validates, got: {_validation_fault(faults[0])}")
     return out
+
+
+#: A line of ``Document.validate``'s report: what is wrong, then the element as XML (its attributes in order).
+_FAULT = re.compile(r'(?s)(?P<what>.*?):\s*<(?P<tag>[\w:]+)\s+name="(?P<name>[^"]*)"')
+
+
+def _validation_fault(line: str) -> str:
+    """A line of MaterialX's validation as one short clause: what is wrong and the element's tag and name, not
+    the element's XML, whose head alone fitted the line (``<input name="bas... (110 characters)``).
+
+    >>> _validation_fault('Interface name not found in referenced declaration: <input name="base_color" type="color3" />')
+    "Interface name not found in referenced declaration: input 'base_color'"
+    """
+    match = _FAULT.match(line)
+    return shorten(f"{match['what']}: {match['tag']} {match['name']!r}" if match else line, 160)
 
 
 def _material_not_in_table(node) -> list[str]:

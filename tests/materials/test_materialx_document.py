@@ -223,6 +223,10 @@ def test_a_shader_the_oracle_would_not_shade_as_written_is_refused(tmp_path, roo
     # What MaterialX's validation finds and no check above names: a connection to an output the node lacks.
     (_material("M", "standard_surface", "").replace('nodename="SR_M"', 'nodename="SR_M" output="nope"'),
      "expected a document MaterialX validates, got: No output found for port connection"),
+    # Named by its tag and name: the element's XML was cut to '<input name="bas... (110 characters)'.
+    (_material("M", "standard_surface", '<input name="base_color" type="color3" interfacename="bc" />'),
+     "expected a document MaterialX validates, got: Interface name not found in referenced declaration: "
+     "input 'base_color'"),
     # --flatten default took an unknown driven input for one it flattened.
     (_material("M", "standard_surface", '<input name="bogus" type="float" nodename="T" />')
      + '\n<constant name="T" type="float"><input name="value" type="float" value="1" /></constant>',
