@@ -824,6 +824,9 @@ def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> No
         if m.name in names:
             raise ManifestError(shown, f"{where}.name", f"expected a unique name, got {m.name!r} twice")
         names.add(m.name)
+        if m.first_slice >= layers:  # the first slice itself is out: slice_count is not what is wrong
+            raise ManifestError(shown, f"{where}.first_slice", f"expected a slice of the atlas's {layers} layers "
+                                                               f"(0..{layers - 1}), got {m.first_slice}")  # fmt: skip
         if m.first_slice + m.slice_count > layers:
             raise ManifestError(shown, f"{where}.slice_count", f"expected slices {m.first_slice}..{m.first_slice + m.slice_count - 1} "
                                                               f"within the atlas's {layers} layers")  # fmt: skip
