@@ -8,6 +8,7 @@ import click
 
 from atlasgen.cli.main import echo_warnings, fail_on_errors, one_line_message
 from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.errors import Terminated
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
 from atlasgen.preview.watch import describe_label, describe_update, watch_preview
@@ -123,7 +124,11 @@ def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> No
     try:
         watch_preview(paths, output, cache, on_update=report, reference=reference, max_spp=max_spp, on_reference=refined,
                       on_label=labelled)  # fmt: skip
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        # SIGTERM (a CI job's time-out, an IDE's stop) is not how a watch is ended by its user: it exits 143
+        # with its one line, as every command does (Terminated is a KeyboardInterrupt, for the clean-ups).
+        if isinstance(exc, Terminated):
+            raise
         # Ctrl-C is how a watch ends: a success; the PNG was replaced whole or not at all.
         if verbosity != QUIET:
             click.echo("stopped watching", err=True)

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import threading
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -105,6 +106,28 @@ def test_ctrl_c_ends_a_watch_with_success(gpu_device, tmp_path, write_material):
     assert all(line.startswith("error figures measured in ") for line in lines[1:-1]), lines
     assert lines[-1].startswith(f"{clay.as_posix()} changed: {out.as_posix()} in ") and lines[-1].endswith(" s")
     assert out.read_bytes() != first and out.read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.slow
+def test_sigterm_ends_a_watch_as_it_ends_every_command(gpu_device, tmp_path, write_material):
+    """SIGTERM (a job's time-out, an IDE's stop) ended a watch as Ctrl-C does, "stopped watching" and exit 0, where
+    every command exits 143 with its line (docs/cli.md): the caller could not tell a kill from a user's stop."""
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "clay.png"
+    script = Path(sys.executable).parent / "atlasgen"  # the command line itself: it installs the SIGTERM handler
+    child = subprocess.Popen([str(script), "preview", str(clay), "--watch", "-o", str(out), "--cache", str(tmp_path / "c")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ)  # fmt: skip
+    try:
+        first = child.stdout.readline()
+        assert first.startswith(f"first picture: {out.as_posix()} in "), first
+        child.send_signal(signal.SIGTERM)
+        stderr = child.stderr.read()
+        child.wait(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 143, stderr
+    assert stderr.splitlines()[-1] == "atlasgen: terminated" and "stopped watching" not in stderr
+    assert out.read_bytes().startswith(b"\x89PNG")
 
 
 @pytest.mark.parametrize("verbosity", [[], ["-q"]])
