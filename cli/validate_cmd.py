@@ -10,6 +10,7 @@ from atlasgen.cli.main import echo_warnings, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
+from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.reports.validation import (
     describe_materials,
     merge_validation_reports,
@@ -105,6 +106,7 @@ def validate(
     claimed error against its error_budget, where it has one.
     """
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
+    refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
     if max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it (validate_atlas)
         raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",
                                  param_hint="'--max-physical-spp'")  # fmt: skip

@@ -21,6 +21,7 @@ from atlasgen.io.atomic import staged_folder
 from atlasgen.materials.material import check_unique_names
 from atlasgen.models.separable import Separable
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
+from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.separable.approximate import MAX_AUTO_TERMS, approximate_brdf, reference_values
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 from atlasgen.separable.error import ERROR_SEED, error_sample_for, errors_by_terms, measure_errors
@@ -482,6 +483,7 @@ def write_separable_report(
             raise InputError(f"{shown}: no manifest beside the atlas (expected {Path(atlas_path).with_suffix('.json').as_posix()}); "
                              f"re-run atlasgen bake -o {shown}")  # fmt: skip
     folder = Path(output)
+    refuse_another_report(folder, "separable")  # before the studies' minutes of work
     studies = []
     for done, m in enumerate(materials, 1):
         studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations))

@@ -19,6 +19,7 @@ from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
+from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.reports.separable import MaterialStudy, format_separable_html, format_separable_report
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
@@ -161,5 +162,6 @@ def merge_separable_reports(sources, output) -> dict:
     files[output / "report.json"] = (json.dumps([s.__dict__ for s in studies], indent=1, default=float) + "\n").encode()
     # The set a single run's report names (report.json): a merge into a folder that holds one replaces
     # that set under its lock, rather than writing the same paths as a second set under another.
+    refuse_another_report(output, "separable")
     write_files_atomically(files, primary=output / "report.json", whole=True)
     return {"markdown": output / "index.md", "html": output / "index.html", "json": output / "report.json", "plots": plots}

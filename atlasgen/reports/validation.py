@@ -28,6 +28,7 @@ from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
 from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
+from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.validate.metrics import NO_PIXELS, NOISE_FLOOR_MARGIN_DB, finite_or_none, flip_heatmap
 
 __all__ = [
@@ -1050,6 +1051,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
         # The fields the merge reads are checked above; this catches a hand edit deeper in a result
         # (a look's goal, a region's figures) that the page cannot print, still as one line.
         _refuse_malformed(data, paths, reports, out_dir, exc)
+    refuse_another_report(out_dir, "validation")
     write_files_atomically(files, primary=out_dir / "report.json", whole=True)  # the Makefile's target
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}
 
@@ -1061,6 +1063,7 @@ def write_validation(run, out_dir) -> dict:
     """
     out_dir = Path(out_dir)
     files = build_report(run, out_dir)
+    refuse_another_report(out_dir, "validation")
     write_files_atomically(files, primary=out_dir / "report.json", whole=True)  # the Makefile's target
     data = json.loads(files[out_dir / "report.json"])
     return {"html": out_dir / "index.html", "json": out_dir / "report.json", "files": sorted(files), "data": data}

@@ -270,3 +270,26 @@ def test_the_summary_s_sentences_are_spaced(merged):
     data = written["data"]["summary"]
     assert data["look_results"] and data["no_physical_reference"], "the run must hold both sentences"
     assert not re.search(r"\d\.\d+\.\d|[a-z)]\.[A-Z]", summary), summary
+
+
+def test_a_merge_into_a_separable_report_s_folder_is_refused_and_changes_nothing(merged, tmp_path):
+    """Both commands name their set by report.json, so they share a store: `validate --merge ... -o S` replaced the
+    separable report S whole (exit 0), and what read S as one then failed. Refused, exit 4, nothing replaced."""
+    import json
+
+    from atlasgen.io.atomic import write_files_atomically
+    from atlasgen.reports.validation import merge_validation_reports
+
+    out, parts, _ = merged
+    separable = tmp_path / "separable"
+    study = (json.dumps([{"name": "gold", "source": "gold.toml"}]) + "\n").encode()
+    write_files_atomically({separable / "index.md": b"# gold\n", separable / "report.json": study},
+                           primary=separable / "report.json", whole=True)  # fmt: skip
+    before = {p: p.read_bytes() for p in separable.rglob("*") if p.is_file()}
+    with pytest.raises(OutputError, match=r"report.json: already written by another command's outputs \(a separable "
+                                          r"report\); expected a folder of its own"):  # fmt: skip
+        merge_validation_reports([out / "materials" / m for m in parts], separable)
+    assert {p: p.read_bytes() for p in separable.rglob("*") if p.is_file()} == before
+    # Its own kind it replaces, as every merge does.
+    merge_validation_reports([out / "materials" / m for m in parts], tmp_path / "again")
+    merge_validation_reports([out / "materials" / m for m in parts], tmp_path / "again")
