@@ -17,15 +17,28 @@ __all__ = [
     "install_start_up_interrupts",
     "end_start_up_interrupts",
     "raise_terminated",
+    "as_received",
     "raise_unraisable_interrupts",
 ]
+
+
+#: Set by :func:`raise_terminated`: a library that turns the interrupt its signal check raised into one of its own
+#: (watchfiles raises a plain KeyboardInterrupt) loses which signal it was; :func:`as_received` gets it back.
+_TERMINATED = threading.Event()
 
 
 def raise_terminated(signum, frame) -> None:
     """The command line's SIGTERM handler once started: raise :class:`~atlasgen.errors.Terminated`, so a
     command's clean-up runs as for Ctrl-C (Python's default would end the process at once, its bake
     workers left running)."""
+    _TERMINATED.set()
     raise Terminated
+
+
+def as_received(interrupt: KeyboardInterrupt) -> KeyboardInterrupt:
+    """``interrupt``, or :class:`~atlasgen.errors.Terminated` where SIGTERM was what arrived and a library
+    re-raised it as a plain KeyboardInterrupt."""
+    return Terminated() if _TERMINATED.is_set() and not isinstance(interrupt, Terminated) else interrupt
 
 
 def end_start_up_interrupts(command_line: bool = False) -> None:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from atlasgen.errors import AtlasgenError, BackendError
+from atlasgen.interrupts import as_received
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.images import encode_png
 from atlasgen.materials.material import is_material_file_name
@@ -264,6 +265,13 @@ def watch_preview(
                         return done
                 if sources.folders() != folders:
                     break  # a material names a file in another folder now: watch that one too
+        except KeyboardInterrupt as exc:
+            # watchfiles' Rust wait checks for signals and raises a plain KeyboardInterrupt for any: a SIGTERM's
+            # Terminated (exit 143) would have ended the watch as a Ctrl-C does, with success.
+            received = as_received(exc)
+            if received is exc:
+                raise
+            raise received from None
         finally:
             changes.close()
     for cancel in refining:
