@@ -232,6 +232,27 @@ def test_a_path_of_another_output_set_is_refused_and_nothing_changes(tmp_path):
     assert (out / "index.html").read_bytes() == b"library 2" and (out / "img" / "gold.png").read_bytes() == b"png"
 
 
+def test_a_single_file_write_refuses_an_output_set_s_link(tmp_path):
+    """`preview -o report/cost-vs-error.png` replaced the library report's link with a plain PNG (exit 0): the
+    set's folder held one file of no generation. A plain file's write refuses any set's link, on one line; a
+    user's own link, or a plain file, it replaces as before."""
+    from atlasgen.io.atomic import write_file_atomically
+
+    out = tmp_path / "out"
+    write_files_atomically({out / "index.html": b"library", out / "chart.png": b"chart"}, primary=out / "index.html")
+    before = read_plainly(out, ("index.html", "chart.png"))
+    with pytest.raises(OutputError) as caught:
+        write_file_atomically(out / "chart.png", b"preview")
+    message = str(caught.value)
+    assert message.startswith(f"{(out / 'chart.png').as_posix()}: already written by another command's outputs")
+    assert read_plainly(out, before) == before and os.path.islink(out / "chart.png")
+    (tmp_path / "mine.png").write_bytes(b"mine")
+    os.symlink("mine.png", tmp_path / "link.png")
+    write_file_atomically(tmp_path / "link.png", b"preview")
+    write_file_atomically(tmp_path / "plain.png", b"preview")
+    assert (tmp_path / "link.png").read_bytes() == (tmp_path / "plain.png").read_bytes() == b"preview"
+
+
 def test_a_reader_holding_a_file_open_keeps_its_generation(tmp_path):
     write_files_atomically({tmp_path / "a.json": b"old json", tmp_path / "a.dds": b"old dds"})
     with open(tmp_path / "a.dds", "rb") as held:

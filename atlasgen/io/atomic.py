@@ -70,6 +70,7 @@ __all__ = [
     "store_path",
     "refuse_inside_store",
     "refuse_another_sets",
+    "refuse_set_link",
     "TEMP_SUFFIX",
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
@@ -432,11 +433,11 @@ def refuse_inside_store(path, folder: bool = False) -> None:
                               "outside atlasgen's .*.atlasgen folders; nothing was replaced")  # fmt: skip
 
 
-def _refuse_another_sets(path: Path, store: Path) -> None:
+def _refuse_another_sets(path: Path, store: Path | None) -> None:
     """Refuse to take over a path that is another output set's link (``out/index.html`` of
     ``report library``, written again by ``validate -o out``): the other set would keep its other
     files beside this set's page, a folder of two commands' outputs mixed. Links of no set (a
-    user's own) are migrated as before."""
+    user's own) are migrated as before. ``store`` None: a plain file's write, for which every set is another."""
     try:
         text = os.readlink(path)
     except OSError:
@@ -447,9 +448,15 @@ def _refuse_another_sets(path: Path, store: Path) -> None:
         return
     # From the real folders, as the kernel resolves the link (and as _link_text wrote it).
     other = os.path.normpath(os.path.join(os.path.realpath(_folder(path)), *parts[: at + 1]))
-    if other != os.path.realpath(store):
+    if store is None or other != os.path.realpath(store):
         raise OutputError(f"{path.as_posix()}: already written by another command's outputs ({Path(other).name} beside it); "
                           "expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
+
+
+def refuse_set_link(path) -> None:
+    """Refuse to replace ``path`` with a plain file where it is an output set's link: ``preview -o
+    report/cost-vs-error.png`` replaced the library report's link with a PNG, that set's folder then mixed."""
+    _refuse_another_sets(Path(path), None)
 
 
 def refuse_another_sets(paths, primary) -> None:
@@ -648,6 +655,7 @@ def write_file_atomically(path, data: bytes) -> None:
     path = Path(path)
     folder = _folder(path)
     refuse_inside_store(path)
+    refuse_set_link(path)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(path)

@@ -19,7 +19,7 @@ import numpy as np
 from atlasgen.bake.pipeline import BakeResult, bake_atlas
 from atlasgen.contract import LAYERS
 from atlasgen.errors import InputError, MaterialError
-from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.atomic import refuse_set_link, write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
 from atlasgen.io.manifest import Manifest, MaterialEntry
@@ -173,6 +173,7 @@ def check_preview_output(output, sources) -> None:
     check_suffix(output, "the preview (-o)", (".png",))
     inputs = [(f, "a material file") for f in find_material_files(sources)]
     check_output_paths([(Path(output), "the preview (-o)")], inputs)
+    refuse_set_link(output)  # before rendering: write_file_atomically refuses it again
 
 
 class Previewer:
