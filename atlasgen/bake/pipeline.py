@@ -35,6 +35,7 @@ from atlasgen.io.ktx2 import (
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
 from atlasgen.io.output_paths import check_suffix
 from atlasgen.io.sidecar import stamp_sidecar
+from atlasgen.io.text import MISSING, path_kind
 from atlasgen.models import get_model
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.shaders.include import render_include_data, render_includes, stamp_include
@@ -135,8 +136,10 @@ def read_previous_slots(manifest_path, missing_ok: bool = True) -> dict[str, int
     :class:`~atlasgen.errors.InputError` for a missing one unless ``missing_ok``.
     """
     path = Path(manifest_path)
-    # A link that loops or points nowhere is read, and refused, not taken for no manifest (exists() is False).
-    return read_slots(path) if os.path.lexists(path) or not missing_ok else {}
+    # A link that loops is read, and refused, not taken for no manifest (exists() is False for it). One that points
+    # nowhere is no manifest: a first commit killed before its generation was current leaves the set's links so,
+    # and refusing them left every later bake (and make) failing until they were removed by hand.
+    return read_slots(path) if path_kind(path) != MISSING or not missing_ok else {}
 
 
 def _jsonable(value):

@@ -27,7 +27,7 @@ from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.fields import counted
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest, read_manifest_text
-from atlasgen.io.text import read_input_bytes
+from atlasgen.io.text import MISSING, path_kind, read_input_bytes
 from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
@@ -150,9 +150,9 @@ def read_atlas(path) -> Atlas:
     data = read_input_bytes(path, missing, (MAX_ATLAS_BYTES, "an atlas texture (DDS or KTX2)"))
     image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
-    # lexists: a link beside the atlas that loops or points nowhere is a broken manifest, refused by the reader
-    # below on one line, not an atlas without one (exists() is False for both, and info said "no manifest").
-    if not os.path.lexists(manifest_path):
+    # A link beside the atlas that loops is a broken manifest, refused by the reader below on one line, not an atlas
+    # without one (exists() is False for it, and info said "no manifest"). One that points nowhere is none.
+    if path_kind(manifest_path) == MISSING:
         return Atlas(path, image, None)
     text = read_manifest_text(manifest_path)
     manifest = parse_manifest(text, manifest_path.as_posix())
