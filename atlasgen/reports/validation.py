@@ -927,6 +927,7 @@ def check_result_figures(path, results, merged: bool = False) -> None:
             raise FieldError(Path(path).as_posix(), f"results[{i}].notes", "expected a list of strings")
         for key in _ROW_NUMBERS:
             check_number(path, f"results[{i}].{key}", row.get(key))
+        _check_claimed(path, f"results[{i}].claimed_errors", row.get("claimed_errors"))
         for kind, ref in row["references"].items():
             if not isinstance(ref, dict):
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}", "expected an object of figures")
@@ -935,6 +936,23 @@ def check_result_figures(path, results, merged: bool = False) -> None:
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}.images", "expected image paths")
             for key in _REFERENCE_NUMBERS:
                 check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
+
+
+def _check_claimed(path, where: str, claimed) -> None:
+    """A separable result's ``claimed_errors``: an object of figures that are finite numbers of at least 0 (or null),
+    its ``terms`` a whole number: the library page printed "abc" as an internal error, and a list as another."""
+    if claimed is None:
+        return
+    if not isinstance(claimed, dict):
+        raise FieldError(Path(path).as_posix(), where, f"expected an object of figures, got {type(claimed).__name__}")
+    for key, value in claimed.items():
+        if key == "terms":
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+                raise FieldError(
+                    Path(path).as_posix(), f"{where}.terms", f"expected a whole number of terms, got {shorten(repr(value))}"
+                )
+            continue
+        check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
 def _rebase(rel: str, source: Path, out_dir: Path) -> str:

@@ -190,6 +190,14 @@ def _put(value, *keys):
     (_put("many", "settings", "spp"), "settings.spp", "expected a finite number"),
     (_put(3, "atlas"), "atlas", "expected the atlas's path as atlasgen validate writes it, got 3"),
     (_put("", "atlas"), "atlas", "got ''"),
+    # The library page read these as figures: an internal error (ValueError) each.
+    (_put([1, 2], "results", 0, "claimed_errors"), "results[0].claimed_errors", "expected an object of figures, got list"),
+    (_put({"relative_rms_8bit": "abc"}, "results", 0, "claimed_errors"), "results[0].claimed_errors.relative_rms_8bit",
+     "expected a finite number or null, got 'abc'"),
+    (_put({"relative_rms_8bit": -0.5}, "results", 0, "claimed_errors"), "results[0].claimed_errors.relative_rms_8bit",
+     "expected a number >= 0, got -0.5"),
+    (_put({"terms": 2.5}, "results", 0, "claimed_errors"), "results[0].claimed_errors.terms",
+     "expected a whole number of terms, got 2.5"),
 ])  # fmt: skip
 def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, change, field, expected):
     """Each of these was an internal error (KeyError, TypeError, AttributeError) or merged silently."""
