@@ -496,8 +496,25 @@ class SeparableRepresentation(_Record):
                    target=f.string("target"), error_budget=f.number("error_budget", nullable=True),
                    estimated_error_8bit=f.number("estimated_error_8bit"),
                    estimated_error_8bit_se=f.number("estimated_error_8bit_se", optional=True, minimum=0), meets_budget=f.boolean("meets_budget", nullable=True),
-                   candidates=f.array("candidates", "a list of objects", _OBJECT),
+                   candidates=_checked_candidates(f),
                    auto=f.mapping("auto", optional=True))  # fmt: skip
+
+
+#: A separable candidate's error lists: per K, a relative RMS (and its standard error), finite and at least 0.
+_ERRORS_BY_TERMS = (lambda v: isinstance(v, list) and all(_is_finite(x) and x >= 0 for x in v),
+                    "a list of finite numbers of at least 0, one per K")  # fmt: skip
+
+
+def _checked_candidates(f: _Fields) -> list:
+    """``candidates``: objects whose error lists the library report charts are lists of figures (a "x" or null in
+    one was an internal error there)."""
+    candidates = f.array("candidates", "a list of objects", _OBJECT)
+    for i, candidate in enumerate(candidates):
+        c = _Fields(f.shown, f.name(f"candidates[{i}]"), candidate)
+        for key in ("relative_rms_by_terms", "relative_rms_se_by_terms"):
+            if key in candidate:
+                c.take(key, _ERRORS_BY_TERMS[1], _ERRORS_BY_TERMS[0])
+    return candidates
 
 
 @dataclass(kw_only=True)

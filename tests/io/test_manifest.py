@@ -417,6 +417,17 @@ REFUSED = {
         "materials[5].terms",
         "expected 3, the entry's term slices (slice_count less the transmission slice), got 4",
     ),
+    # The library report charts these: "x" or null in one was an internal error there.
+    "a candidate's error that is text": (
+        _with(_set(["materials", 5, "representation", "candidates", 0, "relative_rms_by_terms", 2], "x")),
+        "materials[5].representation.candidates[0].relative_rms_by_terms",
+        "expected a list of finite numbers of at least 0, one per K, got [",
+    ),
+    "a candidate's negative standard error": (
+        _with(_set(["materials", 5, "representation", "candidates", 0, "relative_rms_se_by_terms", 0], -0.5)),
+        "materials[5].representation.candidates[0].relative_rms_se_by_terms",
+        "expected a list of finite numbers of at least 0",
+    ),
     "factor beyond float32": (
         _with(_set(["materials", 5, "factor_scale", 0, 1, 2], 1e300)),
         "materials[5].factor_scale[0]",
