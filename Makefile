@@ -137,6 +137,13 @@ endif
 # was left before, under sha256sum's own line), and the bake that reads it says what is missing, on one line.
 $(HASH_DIR)/%.sha256: %
 	@mkdir -p $(@D) && if [ -e $< ]; then sha256sum $< | cut -c1-64 > $@.tmp && mv -f $@.tmp $@; fi
+# Not intermediates: in `make clean atlas` the rule above makes them (nothing writes them while the Makefile is
+# read), and make deleted them at the end, so the next make wrote them anew and re-baked every material.
+.SECONDARY: $(foreach f,$(MATERIAL_FILES),$(HASH_DIR)/$(f).sha256)
+# `make -j2 clean atlas` ran clean beside the first bakes, which then left stale materials behind.
+ifneq ($(filter clean,$(MAKECMDGOALS)),)
+.NOTPARALLEL:
+endif
 
 $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
@@ -144,6 +151,10 @@ $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_
 # The bake also writes build/cache/<stem>.mtlx.d, which makes the stamp depend on the files the
 # document includes (xi:include) as well.
 -include $(patsubst %,$(CACHE_DIR)/%.mtlx.d,$(MTLX_STEMS))
+# A document's stamp whose depfile is gone: make no longer knows the files it includes, so it is baked again (as
+# a scene atlas without its depfile is, below), which writes the depfile.
+MTLX_WITHOUT_DEPFILE := $(foreach s,$(MTLX_STEMS),$(if $(wildcard $(CACHE_DIR)/$(s).mtlx.stamp),$(if $(wildcard $(CACHE_DIR)/$(s).mtlx.d),,$(CACHE_DIR)/$(s).mtlx.stamp)))
+$(MTLX_WITHOUT_DEPFILE): no-depfile
 $(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(@:.stamp=.d) --depfile-target $@ -q && touch $@
 
@@ -172,11 +183,14 @@ SCENES_WITHOUT_DEPFILE := $(foreach a,$(SCENE_ATLASES),$(if $(wildcard $(a)),$(i
 $(SCENES_WITHOUT_DEPFILE): no-depfile
 
 # A pattern rule with several targets makes one set: one recipe writes them all.
-$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(ASSEMBLY_CODE) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
-render: $(SCENE_SETS) $(SCENE_IMAGES)
-$(SCENE_IMAGES): $(BUILD)/scenes/%.png: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(wildcard scenes/meshes/*) $(RENDER_CODE) | $(VENV)/.stamp
+# A render writes the EXR and its PNG as one set: one target pair, so that a deleted EXR is rendered again.
+SCENE_EXRS := $(SCENE_IMAGES:.png=.exr)
+RENDER_COMMAND := $(wildcard cli/render_cmd.py cli/main.py cli/options.py)
+render: $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS)
+$(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(wildcard scenes/meshes/*) $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
 
@@ -301,5 +315,5 @@ clean:
 # atlasgen commits each output set whole (docs/cli.md, "Outputs"): a run interrupted just after its
 # commit exits 130 with the new set in place. make's default for an interrupted recipe, deleting its
 # target, then removed build/atlas.dds and left the rest of the new set without it.
-.PRECIOUS: $(CACHE_DIR)/%.npz $(ATLAS_SET) $(SCENE_SETS) $(SCENE_IMAGES) $(VALIDATED) $(MTLX_VALIDATED) \
+.PRECIOUS: $(CACHE_DIR)/%.npz $(ATLAS_SET) $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS) $(VALIDATED) $(MTLX_VALIDATED) \
 	$(VALIDATION)/report.json $(SEPARABLE_STUDIES) $(SEPARABLE_REPORT)/index.md $(BUILD)/report/index.html

@@ -36,7 +36,7 @@ def _outputs(build: Path) -> list[Path]:
     out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
-    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("png", "d")]
+    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("exr", "png", "d")]
     return out
 
 
@@ -270,13 +270,20 @@ import sys, pathlib
 args = sys.argv[1:]
 with open({log!r}, "a") as log:
     log.write(" ".join(args) + "\\n")
+if "--cache-only" in args:  # a material's cache entry
+    cache = pathlib.Path(args[args.index("--cache") + 1])
+    cache.mkdir(parents=True, exist_ok=True)
+    (cache / (pathlib.Path(args[1]).stem + ".npz")).write_text("")
+    raise SystemExit(0)
 out = pathlib.Path(args[args.index("-o") + 1])
+out.parent.mkdir(parents=True, exist_ok=True)
 if args[0] == "bake":
     for suffix in {suffixes!r}:
         out.with_suffix("." + suffix).write_text("")
     if "--depfile" in args:
         pathlib.Path(args[args.index("--depfile") + 1]).write_text(out.as_posix() + ":\\n")
 else:
+    out.write_text("")  # the EXR, and its PNG beside it
     out.with_suffix(".png").write_text("")
 """
 
@@ -403,14 +410,65 @@ def test_outputs_atlasgen_commits_are_kept_when_make_is_interrupted(tree):
 
 
 def test_the_bake_command_s_defaults_re_assemble_the_atlas(tree):
-    """cli/main.py holds bake's defaults (the include languages, the layout); a change to it did nothing."""
+    """cli/main.py holds bake's defaults (the include languages, the layout); a change to it did nothing, and then
+    re-assembled the library's atlas but not the scenes' (a volume library beside array scene atlases)."""
     (tree / "cli").mkdir()
     (tree / "cli" / "main.py").write_text("")
     os.utime(tree / "cli" / "main.py", (T0, T0))
-    assert _commands(tree, "atlas") == []
+    assert _commands(tree, "atlas", "render") == []
     _touch(tree / "cli" / "main.py")
     commands = _commands(tree, "atlas")
     assert len(commands) == 1 and " -o build/atlas.dds " in commands[0] and "--cache-only" not in commands[0], commands
+    scene_bakes = [c for c in _commands(tree, "render") if " bake " in c and "--scene" in c]
+    assert sorted(c.split("--scene ")[1].split()[0] for c in scene_bakes) == ["scenes/one.toml", "scenes/two.toml"]
+
+
+def test_the_render_command_s_code_re_renders_the_scenes_alone(tree):
+    """cli/render_cmd.py (the render's options and defaults) was no prerequisite of the images."""
+    (tree / "cli").mkdir()
+    (tree / "cli" / "render_cmd.py").write_text("")
+    os.utime(tree / "cli" / "render_cmd.py", (T0, T0))
+    assert _commands(tree, "render") == []
+    _touch(tree / "cli" / "render_cmd.py")
+    commands = _commands(tree, "atlas", "render")
+    assert len(commands) == 2 and all(" render scenes/" in c for c in commands), commands
+
+
+def test_a_deleted_exr_renders_its_scene_again(tree):
+    """A render writes the EXR and its PNG as one set, but only the PNG was a target: without the EXR,
+    make -q said the scene was up to date."""
+    (tree / "build" / "scenes" / "one.exr").unlink()
+    assert _make(tree, "-q", "render").returncode == 1
+    calls = _make_with_fake_atlasgen(tree, "render")
+    assert calls == [c for c in calls if c.startswith("render scenes/one.toml")] and len(calls) == 1, calls
+    assert _make(tree, "-q", "render").returncode == 0
+
+
+def test_make_clean_atlas_keeps_the_content_hashes_it_makes(tree):
+    """With clean among the goals nothing writes build/hashes while the Makefile is read, so the hash rule makes
+    them, and make deleted them as intermediates at the end: the next make wrote them anew, newer than every cache
+    entry, and re-baked every material."""
+    _make_with_fake_atlasgen(tree, "clean", "atlas")
+    hashes = sorted(p.relative_to(tree).as_posix() for p in (tree / "build" / "hashes").rglob("*.sha256"))
+    assert hashes == [f"build/hashes/materials/{m}.toml.sha256" for m in sorted(MATERIALS)]
+
+
+def test_a_materialx_document_whose_depfile_is_gone_is_baked_again(tree):
+    """Without build/cache/X.mtlx.d make does not know the files the document includes, so a change to one of
+    them would leave its cache entries stale: it is baked again, which writes the depfile."""
+    (tree / "materials" / "doc.mtlx").write_text("")
+    stamp = tree / "build" / "cache" / "doc.mtlx.stamp"
+    stamp.write_text("")
+    _make(tree, "-n", "atlas")  # reads the Makefile: the material list now names the document
+    os.utime(tree / "materials" / "doc.mtlx", (T0, T0))
+    os.utime(tree / "build" / "hashes" / "materials" / "doc.mtlx.sha256", (T0, T0))
+    for path in (stamp, tree / "build" / "materials.list", tree / "build" / "atlas.dds"):
+        os.utime(path, (T_BUILT, T_BUILT))
+    bakes = [c for c in _commands(tree, "atlas") if "--cache-only" in c]
+    assert len(bakes) == 1 and "bake materials/doc.mtlx " in bakes[0] and "--depfile build/cache/doc.mtlx.d" in bakes[0]
+    write_depfile(stamp.with_suffix(".d"), "build/cache/doc.mtlx.stamp", ["materials/doc.mtlx"])
+    os.utime(stamp.with_suffix(".d"), (T_BUILT, T_BUILT))
+    assert not [c for c in _commands(tree, "atlas") if "--cache-only" in c]
 
 
 @pytest.mark.parametrize("name", ["atlas.json", "atlas.wgsl", "atlas-preview.png"])
