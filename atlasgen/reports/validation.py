@@ -955,8 +955,16 @@ def _check_claimed(path, where: str, claimed) -> None:
         check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
-def _rebase(rel: str, source: Path, out_dir: Path) -> str:
-    """A path relative to a per-material folder, made relative to the merged page's folder."""
+def _rebase(rel: str, source: Path, out_dir: Path, report: Path | None = None, field: str = "") -> str:
+    """A path relative to a per-material folder, made relative to the merged page's folder. With ``report`` (the
+    source's report.json and the ``field`` it is read from), an image path must be one a validation writes: relative,
+    a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
+    if report is not None:
+        target = source / rel
+        if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not target.is_file():
+            raise FieldError(
+                report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
+            )
     return Path(os.path.relpath(source / rel, out_dir)).as_posix()
 
 
@@ -1040,15 +1048,16 @@ def merge_validation_reports(sources, out_dir) -> dict:
                                if first["settings"].get(k) != report["settings"].get(k))  # fmt: skip
             raise InputError(f"{path.as_posix()}: validated with other settings than {paths[0].as_posix()} "
                              f"({', '.join(differing)} differ); re-run both with the same options")  # fmt: skip
-        for row in report["results"]:
+        for i, row in enumerate(report["results"]):
             key = (row["material"], row["scene"])
             if key in seen:
                 raise InputError(f"{path.as_posix()}: material {key[0]!r} on scene {key[1]!r} is also in {seen[key].as_posix()}")
             seen[key] = path
             row = json.loads(json.dumps(row))  # a copy: the rebased paths must not leak back
-            row["atlas_image"] = _rebase(row["atlas_image"], path.parent, out_dir)
-            for ref in row["references"].values():
-                ref["images"] = {k: _rebase(v, path.parent, out_dir) for k, v in ref["images"].items()}
+            row["atlas_image"] = _rebase(row["atlas_image"], path.parent, out_dir, path, f"results[{i}].atlas_image")
+            for kind, ref in row["references"].items():
+                ref["images"] = {k: _rebase(v, path.parent, out_dir, path, f"results[{i}].references.{kind}.images.{k}")
+                                 for k, v in ref["images"].items()}  # fmt: skip
             row["page"] = _rebase("index.html", path.parent, out_dir)
             rows.append(row)
     environment = {key: _joined(r["environment"].get(key, "?") for r in reports) for key in first["environment"]}

@@ -147,10 +147,12 @@ def test_a_merge_into_one_of_its_sources_is_refused_and_changes_nothing(merged, 
 def _edited(merged, tmp_path, change) -> Path:
     """A copy of one material's report.json with ``change`` applied to its parsed JSON."""
     out, parts, _ = merged
-    data = json.loads((out / "materials" / next(iter(parts)) / "report.json").read_text())
+    source = out / "materials" / next(iter(parts))
+    data = json.loads((source / "report.json").read_text())
     change(data)
     folder = tmp_path / "edited"
-    folder.mkdir(parents=True)
+    shutil.copytree(source, folder, symlinks=False)  # its images too: a merge links only images that are there
+    (folder / "report.json").unlink()
     (folder / "report.json").write_text(json.dumps(data))
     return folder
 
@@ -190,6 +192,13 @@ def _put(value, *keys):
     (_put("many", "settings", "spp"), "settings.spp", "expected a finite number"),
     (_put(3, "atlas"), "atlas", "expected the atlas's path as atlasgen validate writes it, got 3"),
     (_put("", "atlas"), "atlas", "got ''"),
+    # Linked from the merged page as they were: outside the source folder, or no image of it.
+    (_put("/etc/passwd", "results", 0, "atlas_image"), "results[0].atlas_image",
+     "expected the path of a PNG image beside the report, got '/etc/passwd'"),
+    (_put("../../../../../../etc/passwd", "results", 0, "atlas_image"), "results[0].atlas_image",
+     "expected the path of a PNG image beside the report"),
+    (_put({"reference": "images/none.png"}, "results", 0, "references", "*", "images"), ".images.reference",
+     "expected the path of a PNG image beside the report, got 'images/none.png'"),
     # The library page read these as figures: an internal error (ValueError) each.
     (_put([1, 2], "results", 0, "claimed_errors"), "results[0].claimed_errors", "expected an object of figures, got list"),
     (_put({"relative_rms_8bit": "abc"}, "results", 0, "claimed_errors"), "results[0].claimed_errors.relative_rms_8bit",
