@@ -283,7 +283,9 @@ def _validation_report(seconds: float) -> dict:
 
 def test_a_validation_merge_changes_as_one_set_through_every_fault(tmp_path):
     source = tmp_path / "materials" / "clay"
-    source.mkdir(parents=True)
+    (source / "images").mkdir(parents=True)
+    for name in ("a", "r", "f"):  # the images the report names: a merge links only images that are there
+        (source / "images" / f"{name}.png").write_bytes(b"\x89PNG\r\n\x1a\n")
     out = tmp_path / "validation"
 
     def report(seconds):
