@@ -973,6 +973,22 @@ def _joined(values) -> str:
     return "; ".join(dict.fromkeys(str(v) for v in values))
 
 
+def _combined(values):
+    """The merged page's value of an environment field, of the type each run wrote: counts added up, lists joined
+    (each item once, first-seen order), text as :func:`_joined` (the merge wrote "2" for 6 renders, and a list's
+    Python repr); a run that lacks the field is left out.
+
+    >>> _combined([2, 2, 2]), _combined([["a"], ["b"], ["a"]]), _combined(["3.9.1", "3.9.1"]), _combined([1, None])
+    (6, ['a', 'b'], '3.9.1', 1)
+    """
+    present = [v for v in values if v is not None]
+    if present and all(isinstance(v, int | float) and not isinstance(v, bool) for v in present):
+        return sum(present)
+    if present and all(isinstance(v, list) for v in present):
+        return list(dict.fromkeys(item for v in present for item in v if isinstance(item, str | int | float)))
+    return _joined(present) if present else None
+
+
 #: What formatting a page raises on a field that is not what atlasgen validate writes.
 _MALFORMED = (KeyError, TypeError, AttributeError, ValueError, IndexError)
 
@@ -1060,7 +1076,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
                                  for k, v in ref["images"].items()}  # fmt: skip
             row["page"] = _rebase("index.html", path.parent, out_dir)
             rows.append(row)
-    environment = {key: _joined(r["environment"].get(key, "?") for r in reports) for key in first["environment"]}
+    environment = {key: _combined([r["environment"].get(key) for r in reports]) for key in first["environment"]}
     data = {
         "atlas": _joined(r["atlas"] for r in reports),
         "settings": first["settings"],

@@ -310,3 +310,25 @@ def test_a_merge_into_a_separable_report_s_folder_is_refused_and_changes_nothing
     # Its own kind it replaces, as every merge does.
     merge_validation_reports([out / "materials" / m for m in parts], tmp_path / "again")
     merge_validation_reports([out / "materials" / m for m in parts], tmp_path / "again")
+
+
+def test_the_merged_environment_keeps_each_field_s_type(merged):
+    """The merge wrote every environment field as text: 6 renders stored across three runs as "2", and a list as
+    its Python repr. Counts are added up, lists joined, text kept, so the merged report has a run's schema."""
+    out, parts, _ = merged
+    sources = [json.loads((out / "materials" / m / "report.json").read_text())["environment"] for m in parts]
+    environment = json.loads((out / "report.json").read_text())["environment"]
+    assert set(environment) == set(sources[0])
+    for key, value in environment.items():
+        given = [s[key] for s in sources if s.get(key) is not None]
+        if given and all(isinstance(v, int) and not isinstance(v, bool) for v in given):
+            assert value == sum(given), key
+        elif given and all(isinstance(v, list) for v in given):
+            assert value == list(dict.fromkeys(x for v in given for x in v)), key
+        else:
+            assert isinstance(value, str | type(None)), key
+    import doctest
+
+    from atlasgen.reports import validation
+
+    assert doctest.testmod(validation).failed == 0  # _combined's examples
