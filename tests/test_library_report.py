@@ -248,6 +248,9 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     )
     assert refusal(validation_dir=timings) == (f"{timings.as_posix()}: the validation report (--validation) is a file; "
                                                "expected the folder atlasgen validate -o wrote")  # fmt: skip
+    # --separable's was linked from the page as the separable report's folder.
+    assert refusal(separable_dir=timings) == (f"{timings.as_posix()}: the separable report (--separable) is a file; "
+                                              "expected the folder atlasgen report separable -o wrote")  # fmt: skip
     row = {"material": "clay", "scene": "front", "references": {}, "page": 5}
     (vdir / "report.json").write_text(json.dumps({"results": [row]}))
     assert "field 'results[0].page': expected a page path as atlasgen validate writes it, got 5" in refusal(validation_dir=vdir)

@@ -324,6 +324,11 @@ def write_library_report(
         if folder is not None and os.path.realpath(folder) == os.path.realpath(out_dir):
             raise OutputError(f"{Path(out_dir).as_posix()}: the report folder (-o) is {role}'s folder, whose index.html "
                               "it would overwrite; expected a folder of its own")  # fmt: skip
+    # A file given as the separable report's folder was linked from the page as one, where --validation's is refused.
+    if separable_dir is not None and Path(separable_dir).exists() and not Path(separable_dir).is_dir():
+        kind = special_file_kind(separable_dir) or "a file"
+        raise InputError(f"{Path(separable_dir).as_posix()}: the separable report (--separable) is {kind}; expected the "
+                         "folder atlasgen report separable -o wrote")  # fmt: skip
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
