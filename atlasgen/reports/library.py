@@ -102,6 +102,14 @@ def _read_json(path):
     return read_json_file(path)
 
 
+def _refuse_file_as_folder(folder, role: str, command: str) -> None:
+    """Refuse ``folder`` (a report's ``role``) where it is a file, a pipe or a device: the folder ``command -o`` wrote
+    is wanted."""
+    if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
+        kind = special_file_kind(folder) or "a file"
+        raise InputError(f"{Path(folder).as_posix()}: {role} is {kind}; expected the folder {command} -o wrote")
+
+
 def _read_validation(folder) -> dict | None:
     """``folder/report.json`` of atlasgen validate, or None where the folder has none (a library not validated yet).
 
@@ -110,10 +118,7 @@ def _read_validation(folder) -> dict | None:
     if folder is None:
         return None
     folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        kind = special_file_kind(folder) or "a file"
-        raise InputError(f"{folder.as_posix()}: the validation report (--validation) is {kind}; expected the folder "
-                         "atlasgen validate -o wrote")  # fmt: skip
+    _refuse_file_as_folder(folder, "the validation report (--validation)", "atlasgen validate")
     path = folder / "report.json"
     if not path.exists():
         return None
@@ -325,10 +330,7 @@ def write_library_report(
             raise OutputError(f"{Path(out_dir).as_posix()}: the report folder (-o) is {role}'s folder, whose index.html "
                               "it would overwrite; expected a folder of its own")  # fmt: skip
     # A file given as the separable report's folder was linked from the page as one, where --validation's is refused.
-    if separable_dir is not None and Path(separable_dir).exists() and not Path(separable_dir).is_dir():
-        kind = special_file_kind(separable_dir) or "a file"
-        raise InputError(f"{Path(separable_dir).as_posix()}: the separable report (--separable) is {kind}; expected the "
-                         "folder atlasgen report separable -o wrote")  # fmt: skip
+    _refuse_file_as_folder(separable_dir, "the separable report (--separable)", "atlasgen report separable")
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")

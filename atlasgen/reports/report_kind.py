@@ -14,10 +14,8 @@ from pathlib import Path
 from atlasgen.errors import OutputError
 from atlasgen.io.text import path_kind
 
-__all__ = ["REPORT_KINDS", "report_kind", "refuse_another_report"]
+__all__ = ["report_kind", "refuse_another_report"]
 
-#: The commands whose sets are named by ``report.json``, as :func:`report_kind` names them.
-REPORT_KINDS = ("validation", "separable")
 #: A report.json larger than this is no report of ours to recognise (the commit refuses it, or replaces it).
 _MAX_BYTES = 256 << 20
 

@@ -955,17 +955,19 @@ def _check_claimed(path, where: str, claimed) -> None:
         check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
-def _rebase(rel: str, source: Path, out_dir: Path, report: Path | None = None, field: str = "") -> str:
-    """A path relative to a per-material folder, made relative to the merged page's folder. With ``report`` (the
-    source's report.json and the ``field`` it is read from), an image path must be one a validation writes: relative,
-    a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
-    if report is not None:
-        target = source / rel
-        if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not target.is_file():
-            raise FieldError(
-                report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
-            )
+def _rebase(rel: str, source: Path, out_dir: Path) -> str:
+    """A path relative to a per-material folder, made relative to the merged page's folder."""
     return Path(os.path.relpath(source / rel, out_dir)).as_posix()
+
+
+def _rebased_image(rel: str, report: Path, out_dir: Path, field: str) -> str:
+    """:func:`_rebase` of an image path of the source ``report`` (read from ``field``), which must be one a validation
+    writes: relative, a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
+    if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not (report.parent / rel).is_file():
+        raise FieldError(
+            report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
+        )
+    return _rebase(rel, report.parent, out_dir)
 
 
 def _joined(values) -> str:
@@ -1070,9 +1072,9 @@ def merge_validation_reports(sources, out_dir) -> dict:
                 raise InputError(f"{path.as_posix()}: material {key[0]!r} on scene {key[1]!r} is also in {seen[key].as_posix()}")
             seen[key] = path
             row = json.loads(json.dumps(row))  # a copy: the rebased paths must not leak back
-            row["atlas_image"] = _rebase(row["atlas_image"], path.parent, out_dir, path, f"results[{i}].atlas_image")
+            row["atlas_image"] = _rebased_image(row["atlas_image"], path, out_dir, f"results[{i}].atlas_image")
             for kind, ref in row["references"].items():
-                ref["images"] = {k: _rebase(v, path.parent, out_dir, path, f"results[{i}].references.{kind}.images.{k}")
+                ref["images"] = {k: _rebased_image(v, path, out_dir, f"results[{i}].references.{kind}.images.{k}")
                                  for k, v in ref["images"].items()}  # fmt: skip
             row["page"] = _rebase("index.html", path.parent, out_dir)
             rows.append(row)
