@@ -173,8 +173,8 @@ EXIT_CODES = (
     ),
     (
         EXIT_USAGE,
-        "usage error: an unknown option or a bad option value (an output named with another kind's "
-        "extension, such as `-o atlas.png`, included)",
+        "usage error: an unknown option, a bad option value (an output named with another kind's "
+        "extension, such as `-o atlas.png`, included) or an option its mode ignores (`validate --merge --spp 4`)",
     ),
     (
         InputError.exit_code,

@@ -23,14 +23,21 @@ import warnings
 from pathlib import Path
 
 import click
-from click.core import ParameterSource
 
 from atlasgen import __version__
 from atlasgen.bake.cache import cache_path
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
-from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import (
+    HELP_OPTIONS,
+    QUIET,
+    VERBOSE,
+    MaterialProgress,
+    PathArg,
+    refuse_options,
+    verbosity_options,
+)
 from atlasgen.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
@@ -392,10 +399,7 @@ _ATLAS_ONLY_OPTIONS = ("output", "layout", "linear", "zstd", "preview", "ids_fro
 def _refuse_atlas_options(ctx) -> None:
     """Refuse an atlas option given with --cache-only, rather than ignore it (--strict's warnings, say, are
     measured on the assembled atlas)."""
-    for param in ctx.command.params:
-        if param.name in _ATLAS_ONLY_OPTIONS and ctx.get_parameter_source(param.name) is not ParameterSource.DEFAULT:
-            raise click.UsageError(f"{param.opts[-1]} has no effect with --cache-only, which writes no atlas (only "
-                                   "the cache and --depfile); expected one or the other")  # fmt: skip
+    refuse_options(ctx, _ATLAS_ONLY_OPTIONS, "with --cache-only, which writes no atlas (only the cache and --depfile)")
 
 
 def _material_inputs(materials) -> list:

@@ -6,8 +6,19 @@ import functools
 import sys
 
 import click
+from click.core import ParameterSource
 
-__all__ = ["QUIET", "NORMAL", "VERBOSE", "MAX_SPP", "HELP_OPTIONS", "PathArg", "verbosity_options", "MaterialProgress"]
+__all__ = [
+    "QUIET",
+    "NORMAL",
+    "VERBOSE",
+    "MAX_SPP",
+    "HELP_OPTIONS",
+    "PathArg",
+    "verbosity_options",
+    "MaterialProgress",
+    "refuse_options",
+]
 
 QUIET, NORMAL, VERBOSE = -1, 0, 1
 #: The most samples per pixel a command takes (Mitsuba's count is a 32-bit integer): far more than a
@@ -33,6 +44,17 @@ class PathArg(click.Path):
         if isinstance(value, str) and not value:
             self.fail("expected a path, got an empty string", param, ctx)
         return super().convert(value, param, ctx)
+
+
+def refuse_options(ctx: click.Context, names, reason: str, expected: str = "one or the other") -> None:
+    """Refuse the first option of ``names`` (parameter names) given on the command line, where ``reason`` (``"with
+    --merge, which renders nothing"``) says why it would do nothing: one usage line (exit 2), never a silent no-op."""
+    for param in ctx.command.params:
+        if param.name in names and ctx.get_parameter_source(param.name) in (
+            ParameterSource.COMMANDLINE,
+            ParameterSource.ENVIRONMENT,
+        ):
+            raise click.UsageError(f"{param.opts[-1]} has no effect {reason}; expected {expected}")
 
 
 def verbosity_options(quiet: str = "Print only errors.", verbose: str = "Print more detail."):

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import echo_warnings, fail_on_errors, one_line_message
-from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg, refuse_options, verbosity_options
 from atlasgen.errors import Terminated
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
@@ -72,6 +72,12 @@ def preview(paths, output, cache_dir, no_cache, watch, reference, max_spp, verbo
     Exit codes as every command's; a bad material file gives its one line (3) and leaves the PNG as
     it was. A material the atlas holds badly is shown with the line `atlasgen bake` warns with.
     """
+    ctx = click.get_current_context()
+    if not reference:
+        refuse_options(ctx, ("max_spp",), "without --reference, which renders the references it refines",
+                       "--reference with it")  # fmt: skip
+    if no_cache:
+        refuse_options(ctx, ("cache_dir",), "with --no-cache, which reads and stores no cache")
     output = output or default_output(paths)
     cache = None if no_cache else cache_dir
     if watch:

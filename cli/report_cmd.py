@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import echo_warning, fail_on_errors
-from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, refuse_options, verbosity_options
 from atlasgen.errors import InputError
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.io.package_data import shipped_library
@@ -64,6 +64,12 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     With --merge they are folders of earlier reports (e.g. one per material), combined
     without measuring again.
     """
+    ctx = click.get_current_context()
+    if merge:
+        refuse_options(ctx, ("materials_dir", "library", "atlas", "repeats"),
+                       "with --merge, which measures nothing (it combines earlier reports)")  # fmt: skip
+    elif library:
+        refuse_options(ctx, ("materials_dir",), "with --library, which picks from the installed library instead")
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     if merge:
         merged = merge_separable_reports([Path(n) for n in names], output)["html"]

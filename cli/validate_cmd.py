@@ -7,7 +7,16 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import echo_warnings, fail_on_errors
-from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, MaterialProgress, PathArg, verbosity_options
+from atlasgen.cli.options import (
+    HELP_OPTIONS,
+    MAX_SPP,
+    QUIET,
+    VERBOSE,
+    MaterialProgress,
+    PathArg,
+    refuse_options,
+    verbosity_options,
+)
 from atlasgen.errors import GoalsMissed
 from atlasgen.io.output_paths import check_output_folder
 from atlasgen.reports.report_kind import refuse_another_report
@@ -35,6 +44,11 @@ def _resolution(ctx, param, value):
     if not (1 <= w <= 4096 and 1 <= h <= 4096):
         raise click.BadParameter(f"expected sizes in [1, 4096], got {value!r}")
     return w, h
+
+
+#: validate's options that shape the renders, which --merge does not make: given with it, they are refused.
+_RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolution", "no_physical", "environment", "atlas",
+                   "bake_cache", "reference_cache", "no_reference_cache")  # fmt: skip
 
 
 @click.command("validate", context_settings=HELP_OPTIONS)
@@ -105,6 +119,11 @@ def validate(
     FLIP, judged where the reference's noise floor allows); each separable material's
     claimed error against its error_budget, where it has one.
     """
+    ctx = click.get_current_context()
+    if merge:
+        refuse_options(ctx, _RENDER_OPTIONS, "with --merge, which renders nothing (it combines earlier reports)")
+    elif no_reference_cache:
+        refuse_options(ctx, ("reference_cache",), "with --no-reference-cache, which keeps no reference renders")
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
     if max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it (validate_atlas)
