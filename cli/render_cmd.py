@@ -21,7 +21,7 @@ AOVS = ("normal", "depth", "id", "albedo")
 @click.argument("scene", type=PathArg(path_type=Path))
 @click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip
-@click.option("-o", "--output", type=PathArg(path_type=Path, dir_okay=False), required=True,
+@click.option("-o", "--output", type=PathArg(path_type=Path), required=True,
               help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip
 @click.option("--aov", type=click.Choice(AOVS), default=None,
               help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip

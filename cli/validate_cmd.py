@@ -69,7 +69,7 @@ _RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolut
                    "a lone 64x64 sphere, on the material's pixels, against the model reference.")  # fmt: skip
 @click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
-@click.option("-o", "--output", type=PathArg(path_type=Path, file_okay=False), default=Path("build/validation"),
+@click.option("-o", "--output", type=PathArg(path_type=Path), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
 @click.option("--cache", "bake_cache", type=PathArg(path_type=Path, file_okay=False), default=Path("build/cache"),
               show_default=True, help="The bake's cache (atlasgen bake --cache): float slices are read from a material's current entry there instead of being computed or fitted again.")  # fmt: skip

@@ -161,11 +161,20 @@ def test_a_material_the_scene_does_not_use_is_still_an_input(tmp_path, library):
 def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, command):
     blocker = tmp_path / "report"
     blocker.write_text("not a folder")
-    if command[0] == "validate":  # click's own check: a usage error, one line
-        _refused(tmp_path, [*command, "-o", str(blocker)], "is a file", code=2)
-    else:
-        _refused(tmp_path, [*command, "-o", str(blocker)], "the report folder (-o) is an existing file; expected a folder path")
+    # validate's was click's own check, exit 2 where the exit-code table says 4.
+    _refused(tmp_path, [*command, "-o", str(blocker)], "the report folder (-o) is an existing file; expected a folder path")
     _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
+
+
+@pytest.mark.parametrize(("command", "output", "what"), [(["preview", "{material}"], "p.png", "the preview (-o)"),
+                                                    (["render", "{scene}"], "r.exr", "the render (-o)")])  # fmt: skip
+def test_an_image_output_that_is_a_folder_is_refused_as_an_output(tmp_path, library, command, output, what):
+    """click's check of the kind gave exit 2, a usage error, where every other output that is a folder gives 4."""
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    (tmp_path / output).mkdir()
+    args = [a.format(material=library / "clay.toml", scene=scene) for a in command]
+    _refused(tmp_path, [*args, "-o", str(tmp_path / output)], f"{what} is an existing folder; expected a file path")
 
 
 @pytest.mark.parametrize("command", [["bake"], ["report", "library"], ["validate", "--merge"]])
