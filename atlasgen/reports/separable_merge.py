@@ -15,6 +15,7 @@ import json
 from dataclasses import MISSING, fields
 from pathlib import Path
 
+from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
@@ -42,8 +43,11 @@ def _read_studies(path: Path) -> list:
             got = ", ".join(sorted(item)) if isinstance(item, dict) else type(item).__name__
             raise InputError(f"{path.as_posix()}: entry {index} is not a material study (expected the fields "
                              f"{', '.join(sorted(required))}; got {got})")  # fmt: skip
-        if not isinstance(item["name"], str) or not item["name"]:
-            raise InputError(f"{path.as_posix()}: entry {index}: expected a material name, got {shorten(repr(item['name']))}")
+        # The name becomes the plots' file names and the merged page's links: "../x" or "a/x" named a file outside the
+        # study's folder, and two such studies wrote one plot.
+        if not isinstance(item["name"], str) or not NAME_PATTERN.fullmatch(item["name"]):
+            raise InputError(f"{path.as_posix()}: entry {index}: expected a material name (a letter then letters, digits, "
+                             f"'-' or '_', at most 63), got {shorten(repr(item['name']))}")  # fmt: skip
         _check_chosen(path, f"[{index}]", item)
         studies.append(MaterialStudy(**item))
     return studies

@@ -195,7 +195,11 @@ def _set(data, keys, value):
     (["charts"], [1, 2], "entry 0 ('lobe') is not a material study"),
     (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
     (["chosen", "float", "relative_rms"], "big", "field '[0].chosen.float.relative_rms': expected a finite number, got 'big'"),
-    (["name"], [1], "entry 0: expected a material name, got [1]"),
+    (["name"], [1], "entry 0: expected a material name (a letter then letters, digits, '-' or '_', at most 63), got [1]"),
+    # A name is the plots' file names: these read, and would write, files outside the study's folder.
+    (["name"], "../lobe", "entry 0: expected a material name (a letter then letters, digits, '-' or '_', at most 63), "
+                          "got '../lobe'"),
+    (["name"], "sub/lobe", "entry 0: expected a material name"),
 ])  # fmt: skip
 def test_a_hand_edited_study_is_refused_on_one_line_not_an_internal_error(lobe_study, tmp_path, keys, value, expected):
     from atlasgen.cli.report_cmd import report
