@@ -198,6 +198,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
     _refuse_duplicate_names(documents)
+    _refuse_namespaces(documents)
     libraries = load_materialx_libraries()
     _refuse_library_names(documents, doc, libraries)
     doc.importLibrary(libraries)
@@ -288,6 +289,19 @@ def material_digest(name: str, params: dict) -> str:
     """
     text = json.dumps({"name": name, "params": params}, sort_keys=True, allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _refuse_namespaces(documents) -> None:
+    """Refuse a document (or an included one) with a ``namespace``: MaterialX qualifies its materials' names as
+    ``ns:NAME``, which no atlas name can hold (:data:`~atlasgen.contract.NAME_PATTERN`), and its validation then
+    failed on the standard library's own node graphs, a message about MaterialX's internals (``input 'in1'``)."""
+    for shown, root in documents:
+        namespace = root.get("namespace")
+        if namespace is not None:
+            shown_namespace = shorten(repr(namespace), 40)
+            raise MaterialError(shown, "namespace", f"a document with a namespace ({shown_namespace}) is not read: "
+                                "MaterialX qualifies its materials' names as 'namespace:NAME', which an atlas name "
+                                "cannot hold; expected the document without its namespace attribute")  # fmt: skip
 
 
 def _parse_xml(shown: str, data: bytes):

@@ -548,3 +548,19 @@ def test_an_element_named_as_a_standard_library_s_is_refused(tmp_path, included)
                             "MaterialX's standard libraries' (they are loaded already, and the oracle shades theirs), got <nodedef> "
                             "'ND_standard_surface_surfaceshader'"), message  # fmt: skip
     assert shadow.name in message.split(": field")[0]
+
+
+@pytest.mark.parametrize("included", [False, True])
+def test_a_document_with_a_namespace_is_refused_naming_it(tmp_path, included):
+    """MaterialX qualifies a namespaced document's names ('acme:red'); its validation failed on the standard
+    library's own node graphs, and the line named an input 'in1' the document never had."""
+    body = _material("red", "standard_surface", '<input name="base_color" type="color3" value="0.8, 0.1, 0.1" />')
+    spaced = _document(tmp_path, body, "spaced.mtlx")
+    spaced.write_text(spaced.read_text().replace('<materialx version="1.39">', '<materialx version="1.39" namespace="acme">'))
+    path = _including(tmp_path, "spaced.mtlx") if included else spaced
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    # The file that has it is named, the included one included.
+    assert str(info.value) == (f"{spaced.as_posix()}: field 'namespace': a document with a namespace ('acme') is not read: "
+                               "MaterialX qualifies its materials' names as 'namespace:NAME', which an atlas name "
+                               "cannot hold; expected the document without its namespace attribute")  # fmt: skip
