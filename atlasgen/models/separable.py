@@ -629,6 +629,22 @@ class Separable(Model):
 
         return DraftSlices(draft, complete)
 
+    def stored_terms(self, values: dict) -> tuple[str, dict | None]:
+        """What the bake stores (``"separable"``, ``"lut"`` or ``"analytic"``) and, for terms, the values a
+        fixed-K bake of them is made with (None for the others). ``"auto"`` runs the bake's own choice, whose
+        K, sampling grid, factorization and target it returns as fixed values, since a MaterialX budget reads
+        neither ``factorization`` nor the measure the values' ``max_error`` is in (:meth:`_bake_auto_display`)."""
+        if values["representation"] != "auto":
+            kind = values["representation"]
+            return kind, values if kind == "separable" else None
+        baked = self.bake(values)
+        kind = _kind(baked)
+        if kind != "separable":
+            return kind, None
+        extra = baked.extra
+        return kind, {**values, "representation": "separable", "terms": extra["terms"], "max_error": None,
+                      "grid": extra["sampling_grid"], "factorization": extra["factorization"], "target": extra["target"]}  # fmt: skip
+
     @staticmethod
     def sampling_grids(values: dict) -> tuple:
         """The sampling grids the bake tries: ``grid`` if given; with a budget the

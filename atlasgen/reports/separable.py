@@ -75,10 +75,18 @@ def _median_time(fn, repeats=5):
 
 
 def study_material(
-    material, atlas_path=None, resolutions=RESOLUTIONS, repeats: int = 5, parametrizations=tuple(PARAMETRIZATIONS)
+    material,
+    atlas_path=None,
+    resolutions=RESOLUTIONS,
+    repeats: int = 5,
+    parametrizations=tuple(PARAMETRIZATIONS),
+    params: dict | None = None,
 ) -> MaterialStudy:
-    """Measure one separable material: the chosen bake, and every comparison the report plots."""
-    params = material.params
+    """Measure one separable material: the chosen bake, and every comparison the report plots.
+
+    ``params``: the fixed values of the terms its bake stores (:meth:`Separable.stored_terms`, which
+    :func:`write_separable_report` resolves first); by default the material's own, which must describe terms."""
+    params = material.params if params is None else params
     source = make_source(params, material.source)
     # The bake's two samples (Separable._draft_separable): candidates chosen on the selection sample, every
     # figure measured on the report sample, both lobe-sampled and weighted back to uniform (uniform pairs miss a
@@ -452,6 +460,24 @@ def _css_size(size) -> tuple[int, int]:
     return round(size[0] * CSS_PX_PER_INCH), round(size[1] * CSS_PX_PER_INCH)
 
 
+#: How a bake that stores no separable terms is named.
+_STORED = {"lut": "one LUT slice", "analytic": "the closed form"}
+
+
+def _no_terms_clause(material, kind: str) -> str:
+    how = "its budget's choice" if material.params["representation"] == "auto" else "its representation"
+    return (f"{material.source}: field 'representation': material {material.name!r} bakes as {_STORED.get(kind, kind)} "
+            f"({how}), not separable terms: there are none to study")  # fmt: skip
+
+
+def _refuse_no_terms(refused) -> None:
+    """Refuse ``(material, kind)`` pairs whose bake stores no separable terms: their study's "chosen" row would
+    report terms the atlas does not hold."""
+    if refused:
+        clauses = "; ".join(_no_terms_clause(m, kind) for m, kind in refused)
+        raise InputError(f'{clauses}; expected representation = "separable", or "auto" where its budget chooses terms')
+
+
 def write_separable_report(
     materials,
     output,
@@ -484,9 +510,13 @@ def write_separable_report(
                              f"re-run atlasgen bake -o {shown}")  # fmt: skip
     folder = Path(output)
     refuse_another_report(folder, "separable")  # before the studies' minutes of work
+    # The terms each bake stores: an "auto" material's chosen K, grid, factorization and target, where its own
+    # values named none (a MaterialX material's study factored gold as K = 3 by SVD, its bake as K = 6 by NMF).
+    stored = [m.model.stored_terms(m.params) for m in materials]
+    _refuse_no_terms([(m, kind) for m, (kind, values) in zip(materials, stored) if values is None])
     studies = []
-    for done, m in enumerate(materials, 1):
-        studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations))
+    for done, (m, (_, values)) in enumerate(zip(materials, stored), 1):
+        studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations, params=values))
         if on_material is not None:
             on_material(m.name, done, len(materials))
     # Staged, then moved into place: an interrupted run never leaves a half-written

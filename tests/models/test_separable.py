@@ -269,3 +269,15 @@ def test_a_roughness_whose_peak_overflows_float32_is_refused_naming_alpha(write_
     with pytest.raises(MaterialError) as info:
         read_materials([path])
     assert str(info.value) == f"{path.as_posix()}: field 'alpha': expected a finite number >= 1e-06 and <= 4, got {alpha:g}"
+
+
+@pytest.mark.parametrize(("representation", "kind"), [("separable", "separable"), ("analytic", "analytic"), ("lut", "lut")])
+def test_stored_terms_names_what_the_bake_stores_and_the_values_of_its_terms(representation, kind):
+    """Without a budget to run, the values say it: terms are factored with the values themselves; a LUT slice or
+    the closed form stores none (the separable report refuses those, rather than study terms never stored)."""
+    from atlasgen.io.fields import validate_params
+
+    values = validate_params(MODEL.params, {"source": "ggx", "alpha": 0.3, "representation": representation}, "m.toml")
+    stored_kind, stored = MODEL.stored_terms(values)
+    assert stored_kind == kind
+    assert stored == (values if kind == "separable" else None)

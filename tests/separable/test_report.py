@@ -81,10 +81,10 @@ def test_cli_reports_progress_per_material(write_material, tmp_path, monkeypatch
         module.write_separable_report, resolutions=(8,), parametrizations=("half_diff",)))  # fmt: skip
     study = module.study_material
 
-    def study_once(material, *args):
+    def study_once(material, *args, **kwargs):
         key = (material.name, material.content_hash)
         if key not in _STUDIES:
-            _STUDIES[key] = study(material, *args)
+            _STUDIES[key] = study(material, *args, **kwargs)
         return _STUDIES[key]
 
     monkeypatch.setattr(module, "study_material", study_once)
@@ -257,3 +257,52 @@ def test_the_report_s_chosen_figures_are_the_manifest_s_with_their_standard_erro
     )
     shown = f"{100 * claimed['relative_rms']:.2f}% ± {100 * claimed['relative_rms_se']:.2f}%"
     assert shown in out["markdown"].read_text()
+
+
+GOLD = """<?xml version="1.0"?>
+<materialx version="1.39">
+  <standard_surface name="SR_gold" type="surfaceshader">
+    <input name="base" type="float" value="1" />
+    <input name="base_color" type="color3" value="0.944, 0.776, 0.373" />
+    <input name="metalness" type="float" value="1" />
+    <input name="specular_color" type="color3" value="0.998, 0.981, 0.751" />
+    <input name="specular_roughness" type="float" value="0.25" />
+  </standard_surface>
+  <surfacematerial name="gold" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="SR_gold" />
+  </surfacematerial>
+</materialx>
+"""
+
+
+@pytest.mark.slow
+def test_a_materialx_study_reports_the_terms_its_bake_chose(tmp_path):
+    """The study factored a MaterialX gold as K = 3 by SVD, in the relative RMS its budget is not in, where the bake
+    stored K = 6 by NMF: the page's chosen row and the atlas column described two different bakes."""
+    pytest.importorskip("MaterialX")
+    from atlasgen.cli.main import app
+    from atlasgen.materials.material import read_material_file
+
+    path = tmp_path / "gold.mtlx"
+    path.write_text(GOLD)
+    atlas = tmp_path / "atlas.dds"
+    assert CliRunner().invoke(app, ["bake", str(path), "-o", str(atlas), "-q"]).exit_code == 0
+    baked = json.loads(atlas.with_suffix(".json").read_text())["materials"][0]
+    assert baked["representation"]["kind"] == "separable"
+    out = write_separable_report(read_material_file(path), tmp_path / "report", atlas_path=atlas, resolutions=(8,),
+                                 repeats=1, parametrizations=("half_diff",))  # fmt: skip
+    chosen = json.loads(out["json"].read_text())[0]["chosen"]
+    assert (chosen["terms"], chosen["grid"], chosen["factorization"], chosen["target"]) == (
+        baked["terms"], baked["sampling_grid"], baked["factorization"], baked["target"])  # fmt: skip
+    assert chosen["8bit_srgb"]["relative_rms"] == baked["representation"]["estimated_error_8bit"]
+
+
+def test_a_material_whose_bake_stores_no_terms_is_refused_not_studied_as_terms(write_material, tmp_path):
+    """An analytic material's study reported the terms of a factorization the atlas does not hold."""
+    path = write_material("closed", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nrepresentation = "analytic"\n')
+    with pytest.raises(InputError) as info:
+        write_separable_report([read_material(path)], tmp_path / "report")
+    assert str(info.value) == (f"{path.as_posix()}: field 'representation': material 'closed' bakes as the closed form "
+                               "(its representation), not separable terms: there are none to study; expected "
+                               'representation = "separable", or "auto" where its budget chooses terms')  # fmt: skip
+    assert not (tmp_path / "report").exists()
