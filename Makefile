@@ -186,13 +186,19 @@ $(SCENES_WITHOUT_DEPFILE): no-depfile
 $(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
-# A render writes the EXR and its PNG as one set: one target pair, so that a deleted EXR is rendered again.
+# A render writes the EXR and its PNG as one set: one target pair, so that a deleted EXR is rendered again. With
+# them it writes build/scenes/X.png.d, which makes the image depend on every file the render read: the meshes and
+# the environment image the scene names, wherever they are, and only those (a mesh another scene uses re-renders
+# nothing here). An image whose depfile is gone is rendered again, as a scene atlas is.
 SCENE_EXRS := $(SCENE_IMAGES:.png=.exr)
 RENDER_COMMAND := $(wildcard cli/render_cmd.py cli/main.py cli/options.py)
+-include $(SCENE_IMAGES:.png=.png.d)
+RENDERS_WITHOUT_DEPFILE := $(foreach i,$(SCENE_IMAGES),$(if $(wildcard $(i)),$(if $(wildcard $(i).d),,$(i))))
+$(RENDERS_WITHOUT_DEPFILE): no-depfile
 render: $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS)
-$(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(wildcard scenes/meshes/*) $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
+$(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
-	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr
+	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr --depfile $(BUILD)/scenes/$*.png.d
 
 # ---- budgets: what the validation and report jobs are run with --------------------------------
 # `make validate` and `make report` converge: each stochastic reference gets the samples its noise

@@ -28,9 +28,12 @@ AOVS = ("normal", "depth", "id", "albedo")
 @click.option("--mip-bias", type=FiniteFloatRange(-16.0, 16.0), default=None, metavar="FLOAT",
               help="Added to the depth-chosen mip level (overrides the scene).")  # fmt: skip
 @click.option("--no-outlines", is_flag=True, help="Skip the toon-outline pass.")
+@click.option("--depfile", type=PathArg(path_type=Path), default=None, metavar="FILE",
+              help="Also write a Make dependency file, with the image: the PNG (the EXR with --aov) against every file "
+                   "the render reads (the scene, the atlas and its manifest and include, meshes, the environment image).")  # fmt: skip
 @verbosity_options(verbose="Also print the scene's size, objects, lights and materials before rendering.")
 @fail_on_errors
-def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
+def render(scene, atlas, output, aov, mip_bias, no_outlines, depfile, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
     s = read_scene(scene)
     if verbosity == VERBOSE:
@@ -38,7 +41,7 @@ def render(scene, atlas, output, aov, mip_bias, no_outlines, verbosity):
         click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {counted(len(s.objects), 'object')}, "
                    f"{counted(len(s.lights), 'light')}; "
                    f"materials {materials}", err=True)  # fmt: skip
-    written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines)
+    written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines, depfile=depfile)
     if verbosity != QUIET:
         # After the render: a scene that fails gets its one error line and nothing else.
         echo_warnings(s.warnings() if aov is None else [])

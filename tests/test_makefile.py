@@ -21,6 +21,8 @@ MATERIALS = ("clay", "snow", "separable-gold")
 SEPARABLE = ("separable-gold",)
 #: Scene -> the materials it uses, as the bake's --depfile records them.
 SCENES = {"one": ("clay",), "two": ("snow", "separable-gold")}
+#: Files a scene's render reads besides its scene file and atlas set, as the render's --depfile records them.
+RENDER_READS = {"one": ["scenes/env/sky.exr", "elsewhere/gem.obj"]}
 #: What a scene's bake writes, one set (the Makefile's BAKE_SUFFIXES).
 SCENE_SET = ("dds", "json", "wgsl", "glsl", "hlsl", "timings.json")
 T0 = 1_700_000_000  # sources
@@ -36,7 +38,7 @@ def _outputs(build: Path) -> list[Path]:
     out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
-    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("exr", "png", "d")]
+    out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("exr", "png", "d", "png.d")]
     return out
 
 
@@ -67,6 +69,13 @@ def tree(tmp_path):
     for scene, used in SCENES.items():
         inputs = [f"materials/{m}.toml" for m in used] + [f"scenes/{scene}.toml"] + [f"build/cache/{m}.npz" for m in used]
         write_depfile(root / "build" / "scenes" / f"{scene}.d", f"build/scenes/{scene}.dds", inputs)
+        # What the render read, as its --depfile records it: scene one lights with an image of its own.
+        read = [f"scenes/{scene}.toml"] + [f"build/scenes/{scene}.{ext}" for ext in ("dds", "json", "wgsl")]
+        read += RENDER_READS.get(scene, [])
+        write_depfile(root / "build" / "scenes" / f"{scene}.png.d", f"build/scenes/{scene}.png", read)
+    for path in {p for files in RENDER_READS.values() for p in files}:
+        (root / path).parent.mkdir(parents=True, exist_ok=True)
+        (root / path).write_text("")
     # Reading the Makefile writes build/materials.list, and with a goal that validates, build/budget.args.
     _make(root, "-n", "atlas", "validate")
     for path in root.rglob("*"):
@@ -285,6 +294,8 @@ if args[0] == "bake":
 else:
     out.write_text("")  # the EXR, and its PNG beside it
     out.with_suffix(".png").write_text("")
+    if "--depfile" in args:
+        pathlib.Path(args[args.index("--depfile") + 1]).write_text(out.with_suffix(".png").as_posix() + ":\\n")
 """
 
 
@@ -477,3 +488,26 @@ def test_a_deleted_file_of_the_atlas_s_set_re_assembles_it(tree, name):
     (tree / "build" / name).unlink()
     commands = _commands(tree, "atlas")
     assert len(commands) == 1 and " -o build/atlas.dds --preview build/atlas-preview.png" in commands[0], commands
+
+
+def test_an_image_or_mesh_a_scene_reads_re_renders_that_scene_alone(tree):
+    """The render rule listed scenes/meshes/* (every scene re-rendered for any mesh) and no environment image (a
+    new sky left the image stale, make -q 0). The render's depfile names what each scene reads, wherever it is."""
+    for path in RENDER_READS["one"]:
+        _touch(tree / path)
+        assert _scene_jobs(_commands(tree, "render")) == [("render", "one")]
+        assert _make(tree, "-q", "render").returncode == 1
+        os.utime(tree / path, (T0, T0))
+    render = next(c for c in _commands(tree, "render", "-B") if " render scenes/one.toml" in c)
+    assert "--depfile build/scenes/one.png.d" in render and " -o build/scenes/one.exr" in render
+
+
+def test_a_render_whose_depfile_is_gone_is_rendered_again(tree):
+    """Without build/scenes/X.png.d make does not know the files the render read: it renders again (which writes
+    the depfile), and only that scene, without re-baking its atlas."""
+    (tree / "build" / "scenes" / "one.png.d").unlink()
+    assert _make(tree, "-q", "render").returncode == 1
+    calls = _make_with_fake_atlasgen(tree, "render")
+    assert [c.split()[:2] for c in calls] == [["render", "scenes/one.toml"]], calls
+    assert (tree / "build" / "scenes" / "one.png.d").exists()
+    assert _make(tree, "-q", "render").returncode == 0

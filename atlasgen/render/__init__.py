@@ -11,21 +11,24 @@ from pathlib import Path
 
 from atlasgen.errors import OutputNameError
 from atlasgen.io.atomic import refuse_another_sets
+from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.output_paths import check_output_paths
 from atlasgen.materials.scene import resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.output import write_aov, write_render
 from atlasgen.render.renderer import AOVS, Renderer
 
-__all__ = ["render_scene"]
+__all__ = ["render_scene", "render_inputs"]
 
 
-def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlines=True) -> list[Path]:
+def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlines=True, depfile=None) -> list[Path]:
     """Render a scene (:func:`~atlasgen.materials.scene.read_scene`) with a baked atlas and write the result; return the paths written.
 
     Without ``aov``: ``output_path`` (linear EXR) and the same path with ``.png``
     (tone-mapped sRGB, the scene's exposure). With ``aov`` (normal, depth, id, albedo):
-    that g-buffer layer as an EXR at ``output_path``.
+    that g-buffer layer as an EXR at ``output_path``. ``depfile``: also a Make dependency file, in the
+    same commit, naming the image (the PNG, else the EXR) against every file the render read
+    (:func:`render_inputs`).
 
     Raises
     ------
@@ -41,32 +44,43 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
         raise ValueError(f"aov must be one of {AOVS}, not {aov!r}")
     if output_path.suffix.lower() != ".exr":
         raise OutputNameError(f"{output_path.as_posix()}: expected an .exr output path")
-    _check_render_outputs(output_path, aov, scene, atlas_path)
+    _check_render_outputs(output_path, aov, scene, atlas_path, depfile)
     atlas = read_render_atlas(atlas_path)
     resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU
+    image = output_path if aov is not None else output_path.with_suffix(".png")
+    # Encoded before the render: a path make cannot hold fails the command before minutes of work.
+    extra = {} if depfile is None else {Path(depfile): encode_depfile(image, [p for p, _ in render_inputs(scene, atlas_path)])}
     result = Renderer(atlas).render(scene, mip_bias=mip_bias, outlines=outlines, aovs=aov is not None)
     if aov is not None:
-        write_aov(output_path, aov, result.aov(aov))
-        return [output_path]
-    return write_render(output_path, result.radiance, scene.settings.exposure)
+        write_aov(output_path, aov, result.aov(aov), extra=extra)
+        return [output_path, *extra]
+    return [*write_render(output_path, result.radiance, scene.settings.exposure, extra=extra), *extra]
 
 
-def _check_render_outputs(output_path, aov, scene, atlas_path) -> None:
-    """Refuse outputs that would overwrite an input (the scene, the atlas and the files
-    beside it, a mesh, the environment image), a folder, or another command's outputs, before anything is rendered."""
+def render_inputs(scene, atlas_path) -> list[tuple[Path, str]]:
+    """Every file a render of ``scene`` reads, each with what it is: the scene, the atlas and the files beside it
+    that the renderer reads, each object's mesh file and the environment image."""
     atlas_path = Path(atlas_path)
-    outputs = [(output_path, "the render (-o)")]
-    if aov is None:
-        outputs.append((output_path.with_suffix(".png"), "the PNG written beside the render"))
     inputs = [
-        (scene.path, "the scene"),
+        (Path(scene.path), "the scene"),
         (atlas_path, "the atlas (--atlas)"),
         (atlas_path.with_suffix(".json"), "the atlas's manifest"),
         (atlas_path.with_suffix(".wgsl"), "the atlas's include"),
     ]
-    inputs += [(obj.file, f"the mesh of objects[{obj.index}]") for obj in scene.objects if obj.file is not None]
+    inputs += [(Path(obj.file), f"the mesh of objects[{obj.index}]") for obj in scene.objects if obj.file is not None]
     if scene.environment is not None and scene.environment.file is not None:
-        inputs.append((scene.environment.file, "the scene's environment image"))
-    check_output_paths(outputs, inputs)
+        inputs.append((Path(scene.environment.file), "the scene's environment image"))
+    return inputs
+
+
+def _check_render_outputs(output_path, aov, scene, atlas_path, depfile=None) -> None:
+    """Refuse outputs that would overwrite an input (:func:`render_inputs`), a folder, or another command's
+    outputs, before anything is rendered."""
+    outputs = [(output_path, "the render (-o)")]
+    if depfile is not None:
+        outputs.append((Path(depfile), "--depfile"))
+    if aov is None:
+        outputs.append((output_path.with_suffix(".png"), "the PNG written beside the render"))
+    check_output_paths(outputs, render_inputs(scene, atlas_path))
     # Before the render, not at its commit; the set's primary is the PNG where one is written (render/output.py).
     refuse_another_sets([path for path, _ in outputs], outputs[-1][0])

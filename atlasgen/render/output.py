@@ -68,18 +68,20 @@ def render_png(radiance: np.ndarray, exposure: float = 1.0, near=None) -> bytes:
     return encode_png(display_codes(radiance, exposure), near=near)
 
 
-def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0) -> list[Path]:
+def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0, extra: dict | None = None) -> list[Path]:
     """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither.
 
     One commit (:func:`atlasgen.io.atomic.write_files_atomically`), the PNG its primary: it is
     what the Makefile's render rule targets, so a killed run leaves it stale and is run again.
+    ``extra``: more files of the same commit (path: bytes), such as the render's depfile.
     """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
     write_files_atomically(
-        {exr_path: encode_exr(finite_radiance(radiance), near=exr_path), png_path: render_png(radiance, exposure, near=png_path)},
+        {exr_path: encode_exr(finite_radiance(radiance), near=exr_path), png_path: render_png(radiance, exposure, near=png_path),
+         **(extra or {})},
         primary=png_path,
-    )
+    )  # fmt: skip
     return [exr_path, png_path]
 
 
@@ -101,9 +103,10 @@ def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
     raise ValueError(f"unknown AOV {name!r}")
 
 
-def write_aov(path, name: str, value: np.ndarray) -> None:
+def write_aov(path, name: str, value: np.ndarray, extra: dict | None = None) -> None:
     """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), in one commit that also
-    removes the PNG an earlier render wrote beside it: that PNG shows a lit image this EXR no longer holds."""
+    removes the PNG an earlier render wrote beside it: that PNG shows a lit image this EXR no longer holds.
+    ``extra``: more files of the same commit (path: bytes)."""
     path = Path(path)
-    write_files_atomically({path: encode_exr(*aov_channels(name, value), near=path)}, primary=path,
+    write_files_atomically({path: encode_exr(*aov_channels(name, value), near=path), **(extra or {})}, primary=path,
                            remove=[path.with_suffix(".png")])  # fmt: skip

@@ -182,3 +182,60 @@ def test_an_object_beyond_float32_once_transformed_is_refused_not_rendered_black
                                        "float32's range once scaled, rotated and translated, got a bounding-box corner at "
                                        "6e+38"]  # fmt: skip
     assert not out.exists()
+
+
+MESH_SCENE = """environment = "env/sky.exr"
+[camera]
+position = [0, 0, 4]
+target = [0, 0, 0]
+[image]
+width = 40
+height = 30
+[[objects]]
+shape = "mesh"
+file = "meshes/tri.obj"
+material = "clay"
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("aov", [None, "depth"])
+def test_the_depfile_names_the_image_against_every_file_the_render_read(gpu_device, atlas, tmp_path, aov):
+    """The Makefile's render rule listed scenes/meshes/* and no environment image: a new sky.exr, or a mesh kept
+    elsewhere, left the image stale with make -q at 0. The depfile names what this scene reads, wherever it is."""
+    from atlasgen.io.images import write_exr
+
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "tri.obj").write_text("v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "env").mkdir()
+    write_exr(tmp_path / "env" / "sky.exr", np.full((8, 16, 3), 0.5, dtype=np.float32))
+    scene = write_scene(tmp_path, MESH_SCENE)
+    out, dep = tmp_path / "out" / "r.exr", tmp_path / "out" / "r.d"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(out), "--depfile", str(dep),
+                                   *(["--aov", aov] if aov else [])])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    image = out if aov else out.with_suffix(".png")
+    inputs = [scene, atlas, atlas.with_suffix(".json"), atlas.with_suffix(".wgsl"), tmp_path / "meshes" / "tri.obj",
+              tmp_path / "env" / "sky.exr"]  # fmt: skip
+    expected = [f"{image.as_posix()}: \\"] + [f"  {p.as_posix()} \\" for p in inputs[:-1]] + [f"  {inputs[-1].as_posix()}", ""]
+    expected += [f"{p.as_posix()}:" for p in inputs]
+    assert dep.read_text().splitlines() == expected
+    assert gpu_device.take_errors() == []
+
+
+def test_no_depfile_is_written_when_the_render_fails(atlas, tmp_path):
+    """It is one commit with the image: a render that fails changes neither."""
+    scene = write_scene(tmp_path, SCENE.format(material="nope"))
+    dep = tmp_path / "r.d"
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "r.exr"),
+                                   "--depfile", str(dep)])  # fmt: skip
+    assert res.exit_code == 3 and not dep.exists() and not (tmp_path / "r.png").exists()
+
+
+def test_a_depfile_may_not_overwrite_an_input(atlas, tmp_path):
+    scene = write_scene(tmp_path, SCENE.format(material="clay"))
+    before = scene.read_bytes()
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "r.exr"),
+                                   "--depfile", str(scene)])  # fmt: skip
+    assert res.exit_code == 4 and "--depfile would overwrite the scene" in res.stderr, res.output
+    assert scene.read_bytes() == before
