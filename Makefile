@@ -126,12 +126,14 @@ endif
 $(BUILD)/materials.list:
 	@mkdir -p $(@D) && echo "$(MATERIAL_FILES)" > $@
 
-# build/hashes/<file>.sha256: each material file's content hash, rewritten only when the content changes.
+# build/hashes/<file>.sha256: each material and scene file's content hash, rewritten only when the content changes.
 # Its time stamp moves with the content, not the file's: two files swapped by renaming (every name and
 # time stamp kept) or an older file copied in with its time (cp -p, rsync -a, tar) re-bake.
 HASH_DIR := $(BUILD)/hashes
+# Scene files too (scenes/*.toml): a scene swapped in with an older time stamp re-bakes and re-renders.
+HASHED_FILES := $(MATERIAL_FILES) $(sort $(wildcard scenes/*.toml))
 ifeq ($(filter clean,$(MAKECMDGOALS)),)
-$(foreach f,$(MATERIAL_FILES),$(shell $(call write_if_changed,$(firstword $(shell sha256sum $(f))),$(HASH_DIR)/$(f).sha256)))
+$(foreach f,$(HASHED_FILES),$(shell $(call write_if_changed,$(firstword $(shell sha256sum $(f))),$(HASH_DIR)/$(f).sha256)))
 endif
 # A material a scene's depfile still names after it was deleted reaches here too: no hash then (an empty one
 # was left before, under sha256sum's own line), and the bake that reads it says what is missing, on one line.
@@ -139,7 +141,7 @@ $(HASH_DIR)/%.sha256: %
 	@mkdir -p $(@D) && if [ -e $< ]; then sha256sum $< | cut -c1-64 > $@.tmp && mv -f $@.tmp $@; fi
 # Not intermediates: in `make clean atlas` the rule above makes them (nothing writes them while the Makefile is
 # read), and make deleted them at the end, so the next make wrote them anew and re-baked every material.
-.SECONDARY: $(foreach f,$(MATERIAL_FILES),$(HASH_DIR)/$(f).sha256)
+.SECONDARY: $(foreach f,$(HASHED_FILES),$(HASH_DIR)/$(f).sha256)
 # `make -j2 clean atlas` ran clean beside the first bakes, which then left stale materials behind.
 ifneq ($(filter clean,$(MAKECMDGOALS)),)
 .NOTPARALLEL:
@@ -183,7 +185,7 @@ SCENES_WITHOUT_DEPFILE := $(foreach a,$(SCENE_ATLASES),$(if $(wildcard $(a)),$(i
 $(SCENES_WITHOUT_DEPFILE): no-depfile
 
 # A pattern rule with several targets makes one set: one recipe writes them all.
-$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
 # A render writes the EXR and its PNG as one set: one target pair, so that a deleted EXR is rendered again. With
@@ -196,7 +198,7 @@ RENDER_COMMAND := $(wildcard cli/render_cmd.py cli/main.py cli/options.py)
 RENDERS_WITHOUT_DEPFILE := $(foreach i,$(SCENE_IMAGES),$(if $(wildcard $(i)),$(if $(wildcard $(i).d),,$(i))))
 $(RENDERS_WITHOUT_DEPFILE): no-depfile
 render: $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS)
-$(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
+$(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr --depfile $(BUILD)/scenes/$*.png.d
 

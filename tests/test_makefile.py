@@ -404,6 +404,14 @@ def test_a_material_whose_content_changed_rebakes_whatever_its_time_stamp(tree):
     assert snow.read_text() == 'type = "lambert"\n'
 
 
+def test_a_scene_whose_content_changed_rebakes_and_re_renders_whatever_its_time_stamp(tree):
+    """As a material file: a scene swapped in by renaming, or copied with its time, left the image as it was."""
+    scene = tree / "scenes" / "two.toml"
+    scene.write_text("[camera]\nposition = [0, 0, 4]\ntarget = [0, 0, 0]\n")
+    os.utime(scene, (T0, T0))  # older than its atlas and image
+    assert _scene_jobs(_commands(tree, "render")) == [("bake", "two"), ("render", "two")]
+
+
 def test_outputs_atlasgen_commits_are_kept_when_make_is_interrupted(tree):
     """A run interrupted just after its commit exits 130 with the new set in place; make deleted build/atlas.dds."""
     database = _make(tree, "-p", "-q", "atlas").stdout
