@@ -300,3 +300,18 @@ def test_an_auto_choice_s_candidates_are_told_apart_and_only_the_baked_one_is_ch
     assert [r["representation"] for r in rows] == ["lut", "separable:8 (svd)", "separable:8 (nmf)"]
     assert [r["chosen"] for r in rows] == [False, False, True]
     assert rows[2]["measure"] == kind.format("NMF") and rows[2]["error"] == 0.0903
+
+
+def test_the_page_is_the_same_bytes_from_whatever_folder_it_is_written(tmp_path, write_material, monkeypatch):
+    """Its heading gave the atlas path as typed: run from build/ ("atlas.dds") or the root ("build/atlas.dds"),
+    the same inputs wrote two pages. It is now given from the page, as its links are."""
+    atlas = _clay_atlas(tmp_path, write_material)
+    (tmp_path / "sub").mkdir()
+    pages = []
+    for cwd, given in ((tmp_path, "atlas.dds"), (tmp_path / "sub", "../atlas.dds")):
+        monkeypatch.chdir(cwd)
+        out = tmp_path / f"report-{len(pages)}"
+        pages.append(write_library_report(given, out, physical=False).read_bytes())
+    assert pages[0] == pages[1]
+    assert b"<h1>Material library: ../atlas.dds</h1>" in pages[0]
+    assert atlas.exists()

@@ -405,7 +405,8 @@ def write_library_report(
     index = out_dir / "index.html"
     files[index] = render_page(
         "library.html.j2",
-        atlas=Path(atlas_path).as_posix(),
+        # From the page, as its links are: the path as typed made the page differ by the folder it was run from.
+        atlas=Path(os.path.relpath(atlas_path, out_dir)).as_posix(),
         encoding=atlas.manifest.encoding,
         layout=atlas.manifest.layout,
         links=links,
