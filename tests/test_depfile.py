@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from atlasgen.errors import InputError
+from atlasgen.errors import InputError, OutputNameError
 from atlasgen.io.depfile import format_depfile, write_depfile
 
 names = st.text(alphabet="abcXYZ019_-.# $:", min_size=1, max_size=12).filter(lambda s: s.strip(" .") and not s.startswith("-"))
@@ -60,5 +60,17 @@ def test_a_path_with_a_line_break_is_refused_on_one_line():
     """Make ends a rule at a line break, and no escape exists for one."""
     with pytest.raises(InputError) as info:
         format_depfile("out.dds", ["ok.toml", "a\nb.toml"])
-    assert str(info.value) == ("--depfile: cannot write 'a\\nb.toml' as a make prerequisite (make ends a rule at a line "
-                               "break); expected paths without line breaks")  # fmt: skip
+    assert str(info.value) == ("--depfile: cannot write 'a\\nb.toml' as a make prerequisite: make reads '\\n' in it as the "
+                               "end of the rule; expected a path without ; | % = * ? [ ] ( ) \\, tabs or line breaks")  # fmt: skip
+
+
+@pytest.mark.parametrize("char", list(";|%=*?[]()\\\t\r"))
+def test_a_name_make_reads_as_syntax_is_refused_as_a_prerequisite_or_a_target(char):
+    """A mesh named a;b.obj wrote a depfile make stopped on ("missing separator": every goal of the project's
+    Makefile, clean included); a|b waited on a file 'a', 50%.obj became a pattern rule, a=b.obj an assignment."""
+    with pytest.raises(InputError) as info:
+        format_depfile("out.png", ["ok.obj", f"a{char}b.obj"])
+    assert f"as a make prerequisite: make reads {char!r} in it as " in str(info.value)
+    with pytest.raises(OutputNameError) as info:  # the target is an option's value: exit 2
+        format_depfile(f"out{char}.png", ["ok.obj"])
+    assert f"as a make target: make reads {char!r}" in str(info.value) and info.value.exit_code == 2

@@ -4,17 +4,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from atlasgen.errors import InputError
+from atlasgen.errors import InputError, OutputNameError, shorten
 from atlasgen.io.atomic import write_file_atomically
 
 __all__ = ["encode_depfile", "format_depfile", "write_depfile"]
 
 
-def _escape(path) -> str:
+#: Characters make reads in a rule's names and no escape makes plain, with what make takes each for: a depfile
+#: naming them made make stop ("missing separator"), wait on a file of another name, or read a rule as a pattern.
+_UNWRITABLE = {
+    "\n": "the end of the rule", "\r": "the end of the rule", "\t": "a separator", ";": "the start of a recipe",
+    "|": "the start of order-only prerequisites", "%": "a pattern's stem", "=": "a variable assignment",
+    "*": "a wildcard", "?": "a wildcard", "[": "a wildcard", "]": "a wildcard", "(": "an archive member",
+    ")": "an archive member", "\\": "an escape",
+}  # fmt: skip
+
+
+def _escape(path, role: str = "prerequisite") -> str:
     r"""``path`` as make reads it back: ``$`` doubled, ``#``, space and ``:`` escaped with a backslash.
 
     Make splits prerequisites on spaces, reads ``#`` as a comment, ``$`` as a variable and ``:`` as
-    the end of a rule's targets. A line break cannot be escaped (make ends the rule there).
+    the end of a rule's targets. The characters of :data:`_UNWRITABLE` cannot be escaped (a line break
+    ends the rule, ``;`` starts a recipe, ``%`` makes a pattern): a path holding one is refused.
 
     >>> print(_escape("out/a b:c#1$.toml"))
     out/a\ b\:c\#1$$.toml
@@ -22,12 +33,16 @@ def _escape(path) -> str:
     Raises
     ------
     InputError
-        ``path`` holds a line break.
+        A prerequisite holds a character of :data:`_UNWRITABLE`.
+    OutputNameError
+        The target (an output named on the command line) does: a bad option value.
     """
     text = Path(path).as_posix()
-    if "\n" in text or "\r" in text:
-        raise InputError(f"--depfile: cannot write {text!r} as a make prerequisite (make ends a rule at a line break); "
-                         "expected paths without line breaks")  # fmt: skip
+    bad = next((c for c in text if c in _UNWRITABLE), None)
+    if bad is not None:
+        error = OutputNameError if role == "target" else InputError
+        raise error(f"--depfile: cannot write {shorten(repr(text))} as a make {role}: make reads {bad!r} in it as "
+                    f"{_UNWRITABLE[bad]}; expected a path without ; | % = * ? [ ] ( ) \\, tabs or line breaks")  # fmt: skip
     return text.replace("$", "$$").replace("#", r"\#").replace(" ", r"\ ").replace(":", r"\:")
 
 
@@ -45,7 +60,7 @@ def format_depfile(target, prerequisites) -> str:
         A path holds a line break, which a depfile cannot hold.
     """
     prerequisites = list(dict.fromkeys(_escape(p) for p in prerequisites))
-    lines = [" \\\n  ".join([f"{_escape(target)}:", *prerequisites]), ""]
+    lines = [" \\\n  ".join([f"{_escape(target, 'target')}:", *prerequisites]), ""]
     lines += [f"{p}:" for p in prerequisites]
     return "\n".join(lines) + "\n"
 
