@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
+from atlasgen.io.images import openable_name
 from atlasgen.io.text import MISSING, path_kind
 
 __all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "MAX_ENVIRONMENT_HEIGHT", "read_environment_file"]
@@ -56,7 +57,8 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         raise InputError(f"{shown}: no such environment image")
     if kind is not None:
         raise error(shown, None, f"expected an OpenEXR or Radiance HDR image, got {kind}")
-    inp = oiio.ImageInput.open(str(path))
+    with openable_name(path) as name:  # OpenImageIO refused a name that is no UTF-8: an internal error
+        inp = oiio.ImageInput.open(name)
     if inp is None:
         reason = " ".join(oiio.geterror().split()) or "unreadable"
         raise error(shown, None, f"expected an OpenEXR or Radiance HDR image ({reason})")

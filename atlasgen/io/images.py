@@ -10,6 +10,8 @@ callers that write several files all-or-nothing.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import tempfile
 from pathlib import Path
 
@@ -18,7 +20,7 @@ import numpy as np
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import scratch_folder, write_file_atomically
 
-__all__ = ["encode_png", "encode_exr", "write_png", "write_exr"]
+__all__ = ["encode_png", "encode_exr", "write_png", "write_exr", "is_utf8_path", "openable_name"]
 
 
 def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None, near=None) -> bytes:
@@ -43,7 +45,10 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
     for name, value in (attributes or {}).items():
         spec.attribute(name, value)
     shown = f"{Path(near).as_posix()}: cannot write" if near is not None else f"cannot encode a {suffix} image"
-    scratch = scratch_folder(near) if near is not None else tempfile.TemporaryDirectory(prefix="atlasgen-image-")
+    # OpenImageIO takes UTF-8 names only (pybind11 refused a folder named with byte 0xff, an internal error):
+    # beside such an output, the scratch file goes to the system's temporary folder.
+    beside = near is not None and is_utf8_path(near)
+    scratch = scratch_folder(near) if beside else tempfile.TemporaryDirectory(prefix="atlasgen-image-")
     with scratch as folder:
         path = str(Path(folder) / f"image{suffix}")
         out = oiio.ImageOutput.create(path)
@@ -66,6 +71,34 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
             return Path(path).read_bytes()
         except OSError as exc:
             raise OutputError(f"{shown} ({exc.strerror})") from None
+
+
+def is_utf8_path(path) -> bool:
+    """Whether ``path``'s bytes are UTF-8, which OpenImageIO's Python names must be.
+
+    >>> import os
+    >>> is_utf8_path("sky.exr"), is_utf8_path(os.fsdecode(b"\\xffd/sky.exr"))
+    (True, False)
+    """
+    try:
+        os.fsencode(os.fspath(path)).decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def openable_name(path):
+    """A name OpenImageIO can open for the file at ``path``: ``path`` itself, or where its bytes are no UTF-8,
+    a link to it with an ASCII name in a temporary folder (the file is read where it is, not copied)."""
+    if is_utf8_path(path):
+        yield str(path)
+        return
+    with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
+        suffix = "".join(c for c in Path(path).suffix if c.isascii())
+        link = Path(folder) / f"image{suffix}"
+        os.symlink(os.path.abspath(path), link)
+        yield str(link)
 
 
 def _decode_problem(oiio, path: str, shape) -> str | None:

@@ -95,3 +95,15 @@ def test_an_image_larger_than_the_limit_is_refused_before_its_pixels_are_read(tm
         read_environment_file(path, SceneError)
     assert str(info.value) == f"{path.as_posix()}: expected at most 8x4 texels (downsample it first), got 16x8"
     assert read_environment_file(_bad(tmp_path, "ok.exr", np.ones((4, 8, 3), np.float32))).shape == (4, 8, 3)  # at it
+
+
+def test_a_file_whose_name_is_no_utf8_reads_as_any_other(tmp_path):
+    """OpenImageIO's Python names must be UTF-8: a sky in a folder named with byte 0xff was an internal error."""
+    import os
+
+    folder = tmp_path / os.fsdecode(b"\xffd")
+    folder.mkdir()
+    pixels = np.linspace(0.1, 2.0, 8 * 16 * 3, dtype=np.float32).reshape(8, 16, 3)
+    write_exr(tmp_path / "sky.exr", pixels)
+    (tmp_path / "sky.exr").rename(folder / "sky.exr")
+    np.testing.assert_array_equal(read_environment_file(folder / "sky.exr"), pixels)

@@ -199,3 +199,20 @@ def test_an_exr_cut_short_at_its_last_flush_is_refused_not_returned(tmp_path):
     assert done.stdout.strip() == (f"refused: {(tmp_path / 'r.exr').as_posix()}: cannot write (the file written does not "
                                    "read back: Some scanline chunks were missing or corrupted)")  # fmt: skip
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_exr_beside_a_name_that_is_no_utf8_encodes_and_is_written(tmp_path):
+    """encode_exr's scratch file goes beside its output, and OpenImageIO refused a folder named with byte 0xff
+    (a TypeError: render -o $'\\xfd'.exr was an internal error). Such a scratch file goes to the temporary folder."""
+    import os
+
+    import OpenImageIO as oiio
+
+    out = tmp_path / os.fsdecode(b"\xfdd") / os.fsdecode(b"r\xfd.exr")
+    pixels = np.arange(4 * 6 * 3, dtype=np.float32).reshape(4, 6, 3)
+    write_exr(out, pixels)
+    ascii_copy = tmp_path / "copy.exr"
+    ascii_copy.write_bytes(out.read_bytes())
+    image = oiio.ImageInput.open(str(ascii_copy))
+    np.testing.assert_array_equal(image.read_image(oiio.FLOAT), pixels)
+    image.close()
