@@ -16,7 +16,13 @@ import pytest
 from atlasgen.errors import InputError, OutputError
 from atlasgen.io import atomic
 from atlasgen.io.atlas import RERUN
-from atlasgen.io.atomic import TEMP_SUFFIX, remove_stale_temporaries, write_file_atomically, write_files_atomically
+from atlasgen.io.atomic import (
+    TEMP_SUFFIX,
+    WRITERS_SUFFIX,
+    remove_stale_temporaries,
+    write_file_atomically,
+    write_files_atomically,
+)
 from atlasgen.render.atlas_texture import read_render_atlas
 from tests.plain_reader import read_plainly
 
@@ -294,10 +300,14 @@ def _snapshot(build: Path) -> dict:
 
 
 def _leftovers(build: Path) -> list[str]:
-    """Temporaries beside the outputs, and anything in the store but the lock, ``current`` and two generations."""
+    """Temporaries beside the outputs, and anything in the store but the lock, ``current`` and two generations (each
+    with its record of writers, ``gen-<n>.writers``); a record whose generation is gone is a leftover too."""
     store = build / ".atlas.atlasgen"
-    extra = sorted(set(os.listdir(store)) - {"lock", "current", os.readlink(store / "current")})
-    return [p.name for p in build.iterdir() if p.name.endswith(TEMP_SUFFIX)] + extra[1:]
+    current = os.readlink(store / "current")
+    extra = sorted(set(os.listdir(store)) - {"lock", "current", current, f"{current}{WRITERS_SUFFIX}"})
+    previous = [name for name in extra if not name.endswith(WRITERS_SUFFIX)][:1]
+    extra = [name for name in extra if name not in previous and name not in {f"{g}{WRITERS_SUFFIX}" for g in previous}]
+    return [p.name for p in build.iterdir() if p.name.endswith(TEMP_SUFFIX)] + extra
 
 
 #: The files a reader uses together: texture, manifest, include.
@@ -605,3 +615,35 @@ def test_an_immutable_file_the_commit_keeps_is_carried_as_a_copy(tmp_path):
     finally:
         _chattr(tmp_path / ".a.atlasgen" / "gen-1" / "a.hlsl", "-i")
     assert visible(tmp_path) == {"a.dds": b"newer", "a.hlsl": b"kept"}
+
+
+def test_a_writer_may_not_replace_another_writer_s_file_of_a_shared_set(tmp_path):
+    """A scene's bake (X.dds, its depfile X.d) and render (X.exr, X.png) share the set .X.atlasgen: render --depfile
+    X.d replaced the bake's depfile with its own, exit 0. Each commit that names its writer is refused another's."""
+    bake = {tmp_path / "x.dds": b"atlas", tmp_path / "x.d": b"bake's rule"}
+    write_files_atomically(bake, primary=tmp_path / "x.dds", writer="bake")
+    with pytest.raises(OutputError) as info:
+        write_files_atomically({tmp_path / "x.png": b"image", tmp_path / "x.d": b"render's rule"}, primary=tmp_path / "x.png",
+                               writer="render")  # fmt: skip
+    assert str(info.value) == (f"{(tmp_path / 'x.d').as_posix()}: already written by `atlasgen bake` into the same "
+                               "output set (.x.atlasgen); expected a name of its own; nothing was replaced")  # fmt: skip
+    assert (tmp_path / "x.d").read_bytes() == b"bake's rule" and not (tmp_path / "x.png").exists()
+    # Its own names are the render's to write; the bake's files stay as they were, beside them.
+    write_files_atomically({tmp_path / "x.png": b"image", tmp_path / "x.png.d": b"render's rule"}, primary=tmp_path / "x.png",
+                           writer="render")  # fmt: skip
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.name.startswith(".")} == {
+        "x.dds": b"atlas", "x.d": b"bake's rule", "x.png": b"image", "x.png.d": b"render's rule"}  # fmt: skip
+
+
+def test_a_writer_s_earlier_file_that_it_no_longer_writes_leaves_the_set(tmp_path):
+    """A render with --depfile, then one without: the first one's depfile stayed beside an image that no longer read
+    what it named. A writer's own earlier files are not carried over; another writer's, and files no writer named
+    (an older atlasgen's), are."""
+    write_files_atomically({tmp_path / "x.dds": b"atlas"}, primary=tmp_path / "x.dds", writer="bake")
+    write_files_atomically({tmp_path / "x.old": b"unnamed"}, primary=tmp_path / "x.old")
+    write_files_atomically({tmp_path / "x.png": b"one", tmp_path / "x.png.d": b"rule"}, primary=tmp_path / "x.png",
+                           writer="render")  # fmt: skip
+    write_files_atomically({tmp_path / "x.png": b"two"}, primary=tmp_path / "x.png", writer="render")
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.name.startswith(".")} == {
+        "x.dds": b"atlas", "x.old": b"unnamed", "x.png": b"two"}  # fmt: skip
+    assert not os.path.lexists(tmp_path / "x.png.d")

@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from atlasgen.bake.cache import cache_path
-from atlasgen.bake.pipeline import ATLAS_SUFFIXES, read_previous_slots, sibling_paths
+from atlasgen.bake.pipeline import ATLAS_SUFFIXES, bake_writer, read_previous_slots, sibling_paths
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.output_paths import check_output_paths, check_suffix
@@ -67,7 +67,7 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     if not cache_only:
         # An output that is another set's link (--depfile build/atlas.dds beside a scene atlas) is refused at the
         # commit too, but by then the lock had made this set's store: refused here, the bake leaves nothing behind.
-        refuse_another_sets([*committed, *paths.values()], paths["dds"])
+        refuse_another_sets([*committed, *paths.values()], paths["dds"], bake_writer(paths["dds"]))
     if not materials and not allow_empty and not cache_only:
         existing = read_previous_slots(paths["manifest"])
         if existing or (paths["dds"].exists() and not paths["manifest"].exists()):

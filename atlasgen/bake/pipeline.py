@@ -476,5 +476,15 @@ def write_bake(
     # The siblings this bake does not write are stale: the other container (it would share
     # this manifest and includes), includes in languages not asked for, an old side-car.
     stale = [path for path in every_sibling.values() if path not in contents]
-    write_files_atomically(contents, primary=paths["dds"], remove=stale)
+    write_files_atomically(contents, primary=paths["dds"], remove=stale, writer=bake_writer(paths["dds"]))
     return paths
+
+
+def bake_writer(dds_path) -> str:
+    """The bake's writer in its output set (:func:`atlasgen.io.atomic.write_files_atomically`): one per atlas,
+    whichever container it is written in, since a bake to ``X.ktx2`` replaces the one to ``X.dds``.
+
+    >>> bake_writer("build/scenes/demo.dds")
+    'bake -o demo.dds/.ktx2'
+    """
+    return f"bake -o {Path(dds_path).with_suffix('').name}.dds/.ktx2"

@@ -30,7 +30,10 @@ set's lock (``fcntl.flock`` on ``.X.atlasgen/lock``, waiting up to :data:`LOCK_T
 
 The new generation holds the files written, plus (hard links of) the previous generation's
 files that were neither rewritten nor removed: files a command did not write are left as they
-were, as with plain files. A run killed at any instant leaves every path resolving into one
+were, as with plain files. A commit may name its writer (a scene's bake and its render share the
+set ``.X.atlasgen``): the store then records who wrote each file (``gen-<n>.writers``), the
+commit is refused a file another writer wrote, and this writer's own earlier files that it does
+not write again (a render's old depfile) are not carried over. A run killed at any instant leaves every path resolving into one
 whole generation; the next commit removes what it left. Ctrl-C is held from step 3 to 6.
 Because every new file is new, ``make`` (whose ``stat`` follows the link) sees the targets of
 a commit as fresh, and those of a killed one as stale.
@@ -46,6 +49,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import json
 import math
 import os
 import re
@@ -74,6 +78,7 @@ __all__ = [
     "TEMP_SUFFIX",
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
+    "WRITERS_SUFFIX",
 ]
 
 #: Every temporary file or folder this module creates beside an output ends with this.
@@ -88,6 +93,12 @@ UP = "@up"
 #: Seconds a writer waits for another writer of the same output set (``ATLASGEN_LOCK_TIMEOUT_S``
 #: overrides it) before it refuses with one line.
 LOCK_TIMEOUT_S = 120.0
+
+#: ``<generation>.writers`` beside a generation in the store: which command wrote each of its files
+#: (``{stored name: writer}``, JSON). Two commands may share a set (a scene's bake ``X.dds`` and its render
+#: ``X.exr``): a commit that names its writer may not replace the other's files, and does not carry forward
+#: its own earlier files that it no longer writes (a render's old depfile beside a render that wrote none).
+WRITERS_SUFFIX = ".writers"
 
 #: Test hook: when set, called as ``hook(step, path)`` before each step of a commit: ``"write"``
 #: (a new file for ``path``), ``"migrate"`` (``path`` turned into its link), ``"link"`` (a new
@@ -300,6 +311,43 @@ def _current(store: Path) -> str | None:
     return name if GENERATION.match(name) else None
 
 
+def _read_writers(store: Path, generation: str | None) -> dict:
+    """The writers of ``generation``'s files (:data:`WRITERS_SUFFIX`); empty where none is recorded (a set an
+    older atlasgen wrote, or commits that named no writer)."""
+    if generation is None:
+        return {}
+    try:
+        data = json.loads((store / f"{generation}{WRITERS_SUFFIX}").read_text())
+    except (OSError, ValueError):
+        return {}
+    return {k: v for k, v in data.items() if isinstance(k, str) and isinstance(v, str)} if isinstance(data, dict) else {}
+
+
+def _write_writers(store: Path, gen: Path, writers: dict) -> None:
+    """Record ``writers`` for ``gen`` (none where it is empty), flushed before the swap that makes it current."""
+    record = store / f"{gen.name}{WRITERS_SUFFIX}"
+    if os.path.lexists(record):  # a killed commit's, of a generation number collected since and taken again
+        _discard(record)
+    if writers:
+        _write_file(record, json.dumps(dict(sorted(writers.items())), indent=0).encode())
+
+
+def _taken(path: Path, writer: str, store: Path) -> OutputError:
+    return OutputError(f"{path.as_posix()}: already written by `atlasgen {writer}` into the same output set "
+                       f"({store.name}); expected a name of its own; nothing was replaced")  # fmt: skip
+
+
+def _refuse_taken(home: Path, store: Path, paths, writer: str | None) -> None:
+    """Refuse ``paths`` that the current generation records as another writer's files."""
+    if writer is None:
+        return
+    owners = _read_writers(store, _current(store))
+    for path in paths:
+        other = owners.get(_stored_name(home, Path(path)))
+        if other is not None and other != writer:
+            raise _taken(Path(path), other, store)
+
+
 def _new_generation(store: Path) -> Path:
     numbers = [int(m.group(1)) for m in map(GENERATION.match, os.listdir(store)) if m]
     gen = store / f"gen-{max(numbers, default=0) + 1}"
@@ -346,8 +394,9 @@ def _collect_garbage(home: Path, store: Path, previous: str | None = None) -> No
     after its swap), and killed commits' temporary links."""
     current = _current(store)
     keep = set(_names(store / current)) if current else set()
+    kept = {CURRENT, LOCK_NAME} | {f"{g}{suffix}" for g in (current, previous) if g for suffix in ("", WRITERS_SUFFIX)}
     for name in sorted(os.listdir(store)):
-        if name in (CURRENT, LOCK_NAME, current, previous):
+        if name in kept:
             continue
         entry = store / name
         if GENERATION.match(name) and entry.is_dir() and not entry.is_symlink():
@@ -459,16 +508,18 @@ def refuse_set_link(path) -> None:
     _refuse_another_sets(Path(path), None)
 
 
-def refuse_another_sets(paths, primary) -> None:
+def refuse_another_sets(paths, primary, writer: str | None = None) -> None:
     """Refuse, before a command's work, to write ``paths`` (the fixed files of the set whose primary is
-    ``primary``) where one is another output set's link: :func:`write_files_atomically` refuses it at the
-    commit, after the work, and a report would have left its folders and lock behind by then."""
+    ``primary``) where one is another output set's link, or with ``writer``, another writer's file of this set:
+    :func:`write_files_atomically` refuses it at the commit, after the work, and a report would have left its
+    folders and lock behind by then."""
     store = store_path(primary)
     for path in paths:
         _refuse_another_sets(Path(path), store)
+    _refuse_taken(_folder(Path(primary)), store, paths, writer)
 
 
-def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False) -> None:
+def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False, writer: str | None = None) -> None:
     """Write ``{path: bytes}`` and remove the files ``remove`` names as one set: all or nothing.
 
     The generation commit of this module's docstring, under the set's lock: the new files
@@ -490,6 +541,10 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     whole
         The files written are the whole set: the previous generation's other files are not carried
         over, and their links are removed (a report's images of materials it no longer shows).
+    writer
+        Who writes (``"render -o X.exr"``), where two commands share a set (:data:`WRITERS_SUFFIX`): a file
+        another writer wrote is refused, and this writer's earlier files that it does not write again are
+        not carried over. None: neither (the files written belong to no writer).
 
     Raises
     ------
@@ -511,7 +566,7 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
         refuse_inside_store(path)
     # Before the lock, which makes this set's store: refused under it only (as _commit does again, for a link
     # changed meanwhile), a path that is another set's link left an empty store behind on every command.
-    refuse_another_sets([p for p, _ in items], primary)
+    refuse_another_sets([p for p, _ in items], primary, writer)
     home = _folder(primary)
     try:
         home.mkdir(parents=True, exist_ok=True)
@@ -523,10 +578,11 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     with output_lock(home, key):
         store = home / f".{key}{STORE_SUFFIX}"
         _collect_garbage(home, store)
-        _commit(home, store, primary, items, removals, whole)
+        _commit(home, store, primary, items, removals, whole, writer)
 
 
-def _commit(home: Path, store: Path, primary: Path, items: list, removals: list, whole: bool = False) -> None:
+def _commit(home: Path, store: Path, primary: Path, items: list, removals: list, whole: bool = False,
+            writer: str | None = None) -> None:  # fmt: skip
     """Steps 1-6 of the module's docstring; the caller holds the lock."""
     names = {path: _stored_name(home, path) for path, _ in items}
     names.update({path: _stored_name(home, path) for path in removals})
@@ -534,6 +590,10 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
     current = _current(store)
     live = store / current if current else store  # the current generation (no names in it without one)
     old = set(_names(live)) if current else set()
+    owners = _read_writers(store, current)
+    _refuse_taken(home, store, [path for path, _ in items], writer)  # again under the lock
+    # This writer's earlier files that it does not write now are stale: not carried over.
+    own = {stored for stored, w in owners.items() if writer is not None and w == writer}
     # Each path: this set's link already, absent, or to be migrated (a plain file, another link).
     migrate, absent = [], []
     for path in names:
@@ -573,6 +633,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
             try:
                 for stored in _linked(home, store, old):
                     _carry(live / stored, holding / stored)
+                _write_writers(store, holding, owners)
             except OSError as exc:
                 raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
             for path in migrate:
@@ -581,6 +642,15 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
                 except OSError as exc:
                     raise OutputError(f"{path.as_posix()}: cannot replace ({exc.strerror}); nothing was replaced") from None
             _fsync_tree(holding)
+        fresh = {names[path] for path, _ in items}
+        gone = {names[path] for path in removals}
+        carried = set(_linked(home, store, set() if whole else old - fresh - gone - own))
+        writers = {stored: w for stored, w in owners.items() if stored in carried}
+        writers.update({stored: writer for stored in fresh} if writer is not None else {})
+        try:
+            _write_writers(store, gen, writers)
+        except OSError as exc:
+            raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
         with deferred_interrupts():
             if holding is not None:
                 _swap(store, holding, primary)
@@ -592,10 +662,8 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
                         _link_into(path, texts[path])
                     except OSError as exc:
                         raise _unchanged(path, exc) from None
-            fresh = {names[path] for path, _ in items}
-            gone = {names[path] for path in removals}
             try:
-                for stored in _linked(home, store, set() if whole else old - fresh - gone):
+                for stored in sorted(carried):
                     _carry(live / stored, gen / stored)
             except OSError as exc:
                 raise _unchanged(primary, exc) from None
@@ -619,6 +687,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
             for leftover in (gen, holding):
                 if leftover is not None:
                     shutil.rmtree(leftover, ignore_errors=True)
+                    _discard(store / f"{leftover.name}{WRITERS_SUFFIX}")
 
 
 def _linked(home: Path, store: Path, names) -> list[str]:

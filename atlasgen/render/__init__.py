@@ -51,10 +51,17 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
     # Encoded before the render: a path make cannot hold fails the command before minutes of work.
     extra = {} if depfile is None else {Path(depfile): encode_depfile(image, [p for p, _ in render_inputs(scene, atlas_path)])}
     result = Renderer(atlas).render(scene, mip_bias=mip_bias, outlines=outlines, aovs=aov is not None)
+    writer = render_writer(output_path)
     if aov is not None:
-        write_aov(output_path, aov, result.aov(aov), extra=extra)
+        write_aov(output_path, aov, result.aov(aov), extra=extra, writer=writer)
         return [output_path, *extra]
-    return [*write_render(output_path, result.radiance, scene.settings.exposure, extra=extra), *extra]
+    return [*write_render(output_path, result.radiance, scene.settings.exposure, extra=extra, writer=writer), *extra]
+
+
+def render_writer(output_path) -> str:
+    """The render's writer in its output set, which a scene's bake may share (``X.dds`` beside ``X.exr``): a render
+    does not replace the bake's files, and drops its own earlier ones (an old depfile) that it does not write."""
+    return f"render -o {Path(output_path).name}"
 
 
 def render_inputs(scene, atlas_path) -> list[tuple[Path, str]]:
@@ -83,4 +90,4 @@ def _check_render_outputs(output_path, aov, scene, atlas_path, depfile=None) -> 
         outputs.append((output_path.with_suffix(".png"), "the PNG written beside the render"))
     check_output_paths(outputs, render_inputs(scene, atlas_path))
     # Before the render, not at its commit; the set's primary is the PNG where one is written (render/output.py).
-    refuse_another_sets([path for path, _ in outputs], outputs[-1][0])
+    refuse_another_sets([path for path, _ in outputs], outputs[-1][0], render_writer(output_path))

@@ -68,12 +68,14 @@ def render_png(radiance: np.ndarray, exposure: float = 1.0, near=None) -> bytes:
     return encode_png(display_codes(radiance, exposure), near=near)
 
 
-def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0, extra: dict | None = None) -> list[Path]:
+def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0, extra: dict | None = None,
+                 writer: str | None = None) -> list[Path]:  # fmt: skip
     """The linear float32 EXR and, beside it, the PNG (:func:`render_png`, same stem): both replaced, or neither.
 
     One commit (:func:`atlasgen.io.atomic.write_files_atomically`), the PNG its primary: it is
     what the Makefile's render rule targets, so a killed run leaves it stale and is run again.
-    ``extra``: more files of the same commit (path: bytes), such as the render's depfile.
+    ``extra``: more files of the same commit (path: bytes), such as the render's depfile; ``writer``: the
+    command's name in a set it may share (:func:`atlasgen.io.atomic.write_files_atomically`).
     """
     exr_path = Path(exr_path)
     png_path = exr_path.with_suffix(".png")
@@ -81,6 +83,7 @@ def write_render(exr_path, radiance: np.ndarray, exposure: float = 1.0, extra: d
         {exr_path: encode_exr(finite_radiance(radiance), near=exr_path), png_path: render_png(radiance, exposure, near=png_path),
          **(extra or {})},
         primary=png_path,
+        writer=writer,
     )  # fmt: skip
     return [exr_path, png_path]
 
@@ -103,10 +106,10 @@ def aov_channels(name: str, value: np.ndarray) -> tuple[np.ndarray, tuple]:
     raise ValueError(f"unknown AOV {name!r}")
 
 
-def write_aov(path, name: str, value: np.ndarray, extra: dict | None = None) -> None:
+def write_aov(path, name: str, value: np.ndarray, extra: dict | None = None, writer: str | None = None) -> None:
     """One g-buffer layer as a float32 OpenEXR (see :func:`aov_channels`), in one commit that also
     removes the PNG an earlier render wrote beside it: that PNG shows a lit image this EXR no longer holds.
-    ``extra``: more files of the same commit (path: bytes)."""
+    ``extra``: more files of the same commit (path: bytes); ``writer`` as :func:`write_render`'s."""
     path = Path(path)
     write_files_atomically({path: encode_exr(*aov_channels(name, value), near=path), **(extra or {})}, primary=path,
-                           remove=[path.with_suffix(".png")])  # fmt: skip
+                           remove=[path.with_suffix(".png")], writer=writer)  # fmt: skip

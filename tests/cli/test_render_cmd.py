@@ -239,3 +239,25 @@ def test_a_depfile_may_not_overwrite_an_input(atlas, tmp_path):
                                    "--depfile", str(scene)])  # fmt: skip
     assert res.exit_code == 4 and "--depfile would overwrite the scene" in res.stderr, res.output
     assert scene.read_bytes() == before
+
+
+@pytest.mark.slow
+def test_a_render_beside_its_scene_s_atlas_keeps_to_its_own_files(gpu_device, atlas, tmp_path):
+    """The scene's bake (b/x.dds, b/x.d) and render (b/x.exr) share one set: render --depfile b/x.d replaced the
+    bake's depfile (exit 0), and a render without --depfile left the earlier render's beside the new image."""
+    from atlasgen.materials.material import read_material
+
+    scene = write_scene(tmp_path, SCENE.format(material="clay"), "x.toml")
+    b = tmp_path / "b"
+    baked = CliRunner().invoke(app, ["bake", str(read_material(tmp_path / "materials" / "clay.toml").source), "--scene",
+                                     str(scene), "-o", str(b / "x.dds"), "--depfile", str(b / "x.d"), "-q"])  # fmt: skip
+    assert baked.exit_code == 0, baked.output
+    rule = (b / "x.d").read_bytes()
+    args = ["render", str(scene), "--atlas", str(b / "x.dds"), "-o", str(b / "x.exr")]
+    res = CliRunner().invoke(app, [*args, "--depfile", str(b / "x.d")])
+    assert res.exit_code == 4 and "already written by `atlasgen bake -o x.dds/.ktx2` into the same output set" in res.stderr
+    assert (b / "x.d").read_bytes() == rule and not (b / "x.png").exists()
+    assert CliRunner().invoke(app, [*args, "--depfile", str(b / "x.png.d")]).exit_code == 0
+    assert CliRunner().invoke(app, args).exit_code == 0
+    assert not os.path.lexists(b / "x.png.d") and (b / "x.d").read_bytes() == rule and (b / "x.json").exists()
+    assert gpu_device.take_errors() == []
