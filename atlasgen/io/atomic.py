@@ -79,6 +79,7 @@ __all__ = [
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
     "WRITERS_SUFFIX",
+    "MAX_OUTPUT_NAME_BYTES",
 ]
 
 #: Every temporary file or folder this module creates beside an output ends with this.
@@ -90,6 +91,9 @@ LOCK_NAME = "lock"
 GENERATION = re.compile(r"gen-(\d+)$")
 #: A generation stores an output outside the primary's folder as ``@up<k>/<rest>`` (``k`` leading ``..``).
 UP = "@up"
+#: The longest output file name, in bytes, whose temporaries (``.<name>.<pid>.<random>.atlasgen.tmp``) and store
+#: still fit the file system's 255: a 250-byte name failed at its scratch file, naming the folder ".".
+MAX_OUTPUT_NAME_BYTES = 215
 #: Seconds a writer waits for another writer of the same output set (``ATLASGEN_LOCK_TIMEOUT_S``
 #: overrides it) before it refuses with one line.
 LOCK_TIMEOUT_S = 120.0

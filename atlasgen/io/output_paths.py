@@ -10,8 +10,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from atlasgen.errors import OutputError, OutputNameError
-from atlasgen.io.atomic import refuse_another_sets, refuse_inside_store
+from atlasgen.errors import OutputError, OutputNameError, shorten
+from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, refuse_another_sets, refuse_inside_store
 from atlasgen.io.text import special_file_kind
 
 __all__ = ["check_output_folder", "check_output_paths", "check_suffix"]
@@ -38,10 +38,14 @@ def _blocking_file(path: Path) -> Path | None:
     return None
 
 
-def _blocked(folder: Path, blocker: Path) -> OutputError:
-    """The refusal of an output folder that ``blocker``, an existing file on its path, stands in for."""
+def _blocked(folder: Path, blocker: Path, output: str | None = None) -> OutputError:
+    """The refusal of an output folder that ``blocker``, an existing file on its path, stands in for; ``output``
+    (``"b/x.d: --depfile"``) names the output file it is the folder of, where there is one."""
     kind = special_file_kind(blocker) or "a file"
-    return OutputError(f"{folder.as_posix()}: cannot write output folder ({blocker.as_posix()} is {kind})")
+    where = (
+        f"{output}: cannot write its folder {folder.as_posix()}" if output else f"{folder.as_posix()}: cannot write output folder"
+    )
+    return OutputError(f"{where} ({blocker.as_posix()} is {kind})")
 
 
 def check_output_paths(outputs, inputs=()) -> None:
@@ -74,11 +78,15 @@ def check_output_paths(outputs, inputs=()) -> None:
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     """:func:`check_output_paths` for one output, ``seen`` holding the outputs checked before it."""
     shown = path.as_posix()
+    size = len(os.fsencode(path.name))
+    if size > MAX_OUTPUT_NAME_BYTES:
+        raise OutputNameError(f"{shorten(shown)}: {role}: a file name of {size} bytes; expected at most "
+                              f"{MAX_OUTPUT_NAME_BYTES} (the temporary files written beside it add to the name)")  # fmt: skip
     if path.is_dir():
         raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
     blocker = _blocking_file(path)
     if blocker is not None:
-        raise _blocked(path.parent, blocker)
+        raise _blocked(path.parent, blocker, f"{shown}: {role}")
     refuse_inside_store(path)
     key = _key(path)
     if key in seen:

@@ -132,7 +132,7 @@ def test_unwritable_output_folder(runner, library, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     res = runner.invoke(app, ["bake", str(library), "-o", str(blocker / "atlas.dds")])
-    assert res.exit_code == 4 and "cannot write output folder" in res.stderr
+    assert res.exit_code == 4 and "the atlas (-o): cannot write its folder" in res.stderr, res.stderr
     assert blocker.read_text() == "not a folder"
 
 
