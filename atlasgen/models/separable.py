@@ -624,26 +624,24 @@ class Separable(Model):
             if "transmission" in extra:
                 full["transmission"] = extra["transmission"]
             out = SliceSet(slices, full, {**result.timings, **{k: v for k, v in timings.items() if k not in result.timings}})
-            out._separable = {**hand_over, "reference": reference, "sample": report}
+            # The values the terms were chosen with: what a study of the stored terms must run again (stored_terms).
+            out._separable = {**hand_over, "reference": reference, "sample": report, "values": values}
             return out
 
         return DraftSlices(draft, complete)
 
     def stored_terms(self, values: dict) -> tuple[str, dict | None]:
-        """What the bake stores (``"separable"``, ``"lut"`` or ``"analytic"``) and, for terms, the values a
-        fixed-K bake of them is made with (None for the others). ``"auto"`` runs the bake's own choice, whose
-        K, sampling grid, factorization and target it returns as fixed values, since a MaterialX budget reads
-        neither ``factorization`` nor the measure the values' ``max_error`` is in (:meth:`_bake_auto_display`)."""
+        """What the bake stores (``"separable"``, ``"lut"`` or ``"analytic"``) and, for terms, the values they were
+        chosen with (None for the others). ``"auto"`` runs the bake and returns the values its terms came from:
+        a MaterialX budget's fixed K, grid, factorization and target (it reads neither ``factorization`` nor the
+        measure the values' ``max_error`` is in, :meth:`_bake_auto_display`); a TOML budget's own search, whose
+        K-term NMF is the prefix of an 8-term one, not a K-term NMF factored anew."""
         if values["representation"] != "auto":
             kind = values["representation"]
             return kind, values if kind == "separable" else None
         baked = self.bake(values)
         kind = _kind(baked)
-        if kind != "separable":
-            return kind, None
-        extra = baked.extra
-        return kind, {**values, "representation": "separable", "terms": extra["terms"], "max_error": None,
-                      "grid": extra["sampling_grid"], "factorization": extra["factorization"], "target": extra["target"]}  # fmt: skip
+        return kind, baked._separable["values"] if kind == "separable" else None
 
     @staticmethod
     def sampling_grids(values: dict) -> tuple:
