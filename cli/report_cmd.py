@@ -94,7 +94,8 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     if files:
         chosen += read_materials(files)
     with MaterialProgress("studied", verbosity) as on_material:
-        written = write_separable_report(chosen, output, atlas, repeats=repeats, on_material=on_material)
+        written = write_separable_report(chosen, output, atlas, repeats=repeats, on_material=on_material,
+                                         skip_without_terms=not names)  # fmt: skip
     if verbosity == VERBOSE:
         for name, plots in written["plots"].items():
             click.echo(f"  {name}: {', '.join(p.as_posix() for p in plots.values())}", err=True)

@@ -466,7 +466,9 @@ _STORED = {"lut": "one LUT slice", "analytic": "the closed form"}
 
 def _no_terms_clause(material, kind: str) -> str:
     how = "its budget's choice" if material.params["representation"] == "auto" else "its representation"
-    return (f"{material.source}: field 'representation': material {material.name!r} bakes as {_STORED.get(kind, kind)} "
+    # A MaterialX document has no representation field: its material is named instead.
+    field = material.name if material.params["source"] == "materialx" else "representation"
+    return (f"{material.source}: field {field!r}: material {material.name!r} bakes as {_STORED.get(kind, kind)} "
             f"({how}), not separable terms: there are none to study")  # fmt: skip
 
 
@@ -475,7 +477,11 @@ def _refuse_no_terms(refused) -> None:
     report terms the atlas does not hold."""
     if refused:
         clauses = "; ".join(_no_terms_clause(m, kind) for m, kind in refused)
-        raise InputError(f'{clauses}; expected representation = "separable", or "auto" where its budget chooses terms')
+        if all(m.params["source"] == "materialx" for m, _ in refused):
+            expected = "the document's materials that bake as terms, named (atlasgen report separable NAME -m DOC.mtlx)"
+        else:
+            expected = 'representation = "separable", or "auto" where its budget chooses terms'
+        raise InputError(f"{clauses}; expected {expected}")
 
 
 def write_separable_report(
@@ -486,22 +492,24 @@ def write_separable_report(
     repeats: int = 5,
     parametrizations=tuple(PARAMETRIZATIONS),
     on_material=None,
+    skip_without_terms: bool = False,
 ) -> dict:
     """Study each separable material and write ``index.html``, ``index.md``, ``report.json`` and PNG plots into ``output``.
 
     The files appear all at once (:func:`atlasgen.io.atomic.staged_folder`). Returns the
     written paths. ``on_material(name, done, total)``, when given, is called after each
-    material's study. Raises :class:`InputError` when no material is separable or two share a name (their
-    studies would share one set of plots), :class:`OutputError` when the folder cannot be written.
+    material's study. Raises :class:`InputError` when a material is not separable, or its bake stores no terms
+    (with ``skip_without_terms``, the whole folder's report, such a material is left out instead), or two share a
+    name (their studies would share one set of plots); :class:`OutputError` when the folder cannot be written.
     """
     check_unique_names(list(materials))
     others = [m for m in materials if not isinstance(m.model, Separable)]
     materials = [m for m in materials if isinstance(m.model, Separable)]
-    if not materials:
-        if not others:
-            raise InputError(f'no separable materials to report on; expected materials with type = "{Separable.type_name}"')
+    if others:  # named beside separable ones, they were left out without a word
         raise InputError("; ".join(f"{m.source}: field 'type': material {m.name!r} is {m.type!r}, not separable"
                                    for m in others) + f'; expected type = "{Separable.type_name}"')  # fmt: skip
+    if not materials:
+        raise InputError(f'no separable materials to report on; expected materials with type = "{Separable.type_name}"')
     if atlas_path is not None:
         # A missing or damaged atlas, or one without its manifest, is refused, not reported as "not in atlas".
         if read_atlas(atlas_path).manifest is None:
@@ -513,6 +521,13 @@ def write_separable_report(
     # The terms each bake stores: an "auto" material's chosen K, grid, factorization and target, where its own
     # values named none (a MaterialX material's study factored gold as K = 3 by SVD, its bake as K = 6 by NMF).
     stored = [m.model.stored_terms(m.params) for m in materials]
+    if skip_without_terms:  # every separable material of a folder: those that store no terms are not asked for
+        kept = [i for i, (_, values) in enumerate(stored) if values is not None]
+        if not kept:
+            raise InputError("no material stores separable terms to report on (each bakes as one LUT slice or the closed "
+                             'form); expected materials with representation = "separable", or "auto" where its budget '
+                             "chooses terms")  # fmt: skip
+        materials, stored = [materials[i] for i in kept], [stored[i] for i in kept]
     _refuse_no_terms([(m, kind) for m, (kind, values) in zip(materials, stored) if values is None])
     studies = []
     for done, (m, (_, values)) in enumerate(zip(materials, stored), 1):

@@ -328,3 +328,52 @@ def test_an_auto_budget_s_terms_are_studied_as_its_search_made_them(write_materi
     # The same terms (the study's own 8-bit rounding of them agrees to its sixth digit), and the atlas read back.
     assert study["chosen"]["8bit_srgb"]["relative_rms"] == pytest.approx(baked["errors_8bit"]["relative_rms"], rel=1e-4)
     assert study["atlas"]["relative_rms"] == baked["errors_8bit"]["relative_rms"]
+
+
+def test_a_named_material_that_is_not_separable_is_refused_beside_separable_ones(write_material, tmp_path):
+    """Named beside a separable material, a lambert one was left out of the report without a word."""
+    lam = write_material("lam", 'type = "separable"\nsource = "lambert"\ndiffuse = [0.5, 0.4, 0.3]\nterms = 1\n')
+    clay = write_material("clay", 'type = "lambert"\n')
+    with pytest.raises(InputError) as info:
+        write_separable_report([read_material(lam), read_material(clay)], tmp_path / "report")
+    assert str(info.value) == (f"{clay.as_posix()}: field 'type': material 'clay' is 'lambert', not separable; "
+                               'expected type = "separable"')  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_folder_s_report_leaves_out_the_materials_that_store_no_terms(write_material, tmp_path):
+    """Every separable material of a folder: one baked as the closed form failed the whole run, where a lambert
+    material of the same folder is simply not asked for."""
+    from atlasgen.cli.report_cmd import report
+
+    write_material("closed", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nrepresentation = "analytic"\n')
+    res = CliRunner().invoke(report, ["separable", "-m", str(tmp_path / "materials"), "-o", str(tmp_path / "r0")])
+    assert res.exit_code == 3 and "no material stores separable terms to report on" in res.stderr, res.output
+    write_material("lam", 'type = "separable"\nsource = "lambert"\ndiffuse = [0.5, 0.4, 0.3]\nterms = 1\n')
+    res = CliRunner().invoke(report, ["separable", "-m", str(tmp_path / "materials"), "--repeats", "1", "-o",
+                                      str(tmp_path / "r1"), "-q"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert [s["name"] for s in json.loads((tmp_path / "r1" / "report.json").read_text())] == ["lam"]
+    # Named, it is refused on its line.
+    res = CliRunner().invoke(report, ["separable", "closed", "-m", str(tmp_path / "materials"), "-o", str(tmp_path / "r2")])
+    assert res.exit_code == 3 and "material 'closed' bakes as the closed form (its representation)" in res.stderr
+
+
+MATTE = GOLD.replace('name="gold"', 'name="matte"').replace('<input name="metalness" type="float" value="1" />',
+                                                           '<input name="metalness" type="float" value="0" />'
+                                                           '<input name="specular" type="float" value="0" />')  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_materialx_material_baked_as_a_lut_is_refused_naming_it_not_a_field_it_lacks(tmp_path):
+    """A document has no representation field: the refusal named one, and told its author to set it."""
+    pytest.importorskip("MaterialX")
+    from atlasgen.materials.material import read_material_file
+
+    path = tmp_path / "matte.mtlx"
+    path.write_text(MATTE)
+    with pytest.raises(InputError) as info:
+        write_separable_report(read_material_file(path), tmp_path / "report")
+    assert str(info.value) == (f"{path.as_posix()}: field 'matte': material 'matte' bakes as one LUT slice (its budget's "
+                               "choice), not separable terms: there are none to study; expected the document's materials "
+                               "that bake as terms, named (atlasgen report separable NAME -m DOC.mtlx)")  # fmt: skip
