@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from atlasgen.cli.main import FiniteFloatRange, echo_warnings, fail_on_errors
-from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, PathArg, verbosity_options
+from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, PathArg, refuse_options, verbosity_options
 from atlasgen.io.fields import counted
 from atlasgen.materials.scene import read_scene
 from atlasgen.render import render_scene
@@ -35,6 +35,9 @@ AOVS = ("normal", "depth", "id", "albedo")
 @fail_on_errors
 def render(scene, atlas, output, aov, mip_bias, no_outlines, depfile, verbosity):
     """Render SCENE (TOML, see docs/scenes.md) with the deferred renderer."""
+    if aov is not None:  # a g-buffer layer is drawn before the lighting and the outlines
+        refuse_options(click.get_current_context(), ("mip_bias", "no_outlines"),
+                       "with --aov, which writes a g-buffer layer (no atlas lookup, no outlines)")  # fmt: skip
     s = read_scene(scene)
     if verbosity == VERBOSE:
         materials = ", ".join(dict.fromkeys(o.material for o in s.objects)) or "none"

@@ -70,6 +70,8 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
                        "with --merge, which measures nothing (it combines earlier reports)")  # fmt: skip
     elif library:
         refuse_options(ctx, ("materials_dir",), "with --library, which picks from the installed library instead")
+    if names and all(n.endswith((".toml", ".mtlx")) for n in names):
+        refuse_options(ctx, ("materials_dir", "library"), "when every NAME is a material file: nothing is picked by name")
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     if merge:
         merged = merge_separable_reports([Path(n) for n in names], output)["html"]

@@ -122,11 +122,14 @@ def validate(
     ctx = click.get_current_context()
     if merge:
         refuse_options(ctx, _RENDER_OPTIONS, "with --merge, which renders nothing (it combines earlier reports)")
-    elif no_reference_cache:
-        refuse_options(ctx, ("reference_cache",), "with --no-reference-cache, which keeps no reference renders")
+    else:
+        if no_reference_cache:
+            refuse_options(ctx, ("reference_cache",), "with --no-reference-cache, which keeps no reference renders")
+        if no_physical:  # --max-physical-spp stays: it caps an environment scene's reference too
+            refuse_options(ctx, ("physical_spp",), "with --no-physical, which renders no physical reference")
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
-    if max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it (validate_atlas)
+    if not no_physical and max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it
         raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",
                                  param_hint="'--max-physical-spp'")  # fmt: skip
     warnings = []

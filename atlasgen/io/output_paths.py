@@ -80,7 +80,7 @@ def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     shown = path.as_posix()
     size = len(os.fsencode(path.name))
     if size > MAX_OUTPUT_NAME_BYTES:
-        raise OutputNameError(f"{shorten(shown)}: {role}: a file name of {size} bytes; expected at most "
+        raise OutputNameError(f"{(path.parent / shorten(path.name)).as_posix()}: {role}: a file name of {size} bytes; expected at most "
                               f"{MAX_OUTPUT_NAME_BYTES} (the temporary files written beside it add to the name)")  # fmt: skip
     if path.is_dir():
         raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")

@@ -23,6 +23,11 @@ IGNORED = [
     (["report", "separable", "--library"], ["-m", "{folder}"], "--materials has no effect with --library"),
     (["preview", "{material}"], ["--reference-spp", "8"], "--reference-spp has no effect without --reference"),
     (["preview", "{material}", "--no-cache"], ["--cache", "{folder}"], "--cache has no effect with --no-cache"),
+    (["render", "{material}", "--aov", "depth"], ["--mip-bias", "2"], "--mip-bias has no effect with --aov"),
+    (["render", "{material}", "--aov", "normal"], ["--no-outlines"], "--no-outlines has no effect with --aov"),
+    (["validate", "alpha", "--no-physical"], ["--physical-spp", "8"], "--physical-spp has no effect with --no-physical"),
+    (["report", "separable", "{material}"], ["--library"], "--library has no effect when every NAME is a material file"),
+    (["report", "separable", "{material}"], ["-m", "{folder}"], "--materials has no effect when every NAME is a material"),
 ]  # fmt: skip
 
 
@@ -33,7 +38,8 @@ def test_an_option_the_mode_ignores_is_refused_on_one_line(tmp_path, write_mater
     out = tmp_path / "out"
     fill = {"folder": str(folder), "material": str(material)}
     args = [a.format(**fill) for a in [*mode, *option]]
-    res = CliRunner().invoke(app, [*args, "-o", str(out / "x.png" if mode[0] == "preview" else out)])
+    output = {"preview": out / "x.png", "render": out / "x.exr"}.get(mode[0], out)
+    res = CliRunner().invoke(app, [*args, "-o", str(output)])
     assert res.exit_code == 2, res.output
     assert res.stderr.strip().splitlines() == [f"atlasgen: error: {res.stderr.split('error: ')[1].strip()}"]
     assert words in res.stderr and "expected " in res.stderr
@@ -56,3 +62,22 @@ def test_given_is_what_the_command_line_says_not_a_value_other_than_the_default(
     assert runner.invoke(command, ["--spp", "4"]).output == "spp 4\n"
     refused = runner.invoke(command, ["--merge", "--spp", "1"])
     assert refused.exit_code == 2 and "--spp has no effect with --merge; expected one or the other" in refused.output
+
+
+@pytest.mark.parametrize(("flag", "name"), [("-q", "--quiet"), ("-v", "--verbose")])
+def test_info_s_verbosity_is_refused_with_json_which_it_does_not_change(tmp_path, write_material, flag, name):
+    material = write_material("alpha", 'type = "lambert"\n')
+    atlas = tmp_path / "a.dds"
+    assert CliRunner().invoke(app, ["bake", str(material), "-o", str(atlas), "-q"]).exit_code == 0
+    res = CliRunner().invoke(app, ["info", str(atlas), "--format", "json", flag])
+    assert res.exit_code == 2 and res.stdout == "", res.output
+    assert res.stderr.splitlines() == [f"atlasgen: error: {name} has no effect with --format json, which prints the whole "
+                                       "summary; expected one or the other"]  # fmt: skip
+
+
+def test_max_physical_spp_is_taken_with_no_physical_where_environment_references_use_it(tmp_path):
+    """--environment's references are capped by it too: there it has an effect, and is not refused (nor held to
+    --physical-spp's default, which renders nothing then)."""
+    res = CliRunner().invoke(app, ["validate", "--no-physical", "--environment", "--max-physical-spp", "8", "--atlas",
+                                   str(tmp_path / "missing.dds"), "-o", str(tmp_path / "out")])  # fmt: skip
+    assert res.exit_code == 3 and "missing.dds" in res.stderr, res.output  # it went on, to the atlas
