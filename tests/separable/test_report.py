@@ -377,3 +377,26 @@ def test_a_materialx_material_baked_as_a_lut_is_refused_naming_it_not_a_field_it
     assert str(info.value) == (f"{path.as_posix()}: field 'matte': material 'matte' bakes as one LUT slice (its budget's "
                                "choice), not separable terms: there are none to study; expected the document's materials "
                                "that bake as terms, named (atlasgen report separable NAME -m DOC.mtlx)")  # fmt: skip
+
+
+@pytest.mark.slow
+def test_an_atlas_holding_another_bake_of_the_material_is_said_so_not_measured(tmp_path):
+    """--atlas of a bake of another version of the material (roughness 0.1, not 0.3) measured one against the other:
+    672.89% in the atlas column, without a word. The content hashes differ: the column says "another bake"."""
+    from atlasgen.cli.main import app
+    from atlasgen.reports.separable_merge import merge_separable_reports
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    (tmp_path / "a" / "g.toml").write_text('type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n')
+    (tmp_path / "b" / "g.toml").write_text('type = "separable"\nsource = "ggx"\nalpha = 0.1\nterms = 2\n')
+    atlas = tmp_path / "b" / "a.dds"
+    assert CliRunner().invoke(app, ["bake", str(tmp_path / "b" / "g.toml"), "-o", str(atlas), "-q"]).exit_code == 0
+    out = write_separable_report([read_material(tmp_path / "a" / "g.toml")], tmp_path / "r", atlas_path=atlas,
+                                 resolutions=(8,), repeats=1, parametrizations=("half_diff",))  # fmt: skip
+    study = json.loads(out["json"].read_text())[0]
+    assert study["atlas"]["other_bake"] is True and "relative_rms" not in study["atlas"]
+    assert "another bake" in out["markdown"].read_text() and "another bake" in out["html"].read_text()
+    # A merge of it keeps the words.
+    merged = merge_separable_reports([tmp_path / "r"], tmp_path / "m")
+    assert "another bake" in merged["html"].read_text()
