@@ -184,18 +184,9 @@ def test_an_object_beyond_float32_once_transformed_is_refused_not_rendered_black
     assert not out.exists()
 
 
-MESH_SCENE = """environment = "env/sky.exr"
-[camera]
-position = [0, 0, 4]
-target = [0, 0, 0]
-[image]
-width = 40
-height = 30
-[[objects]]
-shape = "mesh"
-file = "meshes/tri.obj"
-material = "clay"
-"""
+#: SCENE's camera and image, lit by a sky image, with one mesh object.
+MESH_SCENE = ('environment = "env/sky.exr"\n' + SCENE.split("[[lights]]")[0]
+              + '[[objects]]\nshape = "mesh"\nfile = "meshes/tri.obj"\nmaterial = "clay"\n')  # fmt: skip
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -9,6 +10,8 @@ from click.testing import CliRunner
 from atlasgen.errors import InputError
 from atlasgen.materials.material import read_material
 from atlasgen.reports.separable import write_separable_report
+
+SHOWCASE = Path(__file__).resolve().parents[2] / "materials" / "materialx-showcase.mtlx"
 
 
 @pytest.mark.slow
@@ -259,38 +262,22 @@ def test_the_report_s_chosen_figures_are_the_manifest_s_with_their_standard_erro
     assert shown in out["markdown"].read_text()
 
 
-GOLD = """<?xml version="1.0"?>
-<materialx version="1.39">
-  <standard_surface name="SR_gold" type="surfaceshader">
-    <input name="base" type="float" value="1" />
-    <input name="base_color" type="color3" value="0.944, 0.776, 0.373" />
-    <input name="metalness" type="float" value="1" />
-    <input name="specular_color" type="color3" value="0.998, 0.981, 0.751" />
-    <input name="specular_roughness" type="float" value="0.25" />
-  </standard_surface>
-  <surfacematerial name="gold" type="material">
-    <input name="surfaceshader" type="surfaceshader" nodename="SR_gold" />
-  </surfacematerial>
-</materialx>
-"""
-
-
 @pytest.mark.slow
 def test_a_materialx_study_reports_the_terms_its_bake_chose(tmp_path):
     """The study factored a MaterialX gold as K = 3 by SVD, in the relative RMS its budget is not in, where the bake
     stored K = 6 by NMF: the page's chosen row and the atlas column described two different bakes."""
     pytest.importorskip("MaterialX")
-    from atlasgen.cli.main import app
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
     from atlasgen.materials.material import read_material_file
 
-    path = tmp_path / "gold.mtlx"
-    path.write_text(GOLD)
+    # The shipped document's gold, baked alone.
+    gold = [m for m in read_material_file(SHOWCASE) if m.name == "mx_gold"]
     atlas = tmp_path / "atlas.dds"
-    assert CliRunner().invoke(app, ["bake", str(path), "-o", str(atlas), "-q"]).exit_code == 0
+    write_bake(bake_atlas(gold), atlas)
     baked = json.loads(atlas.with_suffix(".json").read_text())["materials"][0]
     assert baked["representation"]["kind"] == "separable"
-    out = write_separable_report(read_material_file(path), tmp_path / "report", atlas_path=atlas, resolutions=(8,),
-                                 repeats=1, parametrizations=("half_diff",))  # fmt: skip
+    out = write_separable_report(gold, tmp_path / "report", atlas_path=atlas, resolutions=(8,), repeats=1,
+                                 parametrizations=("half_diff",))  # fmt: skip
     chosen = json.loads(out["json"].read_text())[0]["chosen"]
     assert (chosen["terms"], chosen["grid"], chosen["factorization"], chosen["target"]) == (
         baked["terms"], baked["sampling_grid"], baked["factorization"], baked["target"])  # fmt: skip
@@ -359,9 +346,13 @@ def test_a_folder_s_report_leaves_out_the_materials_that_store_no_terms(write_ma
     assert res.exit_code == 3 and "material 'closed' bakes as the closed form (its representation)" in res.stderr
 
 
-MATTE = GOLD.replace('name="gold"', 'name="matte"').replace('<input name="metalness" type="float" value="1" />',
-                                                           '<input name="metalness" type="float" value="0" />'
-                                                           '<input name="specular" type="float" value="0" />')  # fmt: skip
+#: A matte standard_surface (no specular lobe): its budget chooses one LUT slice.
+MATTE = (
+    '<?xml version="1.0"?>\n<materialx version="1.39">\n<standard_surface name="SR_matte" type="surfaceshader">'
+    '<input name="base_color" type="color3" value="0.6, 0.5, 0.4" /><input name="specular" type="float" value="0" />'
+    '</standard_surface>\n<surfacematerial name="matte" type="material"><input name="surfaceshader" '
+    'type="surfaceshader" nodename="SR_matte" /></surfacematerial>\n</materialx>\n'
+)
 
 
 @pytest.mark.slow
