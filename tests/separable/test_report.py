@@ -391,3 +391,16 @@ def test_an_atlas_holding_another_bake_of_the_material_is_said_so_not_measured(t
     # A merge of it keeps the words.
     merged = merge_separable_reports([tmp_path / "r"], tmp_path / "m")
     assert "another bake" in merged["html"].read_text()
+
+
+def test_the_summary_row_names_the_factorization_its_figures_are_of():
+    """mx_gold's row read K = 6 and an 8-bit figure found in no table of the page: they are its NMF's."""
+    from atlasgen.reports.separable import MaterialStudy, _summary_cells, _timings_text
+
+    figures = {"relative_rms": 0.029, "relative_rms_se": 0.001, "log_error": 0.01}
+    study = MaterialStudy(name="gold", source="g.mtlx", chosen={"parametrization": "half_diff", "target": "f_cos",
+                          "terms": 6, "grid": 32, "factorization": "nmf", "float": figures, "8bit_srgb": figures},
+                          by_terms={}, by_resolution=[], by_parametrization={}, nonnegative={},
+                          timings={"sample_s": 0.001, "svd_s": 0.002, "quantize_s": 0.003, "error_s": 0.004})  # fmt: skip
+    assert _summary_cells(study)[3] == "6 (NMF)"
+    assert "NMF 2.0 ms" in _timings_text(study) and "SVD" not in _timings_text(study)
