@@ -25,6 +25,12 @@ def report():
     """Measured reports on baked materials."""
 
 
+def _is_file_name(name: str) -> bool:
+    """A NAME that is a material file, not a material's name: ``X.MTLX`` was looked up as a name ("materials: no
+    such file or folder") where bake reads the file. Material names hold no dot, so the extension decides."""
+    return name.lower().endswith((".toml", ".mtlx"))
+
+
 @report.command("separable")
 @click.argument("names", nargs=-1)
 @click.option(
@@ -68,9 +74,12 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     if merge:
         refuse_options(ctx, ("materials_dir", "library", "atlas", "repeats"),
                        "with --merge, which measures nothing (it combines earlier reports)")  # fmt: skip
+        if verbosity == VERBOSE:  # -q stays: it still silences the merged page's path
+            raise click.UsageError("--verbose has no effect with --merge, which writes no plots of its own (it combines "
+                                   "earlier reports); expected one or the other")  # fmt: skip
     elif library:
         refuse_options(ctx, ("materials_dir",), "with --library, which picks from the installed library instead")
-    if names and all(n.endswith((".toml", ".mtlx")) for n in names):
+    if names and all(_is_file_name(n) for n in names):
         refuse_options(ctx, ("materials_dir", "library"), "when every NAME is a material file: nothing is picked by name")
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     if merge:
@@ -81,8 +90,8 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     if library:
         materials_dir = shipped_library()
 
-    files = [Path(n) for n in names if n.endswith((".toml", ".mtlx"))]
-    wanted = [n for n in names if not n.endswith((".toml", ".mtlx"))]
+    files = [Path(n) for n in names if _is_file_name(n)]
+    wanted = [n for n in names if not _is_file_name(n)]
     pool = read_materials([materials_dir]) if (wanted or not files) else []
     chosen = [m for m in pool if not wanted or m.name in wanted]
     missing = sorted(set(wanted) - {m.name for m in chosen})

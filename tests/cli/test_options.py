@@ -81,3 +81,19 @@ def test_max_physical_spp_is_taken_with_no_physical_where_environment_references
     res = CliRunner().invoke(app, ["validate", "--no-physical", "--environment", "--max-physical-spp", "8", "--atlas",
                                    str(tmp_path / "missing.dds"), "-o", str(tmp_path / "out")])  # fmt: skip
     assert res.exit_code == 3 and "missing.dds" in res.stderr, res.output  # it went on, to the atlas
+
+
+@pytest.mark.parametrize("command", [["validate", "--merge"], ["report", "separable", "--merge"]])
+def test_verbose_is_refused_with_a_merge_which_prints_nothing_more(tmp_path, command):
+    res = CliRunner().invoke(app, [*command, str(tmp_path / "a"), "-v", "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2 and "--verbose has no effect with --merge" in res.stderr, res.output
+    assert len(res.stderr.splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
+def test_a_material_file_with_an_upper_case_extension_is_a_file_not_a_name(tmp_path, write_material):
+    """report separable x/UP.TOML looked the name up in materials/ ("materials: no such file or folder")."""
+    material = write_material("alpha", 'type = "lambert"\n')
+    upper = material.with_name("UP.TOML")
+    material.rename(upper)
+    res = CliRunner().invoke(app, ["report", "separable", str(upper), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 3 and res.stderr.startswith(f"atlasgen: error: {upper.as_posix()}"), res.output
