@@ -28,7 +28,7 @@ from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
 from atlasgen.reports.environment import ENVIRONMENT_COLUMNS, environment_rows
 from atlasgen.reports.html import Chart, figure_chart, label_points, pareto_front, plot_style, render_page
-from atlasgen.reports.report_kind import refuse_another_report
+from atlasgen.reports.report_kind import refuse_another_report, report_kind
 from atlasgen.validate.metrics import NO_PIXELS, NOISE_FLOOR_MARGIN_DB, finite_or_none, flip_heatmap
 
 __all__ = [
@@ -833,6 +833,9 @@ def read_validation_report(path: Path) -> dict:
         else ["everything"]
     )
     if missing:
+        if report_kind(data) == "separable":  # "missing everything" did not say what the folder holds
+            raise InputError(f"{path.as_posix()}: a separable report (atlasgen report separable), not a validation "
+                             "report; expected the folder of an atlasgen validate run")  # fmt: skip
         raise InputError(f"{path.as_posix()}: not a validation report (missing {', '.join(missing)})")
     _check_figures(path, data)
     return data

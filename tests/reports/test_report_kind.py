@@ -43,3 +43,16 @@ def test_a_report_refuses_a_folder_holding_the_other_command_s(tmp_path, existin
 def test_the_module_s_doctests_pass():
     result = doctest.testmod(report_kind)
     assert result.attempted >= 1 and result.failed == 0
+
+
+def test_a_separable_report_given_to_validate_merge_is_named_as_one(tmp_path):
+    """validate --merge of a separable report's folder said "not a validation report (missing everything)"."""
+    from atlasgen.errors import InputError
+    from atlasgen.reports.validation import read_validation_report
+
+    path = tmp_path / "report.json"
+    path.write_text('[{"name": "gold", "chosen": {}}]\n')
+    with pytest.raises(InputError) as info:
+        read_validation_report(path)
+    assert str(info.value) == (f"{path.as_posix()}: a separable report (atlasgen report separable), not a validation "
+                               "report; expected the folder of an atlasgen validate run")  # fmt: skip
