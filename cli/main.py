@@ -31,7 +31,6 @@ from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_path
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
 from atlasgen.cli.options import (
     HELP_OPTIONS,
-    NORMAL,
     QUIET,
     VERBOSE,
     MaterialProgress,
@@ -437,10 +436,9 @@ def info(atlas, fmt, verbosity):
     (and the manifest itself atlasgen/schemas/manifest.schema.json).
     """
     if fmt == "json":
-        if verbosity != NORMAL:  # the JSON is the same whatever they say
-            flag = "--quiet" if verbosity == QUIET else "--verbose"
-            raise click.UsageError(f"{flag} has no effect with --format json, which prints the whole summary; "
-                                   "expected one or the other")  # fmt: skip
+        # The JSON is the same whatever they say.
+        refuse_options(click.get_current_context(), ("--quiet", "--verbose"), "with --format json, which prints the "
+                       "whole summary")  # fmt: skip
         click.echo(json.dumps(summarize_atlas(atlas), indent=2))
     else:
         click.echo(describe_atlas(atlas, verbose=verbosity == VERBOSE, quiet=verbosity == QUIET))

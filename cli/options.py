@@ -47,13 +47,18 @@ class PathArg(click.Path):
 
 
 def refuse_options(ctx: click.Context, names, reason: str, expected: str = "one or the other") -> None:
-    """Refuse the first option of ``names`` (parameter names) given on the command line, where ``reason`` (``"with
-    --merge, which renders nothing"``) says why it would do nothing: one usage line (exit 2), never a silent no-op."""
+    """Refuse the first option of ``names`` given on the command line, where ``reason`` (``"with --merge, which
+    renders nothing"``) says why it would do nothing: one usage line (exit 2), never a silent no-op.
+
+    ``names`` holds parameter names (``"spp"``) or option strings (``"--verbose"``): ``-q`` and ``-v`` are one
+    parameter, ``verbosity``, and a flag of such a pair counts as given only where its value is the one it sets.
+    """
     for param in ctx.command.params:
-        if param.name in names and ctx.get_parameter_source(param.name) in (
-            ParameterSource.COMMANDLINE,
-            ParameterSource.ENVIRONMENT,
-        ):
+        if param.name not in names and not any(opt in names for opt in param.opts):
+            continue
+        given = ctx.get_parameter_source(param.name) in (ParameterSource.COMMANDLINE, ParameterSource.ENVIRONMENT)
+        shared = getattr(param, "is_flag", False) and not getattr(param, "is_bool_flag", False)
+        if given and (not shared or ctx.params.get(param.name) == param.flag_value):
             raise click.UsageError(f"{param.opts[-1]} has no effect {reason}; expected {expected}")
 
 

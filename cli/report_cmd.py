@@ -72,11 +72,9 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     """
     ctx = click.get_current_context()
     if merge:
-        refuse_options(ctx, ("materials_dir", "library", "atlas", "repeats"),
+        # -v lists each study's plots; -q stays (it silences the merged page's path).
+        refuse_options(ctx, ("materials_dir", "library", "atlas", "repeats", "--verbose"),
                        "with --merge, which measures nothing (it combines earlier reports)")  # fmt: skip
-        if verbosity == VERBOSE:  # -q stays: it still silences the merged page's path
-            raise click.UsageError("--verbose has no effect with --merge, which writes no plots of its own (it combines "
-                                   "earlier reports); expected one or the other")  # fmt: skip
     elif library:
         refuse_options(ctx, ("materials_dir",), "with --library, which picks from the installed library instead")
     if names and all(_is_file_name(n) for n in names):

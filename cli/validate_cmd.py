@@ -121,10 +121,9 @@ def validate(
     """
     ctx = click.get_current_context()
     if merge:
-        refuse_options(ctx, _RENDER_OPTIONS, "with --merge, which renders nothing (it combines earlier reports)")
-        if verbosity == VERBOSE:  # -q stays: it still keeps the merge to its summary line
-            raise click.UsageError("--verbose has no effect with --merge, which renders nothing (it combines earlier "
-                                   "reports); expected one or the other")  # fmt: skip
+        # -v prints a line per render; -q stays (it keeps the merge to its summary line).
+        refuse_options(ctx, (*_RENDER_OPTIONS, "--verbose"), "with --merge, which renders nothing (it combines earlier "
+                       "reports)")  # fmt: skip
     else:
         if no_reference_cache:
             refuse_options(ctx, ("reference_cache",), "with --no-reference-cache, which keeps no reference renders")

@@ -33,8 +33,8 @@ files that were neither rewritten nor removed: files a command did not write are
 were, as with plain files. A commit may name its writer (a scene's bake and its render share the
 set ``.X.atlasgen``): the store then records who wrote each file (``gen-<n>.writers``), the
 commit is refused a file another writer wrote, and this writer's own earlier files that it does
-not write again (a render's old depfile) are not carried over. A run killed at any instant leaves every path resolving into one
-whole generation; the next commit removes what it left. Ctrl-C is held from step 3 to 6.
+not write again (a render's old depfile) are not carried over. A run killed at any instant
+leaves every path resolving into one whole generation; the next commit removes what it left. Ctrl-C is held from step 3 to 6.
 Because every new file is new, ``make`` (whose ``stat`` follows the link) sees the targets of
 a commit as fresh, and those of a killed one as stale.
 
@@ -341,11 +341,10 @@ def _taken(path: Path, writer: str, store: Path) -> OutputError:
                        f"({store.name}); expected a name of its own; nothing was replaced")  # fmt: skip
 
 
-def _refuse_taken(home: Path, store: Path, paths, writer: str | None) -> None:
-    """Refuse ``paths`` that the current generation records as another writer's files."""
+def _refuse_taken(home: Path, store: Path, paths, writer: str | None, owners: dict) -> None:
+    """Refuse ``paths`` that ``owners`` (the current generation's writers) record as another writer's files."""
     if writer is None:
         return
-    owners = _read_writers(store, _current(store))
     for path in paths:
         other = owners.get(_stored_name(home, Path(path)))
         if other is not None and other != writer:
@@ -520,7 +519,8 @@ def refuse_another_sets(paths, primary, writer: str | None = None) -> None:
     store = store_path(primary)
     for path in paths:
         _refuse_another_sets(Path(path), store)
-    _refuse_taken(_folder(Path(primary)), store, paths, writer)
+    if writer is not None:
+        _refuse_taken(_folder(Path(primary)), store, paths, writer, _read_writers(store, _current(store)))
 
 
 def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool = False, writer: str | None = None) -> None:
@@ -595,7 +595,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
     live = store / current if current else store  # the current generation (no names in it without one)
     old = set(_names(live)) if current else set()
     owners = _read_writers(store, current)
-    _refuse_taken(home, store, [path for path, _ in items], writer)  # again under the lock
+    _refuse_taken(home, store, [path for path, _ in items], writer, owners)  # again under the lock
     # This writer's earlier files that it does not write now are stale: not carried over.
     own = {stored for stored, w in owners.items() if writer is not None and w == writer}
     # Each path: this set's link already, absent, or to be migrated (a plain file, another link).

@@ -81,11 +81,13 @@ def study_material(
     repeats: int = 5,
     parametrizations=tuple(PARAMETRIZATIONS),
     params: dict | None = None,
+    manifest=None,
 ) -> MaterialStudy:
     """Measure one separable material: the chosen bake, and every comparison the report plots.
 
     ``params``: the fixed values of the terms its bake stores (:meth:`Separable.stored_terms`, which
-    :func:`write_separable_report` resolves first); by default the material's own, which must describe terms."""
+    :func:`write_separable_report` resolves first); by default the material's own, which must describe terms.
+    ``manifest``: the atlas's, where the caller has read it already (else it is read from ``atlas_path``)."""
     params = material.params if params is None else params
     source = make_source(params, material.source)
     # The bake's two samples (Separable._draft_separable): candidates chosen on the selection sample, every
@@ -177,7 +179,8 @@ def study_material(
     atlas = None
     if atlas_path is not None:
         atlas = {"path": Path(atlas_path).as_posix()}
-        entry = read_atlas(atlas_path).manifest.entry_named(material.name)
+        manifest = read_atlas(atlas_path).manifest if manifest is None else manifest
+        entry = manifest.entry_named(material.name)
         if entry is not None and entry.content_hash and material.content_hash and entry.content_hash != material.content_hash:
             # Measured, it compared another bake of the material with this one (672% for another roughness).
             atlas["other_bake"] = True
@@ -391,6 +394,11 @@ def format_separable_report(studies: list, plots: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _factorization(s: MaterialStudy) -> str:
+    """The factorization of the chosen terms, as the page names it ("NMF"); studies written before it was recorded, SVD."""
+    return str(s.chosen.get("factorization") or "svd").upper()
+
+
 def _summary_cells(s: MaterialStudy) -> list:
     t = s.timings
     missing = "another bake" if (s.atlas or {}).get("other_bake") else "not in atlas"
@@ -400,7 +408,7 @@ def _summary_cells(s: MaterialStudy) -> list:
         s.chosen["parametrization"],
         s.chosen["target"],
         # The factorization the bake used: a MaterialX gold's 8-bit figure at K = 6 is its NMF's, in no SVD table.
-        f"{s.chosen['terms']} ({str(s.chosen.get('factorization') or 'svd').upper()})",
+        f"{s.chosen['terms']} ({_factorization(s)})",
         s.chosen["grid"],
         _pct_se(s.chosen["float"], "relative_rms"),
         _pct_se(s.chosen["8bit_srgb"], "relative_rms"),
@@ -414,7 +422,7 @@ def _timings_text(s: MaterialStudy) -> str:
     t = s.timings
     return (
         f"Timings (median of repeated runs): sampling {1e3 * t['sample_s']:.1f} ms, "
-        f"{str(s.chosen.get('factorization') or 'svd').upper()} {1e3 * t['svd_s']:.1f} ms, "
+        f"{_factorization(s)} {1e3 * t['svd_s']:.1f} ms, "
         f"quantization {1e3 * t['quantize_s']:.1f} ms; error measurement {1e3 * t['error_s']:.1f} ms."
     )
 
@@ -521,9 +529,11 @@ def write_separable_report(
                                    for m in others) + f'; expected type = "{Separable.type_name}"')  # fmt: skip
     if not materials:
         raise InputError(f'no separable materials to report on; expected materials with type = "{Separable.type_name}"')
+    manifest = None
     if atlas_path is not None:
         # A missing or damaged atlas, or one without its manifest, is refused, not reported as "not in atlas".
-        if read_atlas(atlas_path).manifest is None:
+        manifest = read_atlas(atlas_path).manifest
+        if manifest is None:
             shown = Path(atlas_path).as_posix()
             raise InputError(f"{shown}: no manifest beside the atlas (expected {Path(atlas_path).with_suffix('.json').as_posix()}); "
                              f"re-run atlasgen bake -o {shown}")  # fmt: skip
@@ -542,7 +552,8 @@ def write_separable_report(
     _refuse_no_terms([(m, kind) for m, (kind, values) in zip(materials, stored) if values is None])
     studies = []
     for done, (m, (_, values)) in enumerate(zip(materials, stored), 1):
-        studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations, params=values))
+        studies.append(study_material(m, atlas_path, resolutions, repeats, parametrizations, params=values,
+                                      manifest=manifest))  # fmt: skip
         if on_material is not None:
             on_material(m.name, done, len(materials))
     # Staged, then moved into place: an interrupted run never leaves a half-written

@@ -97,3 +97,20 @@ def test_a_material_file_with_an_upper_case_extension_is_a_file_not_a_name(tmp_p
     material.rename(upper)
     res = CliRunner().invoke(app, ["report", "separable", str(upper), "-o", str(tmp_path / "out")])
     assert res.exit_code == 3 and res.stderr.startswith(f"atlasgen: error: {upper.as_posix()}"), res.output
+
+
+def test_of_a_flag_pair_sharing_one_parameter_only_the_flag_given_is_refused():
+    """-q and -v are one parameter, verbosity: refusing --verbose must leave -q, and name the flag given."""
+    from atlasgen.cli.options import verbosity_options
+
+    @click.command()
+    @verbosity_options()
+    def command(verbosity):
+        refuse_options(click.get_current_context(), ("--verbose",), "here")
+        click.echo(f"verbosity {verbosity}")
+
+    runner = CliRunner()
+    assert runner.invoke(command, ["-q"]).output == "verbosity -1\n"
+    assert runner.invoke(command, []).output == "verbosity 0\n"
+    refused = runner.invoke(command, ["-v"])
+    assert refused.exit_code == 2 and "--verbose has no effect here; expected one or the other" in refused.output
