@@ -215,8 +215,12 @@ def _meets_look_goal(goal: dict, figures: dict) -> bool:
     return bool(min(psnrs) >= goal["psnr_db"] and (flip is None or not math.isfinite(flip) or flip <= goal["flip"]))
 
 
-def report_dict(run) -> dict:
-    """The JSON report: settings, environment, and per material and scene every measured figure."""
+def report_dict(run, out_dir=None) -> dict:
+    """The JSON report: settings, environment, and per material and scene every measured figure.
+
+    ``atlas`` is the atlas's path from ``out_dir`` (the report's folder), as the report's images are; as typed
+    where no folder is given.
+    """
     goals = run.settings["goals"]
     rows = []
     for r in run.runs:
@@ -281,7 +285,8 @@ def report_dict(run) -> dict:
             row["atlas_identity"] = identity
         rows.append(row)
     return {
-        "atlas": run.atlas,
+        # From the report's folder: the path as typed made the same inputs write other bytes from another folder.
+        "atlas": run.atlas if out_dir is None else Path(os.path.relpath(run.atlas, out_dir)).as_posix(),
         "settings": run.settings,
         "environment": run.environment,
         "total_seconds": run.seconds,
@@ -810,7 +815,7 @@ def build_report(run, out_dir) -> dict:
         for kind, ref in r.references.items():
             files[out_dir / image_name(r.material, r.scene, kind)] = _display_png(display_clip(ref.image, r.exposure))
             files[out_dir / image_name(r.material, r.scene, f"flip-{kind}")] = _display_png(flip_heatmap(ref.metrics.flip_map))
-    files.update(_page_files(report_dict(run), out_dir))
+    files.update(_page_files(report_dict(run, out_dir), out_dir))
     return files
 
 
@@ -1083,7 +1088,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
             rows.append(row)
     environment = {key: _combined([r["environment"].get(key) for r in reports]) for key in first["environment"]}
     data = {
-        "atlas": _joined(r["atlas"] for r in reports),
+        "atlas": _joined(_rebase(r["atlas"], p.parent, out_dir) for p, r in zip(paths, reports)),
         "settings": first["settings"],
         "environment": environment,
         # The work the merged page stands for: the sum of the runs it is made of.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -54,6 +55,8 @@ def test_merged_entries_equal_a_single_runs(merged, validation_run):
     assert data["settings"] == single["settings"]
     assert data["total_seconds"] == pytest.approx(sum(p.seconds for p in parts.values()))
     assert data["merged_from"] == [f"materials/{m}" for m in parts]
+    # Each report names the atlas from its own folder; the merged one from its own, as its links are.
+    assert data["atlas"] == Path(os.path.relpath(validation_run.atlas, out)).as_posix()
 
 
 def test_every_image_and_page_the_merged_html_links_exists(merged):

@@ -189,3 +189,23 @@ def test_a_comparison_split_by_object_reports_and_judges_each_part(written, vali
     assert len(failures) == 2 and any("flat part" in f for f in failures)
     failure = next(f for f in failures if "sphere" in f)
     assert "noise floor on the sphere 45.0 dB is not 10 dB above the PSNR it measures there (41.5 dB) at 16 spp" in failure
+
+
+def test_the_report_is_the_same_bytes_from_whatever_folder_it_is_written(validation_run, tmp_path, monkeypatch):
+    """report.json and the page gave the atlas path as typed: run from the atlas's folder ("atlas.dds") or from
+    one below it ("../atlas.dds"), the same inputs wrote two reports. It is now given from the report's folder,
+    as its images are."""
+    from dataclasses import replace
+
+    from atlasgen.reports.validation import write_validation
+
+    (tmp_path / "sub").mkdir()
+    written = []
+    for cwd, given in ((tmp_path, "atlas.dds"), (tmp_path / "sub", "../atlas.dds")):
+        monkeypatch.chdir(cwd)
+        out = tmp_path / f"report-{len(written)}"
+        write_validation(replace(validation_run, atlas=given), out)
+        written.append({name: (out / name).read_bytes() for name in ("report.json", "index.html")})
+    assert written[0] == written[1]
+    assert json.loads(written[0]["report.json"])["atlas"] == "../atlas.dds"
+    assert b"Atlas <code>../atlas.dds</code>" in written[0]["index.html"]
