@@ -54,6 +54,7 @@ from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
+from atlasgen.materials.materialx_document import is_materialx_file
 from atlasgen.start_up import INTERRUPTED_LINE, TERMINATED_LINE
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "one_line_message", "FiniteFloatRange"]
@@ -275,7 +276,8 @@ def app(ctx, debug):
     type=click.Choice(["default"]),
     default=None,
     help="MaterialX documents: bake an input driven by a texture or node graph at its nodedef default (recorded in the "
-    "manifest's params.materialx.flattened) instead of refusing the material.",
+    "manifest's params.materialx.flattened) instead of refusing the material. Refused where no input is a MaterialX "
+    "document.",
 )
 @click.option(
     "--strict",
@@ -335,6 +337,9 @@ def bake(
                                "comma-separated")  # fmt: skip
     sources = list(paths) + ([shipped_library()] if library else [])
     every_material = read_materials(sources or [Path("materials")], materialx_flatten=mtlx_flatten)
+    if not any(is_materialx_file(m.source) for m in every_material):
+        refuse_options(click.get_current_context(), ("mtlx_flatten",), "without a MaterialX material among the inputs",
+                       "a MaterialX document (.mtlx) to flatten, or no --flatten")  # fmt: skip
     materials = select_scene_materials(every_material, scene) if scene is not None else every_material
     # Every output path is checked before anything (the cache included) is written.
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)

@@ -28,6 +28,8 @@ IGNORED = [
     (["validate", "alpha", "--no-physical"], ["--physical-spp", "8"], "--physical-spp has no effect with --no-physical"),
     (["report", "separable", "{material}"], ["--library"], "--library has no effect when every NAME is a material file"),
     (["report", "separable", "{material}"], ["-m", "{folder}"], "--materials has no effect when every NAME is a material"),
+    (["bake", "{material}"], ["--flatten", "default"], "--flatten has no effect without a MaterialX material among the "
+     "inputs; expected a MaterialX document (.mtlx) to flatten, or no --flatten"),
 ]  # fmt: skip
 
 
@@ -38,7 +40,7 @@ def test_an_option_the_mode_ignores_is_refused_on_one_line(tmp_path, write_mater
     out = tmp_path / "out"
     fill = {"folder": str(folder), "material": str(material)}
     args = [a.format(**fill) for a in [*mode, *option]]
-    output = {"preview": out / "x.png", "render": out / "x.exr"}.get(mode[0], out)
+    output = {"preview": out / "x.png", "render": out / "x.exr", "bake": out / "x.dds"}.get(mode[0], out)
     res = CliRunner().invoke(app, [*args, "-o", str(output)])
     assert res.exit_code == 2, res.output
     assert res.stderr.strip().splitlines() == [f"atlasgen: error: {res.stderr.split('error: ')[1].strip()}"]
