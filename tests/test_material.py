@@ -44,8 +44,32 @@ def test_bad_definitions(expect_rejected, text, field, expected):
 def test_duplicate_names_are_rejected(write_material, tmp_path):
     write_material("a", 'type = "lambert"\nname = "same"\n')
     write_material("b", 'type = "lambert"\nname = "same"\n')
-    with pytest.raises(MaterialError, match=r"b\.toml: field 'name': duplicate material name 'same' \(also in .*a\.toml\)"):
+    with pytest.raises(MaterialError, match=r"b\.toml: field 'name': duplicate material name 'same' \(also in .*a\.toml\); "
+                       r"expected a name no other material has \(the file's name field\)$"):  # fmt: skip
         read_materials([tmp_path / "materials"])
+
+
+def test_a_duplicate_name_names_where_the_name_is_written(write_material, tmp_path):
+    """The refusal named field 'name' even where the file has none (its name is the file's) and where the name is a
+    MaterialX document's surfacematerial, which has no such field: it named no field the user could find."""
+    write_material("clay", 'type = "lambert"\n')
+    other = tmp_path / "other" / "clay.toml"
+    other.parent.mkdir()
+    other.write_text('type = "lambert"\n')
+    with pytest.raises(MaterialError) as info:
+        read_materials([tmp_path / "materials", other])
+    assert str(info.value).endswith("expected a name no other material has (the file's name field, or the file's own "
+                                    "name where it has none)")  # fmt: skip
+    document = tmp_path / "lib.mtlx"
+    document.write_text('<?xml version="1.0"?>\n<materialx version="1.39">\n'
+                        '  <standard_surface name="SR_clay" type="surfaceshader" />\n'
+                        '  <surfacematerial name="clay" type="material">\n'
+                        '    <input name="surfaceshader" type="surfaceshader" nodename="SR_clay" />\n'
+                        '  </surfacematerial>\n</materialx>\n')  # fmt: skip
+    with pytest.raises(MaterialError) as info:
+        read_materials([tmp_path / "materials", document])
+    assert str(info.value).startswith(f"{document.as_posix()}: field 'clay': duplicate material name 'clay' (also in ")
+    assert str(info.value).endswith("(the surfacematerial's name in the document)")
 
 
 def test_a_name_ending_in_a_line_break_is_refused(write_material, tmp_path):
@@ -61,7 +85,8 @@ def test_names_colliding_as_shader_constants_are_duplicates(write_material, tmp_
     # Sorted by name, "G" before "g": the lower-case file is the second.
     with pytest.raises(MaterialError, match=r"gold-film.toml: field 'name': duplicate material name 'gold-film': "
                        r"'Gold_film' \(in .*Gold_film.toml\) is the same shader constant MATERIAL_GOLD_FILM; "
-                       r"expected names that differ in more than case or '-' against '_'$"):  # fmt: skip
+                       r"expected names that differ in more than case or '-' against '_' \(the file's name field, or "
+                       r"the file's own name where it has none\)$"):  # fmt: skip
         read_materials([tmp_path / "materials"])
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 
 from atlasgen.contract import NAME_PATTERN, material_constant
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
@@ -268,19 +268,31 @@ def read_materials(paths, materialx_flatten=None) -> list[Material]:
 
 
 def check_unique_names(materials: list[Material]) -> list[Material]:
-    """Reject two materials whose names (or shader constants) collide."""
+    """Reject two materials whose names (or shader constants) collide, naming where the second's name is written:
+    a MaterialX material's element, a TOML file's ``name`` field, or its file name where it has none."""
     seen: dict[str, Material] = {}
     for m in materials:
         key = m.constant_name
         if key in seen:
             other = seen[key]
+            field, written = _name_field(m)
             if other.name == m.name:
-                raise MaterialError(m.source, "name", f"duplicate material name {m.name!r} (also in {other.source})")
-            raise MaterialError(m.source, "name", f"duplicate material name {m.name!r}: {other.name!r} (in {other.source}) "
+                raise MaterialError(m.source, field, f"duplicate material name {m.name!r} (also in {other.source}); "
+                                    f"expected a name no other material has ({written})")  # fmt: skip
+            raise MaterialError(m.source, field, f"duplicate material name {m.name!r}: {other.name!r} (in {other.source}) "
                                 f"is the same shader constant {key}; expected names that differ in more than case or "
-                                "'-' against '_'")  # fmt: skip
+                                f"'-' against '_' ({written})")  # fmt: skip
         seen[key] = m
     return materials
+
+
+def _name_field(m: Material) -> tuple[str, str]:
+    """The field a refusal of ``m``'s name names, and where that name is written."""
+    if is_materialx_file(m.source):
+        return m.name, "the surfacematerial's name in the document"
+    if PurePath(m.source).stem != m.name:
+        return "name", "the file's name field"
+    return "name", "the file's name field, or the file's own name where it has none"
 
 
 def select_scene_materials(materials: list[Material], scene_path) -> list[Material]:

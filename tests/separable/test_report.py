@@ -142,7 +142,9 @@ def test_a_name_and_a_file_of_the_same_material_name_are_refused(write_material,
                                       "-o", str(tmp_path / "r")])  # fmt: skip
     assert res.exit_code == 3 and not (tmp_path / "r").exists()
     assert res.output.splitlines() == [f"atlasgen: error: {other.as_posix()}: field 'name': duplicate material name "
-                                       f"'lobe' (also in {(tmp_path / 'materials' / 'lobe.toml').as_posix()})"]  # fmt: skip
+                                       f"'lobe' (also in {(tmp_path / 'materials' / 'lobe.toml').as_posix()}); expected a name no "
+                                       "other material has (the file's name field, or the file's own name where it "
+                                       "has none)"]  # fmt: skip
 
 
 def test_a_missing_atlas_is_refused_not_reported_as_not_in_atlas(write_material, tmp_path):
