@@ -18,6 +18,7 @@ from pathlib import Path
 from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.field_reads import ABSENT, FieldReads
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
 from atlasgen.reports.report_kind import refuse_another_report
@@ -93,16 +94,23 @@ def _formatted(studies: list, plots: dict) -> tuple[bytes, bytes]:
 
 def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
     """Raise an InputError naming the first study of ``origins`` (``(study, path, index)``) that cannot be
-    formatted alone: a hand-edited field deeper than the study's keys (a figure made a string, a chart
-    without its height), on one line; ``exc``, the merge's own failure, where each can."""
+    formatted alone, and the field its formatting stopped on (:class:`~atlasgen.io.field_reads.FieldReads`): a
+    hand-edited field deeper than the study's keys (a figure made a string, a chart without its height), on one
+    line; ``exc``, the merge's own failure, where each can."""
     for study, path, index in origins:
+        reads = FieldReads()
         try:
-            _formatted([study], {study.name: plots[study.name]})
+            _formatted([reads.track(study, f"[{index}]")], {study.name: plots[study.name]})
         except _MALFORMED as own:
-            exc, where = own, f"{path.as_posix()}: entry {index} ({shorten(repr(study.name))})"
-            break
-    else:
-        where = ", ".join(dict.fromkeys(path.as_posix() for _, path, _ in origins))
+            where = f"entry {index} ({shorten(repr(study.name))})"
+            if reads.last is None:
+                raise InputError(f"{path.as_posix()}: {where} is not a material study as atlasgen report separable "
+                                 f"writes it ({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+            field, value = reads.last
+            got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
+            raise FieldError(path.as_posix(), field, f"expected the value atlasgen report separable writes there, {got} "
+                             f"({type(own).__name__}: {shorten(str(own))}; {where})") from None  # fmt: skip
+    where = ", ".join(dict.fromkeys(path.as_posix() for _, path, _ in origins))
     raise InputError(f"{where} is not a material study as atlasgen report separable writes it "
                      f"({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
 

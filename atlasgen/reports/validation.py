@@ -20,6 +20,7 @@ import numpy as np
 
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.field_reads import ABSENT, FieldReads
 from atlasgen.io.fields import is_number
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
@@ -1015,21 +1016,38 @@ def _page_error(data: dict, rows: list, out_dir: Path) -> Exception | None:
 
 def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc: Exception) -> None:
     """Raise an InputError naming the first result of ``reports`` (read from ``paths``) that a page of its own
-    cannot print either, on one line; all the files and the merge's own failure ``exc`` where a page of no results
-    fails too (a field every report shares, such as the settings). Only a failed merge pays for these pages."""
-    if _page_error(data, [], out_dir) is None:
+    cannot print either, and the field formatting it stopped on (:class:`~atlasgen.io.field_reads.FieldReads`), on
+    one line; all the files where a page of no results fails too (a field every report shares, such as the
+    settings), with that field. Only a failed merge pays for these pages."""
+    reads = FieldReads()
+    shared = _page_error(reads.track(data), [], out_dir)
+    if shared is None:
         rows = iter(data["results"])  # the merged rows, in the order the merge took them from each report
         for path, report in zip(paths, reports):
             for i, _ in enumerate(report["results"]):
                 row = next(rows)
-                own = _page_error(data, [row], out_dir)
+                reads = FieldReads()
+                own = _page_error(data, [reads.track(row, f"results[{i}]")], out_dir)
                 if own is not None:
-                    raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({row['material']} on {row['scene']}) is "
-                                     "not a result as atlasgen validate writes it, so the merged page cannot be written "
-                                     f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+                    what = f"{row['material']} on {row['scene']}"
+                    if reads.last is None:
+                        raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({what}) is not a result as "
+                                         "atlasgen validate writes it, so the merged page cannot be written "
+                                         f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+                    raise FieldError(path.as_posix(), reads.last[0], _expected_written(reads.last[1], own, what)) from None
+        exc = shared or exc
     shown = ", ".join(p.as_posix() for p in paths)
+    if shared is not None and reads.last is not None:
+        raise FieldError(shown, reads.last[0], _expected_written(reads.last[1], shared)) from None
     raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
                      f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+
+
+def _expected_written(value, exc: Exception, what: str = "") -> str:
+    """What a refusal of a field formatting stopped on says: expected, got, and the failure (in ``what``)."""
+    got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
+    where = f"; {what}" if what else ""
+    return f"expected the value atlasgen validate writes there, {got} ({type(exc).__name__}: {shorten(str(exc))}{where})"
 
 
 def merge_validation_reports(sources, out_dir) -> dict:

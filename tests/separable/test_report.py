@@ -194,10 +194,15 @@ def _set(data, keys, value):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("keys", "value", "expected"), [
-    (["by_resolution"], "x", "entry 0 ('lobe') is not a material study as atlasgen report separable writes it"),
-    (["by_terms"], None, "entry 0 ('lobe') is not a material study"),
-    (["charts"], {"terms": {"width": "a"}}, "entry 0 ('lobe') is not a material study"),
-    (["charts"], [1, 2], "entry 0 ('lobe') is not a material study"),
+    # Deeper than the checks read: named by the field formatting stopped on (it named only the entry).
+    (["by_resolution"], "x", "field '[0].by_resolution': expected the value atlasgen report separable writes there, "
+                             "got 'x' (TypeError: "),
+    (["by_terms"], None, "field '[0].by_terms': expected the value atlasgen report separable writes there, got None"),
+    (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms.height': expected the value atlasgen report "
+                                            "separable writes there, missing (KeyError: 'height'; entry 0 ('lobe'))"),
+    (["charts"], [1, 2], "field '[0].charts': expected the value atlasgen report separable writes there, got [1, 2]"),
+    (["by_terms", "f_cos", "float", 1], "small", "field '[0].by_terms.f_cos.float[1]': expected the value atlasgen "
+                                                 "report separable writes there, got 'small'"),
     (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
     (["chosen", "float", "relative_rms"], "big", "field '[0].chosen.float.relative_rms': expected a finite number, got 'big'"),
     (["name"], [1], "entry 0: expected a material name (a letter then letters, digits, '-' or '_', at most 63), got [1]"),

@@ -247,12 +247,13 @@ def test_a_field_the_page_cannot_print_is_one_line_naming_the_file(merged, tmp_p
     """Deeper than the checked fields (the settings' goals): the page's own failure, one line."""
     from atlasgen.reports.validation import merge_validation_reports
 
-    for i, change in enumerate((_put("x", "settings", "goals"), _put([1], "settings", "goals"))):
+    for i, (change, got) in enumerate([(_put("x", "settings", "goals"), "'x'"), (_put([1], "settings", "goals"), "[1]")]):
         folder = _edited(merged, tmp_path / str(i), change)
         with pytest.raises(InputError) as info:
             merge_validation_reports([folder], tmp_path / "merged")
-        assert str(info.value).startswith(f"{(folder / 'report.json').as_posix()}: a field is not what atlasgen validate "
-                                          "writes, so the merged page cannot be written (")  # fmt: skip
+        # Named by the field the page stopped on (it named no field).
+        assert str(info.value).startswith(f"{(folder / 'report.json').as_posix()}: field 'settings.goals': expected the "
+                                          f"value atlasgen validate writes there, got {got} (")  # fmt: skip
         assert "\n" not in str(info.value)
     assert not (tmp_path / "merged").exists()
 
@@ -273,8 +274,10 @@ def test_a_result_the_page_cannot_print_is_named_by_file_and_entry(merged, tmp_p
     with pytest.raises(InputError) as info:
         merge_validation_reports([first, edited], tmp_path / "merged")
     message = str(info.value)
-    assert message.startswith(f"{(edited / 'report.json').as_posix()}: field 'results[0]' ({row['material']} on "
-                              f"{row['scene']}) is not a result as atlasgen validate writes it"), message  # fmt: skip
+    # Named by the field the page stopped on (it named the result only).
+    assert message == (f"{(edited / 'report.json').as_posix()}: field 'results[0].error_breakdown.table_float': expected "
+                       "the value atlasgen validate writes there, got 'x' (TypeError: string indices must be integers, "
+                       f"not 'str'; {row['material']} on {row['scene']})"), message  # fmt: skip
     assert first.as_posix() not in message and "\n" not in message
     assert not (tmp_path / "merged").exists()
 

@@ -1,0 +1,132 @@
+"""Which field of a JSON document a formatter was reading when it failed: the field a refusal of a hand-edited
+report names.
+
+A report's page is formatted from nested dicts and lists whose types a hand edit can change anywhere (a figure made
+a string, a list made a number). Checking every field ahead would repeat the formatter as a schema; instead the
+document is wrapped so that each read records its path (``[0].by_terms[2].relative_rms``), and where formatting
+raises, the last field read is the one it stopped on.
+
+>>> reads = FieldReads()
+>>> doc = reads.track({"terms": [{"error": "big"}]}, "[0]")
+>>> try:
+...     sum(t["error"] for t in doc["terms"])
+... except TypeError:
+...     reads.last
+('[0].terms[0].error', 'big')
+>>> try:
+...     doc["terms"][0]["scale"]
+... except KeyError:
+...     reads.last
+('[0].terms[0].scale', nothing (the key is missing))
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+__all__ = ["FieldReads", "ABSENT"]
+
+
+#: The value :attr:`FieldReads.last` holds for a key that was asked for and is not there.
+ABSENT = type("Missing", (), {"__repr__": lambda self: "nothing (the key is missing)"})()
+
+
+class FieldReads:
+    """The last field read through the values :meth:`track` wrapped: ``(path, value)``, or None before any; the
+    value is :data:`ABSENT` where the key read is not there."""
+
+    def __init__(self):
+        self.last: tuple[str, object] | None = None
+
+    def note(self, path: str, value) -> None:
+        self.last = (path, value)
+
+    def track(self, value, path: str = ""):
+        """``value`` with its dicts and lists (and a dataclass's fields) recording each read of theirs here."""
+        if isinstance(value, dict):
+            return _Dict({k: self.track(v, _key_path(path, k)) for k, v in value.items()}, path, self)
+        if isinstance(value, list):
+            return _List([self.track(v, f"{path}[{i}]") for i, v in enumerate(value)], path, self)
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            fields = {f.name: self.track(getattr(value, f.name), _key_path(path, f.name)) for f in dataclasses.fields(value)}
+            return _dataclass_tracked(type(value))(self, path, **fields)
+        return value
+
+
+class _Untracked:
+    """Where a copy made by its type (``dataclasses.asdict`` builds ``type(d)(items)``) notes its reads: nowhere."""
+
+    @staticmethod
+    def note(path: str, value) -> None:
+        pass
+
+
+def _key_path(path: str, key) -> str:
+    return f"{path}.{key}" if path else str(key)
+
+
+class _Dict(dict):
+    def __init__(self, items=(), path="", reads=_Untracked):
+        super().__init__(items)
+        self._path, self._reads = path, reads
+
+    def __getitem__(self, key):
+        self._reads.note(_key_path(self._path, key), ABSENT)  # stays, where the lookup raises KeyError
+        value = super().__getitem__(key)
+        self._reads.note(_key_path(self._path, key), value)
+        return value
+
+    def get(self, key, default=None):
+        if key in self:
+            return self[key]
+        return default
+
+    def items(self):
+        return [(k, self[k]) for k in self]
+
+    def values(self):
+        return [self[k] for k in self]
+
+
+class _List(list):
+    def __init__(self, items=(), path="", reads=_Untracked):
+        super().__init__(items)
+        self._path, self._reads = path, reads
+
+    def __getitem__(self, index):
+        value = super().__getitem__(index)
+        if isinstance(index, int):
+            self._reads.note(f"{self._path}[{index % len(self) if self else index}]", value)
+        return value
+
+    def __iter__(self):
+        for i, value in enumerate(list.__iter__(self)):
+            self._reads.note(f"{self._path}[{i}]", value)
+            yield value
+
+
+# A formatter's own error messages name the types it was given ("'list' object has no attribute 'items'").
+_Dict.__name__ = _Dict.__qualname__ = "dict"
+_List.__name__ = _List.__qualname__ = "list"
+
+_TRACKED_CLASSES: dict[type, type] = {}
+
+
+def _dataclass_tracked(cls: type) -> type:
+    """A subclass of the dataclass ``cls`` whose field reads are noted (its formatters take it for ``cls``)."""
+    if cls not in _TRACKED_CLASSES:
+        names = frozenset(f.name for f in dataclasses.fields(cls))
+
+        def __init__(self, reads, path, **fields):
+            object.__setattr__(self, "_reads", (reads, path))
+            cls.__init__(self, **fields)
+
+        def __getattribute__(self, name):
+            value = object.__getattribute__(self, name)
+            if name in names:
+                reads, path = object.__getattribute__(self, "_reads")
+                reads.note(_key_path(path, name), value)
+            return value
+
+        _TRACKED_CLASSES[cls] = type(cls.__name__, (cls,), {"__init__": __init__, "__getattribute__": __getattribute__})
+    return _TRACKED_CLASSES[cls]

@@ -1,0 +1,57 @@
+"""atlasgen/io/field_reads.py: the field a formatter stopped on, the one a refusal of a hand-edited report names."""
+
+from __future__ import annotations
+
+import doctest
+from dataclasses import asdict, dataclass, field
+
+import pytest
+
+from atlasgen.io import field_reads
+from atlasgen.io.field_reads import ABSENT, FieldReads
+
+
+def test_doctests():
+    result = doctest.testmod(field_reads)
+    assert result.attempted > 0 and result.failed == 0
+
+
+@dataclass
+class _Study:
+    name: str
+    rows: list
+    extra: dict = field(default_factory=dict)
+
+
+def _failure(document, use):
+    reads = FieldReads()
+    tracked = reads.track(document, "[3]")
+    with pytest.raises((TypeError, KeyError, AttributeError, ValueError)):
+        use(tracked)
+    return reads.last
+
+
+def test_each_kind_of_read_is_noted_with_its_path():
+    doc = {"rows": [{"x": 1.0}, {"x": "two"}], "table": {"a": 1, "b": None}}
+    assert _failure(doc, lambda d: sum(r["x"] for r in d["rows"])) == ("[3].rows[1].x", "two")
+    assert _failure(doc, lambda d: [v + 1 for v in d["table"].values()]) == ("[3].table.b", None)
+    assert _failure(doc, lambda d: [v + 1 for _, v in d["table"].items()]) == ("[3].table.b", None)
+    assert _failure(doc, lambda d: d.get("rows")[-1]["x"] + 1) == ("[3].rows[1].x", "two")
+    assert _failure(doc, lambda d: d["rows"][0]["y"]) == ("[3].rows[0].y", ABSENT)
+
+
+def test_a_dataclass_s_fields_are_noted_and_it_stays_one():
+    study = _Study("lobe", [1, 2, "3"])
+    reads = FieldReads()
+    tracked = reads.track(study, "[0]")
+    assert isinstance(tracked, _Study) and asdict(tracked) == asdict(study)
+    with pytest.raises(TypeError):
+        sum(tracked.rows)
+    assert reads.last == ("[0].rows[2]", "3")
+    with pytest.raises(AttributeError, match="'list' object has no attribute 'items'"):
+        reads.track({"rows": [1]})["rows"].items()
+
+
+def test_the_tracked_document_equals_the_original():
+    doc = {"a": [1, {"b": [2.5, None]}], "c": "text"}
+    assert FieldReads().track(doc) == doc and FieldReads().track(list(doc["a"])) == doc["a"]
