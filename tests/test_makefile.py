@@ -39,6 +39,7 @@ def _outputs(build: Path) -> list[Path]:
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
     out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("exr", "png", "d", "png.d")]
+    out += [build / "scenes" / ".pruned"]
     return out
 
 
@@ -81,7 +82,7 @@ def tree(tmp_path):
     for path in root.rglob("*"):
         if path.is_file():
             os.utime(path, (T0, T0))
-    built = [root / "build" / "materials.list", root / "build" / "budget.args", root / ".venv" / ".stamp"]
+    built = [root / "build" / f for f in ("materials.list", "scenes.list", "budget.args")] + [root / ".venv" / ".stamp"]
     for path in [*_outputs(root / "build"), *built]:
         os.utime(path, (T_BUILT, T_BUILT))
     return root
@@ -519,3 +520,29 @@ def test_a_render_whose_depfile_is_gone_is_rendered_again(tree):
     assert [c.split()[:2] for c in calls] == [["render", "scenes/one.toml"]], calls
     assert (tree / "build" / "scenes" / "one.png.d").exists()
     assert _make(tree, "-q", "render").returncode == 0
+
+
+def test_make_render_removes_the_sets_of_scenes_that_are_gone_and_nothing_else(tree):
+    """A deleted (or renamed) scene left build/scenes/X.* behind, read as current by whoever lists the folder. Its
+    store and the links into it go once the scenes change; a scene's own set, its links and a file of the user's
+    stay, and make -q still finds render up to date."""
+    scenes = tree / "build" / "scenes"
+    links = {}
+    for stem in ("one", "two", "gone", "old.name"):
+        store = scenes / f".{stem}.atlasgen" / "current"
+        store.mkdir(parents=True)
+        for suffix in ("dds", "json", "png", "d"):
+            (store / f"{stem}.{suffix}").write_text(suffix)
+            link = scenes / f"{stem}-linked.{suffix}"
+            link.symlink_to(f".{stem}.atlasgen/current/{stem}.{suffix}")
+            links.setdefault(stem, []).append(link)
+    (scenes / "notes.txt").write_text("mine")
+    assert _make(tree, "-q", "render").returncode == 0  # the scenes have not changed since the last prune
+    (tree / "scenes" / "two.toml").unlink()  # build/scenes.list changes as the Makefile is read
+    assert _make(tree, "-q", "render").returncode == 1
+    assert _make_with_fake_atlasgen(tree, "render") == []
+    assert _make(tree, "-q", "render").returncode == 0
+    for stem in ("two", "gone", "old.name"):
+        assert not (scenes / f".{stem}.atlasgen").exists() and not any(p.is_symlink() for p in links[stem])
+    assert (scenes / ".one.atlasgen").is_dir() and all(p.read_text() for p in links["one"])
+    assert (scenes / "notes.txt").read_text() == "mine" and (scenes / "one.dds").exists()
