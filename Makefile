@@ -286,7 +286,7 @@ report: $(BUILD)/report/index.html
 SEPARABLE_INDEX := $(if $(SEPARABLE_STEMS),$(SEPARABLE_REPORT)/index.md)
 $(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/report.json $(REPORT_CODE) $(BUILD)/budget.args | $(VENV)/.stamp
 	$(if $(SEPARABLE_STEMS),,rm -rf $(SEPARABLE_REPORT))
-	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) --separable $(SEPARABLE_REPORT) -o $(BUILD)/report $(REPORT_ARGS)
+	$(ATLASGEN) report library --atlas $(BUILD)/atlas.dds --validation $(VALIDATION) $(if $(SEPARABLE_STEMS),--separable $(SEPARABLE_REPORT)) -o $(BUILD)/report $(REPORT_ARGS)
 
 # One make over the whole graph, in parallel: validation and the separable study are one process
 # per material, and no two jobs write the same file. -Otarget keeps each job's output together.

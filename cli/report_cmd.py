@@ -112,6 +112,19 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
         click.echo(written["html"].as_posix())
 
 
+def _refuse_absent_reports(ctx: click.Context, validation: Path, separable_dir: Path) -> None:
+    """A report folder named on the command line must hold its report: a mistyped --validation wrote a page with
+    no validation figures, silently. Left at their defaults, they are used when present."""
+    wanted = (("validation", validation, "report.json", "atlasgen validate"),
+              ("separable_dir", separable_dir, "index.html", "atlasgen report separable"))  # fmt: skip
+    for name, folder, report, writer in wanted:
+        option = next(p.opts[-1] for p in ctx.command.params if p.name == name)
+        given = ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
+        if given and not (folder / report).is_file():
+            raise InputError(f"{folder.as_posix()}: no {report} in the {option} folder; expected a folder {writer} "
+                             f"wrote, or no {option}")  # fmt: skip
+
+
 @report.command("library")
 @click.option(
     "--atlas",
@@ -125,7 +138,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     type=PathArg(path_type=Path),
     default=Path("build/validation"),
     show_default=True,
-    help="Folder of `atlasgen validate` (report.json, index.html), used when present.",
+    help="Folder of `atlasgen validate` (report.json, index.html); left at its default, used when present.",
 )
 @click.option(
     "--separable",
@@ -133,7 +146,7 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
     type=PathArg(path_type=Path),
     default=Path("build/report/separable"),
     show_default=True,
-    help="Folder of `atlasgen report separable`, linked when present.",
+    help="Folder of `atlasgen report separable`; left at its default, linked when present.",
 )
 @click.option(
     "-o",
@@ -153,6 +166,7 @@ def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews, and Pareto
     charts of run-time cost against error versus the physical reference."""
     check_output_folder(output, "the report folder (-o)", writes=("index.html",))
+    _refuse_absent_reports(click.get_current_context(), validation, separable_dir)
     # Figures validated on another bake of a material are not shown as its: one line each, loud even with -q.
     page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical,
                                 warn=echo_warning)  # fmt: skip

@@ -328,7 +328,12 @@ def test_a_separable_study_and_its_merge_change_as_one_set_through_every_fault(t
 def test_a_library_report_changes_as_one_set_through_every_fault(tmp_path, library):
     atlas, use_old, use_new = _bake_pair(tmp_path, library)
     page = tmp_path / "library"
-    args = ["report", "library", "--atlas", atlas, "--validation", tmp_path / "none", "--separable", tmp_path / "none",
+    # Named report folders must hold their reports (and the defaults would read the working folder's build/).
+    (tmp_path / "v").mkdir()
+    (tmp_path / "v" / "report.json").write_text('{"results": []}')
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "index.html").write_text("<html></html>")
+    args = ["report", "library", "--atlas", atlas, "--validation", tmp_path / "v", "--separable", tmp_path / "s",
             "-o", page, "--no-physical", "-q"]  # fmt: skip
     seen = drive(args, page, "index.html", use_old, use_new, immutable=["slices/clay-0.png"])
     check_seen(seen)

@@ -107,7 +107,7 @@ def test_a_merged_validation_report_links_each_materials_own_page(tmp_path, writ
 
 
 @pytest.mark.slow
-def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, write_material):
+def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, write_material, monkeypatch):
     from click.testing import CliRunner
 
     from atlasgen.cli.main import app
@@ -117,15 +117,18 @@ def test_the_cli_prints_the_page_and_with_v_which_reports_it_found(tmp_path, wri
     write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
     (tmp_path / "v").mkdir()
     (tmp_path / "v" / "report.json").write_text(json.dumps({"results": []}))
-    args = ["report", "library", "--atlas", str(atlas), "--validation", str(tmp_path / "v"),
-            "--separable", str(tmp_path / "s"), "-o", str(tmp_path / "r")]  # fmt: skip
+    # --separable left at its default (build/report/separable, from the working folder), which is used when present.
+    monkeypatch.chdir(tmp_path)
+    args = ["report", "library", "--atlas", str(atlas), "--validation", str(tmp_path / "v"), "-o", str(tmp_path / "r")]
     runner = CliRunner()
     assert runner.invoke(app, [*args, "-q"]).output == ""
     res = runner.invoke(app, [*args, "-v"])
     assert res.exit_code == 0, res.output
     assert res.stdout == f"{(tmp_path / 'r' / 'index.html').as_posix()}\n"
-    assert res.stderr.splitlines() == [f"  validation report: {(tmp_path / 'v' / 'report.json').as_posix()} (used)",
-                                       f"  separable report: {(tmp_path / 's' / 'index.html').as_posix()} (absent)"]  # fmt: skip
+    assert res.stderr.splitlines() == [
+        f"  validation report: {(tmp_path / 'v' / 'report.json').as_posix()} (used)",
+        "  separable report: build/report/separable/index.html (absent)",
+    ]
 
 
 @pytest.mark.slow

@@ -54,8 +54,7 @@ def test_report_library_warns_of_validation_figures_measured_on_another_bake(tmp
     row = {"material": "clay", "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.004}},
            "atlas_identity": atlas_identity(read, read.material("clay"))}  # fmt: skip
     (folder / "report.json").write_text(json.dumps({"results": [row]}))
-    args = ["report", "library", "--atlas", str(atlas), "--validation", str(folder), "--separable", str(tmp_path / "s"),
-            "--no-physical", "-q"]  # fmt: skip
+    args = ["report", "library", "--atlas", str(atlas), "--validation", str(folder), "--no-physical", "-q"]
     runner = CliRunner()
     current = runner.invoke(app, [*args, "-o", str(tmp_path / "r1")])
     assert current.exit_code == 0 and current.output == ""
@@ -70,3 +69,19 @@ def test_report_library_warns_of_validation_figures_measured_on_another_bake(tmp
                             "material file has changed since: another content hash); not shown: re-run atlasgen validate\n")  # fmt: skip
     page = (tmp_path / "r2" / "index.html").read_text()
     assert "<td>61.2</td>" not in page and '<p class="stale"><b>stale</b>: not validated on this atlas' in page
+
+
+@pytest.mark.parametrize(
+    ("option", "report", "writer"),
+    [("--validation", "report.json", "atlasgen validate"), ("--separable", "index.html", "atlasgen report separable")],
+)
+def test_report_library_refuses_a_named_report_folder_without_its_report(tmp_path, option, report, writer):
+    """A mistyped --validation wrote a page with no validation figures and exit 0; named, a folder must hold its
+    report (left at its default, build/validation is used when present, as make report's first run needs)."""
+    typo = tmp_path / "validaton"
+    res = CliRunner().invoke(app, ["report", "library", "--atlas", str(tmp_path / "X.dds"), option, str(typo),
+                                   "-o", str(tmp_path / "report"), "--no-physical"])  # fmt: skip
+    assert res.exit_code == 3, res.output
+    assert res.stderr == (f"atlasgen: error: {typo.as_posix()}: no {report} in the {option} folder; expected a folder "
+                          f"{writer} wrote, or no {option}\n")  # fmt: skip
+    assert not (tmp_path / "report").exists()
