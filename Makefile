@@ -198,22 +198,29 @@ RENDER_COMMAND := $(wildcard cli/render_cmd.py cli/main.py cli/options.py)
 RENDERS_WITHOUT_DEPFILE := $(foreach i,$(SCENE_IMAGES),$(if $(wildcard $(i)),$(if $(wildcard $(i).d),,$(i))))
 $(RENDERS_WITHOUT_DEPFILE): no-depfile
 # A scene file deleted or renamed left its atlas set and images behind, read as current by whoever lists
-# build/scenes/. Each set lives in its store, build/scenes/.X.atlasgen, with links beside it (atlasgen/io/atomic.py):
-# a store whose X is no scene goes, with the links into it; nothing else in the folder is touched. The stamp
-# build/scenes/.pruned runs it after every scene's jobs (so nothing is writing there) and when build/scenes.list (the
-# scenes, rewritten only when they change) does: a phony render with a recipe would never be up to date for make -q.
+# build/scenes/. Each set's files are links into its store, build/scenes/.K.atlasgen, K the name up to its first dot
+# (atlasgen/io/atomic.py set_key: scenes toon and toon.night share .toon.atlasgen). A link into a store whose name is
+# no current scene's output goes; then a store no current scene's K names; nothing else in the folder is touched. The
+# stamp build/scenes/.pruned runs it after every scene's jobs (so nothing is writing there) and when
+# build/scenes.list (the scenes, rewritten only when they change) does: a phony render with a recipe would never be
+# up to date for make -q.
 SCENE_STEMS := $(patsubst scenes/%.toml,%,$(SCENE_FILES))
+SCENE_OUTPUTS := $(foreach s,$(SCENE_STEMS),$(addprefix $(s),$(BAKE_SUFFIXES) .separable.bin .d .exr .png .png.d))
+SCENE_STORES := $(sort $(foreach s,$(SCENE_STEMS),.$(firstword $(subst ., ,$(s))).atlasgen))
 ifeq ($(filter clean,$(MAKECMDGOALS)),)
 $(shell $(call write_if_changed,$(SCENE_STEMS),$(BUILD)/scenes.list))
 endif
 $(BUILD)/scenes.list:
 	@mkdir -p $(@D) && echo "$(SCENE_STEMS)" > $@
-prune_sets = for s in $(1)/.*.atlasgen; do [ -d "$$s" ] || continue; n=$$(basename "$$s" .atlasgen); n=$${n\#.}; \
-	case " $(2) " in *" $$n "*) ;; *) echo "removing $(1)/$$n.* (no scenes/$$n.toml)"; \
-	for f in $(1)/* $(1)/.[!.]*; do [ -L "$$f" ] || continue; case "$$(readlink "$$f")" in ".$$n.atlasgen/"*) rm -f "$$f";; esac; done; \
-	rm -rf "$$s";; esac; done
+# $(call prune_sets,FOLDER,OUTPUTS,STORES)
+prune_sets = gone=""; for f in $(1)/* $(1)/.[!.]*; do [ -L "$$f" ] || continue; \
+	case "$$(readlink "$$f")" in .*.atlasgen/*) ;; *) continue;; esac; n=$$(basename "$$f"); \
+	case " $(2) " in *" $$n "*) ;; *) gone="$$gone $$n"; rm -f "$$f";; esac; done; \
+	[ -z "$$gone" ] || echo "removing from $(1):$$gone (no such scene in scenes/)"; \
+	for s in $(1)/.*.atlasgen; do [ -d "$$s" ] || continue; \
+	case " $(3) " in *" $$(basename "$$s") "*) ;; *) rm -rf "$$s";; esac; done
 $(BUILD)/scenes/.pruned: $(BUILD)/scenes.list $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS)
-	@mkdir -p $(@D) && $(call prune_sets,$(@D),$(SCENE_STEMS)) && touch $@
+	@mkdir -p $(@D) && $(call prune_sets,$(@D),$(SCENE_OUTPUTS),$(SCENE_STORES)) && touch $@
 render: $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS) $(BUILD)/scenes/.pruned
 $(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
 	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)

@@ -523,26 +523,32 @@ def test_a_render_whose_depfile_is_gone_is_rendered_again(tree):
 
 
 def test_make_render_removes_the_sets_of_scenes_that_are_gone_and_nothing_else(tree):
-    """A deleted (or renamed) scene left build/scenes/X.* behind, read as current by whoever lists the folder. Its
-    store and the links into it go once the scenes change; a scene's own set, its links and a file of the user's
-    stay, and make -q still finds render up to date."""
+    """A deleted (or renamed) scene left build/scenes/X.* behind, read as current by whoever lists the folder. Once
+    the scenes change, the links into a store that no current scene's output is named go, and then the stores no
+    current scene writes to; a scene's own set, a file of the user's and its own links stay, and make -q still finds
+    render up to date. A store is named by the set's name up to its first dot: scenes one and one.extra share one."""
     scenes = tree / "build" / "scenes"
-    links = {}
-    for stem in ("one", "two", "gone", "old.name"):
-        store = scenes / f".{stem}.atlasgen" / "current"
-        store.mkdir(parents=True)
-        for suffix in ("dds", "json", "png", "d"):
-            (store / f"{stem}.{suffix}").write_text(suffix)
-            link = scenes / f"{stem}-linked.{suffix}"
-            link.symlink_to(f".{stem}.atlasgen/current/{stem}.{suffix}")
-            links.setdefault(stem, []).append(link)
+
+    def link(name: str, store: str) -> Path:
+        (scenes / store / "current").mkdir(parents=True, exist_ok=True)
+        (scenes / store / "current" / name).write_text("" if name.endswith(".d") else name)  # make includes X.d
+        (scenes / name).unlink(missing_ok=True)  # the fixture's plain file: atlasgen's outputs are links
+        (scenes / name).symlink_to(f"{store}/current/{name}")
+        os.utime(scenes / name, (T_BUILT, T_BUILT))  # as new as the outputs the fixture made: the tree is up to date
+        return scenes / name
+
+    kept = [link("one.separable.bin", ".one.atlasgen")]
+    gone = [link("one.extra.dds", ".one.atlasgen"), link("one.extra.png", ".one.atlasgen")]
+    gone += [link(f"{stem}.{suffix}", f".{stem.split('.')[0]}.atlasgen") for stem in ("two", "gone", "old.name")
+             for suffix in ("dds", "json", "png", "d")]  # fmt: skip
     (scenes / "notes.txt").write_text("mine")
+    (scenes / "mine.txt").symlink_to("notes.txt")
     assert _make(tree, "-q", "render").returncode == 0  # the scenes have not changed since the last prune
     (tree / "scenes" / "two.toml").unlink()  # build/scenes.list changes as the Makefile is read
     assert _make(tree, "-q", "render").returncode == 1
     assert _make_with_fake_atlasgen(tree, "render") == []
     assert _make(tree, "-q", "render").returncode == 0
-    for stem in ("two", "gone", "old.name"):
-        assert not (scenes / f".{stem}.atlasgen").exists() and not any(p.is_symlink() for p in links[stem])
-    assert (scenes / ".one.atlasgen").is_dir() and all(p.read_text() for p in links["one"])
-    assert (scenes / "notes.txt").read_text() == "mine" and (scenes / "one.dds").exists()
+    assert not any(p.is_symlink() for p in gone), [p.name for p in gone if p.is_symlink()]
+    assert not any((scenes / f".{store}.atlasgen").exists() for store in ("two", "gone", "old"))
+    assert all(p.read_text() == p.name for p in kept) and (scenes / ".one.atlasgen").is_dir()
+    assert (scenes / "mine.txt").read_text() == "mine" and (scenes / "one.dds").exists()
