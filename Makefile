@@ -147,7 +147,10 @@ ifneq ($(filter clean,$(MAKECMDGOALS)),)
 .NOTPARALLEL:
 endif
 
-$(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
+# Static pattern rules, for the library's materials only: a scene's depfile still naming a renamed material's file and
+# cache entry makes both targets (gcc -MP), and a plain pattern rule then took the entry for one to remake from the
+# file that is gone ("no such file" on every make); without a rule the scene simply re-bakes.
+$(filter %.npz,$(CACHED)): $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
 
 # The bake also writes build/cache/<stem>.mtlx.d, which makes the stamp depend on the files the
@@ -157,7 +160,7 @@ $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_
 # a scene atlas without its depfile is, below), which writes the depfile.
 MTLX_WITHOUT_DEPFILE := $(foreach s,$(MTLX_STEMS),$(if $(wildcard $(CACHE_DIR)/$(s).mtlx.stamp),$(if $(wildcard $(CACHE_DIR)/$(s).mtlx.d),,$(CACHE_DIR)/$(s).mtlx.stamp)))
 $(MTLX_WITHOUT_DEPFILE): no-depfile
-$(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 $(BAKE_CODE) | $(VENV)/.stamp
+$(filter %.mtlx.stamp,$(CACHED)): $(CACHE_DIR)/%.mtlx.stamp: materials/%.mtlx $(HASH_DIR)/materials/%.mtlx.sha256 $(BAKE_CODE) | $(VENV)/.stamp
 	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(@:.stamp=.d) --depfile-target $@ -q && touch $@
 
 # The bake command's own defaults (--include, --layout) live in the CLI: a change to them re-assembles.

@@ -552,3 +552,14 @@ def test_make_render_removes_the_sets_of_scenes_that_are_gone_and_nothing_else(t
     assert not any((scenes / f".{store}.atlasgen").exists() for store in ("two", "gone", "old"))
     assert all(p.read_text() == p.name for p in kept) and (scenes / ".one.atlasgen").is_dir()
     assert (scenes / "mine.txt").read_text() == "mine" and (scenes / "one.dds").exists()
+
+
+def test_a_renamed_material_re_bakes_the_scenes_that_named_it_not_the_missing_file(tree):
+    """A scene's depfile still names the old material file and its cache entry: the cache's pattern rule took the entry
+    for one to remake from the file the depfile made a target (gcc -MP), and every make failed with "materials/clay.toml:
+    no such file" until the depfiles were deleted by hand. Only the library's materials have that rule now."""
+    (tree / "materials" / "clay.toml").rename(tree / "materials" / "loam.toml")
+    commands = _commands(tree, "render")
+    assert not [c for c in commands if "bake materials/clay.toml" in c], commands
+    assert [c for c in commands if "bake materials/loam.toml" in c and "--cache-only" in c]
+    assert [c for c in commands if "--scene scenes/one.toml" in c] and [c for c in commands if "render scenes/one.toml" in c]
