@@ -285,7 +285,14 @@ $(VALIDATION)/report.json: $(VALIDATED) $(MTLX_VALIDATED) $(BUILD)/materials.lis
 $(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D) $(STUDY_ARGS)
 
-$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(REPORT_CODE) | $(VENV)/.stamp
+# build/separable.list: the separable materials, rewritten only when they change (a material made lambert leaves them
+# while materials.list and the remaining studies stay as they were, and its study stayed in the merged report).
+ifeq ($(filter clean,$(MAKECMDGOALS)),)
+$(shell $(call write_if_changed,$(SEPARABLE_STEMS),$(BUILD)/separable.list))
+endif
+$(BUILD)/separable.list:
+	@mkdir -p $(@D) && echo "$(SEPARABLE_STEMS)" > $@
+$(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(BUILD)/separable.list $(REPORT_CODE) | $(VENV)/.stamp
 	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS))
 	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
 

@@ -82,7 +82,8 @@ def tree(tmp_path):
     for path in root.rglob("*"):
         if path.is_file():
             os.utime(path, (T0, T0))
-    built = [root / "build" / f for f in ("materials.list", "scenes.list", "budget.args")] + [root / ".venv" / ".stamp"]
+    built = [root / "build" / f for f in ("materials.list", "scenes.list", "separable.list", "budget.args")]
+    built += [root / ".venv" / ".stamp"]
     for path in [*_outputs(root / "build"), *built]:
         os.utime(path, (T_BUILT, T_BUILT))
     return root
@@ -563,3 +564,25 @@ def test_a_renamed_material_re_bakes_the_scenes_that_named_it_not_the_missing_fi
     assert not [c for c in commands if "bake materials/clay.toml" in c], commands
     assert [c for c in commands if "bake materials/loam.toml" in c and "--cache-only" in c]
     assert [c for c in commands if "--scene scenes/one.toml" in c] and [c for c in commands if "render scenes/one.toml" in c]
+
+
+def test_a_material_no_longer_separable_re_merges_the_separable_report(tree):
+    """separable-gold made lambert kept its study in the merged separable report: the merge re-ran only when the
+    material list or a remaining study changed. It now also follows the list of separable materials."""
+    build = tree / "build"
+    (tree / "materials" / "sep2.toml").write_text("type = 'separable'\n")
+    os.utime(tree / "materials" / "sep2.toml", (T0, T0))
+    made = [build / "cache" / "sep2.npz", build / "validation" / "materials" / "sep2" / "report.json",
+            build / "report" / "separable" / "materials" / "sep2" / "report.json"]  # fmt: skip
+    for path in made:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("")
+    _make(tree, "-n", "atlas", "validate", "report")  # writes the lists for the library of four
+    for path in [*made, build / "materials.list", build / "separable.list"]:
+        os.utime(path, (T_BUILT, T_BUILT))
+    for path in (build / "hashes" / "materials" / "sep2.toml.sha256",):
+        os.utime(path, (T0, T0))
+    assert not [c for c in _commands(tree, "report") if "report separable" in c]
+    (tree / "materials" / "separable-gold.toml").write_text('type = "lambert"\n')
+    merges = [c for c in _commands(tree, "report") if "report separable --merge" in c]
+    assert merges == [merges[0]] and "separable-gold" not in merges[0] and "sep2" in merges[0], merges
