@@ -23,6 +23,14 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # A MaterialX document (materials/*.mtlx) bakes each of its materials into its own cache entry
 # (build/cache/<stem>.<material>.npz), which make cannot name before reading the document: the
 # document's stamp (build/cache/<stem>.mtlx.stamp) stands for them, and its validation is one job.
+# make splits file names on spaces, so "scenes/toon stage.toml" was two words: sha256sum errors on every make, a junk
+# hash, "No rule to make target" for render and a material left out of the atlas without a word. Refused on one line.
+SPACED_FILES := $(shell find materials scenes -maxdepth 1 -name '* *' \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
+ifneq ($(SPACED_FILES),)
+ifeq ($(filter clean setup apt,$(MAKECMDGOALS)),)
+$(error $(SPACED_FILES): a file name with a space, which make cannot name; expected names without spaces (rename it; atlasgen itself reads it as it is))
+endif
+endif
 TOML_FILES := $(sort $(wildcard materials/*.toml))
 MTLX_FILES := $(sort $(wildcard materials/*.mtlx))
 MATERIAL_FILES := $(TOML_FILES) $(MTLX_FILES)

@@ -586,3 +586,20 @@ def test_a_material_no_longer_separable_re_merges_the_separable_report(tree):
     (tree / "materials" / "separable-gold.toml").write_text('type = "lambert"\n')
     merges = [c for c in _commands(tree, "report") if "report separable --merge" in c]
     assert merges == [merges[0]] and "separable-gold" not in merges[0] and "sep2" in merges[0], merges
+
+
+@pytest.mark.parametrize("name", ["materials/wet clay.toml", "scenes/toon stage.toml"])
+def test_a_file_name_with_a_space_is_refused_on_one_line(tree, name):
+    """make splits names on spaces: every make printed sha256sum errors, render failed with "No rule to make target"
+    and a material with a space was left out of the atlas without a word."""
+    (tree / name).write_text('type = "lambert"\n')
+    result = _make(tree, "-n", "atlas", "render")
+    assert result.returncode == 2 and result.stdout == "", result.stdout
+    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(SPACED_FILES)')}: *** {name}: a file name "
+                                          "with a space, which make cannot name; expected names without spaces (rename it; "
+                                          "atlasgen itself reads it as it is).  Stop."]  # fmt: skip
+    assert not (tree / "build" / "hashes" / f"{name.split(' ')[0]}.sha256").exists()  # the junk hash it wrote
+
+
+def _line_of(tree: Path, text: str) -> int:
+    return next(i for i, line in enumerate((tree / "Makefile").read_text().splitlines(), 1) if text in line)
