@@ -15,7 +15,7 @@ from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference, SliceSet
 from atlasgen.models.physical_fit import fitted_bsdf_slice
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.separable.mitsuba_source import delta_fractions, describe_lobes, load_mitsuba_bsdf
+from atlasgen.separable.mitsuba_source import delta_fractions, describe_lobes, load_mitsuba_bsdf, unheld_in_bsdf
 
 __all__ = ["Bsdf"]
 
@@ -60,6 +60,11 @@ class Bsdf(Model):
             raise MaterialError(path, "bsdf", 'missing; expected a Mitsuba BSDF table, e.g. {type = "roughplastic"}')
 
         load_mitsuba_bsdf(values["bsdf"], path, anisotropic=values["accept_anisotropy"], rough_only=values["rough_only"])
+
+    def unheld_inputs(self, values: dict) -> list[str]:
+        """A lobe sharper than the renderer's and a mask's see-through light (:func:`unheld_in_bsdf`): the fit's
+        figure sees neither, so the bake warns with them."""
+        return unheld_in_bsdf(values["bsdf"])
 
     def fitted(self, values: dict):
         """The fitted slice ``(H, W, 4)`` and its description (cached per BSDF and gloss)."""

@@ -9,6 +9,7 @@ import re
 
 import numpy as np
 
+from atlasgen.contract import SPECULAR_ALPHA_MIN
 from atlasgen.errors import BackendError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, is_number, shown
@@ -16,6 +17,7 @@ from atlasgen.io.text import special_file_kind
 
 __all__ = [
     "VARIANT",
+    "unheld_in_bsdf",
     "BSDF_PROPERTIES",
     "load_mitsuba_bsdf",
     "explain_mitsuba_error",
@@ -136,6 +138,40 @@ def _nodes(spec: dict, prefix: str):
             if isinstance(value, dict):
                 yield key, f"{where}.{key}", value
                 stack.append((f"{where}.{key}", value))
+
+
+#: A principled BSDF's roughness r gives alpha = r^2 (Burley 2012; Mitsuba's principled): the sharpest the renderer's
+#: lobe takes, as a roughness.
+_ROUGHNESS_MIN = SPECULAR_ALPHA_MIN**0.5
+
+
+def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
+    """What of the BSDF table ``spec`` a slice does not hold though the bake takes it, one clause each, naming its
+    dotted key: a rough lobe sharper than the renderer's sharpest (alpha below ``SPECULAR_ALPHA_MIN``), whose
+    highlight falls between the fit's samples, so the fit's own figure never sees it; and a ``mask``'s opacity
+    below 1, the light it lets through (no slice holds transmission: an object's opacity is the scene's).
+
+    >>> unheld_in_bsdf({"type": "roughconductor", "alpha": 1e-4})[0].split(":")[0]
+    'bsdf.alpha = 0.0001'
+    >>> unheld_in_bsdf({"type": "mask", "opacity": 0.5, "material": {"type": "diffuse"}})[0].split(":")[0]
+    'bsdf.opacity = 0.5'
+    >>> unheld_in_bsdf({"type": "roughconductor", "alpha": 0.2})
+    []
+    """
+    out = []
+    for _, where, node in _nodes(spec, field):
+        for key in ("alpha", "alpha_u", "alpha_v", "roughness"):
+            value = node.get(key)
+            limit = _ROUGHNESS_MIN if key == "roughness" else SPECULAR_ALPHA_MIN
+            if is_number(value) and 0.0 < value < limit:
+                out.append(f"{where}.{key} = {value:g}: a lobe sharper than the renderer's sharpest (alpha "
+                           f"{SPECULAR_ALPHA_MIN:g}), whose highlight falls between the fit's samples")  # fmt: skip
+        opacity = node.get("opacity", 0.5)
+        if node.get("type") == "mask" and (not is_number(opacity) or opacity < 1.0):
+            shown_opacity = f"{opacity:g}" if is_number(opacity) else "a texture"
+            out.append(f"{where}.opacity = {shown_opacity}: the light a mask lets through, which no slice holds (an "
+                       "object's opacity is the scene's)")  # fmt: skip
+    return out
 
 
 def _node(spec: dict, field: str, name: str | None) -> tuple[str, dict]:

@@ -138,3 +138,31 @@ def test_what_a_slice_cannot_hold_is_refused_unless_consented(
 def test_a_separable_material_refuses_them_and_points_to_the_bsdf_model(mitsuba_llvm, expect_rejected, bsdf, field):
     message = expect_rejected("separable", f'source = "mitsuba"\nterms = 1\nbsdf = {bsdf}', field, "expected ")
     assert 'type = "bsdf" with' in message, message
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("bsdf", "clause"), [
+    ('{ type = "roughconductor", alpha = 0.0001 }', "bsdf.alpha = 0.0001: a lobe sharper than the renderer's sharpest "
+                                                    "(alpha 0.002), whose highlight falls between the fit's samples"),
+    ('{ type = "principled", roughness = 0.01 }', "bsdf.roughness = 0.01: a lobe sharper than the renderer's sharpest"),
+    ('{ type = "mask", opacity = 0.5, material = { type = "roughconductor", alpha = 0.2 } }',
+     "bsdf.opacity = 0.5: the light a mask lets through, which no slice holds (an object's opacity is the scene's)"),
+])  # fmt: skip
+def test_what_the_fit_cannot_see_is_warned_of_not_baked_silently(mitsuba_llvm, write_material, bsdf, clause):
+    """A near-mirror lobe baked as exact (fit.relative_rms 3.7e-8: its highlight fell between the fit's samples, into a
+    diffuse RGB scaled by 2.5e7 that clipped on screen) and a mask's see-through light dropped, both without a word."""
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+
+    path = write_material("m", f'type = "bsdf"\ngloss = 0.5\nbsdf = {bsdf}\n')
+    (warning,) = bake_atlas(read_materials([path])).material_warnings
+    assert warning.cause == "not in the table" and clause in str(warning), str(warning)
+
+
+@pytest.mark.slow
+def test_an_ordinary_bsdf_bakes_without_a_warning(mitsuba_llvm, write_material):
+    from atlasgen.bake.pipeline import bake_atlas
+    from atlasgen.materials.material import read_materials
+
+    path = write_material("m", 'type = "bsdf"\ngloss = 0.5\nbsdf = { type = "roughconductor", alpha = 0.2 }\n')
+    assert bake_atlas(read_materials([path])).material_warnings == []

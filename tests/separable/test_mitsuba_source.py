@@ -278,3 +278,12 @@ def test_a_bitmap_texture_larger_than_the_limit_is_refused_from_its_header(tmp_p
         source.load_mitsuba_bsdf(spec, "materials/bad.toml")
     assert str(info.value) == ("materials/bad.toml: field 'bsdf.reflectance.filename': expected a texture of at most 63 "
                                f"texels, got 8 x 8 in {texture}")  # fmt: skip
+
+
+def test_doctests():
+    import doctest
+
+    from atlasgen.separable import mitsuba_source
+
+    result = doctest.testmod(mitsuba_source)
+    assert result.attempted > 0 and result.failed == 0
