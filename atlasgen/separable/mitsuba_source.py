@@ -142,7 +142,7 @@ def _nodes(spec: dict, prefix: str):
 
 #: A principled BSDF's roughness r gives alpha = r^2 (Burley 2012; Mitsuba's principled): the sharpest the renderer's
 #: lobe takes, as a roughness.
-_ROUGHNESS_MIN = SPECULAR_ALPHA_MIN**0.5
+_ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)  # 0.045, as the MaterialX reader's ROUGHNESS_MIN
 
 
 def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
