@@ -30,6 +30,7 @@ from atlasgen.reports.validation import (
 )
 from atlasgen.validate.reference_cache import DEFAULT_REFERENCE_CACHE
 from atlasgen.validate.run import ENVIRONMENT_SCENES, MAX_ENVIRONMENT_SPP, MAX_PHYSICAL_SPP, PHYSICAL_SPP, validate_atlas
+from atlasgen.validate.scenes import STANDARD_SCENES
 
 __all__ = ["validate"]
 
@@ -127,8 +128,11 @@ def validate(
     else:
         if no_reference_cache:
             refuse_options(ctx, ("reference_cache",), "with --no-reference-cache, which keeps no reference renders")
-        if no_physical:  # --max-physical-spp stays: it caps an environment scene's reference too
+        if no_physical:  # --max-physical-spp stays where an environment scene's reference is rendered: it caps that
             refuse_options(ctx, ("physical_spp",), "with --no-physical, which renders no physical reference")
+            if not environment and all(s in STANDARD_SCENES and s not in ENVIRONMENT_SCENES for s in scenes):
+                refuse_options(ctx, ("max_physical_spp",), "with --no-physical and no environment scene, where it caps "
+                               "no reference", "--environment (whose references it caps), or no --max-physical-spp")  # fmt: skip
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
     if not no_physical and max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it

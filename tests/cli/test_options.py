@@ -28,6 +28,9 @@ IGNORED = [
     (["validate", "alpha", "--no-physical"], ["--physical-spp", "8"], "--physical-spp has no effect with --no-physical"),
     (["report", "separable", "{material}"], ["--library"], "--library has no effect when every NAME is a material file"),
     (["report", "separable", "{material}"], ["-m", "{folder}"], "--materials has no effect when every NAME is a material"),
+    (["validate", "alpha", "--no-physical"], ["--max-physical-spp", "8"], "--max-physical-spp has no effect with "
+     "--no-physical and no environment scene, where it caps no reference; expected --environment (whose references it "
+     "caps), or no --max-physical-spp"),
     (["bake", "{material}"], ["--flatten", "default"], "--flatten has no effect without a MaterialX material among the "
      "inputs; expected a MaterialX document (.mtlx) to flatten, or no --flatten"),
 ]  # fmt: skip
@@ -77,10 +80,12 @@ def test_info_s_verbosity_is_refused_with_json_which_it_does_not_change(tmp_path
                                        "summary; expected one or the other"]  # fmt: skip
 
 
-def test_max_physical_spp_is_taken_with_no_physical_where_environment_references_use_it(tmp_path):
-    """--environment's references are capped by it too: there it has an effect, and is not refused (nor held to
-    --physical-spp's default, which renders nothing then)."""
-    res = CliRunner().invoke(app, ["validate", "--no-physical", "--environment", "--max-physical-spp", "8", "--atlas",
+@pytest.mark.parametrize("environment", [["--environment"], ["--scene", "env-sky"], ["--scene", "mine.toml"]])
+def test_max_physical_spp_is_taken_with_no_physical_where_environment_references_use_it(tmp_path, environment):
+    """--environment's references are capped by it too (and an environment scene named, or a scene file that may
+    have one): there it has an effect, and is not refused (nor held to --physical-spp's default, which renders
+    nothing then)."""
+    res = CliRunner().invoke(app, ["validate", "--no-physical", *environment, "--max-physical-spp", "8", "--atlas",
                                    str(tmp_path / "missing.dds"), "-o", str(tmp_path / "out")])  # fmt: skip
     assert res.exit_code == 3 and "missing.dds" in res.stderr, res.output  # it went on, to the atlas
 
