@@ -189,8 +189,17 @@ def loads_json(text: str, **kwargs) -> object:
     Traceback (most recent call last):
     ...
     ValueError: the string '\ud800' holds a lone UTF-16 surrogate, which is no text
+
+    A key given twice in one object is refused too (Python's decoder keeps the last, so a hand-edited
+    ``"encoding": "linear", "encoding": "srgb"`` read as sRGB without a word; TOML refuses it):
+
+    >>> loads_json('{"encoding": "linear", "encoding": "srgb"}')
+    Traceback (most recent call last):
+    ...
+    ValueError: the key 'encoding' appears twice in one object; expected each key once
     """
     kwargs.setdefault("parse_int", _parse_int)
+    kwargs.setdefault("object_pairs_hook", _unique_keys)
     try:
         data = json.loads(text, **kwargs)
     except RecursionError:
@@ -198,6 +207,15 @@ def loads_json(text: str, **kwargs) -> object:
     if _SURROGATE_ESCAPE.search(text):  # only then can a decoded string hold one
         _refuse_lone_surrogates(data)
     return data
+
+
+def _unique_keys(pairs: list) -> dict:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set = set()
+        twice = next(key for key, _ in pairs if key in seen or seen.add(key))
+        raise ValueError(f"the key {shorten(repr(twice))} appears twice in one object; expected each key once")
+    return out
 
 
 def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:

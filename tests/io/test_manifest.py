@@ -543,6 +543,11 @@ def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
     with pytest.raises(ManifestError, match="nested too deeply"):
         read_slots(tmp_path / "build" / "atlas.json")
     assert "UTF-8" in _refusal(tmp_path, b"\xff\xfe{}")
+    # A key twice: Python's decoder kept the last, so a hand-edited encoding was read as the other one without a word.
+    twice = '{"format_version": 1, "encoding": "linear", "encoding": "srgb", "materials": []}'
+    assert "got malformed JSON (the key 'encoding' appears twice in one object; expected each key once)" in _refusal(
+        tmp_path, twice
+    )
     with pytest.raises(ManifestError, match=r"build: expected an atlas manifest \(a UTF-8 JSON file\), got a directory"):
         read_manifest(tmp_path / "build")
     with pytest.raises(InputError, match="nope.json: no such manifest"):
