@@ -35,7 +35,7 @@ class FieldReads:
     """The last field read through the values :meth:`track` wrapped: ``(path, value)``, or None before any; the
     value is :data:`ABSENT` where the key read is not there."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.last: tuple[str, object] | None = None
 
     def note(self, path: str, value) -> None:

@@ -212,8 +212,8 @@ def loads_json(text: str, **kwargs) -> object:
 def _unique_keys(pairs: list) -> dict:
     out = dict(pairs)
     if len(out) != len(pairs):
-        seen: set = set()
-        twice = next(key for key, _ in pairs if key in seen or seen.add(key))
+        keys = [key for key, _ in pairs]
+        twice = next(key for i, key in enumerate(keys) if key in keys[:i])
         raise ValueError(f"the key {shorten(repr(twice))} appears twice in one object; expected each key once")
     return out
 
