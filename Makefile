@@ -158,8 +158,13 @@ endif
 # Static pattern rules, for the library's materials only: a scene's depfile still naming a renamed material's file and
 # cache entry makes both targets (gcc -MP), and a plain pattern rule then took the entry for one to remake from the
 # file that is gone ("no such file" on every make); without a rule the scene simply re-bakes.
+# The bake also writes build/cache/<stem>.d, which makes the entry depend on the files the material names (a measured
+# BSDF's data, a bitmap): a changed data file re-bakes it. An entry whose depfile is gone is baked again.
+-include $(patsubst %,$(CACHE_DIR)/%.d,$(STEMS))
+TOML_WITHOUT_DEPFILE := $(foreach s,$(STEMS),$(if $(wildcard $(CACHE_DIR)/$(s).npz),$(if $(wildcard $(CACHE_DIR)/$(s).d),,$(CACHE_DIR)/$(s).npz)))
+$(TOML_WITHOUT_DEPFILE): no-depfile
 $(filter %.npz,$(CACHED)): $(CACHE_DIR)/%.npz: materials/%.toml $(HASH_DIR)/materials/%.toml.sha256 $(BAKE_CODE) | $(VENV)/.stamp
-	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only -q
+	$(ATLASGEN) bake $< --cache $(CACHE_DIR) --cache-only --depfile $(CACHE_DIR)/$*.d --depfile-target $@ -q
 
 # The bake also writes build/cache/<stem>.mtlx.d, which makes the stamp depend on the files the
 # document includes (xi:include) as well.

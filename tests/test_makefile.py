@@ -35,7 +35,7 @@ def _outputs(build: Path) -> list[Path]:
     """Every file the pipeline's rules name as a target (what `make demo` leaves behind)."""
     out = [build / "validation" / "report.json", build / "report" / "separable" / "index.md", build / "report" / "index.html"]
     out += [build / f"atlas{suffix}" for suffix in (".dds", ".json", ".wgsl", ".glsl", ".hlsl", ".timings.json", "-preview.png")]
-    out += [build / "cache" / f"{m}.npz" for m in MATERIALS]
+    out += [build / "cache" / f"{m}.{ext}" for m in MATERIALS for ext in ("npz", "d")]
     out += [build / "validation" / "materials" / m / "report.json" for m in MATERIALS]
     out += [build / "report" / "separable" / "materials" / m / "report.json" for m in SEPARABLE]
     out += [build / "scenes" / f"{scene}.{ext}" for scene in SCENES for ext in SCENE_SET + ("exr", "png", "d", "png.d")]
@@ -67,6 +67,8 @@ def tree(tmp_path):
     for path in _outputs(root / "build"):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("")
+    for m in MATERIALS:  # what a cache entry's bake records (--depfile): the material file, and any file it names
+        write_depfile(root / "build" / "cache" / f"{m}.d", f"build/cache/{m}.npz", [f"materials/{m}.toml"])
     for scene, used in SCENES.items():
         inputs = [f"materials/{m}.toml" for m in used] + [f"scenes/{scene}.toml"] + [f"build/cache/{m}.npz" for m in used]
         write_depfile(root / "build" / "scenes" / f"{scene}.d", f"build/scenes/{scene}.dds", inputs)
@@ -401,7 +403,8 @@ def test_a_material_whose_content_changed_rebakes_whatever_its_time_stamp(tree):
     os.utime(clay, (T0, T0))  # older than its cache entry, as a swapped file is
     commands = _commands(tree, "atlas", "validate")
     assert [c for c in commands if "--cache-only" in c] == [
-        ".venv/bin/atlasgen bake materials/clay.toml --cache build/cache --cache-only -q"
+        ".venv/bin/atlasgen bake materials/clay.toml --cache build/cache --cache-only --depfile build/cache/clay.d "
+        "--depfile-target build/cache/clay.npz -q"
     ] and _validated(commands) == ["materials/clay.toml"], commands
     assert snow.read_text() == 'type = "lambert"\n'
 
@@ -577,6 +580,8 @@ def test_a_material_no_longer_separable_re_merges_the_separable_report(tree):
     for path in made:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("")
+    write_depfile(build / "cache" / "sep2.d", "build/cache/sep2.npz", ["materials/sep2.toml"])
+    made.append(build / "cache" / "sep2.d")
     _make(tree, "-n", "atlas", "validate", "report")  # writes the lists for the library of four
     for path in [*made, build / "materials.list", build / "separable.list"]:
         os.utime(path, (T_BUILT, T_BUILT))
@@ -603,3 +608,29 @@ def test_a_file_name_with_a_space_is_refused_on_one_line(tree, name):
 
 def _line_of(tree: Path, text: str) -> int:
     return next(i for i, line in enumerate((tree / "Makefile").read_text().splitlines(), 1) if text in line)
+
+
+def test_a_file_a_material_names_re_bakes_that_material_alone(tree):
+    """A measured BSDF's data (or a bitmap) changed: make saw nothing to do, and the atlas kept the old one. The
+    cache entry's bake records the files the material names (--depfile), and make re-bakes it, and only it."""
+    data = tree / "materials" / "data" / "clay.bsdf"
+    data.parent.mkdir()
+    data.write_text("data")
+    write_depfile(
+        tree / "build" / "cache" / "clay.d", "build/cache/clay.npz", ["materials/clay.toml", "materials/data/clay.bsdf"]
+    )
+    for path in (data, tree / "build" / "cache" / "clay.d"):
+        os.utime(path, (T0, T0))
+    assert _commands(tree, "atlas") == []
+    _touch(data)
+    assert [c for c in _commands(tree, "atlas") if "--cache-only" in c] == [
+        ".venv/bin/atlasgen bake materials/clay.toml --cache build/cache --cache-only --depfile build/cache/clay.d "
+        "--depfile-target build/cache/clay.npz -q"
+    ]
+
+
+def test_a_cache_entry_whose_depfile_is_gone_is_baked_again(tree):
+    """Without build/cache/X.d make does not know the files the material names: it is baked again, which writes it."""
+    (tree / "build" / "cache" / "snow.d").unlink()
+    baked = [c for c in _commands(tree, "atlas") if "--cache-only" in c]
+    assert len(baked) == 1 and "bake materials/snow.toml" in baked[0], baked

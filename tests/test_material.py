@@ -1,6 +1,7 @@
 """Reading material files: every bad input is a one-line error naming file, field and expectation."""
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -110,3 +111,68 @@ def test_not_utf8(tmp_path):
     p.write_bytes(b'type = "lambert"\n\xff\xfe')
     with pytest.raises(MaterialError, match="expected UTF-8"):
         read_material(p)
+
+
+def _textured(tmp_path, colour=(255, 0, 0)):
+    """A material naming an image beside it (a Mitsuba bitmap), and another image of the same name elsewhere."""
+    import OpenImageIO as oiio
+
+    folder = tmp_path / "materials"
+    folder.mkdir(exist_ok=True)
+    for path, value in ((folder / "tex.png", colour), (tmp_path / "tex.png", (0, 0, 255))):
+        image = oiio.ImageBuf(oiio.ImageSpec(4, 4, 3, oiio.UINT8))
+        oiio.ImageBufAlgo.fill(image, [c / 255 for c in value])
+        assert image.write(str(path))
+    material = folder / "tx.toml"
+    material.write_text('type = "bsdf"\ngloss = 0.5\n'
+                        'bsdf = { type = "diffuse", reflectance = { type = "bitmap", filename = "tex.png" } }\n')  # fmt: skip
+    return material
+
+
+@pytest.mark.slow
+def test_a_file_a_material_names_is_read_from_the_material_s_folder(mitsuba_llvm, tmp_path, monkeypatch):
+    """Mitsuba read a relative filename from the working folder: baked from materials/ or from the root, the same
+    material file read two images (two atlases, one content hash), and from elsewhere none. It is now read from the
+    material file's folder, its bytes are in the content hash (a changed image is another material, which the cache
+    must see), and the bake depends on it."""
+    material = _textured(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    (m,) = read_materials([material])
+    image = (tmp_path / "materials" / "tex.png").resolve()
+    assert m.params["bsdf"]["reflectance"]["filename"] == str(image) and m.includes == (image.as_posix(),)
+    monkeypatch.chdir(tmp_path / "materials")
+    assert read_materials([Path("tx.toml")])[0].content_hash == m.content_hash
+    _textured(tmp_path, colour=(0, 255, 0))
+    assert read_materials([Path("tx.toml")])[0].content_hash != m.content_hash
+
+
+def test_a_file_a_material_names_that_is_not_there_is_one_line(tmp_path):
+    """Mitsuba's refusal came with OpenImageIO's complaints on stdout; it is refused before, naming the field."""
+    (tmp_path / "m.toml").write_text('type = "bsdf"\nbsdf = { type = "diffuse", reflectance = { type = "bitmap", '
+                                     'filename = "missing.png" } }\n')  # fmt: skip
+    with pytest.raises(MaterialError) as info:
+        read_materials([tmp_path / "m.toml"])
+    assert str(info.value) == (f"{(tmp_path / 'm.toml').as_posix()}: field 'bsdf.reflectance.filename': expected a file "
+                               "(a relative name is from the material file's folder), got 'missing.png': "
+                               f"{(tmp_path / 'missing.png').as_posix()}: no such file")  # fmt: skip
+
+
+@pytest.mark.slow
+def test_an_atlas_of_a_material_naming_a_file_is_the_same_bytes_from_any_folder(mitsuba_llvm, tmp_path, monkeypatch):
+    """The manifest holds the file relative to its own folder (as it holds source), and a reader takes it from
+    there: validate by name from another folder reads the same image."""
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.io.atlas import read_atlas
+
+    material = _textured(tmp_path)
+    written = []
+    for cwd, given, out in ((tmp_path, "materials/tx.toml", "out1/a.dds"), (tmp_path / "materials", "tx.toml", "../out2/a.dds")):
+        monkeypatch.chdir(cwd)
+        write_bake(bake_atlas(read_materials([Path(given)])), Path(out))
+        written.append({s: Path(out).with_suffix(s).read_bytes() for s in (".dds", ".json")})
+    assert written[0] == written[1]
+    assert b'"filename": "../materials/tex.png"' in written[0][".json"]
+    monkeypatch.chdir(tmp_path / "out1")
+    entry = read_atlas(tmp_path / "out2" / "a.dds").manifest.materials[0]
+    assert entry.params["bsdf"]["reflectance"]["filename"] == str((tmp_path / "materials" / "tex.png").resolve())
+    assert material.exists()

@@ -34,6 +34,7 @@ from atlasgen.io.ktx2 import (
 )
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
 from atlasgen.io.output_paths import check_suffix
+from atlasgen.io.referenced_files import relative_files
 from atlasgen.io.sidecar import stamp_sidecar
 from atlasgen.io.text import MISSING, path_kind
 from atlasgen.models import get_model
@@ -421,7 +422,9 @@ def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[b
     """The texture, the manifest that records its hash (``atlas_sha256``, entries' ``source``
     relative to the manifest's folder) and that manifest's bytes, for the files ``paths`` names."""
     manifest_dir = paths["manifest"].parent
-    materials = [replace(e, source=relative_source(e.source, manifest_dir)) for e in result.manifest.materials]
+    # The files a material names (absolute in memory) as the manifest holds them: from its folder, as source is.
+    materials = [replace(e, source=relative_source(e.source, manifest_dir), params=relative_files(e.params, manifest_dir))
+                 for e in result.manifest.materials]  # fmt: skip
     manifest = replace(result.manifest, materials=materials, atlas_sha256=texel_sha256(result.levels))
     manifest_bytes = format_manifest(manifest).encode()
     return encode_atlas_texture(result, paths["dds"], manifest_bytes, zstd), manifest, manifest_bytes

@@ -26,7 +26,7 @@ from atlasgen.errors import InputError
 from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.fields import counted
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
-from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest, read_manifest_text
+from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest, read_manifest_text, with_absolute_files
 from atlasgen.io.text import MISSING, path_kind, read_input_bytes
 from atlasgen.optics.quantize import dequantize_rgba
 
@@ -155,7 +155,7 @@ def read_atlas(path) -> Atlas:
     if path_kind(manifest_path) == MISSING:
         return Atlas(path, image, None)
     text = read_manifest_text(manifest_path)
-    manifest = parse_manifest(text, manifest_path.as_posix())
+    manifest = with_absolute_files(parse_manifest(text, manifest_path.as_posix()), manifest_path.parent)
     manifest_sha256 = hashlib.sha256(text.encode("utf-8")).hexdigest()
     _check_pair(path, image, manifest_path, manifest, manifest_sha256)
     return Atlas(path, image, manifest, manifest_sha256)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Literal, TypeGuard, overload
 
@@ -33,6 +33,7 @@ from atlasgen.contract import FORMAT_VERSION, LAYERS, MAPPING, NAME_PATTERN, SPE
 from atlasgen.errors import ManifestError, shorten
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.fields import fits_float32, is_number
+from atlasgen.io.referenced_files import absolute_files, referenced_files
 from atlasgen.io.text import loads_json, read_input_text
 
 __all__ = [
@@ -892,7 +893,16 @@ def read_manifest(path) -> Manifest:
         It is not JSON, not an object, of another format version, or a field is wrong.
     """
     text = read_manifest_text(path)
-    return parse_manifest(text, Path(path).as_posix())
+    return with_absolute_files(parse_manifest(text, Path(path).as_posix()), Path(path).parent)
+
+
+def with_absolute_files(manifest: Manifest, folder) -> Manifest:
+    """``manifest`` read from ``folder``, with each file its entries' params name (a ``measured`` BSDF's data) absolute:
+    the file holds them relative to its own folder (:func:`atlasgen.io.referenced_files.relative_files`), and they are
+    read wherever the command runs. The manifest's bytes are written from the bake's entries, never from these."""
+    if not any(referenced_files(m.params) for m in manifest.materials):
+        return manifest
+    return replace(manifest, materials=[replace(m, params=absolute_files(m.params, folder)) for m in manifest.materials])
 
 
 #: The largest manifest read: 256 materials with every auto candidate recorded are a few megabytes; a 100 MB

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 
@@ -10,6 +11,7 @@ from atlasgen.contract import NAME_PATTERN, material_constant
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, validate_params
 from atlasgen.io.fields import shown as short
+from atlasgen.io.referenced_files import map_files, referenced_files
 from atlasgen.io.text import MISSING, check_path_text, decode_utf8, parse_toml, path_kind, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
@@ -167,6 +169,7 @@ def read_material(path) -> Material:
     model = get_model(type_name)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
     params = validate_params(model.params, model_raw, shown)
+    params, files = _resolve_files(params, path, shown)
     model.check(params, shown)
     for key, when in model.unused_fields(params).items():
         if key in model_raw:
@@ -194,7 +197,7 @@ def read_material(path) -> Material:
         type=type_name,
         params=params,
         source=shown,
-        content_hash=hashlib.sha256(data).hexdigest(),
+        content_hash=_content_hash(data, files),
         id=material_id,
         description=description,
         rgb_scale=_scale_field(raw, "rgb_scale", shown),
@@ -204,7 +207,36 @@ def read_material(path) -> Material:
         fit_gloss=fit_gloss,
         nonfinite_tolerance=int(_NONFINITE.coerce(raw.get("nonfinite_tolerance", 0), shown)),
         look_goal=_look_goal(raw, shown),
+        includes=tuple(Path(resolved).as_posix() for _, resolved in files),
     )
+
+
+def _resolve_files(params: dict, path: Path, shown: str) -> tuple[dict, list[tuple[str, str]]]:
+    """``params`` with each file they name (:func:`~atlasgen.io.referenced_files.referenced_files`) absolute, a relative
+    name taken from the material file's folder, and ``(name as given, absolute path)`` of each: a name that is no
+    file is refused on one line naming its field (Mitsuba read it from the working folder, so another folder baked
+    another file, or printed OpenImageIO's complaints on stdout)."""
+    found = referenced_files(params)
+    resolved: dict[str, str] = {}
+    for where, name in found:
+        target = Path(name) if Path(name).is_absolute() else path.parent / name
+        kind = path_kind(target)
+        if kind is not None:
+            what = "no such file" if kind == MISSING else kind
+            raise MaterialError(shown, where, f"expected a file (a relative name is from the material file's folder), "
+                                f"got {short(name)}: {target.as_posix()}: {what}")  # fmt: skip
+        resolved[name] = os.path.abspath(target)
+    return map_files(params, lambda name: resolved.get(name, name)), [(name, resolved[name]) for _, name in found]
+
+
+def _content_hash(data: bytes, files: list[tuple[str, str]]) -> str:
+    """SHA-256 of the material file's bytes, then of each file it names (its name as given and its bytes' SHA-256): a
+    changed data file is another material, which the bake's cache and the manifest's hash must see."""
+    digest = hashlib.sha256(data)
+    for name, resolved in files:
+        with open(resolved, "rb") as handle:
+            digest.update(b"\0" + name.encode("utf-8") + b"\0" + hashlib.file_digest(handle, "sha256").digest())
+    return digest.hexdigest()
 
 
 def read_material_file(path, materialx_flatten=None) -> list[Material]:

@@ -25,6 +25,7 @@ from atlasgen.io.images import encode_png
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.io.package_data import package_data_path
+from atlasgen.io.referenced_files import referenced_files as find_referenced_files
 from atlasgen.materials.material import Material, check_unique_names, find_material_files, read_material, read_materials
 from atlasgen.materials.scene import Scene
 from atlasgen.preview.label import draw_label, label_lines
@@ -150,22 +151,9 @@ def default_output(paths) -> Path:
 
 def referenced_files(material: Material) -> list[Path]:
     """The files ``material`` names besides its own: every ``filename`` in its parameters (a Mitsuba
-    ``measured`` BSDF's data, a bitmap), resolved as Mitsuba resolves them, from the working folder."""
-    found: list[Path] = []
-
-    def walk(value) -> None:
-        if isinstance(value, dict):
-            for key, item in value.items():
-                if key == "filename" and isinstance(item, str):
-                    found.append(Path(item))
-                else:
-                    walk(item)
-        elif isinstance(value, (list, tuple)):
-            for item in value:
-                walk(item)
-
-    walk(material.params)
-    return found
+    ``measured`` BSDF's data, a bitmap), absolute where the material was read from its file
+    (:func:`atlasgen.materials.material.read_material` takes a relative name from the file's folder)."""
+    return [Path(name) for _, name in find_referenced_files(material.params)]
 
 
 def check_preview_output(output, sources) -> None:
