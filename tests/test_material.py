@@ -176,3 +176,53 @@ def test_an_atlas_of_a_material_naming_a_file_is_the_same_bytes_from_any_folder(
     entry = read_atlas(tmp_path / "out2" / "a.dds").manifest.materials[0]
     assert entry.params["bsdf"]["reflectance"]["filename"] == str((tmp_path / "materials" / "tex.png").resolve())
     assert material.exists()
+
+
+@pytest.mark.slow
+def test_a_file_a_material_names_is_found_through_linked_folders(mitsuba_llvm, tmp_path, monkeypatch):
+    """The manifest measured the name from the output folder's real place, and the reader joined it to the folder as
+    given: an atlas written through a link (lnk -> real/deep/out) named /mat/tex.png. And a name with "link/.." was
+    checked where the system finds it but hashed where the text folds."""
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.io.atlas import read_atlas
+
+    material = _textured(tmp_path)
+    image = (tmp_path / "materials" / "tex.png").resolve()
+    (tmp_path / "real" / "deep" / "out").mkdir(parents=True)
+    (tmp_path / "lnk").symlink_to(tmp_path / "real" / "deep" / "out")
+    monkeypatch.chdir(tmp_path)
+    write_bake(bake_atlas(read_materials([material])), Path("lnk/a.dds"))
+    entry = read_atlas(Path("lnk/a.dds")).manifest.materials[0]
+    assert entry.params["bsdf"]["reflectance"]["filename"] == str(image)
+    (tmp_path / "materials" / "sl").symlink_to(tmp_path / "real" / "deep")
+    material.write_text(material.read_text().replace('"tex.png"', '"sl/../tex.png"'))  # the system: real/tex.png
+    with pytest.raises(MaterialError, match=r"got 'sl/\.\./tex\.png': .*: no such file"):
+        read_materials([material])
+    (tmp_path / "real" / "tex.png").write_bytes(image.read_bytes())
+    (m,) = read_materials([material])
+    assert m.params["bsdf"]["reflectance"]["filename"] == str((tmp_path / "real" / "tex.png").resolve())
+
+
+@pytest.mark.slow
+def test_validating_an_atlas_whose_named_file_is_gone_is_one_line(mitsuba_llvm, tmp_path):
+    """An atlas moved away from the file its material names: validate ended in OpenImageIO's complaints and an
+    internal error. The manifest's field is named."""
+    from click.testing import CliRunner
+
+    from atlasgen.bake.pipeline import bake_atlas, write_bake
+    from atlasgen.cli.main import app
+
+    material = _textured(tmp_path)
+    write_bake(bake_atlas(read_materials([material])), tmp_path / "out" / "a.dds")
+    (tmp_path / "elsewhere" / "deeper").mkdir(parents=True)
+    for path in (tmp_path / "out").glob("a.*"):  # copied as files (the outputs are links into their store)
+        (tmp_path / "elsewhere" / "deeper" / path.name).write_bytes(path.read_bytes())
+    atlas = tmp_path / "elsewhere" / "deeper" / "a.dds"
+    res = CliRunner().invoke(app, ["validate", "tx", "--atlas", str(atlas), "--no-physical", "--resolution", "32x24",
+                                   "--no-reference-cache", "-o", str(tmp_path / "v")])  # fmt: skip
+    assert res.exit_code == 3, res.output
+    assert res.stderr.splitlines() == [
+        f"atlasgen: error: {atlas.with_suffix('.json').as_posix()}: field 'materials[0].params.bsdf.reflectance.filename': "
+        f"expected the file the material was baked from, got {tmp_path / 'elsewhere' / 'materials' / 'tex.png'}: no such "
+        "file (moved since the bake? re-run atlasgen bake)"
+    ]

@@ -78,5 +78,8 @@ def relative_files(params: dict, folder) -> dict:
 
 
 def absolute_files(params: dict, folder) -> dict:
-    """``params`` read from a manifest in ``folder``: each relative file name made absolute from ``folder``."""
-    return map_files(params, lambda name: name if os.path.isabs(name) else os.path.abspath(os.path.join(folder, name)))
+    """``params`` read from a manifest in ``folder``: each relative file name made absolute from ``folder``'s real place,
+    where :func:`relative_files` measured it from (a ``..`` out of a folder reached through a link is followed from
+    where the folder really is, not textually from the link)."""
+    base = os.path.realpath(folder)
+    return map_files(params, lambda name: name if os.path.isabs(name) else os.path.normpath(os.path.join(base, name)))

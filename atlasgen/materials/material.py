@@ -225,7 +225,8 @@ def _resolve_files(params: dict, path: Path, shown: str) -> tuple[dict, list[tup
             what = "no such file" if kind == MISSING else kind
             raise MaterialError(shown, where, f"expected a file (a relative name is from the material file's folder), "
                                 f"got {short(name)}: {target.as_posix()}: {what}")  # fmt: skip
-        resolved[name] = os.path.abspath(target)
+        # The file the system found: abspath would fold a "link/.." textually, and name another file than the one checked.
+        resolved[name] = os.path.realpath(target)
     return map_files(params, lambda name: resolved.get(name, name)), [(name, resolved[name]) for _, name in found]
 
 

@@ -31,7 +31,8 @@ from atlasgen.errors import BackendError, InputError, ManifestError, MaterialErr
 from atlasgen.io.atlas import Atlas, read_atlas
 from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import Manifest
-from atlasgen.io.text import path_kind
+from atlasgen.io.referenced_files import referenced_files
+from atlasgen.io.text import MISSING, path_kind
 from atlasgen.materials.material import MAX_MATERIAL_BYTES, read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
 from atlasgen.models import check_manifest_models, get_model
@@ -376,6 +377,15 @@ def _check_param_values(atlas_path, index: int, entry) -> None:
         validate_params(schema, given, atlas_path.with_suffix(".json").as_posix())
     except MaterialError as exc:
         raise ManifestError(exc.path, f"materials[{index}].params.{exc.field}", exc.expected) from None
+    # A file the material names (its manifest holds it relative to itself): moved or deleted since the bake, Mitsuba's
+    # references failed with OpenImageIO's complaints and an internal error.
+    for where, name in referenced_files(entry.params):
+        kind = path_kind(name)
+        if kind is not None:
+            raise ManifestError(atlas_path.with_suffix(".json").as_posix(), f"materials[{index}].params.{where}",
+                                f"expected the file the material was baked from, got {name}: "
+                                f"{'no such file' if kind == MISSING else kind} (moved since the bake? re-run atlasgen "
+                                "bake)")  # fmt: skip
 
 
 def _object_entries(scene, entry, manifest) -> list:
