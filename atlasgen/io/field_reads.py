@@ -23,6 +23,7 @@ raises, the last field read is the one it stopped on.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 __all__ = ["FieldReads", "ABSENT"]
 
@@ -32,17 +33,60 @@ ABSENT = type("Missing", (), {"__repr__": lambda self: "nothing (the key is miss
 
 
 class FieldReads:
-    """The last field read through the values :meth:`track` wrapped: ``(path, value)``, or None before any; the
-    value is :data:`ABSENT` where the key read is not there."""
+    """The fields read through the values :meth:`track` wrapped: :attr:`last` the last ``(path, value)``, or None
+    before any (the value is :data:`ABSENT` where the key read is not there), and :meth:`culprit` the one a failure
+    most likely stopped on."""
+
+    #: How many of the most recent reads :meth:`culprit` looks back over.
+    LOOK_BACK = 512
 
     def __init__(self) -> None:
         self.last: tuple[str, object] | None = None
+        self._history: list[tuple[str, object]] = []
+        self._by_field: dict[str, list[tuple[str, str]]] = {}  # the path, list indices as [*] -> (path, kind) of each
+        self._by_parent: dict[str, list[tuple[str, str]]] = {}  # a container's path -> (path, kind) of its members
 
     def note(self, path: str, value) -> None:
         self.last = (path, value)
+        self._history.append((path, value))
+        if len(self._history) > 2 * self.LOOK_BACK:
+            del self._history[: self.LOOK_BACK]
+
+    def missing(self, path: str, key) -> None:
+        """A lookup of ``key`` that found nothing (or could not hash it): where the key is the value just read, it came
+        from the document, and the field that gave it stays the one to name ("reference": "x" looked up in
+        references); else the key at ``path`` is missing."""
+        if self.last is not None and type(self.last[1]) is type(key) and self.last[1] == key:
+            return
+        self.note(path, ABSENT)
+
+    def culprit(self) -> tuple[str, object] | None:
+        """The field a failure most likely stopped on: a missing key where the last read found none; else, going back
+        over the recent reads, the first value of another kind than the same field of the document's other list
+        entries (``by_resolution[0].cost`` a string where every other row's is a number), or than its siblings where
+        they are all numbers (a formatter reads a row's figures, then formats them: the last read may be a good
+        one); else the last read."""
+        if self.last is None or self.last[1] is ABSENT:
+            return self.last
+        for path, value in reversed(self._history[-self.LOOK_BACK :]):
+            if value is not ABSENT and self._odd(path, value):
+                return path, value
+        return self.last
+
+    def _odd(self, path: str, value) -> bool:
+        kind = _kind(value)
+        if kind == "null":
+            return False
+        peers = {k for p, k in self._by_field.get(_INDEX.sub("[*]", path), []) if p != path and k != "null"}
+        if peers:
+            return kind not in peers
+        siblings = [k for p, k in self._by_parent.get(_parent(path), []) if p != path]
+        return kind != "number" and len(siblings) >= 2 and set(siblings) == {"number"}
 
     def track(self, value, path: str = ""):
         """``value`` with its dicts and lists (and a dataclass's fields) recording each read of theirs here."""
+        self._by_field.setdefault(_INDEX.sub("[*]", path), []).append((path, _kind(value)))
+        self._by_parent.setdefault(_parent(path), []).append((path, _kind(value)))
         if isinstance(value, dict):
             return _Dict({k: self.track(v, _key_path(path, k)) for k, v in value.items()}, path, self)
         if isinstance(value, list):
@@ -53,11 +97,38 @@ class FieldReads:
         return value
 
 
+#: A list index in a field's path.
+_INDEX = re.compile(r"\[\d+\]")
+
+
+def _parent(path: str) -> str:
+    """The path of the container that holds the field at ``path``."""
+    cut = max(path.rfind("."), path.rfind("["))
+    return path[: max(cut, 0)]
+
+
+def _kind(value) -> str:
+    """What a JSON value is, as far as a formatter cares: a number (not a bool), text, a bool, null, a list or an object."""
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int | float):
+        return "number"
+    if value is None:
+        return "null"
+    if isinstance(value, str):
+        return "text"
+    return "list" if isinstance(value, list) else "object"
+
+
 class _Untracked:
     """Where a copy made by its type (``dataclasses.asdict`` builds ``type(d)(items)``) notes its reads: nowhere."""
 
     @staticmethod
     def note(path: str, value) -> None:
+        pass
+
+    @staticmethod
+    def missing(path: str, key) -> None:
         pass
 
 
@@ -71,8 +142,11 @@ class _Dict(dict):
         self._path, self._reads = path, reads
 
     def __getitem__(self, key):
-        self._reads.note(_key_path(self._path, key), ABSENT)  # stays, where the lookup raises KeyError
-        value = super().__getitem__(key)
+        try:
+            value = super().__getitem__(key)
+        except (KeyError, TypeError):  # no such key, or one that cannot be one (a list)
+            self._reads.missing(_key_path(self._path, key), key)
+            raise
         self._reads.note(_key_path(self._path, key), value)
         return value
 

@@ -103,10 +103,11 @@ def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
             _formatted([reads.track(study, f"[{index}]")], {study.name: plots[study.name]})
         except _MALFORMED as own:
             where = f"entry {index} ({shorten(repr(study.name))})"
-            if reads.last is None:
+            culprit = reads.culprit()
+            if culprit is None:
                 raise InputError(f"{path.as_posix()}: {where} is not a material study as atlasgen report separable "
                                  f"writes it ({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
-            field, value = reads.last
+            field, value = culprit
             got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
             raise FieldError(path.as_posix(), field, f"expected the value atlasgen report separable writes there, {got} "
                              f"({type(own).__name__}: {shorten(str(own))}; {where})") from None  # fmt: skip

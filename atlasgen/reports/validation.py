@@ -1030,15 +1030,17 @@ def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc
                 own = _page_error(data, [reads.track(row, f"results[{i}]")], out_dir)
                 if own is not None:
                     what = f"{row['material']} on {row['scene']}"
-                    if reads.last is None:
+                    culprit = reads.culprit()
+                    if culprit is None:
                         raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({what}) is not a result as "
                                          "atlasgen validate writes it, so the merged page cannot be written "
                                          f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
-                    raise FieldError(path.as_posix(), reads.last[0], _expected_written(reads.last[1], own, what)) from None
+                    raise FieldError(path.as_posix(), culprit[0], _expected_written(culprit[1], own, what)) from None
         exc = shared or exc
     shown = ", ".join(p.as_posix() for p in paths)
-    if shared is not None and reads.last is not None:
-        raise FieldError(shown, reads.last[0], _expected_written(reads.last[1], shared)) from None
+    culprit = reads.culprit() if shared is not None else None
+    if culprit is not None:
+        raise FieldError(shown, culprit[0], _expected_written(culprit[1], shared)) from None
     raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
                      f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
 

@@ -55,3 +55,38 @@ def test_a_dataclass_s_fields_are_noted_and_it_stays_one():
 def test_the_tracked_document_equals_the_original():
     doc = {"a": [1, {"b": [2.5, None]}], "c": "text"}
     assert FieldReads().track(doc) == doc and FieldReads().track(list(doc["a"])) == doc["a"]
+
+
+def _culprit(document, use):
+    reads = FieldReads()
+    tracked = reads.track(document, "[0]")
+    with pytest.raises((TypeError, KeyError, AttributeError, ValueError)):
+        use(tracked)
+    return reads.culprit()
+
+
+def test_a_key_taken_from_the_document_names_the_field_that_gave_it():
+    """look.reference made [1], {} or "x": the page looks it up in references, and the refusal named
+    'references.[1]', a field no report has. The field that gave the key is named."""
+    for bad in ([1], {}, "x"):
+        doc = {"look": {"reference": bad}, "references": {"model": {"psnr": 40.0}}}
+        assert _culprit(doc, lambda d: d["references"][d["look"]["reference"]]["psnr"]) == ("[0].look.reference", bad)
+
+
+def test_a_value_read_before_the_failure_is_named_by_its_kind():
+    """A formatter reads a row's figures, then formats them, or scans every row before it uses one: the last read
+    was a good value (relative_rms beside the edited relative_rms_se; row 27 for an edited row 0). The value of
+    another kind than the same field of the other rows, or than siblings that are all numbers, is named."""
+    figures = {"relative_rms": 0.02, "relative_rms_se": "x", "relative_log_rms": 0.01}
+
+    def page(d):
+        se = d["chosen"]["relative_rms_se"]
+        rms = d["chosen"]["relative_rms"]
+        return f"{rms:.2%} +- {se:.2%}"
+
+    assert _culprit({"chosen": figures}, page) == ("[0].chosen.relative_rms_se", "x")
+    rows = [{"cost": "x" if i == 0 else float(i), "error": 0.1} for i in range(30)]
+    assert _culprit({"rows": rows}, lambda d: sorted(r["cost"] for r in d["rows"])) == ("[0].rows[0].cost", "x")
+    # A good text among numbers is not blamed where the last read is of no other kind.
+    named = {"name": "gold", "a": 1.0, "b": 2.0}
+    assert _culprit(named, lambda d: d["a"] + d["b"] + d["missing"]) == ("[0].missing", ABSENT)

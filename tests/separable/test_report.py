@@ -201,6 +201,12 @@ def _set(data, keys, value):
     (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms.height': expected the value atlasgen report "
                                             "separable writes there, missing (KeyError: 'height'; entry 0 ('lobe'))"),
     (["charts"], [1, 2], "field '[0].charts': expected the value atlasgen report separable writes there, got [1, 2]"),
+    # Read before the failure (a formatter scans every row, or reads a row's figures, then formats them): named by
+    # its kind against the same field of the other rows, or against its siblings (the last read was a good one).
+    (["by_resolution", 0, "cost"], "x", "field '[0].by_resolution[0].cost': expected the value atlasgen report "
+                                        "separable writes there, got 'x'"),
+    (["chosen", "float", "relative_rms_se"], "x", "field '[0].chosen.float.relative_rms_se': expected the value "
+                                                  "atlasgen report separable writes there, got 'x'"),
     (["by_terms", "f_cos", "float", 1], "small", "field '[0].by_terms.f_cos.float[1]': expected the value atlasgen "
                                                  "report separable writes there, got 'small'"),
     (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
