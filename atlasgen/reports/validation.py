@@ -945,6 +945,26 @@ def check_result_figures(path, results, merged: bool = False) -> None:
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}.images", "expected image paths")
             for key in _REFERENCE_NUMBERS:
                 check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
+            _check_verdict(path, f"results[{i}].references.{kind}", ref)
+        look = row.get("look")
+        if look is not None:
+            _check_verdict(path, f"results[{i}].look", look)
+            goal = look.get("goal")
+            if goal is not None:
+                if not isinstance(goal, dict):
+                    raise FieldError(Path(path).as_posix(), f"results[{i}].look.goal",
+                                     f"expected an object of goals, got {shorten(repr(goal))}")  # fmt: skip
+                for key in ("psnr_db", "flip"):
+                    check_number(path, f"results[{i}].look.goal.{key}", goal.get(key), minimum=0.0)
+
+
+def _check_verdict(path, where: str, part: dict) -> None:
+    """A verdict as atlasgen validate writes it: ``meets_goal`` true, false or null. A merge copied "yes" into its report,
+    and a summary counted it as met (the check of verdicts against figures reads only true and false)."""
+    value = part.get("meets_goal")
+    if value is not None and not isinstance(value, bool):
+        raise FieldError(Path(path).as_posix(), f"{where}.meets_goal", f"expected true, false or null as atlasgen validate "
+                         f"writes it, got {shorten(repr(value))}")  # fmt: skip
 
 
 def _check_claimed(path, where: str, claimed) -> None:

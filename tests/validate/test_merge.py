@@ -210,6 +210,15 @@ def _put(value, *keys):
      "expected a number >= 0, got -0.5"),
     (_put({"terms": 2.5}, "results", 0, "claimed_errors"), "results[0].claimed_errors.terms",
      "expected a whole number of terms, got 2.5"),
+    # Merged as they were, and "yes" counted as met: a verdict is true, false or null, a look goal numbers.
+    (_put("yes", "results", 0, "references", "*", "meets_goal"), ".meets_goal",
+     "expected true, false or null as atlasgen validate writes it, got 'yes'"),
+    (_put({"meets_goal": 1}, "results", 0, "look"), "results[0].look.meets_goal",
+     "expected true, false or null as atlasgen validate writes it, got 1"),
+    (_put({"meets_goal": None, "goal": {"psnr_db": 30.0, "flip": "0.05"}}, "results", 0, "look"),
+     "results[0].look.goal.flip", "expected a finite number or null, got '0.05'"),
+    (_put({"meets_goal": None, "goal": [30]}, "results", 0, "look"), "results[0].look.goal",
+     "expected an object of goals, got [30]"),
 ])  # fmt: skip
 def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, change, field, expected):
     """Each of these was an internal error (KeyError, TypeError, AttributeError) or merged silently."""
