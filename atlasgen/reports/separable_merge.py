@@ -75,6 +75,37 @@ def _check_chosen(path: Path, where: str, item: dict) -> None:
     if isinstance(timings, dict):
         for key, value in timings.items():
             check_number(path, f"{where}.timings.{key}", value, minimum=0)
+    _check_rows(path, where, item)
+
+
+#: Per table of a study, its rows' figures (numbers >= 0) and counts (whole numbers >= 1): the page formats some and
+#: the merge copies every one, so a hand-edited "x" was merged into its report.json where formatting did not fail.
+_ROWS = {"pareto": (("cost", "seconds", "relative_rms"), ("resolution", "terms")),
+         "by_resolution": (("relative_rms", "seconds", "cost"), ("resolution", "terms"))}  # fmt: skip
+
+
+def _check_rows(path: Path, where: str, item: dict) -> None:
+    """Refuse a study whose table rows or chart sizes are not what atlasgen report separable writes, naming the field."""
+    for table, (figures, counts) in _ROWS.items():
+        rows = item.get(table)
+        if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
+            raise FieldError(path.as_posix(), f"{where}.{table}", f"expected a list of rows, got {shorten(repr(rows))}")
+        for i, row in enumerate(rows):
+            for key in figures:
+                check_number(path, f"{where}.{table}[{i}].{key}", row.get(key), minimum=0)
+            for key in counts:
+                value = row.get(key)
+                if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+                    raise FieldError(path.as_posix(), f"{where}.{table}[{i}].{key}",
+                                     f"expected a whole number >= 1, got {shorten(repr(value))}")  # fmt: skip
+    charts = item.get("charts") or {}
+    if not isinstance(charts, dict):
+        raise FieldError(path.as_posix(), f"{where}.charts", f"expected an object of charts, got {shorten(repr(charts))}")
+    for kind, chart in charts.items():
+        sizes = [chart.get(k) for k in ("width", "height")] if isinstance(chart, dict) else [None]
+        if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in sizes):
+            raise FieldError(path.as_posix(), f"{where}.charts.{kind}", "expected a chart's width and height in pixels "
+                             f"and its labels, got {shorten(repr(chart))}")  # fmt: skip
 
 
 def _charts(study: MaterialStudy) -> dict:

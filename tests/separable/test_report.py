@@ -195,18 +195,18 @@ def _set(data, keys, value):
 @pytest.mark.slow
 @pytest.mark.parametrize(("keys", "value", "expected"), [
     # Deeper than the checks read: named by the field formatting stopped on (it named only the entry).
-    (["by_resolution"], "x", "field '[0].by_resolution': expected the value atlasgen report separable writes there, "
-                             "got 'x' (TypeError: "),
     (["by_terms"], None, "field '[0].by_terms': expected the value atlasgen report separable writes there, got None"),
-    (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms.height': expected the value atlasgen report "
-                                            "separable writes there, missing (KeyError: 'height'; entry 0 ('lobe'))"),
-    (["charts"], [1, 2], "field '[0].charts': expected the value atlasgen report separable writes there, got [1, 2]"),
-    # Read before the failure (a formatter scans every row, or reads a row's figures, then formats them): named by
-    # its kind against the same field of the other rows, or against its siblings (the last read was a good one).
-    (["by_resolution", 0, "cost"], "x", "field '[0].by_resolution[0].cost': expected the value atlasgen report "
-                                        "separable writes there, got 'x'"),
+    # Read before the failure (a formatter reads a row's figures, then formats them): named by its kind against its
+    # siblings (the last read was a good one).
     (["chosen", "float", "relative_rms_se"], "x", "field '[0].chosen.float.relative_rms_se': expected the value "
                                                   "atlasgen report separable writes there, got 'x'"),
+    # Checked ahead, where formatting might not fail and the merge copied them into its report.json.
+    (["by_resolution"], "x", "field '[0].by_resolution': expected a list of rows, got 'x'"),
+    (["by_resolution", 0, "cost"], "x", "field '[0].by_resolution[0].cost': expected a finite number or null, got 'x'"),
+    (["by_resolution", 1, "terms"], "x", "field '[0].by_resolution[1].terms': expected a whole number >= 1, got 'x'"),
+    (["pareto", 0, "seconds"], "x", "field '[0].pareto[0].seconds': expected a finite number or null, got 'x'"),
+    (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms': expected a chart's width and height in pixels"),
+    (["charts"], [1, 2], "field '[0].charts': expected an object of charts, got [1, 2]"),
     (["by_terms", "f_cos", "float", 1], "small", "field '[0].by_terms.f_cos.float[1]': expected the value atlasgen "
                                                  "report separable writes there, got 'small'"),
     (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
