@@ -8,6 +8,7 @@ importing them.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import re
 from collections.abc import Callable, Mapping
@@ -35,6 +36,7 @@ from atlasgen.shaders.lang import (
     Var,
     emit,
     float_literal,
+    split_call,
 )
 from atlasgen.shaders.specular import specular_declarations
 
@@ -166,8 +168,48 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
             )
         )
     for type_name, entries in _by_type(manifest):
-        decls += models(type_name).include_declarations(entries)
+        added = models(type_name).include_declarations(entries)
+        decls += [as_volume_reads(d) for d in added] if volume else added
     return [Storage(d.name, d.type, *storage[d.name]) if isinstance(d, Array) and d.name in storage else d for d in decls]
+
+
+def as_volume_reads(declaration):
+    """A model's ``declaration`` (written for a 2D array atlas) for a volume atlas: each ``texture_array`` parameter a
+    ``texture_3d``, each ``sample_array(t, s, uv, layer, lod)`` a ``sample_3d`` at the layer's depth centre.
+
+    A volume include's ``atlas_sample`` takes a Texture3D, so one bound atlas could not be passed to a separable
+    material's ``separable_f_cos``, which took a 2D array: the include did not compile. At a layer's centre, z = (layer
+    + 0.5) / LAYERS, a linear filter takes that layer alone at level 0, the level the models read; coarser levels
+    blend neighbouring layers, as ``atlas_sample``'s do in a volume.
+    """
+    if dataclasses.is_dataclass(declaration):
+        changes = {}
+        for f in dataclasses.fields(declaration):
+            value = getattr(declaration, f.name)
+            if f.name == "params":
+                changes[f.name] = tuple((n, "texture_3d" if t == "texture_array" else t) for n, t in value)
+            elif isinstance(value, str) and f.name in ("comment", "text"):
+                changes[f.name] = value.replace("as a 2D array texture", "as a 3D texture (the volume layout: each "
+                                                "layer read at its depth centre)")  # fmt: skip
+            elif isinstance(value, str) and f.name not in ("name", "type", "ret", "var"):
+                changes[f.name] = _volume_sampling(value)
+            elif isinstance(value, tuple):
+                changes[f.name] = as_volume_reads(value)
+        return dataclasses.replace(declaration, **changes)
+    if isinstance(declaration, tuple):
+        return tuple(as_volume_reads(item) for item in declaration)
+    return declaration
+
+
+def _volume_sampling(text: str) -> str:
+    """``text`` with each ``sample_array(t, s, uv, layer, lod)`` call read from a volume (:func:`as_volume_reads`)."""
+    out, i = [], 0
+    while (at := text.find("sample_array(", i)) >= 0:
+        args, end = split_call(text, at + len("sample_array"))
+        t, sampler, uv, layer, lod = (_volume_sampling(a) for a in args)
+        out += [text[i:at], f"sample_3d({t}, {sampler}, vec3({uv}, (f32({layer}) + 0.5) / f32(ATLAS_LAYERS)), {lod})"]
+        i = end
+    return "".join(out) + text[i:]
 
 
 def _sample_body(lookup: str, nearest: str, scale_bias: str) -> tuple:

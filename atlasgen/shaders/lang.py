@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 __all__ = [
     "LANGUAGES",
+    "split_call",
     "Const",
     "Array",
     "Storage",
@@ -170,7 +171,7 @@ class Switch:
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
-def _split_call(text: str, start: int) -> tuple[list[str], int]:
+def split_call(text: str, start: int) -> tuple[list[str], int]:
     """The top-level comma-separated arguments of the call whose '(' is at ``start``, and the index after ')'."""
     depth, args, current = 0, [], start + 1
     for i in range(start, len(text)):
@@ -222,7 +223,7 @@ def expr(lang: str, text: str) -> str:
             continue
         word, i = m.group(), m.end()
         if word in ("splat3", "sample_array", "sample_3d", "sample_2d"):
-            args, i = _split_call(text, i)
+            args, i = split_call(text, i)
             out.append(_pseudo(lang, word, [expr(lang, a) for a in args]))
         else:
             out.append(_TYPES[lang].get(word, _RENAMES[lang].get(word, word)))

@@ -306,13 +306,16 @@ def _random_frames(rng, count):
     return n, out[0], out[1]
 
 
-def _dispatch(ctx, level0, queries, lang, code):
+def _dispatch(ctx, level0, queries, lang, code, texture=None):
+    """Run ``code`` over ``queries`` with ``level0`` bound as a 2D array, or as ``texture`` (a 3D one) where given."""
     import wgpu
 
     device = ctx.device
     layers = level0.shape[0]
-    texture = device.create_texture(size=(64, 32, layers), format=wgpu.TextureFormat.rgba8unorm, dimension="2d",
-                                    usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)  # fmt: skip
+    volume = texture is not None
+    if texture is None:
+        texture = device.create_texture(size=(64, 32, layers), format=wgpu.TextureFormat.rgba8unorm, dimension="2d",
+                                        usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)  # fmt: skip
     device.queue.write_texture({"texture": texture, "origin": (0, 0, 0)}, np.ascontiguousarray(level0).tobytes(),
                                {"bytes_per_row": 64 * 4, "rows_per_image": 32}, (64, 32, layers))  # fmt: skip
     sampler = device.create_sampler(mag_filter="linear", min_filter="linear", address_mode_u="clamp-to-edge",
@@ -323,7 +326,7 @@ def _dispatch(ctx, level0, queries, lang, code):
     module = device.create_shader_module(label=f"include-{lang}", code=code)
     pipeline = device.create_compute_pipeline(layout="auto", compute={"module": module, "entry_point": "main"})
     bind = device.create_bind_group(layout=pipeline.get_bind_group_layout(0), entries=[
-        {"binding": 0, "resource": texture.create_view(dimension="2d-array")},
+        {"binding": 0, "resource": texture.create_view(dimension="3d" if volume else "2d-array")},
         {"binding": 1, "resource": sampler},
         {"binding": 2, "resource": {"buffer": q_buf, "offset": 0, "size": q_buf.size}},
         {"binding": 3, "resource": {"buffer": r_buf, "offset": 0, "size": r_buf.size}},
@@ -411,3 +414,44 @@ def test_each_language_samples_what_the_cpu_samples(lang, small_atlas, gpu_devic
 def _scale_bias(include: str, s: int):
     match = re.search(rf"case {s}u: {{ return vec4<f32>\(([^)]*)\); }}", include)
     return [float(x) for x in match.group(1).split(",")] if match else [1.0, 1.0, 0.0, 0.0]
+
+
+def _volume_code(lang: str) -> str:
+    """The compute shader of :data:`SHADERS` binding a volume (Texture3D) atlas instead of a 2D array."""
+    swap = {"wgsl": ("texture_2d_array<f32>", "texture_3d<f32>"), "glsl": ("texture2DArray", "texture3D"),
+            "hlsl": ("Texture2DArray<float4>", "Texture3D<float4>")}[lang]  # fmt: skip
+    return SHADERS[lang].replace(*swap)
+
+
+@pytest.mark.gpu
+@pytest.mark.slow
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_a_volume_include_reads_separable_terms_as_the_array_include_does(lang, small_atlas, tmp_path, gpu_device):
+    """A volume include's atlas_sample took a Texture3D while separable_f_cos took a 2D array, so one bound atlas
+    could not be passed to both: the include did not compile. The model code now reads the volume at each layer's
+    depth centre, where level 0 is the layer alone: every query, terms and LUT, gives the array include's value."""
+    import wgpu
+
+    from atlasgen.io.dds import read_dds
+
+    result, paths = small_atlas
+    materials = read_materials([Path(m.source) for m in result.manifest.materials])
+    volume = bake_atlas(materials, "volume", True, {})
+    vpaths = write_bake(volume, tmp_path / "atlas.dds")
+    queries, _ = _queries(result, np.random.default_rng(4))
+    level0 = np.asarray(read_dds(paths["dds"]).levels[0])
+    array_values = _dispatch(gpu_device, level0, queries, "wgsl", result.include + SHADERS["wgsl"])
+    if lang == "wgsl":
+        code = volume.include + _volume_code("wgsl")
+    else:
+        if GLSLANG is None:
+            pytest.skip("glslangValidator (Debian glslang-tools) is not installed")
+        code = _spirv(lang, vpaths["dds"].parent, _volume_code(lang), "volume")
+    device = gpu_device.device
+    texture = device.create_texture(size=(64, 32, level0.shape[0]), format=wgpu.TextureFormat.rgba8unorm, dimension="3d",
+                                    usage=wgpu.TextureUsage.TEXTURE_BINDING | wgpu.TextureUsage.COPY_DST)  # fmt: skip
+    vlevel0 = np.asarray(read_dds(vpaths["dds"]).levels[0])
+    assert np.array_equal(vlevel0, level0)  # level 0 holds the same texels in either layout
+    got = _dispatch(gpu_device, vlevel0, queries, lang, code, texture=texture)
+    assert gpu_device.take_errors() == []
+    np.testing.assert_allclose(got, array_values, rtol=0, atol=1e-5 * max(1.0, float(np.abs(array_values).max())))

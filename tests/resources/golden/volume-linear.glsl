@@ -472,7 +472,7 @@ vec3 atlas_env_prefiltered(texture2D env, sampler env_sampler, vec3 d, float lev
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
-// Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
+// Bind the atlas as a 3D texture (the volume layout: each layer read at its depth centre) with a linear, clamp-to-edge sampler. The data
 // (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
 
 vec4 SEPARABLE_TABLE[81] = vec4[81](
@@ -606,7 +606,7 @@ float separable_unwarp(float angle, vec4 axis) {
 
 // f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;
 // 0 for other IDs and below the horizon, except a transmission slice's light from below.
-vec3 separable_f_cos(texture2DArray atlas, sampler samp, uint material, vec3 n, vec3 l, vec3 v) {
+vec3 separable_f_cos(texture3D atlas, sampler samp, uint material, vec3 n, vec3 l, vec3 v) {
     uint block = 0u;
     uint terms = 0u;
     float back = 0.0;
@@ -626,7 +626,7 @@ vec3 separable_f_cos(texture2DArray atlas, sampler samp, uint material, vec3 n, 
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             vec2 ut = vec2((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return textureLod(sampler2DArray(atlas, samp), vec3(ut, float(material + terms)), 0.0).rgb * (back / ATLAS_PI);
+            return textureLod(sampler3D(atlas, samp), vec3(ut, (float(material + terms) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * (back / ATLAS_PI);
         }
         return vec3(0.0);
     }
@@ -647,8 +647,8 @@ vec3 separable_f_cos(texture2DArray atlas, sampler samp, uint material, vec3 n, 
     vec3 sum = vec3(0.0);
     for (uint k = 0u; k < terms; k = k + 1u) {
         uint r = block + 4u + 4u * k;
-        vec3 g = textureLod(sampler2DArray(atlas, samp), vec3(ug, float(first + k)), 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
-        vec3 h = textureLod(sampler2DArray(atlas, samp), vec3(uh, float(first + k)), 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
+        vec3 g = textureLod(sampler3D(atlas, samp), vec3(ug, (float(first + k) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
+        vec3 h = textureLod(sampler3D(atlas, samp), vec3(uh, (float(first + k) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
         sum += g * h;
     }
     vec3 result = max(sum, vec3(0.0));
@@ -660,6 +660,6 @@ vec3 separable_f_cos(texture2DArray atlas, sampler samp, uint material, vec3 n, 
 }
 
 // f, in 1/sr.
-vec3 separable_f(texture2DArray atlas, sampler samp, uint material, vec3 n, vec3 l, vec3 v) {
+vec3 separable_f(texture3D atlas, sampler samp, uint material, vec3 n, vec3 l, vec3 v) {
     return separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4);
 }

@@ -472,7 +472,7 @@ float3 atlas_env_prefiltered(Texture2D<float4> env, SamplerState env_sampler, fl
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
-// Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
+// Bind the atlas as a 3D texture (the volume layout: each layer read at its depth centre) with a linear, clamp-to-edge sampler. The data
 // (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
 
 static float4 SEPARABLE_TABLE[81] = {
@@ -606,7 +606,7 @@ float separable_unwarp(float angle, float4 axis) {
 
 // f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;
 // 0 for other IDs and below the horizon, except a transmission slice's light from below.
-float3 separable_f_cos(Texture2DArray<float4> atlas, SamplerState samp, uint material, float3 n, float3 l, float3 v) {
+float3 separable_f_cos(Texture3D<float4> atlas, SamplerState samp, uint material, float3 n, float3 l, float3 v) {
     uint block = 0u;
     uint terms = 0u;
     float back = 0.0;
@@ -626,7 +626,7 @@ float3 separable_f_cos(Texture2DArray<float4> atlas, SamplerState samp, uint mat
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             float2 ut = float2((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return atlas.SampleLevel(samp, float3(ut, float(material + terms)), 0.0).rgb * (back / ATLAS_PI);
+            return atlas.SampleLevel(samp, float3(ut, (float(material + terms) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * (back / ATLAS_PI);
         }
         return ((float3)(0.0));
     }
@@ -647,8 +647,8 @@ float3 separable_f_cos(Texture2DArray<float4> atlas, SamplerState samp, uint mat
     float3 sum = ((float3)(0.0));
     for (uint k = 0u; k < terms; k = k + 1u) {
         uint r = block + 4u + 4u * k;
-        float3 g = atlas.SampleLevel(samp, float3(ug, float(first + k)), 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
-        float3 h = atlas.SampleLevel(samp, float3(uh, float(first + k)), 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
+        float3 g = atlas.SampleLevel(samp, float3(ug, (float(first + k) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
+        float3 h = atlas.SampleLevel(samp, float3(uh, (float(first + k) + 0.5) / float(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
         sum += g * h;
     }
     float3 result = max(sum, ((float3)(0.0)));
@@ -660,6 +660,6 @@ float3 separable_f_cos(Texture2DArray<float4> atlas, SamplerState samp, uint mat
 }
 
 // f, in 1/sr.
-float3 separable_f(Texture2DArray<float4> atlas, SamplerState samp, uint material, float3 n, float3 l, float3 v) {
+float3 separable_f(Texture3D<float4> atlas, SamplerState samp, uint material, float3 n, float3 l, float3 v) {
     return separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4);
 }

@@ -472,7 +472,7 @@ fn atlas_env_prefiltered(env: texture_2d<f32>, env_sampler: sampler, d: vec3<f32
 // ---- atlasgen: separable BRDFs (Kautz & McCool 1999), generated; see docs/separable.md ----
 // f(l, v) cos(theta_l) = max(sum_k g_k(pi1) * h_k(pi2), 0); term k is slice first_slice + k:
 // g_k in the left 32x32 half (1D, row 0), h_k in the right half; value = texel * scale + bias.
-// Bind the atlas as a 2D array texture with a linear, clamp-to-edge sampler. The data
+// Bind the atlas as a 3D texture (the volume layout: each layer read at its depth centre) with a linear, clamp-to-edge sampler. The data
 // (SEPARABLE_TABLE, also X.separable.bin) is laid out in docs/engine-integration.md.
 
 var<private> SEPARABLE_TABLE: array<vec4<f32>, 81> = array<vec4<f32>, 81>(
@@ -606,7 +606,7 @@ fn separable_unwarp(angle: f32, axis: vec4<f32>) -> f32 {
 
 // f cos(theta_l) of the separable material whose first slice (g-buffer ID) is `material`;
 // 0 for other IDs and below the horizon, except a transmission slice's light from below.
-fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+fn separable_f_cos(atlas: texture_3d<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     var block: u32 = 0u;
     var terms: u32 = 0u;
     var back: f32 = 0.0;
@@ -626,7 +626,7 @@ fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n
         // (N.L, N.V) texel centres, rgb = texel * back; f cos = rgb / pi.
         if (back > 0.0) {
             let ut: vec2<f32> = vec2<f32>((0.5 + 63.0 * (max(dot(n, l), -1.0) + 1.0) * 0.5) / 64.0, (0.5 + 31.0 * min(dot(n, v), 1.0)) / 32.0);
-            return textureSampleLevel(atlas, samp, ut, material + terms, 0.0).rgb * (back / ATLAS_PI);
+            return textureSampleLevel(atlas, samp, vec3<f32>(ut, (f32(material + terms) + 0.5) / f32(ATLAS_LAYERS)), 0.0).rgb * (back / ATLAS_PI);
         }
         return vec3<f32>(0.0);
     }
@@ -647,8 +647,8 @@ fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n
     var sum: vec3<f32> = vec3<f32>(0.0);
     for (var k: u32 = 0u; k < terms; k = k + 1u) {
         let r: u32 = block + 4u + 4u * k;
-        let g: vec3<f32> = textureSampleLevel(atlas, samp, ug, first + k, 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
-        let h: vec3<f32> = textureSampleLevel(atlas, samp, uh, first + k, 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
+        let g: vec3<f32> = textureSampleLevel(atlas, samp, vec3<f32>(ug, (f32(first + k) + 0.5) / f32(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 0u].xyz + SEPARABLE_TABLE[r + 1u].xyz;
+        let h: vec3<f32> = textureSampleLevel(atlas, samp, vec3<f32>(uh, (f32(first + k) + 0.5) / f32(ATLAS_LAYERS)), 0.0).rgb * SEPARABLE_TABLE[r + 2u].xyz + SEPARABLE_TABLE[r + 3u].xyz;
         sum += g * h;
     }
     var result: vec3<f32> = max(sum, vec3<f32>(0.0));
@@ -660,6 +660,6 @@ fn separable_f_cos(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n
 }
 
 // f, in 1/sr.
-fn separable_f(atlas: texture_2d_array<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+fn separable_f(atlas: texture_3d<f32>, samp: sampler, material: u32, n: vec3<f32>, l: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     return separable_f_cos(atlas, samp, material, n, l, v) / max(dot(n, l), 1e-4);
 }
