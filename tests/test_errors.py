@@ -25,7 +25,7 @@ def test_an_unknown_key_of_any_length_gets_a_short_line(tmp_path):
     with pytest.raises(MaterialError) as caught:
         read_material_file(path)
     line = str(caught.value)
-    assert len(line) < 300 and "\n" not in line
+    assert len(line) < len(path.as_posix()) + 300 and "\n" not in line  # the file's own path is as long as it is
     assert f"field '{'k' * 68}... (5000 characters)': unknown key" in line
     assert caught.value.field == key  # the error keeps the whole name; only the message is short
     assert pickle.loads(pickle.dumps(caught.value)).field == key

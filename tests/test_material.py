@@ -226,3 +226,17 @@ def test_validating_an_atlas_whose_named_file_is_gone_is_one_line(mitsuba_llvm, 
         f"expected the file the material was baked from, got {tmp_path / 'elsewhere' / 'materials' / 'tex.png'}: no such "
         "file (moved since the bake? re-run atlasgen bake)"
     ]
+
+
+def test_an_unknown_key_s_refusal_lists_every_key_a_material_file_may_hold(tmp_path):
+    """It listed the model's parameters alone ("expected one of: colour"), though name, id, description and the
+    rest are taken too; and a misspelt common key got no suggestion."""
+    path = tmp_path / "u.toml"
+    path.write_text('type = "lambert"\nname = "u"\nid = 3\ncolour = [1, 1, 1]\nbogus = 1\n')
+    with pytest.raises(MaterialError) as info:
+        read_materials([path])
+    listed = str(info.value).split("expected one of: ")[1].split(", ")
+    assert {"colour", "name", "id", "description", "rgb_scale", "error_budget", "validate", "type"} <= set(listed)
+    path.write_text('type = "lambert"\ndescripton = "x"\n')
+    with pytest.raises(MaterialError, match=r"field 'descripton': unknown key \(did you mean 'description'\?\)"):
+        read_materials([path])

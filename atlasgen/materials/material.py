@@ -9,7 +9,7 @@ from pathlib import Path, PurePath
 
 from atlasgen.contract import NAME_PATTERN, material_constant
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
-from atlasgen.io.fields import Param, validate_params
+from atlasgen.io.fields import Param, check_keys, validate_params
 from atlasgen.io.fields import shown as short
 from atlasgen.io.referenced_files import map_files, referenced_files
 from atlasgen.io.text import MISSING, check_path_text, decode_utf8, parse_toml, path_kind, read_input_bytes
@@ -167,6 +167,9 @@ def read_material(path) -> Material:
         error_budget = _POSITIVE.coerce(error_budget, shown, name="error_budget")
 
     model = get_model(type_name)
+    # Every key a material file may hold, in the refusal's list too: it named the model's parameters alone ("expected
+    # one of: colour" for a lambert file whose name, id and description were taken).
+    check_keys(raw, {p.name for p in model.params} | set(COMMON_KEYS), shown)
     model_raw = {k: v for k, v in raw.items() if k not in COMMON_KEYS}
     params = validate_params(model.params, model_raw, shown)
     params, files = _resolve_files(params, path, shown)
