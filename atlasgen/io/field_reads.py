@@ -25,11 +25,21 @@ from __future__ import annotations
 import dataclasses
 import re
 
-__all__ = ["FieldReads", "ABSENT"]
+from atlasgen.errors import shorten
+
+__all__ = ["FieldReads", "ABSENT", "expected_written"]
 
 
 #: The value :attr:`FieldReads.last` holds for a key that was asked for and is not there.
 ABSENT = type("Missing", (), {"__repr__": lambda self: "nothing (the key is missing)"})()
+
+
+def expected_written(value, exc: Exception, command: str, where: str = "") -> str:
+    """A refusal's text for the field a formatter stopped on (:meth:`FieldReads.culprit`): the value ``command``
+    writes there was expected, what the field holds instead (or that it is missing), and the failure, in ``where``."""
+    got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
+    tail = f"; {where}" if where else ""
+    return f"expected the value {command} writes there, {got} ({type(exc).__name__}: {shorten(str(exc))}{tail})"
 
 
 class FieldReads:

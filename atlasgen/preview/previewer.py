@@ -25,8 +25,7 @@ from atlasgen.io.images import encode_png
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.io.package_data import package_data_path
-from atlasgen.io.referenced_files import referenced_files as find_referenced_files
-from atlasgen.materials.material import Material, check_unique_names, find_material_files, read_material, read_materials
+from atlasgen.materials.material import check_unique_names, find_material_files, read_material, read_materials
 from atlasgen.materials.scene import Scene
 from atlasgen.preview.label import draw_label, label_lines
 from atlasgen.preview.reference import MAX_SPP, ReferenceShot, load_reference_mitsuba, reference_lines, refine_reference
@@ -47,7 +46,6 @@ __all__ = [
     "compose_picture",
     "Previewer",
     "default_output",
-    "referenced_files",
     "check_preview_output",
 ]
 
@@ -149,13 +147,6 @@ def default_output(paths) -> Path:
     return DEFAULT_OUTPUT_DIR / "contact-sheet.png"
 
 
-def referenced_files(material: Material) -> list[Path]:
-    """The files ``material`` names besides its own: every ``filename`` in its parameters (a Mitsuba
-    ``measured`` BSDF's data, a bitmap), absolute where the material was read from its file
-    (:func:`atlasgen.materials.material.read_material` takes a relative name from the file's folder)."""
-    return [Path(name) for _, name in find_referenced_files(material.params)]
-
-
 def check_preview_output(output, sources) -> None:
     """Refuse an output that is not a ``.png``, is a folder, or would overwrite a material file."""
     check_suffix(output, "the preview (-o)", (".png",))
@@ -216,7 +207,9 @@ class Previewer:
             raise InputError(f"{shown}: no material files; expected .toml files, or folders holding them")
         check_unique_names([*materials, self.floor])
         self._check_room(materials)
-        inputs = [Path(m.source) for m in materials] + [f for m in materials for f in referenced_files(m)]
+        # Each material's file and the files it reads (a measured BSDF's data, a bitmap, a document's xi:includes),
+        # absolute where a file named them relatively: read_material resolved them (Material.includes).
+        inputs = [Path(m.source) for m in materials] + [Path(f) for m in materials for f in m.includes]
         t1 = time.perf_counter()
         timings["read"] = t1 - t0
         result = bake_atlas([*materials, self.floor], cache_dir=self.cache_dir if use_cache else None, drafts=drafts)

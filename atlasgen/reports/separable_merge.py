@@ -18,7 +18,7 @@ from pathlib import Path
 from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.field_reads import ABSENT, FieldReads
+from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
 from atlasgen.reports.report_kind import refuse_another_report
@@ -138,10 +138,9 @@ def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
             if culprit is None:
                 raise InputError(f"{path.as_posix()}: {where} is not a material study as atlasgen report separable "
                                  f"writes it ({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
-            field, value = culprit
-            got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
-            raise FieldError(path.as_posix(), field, f"expected the value atlasgen report separable writes there, {got} "
-                             f"({type(own).__name__}: {shorten(str(own))}; {where})") from None  # fmt: skip
+            raise FieldError(
+                path.as_posix(), culprit[0], expected_written(culprit[1], own, "atlasgen report separable", where)
+            ) from None
     where = ", ".join(dict.fromkeys(path.as_posix() for _, path, _ in origins))
     raise InputError(f"{where} is not a material study as atlasgen report separable writes it "
                      f"({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip

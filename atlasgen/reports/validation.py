@@ -20,7 +20,7 @@ import numpy as np
 
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
-from atlasgen.io.field_reads import ABSENT, FieldReads
+from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.fields import is_number
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
@@ -1055,21 +1055,16 @@ def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc
                         raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({what}) is not a result as "
                                          "atlasgen validate writes it, so the merged page cannot be written "
                                          f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
-                    raise FieldError(path.as_posix(), culprit[0], _expected_written(culprit[1], own, what)) from None
+                    raise FieldError(
+                        path.as_posix(), culprit[0], expected_written(culprit[1], own, "atlasgen validate", what)
+                    ) from None
         exc = shared or exc
     shown = ", ".join(p.as_posix() for p in paths)
     culprit = reads.culprit() if shared is not None else None
     if culprit is not None:
-        raise FieldError(shown, culprit[0], _expected_written(culprit[1], shared)) from None
+        raise FieldError(shown, culprit[0], expected_written(culprit[1], shared, "atlasgen validate")) from None
     raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
                      f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
-
-
-def _expected_written(value, exc: Exception, what: str = "") -> str:
-    """What a refusal of a field formatting stopped on says: expected, got, and the failure (in ``what``)."""
-    got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
-    where = f"; {what}" if what else ""
-    return f"expected the value atlasgen validate writes there, {got} ({type(exc).__name__}: {shorten(str(exc))}{where})"
 
 
 def merge_validation_reports(sources, out_dir) -> dict:

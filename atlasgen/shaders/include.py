@@ -130,8 +130,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     sb_cases = tuple((s, (Return(f"vec4({', '.join(r)})"),)) for s, r in enumerate(rows) if r != default)
     flag_cases = tuple((s, (Return(f"{b}u"),)) for s, b in enumerate(flags) if b)
     texture = "texture_3d" if volume else "texture_array"
-    lookup = ("sample_3d(atlas, atlas_sampler, vec3(uv, (f32(material_id) + 0.5) / f32(ATLAS_LAYERS)), lod)" if volume
-              else "sample_array(atlas, atlas_sampler, uv, material_id, lod)")  # fmt: skip
+    lookup = "sample_array(atlas, atlas_sampler, uv, material_id, lod)"
+    lookup = _volume_sampling(lookup) if volume else lookup  # the one form of a volume's layer read
     sample_params = (("atlas", texture), ("atlas_sampler", "sampler"), ("material_id", "u32"), ("n_dot_l", "f32"),
                      ("n_dot_v", "f32"))  # fmt: skip
     decls += [

@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import InputError, MaterialError, OutputError
-from atlasgen.materials.material import Material
 from atlasgen.preview import previewer as previewer_module
-from atlasgen.preview.previewer import Previewer, check_preview_output, referenced_files
+from atlasgen.preview.previewer import Previewer, check_preview_output
 from atlasgen.preview.scene import HEIGHT, WIDTH
 from tests.conftest import ROOT
 
@@ -21,14 +20,6 @@ def decode(png: bytes) -> np.ndarray:
     from PIL import Image
 
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
-
-
-def test_the_files_a_material_names_are_found_at_any_depth():
-    bsdf = {"type": "blendbsdf", "a": {"type": "measured", "filename": "data/gold.bsdf"},
-            "b": {"type": "diffuse", "reflectance": {"type": "bitmap", "filename": "tex.png"}}}  # fmt: skip
-    material = Material("m", "separable", {"bsdf": bsdf, "terms": 4}, "m.toml", "0" * 64)
-    assert [p.as_posix() for p in referenced_files(material)] == ["data/gold.bsdf", "tex.png"]
-    assert referenced_files(Material("c", "lambert", {"colour": (1, 1, 1)}, "c.toml", "0" * 64)) == []
 
 
 def test_outputs_are_checked_before_anything_runs(tmp_path, write_material):
