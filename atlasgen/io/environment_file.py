@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
-from atlasgen.io.images import openable_name
+from atlasgen.io.images import error_text, openable_name
 from atlasgen.io.text import MISSING, path_kind
 
 __all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "MAX_ENVIRONMENT_HEIGHT", "read_environment_file"]
@@ -43,7 +43,7 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         ``path: no such environment image`` where there is no such file.
     FieldError
         ``error`` (e.g. :class:`~atlasgen.errors.SceneError`), one line naming ``path``: not an
-        .exr or .hdr file, not readable as one, not RGB(A), not 2:1, fewer than 4 rows, or
+        .exr or .hdr file, not readable as one, not RGB(A), not half or float, not 2:1, fewer than 4 rows, or
         larger than :data:`MAX_ENVIRONMENT_HEIGHT`, or holding a non-finite or negative value (the message
         says how many and where).
     """
@@ -60,7 +60,7 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
     with openable_name(path) as name:  # OpenImageIO refused a name that is no UTF-8: an internal error
         inp = oiio.ImageInput.open(name)
     if inp is None:
-        reason = " ".join(oiio.geterror().split()) or "unreadable"
+        reason = error_text(oiio.geterror, "unreadable")
         raise error(shown, None, f"expected an OpenEXR or Radiance HDR image ({reason})")
     try:
         kind = inp.format_name()
@@ -70,6 +70,11 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         names = tuple(spec.channelnames)
         if spec.nchannels not in (3, 4) or names[:3] != ("R", "G", "B"):
             raise error(shown, None, f"expected RGB or RGBA channels, got {', '.join(names) or 'none'}")
+        # Radiance is a float: OpenImageIO reads integer channels (an EXR's uint, kept for IDs) as a fraction
+        # of their range, and 50 came back as 1.2e-8, a black sky rendered without a word.
+        formats = [str(f) for f in (tuple(spec.channelformats) or (spec.format,) * spec.nchannels)][:3]
+        if any(f not in ("half", "float") for f in formats):
+            raise error(shown, None, f"expected half or float colour channels, got {', '.join(formats)}")
         if spec.width != 2 * spec.height:
             raise error(shown, None, f"expected an equirectangular image twice as wide as high, got {spec.width}x{spec.height}")
         if spec.height < MIN_ENVIRONMENT_HEIGHT:
@@ -80,7 +85,7 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
                                      f"(downsample it first), got {spec.width}x{spec.height}")  # fmt: skip
         pixels = inp.read_image(0, 0, 0, 3, oiio.FLOAT)
         if pixels is None:
-            reason = " ".join(inp.geterror().split()) or "unreadable"
+            reason = error_text(inp.geterror, "unreadable")
             raise error(shown, None, f"expected a readable {_FORMATS[kind]} image ({reason})")
     finally:
         inp.close()

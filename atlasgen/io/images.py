@@ -20,7 +20,7 @@ import numpy as np
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import scratch_folder, write_file_atomically
 
-__all__ = ["encode_png", "encode_exr", "write_png", "write_exr", "is_utf8_path", "openable_name"]
+__all__ = ["encode_png", "encode_exr", "write_png", "write_exr", "is_utf8_path", "openable_name", "error_text"]
 
 
 def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None, near=None) -> bytes:
@@ -53,12 +53,12 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
         path = str(Path(folder) / f"image{suffix}")
         out = oiio.ImageOutput.create(path)
         if out is None or not out.open(path, spec):
-            raise OutputError(f"{shown} ({oiio.geterror() or 'unknown format'})")
+            raise OutputError(f"{shown} ({error_text(oiio.geterror, 'unknown format')})")
         ok = out.write_image(np.ascontiguousarray(pixels))
-        error = out.geterror()
+        error = error_text(out.geterror, "")
         closed = out.close()
         if not ok or not closed:
-            error = error or out.geterror() or "the encoder failed"
+            error = error or error_text(out.geterror, "the encoder failed")
             # OpenImageIO names its own file, the scratch copy; the user's file is the output.
             raise OutputError(f"{shown} ({error.replace(path, Path(near).as_posix()) if near is not None else error})")
         # A failure in the last flush, at close, is not reported (OpenImageIO's close returns True): with the
@@ -71,6 +71,25 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
             return Path(path).read_bytes()
         except OSError as exc:
             raise OutputError(f"{shown} ({exc.strerror})") from None
+
+
+def error_text(geterror, default: str) -> str:
+    """OpenImageIO's pending error as one line, or ``default`` where there is none.
+
+    Its Python binding decodes the message as UTF-8 and raised UnicodeDecodeError where the message
+    quotes a file's own bytes (an EXR whose attribute name holds byte 0xff): an internal error, where
+    the user's file is what is wrong.
+
+    >>> error_text(lambda: "bad\\n header  ", "unreadable"), error_text(lambda: "", "unreadable")
+    ('bad header', 'unreadable')
+    >>> error_text(lambda: b"\\xff".decode("utf-8"), "unreadable")
+    'unreadable (its message quotes bytes that are not UTF-8)'
+    """
+    try:
+        text = geterror()
+    except UnicodeDecodeError:
+        return f"{default} (its message quotes bytes that are not UTF-8)"
+    return " ".join(text.split()) or default
 
 
 def is_utf8_path(path) -> bool:
@@ -105,10 +124,10 @@ def _decode_problem(oiio, path: str, shape) -> str | None:
     """None where the image file at ``path`` decodes whole to ``shape`` ``(h, w, c)``, else what is wrong."""
     image = oiio.ImageInput.open(path)
     if image is None:
-        return oiio.geterror() or "unreadable"
+        return error_text(oiio.geterror, "unreadable")
     try:
         pixels = image.read_image()
-        error = image.geterror()
+        error = error_text(image.geterror, "")
     finally:
         image.close()
     if pixels is None or error:

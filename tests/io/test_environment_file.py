@@ -107,3 +107,36 @@ def test_a_file_whose_name_is_no_utf8_reads_as_any_other(tmp_path):
     write_exr(tmp_path / "sky.exr", pixels)
     (tmp_path / "sky.exr").rename(folder / "sky.exr")
     np.testing.assert_array_equal(read_environment_file(folder / "sky.exr"), pixels)
+
+
+def _oiio_exr(path, base_type, pixels):
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], base_type))
+    out.write_image(pixels)
+    out.close()
+    return path
+
+
+def test_integer_channels_are_refused_not_read_as_a_fraction_of_their_range(tmp_path):
+    """OpenImageIO reads a uint EXR's 50 as 50 / (2^32 - 1): the sky rendered black, exit 0."""
+    path = _oiio_exr(tmp_path / "ids.exr", "uint", np.full((4, 8, 3), 50, np.uint32))
+    with pytest.raises(SceneError) as info:
+        read_environment_file(path, SceneError)
+    assert str(info.value) == f"{path.as_posix()}: expected half or float colour channels, got uint, uint, uint"
+    half = _oiio_exr(tmp_path / "half.exr", "half", np.full((4, 8, 3), 50, np.float32))
+    np.testing.assert_array_equal(read_environment_file(half), 50.0)
+
+
+def test_a_header_whose_error_quotes_bytes_that_are_no_utf8_is_one_line(tmp_path):
+    """Byte 0xff where an attribute's name ends: OpenImageIO's message quotes it, and its binding's
+    UTF-8 decoding of that message raised UnicodeDecodeError, an internal error (exit 1)."""
+    good = _bad(tmp_path, "sky.exr", np.full((4, 8, 3), 0.5, np.float32))
+    data = bytearray(good.read_bytes())
+    data[data.index(b"channels\0") + 8] = 0xFF
+    path = _bad(tmp_path, "bad.exr", raw=bytes(data))
+    with pytest.raises(SceneError) as info:
+        read_environment_file(path, SceneError)
+    message = str(info.value)
+    assert message.startswith(f"{path.as_posix()}: expected an OpenEXR or Radiance HDR image (") and "\n" not in message
