@@ -29,6 +29,7 @@ __all__ = [
     "FLOAT32_MAX",
     "INT32_MAX",
     "fits_float32",
+    "FLOAT32_MIN_NORMAL",
     "to_float32",
     "shown",
     "counted",
@@ -39,6 +40,8 @@ __all__ = [
 
 #: The largest finite float32, 3.4028235e38 (IEEE 754 binary32).
 FLOAT32_MAX = struct.unpack("<f", b"\xff\xff\x7f\x7f")[0]
+#: The smallest normal float32, 2^-126 = 1.1754944e-38: GPUs flush smaller (subnormal) values to 0.
+FLOAT32_MIN_NORMAL = struct.unpack("<f", b"\x00\x00\x80\x00")[0]
 #: The largest i32, what WGSL integer constants hold.
 INT32_MAX = 2**31 - 1
 

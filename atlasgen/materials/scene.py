@@ -16,7 +16,7 @@ import numpy as np
 
 from atlasgen.errors import SceneError, did_you_mean
 from atlasgen.io.environment_file import ENVIRONMENT_SUFFIXES
-from atlasgen.io.fields import FLOAT32_MAX, Param, check_keys, is_number, shown
+from atlasgen.io.fields import FLOAT32_MAX, FLOAT32_MIN_NORMAL, Param, check_keys, is_number, shown
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import MISSING, parse_toml, path_kind, read_input_text
 from atlasgen.materials.environment import Environment
@@ -167,6 +167,9 @@ class _Reader:
         self.path = path
 
     def fail(self, name, expected, value):
+        # TOML has no null: None is a key the table lacks ("got None" read as a value of None).
+        if value is None:
+            raise SceneError(self.path, name, f"missing; expected {expected}")
         raise SceneError(self.path, name, f"expected {expected}, got {shown(value)}")
 
     def table(self, raw, name, allowed):
@@ -227,7 +230,8 @@ def _read_camera(r: _Reader, raw) -> Camera:
     if np.linalg.norm(np.cross(_direction(forward), up)) < 1e-6:
         raise SceneError(r.path, "camera.up", "expected a direction not parallel to target - position")
     fov = r.number(raw, "fov", "camera.fov", default=40.0, lo=MIN_FOV_DEGREES, hi=179.0)
-    near = r.number(raw, "near", "camera.near", default=0.05, lo=0.0, lo_open=True)
+    # Not subnormal in float32: the GPU flushes such a near plane to 0 and the scene came out empty, exit 0.
+    near = r.number(raw, "near", "camera.near", default=0.05, lo=FLOAT32_MIN_NORMAL)
     far = r.number(raw, "far", "camera.far", default=1000.0, lo=near, lo_open=True)
     if far > MAX_FAR_OVER_NEAR * near:
         raise SceneError(r.path, "camera.near", f"expected at least camera.far / {MAX_FAR_OVER_NEAR:g} = "

@@ -211,9 +211,27 @@ def test_ranged_point_and_spot_lights(scene_from):
     ("fov = 1e-10", "camera.fov", "expected a finite number >= 0.0001 and <= 179, got 1e-10"),
     ("near = 1e-7", "camera.near", "expected at least camera.far / 1e+07 = 0.0001 (the depth buffer cannot tell"),
     ("near = 1e-3\nfar = 1e5", "camera.near", "= 0.01 ("),
+    # Subnormal in float32: the GPU flushed it to 0 and drew nothing.
+    ("near = 1e-38\nfar = 1e-32", "camera.near", "expected a finite number >= 1.17549e-38, got 1e-38"),
 ])  # fmt: skip
 def test_a_camera_the_gpu_cannot_resolve_is_refused(scene_from, camera, field, words):
     with pytest.raises(SceneError) as info:
         scene_from(f"[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n{camera}\n", path="x.toml")
     assert str(info.value).startswith(f"x.toml: field '{field}': ") and words in str(info.value), str(info.value)
     scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfov = 1e-4\nnear = 1e-4\n")  # at the limits
+    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nnear = 1.1754944e-38\nfar = 1e-31\n")
+
+
+@pytest.mark.parametrize(("table", "field", "expected"), [
+    ("[[lights]]\nintensity = 1\nposition = [0, 1, 0]", "lights[0].type", "'point', 'spot' or 'directional'"),
+    ("[[objects]]\nmaterial = 'm'", "objects[0].shape", None),
+    ("[[objects]]\nshape = 'sphere'", "objects[0].material", None),
+    ("[[objects]]\nshape = 'mesh'\nmaterial = 'm'", "objects[0].file", None),
+])  # fmt: skip
+def test_a_missing_key_is_called_missing(scene_from, table, field, expected):
+    """A key the table lacks was reported as a value: "expected 'point', 'spot' or 'directional', got None"."""
+    with pytest.raises(SceneError) as info:
+        scene_from(MINIMAL + table + "\n", path="x.toml")
+    message = str(info.value)
+    assert message.startswith(f"x.toml: field '{field}': missing; expected ") and "None" not in message, message
+    assert expected is None or expected in message
