@@ -154,13 +154,17 @@ class _Fields:
     def boolean(self, key, optional=False, nullable=False):
         return self.take(key, "true or false", lambda v: isinstance(v, bool), optional, nullable)
 
-    def mapping(self, key, optional=False, values=None, expected="an object"):
-        ok = (
-            (lambda v: isinstance(v, dict))
-            if values is None
-            else (lambda v: isinstance(v, dict) and all(values(x) for x in v.values()))
-        )
-        return self.take(key, expected, ok, optional)
+    def mapping(self, key, optional=False, values=None, expected="an object", value_expected=None):
+        """An object; ``values`` checks each of its values. With ``value_expected`` (what one value should
+        be), a bad value is named by its own key ("flags.outline": expected true or false, got "yes"),
+        where the object as a whole was "expected an object of true/false flags, got an object"."""
+        mapping = self.take(key, expected, lambda v: isinstance(v, dict), optional)
+        for name, x in (mapping or {}).items():
+            if values is not None and not values(x):
+                if value_expected is None:
+                    self.fail(key, expected, mapping)
+                self.fail(f"{key}.{name}", value_expected, x)
+        return mapping
 
     def array(self, key, expected="a list", item=None, length=None, optional=False):
         """A list (of ``length`` items); ``item`` = (check, description) of each item."""
@@ -714,7 +718,12 @@ class MaterialEntry:
             params=f.mapping("params"),
             scale=f.array("scale", pairs, positive_pair, slice_count),
             bias=f.array("bias", pairs, pair, slice_count),
-            flags=f.mapping("flags", values=lambda v: isinstance(v, bool), expected="an object of true/false flags"),
+            flags=f.mapping(
+                "flags",
+                values=lambda v: isinstance(v, bool),
+                expected="an object of true/false flags",
+                value_expected="true or false",
+            ),
             clamped_fraction=f.take("clamped_fraction", "a number in [0, 1]", lambda v: is_number(v) and 0 <= v <= 1),
             quantization_error=ErrorSummary.from_json(f.child("quantization_error")),
             representation=None if representation is None else _read_representation(representation),

@@ -306,7 +306,11 @@ REFUSED = {
     ),
     "missing name": (_with(lambda d: d["materials"][1].pop("name")), "materials[1].name", "missing; expected a material name"),
     "bad scale": (_with(_set(["materials", 0, "scale"], [[1.0]])), "materials[0].scale[0]", "[rgb, alpha] pair"),
-    "flag not bool": (_with(_set(["materials", 0, "flags"], {"outline": 1})), "materials[0].flags", "true/false"),
+    "flag not bool": (
+        _with(_set(["materials", 0, "flags"], {"outline": 1})),
+        "materials[0].flags.outline",
+        "expected true or false, got 1",
+    ),
     "factor table": (
         _with(_set(["materials", 5, "factor_bias"], [[0, 0]] * 4)),
         "materials[5].factor_bias[0]",
@@ -427,6 +431,12 @@ REFUSED = {
         _with(_set(["materials", 5, "representation", "candidates", 0, "relative_rms_se_by_terms", 0], -0.5)),
         "materials[5].representation.candidates[0].relative_rms_se_by_terms",
         "expected a list of finite numbers of at least 0",
+    ),
+    # Named by the flag itself: the whole object was "expected an object of true/false flags, got an object".
+    "a flag that is text": (
+        _with(_set(["materials", 0, "flags"], {"outline": "yes"})),
+        "materials[0].flags.outline",
+        'expected true or false, got "yes"',
     ),
     "factor beyond float32": (
         _with(_set(["materials", 5, "factor_scale", 0, 1, 2], 1e300)),
