@@ -338,9 +338,19 @@ def _find_include(href: str, folder: Path, document: Path) -> Path | None:
     return next((p for p in (folder / href, document.parent / href) if os.path.lexists(p)), None) if href else None
 
 
+#: Deepest chain of includes MaterialX 1.39 reads (its reader's MAX_XINCLUDE_DEPTH: 256 nested includes read,
+#: 257 refused with "Maximum XInclude depth exceeded").
+MAX_INCLUDE_DEPTH = 256
+#: Most inclusions one document may make in all, counting a file once per path that reaches it: MaterialX
+#: reads a file anew at each, and 48 files of 150 bytes, each including the next two, ran for hours.
+MAX_INCLUSIONS = 1024
+
+
 def _included_files(path: Path, root) -> list:
     """``(path, bytes, tree)`` of every file the document at ``path`` includes (``xi:include``, and what those
     include), each once, in document order (:func:`_find_include`). A cycle is left to MaterialX to refuse.
+
+    The walk keeps its own stack: a chain of 1000 files ran out of Python's recursion (an internal error).
 
     Raises
     ------
@@ -348,32 +358,74 @@ def _included_files(path: Path, root) -> list:
         An included path is a named pipe, a device, a folder, unreadable or over the size limit
         (:func:`read_input_bytes`).
     MaterialError
-        An ``href`` is found nowhere, or an included file is not UTF-8 XML.
+        An ``href`` is found nowhere, an included file is not UTF-8 XML, includes nest deeper than
+        :data:`MAX_INCLUDE_DEPTH`, or MaterialX would read more than :data:`MAX_INCLUSIONS` of them.
     """
     out: list = []
-    seen = {os.path.realpath(path)}
-
-    def visit(shown: str, folder: Path, tree) -> None:
-        for element in tree.iter(XINCLUDE):
-            href = element.get("href") or ""
-            found = _find_include(href, folder, path)
-            if found is None:
-                raise MaterialError(shown, "xi:include", f"expected a file beside it or beside the document, found "
-                                    f"none for href {href!r}")  # fmt: skip
-            check_path_text(found)  # the depfile and the manifest's includes record it
-            real = os.path.realpath(found)
-            if real in seen:
-                continue
-            seen.add(real)
-            data = read_input_bytes(found, limit=_DOCUMENT_LIMIT)
-            text = _decode(found.as_posix(), data)
-            included = _parse_xml(found.as_posix(), data)
-            _check_include_tags(found.as_posix(), text, included)
-            out.append((found, data, included))
-            visit(found.as_posix(), found.parent, included)
-
-    visit(path.as_posix(), path.parent, root)
+    document = os.path.realpath(path)
+    seen = {document}
+    edges: dict = {document: []}  # each file's includes, by real path, one per xi:include element
+    stack = [(path.as_posix(), path.parent, document, root.iter(XINCLUDE))]
+    while stack:
+        shown, folder, real_parent, elements = stack[-1]
+        element = next(elements, None)
+        if element is None:
+            stack.pop()
+            continue
+        href = element.get("href") or ""
+        found = _find_include(href, folder, path)
+        if found is None:
+            raise MaterialError(shown, "xi:include", f"expected a file beside it or beside the document, found "
+                                f"none for href {href!r}")  # fmt: skip
+        check_path_text(found)  # the depfile and the manifest's includes record it
+        real = os.path.realpath(found)
+        edges[real_parent].append(real)
+        if real in seen:
+            continue
+        if len(stack) > MAX_INCLUDE_DEPTH:
+            raise MaterialError(shown, "xi:include", f"expected includes nested at most {MAX_INCLUDE_DEPTH} deep (as "
+                                f"MaterialX reads them), got a deeper chain at href {href!r}")  # fmt: skip
+        seen.add(real)
+        data = read_input_bytes(found, limit=_DOCUMENT_LIMIT)
+        text = _decode(found.as_posix(), data)
+        included = _parse_xml(found.as_posix(), data)
+        _check_include_tags(found.as_posix(), text, included)
+        out.append((found, data, included))
+        edges[real] = []
+        stack.append((found.as_posix(), found.parent, real, included.iter(XINCLUDE)))
+    inclusions = _count_inclusions(edges, document)
+    if inclusions > MAX_INCLUSIONS:
+        got = f"{inclusions}" if inclusions <= 10**6 else "over a million"
+        raise MaterialError(path.as_posix(), "xi:include", f"expected at most {MAX_INCLUSIONS} inclusions in all (MaterialX "
+                            f"reads a file again on every path that includes it), got {got}")  # fmt: skip
     return out
+
+
+def _count_inclusions(edges: dict, start) -> int:
+    """How many files MaterialX reads for the document ``start``: every path through ``edges`` (file -> the files
+    its xi:include elements name); an edge back into a file still being counted (a cycle, which MaterialX
+    refuses) counts once. Exact (Python's integers): 100 levels of a diamond count 2^101 - 2.
+
+    >>> _count_inclusions({"d": ["a", "b"], "a": ["c"], "b": ["c"], "c": []}, "d")
+    4
+    """
+    counted: dict = {}
+    open_ = set()
+    # Post-order without recursion: a file's count is 1 for each include plus what that file includes.
+    stack = [(start, False)]
+    while stack:
+        node, children_done = stack.pop()
+        if children_done:
+            total = sum(1 + counted.get(child, 0) for child in edges.get(node, ()))
+            counted[node] = total
+            open_.discard(node)
+            continue
+        if node in counted or node in open_:
+            continue
+        open_.add(node)
+        stack.append((node, True))
+        stack.extend((child, False) for child in edges.get(node, ()) if child not in counted and child not in open_)
+    return counted[start]
 
 
 def _include_options(mx, path: Path, included: list):

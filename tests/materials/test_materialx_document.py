@@ -564,3 +564,55 @@ def test_a_document_with_a_namespace_is_refused_naming_it(tmp_path, included):
     assert str(info.value) == (f"{spaced.as_posix()}: field 'namespace': a document with a namespace ('acme') is not read: "
                                "MaterialX qualifies its materials' names as 'namespace:NAME', which an atlas name "
                                "cannot hold; expected the document without its namespace attribute")  # fmt: skip
+
+
+def _chain(tmp_path, files: int):
+    """main.mtlx including c1.mtlx, including c2.mtlx, ...: ``files`` files, ``files - 1`` nested includes."""
+    for i in range(1, files):
+        include = f'<xi:include href="c{i + 1}.mtlx" />' if i + 1 < files else ""
+        (tmp_path / f"c{i}.mtlx").write_text('<?xml version="1.0"?>\n<materialx version="1.39" xmlns:xi="http://www.w3.org/'
+                                             f'2001/XInclude">{include}<standard_surface name="S{i}" type="surfaceshader"/>'
+                                             "</materialx>\n")  # fmt: skip
+    return _including(tmp_path, "c1.mtlx", _material("M", "standard_surface", ""))
+
+
+def test_includes_nested_as_deep_as_materialx_reads_and_no_deeper(tmp_path):
+    """A chain of 1000 files was an internal error (RecursionError in the walk over the includes); MaterialX
+    reads 256 nested includes and refuses 257 ("Maximum XInclude depth exceeded")."""
+    (tmp_path / "ok").mkdir()
+    (tmp_path / "deep").mkdir()
+    assert [m.name for m in read_material_file(_chain(tmp_path / "ok", 257))] == ["M"]
+    path = _chain(tmp_path / "deep", 1000)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{(tmp_path / 'deep' / 'c256.mtlx').as_posix()}: field 'xi:include': expected includes "
+                               "nested at most 256 deep (as MaterialX reads them), got a deeper chain at href 'c257.mtlx'")  # fmt: skip
+
+
+def _diamond(tmp_path, levels: int):
+    """main.mtlx including L0a.mtlx, each Li including both L(i+1)a and L(i+1)b: 2 levels files, 2^levels - 1
+    inclusions, for MaterialX reads a file again on every path to it."""
+    for i in range(levels):
+        for side in "ab":
+            includes = "".join(f'<xi:include href="L{i + 1}{s}.mtlx" />' for s in "ab") if i + 1 < levels else ""
+            (tmp_path / f"L{i}{side}.mtlx").write_text('<?xml version="1.0"?>\n<materialx version="1.39" xmlns:xi="http:'
+                                                       f'//www.w3.org/2001/XInclude">{includes}</materialx>\n')  # fmt: skip
+    return _including(tmp_path, "L0a.mtlx", _material("M", "standard_surface", ""))
+
+
+def test_files_included_along_exponentially_many_paths_are_refused_unread(tmp_path, monkeypatch):
+    """48 files of 150 bytes in such a diamond ran for hours: MaterialX reads a file once per path to it."""
+    import atlasgen.materials.materialx_document as module
+
+    path = _diamond(tmp_path, 14)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'xi:include': expected at most 1024 inclusions in all "
+                               "(MaterialX reads a file again on every path that includes it), got 16383")  # fmt: skip
+    (tmp_path / "small").mkdir()
+    small = _diamond(tmp_path / "small", 4)  # 1 + 2 + 4 + 8
+    monkeypatch.setattr(module, "MAX_INCLUSIONS", 14)
+    with pytest.raises(MaterialError, match=r"expected at most 14 inclusions in all .*, got 15$"):
+        read_material_file(small)
+    monkeypatch.setattr(module, "MAX_INCLUSIONS", 15)
+    assert [m.name for m in read_material_file(small)] == ["M"]
