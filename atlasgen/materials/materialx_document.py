@@ -84,6 +84,11 @@ NOT_IN_TABLE = {
                           "displacement": (0.0, "displacement (it moves geometry, which a slice does not hold)"),
                           "occlusion": (1.0, _OCCLUSION)},
 }  # fmt: skip
+#: Per surface model: (its thin-walled switch, its subsurface weight). A thin wall's subsurface is light passing
+#: through the sheet (MaterialX's graphs shade it with a translucent BSDF), which a slice of N.L >= 0 cannot hold:
+#: a white thin-walled sheet baked as a black ball, without a word.
+_THIN_WALLED_SUBSURFACE = {"standard_surface": ("thin_walled", "subsurface"),
+                           "open_pbr_surface": ("geometry_thin_walled", "subsurface_weight")}  # fmt: skip
 #: A surfacematerial's inputs beside its surface shader: what each would change that the table cannot hold.
 MATERIAL_NOT_IN_TABLE = {
     "backsurfaceshader": "a back face is shaded with the front surface's slice (the renderer flips its normal)",
@@ -660,6 +665,12 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             not_in_table.append(f"{key} = {value}: {what}")
             if neutral is not None:
                 oracle_inputs[key] = list(neutral) if isinstance(neutral, tuple) else neutral
+    if category in _THIN_WALLED_SUBSURFACE:
+        thin, weight = _THIN_WALLED_SUBSURFACE[category]
+        value = inputs.get(weight, defaults[weight][1])
+        if inputs.get(thin, defaults[thin][1]) and _differs(value, 0.0):
+            not_in_table.append(f"{weight} = {value} with {thin} = true: light through the thin wall (translucency; "
+                                "the reflection that remains is baked)")  # fmt: skip
     return {"document": shown, "material": material, "category": category, "inputs": inputs, "oracle_inputs": oracle_inputs,
             "flattened": flattened, "not_in_table": not_in_table, "sharp_lobes": sharp_lobes,
             "alpha": _lobe_alpha(category, inputs, defaults),
