@@ -89,6 +89,28 @@ NOT_IN_TABLE = {
 #: a white thin-walled sheet baked as a black ball, without a word.
 _THIN_WALLED_SUBSURFACE = {"standard_surface": ("thin_walled", "subsurface"),
                            "open_pbr_surface": ("geometry_thin_walled", "subsurface_weight")}  # fmt: skip
+
+
+def _gltf_opacity(value: dict) -> float:
+    """The opacity glTF's graph shades with (``value``: input -> its value): 1 where ``alpha_mode`` is OPAQUE (0),
+    1 or 0 as ``alpha`` reaches ``alpha_cutoff`` or not where it is MASK (1), ``alpha`` where it is BLEND (2).
+
+    >>> _gltf_opacity({"alpha": 0.2, "alpha_mode": 0, "alpha_cutoff": 0.5}), _gltf_opacity({"alpha": 0.7, "alpha_mode": 1, "alpha_cutoff": 0.5})
+    (1.0, 1.0)
+    >>> _gltf_opacity({"alpha": 0.2, "alpha_mode": 1, "alpha_cutoff": 0.5}), _gltf_opacity({"alpha": 0.2, "alpha_mode": 2, "alpha_cutoff": 0.5})
+    (0.0, 0.2)
+    """
+    if value["alpha_mode"] == 0:
+        return 1.0
+    if value["alpha_mode"] == 1:
+        return 1.0 if value["alpha"] >= value["alpha_cutoff"] else 0.0
+    return value["alpha"]
+
+
+#: Per surface model: input -> the value the model's graph shades with, from every input's value, where that is
+#: not the input's own: glTF's makes an OPAQUE material opaque whatever its alpha, so an alpha there was named as
+#: lost opacity (and failed --strict).
+_SHADED_VALUE = {"gltf_pbr": {"alpha": _gltf_opacity}}
 #: A surfacematerial's inputs beside its surface shader: what each would change that the table cannot hold.
 MATERIAL_NOT_IN_TABLE = {
     "backsurfaceshader": "a back face is shaded with the front surface's slice (the renderer flips its normal)",
@@ -203,6 +225,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
     _refuse_duplicate_names(documents)
+    _refuse_values_written_as_text(documents)
     _refuse_namespaces(documents)
     libraries = load_materialx_libraries()
     _refuse_library_names(documents, doc, libraries)
@@ -453,6 +476,19 @@ def _include_options(mx, path: Path, included: list):
     return options
 
 
+def _refuse_values_written_as_text(documents: list) -> None:
+    """Refuse an ``<input>`` whose value is written as its text (``<input name="roughness" type="float">0</input>``;
+    ``documents``: ``(shown, tree)``): MaterialX reads only the ``value`` attribute, so the nodedef's default was
+    baked in its place without a word, and a mirror written so passed the check that refuses one."""
+    for shown, root in documents:
+        for parent in root.iter():
+            for child in parent:
+                if child.tag == "input" and (child.text or "").strip() and child.get("value") is None:
+                    raise MaterialError(shown, f"{parent.get('name')}.{child.get('name')}", "expected the value in a "
+                                        f"value attribute (value=\"{child.text.strip()[:40]}\"), got it as the element's "
+                                        "text, which MaterialX ignores")  # fmt: skip
+
+
 def _refuse_duplicate_names(documents: list) -> None:
     """Refuse two elements of one parent with one name, and one name at the top of a document and of a file
     it includes (``documents``: ``(shown, tree)``, the document first): MaterialX's reader keeps the first and
@@ -660,6 +696,9 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
     not_in_table = list(sharp_lobes) + no_default
     for key, (neutral, what) in NOT_IN_TABLE[category].items():
         value = inputs.get(key, defaults[key][1] if key in defaults else None)
+        shaded = _SHADED_VALUE.get(category, {}).get(key)
+        if shaded is not None and shaded({k: inputs.get(k, d[1]) for k, d in defaults.items()}) == neutral:
+            continue
         reference = neutral if neutral is not None else 0.0
         if value is not None and _differs(value, reference if not isinstance(reference, tuple) else reference):
             not_in_table.append(f"{key} = {value}: {what}")

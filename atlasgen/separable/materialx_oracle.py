@@ -121,8 +121,20 @@ def _nodedef(category: str) -> tuple:
     if nodedef is None:
         raise BackendError(f"MaterialX has no surfaceshader node {category!r}")
     inputs = tuple((inp.getName(), inp.getType(), _value(inp.getValue()) if inp.getValue() is not None else None,
-                    inp.getAttribute("uimin"), inp.getAttribute("uimax")) for inp in nodedef.getActiveInputs())  # fmt: skip
+                    *_limits(inp)) for inp in nodedef.getActiveInputs())  # fmt: skip
     return nodedef.getName(), inputs
+
+
+def _limits(inp) -> tuple[str, str]:
+    """An input's ``(uimin, uimax)``; for an integer input that only enumerates its values (glTF's ``alpha_mode``:
+    ``enumvalues="0, 1, 2"``), the least and the greatest of them, which are its range, as each such
+    enumeration of the four surface models counts up from 0 (an ``alpha_mode`` of 9 baked without a word)."""
+    low, high = inp.getAttribute("uimin"), inp.getAttribute("uimax")
+    values = inp.getAttribute("enumvalues")
+    if inp.getType() == "integer" and not low and not high and values:
+        numbers = [int(v) for v in values.split(",")]
+        low, high = str(min(numbers)), str(max(numbers))
+    return low, high
 
 
 def _active_inputs(category: str) -> tuple:

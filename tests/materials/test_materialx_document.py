@@ -636,3 +636,41 @@ def test_files_included_along_exponentially_many_paths_are_refused_unread(tmp_pa
         read_material_file(small)
     monkeypatch.setattr(module, "MAX_INCLUSIONS", 15)
     assert [m.name for m in read_material_file(small)] == ["M"]
+
+
+def test_a_value_written_as_the_element_s_text_is_refused_not_defaulted(tmp_path):
+    """MaterialX reads only the value attribute: a roughness of 0 written as text baked at the default 0.2,
+    past the refusal of a mirror, with exit 0 (found by a hostile sweep)."""
+    body = _material("M", "standard_surface", '<input name="specular_roughness" type="float">0</input>'
+                     '<input name="metalness" type="float" value="1" />')  # fmt: skip
+    path = _document(tmp_path, body)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'SR_M.specular_roughness': expected the value in a value "
+                               "attribute (value=\"0\"), got it as the element's text, which MaterialX ignores")  # fmt: skip
+    spaced = _material("M", "standard_surface", '<input name="metalness" type="float" value="1">\n  </input>')
+    assert read_material_file(_document(tmp_path, spaced, "ok.mtlx"))[0].params["materialx"]["inputs"] == {"metalness": 1.0}
+
+
+@pytest.mark.parametrize(("mode", "alpha", "named"), [
+    (None, 0.2, []),  # OPAQUE, the default: the graph shades it opaque whatever its alpha
+    (0, 0.2, []),
+    (1, 0.7, []),  # MASK, alpha at or above the cutoff (0.5): opaque
+    (1, 0.2, ["alpha"]),  # MASK below it: invisible
+    (2, 0.2, ["alpha"]),  # BLEND
+])  # fmt: skip
+def test_a_gltf_alpha_is_named_only_where_the_graph_shades_it(tmp_path, mode, alpha, named):
+    """An OPAQUE glTF material's alpha was named as lost opacity, which --strict failed (a hostile sweep)."""
+    inputs = f'<input name="alpha" type="float" value="{alpha}" />'
+    if mode is not None:
+        inputs += f'<input name="alpha_mode" type="integer" value="{mode}" />'
+    spec = read_material_file(_document(tmp_path, _material("M", "gltf_pbr", inputs)))[0].params["materialx"]
+    assert [line.split(" =")[0] for line in spec["not_in_table"]] == named
+
+
+@pytest.mark.parametrize("mode", [-1, 3, 9])
+def test_an_enumerated_integer_beyond_its_values_is_refused(tmp_path, mode):
+    """glTF's alpha_mode enumerates 0, 1, 2 and sets no uimin or uimax: 9 baked without a word."""
+    path = _document(tmp_path, _material("M", "gltf_pbr", f'<input name="alpha_mode" type="integer" value="{mode}" />'))
+    with pytest.raises(MaterialError, match=rf"field 'M.alpha_mode': expected integer within 0 .. 2 .*, got {mode}$"):
+        read_material_file(path)
