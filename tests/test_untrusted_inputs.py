@@ -20,7 +20,7 @@ from atlasgen.io.dds import read_dds
 from atlasgen.materials.material import read_materials
 
 #: Byte offsets of the DDS header fields (after the 4-byte magic; DirectXTex DDS.h).
-FIELDS = {"flags": 8, "height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "caps2": 112,
+FIELDS = {"flags": 8, "height": 12, "width": 16, "depth": 24, "mipMapCount": 28, "ddspf.size": 76, "ddspf.flags": 80, "caps2": 112,
           "resourceDimension": 132, "miscFlag": 136, "arraySize": 140, "miscFlags2": 144}  # fmt: skip
 
 
@@ -63,6 +63,9 @@ CASES = [
     ("volume", "flags", 0x2100F, "header field flags is 0x2100f; expected the DDSD_DEPTH bit (0x800000)"),
     ("volume", "arraySize", 2, "header field arraySize is 2; expected 1 in a volume"),
     ("array", "miscFlags2", 7, "header field miscFlags2 is 0x7; expected an alpha mode of 0 to 4 in its low bits"),
+    # DirectXTex refuses the first, and without the second reads no DX10 header: each was read, exit 0.
+    ("array", "ddspf.size", 0, "header field ddspf.size is 0; expected 32"),
+    ("volume", "ddspf.flags", 0xFB, "header field ddspf.flags is 0xfb; expected the DDPF_FOURCC bit (0x4)"),
 ]
 
 

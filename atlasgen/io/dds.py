@@ -139,9 +139,17 @@ def read_dds(path, data: bytes | None = None) -> DDSImage:
     if len(data) < 148 or data[:4] != MAGIC:
         raise InputError(f"{shown}: not a DDS file (bad magic or truncated header)")
     size, flags, height, width, _pitch, depth, mip_count = struct.unpack_from("<7I", data, 4)
-    fourcc = data[84:88]  # ddspf.fourCC: header offset 72 + 8, after the 4-byte magic
+    # ddspf (DDS_PIXELFORMAT) at header offset 72, after the 4-byte magic: its size, flags and fourCC. DirectXTex
+    # refuses a ddspf.size other than 32, and reads the DX10 header only where the DDPF_FOURCC flag is set.
+    pf_size, pf_flags = struct.unpack_from("<2I", data, 76)
+    fourcc = data[84:88]
     if size != 124 or fourcc != b"DX10":
         raise InputError(f"{shown}: expected a DDS with a DX10 header")
+    if pf_size != 32:
+        raise InputError(f"{shown}: header field ddspf.size is {pf_size}; expected 32")
+    if not pf_flags & DDPF_FOURCC:
+        raise InputError(f"{shown}: header field ddspf.flags is {pf_flags:#x}; expected the DDPF_FOURCC bit "
+                         f"({DDPF_FOURCC:#x}), which makes fourCC 'DX10' name a DX10 header")  # fmt: skip
     dxgi_format, dimension, misc, array_size, misc2 = struct.unpack_from("<5I", data, 128)
     if dxgi_format not in DXGI_NAMES:
         raise InputError(f"{shown}: DXGI format {dxgi_format} is not RGBA8")

@@ -408,6 +408,8 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
     _check_descriptor(path, data[dfd_offset : dfd_offset + dfd_length], vk_format)
     if sgd_length != 0:
         raise _field_error(path, "sgdByteLength", f"{sgd_length}; expected 0 (no global data for this scheme)")
+    if sgd_offset != 0:  # KTX 2.0, 3.10: with no supercompression global data both are 0
+        raise _field_error(path, "sgdByteOffset", f"{sgd_offset}; expected 0 where sgdByteLength is 0")
     key_values = _read_key_values(path, data, kvd_offset, kvd_length)
 
     levels = []
@@ -427,7 +429,11 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
                 f"{mip_count} levels exceeds the {MAX_UNCOMPRESSED_BYTES}-byte limit",
             )
         if uncompressed != expected:
-            raise _field_error(path, f"{name}.uncompressedByteLength", f"{uncompressed}; expected {expected} for {shape}")
+            # The header's extents or this entry: a flipped pixelWidth shows here first, so both are named.
+            extent = f"pixelDepth {depth}" if volume else f"layerCount {layer_count}"
+            raise _field_error(path, f"{name}.uncompressedByteLength", f"{uncompressed}; expected {expected}, the bytes of "
+                               f"level {k} {shape} of pixelWidth {width}, pixelHeight {height} and {extent} (one of those "
+                               "header fields or this entry is wrong)")  # fmt: skip
         _check_span(path, f"{name}.byteLength", offset, length, size, f"{name}.byteOffset")
         if scheme == SUPERCOMPRESSION_NONE:
             if length != expected:

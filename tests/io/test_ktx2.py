@@ -309,6 +309,14 @@ DAMAGED = {
     "keyAndValueByteLength": (lambda: _put(_tiny(), _kvd_offset(_tiny()), "<I", 10_000), "'keyAndValueByteLength'"),
     "key without NUL": (lambda: _put(_tiny(), _kvd_offset(_tiny()) + 4, "18s", b"A" * 18), "'keyAndValue'"),
     "sgdByteLength": (lambda: _put(_tiny(), 72, "<Q", 4), "'sgdByteLength'"),
+    # KTX 2.0 3.10: with no global data both are 0 (a flipped sgdByteOffset was read, exit 0).
+    "sgdByteOffset without global data": (lambda: _put(_tiny(), 64, "<Q", 8), "'sgdByteOffset': 8; expected 0 where"),
+    # A flipped extent shows first in the level index: the message gives the extents it was checked against.
+    "pixelWidth within range": (
+        lambda: _put(_tiny(), 20, "<I", 5),
+        "'levels[0].uncompressedByteLength': 96; expected 120, the bytes of level 0 (3, 2, 5, 4) of "
+        "pixelWidth 5, pixelHeight 2 and layerCount 3 (one of those header fields or this entry",
+    ),
     "level byteOffset": (lambda: _put(_tiny(), 80, "<Q", 1 << 40), "'levels[0].byteOffset'"),
     "level byteLength": (lambda: _put(_tiny(), 88, "<Q", 1 << 62), "'levels[0].byteLength'"),
     "uncompressedByteLength": (lambda: _put(_tiny(), 96, "<Q", 1 << 40), "'levels[0].uncompressedByteLength'"),
