@@ -15,7 +15,13 @@ from atlasgen.io.fields import Param
 from atlasgen.models.base import Model, Reference, SliceSet
 from atlasgen.models.physical_fit import fitted_bsdf_slice
 from atlasgen.optics.interpolation import sample_slice
-from atlasgen.separable.mitsuba_source import delta_fractions, describe_lobes, load_mitsuba_bsdf, unheld_in_bsdf
+from atlasgen.separable.mitsuba_source import (
+    delta_fractions,
+    describe_lobes,
+    load_mitsuba_bsdf,
+    transmitting_field,
+    unheld_in_bsdf,
+)
 
 __all__ = ["Bsdf"]
 
@@ -62,9 +68,16 @@ class Bsdf(Model):
         load_mitsuba_bsdf(values["bsdf"], path, anisotropic=values["accept_anisotropy"], rough_only=values["rough_only"])
 
     def unheld_inputs(self, values: dict) -> list[str]:
-        """A lobe sharper than the renderer's and a mask's see-through light (:func:`unheld_in_bsdf`): the fit's
-        figure sees neither, so the bake warns with them."""
-        return unheld_in_bsdf(values["bsdf"])
+        """A lobe sharper than the renderer's and a mask's see-through light (:func:`unheld_in_bsdf`), and the light
+        a BSDF transmits (a roughdielectric, a principled spec_trans): the fit's figure sees none of them (3 % of a
+        blend transmitting baked without a word, and a roughdielectric's warning blamed an unreachable fit), so the
+        bake warns with them."""
+        out = unheld_in_bsdf(values["bsdf"])
+        transmitting = transmitting_field(values["bsdf"])
+        if transmitting is not None:
+            out.append(f"{transmitting[0]} = {transmitting[1]!r}: the light it transmits, which no slice holds (the "
+                       "reflection that remains is baked)")  # fmt: skip
+        return out
 
     def fitted(self, values: dict):
         """The fitted slice ``(H, W, 4)`` and its description (cached per BSDF and gloss)."""

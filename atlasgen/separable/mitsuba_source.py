@@ -18,6 +18,7 @@ from atlasgen.io.text import special_file_kind
 __all__ = [
     "VARIANT",
     "unheld_in_bsdf",
+    "transmitting_field",
     "BSDF_PROPERTIES",
     "load_mitsuba_bsdf",
     "explain_mitsuba_error",
@@ -155,6 +156,10 @@ def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
     'bsdf.alpha = 0.0001'
     >>> unheld_in_bsdf({"type": "mask", "opacity": 0.5, "material": {"type": "diffuse"}})[0].split(":")[0]
     'bsdf.opacity = 0.5'
+    >>> unheld_in_bsdf({"type": "principled", "roughness": 0.0})[0].split(":")[0]
+    'bsdf.roughness = 0'
+    >>> unheld_in_bsdf({"type": "roughconductor", "alpha": {"type": "checkerboard"}})[0].split(":")[0]
+    'bsdf.alpha = a texture'
     >>> unheld_in_bsdf({"type": "roughconductor", "alpha": 0.2})
     []
     """
@@ -163,9 +168,13 @@ def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
         for key in ("alpha", "alpha_u", "alpha_v", "roughness"):
             value = node.get(key)
             limit = _ROUGHNESS_MIN if key == "roughness" else SPECULAR_ALPHA_MIN
-            if is_number(value) and 0.0 < value < limit:
+            # 0 too: a GGX lobe of alpha 0 is a mirror, its spike baked as a scale of 1e5 that the fit never sees.
+            if is_number(value) and 0.0 <= value < limit:
                 out.append(f"{where}.{key} = {value:g}: a lobe sharper than the renderer's sharpest (alpha "
                            f"{SPECULAR_ALPHA_MIN:g}), whose highlight falls between the fit's samples")  # fmt: skip
+            elif isinstance(value, dict):
+                out.append(f"{where}.{key} = a texture: a lobe whose sharpness is read at uv (0.5, 0.5) and not checked "
+                           f"against the renderer's sharpest (alpha {SPECULAR_ALPHA_MIN:g})")  # fmt: skip
         opacity = node.get("opacity", 0.5)
         if node.get("type") == "mask" and (not is_number(opacity) or opacity < 1.0):
             shown_opacity = f"{opacity:g}" if is_number(opacity) else "a texture"
@@ -354,11 +363,33 @@ def _delta_field(spec: dict, field: str) -> tuple[str, str]:
     return f"{field}.type", str(spec.get("type"))
 
 
+def transmitting_field(spec: dict, field: str = "bsdf") -> tuple[str, str] | None:
+    """The dotted ``type`` key of the innermost BSDF table in ``spec`` that transmits light, and its plugin (a
+    ``blendbsdf``'s ``roughdielectric``, not the blend); None where none does. Each table is loaded alone."""
+    mi = _mitsuba()
+    found = None
+    for _, where, node in _nodes(spec, field):
+        if not isinstance(node.get("type"), str):
+            continue
+        try:
+            obj = mi.load_dict(dict(node))
+        except Exception:  # a table Mitsuba loads only within its parent (or no BSDF): not this question's
+            continue
+        if isinstance(obj, mi.BSDF) and bsdf_lobes(obj, mi)["transmits"]:
+            found = (f"{where}.type", node["type"])
+    return found
+
+
 def bsdf_lobes(bsdf, mi) -> dict:
-    """``{"anisotropic": bool, "delta_components": int}`` of a loaded BSDF: Mitsuba's ``Anisotropic``
-    flag, and how many of its components (``BSDF.flags(i)``) carry ``DeltaReflection``."""
+    """``{"anisotropic": bool, "delta_components": int, "transmits": bool}`` of a loaded BSDF: Mitsuba's
+    ``Anisotropic`` flag, how many of its components (``BSDF.flags(i)``) carry ``DeltaReflection``, and whether
+    it transmits light beside reflecting it."""
     delta = sum(mi.has_flag(bsdf.flags(i), mi.BSDFFlags.DeltaReflection) for i in range(bsdf.component_count()))
-    return {"anisotropic": bool(mi.has_flag(bsdf.flags(), mi.BSDFFlags.Anisotropic)), "delta_components": int(delta)}
+    flags = bsdf.flags()
+    # As load_mitsuba_bsdf's refusal reads it: Transmission with a reflection (the null BSDF is refused apart).
+    transmits = mi.has_flag(flags, mi.BSDFFlags.Transmission) and mi.has_flag(flags, mi.BSDFFlags.Reflection)
+    return {"anisotropic": bool(mi.has_flag(flags, mi.BSDFFlags.Anisotropic)), "delta_components": int(delta),
+            "transmits": bool(transmits)}  # fmt: skip
 
 
 def load_mitsuba_bsdf(
@@ -425,7 +456,22 @@ def load_mitsuba_bsdf(
         raise MaterialError(path, where, f"expected rough lobes only: a {plugin!r} BSDF has a smooth (delta) reflection, which "
                                          f"BSDF.eval omits and a slice cannot hold; use its rough form, {remedy} "
                                          "(the dropped fraction is recorded)")  # fmt: skip
+    _check_evaluates(obj, spec, path, field)
     return obj
+
+
+def _check_evaluates(obj, spec: dict, path, field: str) -> None:
+    """Refuse a BSDF that loads but does not evaluate in the RGB variant: a ``blackbody`` spectrum loads and then
+    raised "Not implemented for non-spectral modes" mid-bake, an internal error. One pair is evaluated here."""
+    try:
+        evaluate_mitsuba_f_cos(obj, np.array([[0.0, 0.6, 0.8]]), np.array([[0.0, -0.6, 0.8]]))
+    except RuntimeError as exc:
+        mitsuba = " ".join(str(exc).split())
+        node = next((where for _, where, n in _nodes(spec, field) if n.get("type") == "blackbody"), None)
+        if node is not None:
+            raise MaterialError(path, node, f"expected a spectrum Mitsuba's RGB variant evaluates, got a blackbody, "
+                                f"which needs a spectral one (Mitsuba: {mitsuba})") from None  # fmt: skip
+        raise MaterialError(path, field, f"expected a BSDF Mitsuba's RGB variant evaluates (Mitsuba: {mitsuba})") from None
 
 
 def describe_lobes(spec: dict) -> dict:

@@ -185,6 +185,17 @@ def test_a_transmissive_bsdf_is_refused_naming_bsdf_type(mitsuba_llvm, expect_re
     assert "reflection_only = true" in message
 
 
+@pytest.mark.parametrize(("model", "bsdf", "field"), [
+    ("bsdf", '{ type = "diffuse", reflectance = { type = "blackbody", temperature = 5000 } }', "bsdf.reflectance"),
+    ("bsdf", '{ type = "roughconductor", alpha = 0.2, k = { type = "blackbody", temperature = 3000 } }', "bsdf.k"),
+    ("separable", '{ type = "diffuse", reflectance = { type = "blackbody", temperature = 5000 } }\nsource = "mitsuba"',
+     "bsdf.reflectance"),
+])  # fmt: skip
+def test_a_blackbody_spectrum_is_refused_naming_it(mitsuba_llvm, expect_rejected, model, bsdf, field):
+    """It loads, and Mitsuba's RGB variant raised "Not implemented for non-spectral modes" mid-bake: an internal error."""
+    expect_rejected(model, f"bsdf = {bsdf}", field, "expected a spectrum Mitsuba's RGB variant evaluates, got a blackbody")
+
+
 def test_reflection_only_is_only_for_mitsuba(expect_rejected):
     expect_rejected("separable", 'source = "ggx"\nreflection_only = true', "reflection_only", "only used with source = 'mitsuba'")
 
