@@ -899,6 +899,34 @@ def _check_verdicts(path: Path, data: dict) -> None:
             raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected "
                              f"{str(expected).lower()} from its figures (PSNR {psnr:.1f} dB, FLIP {flip:.4f}) and the goals "
                              f"({goal}), got {str(ref['meets_goal']).lower()}; re-run atlasgen validate")  # fmt: skip
+    for i, row in enumerate(data["results"]):
+        _check_look_verdict(path, f"results[{i}]", row)
+
+
+def _verdict_text(value) -> str:
+    return "null" if value is None else str(value).lower()
+
+
+def _check_look_verdict(path: Path, where: str, row: dict) -> None:
+    """Refuse a look whose recorded verdict is not what :func:`look_verdict` gives from its goal and the figures of
+    the reference it names, as the page would judge them: a merge passed "met" beside a physical PSNR of 10 dB (an
+    edited psnr_db, flip or goal), and printed a miss beside figures that meet the goal (an edited meets_goal)."""
+    look = row.get("look")
+    if not isinstance(look, dict) or not isinstance(look.get("goal"), dict):
+        return
+    ref = row["references"].get(look.get("reference") or "")
+    if not isinstance(ref, dict) or not all(is_number(look["goal"].get(k)) for k in ("psnr_db", "flip")):
+        return
+    expected = look_verdict(look, ref)["meets_goal"]
+    figures = f"PSNR {_psnr_text(ref.get('psnr_db'))} dB, FLIP {_fmt(ref.get('flip'), '.4f')}"
+    goal = f"PSNR >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g}"
+    if expected != look.get("meets_goal"):
+        raise FieldError(path.as_posix(), f"{where}.look.meets_goal", f"expected {_verdict_text(expected)} from the "
+                         f"{look['reference']} reference's figures ({figures}) and the look goal ({goal}), got "
+                         f"{_verdict_text(look.get('meets_goal'))}; re-run atlasgen validate")  # fmt: skip
+    if "look_goal" in ref and ref["look_goal"] != look.get("meets_goal"):
+        raise FieldError(path.as_posix(), f"{where}.references.{look['reference']}.look_goal", f"expected "
+                         f"{_verdict_text(look.get('meets_goal'))}, the look's verdict, got {_verdict_text(ref['look_goal'])}")  # fmt: skip
 
 
 #: Per key of a result (and of each of its references), what a merge or the library page reads it as:

@@ -147,10 +147,10 @@ def test_a_merge_into_one_of_its_sources_is_refused_and_changes_nothing(merged, 
     assert {p: p.read_bytes() for p in second.rglob("*") if p.is_file()} == before
 
 
-def _edited(merged, tmp_path, change) -> Path:
-    """A copy of one material's report.json with ``change`` applied to its parsed JSON."""
+def _edited(merged, tmp_path, change, material=None) -> Path:
+    """A copy of one material's report.json (the first's, or ``material``'s) with ``change`` applied to its parsed JSON."""
     out, parts, _ = merged
-    source = out / "materials" / next(iter(parts))
+    source = out / "materials" / (material or next(iter(parts)))
     data = json.loads((source / "report.json").read_text())
     change(data)
     folder = tmp_path / "edited"
@@ -249,6 +249,43 @@ def test_a_verdict_its_figures_do_not_give_is_refused(merged, tmp_path):
     folder = _edited(merged, tmp_path / "seconds", _put(-5, "total_seconds"))
     with pytest.raises(InputError, match=r"field 'total_seconds': expected a number >= 0, got -5$"):
         merge_validation_reports([folder], tmp_path / "merged")
+    assert not (tmp_path / "merged").exists()
+
+
+def _met_look(data, forge) -> None:
+    """A row's look made met, its reference's figures far beyond its goal and its floor, then ``forge`` applied."""
+    row = next(r for r in data["results"] if (r.get("look") or {}).get("reference") in r["references"])
+    ref = row["references"][row["look"]["reference"]]
+    for key in ("parts", "not_measured", "coverage"):
+        ref.pop(key, None)
+    ref.update(psnr_db=60.0, flip=0.001, clipped_pixels=0, noise_floor_db=90.0, noise_floor_ok=True, look_goal=True)
+    row["look"].update(goal={"psnr_db": 30.0, "flip": 0.05}, meets_goal=True, not_judged=None)
+    row["look"].pop("parts", None)
+    if forge is not None:
+        forge(row)
+
+
+@pytest.mark.parametrize(("forge", "expected"), [
+    (None, None),  # as atlasgen validate would write it: merged
+    # The reference's figures or the goal edited: "met" beside a physical PSNR of 10 dB passed --strict.
+    (lambda row: row["references"][row["look"]["reference"]].update(psnr_db=10.0), "expected false from the "),
+    (lambda row: row["references"][row["look"]["reference"]].update(flip=0.9), "expected false from the "),
+    (lambda row: row["look"]["goal"].update(psnr_db=99.0), "expected false from the "),
+    # The verdict edited: the page printed a miss beside figures that meet the goal.
+    (lambda row: row["look"].update(meets_goal=False), "expected true from the "),
+])  # fmt: skip
+def test_a_look_verdict_its_figures_do_not_give_is_refused(merged, tmp_path, forge, expected):
+    from atlasgen.reports.validation import merge_validation_reports
+
+    folder = _edited(merged, tmp_path, lambda data: _met_look(data, forge), material="film")  # judged on its look
+    if expected is None:
+        merge_validation_reports([folder], tmp_path / "merged")
+        return
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    message = str(info.value)
+    assert ".look.meets_goal': " + expected in message and "reference's figures (PSNR " in message and \
+        message.endswith("; re-run atlasgen validate") and "\n" not in message, message  # fmt: skip
     assert not (tmp_path / "merged").exists()
 
 
