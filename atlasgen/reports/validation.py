@@ -61,6 +61,15 @@ _KIND_LABEL = {
 }
 
 
+def _relative_cache(environment: dict, out_dir) -> dict:
+    """``environment`` with its ``reference_cache`` folder given from ``out_dir`` (the report's folder), as ``atlas`` is:
+    as typed, it was a path from the working folder, wrong when read from the report and other bytes from elsewhere."""
+    cache = environment.get("reference_cache")
+    if out_dir is None or not isinstance(cache, str):
+        return environment
+    return {**environment, "reference_cache": Path(os.path.relpath(cache, out_dir)).as_posix()}
+
+
 def _display_png(rgb01) -> bytes:
     """PNG bytes of an ``(h, w, 3)`` display image in [0, 1] (already sRGB-encoded), 8 bits per channel."""
     return encode_png(quantize_rgba(np.asarray(rgb01, dtype=np.float64), srgb=False))
@@ -289,7 +298,7 @@ def report_dict(run, out_dir=None) -> dict:
         # From the report's folder: the path as typed made the same inputs write other bytes from another folder.
         "atlas": run.atlas if out_dir is None else Path(os.path.relpath(run.atlas, out_dir)).as_posix(),
         "settings": run.settings,
-        "environment": run.environment,
+        "environment": _relative_cache(run.environment, out_dir),
         "total_seconds": run.seconds,
         "summary": _summary(rows),
         "results": rows,
@@ -1150,6 +1159,10 @@ def merge_validation_reports(sources, out_dir) -> dict:
             row["page"] = _rebase("index.html", path.parent, out_dir)
             rows.append(row)
     environment = {key: _combined([r["environment"].get(key) for r in reports]) for key in first["environment"]}
+    if "reference_cache" in environment:  # each from its report's folder: from the merged one's
+        environment["reference_cache"] = _combined([_rebase(r["environment"]["reference_cache"], p.parent, out_dir)
+                                                    if isinstance(r["environment"].get("reference_cache"), str) else None
+                                                    for p, r in zip(paths, reports)])  # fmt: skip
     data = {
         "atlas": _joined(_rebase(r["atlas"], p.parent, out_dir) for p, r in zip(paths, reports)),
         "settings": first["settings"],

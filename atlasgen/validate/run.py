@@ -558,7 +558,9 @@ def validate_atlas(atlas_path, materials=None, scenes=DEFAULT_SCENES, spp: int =
         # None where no physical reference was rendered (--no-physical): the page then says so, not an spp.
         "physical_spp": physical_spp if physical else None,
         "max_physical_spp": max_physical_spp if physical else None,
-        "scenes": [{"name": n, "path": s.path, "width": s.width, "height": s.height} for n, s in plan.scenes],
+        # Each scene by its name and file's bytes, not its path: the path as typed gave other bytes from another folder
+        # (a built-in scene's, from another clone), and a merge took one path for one scene whatever the file held.
+        "scenes": [{"name": n, "sha256": _file_sha256(s.path), "width": s.width, "height": s.height} for n, s in plan.scenes],
         "goals": {
             "psnr_db": GOAL_PSNR_DB,
             "flip": GOAL_FLIP,
@@ -851,6 +853,14 @@ def _short_description(description: str) -> str:
     """
     cut = min((i for i in (description.find(c) for c in (":", ",", " (", ";")) if i > 0), default=len(description))
     return description[:cut].strip()
+
+
+def _file_sha256(path) -> str | None:
+    """The SHA-256 of the file at ``path`` (a scene's), or None where it was read from no file."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except (OSError, TypeError):
+        return None
 
 
 def _look_goal(entry, model, run, physical: bool) -> dict:

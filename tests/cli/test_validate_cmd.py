@@ -405,7 +405,7 @@ def test_the_reference_cache_defaults_to_build_cache_references_and_serves_a_sec
     assert runner.invoke(app, [*args, "-o", "second"]).exit_code == 0
     environment = json.loads((tmp_path / "second" / "report.json").read_text())["environment"]
     assert environment["reference_renders_from_cache"] == 1 and environment["reference_renders_stored"] == 0
-    assert environment["reference_cache"] == "build/cache/references"
+    assert environment["reference_cache"] == "../build/cache/references"  # from the report's folder, as the atlas is
     # --no-reference-cache: the default cache's render is neither read nor counted (naming another cache with it
     # is refused: tests/cli/test_options.py).
     assert runner.invoke(app, [*args, "-o", "third", "--no-reference-cache"]).exit_code == 0

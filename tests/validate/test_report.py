@@ -201,11 +201,27 @@ def test_the_report_is_the_same_bytes_from_whatever_folder_it_is_written(validat
 
     (tmp_path / "sub").mkdir()
     written = []
-    for cwd, given in ((tmp_path, "atlas.dds"), (tmp_path / "sub", "../atlas.dds")):
+    # The reference cache too (a hostile sweep): it was recorded as typed, a path from the working folder.
+    for cwd, given, cache in ((tmp_path, "atlas.dds", "refcache"), (tmp_path / "sub", "../atlas.dds", "../refcache")):
         monkeypatch.chdir(cwd)
         out = tmp_path / f"report-{len(written)}"
-        write_validation(replace(validation_run, atlas=given), out)
+        environment = {**validation_run.environment, "reference_cache": cache}
+        write_validation(replace(validation_run, atlas=given, environment=environment), out)
         written.append({name: (out / name).read_bytes() for name in ("report.json", "index.html")})
     assert written[0] == written[1]
     assert json.loads(written[0]["report.json"])["atlas"] == "../atlas.dds"
+    assert json.loads(written[0]["report.json"])["environment"]["reference_cache"] == "../refcache"
     assert b"Atlas <code>../atlas.dds</code>" in written[0]["index.html"]
+
+
+def test_scenes_are_recorded_by_their_bytes_not_their_path(validation_run):
+    """A scene's path as typed gave other bytes from another folder (a built-in scene's, from another clone), and a
+    merge compared scenes by that path: one file spelt two ways was refused, and two contents at one path merged."""
+    import hashlib
+
+    import atlasgen
+
+    (scene,) = [s for s in validation_run.settings["scenes"] if s["name"] == "front"]
+    front = Path(atlasgen.__file__).parent / "data" / "validation" / "front.toml"
+    assert set(scene) == {"name", "sha256", "width", "height"}
+    assert scene["sha256"] == hashlib.sha256(front.read_bytes()).hexdigest()
