@@ -9,6 +9,7 @@ lazily (Agg backend), inside :func:`write_separable_report`.
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -503,6 +504,28 @@ def _refuse_no_terms(refused) -> None:
         raise InputError(f"{clauses}; expected {expected}")
 
 
+def with_atlas_renamed(message: str, old: str, new: str) -> str:
+    """``message`` with the atlas ``old`` and its manifest beside it named as ``new`` and its manifest.
+
+    >>> with_atlas_renamed("a/x.json: no material 'm'", "a/x.dds", "../a/x.dds")
+    "../a/x.json: no material 'm'"
+    """
+    for suffix in (".json", Path(old).suffix):
+        message = message.replace(Path(old).with_suffix(suffix).as_posix(), Path(new).with_suffix(suffix).as_posix())
+    return message
+
+
+def _paths_from(study: MaterialStudy, folder: Path) -> None:
+    """Give ``study``'s material file and atlas from ``folder`` (the report's), as validation gives its atlas: as typed,
+    they were paths from the working folder, and the same inputs wrote other bytes from another one."""
+    study.source = Path(os.path.relpath(study.source, folder)).as_posix()
+    if study.atlas is not None and isinstance(study.atlas.get("path"), str):
+        typed = study.atlas["path"]
+        study.atlas["path"] = Path(os.path.relpath(typed, folder)).as_posix()
+        if isinstance(study.atlas.get("missing"), str):  # the reader's message names the atlas (or its manifest) as given
+            study.atlas["missing"] = with_atlas_renamed(study.atlas["missing"], typed, study.atlas["path"])
+
+
 def write_separable_report(
     materials,
     output,
@@ -556,6 +579,8 @@ def write_separable_report(
                                       manifest=manifest))  # fmt: skip
         if on_material is not None:
             on_material(m.name, done, len(materials))
+    for s in studies:
+        _paths_from(s, folder)
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
     with staged_folder(folder, primary="report.json", whole=True) as staging:

@@ -417,3 +417,31 @@ def test_the_summary_row_names_the_factorization_its_figures_are_of():
                           timings={"sample_s": 0.001, "svd_s": 0.002, "quantize_s": 0.003, "error_s": 0.004})  # fmt: skip
     assert _summary_cells(study)[3] == "6 (NMF)"
     assert "NMF 2.0 ms" in _timings_text(study) and "SVD" not in _timings_text(study)
+
+
+@pytest.mark.slow
+def test_the_material_and_atlas_are_given_from_the_report_s_folder(write_material, tmp_path, separable_atlas, monkeypatch):
+    """Both were recorded as typed, paths from the working folder: the same inputs wrote other bytes from another
+    folder (a hostile sweep). A merge gives them from its own folder, as validation's merge gives its atlas."""
+    from atlasgen.reports.separable_merge import merge_separable_reports
+
+    atlas, _ = separable_atlas
+    shutil.copy(atlas, tmp_path / "atlas.dds")
+    shutil.copy(atlas.with_suffix(".json"), tmp_path / "atlas.json")
+    (tmp_path / "m").mkdir()
+    (tmp_path / "sub").mkdir()
+    source = write_material("lobe", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n')
+    shutil.copy(source, tmp_path / "m" / "lobe.toml")
+    recorded = []
+    for cwd, prefix in ((tmp_path, ""), (tmp_path / "sub", "../")):
+        monkeypatch.chdir(cwd)
+        out = write_separable_report([read_material(f"{prefix}m/lobe.toml")], tmp_path / f"r{len(recorded)}",
+                                     atlas_path=f"{prefix}atlas.dds", resolutions=(8,), repeats=1,
+                                     parametrizations=("half_diff",))  # fmt: skip
+        data = json.loads(out["json"].read_text())[0]
+        recorded.append((data["source"], data["atlas"]["path"], data["atlas"]["missing"]))
+    assert recorded[0] == recorded[1]
+    assert recorded[0][:2] == ("../m/lobe.toml", "../atlas.dds") and recorded[0][2].startswith("../atlas.json: "), recorded[0]
+    merged = merge_separable_reports([tmp_path / "r0"], tmp_path / "merged" / "all")
+    data = json.loads(merged["json"].read_text())[0]
+    assert (data["source"], data["atlas"]["path"]) == ("../../m/lobe.toml", "../../atlas.dds")
