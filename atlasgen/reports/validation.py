@@ -449,6 +449,29 @@ def _missed_parts(look: dict) -> str:
     return f" ({', '.join(missed)})" if missed else ""
 
 
+def _storage_goals_text(judged: list, goals: dict) -> str:
+    """Each storage goal the ``judged`` (row, model reference) pairs were held to, with the worst figures of the
+    comparisons held to it: the settings' PSNR and FLIP, and an environment map's own PSNR goal (its scene named),
+    which the line gave as the default goal beside an environment's worst figure ("PSNR >= 45 dB; worst 41.4 dB" for
+    4/4 met). E.g. ``PSNR >= 45 dB, FLIP <= 0.01; worst 52.1 dB, FLIP 0.0031; env-sky: PSNR >= 35 dB; worst 41.4 dB``."""
+    groups: dict = {}
+    for row, m in judged:
+        own = row.get("goal_psnr_db")
+        groups.setdefault(own if is_number(own) else None, []).append((row, m))
+    texts = []
+    for own, pairs in sorted(groups.items(), key=lambda item: item[0] is not None):
+        figures = [m for _, m in pairs if not_measured(m) is None]
+        psnrs = [m["psnr_db"] for m in figures if m["psnr_db"] is not None]
+        worst = f"worst {_psnr_text(min(psnrs) if psnrs else None)} dB"
+        if own is None:
+            flips = [m["flip"] for m in figures if m["flip"] is not None]
+            texts.append(f"{_goals_text(goals)}; {worst}, FLIP {_fmt(max(flips) if flips else None, '.4f')}")
+        else:
+            scenes = ", ".join(dict.fromkeys(row["scene"] for row, _ in pairs))
+            texts.append(f"{scenes}: PSNR >= {own:g} dB; {worst}")
+    return "; ".join(texts)
+
+
 def describe_materials(data: dict) -> list[str]:
     """One line per material: its verdict, then what was measured against which goal.
 
@@ -466,20 +489,16 @@ def describe_materials(data: dict) -> list[str]:
     for name, rows in _rows_by_material(data).items():
         parts, missed = [], []
         models = [(row, row["references"]["model"]) for row in rows if "model" in row["references"]]
-        checked = [m for _, m in models if m.get("meets_goal") is not None]
+        judged = [(row, m) for row, m in models if m.get("meets_goal") is not None]
+        checked = [m for _, m in judged]
         # Model comparisons that measure nothing of the material (no goal judged on them): said, never met.
         unmeasured = [f"{row['scene']}: {not_measured(m)}" for row, m in models
                       if m.get("meets_goal") is None and not_measured(m) is not None]  # fmt: skip
         if checked:
-            figures = [m for m in checked if not_measured(m) is None]
-            psnrs = [m["psnr_db"] for m in figures if m["psnr_db"] is not None]
-            worst_psnr = min(psnrs) if psnrs else None
-            flips = [m["flip"] for m in figures if m["flip"] is not None]
             met = sum(1 for m in checked if m["meets_goal"])
             if met < len(checked):
                 missed.append("storage")
-            parts.append(f"storage {met}/{len(checked)} met ({_goals_text(goals)}; worst {_psnr_text(worst_psnr)} dB, "
-                         f"FLIP {_fmt(max(flips) if flips else None, '.4f')})"
+            parts.append(f"storage {met}/{len(checked)} met ({_storage_goals_text(judged, goals)})"
                          + (f", not measured on {'; '.join(unmeasured)}" if unmeasured else ""))  # fmt: skip
         elif unmeasured:
             parts.append(f"nothing measured against its model reference on {'; '.join(unmeasured)}")

@@ -50,6 +50,16 @@ def test_a_lut_material_counts_its_scenes_and_names_the_worst_figures():
     assert missed_goals(data) == ["clay on back: PSNR 44.5 dB, FLIP 0.0123 (PSNR >= 45 dB, FLIP <= 0.01)"]
 
 
+def test_an_environment_map_s_own_goal_is_given_with_its_own_worst_figure():
+    """With --environment the line gave the default goal beside an environment's worst figure: "storage 4/4 met
+    (PSNR >= 45 dB, FLIP <= 0.01; worst 41.4 dB, FLIP 0.0818)", met yet below the goal it stated (a hostile sweep)."""
+    sky = {**_lut("clay", "env-sky", 41.4, 0.0818), "goal_psnr_db": 35.0}
+    sky["references"]["model"]["meets_goal"] = True  # its own goal: PSNR >= 35 dB
+    data = _report(_lut("clay", "front", 52.04, 0.0031), sky)
+    assert describe_materials(data) == ["clay: storage goals met; storage 2/2 met (PSNR >= 45 dB, FLIP <= 0.01; worst "
+                                        "52.0 dB, FLIP 0.0031; env-sky: PSNR >= 35 dB; worst 41.4 dB)"]  # fmt: skip
+
+
 @pytest.mark.parametrize(
     "budget, verdict, missed",
     [
