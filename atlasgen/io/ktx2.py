@@ -444,6 +444,13 @@ def read_ktx2(path, data: bytes | None = None) -> KTX2Image:
         else:
             texels = np.frombuffer(_inflate(path, k, data[offset : offset + length], expected), np.uint8)
         levels.append(texels.reshape(shape))
+    # The base level ends the file (KTX 2.0, "File Structure": levels follow, smallest first): bytes appended after
+    # it were read without a word, where the DDS reader refuses them.
+    entries = [LEVEL_INDEX_ENTRY.unpack_from(data, HEADER.size + LEVEL_INDEX_ENTRY.size * k) for k in range(mip_count)]
+    end = max(offset + length for offset, length, _ in entries)
+    if end != size:
+        raise _field_error(path, "levels", f"the last level stored ends at byte {end}, the file has {size} bytes; "
+                           "expected the base level to end the file")  # fmt: skip
     return KTX2Image(width, height, depth if volume else 1, 1 if volume else layer_count, mip_count, vk_format,
                      "volume" if volume else "array", levels, scheme, key_values)  # fmt: skip
 

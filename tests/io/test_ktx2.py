@@ -309,6 +309,9 @@ DAMAGED = {
     "keyAndValueByteLength": (lambda: _put(_tiny(), _kvd_offset(_tiny()), "<I", 10_000), "'keyAndValueByteLength'"),
     "key without NUL": (lambda: _put(_tiny(), _kvd_offset(_tiny()) + 4, "18s", b"A" * 18), "'keyAndValue'"),
     "sgdByteLength": (lambda: _put(_tiny(), 72, "<Q", 4), "'sgdByteLength'"),
+    # The base level ends the file (the independent reader, tests/ktx2_reader.py, holds it to that too).
+    "bytes after the base level": (lambda: _tiny() + b"\0" * 16, "'levels': the last level stored ends at byte "),
+    "bytes after the zstd base level": (lambda: _tiny(True) + b"x", "expected the base level to end the file"),
     # KTX 2.0 3.10: with no global data both are 0 (a flipped sgdByteOffset was read, exit 0).
     "sgdByteOffset without global data": (lambda: _put(_tiny(), 64, "<Q", 8), "'sgdByteOffset': 8; expected 0 where"),
     # A flipped extent shows first in the level index: the message gives the extents it was checked against.
