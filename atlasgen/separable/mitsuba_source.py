@@ -314,6 +314,19 @@ def _check_bitmap(spec: dict, path, field: str) -> None:
                             f"got {width} x {height} in {shorten(filename)}")  # fmt: skip
 
 
+def _flattened(value):
+    """The items of ``value``, nested lists opened (a spectrum's pairs); ``value`` itself where it is no list.
+
+    >>> list(_flattened([[400.0, 0.5], [700.0, 0.25]])), list(_flattened(0.5))
+    ([400.0, 0.5, 700.0, 0.25], [0.5])
+    """
+    if not isinstance(value, list):
+        yield value
+        return
+    for item in value:
+        yield from _flattened(item)
+
+
 def _check_bsdf_values(spec: dict, path, field: str) -> None:
     """Every number of the (nested) BSDF table finite in float32, every roughness in range,
     every ``type`` a plugin name, every colour and weight meaningful (:func:`_check_meaningful`):
@@ -327,10 +340,14 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
         if isinstance(value, dict):
             _check_bsdf_values(value, path, where)
             continue
-        numbers = value if isinstance(value, list) else [value]
-        for number in numbers:
+        # Nested too: a spectrum's [[wavelength, value], ...] pairs hid a NaN until the bake's samples, 6 s later.
+        for number in _flattened(value):
             if is_number(number) and not fits_float32(number):
                 raise MaterialError(path, where, f"expected a finite float32 number, got {shown(value)}")
+        if key == "id" and not isinstance(value, str):  # Mitsuba's own: "std::bad_cast", naming the table
+            raise MaterialError(path, where, f"expected a name (Mitsuba's id of the table, a string), got {_shown(value)}")
+        if key in ROUGHNESS_RANGES and not is_number(value):  # a texture table went on above
+            raise MaterialError(path, where, f"expected a roughness (a number, or a texture table), got {_shown(value)}")
         if key in ROUGHNESS_RANGES and is_number(value):
             lo, hi = ROUGHNESS_RANGES[key]
             ok = (value > lo or (key == "roughness" and value == lo)) and value <= hi

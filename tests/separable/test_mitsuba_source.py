@@ -69,7 +69,12 @@ RGB = '{type = "rgb", value = [r, g, b]}'
          "bsdf.material.reflectance", [f"expected {RGB}"]),
         ({"type": "blendbsdf", "weight": 0.5, "a": {"type": "diffuse"}, "b": {"type": "roughplastic", "alpah": 0.1}},
          "bsdf.b.alpah", ["unknown property of a 'roughplastic' BSDF", "(did you mean 'alpha'?)"]),
-        ({"type": "roughplastic", "alpha": True}, "bsdf.alpha", ["expected a number, got true"]),
+        ({"type": "roughplastic", "alpha": True}, "bsdf.alpha", ["expected a roughness (a number, or a texture table), got true"]),
+        # A hostile sweep's: Mitsuba named the whole table, or refused 6 s into the bake.
+        ({"type": "roughconductor", "alpha": [[0.2]]}, "bsdf.alpha", ["expected a roughness (a number, or a texture table), got [[0.2]]"]),
+        ({"type": "diffuse", "id": 3}, "bsdf.id", ["expected a name (Mitsuba's id of the table, a string), got 3"]),
+        ({"type": "diffuse", "reflectance": {"type": "spectrum", "value": [[400.0, float("nan")], [700.0, 0.5]]}},
+         "bsdf.reflectance.value", ["expected a finite float32 number, got [[400.0, nan], [700.0, 0.5]]"]),
         ({"type": "roughconductor", "alpha": -0.1}, "bsdf.alpha", ["expected a roughness > 0 and <= 4, got -0.1"]),
         ({"type": "dielectric", "int_ior": "glas"}, "bsdf.int_ior", ["Mitsuba rejected 'glas'", "Valid choices are"]),
         ({"type": "roughconductor", "distribution": "phong"}, "bsdf.distribution", ["Mitsuba rejected 'phong'"]),
