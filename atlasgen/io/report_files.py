@@ -53,17 +53,24 @@ def loads_finite_json(text: str, path) -> object:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
 
 
-def check_number(path, field: str, value, allow_none: bool = True, minimum: float | None = None):
-    """``value`` if it is a finite number (or ``None``, with ``allow_none``), at least ``minimum`` if given;
-    else a one-line :class:`~atlasgen.errors.FieldError` naming the file and the field.
+def check_number(path, field: str, value, allow_none: bool = True, minimum: float | None = None,
+                 maximum: float | None = None):  # fmt: skip
+    """``value`` if it is a finite number (or ``None``, with ``allow_none``), at least ``minimum`` and at most
+    ``maximum`` where given; else a one-line :class:`~atlasgen.errors.FieldError` naming the file and the field.
 
     >>> check_number("t.json", "bake_s", 0.5), check_number("t.json", "bake_s", None)
     (0.5, None)
+    >>> check_number("t.json", "flip", 1.5, minimum=0, maximum=1)
+    Traceback (most recent call last):
+    atlasgen.errors.FieldError: t.json: field 'flip': expected a number in [0, 1], got 1.5
     """
     if value is None and allow_none:
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FieldError(Path(path).as_posix(), field, f"expected a finite number{' or null' * allow_none}, got {value!r}")
+    if maximum is not None and (value > maximum or (minimum is not None and value < minimum)):
+        low = "-inf" if minimum is None else f"{minimum:g}"
+        raise FieldError(Path(path).as_posix(), field, f"expected a number in [{low}, {maximum:g}], got {value!r}")
     if minimum is not None and value < minimum:
         raise FieldError(Path(path).as_posix(), field, f"expected a number >= {minimum:g}, got {value!r}")
     return value

@@ -878,10 +878,14 @@ def read_validation_report(path: Path) -> dict:
 #: The keys of ``environment`` and ``settings`` the merged page prints.
 _ENVIRONMENT_KEYS = ("gpu", "mitsuba", "atlas_timing", "mitsuba_timing")
 _SETTINGS_KEYS = ("spp", "physical_spp")
-#: The numbers of a report.json (each finite, or null) that a merge adds, compares or prints.
-_ROW_NUMBERS = ("exposure", "atlas_seconds", "goal_psnr_db")
-_REFERENCE_NUMBERS = ("seconds", "speed_ratio", "rmse", "psnr_db", "flip", "linear_rmse", "linear_relative_rms",
-                      "noise_floor_db", "masked_fraction", "spp")  # fmt: skip
+#: The numbers of a report.json (each finite, or null) that a merge adds, compares or prints, with the (least,
+#: greatest) each can be where it has bounds: a merge printed a FLIP of -1 as the worst, a coverage of 5 and an spp
+#: of 0 (a hostile sweep).
+_ROW_NUMBERS = {"exposure": (0.0, None), "atlas_seconds": (0.0, None), "goal_psnr_db": (None, None)}
+_REFERENCE_NUMBERS = {"seconds": (0.0, None), "speed_ratio": (0.0, None), "rmse": (0.0, None), "psnr_db": (None, None),
+                      "flip": (0.0, 1.0), "linear_rmse": (0.0, None), "linear_relative_rms": (0.0, None),
+                      "noise_floor_db": (None, None), "masked_fraction": (0.0, 1.0), "spp": (1.0, None),
+                      "coverage": (0.0, 1.0), "clipped_pixels": (0.0, None)}  # fmt: skip
 
 
 def _check_figures(path: Path, data: dict) -> None:
@@ -990,8 +994,8 @@ def check_result_figures(path, results, merged: bool = False) -> None:
         _check_fields(path, f"results[{i}]", row, _ROW_FIELDS, required)
         if not all(isinstance(note, str) for note in row.get("notes") or []):
             raise FieldError(Path(path).as_posix(), f"results[{i}].notes", "expected a list of strings")
-        for key in _ROW_NUMBERS:
-            check_number(path, f"results[{i}].{key}", row.get(key))
+        for key, (low, high) in _ROW_NUMBERS.items():
+            check_number(path, f"results[{i}].{key}", row.get(key), minimum=low, maximum=high)
         _check_claimed(path, f"results[{i}].claimed_errors", row.get("claimed_errors"))
         for kind, ref in row["references"].items():
             if not isinstance(ref, dict):
@@ -999,8 +1003,8 @@ def check_result_figures(path, results, merged: bool = False) -> None:
             _check_fields(path, f"results[{i}].references.{kind}", ref, _REFERENCE_FIELDS, required)
             if not all(isinstance(v, str) and v for v in (ref.get("images") or {}).values()):
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}.images", "expected image paths")
-            for key in _REFERENCE_NUMBERS:
-                check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key))
+            for key, (low, high) in _REFERENCE_NUMBERS.items():
+                check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key), minimum=low, maximum=high)
             _check_verdict(path, f"results[{i}].references.{kind}", ref)
         look = row.get("look")
         if look is not None:

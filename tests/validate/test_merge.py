@@ -233,6 +233,22 @@ def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, chan
     assert not (tmp_path / "merged").exists()
 
 
+@pytest.mark.parametrize(("key", "value", "expected"), [
+    ("flip", -1.0, "expected a number in [0, 1], got -1.0"),
+    ("coverage", 5.0, "expected a number in [0, 1], got 5.0"),
+    ("clipped_pixels", -3, "expected a number >= 0, got -3"),
+    ("spp", 0, "expected a number >= 1, got 0"),
+])  # fmt: skip
+def test_a_figure_beyond_what_it_can_be_is_refused(merged, tmp_path, key, value, expected):
+    """A hostile sweep's: a FLIP of -1 became the summary's worst, and a coverage of 5 merged."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    folder = _edited(merged, tmp_path, lambda data: data["results"][0]["references"]["model"].update({key: value}))
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    assert str(info.value).endswith(f"field 'results[0].references.model.{key}': {expected}"), str(info.value)
+
+
 def test_a_verdict_its_figures_do_not_give_is_refused(merged, tmp_path):
     """An edited meets_goal (true beside 20 dB and FLIP 0.5) merged as "all goals met"; a negative time printed."""
     from atlasgen.reports.validation import merge_validation_reports
