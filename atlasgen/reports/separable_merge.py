@@ -12,6 +12,7 @@ reads exactly like one written in a single run.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import MISSING, fields
 from pathlib import Path
@@ -20,6 +21,7 @@ from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
+from atlasgen.io.fields import is_number
 from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
 from atlasgen.reports.html import Chart
 from atlasgen.reports.report_kind import refuse_another_report
@@ -77,11 +79,32 @@ def _check_chosen(path: Path, where: str, item: dict) -> None:
         if not isinstance(figures, dict):
             raise FieldError(path.as_posix(), f"{where}.chosen.{part}", f"expected an object, got {shorten(repr(figures))}")
         check_number(path, f"{where}.chosen.{part}.relative_rms", figures.get("relative_rms"), allow_none=False, minimum=0)
+    _check_chosen_against_by_terms(path, where, chosen, item.get("by_terms"))
     timings = item["timings"]
     if isinstance(timings, dict):
         for key, value in timings.items():
             check_number(path, f"{where}.timings.{key}", value, minimum=0)
     _check_rows(path, where, item)
+
+
+def _check_chosen_against_by_terms(path: Path, where: str, chosen: dict, by_terms) -> None:
+    """Refuse SVD chosen figures that are not the study's own table at the chosen K: the terms are a prefix of one
+    factorization, so the chosen row repeats ``by_terms[target]`` at K (an edited ``terms = 7`` printed K = 3's
+    figures as K = 7's). An NMF choice (a MaterialX bake's) is in no SVD table, so it is not compared."""
+    if chosen.get("factorization", "svd") != "svd" or not isinstance(by_terms, dict):
+        return
+    table = by_terms.get(chosen.get("target"))
+    if not isinstance(table, dict):
+        return
+    k = chosen["terms"]
+    for part, column in (("float", "float"), ("8bit_srgb", "8bit")):
+        errors = table.get(column)
+        if not isinstance(errors, list) or len(errors) < k or not is_number(errors[k - 1]):
+            continue
+        got, expected = chosen[part]["relative_rms"], errors[k - 1]
+        if not math.isclose(got, expected, rel_tol=1e-6, abs_tol=1e-12):
+            raise FieldError(path.as_posix(), f"{where}.chosen.{part}.relative_rms", f"expected {expected:g}, the study's "
+                             f"by_terms.{chosen.get('target')}.{column} at the chosen K = {k}, got {got:g}")  # fmt: skip
 
 
 #: Per table of a study, its rows' figures (numbers >= 0) and counts (whole numbers >= 1): the page formats some and

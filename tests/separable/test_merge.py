@@ -114,6 +114,32 @@ def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys
     assert not (tmp_path / "merged").exists()
 
 
+@pytest.mark.parametrize(("keys", "value", "field"), [
+    (("chosen", "terms"), 7, "[0].chosen.float.relative_rms"),
+    (("chosen", "8bit_srgb", "relative_rms"), 0.9, "[0].chosen.8bit_srgb.relative_rms"),
+])  # fmt: skip
+@pytest.mark.slow
+def test_chosen_figures_that_are_not_the_study_s_own_at_its_k_are_refused(reports, tmp_path, keys, value, field):
+    """A hostile sweep's: terms = 7 printed K = 3's figures as K = 7's, and an 8-bit error of 0.9 merged beside a
+    table that gives 0.006 at the chosen K. The SVD terms are prefixes of one factorization, so the chosen row is
+    the table's at K."""
+    _, folders = reports
+    data = json.loads((folders["lobe"] / "report.json").read_text())
+    target = data[0]
+    for key in keys[:-1]:
+        target = target[key]
+    target[keys[-1]] = value
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    (edited / "report.json").write_text(json.dumps(data))
+    with pytest.raises(InputError) as info:
+        merge_separable_reports([edited], tmp_path / "merged")
+    message = str(info.value)
+    assert message.startswith(f"{(edited / 'report.json').as_posix()}: field '{field}': expected ") and \
+        ", the study's by_terms.f_cos." in message and "at the chosen K = " in message, message  # fmt: skip
+    assert not (tmp_path / "merged").exists()
+
+
 @pytest.mark.slow
 def test_a_merge_into_one_of_its_sources_is_refused_and_changes_nothing(reports, tmp_path):
     """``report separable --merge A B -o B`` replaced B's own report.json with the merge (exit 0)."""
