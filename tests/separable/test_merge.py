@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import pytest
 
@@ -90,15 +91,8 @@ def test_merged_report_holds_every_study_and_links_only_files_beside_it(reports)
         assert f"{100 * study['chosen']['float']['relative_rms']:.2f}%" in text
 
 
-@pytest.mark.parametrize(("keys", "value", "expected"), [
-    (("chosen", "8bit_srgb", "relative_rms"), -0.5, "field '[0].chosen.8bit_srgb.relative_rms': expected a number >= 0, got -0.5"),
-    (("chosen", "terms"), "three", "field '[0].chosen.terms': expected a whole number >= 1, got 'three'"),
-    (("chosen", "grid"), 0, "field '[0].chosen.grid': expected a whole number >= 1, got 0"),
-    (("timings", "svd_s"), -1, "field '[0].timings.svd_s': expected a number >= 0, got -1"),
-])  # fmt: skip
-@pytest.mark.slow
-def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys, value, expected):
-    """The merged table printed a relative RMS of -0.5 as "-50.00%" and terms = "three" as written, exit 0."""
+def _edited_report(reports, tmp_path, keys, value) -> Path:
+    """A folder holding the lobe study's report.json with the field at ``keys`` set to ``value``."""
     _, folders = reports
     data = json.loads((folders["lobe"] / "report.json").read_text())
     target = data[0]
@@ -108,6 +102,19 @@ def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys
     edited = tmp_path / "edited"
     edited.mkdir()
     (edited / "report.json").write_text(json.dumps(data))
+    return edited
+
+
+@pytest.mark.parametrize(("keys", "value", "expected"), [
+    (("chosen", "8bit_srgb", "relative_rms"), -0.5, "field '[0].chosen.8bit_srgb.relative_rms': expected a number >= 0, got -0.5"),
+    (("chosen", "terms"), "three", "field '[0].chosen.terms': expected a whole number >= 1, got 'three'"),
+    (("chosen", "grid"), 0, "field '[0].chosen.grid': expected a whole number >= 1, got 0"),
+    (("timings", "svd_s"), -1, "field '[0].timings.svd_s': expected a number >= 0, got -1"),
+])  # fmt: skip
+@pytest.mark.slow
+def test_a_figure_no_study_measures_is_refused_naming_it(reports, tmp_path, keys, value, expected):
+    """The merged table printed a relative RMS of -0.5 as "-50.00%" and terms = "three" as written, exit 0."""
+    edited = _edited_report(reports, tmp_path, keys, value)
     with pytest.raises(InputError) as info:
         merge_separable_reports([edited], tmp_path / "merged")
     assert str(info.value) == f"{(edited / 'report.json').as_posix()}: {expected}"
@@ -123,15 +130,7 @@ def test_chosen_figures_that_are_not_the_study_s_own_at_its_k_are_refused(report
     """A hostile sweep's: terms = 7 printed K = 3's figures as K = 7's, and an 8-bit error of 0.9 merged beside a
     table that gives 0.006 at the chosen K. The SVD terms are prefixes of one factorization, so the chosen row is
     the table's at K."""
-    _, folders = reports
-    data = json.loads((folders["lobe"] / "report.json").read_text())
-    target = data[0]
-    for key in keys[:-1]:
-        target = target[key]
-    target[keys[-1]] = value
-    edited = tmp_path / "edited"
-    edited.mkdir()
-    (edited / "report.json").write_text(json.dumps(data))
+    edited = _edited_report(reports, tmp_path, keys, value)
     with pytest.raises(InputError) as info:
         merge_separable_reports([edited], tmp_path / "merged")
     message = str(info.value)
