@@ -19,6 +19,7 @@ __all__ = [
     "VOLUME_MIP_COUNT",
     "MAPPING",
     "SPECULAR_ALPHA_MIN",
+    "SPECULAR_ROUGHNESS_MIN",
     "SPECULAR_LOBE",
     "NAME_PATTERN",
     "material_constant",
@@ -68,6 +69,8 @@ def material_constant(name: str) -> str:
 #: Smallest GGX roughness the renderer uses: keeps D's peak 1 / (pi alpha^2) finite in f32
 #: and the highlight of a gloss-1 object at least a few texels of a 16-bit g-buffer wide.
 SPECULAR_ALPHA_MIN = 0.002
+#: The same lobe as a roughness r (alpha = r^2, Burley 2012; MaterialX's and Mitsuba's principled), rounded: 0.045.
+SPECULAR_ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
 
 #: The specular lobe the slices are made for (manifest ``specular_lobe``; docs/atlas-format.md).
 #: An engine needs it to shade with A correctly: A scales exactly this f_s cos.

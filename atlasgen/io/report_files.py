@@ -4,6 +4,7 @@ and the checks that keep a hand-edited or damaged figure out of a merged report.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError, shorten
@@ -11,6 +12,7 @@ from atlasgen.io.output_paths import check_output_paths
 from atlasgen.io.text import decode_utf8, loads_json, read_input_bytes
 
 __all__ = [
+    "rebase_path",
     "report_json_paths",
     "check_merge_output",
     "read_json_file",
@@ -53,6 +55,16 @@ def loads_finite_json(text: str, path) -> object:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
 
 
+def rebase_path(rel: str, start, folder) -> str:
+    """``rel``, a path from ``start`` (a report's folder, or ``"."``: the working folder, where a path was typed),
+    given from ``folder`` instead, POSIX; an absolute ``rel`` is given from ``folder`` too.
+
+    >>> rebase_path("../atlas.dds", "v/materials/clay", "v"), rebase_path("atlas/a.dds", ".", "out/v")
+    ('materials/atlas.dds', '../../atlas/a.dds')
+    """
+    return Path(os.path.relpath(Path(start) / rel, folder)).as_posix()
+
+
 def check_number(path, field: str, value, allow_none: bool = True, minimum: float | None = None,
                  maximum: float | None = None):  # fmt: skip
     """``value`` if it is a finite number (or ``None``, with ``allow_none``), at least ``minimum`` and at most
@@ -68,11 +80,12 @@ def check_number(path, field: str, value, allow_none: bool = True, minimum: floa
         return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise FieldError(Path(path).as_posix(), field, f"expected a finite number{' or null' * allow_none}, got {value!r}")
-    if maximum is not None and (value > maximum or (minimum is not None and value < minimum)):
-        low = "-inf" if minimum is None else f"{minimum:g}"
-        raise FieldError(Path(path).as_posix(), field, f"expected a number in [{low}, {maximum:g}], got {value!r}")
-    if minimum is not None and value < minimum:
-        raise FieldError(Path(path).as_posix(), field, f"expected a number >= {minimum:g}, got {value!r}")
+    if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+        if maximum is None:
+            bounds = f">= {minimum:g}"
+        else:
+            bounds = f"in [{'-inf' if minimum is None else format(minimum, 'g')}, {maximum:g}]"
+        raise FieldError(Path(path).as_posix(), field, f"expected a number {bounds}, got {value!r}")
     return value
 
 

@@ -39,7 +39,7 @@ import re
 from pathlib import Path
 from xml.etree import ElementTree
 
-from atlasgen.contract import SPECULAR_ALPHA_MIN
+from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
 from atlasgen.errors import MaterialError, shorten
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import check_path_text, decode_utf8, read_input_bytes
@@ -137,7 +137,7 @@ _ANISOTROPY = {
 #: The roughness of the renderer's sharpest lobe, alpha = roughness^2 = :data:`~atlasgen.contract.SPECULAR_ALPHA_MIN`.
 #: A sharper lobe's peak falls between a slice's texels (the distribution's OpenPBR car paint has a coat of 0.02,
 #: whose fit errs by 130 %); at roughness 0, a mirror, the fit's error estimate runs to 1e14 %.
-ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)
+ROUGHNESS_MIN = SPECULAR_ROUGHNESS_MIN
 #: An include element's tag as ElementTree names it (MaterialX reads ``xi:include`` in this namespace).
 XINCLUDE = "{http://www.w3.org/2001/XInclude}include"
 #: MaterialX's reader takes an element for an include by its literal tag, ``xi:include``, whatever the

@@ -9,7 +9,6 @@ lazily (Agg backend), inside :func:`write_separable_report`.
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 from atlasgen.errors import InputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import staged_folder
+from atlasgen.io.report_files import rebase_path
 from atlasgen.materials.material import check_unique_names
 from atlasgen.models.separable import Separable
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
@@ -515,15 +515,17 @@ def with_atlas_renamed(message: str, old: str, new: str) -> str:
     return message
 
 
-def _paths_from(study: MaterialStudy, folder: Path) -> None:
-    """Give ``study``'s material file and atlas from ``folder`` (the report's), as validation gives its atlas: as typed,
-    they were paths from the working folder, and the same inputs wrote other bytes from another one."""
-    study.source = Path(os.path.relpath(study.source, folder)).as_posix()
-    if study.atlas is not None and isinstance(study.atlas.get("path"), str):
-        typed = study.atlas["path"]
-        study.atlas["path"] = Path(os.path.relpath(typed, folder)).as_posix()
-        if isinstance(study.atlas.get("missing"), str):  # the reader's message names the atlas (or its manifest) as given
-            study.atlas["missing"] = with_atlas_renamed(study.atlas["missing"], typed, study.atlas["path"])
+def rebase_study_paths(study: MaterialStudy, start, folder) -> None:
+    """Give ``study``'s material file and atlas, paths from ``start`` (``"."`` where they were typed, a report's folder
+    in a merge), from ``folder`` (the report's), as validation gives its atlas: as typed, the same inputs wrote other
+    bytes from another working folder."""
+    if isinstance(study.source, str):
+        study.source = rebase_path(study.source, start, folder)
+    atlas = study.atlas
+    if isinstance(atlas, dict) and isinstance(atlas.get("path"), str):
+        old, atlas["path"] = atlas["path"], rebase_path(atlas["path"], start, folder)
+        if isinstance(atlas.get("missing"), str):  # the reader's message names the atlas (or its manifest) as given
+            atlas["missing"] = with_atlas_renamed(atlas["missing"], old, atlas["path"])
 
 
 def write_separable_report(
@@ -580,7 +582,7 @@ def write_separable_report(
         if on_material is not None:
             on_material(m.name, done, len(materials))
     for s in studies:
-        _paths_from(s, folder)
+        rebase_study_paths(s, ".", folder)
     # Staged, then moved into place: an interrupted run never leaves a half-written
     # report that ``make`` would take as up to date.
     with staged_folder(folder, primary="report.json", whole=True) as staging:

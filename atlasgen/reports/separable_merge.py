@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import MISSING, fields
 from pathlib import Path
 
@@ -29,7 +28,7 @@ from atlasgen.reports.separable import (
     MaterialStudy,
     format_separable_html,
     format_separable_report,
-    with_atlas_renamed,
+    rebase_study_paths,
 )
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
@@ -175,21 +174,6 @@ def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
                      f"({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
 
 
-def _rebase_paths(study, source: Path, output: Path) -> None:
-    """A study's material file and atlas, given from its report's folder (``source``), given from the merged one's."""
-
-    def rebased(rel: str) -> str:
-        return Path(os.path.relpath(source / rel, output)).as_posix()
-
-    if isinstance(study.source, str) and not Path(study.source).is_absolute():
-        study.source = rebased(study.source)
-    atlas = study.atlas
-    if isinstance(atlas, dict) and isinstance(atlas.get("path"), str) and not Path(atlas["path"]).is_absolute():
-        old, atlas["path"] = atlas["path"], rebased(atlas["path"])
-        if isinstance(atlas.get("missing"), str):
-            atlas["missing"] = with_atlas_renamed(atlas["missing"], old, atlas["path"])
-
-
 def merge_separable_reports(sources, output) -> dict:
     """Merge per-material separable reports into one ``index.html``, ``index.md``, ``report.json`` and plots.
 
@@ -229,7 +213,7 @@ def merge_separable_reports(sources, output) -> dict:
             if study.name in seen:
                 raise InputError(f"{path.as_posix()}: material {study.name!r} is also in {seen[study.name].as_posix()}")
             seen[study.name] = path
-            _rebase_paths(study, path.parent, output)
+            rebase_study_paths(study, path.parent, output)
             plots[study.name] = {}
             for kind in PLOT_KINDS:
                 png = path.parent / f"{study.name}-{kind}.png"

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,13 @@ from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.fields import is_number
 from atlasgen.io.images import encode_png
-from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
+from atlasgen.io.report_files import (
+    check_merge_output,
+    check_number,
+    read_report_json,
+    rebase_path,
+    report_json_paths,
+)
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
@@ -67,7 +72,7 @@ def _relative_cache(environment: dict, out_dir) -> dict:
     cache = environment.get("reference_cache")
     if out_dir is None or not isinstance(cache, str):
         return environment
-    return {**environment, "reference_cache": Path(os.path.relpath(cache, out_dir)).as_posix()}
+    return {**environment, "reference_cache": rebase_path(cache, ".", out_dir)}
 
 
 def _display_png(rgb01) -> bytes:
@@ -296,7 +301,7 @@ def report_dict(run, out_dir=None) -> dict:
         rows.append(row)
     return {
         # From the report's folder: the path as typed made the same inputs write other bytes from another folder.
-        "atlas": run.atlas if out_dir is None else Path(os.path.relpath(run.atlas, out_dir)).as_posix(),
+        "atlas": run.atlas if out_dir is None else rebase_path(run.atlas, ".", out_dir),
         "settings": run.settings,
         "environment": _relative_cache(run.environment, out_dir),
         "total_seconds": run.seconds,
@@ -1044,19 +1049,14 @@ def _check_claimed(path, where: str, claimed) -> None:
         check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
-def _rebase(rel: str, source: Path, out_dir: Path) -> str:
-    """A path relative to a per-material folder, made relative to the merged page's folder."""
-    return Path(os.path.relpath(source / rel, out_dir)).as_posix()
-
-
 def _rebased_image(rel: str, report: Path, out_dir: Path, field: str) -> str:
-    """:func:`_rebase` of an image path of the source ``report`` (read from ``field``), which must be one a validation
+    """:func:`~atlasgen.io.report_files.rebase_path` of an image path of the source ``report`` (read from ``field``), which must be one a validation
     writes: relative, a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
     if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not (report.parent / rel).is_file():
         raise FieldError(
             report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
         )
-    return _rebase(rel, report.parent, out_dir)
+    return rebase_path(rel, report.parent, out_dir)
 
 
 def _joined(values) -> str:
@@ -1179,22 +1179,22 @@ def merge_validation_reports(sources, out_dir) -> dict:
             for kind, ref in row["references"].items():
                 ref["images"] = {k: _rebased_image(v, path, out_dir, f"results[{i}].references.{kind}.images.{k}")
                                  for k, v in ref["images"].items()}  # fmt: skip
-            row["page"] = _rebase("index.html", path.parent, out_dir)
+            row["page"] = rebase_path("index.html", path.parent, out_dir)
             rows.append(row)
     environment = {key: _combined([r["environment"].get(key) for r in reports]) for key in first["environment"]}
     if "reference_cache" in environment:  # each from its report's folder: from the merged one's
-        environment["reference_cache"] = _combined([_rebase(r["environment"]["reference_cache"], p.parent, out_dir)
+        environment["reference_cache"] = _combined([rebase_path(r["environment"]["reference_cache"], p.parent, out_dir)
                                                     if isinstance(r["environment"].get("reference_cache"), str) else None
                                                     for p, r in zip(paths, reports)])  # fmt: skip
     data = {
-        "atlas": _joined(_rebase(r["atlas"], p.parent, out_dir) for p, r in zip(paths, reports)),
+        "atlas": _joined(rebase_path(r["atlas"], p.parent, out_dir) for p, r in zip(paths, reports)),
         "settings": first["settings"],
         "environment": environment,
         # The work the merged page stands for: the sum of the runs it is made of.
         "total_seconds": sum(r["total_seconds"] for r in reports),
         "summary": None,  # below, where a hand-edited result that it cannot read is refused on one line
         "results": rows,
-        "merged_from": [_rebase(".", p.parent, out_dir) for p in paths],
+        "merged_from": [rebase_path(".", p.parent, out_dir) for p in paths],
     }
     try:
         data["summary"] = _summary(rows)

@@ -9,7 +9,7 @@ import re
 
 import numpy as np
 
-from atlasgen.contract import SPECULAR_ALPHA_MIN
+from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
 from atlasgen.errors import BackendError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, is_number, shown
@@ -141,11 +141,6 @@ def _nodes(spec: dict, prefix: str):
                 stack.append((f"{where}.{key}", value))
 
 
-#: A principled BSDF's roughness r gives alpha = r^2 (Burley 2012; Mitsuba's principled): the sharpest the renderer's
-#: lobe takes, as a roughness.
-_ROUGHNESS_MIN = round(SPECULAR_ALPHA_MIN**0.5, 3)  # 0.045, as the MaterialX reader's ROUGHNESS_MIN
-
-
 def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
     """What of the BSDF table ``spec`` a slice does not hold though the bake takes it, one clause each, naming its
     dotted key: a rough lobe sharper than the renderer's sharpest (alpha below ``SPECULAR_ALPHA_MIN``), whose
@@ -167,7 +162,7 @@ def unheld_in_bsdf(spec: dict, field: str = "bsdf") -> list[str]:
     for _, where, node in _nodes(spec, field):
         for key in ("alpha", "alpha_u", "alpha_v", "roughness"):
             value = node.get(key)
-            limit = _ROUGHNESS_MIN if key == "roughness" else SPECULAR_ALPHA_MIN
+            limit = SPECULAR_ROUGHNESS_MIN if key == "roughness" else SPECULAR_ALPHA_MIN
             # 0 too: a GGX lobe of alpha 0 is a mirror, its spike baked as a scale of 1e5 that the fit never sees.
             if is_number(value) and 0.0 <= value < limit:
                 out.append(f"{where}.{key} = {value:g}: a lobe sharper than the renderer's sharpest (alpha "
@@ -403,7 +398,8 @@ def bsdf_lobes(bsdf, mi) -> dict:
     it transmits light beside reflecting it."""
     delta = sum(mi.has_flag(bsdf.flags(i), mi.BSDFFlags.DeltaReflection) for i in range(bsdf.component_count()))
     flags = bsdf.flags()
-    # As load_mitsuba_bsdf's refusal reads it: Transmission with a reflection (the null BSDF is refused apart).
+    # Mitsuba's Transmission mask includes Null: a thin dielectric's straight-through transmission is flagged Null
+    # alone. With a reflection: the null BSDF (Null and no reflection) is refused apart, by load_mitsuba_bsdf.
     transmits = mi.has_flag(flags, mi.BSDFFlags.Transmission) and mi.has_flag(flags, mi.BSDFFlags.Reflection)
     return {"anisotropic": bool(mi.has_flag(flags, mi.BSDFFlags.Anisotropic)), "delta_components": int(delta),
             "transmits": bool(transmits)}  # fmt: skip
@@ -452,16 +448,13 @@ def load_mitsuba_bsdf(
     if not isinstance(obj, mi.BSDF):
         raise MaterialError(path, field, f"expected a Mitsuba BSDF plugin, got a {type(obj).__name__} ({spec.get('type')!r})")
     flags = obj.flags()
-    # Mitsuba's Transmission mask includes Null: a thin dielectric's straight-through transmission
-    # is flagged Null alone. The null BSDF (Null and no reflection) is refused below instead.
-    if (reflection_only is False and mi.has_flag(flags, mi.BSDFFlags.Transmission)
-            and mi.has_flag(flags, mi.BSDFFlags.Reflection)):  # fmt: skip
+    lobes = bsdf_lobes(obj, mi)
+    if reflection_only is False and lobes["transmits"]:
         raise MaterialError(path, f"{field}.type", f"a {spec['type']!r} BSDF transmits light, which a separable slice "
                                                    "cannot hold; set reflection_only = true to bake its reflection alone")  # fmt: skip
     if not (mi.has_flag(flags, mi.BSDFFlags.GlossyReflection) or mi.has_flag(flags, mi.BSDFFlags.DiffuseReflection)):
         raise MaterialError(path, f"{field}.type", f"expected a BSDF with a diffuse or glossy reflection, got {spec['type']!r}, "
                                                    "which has none (smooth and null lobes evaluate to zero)")  # fmt: skip
-    lobes = bsdf_lobes(obj, mi)
     if lobes["anisotropic"] and anisotropic is not None and anisotropic is not True:
         remedy = anisotropic if isinstance(anisotropic, str) else "set accept_anisotropy = true to bake it anyway"
         raise MaterialError(path, _anisotropy_field(spec, field), f"expected an isotropic BSDF: a {spec['type']!r} BSDF that "
