@@ -4,10 +4,15 @@ The bake's include (:func:`atlasgen.shaders.include.render_include`, what an eng
 slice's scale and bias, and a separable material's factor table, as constants, so that the shader
 needs nothing else bound. Compiled into the renderer's lighting shader, that makes every new scale a
 new shader, and on lavapipe a compile (1.6 s) costs more than the rest of a preview's update. The
-renderer therefore compiles the same functions with those two tables as read-only storage buffers
+renderer therefore compiles the same functions with those two tables in buffers
 (:func:`atlasgen.shaders.include.render_buffered_include`): its text changes only with what the
 materials' code depends on (their names, slots, flags and types), and a re-bake that keeps those
 rewrites two buffers. The values come from the manifest, as the bake's own include does.
+
+The scale and bias table is a uniform buffer of one row per slice, the factor table (its length
+changes with the bake) a read-only storage buffer. lavapipe gathers a storage read lane by lane:
+the lighting pass reads a pixel's scale and bias once, and as a storage read that one gather cost
+about as much as the g-buffer, culling and outline passes together (BENCHMARKS.md, renderer).
 """
 
 from __future__ import annotations
@@ -21,10 +26,12 @@ from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
 from atlasgen.shaders.include import render_buffered_include
 
-__all__ = ["STORAGE", "RendererInclude", "manifest_scale_bias", "upload_tables"]
+__all__ = ["STORAGE", "BUFFER_TYPES", "RendererInclude", "manifest_scale_bias", "upload_tables"]
 
-#: The storage tables and their (group, binding) in the lighting pass (atlasgen/render/lighting.py).
-STORAGE = {"ATLAS_SCALE_BIAS": (0, 20), "SEPARABLE_TABLE": (0, 21)}
+#: The buffered tables and their (group, binding, address space) in the lighting pass (atlasgen/render/lighting.py).
+STORAGE = {"ATLAS_SCALE_BIAS": (0, 20, "uniform"), "SEPARABLE_TABLE": (0, 21, "storage")}
+#: The bind group layout's buffer type of each address space.
+BUFFER_TYPES = {"uniform": "uniform", "storage": "read-only-storage"}
 
 
 def manifest_scale_bias(manifest: Manifest) -> tuple[np.ndarray, np.ndarray]:
@@ -54,13 +61,15 @@ class RendererInclude:
 
 
 def upload_tables(device, include: RendererInclude) -> dict:
-    """A read-only storage buffer per :data:`STORAGE` table, name -> buffer: its rows as float32, or one row of
-    zeros for a table this include lacks (the pass binds every one; a shader without it never reads it)."""
+    """A buffer per :data:`STORAGE` table, name -> buffer: its rows as float32, or one row of zeros for a
+    storage table this include lacks (the pass binds every one; a shader without it never reads it).
+    Every include has the uniform one, the scale and bias of each slice."""
     import wgpu
 
+    usages = {"uniform": wgpu.BufferUsage.UNIFORM, "storage": wgpu.BufferUsage.STORAGE}
     buffers = {}
-    for name in STORAGE:
+    for name, (_, _, space) in STORAGE.items():
         rows = include.tables.get(name)
         data = np.zeros((1, 4), np.float32) if rows is None else np.asarray(rows, dtype=np.float32)
-        buffers[name] = device.create_buffer_with_data(data=data.tobytes(), usage=wgpu.BufferUsage.STORAGE)
+        buffers[name] = device.create_buffer_with_data(data=data.tobytes(), usage=usages[space])
     return buffers

@@ -30,7 +30,7 @@ from atlasgen.errors import SceneError
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
-from atlasgen.render.atlas_data import STORAGE
+from atlasgen.render.atlas_data import BUFFER_TYPES, STORAGE
 from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
 from atlasgen.shaders.environment import environment_declarations
 from atlasgen.shaders.lang import emit
@@ -225,7 +225,10 @@ class LightingPass:
                 },
                 {"binding": 11, "visibility": frag, "texture": {"sample_type": "uint", "view_dimension": "2d-array"}},
                 # The include's per-bake tables (atlasgen/render/atlas_data.py STORAGE).
-                *({"binding": b, "visibility": frag, "buffer": {"type": "read-only-storage"}} for _, b in STORAGE.values()),
+                *(
+                    {"binding": b, "visibility": frag, "buffer": {"type": BUFFER_TYPES[space]}}
+                    for _, b, space in STORAGE.values()
+                ),
             ],
         )
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
@@ -279,7 +282,7 @@ class LightingPass:
     def bind_group(self, frame_buffer, gbuffer, atlas_texture, environment, tile_texture, tables):
         """``environment``: (uniform buffer, environment texture, tables texture) (:class:`atlasgen.render.environment.EnvironmentLighting`);
         ``tile_texture``: the tile light lists and every light (:func:`atlasgen.render.culling.create_tile_texture`), the lists read where ``Frame.counts.y`` is 1;
-        ``tables``: the include's storage tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
+        ``tables``: the include's buffered tables, name -> buffer (:func:`atlasgen.render.atlas_data.upload_tables`)."""
         env_buffer, env_texture, env_tables = environment
         return self.device.create_bind_group(
             layout=self.layout,

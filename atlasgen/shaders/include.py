@@ -78,7 +78,7 @@ class MaterialFlag(enum.IntFlag):
 
 
 def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndarray, *, models: ModelLookup,
-                         storage: Mapping[str, tuple[int, int]] | None = None) -> list:  # fmt: skip
+                         storage: Mapping[str, tuple] | None = None) -> list:  # fmt: skip
     """The atlas contract of ``manifest`` as shader declarations (:mod:`atlasgen.shaders.lang`).
 
     ``atlas_uv`` maps N.L in [-1, 1] and N.V in [0, 1] to texel centres:
@@ -91,7 +91,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     :meth:`atlasgen.models.base.Model.include_declarations`).
 
     ``storage`` (WGSL only, the renderer's form: :func:`render_buffered_include`) names tables that become
-    read-only storage buffers at its (group, binding) instead of constants, so that new values are a buffer
+    buffers at its (group, binding[, space]) instead of constants (:class:`~atlasgen.shaders.lang.Storage`: a
+    read-only storage buffer, or a uniform one of the table's length), so that new values are a buffer
     write, not a shader compile; ``atlas_scale_bias`` then reads ``ATLAS_SCALE_BIAS`` when it is one of them.
     """
     storage = dict(storage or {})
@@ -170,7 +171,8 @@ def include_declarations(manifest: Manifest, scales: np.ndarray, biases: np.ndar
     for type_name, entries in _by_type(manifest):
         added = models(type_name).include_declarations(entries)
         decls += [as_volume_reads(d) for d in added] if volume else added
-    return [Storage(d.name, d.type, *storage[d.name]) if isinstance(d, Array) and d.name in storage else d for d in decls]
+    return [Storage(d.name, d.type, *storage[d.name], length=len(d.values)) if isinstance(d, Array) and d.name in storage else d
+            for d in decls]  # fmt: skip
 
 
 def as_volume_reads(declaration):
@@ -258,10 +260,10 @@ def _array_values(array: Array) -> np.ndarray:
 
 
 def render_buffered_include(
-    manifest: Manifest, scales: np.ndarray, biases: np.ndarray, storage: Mapping[str, tuple[int, int]], *, models: ModelLookup
+    manifest: Manifest, scales: np.ndarray, biases: np.ndarray, storage: Mapping[str, tuple], *, models: ModelLookup
 ) -> tuple[str, dict[str, np.ndarray]]:
-    """The WGSL include of ``manifest`` with the tables named in ``storage`` (name -> (group, binding)) read from
-    storage buffers, and those tables' values, ``{name: (n, 4) float64}`` (only those the include has).
+    """The WGSL include of ``manifest`` with the tables named in ``storage`` (name -> (group, binding[, space]))
+    read from buffers, and those tables' values, ``{name: (n, 4) float64}`` (only those the include has).
 
     The functions are those of :func:`render_include`, so the text changes only when the materials' code
     does (their names, slots, flags and types), not with a new scale, bias or factor table: a renderer that

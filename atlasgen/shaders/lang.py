@@ -97,13 +97,18 @@ class Array:
 
 @dataclass(frozen=True)
 class Storage:
-    """A table the host binds as a read-only storage buffer, WGSL only: the renderer's form of an :class:`Array`
-    whose values change with each bake (a buffer is rewritten, a constant table is compiled)."""
+    """A table the host binds as a buffer, WGSL only: the renderer's form of an :class:`Array` whose values
+    change with each bake (a buffer is rewritten, a constant table is compiled).
+
+    ``space`` is ``"storage"`` (a read-only storage buffer, any length) or ``"uniform"`` (a uniform buffer of
+    ``length`` elements: lavapipe gathers a storage read lane by lane, a uniform one it reads as a block)."""
 
     name: str
     type: str
     group: int
     binding: int
+    space: str = "storage"
+    length: int | None = None
 
 
 @dataclass(frozen=True)
@@ -316,7 +321,10 @@ def _declaration(lang: str, d) -> list[str]:
     if isinstance(d, Storage):
         if lang != "wgsl":
             raise ValueError(f"{d.name}: a storage buffer table is WGSL only, not {lang}")
-        return [f"@group({d.group}) @binding({d.binding}) var<storage, read> {d.name}: array<{t[d.type]}>;"]
+        head = f"@group({d.group}) @binding({d.binding})"
+        if d.space == "uniform":
+            return [f"{head} var<uniform> {d.name}: array<{t[d.type]}, {d.length}>;"]
+        return [f"{head} var<storage, read> {d.name}: array<{t[d.type]}>;"]
     if isinstance(d, Function):
         comment = [f"// {line}" for line in d.comment.splitlines()]
         params = ", ".join(_param(lang, name, ty) for name, ty in d.params)

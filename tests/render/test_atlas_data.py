@@ -1,4 +1,4 @@
-"""The renderer's include: the bake's functions, with the per-bake tables in storage buffers."""
+"""The renderer's include: the bake's functions, with the per-bake tables in buffers."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from atlasgen.contract import LAYERS
 from atlasgen.io.atlas import INCLUDE_HASH_PREFIX
 from atlasgen.io.manifest import read_manifest
 from atlasgen.models import get_model
@@ -37,9 +38,16 @@ def test_the_manifest_gives_back_the_scales_the_bake_compiled_in(manifest):
 def test_the_renderer_include_reads_the_tables_from_buffers_holding_their_values(manifest):
     include = RendererInclude.of(manifest)
     scales, biases = manifest_scale_bias(manifest)
-    for name, (group, binding) in STORAGE.items():
-        assert f"@group({group}) @binding({binding}) var<storage, read> {name}: array<vec4<f32>>;" in include.text
+    declared = {
+        "uniform": lambda name: f"var<uniform> {name}: array<vec4<f32>, {LAYERS}>;",
+        "storage": lambda name: f"var<storage, read> {name}: array<vec4<f32>>;",
+    }
+    for name, (group, binding, space) in STORAGE.items():
+        assert f"@group({group}) @binding({binding}) {declared[space](name)}" in include.text
         assert f"var<private> {name}" not in include.text
+    # One row per slice, read as a block: a storage read is a gather per lane on lavapipe, once per pixel.
+    assert STORAGE["ATLAS_SCALE_BIAS"][2] == "uniform"
+    assert include.tables["ATLAS_SCALE_BIAS"].shape == (LAYERS, 4)
     np.testing.assert_array_equal(include.tables["ATLAS_SCALE_BIAS"], np.concatenate([scales, biases], axis=1))
     # The factor table is the side-car's rows (X.separable.bin: a 48-byte header, then float32 rows).
     sidecar = np.frombuffer((GOLDEN / "array-srgb.separable.bin").read_bytes()[48:], "<f4").reshape(-1, 4)
