@@ -10,9 +10,8 @@ materials' code depends on (their names, slots, flags and types), and a re-bake 
 rewrites two buffers. The values come from the manifest, as the bake's own include does.
 
 The scale and bias table is a uniform buffer of one row per slice, the factor table (its length
-changes with the bake) a read-only storage buffer. lavapipe gathers a storage read lane by lane:
-the lighting pass reads a pixel's scale and bias once, and as a storage read that one gather cost
-about as much as the g-buffer, culling and outline passes together (BENCHMARKS.md, renderer).
+changes with the bake) a read-only storage buffer: lavapipe gathers a storage read lane by lane,
+and the lighting pass reads a pixel's scale and bias for every pixel it shades.
 """
 
 from __future__ import annotations

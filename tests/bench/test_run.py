@@ -141,3 +141,21 @@ def test_a_name_that_is_no_section_writes_nothing(bench, tmp_path, monkeypatch, 
     assert not (tmp_path / "BENCHMARKS.md").exists() and not (tmp_path / "BENCHMARKS.json").exists()
     printed = capsys.readouterr()
     assert "usage: bench/run.py" in printed.out + printed.err
+
+
+def test_the_goals_over_one_light_are_judged_on_interleaved_pairs(bench):
+    _, render = bench
+    data = render_data(render, software=True, lighting_256_ms=0.05)
+    for row in data["rows"]:
+        if row["lights"] == 1:
+            row["frame_ms"] = 2.0  # apart, 256 lights would be 2.5x the 1-light frame
+        if row["lights"] == 256 and row["translucent"] == 0:
+            row["over_one_ratios"] = [1.9, 1.4, 1.5, 1.6, 1.2]
+    goals = render.judge(data)
+    assert goals["frame_256_over_1"] == [1.5, 2.0, True]
+    # 1024 lights has no pairs in this data: the ratio of the two rows' medians, as older data is judged.
+    assert goals["frame_1024_over_1"] == [2.5, 3.0, True]
+    text = render.markdown(data)
+    assert "- 256 lights at most 2x the 1-light frame: 1.50x (1.20–1.90), met." in text
+    assert "- 1024 lights at most 3x the 1-light frame: 2.50x, met." in text
+    assert "The goals on 256 lights over one light are the median of 5 ratios" in text
