@@ -378,8 +378,10 @@ def _over_one_text(data) -> str:
         return ""
     counts = " and ".join(str(r["lights"]) for r in paired)
     n = len(paired[0]["over_one_ratios"])
-    return (f" The goals on {counts} lights over one light are the median of {n} ratios, each of 3 frames of the "
-            "opaque scene with that many lights against 3 frames with one, interleaved; their range is in brackets.")
+    return (
+        f" The goals on {counts} lights over one light are the median of {n} ratios, each of 3 frames of the "
+        "opaque scene with that many lights against 3 frames with one, interleaved; their range is in brackets."
+    )
 
 
 def markdown(data) -> str:
