@@ -323,7 +323,7 @@ def bake(
     if cache_only:
         _refuse_atlas_options(click.get_current_context())
     if zstd and output.suffix.lower() != ".ktx2":
-        raise click.UsageError("--zstd needs a KTX2 output (-o X.ktx2)")
+        raise click.UsageError(f"--zstd needs a KTX2 output (-o X.ktx2), got -o {output.as_posix()}")
     if cache_only and cache_dir is None:
         raise click.UsageError("--cache-only needs --cache DIR")
     if depfile_target is not None and depfile is None:
@@ -367,8 +367,7 @@ def bake(
     # The atlas's own last IDs keep it stable, but --ids-from's win: a scene atlas takes the library's IDs even
     # where the library moved a material since the scene was last baked.
     previous = read_previous_slots(sibling_paths(output)["manifest"])
-    if ids_from is not None:
-        previous.update(read_previous_slots(ids_from, missing_ok=False))
+    pinned = None if ids_from is None else (ids_from, read_previous_slots(ids_from, missing_ok=False))
     with MaterialProgress("baked", verbosity) as report:
         started, done = time.monotonic(), [0]
 
@@ -378,7 +377,8 @@ def bake(
             if time.monotonic() - started > PROGRESS_AFTER_S:
                 report(name, done[0], len(materials))
 
-        result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir, jobs=jobs)
+        result = bake_atlas(materials, layout, linear, previous, progress=on_material, cache_dir=cache_dir, jobs=jobs,
+                            pinned_slots=pinned)  # fmt: skip
     if strict and result.material_warnings:
         count = len(result.material_warnings)
         raise BakeWarnings(f"--strict: {count} material warning{'s' * (count != 1)}, no atlas written: "
@@ -392,6 +392,8 @@ def bake(
         # should not pass without a word: the line below names no material count.
         nothing = [] if every_material else [f"{', '.join(Path(p).as_posix() for p in sources or ['materials'])}: "
                                              "no material files; the atlas holds no materials"]  # fmt: skip
+        if every_material and not materials:
+            nothing = [f"{Path(scene).as_posix()}: the scene has no objects; the atlas holds no materials"]
         echo_warnings([*nothing, *result.warnings, *result.material_warnings])
         click.echo(result.describe(output, zstd))
 

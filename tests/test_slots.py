@@ -28,6 +28,27 @@ def test_a_material_that_grew_into_the_next_one_s_slices_moves_not_the_next_one(
     assert assign_slices([req("mx_velvet", 10)], previous)["mx_velvet"] == 25
 
 
+def test_an_ids_from_manifest_wins_over_the_previous_one_whatever_the_names():
+    """The previous manifest's 'grey' at 0 came before the library's 'terracotta' at 0 by name: terracotta moved to 1,
+    and the same bake into an empty folder gave other bytes. 'zz' in grey's place yielded, as all now do."""
+    library = ("lib/atlas.json", {"terracotta": 0, "toon": 1})
+    for name in ("grey", "zz"):
+        slots = assign_slices([req(name), req("terracotta")], previous={name: 0}, pinned=library)
+        assert slots == {"terracotta": 0, name: 1}
+    # A run the previous manifest gives that reaches into the library's slice moves too.
+    assert assign_slices([req("aa", 3), req("toon")], previous={"aa": 0}, pinned=library) == {"toon": 1, "aa": 2}
+
+
+def test_an_ids_from_slice_the_atlas_cannot_give_is_refused():
+    library = ("lib/atlas.json", {"terracotta": 0, "sharp": 254})
+    with pytest.raises(MaterialError, match=r"terracotta.toml: material 'terracotta' needs slice 0 where --ids-from "
+                                            r"lib/atlas.json puts it, and slice 0 holds 'grey'"):  # fmt: skip
+        assign_slices([req("grey", explicit=0), req("terracotta")], pinned=library)
+    with pytest.raises(MaterialError, match=r"material 'sharp' needs slices 254..257 where --ids-from lib/atlas.json "
+                                            r"puts it, beyond the atlas's 256"):  # fmt: skip
+        assign_slices([req("sharp", 4)], pinned=library)
+
+
 def test_overlapping_explicit_ids_conflict():
     with pytest.raises(MaterialError, match="y.toml: field 'id'.*conflicts with material 'x'"):
         assign_slices([req("x", 3, explicit=10), req("y", explicit=12)])

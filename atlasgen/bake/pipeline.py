@@ -208,6 +208,7 @@ def bake_atlas(
     drafts: bool = False,
     baked=None,
     jobs: int = 1,
+    pinned_slots=None,
 ) -> BakeResult:
     """Bake validated materials into an RGBA8 atlas.
 
@@ -222,6 +223,9 @@ def bake_atlas(
         Store RGB linearly (DXGI 28) instead of sRGB-encoded (DXGI 29).
     previous_slots
         ``name -> first_slice`` of the previous bake; keeps slices stable.
+    pinned_slots
+        ``(manifest_path, name -> first_slice)`` of the atlas whose IDs this one shares (``--ids-from``),
+        which win over ``previous_slots`` (:func:`~atlasgen.bake.slots.assign_slices`).
     progress
         Called with each material's name once it is baked.
     cache_dir
@@ -249,7 +253,8 @@ def bake_atlas(
     # Every material takes at least its fewest slices (a fixed K's K, one for the rest): more than the atlas
     # holds, or explicit ids in conflict, are refused now, not after minutes of baking (an auto material's slice
     # count is known only once baked, and assign_slices refuses with more slices whatever refuses with fewer).
-    assign_slices([(m.name, m.model.fewest_slices(m.params), m.id, m.source) for m in materials], previous_slots)
+    assign_slices([(m.name, m.model.fewest_slices(m.params), m.id, m.source) for m in materials], previous_slots,
+                  pinned=pinned_slots)  # fmt: skip
     whole = [] if drafts else [m for m in materials if m.name not in given]
     loaded = dict(zip((m.name for m in whole), load_or_bake_all(cache_dir, whole, jobs, cache_warnings, progress), strict=True))
     for material in materials:
@@ -286,7 +291,7 @@ def bake_atlas(
             progress(material.name)
 
     requests = [(m.name, v.shape[0], m.id, m.source) for m, _, v, _ in baked]
-    slots = assign_slices(requests, previous_slots)
+    slots = assign_slices(requests, previous_slots, pinned=pinned_slots)
 
     # float32 is ample for 8-bit output, and halves the cost of the mips and their encoding.
     level0 = np.zeros((LAYERS, HEIGHT, WIDTH, 4), dtype=np.float32)

@@ -1,6 +1,9 @@
-"""Stable slice allocation: explicit TOML ids first, then the previous manifest, then the lowest free range."""
+"""Stable slice allocation: explicit TOML ids first, then a library's manifest (``--ids-from``), then the
+previous manifest, then the lowest free range."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from atlasgen.contract import LAYERS
 from atlasgen.errors import MaterialError
@@ -12,7 +15,8 @@ def _span(start, count):
     return range(start, start + count)
 
 
-def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None, layers: int = LAYERS) -> dict[str, int]:
+def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None, layers: int = LAYERS,
+                  pinned: tuple | None = None) -> dict[str, int]:  # fmt: skip
     """First slice of every material, keeping slices stable across re-bakes.
 
     Parameters
@@ -22,6 +26,10 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
         new slices are handed out in name order.
     previous
         ``name -> first_slice`` from the previous manifest, if any.
+    pinned
+        ``(manifest_path, name -> first_slice)`` of another atlas whose IDs this one must share
+        (``atlasgen bake --ids-from``): its slices yield only to explicit ids, and a material it names
+        gets exactly its slice there or is refused; the previous manifest's materials move out of its way.
 
     A material with an explicit ``id`` gets exactly that slice; one that was in the
     previous manifest keeps its slice when it still fits there, unless its run grew into
@@ -65,13 +73,15 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
         if explicit is not None:
             claim(name, explicit, count, src, "explicit id")
     explicit_names = {name for name, _, explicit, _ in requests if explicit is not None}
+    if pinned is not None:
+        _claim_pinned(requests, pinned, claim, owner, layers)
     # Where each material still present began in the previous manifest. A run that now reaches another's
     # first slice grew (the previous runs did not overlap): it moves, and the other keeps its ID. In name
     # order instead, a grown material took the next one's place and moved that one, though it had not
     # changed, and a scene atlas baked with its old ID went stale.
     homes = {previous[name]: name for name, _, explicit, _ in requests if explicit is None and name in previous}
     for name, count, explicit, src in requests:
-        if explicit is None and name in previous:
+        if explicit is None and name in previous and name not in first:
             start = previous[name]
             if any(homes.get(s, name) != name for s in _span(start + 1, count - 1)):
                 continue
@@ -100,3 +110,24 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
             raise MaterialError(src, None, f"needs {count} consecutive free slices; expected a gap that large in the atlas")
         claim(name, start, count, src, "allocated")
     return first
+
+
+def _claim_pinned(requests, pinned, claim, owner, layers) -> None:
+    """Give each material the ``pinned`` manifest names its slice there, after the explicit ids, or refuse it: a
+    scene atlas baked ``--ids-from`` the library must not give a material another ID than the library's."""
+    path, slots = pinned
+    shown = Path(path).as_posix()
+    for name, count, explicit, src in requests:
+        if explicit is not None or name not in slots:
+            continue
+        start = slots[name]
+        span = f"slices {start}..{start + count - 1}" if count > 1 else f"slice {start}"
+        if start + count > layers:
+            raise MaterialError(src, None, f"material {name!r} needs {span} where --ids-from {shown} puts it, beyond the "
+                                           f"atlas's {layers}; expected the library's slices (re-bake {shown})")  # fmt: skip
+        taken = [s for s in _span(start, count) if s in owner]
+        if taken:
+            raise MaterialError(src, None, f"material {name!r} needs {span} where --ids-from {shown} puts it, and slice "
+                                           f"{taken[0]} holds {owner[taken[0]]!r}; expected the library's slices free "
+                                           f"(re-bake {shown}, or change the explicit id)")  # fmt: skip
+        claim(name, start, count, src, f"--ids-from {shown}")

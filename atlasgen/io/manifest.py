@@ -859,7 +859,9 @@ def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> No
                                                               f"within the atlas's {layers} layers")  # fmt: skip
         for s in m.slices:
             if s in owner:
-                raise ManifestError(shown, f"{where}.first_slice", f"expected free slices, got slice {s}, also {owner[s]!r}'s")
+                raise ManifestError(
+                    shown, f"{where}.first_slice", f"expected free slices, got slice {s}, which {owner[s]!r} holds too"
+                )
             owner[s] = m.name
 
 
@@ -928,9 +930,10 @@ def read_manifest_text(path) -> str:
 def read_slots(path) -> dict[str, int]:
     """``name -> first_slice`` of a manifest of any format version, for keeping slice IDs
     stable across a re-bake: an atlas written by an older atlasgen must not stop the bake
-    that replaces it. Only the names and first slices are read, and checked: each name once, each
-    first slice one of the atlas's ``LAYERS`` and no other name's (a slice 300, or two materials on
-    one, would be no ID to keep).
+    that replaces it. Only the names and slices are read, and checked: each name once, each
+    first slice one of the atlas's ``LAYERS``, and each run (``slice_count`` slices from there, one
+    where an old manifest gives no count) inside the atlas and no other name's (a slice 300, or two
+    materials on one, would be no ID to keep).
     """
     shown = Path(path).as_posix()
     text = read_manifest_text(path)
@@ -938,7 +941,9 @@ def read_slots(path) -> dict[str, int]:
         data = loads_json(text)
     except ValueError as exc:
         raise ManifestError(shown, None, f"expected an atlas manifest (JSON), got malformed JSON ({exc})") from None
-    materials = data.get("materials") if isinstance(data, dict) else None
+    if not isinstance(data, dict):
+        raise ManifestError(shown, None, f"expected an atlas manifest (a JSON object), got {_describe(data)}")
+    materials = data.get("materials")
     if not isinstance(materials, list):
         raise ManifestError(shown, "materials", f"expected a list of materials, got {_describe(materials)}")
     slots: dict[str, int] = {}
@@ -950,13 +955,18 @@ def read_slots(path) -> dict[str, int]:
             raise ManifestError(shown, f"materials[{i}]", "expected an object with a 'name' and a 'first_slice' >= 0")
         if first >= LAYERS:
             raise ManifestError(shown, f"materials[{i}].first_slice", f"expected a slice below {LAYERS}, got {first}")
+        count = entry.get("slice_count", 1)
+        if not _is_int(count) or not 1 <= count <= LAYERS - first:
+            raise ManifestError(shown, f"materials[{i}].slice_count", f"expected an integer from 1 to {LAYERS - first} "
+                                f"(the slices from {first} to the atlas's last), got {_describe(count)}")  # fmt: skip
         if name in slots:
             raise ManifestError(shown, f"materials[{i}].name", f"expected each material once, got {name!r} twice")
-        if first in owners:
-            raise ManifestError(shown, f"materials[{i}].first_slice",
-                                f"expected a slice of its own, got {first}, {owners[first]!r}'s")  # fmt: skip
+        taken = next((s for s in range(first, first + count) if s in owners), None)
+        if taken is not None:
+            raise ManifestError(shown, f"materials[{i}].first_slice", f"expected slices of its own, got {first} "
+                                f"(slice_count {count}), and {owners[taken]!r} holds slice {taken}")  # fmt: skip
         slots[name] = first
-        owners[first] = name
+        owners.update(dict.fromkeys(range(first, first + count), name))
     return slots
 
 

@@ -70,6 +70,52 @@ def test_a_scene_atlas_baked_again_takes_the_library_s_new_ids(tmp_path, write_m
     assert ids[out.with_suffix(".json")] == {"bravo": 1, "delta": 2}
 
 
+def test_ids_from_wins_over_the_atlas_s_own_manifest_whatever_the_names(tmp_path, write_material):
+    """The atlas's own manifest gave 'grey' slice 0, --ids-from gave 'terracotta' slice 0: by name grey kept it, so
+    terracotta took 1 against the library's 0, and the same command into an empty folder wrote other bytes."""
+    for name in ("grey", "terracotta", "toon"):
+        write_material(name, 'type = "lambert"\n')
+    m = tmp_path / "materials"
+    library = tmp_path / "lib.json"
+    library.write_text(json.dumps({"materials": [{"name": "terracotta", "first_slice": 0}, {"name": "toon", "first_slice": 1}]}))
+    used, fresh = tmp_path / "used" / "a.dds", tmp_path / "fresh" / "a.dds"
+    assert _bake(m / "grey.toml", "-o", used, "-q").exit_code == 0
+    for out in (used, fresh):
+        res = _bake(m / "grey.toml", m / "terracotta.toml", "--ids-from", library, "-o", out, "-q")
+        assert res.exit_code == 0, res.output
+    ids = {m["name"]: m["id"] for m in json.loads(used.with_suffix(".json").read_text())["materials"]}
+    assert ids == {"terracotta": 0, "grey": 1}
+    assert used.read_bytes() == fresh.read_bytes()
+
+
+def test_an_explicit_id_on_an_ids_from_slice_names_the_ids_from_manifest(tmp_path, write_material):
+    """It blamed "the previous manifest", which did not exist, and told the user to delete it."""
+    write_material("grey", 'type = "lambert"\nid = 0\n')
+    write_material("terracotta", 'type = "lambert"\n')
+    library = tmp_path / "lib.json"
+    library.write_text(json.dumps({"materials": [{"name": "terracotta", "first_slice": 0}]}))
+    out = tmp_path / "out" / "a.dds"
+    res = _bake(tmp_path / "materials", "--ids-from", library, "-o", out)
+    assert res.exit_code == 3 and not out.parent.exists()
+    assert res.output.strip().endswith(
+        f"material 'terracotta' needs slice 0 where --ids-from {library.as_posix()} puts it, and slice 0 holds 'grey'; "
+        f"expected the library's slices free (re-bake {library.as_posix()}, or change the explicit id)"
+    )
+    assert len(res.output.strip().splitlines()) == 1 and "previous manifest" not in res.output
+
+
+def test_a_scene_with_no_objects_says_the_atlas_holds_no_materials(tmp_path, write_material):
+    """It baked an empty atlas with exit 0 and no word, where an empty folder is warned about."""
+    write_material("alpha", 'type = "lambert"\n')
+    scene = tmp_path / "empty.toml"
+    scene.write_text(SCENE.split("[[objects]]")[0])
+    out = tmp_path / "a.dds"
+    res = _bake(tmp_path / "materials", "--scene", scene, "-o", out)
+    assert res.exit_code == 0, res.output
+    assert f"{scene.as_posix()}: the scene has no objects; the atlas holds no materials" in res.output
+    assert json.loads(out.with_suffix(".json").read_text())["materials"] == []
+
+
 def test_scene_with_an_unknown_material_is_refused(tmp_path, write_material):
     write_material("alpha", 'type = "lambert"\n')
     scene = tmp_path / "scene.toml"

@@ -517,7 +517,7 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
         assert f"field 'materials[11].first_slice': expected a slice of the atlas's 256 layers (0..255), got {first}" in (
             _refusal(tmp_path, move(11, first)))  # fmt: skip
     message = _refusal(tmp_path, move(4, 5))
-    assert "field 'materials[5].first_slice'" in message and "slice 5, also 'red-plastic''s" in message
+    assert "field 'materials[5].first_slice'" in message and "slice 5, which 'red-plastic' holds too" in message
     assert "expected a unique name" in _refusal(tmp_path, _with(_set(["materials", 1, "name"], "beetle-shell")))
     # A name is the material's shader identifier too: a tampered one is refused, shown escaped on the one line.
     message = _refusal(tmp_path, _with(_set(["materials", 1, "name"], "a\n\u0000b")))
@@ -529,19 +529,37 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
     ([{"name": "a", "first_slice": 1}, {"name": "a", "first_slice": 2}], "materials[1].name",
      "expected each material once, got 'a' twice"),
     ([{"name": "a", "first_slice": 1}, {"name": "b", "first_slice": 1}], "materials[1].first_slice",
-     "expected a slice of its own, got 1, 'a''s"),
-], ids=["slice beyond the atlas", "a name twice", "a slice twice"])  # fmt: skip
+     "expected slices of its own, got 1 (slice_count 1), and 'a' holds slice 1"),
+    # A run's slices, not its first alone: a 4-slice material at 254 was moved to 1..4 without a word, and one run
+    # reaching into the next moved that one.
+    ([{"name": "a", "first_slice": 254, "slice_count": 4}], "materials[0].slice_count",
+     "expected an integer from 1 to 2 (the slices from 254 to the atlas's last), got 4"),
+    ([{"name": "a", "first_slice": 0, "slice_count": -5}], "materials[0].slice_count", "got -5"),
+    ([{"name": "a", "first_slice": 0, "slice_count": "x"}], "materials[0].slice_count", 'got "x"'),
+    ([{"name": "a", "first_slice": 0, "slice_count": 4}, {"name": "b", "first_slice": 2}], "materials[1].first_slice",
+     "expected slices of its own, got 2 (slice_count 1), and 'a' holds slice 2"),
+], ids=["slice beyond the atlas", "a name twice", "a slice twice", "a run beyond the atlas", "a negative count",
+        "a count no number", "runs overlapping"])  # fmt: skip
 def test_ids_to_keep_are_ids_an_atlas_can_hold(tmp_path, materials, field, expected):
-    """``--ids-from`` (and the atlas's own manifest) read names and first slices only, of any format version;
+    """``--ids-from`` (and the atlas's own manifest) read names and slices only, of any format version;
     a slice 300 was silently dropped (the material renumbered) and a name given twice kept its last slice."""
     path = tmp_path / "atlas.json"
     path.write_text(json.dumps({"format_version": 1, "materials": materials}))
-    with pytest.raises(ManifestError, match=re.escape(f"field '{field}': {expected}")):
+    with pytest.raises(ManifestError, match=re.escape(f"field '{field}': ") + ".*" + re.escape(expected)):
         read_slots(path)
     path.write_text(
         json.dumps({"format_version": 1, "materials": [{"name": "a", "first_slice": 255}, {"name": "b", "first_slice": 0}]})
     )
     assert read_slots(path) == {"a": 255, "b": 0}
+
+
+@pytest.mark.parametrize("data", [[1, 2], "str", 3, None])
+def test_ids_to_keep_come_from_a_json_object(tmp_path, data):
+    """A list or a string said "field 'materials': expected a list of materials, got null"."""
+    path = tmp_path / "atlas.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ManifestError, match=re.escape("atlas.json: expected an atlas manifest (a JSON object), got ")):
+        read_slots(path)
 
 
 def test_a_file_that_is_not_json_or_not_a_file(tmp_path):
