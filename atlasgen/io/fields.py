@@ -79,12 +79,14 @@ def counted(count: int, noun: str) -> str:
 
 
 def shown(value, limit: int = 80) -> str:
-    """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer); a TOML date or time
-    as the file wrote it, not as Python's ``datetime`` repr.
+    """``repr(value)`` for a one-line message, shortened when long (a 400-digit integer); a TOML date or time,
+    and a boolean, as the file wrote it, not as Python's repr.
 
-    >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2])
-    ('a date 1979-05-27', '[0.5, 2]')
+    >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2]), shown(True)
+    ('a date 1979-05-27', '[0.5, 2]', 'true')
     """
+    if isinstance(value, bool):
+        return "true" if value else "false"
     for kind, cls in (("date and time", datetime.datetime), ("date", datetime.date), ("time", datetime.time)):
         if isinstance(value, cls):  # a datetime is a date too: it is tried first
             return shorten(f"a {kind} {value.isoformat()}", limit)

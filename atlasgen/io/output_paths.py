@@ -1,8 +1,8 @@
 """Checking a command's output paths before anything is written.
 
 An output that is also an input (``atlasgen bake m.toml -o m.toml``), two outputs on one
-path, an output that is a folder, or one under a file: each is refused with one line,
-before any work, so that a failing command never replaces anything.
+path, an output that is a folder, a device, a named pipe or a socket, or one under a file:
+each is refused with one line, before any work, so that a failing command never replaces anything.
 """
 
 from __future__ import annotations
@@ -84,6 +84,11 @@ def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
                               f"{MAX_OUTPUT_NAME_BYTES} (the temporary files written beside it add to the name)")  # fmt: skip
     if path.is_dir():
         raise OutputError(f"{shown}: {role} is an existing folder; expected a file path")
+    kind = special_file_kind(path)
+    if kind is not None and kind != "a symbolic link loop":
+        # Committing replaces the name with a link into the set's store: --depfile /dev/null replaced the
+        # system's /dev/null, and a named pipe or a link to /dev/stdout went the same way.
+        raise OutputError(f"{shown}: {role} is {kind}; expected a regular file path, which the command replaces")
     blocker = _blocking_file(path)
     if blocker is not None:
         raise _blocked(path.parent, blocker, f"{shown}: {role}")

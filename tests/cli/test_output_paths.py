@@ -221,6 +221,35 @@ def test_a_cache_folder_that_is_a_named_pipe_is_named_so(tmp_path, library):
     _refused(tmp_path, ["report", "library", "-o", str(report)], "(-o) is a named pipe; expected a folder path")
 
 
+@pytest.mark.parametrize("through_link", [False, True], ids=["a named pipe", "a link to a named pipe"])
+def test_an_output_that_is_a_named_pipe_is_refused_not_replaced(tmp_path, library, through_link):
+    """Found by a hostile sweep: `render --depfile /dev/null` replaced the system's /dev/null with a link into the
+    render's store, exit 0; a named pipe, a device or a link to /dev/stdout went the same way, -o's files too."""
+    import os
+    import stat
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    out = tmp_path / "out"
+    cases = [
+        ("a.d", ["bake", str(library), "-o", str(out / "a.dds"), "--depfile"], "--depfile"),
+        ("a.png", ["bake", str(library), "-o", str(out / "a.dds"), "--preview"], "--preview"),
+        ("b.dds", ["bake", str(library), "-o"], "the atlas (-o)"),
+        ("r.d", ["render", str(scene), "--atlas", str(out / "a.dds"), "-o", str(out / "r.exr"), "--depfile"],
+         "--depfile"),
+    ]  # fmt: skip
+    for name, args, role in cases:
+        pipe = tmp_path / f"pipe-{name}"
+        os.mkfifo(pipe)
+        target = pipe
+        if through_link:
+            target = tmp_path / name
+            target.symlink_to(pipe)
+        line = _refused(tmp_path, [*args, str(target)], f"{target.as_posix()}: {role} is a named pipe; "
+                                                        "expected a regular file path, which the command replaces")  # fmt: skip
+        assert stat.S_ISFIFO(os.lstat(pipe).st_mode) and target.is_symlink() == through_link, line
+
+
 def test_a_dotted_atlas_name_keeps_its_files_apart_from_the_shorter_name(tmp_path, library):
     """``hero.v2.dds`` writes ``hero.v2.json`` and its includes, never ``hero.json``: another atlas's files."""
     out = tmp_path / "build"

@@ -88,7 +88,7 @@ def test_a_scene_may_have_an_environment_and_no_lights_or_objects(tmp_path):
     "text, field, words",
     [
         ("environment = -1", "environment", "expected a radiance [r, g, b] in W/(m^2 sr), an image file (.exr, .hdr) or \"sky\", got -1"),
-        ("environment = true", "environment", "an image file (.exr, .hdr) or \"sky\", got True"),
+        ("environment = true", "environment", "an image file (.exr, .hdr) or \"sky\", got true"),
         ('environment = ""', "environment", "got ''"),
         ("environment = [1, -1, 0]", "environment", ">= 0"),
         ("environment = [1, 2]", "environment", "[x, y, z] of 3 finite float32 numbers"),
