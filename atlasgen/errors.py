@@ -199,7 +199,8 @@ EXIT_CODES = (
     ),
     (
         EXIT_INTERRUPTED,
-        "interrupted (Ctrl-C, at any instant once atlasgen's code runs); each output set is left whole, old or new. "
+        "interrupted (Ctrl-C, at any instant once atlasgen's code runs); each output set is left whole, as it was "
+        "unless the interrupt came after its commit (see 'Outputs: one generation on disk'). "
         "`preview --watch` is the exception: Ctrl-C is how it ends, with exit 0",
     ),
     (

@@ -12,6 +12,7 @@ from atlasgen.errors import Terminated
 from atlasgen.start_up import exit_on_interrupt, exit_on_terminate, install_start_up_interrupts
 
 __all__ = [
+    "HeldInterrupts",
     "deferred_interrupts",
     "exit_on_interrupt",
     "install_start_up_interrupts",
@@ -95,6 +96,25 @@ _HELD = {
 }
 
 
+class HeldInterrupts:
+    """The signals a :func:`deferred_interrupts` block has held so far, for a block that must act on them before
+    it ends: :meth:`raise_now` before a step that cannot be undone, :meth:`drop` once it is done."""
+
+    def __init__(self):
+        self.pending: list[int] = []
+
+    def raise_now(self) -> None:
+        """Raise the last signal held so far (as the block's end would), forgetting the others."""
+        if self.pending:
+            signum = self.pending[-1]
+            self.pending.clear()
+            raise _HELD[signum][0]
+
+    def drop(self) -> None:
+        """Forget the signals held so far: the block has done what they would have stopped."""
+        self.pending.clear()
+
+
 @contextlib.contextmanager
 def deferred_interrupts():
     """Hold SIGINT (and SIGTERM where it raises) until the block ends, then raise the interrupt.
@@ -106,17 +126,19 @@ def deferred_interrupts():
     is done, or instead of whatever exception the block ends with (a SIGTERM as
     :class:`~atlasgen.errors.Terminated`). Outside the main thread, or for a signal that is
     ignored (or SIGTERM with its default action, outside the command line), it is left as it is.
+    The block gets the :class:`HeldInterrupts`, to raise them earlier or drop them.
     """
+    held = HeldInterrupts()
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield held
         return
-    pending = []
+    pending = held.pending
     previous = {}
     for signum, (_, left_alone) in _HELD.items():
         if signal.getsignal(signum) not in left_alone:
             previous[signum] = signal.signal(signum, lambda number, frame: pending.append(number))
     try:
-        yield
+        yield held
     except BaseException:
         if pending:
             raise _HELD[pending[-1]][0] from None

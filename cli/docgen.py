@@ -59,8 +59,10 @@ sees them change together, at one instant, even if the command is killed
 - **Exit 4 changes nothing.** A file marked immutable or append-only (`chattr +i`, which through
   the link marks the generation's file), an output path that is a folder, or a failing rename
   stops the command before the commit: `X.dds: cannot replace (Operation not permitted); nothing
-  was replaced`. Exit 130 (Ctrl-C, held while the commit runs) or 143 (SIGTERM, held alike) leaves each
-  set whole, old or new.
+  was replaced`. A Ctrl-C (exit 130) or SIGTERM (143) that comes while the commit runs is held
+  until just before the swap and stops the command there, the old set left as it was; one that
+  comes after that instant is dropped, and the command ends with its new set. Only one that comes
+  after the commit, as the command prints its last lines, ends it with 130 or 143 and its new set.
   An output path inside a store (`-o v/.report.atlasgen/current`, or through a link into one) is
   refused the same way: it would have changed a committed generation in place.
 - **Plain files of an older atlasgen** are taken over first without a visible change: a holding

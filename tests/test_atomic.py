@@ -161,6 +161,33 @@ def test_a_failed_write_leaves_every_output_and_no_temporary(tmp_path, monkeypat
     assert sorted(os.listdir(tmp_path / ".b.atlasgen")) == ["current", "gen-1", "lock"]
 
 
+@pytest.mark.parametrize(("step", "stops"), [("link", True), ("swap", False), ("remove", False)])
+def test_a_ctrl_c_during_the_commit_stops_it_before_the_swap_or_not_at_all(tmp_path, monkeypatch, step, stops):
+    """Found by a kill sweep: a Ctrl-C or SIGTERM held while the commit ran was raised after the swap, so the command
+    failed (exit 130, 143) with its new outputs in place. Held before the swap, it stops the commit there and the old
+    set stays; one that comes later is dropped, and the new set is the command's result."""
+    import signal
+
+    old = {"a": b"old a", "b": b"old b", "d": b"old d"}
+    write_files_atomically({tmp_path / name: data for name, data in old.items()}, primary=tmp_path / "b")
+    new = {"a": b"new a", "b": b"new b", "c": b"new c"}  # 'c' is linked in the commit, 'd' removed after the swap
+
+    def interrupt(at, path):
+        if at == step:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(atomic, "commit_hook", interrupt)
+    write = lambda: write_files_atomically({tmp_path / n: d for n, d in new.items()}, primary=tmp_path / "b",  # noqa: E731
+                                           remove=[tmp_path / "d"])  # fmt: skip
+    if stops:
+        with pytest.raises(KeyboardInterrupt):
+            write()
+        assert visible(tmp_path) == old
+    else:
+        write()
+        assert visible(tmp_path) == new
+
+
 def test_a_single_file_stays_a_plain_file_replaced_by_one_rename(tmp_path):
     target = tmp_path / "cache" / "entry.bin"
     write_file_atomically(target, b"one")

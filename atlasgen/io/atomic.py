@@ -655,7 +655,7 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
             _write_writers(store, gen, writers)
         except OSError as exc:
             raise OutputError(f"{store.as_posix()}: cannot write ({exc.strerror}); nothing was replaced") from None
-        with deferred_interrupts():
+        with deferred_interrupts() as held:
             if holding is not None:
                 _swap(store, holding, primary)
                 current, old = holding.name, set(_names(holding))
@@ -680,10 +680,15 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
                 made.append(path)
             for folder in dict.fromkeys(_folder(path) for path in names):
                 _fsync_folder(folder)
+            # A Ctrl-C or SIGTERM held so far stops the command here, before the swap: raised after it, the
+            # command failed (exit 130, 143) with its new outputs in place. One that comes later is dropped:
+            # the outputs are replaced, whole, and the command ends as it would have a moment later.
+            held.raise_now()
             _swap(store, gen, primary)
             done = True
             _drop_links(home, store, sorted(old), set(_names(gen)))
             _collect_garbage(home, store, previous=current)  # a migration's extra generation
+            held.drop()
     finally:
         if not done:
             for path in made:
