@@ -78,6 +78,11 @@ def check_output_paths(outputs, inputs=()) -> None:
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     """:func:`check_output_paths` for one output, ``seen`` holding the outputs checked before it."""
     shown = path.as_posix()
+    control = next((c for c in shown if ord(c) < 0x20 or ord(c) == 0x7F), None)
+    if control is not None:
+        # A line break in a name split the command's "wrote ..." line in two, and a make rule that names it.
+        raise OutputNameError(f"{shorten(repr(shown))}: {role}: a name holding the control character {control!r}; "
+                              "expected a path without line breaks, tabs or other control characters")  # fmt: skip
     size = len(os.fsencode(path.name))
     if size > MAX_OUTPUT_NAME_BYTES:
         raise OutputNameError(f"{(path.parent / shorten(path.name)).as_posix()}: {role}: a file name of {size} bytes; expected at most "

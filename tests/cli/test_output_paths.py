@@ -250,6 +250,16 @@ def test_an_output_that_is_a_named_pipe_is_refused_not_replaced(tmp_path, librar
         assert stat.S_ISFIFO(os.lstat(pipe).st_mode) and target.is_symlink() == through_link, line
 
 
+@pytest.mark.parametrize("option", ["-o", "--depfile", "--preview"])
+def test_an_output_name_with_a_line_break_is_refused(tmp_path, library, option):
+    """Found by a hostile sweep: `--depfile $'od/a\\nb.d'` wrote the file, exit 0, and its "wrote" line split in two."""
+    names = {"-o": "a\nb.dds", "--depfile": "a\nb.d", "--preview": "a\tb.png"}
+    args = ["bake", str(library), "-o", str(tmp_path / "x.dds")]
+    args = [*args[:2], "-o", str(tmp_path / names["-o"])] if option == "-o" else [*args, option, str(tmp_path / names[option])]
+    line = _refused(tmp_path, args, "expected a path without line breaks, tabs or other control characters", code=2)
+    assert "a name holding the control character" in line
+
+
 def test_a_dotted_atlas_name_keeps_its_files_apart_from_the_shorter_name(tmp_path, library):
     """``hero.v2.dds`` writes ``hero.v2.json`` and its includes, never ``hero.json``: another atlas's files."""
     out = tmp_path / "build"
