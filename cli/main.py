@@ -390,9 +390,11 @@ def bake(
     if verbosity != QUIET:
         # An empty atlas is allowed (a fresh one, or --allow-empty), but a folder or name given by mistake
         # should not pass without a word: the line below names no material count.
-        nothing = [] if every_material else [f"{', '.join(Path(p).as_posix() for p in sources or ['materials'])}: "
-                                             "no material files; the atlas holds no materials"]  # fmt: skip
-        if every_material and not materials:
+        nothing = []
+        if not every_material:
+            nothing = [f"{', '.join(Path(p).as_posix() for p in sources or ['materials'])}: no material files; "
+                       "the atlas holds no materials"]  # fmt: skip
+        elif not materials:
             nothing = [f"{Path(scene).as_posix()}: the scene has no objects; the atlas holds no materials"]
         echo_warnings([*nothing, *result.warnings, *result.material_warnings])
         click.echo(result.describe(output, zstd))
