@@ -34,7 +34,11 @@ class PathArg(click.Path):
     """``click.Path`` that refuses an empty string: pathlib reads ``""`` as ``.``, so ``bake ""`` baked the
     current folder and ``-o ""`` named it. It leaves readability to the library's readers: click refused an
     unreadable file as a usage error (exit 2, three lines of usage and message), where a reader says
-    ``path: cannot read (Permission denied)`` on one line, exit 3, as for any input it cannot read."""
+    ``path: cannot read (Permission denied)`` on one line, exit 3, as for any input it cannot read.
+
+    It refuses ``-`` as well: by the convention of command-line tools it means standard input or output, which
+    no atlasgen command reads or writes, and ``--depfile -`` quietly wrote a file named ``-``. ``./-`` names
+    that file."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("readable", False)
@@ -43,6 +47,9 @@ class PathArg(click.Path):
     def convert(self, value, param, ctx):
         if isinstance(value, str) and not value:
             self.fail("expected a path, got an empty string", param, ctx)
+        if isinstance(value, str) and value == "-":
+            self.fail("'-' would be a file named '-', not standard input or output, which atlasgen neither reads "
+                      "nor writes; expected a path (./- for a file of that name)", param, ctx)  # fmt: skip
         return super().convert(value, param, ctx)
 
 

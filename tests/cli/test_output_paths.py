@@ -282,6 +282,19 @@ def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, libra
     _refused(tmp_path, ["bake", str(library), "-o", ""], "expected a path, got an empty string", code=2)
 
 
+@pytest.mark.parametrize("option", ["--depfile", "--preview", "-o", "input"])
+def test_a_dash_is_refused_not_written_as_a_file_named_dash(tmp_path, library, monkeypatch, option):
+    """``--depfile -`` wrote a file named ``-`` where a user meant standard output; ``./-`` still names that file."""
+    monkeypatch.chdir(tmp_path)
+    out = ["-o", "a.dds"]
+    args = {"--depfile": [str(library), *out, "--depfile", "-"], "--preview": [str(library), *out, "--preview", "-"],
+            "-o": [str(library), "-o", "-"], "input": ["-", *out]}[option]  # fmt: skip
+    _refused(tmp_path, ["bake", *args], "'-' would be a file named '-', not standard input or output", code=2)
+    res = CliRunner().invoke(app, ["bake", str(library), *out, "--depfile", "./-", "-q"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "-").read_text().startswith("a.dds:")
+
+
 def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
     """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],
