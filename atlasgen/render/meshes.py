@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import SceneError
+from atlasgen.errors import SceneError, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.text import MISSING, path_kind
@@ -296,7 +296,7 @@ _OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n#]*?(?<=[ \t/])[+-]?0+(?=[/ 
 
 
 def _obj_text(path: Path, scene_path, field) -> str:
-    """An OBJ file's text, refused where a face names index 0.
+    """An OBJ file's text without its comments (:data:`_OBJ_COMMENT`), refused where a face names index 0.
 
     OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it does
     not depend on: decoded here, what UTF-8 cannot say kept as U+FFFD (comments and names only)."""
@@ -304,6 +304,7 @@ def _obj_text(path: Path, scene_path, field) -> str:
         text = path.read_bytes().decode("utf-8", errors="replace")
     except OSError as exc:
         raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r} ({exc.strerror})") from None
+    text = _OBJ_COMMENT.sub("", text)
     zero = _OBJ_ZERO_INDEX.search(text)
     if zero is not None:
         line = text.count("\n", 0, zero.start()) + 1
@@ -356,6 +357,56 @@ def _check_ply_counts(path: Path, scene_path, field) -> None:
                                             "elements the file holds")  # fmt: skip
 
 
+#: A number as an OBJ vertex line writes it (what Python's float() reads; nan and inf are refused later).
+_OBJ_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf(?:inity)?)", re.IGNORECASE)
+#: How many numbers an OBJ vertex line may hold: x y z, an optional w, or colours r g b after x y z (and w).
+_OBJ_VERTEX_COUNTS = (3, 4, 6, 7)
+#: One corner of an OBJ face: a vertex index, then optionally a texture and a normal index (v, v/t, v//n, v/t/n).
+_OBJ_CORNER = re.compile(r"[+-]?\d+(?:/[+-]?\d*)?(?:/[+-]?\d+)?")
+#: A comment: from ``#`` to the end of its line. The OBJ format has comment lines; files put them after values too,
+#: and trimesh's reader failed on such a vertex line ("could not be read to its end due to unmatched data").
+_OBJ_COMMENT = re.compile(r"[ \t]*#[^\n]*")
+
+
+def _explain_obj(text: str) -> str | None:
+    """Which vertex or face line of an OBJ file trimesh could not read: its NumPy parser said only "string or file
+    could not be read to its end due to unmatched data". Run only after trimesh failed (a loop over the lines)."""
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.split()
+        if words[:1] == ["v"] and (len(words) - 1 not in _OBJ_VERTEX_COUNTS
+                                   or not all(_OBJ_NUMBER.fullmatch(w) for w in words[1:])):  # fmt: skip
+            return f"line {number} is {shorten(repr(line.strip()))}; expected a vertex as 'v x y z', three numbers"
+        if words[:1] == ["f"] and (len(words) < 4 or not all(_OBJ_CORNER.fullmatch(w) for w in words[1:])):
+            return (f"line {number} is {shorten(repr(line.strip()))}; expected a face as 'f i j k', three or more "
+                    "vertex indices (each i, i/t, i//n or i/t/n)")  # fmt: skip
+    return None
+
+
+def _explain_ply(path: Path) -> str | None:
+    """Why trimesh could not read a PLY file, where its header says: a vertex element without x, y and z
+    (trimesh raised ``KeyError: 'z'``)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(_PLY_HEADER_BYTES)
+    except OSError:
+        return None
+    end = head.find(b"end_header")
+    words = [line.split() for line in head[: max(end, 0)].decode("ascii", errors="replace").split("\n")]
+    element, props = None, {}
+    for w in words:
+        if len(w) >= 2 and w[0] == "element":
+            element = w[1]
+            props.setdefault(element, [])
+        elif element is not None and len(w) >= 3 and w[0] == "property":
+            props[element].append(w[-1])
+    if "vertex" not in props:
+        return "its header declares no vertex element; expected 'element vertex N' with properties x, y and z"
+    lacking = [axis for axis in ("x", "y", "z") if axis not in props["vertex"]]
+    if lacking:
+        return f"its vertices have no property {', '.join(lacking)}; expected properties x, y and z"
+    return None
+
+
 def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     """Read an OBJ or PLY file with trimesh; vertex normals from the file, else area-weighted.
 
@@ -383,6 +434,9 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
                                             "expected face indices within its vertices") from None  # fmt: skip
     except Exception as exc:  # trimesh raises many types for malformed files
+        reason = _explain_obj(text) if text is not None else _explain_ply(path)
+        if reason is not None:
+            raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: {reason}") from None
         raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r}; expected an OBJ or PLY file "
                                             f"({type(exc).__name__}: {exc})") from None  # fmt: skip
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))

@@ -242,6 +242,10 @@ def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 -0 3\n", "f 1 -2 3", "line 4: a face names index 0"),
     # A vertex line of two numbers: trimesh's vertices and normals disagreed, and building the mesh raised (exit 1).
     ("v 0 0 0\nv 1 0 0\nv 0 1\nf 1 2 3\n", "v 0 1 0\nf 1 2 3", "; expected x y z on every vertex line"),
+    # A word that is no number: the message was NumPy's "could not be read to its end due to unmatched data".
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0 x\nf 1 2 3\n", "v 0 1 0\nf 1 2 3",
+     ": line 3 is 'v 0 1 0 x'; expected a vertex as 'v x y z', three numbers"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 x\n", "f 1 2 3", ": line 4 is 'f 1 2 3 x'; expected a face as 'f i j k'"),
 ])  # fmt: skip
 def test_an_obj_that_is_not_what_it_says_is_refused_on_one_line(tmp_path, text, mended, expected):
     path = tmp_path / "m.obj"
@@ -253,6 +257,26 @@ def test_an_obj_that_is_not_what_it_says_is_refused_on_one_line(tmp_path, text, 
     last = text.rstrip("\n").rsplit("\n", 2 if mended.startswith("v") else 1)[0]
     path.write_text(f"{last}\n{mended}\n")
     assert read_mesh(path).indices.size == 3  # the same file, mended, reads
+
+
+def test_comments_after_values_are_read_as_comments(tmp_path):
+    """trimesh failed on a vertex line that ends in a comment; the comment is dropped before it reads."""
+    path = tmp_path / "m.obj"
+    path.write_text("# a triangle\nv 0 0 0 # origin\nv 1 0 0\t#x\nv 0 1 0#y\nf 1 2 3 # the face\n")
+    mesh = read_mesh(path)
+    np.testing.assert_array_equal(mesh.positions, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    assert mesh.indices.reshape(-1).tolist() == [0, 1, 2]
+
+
+def test_a_ply_whose_vertices_lack_a_coordinate_says_which(tmp_path):
+    """trimesh raised KeyError: 'z', which the message passed on as it was."""
+    path = tmp_path / "m.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nelement face 1\n"
+                    "property list uchar int vertex_indices\nend_header\n0 0\n1 0\n0 1\n3 0 1 2\n")  # fmt: skip
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    assert str(info.value) == (f"s.toml: field 'objects[0].file': mesh {path.as_posix()!r}: its vertices have no property z; "
+                               "expected properties x, y and z")  # fmt: skip
 
 
 def test_a_mesh_over_the_triangle_limit_is_refused(tmp_path, monkeypatch):
