@@ -844,25 +844,30 @@ class Manifest(_Record):
 
 def _check_slices(shown: str, materials: list[MaterialEntry], layers: int) -> None:
     """Every material inside the atlas, none sharing a slice or a name with another."""
-    owner: dict[int, str] = {}
+    _check_runs(shown, ((m.name, m.first_slice, m.slice_count) for m in materials), layers)
+
+
+def _check_runs(shown: str, runs, layers: int) -> None:
+    """The manifest's materials as ``(name, first_slice, slice_count)`` runs, ``materials[i]`` the i-th: each name
+    once, each run inside the atlas's ``layers`` and no other's. The full reader and :func:`read_slots` share it."""
+    owners: dict[int, str] = {}
     names: set[str] = set()
-    for i, m in enumerate(materials):
+    for i, (name, first, count) in enumerate(runs):
         where = f"materials[{i}]"
-        if m.name in names:
-            raise ManifestError(shown, f"{where}.name", f"expected a unique name, got {m.name!r} twice")
-        names.add(m.name)
-        if m.first_slice >= layers:  # the first slice itself is out: slice_count is not what is wrong
+        if name in names:
+            raise ManifestError(shown, f"{where}.name", f"expected each material once, got {name!r} twice")
+        names.add(name)
+        if first >= layers:  # the first slice itself is out: slice_count is not what is wrong
             raise ManifestError(shown, f"{where}.first_slice", f"expected a slice of the atlas's {layers} layers "
-                                                               f"(0..{layers - 1}), got {m.first_slice}")  # fmt: skip
-        if m.first_slice + m.slice_count > layers:
-            raise ManifestError(shown, f"{where}.slice_count", f"expected slices {m.first_slice}..{m.first_slice + m.slice_count - 1} "
-                                                              f"within the atlas's {layers} layers")  # fmt: skip
-        for s in m.slices:
-            if s in owner:
-                raise ManifestError(
-                    shown, f"{where}.first_slice", f"expected free slices, got slice {s}, which {owner[s]!r} holds too"
-                )
-            owner[s] = m.name
+                                                               f"(0..{layers - 1}), got {first}")  # fmt: skip
+        if not 1 <= count <= layers - first:
+            raise ManifestError(shown, f"{where}.slice_count", f"expected an integer from 1 to {layers - first} "
+                                f"(the slices from {first} to the atlas's last), got {_describe(count)}")  # fmt: skip
+        taken = next((s for s in range(first, first + count) if s in owners), None)
+        if taken is not None:
+            raise ManifestError(shown, f"{where}.first_slice", f"expected slices of its own, got {first} "
+                                f"(slice_count {count}), and {owners[taken]!r} holds slice {taken}")  # fmt: skip
+        owners.update(dict.fromkeys(range(first, first + count), name))
 
 
 def _check_constants(shown: str, materials: list[MaterialEntry]) -> None:
@@ -946,27 +951,18 @@ def read_slots(path) -> dict[str, int]:
     materials = data.get("materials")
     if not isinstance(materials, list):
         raise ManifestError(shown, "materials", f"expected a list of materials, got {_describe(materials)}")
-    slots: dict[str, int] = {}
-    owners: dict[int, str] = {}
+    runs = []
     for i, entry in enumerate(materials):
         name = entry.get("name") if isinstance(entry, dict) else None
         first = entry.get("first_slice") if isinstance(entry, dict) else None
         if not isinstance(name, str) or not _is_int(first) or first < 0:
             raise ManifestError(shown, f"materials[{i}]", "expected an object with a 'name' and a 'first_slice' >= 0")
-        if first >= LAYERS:
-            raise ManifestError(shown, f"materials[{i}].first_slice", f"expected a slice below {LAYERS}, got {first}")
         count = entry.get("slice_count", 1)
-        if not _is_int(count) or not 1 <= count <= LAYERS - first:
-            raise ManifestError(shown, f"materials[{i}].slice_count", f"expected an integer from 1 to {LAYERS - first} "
-                                f"(the slices from {first} to the atlas's last), got {_describe(count)}")  # fmt: skip
-        if name in slots:
-            raise ManifestError(shown, f"materials[{i}].name", f"expected each material once, got {name!r} twice")
-        taken = next((s for s in range(first, first + count) if s in owners), None)
-        if taken is not None:
-            raise ManifestError(shown, f"materials[{i}].first_slice", f"expected slices of its own, got {first} "
-                                f"(slice_count {count}), and {owners[taken]!r} holds slice {taken}")  # fmt: skip
-        slots[name] = first
-        owners.update(dict.fromkeys(range(first, first + count), name))
+        if not _is_int(count):
+            raise ManifestError(shown, f"materials[{i}].slice_count", f"expected an integer, got {_describe(count)}")
+        runs.append((name, first, count))
+    _check_runs(shown, runs, LAYERS)
+    slots = {name: first for name, first, _ in runs}
     return slots
 
 

@@ -517,15 +517,15 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
         assert f"field 'materials[11].first_slice': expected a slice of the atlas's 256 layers (0..255), got {first}" in (
             _refusal(tmp_path, move(11, first)))  # fmt: skip
     message = _refusal(tmp_path, move(4, 5))
-    assert "field 'materials[5].first_slice'" in message and "slice 5, which 'red-plastic' holds too" in message
-    assert "expected a unique name" in _refusal(tmp_path, _with(_set(["materials", 1, "name"], "beetle-shell")))
+    assert "field 'materials[5].first_slice'" in message and "and 'red-plastic' holds slice 5" in message
+    assert "expected each material once" in _refusal(tmp_path, _with(_set(["materials", 1, "name"], "beetle-shell")))
     # A name is the material's shader identifier too: a tampered one is refused, shown escaped on the one line.
     message = _refusal(tmp_path, _with(_set(["materials", 1, "name"], "a\n\u0000b")))
     assert "field 'materials[1].name': expected a material name (a letter, then letters" in message
 
 
 @pytest.mark.parametrize(("materials", "field", "expected"), [
-    ([{"name": "a", "first_slice": 300}], "materials[0].first_slice", "expected a slice below 256, got 300"),
+    ([{"name": "a", "first_slice": 300}], "materials[0].first_slice", "expected a slice of the atlas's 256 layers (0..255), got 300"),
     ([{"name": "a", "first_slice": 1}, {"name": "a", "first_slice": 2}], "materials[1].name",
      "expected each material once, got 'a' twice"),
     ([{"name": "a", "first_slice": 1}, {"name": "b", "first_slice": 1}], "materials[1].first_slice",
