@@ -441,6 +441,10 @@ def _describe_materials(result) -> list[str]:
 def info(atlas, fmt, verbosity):
     """Print an atlas's DDS or KTX2 header and a summary of its manifest.
 
+    It says of each include and the separable side-car beside the atlas whether it is of this bake (it records the
+    manifest's SHA-256), of another bake, not atlasgen's, or absent: an engine that loads an include of another bake
+    than its atlas reads other slices and scales than the include declares.
+
     With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
     (and the manifest itself atlasgen/schemas/manifest.schema.json).
     """

@@ -27,6 +27,7 @@ from atlasgen.io.dds import DDSImage, describe_dds, read_dds
 from atlasgen.io.fields import counted
 from atlasgen.io.ktx2 import KTX2Image, describe_ktx2, read_ktx2
 from atlasgen.io.manifest import Manifest, MaterialEntry, parse_manifest, read_manifest_text, with_absolute_files
+from atlasgen.io.sidecar import SIDECAR_HEADER_SIZE, sidecar_manifest_sha256
 from atlasgen.io.text import MISSING, path_kind, read_input_bytes
 from atlasgen.optics.quantize import dequantize_rgba
 
@@ -36,6 +37,8 @@ __all__ = [
     "read_atlas",
     "as_atlas",
     "check_include",
+    "companion_states",
+    "COMPANIONS",
     "include_manifest_sha256",
     "texel_sha256",
     "KTX2_MANIFEST_KEY",
@@ -227,6 +230,48 @@ def check_include(atlas: Atlas, include_path, text: str) -> None:
                          f"(the two are from different bakes); {RERUN}")  # fmt: skip
 
 
+#: The files a bake writes beside the atlas that record its manifest's SHA-256: the includes (their first line) and
+#: the separable side-car (its header), by the suffix that replaces the atlas's.
+COMPANIONS = (".wgsl", ".glsl", ".hlsl", ".separable.bin")
+#: What :func:`companion_states` finds of each companion.
+COMPANION_STATES = ("this bake", "another bake", "not atlasgen's", "none")
+#: Bytes read of an include for its first line.
+_FIRST_LINE_BYTES = 256
+
+
+def _recorded_sha256(path: Path, suffix: str) -> str | None:
+    """The manifest SHA-256 the companion at ``path`` records, or None (OSError where it cannot be read)."""
+    with open(path, "rb") as f:
+        head = f.read(max(_FIRST_LINE_BYTES, SIDECAR_HEADER_SIZE))
+    if suffix == ".separable.bin":
+        return sidecar_manifest_sha256(head)
+    return include_manifest_sha256(head.decode("utf-8", errors="replace"))
+
+
+def companion_states(atlas: Atlas) -> dict[str, str]:
+    """``suffix -> state`` of each of :data:`COMPANIONS` beside ``atlas``: ``"this bake"`` where it records the
+    manifest's SHA-256, ``"another bake"`` where it records another, ``"not atlasgen's"`` where it records none (or
+    is no file), ``"none"`` where there is nothing by that name (a bake writes only the languages asked for, and a
+    side-car only for separable materials). What ``atlasgen info`` shows: a renderer or an engine loading an include
+    of another bake than its atlas reads other slices and scales than the include declares."""
+    states = {}
+    for suffix in COMPANIONS:
+        path = atlas.path.with_suffix(suffix)
+        kind = path_kind(path)
+        if kind == MISSING:
+            states[suffix] = "none"
+            continue
+        try:
+            recorded = None if kind is not None else _recorded_sha256(path, suffix)
+        except OSError:
+            recorded = None
+        if recorded is None:
+            states[suffix] = "not atlasgen's"
+        else:
+            states[suffix] = "this bake" if recorded == atlas.manifest_sha256 else "another bake"
+    return states
+
+
 #: Control characters: a line break, a carriage return, NUL, the escape that starts a terminal's colour codes.
 _CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
 
@@ -269,6 +314,9 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
         return "\n".join(lines + ["  no manifest beside it"])
     lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, "
                  f"{counted(len(manifest.materials), 'material')}, {counted(manifest.slices_used, 'slice')} used")  # fmt: skip
+    found = [f"{_printable(atlas.path.with_suffix(suffix).name)} ({state})"
+             for suffix, state in companion_states(atlas).items() if state != "none"]  # fmt: skip
+    lines.append(f"  beside it: {', '.join(found) or 'no include'}")
     for e in manifest.materials:
         lines.append(
             f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {_printable(e.type):<11} "
@@ -312,4 +360,5 @@ def summarize_atlas(path) -> dict:
                 for e in manifest.materials
             ],
         }  # fmt: skip
+        out["companions"] = {suffix.lstrip("."): state for suffix, state in companion_states(atlas).items()}
     return out

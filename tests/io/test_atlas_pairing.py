@@ -192,3 +192,27 @@ def test_a_ktx2_without_its_recorded_manifest_hash_is_refused(tmp_path):
     message = _refusal(out)
     assert message.startswith(f"{out.as_posix()}: KTX2 key 'atlasgen.manifest_sha256': missing; expected the SHA-256 of "
                               f"{out.with_suffix('.json').as_posix()}")  # fmt: skip
+
+
+def test_info_says_which_files_beside_the_atlas_are_of_its_bake(tmp_path):
+    """An include copied from another bake, or edited by hand, was loaded by an engine without a word: ``info``
+    read the texture and the manifest only."""
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    a = _bake(tmp_path, "a")
+    b = _bake(tmp_path, "b", colour="[0.9, 0.1, 0.1]")
+    runner = CliRunner()
+    fresh = json.loads(runner.invoke(app, ["info", str(a), "--format", "json"]).output)["companions"]
+    assert fresh == {"wgsl": "this bake", "glsl": "this bake", "hlsl": "this bake", "separable.bin": "none"}
+    shutil.copyfile(b.with_suffix(".glsl"), a.with_suffix(".glsl"))
+    a.with_suffix(".hlsl").unlink()
+    text = a.with_suffix(".wgsl").read_text()
+    a.with_suffix(".wgsl").write_text(text.split("\n", 1)[1])  # its first line, the manifest's hash, removed
+    res = runner.invoke(app, ["info", str(a), "--format", "json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["companions"] == {"wgsl": "not atlasgen's", "glsl": "another bake", "hlsl": "none",
+                                                    "separable.bin": "none"}  # fmt: skip
+    lines = runner.invoke(app, ["info", str(a)]).output.splitlines()
+    assert "  beside it: atlas.wgsl (not atlasgen's), atlas.glsl (another bake)" in lines
