@@ -51,7 +51,8 @@ class MaterialWarning:
 
     ``figure`` is the measured error (a fraction) and ``cause`` what is known of why:
     ``"anisotropy"``, ``"dropped delta lobe"``, ``"unreachable fit"``, ``"missed budget"``,
-    ``"non-finite samples"``, ``"not in the table"`` or ``"lost to 8 bits"``; ``detail`` the rest of the line.
+    ``"non-finite samples"``, ``"not in the table"``, ``"flattened"`` or ``"lost to 8 bits"``; ``detail`` the rest of
+    the line.
     """
 
     source: str
@@ -110,6 +111,9 @@ def assess_material(material, extra: dict, threshold: float = ERROR_WARNING_THRE
     unheld = model.unheld_inputs(material.params) if model is not None else []
     if unheld:
         warn("not in the table", None, f"baked without what its slices cannot hold: {'; '.join(unheld)}")
+    flattened = model.flattened_inputs(material.params) if model is not None else []
+    if flattened:
+        warn("flattened", None, f"baked with driven inputs at one value (--flatten): {'; '.join(flattened)}")
     if nonfinite:
         warn("non-finite samples", None, f"{nonfinite} non-finite samples (NaN or inf) baked as 0 "
                                          f"(nonfinite_tolerance = {tolerance})")  # fmt: skip

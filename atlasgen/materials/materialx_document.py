@@ -40,7 +40,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
-from atlasgen.errors import MaterialError, shorten
+from atlasgen.errors import FieldError, InputError, MaterialError, shorten
 from atlasgen.io.fields import validate_params
 from atlasgen.io.text import check_path_text, decode_utf8, read_input_bytes
 from atlasgen.models import get_model
@@ -229,8 +229,9 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     _refuse_namespaces(documents)
     libraries = load_materialx_libraries()
     _refuse_library_names(documents, doc, libraries)
+    _refuse_library_implementations(documents, doc, libraries)
     doc.importLibrary(libraries)
-    nodes = doc.getMaterialNodes()
+    nodes = _material_nodes(documents, doc)
     if not nodes:
         raise MaterialError(shown, None, "expected at least one surfacematerial node, found none")
     model = get_model("separable")
@@ -408,16 +409,27 @@ def _included_files(path: Path, root) -> list:
         check_path_text(found)  # the depfile and the manifest's includes record it
         real = os.path.realpath(found)
         edges[real_parent].append(real)
+        # A file that includes itself, or one that includes it: MaterialX said "XInclude cycle detected" and no more.
+        back = next((entry[0] for entry in stack if entry[2] == real), None)
+        if back is not None:
+            back = "the document" if real == document else repr(back)
+            raise MaterialError(shown, "xi:include", f"expected no include cycle, got href {href!r} leading back to {back}")
         if real in seen:
             continue
         if len(stack) > MAX_INCLUDE_DEPTH:
             raise MaterialError(shown, "xi:include", f"expected includes nested at most {MAX_INCLUDE_DEPTH} deep (as "
                                 f"MaterialX reads them), got a deeper chain at href {href!r}")  # fmt: skip
         seen.add(real)
-        data = read_input_bytes(found, limit=_DOCUMENT_LIMIT)
-        text = _decode(found.as_posix(), data)
-        included = _parse_xml(found.as_posix(), data)
-        _check_include_tags(found.as_posix(), text, included)
+        # A refusal names the included file at fault, and the file whose xi:include led there.
+        try:
+            data = read_input_bytes(found, limit=_DOCUMENT_LIMIT)
+            text = _decode(found.as_posix(), data)
+            included = _parse_xml(found.as_posix(), data)
+            _check_include_tags(found.as_posix(), text, included)
+        except FieldError as exc:
+            raise type(exc)(exc.path, exc.field, f"{exc.expected} (included by {shown})") from None
+        except InputError as exc:
+            raise InputError(f"{exc} (included by {shown})") from None
         out.append((found, data, included))
         edges[real] = []
         stack.append((found.as_posix(), found.parent, real, included.iter(XINCLUDE)))
@@ -627,6 +639,42 @@ def _lobes_no_slice_holds(shown: str, material: str, category: str, inputs: dict
     return sharp
 
 
+def _where(documents, name: str) -> str:
+    """The file of ``documents`` (``(shown, tree)``, the document first) whose top-level element is named ``name``."""
+    return next((shown for shown, tree in documents if any(c.get("name") == name for c in tree)), documents[0][0])
+
+
+def _material_nodes(documents, doc) -> list:
+    """The document's ``surfacematerial`` nodes, refusing what MaterialX takes for a material and cannot shade as one:
+    ``getMaterialNodes`` returned every node of type ``material`` (``<SurfaceMaterial>``, ``<not_a_node>``, which
+    have no nodedef), and a ``surfacematerial`` of another type was left out, so the only one in a document was
+    refused as "found none"."""
+    out = []
+    for node in doc.getNodes():
+        name, category, kind = node.getName(), node.getCategory(), node.getType()
+        if category == "surfacematerial" and kind != "material":
+            raise MaterialError(_where(documents, name), f"{name}.type", f"expected 'material', got {kind!r}")
+        if kind == "material" and category != "surfacematerial":
+            raise MaterialError(_where(documents, name), name, f"expected a surfacematerial node, got <{category}> "
+                                "of type material, which atlasgen does not bake")  # fmt: skip
+        if category == "surfacematerial":
+            out.append(node)
+    return out
+
+
+def _refuse_library_implementations(documents, doc, libraries) -> None:
+    """Refuse a node graph or an implementation of the document that implements a nodedef of MaterialX's standard
+    libraries (its ``nodedef`` attribute): MaterialX's generator then shades the document's (an unlit graph, say)
+    for every node of that nodedef, while the oracle shades the library's, and the bake differed without a word."""
+    for element in doc.getChildren():
+        nodedef = element.getAttribute("nodedef")
+        if element.getCategory() in ("nodegraph", "implementation") and nodedef and libraries.getChild(nodedef) is not None:
+            name = element.getName()
+            raise MaterialError(_where(documents, name), f"{name}.nodedef", f"expected no implementation of the "
+                                f"standard libraries' {nodedef} (MaterialX would shade the document's, and the oracle "
+                                f"shades the library's), got <{element.getCategory()}> {name!r}")  # fmt: skip
+
+
 def _refuse_library_names(documents, doc, libraries) -> None:
     """Refuse an element of the document (or a file it includes; ``documents``: ``(shown, tree)``, the document
     first) named as one of MaterialX's standard libraries: importing the libraries keeps the document's, so a
@@ -635,8 +683,7 @@ def _refuse_library_names(documents, doc, libraries) -> None:
     for element in doc.getChildren():
         name = element.getName()
         if libraries.getChild(name) is not None:
-            where = next((shown for shown, tree in documents if any(c.get("name") == name for c in tree)), documents[0][0])
-            raise MaterialError(where, name, f"expected no element named as one of MaterialX's standard libraries' (they "
+            raise MaterialError(_where(documents, name), name, f"expected no element named as one of MaterialX's standard libraries' (they "
                                 f"are loaded already, and the oracle shades theirs), got <{element.getCategory()}> {name!r}")  # fmt: skip
 
 

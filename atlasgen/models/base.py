@@ -365,6 +365,12 @@ class Model:
         (:func:`atlasgen.bake.quality.assess_material`), so nothing is dropped without a word. The default: none."""
         return []
 
+    def flattened_inputs(self, values: dict) -> list[str]:
+        """Inputs of the material's definition that a texture or node graph drives, baked at one value because the
+        bake was asked to flatten them (``atlasgen bake --flatten``), one clause each: the bake warns with them, as
+        the baked material is the document's at that value only. The default: none."""
+        return []
+
     def nonfinite_fault(self, values: dict) -> tuple[str, str] | None:
         """Where a bake that met non-finite samples of this material's source points the user: ``(field, what was
         expected)``, for a definition that cannot set ``nonfinite_tolerance`` (a MaterialX document) or whose

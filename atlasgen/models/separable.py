@@ -127,6 +127,19 @@ def _parametrization_names():
     return tuple(PARAMETRIZATIONS)
 
 
+def _shown_value(value) -> str:
+    """A flattened input's value as the document writes one: ``0.5`` or ``0.8, 0.2, 0.1``.
+
+    >>> _shown_value([0.8, 0.2, 0.1]), _shown_value(1.0), _shown_value(True)
+    ('0.8, 0.2, 0.1', '1', 'true')
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list | tuple):
+        return ", ".join(_shown_value(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _transmits(values: dict) -> bool:
     """Whether the material's source sends light through from behind (a thin film's back-light):
     its slices are then K terms and one transmission slice."""
@@ -334,6 +347,12 @@ class Separable(Model):
         spec = values.get("materialx") or {}
         sharp = set(spec.get("sharp_lobes") or [])
         return [clause for clause in spec.get("not_in_table") or [] if clause not in sharp]
+
+    def flattened_inputs(self, values: dict) -> list[str]:
+        """A MaterialX source's ``materialx.flattened``: each input as ``"input (driven by ...) as value"``."""
+        spec = values.get("materialx") or {}
+        return [f"{key} ({record['driven_by']}) as {_shown_value(record['value'])}"
+                for key, record in (spec.get("flattened") or {}).items()]  # fmt: skip
 
     def nonfinite_fault(self, values: dict) -> tuple[str, str] | None:
         """A MaterialX source: the material's input of the largest magnitude at or above 1e6, where one is (a

@@ -149,3 +149,21 @@ def test_non_finite_samples_of_a_materialx_material_name_its_input_not_a_toml_fi
     assert message.startswith(f"lib.mtlx: field '{field}': material 'p': the source gave 12 non-finite samples (NaN or "
                               "inf); expected inputs MaterialX's shader (float32 GLSL) turns into finite values")  # fmt: skip
     assert message.endswith(tail) and "nonfinite_tolerance" not in message
+
+
+def test_inputs_flattened_by_the_bake_are_named_in_a_warning():
+    """--flatten default baked a textured alpha as 1 and a driven emission as 0, named only in the manifest's
+    materialx.flattened: the bake said nothing, --strict included."""
+    from atlasgen.models import get_model
+
+    spec = {"flattened": {"alpha": {"driven_by": "node 'c1'", "value": 1.0},
+                          "base_color": {"driven_by": "nodegraph 'NG'", "value": [0.8, 0.25, 0.1]}}}  # fmt: skip
+    material = SimpleNamespace(source="lib.mtlx", name="mask", params={"materialx": spec}, nonfinite_tolerance=0,
+                               model=get_model("separable"))  # fmt: skip
+    (w,) = assess_material(material, {"errors_8bit": {"relative_rms": 0.03}})
+    assert w.cause == "flattened" and w.figure is None
+    assert str(w) == ("lib.mtlx: material 'mask': baked with driven inputs at one value (--flatten): alpha (node 'c1') "
+                      "as 1; base_color (nodegraph 'NG') as 0.8, 0.25, 0.1")  # fmt: skip
+    spec["flattened"] = {}
+    assert assess_material(material, {"errors_8bit": {"relative_rms": 0.03}}) == []
+    assert get_model("lambert").flattened_inputs({}) == []

@@ -385,7 +385,8 @@ def test_a_document_or_include_over_the_size_limit_is_refused_unread(tmp_path, m
     size, limit = red.stat().st_size, path.stat().st_size
     with pytest.raises(InputError) as info:
         read_material_file(path)
-    assert str(info.value) == f"{red.as_posix()}: {size} bytes; expected a MaterialX document, at most {limit} bytes"
+    assert str(info.value) == (f"{red.as_posix()}: {size} bytes; expected a MaterialX document, at most {limit} bytes "
+                               f"(included by {path.as_posix()})")  # fmt: skip
     monkeypatch.setattr(reader, "_DOCUMENT_LIMIT", (10, "a MaterialX document"))
     with pytest.raises(InputError, match=r"main.mtlx: \d+ bytes; expected a MaterialX document, at most 10 bytes$"):
         read_material_file(path)
@@ -397,6 +398,65 @@ def test_an_include_cycle_back_to_the_document_is_refused(tmp_path):
         read_material_file(path)
     assert str(info.value) == (f"{path.as_posix()}: field 'xi:include': expected no include cycle, got href "
                                "'main.mtlx' leading back to the document")  # fmt: skip
+
+
+def test_an_include_cycle_through_another_file_names_the_href(tmp_path):
+    """main includes a, a includes b, b includes a: MaterialX's "XInclude cycle detected." named no field or file."""
+    inc = tmp_path / "inc"
+    inc.mkdir()
+    head = '<?xml version="1.0"?>\n<materialx version="1.39" xmlns:xi="http://www.w3.org/2001/XInclude">\n'
+    (inc / "a.mtlx").write_text(f'{head}<xi:include href="b.mtlx" />\n</materialx>\n')
+    (inc / "b.mtlx").write_text(f'{head}<xi:include href="a.mtlx" />\n</materialx>\n')
+    path = _including(tmp_path, "inc/a.mtlx", _material("M", "standard_surface", ""))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{(inc / 'b.mtlx').as_posix()}: field 'xi:include': expected no include cycle, got href "
+                               f"'a.mtlx' leading back to {(inc / 'a.mtlx').as_posix()!r}")  # fmt: skip
+
+
+def test_an_included_file_that_is_no_xml_names_the_document_that_includes_it(tmp_path):
+    (tmp_path / "bin.mtlx").write_bytes(bytes(range(256)) * 8)
+    path = _including(tmp_path, "bin.mtlx", _material("M", "standard_surface", ""))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert (
+        str(info.value) == f"{(tmp_path / 'bin.mtlx').as_posix()}: expected UTF-8 MaterialX XML (included by {path.as_posix()})"
+    )
+
+
+@pytest.mark.parametrize(("tag", "field", "expected"), [
+    # MaterialX's getMaterialNodes took any node of type material: each baked as a material (exit 0), without the
+    # nodedef MaterialX would need to shade it.
+    ('<SurfaceMaterial name="M" type="material">', "M", "expected a surfacematerial node, got <SurfaceMaterial> of "
+     "type material, which atlasgen does not bake"),
+    ('<not_a_node name="M" type="material">', "M", "expected a surfacematerial node, got <not_a_node>"),
+    # The only surfacematerial, of another type, was refused as "expected at least one surfacematerial node, found none".
+    ('<surfacematerial name="M" type="surfaceshader">', "M.type", "expected 'material', got 'surfaceshader'"),
+])  # fmt: skip
+def test_a_material_node_is_a_surfacematerial_of_type_material(tmp_path, tag, field, expected):
+    close = f"</{tag[1:].split()[0]}>"
+    body = _material("M", "standard_surface", "").replace('<surfacematerial name="M" type="material">', tag)
+    path = _document(tmp_path, body.replace("</surfacematerial>", close))
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{path.as_posix()}: field '{field}': {expected}"), str(info.value)
+
+
+@pytest.mark.parametrize("element", [
+    '<nodegraph name="NG_mine" nodedef="ND_standard_surface_surfaceshader"><surface_unlit name="u" type="surfaceshader" />'
+    '<output name="out" type="surfaceshader" nodename="u" /></nodegraph>',
+    '<implementation name="IM_mine" nodedef="ND_standard_surface_surfaceshader" target="genglsl" file="mine.glsl" '
+    'function="mine" />',
+])  # fmt: skip
+def test_a_document_s_own_implementation_of_a_library_node_is_refused(tmp_path, element):
+    """MaterialX's generator shaded the document's graph (an unlit surface) for standard_surface, and the oracle the
+    library's: the bake was not MaterialX's shader of the document, and nothing said so."""
+    path = _document(tmp_path, _material("M", "standard_surface", "") + "\n" + element)
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    name = "NG_mine" if "nodegraph" in element else "IM_mine"
+    assert str(info.value).startswith(f"{path.as_posix()}: field '{name}.nodedef': expected no implementation of the "
+                                      "standard libraries' ND_standard_surface_surfaceshader")  # fmt: skip
 
 
 @pytest.mark.parametrize("kind", ["a named pipe", "a directory"])
@@ -412,7 +472,7 @@ def test_an_included_pipe_or_folder_is_refused_not_waited_on(tmp_path, kind):
     with pytest.raises(InputError) as info:
         read_material_file(path)
     expected = "expected a regular file, got a named pipe" if kind == "a named pipe" else "cannot read (Is a directory)"
-    assert str(info.value) == f"{target.as_posix()}: {expected}"
+    assert str(info.value) == f"{target.as_posix()}: {expected} (included by {path.as_posix()})"
 
 
 def test_a_material_s_back_surface_and_displacement_are_named_not_dropped(tmp_path):
