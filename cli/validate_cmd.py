@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -54,6 +55,16 @@ def _resolution(ctx, param, value):
     return w, h
 
 
+def _square_spp(ctx, param, value):
+    """The model references' samples per pixel, a square: Mitsuba's stratified sampler lays them out k x k, and
+    rounded --spp 2 up to 4 with a warning on stdout, while the report recorded 2."""
+    if value is not None and math.isqrt(value) ** 2 != value:
+        k = math.isqrt(value)
+        raise click.BadParameter(f"expected a square number of samples (1, 4, 9, 16, ...; {k * k} or {(k + 1) ** 2} "
+                                 f"here), which Mitsuba's stratified sampler lays out k x k, got {value}")  # fmt: skip
+    return value
+
+
 #: validate's options that shape the renders, which --merge does not make: given with it, they are refused.
 _RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolution", "no_physical", "environment", "atlas",
                    "bake_cache", "reference_cache", "no_reference_cache")  # fmt: skip
@@ -63,8 +74,9 @@ _RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolut
 @click.argument("materials", nargs=-1)
 @click.option("--scene", "scenes", multiple=True, default=("front", "back"), show_default=True,
               help="Validation scene: a standard name (front, back) or a scene TOML with material = \"$material\". Repeatable.")  # fmt: skip
-@click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True,
-              help="Mitsuba samples per pixel for the model references (1 = pixel centres, like the rasteriser).")  # fmt: skip
+@click.option("--spp", type=click.IntRange(1, MAX_SPP), default=1, show_default=True, callback=_square_spp,
+              help="Mitsuba samples per pixel for the model references, a square (1 = pixel centres, like the rasteriser; "
+                   "k x k = a k x k grid in each pixel, averaged).")  # fmt: skip
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=PHYSICAL_SPP, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
 @click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,

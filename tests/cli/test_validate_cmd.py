@@ -123,6 +123,13 @@ def test_a_black_scene_meets_no_goal_and_prints_no_inf(validation_atlas, mitsuba
         (["matte", "--scene", "sideways"], 3, "unknown validation scene; expected one of front, back"),
         (["matte", "--resolution", "big"], 2, "expected WIDTHxHEIGHT"),
         (["matte", "--spp", "0"], 2, "--spp"),
+        # Mitsuba's stratified sampler rounded 2 up to 4 (a warning on stdout), and the report recorded 2.
+        (
+            ["matte", "--spp", "2"],
+            2,
+            "Invalid value for '--spp': expected a square number of samples (1, 4, 9, 16, ...; "
+            "1 or 4 here), which Mitsuba's stratified sampler lays out k x k, got 2",
+        ),
         # It was raised to --physical-spp in silence, and the report recorded a maximum nobody asked for.
         (
             ["matte", "--physical-spp", "64", "--max-physical-spp", "4"],
