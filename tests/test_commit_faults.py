@@ -266,7 +266,7 @@ def test_a_full_validation_changes_as_one_set_through_every_fault(tmp_path, libr
     warm = atlasgen([*args[:-2], tmp_path / "warm", "-q"])  # -o warm
     if warm.returncode == 5:  # no Vulkan device, no Mitsuba
         pytest.skip(warm.stderr.strip())
-    seen = drive(args, out, "report.json", use_old, use_new, immutable=["images/clay__front__atlas.png"])
+    seen = drive(args, out, "report.json", use_old, use_new, immutable=["images/clay.front.atlas.png"])
     check_seen(seen)
 
 

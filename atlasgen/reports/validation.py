@@ -81,8 +81,16 @@ def _display_png(rgb01) -> bytes:
 
 
 def image_name(material: str, scene: str, what: str) -> str:
-    """Relative path of one report image, e.g. ``images/skin__front__atlas.png``."""
-    return f"images/{material}__{scene}__{what}.png"
+    """Relative path of one report image, e.g. ``images/skin.front.atlas.png``.
+
+    Dots part the three: a material name holds none, and ``what`` is one of a few words, so two results never share
+    an image. With ``__`` instead, material ``x`` on scene ``y__z`` and material ``x__y`` on scene ``z`` both wrote
+    ``x__y__z__atlas.png``, and one row showed the other material's render.
+
+    >>> image_name("x", "y__z", "atlas"), image_name("x__y", "z", "atlas")
+    ('images/x.y__z.atlas.png', 'images/x__y.z.atlas.png')
+    """
+    return f"images/{material}.{scene}.{what}.png"
 
 
 def _goal(run, ref, goals) -> bool | None:

@@ -6,9 +6,12 @@ import json
 from html.parser import HTMLParser
 from pathlib import Path
 
+import hypothesis
 import pytest
+from hypothesis import strategies as st
 from markupsafe import escape
 
+from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import OutputError
 
 
@@ -225,3 +228,21 @@ def test_scenes_are_recorded_by_their_bytes_not_their_path(validation_run):
     front = Path(atlasgen.__file__).parent / "data" / "validation" / "front.toml"
     assert set(scene) == {"name", "sha256", "width", "height"}
     assert scene["sha256"] == hashlib.sha256(front.read_bytes()).hexdigest()
+
+
+_NAMES = st.from_regex(NAME_PATTERN, fullmatch=True)
+_SCENES = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="/\0"), min_size=1, max_size=12)
+
+
+@hypothesis.settings(max_examples=100, deadline=None)
+@hypothesis.given(
+    a=st.tuples(_NAMES, _SCENES), b=st.tuples(_NAMES, _SCENES), what=st.sampled_from(["atlas", "model", "flip-model"])
+)
+@hypothesis.example(a=("x", "y__z"), b=("x__y", "z"), what="atlas")
+def test_two_results_never_share_an_image(a, b, what):
+    """Material x on scene y__z and material x__y on scene z both wrote images/x__y__z__atlas.png: one row of the
+    report showed the other material's render."""
+    from atlasgen.reports.validation import image_name
+
+    hypothesis.assume(a != b)
+    assert image_name(*a, what) != image_name(*b, what)
