@@ -191,6 +191,42 @@ def test_pareto_charts_against_the_physical_reference(tmp_path, write_material, 
     assert {name: (tmp_path / "r" / name).read_bytes() for name in names} == first
 
 
+def _outputs(folder) -> dict:
+    """``{path: bytes}`` of a report's files as a reader sees them, the set's store (a dot folder) left out."""
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in folder.rglob("*")
+            if p.is_file() and not any(part.startswith(".") for part in p.relative_to(folder).parts)}  # fmt: skip
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", ["a cost made null", "not JSON", "no key"])
+def test_a_damaged_pareto_cache_entry_is_computed_again_and_said(tmp_path, write_material, monkeypatch, damage):
+    """A cache file edited by hand kept its key: a cost made null ended in an internal error (exit 1), and a number
+    changed was shown as measured."""
+    from atlasgen.reports import pareto
+
+    write_material("metal", 'type = "separable"\nsource = "ggx"\nalpha = 0.5\nterms = 1\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    write_library_report(atlas, tmp_path / "r", jobs=1)
+    cached = tmp_path / "r" / "pareto" / "metal.json"
+    first = _outputs(tmp_path / "r")
+    data = read_json(cached)
+    if damage == "a cost made null":
+        data["candidates"][1]["cost"] = None
+        cached.write_text(json.dumps(data))
+    elif damage == "not JSON":
+        cached.write_text("{")
+    else:
+        del data["key"]
+        cached.write_text(json.dumps(data))
+    monkeypatch.setattr(pareto, "_MEMO", {})
+    said = []
+    write_library_report(atlas, tmp_path / "r", jobs=1, warn=said.append)
+    reason = "not JSON" if damage == "not JSON" else "its content is not what it records"
+    assert said == [f"{cached.as_posix()}: a damaged cache entry ({reason}); computed again"]
+    assert _outputs(tmp_path / "r") == first
+
+
 @pytest.mark.slow
 def test_thin_sheet_and_thin_film_materials_get_pareto_charts(tmp_path, write_material):
     """leaf (thin sheet) and beetle-shell (spectral thin film) are measured against their models'

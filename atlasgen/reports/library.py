@@ -259,12 +259,12 @@ def _materialx_rows(entries, validation: dict | None, validation_dir, out_dir: P
     return rows
 
 
-def _physical_section(entries, out_dir: Path, files: dict, jobs: int):
+def _physical_section(entries, out_dir: Path, files: dict, jobs: int, warn=None):
     """The Pareto charts against the physical reference (:mod:`atlasgen.reports.pareto`): the library's
     chart, one per material with a projectable reference, every candidate in a table, and one line
     for each material without such a reference. Adds the charts and the candidate cache to ``files``."""
     cache = out_dir / _PARETO_DIR
-    results = library_candidates(entries, cache, jobs)
+    results = library_candidates(entries, cache, jobs, warn)
     files.update(cache_files(results, cache))
     chosen = {e.name: baked_candidate(e, results[e.name]) for e in entries}
     materials, without = [], []
@@ -365,7 +365,7 @@ def write_library_report(
             chosen_points += [(name, c) for c in candidates if c["chosen"]]
         rows.append((entry, previews, bake_s, refs, _validation_pages(validation, name), candidates, chart))
 
-    physical_section = _physical_section(atlas.manifest.materials, out_dir, files, jobs) if physical else None
+    physical_section = _physical_section(atlas.manifest.materials, out_dir, files, jobs, warn) if physical else None
     materialx = _materialx_rows(atlas.manifest.materials, validation, validation_dir, out_dir)
     plot = None
     if chosen_points:

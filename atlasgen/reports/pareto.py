@@ -96,10 +96,36 @@ def material_candidates(entry: MaterialEntry, cache_dir=None) -> dict:
     return library_candidates([entry], cache_dir, jobs=1)[entry.name]
 
 
-def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
+def _content_digest(result: dict) -> str:
+    """SHA-256 of a cached result's JSON but its own ``digest``: what the cache file records of its content."""
+    body = {k: v for k, v in result.items() if k != "digest"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode("utf-8")).hexdigest()
+
+
+def _read_cached(path: Path, warn=None) -> dict | None:
+    """The result cached at ``path`` if it is whole: JSON whose ``digest`` is its content's. A file edited by hand
+    kept its ``key`` and was shown as measured (a cost made null ended in an internal error); it is computed again,
+    said to ``warn`` where given."""
+    try:
+        cached = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or "not JSON"
+    else:
+        if isinstance(cached, dict) and cached.get("digest") == _content_digest(cached):
+            return cached
+        if isinstance(cached, dict) and "digest" not in cached:
+            return None  # written before entries recorded their digest: computed again, nothing damaged
+        reason = "its content is not what it records"
+    if warn is not None:
+        warn(f"{path.as_posix()}: a damaged cache entry ({reason}); computed again")
+    return None
+
+
+def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS, warn=None) -> dict:
     """``{name: candidates}`` for ``entries`` (:func:`material_candidates`); missing ones computed in
     up to ``jobs`` processes. The cache files (``cache_dir/NAME.json``) are written by the caller's
-    report writer: this returns ``{name: result}`` where each result carries its ``key``."""
+    report writer: this returns ``{name: result}`` where each result carries its ``key``. A cache file
+    that is damaged is computed again, and said to ``warn`` (:func:`_read_cached`)."""
     cache_dir = None if cache_dir is None else Path(cache_dir)
     out, todo = {}, []
     for entry in entries:
@@ -108,11 +134,8 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
             f"{candidates_key(get_model(entry.type), entry.params, _gloss(entry))}:{tool_fingerprint()}".encode()
         ).hexdigest()
         cached = None
-        if cache_dir is not None and _cache_path(cache_dir, entry.name).exists():
-            try:
-                cached = json.loads(_cache_path(cache_dir, entry.name).read_text(encoding="utf-8"))
-            except ValueError:
-                cached = None
+        if key not in _MEMO and cache_dir is not None and _cache_path(cache_dir, entry.name).exists():
+            cached = _read_cached(_cache_path(cache_dir, entry.name), warn)
         if key in _MEMO:
             out[entry.name] = _MEMO[key]
         elif isinstance(cached, dict) and cached.get("key") == key:
@@ -136,7 +159,8 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS) -> dict:
 def cache_files(results: dict, cache_dir) -> dict:
     """``{path: bytes}`` of the cache files for ``results`` (deterministic JSON)."""
     cache_dir = Path(cache_dir)
-    return {_cache_path(cache_dir, name): (json.dumps(r, indent=1, sort_keys=True) + "\n").encode("utf-8")
+    return {_cache_path(cache_dir, name): (json.dumps({**r, "digest": _content_digest(r)}, indent=1, sort_keys=True)
+                                           + "\n").encode("utf-8")
             for name, r in results.items() if not r.get("transient")}  # fmt: skip
 
 
