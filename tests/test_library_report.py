@@ -5,6 +5,7 @@ import json
 import pytest
 
 from atlasgen.bake.pipeline import bake_atlas, write_bake
+from atlasgen.errors import InputError
 from atlasgen.materials.material import read_materials
 from atlasgen.reports.library import write_library_report
 from tests.html_links import PageLinks
@@ -144,6 +145,12 @@ def test_the_page_links_the_separable_reports_html_page(tmp_path, write_material
     (sep / "index.html").write_text("<html></html>")
     links = PageLinks(write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False).read_text()).links
     assert links == ["../separable/index.html"]
+    # A validation report's folder given as --separable was linked as the separable report, without a word.
+    (sep / "report.json").write_text('{"results": [], "settings": {}}')
+    with pytest.raises(InputError) as info:
+        write_library_report(atlas, tmp_path / "r", separable_dir=sep, physical=False)
+    assert str(info.value) == (f"{(sep / 'report.json').as_posix()}: the separable report (--separable) holds a "
+                               "validation report; expected the folder atlasgen report separable -o wrote")  # fmt: skip
 
 
 @pytest.mark.slow

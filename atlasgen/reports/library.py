@@ -34,6 +34,7 @@ from atlasgen.reports.pareto import (
     plot_library,
     plot_material,
 )
+from atlasgen.reports.report_kind import folder_report_kind
 from atlasgen.reports.validation import check_result_figures
 from atlasgen.separable.auto import cost_key, read_lighting_cost
 from atlasgen.validate.identity import atlas_identity, identity_problem
@@ -108,6 +109,15 @@ def _refuse_file_as_folder(folder, role: str, command: str) -> None:
     if folder is not None and Path(folder).exists() and not Path(folder).is_dir():
         kind = special_file_kind(folder) or "a file"
         raise InputError(f"{Path(folder).as_posix()}: {role} is {kind}; expected the folder {command} -o wrote")
+
+
+def _refuse_another_report(folder, kind: str, role: str, command: str) -> None:
+    """Refuse ``folder`` (a report's ``role``) where its ``report.json`` is another command's report: a validation
+    folder given as --separable was linked from the page as the separable factorisation report, without a word."""
+    found = folder_report_kind(folder) if folder is not None else None
+    if found is not None and found != kind:
+        path = (Path(folder) / "report.json").as_posix()
+        raise InputError(f"{path}: {role} holds a {found} report; expected the folder {command} -o wrote")
 
 
 def _read_validation(folder) -> dict | None:
@@ -331,6 +341,7 @@ def write_library_report(
                               "it would overwrite; expected a folder of its own")  # fmt: skip
     # A file given as the separable report's folder was linked from the page as one, where --validation's is refused.
     _refuse_file_as_folder(separable_dir, "the separable report (--separable)", "atlasgen report separable")
+    _refuse_another_report(separable_dir, "separable", "the separable report (--separable)", "atlasgen report separable")
     atlas = read_atlas(atlas_path)
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")

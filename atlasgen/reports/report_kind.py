@@ -14,7 +14,7 @@ from pathlib import Path
 from atlasgen.errors import OutputError
 from atlasgen.io.text import path_kind
 
-__all__ = ["report_kind", "refuse_another_report"]
+__all__ = ["report_kind", "folder_report_kind", "refuse_another_report"]
 
 #: A report.json larger than this is no report of ours to recognise (the commit refuses it, or replaces it).
 _MAX_BYTES = 256 << 20
@@ -33,18 +33,24 @@ def report_kind(data) -> str | None:
     return None
 
 
+def folder_report_kind(folder) -> str | None:
+    """:func:`report_kind` of ``folder/report.json``; None where there is none, or it is no report of ours."""
+    path = Path(folder) / "report.json"
+    if path_kind(path) is not None:
+        return None
+    try:
+        if path.stat().st_size > _MAX_BYTES:
+            return None
+        return report_kind(json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError):
+        return None
+
+
 def refuse_another_report(folder, kind: str) -> None:
     """Refuse to write a ``kind`` report into ``folder`` where its ``report.json`` is the other command's: the
     set would be replaced whole (exit 0), and what read the folder as that command's report then failed."""
     path = Path(folder) / "report.json"
-    if path_kind(path) is not None:
-        return
-    try:
-        if path.stat().st_size > _MAX_BYTES:
-            return
-        found = report_kind(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, ValueError):
-        return
+    found = folder_report_kind(folder)
     if found is not None and found != kind:
         raise OutputError(f"{path.as_posix()}: already written by another command's outputs (a {found} report); "
                           f"expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
