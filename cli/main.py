@@ -50,7 +50,7 @@ from atlasgen.errors import (
 )
 from atlasgen.interrupts import end_start_up_interrupts
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
-from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.atomic import lock_timeout, write_file_atomically
 from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
@@ -207,6 +207,9 @@ def app(ctx, debug):
     """atlasgen: bake BRDF materials into a 64x32x256 atlas for fully deferred renderers."""
     if ctx.invoked_subcommand is None:  # bare `atlasgen`: the help, and success
         click.echo(ctx.get_help())
+    else:
+        # Read where every output is committed, after the work: a bad value failed a validation after its renders.
+        lock_timeout()
 
 
 @app.command()

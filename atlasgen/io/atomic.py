@@ -70,6 +70,7 @@ __all__ = [
     "scratch_folder",
     "remove_stale_temporaries",
     "output_lock",
+    "lock_timeout",
     "set_key",
     "store_path",
     "refuse_inside_store",
@@ -201,7 +202,7 @@ def _discard(path) -> None:
         os.unlink(path)
 
 
-def _lock_timeout() -> float:
+def lock_timeout() -> float:
     """``ATLASGEN_LOCK_TIMEOUT_S`` if set, else :data:`LOCK_TIMEOUT_S`; a value that is no finite
     number of seconds >= 0 is refused rather than read as "wait forever" (nan, inf) or ignored."""
     text = os.environ.get("ATLASGEN_LOCK_TIMEOUT_S")
@@ -231,7 +232,7 @@ def output_lock(folder, key: str, timeout: float | None = None):
     """
     store = Path(folder) / f".{key}{STORE_SUFFIX}"
     lock_path = store / LOCK_NAME
-    timeout = _lock_timeout() if timeout is None else timeout
+    timeout = lock_timeout() if timeout is None else timeout
     try:
         store.mkdir(parents=True, exist_ok=True)
         fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)

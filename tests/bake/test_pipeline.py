@@ -95,6 +95,9 @@ def test_a_lock_timeout_that_is_no_number_of_seconds_is_refused(tmp_path, write_
     assert res.stderr.splitlines() == ["atlasgen: error: ATLASGEN_LOCK_TIMEOUT_S: expected a finite number of seconds "
                                        f">= 0, got {value!r}"]  # fmt: skip
     assert not out.exists()
+    # Refused before any work, by every command (it was read at the commit, after a validation's renders).
+    res = CliRunner().invoke(app, ["info", str(tmp_path / "none.dds")])
+    assert res.exit_code == 3 and res.stderr.startswith("atlasgen: error: ATLASGEN_LOCK_TIMEOUT_S"), res.output
 
 
 @pytest.mark.parametrize(
