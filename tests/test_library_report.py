@@ -348,6 +348,7 @@ def test_an_auto_choice_s_candidates_are_told_apart_and_only_the_baked_one_is_ch
     assert rows[2]["measure"] == kind.format("NMF") and rows[2]["error"] == 0.0903
 
 
+@pytest.mark.slow  # two pages with their plots: about 2 s of CPU, at the fast loop's budget
 def test_the_page_is_the_same_bytes_from_whatever_folder_it_is_written(tmp_path, write_material, monkeypatch):
     """Its heading gave the atlas path as typed: run from build/ ("atlas.dds") or the root ("build/atlas.dds"),
     the same inputs wrote two pages. It is now given from the page, as its links are."""
