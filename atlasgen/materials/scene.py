@@ -277,6 +277,11 @@ def _read_light(r: _Reader, raw, i) -> Light:
             raise SceneError(
                 r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees), got {inner!r}"
             )
+        # The fall-off divides by outer - inner in float32 radians (the renderer's and Mitsuba's spot): 29.999999999999996
+        # below 30 degrees is the same angle there, and packing the light divided by zero (an internal error).
+        if not np.float32(math.radians(inner)) < np.float32(math.radians(outer)):
+            raise SceneError(r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees) "
+                                                            f"in float32 radians, got {inner!r}, the same angle there")  # fmt: skip
         direction = tuple(float(c) for c in _direction(axis))
         return Light("spot", colour, intensity, position, direction, light_range, inner, outer)
     if "range" in raw:
