@@ -283,6 +283,41 @@ def test_a_light_beyond_float32_s_reach_of_an_object_it_lights_is_refused(scene_
     assert str(info.value).startswith("scenes/far.toml: field 'lights[0].position': expected within 1.84e+19 of the")
 
 
+_BEHIND = """
+[camera]
+position = [0, 2, 6]
+target = [0, 0, 0]
+[image]
+width = 48
+height = 36
+[[objects]]
+shape = "plane"
+material = "lambert"
+translate = [0, -1, 0]
+scale = 4
+[[lights]]
+type = "directional"
+direction = [0.3, -1, -0.2]
+intensity = 2.0
+{extra}
+"""
+
+
+@pytest.mark.gpu
+def test_a_bright_light_just_behind_a_surface_never_darkens_it(renderer, scene_from):
+    """I / d^2 of a light of 1e38 a tenth below the plane overflowed float32, and inf x 0 (where the slice is 0 for
+    the light's N.L < 0) made 112 pixels NaN, written as black over the directional light's share. Near N.L = 0 the
+    slice's texels still reach (the sampler blends the texel at N.L = -1/63 with the one at +1/63), and there the
+    light's huge irradiance saturates the frame, as it should."""
+    extra = '[[lights]]\ntype = "point"\nposition = [0, -1.1, 1]\nintensity = 1e38'
+    alone = renderer.render(scene_from(_BEHIND.format(extra="")), outlines=False).radiance
+    both = renderer.render(scene_from(_BEHIND.format(extra=extra)), outlines=False).radiance
+    assert np.isfinite(both).all() and alone.max() > 0.1
+    assert np.all(both >= alone)
+    lit = alone > 0.0
+    assert np.mean(both[lit] == alone[lit]) > 0.5  # most of the plane is beyond the blend's reach: the light adds 0
+
+
 @pytest.mark.gpu
 def test_the_renderer_refuses_a_light_it_would_lose_before_drawing(renderer, scene_from):
     from atlasgen.errors import SceneError
