@@ -211,7 +211,9 @@ def reflect(v, n) -> np.ndarray:
 
 
 def diffuse_environment(sh_coefficients, sh_table, normals, n_dot_v) -> np.ndarray:
-    """(1/pi) sum_l lambda_l(N.V) sum_m L_lm Y_lm(n): the environment's diffuse term before the albedo, ``(..., 3)``.
+    """max((1/pi) sum_l lambda_l(N.V) sum_m L_lm Y_lm(n), 0): the environment's diffuse term before the albedo,
+    ``(..., 3)``. The truncated series of a bright sun rings below 0 on the far side; like Filament's irradiance,
+    it is clamped there, as the include's ``atlas_sh_diffuse`` is.
 
     ``sh_coefficients`` ``(K, 3)`` (:func:`atlasgen.optics.spherical_harmonics.project_equirect`),
     ``sh_table`` ``(H, order + 1, 3)`` (:func:`slice_sh_table`) read linearly at N.V (clamped to
@@ -220,7 +222,7 @@ def diffuse_environment(sh_coefficients, sh_table, normals, n_dot_v) -> np.ndarr
     table = np.asarray(sh_table, dtype=np.float64)
     nv = np.clip(np.asarray(n_dot_v, dtype=np.float64), 0.0, 1.0)
     lam = interpolate_1d(table, nv * (table.shape[0] - 1))
-    return evaluate_sh(sh_coefficients, normals, zonal=lam) / np.pi
+    return np.maximum(evaluate_sh(sh_coefficients, normals, zonal=lam) / np.pi, 0.0)
 
 
 def specular_environment(levels, specular_table, reflected, n_dot_v, gloss) -> np.ndarray:

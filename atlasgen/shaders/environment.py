@@ -4,7 +4,7 @@ The formulas and their NumPy twins are :mod:`atlasgen.optics` (docs/atlas-format
 lighting"); this module spells them for :mod:`atlasgen.shaders.lang`, and the include
 (:mod:`atlasgen.shaders.include`) and the renderer's lighting pass call them:
 
-- ``atlas_sh_diffuse(n, sh, lam)`` = (1/pi) sum_l lam_l sum_m L_lm Y_lm(n), the Funk-Hecke sum of
+- ``atlas_sh_diffuse(n, sh, lam)`` = max((1/pi) sum_l lam_l sum_m L_lm Y_lm(n), 0), the Funk-Hecke sum of
   :func:`atlasgen.optics.environment_tables.diffuse_environment` for 25 coefficients ``sh[k].rgb``
   (k = l*l + l + m, :func:`atlasgen.optics.spherical_harmonics.project_equirect`) and 5 zonal weights
   ``lam[l].rgb`` (a row of :func:`~atlasgen.optics.environment_tables.slice_sh_table`), the basis
@@ -79,15 +79,18 @@ def _sh_diffuse(order: int = SH_ORDER) -> Function:
     for l in range(order + 1):
         terms = " + ".join(f"sh[{k}].xyz * {names[k]}" for k in range(l * l, (l + 1) * (l + 1)))
         body.append(Assign("total", f"lam[{l}].xyz * ({terms})", "+="))
-    body.append(Return("total / ATLAS_PI"))
+    # Clamped at 0: an order-4 projection of a bright sun rings below 0 on the far side, and a negative radiance
+    # reached the image (-1.1 under a sky with a sun of 300).
+    body.append(Return("max(total / ATLAS_PI, splat3(0.0))"))
     return Function(
         "atlas_sh_diffuse",
         "vec3",
         (("n", "vec3"), ("sh", f"vec4[{sh_count(order)}]"), ("lam", f"vec4[{order + 1}]")),
         tuple(body),
-        "(1/pi) sum_l lam_l sum_m L_lm Y_lm(n): an environment's diffuse light through a slice (Funk-Hecke;\n"
-        "Ramamoorthi & Hanrahan 2001). sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase);\n"
-        "lam[l].rgb the slice's zonal weights at this N.V. Multiply by the albedo.",
+        "max((1/pi) sum_l lam_l sum_m L_lm Y_lm(n), 0): an environment's diffuse light through a slice (Funk-Hecke;\n"
+        "Ramamoorthi & Hanrahan 2001), clamped at 0 where the truncated series rings below it (a bright sun).\n"
+        "sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase); lam[l].rgb the slice's zonal\n"
+        "weights at this N.V. Multiply by the albedo.",
     )
 
 

@@ -251,3 +251,21 @@ def test_a_slice_without_specular_scale_has_a_zero_table_and_the_others_do_not()
     assert not slice_specular_table(values).any()
     values[..., 3] = 1e-3
     assert (slice_specular_table(values, gloss_count=2, samples=(8, 4)) > 0).all()
+
+
+def test_the_diffuse_term_of_a_bright_sun_is_clamped_at_zero_where_its_series_rings_below():
+    """The order-4 series of a sun over a black sky rings below 0 facing away from it; the renderer wrote those
+    negative radiances into the image (down to -1.1 under a sun of 300)."""
+    from atlasgen.optics.environment_tables import diffuse_environment
+    from atlasgen.optics.spherical_harmonics import SH_ORDER, evaluate_sh, sh_basis
+
+    sun = np.array([0.0, 0.0, -1.0])
+    coefficients = 300.0 * sh_basis(sun[None])[0][:, None] * np.ones((1, 3))  # a delta of 300 towards the sun
+    table = np.broadcast_to([np.pi, 2 * np.pi / 3, np.pi / 4, 0.0, -np.pi / 24], (32, 3, SH_ORDER + 1)).transpose(0, 2, 1)
+    rng = np.random.default_rng(7)
+    normals = rng.normal(size=(4000, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    series = evaluate_sh(coefficients, normals, zonal=np.broadcast_to(table[0], (4000, SH_ORDER + 1, 3))) / np.pi
+    got = diffuse_environment(coefficients, table, normals, np.full(4000, 0.5))
+    assert series.min() < -0.5  # the series does ring below 0
+    np.testing.assert_allclose(got, np.maximum(series, 0.0), rtol=1e-12, atol=1e-12)

@@ -380,9 +380,10 @@ float specular(vec3 n, vec3 l, vec3 v, float alpha) {
     return a2 / (ATLAS_PI * t * t) * vis * nl;
 }
 
-// (1/pi) sum_l lam_l sum_m L_lm Y_lm(n): an environment's diffuse light through a slice (Funk-Hecke;
-// Ramamoorthi & Hanrahan 2001). sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase);
-// lam[l].rgb the slice's zonal weights at this N.V. Multiply by the albedo.
+// max((1/pi) sum_l lam_l sum_m L_lm Y_lm(n), 0): an environment's diffuse light through a slice (Funk-Hecke;
+// Ramamoorthi & Hanrahan 2001), clamped at 0 where the truncated series rings below it (a bright sun).
+// sh[k].rgb = L_k, k = l*l + l + m (real SH, no Condon-Shortley phase); lam[l].rgb the slice's zonal
+// weights at this N.V. Multiply by the albedo.
 vec3 atlas_sh_diffuse(vec3 n, vec4 sh[25], vec4 lam[5]) {
     float shx = n.x;
     float shy = n.y;
@@ -441,7 +442,7 @@ vec3 atlas_sh_diffuse(vec3 n, vec4 sh[25], vec4 lam[5]) {
     total += lam[2].xyz * (sh[4].xyz * y4 + sh[5].xyz * y5 + sh[6].xyz * y6 + sh[7].xyz * y7 + sh[8].xyz * y8);
     total += lam[3].xyz * (sh[9].xyz * y9 + sh[10].xyz * y10 + sh[11].xyz * y11 + sh[12].xyz * y12 + sh[13].xyz * y13 + sh[14].xyz * y14 + sh[15].xyz * y15);
     total += lam[4].xyz * (sh[16].xyz * y16 + sh[17].xyz * y17 + sh[18].xyz * y18 + sh[19].xyz * y19 + sh[20].xyz * y20 + sh[21].xyz * y21 + sh[22].xyz * y22 + sh[23].xyz * y23 + sh[24].xyz * y24);
-    return total / ATLAS_PI;
+    return max(total / ATLAS_PI, vec3(0.0));
 }
 
 // Texture uv of direction d in an equirect image of `height` rows, Mitsuba's envmap convention:
