@@ -233,8 +233,6 @@ def check_include(atlas: Atlas, include_path, text: str) -> None:
 #: The files a bake writes beside the atlas that record its manifest's SHA-256: the includes (their first line) and
 #: the separable side-car (its header), by the suffix that replaces the atlas's.
 COMPANIONS = (".wgsl", ".glsl", ".hlsl", ".separable.bin")
-#: What :func:`companion_states` finds of each companion.
-COMPANION_STATES = ("this bake", "another bake", "not atlasgen's", "none")
 #: Bytes read of an include for its first line.
 _FIRST_LINE_BYTES = 256
 
@@ -254,22 +252,21 @@ def companion_states(atlas: Atlas) -> dict[str, str]:
     is no file), ``"none"`` where there is nothing by that name (a bake writes only the languages asked for, and a
     side-car only for separable materials). What ``atlasgen info`` shows: a renderer or an engine loading an include
     of another bake than its atlas reads other slices and scales than the include declares."""
-    states = {}
-    for suffix in COMPANIONS:
-        path = atlas.path.with_suffix(suffix)
-        kind = path_kind(path)
-        if kind == MISSING:
-            states[suffix] = "none"
-            continue
-        try:
-            recorded = None if kind is not None else _recorded_sha256(path, suffix)
-        except OSError:
-            recorded = None
-        if recorded is None:
-            states[suffix] = "not atlasgen's"
-        else:
-            states[suffix] = "this bake" if recorded == atlas.manifest_sha256 else "another bake"
-    return states
+    return {suffix: _companion_state(atlas, suffix) for suffix in COMPANIONS}
+
+
+def _companion_state(atlas: Atlas, suffix: str) -> str:
+    path = atlas.path.with_suffix(suffix)
+    kind = path_kind(path)
+    if kind == MISSING:
+        return "none"
+    try:
+        recorded = _recorded_sha256(path, suffix) if kind is None else None  # a folder or a device records nothing
+    except OSError:
+        recorded = None
+    if recorded is None:
+        return "not atlasgen's"
+    return "this bake" if recorded == atlas.manifest_sha256 else "another bake"
 
 
 #: Control characters: a line break, a carriage return, NUL, the escape that starts a terminal's colour codes.

@@ -478,9 +478,9 @@ def _include_options(mx, path: Path, included: list):
         href = filename.asString()
         found = _find_include(href, Path(search_path.asString()), path)
         data = by_path.get(os.path.realpath(found)) if found is not None else None
-        if data is None:  # every file but the document was read above: a cycle back to it
-            raise MaterialError(path.as_posix(), "xi:include", f"expected no include cycle, got href {href!r} leading "
-                                "back to the document")  # fmt: skip
+        if data is None:  # not met: _included_files read every file an href reaches, and refused cycles first
+            raise MaterialError(path.as_posix(), "xi:include", f"expected an include read with the document, got href "
+                                f"{href!r}")  # fmt: skip
         mx.readFromXmlString(sub, decode_utf8(data), mx.FileSearchPath(str(found.parent)), options)
 
     options = mx.XmlReadOptions()

@@ -273,15 +273,12 @@ def _read_light(r: _Reader, raw, i) -> Light:
         outer = r.number(raw, "outer_angle", f"{name}.outer_angle", lo=0.0, hi=90.0, lo_open=True)
         # Mitsuba's spot default: the full-intensity cone is 3/4 of the cut-off angle.
         inner = r.number(raw, "inner_angle", f"{name}.inner_angle", default=0.75 * outer, lo=0.0)
-        if inner >= outer:
-            raise SceneError(
-                r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees), got {inner!r}"
-            )
         # The fall-off divides by outer - inner in float32 radians (the renderer's and Mitsuba's spot): 29.999999999999996
         # below 30 degrees is the same angle there, and packing the light divided by zero (an internal error).
         if not np.float32(math.radians(inner)) < np.float32(math.radians(outer)):
-            raise SceneError(r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees) "
-                                                            f"in float32 radians, got {inner!r}, the same angle there")  # fmt: skip
+            same = ", the same angle in float32 radians" if inner < outer else ""
+            raise SceneError(r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees), "
+                                                            f"got {inner!r}{same}")  # fmt: skip
         direction = tuple(float(c) for c in _direction(axis))
         return Light("spot", colour, intensity, position, direction, light_range, inner, outer)
     if "range" in raw:

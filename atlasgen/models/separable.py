@@ -349,9 +349,10 @@ class Separable(Model):
         return [clause for clause in spec.get("not_in_table") or [] if clause not in sharp]
 
     def flattened_inputs(self, values: dict) -> list[str]:
-        """A MaterialX source's ``materialx.flattened``: each input as ``"input (driven by ...) as value"``."""
+        """A MaterialX source's ``materialx.flattened``: each input as ``"input (driven by node 'x') as 0.5"``; the
+        bake's warning and the library report's MaterialX table show them."""
         spec = values.get("materialx") or {}
-        return [f"{key} ({record['driven_by']}) as {_shown_value(record['value'])}"
+        return [f"{key} (driven by {record['driven_by']}) as {_shown_value(record['value'])}"
                 for key, record in (spec.get("flattened") or {}).items()]  # fmt: skip
 
     def nonfinite_fault(self, values: dict) -> tuple[str, str] | None:

@@ -320,19 +320,31 @@ _PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort"
 _PLY_HEADER_BYTES = 64 << 10
 
 
+def _ply_header(path: Path) -> tuple[bytes, int, list[list[str]]] | None:
+    """A PLY file's first :data:`_PLY_HEADER_BYTES`, where ``end_header`` starts in them (-1: not there) and the
+    header's lines split into words (none without an ``end_header``); None where the file cannot be read."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(_PLY_HEADER_BYTES)
+    except OSError:
+        return None
+    end = head.find(b"end_header")
+    lines = head[:end].decode("ascii", errors="replace").split("\n") if end >= 0 else []
+    return head, end, [line.split() for line in lines]
+
+
 def _check_ply_counts(path: Path, scene_path, field) -> None:
     """Refuse a PLY whose header declares more elements than its body can hold, or more faces than a mesh may
     have: trimesh read an ASCII file declaring 2e9 vertices as one without triangles, and a binary one
     as "unexpected length". A header it cannot parse is left to trimesh's own message."""
+    header = _ply_header(path)
     try:
-        with open(path, "rb") as f:
-            head = f.read(_PLY_HEADER_BYTES)
         size = path.stat().st_size
     except OSError:
         return
-    end = head.find(b"end_header")
-    lines = head[:end].decode("ascii", errors="replace").split("\n") if end >= 0 else []
-    words = [line.split() for line in lines]
+    if header is None:
+        return
+    head, end, words = header
     fmt = next((w[1] for w in words if len(w) >= 2 and w[0] == "format"), None)
     if not words or words[0] != ["ply"] or fmt is None:
         return
@@ -385,15 +397,11 @@ def _explain_obj(text: str) -> str | None:
 def _explain_ply(path: Path) -> str | None:
     """Why trimesh could not read a PLY file, where its header says: a vertex element without x, y and z
     (trimesh raised ``KeyError: 'z'``)."""
-    try:
-        with open(path, "rb") as f:
-            head = f.read(_PLY_HEADER_BYTES)
-    except OSError:
+    header = _ply_header(path)
+    if header is None:
         return None
-    end = head.find(b"end_header")
-    words = [line.split() for line in head[: max(end, 0)].decode("ascii", errors="replace").split("\n")]
     element, props = None, {}
-    for w in words:
+    for w in header[2]:
         if len(w) >= 2 and w[0] == "element":
             element = w[1]
             props.setdefault(element, [])

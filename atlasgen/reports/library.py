@@ -263,7 +263,7 @@ def _materialx_rows(entries, validation: dict | None, validation_dir, out_dir: P
             "name": entry.name, "document": spec.get("document"), "material": spec.get("material"),
             "category": spec.get("category"), "representation": get_model(entry.type).describe_representation(entry),
             "error": _oracle_error(entry), "not_in_table": list(spec.get("not_in_table") or []),
-            "flattened": [f"{k} (driven by {v.get('driven_by')}) as {v.get('value')}" for k, v in (spec.get("flattened") or {}).items()],
+            "flattened": get_model(entry.type).flattened_inputs(entry.params),
             "images": images,
         })  # fmt: skip
     return rows

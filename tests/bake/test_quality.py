@@ -108,6 +108,14 @@ def test_a_slice_stored_mostly_as_zero_warns(tmp_path, text, expected):
         assert warning.detail.startswith(expected), warning.detail
 
 
+def _materialx_stand_in(name: str, spec: dict):
+    """A material of lib.mtlx as assess_material reads one: the separable model over ``spec`` (params.materialx)."""
+    from atlasgen.models import get_model
+
+    return SimpleNamespace(source="lib.mtlx", name=name, params={"materialx": spec}, nonfinite_tolerance=0,
+                           model=get_model("separable"))  # fmt: skip
+
+
 def test_what_a_materialx_material_asks_and_no_slice_holds_warns_sharp_lobes_aside():
     """A document's emission, opacity and transmission were named only in the manifest: an invisible, emissive
     material baked as an opaque reflector without a word, --strict included. The separable model's hook lists
@@ -117,8 +125,7 @@ def test_what_a_materialx_material_asks_and_no_slice_holds_warns_sharp_lobes_asi
     sharp = "specular_roughness = 0.02: a lobe sharper than the renderer's sharpest"
     spec = {"not_in_table": [sharp, "emission = 1.0: emission", "opacity = [0.0, 0.0, 0.0]: opacity"],
             "sharp_lobes": [sharp]}  # fmt: skip
-    material = SimpleNamespace(source="lib.mtlx", name="glow", params={"materialx": spec}, nonfinite_tolerance=0,
-                               model=get_model("separable"))  # fmt: skip
+    material = _materialx_stand_in("glow", spec)
     (w,) = assess_material(material, {"errors_8bit": {"relative_rms": 0.03}})
     assert w.cause == "not in the table" and w.figure is None
     assert str(w) == ("lib.mtlx: material 'glow': baked without what its slices cannot hold: emission = 1.0: emission; "
@@ -158,12 +165,11 @@ def test_inputs_flattened_by_the_bake_are_named_in_a_warning():
 
     spec = {"flattened": {"alpha": {"driven_by": "node 'c1'", "value": 1.0},
                           "base_color": {"driven_by": "nodegraph 'NG'", "value": [0.8, 0.25, 0.1]}}}  # fmt: skip
-    material = SimpleNamespace(source="lib.mtlx", name="mask", params={"materialx": spec}, nonfinite_tolerance=0,
-                               model=get_model("separable"))  # fmt: skip
+    material = _materialx_stand_in("mask", spec)
     (w,) = assess_material(material, {"errors_8bit": {"relative_rms": 0.03}})
     assert w.cause == "flattened" and w.figure is None
-    assert str(w) == ("lib.mtlx: material 'mask': baked with driven inputs at one value (--flatten): alpha (node 'c1') "
-                      "as 1; base_color (nodegraph 'NG') as 0.8, 0.25, 0.1")  # fmt: skip
+    assert str(w) == ("lib.mtlx: material 'mask': baked with driven inputs at one value (--flatten): alpha (driven by "
+                      "node 'c1') as 1; base_color (driven by nodegraph 'NG') as 0.8, 0.25, 0.1")  # fmt: skip
     spec["flattened"] = {}
     assert assess_material(material, {"errors_8bit": {"relative_rms": 0.03}}) == []
     assert get_model("lambert").flattened_inputs({}) == []

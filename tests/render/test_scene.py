@@ -103,7 +103,7 @@ opacity = 0.25
             "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, -1]\nouter_angle = 30\n"
             "inner_angle = 29.999999999999996\n",
             "lights[0].inner_angle",
-            "expected an angle below outer_angle (30.0 degrees) in float32 radians, got 29.999999999999996",
+            "expected an angle below outer_angle (30.0 degrees), got 29.999999999999996, the same angle in float32 radians",
         ),
         ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
         # Each within float32, their product not: the light's packed radiance was infinite, its unlit pixels NaN.
