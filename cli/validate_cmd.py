@@ -19,7 +19,7 @@ from atlasgen.cli.options import (
     verbosity_options,
 )
 from atlasgen.errors import GoalsMissed
-from atlasgen.io.output_paths import check_output_folder
+from atlasgen.io.output_paths import check_cache_folder, check_output_folder
 from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.reports.validation import (
     describe_materials,
@@ -154,6 +154,10 @@ def validate(
                                "no reference", "--environment (whose references it caps), or no --max-physical-spp")  # fmt: skip
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
+    if not merge:  # the caches are written as the renders finish: refused now, not after them
+        check_cache_folder(bake_cache, "--cache")
+        if not no_reference_cache:
+            check_cache_folder(reference_cache, "--reference-cache")
     if not no_physical and max_physical_spp is not None and max_physical_spp < physical_spp:  # left out, it rises to it
         raise click.BadParameter(f"expected at least --physical-spp ({physical_spp}), got {max_physical_spp}",
                                  param_hint="'--max-physical-spp'")  # fmt: skip

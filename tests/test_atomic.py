@@ -24,6 +24,7 @@ from atlasgen.io.atomic import (
     write_files_atomically,
 )
 from atlasgen.render.atlas_texture import read_render_atlas
+from tests.immutable import chattr
 from tests.plain_reader import read_plainly
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -459,14 +460,6 @@ def test_make_atlas_reruns_a_bake_killed_at_any_step(tmp_path):
 # ---- checked before anything changes, nothing replaced on a failure, tidied after a kill, locked ----
 
 
-def _chattr(path: Path, flag: str) -> bool:
-    """``chattr +i``/``-i`` (root only, and a file system that keeps the flag); False where it cannot."""
-    if os.geteuid() != 0 or shutil.which("chattr") is None:
-        return False
-    # chattr cannot flag a link itself: on an output, it flags the generation's file.
-    return subprocess.run(["chattr", flag, os.path.realpath(path)], capture_output=True).returncode == 0
-
-
 def _three(folder: Path, tag: str) -> dict:
     return {folder / name: f"{tag} {name}".encode() for name in ("a.json", "a.wgsl", "a.dds")}
 
@@ -487,13 +480,13 @@ def _old_set(folder: Path, before: str) -> dict:
 def test_an_immutable_target_refuses_the_commit_before_anything_changes(tmp_path, stuck, before):
     old = _old_set(tmp_path, before)
     state = {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old}
-    if not _chattr(tmp_path / stuck, "+i"):  # on a link: its file in the generation
+    if not chattr(tmp_path / stuck, "+i"):  # on a link: its file in the generation
         pytest.skip("chattr +i needs root and a file system with the immutable flag")
     try:
         with pytest.raises(OutputError, match=rf"{stuck}: cannot replace \(Operation not permitted\); nothing was replaced"):
             write_files_atomically(_three(tmp_path, "new"), primary=tmp_path / "a.dds")
     finally:
-        _chattr(tmp_path / stuck, "-i")
+        chattr(tmp_path / stuck, "-i")
     assert visible(tmp_path) == {p.name: d for p, d in old.items()}
     assert {p.name: (os.readlink(p) if p.is_symlink() else None) for p in old} == state  # not even migrated
     assert sorted(os.listdir(tmp_path / ".a.atlasgen")) == (["current", "gen-1", "lock"] if before == "links" else ["lock"])
@@ -634,13 +627,13 @@ def test_removed_siblings_go_in_the_same_commit(tmp_path):
 
 def test_an_immutable_file_the_commit_keeps_is_carried_as_a_copy(tmp_path):
     write_files_atomically({tmp_path / "a.hlsl": b"kept", tmp_path / "a.dds": b"old"})
-    if not _chattr(tmp_path / "a.hlsl", "+i"):
+    if not chattr(tmp_path / "a.hlsl", "+i"):
         pytest.skip("chattr +i needs root and a file system with the immutable flag")
     try:
         write_files_atomically({tmp_path / "a.dds": b"new"})
         write_files_atomically({tmp_path / "a.dds": b"newer"})  # gen-1's immutable file cannot be collected: it stays
     finally:
-        _chattr(tmp_path / ".a.atlasgen" / "gen-1" / "a.hlsl", "-i")
+        chattr(tmp_path / ".a.atlasgen" / "gen-1" / "a.hlsl", "-i")
     assert visible(tmp_path) == {"a.dds": b"newer", "a.hlsl": b"kept"}
 
 

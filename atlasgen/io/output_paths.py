@@ -1,20 +1,22 @@
 """Checking a command's output paths before anything is written.
 
 An output that is also an input (``atlasgen bake m.toml -o m.toml``), two outputs on one
-path, an output that is a folder, a device, a named pipe or a socket, or one under a file:
-each is refused with one line, before any work, so that a failing command never replaces anything.
+path, an output that is a folder, a device, a named pipe or a socket, one under a file, or one
+in a folder that takes no new file (read-only, immutable): each is refused with one line, before
+any work, so that a failing command never replaces anything, nor finds out only after minutes of it.
 """
 
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 from atlasgen.errors import OutputError, OutputNameError, shorten
-from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, refuse_another_sets, refuse_inside_store
+from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, TEMP_SUFFIX, refuse_another_sets, refuse_inside_store
 from atlasgen.io.text import special_file_kind
 
-__all__ = ["check_output_folder", "check_output_paths", "check_suffix"]
+__all__ = ["check_cache_folder", "check_output_folder", "check_output_paths", "check_suffix"]
 
 
 def _key(path: Path) -> str:
@@ -48,6 +50,22 @@ def _blocked(folder: Path, blocker: Path, output: str | None = None) -> OutputEr
     return OutputError(f"{where} ({blocker.as_posix()} is {kind})")
 
 
+def _unwritable(folder: Path) -> tuple[Path, str] | None:
+    """(the folder that refused, why) where ``folder``, or the nearest existing folder above it that the command
+    would create it in, cannot take a new entry; None where it can.
+
+    Probed by making and removing an empty folder there, not by ``os.access``: permission bits do not bind root,
+    while an immutable folder (``chattr +i``) or a read-only mount binds everyone; ``os.access`` sees neither."""
+    existing = next((p for p in (folder.absolute(), *folder.absolute().parents) if p.is_dir()), None)
+    if existing is None:
+        return None
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".atlasgen-probe.", suffix=TEMP_SUFFIX, dir=existing))
+    except OSError as exc:
+        return existing, exc.strerror or type(exc).__name__
+    return None
+
+
 def check_output_paths(outputs, inputs=()) -> None:
     """Refuse outputs that would overwrite an input, each other, or a folder.
 
@@ -73,6 +91,11 @@ def check_output_paths(outputs, inputs=()) -> None:
         except OSError as exc:  # a name the system cannot take (too long, say): stat() itself fails
             raise OutputError(f"{path.as_posix()}: {role}: cannot write ({exc.strerror or type(exc).__name__}); "
                               "expected a path the file system can hold") from None  # fmt: skip
+    probed = set()
+    for path, role in outputs:  # a bake's cache entries share one folder: probed once
+        if _key(path.parent) not in probed:
+            probed.add(_key(path.parent))
+            _refuse_unwritable(path.parent, f"{path.as_posix()}: {role}")
 
 
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
@@ -129,5 +152,28 @@ def check_output_folder(path, role: str, writes=()) -> None:
     if blocker is not None:
         raise _blocked(path, blocker)
     refuse_inside_store(path, folder=True)
+    _refuse_unwritable(path, f"{path.as_posix()}: {role}")
     if writes:
         refuse_another_sets([path / name for name in writes], path / writes[0])
+
+
+def check_cache_folder(path, role: str) -> None:
+    """Refuse a cache folder (``--cache``) that is an existing file, lies under one, or cannot take a new file, before
+    the command renders or bakes what it would store there: a store failing at the end lost that work."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        kind = special_file_kind(path) or "an existing file"
+        raise OutputError(f"{path.as_posix()}: {role} is {kind}; expected a folder path")
+    blocker = _blocking_file(path)
+    if blocker is not None:
+        raise OutputError(f"{path.as_posix()}: {role}: cannot write the cache folder ({blocker.as_posix()} is "
+                          f"{special_file_kind(blocker) or 'a file'})")  # fmt: skip
+    _refuse_unwritable(path, f"{path.as_posix()}: {role}")
+
+
+def _refuse_unwritable(folder: Path, where: str) -> None:
+    """Refuse ``where`` (``"b/x.dds: the atlas (-o)"``) when :func:`_unwritable` finds ``folder`` takes no new file."""
+    refused = _unwritable(folder)
+    if refused is not None:
+        at, why = refused
+        raise OutputError(f"{where}: cannot write in {at.as_posix()} ({why}); expected a folder this user may write")

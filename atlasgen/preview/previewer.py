@@ -23,7 +23,7 @@ from atlasgen.io.atomic import refuse_set_link, write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
 from atlasgen.io.manifest import Manifest, MaterialEntry
-from atlasgen.io.output_paths import check_output_paths, check_suffix
+from atlasgen.io.output_paths import check_cache_folder, check_output_paths, check_suffix
 from atlasgen.io.package_data import package_data_path
 from atlasgen.materials.material import check_unique_names, find_material_files, read_material, read_materials
 from atlasgen.materials.scene import Scene
@@ -147,12 +147,15 @@ def default_output(paths) -> Path:
     return DEFAULT_OUTPUT_DIR / "contact-sheet.png"
 
 
-def check_preview_output(output, sources) -> None:
-    """Refuse an output that is not a ``.png``, is a folder, or would overwrite a material file."""
+def check_preview_output(output, sources, cache_dir=None) -> None:
+    """Refuse an output that is not a ``.png``, is a folder, would overwrite a material file or lies in a folder
+    that takes no new file, and a ``cache_dir`` that cannot be written (None: no cache)."""
     check_suffix(output, "the preview (-o)", (".png",))
     inputs = [(f, "a material file") for f in find_material_files(sources)]
     check_output_paths([(Path(output), "the preview (-o)")], inputs)
     refuse_set_link(output)  # before rendering: write_file_atomically refuses it again
+    if cache_dir is not None:
+        check_cache_folder(cache_dir, "--cache")
 
 
 class Previewer:
@@ -330,7 +333,7 @@ class Previewer:
         The output is checked first (:func:`check_preview_output`); a preview that fails leaves
         ``output`` as it was.
         """
-        check_preview_output(output, paths)
+        check_preview_output(output, paths, self.cache_dir)
         preview = self.preview(paths, use_cache, aovs=reference, drafts=drafts)
         if reference:
             self.add_references(preview, max_spp)

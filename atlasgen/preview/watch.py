@@ -173,7 +173,7 @@ def watch_preview(
     except ImportError:
         raise BackendError("--watch needs the Python package watchfiles (pip install 'atlasgen[render]')") from None
 
-    check_preview_output(output, paths)
+    check_preview_output(output, paths, cache_dir if previewer is None else None)  # one handed in (a test's) brings its own
     previewer = previewer or Previewer(cache_dir)
     stop = stop or threading.Event()
     sources = _Sources(paths)

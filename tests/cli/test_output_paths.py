@@ -398,3 +398,66 @@ def test_a_manifest_that_is_a_symbolic_link_loop_is_refused_on_one_line(tmp_path
     res = CliRunner().invoke(app, ["bake", str(library), "-o", str(out / "build" / "atlas.dds"), "-q"])
     assert res.exit_code == 0, res.output
     assert CliRunner().invoke(app, ["info", str(out / "build" / "atlas.dds")]).exit_code == 0
+
+
+_UNWRITABLE = "(Operation not permitted); expected a folder this user may write"
+
+
+@pytest.mark.parametrize(("command", "output", "what"), [
+    (["bake", "{library}"], "x.dds", "the atlas (-o)"),
+    (["render", "{scene}"], "x.exr", "the render (-o)"),
+    (["preview", "{material}"], "x.png", "the preview (-o)"),
+    (["validate", "{material}"], "report", "the report folder (-o)"),
+    (["report", "library"], "report", "the report folder (-o)"),
+    (["validate", "--merge", "{tmp}"], "report", "the report folder (-o)"),
+])  # fmt: skip
+@pytest.mark.parametrize("below", [False, True], ids=["in it", "in a folder to be made in it"])
+def test_an_output_in_a_folder_that_takes_no_new_file_is_refused_before_any_work(tmp_path, library, command, output,
+                                                                                  what, below):  # fmt: skip
+    """An immutable (or, for a user who is not root, read-only) output folder was found only at the commit: validate
+    rendered every material, printed its progress, then failed, the work lost."""
+    from tests.immutable import immutable
+
+    scene = tmp_path / "s.toml"
+    scene.write_text('[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n[[objects]]\nshape = "sphere"\nmaterial = "clay"\n')
+    args = [a.format(library=library, material=library / "clay.toml", scene=scene, tmp=tmp_path) for a in command]
+    if command[0] in ("render", "report"):
+        _bake(tmp_path, library)
+        args += ["--atlas", str(tmp_path / "build" / "atlas.dds")]
+    stuck = tmp_path / "stuck"
+    stuck.mkdir()
+    target = stuck / "sub" / output if below else stuck / output
+    with immutable(stuck):
+        _refused(tmp_path, [*args, "-o", str(target)], f"{target.as_posix()}: {what}: cannot write in {stuck.as_posix()} "
+                 f"{_UNWRITABLE}")  # fmt: skip
+
+
+@pytest.mark.parametrize(("command", "option"), [(["validate", "{material}"], "--cache"),
+                                                 (["validate", "{material}"], "--reference-cache"),
+                                                 (["preview", "{material}"], "--cache"),
+                                                 (["bake", "{library}"], "--cache")])  # fmt: skip
+def test_a_cache_folder_that_takes_no_new_file_is_refused_before_any_work(tmp_path, library, command, option):
+    """validate and preview stored their caches as the renders finished: an immutable --cache was "cannot write output
+    folder", after the work, and for a folder that is no output."""
+    from tests.immutable import immutable
+
+    args = [a.format(library=library, material=library / "clay.toml") for a in command]
+    out = tmp_path / ("x.dds" if command[0] == "bake" else "x.png" if command[0] == "preview" else "report")
+    stuck = tmp_path / "stuck"
+    stuck.mkdir()
+    with immutable(stuck):
+        line = _refused(tmp_path, [*args, "-o", str(out), option, str(stuck / "cache")],
+                        f"cannot write in {stuck.as_posix()} {_UNWRITABLE}")  # fmt: skip
+    assert option in line or command[0] == "bake", line  # bake names the entry: "the cache entry of 'clay'"
+
+
+def test_a_writable_output_folder_is_left_as_it_was_by_the_check(tmp_path):
+    """The check makes and removes an empty folder: nothing of it stays."""
+    from atlasgen.io.output_paths import check_cache_folder, check_output_folder, check_output_paths
+
+    folder = tmp_path / "out"
+    folder.mkdir()
+    check_output_paths([(folder / "x.dds", "the atlas (-o)"), (folder / "sub" / "y.d", "--depfile")])
+    check_output_folder(folder / "report", "the report folder (-o)")
+    check_cache_folder(folder / "cache", "--cache")
+    assert list(tmp_path.rglob("*")) == [folder]
