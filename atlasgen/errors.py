@@ -20,6 +20,7 @@ __all__ = [
     "BackendError",
     "GoalsMissed",
     "BakeWarnings",
+    "describe_failure",
     "did_you_mean",
     "shorten",
     "EXIT_OK",
@@ -42,6 +43,23 @@ def shorten(text: str, limit: int = 80) -> str:
     'ior'
     """
     return text if len(text) <= limit else f"{text[: limit - 12]}... ({len(text)} characters)"
+
+
+def describe_failure(exc: BaseException) -> str:
+    """What ``exc`` (a reader's or formatter's own failure on a damaged file) says, for a one-line message,
+    without Python's class name: a user edited a field, not a program.
+
+    >>> describe_failure(KeyError("height"))
+    "no key 'height'"
+    >>> describe_failure(TypeError("string indices must be integers, not 'str'"))
+    "string indices must be integers, not 'str'"
+    >>> describe_failure(ValueError())
+    'a value it cannot use'
+    """
+    if isinstance(exc, KeyError) and exc.args:
+        return f"no key {shorten(repr(exc.args[0]))}"
+    lines = str(exc).strip().splitlines()
+    return shorten(lines[0]) if lines else "a value it cannot use"
 
 
 class AtlasgenError(Exception):

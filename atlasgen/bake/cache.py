@@ -17,6 +17,7 @@ import numpy as np
 from atlasgen import __version__
 from atlasgen.bake.adaptive import bake_material, draft_material
 from atlasgen.contract import HEIGHT, LAYERS, WIDTH
+from atlasgen.errors import describe_failure
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import update_with_array
 from atlasgen.io.fields import FLOAT32_MAX, is_number
@@ -167,9 +168,8 @@ def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
         _check_entry(values, meta, material.slice_count)
     except Exception as exc:  # noqa: BLE001 - zipfile, numpy and json raise many types for a damaged file
         if warnings is not None:
-            reason = str(exc).splitlines()[0][:80] if str(exc) else ""
-            warnings.append(f"{path.as_posix()}: unreadable cache entry ({type(exc).__name__}"
-                            f"{': ' + reason if reason else ''}); baking material {material.name!r} again")  # fmt: skip
+            warnings.append(f"{path.as_posix()}: unreadable cache entry ({describe_failure(exc)}); "
+                            f"baking material {material.name!r} again")  # fmt: skip
         return None
     return SliceSet(values, extra=meta["extra"], timings=meta["timings"])
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import re
 
-from atlasgen.errors import shorten
+from atlasgen.errors import describe_failure, shorten
 
 __all__ = ["FieldReads", "ABSENT", "expected_written"]
 
@@ -39,7 +39,7 @@ def expected_written(value, exc: Exception, command: str, where: str = "") -> st
     writes there was expected, what the field holds instead (or that it is missing), and the failure, in ``where``."""
     got = "missing" if value is ABSENT else f"got {shorten(repr(value))}"
     tail = f"; {where}" if where else ""
-    return f"expected the value {command} writes there, {got} ({type(exc).__name__}: {shorten(str(exc))}{tail})"
+    return f"expected the value {command} writes there, {got} ({describe_failure(exc)}{tail})"
 
 
 class FieldReads:

@@ -17,7 +17,7 @@ from dataclasses import MISSING, fields
 from pathlib import Path
 
 from atlasgen.contract import NAME_PATTERN
-from atlasgen.errors import FieldError, InputError, shorten
+from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.fields import is_number
@@ -165,13 +165,13 @@ def _refuse_malformed(origins: list, plots: dict, exc: Exception) -> None:
             culprit = reads.culprit()
             if culprit is None:
                 raise InputError(f"{path.as_posix()}: {where} is not a material study as atlasgen report separable "
-                                 f"writes it ({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+                                 f"writes it ({describe_failure(own)})") from None  # fmt: skip
             raise FieldError(
                 path.as_posix(), culprit[0], expected_written(culprit[1], own, "atlasgen report separable", where)
             ) from None
     where = ", ".join(dict.fromkeys(path.as_posix() for _, path, _ in origins))
     raise InputError(f"{where} is not a material study as atlasgen report separable writes it "
-                     f"({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+                     f"({describe_failure(exc)})") from None  # fmt: skip
 
 
 def merge_separable_reports(sources, output) -> dict:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import FieldError, InputError, shorten
+from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.fields import is_number
@@ -1122,7 +1122,7 @@ def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc
                     if culprit is None:
                         raise InputError(f"{path.as_posix()}: field 'results[{i}]' ({what}) is not a result as "
                                          "atlasgen validate writes it, so the merged page cannot be written "
-                                         f"({type(own).__name__}: {shorten(str(own))})") from None  # fmt: skip
+                                         f"({describe_failure(own)})") from None  # fmt: skip
                     raise FieldError(
                         path.as_posix(), culprit[0], expected_written(culprit[1], own, "atlasgen validate", what)
                     ) from None
@@ -1132,7 +1132,7 @@ def _refuse_malformed(data: dict, paths: list, reports: list, out_dir: Path, exc
     if culprit is not None:
         raise FieldError(shown, culprit[0], expected_written(culprit[1], shared, "atlasgen validate")) from None
     raise InputError(f"{shown}: a field is not what atlasgen validate writes, so the merged page cannot "
-                     f"be written ({type(exc).__name__}: {shorten(str(exc))})") from None  # fmt: skip
+                     f"be written ({describe_failure(exc)})") from None  # fmt: skip
 
 
 def merge_validation_reports(sources, out_dir) -> dict:

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.bake.cache import tool_fingerprint
+from atlasgen.errors import describe_failure
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import array_digest
 
@@ -159,7 +160,7 @@ class ReferenceCache:
                     return self._reject(path, "its record is not this entry's (another key)")
                 arrays = {k: (np.array(data[k]) if k in data.files else None) for k in _ARRAYS}
         except Exception as exc:  # noqa: BLE001 - a damaged entry (zipfile, numpy, json errors) is as good as absent
-            return self._reject(path, f"unreadable ({type(exc).__name__})")
+            return self._reject(path, f"unreadable ({describe_failure(exc)})")
         why = _entry_problem(record, arrays, size)
         if why is not None:
             return self._reject(path, why)

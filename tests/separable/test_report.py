@@ -1,6 +1,7 @@
 """The separable report: every promised plot and table, from measured data; the CLI's error paths."""
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -231,6 +232,8 @@ def test_a_hand_edited_study_is_refused_on_one_line_not_an_internal_error(lobe_s
     lines = res.output.splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"atlasgen: error: {(edited / 'report.json').as_posix()}: ") and \
         expected in lines[0], lines  # fmt: skip
+    # In words, not Python's: the failure was "(TypeError: ...)" or "(KeyError: 'rows')".
+    assert not re.search(r"\b[A-Z][a-z]+Error\b", lines[0]), lines[0]
     assert not (tmp_path / "out").exists()
 
 

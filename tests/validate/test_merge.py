@@ -338,7 +338,7 @@ def test_a_result_the_page_cannot_print_is_named_by_file_and_entry(merged, tmp_p
     message = str(info.value)
     # Named by the field the page stopped on (it named the result only).
     assert message == (f"{(edited / 'report.json').as_posix()}: field 'results[0].error_breakdown.table_float': expected "
-                       "the value atlasgen validate writes there, got 'x' (TypeError: string indices must be integers, "
+                       "the value atlasgen validate writes there, got 'x' (string indices must be integers, "
                        f"not 'str'; {row['material']} on {row['scene']})"), message  # fmt: skip
     assert first.as_posix() not in message and "\n" not in message
     assert not (tmp_path / "merged").exists()
