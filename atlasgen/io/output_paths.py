@@ -40,13 +40,11 @@ def _blocking_file(path: Path) -> Path | None:
     return None
 
 
-def _blocked(folder: Path, blocker: Path, output: str | None = None) -> OutputError:
-    """The refusal of an output folder that ``blocker``, an existing file on its path, stands in for; ``output``
-    (``"b/x.d: --depfile"``) names the output file it is the folder of, where there is one."""
+def _blocked(folder: Path, blocker: Path, output: str | None = None, noun: str = "output folder") -> OutputError:
+    """The refusal of an output folder (``noun``) that ``blocker``, an existing file on its path, stands in for;
+    ``output`` (``"b/x.d: --depfile"``) names the output file it is the folder of, where there is one."""
     kind = special_file_kind(blocker) or "a file"
-    where = (
-        f"{output}: cannot write its folder {folder.as_posix()}" if output else f"{folder.as_posix()}: cannot write output folder"
-    )
+    where = f"{output}: cannot write its folder {folder.as_posix()}" if output else f"{folder.as_posix()}: cannot write {noun}"
     return OutputError(f"{where} ({blocker.as_posix()} is {kind})")
 
 
@@ -141,33 +139,31 @@ def check_suffix(path, role: str, suffixes) -> None:
 
 
 def check_output_folder(path, role: str, writes=()) -> None:
-    """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one, or inside an
-    output set's store, before the command renders or measures anything; and one where a file the command
-    always writes (``writes``, names in the folder, its set's primary first) is another command's."""
+    """Refuse an output folder (a report's ``-o``) that is an existing file or lies under one, takes no new file, or
+    is inside an output set's store, before the command renders or measures anything; and one where a file the
+    command always writes (``writes``, names in the folder, its set's primary first) is another command's."""
     path = Path(path)
-    if path.exists() and not path.is_dir():
-        kind = special_file_kind(path) or "an existing file"
-        raise OutputError(f"{path.as_posix()}: {role} is {kind}; expected a folder path")
-    blocker = _blocking_file(path)
-    if blocker is not None:
-        raise _blocked(path, blocker)
+    _check_folder(path, role, "output folder")
     refuse_inside_store(path, folder=True)
-    _refuse_unwritable(path, f"{path.as_posix()}: {role}")
     if writes:
         refuse_another_sets([path / name for name in writes], path / writes[0])
 
 
 def check_cache_folder(path, role: str) -> None:
-    """Refuse a cache folder (``--cache``) that is an existing file, lies under one, or cannot take a new file, before
-    the command renders or bakes what it would store there: a store failing at the end lost that work."""
-    path = Path(path)
+    """Refuse a cache folder (``--cache``) that is an existing file, lies under one or takes no new file, before the
+    command renders or bakes what it would store there: a store failing at the end lost that work."""
+    _check_folder(Path(path), role, "cache folder")
+
+
+def _check_folder(path: Path, role: str, noun: str) -> None:
+    """Refuse a folder ``path`` (``noun``: ``"output folder"``) that is an existing file, lies under one, or takes
+    no new file."""
     if path.exists() and not path.is_dir():
         kind = special_file_kind(path) or "an existing file"
         raise OutputError(f"{path.as_posix()}: {role} is {kind}; expected a folder path")
     blocker = _blocking_file(path)
     if blocker is not None:
-        raise OutputError(f"{path.as_posix()}: {role}: cannot write the cache folder ({blocker.as_posix()} is "
-                          f"{special_file_kind(blocker) or 'a file'})")  # fmt: skip
+        raise _blocked(path, blocker, noun=noun)
     _refuse_unwritable(path, f"{path.as_posix()}: {role}")
 
 

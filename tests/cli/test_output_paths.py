@@ -461,3 +461,16 @@ def test_a_writable_output_folder_is_left_as_it_was_by_the_check(tmp_path):
     check_output_folder(folder / "report", "the report folder (-o)")
     check_cache_folder(folder / "cache", "--cache")
     assert list(tmp_path.rglob("*")) == [folder]
+
+
+@pytest.mark.parametrize(("command", "option"), [(["validate", "{material}"], "--cache"),
+                                                 (["validate", "{material}"], "--reference-cache"),
+                                                 (["preview", "{material}"], "--cache")])  # fmt: skip
+def test_a_cache_folder_under_a_file_is_named_a_cache_folder_before_any_work(tmp_path, library, command, option):
+    """Found when the first entry was stored, after a render, as "cannot write output folder": a cache is none."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    args = [a.format(material=library / "clay.toml") for a in command]
+    out = tmp_path / ("x.png" if command[0] == "preview" else "report")
+    _refused(tmp_path, [*args, "-o", str(out), option, str(blocker / "cache")],
+             f"{(blocker / 'cache').as_posix()}: cannot write cache folder ({blocker.as_posix()} is a file)")  # fmt: skip
