@@ -65,6 +65,10 @@ sees them change together, at one instant, even if the command is killed
   after the commit, as the command prints its last lines, ends it with 130 or 143 and its new set.
   An output path inside a store (`-o v/.report.atlasgen/current`, or through a link into one) is
   refused the same way: it would have changed a committed generation in place.
+- **Found before the work.** An output, report or cache folder that takes no new file (read-only to
+  a user who is not root, immutable, on a read-only mount; probed by making and removing an empty
+  folder in it, or in the nearest existing folder above it) is refused with exit 4 and one line
+  naming the output, its option and the folder, before anything bakes or renders.
 - **Plain files of an older atlasgen** are taken over first without a visible change: a holding
   generation gets a hard link of each, `current` points at it, and a link is renamed over each
   file (the same bytes before and after), then the commit swaps as above.
