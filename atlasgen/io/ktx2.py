@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import zstandard
 
-from atlasgen.errors import InputError
+from atlasgen.errors import InputError, shorten
 
 __all__ = [
     "KTX2_IDENTIFIER",
@@ -306,7 +306,10 @@ def _check_span(path: Path, name: str, offset: int, length: int, size: int, offs
 
 
 def _read_key_values(path: Path, data: bytes, offset: int, length: int) -> dict:
-    """The key/value entries; KTX 2.0 requires their keys unique and sorted by code point (UTF-8 byte order)."""
+    """The key/value entries, read to KTX 2.0's section 3.11: keys UTF-8 without a BOM, NUL-terminated, unique
+    and sorted by code point (UTF-8 byte order); each entry's valuePadding 0x00 bytes; and kvdByteLength exactly
+    the entries with their padding ("any file that does not meet the above condition is invalid"). Values are
+    not required to end in NUL (readers "must not rely on NUL termination")."""
     key_values: dict[str, bytes] = {}
     previous = None
     pos, end = offset, offset + length
@@ -321,13 +324,26 @@ def _read_key_values(path: Path, data: bytes, offset: int, length: int) -> dict:
         if nul < 1:
             raise _field_error(path, "keyAndValue", f"entry at byte {pos} has no NUL-terminated key")
         key = entry[:nul]
+        try:
+            if key.startswith(b"\xef\xbb\xbf"):
+                raise UnicodeError
+            key.decode("utf-8")
+        except UnicodeError:
+            raise _field_error(path, "keyAndValue", f"key {shorten(repr(key))} at byte {pos}; expected UTF-8 without a "
+                                                    "byte order mark (KTX 2.0)") from None  # fmt: skip
         if previous is not None and key <= previous:
             problem = "appears twice" if key == previous else f"comes after {previous.decode('utf-8', 'replace')!r}"
             raise _field_error(path, "keyAndValue", f"key {key.decode('utf-8', 'replace')!r} at byte {pos} {problem}; "
                                                     "expected unique keys sorted by code point (KTX 2.0)")  # fmt: skip
         previous = key
-        key_values[key.decode("utf-8", "replace")] = entry[nul + 1 :]
+        key_values[key.decode("utf-8")] = entry[nul + 1 :]
+        padding = data[pos + 4 + entry_length : min(pos + 4 + entry_length + (-entry_length % 4), end)]
+        if any(padding):
+            raise _field_error(path, "valuePadding", f"{padding.hex()} after the entry at byte {pos}; expected 0x00 bytes")
         pos += 4 + entry_length + (-entry_length % 4)
+    if pos != end:
+        raise _field_error(path, "kvdByteLength", f"{length}; expected {pos - offset}, its entries with their "
+                                                  "valuePadding (KTX 2.0: any other length makes the file invalid)")  # fmt: skip
     return key_values
 
 

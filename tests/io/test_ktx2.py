@@ -285,6 +285,20 @@ def _twin_keys() -> bytes:
     return blob.replace(b"atlasgen.manifest_sha25X", b"atlasgen.manifest_sha256", 1)
 
 
+def _padding_offset(blob: bytes) -> int:
+    """The first valuePadding byte of the tiny file's key/value data."""
+    pos = _kvd_offset(blob)
+    while True:
+        (length,) = struct.unpack_from("<I", blob, pos)
+        if length % 4:
+            return pos + 4 + length
+        pos += 4 + length
+
+
+def _kvd_length(blob: bytes) -> int:
+    return struct.unpack_from("<I", blob, 60)[0]
+
+
 #: name -> (damaged bytes, text the one-line message must contain)
 DAMAGED = {
     "empty": (lambda: b"", "not a KTX2 file"),
@@ -309,6 +323,12 @@ DAMAGED = {
     "keyAndValueByteLength": (lambda: _put(_tiny(), _kvd_offset(_tiny()), "<I", 10_000), "'keyAndValueByteLength'"),
     "key without NUL": (lambda: _put(_tiny(), _kvd_offset(_tiny()) + 4, "18s", b"A" * 18), "'keyAndValue'"),
     "sgdByteLength": (lambda: _put(_tiny(), 72, "<Q", 4), "'sgdByteLength'"),
+    # KTX 2.0 3.11, read to the letter (each was read with exit 0): the sum of the entries and their padding is
+    # kvdByteLength exactly, a key is UTF-8, padding is 0x00.
+    "kvdByteLength short of the last padding": (lambda: _put(_tiny(), 60, "<I", _kvd_length(_tiny()) - 1), "'kvdByteLength'"),
+    "kvdByteLength past the last padding": (lambda: _put(_tiny(), 60, "<I", _kvd_length(_tiny()) + 4), "'keyAndValueByteLength'"),
+    "key not UTF-8": (lambda: _tiny().replace(b"KTXwriter\0", b"KTXwrit\xffr\0", 1), "expected UTF-8 without a byte order"),
+    "valuePadding not zero": (lambda: _put(_tiny(), _padding_offset(_tiny()), "<B", 7), "'valuePadding': 0700 after"),
     # The base level ends the file (the independent reader, tests/ktx2_reader.py, holds it to that too).
     "bytes after the base level": (lambda: _tiny() + b"\0" * 16, "'levels': the last level stored ends at byte "),
     "bytes after the zstd base level": (lambda: _tiny(True) + b"x", "expected the base level to end the file"),
