@@ -58,6 +58,8 @@ __all__ = [
     "pack_light_spheres",
     "decode_tile_lists",
     "create_tile_texture",
+    "fitting_capacity",
+    "TILE_TEXTURE_BUDGET",
     "list_width",
     "tile_texture_size",
     "upload_light_spheres",
@@ -187,6 +189,28 @@ def tile_texture_size(width: int, height: int, capacity: int, lights: int, culle
     texels = list_width(capacity if culled else 0)
     nx, ny = tile_grid(width, height) if culled else (0, 0)
     return texels, max(nx, -(-max(lights, 1) * (LIGHT.size // 16) // texels)), ny + 1
+
+
+#: The most bytes a frame's tile-list texture may take. An 8192 x 8192 frame's lists of 255 lights asked 2.1 GB, which
+#: lavapipe refused ("Not enough memory left": an internal error where the same frame without ranges rendered).
+TILE_TEXTURE_BUDGET = 256 * 2**20
+
+
+def fitting_capacity(width: int, height: int, capacity: int, lights: int, budget: int | None = None) -> int:
+    """The most lights a tile list of a ``width`` x ``height`` frame of ``lights`` lights holds: ``capacity``, or
+    less where its texture (:func:`tile_texture_size`, 16 bytes a texel) would pass ``budget`` bytes (default
+    :data:`TILE_TEXTURE_BUDGET`), halving the list's row each time. A tile with more lights than that falls back to
+    the full loop, as every overflowing one does.
+
+    >>> fitting_capacity(1280, 720, 255, 1024)
+    255
+    >>> fitting_capacity(8192, 8192, 255, 1)
+    15
+    """
+    budget = TILE_TEXTURE_BUDGET if budget is None else budget
+    while capacity > 1 and 16 * math.prod(tile_texture_size(width, height, capacity, lights)) > budget:
+        capacity = max(1, (list_width(capacity) // 2 - 1) // ENTRY_TEXELS)  # the next power-of-two row down
+    return capacity
 
 
 def create_tile_texture(device, width: int, height: int, capacity: int, lights: bytes, culled: bool = True):

@@ -34,6 +34,7 @@ from atlasgen.render.culling import (
     CullingPass,
     TileLists,
     create_tile_texture,
+    fitting_capacity,
     pack_cull,
     read_tile_texture,
     tile_grid,
@@ -279,8 +280,9 @@ class Renderer:
         gbuffer, hdr = self._gbuffer(scene.width, scene.height)
         device = self.device
         culled = (self.culling if culling is None else culling) and any(light.bounded for light in scene.lights)
+        capacity = fitting_capacity(scene.width, scene.height, self.tile_capacity, len(scene.lights))
         frame_buffer = device.create_buffer_with_data(
-            data=pack_frame(scene, len(self.atlas.levels), mip_bias, self.tile_capacity if culled else None),
+            data=pack_frame(scene, len(self.atlas.levels), mip_bias, capacity if culled else None),
             usage=wgpu.BufferUsage.UNIFORM,
         )
         object_data = bytearray()
@@ -334,7 +336,7 @@ class Renderer:
         # An unculled frame reads only the texture's layer of every light; a culled one's lists copy the
         # lights' rows from their own texture (a pass cannot read the texture it writes).
         lights = pack_lights(scene.lights)
-        tile_texture = create_tile_texture(device, scene.width, scene.height, self.tile_capacity if culled else 0, lights, culled)
+        tile_texture = create_tile_texture(device, scene.width, scene.height, capacity if culled else 0, lights, culled)
         light_texture = upload_lights(device, lights) if culled else None
         cull_buffer = device.create_buffer_with_data(data=pack_cull(cull_tiles), usage=wgpu.BufferUsage.UNIFORM)
         sphere_texture = upload_light_spheres(device, scene)
@@ -353,7 +355,7 @@ class Renderer:
         return _PreparedFrame(scene, gbuffer, hdr, frame_group, object_group, lighting_pass, lighting_group, outline_group,
                               draws, opaque, translucent, rectangles, outline_rectangles,
                               (frame_buffer, light_texture, object_buffer, environment, cull_buffer, sphere_texture),
-                              culled, cull_group, cull_tiles, tile_texture)  # fmt: skip
+                              culled, cull_group, cull_tiles, tile_texture, capacity)  # fmt: skip
 
     # ---- encoding ----------------------------------------------------------------------
 
@@ -502,7 +504,7 @@ class Renderer:
         if not frame.culled:
             return None
         g = frame.gbuffer
-        return read_tile_texture(self.device, frame.tile_texture, g.width, g.height, self.tile_capacity)
+        return read_tile_texture(self.device, frame.tile_texture, g.width, g.height, frame.tile_capacity)
 
     def read_radiance(self, frame) -> np.ndarray:
         w, h = frame.gbuffer.width, frame.gbuffer.height
@@ -544,6 +546,7 @@ class _PreparedFrame:
     cull_group: object = None
     cull_tiles: list = field(default_factory=list)  # per culling dispatch: tile rectangle (x0, y0, nx, ny)
     tile_texture: object = None
+    tile_capacity: int = 0  # lights a tile list holds (culling.fitting_capacity)
 
 
 class _Tracer:

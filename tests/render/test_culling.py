@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -238,6 +240,21 @@ def test_a_full_tile_falls_back_to_the_full_loop(renderer, scene_from):
         assert len(expected) <= lists.counts[ty, tx] <= len(loose[(tx, ty)])
         assert len(lists.lists[ty][tx]) == min(lists.counts[ty, tx], 4)
     assert_frames_equal(culled.radiance, brute.radiance)  # ... and they are lit by every light, not 4
+
+
+def test_a_frame_whose_lists_would_pass_the_budget_holds_fewer_lights_a_tile(renderer, scene_from, monkeypatch):
+    """8192 x 8192 with a ranged light asked 2.1 GB of tile lists, an internal error: a frame past the budget gets
+    shorter lists, its fuller tiles lit by the full loop, and the same image."""
+    from atlasgen.render import culling
+
+    scene = scene_from(SCENE.format(translucent=GLASS, lights=scattered_lights(60)))
+    bytes_at = lambda c: 16 * math.prod(culling.tile_texture_size(scene.width, scene.height, c, len(scene.lights)))  # noqa: E731
+    monkeypatch.setattr(culling, "TILE_TEXTURE_BUDGET", bytes_at(7))
+    culled, brute = render_both(renderer, scene)
+    lists = culled.tile_lists
+    assert lists.capacity == 7 and bytes_at(15) > culling.TILE_TEXTURE_BUDGET  # rows of 16 texels, not 32
+    assert overflowing_tiles(lists) > 10
+    assert_frames_equal(culled.radiance, brute.radiance)
 
 
 def test_a_scene_without_ranges_is_not_culled(renderer, scene_from):
