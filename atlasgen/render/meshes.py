@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import SceneError, shorten
+from atlasgen.errors import SceneError, describe_failure, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.text import MISSING, path_kind
@@ -434,10 +434,13 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     if text is None:
         _check_ply_counts(path, scene_path, field)
     try:
-        if text is not None:
-            loaded = trimesh.load(io.StringIO(text), file_type="obj", force="mesh", process=False)
-        else:
-            loaded = trimesh.load(str(path), force="mesh", process=False)
+        # Not force="mesh" first: its conversion dropped the file's vertex normals, and every mesh was shaded with
+        # area-weighted ones. A file trimesh reads as a scene of several meshes is converted, as before.
+        source = (lambda: io.StringIO(text)) if text is not None else (lambda: str(path))
+        kind_of = {"file_type": "obj"} if text is not None else {}
+        loaded = trimesh.load(source(), process=False, **kind_of)
+        if not isinstance(loaded, trimesh.Trimesh):
+            loaded = trimesh.load(source(), force="mesh", process=False, **kind_of)
     except IndexError:  # trimesh's OBJ reader indexing a vertex past the end
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
                                             "expected face indices within its vertices") from None  # fmt: skip
@@ -446,7 +449,7 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
         if reason is not None:
             raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: {reason}") from None
         raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r}; expected an OBJ or PLY file "
-                                            f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+                                            f"({describe_failure(exc)})") from None  # fmt: skip
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
     if faces.size == 0:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has no triangles; expected a triangle mesh")

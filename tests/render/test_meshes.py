@@ -72,6 +72,25 @@ def test_read_ply(tmp_path):
     assert enclosed_volume(mesh) == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("name", ["tri.obj", "tri.ply", "two-objects.obj"])
+def test_the_file_s_vertex_normals_are_the_mesh_s(tmp_path, name):
+    """trimesh's force="mesh" dropped them: every mesh was shaded with area-weighted normals, smooth normals lost
+    (here (1, 0, 0) on a triangle whose face normal is (0, 0, 1))."""
+    texts = {
+        "tri.obj": "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nvn 1 0 0\nf 1//1 2//1 3//1\n",
+        "two-objects.obj": "o a\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nvn 1 0 0\nf 1//1 2//1 3//1\n"
+                           "o b\nv -1 -1 1\nv 1 -1 1\nv 0 1 1\nvn 1 0 0\nf 4//2 5//2 6//2\n",
+        "tri.ply": "ply\nformat ascii 1.0\nelement vertex 3\n" + "".join(f"property float {p}\n" for p in "x y z nx ny nz".split())
+                   + "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                   "-1 -1 0 1 0 0\n1 -1 0 1 0 0\n0 1 0 1 0 0\n3 0 1 2\n",
+    }  # fmt: skip
+    path = tmp_path / name
+    path.write_text(texts[name])
+    mesh = read_mesh(path)
+    assert (face_normals(mesh)[:, 2] > 0).all()
+    np.testing.assert_array_equal(mesh.normals, np.tile([1.0, 0.0, 0.0], (len(mesh.positions), 1)))
+
+
 def test_bad_mesh_files(tmp_path):
     with pytest.raises(SceneError, match="no such mesh file"):
         read_mesh(tmp_path / "missing.obj", "s.toml", "objects[1].file")
@@ -346,3 +365,18 @@ def test_a_ctrl_c_while_trimesh_loads_is_raised_once_it_has_loaded(tmp_path, mon
         sys.modules.pop("trimesh", None)
         if real is not None:
             sys.modules["trimesh"] = real
+
+
+def test_a_binary_ply_of_another_length_says_so_in_words(tmp_path):
+    """A binary PLY with bytes after its elements gave "(ValueError: PLY is unexpected length!)": Python's class name."""
+    import re
+
+    import trimesh
+
+    path = tmp_path / "box.ply"
+    path.write_bytes(trimesh.creation.box().export(file_type="ply") + bytes(64))
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    message = str(info.value)
+    assert message.startswith("s.toml: field 'objects[0].file': ") and "\n" not in message, message
+    assert not re.search(r"\b[A-Z]\w*Error\b", message), message
