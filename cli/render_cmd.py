@@ -44,9 +44,11 @@ def render(scene, atlas, output, aov, mip_bias, no_outlines, depfile, verbosity)
         click.echo(f"{scene.as_posix()}: {s.width}x{s.height}, {counted(len(s.objects), 'object')}, "
                    f"{counted(len(s.lights), 'light')}; "
                    f"materials {materials}", err=True)  # fmt: skip
-    written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines, depfile=depfile)
+    ignored = []
+    written = render_scene(s, atlas, output, aov=aov, mip_bias=mip_bias, outlines=not no_outlines, depfile=depfile,
+                           warnings=ignored)  # fmt: skip
     if verbosity != QUIET:
         # After the render: a scene that fails gets its one error line and nothing else.
-        echo_warnings(s.warnings() if aov is None else [])
+        echo_warnings([*s.warnings(), *ignored] if aov is None else [])
         for path in written:
             click.echo(f"wrote {path.as_posix()}")

@@ -37,6 +37,7 @@ __all__ = [
     "resolve_materials",
     "object_matrix",
     "with_fitted_surfaces",
+    "ignored_gloss",
     "shading_gloss",
 ]
 
@@ -114,6 +115,7 @@ class SceneObject:
     file: Path | None = None
     segments: int = 64
     minor_radius: float = 0.25
+    gloss_given: bool = False  # the scene sets gloss (ignored_gloss warns where the material does not use it)
 
     @property
     def translucent(self) -> bool:
@@ -340,6 +342,7 @@ def _read_object(r: _Reader, raw, i, base: Path) -> SceneObject:
         file=file,
         segments=r.integer(raw, "segments", f"{name}.segments", 64, 3, 1024),
         minor_radius=r.number(raw, "minor_radius", f"{name}.minor_radius", default=0.25, lo=0.0, hi=1.0, lo_open=True),
+        gloss_given="gloss" in raw,
     )
 
 
@@ -489,6 +492,28 @@ def shading_gloss(gloss: float, entry) -> float:
     with: a slice fitted to a physical BSDF holds it only under the lobe of the gloss it was fitted
     for (its ``fit.gloss``), whatever the scene says; any other slice, the object's own ``gloss``."""
     return float(gloss) if entry is None or entry.fit is None else float(entry.fit.gloss)
+
+
+def ignored_gloss(scene: Scene, entries) -> list[str]:
+    """One line per object whose scene sets a ``gloss`` its material does not use (``entries``: each object's
+    :class:`~atlasgen.io.manifest.MaterialEntry`, in object order): a slice fitted to a physical BSDF is shaded
+    with the gloss it was fitted for (:func:`shading_gloss`), and a model that shades its materials itself
+    (``custom_lighting``: a separable BRDF rebuilt from its terms) has no lobe a gloss sets. The render was
+    the same whatever gloss such an object had, without a word."""
+    from atlasgen.models import get_model
+
+    lines = []
+    for obj, entry in zip(scene.objects, entries):
+        if not obj.gloss_given:
+            continue
+        if entry.fit is not None:
+            why = f"its slice is shaded with the gloss it was fitted for, {entry.fit.gloss:g} (fit.gloss)"
+        elif get_model(entry.type).custom_lighting:
+            why = f"a {entry.type} material is shaded from its own terms, with no lobe a gloss sets"
+        else:
+            continue
+        lines.append(f"{scene.path}: objects[{obj.index}].gloss = {obj.gloss:g} has no effect on {obj.material!r}: {why}")
+    return lines
 
 
 def with_fitted_surfaces(scene: Scene, entries) -> Scene:

@@ -13,7 +13,7 @@ from atlasgen.errors import OutputNameError
 from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.output_paths import check_output_paths
-from atlasgen.materials.scene import resolve_materials
+from atlasgen.materials.scene import ignored_gloss, resolve_materials
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.output import write_aov, write_render
 from atlasgen.render.renderer import AOVS, Renderer
@@ -21,14 +21,16 @@ from atlasgen.render.renderer import AOVS, Renderer
 __all__ = ["render_scene", "render_inputs"]
 
 
-def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlines=True, depfile=None) -> list[Path]:
+def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlines=True, depfile=None,
+                 warnings=None) -> list[Path]:  # fmt: skip
     """Render a scene (:func:`~atlasgen.materials.scene.read_scene`) with a baked atlas and write the result; return the paths written.
 
     Without ``aov``: ``output_path`` (linear EXR) and the same path with ``.png``
     (tone-mapped sRGB, the scene's exposure). With ``aov`` (normal, depth, id, albedo):
     that g-buffer layer as an EXR at ``output_path``. ``depfile``: also a Make dependency file, in the
     same commit, naming the image (the PNG, else the EXR) against every file the render read
-    (:func:`render_inputs`).
+    (:func:`render_inputs`). ``warnings``: a list that gets a line for each object whose ``gloss`` its material
+    does not use (:func:`~atlasgen.materials.scene.ignored_gloss`), for a lit image.
 
     Raises
     ------
@@ -46,7 +48,9 @@ def render_scene(scene, atlas_path, output_path, aov=None, mip_bias=None, outlin
         raise OutputNameError(f"{output_path.as_posix()}: expected an .exr output path")
     _check_render_outputs(output_path, aov, scene, atlas_path, depfile)
     atlas = read_render_atlas(atlas_path)
-    resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU
+    entries = resolve_materials(scene, atlas.manifest, atlas.name)  # fail before touching the GPU
+    if warnings is not None and aov is None:
+        warnings += ignored_gloss(scene, entries)
     image = output_path if aov is not None else output_path.with_suffix(".png")
     # Encoded before the render: a path make cannot hold fails the command before minutes of work.
     extra = {} if depfile is None else {Path(depfile): encode_depfile(image, [p for p, _ in render_inputs(scene, atlas_path)])}

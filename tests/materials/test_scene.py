@@ -206,3 +206,23 @@ def test_a_named_pipe_as_mesh_or_environment_is_named(tmp_path):
     (tmp_path / "folder.obj").mkdir()
     _rejects('[[objects]]\nshape = "mesh"\nfile = "folder.obj"\nmaterial = "clay"', "objects[0].file",
              f"expected an OBJ or PLY file, got a directory ('{(tmp_path / 'folder.obj').as_posix()}')", base=tmp_path)  # fmt: skip
+
+
+def test_a_gloss_the_material_does_not_use_is_named():
+    """A fitted slice is shaded with its fit.gloss and a separable material from its terms: the scene's gloss on
+    them changed nothing, without a word. Only a gloss the scene sets is named."""
+    from types import SimpleNamespace
+
+    from atlasgen.materials.scene import ignored_gloss, parse_scene
+
+    objects = "".join(f"[[objects]]\nshape = 'sphere'\nmaterial = '{m}'\n{g}\n" for m, g in
+                      [("fitted", "gloss = 0.2"), ("terms", "gloss = 0.3"), ("table", "gloss = 0.4"), ("fitted", "")])  # fmt: skip
+    scene = parse_scene(tomllib.loads("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n" + objects), "s.toml")
+    entries = {"fitted": SimpleNamespace(type="fresnel", fit=SimpleNamespace(gloss=0.55)),
+               "terms": SimpleNamespace(type="separable", fit=None), "table": SimpleNamespace(type="fresnel", fit=None)}  # fmt: skip
+    assert ignored_gloss(scene, [entries[o.material] for o in scene.objects]) == [
+        "s.toml: objects[0].gloss = 0.2 has no effect on 'fitted': its slice is shaded with the gloss it was fitted "
+        "for, 0.55 (fit.gloss)",
+        "s.toml: objects[1].gloss = 0.3 has no effect on 'terms': a separable material is shaded from its own terms, "
+        "with no lobe a gloss sets",
+    ]
