@@ -29,10 +29,11 @@ def object_sort_key(obj, centre, eye, forward) -> tuple:
 
 
 def sort_back_to_front(objects, centres, camera) -> list[int]:
-    """Indices into ``objects`` of the translucent ones, farthest first."""
+    """Indices into ``objects`` of the translucent ones, farthest first; none of opacity 0, which blends in nothing
+    (drawn, an invisible toon object left its g-buffer layer's outline, and its ID in ``--aov id``)."""
     _, _, forward = camera_basis(camera)
     eye = np.asarray(camera.position, dtype=np.float64)
-    chosen = [i for i, o in enumerate(objects) if o.translucent]
+    chosen = [i for i, o in enumerate(objects) if o.translucent and o.opacity > 0.0]
     return sorted(chosen, key=lambda i: object_sort_key(objects[i], centres[i], eye, forward))
 
 

@@ -113,3 +113,13 @@ def test_outlines_drawn_over_the_flagged_objects_rectangles_equal_the_full_scree
     whole = renderer.render(scene)
     assert outline_pixels(whole).sum() > 50
     np.testing.assert_array_equal(scissored.radiance, whole.radiance)
+
+
+def test_an_invisible_toon_object_leaves_no_outline(renderer, scene_from):
+    """opacity = 0 rendered nothing of the sphere but a full ring of outline where its silhouette would be."""
+    base = SCENE.format(shape="plane", material="lambert").replace("segments = 128\nrotate = [30, 40, 0]",
+                                                                   "translate = [0, -1, 0]\nscale = 4")  # fmt: skip
+    hidden = base + "[[objects]]\nshape = 'sphere'\nmaterial = 'toon'\nopacity = 0.0\n"
+    without, invisible = renderer.render(scene_from(base)), renderer.render(scene_from(hidden))
+    np.testing.assert_array_equal(invisible.radiance, without.radiance)
+    np.testing.assert_array_equal(invisible.aov("id"), without.aov("id"))
