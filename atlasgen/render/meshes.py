@@ -362,11 +362,23 @@ def _check_ply_counts(path: Path, scene_path, field) -> None:
                                             f"{MAX_MESH_TRIANGLES} triangles")  # fmt: skip
     need = sum(count * least for _, count, least in elements) - text  # the last value needs no separator
     have = size - head.index(b"\n", end) - 1 if b"\n" in head[end:] else 0
+    declared = ", ".join(f"element {name} {count}" for name, count, _ in elements)
     if need > have:
-        declared = ", ".join(f"element {name} {count}" for name, count, _ in elements)
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: its header declares {declared}, at least "
                                             f"{need} bytes, and {have} follow it; expected the counts of the "
                                             "elements the file holds")  # fmt: skip
+    if text:
+        # An ASCII element is a line: one vertex line too many was read as a face ("has no triangles"), and lines
+        # after the last element were dropped without a word.
+        try:
+            body = path.read_bytes()[head.index(b"\n", end) + 1 :]
+        except OSError:
+            return
+        lines = sum(1 for line in body.splitlines() if line.strip())
+        total = sum(count for _, count, _ in elements)
+        if lines != total:
+            raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: {lines} lines follow its header, which "
+                                                f"declares {declared}; expected one line per element, {total}")  # fmt: skip
 
 
 #: A number as an OBJ vertex line writes it (what Python's float() reads; nan and inf are refused later).

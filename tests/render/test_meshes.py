@@ -342,6 +342,19 @@ def test_a_ply_declaring_more_than_it_holds_is_refused_on_one_line(tmp_path, fmt
         assert read_mesh(path).indices.reshape(-1).tolist() == [0, 1, 2]  # the truthful header reads
 
 
+@pytest.mark.parametrize(("vertices", "faces", "extra", "lines"), [
+    (2, 1, "", 4),  # an extra vertex line: trimesh read it as a face's and said "has no triangles"
+    (3, 1, "\n0 0 0\n1 2 3\n", 6),  # lines after the last element: dropped without a word
+])  # fmt: skip
+def test_an_ascii_ply_holding_other_lines_than_it_declares_is_refused(tmp_path, vertices, faces, extra, lines):
+    path = tmp_path / "m.ply"
+    path.write_bytes(_ply(vertices, faces, "ascii") + extra.encode())
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    assert str(info.value).endswith(f": {lines} lines follow its header, which declares element vertex {vertices}, "
+                                    f"element face {faces}; expected one line per element, {vertices + faces}")  # fmt: skip
+
+
 def test_a_ctrl_c_while_trimesh_loads_is_raised_once_it_has_loaded(tmp_path, monkeypatch):
     """trimesh imports its optional modules under ``except BaseException``: a Ctrl-C landing there was swallowed and
     the render ran on to exit 0. A stand-in module does what trimesh does; the interrupt comes out after the import."""
