@@ -10,6 +10,7 @@ from typing import ClassVar
 import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
+from atlasgen.errors import ManifestError, shorten
 from atlasgen.io.atlas import as_atlas
 from atlasgen.io.fields import Param
 from atlasgen.io.manifest import LutRepresentation, MaterialEntry
@@ -257,7 +258,16 @@ class Model:
     def check_entry(cls, entry: MaterialEntry, shown: str, where: str) -> None:
         """Raise :class:`~atlasgen.errors.ManifestError` (naming ``shown`` and the field under ``where``) where a
         manifest ``entry`` of this model's type lacks what its shader code and reports are made from, or holds
-        what the model would refuse: a hand-edited manifest (a LUT entry given this model's type)."""
+        what the model would refuse: a hand-edited manifest (a LUT entry given this model's type).
+
+        The default, a LUT model's: the one slice every bake of it gives, with bias 0 (docs/atlas-format.md). A
+        manifest edited to two slices, or to a bias of 1e30 that saturated every pixel, was rendered as it said."""
+        if entry.slice_count != 1:
+            raise ManifestError(shown, f"{where}.slice_count", f"expected 1 (a {cls.type_name} material is one "
+                                f"slice), got {entry.slice_count}")  # fmt: skip
+        if any(value != 0.0 for pair in entry.bias for value in pair):
+            raise ManifestError(shown, f"{where}.bias", f"expected [[0.0, 0.0]] (a {cls.type_name} slice has no "
+                                f"bias), got {shorten(str([list(pair) for pair in entry.bias]))}")  # fmt: skip
 
     @classmethod
     def include_data(cls, entries: list[MaterialEntry]) -> bytes:

@@ -67,6 +67,11 @@ ONE_TERM = {"factor_scale": [[[1.0, 1.0, 1.0], [1.0, 1.0, 1.0]]], "factor_bias":
 
 @pytest.mark.parametrize(("edit", "field", "expected"), [
     ({"type": "nosuchmodel"}, "materials[0].type", "expected one of the models atlasgen knows ("),
+    # A LUT model's entry is one slice without bias: a bias of 1e30 saturated every pixel, two slices were shown.
+    ({"bias": [[1e30, -5.0]]}, "materials[0].bias", "expected [[0.0, 0.0]] (a lambert slice has no bias), got "
+                                                    "[[1e+30, -5.0]]"),
+    ({"slice_count": 2, "scale": [[1.0, 1.0]] * 2, "bias": [[0.0, 0.0]] * 2}, "materials[0].slice_count",
+     "expected 1 (a lambert material is one slice), got 2"),
     ({"type": "separable"}, "materials[0].factor_scale", "missing; expected a separable entry's factors"),
     # Names the rebuild looks up (a KeyError and a ValueError, exit 1, before).
     ({"type": "separable", "parametrization": "polar", **ONE_TERM}, "materials[0].parametrization",
