@@ -311,9 +311,13 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
         return "\n".join(lines + ["  no manifest beside it"])
     lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, "
                  f"{counted(len(manifest.materials), 'material')}, {counted(manifest.slices_used, 'slice')} used")  # fmt: skip
-    found = [f"{_printable(atlas.path.with_suffix(suffix).name)} ({state})"
-             for suffix, state in companion_states(atlas).items() if state != "none"]  # fmt: skip
-    lines.append(f"  beside it: {', '.join(found) or 'no include'}")
+    states = companion_states(atlas)
+    found = [
+        f"{_printable(atlas.path.with_suffix(suffix).name)} ({state})" for suffix, state in states.items() if state != "none"
+    ]
+    # Absent ones named too: a deleted include was not mentioned, where the docs promise "absent".
+    absent = [_printable(atlas.path.with_suffix(suffix).name) for suffix, state in states.items() if state == "none"]
+    lines.append(f"  beside it: {', '.join(found) or 'no include'}" + (f"; absent: {', '.join(absent)}" if absent else ""))
     for e in manifest.materials:
         lines.append(
             f"  {e.first_slice:>3}+{e.slice_count:<2} {e.name:<24} {_printable(e.type):<11} "

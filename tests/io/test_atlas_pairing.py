@@ -215,4 +215,5 @@ def test_info_says_which_files_beside_the_atlas_are_of_its_bake(tmp_path):
     assert json.loads(res.output)["companions"] == {"wgsl": "not atlasgen's", "glsl": "another bake", "hlsl": "none",
                                                     "separable.bin": "none"}  # fmt: skip
     lines = runner.invoke(app, ["info", str(a)]).output.splitlines()
-    assert "  beside it: atlas.wgsl (not atlasgen's), atlas.glsl (another bake)" in lines
+    assert "  beside it: atlas.wgsl (not atlasgen's), atlas.glsl (another bake); absent: atlas.hlsl, atlas.separable.bin" \
+        in lines, lines  # fmt: skip
