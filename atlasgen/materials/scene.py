@@ -20,6 +20,7 @@ from atlasgen.io.fields import FLOAT32_MAX, FLOAT32_MIN_NORMAL, Param, check_key
 from atlasgen.io.manifest import Manifest, MaterialEntry
 from atlasgen.io.text import MISSING, parse_toml, path_kind, read_input_text
 from atlasgen.materials.environment import Environment
+from atlasgen.models import get_model
 from atlasgen.optics.sky import SkyParameters
 
 __all__ = [
@@ -500,8 +501,6 @@ def ignored_gloss(scene: Scene, entries) -> list[str]:
     with the gloss it was fitted for (:func:`shading_gloss`), and a model that shades its materials itself
     (``custom_lighting``: a separable BRDF rebuilt from its terms) has no lobe a gloss sets. The render was
     the same whatever gloss such an object had, without a word."""
-    from atlasgen.models import get_model
-
     lines = []
     for obj, entry in zip(scene.objects, entries):
         if not obj.gloss_given:
