@@ -84,12 +84,16 @@ def shown(value, limit: int = 80) -> str:
 
     >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2]), shown(True)
     ('a date 1979-05-27', '[0.5, 2]', 'true')
+    >>> shown("b" * 250)  # the string's own length, not its repr's (with the quotes)
+    "'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb'... (250 characters)"
     """
     if isinstance(value, bool):
         return "true" if value else "false"
     for kind, cls in (("date and time", datetime.datetime), ("date", datetime.date), ("time", datetime.time)):
         if isinstance(value, cls):  # a datetime is a date too: it is tried first
             return shorten(f"a {kind} {value.isoformat()}", limit)
+    if isinstance(value, str) and len(repr(value)) > limit:
+        return f"{repr(value[: limit - 14])}... ({len(value)} characters)"
     return shorten(repr(value), limit)
 
 
