@@ -27,6 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.bake.quality import check_nonfinite
+from atlasgen.interrupts import deferred_interrupts
 from atlasgen.models.base import SliceSet
 
 __all__ = ["available_cpus", "load_or_bake_all", "fill_cache", "worker_pool", "Workers", "WorkerTraceback"]
@@ -113,7 +114,13 @@ class Workers:
     def map(self, function, items):
         """``function(item)`` for each of ``items``, in their order, computed in the workers (as
         :meth:`concurrent.futures.Executor.map`); the first error raised is raised here."""
-        for name in self._executor.map(functools.partial(_outcome_to_file, function, self._folder), items):
+        # The submissions start the workers and the executor's manager thread. A Ctrl-C or SIGTERM in the middle
+        # left a thread made but not started, whose join in shutdown() raised "cannot join thread before it is
+        # started" (an internal error, exit 1), and a worker reading its start-up data from a closed pipe printed
+        # its traceback: the signal is held until every worker is started, then raised.
+        with deferred_interrupts():
+            names = self._executor.map(functools.partial(_outcome_to_file, function, self._folder), items)
+        for name in names:
             path = os.path.join(self._folder, name)
             with open(path, "rb") as file:
                 ok, value, remote = pickle.load(file)

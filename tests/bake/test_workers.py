@@ -269,3 +269,24 @@ def test_leaving_the_pool_early_ends_the_running_workers_at_once(leaving, monkey
         # The worker's own traceback stays with the error, for --debug.
         assert isinstance(raised.value.__cause__, workers.WorkerTraceback)
         assert "_sleep_or_fail" in str(raised.value.__cause__)
+
+
+@pytest.mark.slow
+def test_a_ctrl_c_while_the_workers_start_ends_the_pool_cleanly(monkeypatch):
+    """A SIGTERM as the pool started ended in "internal error (RuntimeError: cannot join thread before it is
+    started)", exit 1, and a worker's traceback: the signal is held until every worker has started."""
+    from concurrent.futures import process
+
+    start = process._ExecutorManagerThread.start
+
+    def interrupted_start(self):
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C between making the executor's thread and starting it
+        return start(self)
+
+    monkeypatch.setattr(process._ExecutorManagerThread, "start", interrupted_start)
+    before = set(Path(workers.tempfile.gettempdir()).glob("atlasgen-workers-*"))
+    with pytest.raises(KeyboardInterrupt):
+        with workers.worker_pool(2) as pool:
+            list(pool.map(_sleep_or_fail, [("sleep", 300.0), ("sleep", 300.0)]))
+    assert not _workers_of(os.getpid()), "a worker outlived the pool"
+    assert set(Path(workers.tempfile.gettempdir()).glob("atlasgen-workers-*")) == before, "its folder was left"
