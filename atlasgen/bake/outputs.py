@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from atlasgen.bake.cache import cache_path
-from atlasgen.bake.pipeline import ATLAS_SUFFIXES, bake_writer, read_previous_slots, sibling_paths
+from atlasgen.bake.pipeline import ATLAS_SUFFIXES, bake_writer, other_container_path, read_previous_slots, sibling_paths
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.output_paths import check_output_paths, check_suffix
@@ -43,6 +43,12 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
             (paths["manifest"], "the manifest written beside the atlas"),
             (paths["include"], "the include written beside the atlas"),
             (paths["timings"], "the timings written beside the atlas"),
+            # Written or removed by the commit, whatever this bake writes: --depfile X.ktx2 beside X.dds, or X.glsl
+            # where only WGSL was asked for, was written as a Make fragment under the name an engine loads.
+            (paths["glsl"], "the GLSL include's name beside the atlas"),
+            (paths["hlsl"], "the HLSL include's name beside the atlas"),
+            (paths["separable"], "the separable side-car's name beside the atlas"),
+            (other_container_path(paths["dds"]), "the other container's name beside the atlas (removed by the bake)"),
         ]
         if preview is not None:
             outputs.append((preview, "--preview"))

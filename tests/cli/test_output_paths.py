@@ -474,3 +474,16 @@ def test_a_cache_folder_under_a_file_is_named_a_cache_folder_before_any_work(tmp
     out = tmp_path / ("x.png" if command[0] == "preview" else "report")
     _refused(tmp_path, [*args, "-o", str(out), option, str(blocker / "cache")],
              f"{(blocker / 'cache').as_posix()}: cannot write cache folder ({blocker.as_posix()} is a file)")  # fmt: skip
+
+
+@pytest.mark.parametrize(("depfile", "role"), [
+    ("atlas.ktx2", "the other container's name beside the atlas (removed by the bake)"),
+    ("atlas.glsl", "the GLSL include's name beside the atlas"),
+    ("atlas.separable.bin", "the separable side-car's name beside the atlas"),
+])  # fmt: skip
+def test_a_depfile_may_not_take_a_name_of_the_atlas_s_set(tmp_path, library, depfile, role):
+    """--depfile X.ktx2 beside X.dds, or X.glsl where only WGSL was asked for, was written: a Make fragment under the
+    name an engine loads as the atlas or its include."""
+    out = tmp_path / "build" / "atlas.dds"
+    _refused(tmp_path, ["bake", str(library), "-o", str(out), "--include", "wgsl", "--depfile", str(out.parent / depfile)],
+             f"{(out.parent / depfile).as_posix()}: both {role} and --depfile; expected a different path for each output")  # fmt: skip
