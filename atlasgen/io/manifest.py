@@ -936,9 +936,9 @@ def read_slots(path) -> dict[str, int]:
     """``name -> first_slice`` of a manifest of any format version, for keeping slice IDs
     stable across a re-bake: an atlas written by an older atlasgen must not stop the bake
     that replaces it. Only the names and slices are read, and checked: each name once, each
-    first slice one of the atlas's ``LAYERS``, and each run (``slice_count`` slices from there, one
-    where an old manifest gives no count) inside the atlas and no other name's (a slice 300, or two
-    materials on one, would be no ID to keep).
+    first slice one of the atlas's ``LAYERS``, its ``id`` (where there is one) the same, and each run
+    (``slice_count`` slices from there, one where an old manifest gives no count) inside the atlas and no
+    other name's (a slice 300, or two materials on one, would be no ID to keep).
     """
     shown = Path(path).as_posix()
     text = read_manifest_text(path)
@@ -960,6 +960,11 @@ def read_slots(path) -> dict[str, int]:
         count = entry.get("slice_count", 1)
         if not _is_int(count):
             raise ManifestError(shown, f"materials[{i}].slice_count", f"expected an integer, got {_describe(count)}")
+        # The ID an engine writes into its g-buffer is first_slice, as the full reader holds it: an edited 'id' was
+        # kept silently, the material placed by its first_slice.
+        if "id" in entry and entry["id"] != first:
+            raise ManifestError(shown, f"materials[{i}].id", f"expected the entry's first_slice ({first}), "
+                                f"got {_describe(entry['id'])}")  # fmt: skip
         runs.append((name, first, count))
     _check_runs(shown, runs, LAYERS)
     slots = {name: first for name, first, _ in runs}

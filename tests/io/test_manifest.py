@@ -538,8 +538,10 @@ def test_slices_must_lie_in_the_atlas_and_not_overlap(tmp_path):
     ([{"name": "a", "first_slice": 0, "slice_count": "x"}], "materials[0].slice_count", 'got "x"'),
     ([{"name": "a", "first_slice": 0, "slice_count": 4}, {"name": "b", "first_slice": 2}], "materials[1].first_slice",
      "expected slices of its own, got 2 (slice_count 1), and 'a' holds slice 2"),
+    # An edited id was kept silently, the material placed by its first_slice (the full reader refuses it).
+    ([{"name": "a", "id": 3, "first_slice": 7}], "materials[0].id", "expected the entry's first_slice (7), got 3"),
 ], ids=["slice beyond the atlas", "a name twice", "a slice twice", "a run beyond the atlas", "a negative count",
-        "a count no number", "runs overlapping"])  # fmt: skip
+        "a count no number", "runs overlapping", "an id not its first slice"])  # fmt: skip
 def test_ids_to_keep_are_ids_an_atlas_can_hold(tmp_path, materials, field, expected):
     """``--ids-from`` (and the atlas's own manifest) read names and slices only, of any format version;
     a slice 300 was silently dropped (the material renumbered) and a name given twice kept its last slice."""
