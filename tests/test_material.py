@@ -50,6 +50,16 @@ def test_duplicate_names_are_rejected(write_material, tmp_path):
         read_materials([tmp_path / "materials"])
 
 
+def test_a_file_named_twice_is_read_once(write_material, tmp_path, monkeypatch):
+    """``bake m ./m/`` refused 'clay' as a duplicate name "also in" its own file."""
+    write_material("clay", 'type = "lambert"\n')
+    monkeypatch.chdir(tmp_path)
+    for paths in (["materials", "./materials/"], ["materials/clay.toml", "materials"]):
+        assert [m.name for m in read_materials(paths)] == ["clay"]
+    (tmp_path / "materials" / "link.toml").symlink_to("clay.toml")  # two names of one file: two materials
+    assert [m.name for m in read_materials(["materials"])] == ["clay", "link"]
+
+
 def test_a_duplicate_name_names_where_the_name_is_written(write_material, tmp_path):
     """The refusal named field 'name' even where the file has none (its name is the file's) and where the name is a
     MaterialX document's surfacematerial, which has no such field: it named no field the user could find."""

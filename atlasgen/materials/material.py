@@ -274,7 +274,8 @@ def find_material_files(paths) -> list[Path]:
     """Expand files and folders (their material files, :func:`is_material_file_name`, sorted, non-recursive)
     into a file list.
 
-    Sorting makes the bake order, and so the atlas, independent of the file system.
+    Sorting makes the bake order, and so the atlas, independent of the file system. A file named twice is kept once,
+    where it is first named.
     """
     files: list[Path] = []
     for p in paths:
@@ -295,7 +296,10 @@ def find_material_files(paths) -> list[Path]:
             raise InputError(f"{p.as_posix()}: no such file or folder")
         else:
             raise InputError(f"{p.as_posix()}: expected a material file or a folder, got {kind}")
-    return files
+    # A file named twice (``bake m ./m/``, ``bake m/a.toml m``) is read once: it was refused as two materials of one
+    # name "also in" itself. Two names of one file (a link) stay two files, as their materials' names may differ.
+    unique = {os.path.abspath(f): f for f in reversed(files)}
+    return [f for f in files if unique[os.path.abspath(f)] is f]
 
 
 def read_materials(paths, materialx_flatten=None) -> list[Material]:
