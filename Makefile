@@ -24,11 +24,16 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # (build/cache/<stem>.<material>.npz), which make cannot name before reading the document: the
 # document's stamp (build/cache/<stem>.mtlx.stamp) stands for them, and its validation is one job.
 # make splits file names on spaces, so "scenes/toon stage.toml" was two words: sha256sum errors on every make, a junk
-# hash, "No rule to make target" for render and a material left out of the atlas without a word. Refused on one line.
-SPACED_FILES := $(shell find materials scenes -maxdepth 1 -name '* *' \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
+# hash, "No rule to make target" for render and a material left out of the atlas without a word. A colon or a percent
+# sign broke the Makefile itself ("target pattern contains no '%'"), a quote the shell's recipes (syntax errors), a
+# dollar sign the name ("materials/cost.toml: no such file"). Refused on one line.
+HASH := \#
+UNNAMEABLE := -name '* *' -o -name '*:*' -o -name '*%*' -o -name "*'*" -o -name '*"*' -o -name '*$$*' -o -name '*\#*' \
+	-o -name '*;*' -o -name '*\\*' -o -name '*[[*?]*'
+SPACED_FILES := $(shell find materials scenes -maxdepth 1 \( $(UNNAMEABLE) \) \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
 ifneq ($(SPACED_FILES),)
 ifeq ($(filter clean setup apt,$(MAKECMDGOALS)),)
-$(error $(SPACED_FILES): a file name with a space, which make cannot name; expected names without spaces (rename it; atlasgen itself reads it as it is))
+$(error $(SPACED_FILES): a file name with a space or one of : % ' " $$ $(HASH) ; \ * ? [, which make cannot name; expected names without them (rename it; atlasgen itself reads it as it is))
 endif
 endif
 TOML_FILES := $(sort $(wildcard materials/*.toml))

@@ -593,16 +593,19 @@ def test_a_material_no_longer_separable_re_merges_the_separable_report(tree):
     assert merges == [merges[0]] and "separable-gold" not in merges[0] and "sep2" in merges[0], merges
 
 
-@pytest.mark.parametrize("name", ["materials/wet clay.toml", "scenes/toon stage.toml"])
-def test_a_file_name_with_a_space_is_refused_on_one_line(tree, name):
+@pytest.mark.parametrize("name", ["materials/wet clay.toml", "scenes/toon stage.toml", "materials/a:b.toml",
+                                  "materials/50%.toml", "materials/it's.toml", 'materials/dq"x.toml', "materials/cost$5.toml",
+                                  "materials/h#x.toml", "materials/w[1].toml"])  # fmt: skip
+def test_a_file_name_make_cannot_name_is_refused_on_one_line(tree, name):
     """make splits names on spaces: every make printed sha256sum errors, render failed with "No rule to make target"
-    and a material with a space was left out of the atlas without a word."""
+    and a material with a space was left out of the atlas without a word. A colon or a percent sign broke the Makefile
+    ("target pattern contains no '%'"), a quote the recipes (shell syntax errors), a dollar sign the name."""
     (tree / name).write_text('type = "lambert"\n')
     result = _make(tree, "-n", "atlas", "render")
     assert result.returncode == 2 and result.stdout == "", result.stdout
     assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(SPACED_FILES)')}: *** {name}: a file name "
-                                          "with a space, which make cannot name; expected names without spaces (rename it; "
-                                          "atlasgen itself reads it as it is).  Stop."]  # fmt: skip
+                                          "with a space or one of : % ' \" $ # ; \\ * ? [, which make cannot name; expected "
+                                          "names without them (rename it; atlasgen itself reads it as it is).  Stop."]  # fmt: skip
     assert not (tree / "build" / "hashes" / f"{name.split(' ')[0]}.sha256").exists()  # the junk hash it wrote
 
 
