@@ -121,7 +121,7 @@ pins: apt
 	{ sed -n '/^#/p' constraints.txt; $(BUILD)/pins-venv/bin/pip freeze --all --exclude-editable --disable-pip-version-check \
 	  | grep -v -e '^pip==' -e '^atlasgen[= @]'; } > constraints.txt.tmp && mv -f constraints.txt.tmp constraints.txt
 	rm -rf $(BUILD)/pins-venv $(VENV) && $(MAKE) setup
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	ATLASGEN_REGENERATE_GOLDEN=1 $(PY) -m pytest -q -n 0 tests/test_golden.py tests/io/test_ktx2.py
 
 atlas: $(ATLAS_SET)
@@ -244,7 +244,7 @@ $(BUILD)/scenes/.pruned: $(BUILD)/scenes.list $(SCENE_SETS) $(SCENE_IMAGES) $(SC
 	@mkdir -p $(@D) && $(call prune_sets,$(@D),$(SCENE_OUTPUTS),$(SCENE_STORES)) && touch $@
 render: $(SCENE_SETS) $(SCENE_IMAGES) $(SCENE_EXRS) $(BUILD)/scenes/.pruned
 $(BUILD)/scenes/%.exr $(BUILD)/scenes/%.png &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(BUILD)/scenes/%.dds $(BUILD)/scenes/%.json $(BUILD)/scenes/%.wgsl $(RENDER_CODE) $(RENDER_COMMAND) | $(VENV)/.stamp
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) render $< --atlas $(BUILD)/scenes/$*.dds -o $(BUILD)/scenes/$*.exr --depfile $(BUILD)/scenes/$*.png.d
 
 # ---- budgets: what the validation and report jobs are run with --------------------------------
@@ -285,12 +285,12 @@ prune = for d in $(1)/*/; do [ -d "$$d" ] || continue; n=$$(basename "$$d"); \
 # order-only: it must be current before validating, but another material's change to it does not
 # make this material's report stale.
 $(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # A MaterialX document's materials: one validation job, into the document's folder.
 $(MTLX_VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # The combined page (index.html, report.json, speed_error.png) from the per-material report.json
@@ -329,7 +329,7 @@ $(BUILD)/report/index.html: $(BUILD)/atlas.dds $(SEPARABLE_INDEX) $(VALIDATION)/
 # figures do not depend on it. DEMO_JOBS=1 for quiet-machine timings.
 DEMO_JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 demo: setup
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(MAKE) -j$(DEMO_JOBS) -Otarget atlas render validate report \
 	  VALIDATE_ARGS='$(DEMO_VALIDATE_ARGS)' REPORT_ARGS='$(DEMO_REPORT_ARGS)' STUDY_ARGS='$(DEMO_STUDY_ARGS)'
 	@echo "demo: build/atlas.dds, build/atlas-preview.png, build/scenes/*.png, build/validation/index.html, build/report/index.html"
@@ -339,7 +339,7 @@ PYTEST_ARGS ?=
 # Bytecode on, whatever the environment says: pytest caches its rewritten test modules as .pyc,
 # so every run after the first skips most of the collection's cost (README, "Development").
 test: setup
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	env -u PYTHONDONTWRITEBYTECODE $(PY) -m pytest -q $(PYTEST_ARGS)
 
 # ruff (lint and format) over the code, mypy over the typed packages (pyproject.toml [tool.mypy]).
@@ -351,11 +351,11 @@ lint: setup
 # The fuzz suite (tests/fuzz) with its deep, random "fuzz" profile; `make test` runs its
 # quick, fixed "ci" profile. Failing examples are kept in .hypothesis/ and replayed first.
 fuzz: setup
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	ATLASGEN_FUZZ_PROFILE=fuzz $(PY) -m pytest -q tests/fuzz --hypothesis-show-statistics
 
 bench: setup
-	@mkdir -p $(XDG_RUNTIME_DIR) && chmod 700 $(XDG_RUNTIME_DIR)
+	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(PY) bench/run.py
 
 # The developer's loop (fast subset, whole suite, demo after make clean), a quarter of an hour:
