@@ -28,12 +28,12 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # sign broke the Makefile itself ("target pattern contains no '%'"), a quote the shell's recipes (syntax errors), a
 # dollar sign the name ("materials/cost.toml: no such file"). Refused on one line.
 HASH := \#
-UNNAMEABLE := -name '* *' -o -name '*:*' -o -name '*%*' -o -name "*'*" -o -name '*"*' -o -name '*$$*' -o -name '*\#*' \
+UNNAMEABLE_PATTERNS := -name '* *' -o -name '*:*' -o -name '*%*' -o -name "*'*" -o -name '*"*' -o -name '*$$*' -o -name '*\#*' \
 	-o -name '*;*' -o -name '*\\*' -o -name '*[[*?]*'
-SPACED_FILES := $(shell find materials scenes -maxdepth 1 \( $(UNNAMEABLE) \) \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
-ifneq ($(SPACED_FILES),)
+UNNAMEABLE_FILES := $(shell find materials scenes -maxdepth 1 \( $(UNNAMEABLE_PATTERNS) \) \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
+ifneq ($(UNNAMEABLE_FILES),)
 ifeq ($(filter clean setup apt,$(MAKECMDGOALS)),)
-$(error $(SPACED_FILES): a file name with a space or one of : % ' " $$ $(HASH) ; \ * ? [, which make cannot name; expected names without them (rename it; atlasgen itself reads it as it is))
+$(error $(UNNAMEABLE_FILES): a file name with a space or one of : % ' " $$ $(HASH) ; \ * ? [, which make cannot name; expected names without them (rename it; atlasgen itself reads it as it is))
 endif
 endif
 TOML_FILES := $(sort $(wildcard materials/*.toml))

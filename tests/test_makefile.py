@@ -603,7 +603,7 @@ def test_a_file_name_make_cannot_name_is_refused_on_one_line(tree, name):
     (tree / name).write_text('type = "lambert"\n')
     result = _make(tree, "-n", "atlas", "render")
     assert result.returncode == 2 and result.stdout == "", result.stdout
-    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(SPACED_FILES)')}: *** {name}: a file name "
+    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(UNNAMEABLE_FILES)')}: *** {name}: a file name "
                                           "with a space or one of : % ' \" $ # ; \\ * ? [, which make cannot name; expected "
                                           "names without them (rename it; atlasgen itself reads it as it is).  Stop."]  # fmt: skip
     assert not (tree / "build" / "hashes" / f"{name.split(' ')[0]}.sha256").exists()  # the junk hash it wrote

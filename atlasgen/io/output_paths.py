@@ -32,12 +32,15 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _nearest_existing(path: Path) -> Path | None:
+    """The nearest existing ancestor of ``path``: where making its folder would start."""
+    return next((parent for parent in path.absolute().parents if parent.exists()), None)
+
+
 def _blocking_file(path: Path) -> Path | None:
     """The nearest existing ancestor of ``path`` when it is not a folder, else None."""
-    for parent in path.absolute().parents:
-        if parent.exists():
-            return None if parent.is_dir() else parent
-    return None
+    parent = _nearest_existing(path)
+    return None if parent is None or parent.is_dir() else parent
 
 
 def _blocked(folder: Path, blocker: Path, output: str | None = None, noun: str = "output folder") -> OutputError:
@@ -46,22 +49,6 @@ def _blocked(folder: Path, blocker: Path, output: str | None = None, noun: str =
     kind = special_file_kind(blocker) or "a file"
     where = f"{output}: cannot write its folder {folder.as_posix()}" if output else f"{folder.as_posix()}: cannot write {noun}"
     return OutputError(f"{where} ({blocker.as_posix()} is {kind})")
-
-
-def _unwritable(folder: Path) -> tuple[Path, str] | None:
-    """(the folder that refused, why) where ``folder``, or the nearest existing folder above it that the command
-    would create it in, cannot take a new entry; None where it can.
-
-    Probed by making and removing an empty folder there, not by ``os.access``: permission bits do not bind root,
-    while an immutable folder (``chattr +i``) or a read-only mount binds everyone; ``os.access`` sees neither."""
-    existing = next((p for p in (folder.absolute(), *folder.absolute().parents) if p.is_dir()), None)
-    if existing is None:
-        return None
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix=".atlasgen-probe.", suffix=TEMP_SUFFIX, dir=existing))
-    except OSError as exc:
-        return existing, exc.strerror or type(exc).__name__
-    return None
 
 
 def check_output_paths(outputs, inputs=()) -> None:
@@ -168,8 +155,18 @@ def _check_folder(path: Path, role: str, noun: str) -> None:
 
 
 def _refuse_unwritable(folder: Path, where: str) -> None:
-    """Refuse ``where`` (``"b/x.dds: the atlas (-o)"``) when :func:`_unwritable` finds ``folder`` takes no new file."""
-    refused = _unwritable(folder)
-    if refused is not None:
-        at, why = refused
-        raise OutputError(f"{where}: cannot write in {at.as_posix()} ({why}); expected a folder this user may write")
+    """Refuse ``where`` (``"b/x.dds: the atlas (-o)"``) when ``folder``, or the nearest existing folder above it that
+    the command would make it in, takes no new entry.
+
+    Probed by making and removing an empty folder there, not by ``os.access``: permission bits do not bind root,
+    while an immutable folder (``chattr +i``) or a read-only mount binds everyone; ``os.access`` sees neither."""
+    at = folder.absolute() if folder.is_dir() else _nearest_existing(folder)
+    if at is None:
+        return
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".atlasgen-probe.", suffix=TEMP_SUFFIX, dir=at))
+    except OSError as exc:
+        raise OutputError(
+            f"{where}: cannot write in {at.as_posix()} ({exc.strerror or type(exc).__name__}); "
+            "expected a folder this user may write"
+        ) from None

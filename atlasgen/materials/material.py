@@ -298,8 +298,13 @@ def find_material_files(paths) -> list[Path]:
             raise InputError(f"{p.as_posix()}: expected a material file or a folder, got {kind}")
     # A file named twice (``bake m ./m/``, ``bake m/a.toml m``) is read once: it was refused as two materials of one
     # name "also in" itself. Two names of one file (a link) stay two files, as their materials' names may differ.
-    unique = {os.path.abspath(f): f for f in reversed(files)}
-    return [f for f in files if unique[os.path.abspath(f)] is f]
+    seen: set[str] = set()
+    unique = []
+    for f in files:
+        if os.path.abspath(f) not in seen:
+            seen.add(os.path.abspath(f))
+            unique.append(f)
+    return unique
 
 
 def read_materials(paths, materialx_flatten=None) -> list[Material]:

@@ -446,13 +446,14 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
     if text is None:
         _check_ply_counts(path, scene_path, field)
     try:
-        # Not force="mesh" first: its conversion dropped the file's vertex normals, and every mesh was shaded with
-        # area-weighted ones. A file trimesh reads as a scene of several meshes is converted, as before.
-        source = (lambda: io.StringIO(text)) if text is not None else (lambda: str(path))
-        kind_of = {"file_type": "obj"} if text is not None else {}
-        loaded = trimesh.load(source(), process=False, **kind_of)
-        if not isinstance(loaded, trimesh.Trimesh):
-            loaded = trimesh.load(source(), force="mesh", process=False, **kind_of)
+        if text is not None:
+            loaded = trimesh.load(io.StringIO(text), file_type="obj", process=False)
+        else:
+            loaded = trimesh.load(str(path), process=False)
+        # Several meshes come as a scene, joined here as force="mesh" joins them; a lone mesh is taken as read, since
+        # that conversion dropped the file's vertex normals (every mesh was shaded with area-weighted ones).
+        if isinstance(loaded, trimesh.Scene):
+            loaded = loaded.to_mesh()
     except IndexError:  # trimesh's OBJ reader indexing a vertex past the end
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has a face naming a vertex it does not have; "
                                             "expected face indices within its vertices") from None  # fmt: skip
