@@ -40,22 +40,26 @@ def available_cpus() -> int:
     return max(1, os.cpu_count() or 1)
 
 
-def _start_worker(filters) -> None:
+def _start_worker(filters, folder: str) -> None:
     """A worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
     Ctrl-C left to the caller, which drops the work not started (a worker's own KeyboardInterrupt would
-    print a traceback), and an end with the caller's (:func:`_end_with_parent`)."""
+    print a traceback), and an end with the caller's (:func:`_end_with_parent`), which removes the
+    pool's ``folder`` of results."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     warnings.filters[:] = filters
-    _end_with_parent()
+    _end_with_parent(folder)
 
 
-def _end_with_parent() -> None:
+def _end_with_parent(folder: str) -> None:
     """End this worker as soon as the process that started it has ended, however it ended.
 
     A caller killed (``kill``, a CI job's time-out, an IDE's stop button: SIGTERM or SIGKILL to it
     alone) runs no clean-up, and its workers would otherwise finish their bake, then block for ever
     writing the result to a pipe nobody reads, each holding its few hundred MB. The parent's sentinel
     (a pipe whose other end only the parent holds) becomes readable when it ends, whatever the cause.
+    A parent that ran its clean-up has removed the pool's ``folder`` already; one killed outright has
+    not, and every SIGKILL left an empty ``atlasgen-workers-*`` folder in the temporary directory, so
+    the workers remove it (each, in case the other is writing its last result into it).
     """
     parent = multiprocessing.parent_process()
     if parent is None:
@@ -63,6 +67,7 @@ def _end_with_parent() -> None:
 
     def watch() -> None:
         parent.join()
+        shutil.rmtree(folder, ignore_errors=True)
         os._exit(1)
 
     threading.Thread(target=watch, name="atlasgen-end-with-parent", daemon=True).start()
@@ -149,7 +154,7 @@ def worker_pool(jobs: int):
     """
     context = multiprocessing.get_context("spawn")
     folder = tempfile.mkdtemp(prefix="atlasgen-workers-")
-    executor = ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(),))
+    executor = ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker, initargs=(_picklable_filters(), folder))
     workers = Workers(executor, folder)
     try:
         yield workers

@@ -175,7 +175,8 @@ def test_a_stopped_bake_ends_its_workers_and_leaves_the_old_atlas(tmp_path, writ
     """Ctrl-C is one line and 130, SIGTERM one line and 143, each output set whole (docs/cli.md): so with
     workers too. A ``kill`` used to leave the workers running: each finished its bake, then blocked for ever
     writing the result to a pipe nobody read, holding a few hundred MB. Even a SIGKILL, which runs no
-    clean-up, now ends them (each worker watches its parent, atlasgen.bake.workers._end_with_parent)."""
+    clean-up, now ends them (each worker watches its parent, atlasgen.bake.workers._end_with_parent), and
+    they remove the pool's folder of results, which every SIGKILL used to leave in the temporary directory."""
     pytest.importorskip("MaterialX")
     pytest.importorskip("moderngl")
     signum, whole_group, status, line = STOPS[stop]
@@ -186,8 +187,10 @@ def test_a_stopped_bake_ends_its_workers_and_leaves_the_old_atlas(tmp_path, writ
     doc = tmp_path / "showcase.mtlx"
     shutil.copy(SHOWCASE, doc)
     command = [sys.executable, "-m", "atlasgen", "bake", str(doc), "-o", str(out), "-j", "2", "-q"]
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     child = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                             preexec_fn=as_in_a_terminal)  # fmt: skip
+                             preexec_fn=as_in_a_terminal, env={**os.environ, "TMPDIR": str(temporary)})  # fmt: skip
     workers_seen = []
     try:
         deadline = time.monotonic() + 120
@@ -217,6 +220,7 @@ def test_a_stopped_bake_ends_its_workers_and_leaves_the_old_atlas(tmp_path, writ
         assert (child.returncode, stderr) == (status, line), stderr
     assert not [pid for pid in workers_seen if _alive(pid)], "a worker outlived the command"
     assert out.read_bytes() == old
+    assert not list(temporary.glob("atlasgen-workers-*")), "the pool's folder of results was left behind"
 
 
 def _alive(pid: int) -> bool:
