@@ -49,6 +49,10 @@ CACHED := $(patsubst %,$(CACHE_DIR)/%.npz,$(STEMS)) $(patsubst %,$(CACHE_DIR)/%.
 # What every bake writes beside its atlas (-o X.dds), the library's and each scene's.
 BAKE_SUFFIXES := .dds .json .wgsl .glsl .hlsl .timings.json
 ATLAS_SET := $(addprefix $(BUILD)/atlas,$(BAKE_SUFFIXES) -preview.png)
+# What the jobs that read the library's atlas wait for: the texture and its manifest (--ids-from and --atlas read both).
+# Asking for atlas.dds alone left a deleted atlas.json missing (make checks only the member it is asked for), and
+# the scene bakes failed on it.
+LIBRARY_ATLAS := $(BUILD)/atlas.dds $(BUILD)/atlas.json
 # Code lists follow the package layers (tests/test_layers.py). The cache key hashes every layer
 # below bake/ plus the supersampling (atlasgen/bake/cache.py BAKE_RELEVANT; a test checks they
 # agree); __init__.py holds the version, which is part of every key.
@@ -204,9 +208,14 @@ SCENE_SETS := $(foreach a,$(SCENE_ATLASES),$(addprefix $(a:.dds=),$(BAKE_SUFFIXE
 SCENES_WITHOUT_DEPFILE := $(foreach a,$(SCENE_ATLASES),$(if $(wildcard $(a)),$(if $(wildcard $(a:.dds=.d)),,$(a))))
 .PHONY: no-depfile
 $(SCENES_WITHOUT_DEPFILE): no-depfile
+# The library's manifest is what keeps its IDs (atlasgen/bake/slots.py); deleted, as slots.py's refusals suggest to
+# re-number, the library is assembled afresh and its materials may get other slices, while the scene atlases, which
+# wait for the library only as order, kept their old IDs and make said all was up to date. Each is baked again.
+LIBRARY_IDS_GONE := $(if $(wildcard $(BUILD)/atlas.json),,$(wildcard $(SCENE_ATLASES)))
+$(LIBRARY_IDS_GONE): no-depfile
 
 # A pattern rule with several targets makes one set: one recipe writes them all.
-$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(LIBRARY_ATLAS) $(VENV)/.stamp
 	$(ATLASGEN) bake $(MATERIAL_FILES) --scene $< --cache $(CACHE_DIR) --ids-from $(BUILD)/atlas.json --depfile $(BUILD)/scenes/$*.d -o $(BUILD)/scenes/$*.dds -q
 
 # A render writes the EXR and its PNG as one set: one target pair, so that a deleted EXR is rendered again. With
@@ -284,12 +293,12 @@ prune = for d in $(1)/*/; do [ -d "$$d" ] || continue; n=$$(basename "$$d"); \
 # touched whenever make re-bakes the material) stands for the material's slices; the atlas is
 # order-only: it must be current before validating, but another material's change to it does not
 # make this material's report stale.
-$(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(LIBRARY_ATLAS) $(VENV)/.stamp
 	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # A MaterialX document's materials: one validation job, into the document's folder.
-$(MTLX_VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(MTLX_VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(LIBRARY_ATLAS) $(VENV)/.stamp
 	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
@@ -300,7 +309,7 @@ $(VALIDATION)/report.json: $(VALIDATED) $(MTLX_VALIDATED) $(BUILD)/materials.lis
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED) $(MTLX_VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
-$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) $(BUILD)/budget.args | $(BUILD)/atlas.dds $(VENV)/.stamp
+$(SEPARABLE_STUDIES): $(SEPARABLE_REPORT)/materials/%/report.json: materials/%.toml $(CACHE_DIR)/%.npz $(SLICE_CODE) $(REPORT_CODE) $(BUILD)/budget.args | $(LIBRARY_ATLAS) $(VENV)/.stamp
 	$(ATLASGEN) report separable $< --atlas $(BUILD)/atlas.dds -o $(@D) $(STUDY_ARGS)
 
 # build/separable.list: the separable materials, rewritten only when they change (a material made lambert leaves them

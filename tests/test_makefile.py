@@ -637,3 +637,17 @@ def test_a_cache_entry_whose_depfile_is_gone_is_baked_again(tree):
     (tree / "build" / "cache" / "snow.d").unlink()
     baked = [c for c in _commands(tree, "atlas") if "--cache-only" in c]
     assert len(baked) == 1 and "bake materials/snow.toml" in baked[0], baked
+
+
+def test_a_deleted_library_manifest_re_bakes_every_scene_atlas_with_the_new_ids(tree):
+    """The library's manifest keeps its IDs; deleted, the library is numbered afresh. The scene atlases, which wait
+    for it only as order, kept their old IDs and ``make -q`` said 0: a material had two IDs in two atlases."""
+    (tree / "build" / "atlas.json").unlink()
+    assert _make(tree, "-q", "render").returncode == 1
+    calls = _make_with_fake_atlasgen(tree, "render")
+    bakes = [c for c in calls if c.startswith("bake")]
+    assert "-o build/atlas.dds" in bakes[0], calls
+    assert sorted(re.search(r"--scene (\S+)", c).group(1) for c in bakes[1:]) == [f"scenes/{s}.toml" for s in sorted(SCENES)]
+    assert all("--ids-from build/atlas.json" in c for c in bakes[1:]), calls
+    assert sorted(c.split()[1] for c in calls if c.startswith("render")) == [f"scenes/{s}.toml" for s in sorted(SCENES)]
+    assert _make(tree, "-q", "render").returncode == 0
