@@ -213,6 +213,12 @@ $(SCENES_WITHOUT_DEPFILE): no-depfile
 # wait for the library only as order, kept their old IDs and make said all was up to date. Each is baked again.
 LIBRARY_IDS_GONE := $(if $(wildcard $(BUILD)/atlas.json),,$(wildcard $(SCENE_ATLASES)))
 $(LIBRARY_IDS_GONE): no-depfile
+# A manifest naming a separable material has the side-car X.separable.bin beside it, which no rule can name (a bake
+# writes it only then): one deleted was never written again, and make said all was up to date. Its set is baked again.
+sidecar_gone = $(foreach a,$(1),$(if $(wildcard $(a:.dds=.separable.bin)),,$(if $(wildcard $(a:.dds=.json)),$(if \
+	$(shell grep -l '"type": "separable"' $(a:.dds=.json) 2>/dev/null),$(a)))))
+SIDECARS_GONE := $(call sidecar_gone,$(BUILD)/atlas.dds $(SCENE_ATLASES))
+$(SIDECARS_GONE): no-depfile
 
 # A pattern rule with several targets makes one set: one recipe writes them all.
 $(addprefix $(BUILD)/scenes/%,$(BAKE_SUFFIXES)) &: scenes/%.toml $(HASH_DIR)/scenes/%.toml.sha256 $(ASSEMBLY_CODE) $(BAKE_COMMAND) | $(LIBRARY_ATLAS) $(VENV)/.stamp

@@ -651,3 +651,23 @@ def test_a_deleted_library_manifest_re_bakes_every_scene_atlas_with_the_new_ids(
     assert all("--ids-from build/atlas.json" in c for c in bakes[1:]), calls
     assert sorted(c.split()[1] for c in calls if c.startswith("render")) == [f"scenes/{s}.toml" for s in sorted(SCENES)]
     assert _make(tree, "-q", "render").returncode == 0
+
+
+@pytest.mark.parametrize("atlas", ["atlas", "scenes/two"])
+def test_a_deleted_side_car_of_a_separable_atlas_is_written_again(tree, atlas):
+    """X.separable.bin is written only beside a manifest that names a separable material, so no rule names it:
+    deleted, it was never written again and ``make -q`` said 0. Its set is baked again, and only its set."""
+    manifest = tree / "build" / f"{atlas}.json"
+    manifest.write_text('{"materials": [{"name": "separable-gold", "type": "separable"}]}\n')
+    sidecar = manifest.with_suffix(".separable.bin")
+    sidecar.write_bytes(b"ASEP")
+    for path in (manifest, sidecar):
+        os.utime(path, (T_BUILT, T_BUILT))
+    assert _make(tree, "-q", "atlas", "render").returncode == 0
+    sidecar.unlink()
+    assert _make(tree, "-q", "atlas", "render").returncode == 1
+    bakes = [c for c in _make_with_fake_atlasgen(tree, "atlas", "render") if c.startswith("bake")]
+    assert len(bakes) == 1 and f"-o build/{atlas}.dds" in bakes[0], bakes
+    manifest.write_text('{"materials": [{"name": "clay", "type": "lambert"}]}\n')  # no separable material: no side-car
+    os.utime(manifest, (T_BUILT, T_BUILT))  # the content alone changed, not what make compares
+    assert _make(tree, "-q", "atlas", "render").returncode == 0
