@@ -333,21 +333,21 @@ def _ply_header(path: Path) -> tuple[bytes, int, list[list[str]]] | None:
     return head, end, [line.split() for line in lines]
 
 
-def _check_ply_counts(path: Path, scene_path, field) -> None:
-    """Refuse a PLY whose header declares more elements than its body can hold, or more faces than a mesh may
-    have: trimesh read an ASCII file declaring 2e9 vertices as one without triangles, and a binary one
-    as "unexpected length". A header it cannot parse is left to trimesh's own message."""
+def _ply_elements(path: Path):
+    """A PLY file's layout as its header declares it: ``(ascii, elements, declared, have)``, elements as
+    ``[name, count, least bytes of one]``, ``declared`` them in words and ``have`` the bytes after the header;
+    None where the file cannot be read or its header parsed (left to trimesh's own message)."""
     header = _ply_header(path)
     try:
         size = path.stat().st_size
     except OSError:
-        return
+        return None
     if header is None:
-        return
+        return None
     head, end, words = header
     fmt = next((w[1] for w in words if len(w) >= 2 and w[0] == "format"), None)
     if not words or words[0] != ["ply"] or fmt is None:
-        return
+        return None
     text = fmt == "ascii"
     elements = []  # (name, count, least bytes of one element)
     for w in words:
@@ -356,13 +356,24 @@ def _check_ply_counts(path: Path, scene_path, field) -> None:
         elif elements and len(w) >= 3 and w[0] == "property":
             # A list takes at least its count (an empty list); an ASCII value at least a digit and a separator.
             elements[-1][2] += 2 if text else _PLY_SIZES.get(w[2] if w[1] == "list" else w[1], 1)
+    have = size - head.index(b"\n", end) - 1 if b"\n" in head[end:] else 0
+    declared = ", ".join(f"element {name} {count}" for name, count, _ in elements)
+    return text, elements, declared, have
+
+
+def _check_ply_counts(path: Path, scene_path, field) -> None:
+    """Refuse a PLY whose header declares more elements than its body can hold, or more faces than a mesh may
+    have: trimesh read an ASCII file declaring 2e9 vertices as one without triangles, and a binary one
+    as "unexpected length". A header it cannot parse is left to trimesh's own message."""
+    layout = _ply_elements(path)
+    if layout is None:
+        return
+    text, elements, declared, have = layout
     faces = sum(count for name, count, _ in elements if name == "face")
     if faces > MAX_MESH_TRIANGLES:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} declares {faces} faces; expected at most "
                                             f"{MAX_MESH_TRIANGLES} triangles")  # fmt: skip
     need = sum(count * least for _, count, least in elements) - text  # the last value needs no separator
-    have = size - head.index(b"\n", end) - 1 if b"\n" in head[end:] else 0
-    declared = ", ".join(f"element {name} {count}" for name, count, _ in elements)
     if need > have:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: its header declares {declared}, at least "
                                             f"{need} bytes, and {have} follow it; expected the counts of the "
@@ -371,7 +382,7 @@ def _check_ply_counts(path: Path, scene_path, field) -> None:
         # An ASCII element is a line: one vertex line too many was read as a face ("has no triangles"), and lines
         # after the last element were dropped without a word.
         try:
-            body = path.read_bytes()[head.index(b"\n", end) + 1 :]
+            body = path.read_bytes()[-have:] if have else b""
         except OSError:
             return
         lines = sum(1 for line in body.splitlines() if line.strip())
@@ -424,6 +435,15 @@ def _explain_ply(path: Path) -> str | None:
     lacking = [axis for axis in ("x", "y", "z") if axis not in props["vertex"]]
     if lacking:
         return f"its vertices have no property {', '.join(lacking)}; expected properties x, y and z"
+    layout = _ply_elements(path)
+    if layout is not None and not layout[0]:
+        # Too few bytes are refused before trimesh reads (_check_ply_counts); what it then cannot read is a body of
+        # another length, which it called "PLY is unexpected length!" (bytes after the last element, say).
+        _, _, declared, have = layout
+        return (
+            f"the {have} bytes after its header are not the elements it declares ({declared}); expected those "
+            "elements and nothing after them"
+        )
     return None
 
 
