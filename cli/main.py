@@ -220,7 +220,7 @@ def app(ctx, debug):
     type=PathArg(path_type=Path),
     default=Path("build/atlas.dds"),
     show_default=True,
-    help="Atlas to write, X.dds or X.ktx2; X.json (manifest), X.wgsl (include) and X.timings.json go beside it.",
+    help="Atlas to write, X.dds or X.ktx2; X.json (manifest), the includes (X.wgsl, X.glsl, X.hlsl: --include) and X.timings.json go beside it.",
 )
 @click.option(
     "--layout",

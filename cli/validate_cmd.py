@@ -80,7 +80,7 @@ _RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolut
 @click.option("--physical-spp", type=click.IntRange(1, MAX_SPP), default=PHYSICAL_SPP, show_default=True,
               help="Samples per pixel for stochastic physical references (sss volpathmis, spectral iridescent), to start with: each renders with two seeds (their PSNR is its noise floor), and gets the samples its floor needs (it rises 10 log10 of the ratio) while the floor is not 10 dB above the error it measures, up to --max-physical-spp in all.")  # fmt: skip
 @click.option("--max-physical-spp", type=click.IntRange(1, MAX_SPP), default=None,
-              help=f"The most samples per pixel a stochastic physical reference grows to (default {MAX_PHYSICAL_SPP}, which lets every shipped reference clear its noise floor); a reference that stops short is named in the summary (and fails --strict). Given, it caps an environment scene's reference too, never below the {ENVIRONMENT_SPP} samples that one starts at (left out, it stops at {MAX_ENVIRONMENT_SPP}).")  # fmt: skip
+              help=f"The most samples per pixel a stochastic physical reference grows to (default {MAX_PHYSICAL_SPP}); a reference that stops short is named in the summary (and fails --strict). Given, it caps an environment scene's reference too, never below the {ENVIRONMENT_SPP} samples that one starts at (left out, it stops at {MAX_ENVIRONMENT_SPP}).")  # fmt: skip
 @click.option("--resolution", callback=_resolution, default=None, metavar="WxH",
               help="Override the scenes' image size (default: the scene's, 128x96 for the standard ones).")  # fmt: skip
 @click.option("--no-physical", is_flag=True, help="Skip the physical references.")
