@@ -34,7 +34,7 @@ from atlasgen.io.ktx2 import (
 )
 from atlasgen.io.manifest import Dimensions, ErrorSummary, Manifest, MaterialEntry, VolumeBleed, format_manifest, read_slots
 from atlasgen.io.output_paths import check_suffix
-from atlasgen.io.referenced_files import relative_files
+from atlasgen.io.referenced_files import real_folder_path, relative_files
 from atlasgen.io.sidecar import stamp_sidecar
 from atlasgen.io.text import MISSING, path_kind
 from atlasgen.models import get_model
@@ -418,9 +418,7 @@ def relative_source(source: str, manifest_dir) -> str:
     Both folders are resolved first: a ``..`` is followed from a folder's real place, so a path
     through a symlinked folder would be wrong and would make the bytes depend on the route taken.
     The file's own name is kept, so a symlinked material file is named as the user named it."""
-    folder, name = os.path.split(os.path.abspath(source))
-    real_source = os.path.join(os.path.realpath(folder), name)
-    return Path(os.path.relpath(real_source, os.path.realpath(manifest_dir))).as_posix()
+    return Path(os.path.relpath(real_folder_path(source), os.path.realpath(manifest_dir))).as_posix()
 
 
 def pair_outputs(result: BakeResult, paths: dict, zstd: bool = False) -> tuple[bytes, Manifest, bytes]:

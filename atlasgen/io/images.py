@@ -19,6 +19,7 @@ import numpy as np
 
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import scratch_folder, write_file_atomically
+from atlasgen.io.referenced_files import real_folder_path
 
 __all__ = ["encode_png", "encode_exr", "write_png", "write_exr", "is_utf8_path", "openable_name", "error_text"]
 
@@ -116,7 +117,8 @@ def openable_name(path):
     with tempfile.TemporaryDirectory(prefix="atlasgen-image-") as folder:
         suffix = "".join(c for c in Path(path).suffix if c.isascii())
         link = Path(folder) / f"image{suffix}"
-        os.symlink(os.path.abspath(path), link)
+        # Its folder as the system finds it: abspath folds a "link/.." as text, and the link led to another file.
+        os.symlink(real_folder_path(path), link)
         yield str(link)
 
 

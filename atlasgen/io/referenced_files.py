@@ -19,7 +19,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["referenced_files", "map_files", "relative_files", "absolute_files"]
+__all__ = ["referenced_files", "map_files", "relative_files", "absolute_files", "real_folder_path"]
 
 #: The parameter key Mitsuba's plugins name a file by.
 FILE_KEY = "filename"
@@ -62,6 +62,18 @@ def map_files(params: dict, change: Callable[[str], str]) -> dict:
     return walk(params)
 
 
+def real_folder_path(path) -> str:
+    """``path`` with its folder where the system finds it (links followed, then each ``..`` from where a link led)
+    and its own name kept, so a linked file is named as given. ``os.path.abspath`` folds ``link/..`` as text, which
+    names another folder's file than the one the system opens.
+
+    >>> real_folder_path("/") == os.path.realpath("/")
+    True
+    """
+    folder, name = os.path.split(os.fspath(path))
+    return os.path.join(os.path.realpath(folder or os.curdir), name)
+
+
 def relative_files(params: dict, folder) -> dict:
     """``params`` as a manifest in ``folder`` holds them: each absolute file name relative to ``folder``, POSIX (folders
     resolved first, as :func:`atlasgen.bake.pipeline.relative_source` does), so the bytes do not depend on where the
@@ -71,8 +83,7 @@ def relative_files(params: dict, folder) -> dict:
     def relative(name: str) -> str:
         if not os.path.isabs(name):
             return name
-        head, tail = os.path.split(name)
-        return Path(os.path.relpath(os.path.join(os.path.realpath(head), tail), base)).as_posix()
+        return Path(os.path.relpath(real_folder_path(name), base)).as_posix()
 
     return map_files(params, relative)
 

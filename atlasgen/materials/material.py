@@ -11,7 +11,7 @@ from atlasgen.contract import NAME_PATTERN, material_constant
 from atlasgen.errors import InputError, MaterialError, SceneError, did_you_mean
 from atlasgen.io.fields import Param, check_keys, validate_params
 from atlasgen.io.fields import shown as short
-from atlasgen.io.referenced_files import map_files, referenced_files
+from atlasgen.io.referenced_files import map_files, real_folder_path, referenced_files
 from atlasgen.io.text import MISSING, check_path_text, decode_utf8, parse_toml, path_kind, read_input_bytes
 from atlasgen.materials.materialx_document import is_materialx_file, read_materialx_document
 from atlasgen.materials.scene import read_scene
@@ -297,12 +297,14 @@ def find_material_files(paths) -> list[Path]:
         else:
             raise InputError(f"{p.as_posix()}: expected a material file or a folder, got {kind}")
     # A file named twice (``bake m ./m/``, ``bake m/a.toml m``) is read once: it was refused as two materials of one
-    # name "also in" itself. Two names of one file (a link) stay two files, as their materials' names may differ.
+    # name "also in" itself. Two names of one file (a link) stay two files, as their materials' names may differ. Named
+    # by where the system finds it: ``link/../m/a.toml`` is another folder's file than ``m/a.toml``, which abspath
+    # took for the same, keeping whichever came first.
     seen: set[str] = set()
     unique = []
     for f in files:
-        if os.path.abspath(f) not in seen:
-            seen.add(os.path.abspath(f))
+        if real_folder_path(f) not in seen:
+            seen.add(real_folder_path(f))
             unique.append(f)
     return unique
 

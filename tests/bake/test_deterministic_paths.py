@@ -92,3 +92,39 @@ def test_a_symlinked_output_folder_gives_the_real_folders_bytes_and_sources(tmp_
     # Read through the link, the source is found where the manifest means it.
     atlas = read_atlas(link / "linked.dds")
     assert atlas.source_path(atlas.material("clay")).resolve() == (project / "materials" / "clay.toml").resolve()
+
+
+def _linked_twin(tmp_path: Path) -> Path:
+    """A project whose ``lnk`` leads to ``elsewhere/sub``, so ``lnk/../materials/clay.toml`` is elsewhere's clay (green),
+    not the project's (red): the file the system opens, which a textual ``..`` would take for the project's."""
+    project = tmp_path / "project"
+    (project / "materials").mkdir(parents=True)
+    (project / "materials" / "clay.toml").write_text('type = "lambert"\ncolour = [1, 0, 0]\n')
+    (project / "elsewhere" / "sub").mkdir(parents=True)
+    (project / "elsewhere" / "materials").mkdir()
+    (project / "elsewhere" / "materials" / "clay.toml").write_text('type = "lambert"\ncolour = [0, 1, 0]\n')
+    (project / "lnk").symlink_to(project / "elsewhere" / "sub", target_is_directory=True)
+    return project
+
+
+def test_a_dotdot_after_a_linked_folder_names_the_file_that_was_baked(tmp_path, monkeypatch):
+    """``lnk/../materials/clay.toml`` baked elsewhere's clay, and the manifest named the project's: abspath folded the
+    ``..`` as text. Both routes to elsewhere's file now give the same bytes, and its source is that file."""
+    project = _linked_twin(tmp_path)
+    _bake(project, ["lnk/../materials/clay.toml", "-o", "build-a/atlas.dds"], monkeypatch)
+    _bake(project, ["elsewhere/materials/clay.toml", "-o", "build-b/atlas.dds"], monkeypatch)
+    routes = [[(project / build / f"atlas{s}").read_bytes() for s in SUFFIXES] for build in ("build-a", "build-b")]
+    assert routes[0] == routes[1]
+    entry = json.loads(routes[0][1])["materials"][0]
+    assert entry["source"] == "../elsewhere/materials/clay.toml" and entry["params"]["colour"] == [0.0, 1.0, 0.0]
+
+
+def test_two_files_one_path_apart_by_a_link_are_two_materials_in_either_order(tmp_path, monkeypatch):
+    """``lnk/../materials/clay.toml`` and ``materials/clay.toml`` were taken for one file named twice: the atlas held
+    whichever came first, exit 0. They are two files of one material name, refused on one line in either order."""
+    project = _linked_twin(tmp_path)
+    monkeypatch.chdir(project)
+    for files in (["lnk/../materials/clay.toml", "materials/clay.toml"], ["materials/clay.toml", "lnk/../materials/clay.toml"]):
+        res = CliRunner().invoke(app, ["bake", *files, "-o", "build/atlas.dds", "-q"])
+        assert res.exit_code != 0 and "clay" in res.output and len(res.output.strip().splitlines()) == 1, res.output
+        assert not (project / "build" / "atlas.dds").exists()

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import struct
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from atlasgen.errors import OutputError
-from atlasgen.io.images import encode_exr, encode_png, write_exr, write_png
+from atlasgen.io.images import encode_exr, encode_png, openable_name, write_exr, write_png
 
 
 def read(path):
@@ -216,3 +218,16 @@ def test_an_exr_beside_a_name_that_is_no_utf8_encodes_and_is_written(tmp_path):
     image = oiio.ImageInput.open(str(ascii_copy))
     np.testing.assert_array_equal(image.read_image(oiio.FLOAT), pixels)
     image.close()
+
+
+def test_a_name_openimageio_cannot_take_leads_to_the_file_a_dotdot_after_a_link_reaches(tmp_path):
+    """A name of no UTF-8 is opened through a link; abspath folded ``lnk/..`` as text, so the link led to the
+    folder's twin beside the link (here: a file of other bytes), not to the file the path names."""
+    name = os.fsdecode(b"sky\xff.exr")
+    (tmp_path / "elsewhere" / "sub").mkdir(parents=True)
+    (tmp_path / "elsewhere" / name).write_bytes(b"the file the path names")
+    (tmp_path / name).write_bytes(b"its textual twin")
+    (tmp_path / "lnk").symlink_to(tmp_path / "elsewhere" / "sub", target_is_directory=True)
+    with openable_name(tmp_path / "lnk" / ".." / name) as opened:
+        assert opened != str(tmp_path / "lnk" / ".." / name)  # not UTF-8: a link was made
+        assert Path(opened).read_bytes() == b"the file the path names"
