@@ -20,6 +20,7 @@ __all__ = [
     "raise_terminated",
     "as_received",
     "raise_unraisable_interrupts",
+    "interrupt_behind",
 ]
 
 
@@ -148,3 +149,30 @@ def deferred_interrupts():
             signal.signal(signum, handler)
     if pending:
         raise _HELD[pending[-1]][0]
+
+
+def interrupt_behind(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM that ``exc`` was raised from, if any: ``exc`` itself, or an interrupt in its chain of
+    causes. Dr.Jit wraps one landing in a Python callback (a Mitsuba BSDF written in Python, mid-render) in a
+    RuntimeError ("error while performing a custom differentiable operation"), raised from it: the command was
+    interrupted, and ended as an internal error.
+
+    >>> try:
+    ...     try:
+    ...         raise KeyboardInterrupt
+    ...     except KeyboardInterrupt as inner:
+    ...         raise RuntimeError("wrapped") from inner
+    ... except RuntimeError as outer:
+    ...     type(interrupt_behind(outer)).__name__
+    'KeyboardInterrupt'
+    >>> interrupt_behind(ValueError("no interrupt")) is None
+    True
+    """
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:  # a cycle of causes ends the walk
+        if isinstance(current, KeyboardInterrupt):
+            return current
+        seen.add(id(current))
+        current = current.__cause__
+    return None

@@ -48,7 +48,7 @@ from atlasgen.errors import (
     Terminated,
     shorten,
 )
-from atlasgen.interrupts import end_start_up_interrupts
+from atlasgen.interrupts import end_start_up_interrupts, interrupt_behind
 from atlasgen.io.atlas import describe_atlas, summarize_atlas
 from atlasgen.io.atomic import lock_timeout, write_file_atomically
 from atlasgen.io.depfile import encode_depfile
@@ -121,8 +121,9 @@ def exit_for(exc: BaseException):
     if isinstance(exc, AtlasgenError):
         click.echo(f"atlasgen: error: {one_line_message(exc)}", err=True)
         sys.exit(exc.exit_code)
-    if isinstance(exc, KeyboardInterrupt):  # the start-up's lines, once the command runs too
-        terminated = isinstance(exc, Terminated)
+    interrupt = interrupt_behind(exc)
+    if interrupt is not None:  # the start-up's lines, once the command runs too
+        terminated = isinstance(interrupt, Terminated)
         click.echo((TERMINATED_LINE if terminated else INTERRUPTED_LINE).decode(), err=True, nl=False)
         sys.exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
     if isinstance(exc, click.ClickException):
