@@ -303,8 +303,9 @@ def find_material_files(paths) -> list[Path]:
     seen: set[str] = set()
     unique = []
     for f in files:
-        if real_folder_path(f) not in seen:
-            seen.add(real_folder_path(f))
+        key = real_folder_path(f)
+        if key not in seen:
+            seen.add(key)
             unique.append(f)
     return unique
 

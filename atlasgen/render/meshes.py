@@ -333,11 +333,12 @@ def _ply_header(path: Path) -> tuple[bytes, int, list[list[str]]] | None:
     return head, end, [line.split() for line in lines]
 
 
-def _ply_elements(path: Path):
-    """A PLY file's layout as its header declares it: ``(ascii, elements, declared, have)``, elements as
-    ``[name, count, least bytes of one]``, ``declared`` them in words and ``have`` the bytes after the header;
-    None where the file cannot be read or its header parsed (left to trimesh's own message)."""
-    header = _ply_header(path)
+def _ply_elements(path: Path, header=None):
+    """A PLY file's layout as its header (:func:`_ply_header`, read here unless given) declares it: ``(ascii,
+    elements, declared, have)``, elements as ``[name, count, least bytes of one]``, ``declared`` them in words and
+    ``have`` the bytes after the header; None where the file cannot be read or its header parsed (left to trimesh's
+    own message)."""
+    header = _ply_header(path) if header is None else header
     try:
         size = path.stat().st_size
     except OSError:
@@ -435,7 +436,7 @@ def _explain_ply(path: Path) -> str | None:
     lacking = [axis for axis in ("x", "y", "z") if axis not in props["vertex"]]
     if lacking:
         return f"its vertices have no property {', '.join(lacking)}; expected properties x, y and z"
-    layout = _ply_elements(path)
+    layout = _ply_elements(path, header)
     if layout is not None and not layout[0]:
         # Too few bytes are refused before trimesh reads (_check_ply_counts); what it then cannot read is a body of
         # another length, which it called "PLY is unexpected length!" (bytes after the last element, say).
