@@ -8,6 +8,8 @@ import sys
 import click
 from click.core import ParameterSource
 
+from atlasgen.backend_messages import keep_backend_messages_to_errors
+
 __all__ = [
     "QUIET",
     "NORMAL",
@@ -80,6 +82,8 @@ def verbosity_options(quiet: str = "Print only errors.", verbose: str = "Print m
     def decorate(func):
         @functools.wraps(func)
         def wrapper(*args, verbosity=None, **kwargs):
+            if verbosity == QUIET:
+                keep_backend_messages_to_errors()  # Dr.Jit writes its own warnings past ours
             return func(*args, verbosity=NORMAL if verbosity is None else verbosity, **kwargs)
 
         wrapper = click.option("-v", "--verbose", "verbosity", flag_value=VERBOSE, type=int, help=verbose)(wrapper)

@@ -25,6 +25,7 @@ import traceback
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 
+from atlasgen.backend_messages import apply_requested_backend_level
 from atlasgen.bake.cache import bake_timed, cache_path, load_timed, store_cached
 from atlasgen.bake.quality import check_nonfinite
 from atlasgen.interrupts import deferred_interrupts
@@ -44,8 +45,9 @@ def _start_worker(filters, folder: str) -> None:
     """A worker's set-up: the caller's warning filters (the CLI shows warnings only as its own lines),
     Ctrl-C left to the caller, which drops the work not started (a worker's own KeyboardInterrupt would
     print a traceback), and an end with the caller's (:func:`_end_with_parent`), which removes the
-    pool's ``folder`` of results."""
+    pool's ``folder`` of results. Dr.Jit's level is the caller's too (:mod:`atlasgen.backend_messages`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    apply_requested_backend_level()
     warnings.filters[:] = filters
     _end_with_parent(folder)
 
