@@ -68,7 +68,12 @@ def check_output_paths(outputs, inputs=()) -> None:
         On the first clash, naming the path and both roles, on one line.
     """
     outputs = [(Path(p), role) for p, role in outputs]
-    inputs = [(Path(p), role) for p, role in inputs]
+    # One file read for many materials (a MaterialX document's every surfacematerial) is checked once, under its
+    # first role: a document of 5000 materials compared each cache entry with 5000 copies of itself, for minutes.
+    unique: dict[str, tuple[Path, str]] = {}
+    for p, role in inputs:
+        unique.setdefault(_key(Path(p)), (Path(p), role))
+    inputs = list(unique.values())
     seen: dict[str, tuple[Path, str]] = {}
     for path, role in outputs:
         try:

@@ -487,3 +487,22 @@ def test_a_depfile_may_not_take_a_name_of_the_atlas_s_set(tmp_path, library, dep
     out = tmp_path / "build" / "atlas.dds"
     _refused(tmp_path, ["bake", str(library), "-o", str(out), "--include", "wgsl", "--depfile", str(out.parent / depfile)],
              f"{(out.parent / depfile).as_posix()}: both {role} and --depfile; expected a different path for each output")  # fmt: skip
+
+
+def test_one_file_read_for_many_materials_is_compared_once(tmp_path, monkeypatch):
+    """A MaterialX document names one file for each of its materials: each output is compared with it once, not
+    once per material (5000 materials with --cache took minutes before the slice count refused them), and a clash
+    is still named under the first material's role."""
+    from atlasgen.io import output_paths
+
+    document = tmp_path / "library.mtlx"
+    document.write_text("<materialx/>")
+    outputs = [(tmp_path / "cache" / f"m{i}.npz", f"the cache entry of 'm{i}'") for i in range(50)]
+    inputs = [(document, f"the material file of 'm{i}'") for i in range(50)]
+    calls = []
+    compare = output_paths._same_file
+    monkeypatch.setattr(output_paths, "_same_file", lambda a, b: calls.append((a, b)) or compare(a, b))
+    output_paths.check_output_paths(outputs, inputs)
+    assert len(calls) == len(outputs)
+    with pytest.raises(output_paths.OutputError, match=r"would overwrite the material file of 'm0' \(.*library.mtlx\)"):
+        output_paths.check_output_paths([(document, "the atlas (-o)")], inputs)
