@@ -281,7 +281,7 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
         return str(info.value)
 
     (vdir / "report.json").mkdir()
-    assert refusal(validation_dir=vdir) == f"{(vdir / 'report.json').as_posix()}: cannot read (Is a directory)"
+    assert refusal(validation_dir=vdir) == f"{(vdir / 'report.json').as_posix()}: expected a regular file, got a folder"
     (vdir / "report.json").rmdir()
     (vdir / "report.json").write_text("[]")
     assert refusal(validation_dir=vdir).endswith("expected a validation report (a JSON object), got list")
@@ -302,7 +302,7 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     assert "field 'results[0].page': expected a page path as atlasgen validate writes it, got 5" in refusal(validation_dir=vdir)
     timings.unlink()
     timings.mkdir()
-    assert refusal() == f"{timings.as_posix()}: cannot read (Is a directory)"
+    assert refusal() == f"{timings.as_posix()}: expected a regular file, got a folder"
     timings.rmdir()
     timings.write_text('"x"')
     assert refusal().endswith("expected a bake's timings (a JSON object), got str")

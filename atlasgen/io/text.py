@@ -101,9 +101,8 @@ def read_input_bytes(path, missing: str = "no such file", limit: tuple[int, str]
     ------
     InputError
         ``path: {missing}`` when there is no such file; ``path: cannot read (...)`` when the
-        system refuses it (a directory included); ``path: expected a regular file, got ...`` for
-        a named pipe, socket or device (:func:`special_file_kind`); ``path: N bytes, ...`` for one
-        over the ``limit``.
+        system refuses it; ``path: expected a regular file, got ...`` for a folder, named pipe, socket
+        or device (:func:`special_file_kind`); ``path: N bytes, ...`` for one over the ``limit``.
     """
     _refuse_special(path)
     try:
@@ -113,6 +112,9 @@ def read_input_bytes(path, missing: str = "no such file", limit: tuple[int, str]
             return file.read()
     except FileNotFoundError:
         raise InputError(f"{Path(path).as_posix()}: {missing}") from None
+    except IsADirectoryError:
+        # As a named pipe's refusal: "cannot read (Is a directory)" said what failed, not what was expected.
+        raise InputError(f"{Path(path).as_posix()}: expected a regular file, got a folder") from None
     except OSError as exc:
         raise InputError(f"{Path(path).as_posix()}: cannot read ({exc.strerror})") from None
 

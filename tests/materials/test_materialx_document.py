@@ -471,7 +471,7 @@ def test_an_included_pipe_or_folder_is_refused_not_waited_on(tmp_path, kind):
     path = _including(tmp_path, "inc.mtlx", _material("M", "standard_surface", ""))
     with pytest.raises(InputError) as info:
         read_material_file(path)
-    expected = "expected a regular file, got a named pipe" if kind == "a named pipe" else "cannot read (Is a directory)"
+    expected = f"expected a regular file, got {'a named pipe' if kind == 'a named pipe' else 'a folder'}"
     assert str(info.value) == f"{target.as_posix()}: {expected} (included by {path.as_posix()})"
 
 
