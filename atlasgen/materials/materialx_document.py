@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 from pathlib import Path
@@ -41,7 +42,7 @@ from xml.etree import ElementTree
 
 from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
 from atlasgen.errors import FieldError, InputError, MaterialError, shorten
-from atlasgen.io.fields import validate_params
+from atlasgen.io.fields import FLOAT32_MAX, validate_params
 from atlasgen.io.text import check_path_text, decode_utf8, read_input_bytes
 from atlasgen.models import get_model
 from atlasgen.models.materialx import EXPECTED_VALUES, check_input_value, shown_values
@@ -565,6 +566,18 @@ def _value_parses(kind: str, text: str) -> bool:
     return len(parts) == count and all(_NUMBER.fullmatch(part) for part in parts)
 
 
+def _beyond_float32(kind: str, text: str) -> bool:
+    """Whether ``text`` is a whole value of ``kind`` with a finite component too large for a float32.
+
+    >>> _beyond_float32("float", "1e300"), _beyond_float32("color3", "0.5, -1e40, 0"), _beyond_float32("float", "inf")
+    (True, True, False)
+    """
+    if kind not in _COMPONENTS or not _value_parses(kind, text):
+        return False
+    numbers = [float(part) for part in text.split(",")]
+    return all(math.isfinite(x) for x in numbers) and any(abs(x) > FLOAT32_MAX for x in numbers)
+
+
 def _check_units(shown: str, field: str, inp, declared) -> None:
     """Refuse a colour space or unit the value would have to be converted from: the oracle is handed the
     value as written, where MaterialX's generator converts it (an sRGB 0.5 is 0.214 linear; a thickness in
@@ -595,7 +608,11 @@ def _constant(shown: str, field: str, inp, kind: str, limits):
         return None
     value = inp.getValue()
     if value is None or not _value_parses(kind, text):
-        raise MaterialError(shown, field, f"expected {EXPECTED_VALUES.get(kind, 'a ' + kind + ' value')}, got {text!r}")
+        expected = EXPECTED_VALUES.get(kind, "a " + kind + " value")
+        if _beyond_float32(kind, text):
+            # MaterialX reads a float32, and 1e300 does not parse: it is finite, so "expected a finite number" misled.
+            expected += f" within float32's range (at most {FLOAT32_MAX:g} in magnitude)"
+        raise MaterialError(shown, field, f"expected {expected}, got {text!r}")
     return check_input_value(shown, field, kind, _plain(value), limits)
 
 

@@ -188,6 +188,11 @@ def _open(inputs: str) -> str:
          "expected a finite number, got '0.5abc'"),
         ('<input name="base_color" type="color3" value="0.5, 0.5, 0.5," />', "M.base_color",
          "expected 3 finite numbers, got '0.5, 0.5, 0.5,'"),
+        # Finite, but no float32: MaterialX's parser gives up on it, and "expected a finite number" misled.
+        ('<input name="specular_ior" type="float" value="1e300" />', "M.specular_ior",
+         "expected a finite number within float32's range (at most 3.40282e+38 in magnitude), got '1e300'"),
+        ('<input name="base_color" type="color3" value="0.5, -1e40, 0.5" />', "M.base_color",
+         "expected 3 finite numbers within float32's range (at most 3.40282e+38 in magnitude), got '0.5, -1e40, 0.5'"),
         # The oracle is handed values as written, where MaterialX's generator converts them.
         ('<input name="base_color" type="color3" value="0.5, 0.5, 0.5" colorspace="srgb_texture" />', "M.base_color",
          "expected a linear colour (colorspace lin_rec709), got colorspace 'srgb_texture'; atlasgen bakes values as "
