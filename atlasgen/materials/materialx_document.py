@@ -32,6 +32,7 @@ MaterialX is imported inside functions (the ``materialx`` extra).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -216,7 +217,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     documents = [(shown, _parse_xml(shown, data))]
     _check_include_tags(shown, text, documents[0][1])
     included = _included_files(path, documents[0][1])
-    documents += [(p.as_posix(), tree) for p, _, tree in included]
+    documents += [(p.as_posix(), tree) for p, _, tree, _ in included]
     doc = mx.createDocument()
     try:
         mx.readFromXmlString(doc, text, mx.FileSearchPath(str(path.parent)), _include_options(mx, path, included))
@@ -225,12 +226,13 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     except Exception as exc:  # noqa: BLE001 - MaterialX raises its own exception types
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MaterialError(shown, None, f"malformed MaterialX document: {first}") from None
-    _refuse_duplicate_names(documents)
-    _refuse_values_written_as_text(documents)
-    _refuse_namespaces(documents)
     libraries = load_materialx_libraries()
-    _refuse_library_names(documents, doc, libraries)
-    _refuse_library_implementations(documents, doc, libraries)
+    with _named_as_included(included):
+        _refuse_duplicate_names(documents)
+        _refuse_values_written_as_text(documents)
+        _refuse_namespaces(documents)
+        _refuse_library_names(documents, doc, libraries)
+        _refuse_library_implementations(documents, doc, libraries)
     doc.importLibrary(libraries)
     nodes = _material_nodes(documents, doc)
     if not nodes:
@@ -260,7 +262,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         params = validate_params(model.params, raw, shown)
         model.check(params, shown)
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
-                    "content_hash": material_digest(name, params), "includes": tuple(p.as_posix() for p, _, _ in included),
+                    "content_hash": material_digest(name, params), "includes": tuple(p.as_posix() for p, _, _, _ in included),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
     # Last, so that the checks above name their own field: what MaterialX itself finds wrong (a connection
     # to an output the node does not have, say), which its generator would otherwise shade regardless.
@@ -321,6 +323,20 @@ def material_digest(name: str, params: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+@contextlib.contextmanager
+def _named_as_included(included: list):
+    """Run the whole-document checks so that a refusal of an included file ends ``(included by FILE)``, as the
+    refusals made while the file is read do (docs/materialx.md): a namespace in an included file named the file
+    but not the document that led to it."""
+    included_by = {found.as_posix(): includer for found, _, _, includer in included}
+    try:
+        yield
+    except FieldError as exc:
+        if exc.path not in included_by:
+            raise
+        raise type(exc)(exc.path, exc.field, f"{exc.expected} (included by {included_by[exc.path]})") from None
+
+
 def _refuse_namespaces(documents) -> None:
     """Refuse a document (or an included one) with a ``namespace``: MaterialX qualifies its materials' names as
     ``ns:NAME``, which no atlas name can hold (:data:`~atlasgen.contract.NAME_PATTERN`), and its validation then
@@ -377,8 +393,9 @@ MAX_INCLUSIONS = 1024
 
 
 def _included_files(path: Path, root) -> list:
-    """``(path, bytes, tree)`` of every file the document at ``path`` includes (``xi:include``, and what those
-    include), each once, in document order (:func:`_find_include`). A cycle is left to MaterialX to refuse.
+    """``(path, bytes, tree, includer)`` of every file the document at ``path`` includes (``xi:include``, and what
+    those include), each once, in document order (:func:`_find_include`), ``includer`` the file whose include
+    reached it first, as shown. A cycle is left to MaterialX to refuse.
 
     The walk keeps its own stack: a chain of 1000 files ran out of Python's recursion (an internal error).
 
@@ -431,7 +448,7 @@ def _included_files(path: Path, root) -> list:
             raise type(exc)(exc.path, exc.field, f"{exc.expected} (included by {shown})") from None
         except InputError as exc:
             raise InputError(f"{exc} (included by {shown})") from None
-        out.append((found, data, included))
+        out.append((found, data, included, shown))
         edges[real] = []
         stack.append((found.as_posix(), found.parent, real, included.iter(XINCLUDE)))
     inclusions = _count_inclusions(edges, document)
@@ -473,7 +490,7 @@ def _include_options(mx, path: Path, included: list):
     """MaterialX read options whose includes are the bytes :func:`_included_files` read and hashed, found as
     it found them: MaterialX's own reader opens each file again (a named pipe hangs it) and looks further
     (the working folder), so a document could bake a material no check or cache key saw."""
-    by_path = {os.path.realpath(found): data for found, data, _ in included}
+    by_path = {os.path.realpath(found): data for found, data, _, _ in included}
 
     def read_include(sub, filename, search_path, options) -> None:
         href = filename.asString()

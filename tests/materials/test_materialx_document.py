@@ -631,7 +631,8 @@ def test_an_element_named_as_a_standard_library_s_is_refused(tmp_path, included)
     message = str(info.value)
     assert message.endswith(": field 'ND_standard_surface_surfaceshader': expected no element named as one of "
                             "MaterialX's standard libraries' (they are loaded already, and the oracle shades theirs), got <nodedef> "
-                            "'ND_standard_surface_surfaceshader'"), message  # fmt: skip
+                            "'ND_standard_surface_surfaceshader'" + (f" (included by {path.as_posix()})" if included
+                                                                      else "")), message  # fmt: skip
     assert shadow.name in message.split(": field")[0]
 
 
@@ -645,10 +646,11 @@ def test_a_document_with_a_namespace_is_refused_naming_it(tmp_path, included):
     path = _including(tmp_path, "spaced.mtlx") if included else spaced
     with pytest.raises(MaterialError) as info:
         read_material_file(path)
-    # The file that has it is named, the included one included.
+    # The file that has it is named; an included one with the file that included it, as docs/materialx.md says.
     assert str(info.value) == (f"{spaced.as_posix()}: field 'namespace': a document with a namespace ('acme') is not read: "
                                "MaterialX qualifies its materials' names as 'namespace:NAME', which an atlas name "
-                               "cannot hold; expected the document without its namespace attribute")  # fmt: skip
+                               "cannot hold; expected the document without its namespace attribute"
+                               + (f" (included by {path.as_posix()})" if included else ""))  # fmt: skip
 
 
 def _chain(tmp_path, files: int):
