@@ -253,7 +253,7 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
                 f"surface shader {category!r} is not supported; expected one of {', '.join(SURFACE_MODELS)}",
             )
         spec = _read_shader(shown, name, category, shader, flatten)
-        spec["not_in_table"] += _material_not_in_table(node)
+        spec["not_in_table"] += _material_not_in_table(node) + _variants_not_applied(doc, name)
         # The file's name, not the path as given: the manifest's ``source`` locates the file, and a
         # path as given made the manifest (and the content hash) depend on the working folder.
         spec["document"] = path.name
@@ -300,6 +300,25 @@ def _material_not_in_table(node) -> list[str]:
         driver = _driver(inp) or (repr(inp.getValueString()) if inp.getValueString() else None)
         if driver is not None:
             out.append(f"{key} = {driver}: {MATERIAL_NOT_IN_TABLE.get(key, 'an input of the material atlasgen does not bake')}")
+    return out
+
+
+def _variants_not_applied(doc, material: str) -> list[str]:
+    """A clause for each variant a look assigns where it assigns ``material``: a look binds materials to geometry
+    and may switch their inputs to a variant's values, which atlasgen, baking each material as its inputs give
+    it (as MaterialX's generator shades it), does not apply; a bake that kept the material's own roughness where
+    the look asked for another said nothing. A look that only binds geometry changes no slice, and is not named."""
+    out = []
+    for look in doc.getLooks():
+        assigns = [a for a in look.getActiveMaterialAssigns() if a.getMaterial() == material]
+        if not assigns:
+            continue
+        chosen = [(a.getName(), v) for a in assigns for v in a.getChildren() if v.getCategory() == "variantassign"]
+        chosen += [(None, v) for v in look.getActiveVariantAssigns()]
+        for assign, variant in chosen:
+            where = f"look {look.getName()!r}" + (f", materialassign {assign!r}" if assign else "")
+            out.append(f"variant {variant.getAttribute('variant')!r} of variantset {variant.getAttribute('variantset')!r} "
+                       f"({where}): looks are not applied, the material's own inputs are baked")  # fmt: skip
     return out
 
 

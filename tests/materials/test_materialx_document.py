@@ -89,6 +89,26 @@ def test_flattening_records_what_was_flattened(tmp_path):
     assert spec["inputs"]["base_color"] == [0.1, 0.2, 0.3]
 
 
+_LOOKS = """<variantset name="finish"><variant name="shiny"><input name="specular_roughness" type="float" value="0.05" />
+</variant></variantset>
+<look name="hero"><materialassign name="body" material="Paint" geom="/car/body">
+<variantassign name="pick" variantset="finish" variant="shiny" /></materialassign></look>
+<look name="plain"><materialassign name="trim" material="Paint" geom="/car/trim" /></look>"""
+
+
+def test_a_variant_a_look_assigns_is_named_not_applied_silently(tmp_path):
+    """The look switches the material's roughness to 0.05; the bake keeps its own 0.4 (as MaterialX's generator
+    shades it), and said nothing. A look that only binds geometry changes no slice and is not named."""
+    body = _material("Paint", "standard_surface", '<input name="specular_roughness" type="float" value="0.4" />')
+    spec = read_material_file(_document(tmp_path, body + "\n" + _LOOKS))[0].params["materialx"]
+    assert spec["inputs"]["specular_roughness"] == pytest.approx(0.4)
+    assert spec["not_in_table"] == ["variant 'shiny' of variantset 'finish' (look 'hero', materialassign 'body'): looks "
+                                    "are not applied, the material's own inputs are baked"]  # fmt: skip
+    other = _material("Other", "standard_surface", "")
+    spec = read_material_file(_document(tmp_path, other + "\n" + body + "\n" + _LOOKS, "two.mtlx"))[0].params["materialx"]
+    assert spec["not_in_table"] == []  # 'Other' is in no look
+
+
 def test_inputs_the_table_cannot_hold_are_named_and_left_out_of_the_oracle(tmp_path):
     body = _material("Glow", "standard_surface", '<input name="emission" type="float" value="2" />'
                      '<input name="transmission" type="float" value="0.5" />'
