@@ -266,7 +266,8 @@ def _read_light(r: _Reader, raw, i) -> Light:
                 raise SceneError(r.path, f"{name}.{key}", f"only used by a spot light, not a {kind} light")
     if kind in ("point", "spot"):
         # No range: the light reaches everywhere (infinite range), as before ranges existed.
-        light_range = r.number(raw, "range", f"{name}.range", lo=0.0, lo_open=True) if "range" in raw else math.inf
+        # At least float32's least normal number: a GPU flushes a smaller one to 0, which the renderer reads as no range.
+        light_range = r.number(raw, "range", f"{name}.range", lo=FLOAT32_MIN_NORMAL) if "range" in raw else math.inf
         position = r.vec3(raw, "position", f"{name}.position")
         if kind == "point":
             if "direction" in raw:

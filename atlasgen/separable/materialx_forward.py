@@ -76,16 +76,21 @@ _POINT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out l
 {
     // atlasgen's falloff (atlasgen.optics.falloff.windowed_irradiance): E = I W(d, r) / d^2,
     // W = saturate(1 - (d/r)^4)^2, 1 without a range; MaterialX's own is I / (d + 1)^decay_rate.
+    // d^2 held above float32's least normal number for 1/d^2 alone; the window and the direction at the true
+    // distance, formed so that nothing underflows in a small scene (as the renderer's lighting.wgsl).
     vec3 d = light.position - position;
-    float d2 = max(dot(d, d), 1e-12);
+    float d2 = max(dot(d, d), 1.17549435e-38);
     float window = 1.0;
     if (light.range > 0.0)
     {
-        float x = d2 / (light.range * light.range);
+        vec3 q = d / light.range;
+        float x = dot(q, q);
         window = x >= 1.0 ? 0.0 : mx_square(clamp(1.0 - x * x, 0.0, 1.0));
     }
-    result.direction = d * inversesqrt(d2);
-    result.intensity = light.color * light.intensity * window / d2;
+    float m = max(max(abs(d.x), abs(d.y)), abs(d.z));
+    vec3 u = m > 0.0 ? d / m : vec3(0.0);
+    result.direction = u * inversesqrt(max(dot(u, u), 1.0));
+    result.intensity = min(light.color * light.intensity / d2, vec3(3.4028234e38)) * window;
 }
 """
 _SPOT_LIGHT = re.compile(r"void mx_spot_light\(LightData light, vec3 position, out lightshader result\)\n\{.*?\n\}\n", re.S)

@@ -22,7 +22,7 @@ import numpy as np
 
 from atlasgen.io.manifest import MaterialEntry
 from atlasgen.models.base import RadianceRebuild
-from atlasgen.optics.falloff import range_window, spot_factor
+from atlasgen.optics.falloff import DISTANCE_SQUARED_FLOOR, range_window, spot_factor
 from atlasgen.render.camera import pixel_rays
 
 __all__ = ["rebuild_images", "rebuild_image", "material_mask", "n_dot_v_image"]
@@ -61,7 +61,7 @@ def _light_at(light, x):
     radiant = np.asarray(light.colour, dtype=np.float64) * light.intensity
     if light.type in ("point", "spot"):
         d = np.asarray(light.position, dtype=np.float64) - x
-        d2 = np.maximum((d * d).sum(1), 1e-12)
+        d2 = np.maximum((d * d).sum(1), DISTANCE_SQUARED_FLOOR)
         l = d / np.sqrt(d2)[:, None]
         scale = range_window(np.sqrt(d2), light.range)
         if light.type == "spot":

@@ -57,3 +57,12 @@ def test_spot_is_one_inside_linear_in_angle_between_and_zero_outside(inner, widt
 
 def test_doctests():
     assert doctest.testmod(falloff).failed == 0
+
+
+def test_a_scene_a_millionth_the_size_keeps_its_irradiance():
+    """The whole scene scaled by k (distances and ranges times k, intensity times k^2) keeps E: 1/d^2 is floored at
+    float32's least normal number only, where a floor of 1e-12 dimmed every light of a scene smaller than 1e-6."""
+    d = np.array([0.2, 0.5, 1.0, 1.9])
+    for k in (1e-3, 1e-7, 1e-12, 1e-17):
+        np.testing.assert_allclose(windowed_irradiance(3.0 * k * k, d * k, 2.0 * k), windowed_irradiance(3.0, d, 2.0),
+                                   rtol=1e-12)  # fmt: skip

@@ -207,6 +207,40 @@ def test_ranged_and_spot_lights_match_numpy_and_are_exactly_zero_beyond_range(re
     assert (result.radiance[dark] == 0).all()  # at and beyond the range, and outside the cone: exactly 0
 
 
+def _scaled(text: str, k: float) -> str:
+    """``text``'s scene at k times its size (positions, ranges, the plane's scale and mip distance times k, intensities
+    times k^2, the same directions and angles), with near and far planes that frame it."""
+    out = []
+    for line in text.splitlines():
+        key, _, value = line.partition(" = ")
+        if key in ("position", "target"):
+            value = "[" + ", ".join(repr(float(v) * k) for v in value.strip("[]").split(",")) + "]"
+        elif key in ("range", "scale", "mip_distance"):
+            value = repr(float(value) * k)
+        elif key == "intensity":
+            value = repr(float(value) * k * k)
+        out.append(f"{key} = {value}" if _ else line)
+        if line == "fov = 70":
+            out += [f"near = {0.01 * k!r}", f"far = {100.0 * k!r}"]
+    return "\n".join(out) + "\n"
+
+
+@pytest.mark.parametrize("culling", [True, False])
+def test_a_scene_a_ten_millionth_the_size_is_lit_as_numpy_says(renderer, fixture_atlas, scene_from, culling):
+    """The plane's scene at 1e-7 of its size: its ranges (1.1e-7, 2e-7) and distances are below 1e-6, where the
+    1e-12 that bounds 1/d^2 once entered the window (every point out of reach: a black frame, exit 0) and the
+    light direction (not of unit length: N.L a tenth of itself)."""
+    scene = scene_from(_scaled(PLANE.format(material="lambert"), 1e-7))
+    result = renderer.render(scene, outlines=False, culling=culling)
+    rays = pixel_rays(scene.camera, scene.width, scene.height)
+    ref = reference_radiance(fixture_atlas, scene, result.aovs, rays)
+    covered = result.aov("id") != 0xFFFF
+    lit = covered & (ref.max(-1) > 0)
+    assert lit.mean() > 0.15 and covered.mean() > 0.5
+    err = relative_error(result.radiance[lit], ref[lit])
+    assert err.max() < 2e-2, f"worst relative error {err.max():.4f}"
+
+
 RANGED_POINTS = """
 [[lights]]
 type = "point"

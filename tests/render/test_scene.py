@@ -71,7 +71,7 @@ opacity = 0.25
         ("[[objects]]\nshape = 'mesh'\nmaterial = 'a'\nfile = 'nope.ply'\n", "objects[0].file", "no such mesh file"),
         ("[[objects]]\nshape = 'sphere'\nmaterial = 'a'\ncolour = [1, 1, 1]\n", "objects[0].colour", "unknown key"),
         ("[[lights]]\ntype = 'area'\nintensity = 1\n", "lights[0].type", "'point', 'spot' or 'directional'"),
-        ("[[lights]]\ntype = 'point'\nintensity = 1\nposition = [0, 0, 0]\nrange = 0\n", "lights[0].range", "> 0"),
+        ("[[lights]]\ntype = 'point'\nintensity = 1\nposition = [0, 0, 0]\nrange = 0\n", "lights[0].range", ">= 1.17549e-38"),
         (
             "[[lights]]\ntype = 'directional'\nintensity = 1\ndirection = [0, 0, -1]\nrange = 2\n",
             "lights[0].range",
@@ -211,6 +211,16 @@ def test_ranged_point_and_spot_lights(scene_from):
     assert (point.range, point.bounded) == (3.5, True)
     assert spot.direction == (0.0, -1.0, 0.0) and (spot.inner_angle, spot.outer_angle, spot.range) == (30.0, 40.0, 9.0)
     assert unbounded.range == float("inf") and not unbounded.bounded  # no range: reaches everywhere, as before
+
+
+def test_a_range_the_gpu_would_flush_to_zero_is_refused(scene_from):
+    """A subnormal range reached the GPU as 0, which the renderer reads as no range: a light meant to reach 1e-40
+    would have lit the whole scene. The least normal float32 itself is taken."""
+    light = "[[lights]]\ntype = 'point'\nintensity = 2\nposition = [0, 1, 0]\nrange = {}\n"
+    with pytest.raises(SceneError) as info:
+        scene_from(MINIMAL + light.format("1e-40"), path="x.toml")
+    assert str(info.value) == "x.toml: field 'lights[0].range': expected a finite number >= 1.17549e-38, got 1e-40"
+    assert scene_from(MINIMAL + light.format("1.1754944e-38")).lights[0].range == pytest.approx(1.1754944e-38)
 
 
 @pytest.mark.parametrize(("camera", "field", "words"), [

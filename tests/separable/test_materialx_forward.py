@@ -110,6 +110,25 @@ def test_a_ranged_point_light_falls_off_as_inverse_square_times_the_window(gl):
     np.testing.assert_allclose(image.radiance[image.covered], np.repeat(want[:, None], 3, 1), rtol=2e-5, atol=1e-6)
 
 
+def test_a_ranged_point_light_a_ten_millionth_the_size_is_lit_the_same(gl):
+    """The test above's scene at 1e-7 of its size (camera, plane, light position and range), its intensity at 1e-14:
+    the same image. A floor of 1e-12 on d^2, in the window and the direction too, left such a light dark."""
+    k = 1e-7
+    position, light_range = np.array([0.4, 1.0, 0.6]), 2.0
+
+    def image(scale):
+        camera = Camera(position=tuple(np.multiply(CAMERA.position, scale)), target=tuple(np.multiply(CAMERA.target, scale)),
+                        fov=CAMERA.fov, near=CAMERA.near * scale, far=10.0 * scale)  # fmt: skip
+        light = Light("point", (1.0, 1.0, 1.0), 3.0 * scale * scale, position=tuple(position * scale),
+                      range=light_range * scale)  # fmt: skip
+        return _render(gl, LAMBERT, [_draw(make_plane(), 1.6 * scale)], [light], camera=camera)
+
+    big, small = image(1.0), image(k)
+    assert (big.radiance[big.covered] > 0).mean() > 0.2
+    np.testing.assert_array_equal(small.covered, big.covered)
+    np.testing.assert_allclose(small.radiance, big.radiance, rtol=1e-3, atol=1e-6)
+
+
 def test_a_point_light_without_a_range_is_the_plain_inverse_square(gl):
     position = np.array([1.6, 2.4, 2.6])
     image = _render(gl, LAMBERT, [_draw(make_plane(), 1.6)], [Light("point", (1.0, 1.0, 1.0), 13.0, position=tuple(position))])
