@@ -20,7 +20,7 @@ import numpy as np
 from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
-from atlasgen.io.fields import is_number
+from atlasgen.io.fields import is_number, shown
 from atlasgen.io.images import encode_png
 from atlasgen.io.report_files import (
     check_merge_output,
@@ -926,7 +926,8 @@ def _check_figures(path: Path, data: dict) -> None:
 def _check_verdicts(path: Path, data: dict) -> None:
     """Refuse a model reference whose recorded verdict is not what its figures and the goals give (:func:`_goal`'s
     rule): a merge prints the verdicts it reads, so an edited ``meets_goal`` (true beside 20 dB) passed as "all goals
-    met". Figures JSON writes as null (an infinite or undefined PSNR) leave the verdict as recorded."""
+    met". A null PSNR is an infinite one (JSON has no inf); a verdict beside no FLIP, or "met" where nothing of the
+    material was measured, is refused too."""
     goals = data["settings"].get("goals")
     if not isinstance(goals, dict) or not all(is_number(goals.get(k)) for k in ("psnr_db", "flip")):
         return  # the page's own check names such goals
@@ -935,17 +936,31 @@ def _check_verdicts(path: Path, data: dict) -> None:
         if not isinstance(ref, dict) or not isinstance(ref.get("meets_goal"), bool):
             continue
         psnr, flip, own = ref.get("psnr_db"), ref.get("flip"), row.get("goal_psnr_db")
-        if not (is_number(psnr) and is_number(flip)):
-            continue
-        expected = _unmeasured_verdict(_storage_met(psnr, flip, goals, own if is_number(own) else None),
-                                       not_measured(ref), psnr)  # fmt: skip
-        if expected is not None and expected != ref["meets_goal"]:
+        _refuse_verdict_without_flip(path, f"results[{i}].references.model", ref, ref["meets_goal"])
+        if not (is_number(psnr) or psnr is None) or not is_number(flip):
+            if not_measured(ref) is None or ref["meets_goal"] is not True:
+                continue
+            expected = None  # nothing measured, and figures that cannot say otherwise
+        else:
+            # A null PSNR is an infinite one (identical images: JSON has no inf), met whatever the goal.
+            met = _storage_met(math.inf if psnr is None else psnr, flip, goals, own if is_number(own) else None)
+            expected = _unmeasured_verdict(met, not_measured(ref), psnr)
+        if expected != ref["meets_goal"]:
             goal = f"PSNR >= {own:g} dB" if is_number(own) else _goals_text(goals)
             raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected "
-                             f"{str(expected).lower()} from its figures (PSNR {psnr:.1f} dB, FLIP {flip:.4f}) and the goals "
+                             f"{_verdict_text(expected)} from its figures (PSNR {_psnr_text(psnr)} dB, FLIP {_fmt(flip, '.4f')}) and the goals "
                              f"({goal}), got {str(ref['meets_goal']).lower()}; re-run atlasgen validate")  # fmt: skip
     for i, row in enumerate(data["results"]):
         _check_look_verdict(path, f"results[{i}]", row)
+
+
+def _refuse_verdict_without_flip(path: Path, where: str, ref: dict, verdict) -> None:
+    """Refuse a verdict recorded beside a comparison that measured the material but has no FLIP: a null PSNR is an
+    infinite one, but a null FLIP is no figure at all (identical images give 0), and a merge printed "met" on a
+    comparison whose figures were all null, and "inf / inf dB" for a look."""
+    if isinstance(verdict, bool) and not_measured(ref) is None and not is_number(ref.get("flip")):
+        raise FieldError(path.as_posix(), f"{where}.flip", f"expected a number beside the verdict it gives "
+                         f"(meets_goal {_verdict_text(verdict)}), got {shown(ref.get('flip'))}; re-run atlasgen validate")  # fmt: skip
 
 
 def _verdict_text(value) -> str:
@@ -960,8 +975,14 @@ def _check_look_verdict(path: Path, where: str, row: dict) -> None:
     if not isinstance(look, dict) or not isinstance(look.get("goal"), dict):
         return
     ref = row["references"].get(look.get("reference") or "")
+    if look.get("meets_goal") is not None and (look.get("reference") is None or look.get("skipped")):
+        # A look with no reference (not rendered, or none exists) was kept as "met" in the merged report.json.
+        raise FieldError(path.as_posix(), f"{where}.look.meets_goal", "expected null for a look compared with nothing "
+                         f"({look.get('why_none') or 'no reference'}), got {_verdict_text(look.get('meets_goal'))}; "
+                         "re-run atlasgen validate")  # fmt: skip
     if not isinstance(ref, dict) or not all(is_number(look["goal"].get(k)) for k in ("psnr_db", "flip")):
         return
+    _refuse_verdict_without_flip(path, f"{where}.references.{look['reference']}", ref, look.get("meets_goal"))
     expected = look_verdict(look, ref)["meets_goal"]
     figures = f"PSNR {_psnr_text(ref.get('psnr_db'))} dB, FLIP {_fmt(ref.get('flip'), '.4f')}"
     goal = f"PSNR >= {look['goal']['psnr_db']:g} dB, FLIP <= {look['goal']['flip']:g}"

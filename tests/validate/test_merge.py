@@ -268,6 +268,30 @@ def test_a_verdict_its_figures_do_not_give_is_refused(merged, tmp_path):
     assert not (tmp_path / "merged").exists()
 
 
+def test_a_verdict_beside_no_figures_is_refused(merged, tmp_path):
+    """A hostile sweep's: figures all null beside meets_goal true merged as "storage 2/2 met" (a null PSNR is an
+    infinite one, but a null FLIP is none at all), and "not measured" beside true passed into the merged page."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    def met(**figures):
+        def change(data):
+            row = next(r for r in data["results"] if r["references"].get("model", {}).get("meets_goal") is True)
+            row["references"]["model"].update(figures)
+
+        return change
+
+    folder = _edited(merged, tmp_path / "null", met(psnr_db=None, flip=None, rmse=None))
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    assert str(info.value).endswith(".references.model.flip': expected a number beside the verdict it gives (meets_goal "
+                                    "true), got None; re-run atlasgen validate"), str(info.value)  # fmt: skip
+    folder = _edited(merged, tmp_path / "black", met(psnr_db=None, flip=None, not_measured="black"))
+    with pytest.raises(InputError, match=r"\.references\.model\.meets_goal': expected null from its figures \(PSNR inf "):
+        merge_validation_reports([folder], tmp_path / "merged")
+    merge_validation_reports([_edited(merged, tmp_path / "inf", met(psnr_db=None))], tmp_path / "merged")  # identical
+    assert json.loads((tmp_path / "merged" / "report.json").read_text())["summary"]
+
+
 def _met_look(data, forge) -> None:
     """A row's look made met, its reference's figures far beyond its goal and its floor, then ``forge`` applied."""
     row = next(r for r in data["results"] if (r.get("look") or {}).get("reference") in r["references"])
@@ -289,6 +313,10 @@ def _met_look(data, forge) -> None:
     (lambda row: row["look"]["goal"].update(psnr_db=99.0), "expected false from the "),
     # The verdict edited: the page printed a miss beside figures that meet the goal.
     (lambda row: row["look"].update(meets_goal=False), "expected true from the "),
+    # No figures at all, "met": the page printed "inf / inf dB ... met".
+    (lambda row: row["references"][row["look"]["reference"]].update(psnr_db=None, flip=None), "flip"),
+    # Nothing rendered, kept as "met" in the merged report.json.
+    (lambda row: row["look"].update(reference=None, skipped=True, why_none="not rendered (--no-physical)"), "null"),
 ])  # fmt: skip
 def test_a_look_verdict_its_figures_do_not_give_is_refused(merged, tmp_path, forge, expected):
     from atlasgen.reports.validation import merge_validation_reports
@@ -300,8 +328,14 @@ def test_a_look_verdict_its_figures_do_not_give_is_refused(merged, tmp_path, for
     with pytest.raises(InputError) as info:
         merge_validation_reports([folder], tmp_path / "merged")
     message = str(info.value)
-    assert ".look.meets_goal': " + expected in message and "reference's figures (PSNR " in message and \
-        message.endswith("; re-run atlasgen validate") and "\n" not in message, message  # fmt: skip
+    assert message.endswith("; re-run atlasgen validate") and "\n" not in message, message
+    if expected == "flip":
+        assert ".flip': expected a number beside the verdict it gives (meets_goal true), got None" in message, message
+    elif expected == "null":
+        assert ".look.meets_goal': expected null for a look compared with nothing (not rendered (--no-physical)), " \
+            "got true" in message, message  # fmt: skip
+    else:
+        assert ".look.meets_goal': " + expected in message and "reference's figures (PSNR " in message, message
     assert not (tmp_path / "merged").exists()
 
 
