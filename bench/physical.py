@@ -93,7 +93,7 @@ def iridescent_materials() -> dict:
         material = read_material(ROOT / "materials" / f"{name}.toml")
         source = material.model.physical_f_cos(material.params, material.fit_gloss).source
         text = toml_document({"type": "separable", **source, "terms": MAX_AUTO_TERMS})
-        back = " and a transmission slice (its back-light)" if source["film"]["backlight"] > 0 else ""
+        back = " and a transmission slice (its back-light)" if source["film"].get("backlight", 0.0) > 0 else ""  # absent: none
         out[f"{name}-k{MAX_AUTO_TERMS}"] = (text,
                                             f"separable K = {MAX_AUTO_TERMS}{back}: {name}'s thin film")  # fmt: skip
     return out
