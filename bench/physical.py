@@ -110,7 +110,10 @@ def _validate(materials: dict, folder: Path) -> dict:
         (folder / "materials" / f"{name}.toml").write_text(text)
     dds = folder / "atlas.dds"
     write_bake(bake_atlas(read_materials([folder / "materials"])), dds)
-    run = validate_atlas(dds, scenes=list(SCENES), physical_spp=PHYSICAL_SPP, max_physical_spp=MAX_PHYSICAL_SPP)
+    # The reference cache the verdict section uses: a run cut short (or failed, as one did after an hour) resumes
+    # from the references it rendered, and a re-run of unchanged materials renders none.
+    run = validate_atlas(dds, scenes=list(SCENES), physical_spp=PHYSICAL_SPP, max_physical_spp=MAX_PHYSICAL_SPP,
+                         reference_cache=ROOT / "build" / "cache" / "references")  # fmt: skip
     out = {}
     for r in run.runs:
         ref = r.references.get("physical")
