@@ -25,7 +25,7 @@ def _steps(timings: dict) -> str:
 @click.option("-o", "--output", type=PathArg(path_type=Path), default=None,
               help="PNG to write.  [default: build/preview/NAME.png, NAME the material file's stem or the folder's "
                    "name; build/preview/contact-sheet.png for several]")  # fmt: skip
-@click.option("--cache", "cache_dir", type=PathArg(path_type=Path, file_okay=False), default=DEFAULT_CACHE_DIR,
+@click.option("--cache", "cache_dir", type=PathArg(path_type=Path), metavar="DIRECTORY", default=DEFAULT_CACHE_DIR,
               show_default=True, help="Per-material bake cache, the one make fills: unchanged materials are loaded, "
                                       "not baked again.")  # fmt: skip
 @click.option("--no-cache", is_flag=True, help="Bake every material, and store nothing.")

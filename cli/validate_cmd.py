@@ -91,9 +91,9 @@ _RENDER_OPTIONS = ("scenes", "spp", "physical_spp", "max_physical_spp", "resolut
               show_default=True, help="Baked atlas; X.json and X.wgsl must sit beside it.")  # fmt: skip
 @click.option("-o", "--output", type=PathArg(path_type=Path), default=Path("build/validation"),
               show_default=True, help="Folder for index.html, report.json, images and the plot.")  # fmt: skip
-@click.option("--cache", "bake_cache", type=PathArg(path_type=Path, file_okay=False), default=Path("build/cache"),
+@click.option("--cache", "bake_cache", type=PathArg(path_type=Path), metavar="DIRECTORY", default=Path("build/cache"),
               show_default=True, help="The bake's cache (atlasgen bake --cache): float slices are read from a material's current entry there instead of being computed or fitted again.")  # fmt: skip
-@click.option("--reference-cache", type=PathArg(path_type=Path, file_okay=False), default=DEFAULT_REFERENCE_CACHE,
+@click.option("--reference-cache", type=PathArg(path_type=Path), metavar="DIRECTORY", default=DEFAULT_REFERENCE_CACHE,
               show_default=True, help="Folder of reference renders, keyed by everything that decides each image: a second run renders nothing it holds.")  # fmt: skip
 @click.option("--no-reference-cache", is_flag=True, help="Keep reference renders for this run only.")
 @click.option("--merge", is_flag=True,

@@ -476,6 +476,20 @@ def test_a_cache_folder_under_a_file_is_named_a_cache_folder_before_any_work(tmp
              f"{(blocker / 'cache').as_posix()}: cannot write cache folder ({blocker.as_posix()} is a file)")  # fmt: skip
 
 
+@pytest.mark.parametrize(("command", "option"), [(["validate", "{material}"], "--cache"),
+                                                 (["validate", "{material}"], "--reference-cache"),
+                                                 (["preview", "{material}"], "--cache")])  # fmt: skip
+def test_a_cache_folder_that_is_a_file_is_refused_as_the_docs_say(tmp_path, library, command, option):
+    """docs/validation.md: exit 4 and atlasgen's one line; click's own path check ran first, with exit 2 and
+    "Invalid value for '--cache': Directory 'afile' is a file." (a hostile sweep's)."""
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    args = [a.format(material=library / "clay.toml") for a in command]
+    out = tmp_path / ("x.png" if command[0] == "preview" else "report")
+    _refused(tmp_path, [*args, "-o", str(out), option, str(afile)],
+             f"{afile.as_posix()}: {option} is an existing file; expected a folder path")  # fmt: skip
+
+
 @pytest.mark.parametrize(("depfile", "role"), [
     ("atlas.ktx2", "the other container's name beside the atlas (removed by the bake)"),
     ("atlas.glsl", "the GLSL include's name beside the atlas"),
