@@ -11,7 +11,7 @@ from atlasgen.cli.options import HELP_OPTIONS, MAX_SPP, QUIET, VERBOSE, PathArg,
 from atlasgen.errors import Terminated
 from atlasgen.preview.previewer import DEFAULT_CACHE_DIR, Previewer, check_preview_output, default_output
 from atlasgen.preview.reference import reference_lines
-from atlasgen.preview.watch import describe_label, describe_update, watch_preview
+from atlasgen.preview.watch import describe_label, describe_update, picture_kept, watch_preview
 
 __all__ = ["preview"]
 
@@ -105,7 +105,7 @@ def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> No
     def report(update) -> None:
         printed.clear()
         if update.error is not None:
-            click.echo(f"atlasgen: error: {one_line_message(update.error)} (kept the last picture; watching)", err=True)
+            click.echo(f"atlasgen: error: {one_line_message(update.error)} ({picture_kept(output)}; watching)", err=True)
         elif verbosity != QUIET:
             _warn(update.preview.bake, printed)
             click.echo(describe_update(update, output, steps=verbosity == VERBOSE))

@@ -60,13 +60,19 @@ class Update:
     timings: dict = field(default_factory=dict)
 
 
+def picture_kept(output) -> str:
+    """What a failed update leaves at ``output``: the last picture, or none where the watch has drawn none yet (a
+    material broken from the start said "kept the last picture" of a picture that did not exist)."""
+    return "kept the last picture" if Path(output).exists() else "no picture yet"
+
+
 def describe_update(update: Update, output, steps: bool = True) -> str:
     """The line printed for an update: what changed and how long the PNG took, e.g.
     ``materials/clay.toml changed: build/preview/clay.png in 0.412 s``, with ``steps`` followed by
     ``(read 0.001, bake 0.061, upload 0.009, ...)``; for a failed one, its error."""
     what = f"{', '.join(update.changed)} changed" if update.changed else "first picture"
     if update.preview is None:
-        return f"{what}: kept the last picture ({update.error})"
+        return f"{what}: {picture_kept(output)} ({update.error})"
     line = f"{what}: {Path(output).as_posix()} in {update.timings['total']:.3f} s"
     if not steps:
         return line

@@ -113,6 +113,22 @@ def test_saves_in_place_renamed_over_broken_and_fixed(write_material, tmp_path):
     assert len(lines) == 5 and all("\n" not in line for line in lines)
 
 
+def test_a_material_broken_from_the_start_says_there_is_no_picture_yet(write_material, tmp_path):
+    clay = write_material("clay", 'type = "lambert"\ncolour = [0.7, 0.5]\n')
+    out = tmp_path / "clay.png"
+
+    def script(next_update):
+        first = next_update()
+        assert first.preview is None and "field 'colour'" in str(first.error) and not out.exists()
+        assert describe_update(first, out).startswith("first picture: no picture yet (")
+        rename_over(clay, CLAY)
+        assert next_update().error is None and out.exists()
+        clay.write_text('type = "lambert"\ncolour = [0.7, 0.5]\n')
+        assert describe_update(next_update(), out).startswith(f"{clay.as_posix()} changed: kept the last picture (")
+
+    run_watch([clay], out, StandIn(), script, max_updates=2)
+
+
 def test_a_folder_takes_new_material_files(write_material, tmp_path):
     write_material("clay", CLAY)
     folder, out = tmp_path / "materials", tmp_path / "sheet.png"
