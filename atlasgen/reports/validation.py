@@ -1002,6 +1002,11 @@ _ROW_FIELDS = {"material": (str, "a material name", False), "scene": (str, "a sc
                "notes": (list, "a list of notes", True), "look": (dict, "an object", True),
                "error_breakdown": (dict, "an object", True), "atlas_identity": (dict, "an object", True)}  # fmt: skip
 _REFERENCE_FIELDS = {"images": (dict, "an object of image paths", True)}
+#: A look's words, which the page prints and tests as text: a hand-edited ``not_judged: true`` failed deep in the
+#: page ("'bool' object has no attribute 'startswith'").
+_LOOK_FIELDS = {key: (str, what, True) for key, what in (("reference", "a reference name"), ("compared", "a description"),
+                                                         ("why_none", "a reason"), ("not_judged", "a reason"),
+                                                         ("bound", "a description"), ("goal_source", "a word"))}  # fmt: skip
 #: What a merge needs besides: the images whose paths it rebases (the library page links none of them).
 _MERGED_FIELDS = ("atlas_image", "images")
 
@@ -1042,6 +1047,7 @@ def check_result_figures(path, results, merged: bool = False) -> None:
             _check_verdict(path, f"results[{i}].references.{kind}", ref)
         look = row.get("look")
         if look is not None:
+            _check_fields(path, f"results[{i}].look", look, _LOOK_FIELDS, ())
             _check_verdict(path, f"results[{i}].look", look)
             goal = look.get("goal")
             if goal is not None:

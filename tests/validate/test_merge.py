@@ -181,6 +181,9 @@ def _put(value, *keys):
 
 
 @pytest.mark.parametrize(("change", "field", "expected"), [
+    (_put(True, "results", 0, "look", "not_judged"), "results[0].look.not_judged",
+     "expected a reason as atlasgen validate writes it, got True"),
+    (_put(3, "results", 0, "look", "reference"), "results[0].look.reference", "expected a reference name"),
     (_pop("results", 0, "material"), "results[0].material", "expected a material name as atlasgen validate writes it, missing"),
     (_put([1], "results", 0, "material"), "results[0].material", "got [1]"),
     (_pop("results", 0, "atlas_image"), "results[0].atlas_image", "missing"),
