@@ -35,7 +35,7 @@ def test_a_round_trip_and_every_failure(tmp_path):
     bad.write_text('{"a":' + "[" * 100000 + "]" * 100000 + "}")
     with pytest.raises(InputError, match=r"bad.json: malformed JSON \(arrays or objects nested too deeply to read\)"):
         read_report_json(bad, "x", "cmd")
-    with pytest.raises(InputError, match="cannot read"):
+    with pytest.raises(InputError, match="expected a regular file, got a folder"):
         read_report_json(tmp_path, "x", "cmd")  # a folder
 
 
