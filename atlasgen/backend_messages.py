@@ -15,7 +15,6 @@ worker runs first).
 from __future__ import annotations
 
 import contextlib
-import importlib.abc
 import importlib.util
 import os
 import sys
@@ -70,8 +69,9 @@ def _errors_only(drjit) -> None:
     drjit.set_log_level(drjit.LogLevel.Error)
 
 
-class _OnDrjitImport(importlib.abc.MetaPathFinder):
-    """Finds ``drjit`` as the other finders do, and lowers its level once its module has run.
+class _OnDrjitImport:
+    """Finds ``drjit`` as the other finders do, and lowers its level once its module has run (a meta path finder:
+    ``find_spec`` is all the import system asks of one, and importlib.abc cost the command line's start 2 ms).
 
     It stays in place until the module has run: a probe (``importlib.util.find_spec("drjit")``)
     finds a spec without importing it, and the import that follows must find this finder again.

@@ -42,6 +42,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from atlasgen.errors import BackendError
+from atlasgen.optics.falloff import DISTANCE_SQUARED_FLOOR
 from atlasgen.separable.materialx_oracle import (
     GL_LOCK,
     SURFACE_MODELS,
@@ -79,7 +80,7 @@ _POINT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out l
     // d^2 held above float32's least normal number for 1/d^2 alone; the window and the direction at the true
     // distance, formed so that nothing underflows in a small scene (as the renderer's lighting.wgsl).
     vec3 d = light.position - position;
-    float d2 = max(dot(d, d), 1.17549435e-38);
+    float d2 = max(dot(d, d), DISTANCE_SQUARED_FLOOR);
     float window = 1.0;
     if (light.range > 0.0)
     {
@@ -92,7 +93,7 @@ _POINT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out l
     result.direction = u * inversesqrt(max(dot(u, u), 1.0));
     result.intensity = min(light.color * light.intensity / d2, vec3(3.4028234e38)) * window;
 }
-"""
+""".replace("DISTANCE_SQUARED_FLOOR", repr(DISTANCE_SQUARED_FLOOR))  # 1.1754943508222875e-38: GLSL reads it
 _SPOT_LIGHT = re.compile(r"void mx_spot_light\(LightData light, vec3 position, out lightshader result\)\n\{.*?\n\}\n", re.S)
 _SPOT_LIGHT_BODY = """void mx_point_light(LightData light, vec3 position, out lightshader result);  // generated after it
 
