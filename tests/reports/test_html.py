@@ -41,25 +41,34 @@ def test_pages_escape_what_they_show():
 @given(st.lists(st.tuples(st.floats(60, 540), st.floats(60, 340), st.text("abcK0123/", min_size=1, max_size=12)),
                 min_size=1, max_size=6))  # fmt: skip
 @example(points=[(60.0, 60.0, "0"), (60.0, 75.0, "0"), (60.0, 81.25, "0000000")])  # the farthest candidate, rounded
+# A crowded corner: the fifth point finds no clear box and goes unlabelled, so labels and points no longer pair up.
+@example(points=[(60.0, 60.0, "0"), (60.0, 70.0, "0"), (60.0, 84.0, "0000000"), (60.0, 94.0, "0000000"), (60.0, 60.0, "0")])
 @settings(max_examples=60, deadline=None)
 @pytest.mark.slow
 def test_placed_labels_stay_inside_and_do_not_overlap_where_there_is_room(points):
-    """A handful of labels on a 600 x 400 chart: each box inside it, none intersecting another
-    (boxes as place_labels sizes them), each within a few label heights of its point."""
+    """A handful of labels on a 600 x 400 chart: each box inside it, none within the margin of another
+    (boxes as place_labels sizes them), each within a few label heights of its point. A point with no
+    clear box goes unlabelled, so the labels are the points' subsequence, in order; three always fit."""
     labels = place_labels(points, 600, 400)
-    boxes = []
-    for label, (x, y, text) in zip(labels, points):
+    boxes, remaining = [], iter(points)
+    for label in labels:
+        # The first point not yet matched that this label names: place_labels keeps the points' order.
+        x, y, text = next(
+            p for p in remaining if (round(p[0], 1), round(p[1], 1), p[2]) == (label["x"], label["y"], label["text"])
+        )
         w = len(text) * 7.4 + 6
         box = (label["left"], label["top"], label["left"] + w, label["top"] + LABEL_LINE_PX)
-        assert box[0] >= 0 and box[1] >= 0 and box[2] <= 600 and box[3] <= 400
-        # The farthest candidate is 3 x 24 px above its point (4 label lines + 8 px); "top" is rounded to 0.1 px.
+        # "left" and "top" are rounded to 0.1 px.
+        assert box[0] >= -0.05 and box[1] >= -0.05 and box[2] <= 600 + 0.05 and box[3] <= 400 + 0.05
+        # The farthest candidate is 3 x 24 px above its point (4 label lines + 8 px).
         assert abs(label["top"] - y) <= 4 * LABEL_LINE_PX + 8 + 0.05 + 1e-9
-        assert label["text"] == text and label["x"] == round(x, 1)
+        assert abs(label["left"] - x) <= w + 18 + 0.05 + 1e-9
         boxes.append(box)
-    if len(points) <= 3:  # always room for three: every one placed clear of the others
-        for i, a in enumerate(boxes):
-            for b in boxes[i + 1 :]:
-                assert not (a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]), (a, b)
+    for i, a in enumerate(boxes):  # clear of each other by the 3 px margin, less the rounding
+        for b in boxes[i + 1 :]:
+            assert not (a[0] < b[2] + 2.9 and b[0] < a[2] + 2.9 and a[1] < b[3] + 2.9 and b[1] < a[3] + 2.9), (a, b)
+    if len(points) <= 3:  # always room for three: every one labelled
+        assert len(labels) == len(points)
 
 
 @pytest.mark.slow
