@@ -152,6 +152,8 @@ def validate(
             if not environment and all(s in STANDARD_SCENES and s not in ENVIRONMENT_SCENES for s in scenes):
                 refuse_options(ctx, ("max_physical_spp",), "with --no-physical and no environment scene, where it caps "
                                "no reference", "--environment (whose references it caps), or no --max-physical-spp")  # fmt: skip
+    if not merge:
+        _refuse_repeated_scenes(scenes)
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
     if not merge:  # the caches are written as the renders finish: refused now, not after them
@@ -189,3 +191,15 @@ def validate(
     missed = missed_goals(written["data"])
     if strict and missed:
         raise GoalsMissed(f"{Path(written['html']).as_posix()}: {len(missed)} goal(s) missed: {'; '.join(missed)}")
+
+
+def _refuse_repeated_scenes(scenes) -> None:
+    """The same --scene given twice (a standard name, or one scene file however its path is spelled) is
+    a usage error, exit 2; two different files whose scenes share a name stay bad input (validate_atlas)."""
+    seen = {}
+    for s in scenes:
+        key = s if s in STANDARD_SCENES else Path(s).resolve().as_posix()
+        if key in seen:
+            raise click.BadParameter(f"{s} is given twice (the first: --scene {seen[key]}); expected each scene once",
+                                     param_hint="'--scene'")  # fmt: skip
+        seen[key] = s

@@ -510,3 +510,15 @@ def test_max_physical_spp_caps_an_environment_reference(validation_atlas, mitsub
     (warning,) = [line for line in result.stderr.splitlines() if "noise floor" in line]
     assert warning.startswith("atlasgen: warning: matte on env-sky: ") and warning.endswith("raise --max-physical-spp")
     assert gpu_device.take_errors() == []
+
+
+@pytest.mark.parametrize("second", ["front", "./scenes/s.toml"], ids=["standard-name", "same-file-spelled-otherwise"])
+def test_a_scene_given_twice_is_a_usage_error(second, tmp_path):
+    # Exit 2 before the atlas is read or anything rendered: the same option value twice, not a bad file.
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "s.toml").write_text("")
+    first = "front" if second == "front" else "scenes/s.toml"
+    result = CliRunner().invoke(app, ["validate", "--scene", first, "--scene", second, "--atlas", "missing.dds", "-o", "v"])
+    assert result.exit_code == 2, result.output
+    assert f"{second} is given twice (the first: --scene {first}); expected each scene once" in result.output
+    assert not (tmp_path / "v").exists()
