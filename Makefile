@@ -71,7 +71,8 @@ RENDER_CODE := $(sort $(wildcard atlasgen/render/*.py atlasgen/shaders/*.wgsl))
 VALIDATE_CODE := $(sort $(wildcard atlasgen/validate/*.py atlasgen/data/validation/*.toml)) $(RENDER_CODE) $(REPORT_CODE)
 VALIDATION := $(BUILD)/validation
 VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(STEMS))
-MTLX_VALIDATED := $(patsubst %,$(VALIDATION)/materials/%/report.json,$(MTLX_STEMS))
+# A document's folder apart from the TOML files': a.mtlx beside a.toml were one target with two recipes.
+MTLX_VALIDATED := $(patsubst %,$(VALIDATION)/documents/%/report.json,$(MTLX_STEMS))
 SEPARABLE_REPORT := $(BUILD)/report/separable
 SEPARABLE_STUDIES := $(patsubst %,$(SEPARABLE_REPORT)/materials/%/report.json,$(SEPARABLE_STEMS))
 
@@ -290,10 +291,10 @@ ifneq ($(STRICT),)
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED) $(MTLX_VALIDATED)) -o $(VALIDATION) -q --strict
 endif
 
-# $(call prune,FOLDER,STEMS): remove FOLDER's per-material subfolders whose material file is gone.
+# $(call prune,FOLDER,STEMS,EXT): remove FOLDER's per-material subfolders whose material file (materials/STEM.EXT) is gone.
 # Run by the merges, which wait for every per-material job, so nothing is writing there.
 prune = for d in $(1)/*/; do [ -d "$$d" ] || continue; n=$$(basename "$$d"); \
-	case " $(2) " in *" $$n "*) ;; *) echo "removing $$d (no materials/$$n.toml)"; rm -rf "$$d";; esac; done
+	case " $(2) " in *" $$n "*) ;; *) echo "removing $$d (no materials/$$n.$(3))"; rm -rf "$$d";; esac; done
 
 # One material's validation, into its own folder. Its bake result (the cache entry, rewritten or
 # touched whenever make re-bakes the material) stands for the material's slices; the atlas is
@@ -304,14 +305,15 @@ $(VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.toml $(CACHE_DI
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # A MaterialX document's materials: one validation job, into the document's folder.
-$(MTLX_VALIDATED): $(VALIDATION)/materials/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(LIBRARY_ATLAS) $(VENV)/.stamp
+$(MTLX_VALIDATED): $(VALIDATION)/documents/%/report.json: materials/%.mtlx $(CACHE_DIR)/%.mtlx.stamp $(SLICE_CODE) $(VALIDATE_CODE) $(BUILD)/budget.args | $(LIBRARY_ATLAS) $(VENV)/.stamp
 	@mkdir -p "$$XDG_RUNTIME_DIR" && chmod 700 "$$XDG_RUNTIME_DIR"
 	$(ATLASGEN) validate $< --atlas $(BUILD)/atlas.dds -o $(@D) -q $(VALIDATE_ARGS)
 
 # The combined page (index.html, report.json, speed_error.png) from the per-material report.json
 # files; materials.list re-merges when a material is removed.
 $(VALIDATION)/report.json: $(VALIDATED) $(MTLX_VALIDATED) $(BUILD)/materials.list $(VALIDATE_CODE) | $(VENV)/.stamp
-	@$(call prune,$(VALIDATION)/materials,$(STEMS) $(MTLX_STEMS))
+	@$(call prune,$(VALIDATION)/materials,$(STEMS),toml)
+	@$(call prune,$(VALIDATION)/documents,$(MTLX_STEMS),mtlx)
 	$(ATLASGEN) validate --merge $(patsubst %/report.json,%,$(VALIDATED) $(MTLX_VALIDATED)) -o $(VALIDATION) -q
 
 # The separable study measures each material for ~10 s: one job per separable material, then a merge.
@@ -326,7 +328,7 @@ endif
 $(BUILD)/separable.list:
 	@mkdir -p $(@D) && echo "$(SEPARABLE_STEMS)" > $@
 $(SEPARABLE_REPORT)/index.md: $(SEPARABLE_STUDIES) $(BUILD)/materials.list $(BUILD)/separable.list $(REPORT_CODE) | $(VENV)/.stamp
-	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS))
+	@$(call prune,$(SEPARABLE_REPORT)/materials,$(SEPARABLE_STEMS),toml)
 	$(ATLASGEN) report separable --merge $(patsubst %/report.json,%,$(SEPARABLE_STUDIES)) -o $(SEPARABLE_REPORT)
 
 # The library page assembles per-material figures that are already measured (manifest, timings,

@@ -67,8 +67,12 @@ def test_a_document_s_materials_get_one_cache_entry_each(tmp_path):
         return Material(name=name, type="lambert", params={}, source=source, content_hash=name)
 
     assert cache_path(tmp_path, material("a", "materials/a.toml")) == tmp_path / "a.npz"
-    assert cache_path(tmp_path, material("Gold", "materials/lib.mtlx")) == tmp_path / "lib.Gold.npz"
-    assert cache_path(tmp_path, material("Car", "materials/lib.mtlx")) == tmp_path / "lib.Car.npz"
+    assert cache_path(tmp_path, material("Gold", "materials/lib.mtlx")) == tmp_path / "lib.mtlx" / "Gold.npz"
+    assert cache_path(tmp_path, material("Car", "materials/lib.mtlx")) == tmp_path / "lib.mtlx" / "Car.npz"
+    # A TOML file named as a document's material once shared its entry: each re-baked the other on every bake.
+    assert cache_path(tmp_path, material("lib.Gold", "materials/lib.Gold.toml")) != cache_path(
+        tmp_path, material("Gold", "materials/lib.mtlx")
+    )
 
 
 @pytest.mark.slow

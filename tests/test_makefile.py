@@ -226,6 +226,33 @@ def test_a_removed_materials_folders_are_pruned_by_the_merges(tree):
     assert "removing build/validation/materials/separable-gold/" in result.stdout
 
 
+def test_a_document_beside_a_toml_file_of_its_name_is_validated_apart_and_pruned(tree):
+    """materials/snow.mtlx beside snow.toml: both went to build/validation/materials/snow/, one target with two
+    recipes (make warned, kept the document's, never validated the TOML file, and the merge got the folder twice).
+    Each has its own folder now, and a removed document's folder is pruned as a removed TOML file's is."""
+    fake = tree / "fake-atlasgen"
+    fake.write_text(FAKE_ATLASGEN)
+    fake.chmod(0o755)
+    (tree / "materials" / "snow.mtlx").write_text("")
+    (tree / "build" / "validation" / "materials" / "snow" / "report.json").unlink()  # so that make -n shows both jobs
+    result = _make(tree, "-n", "validate")
+    assert result.returncode == 0 and "overriding recipe" not in result.stderr, result.stderr
+    validations = {re.search(r"validate (\S+)", c).group(1): re.search(r" -o (\S+)", c).group(1)
+                   for c in result.stdout.splitlines() if " validate materials/snow." in c}  # fmt: skip
+    assert validations == {"materials/snow.toml": "build/validation/materials/snow",
+                           "materials/snow.mtlx": "build/validation/documents/snow"}  # fmt: skip
+    result = _make(tree, f"ATLASGEN={fake}", "validate")
+    assert result.returncode == 0, result.stderr
+    merge = next(line for line in result.stdout.splitlines() if "validate --merge" in line)
+    assert merge.count("build/validation/materials/snow ") == 1 and "build/validation/documents/snow " in merge
+    (tree / "materials" / "snow.mtlx").unlink()
+    result = _make(tree, f"ATLASGEN={fake}", "validate")
+    assert result.returncode == 0, result.stderr
+    assert "removing build/validation/documents/snow/ (no materials/snow.mtlx)" in result.stdout
+    assert not (tree / "build" / "validation" / "documents" / "snow").exists()
+    assert (tree / "build" / "validation" / "materials" / "snow" / "report.json").is_file()
+
+
 def test_no_two_jobs_write_the_same_place(tree):
     shutil.rmtree(tree / "build")
     commands = _commands(tree, "validate", "report")
@@ -371,7 +398,7 @@ def test_a_file_a_materialx_document_includes_rebakes_the_document(tree):
     for name in ("doc.mtlx", "shared/base.mtlx", "shared/unused.mtlx"):
         (tree / "materials" / name).write_text("")
     stamp = tree / "build" / "cache" / "doc.mtlx.stamp"
-    report = tree / "build" / "validation" / "materials" / "doc" / "report.json"
+    report = tree / "build" / "validation" / "documents" / "doc" / "report.json"
     report.parent.mkdir(parents=True)
     for path in (stamp, report):
         path.write_text("")

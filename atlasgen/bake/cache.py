@@ -87,10 +87,12 @@ def _entry_digest(values: np.ndarray, meta: dict) -> str:
 
 def cache_path(cache_dir, material) -> Path:
     """``<cache_dir>/<source file stem>.npz``: one file per material file, so Make can name it; a
-    MaterialX document's materials one each, ``<document stem>.<material name>.npz``."""
+    MaterialX document's materials one each, ``<document stem>.mtlx/<material name>.npz``. In a folder of
+    the document's: ``<stem>.<material>.npz`` was also the entry of a TOML file ``<stem>.<material>.toml``
+    (``lib.gold.toml`` beside ``lib.mtlx``'s ``gold``), and the two re-baked each other on every bake."""
     stem = Path(material.source).stem
     if material.source.lower().endswith(".mtlx"):
-        return Path(cache_dir) / f"{stem}.{material.name}.npz"
+        return Path(cache_dir) / f"{stem}.mtlx" / f"{material.name}.npz"
     return Path(cache_dir) / f"{stem}.npz"
 
 
