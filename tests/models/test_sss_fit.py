@@ -217,23 +217,12 @@ def test_fitted_skin_beats_the_closed_form_against_volpath(mitsuba_llvm, gpu_con
     assert info["noise_relative_rms"] * np.sqrt(10.0) < info["relative_rms"] < info["model_relative_rms"]
 
 
-def test_the_documented_skin_scores_are_the_manifests():
-    """docs/materials.md's in-sample and out-of-sample table is the golden manifest's skin fit, to 0.01%."""
+def test_the_golden_skin_fit_is_fitted_on_spheres_other_than_the_validation_one():
+    """The manifest's in-sample radii are the fit's own, and the validation sphere is not one of them (its score is
+    out of sample; docs/materials.md's table quotes both, written by atlasgen.reports.measured_docs)."""
     import json
-    import re
 
     root = Path(__file__).resolve().parents[2]
     manifest = json.loads((root / "tests" / "resources" / "golden" / "array-srgb.json").read_text())
     fit = next(m for m in manifest["materials"] if m["name"] == "skin")["fit"]
-    scored = fit["out_of_sample"]
-    expected = {
-        "fitted spheres (in sample)": (fit["relative_rms"], fit["model_relative_rms"]),
-        "validation sphere (out of sample)": (scored["validation_sphere"]["relative_rms"], scored["validation_sphere"]["model_relative_rms"]),
-        "flat (out of sample)": (scored["flat"]["relative_rms"], scored["flat"]["model_relative_rms"]),
-    }  # fmt: skip
-    text = (root / "docs" / "materials.md").read_text(encoding="utf-8")
-    rows = dict((name, (float(a) / 100, float(b) / 100))
-                for name, a, b in re.findall(r"\| ([a-z ()]+) \| ([0-9.]+)% \| ([0-9.]+)% \|", text))  # fmt: skip
-    for name, (fitted, model) in expected.items():
-        assert rows[name] == pytest.approx((fitted, model), abs=5.1e-5), name
     assert fit["fit_radii"] == list(sss_fit.FIT_RADII) and sss_fit.OBJECT_RADIUS not in fit["fit_radii"]
