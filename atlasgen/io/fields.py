@@ -115,7 +115,7 @@ def parse_colour(value, path, name, error: type[FieldError] = MaterialError):
     for c in value:
         if not fits_float32(c) or not 0.0 <= c <= 1.0:
             raise error(path, name, f"expected a colour [r, g, b] of 3 finite numbers in [0, 1], got {shown(value)}")
-        out.append(float(c))
+        out.append(float(c) + 0.0)  # -0.0 as 0.0, as Param._check_number
     return tuple(out)
 
 
@@ -189,7 +189,9 @@ class Param:
         if self._out_of_bounds(value, in_float32=True):
             raise error(path, name, f"expected {self.expectation()}, got {shown(value)} "
                                             f"({to_float32(value):g} in float32)")  # fmt: skip
-        return float(value)
+        # + 0.0 turns -0.0 into 0.0 (IEEE 754 round to nearest) and leaves every other value as it is: the same
+        # material written with -0.0 echoed "-0.0" into the manifest, other bytes for the same texels.
+        return float(value) + 0.0
 
     def coerce(self, value, path, error: type[FieldError] = MaterialError, name: str | None = None):
         """Check ``value`` against this schema; return it normalised (floats, tuples).
