@@ -144,7 +144,7 @@ class GoalsMissed(AtlasgenError):
 
 class BakeWarnings(AtlasgenError):
     """``bake --strict``: a material warned (a measured error over the threshold, a dropped lobe,
-    tolerated non-finite samples: :mod:`atlasgen.bake.quality`); nothing is written."""
+    tolerated non-finite samples, texels clamped to a scale given: :mod:`atlasgen.bake.quality`); nothing is written."""
 
     exit_code = 7
 
@@ -213,7 +213,7 @@ EXIT_CODES = (
     (
         BakeWarnings.exit_code,
         "bake --strict: a material warned (its measured error over the threshold, a dropped delta lobe, "
-        "tolerated non-finite samples); nothing is written",
+        "tolerated non-finite samples, texels clamped to a scale given); nothing is written",
     ),
     (
         EXIT_INTERRUPTED,

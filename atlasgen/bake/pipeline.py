@@ -330,10 +330,12 @@ def bake_atlas(
         bias_c = np.concatenate([np.repeat(encoded.bias[:, :1], 3, 1), encoded.bias[:, 1:]], 1)[:, None, None, :]
         err = np.abs(dec * scale_c + bias_c - values)
         if encoded.clamped_fraction > 0:
-            warnings.append(
-                f"{material.source}: material '{material.name}': clamped {100 * encoded.clamped_fraction:.3f}% of "
-                f"texel channels to the slice scale (rgb_scale={material.rgb_scale}, alpha_scale={material.alpha_scale})"
-            )
+            # A material warning, which --strict refuses: what was clamped is not in the atlas, as a value stored
+            # as 0 ("lost to 8 bits") is not; among the bake's general warnings --strict let it through.
+            material_warnings.append(MaterialWarning(
+                material.source, material.name, "clamped to the scale", float(encoded.clamped_fraction),
+                f"clamped {100 * encoded.clamped_fraction:.3f}% of texel channels to the slice scale "
+                f"(rgb_scale={material.rgb_scale}, alpha_scale={material.alpha_scale})"))  # fmt: skip
         entry = MaterialEntry(
             name=material.name,
             id=first,

@@ -18,7 +18,8 @@ A material warns, with one line naming it, the error and its cause where known, 
   (``nonfinite_tolerance``); more than it tolerates are a :class:`~atlasgen.errors.MaterialError`;
 - its stored slices lost to 8 bits most of what it gave: over :data:`LOST_WARNING_THRESHOLD` of the
   texels whose RGB (or A) is above 0 are stored as code 0 (:func:`assess_storage`), as when a scale
-  far beyond the slice's range stores a lambert black.
+  far beyond the slice's range stores a lambert black;
+- a scale given below its slice's peak clamped texel channels to it (the bake assembling the atlas warns).
 
 ``atlasgen bake --strict`` turns any of them into a failure (exit status
 :attr:`atlasgen.errors.BakeWarnings.exit_code`, no atlas written; a cache keeps what was baked). None of the shipped materials
@@ -51,7 +52,8 @@ class MaterialWarning:
 
     ``figure`` is the measured error (a fraction) and ``cause`` what is known of why:
     ``"anisotropy"``, ``"dropped delta lobe"``, ``"unreachable fit"``, ``"missed budget"``,
-    ``"non-finite samples"``, ``"not in the table"``, ``"flattened"`` or ``"lost to 8 bits"``; ``detail`` the rest of
+    ``"non-finite samples"``, ``"not in the table"``, ``"flattened"``, ``"lost to 8 bits"`` or ``"clamped to the scale"``
+    (a scale given below the slice's peak: the bake's, :func:`atlasgen.bake.pipeline`); ``detail`` the rest of
     the line.
     """
 
