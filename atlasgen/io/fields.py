@@ -84,6 +84,8 @@ def shown(value, limit: int = 80) -> str:
 
     >>> shown(datetime.date(1979, 5, 27)), shown([0.5, 2]), shown(True)
     ('a date 1979-05-27', '[0.5, 2]', 'true')
+    >>> shown(16 ** 5000)  # beyond what Python writes out as digits
+    'an integer of 20001 bits (about 6021 digits)'
     >>> shown("b" * 250)  # the string's own length, not its repr's (with the quotes)
     "'bbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbbb'... (250 characters)"
     """
@@ -94,7 +96,40 @@ def shown(value, limit: int = 80) -> str:
             return shorten(f"a {kind} {value.isoformat()}", limit)
     if isinstance(value, str) and len(repr(value)) > limit:
         return f"{repr(value[: limit - 14])}... ({len(value)} characters)"
-    return shorten(repr(value), limit)
+    return shorten(_written(value), limit)
+
+
+def _written(value) -> str:
+    """``repr(value)``, but an integer too long to write out (in a list or table too) by its size.
+
+    Python refuses to write an integer of over 4300 digits (``sys.int_max_str_digits``), which a 3.6 kB TOML hex
+    literal is: its repr raised ValueError, an internal error where the field's line was due.
+
+    >>> _written([16 ** 5000, 0.5]), _written({"a": -(2 ** 4001)})
+    ('[an integer of 20001 bits (about 6021 digits), 0.5]', "{'a': -an integer of 4002 bits (about 1205 digits)}")
+    """
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > _INT_BITS_SHOWN:
+        return f"{'-' if value < 0 else ''}an integer of {value.bit_length()} bits (about {_decimal_digits(value)} digits)"
+    if isinstance(value, list):
+        return "[" + ", ".join(map(_written, value)) + "]"
+    if isinstance(value, tuple):
+        return "(" + ", ".join(map(_written, value)) + ("," if len(value) == 1 else "") + ")"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_written(k)}: {_written(v)}" for k, v in value.items()) + "}"
+    return repr(value)
+
+
+#: Integers up to this many bits are shown as written (about 1200 digits, cut to the line's limit); longer ones by size.
+_INT_BITS_SHOWN = 4000
+
+
+def _decimal_digits(value: int) -> int:
+    """The decimal digits of ``|value|`` (``value != 0``), to within one, without writing it out: floor(log10 |value|) + 1.
+
+    >>> _decimal_digits(10**5000), _decimal_digits(-999)
+    (5001, 3)
+    """
+    return math.floor(math.log10(abs(value))) + 1
 
 
 def parse_colour(value, path, name, error: type[FieldError] = MaterialError):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import doctest
 
+import pytest
+
 from atlasgen.io import fields
 
 
@@ -35,3 +37,25 @@ def test_negative_zero_is_read_as_zero_so_the_manifest_does_not_echo_it(tmp_path
         written[zero] = (manifest.replace(folder.as_posix(), "FOLDER"), (folder / "a.dds").read_bytes())
     assert "-0.0" not in written["-0.0"][0]
     assert written["-0.0"][1] == written["0.0"][1]
+
+
+@pytest.mark.parametrize(
+    "body, field",
+    [('type = "lambert"\nid = {big}\n', "id"), ('type = "lambert"\ncolour = [{big}, 0, 0]\n', "colour"),
+     ("type = {big}\n", "type"), ('type = "toon"\nthresholds = [{big}]\n', "thresholds[0]")],
+)  # fmt: skip
+def test_an_integer_too_long_for_python_to_write_gets_the_field_s_line(tmp_path, body, field):
+    """The finding: a 3.6 kB TOML hex literal is an integer of over 4300 digits, which Python refuses to write out;
+    the message's repr of it raised ValueError, and the bake exited 1 ("internal error") instead of 3."""
+    from atlasgen.errors import MaterialError
+    from atlasgen.materials.material import read_materials
+
+    path = tmp_path / "big.toml"
+    path.write_text(body.replace("{big}", "0x" + "f" * 3600))
+    with pytest.raises(MaterialError) as info:
+        read_materials([path])
+    message = str(info.value)
+    assert (
+        message.startswith(f"{path.as_posix()}: field '{field}': ") and "an integer of 14400 bits (about 4335 digits)" in message
+    )
+    assert "\n" not in message and len(message) < 300
