@@ -257,8 +257,8 @@ def test_adversarial_scenes_render_only_finite_pixels(tmp_path, gpu_device):
             """,
     }
     for name, body in scenes.items():
-        # The widest depth range a camera may have (far = 1e7 near; near 1e-30 with far 3e38 is refused now).
-        text = "[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\nnear = 3e-6\nfar = 30\n"
+        # The widest depth range a camera may have (far = 1e5 near; near 1e-30 with far 3e38 is refused now).
+        text = "[camera]\nposition = [0, 1, 5]\ntarget = [0, 0, 0]\nnear = 3e-4\nfar = 30\n"
         text += "[image]\nwidth = 24\nheight = 16\n" + "\n".join(line.strip() for line in body.splitlines()) + "\n"
         (tmp_path / f"{name}.toml").write_text(text)
         out = tmp_path / f"{name}.exr"

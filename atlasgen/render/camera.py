@@ -14,7 +14,7 @@ import numpy as np
 
 from atlasgen.materials.scene import Camera
 
-__all__ = ["DEPTH_HEADROOM", "Camera", "camera_basis", "view_matrix", "projection_matrix", "pixel_rays"]
+__all__ = ["DEPTH_HEADROOM", "FAR_PLANE_DEPTH", "Camera", "camera_basis", "view_matrix", "projection_matrix", "pixel_rays"]
 
 
 def camera_basis(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -50,6 +50,8 @@ def tangents(camera: Camera, width: int, height: int) -> tuple[float, float]:
 #: with near 1e-4 and far 1000, a ratio scenes allow, lost 73% of its pixels). With the headroom every point in front
 #: of the far plane has a depth below 1 and is drawn (nearby ones may tie, as any depth buffer's would).
 DEPTH_HEADROOM = 2.0**-21
+#: The far plane's depth, which the g-buffer's depth is cleared to: what lies at or beyond it fails the "less" test.
+FAR_PLANE_DEPTH = 1.0 - DEPTH_HEADROOM
 
 
 def projection_matrix(camera: Camera, width: int, height: int) -> np.ndarray:

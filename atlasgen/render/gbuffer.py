@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from atlasgen.render.camera import FAR_PLANE_DEPTH
 from atlasgen.render.layout import NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, declaration_wgsl
 from atlasgen.render.meshes import vertex_buffer_layout
 from atlasgen.shaders.passes import assemble_shader
@@ -207,7 +208,7 @@ class GBufferPass:
                timestamps=None):  # fmt: skip
         """Record one render pass drawing ``draws`` = [(gpu_mesh, object_slot), ...].
 
-        ``clear`` starts a frame (all targets, depth 1, stencil 0); otherwise colour and
+        ``clear`` starts a frame (all targets, depth :data:`FAR_PLANE_DEPTH`, stencil 0); otherwise colour and
         depth are kept and only the stencil is cleared, so it marks just this pass's pixels.
         ``timestamps``: the pass's ``timestamp_writes``, if timed.
         """
@@ -217,7 +218,10 @@ class GBufferPass:
                 "view": gbuffer.depth_stencil.create_view(),
                 "depth_load_op": "clear" if clear else "load",
                 "depth_store_op": "store",
-                "depth_clear_value": 1.0,
+                # The far plane's own depth: a fragment at or beyond it fails "less" and is not drawn. Cleared to 1,
+                # everything up to depth 1 was drawn, 5% beyond far at far / near = 1e5 and the whole scene beyond
+                # it from 2e6 on (1 - near / far rounds above 1 - DEPTH_HEADROOM there).
+                "depth_clear_value": FAR_PLANE_DEPTH,
                 "stencil_load_op": "clear",
                 "stencil_store_op": "store",
                 "stencil_clear_value": 0,

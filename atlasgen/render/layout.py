@@ -11,6 +11,7 @@ from __future__ import annotations
 import enum
 
 from atlasgen.materials.scene import MAX_LIGHTS
+from atlasgen.render.camera import FAR_PLANE_DEPTH
 from atlasgen.shaders.structs import (
     F32,
     U32,
@@ -186,6 +187,9 @@ _DECLARATIONS = {
         "LIGHT_MASK_WORDS", U32, LIGHT_MASK_WORDS, "u32 words of a tile's bit mask of lights (one bit per light)."
     ),
     "LightType": lambda: wgsl_constants(LightType, "LIGHT_"),
+    "FAR_PLANE_DEPTH": lambda: wgsl_constant(
+        "FAR_PLANE_DEPTH", F32, FAR_PLANE_DEPTH, "The far plane's depth, the g-buffer depth's clear value (camera.py)."
+    ),
     "NO_MATERIAL": lambda: wgsl_constant(
         "NO_MATERIAL", U32, NO_MATERIAL, "Material-ID target value of pixels that no object covers (cleared, never written)."
     ),

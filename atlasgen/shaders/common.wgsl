@@ -10,6 +10,7 @@
 // @declare Frame
 
 // @declare NO_MATERIAL
+// @declare FAR_PLANE_DEPTH
 
 // One triangle covering the viewport: no vertex buffer needed.
 @vertex
@@ -18,12 +19,12 @@ fn vs_fullscreen(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f
     return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
 }
 
-// The same triangle on the far plane (depth 1, the depth buffer's clear value): under depth_compare
+// The same triangle on the far plane (FAR_PLANE_DEPTH, the depth buffer's clear value): under depth_compare
 // "greater" only the pixels some object covers pass, and a rasteriser skips the rest before shading.
 @vertex
 fn vs_fullscreen_far(@builtin(vertex_index) index: u32) -> @builtin(position) vec4<f32> {
     let xy = vec2<f32>(f32((index << 1u) & 2u), f32(index & 2u));
-    return vec4<f32>(xy * 2.0 - 1.0, 1.0, 1.0);
+    return vec4<f32>(xy * 2.0 - 1.0, FAR_PLANE_DEPTH, 1.0);
 }
 
 // The g-buffer's normal_depth target (rg32uint, atlasgen/render/gbuffer.py): x the unit normal in

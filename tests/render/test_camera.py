@@ -50,25 +50,26 @@ def test_horizontal_field_of_view():
     np.testing.assert_allclose([right, up, forward], [[1, 0, 0], [0, 1, 0], [0, 0, -1]], atol=1e-12)
 
 
-def test_the_far_plane_lies_below_the_depth_buffer_s_clear_value():
-    """Depth 0 at near and 1 - DEPTH_HEADROOM at far, in closed form: every point in front of the far plane stays
-    below 1, which a 24-bit depth buffer must tell from its clear value."""
-    from atlasgen.render.camera import DEPTH_HEADROOM
+def test_the_far_plane_lies_at_the_depth_buffer_s_clear_value():
+    """Depth 0 at near and FAR_PLANE_DEPTH (1 - DEPTH_HEADROOM, the g-buffer's clear value) at far, in closed form:
+    at the widest far / near allowed, a point 10% in front of the far plane stays steps of 24 bits below it."""
+    from atlasgen.materials.scene import MAX_FAR_OVER_NEAR
+    from atlasgen.render.camera import DEPTH_HEADROOM, FAR_PLANE_DEPTH
 
-    cam = Camera((0, 0, 0), (0, 0, -1), fov=60.0, near=1e-4, far=1000.0)
+    cam = Camera((0, 0, 0), (0, 0, -1), fov=60.0, near=1000.0 / MAX_FAR_OVER_NEAR, far=1000.0)
     p = projection_matrix(cam, 16, 16)
-    depth = [(p @ [0, 0, -z, 1])[2] / (p @ [0, 0, -z, 1])[3] for z in (1e-4, 900.0, 1000.0)]
+    depth = [(p @ [0, 0, -z, 1])[2] / (p @ [0, 0, -z, 1])[3] for z in (cam.near, 900.0, 1000.0)]
     assert depth[0] == pytest.approx(0.0, abs=1e-12)
-    assert depth[2] == pytest.approx(1.0 - DEPTH_HEADROOM, abs=1e-12)
-    assert round(depth[1] * (2**24 - 1)) <= 2**24 - 1 - 8  # 8 steps of 24 bits below 1, 900 away
+    assert depth[2] == pytest.approx(FAR_PLANE_DEPTH, abs=1e-12) and FAR_PLANE_DEPTH == 1.0 - DEPTH_HEADROOM
+    assert round(depth[1] * (2**24 - 1)) <= round(FAR_PLANE_DEPTH * (2**24 - 1)) - 8  # 8 steps below, 900 away
 
 
 @pytest.mark.gpu
 @pytest.mark.parametrize("distance", [900.0, 3e20])
 def test_a_sphere_near_the_far_plane_of_a_small_near_is_drawn_whole(renderer, scene_from, distance):
-    """A sphere 900 away, near 1e-4 and far 1000 (a ratio scenes allow), lost 73% of its pixels: their depth
-    rounded to the clear value 1 and failed the "less" test. The same view with near 0.05 (the same x and y
-    projection) covers the pixels it must."""
+    """A sphere 900 away, near 1e-4 and far 1000 (a ratio scenes allowed then), lost 73% of its pixels: their depth
+    rounded to the clear value 1 and failed the "less" test. At the widest ratio allowed now (near 1e-2), the view
+    covers the pixels the same one with near 0.05 (the same x and y projection) does."""
 
     def covered(near):
         s = distance / 900.0
@@ -94,4 +95,79 @@ def test_a_sphere_near_the_far_plane_of_a_small_near_is_drawn_whole(renderer, sc
 
     whole = covered(0.05)
     assert whole.sum() > 900
-    np.testing.assert_array_equal(covered(1e-4), whole)
+    np.testing.assert_array_equal(covered(1e-2), whole)
+
+
+@pytest.mark.gpu
+def test_an_object_beyond_the_far_plane_is_not_drawn_at_the_widest_depth_range(renderer, scene_from):
+    """The finding: with the depth cleared to 1, a sphere 1% beyond the far plane was drawn at far / near = 1e5
+    (its depth fell between the far plane's, 1 - DEPTH_HEADROOM, and 1), and from 2e6 on all of a scene beyond it.
+    Cleared to the far plane's depth, it is not; moved in front of the far plane, the same sphere is drawn."""
+
+    def covered(far, ratio):
+        scene = scene_from(f"""
+            [camera]
+            position = [0, 0, 10]
+            target = [0, 0, 0]
+            near = {far / ratio}
+            far = {far}
+            [image]
+            width = 40
+            height = 30
+            [[lights]]
+            type = "directional"
+            direction = [0, 0, -1]
+            intensity = 1.0
+            [[objects]]
+            shape = "sphere"
+            material = "lambert"
+            """)  # fmt: skip
+        frame = renderer.render(scene)
+        return int((frame.aov("id") != 0xFFFF).sum())
+
+    assert covered(8.9, 1e5) == 0 and covered(8.9, 100.0) == 0  # its nearest point is 9 away
+    assert covered(11.0, 1e5) > 50 and covered(11.0, 1e5) == covered(11.0, 100.0)
+    assert renderer.ctx.take_errors() == []
+
+
+@pytest.mark.gpu
+def test_a_depth_range_wider_than_the_scenes_allow_shows_the_wrong_object(renderer, scene_from):
+    """Why MAX_FAR_OVER_NEAR is 1e5 (docs/scenes.md): two spheres crossing 10 away, rendered at far / near = 400, 1e5
+    and 1e7 (past the parser's limit, its camera set directly). Against the first, 1e5 differs at most where the two
+    surfaces meet (a pixel or two); 1e7 shows the wrong sphere over a fifth of their pixels."""
+    import dataclasses
+
+    from atlasgen.materials.scene import MAX_FAR_OVER_NEAR
+
+    scene = scene_from("""
+        [camera]
+        position = [0, 0, 10]
+        target = [0, 0, 0]
+        far = 20
+        [image]
+        width = 64
+        height = 48
+        [[lights]]
+        type = "directional"
+        direction = [0, 0, -1]
+        intensity = 1.0
+        [[objects]]
+        shape = "sphere"
+        material = "lambert"
+        translate = [0, 0, -0.3]
+        [[objects]]
+        shape = "sphere"
+        material = "toon"
+        translate = [0.5, 0, 0]
+        """)  # fmt: skip
+
+    def ids(ratio):
+        camera = dataclasses.replace(scene.camera, near=scene.camera.far / ratio)
+        return renderer.render(dataclasses.replace(scene, camera=camera)).aov("id")
+
+    reference = ids(400.0)
+    covered = int((reference != 0xFFFF).sum())
+    assert MAX_FAR_OVER_NEAR == 1e5 and covered > 200 and len(np.unique(reference)) == 3
+    assert int((ids(1e5) != reference).sum()) <= 2
+    assert int((ids(1e7) != reference).sum()) > 0.2 * covered
+    assert renderer.ctx.take_errors() == []

@@ -226,8 +226,10 @@ def test_a_range_the_gpu_would_flush_to_zero_is_refused(scene_from):
 @pytest.mark.parametrize(("camera", "field", "words"), [
     # Found by a hostile-input hunt: each rendered with exit 0 and most of the scene missing.
     ("fov = 1e-10", "camera.fov", "expected a finite number >= 0.0001 and <= 179, got 1e-10"),
-    ("near = 1e-7", "camera.near", "expected at least camera.far / 1e+07 = 0.0001 (the depth buffer cannot tell"),
-    ("near = 1e-3\nfar = 1e5", "camera.near", "= 0.01 ("),
+    ("near = 1e-7", "camera.near", "expected at least camera.far / 100000 = 0.01 (the depth buffer cannot tell"),
+    ("near = 1e-3\nfar = 1e5", "camera.near", "= 1 ("),
+    # Allowed once: two spheres crossing 10 away showed the wrong one in 66 of 316 pixels, objects beyond far drew.
+    ("near = 2e-6\nfar = 20", "camera.near", "= 0.0002 ("),
     # Subnormal in float32: the GPU flushed it to 0 and drew nothing.
     ("near = 1e-38\nfar = 1e-32", "camera.near", "expected a finite number >= 1.17549e-38, got 1e-38"),
 ])  # fmt: skip
@@ -235,8 +237,8 @@ def test_a_camera_the_gpu_cannot_resolve_is_refused(scene_from, camera, field, w
     with pytest.raises(SceneError) as info:
         scene_from(f"[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\n{camera}\n", path="x.toml")
     assert str(info.value).startswith(f"x.toml: field '{field}': ") and words in str(info.value), str(info.value)
-    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfov = 1e-4\nnear = 1e-4\n")  # at the limits
-    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nnear = 1.1754944e-38\nfar = 1e-31\n")
+    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nfov = 1e-4\nnear = 1e-2\n")  # at the limits
+    scene_from("[camera]\nposition = [0, 0, 5]\ntarget = [0, 0, 0]\nnear = 1.1754944e-38\nfar = 1e-33\n")
 
 
 @pytest.mark.parametrize(("table", "field", "expected"), [
