@@ -87,9 +87,18 @@ def _refuse_beyond_half(env: Environment, peak: float) -> None:
     hold infinity there, and its prefiltered levels and harmonics NaN, which render black."""
     if peak <= HALF_MAX:
         return
-    what = {"uniform": "the radiance", "file": f"the image {env.file.as_posix() if env.file else ''}",
-            "sky": "the sky (its sun's disc: sun_irradiance over the disc's solid angle)"}[env.source]  # fmt: skip
-    raise SceneError(env.scene, "environment", f"{what} reaches {peak:.6g} W/(m^2 sr) with intensity, beyond the "
+    field, what = "environment", {"uniform": "the radiance", "file": f"the image {env.file.as_posix() if env.file else ''}",
+                                  "sky": "the sky (its sun's disc: sun_irradiance over the disc's solid angle)"}[env.source]  # fmt: skip
+    if env.source == "sky" and env.sky is not None:
+        # The gradient's colours reach the peak themselves, the sun adding to them: name the brightest where it is
+        # over (a ground of 1e5 with no sun was blamed on the sun's disc), else the disc.
+        colours = {name: max(getattr(env.sky, name)) * env.intensity for name in ("zenith", "horizon", "ground")}
+        brightest = max(colours, key=colours.get)
+        if colours[brightest] > HALF_MAX:
+            field, what = f"environment.{brightest}", f"the sky's {brightest} colour"
+        else:
+            field = "environment.sun_irradiance"
+    raise SceneError(env.scene, field, f"{what} reaches {peak:.6g} W/(m^2 sr) with intensity, beyond the "
                      f"{HALF_MAX:g} the renderer's half-float environment texture holds; expected at most {HALF_MAX:g} "
                      "(lower intensity)")  # fmt: skip
 

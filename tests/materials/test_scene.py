@@ -140,23 +140,29 @@ def test_any_value_parses_or_is_refused_on_one_line(value):
 
 
 @pytest.mark.parametrize(
-    ("text", "words"),
+    ("text", "field", "words"),
     [
-        ("environment = [70000, 1, 1]", "the radiance reaches 70000 W/(m^2 sr) with intensity, beyond the 65504"),
-        ("[environment]\nsource = [40000, 1, 1]\nintensity = 2", "the radiance reaches 80000"),
-        ('[environment]\nsource = "sky"\nsun_irradiance = 3e38', "the sky (its sun's disc: sun_irradiance over"),
+        ("environment = [70000, 1, 1]", "environment", "the radiance reaches 70000 W/(m^2 sr) with intensity, beyond the 65504"),
+        ("[environment]\nsource = [40000, 1, 1]\nintensity = 2", "environment", "the radiance reaches 80000"),
+        ('[environment]\nsource = "sky"\nsun_irradiance = 3e38', "environment.sun_irradiance",
+         "the sky (its sun's disc: sun_irradiance over"),
+        # Found by a hostile sweep: a sky's own colour over the limit, with no sun, was blamed on the sun's disc.
+        ('[environment]\nsource = "sky"\nsun_irradiance = 0\nground = [1e5, 1, 1]', "environment.ground",
+         "the sky's ground colour reaches 100000"),
+        ('[environment]\nsource = "sky"\nzenith = [4e4, 1, 1]\nintensity = 2', "environment.zenith",
+         "the sky's zenith colour reaches 80000"),
     ],
 )  # fmt: skip
 @pytest.mark.filterwarnings("error::RuntimeWarning")  # the overflow is expected, and refused, not warned about
-def test_an_environment_beyond_half_float_is_refused_when_it_is_built(text, words):
+def test_an_environment_beyond_half_float_is_refused_when_it_is_built(text, field, words):
     """The renderer uploads the environment as rgba16float: beyond 65504 it would hold infinity, and its
-    prefiltered levels NaN, which rendered the whole image black (the refusal names the scene)."""
+    prefiltered levels NaN, which rendered the whole image black (the refusal names the scene and the field)."""
     from atlasgen.materials.environment import environment_image
 
     env = _scene(text).environment
     with pytest.raises(SceneError) as info:
         environment_image(env, 32, 64)
-    assert str(info.value).startswith(f"scenes/x.toml: field 'environment': {words}"), str(info.value)
+    assert str(info.value).startswith(f"scenes/x.toml: field '{field}': {words}"), str(info.value)
 
 
 def test_an_environment_at_half_float_s_largest_value_is_built():
