@@ -310,7 +310,28 @@ def _obj_text(path: Path, scene_path, field) -> str:
         line = text.count("\n", 0, zero.start()) + 1
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} line {line}: a face names index 0; expected "
                                             "indices from 1 (OBJ counts from 1, or back from -1)")  # fmt: skip
+    _refuse_missing_normals(text, path, scene_path, field)
     return text
+
+
+#: A face corner that names a normal (i//n or i/t/n): its normal index, the third number. Only face lines have such
+#: words (vertex, texture and normal lines hold plain numbers), so the whole text is searched at once.
+_OBJ_NORMAL_INDEX = re.compile(r"(?<![^ \t])[+-]?\d+/[+-]?\d*/([+-]?\d+)")
+_OBJ_NORMAL_LINE = re.compile(r"(?m)^[ \t]*vn[ \t]")
+
+
+def _refuse_missing_normals(text: str, path: Path, scene_path, field) -> None:
+    """Refuse a face corner naming a normal the file does not have (``f 1//5`` with one ``vn``): trimesh dropped
+    every normal of the file then, without a word, and the mesh was shaded with area-weighted ones. A negative
+    index counts back from the last normal; it is checked against all of them, not those before its line."""
+    indices = set(_OBJ_NORMAL_INDEX.findall(text))  # each distinct index once: corners repeat them
+    if not indices:
+        return
+    have = len(_OBJ_NORMAL_LINE.findall(text))
+    worst = max(indices, key=lambda i: abs(float(i)))  # float: an index beyond int64 stays a number
+    if abs(float(worst)) > have:
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: a face names normal {shorten(worst)} of the {have} it has; "
+                                            "expected normal indices within its vn lines")  # fmt: skip
 
 
 #: Bytes of a PLY property's scalar type (the PLY format's names and their sized aliases).

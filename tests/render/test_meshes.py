@@ -265,6 +265,10 @@ def test_a_named_pipe_is_refused_before_it_is_opened(tmp_path):
     ("v 0 0 0\nv 1 0 0\nv 0 1 0 x\nf 1 2 3\n", "v 0 1 0\nf 1 2 3",
      ": line 3 is 'v 0 1 0 x'; expected a vertex as 'v x y z', three numbers"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 x\n", "f 1 2 3", ": line 4 is 'f 1 2 3 x'; expected a face as 'f i j k'"),
+    # A normal the file does not have: trimesh dropped all of them, and the mesh was shaded with its own, unseen.
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//5 2//1 3//1\n", "f 1//1 2//1 3//-1",
+     ": a face names normal 5 of the 1 it has; expected normal indices within its vn lines"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/-2\n", "f 1/1/1 2/1/1 3/1/1", "a face names normal -2 of the 1"),
 ])  # fmt: skip
 def test_an_obj_that_is_not_what_it_says_is_refused_on_one_line(tmp_path, text, mended, expected):
     path = tmp_path / "m.obj"
