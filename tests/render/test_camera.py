@@ -98,6 +98,32 @@ def test_a_sphere_near_the_far_plane_of_a_small_near_is_drawn_whole(renderer, sc
     np.testing.assert_array_equal(covered(1e-2), whole)
 
 
+def _spheres_ahead(scene_from, far: float, width: int, objects: str):
+    """A scene looking down -z from 10 away at ``objects`` (TOML), lit head-on, near = far / 100 (set per test)."""
+    return scene_from(f"""
+        [camera]
+        position = [0, 0, 10]
+        target = [0, 0, 0]
+        near = {far / 100.0}
+        far = {far}
+        [image]
+        width = {width}
+        height = {width * 3 // 4}
+        [[lights]]
+        type = "directional"
+        direction = [0, 0, -1]
+        intensity = 1.0
+        """ + objects)  # fmt: skip
+
+
+def _ids_at(renderer, scene, ratio: float):
+    """The id AOV of ``scene`` with near = far / ``ratio``, set on the camera directly (past the parser's limit too)."""
+    import dataclasses
+
+    camera = dataclasses.replace(scene.camera, near=scene.camera.far / ratio)
+    return renderer.render(dataclasses.replace(scene, camera=camera)).aov("id")
+
+
 @pytest.mark.gpu
 def test_an_object_beyond_the_far_plane_is_not_drawn_at_the_widest_depth_range(renderer, scene_from):
     """The finding: with the depth cleared to 1, a sphere 1% beyond the far plane was drawn at far / near = 1e5
@@ -105,25 +131,8 @@ def test_an_object_beyond_the_far_plane_is_not_drawn_at_the_widest_depth_range(r
     Cleared to the far plane's depth, it is not; moved in front of the far plane, the same sphere is drawn."""
 
     def covered(far, ratio):
-        scene = scene_from(f"""
-            [camera]
-            position = [0, 0, 10]
-            target = [0, 0, 0]
-            near = {far / ratio}
-            far = {far}
-            [image]
-            width = 40
-            height = 30
-            [[lights]]
-            type = "directional"
-            direction = [0, 0, -1]
-            intensity = 1.0
-            [[objects]]
-            shape = "sphere"
-            material = "lambert"
-            """)  # fmt: skip
-        frame = renderer.render(scene)
-        return int((frame.aov("id") != 0xFFFF).sum())
+        scene = _spheres_ahead(scene_from, far, 40, '[[objects]]\nshape = "sphere"\nmaterial = "lambert"\n')
+        return int((_ids_at(renderer, scene, ratio) != 0xFFFF).sum())
 
     assert covered(8.9, 1e5) == 0 and covered(8.9, 100.0) == 0  # its nearest point is 9 away
     assert covered(11.0, 1e5) > 50 and covered(11.0, 1e5) == covered(11.0, 100.0)
@@ -135,22 +144,9 @@ def test_a_depth_range_wider_than_the_scenes_allow_shows_the_wrong_object(render
     """Why MAX_FAR_OVER_NEAR is 1e5 (docs/scenes.md): two spheres crossing 10 away, rendered at far / near = 400, 1e5
     and 1e7 (past the parser's limit, its camera set directly). Against the first, 1e5 differs at most where the two
     surfaces meet (a pixel or two); 1e7 shows the wrong sphere over a fifth of their pixels."""
-    import dataclasses
-
     from atlasgen.materials.scene import MAX_FAR_OVER_NEAR
 
-    scene = scene_from("""
-        [camera]
-        position = [0, 0, 10]
-        target = [0, 0, 0]
-        far = 20
-        [image]
-        width = 64
-        height = 48
-        [[lights]]
-        type = "directional"
-        direction = [0, 0, -1]
-        intensity = 1.0
+    scene = _spheres_ahead(scene_from, 20.0, 64, """
         [[objects]]
         shape = "sphere"
         material = "lambert"
@@ -160,14 +156,9 @@ def test_a_depth_range_wider_than_the_scenes_allow_shows_the_wrong_object(render
         material = "toon"
         translate = [0.5, 0, 0]
         """)  # fmt: skip
-
-    def ids(ratio):
-        camera = dataclasses.replace(scene.camera, near=scene.camera.far / ratio)
-        return renderer.render(dataclasses.replace(scene, camera=camera)).aov("id")
-
-    reference = ids(400.0)
+    reference = _ids_at(renderer, scene, 400.0)
     covered = int((reference != 0xFFFF).sum())
     assert MAX_FAR_OVER_NEAR == 1e5 and covered > 200 and len(np.unique(reference)) == 3
-    assert int((ids(1e5) != reference).sum()) <= 2
-    assert int((ids(1e7) != reference).sum()) > 0.2 * covered
+    assert int((_ids_at(renderer, scene, 1e5) != reference).sum()) <= 2
+    assert int((_ids_at(renderer, scene, 1e7) != reference).sum()) > 0.2 * covered
     assert renderer.ctx.take_errors() == []
