@@ -132,10 +132,14 @@ def pack_object(model: np.ndarray, albedo, gloss: float, material_id: int) -> by
     """The ``Object`` uniform (:data:`~atlasgen.render.layout.OBJECT`), padded to its dynamic-offset stride.
 
     The normal matrix is the inverse transpose of the model matrix's linear part, which
-    keeps normals perpendicular to surfaces under non-uniform scale.
+    keeps normals perpendicular to surfaces under non-uniform scale, divided by its largest entry: the g-buffer
+    normalises the normal, so only its direction counts, and at an object's scale of 1e18 (or 1e-20) the normals
+    came out 1e-18 long, which the rasteriser's perspective interpolation (times 1/w) took below float32's
+    normal range: the spheres were shaded with flat facets, and a plane from behind.
     """
+    inverse_t = np.linalg.inv(model[:3, :3]).T
     normal = np.eye(4)
-    normal[:3, :3] = np.linalg.inv(model[:3, :3]).T
+    normal[:3, :3] = inverse_t / np.max(np.abs(inverse_t))
     data = OBJECT.pack(model=model, normal_matrix=normal, albedo_gloss=[*albedo, gloss], material=[material_id, 0, 0, 0])
     return data + bytes(OBJECT_UNIFORM_STRIDE - len(data))
 

@@ -74,11 +74,14 @@ def test_the_gpu_packs_the_normals_the_numpy_decoder_reads(renderer, scene_from)
 
 
 @pytest.mark.gpu
-@pytest.mark.parametrize("size", [1e11, 1e-11])
+@pytest.mark.parametrize("size", [1e11, 1e-11, 1e18, 1e-20])
 def test_a_sphere_of_any_size_keeps_its_normals(renderer, scene_from, size):
     """The same view of a sphere scaled by 1e11 (and 1e-11), the camera with it: its normal matrix
     scales normals by 1/size, and the squared length of a 1e-11 normal (or of a face's 1e22
-    cross product) passed float32's range, so every pixel got the fallback normal (0, 0, -1)."""
+    cross product) passed float32's range, so every pixel got the fallback normal (0, 0, -1).
+    At 1e18 and 1e-20 (a hostile sweep) the normals, 1/size long, fell below float32's normal range once the
+    rasteriser's perspective interpolation multiplied them by 1/w: flat facets. The normal matrix is now
+    divided by its largest entry."""
     s = repr(size)
     scene = scene_from(
         f"""
@@ -104,6 +107,37 @@ def test_a_sphere_of_any_size_keeps_its_normals(renderer, scene_from, size):
     )
     on, angle = _angles_from_the_sphere_s_normals(renderer, scene)
     assert on.sum() > 300 and np.median(angle) < 2e-3 and angle.max() < 2e-2
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("size", [1.0, 6e17])
+def test_a_floor_of_any_size_seen_from_above_faces_up(renderer, scene_from, size):
+    """A hostile sweep's floor, 3.6e18 x 2.4e18 wide and scaled 6e17 in y, seen from above: every pixel had the
+    normal (0, -1, 0), shaded as seen from behind; the same scene divided by 6e17 faced up."""
+    scene = scene_from(f"""
+        [camera]
+        position = [0, {2.2 * size!r}, {7.0 * size!r}]
+        target = [0, {0.2 * size!r}, 0]
+        fov = 45
+        near = {0.05 * size!r}
+        far = {1000.0 * size!r}
+        [image]
+        width = 64
+        height = 48
+        [[lights]]
+        type = "directional"
+        direction = [0.5, -0.8, -0.35]
+        intensity = 2
+        [[objects]]
+        shape = "plane"
+        material = "lambert"
+        translate = [0, {-size!r}, 0]
+        scale = [{6.0 * size!r}, {size!r}, {4.0 * size!r}]
+        """)  # fmt: skip
+    result = renderer.render(scene)
+    on = result.aov("id") != 0xFFFF
+    assert on.sum() > 100 and np.allclose(result.aov("normal")[on], [0.0, 1.0, 0.0], atol=1e-3)
+    assert renderer.ctx.take_errors() == []
 
 
 @pytest.mark.gpu
