@@ -26,6 +26,7 @@ import click
 
 from atlasgen import __version__
 from atlasgen.bake.cache import cache_path
+from atlasgen.bake.companions import expected_companions
 from atlasgen.bake.outputs import check_bake_outputs
 from atlasgen.bake.pipeline import bake_atlas, read_previous_slots, sibling_paths, write_bake
 from atlasgen.bake.workers import POOL_AFTER_S, available_cpus, fill_cache
@@ -55,6 +56,7 @@ from atlasgen.io.depfile import encode_depfile
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
 from atlasgen.materials.materialx_document import is_materialx_file
+from atlasgen.models import check_manifest_models
 from atlasgen.start_up import INTERRUPTED_LINE, TERMINATED_LINE
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "one_line_message", "FiniteFloatRange"]
@@ -446,8 +448,9 @@ def info(atlas, fmt, verbosity):
     """Print an atlas's DDS or KTX2 header and a summary of its manifest.
 
     It says of each include and the separable side-car beside the atlas whether it is of this bake (it records the
-    manifest's SHA-256), of another bake, not atlasgen's, or absent: an engine that loads an include of another bake
-    than its atlas reads other slices and scales than the include declares.
+    manifest's SHA-256 and holds what a bake of the manifest writes), edited since its bake, of another bake, not
+    atlasgen's, or absent: an engine that loads an include of another bake than its atlas reads other slices and
+    scales than the include declares. The manifest's entries are checked as render checks them.
 
     With --format json the output follows the JSON Schema atlasgen/schemas/info.schema.json
     (and the manifest itself atlasgen/schemas/manifest.schema.json).
@@ -456,9 +459,16 @@ def info(atlas, fmt, verbosity):
         # The JSON is the same whatever they say.
         refuse_options(click.get_current_context(), ("--quiet", "--verbose"), "with --format json, which prints the "
                        "whole summary")  # fmt: skip
-        click.echo(json.dumps(summarize_atlas(atlas), indent=2))
+        click.echo(json.dumps(summarize_atlas(atlas, expected=_checked_companions), indent=2))
     else:
-        click.echo(describe_atlas(atlas, verbose=verbosity == VERBOSE, quiet=verbosity == QUIET))
+        click.echo(describe_atlas(atlas, verbose=verbosity == VERBOSE, quiet=verbosity == QUIET, expected=_checked_companions))
+
+
+def _checked_companions(atlas) -> dict:
+    """The manifest's entries checked by their models, as every command that renders from it checks them (info passed
+    a type it does not know, or a lambert with a bias, that render refused), then the bytes a bake of it writes."""
+    check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
+    return expected_companions(atlas)
 
 
 def main(argv=None):

@@ -246,16 +246,20 @@ def _recorded_sha256(path: Path, suffix: str) -> str | None:
     return include_manifest_sha256(head.decode("utf-8", errors="replace"))
 
 
-def companion_states(atlas: Atlas) -> dict[str, str]:
+def companion_states(atlas: Atlas, expected: dict[str, bytes] | None = None) -> dict[str, str]:
     """``suffix -> state`` of each of :data:`COMPANIONS` beside ``atlas``: ``"this bake"`` where it records the
     manifest's SHA-256, ``"another bake"`` where it records another, ``"not atlasgen's"`` where it records none (or
     is no file), ``"none"`` where there is nothing by that name (a bake writes only the languages asked for, and a
     side-car only for separable materials). What ``atlasgen info`` shows: a renderer or an engine loading an include
-    of another bake than its atlas reads other slices and scales than the include declares."""
-    return {suffix: _companion_state(atlas, suffix) for suffix in COMPANIONS}
+    of another bake than its atlas reads other slices and scales than the include declares.
+
+    With ``expected`` (``suffix -> bytes`` a bake of this manifest writes, :func:`atlasgen.bake.companions.
+    expected_companions`), a file that records this manifest but differs from them is ``"edited since its bake"``."""
+    return {suffix: _companion_state(atlas, suffix, (expected or {}).get(suffix), expected is not None)
+            for suffix in COMPANIONS}  # fmt: skip
 
 
-def _companion_state(atlas: Atlas, suffix: str) -> str:
+def _companion_state(atlas: Atlas, suffix: str, wanted: bytes | None = None, compared: bool = False) -> str:
     path = atlas.path.with_suffix(suffix)
     kind = path_kind(path)
     if kind == MISSING:
@@ -266,7 +270,22 @@ def _companion_state(atlas: Atlas, suffix: str) -> str:
         recorded = None
     if recorded is None:
         return "not atlasgen's"
-    return "this bake" if recorded == atlas.manifest_sha256 else "another bake"
+    if recorded != atlas.manifest_sha256:
+        return "another bake"
+    if compared and not _holds(path, wanted):
+        return "edited since its bake"
+    return "this bake"
+
+
+def _holds(path: Path, wanted: bytes | None) -> bool:
+    """Whether the file at ``path`` holds exactly ``wanted`` (read only up to one byte past its length)."""
+    if wanted is None:
+        return False
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(wanted) + 1) == wanted
+    except OSError:
+        return False
 
 
 #: Control characters: a line break, a carriage return, NUL, the escape that starts a terminal's colour codes.
@@ -288,9 +307,10 @@ def _scale_text(entry: MaterialEntry) -> str:
     return "/".join(f"{s[0]:.3g},{s[1]:.3g}" for s in entry.scale[:1])
 
 
-def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
+def describe_atlas(path, verbose: bool = False, quiet: bool = False, expected=None) -> str:
     """What ``atlasgen info`` prints: the texconv-style line (alone when ``quiet``), the header, one
-    line per material (and, when ``verbose``, its description and file)."""
+    line per material (and, when ``verbose``, its description and file). ``expected``: a function of the atlas
+    giving the bytes a bake of its manifest writes beside it (:func:`companion_states`), called where it has one."""
     atlas = read_atlas(path)
     img = atlas.image
     if isinstance(img, KTX2Image):
@@ -311,7 +331,7 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
         return "\n".join(lines + ["  no manifest beside it"])
     lines.append(f"  manifest v{manifest.format_version}, encoding {manifest.encoding}, "
                  f"{counted(len(manifest.materials), 'material')}, {counted(manifest.slices_used, 'slice')} used")  # fmt: skip
-    states = companion_states(atlas)
+    states = companion_states(atlas, expected(atlas) if expected else None)
     found = [
         f"{_printable(atlas.path.with_suffix(suffix).name)} ({state})" for suffix, state in states.items() if state != "none"
     ]
@@ -329,9 +349,9 @@ def describe_atlas(path, verbose: bool = False, quiet: bool = False) -> str:
     return "\n".join(lines)
 
 
-def summarize_atlas(path) -> dict:
+def summarize_atlas(path, expected=None) -> dict:
     """Header fields and a manifest summary: ``atlasgen info --format json``
-    (``atlasgen/schemas/info.schema.json``)."""
+    (``atlasgen/schemas/info.schema.json``); ``expected`` as :func:`describe_atlas`'s."""
     atlas = read_atlas(path)
     img = atlas.image
     out: dict[str, Any] = {
@@ -361,5 +381,6 @@ def summarize_atlas(path) -> dict:
                 for e in manifest.materials
             ],
         }  # fmt: skip
-        out["companions"] = {suffix.lstrip("."): state for suffix, state in companion_states(atlas).items()}
+        states = companion_states(atlas, expected(atlas) if expected else None)
+        out["companions"] = {suffix.lstrip("."): state for suffix, state in states.items()}
     return out

@@ -20,10 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from atlasgen.contract import LAYERS
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
-from atlasgen.shaders.include import render_buffered_include
+from atlasgen.shaders.include import manifest_scale_bias, render_buffered_include
 
 __all__ = ["STORAGE", "BUFFER_TYPES", "RendererInclude", "manifest_scale_bias", "upload_tables"]
 
@@ -31,18 +30,6 @@ __all__ = ["STORAGE", "BUFFER_TYPES", "RendererInclude", "manifest_scale_bias", 
 STORAGE = {"ATLAS_SCALE_BIAS": (0, 20, "uniform"), "SEPARABLE_TABLE": (0, 21, "storage")}
 #: The bind group layout's buffer type of each address space.
 BUFFER_TYPES = {"uniform": "uniform", "storage": "read-only-storage"}
-
-
-def manifest_scale_bias(manifest: Manifest) -> tuple[np.ndarray, np.ndarray]:
-    """Each slice's (rgb, alpha) scale and bias, ``(LAYERS, 2)`` each, from the manifest's entries: the arrays
-    the bake hands :func:`~atlasgen.shaders.include.render_include` (scale 1, bias 0 for unused slices)."""
-    scales, biases = np.ones((LAYERS, 2)), np.zeros((LAYERS, 2))
-    for m in manifest.materials:
-        if m.scale:
-            scales[m.first_slice : m.first_slice + len(m.scale)] = m.scale
-        if m.bias:
-            biases[m.first_slice : m.first_slice + len(m.bias)] = m.bias
-    return scales, biases
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from atlasgen.shaders.lang import (
 from atlasgen.shaders.specular import specular_declarations
 
 __all__ = [
+    "manifest_scale_bias",
     "render_include",
     "render_includes",
     "render_include_data",
@@ -229,6 +230,18 @@ def _sample_body(lookup: str, nearest: str, scale_bias: str) -> tuple:
         *(() if scale_bias == "sb" else (Let("vec4", "sb", scale_bias),)),
         Return("vec4(texel.rgb * sb.x + splat3(sb.z), texel.a * sb.y + sb.w)"),
     )  # fmt: skip
+
+
+def manifest_scale_bias(manifest: Manifest) -> tuple[np.ndarray, np.ndarray]:
+    """Each slice's (rgb, alpha) scale and bias, ``(LAYERS, 2)`` each, from the manifest's entries: the arrays
+    the bake hands :func:`render_include` (scale 1, bias 0 for unused slices)."""
+    scales, biases = np.ones((LAYERS, 2)), np.zeros((LAYERS, 2))
+    for m in manifest.materials:
+        if m.scale:
+            scales[m.first_slice : m.first_slice + len(m.scale)] = m.scale
+        if m.bias:
+            biases[m.first_slice : m.first_slice + len(m.bias)] = m.bias
+    return scales, biases
 
 
 def render_include(

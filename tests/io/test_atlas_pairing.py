@@ -217,3 +217,49 @@ def test_info_says_which_files_beside_the_atlas_are_of_its_bake(tmp_path):
     lines = runner.invoke(app, ["info", str(a)]).output.splitlines()
     assert "  beside it: atlas.wgsl (not atlasgen's), atlas.glsl (another bake); absent: atlas.hlsl, atlas.separable.bin" \
         in lines, lines  # fmt: skip
+
+
+def test_info_tells_a_file_edited_since_its_bake_from_one_of_this_bake(tmp_path):
+    """A hostile sweep's findings: an include whose material constant was edited (or cut in half) keeps its first line,
+    the manifest's hash, and info called it "this bake"; a side-car with an edited table likewise. Each is now compared
+    with what a bake of the manifest writes. And info now checks the manifest's entries as render does: a type it does
+    not know passed info and was refused by render."""
+    import struct
+
+    from click.testing import CliRunner
+
+    from atlasgen.cli.main import app
+
+    folder = tmp_path / "materials"
+    folder.mkdir()
+    (folder / "clay.toml").write_text('type = "lambert"\ncolour = [0.5, 0.4, 0.3]\n')
+    (folder / "sep.toml").write_text('type = "separable"\nsource = "ggx"\nalpha = 0.3\nterms = 2\n')
+    atlas = tmp_path / "out" / "atlas.dds"
+    write_bake(bake_atlas(read_materials([folder])), atlas)
+    runner = CliRunner()
+
+    def companions():
+        res = runner.invoke(app, ["info", str(atlas), "--format", "json"])
+        assert res.exit_code == 0, res.output
+        return json.loads(res.output)["companions"]
+
+    assert companions() == {"wgsl": "this bake", "glsl": "this bake", "hlsl": "this bake", "separable.bin": "this bake"}
+    wgsl, sidecar = atlas.with_suffix(".wgsl"), atlas.with_suffix(".separable.bin")
+    text = wgsl.read_text()
+    constant = next(line for line in text.splitlines() if line.startswith("const MATERIAL_CLAY: u32 = "))
+    wgsl.write_text(text.replace(constant, constant.replace("= 0u;", "= 1u;").replace("= 1u;", "= 7u;")))
+    data = bytearray(sidecar.read_bytes())
+    data[-4:] = struct.pack("<f", 123.0)  # a table value, past the header and its recorded hash
+    sidecar.write_bytes(bytes(data))
+    atlas.with_suffix(".hlsl").write_text(atlas.with_suffix(".hlsl").read_text()[:200])  # cut, its first line kept
+    assert companions() == {"wgsl": "edited since its bake", "glsl": "this bake", "hlsl": "edited since its bake",
+                            "separable.bin": "edited since its bake"}  # fmt: skip
+    lines = runner.invoke(app, ["info", str(atlas)]).output.splitlines()
+    assert "  beside it: atlas.wgsl (edited since its bake), atlas.glsl (this bake), atlas.hlsl (edited since its bake), " \
+           "atlas.separable.bin (edited since its bake)" in lines, lines  # fmt: skip
+
+    manifest = atlas.with_suffix(".json")
+    edited = manifest.read_text().replace('"type": "lambert"', '"type": "foo"')
+    manifest.write_text(edited)
+    res = runner.invoke(app, ["info", str(atlas)])
+    assert res.exit_code == 3 and "field 'materials[0].type': expected one of the models atlasgen knows" in res.output
