@@ -255,11 +255,10 @@ def companion_states(atlas: Atlas, expected: dict[str, bytes] | None = None) -> 
 
     With ``expected`` (``suffix -> bytes`` a bake of this manifest writes, :func:`atlasgen.bake.companions.
     expected_companions`), a file that records this manifest but differs from them is ``"edited since its bake"``."""
-    return {suffix: _companion_state(atlas, suffix, (expected or {}).get(suffix), expected is not None)
-            for suffix in COMPANIONS}  # fmt: skip
+    return {suffix: _companion_state(atlas, suffix, expected) for suffix in COMPANIONS}
 
 
-def _companion_state(atlas: Atlas, suffix: str, wanted: bytes | None = None, compared: bool = False) -> str:
+def _companion_state(atlas: Atlas, suffix: str, expected: dict[str, bytes] | None) -> str:
     path = atlas.path.with_suffix(suffix)
     kind = path_kind(path)
     if kind == MISSING:
@@ -272,7 +271,7 @@ def _companion_state(atlas: Atlas, suffix: str, wanted: bytes | None = None, com
         return "not atlasgen's"
     if recorded != atlas.manifest_sha256:
         return "another bake"
-    if compared and not _holds(path, wanted):
+    if expected is not None and not _holds(path, expected.get(suffix)):
         return "edited since its bake"
     return "this bake"
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import enum
 
 from atlasgen.materials.scene import MAX_LIGHTS
+from atlasgen.optics.falloff import DISTANCE_SQUARED_FLOOR
 from atlasgen.render.camera import FAR_PLANE_DEPTH
 from atlasgen.shaders.structs import (
     F32,
@@ -187,6 +188,9 @@ _DECLARATIONS = {
         "LIGHT_MASK_WORDS", U32, LIGHT_MASK_WORDS, "u32 words of a tile's bit mask of lights (one bit per light)."
     ),
     "LightType": lambda: wgsl_constants(LightType, "LIGHT_"),
+    "DISTANCE_SQUARED_FLOOR": lambda: wgsl_constant(
+        "DISTANCE_SQUARED_FLOOR", F32, DISTANCE_SQUARED_FLOOR, "The falloff's floor on d^2, for 1/d^2 alone (falloff.py)."
+    ),
     "FAR_PLANE_DEPTH": lambda: wgsl_constant(
         "FAR_PLANE_DEPTH", F32, FAR_PLANE_DEPTH, "The far plane's depth, the g-buffer depth's clear value (camera.py)."
     ),

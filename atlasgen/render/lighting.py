@@ -30,11 +30,10 @@ from atlasgen.errors import SceneError
 from atlasgen.io.fields import FLOAT32_MAX
 from atlasgen.io.manifest import Manifest
 from atlasgen.models import get_model
-from atlasgen.optics.falloff import DISTANCE_SQUARED_FLOOR
 from atlasgen.render.atlas_data import BUFFER_TYPES, STORAGE
 from atlasgen.render.layout import LIGHT, LightType, declaration_wgsl
 from atlasgen.shaders.environment import environment_declarations
-from atlasgen.shaders.lang import emit, float_literal
+from atlasgen.shaders.lang import emit
 from atlasgen.shaders.passes import assemble_shader
 
 __all__ = [
@@ -91,15 +90,11 @@ def environment_glue_wgsl(include: str, environment: bool) -> str:
 def light_kinds_wgsl(kinds) -> str:
     """``DIRECTIONAL_LIGHTS`` and ``SPOT_LIGHTS`` for the lighting shader: whether ``kinds`` (the
     :class:`~atlasgen.render.layout.LightType` values a scene's lights have) holds each. lavapipe runs both
-    sides of every branch, per light and pixel, so a scene of point lights compiles the others' code out.
-    With them, the falloff's floor on d^2 (:data:`~atlasgen.optics.falloff.DISTANCE_SQUARED_FLOOR`), stated once."""
+    sides of every branch, per light and pixel, so a scene of point lights compiles the others' code out."""
     kinds = set(kinds)
-    return (
-        "".join(
-            f"const {name}: bool = {'true' if kind in kinds else 'false'};\n"
-            for name, kind in (("DIRECTIONAL_LIGHTS", LightType.DIRECTIONAL), ("SPOT_LIGHTS", LightType.SPOT))
-        )
-        + f"const DISTANCE_SQUARED_FLOOR: f32 = {float_literal(DISTANCE_SQUARED_FLOOR)};\n"
+    return "".join(
+        f"const {name}: bool = {'true' if kind in kinds else 'false'};\n"
+        for name, kind in (("DIRECTIONAL_LIGHTS", LightType.DIRECTIONAL), ("SPOT_LIGHTS", LightType.SPOT))
     )
 
 

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import json
 import re
-import tomllib
 from pathlib import Path
 
-from atlasgen.io.fields import validate_params
+from atlasgen.materials.material import read_material
 from atlasgen.models import get_model
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -49,9 +48,7 @@ def stylisation_table(names=STYLISED) -> list[str]:
     model = get_model("iridescent")
     lines = ["| material | model's look vs the film | fitted slice vs the film |", "|---|---|---|"]
     for name in names:
-        raw = tomllib.loads((SHIPPED / f"{name}.toml").read_text(encoding="utf-8"))
-        values = validate_params(model.params, {k: v for k, v in raw.items() if k not in ("type", "description", "from")}, name)
-        fit = model.fit_physical(values, 0.5).extra["fit"]
+        fit = model.fit_physical(read_material(SHIPPED / f"{name}.toml").params, 0.5).extra["fit"]
         lines.append(f"| `{name}` | {fit['model_psnr_db']:.2f} ± {fit['model_psnr_se_db']:.2f} dB | "
                      f"{fit['fit_psnr_db']:.2f} ± {fit['fit_psnr_se_db']:.2f} dB |")  # fmt: skip
     return lines
@@ -61,16 +58,21 @@ def stylisation_table(names=STYLISED) -> list[str]:
 TABLES = {"skin-fit": skin_fit_table, "stylisation": stylisation_table}
 
 
+def _find_table(text: str, name: str) -> re.Match:
+    """Table ``name`` in ``text``: its markers' indent (group 1) and the lines between them (group 2)."""
+    match = re.search(rf"^( *){re.escape(_START.format(name))}\n(.*?)^ *{re.escape(_END)}$", text, re.S | re.M)
+    if match is None:
+        raise ValueError(f"no table {name!r} (its markers {_START.format(name)} ... {_END})")
+    return match
+
+
 def read_measured_table(text: str, name: str) -> list[str]:
     """The lines between table ``name``'s markers, stripped of the list item's indent.
 
     >>> read_measured_table("a\\n  <!-- measured: t -->\\n  | x |\\n  <!-- /measured -->\\n", "t")
     ['| x |']
     """
-    match = re.search(rf"^( *){re.escape(_START.format(name))}\n(.*?)^ *{re.escape(_END)}$", text, re.S | re.M)
-    if match is None:
-        raise ValueError(f"no table {name!r} (its markers {_START.format(name)} ... {_END})")
-    return [line.strip() for line in match.group(2).splitlines()]
+    return [line.strip() for line in _find_table(text, name).group(2).splitlines()]
 
 
 def replace_measured_table(text: str, name: str, lines: list[str]) -> str:
@@ -79,10 +81,9 @@ def replace_measured_table(text: str, name: str, lines: list[str]) -> str:
     >>> replace_measured_table("  <!-- measured: t -->\\n  | x |\\n  <!-- /measured -->\\n", "t", ["| y |"])
     '  <!-- measured: t -->\\n  | y |\\n  <!-- /measured -->\\n'
     """
-    read_measured_table(text, name)  # raises where the markers are missing
-    pattern = re.compile(rf"^( *)({re.escape(_START.format(name))}\n).*?^( *{re.escape(_END)})$", re.S | re.M)
-    return pattern.sub(lambda m: m.group(1) + m.group(2) + "".join(f"{m.group(1)}{line}\n" for line in lines) + m.group(3),
-                       text, count=1)  # fmt: skip
+    match = _find_table(text, name)
+    body = "".join(f"{match.group(1)}{line}\n" for line in lines)
+    return text[: match.start(2)] + body + text[match.end(2) :]
 
 
 def write_measured_tables(doc=DOC, names=None) -> list[str]:
