@@ -157,8 +157,7 @@ def _bake_seconds(timings, path, name: str) -> float | None:
 
 def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> tuple[dict | None, dict]:
     """The validation report with only the results measured on the materials of ``atlas`` as they are now, and
-    ``{material: note}`` for each material whose results were not (:mod:`atlasgen.validate.identity`). Results of
-    materials the atlas does not hold are dropped with one line for them all.
+    ``{material: note}`` for each material whose results were not (:mod:`atlasgen.validate.identity`).
 
     A material whose recorded identity differs was validated on another bake of it: its results are dropped, and
     its note says so. A report that records none (written before atlasgen recorded it) cannot be checked: its
@@ -167,14 +166,12 @@ def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> 
     if validation is None:
         return None, {}
     shown = report_path.as_posix()
-    kept, notes, unverified, absent = [], {}, [], []
+    kept, notes, unverified = [], {}, []
     current = {e.name: atlas_identity(atlas, e) for e in atlas.manifest.materials}
     for row in validation.get("results", []):
         name = row.get("material")
         if name not in current:
-            # Nothing on the page reads it; said once, so that a report of another library is not taken as this one's.
-            if name not in absent:
-                absent.append(name)
+            kept.append(row)  # not in this atlas: nothing on the page reads it
             continue
         if not isinstance(row.get("atlas_identity"), dict):
             kept.append(row)
@@ -191,9 +188,6 @@ def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> 
                                "re-run atlasgen validate")  # fmt: skip
             warn(f"{shown}: the validation figures of {name!r} were measured on another bake of it than "
                  f"{atlas.manifest_path.as_posix()}'s ({why}); not shown: re-run atlasgen validate")  # fmt: skip
-    if absent:
-        warn(f"{shown}: validation figures of {', '.join(map(str, absent))}, which {atlas.manifest_path.as_posix()} does "
-             "not hold; not shown: validate this atlas, or pass --validation the report of the atlas they were measured on")  # fmt: skip
     if unverified:
         warn(f"{shown}: records no identity of the atlas it validated (written by an older atlasgen), so the figures of "
              f"{', '.join(unverified)} cannot be checked against {atlas.manifest_path.as_posix()}; shown as unverified: "

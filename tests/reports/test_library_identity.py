@@ -117,18 +117,3 @@ def test_a_report_that_records_no_identity_is_marked_unverified(tmp_path, write_
     assert warnings == [f"{shown}: records no identity of the atlas it validated (written by an older atlasgen), so the "
                         f"figures of clay, snow cannot be checked against {atlas.with_suffix('.json').as_posix()}; shown "
                         "as unverified: re-run atlasgen validate"]  # fmt: skip
-
-
-@pytest.mark.slow
-def test_figures_of_a_material_the_atlas_does_not_hold_are_named_once(tmp_path, write_material):
-    """The finding: a validation report of a wider library (or a merge holding another atlas's run) had its extra
-    materials dropped from the page without a word. They are still not shown, and one line names them."""
-    atlas = _bake(tmp_path, write_material, clay=CLAY, snow=SNOW)
-    folder = _validation(tmp_path, atlas, {"clay": 61.25, "snow": 57.5})
-    atlas = _bake(tmp_path, write_material, clay=CLAY)
-    text, warnings = _page(tmp_path, atlas, folder)
-    shown = (folder / "report.json").as_posix()
-    assert _cell("clay", 61.25) in text and _cell("snow", 57.5) not in text
-    assert warnings == [f"{shown}: validation figures of snow, which {atlas.with_suffix('.json').as_posix()} does not "
-                        "hold; not shown: validate this atlas, or pass --validation the report of the atlas they were "
-                        "measured on"]  # fmt: skip
