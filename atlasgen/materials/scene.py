@@ -199,7 +199,9 @@ class _Reader:
     def vec3(self, raw, key, name, default=None, lo=-math.inf, hi=math.inf, nonzero=False):
         value = raw.get(key, default)
         if is_number(value) and key == "scale":
-            value = [value] * 3
+            # One factor for all three axes, checked and echoed as the number given, not as a list of three.
+            factor = self.number(raw, key, name, lo=lo, hi=hi)
+            return (factor, factor, factor)
         param = Param(name, default, "vec3", _bound(lo), _bound(hi), nonzero=nonzero)
         return self._field({key: value}, key, name, None, param, "[x, y, z]")
 

@@ -516,7 +516,8 @@ def read_mesh(path, scene_path="<scene>", field="file") -> Mesh:
         raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has vertices that are not points; "
                                             "expected x y z on every vertex line")  # fmt: skip
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
-        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has faces that are not triangles of its vertices")
+        raise SceneError(scene_path, field, f"mesh {path.as_posix()!r} has faces that are not triangles of its vertices; "
+                                            f"expected three vertex indices from 0 to {len(vertices) - 1} on each face")  # fmt: skip
     with np.errstate(invalid="ignore"):
         bad = ~(np.abs(vertices) <= FLOAT32_MAX)  # NaN compares False
     if bad.any():

@@ -186,6 +186,17 @@ def test_a_mirroring_or_vanishing_scale_is_refused(scale, words):
     assert str(info.value).startswith(f"scenes/x.toml: field 'objects[0].scale': expected {words.removeprefix('expected ')}")
 
 
+@pytest.mark.parametrize(("scale", "got"), [("1e40", "got 1e+40 (beyond float32's range)"), ("nan", "got nan (not finite)")])
+def test_a_single_scale_factor_is_echoed_as_given(scale, got):
+    """One factor for all three axes was checked as the list of three it stands for, and the line echoed a list the
+    file does not hold ([1e+40, 1e+40, 1e+40])."""
+    with pytest.raises(SceneError) as info:
+        parse_scene(tomllib.loads(f'{CAMERA}[[objects]]\nshape = "sphere"\nmaterial = "m"\nscale = {scale}\n'), "scenes/x.toml")
+    assert str(info.value) == f"scenes/x.toml: field 'objects[0].scale': expected a finite number, {got}"
+    ok = parse_scene(tomllib.loads(f'{CAMERA}[[objects]]\nshape = "sphere"\nmaterial = "m"\nscale = 2\n'), "x.toml")
+    assert ok.objects[0].scale == (2.0, 2.0, 2.0)
+
+
 @pytest.mark.parametrize(
     ("shape", "key", "users"),
     [("box", "segments", "'sphere' or 'torus'"), ("plane", "segments", "'sphere' or 'torus'"),

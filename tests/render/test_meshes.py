@@ -302,6 +302,18 @@ def test_a_ply_whose_vertices_lack_a_coordinate_says_which(tmp_path):
                                "expected properties x, y and z")  # fmt: skip
 
 
+@pytest.mark.parametrize("index", ["7", "-1"])
+def test_a_ply_face_naming_a_vertex_it_lacks_says_what_was_expected(tmp_path, index):
+    """The line named the fault but not what a face must hold."""
+    path = tmp_path / "m.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    f"element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 {index}\n")  # fmt: skip
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    assert str(info.value) == (f"s.toml: field 'objects[0].file': mesh {path.as_posix()!r} has faces that are not triangles "
+                               "of its vertices; expected three vertex indices from 0 to 2 on each face")  # fmt: skip
+
+
 def test_a_mesh_over_the_triangle_limit_is_refused(tmp_path, monkeypatch):
     """A 300 MB PLY of 16M triangles ended in MemoryError (exit 1); the limit is lowered here to stand for it."""
     import atlasgen.render.meshes as meshes
