@@ -154,8 +154,13 @@ def read_atlas(path) -> Atlas:
     image = read_ktx2(path, data) if path.suffix.lower() == ".ktx2" else read_dds(path, data)
     manifest_path = path.with_suffix(".json")
     # A link beside the atlas that loops is a broken manifest, refused by the reader below on one line, not an atlas
-    # without one (exists() is False for it, and info said "no manifest"). One that points nowhere is none.
+    # without one (exists() is False for it, and info said "no manifest"). So is one that points nowhere: bake writes
+    # its outputs as links into a generation folder (atlasgen.io.output_paths), and a link left dangling there means
+    # that folder was damaged, not that the atlas never had a manifest.
     if path_kind(manifest_path) == MISSING:
+        if manifest_path.is_symlink():
+            raise InputError(f"{manifest_path.as_posix()}: a symbolic link to {os.readlink(manifest_path)!r}, which does "
+                             f"not exist; expected the atlas's manifest there; {RERUN}")  # fmt: skip
         return Atlas(path, image, None)
     text = read_manifest_text(manifest_path)
     manifest = with_absolute_files(parse_manifest(text, manifest_path.as_posix()), manifest_path.parent)

@@ -392,9 +392,14 @@ def test_a_manifest_that_is_a_symbolic_link_loop_is_refused_on_one_line(tmp_path
     res = CliRunner().invoke(app, ["info", str(out / "build" / "atlas.dds")])
     assert res.exit_code == 3 and res.stderr.strip() == f"atlasgen: error: {expected}", res.output
     # A link that points nowhere (a first commit killed before its generation became current leaves its links so) is
-    # no manifest: the next bake goes on and mends it. Refused, it left every later bake, and make, failing.
+    # no manifest to a bake: the next bake goes on and mends it. Refused, it left every later bake, and make, failing.
     manifest.unlink()
     manifest.symlink_to(".atlas.atlasgen/gen-99/atlas.json")
+    # Reading such an atlas names the link, where info said "no manifest beside it" as for one never baked with one.
+    res = CliRunner().invoke(app, ["info", str(out / "build" / "atlas.dds")])
+    assert res.exit_code == 3 and res.stderr.strip() == (
+        f"atlasgen: error: {manifest.as_posix()}: a symbolic link to '.atlas.atlasgen/gen-99/atlas.json', which does not "
+        "exist; expected the atlas's manifest there; re-run atlasgen bake"), res.output  # fmt: skip
     res = CliRunner().invoke(app, ["bake", str(library), "-o", str(out / "build" / "atlas.dds"), "-q"])
     assert res.exit_code == 0, res.output
     assert CliRunner().invoke(app, ["info", str(out / "build" / "atlas.dds")]).exit_code == 0
