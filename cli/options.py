@@ -124,5 +124,10 @@ class MaterialProgress:
 
     def __exit__(self, *exc_info):
         if self.bar is not None:
-            self.bar.__exit__(*exc_info)
+            if exc_info[0] is None:
+                self.bar.__exit__(*exc_info)
+            else:
+                # The bar's line is erased, not finished: the error that follows is then the one line left.
+                self.bar.file.write("\r\033[2K\033[?25h")
+                self.bar.file.flush()
             self.bar = None

@@ -1,11 +1,15 @@
 """cli/options.py: an option a mode ignores is refused on one line (exit 2), never accepted silently."""
 
+import contextlib
+import io
+import sys
+
 import click
 import pytest
 from click.testing import CliRunner
 
 from atlasgen.cli.main import app
-from atlasgen.cli.options import refuse_options
+from atlasgen.cli.options import NORMAL, MaterialProgress, refuse_options
 
 # (the command line's mode, the option it ignores, the words of the refusal)
 IGNORED = [
@@ -121,3 +125,28 @@ def test_of_a_flag_pair_sharing_one_parameter_only_the_flag_given_is_refused():
     assert runner.invoke(command, []).output == "verbosity 0\n"
     refused = runner.invoke(command, ["-v"])
     assert refused.exit_code == 2 and "--verbose has no effect here; expected one or the other" in refused.output
+
+
+class _Terminal(io.StringIO):
+    """A stderr that says it is a terminal, so that MaterialProgress draws its bar."""
+
+    def isatty(self):
+        return True
+
+
+@pytest.mark.parametrize("fails", [False, True], ids=["finished", "failed"])
+def test_a_progress_bar_is_finished_or_erased_when_the_command_fails(monkeypatch, fails):
+    """A bake that failed after its bar was drawn left the bar's line above the error, which was then not the one
+    line: the bar is erased instead (a finished bar keeps its line)."""
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    with contextlib.suppress(RuntimeError), MaterialProgress("baked", NORMAL) as report:
+        report("clay", 1, 3)
+        if fails:
+            raise RuntimeError("the bake failed")
+    out = terminal.getvalue()
+    assert "baked" in out and "clay" in out  # the bar was drawn
+    if fails:
+        assert out.rsplit("\r", 1)[-1] == "\033[2K\033[?25h" and "\n" not in out
+    else:
+        assert out.endswith("\n")
