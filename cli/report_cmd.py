@@ -160,7 +160,10 @@ def _refuse_absent_reports(ctx: click.Context, validation: Path, separable_dir: 
 @click.option(
     "--no-physical", is_flag=True, help="Skip the Pareto charts against the physical reference (they evaluate Mitsuba BSDFs)."
 )
-@verbosity_options(verbose="Also print which of the validation and separable reports were found.")
+@verbosity_options(
+    verbose="Also print which of the validation and separable reports were found, and the validated "
+    "materials the atlas does not hold."
+)
 @fail_on_errors
 def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     """One HTML page over the whole library: representation, errors, bake time, slice previews, and Pareto
@@ -168,11 +171,15 @@ def library(atlas, validation, separable_dir, output, no_physical, verbosity):
     check_output_folder(output, "the report folder (-o)", writes=("index.html",))
     _refuse_absent_reports(click.get_current_context(), validation, separable_dir)
     # Figures validated on another bake of a material are not shown as its: one line each, loud even with -q.
+    # What is left out as another atlas's (a scene atlas's page over the library's report) is no fault: said with -v.
+    notes: list[str] = []
     page = write_library_report(atlas, output, validation, separable_dir, physical=not no_physical,
-                                warn=echo_warning)  # fmt: skip
+                                warn=echo_warning, note=notes.append)  # fmt: skip
     if verbosity == VERBOSE:
         inputs = (("validation report", validation / "report.json"), ("separable report", separable_dir / "index.html"))
         for what, path in inputs:
             click.echo(f"  {what}: {path.as_posix()} ({'used' if path.is_file() else 'absent'})", err=True)
+        for line in notes:
+            click.echo(f"  {line}", err=True)
     if verbosity != QUIET:
         click.echo(page.as_posix())

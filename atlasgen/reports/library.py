@@ -9,6 +9,7 @@ from atlasgen.bake.preview import slice_png
 from atlasgen.errors import FieldError, InputError, OutputError
 from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import write_files_atomically
+from atlasgen.io.fields import counted
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, read_json_file
 from atlasgen.io.text import special_file_kind
@@ -155,23 +156,26 @@ def _bake_seconds(timings, path, name: str) -> float | None:
     return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"), minimum=0.0)
 
 
-def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> tuple[dict | None, dict]:
+def _check_identity(validation: dict | None, atlas, report_path: Path, warn, note) -> tuple[dict | None, dict]:
     """The validation report with only the results measured on the materials of ``atlas`` as they are now, and
     ``{material: note}`` for each material whose results were not (:mod:`atlasgen.validate.identity`).
 
     A material whose recorded identity differs was validated on another bake of it: its results are dropped, and
     its note says so. A report that records none (written before atlasgen recorded it) cannot be checked: its
     results stay, marked unverified. ``warn`` gets one line per material dropped and one for an unverifiable report.
+    Results of materials the atlas does not hold are left out (nothing on the page is theirs), as a scene atlas leaves
+    out most of the library's report; ``note`` gets one line naming them, which the command prints with ``-v``.
     """
     if validation is None:
         return None, {}
     shown = report_path.as_posix()
-    kept, notes, unverified = [], {}, []
+    kept, notes, unverified, absent = [], {}, [], []
     current = {e.name: atlas_identity(atlas, e) for e in atlas.manifest.materials}
     for row in validation.get("results", []):
         name = row.get("material")
         if name not in current:
-            kept.append(row)  # not in this atlas: nothing on the page reads it
+            if name not in absent:
+                absent.append(name)
             continue
         if not isinstance(row.get("atlas_identity"), dict):
             kept.append(row)
@@ -192,6 +196,9 @@ def _check_identity(validation: dict | None, atlas, report_path: Path, warn) -> 
         warn(f"{shown}: records no identity of the atlas it validated (written by an older atlasgen), so the figures of "
              f"{', '.join(unverified)} cannot be checked against {atlas.manifest_path.as_posix()}; shown as unverified: "
              "re-run atlasgen validate")  # fmt: skip
+    if absent:
+        note(f"{shown}: left out the figures of {counted(len(absent), 'material')} {atlas.manifest_path.as_posix()} does "
+             f"not hold: {', '.join(map(str, absent))}")  # fmt: skip
     return {**validation, "results": kept}, notes
 
 
@@ -314,7 +321,14 @@ def _physical_section(entries, out_dir: Path, files: dict, jobs: int, warn=None)
 
 
 def write_library_report(
-    atlas_path, out_dir, validation_dir=None, separable_dir=None, physical: bool = True, jobs: int = MAX_JOBS, warn=None
+    atlas_path,
+    out_dir,
+    validation_dir=None,
+    separable_dir=None,
+    physical: bool = True,
+    jobs: int = MAX_JOBS,
+    warn=None,
+    note=None,
 ) -> Path:
     """Write ``out_dir/index.html`` (+ slice previews and a speed-against-error plot).
 
@@ -324,7 +338,7 @@ def write_library_report(
     also links each material's own validation page). Only figures measured on the materials of this
     atlas as they are are shown as validated: a material validated on another bake of it reads "not
     validated", and the figures of a report that records no identity are marked unverified (each
-    said on one line to ``warn``, where given). With ``physical``, the Pareto charts of
+    said on one line to ``warn``, where given; what is left out as not this atlas's is said to ``note``). With ``physical``, the Pareto charts of
     run-time cost against error versus the physical reference (:mod:`atlasgen.reports.pareto`),
     their candidates cached under ``out_dir/pareto`` and computed in up to ``jobs`` processes.
     Every file is replaced atomically.
@@ -350,7 +364,7 @@ def write_library_report(
     timings = _read_json(timings_path) or {}
     validation = _read_validation(validation_dir)
     validation, validation_notes = _check_identity(validation, atlas, Path(validation_dir or ".") / "report.json",
-                                                   warn or (lambda line: None))  # fmt: skip
+                                                   warn or (lambda line: None), note or (lambda line: None))  # fmt: skip
     out_dir = Path(out_dir)
 
     rows, files = [], {}

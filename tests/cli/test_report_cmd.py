@@ -71,6 +71,30 @@ def test_report_library_warns_of_validation_figures_measured_on_another_bake(tmp
     assert "<td>61.2</td>" not in page and '<p class="stale"><b>stale</b>: not validated on this atlas' in page
 
 
+@pytest.mark.slow
+def test_report_library_names_with_v_the_figures_of_materials_the_atlas_lacks(tmp_path, write_material):
+    """A report of a wider library (a scene atlas's page over the library's report) had the extra materials' figures
+    dropped without a word even under -v; -v now names them, and the run stays quiet without it: a subset is no fault."""
+    clay = 'type = "lambert"\ncolour = [0.7, 0.4, 0.2]\n'
+    atlas = _atlas(tmp_path, write_material, clay=clay)
+    read = read_atlas(atlas)
+    folder = tmp_path / "validation"
+    folder.mkdir()
+    rows = [{"material": name, "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.004}},
+             "atlas_identity": atlas_identity(read, read.material("clay"))} for name in ("clay", "snow", "ink", "snow")]  # fmt: skip
+    (folder / "report.json").write_text(json.dumps({"results": rows}))
+    args = ["report", "library", "--atlas", str(atlas), "--validation", str(folder), "--no-physical"]
+    runner = CliRunner()
+    for flag in ("-q", None):
+        plain = runner.invoke(app, [*args, "-o", str(tmp_path / "r"), *([flag] if flag else [])])
+        assert plain.exit_code == 0 and plain.stderr == "", plain.output
+    verbose = runner.invoke(app, [*args, "-o", str(tmp_path / "r"), "-v"])
+    assert verbose.exit_code == 0, verbose.output
+    assert verbose.stderr.splitlines()[-1] == (f"  {(folder / 'report.json').as_posix()}: left out the figures of 2 materials "
+                                               f"{atlas.with_suffix('.json').as_posix()} does not hold: snow, ink")  # fmt: skip
+    assert "<td>61.2</td>" in (tmp_path / "r" / "index.html").read_text()
+
+
 @pytest.mark.parametrize(
     ("option", "report", "writer"),
     [("--validation", "report.json", "atlasgen validate"), ("--separable", "index.html", "atlasgen report separable")],
