@@ -21,7 +21,7 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # folder, re-run only when that material's bake result or the code that measures it changed, then
 # a cheap merge that reads the per-material JSON and renders or measures nothing.
 # A MaterialX document (materials/*.mtlx) bakes each of its materials into its own cache entry
-# (build/cache/<stem>.<material>.npz), which make cannot name before reading the document: the
+# (build/cache/<stem>.mtlx/<material>.npz), which make cannot name before reading the document: the
 # document's stamp (build/cache/<stem>.mtlx.stamp) stands for them, and its validation is one job.
 # make splits file names on spaces, so "scenes/toon stage.toml" was two words: sha256sum errors on every make, a junk
 # hash, "No rule to make target" for render and a material left out of the atlas without a word. A colon or a percent
