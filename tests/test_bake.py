@@ -194,3 +194,10 @@ def test_unreadable_previous_slots_are_one_line_naming_the_file(tmp_path, text):
     with pytest.raises(ManifestError) as info:
         read_previous_slots(path)
     assert str(info.value).startswith(path.as_posix() + ": ") and "\n" not in str(info.value)
+    # The atlas's own manifest, damaged, stopped every later bake of it with a line that gave no way out; a named
+    # --ids-from (missing_ok=False) is the user's own file, and its line stays the reader's.
+    assert str(info.value).endswith("bake reads it to keep the atlas's material IDs: mend it, or delete it to bake "
+                                    "afresh with every ID assigned anew")  # fmt: skip
+    with pytest.raises(ManifestError) as named:
+        read_previous_slots(path, missing_ok=False)
+    assert "bake reads it" not in str(named.value)

@@ -19,7 +19,7 @@ from atlasgen.bake.quality import MaterialWarning, assess_material, assess_stora
 from atlasgen.bake.slots import assign_slices
 from atlasgen.bake.workers import load_or_bake_all
 from atlasgen.contract import FORMAT_VERSION, HEIGHT, LAYERS, MAPPING, SPECULAR_LOBE, WIDTH
-from atlasgen.errors import MaterialError, OutputError
+from atlasgen.errors import ManifestError, MaterialError, OutputError
 from atlasgen.io.atlas import KTX2_MANIFEST_KEY, texel_sha256
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM, DXGI_FORMAT_R8G8B8A8_UNORM_SRGB, describe_texture, encode_dds
@@ -140,7 +140,17 @@ def read_previous_slots(manifest_path, missing_ok: bool = True) -> dict[str, int
     # A link that loops is read, and refused, not taken for no manifest (exists() is False for it). One that points
     # nowhere is no manifest: a first commit killed before its generation was current leaves the set's links so,
     # and refusing them left every later bake (and make) failing until they were removed by hand.
-    return read_slots(path) if path_kind(path) != MISSING or not missing_ok else {}
+    if path_kind(path) == MISSING and missing_ok:
+        return {}
+    try:
+        return read_slots(path)
+    except ManifestError as exc:
+        if not missing_ok:
+            raise
+        # The atlas's own manifest, damaged: refused, since baking past it would re-number what an engine holds, but
+        # the line says how out (it read as if the bake could never again write this output).
+        raise ManifestError(exc.path, exc.field, f"{exc.expected}; bake reads it to keep the atlas's material IDs: "
+                            "mend it, or delete it to bake afresh with every ID assigned anew") from None  # fmt: skip
 
 
 def _jsonable(value):
