@@ -348,7 +348,8 @@ def bake(
                        "a MaterialX document (.mtlx) to flatten, or no --flatten")  # fmt: skip
     materials = select_scene_materials(every_material, scene) if scene is not None else every_material
     # Every output path is checked before anything (the cache included) is written.
-    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material)
+    check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material,
+                       depfile_target)  # fmt: skip
     jobs = available_cpus() if jobs is None else jobs
     if cache_only:
         # Formatted first, so that a path make cannot read is refused before anything is baked.

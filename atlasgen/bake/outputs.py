@@ -7,16 +7,17 @@ from pathlib import Path
 
 from atlasgen.bake.cache import cache_path
 from atlasgen.bake.pipeline import ATLAS_SUFFIXES, bake_writer, other_container_path, read_previous_slots, sibling_paths
-from atlasgen.errors import OutputError
+from atlasgen.errors import OutputError, OutputNameError
 from atlasgen.io.atomic import refuse_another_sets
 from atlasgen.io.output_paths import check_output_paths, check_suffix
+from atlasgen.materials.material import is_material_file_name
 from atlasgen.materials.scene import read_scene
 
 __all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
 
 
 def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,
-                       allow_empty=False, cache_only=False, library=None) -> None:  # fmt: skip
+                       allow_empty=False, cache_only=False, library=None, depfile_target=None) -> None:  # fmt: skip
     """Refuse a bake whose outputs clash with its inputs or each other, or would empty an atlas.
 
     Checked: the atlas's extension (:data:`ATLAS_SUFFIXES`) and the preview's (``.png``);
@@ -25,7 +26,9 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     or another output; and an atlas whose manifest lists materials is not replaced by an
     empty one unless ``allow_empty``. With ``cache_only`` only the cache entries and the depfile
     are written, and checked. ``library`` is every material read (``materials`` being those a scene
-    selected from it): all of their files are inputs.
+    selected from it): all of their files are inputs. The depfile is not named as a material file (a folder's
+    next bake would read it as one), and its target (``depfile_target``) is none of the inputs (which it would
+    then make depend on themselves).
 
     Raises
     ------
@@ -70,6 +73,7 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
     if ids_from is not None and os.path.realpath(ids_from) != os.path.realpath(paths["manifest"]):
         inputs.append((ids_from, "--ids-from"))
     check_output_paths(outputs, inputs)
+    _check_depfile_names(depfile, depfile_target, inputs)
     if not cache_only:
         # An output that is another set's link (--depfile build/atlas.dds beside a scene atlas) is refused at the
         # commit too, but by then the lock had made this set's store: refused here, the bake leaves nothing behind.
@@ -80,3 +84,19 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
             what = f"{len(existing)} materials" if existing else "materials"
             raise OutputError(f"{paths['dds'].as_posix()}: no materials to bake would replace an atlas of {what} "
                               "with an empty one; expected material files (or --allow-empty)")  # fmt: skip
+
+
+def _check_depfile_names(depfile, target, inputs) -> None:
+    """Refuse a depfile named as a material file, and a depfile target that is one of the bake's ``inputs``."""
+    if depfile is not None and is_material_file_name(Path(depfile).name):
+        # In a folder the bake reads, the next bake read the make fragment as a material and failed on it, as did
+        # every bake after it until the file was removed by hand.
+        raise OutputNameError(f"{Path(depfile).as_posix()}: --depfile must not end in .toml or .mtlx, the names bake "
+                              "reads as material files; expected a make fragment's name, such as atlas.d")  # fmt: skip
+    if target is None:
+        return
+    for path, role in inputs:
+        if os.path.realpath(path) == os.path.realpath(target):
+            raise OutputNameError(f"{target}: --depfile-target is {role}, which the depfile would make depend on "
+                                  "itself (make drops such a circular dependency); expected the target make builds, "
+                                  "such as the atlas or a stamp")  # fmt: skip

@@ -53,6 +53,23 @@ def test_an_output_may_not_be_an_input(tmp_path, library):
              "--depfile would overwrite the scene (--scene)")  # fmt: skip
 
 
+def test_a_depfile_named_as_a_material_or_targeting_an_input_is_refused(tmp_path, library):
+    """A hostile sweep: --depfile in the material folder as dep.toml baked, and the next bake of the folder read it as
+    a material and failed, as every later one did; --depfile-target naming a material file wrote a rule making it
+    depend on itself. Both are usage errors now, and an ordinary depfile and target still bake."""
+    material = library / "clay.toml"
+    line = _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--depfile", str(library / "dep.toml")],
+                    "--depfile must not end in .toml or .mtlx", code=2)  # fmt: skip
+    assert line.startswith(f"atlasgen: error: {(library / 'dep.toml').as_posix()}: ")
+    _refused(tmp_path, ["bake", str(material), "-o", str(tmp_path / "a.dds"), "--depfile", str(tmp_path / "doc.mtlx")],
+             "--depfile must not end in .toml or .mtlx", code=2)  # fmt: skip
+    line = _refused(tmp_path, ["bake", str(material), "-o", str(tmp_path / "a.dds"), "--depfile", str(tmp_path / "a.d"),
+                               "--depfile-target", str(material)], "--depfile-target is the material file of 'clay'", code=2)  # fmt: skip
+    assert line.startswith(f"atlasgen: error: {material}: ")
+    _bake(tmp_path, library, "--depfile", str(tmp_path / "a.d"), "--depfile-target", str(tmp_path / "build" / "atlas.dds"))
+    assert (tmp_path / "a.d").read_text().startswith(f"{(tmp_path / 'build' / 'atlas.dds').as_posix()}:")
+
+
 def test_two_outputs_may_not_share_a_path(tmp_path, library):
     out = tmp_path / "build" / "atlas.dds"
     _refused(tmp_path, ["bake", str(library), "-o", str(out), "--depfile", str(out.with_suffix(".json"))],
