@@ -34,9 +34,24 @@ def test_an_ids_from_manifest_wins_over_the_previous_one_whatever_the_names():
     library = ("lib/atlas.json", {"terracotta": 0, "toon": 1})
     for name in ("grey", "zz"):
         slots = assign_slices([req(name), req("terracotta")], previous={name: 0}, pinned=library)
-        assert slots == {"terracotta": 0, name: 1}
+        assert slots == {"terracotta": 0, name: 2}  # not toon's 1 either (below)
     # A run the previous manifest gives that reaches into the library's slice moves too.
     assert assign_slices([req("aa", 3), req("toon")], previous={"aa": 0}, pinned=library) == {"toon": 1, "aa": 2}
+
+
+def test_a_material_the_ids_from_manifest_lacks_takes_none_of_its_ids():
+    """A hostile sweep: glazed-ceramic, which the library lacks, took the library's red-plastic's ID 0 in a scene atlas
+    baked --ids-from it, so one g-buffer ID meant two materials across the atlases. It takes the lowest ID the library
+    does not give (an earlier one of the scene atlas moving off a library ID too), and a library ID only where the
+    atlas has no other slice left."""
+    library = ("lib/atlas.json", {"red-plastic": 0, "toon": 1, "gold": 3})
+    assert assign_slices([req("glazed"), req("toon")], pinned=library) == {"toon": 1, "glazed": 2}
+    assert assign_slices([req("glazed", 2), req("toon")], pinned=library) == {"toon": 1, "glazed": 4}
+    assert assign_slices([req("glazed"), req("toon")], previous={"glazed": 0}, pinned=library)["glazed"] == 2
+    assert assign_slices([req("glazed")], previous={"glazed": 7}, pinned=library)["glazed"] == 7
+    full = ("lib/atlas.json", {f"m{i}": i for i in range(256)})
+    assert assign_slices([req("glazed"), req("m5")], pinned=full) == {"m5": 5, "glazed": 0}
+    assert assign_slices([req("glazed")]) == {"glazed": 0}  # no --ids-from: nothing is reserved
 
 
 def test_an_ids_from_slice_the_atlas_cannot_give_is_refused():

@@ -80,10 +80,14 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
     # order instead, a grown material took the next one's place and moved that one, though it had not
     # changed, and a scene atlas baked with its old ID went stale.
     homes = {previous[name]: name for name, _, explicit, _ in requests if explicit is None and name in previous}
+    # The --ids-from manifest's IDs of materials this atlas lacks stay theirs: a material of this atlas alone taking
+    # one (the library's red-plastic's 0, say) made one g-buffer ID two materials across the atlases, which --ids-from
+    # exists to prevent. Earlier IDs here move out of their way, as out of the pinned materials' own.
+    reserved = set(pinned[1].values()) if pinned is not None else set()
     for name, count, explicit, src in requests:
         if explicit is None and name in previous and name not in first:
             start = previous[name]
-            if any(homes.get(s, name) != name for s in _span(start + 1, count - 1)):
+            if any(homes.get(s, name) != name for s in _span(start + 1, count - 1)) or reserved.intersection(_span(start, count)):
                 continue
             taken = [s for s in _span(start, count) if s in owner]
             if start + count <= layers and not taken:
@@ -96,20 +100,27 @@ def assign_slices(requests: list[tuple], previous: dict[str, int] | None = None,
                     f"explicit id takes slice {taken[0]}, which the previous manifest gives to {name!r} ({src}); "
                     "expected a free slice (or delete the old manifest to re-number)",
                 )
-    # A material whose multi-slice run grew past its old place moves to the lowest free run.
-    lowest_free = 0
+    # A material whose multi-slice run grew past its old place moves to the lowest free run; one over a reserved ID
+    # only where no other run is left (the atlas's 256 slices shared with the library's absent materials).
     for name, count, _explicit, src in requests:
         if name in first:
             continue
-        while lowest_free in owner:
-            lowest_free += 1
-        start = lowest_free
-        while start + count <= layers and any(s in owner for s in _span(start, count)):
-            start += 1
-        if start + count > layers:
+        start = _lowest_run(owner, count, layers, reserved)
+        if start is None:
+            start = _lowest_run(owner, count, layers, set())
+        if start is None:
             raise MaterialError(src, None, f"needs {count} consecutive free slices; expected a gap that large in the atlas")
         claim(name, start, count, src, "allocated")
     return first
+
+
+def _lowest_run(owner: dict, count: int, layers: int, reserved: set) -> int | None:
+    """The first slice of the lowest run of ``count`` slices none of which is owned or ``reserved``; None where there
+    is none. (A run over another atlas's ID would make that ID read one of its slices.)"""
+    for start in range(layers - count + 1):
+        if not any(s in owner or s in reserved for s in _span(start, count)):
+            return start
+    return None
 
 
 def _claim_pinned(requests, pinned, claim, owner, layers) -> None:
