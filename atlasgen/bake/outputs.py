@@ -13,7 +13,7 @@ from atlasgen.io.output_paths import check_output_paths, check_suffix
 from atlasgen.materials.material import is_material_file_name
 from atlasgen.materials.scene import read_scene
 
-__all__ = ["ATLAS_SUFFIXES", "check_bake_outputs"]
+__all__ = ["ATLAS_SUFFIXES", "check_bake_outputs", "check_depfile_name"]
 
 
 def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_dir=None, scene=None, ids_from=None,
@@ -86,13 +86,17 @@ def check_bake_outputs(dds_path, materials, preview=None, depfile=None, cache_di
                               "with an empty one; expected material files (or --allow-empty)")  # fmt: skip
 
 
-def _check_depfile_names(depfile, target, inputs) -> None:
-    """Refuse a depfile named as a material file, and a depfile target that is one of the bake's ``inputs``."""
+def check_depfile_name(depfile) -> None:
+    """Refuse a ``--depfile`` (of any command) named as a material file: in a folder a bake reads, the next bake read
+    the make fragment as a material and failed on it, as did every bake after it until it was removed by hand."""
     if depfile is not None and is_material_file_name(Path(depfile).name):
-        # In a folder the bake reads, the next bake read the make fragment as a material and failed on it, as did
-        # every bake after it until the file was removed by hand.
         raise OutputNameError(f"{Path(depfile).as_posix()}: --depfile must not end in .toml or .mtlx, the names bake "
                               "reads as material files; expected a make fragment's name, such as atlas.d")  # fmt: skip
+
+
+def _check_depfile_names(depfile, target, inputs) -> None:
+    """Refuse a depfile named as a material file, and a depfile target that is one of the bake's ``inputs``."""
+    check_depfile_name(depfile)
     if target is None:
         return
     for path, role in inputs:

@@ -252,3 +252,21 @@ def test_a_render_beside_its_scene_s_atlas_keeps_to_its_own_files(gpu_device, at
     assert CliRunner().invoke(app, args).exit_code == 0
     assert not os.path.lexists(b / "x.png.d") and (b / "x.d").read_bytes() == rule and (b / "x.json").exists()
     assert gpu_device.take_errors() == []
+
+
+def test_render_neither_removes_an_input_with_aov_nor_writes_a_depfile_named_as_a_material(atlas, tmp_path):
+    """A hostile sweep: a scene named k.png rendered to k.exr with --aov was deleted (the commit removes the PNG name
+    beside an AOV), and --depfile terracotta.toml replaced that material file with a make fragment, which a later
+    render without --depfile then removed. Both are refused before anything renders."""
+    scene = write_scene(tmp_path, SCENE.format(material="snow"), name="k.png")
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "k.exr"), "--aov", "depth"])
+    assert res.exit_code == 4 and res.stderr == (
+        f"atlasgen: error: {scene.as_posix()}: the PNG beside the render (removed with --aov) would overwrite the scene "
+        f"({scene.as_posix()}); expected an output path that is not an input\n"), res.output  # fmt: skip
+    assert scene.read_text() == SCENE.format(material="snow") and not (tmp_path / "k.exr").exists()
+    material = tmp_path / "materials" / "clay.toml"
+    before = material.read_bytes()
+    res = CliRunner().invoke(app, ["render", str(scene), "--atlas", str(atlas), "-o", str(tmp_path / "o.exr"),
+                                   "--depfile", str(material)])  # fmt: skip
+    assert res.exit_code == 2 and "--depfile must not end in .toml or .mtlx" in res.stderr, res.output
+    assert material.read_bytes() == before and not material.is_symlink()
