@@ -655,6 +655,30 @@ def test_a_writer_may_not_replace_another_writer_s_file_of_a_shared_set(tmp_path
         "x.dds": b"atlas", "x.d": b"bake's rule", "x.png": b"image", "x.png.d": b"render's rule"}  # fmt: skip
 
 
+def test_a_set_replaced_whole_keeps_another_writer_s_files_by_refusing(tmp_path):
+    """A hostile sweep: `report library -o ix` (index.html, a report's set replaced whole) into a folder holding a bake's
+    ix/index.dds (the same key, index) removed the atlas and its side files, exit 0. Both the check before the work
+    and the commit refuse it; files no writer named (the report's own earlier ones) are still dropped."""
+    from atlasgen.io.atomic import refuse_other_writers
+
+    write_files_atomically({tmp_path / "index.dds": b"atlas", tmp_path / "index.json": b"{}"}, primary=tmp_path / "index.dds",
+                           writer="bake -o index.dds/.ktx2")  # fmt: skip
+    expected = (f"{(tmp_path / 'index.dds').as_posix()}: written by `atlasgen bake -o index.dds/.ktx2` into the output set "
+                "(.index.atlasgen) this command replaces whole; expected a folder of its own for each command's outputs; "
+                "nothing was replaced")  # fmt: skip
+    with pytest.raises(OutputError) as early:
+        refuse_other_writers(tmp_path / "index.html")
+    with pytest.raises(OutputError) as late:
+        write_files_atomically({tmp_path / "index.html": b"page"}, primary=tmp_path / "index.html", whole=True)
+    assert str(early.value) == str(late.value) == expected
+    assert visible(tmp_path) == {"index.dds": b"atlas", "index.json": b"{}"}
+    other = tmp_path / "other"
+    write_files_atomically({other / "index.html": b"one", other / "a.png": b"img"}, primary=other / "index.html", whole=True)
+    refuse_other_writers(other / "index.html")
+    write_files_atomically({other / "index.html": b"two"}, primary=other / "index.html", whole=True)
+    assert visible(other) == {"index.html": b"two"}
+
+
 def test_a_writer_s_earlier_file_that_it_no_longer_writes_leaves_the_set(tmp_path):
     """A render with --depfile, then one without: the first one's depfile stayed beside an image that no longer read
     what it named. A writer's own earlier files are not carried over; another writer's, and files no writer named

@@ -76,6 +76,7 @@ __all__ = [
     "refuse_inside_store",
     "refuse_another_sets",
     "refuse_set_link",
+    "refuse_other_writers",
     "TEMP_SUFFIX",
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
@@ -506,6 +507,27 @@ def _refuse_another_sets(path: Path, store: Path | None) -> None:
                           "expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
 
 
+def _refuse_others_files(home: Path, store: Path, names, writer: str | None, owners: dict) -> None:
+    """Refuse to replace a set whole where ``names`` (its current files) hold one another writer wrote: a report
+    folder holding a bake's ``index.dds`` set (the same key, ``index``) had that atlas's files removed, exit 0."""
+    for stored in _linked(home, store, names):
+        other = owners.get(stored)
+        if other is not None and other != writer:
+            raise OutputError(f"{_target_path(home, stored).as_posix()}: written by `atlasgen {other}` into the output set "
+                              f"({store.name}) this command replaces whole; expected a folder of its own for each "
+                              "command's outputs; nothing was replaced")  # fmt: skip
+
+
+def refuse_other_writers(primary, writer: str | None = None) -> None:
+    """Refuse, before a command's work, to replace whole the set of ``primary`` (a report's folder) where another
+    command wrote files into it: :func:`write_files_atomically` refuses it at the commit, after the work."""
+    primary = Path(primary)
+    store = store_path(primary)
+    current = _current(store)
+    if current is not None:
+        _refuse_others_files(_folder(primary), store, _names(store / current), writer, _read_writers(store, current))
+
+
 def refuse_set_link(path) -> None:
     """Refuse to replace ``path`` with a plain file where it is an output set's link: ``preview -o
     report/cost-vs-error.png`` replaced the library report's link with a PNG, that set's folder then mixed."""
@@ -597,6 +619,8 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
     old = set(_names(live)) if current else set()
     owners = _read_writers(store, current)
     _refuse_taken(home, store, [path for path, _ in items], writer, owners)  # again under the lock
+    if whole:
+        _refuse_others_files(home, store, old, writer, owners)
     # This writer's earlier files that it does not write now are stale: not carried over.
     own = {stored for stored, w in owners.items() if writer is not None and w == writer}
     # Each path: this set's link already, absent, or to be migrated (a plain file, another link).

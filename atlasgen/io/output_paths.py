@@ -13,7 +13,7 @@ import tempfile
 from pathlib import Path
 
 from atlasgen.errors import OutputError, OutputNameError, shorten
-from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, TEMP_SUFFIX, refuse_another_sets, refuse_inside_store
+from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, TEMP_SUFFIX, refuse_another_sets, refuse_inside_store, refuse_other_writers
 from atlasgen.io.text import special_file_kind
 
 __all__ = ["check_cache_folder", "check_output_folder", "check_output_paths", "check_suffix"]
@@ -139,6 +139,7 @@ def check_output_folder(path, role: str, writes=()) -> None:
     refuse_inside_store(path, folder=True)
     if writes:
         refuse_another_sets([path / name for name in writes], path / writes[0])
+        refuse_other_writers(path / writes[0])
 
 
 def check_cache_folder(path, role: str) -> None:

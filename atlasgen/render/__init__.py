@@ -91,12 +91,12 @@ def _check_render_outputs(output_path, aov, scene, atlas_path, depfile=None) -> 
     outputs = [(output_path, "the render (-o)")]
     if depfile is not None:
         outputs.append((Path(depfile), "--depfile"))
-    check_depfile_name(depfile)
     png = output_path.with_suffix(".png")
     if aov is None:
         outputs.append((png, "the PNG written beside the render"))
     # With --aov the PNG's name is removed by the commit (write_aov): a scene named X.png was deleted.
     removed = [(png, "the PNG beside the render (removed with --aov)")] if aov is not None else []
     check_output_paths(outputs + removed, render_inputs(scene, atlas_path))
+    check_depfile_name(depfile)
     # Before the render, not at its commit; the set's primary is the PNG where one is written (render/output.py).
     refuse_another_sets([path for path, _ in outputs], outputs[-1][0], render_writer(output_path))

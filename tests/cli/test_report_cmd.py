@@ -109,3 +109,18 @@ def test_report_library_refuses_a_named_report_folder_without_its_report(tmp_pat
     assert res.stderr == (f"atlasgen: error: {typo.as_posix()}: no {report} in the {option} folder; expected a folder "
                           f"{writer} wrote, or no {option}\n")  # fmt: skip
     assert not (tmp_path / "report").exists()
+
+
+def test_report_library_into_a_folder_of_another_command_s_set_is_refused_before_any_work(tmp_path, write_material):
+    """A hostile sweep: an atlas baked as ix/index.dds, then `report library -o ix` (its page ix/index.html: the same
+    set, .index.atlasgen) removed the atlas and every file beside it, exit 0."""
+    write_material("clay", 'type = "lambert"\n')
+    atlas = tmp_path / "ix" / "index.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    before = sorted(p.name for p in atlas.parent.iterdir())
+    res = CliRunner().invoke(app, ["report", "library", "--atlas", str(atlas), "-o", str(atlas.parent), "--no-physical"])
+    assert res.exit_code == 4 and res.stderr == (
+        f"atlasgen: error: {atlas.as_posix()}: written by `atlasgen bake -o index.dds/.ktx2` into the output set "
+        "(.index.atlasgen) this command replaces whole; expected a folder of its own for each command's outputs; nothing "
+        "was replaced\n"), res.output  # fmt: skip
+    assert sorted(p.name for p in atlas.parent.iterdir()) == before and atlas.is_file()
