@@ -18,7 +18,7 @@ import numpy as np
 
 from atlasgen.bake.pipeline import BakeResult, bake_atlas
 from atlasgen.contract import LAYERS
-from atlasgen.errors import InputError, MaterialError
+from atlasgen.errors import InputError, MaterialError, OutputNameError
 from atlasgen.io.atomic import refuse_set_link, write_file_atomically
 from atlasgen.io.dds import DXGI_FORMAT_R8G8B8A8_UNORM_SRGB
 from atlasgen.io.images import encode_png
@@ -155,6 +155,10 @@ def check_preview_output(output, sources, cache_dir=None) -> None:
     check_output_paths([(Path(output), "the preview (-o)")], inputs)
     refuse_set_link(output)  # before rendering: write_file_atomically refuses it again
     if cache_dir is not None:
+        if os.path.realpath(cache_dir) == os.path.realpath(output):
+            # The cache was made and filled under the preview's name, and the preview then failed on the folder.
+            raise OutputNameError(f"{Path(cache_dir).as_posix()}: --cache is the preview (-o); expected a cache folder "
+                                  "of another name")  # fmt: skip
         check_cache_folder(cache_dir, "--cache")
 
 

@@ -40,6 +40,17 @@ def test_bad_input_is_one_line_and_the_picture_stays(tmp_path, monkeypatch, writ
     assert old.read_bytes() == b"the last good picture"
 
 
+def test_a_cache_named_as_the_preview_is_refused_before_any_work(tmp_path, monkeypatch, write_material):
+    """A hostile sweep: --cache pv/c.png with -o pv/c.png made the folder pv/c.png and filled it with cache entries,
+    then failed on writing the picture over it (exit 4, "it was left as it was")."""
+    monkeypatch.chdir(tmp_path)
+    clay = write_material("clay", CLAY)
+    res = CliRunner().invoke(app, ["preview", str(clay), "-o", "pv/c.png", "--cache", "pv/c.png"])
+    assert res.exit_code == 2 and res.stderr == ("atlasgen: error: pv/c.png: --cache is the preview (-o); expected a "
+                                                 "cache folder of another name\n"), res.output  # fmt: skip
+    assert not (tmp_path / "pv").exists()
+
+
 def test_materials_that_leave_the_floor_no_slice_are_refused_naming_the_floor(tmp_path, monkeypatch):
     # 256 one-slice materials fill the atlas: the preview's floor needs one more.
     monkeypatch.chdir(tmp_path)
