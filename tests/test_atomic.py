@@ -691,3 +691,14 @@ def test_a_writer_s_earlier_file_that_it_no_longer_writes_leaves_the_set(tmp_pat
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if not p.name.startswith(".")} == {
         "x.dds": b"atlas", "x.old": b"unnamed", "x.png": b"two"}  # fmt: skip
     assert not os.path.lexists(tmp_path / "x.png.d")
+
+
+def test_a_file_in_the_store_s_place_is_named_with_what_was_expected(tmp_path):
+    """A hostile sweep: a file named .o.atlasgen beside -o o.exr gave "lock: cannot open the output set's lock file
+    (File exists)", naming neither the file in the way nor what was expected."""
+    (tmp_path / ".o.atlasgen").write_text("mine")
+    with pytest.raises(OutputError) as info:
+        write_files_atomically({tmp_path / "o.exr": b"image"})
+    assert str(info.value) == (f"{(tmp_path / '.o.atlasgen').as_posix()}: expected the folder atlasgen keeps this output "
+                               "set's files in, got a file; move it away (the name is atlasgen's)")  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".o.atlasgen"] and (tmp_path / ".o.atlasgen").read_text() == "mine"

@@ -234,6 +234,10 @@ def output_lock(folder, key: str, timeout: float | None = None):
     store = Path(folder) / f".{key}{STORE_SUFFIX}"
     lock_path = store / LOCK_NAME
     timeout = lock_timeout() if timeout is None else timeout
+    if os.path.lexists(store) and not store.is_dir():
+        # A file of the store's name: "lock: cannot open ... (File exists)" named neither it nor what was expected.
+        raise OutputError(f"{store.as_posix()}: expected the folder atlasgen keeps this output set's files in, got a "
+                          "file; move it away (the name is atlasgen's)")  # fmt: skip
     try:
         store.mkdir(parents=True, exist_ok=True)
         fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
