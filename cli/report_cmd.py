@@ -14,6 +14,7 @@ from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials
 from atlasgen.models.separable import Separable
 from atlasgen.reports.library import write_library_report
+from atlasgen.reports.report_kind import folder_report_kind
 from atlasgen.reports.separable import write_separable_report
 from atlasgen.reports.separable_merge import merge_separable_reports
 
@@ -123,6 +124,11 @@ def _refuse_absent_reports(ctx: click.Context, validation: Path, separable_dir: 
         if given and not (folder / report).is_file():
             raise InputError(f"{folder.as_posix()}: no {report} in the {option} folder; expected a folder {writer} "
                              f"wrote, or no {option}")  # fmt: skip
+    # Any page passed: another library page given as --separable was linked as the factorisation report, exit 0.
+    if ctx.get_parameter_source("separable_dir") == click.core.ParameterSource.COMMANDLINE:
+        if folder_report_kind(separable_dir) != "separable":
+            raise InputError(f"{(separable_dir / 'report.json').as_posix()}: the --separable folder holds no separable "
+                             "report; expected a folder atlasgen report separable wrote, or no --separable")  # fmt: skip
 
 
 @report.command("library")

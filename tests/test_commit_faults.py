@@ -333,6 +333,7 @@ def test_a_library_report_changes_as_one_set_through_every_fault(tmp_path, libra
     (tmp_path / "v" / "report.json").write_text('{"results": []}')
     (tmp_path / "s").mkdir()
     (tmp_path / "s" / "index.html").write_text("<html></html>")
+    (tmp_path / "s" / "report.json").write_text('[{"name": "clay"}]')  # a separable report's, as --separable requires
     args = ["report", "library", "--atlas", atlas, "--validation", tmp_path / "v", "--separable", tmp_path / "s",
             "-o", page, "--no-physical", "-q"]  # fmt: skip
     seen = drive(args, page, "index.html", use_old, use_new, immutable=["slices/clay-0.png"])
