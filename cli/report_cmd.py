@@ -9,7 +9,7 @@ import click
 from atlasgen.cli.main import echo_warning, fail_on_errors
 from atlasgen.cli.options import HELP_OPTIONS, QUIET, VERBOSE, MaterialProgress, PathArg, refuse_options, verbosity_options
 from atlasgen.errors import InputError
-from atlasgen.io.output_paths import check_output_folder
+from atlasgen.io.output_paths import check_output_folder, refuse_inputs_in_folder
 from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials
 from atlasgen.models.separable import Separable
@@ -103,6 +103,10 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
                              f'expected materials with type = "{Separable.type_name}"')  # fmt: skip
     if files:
         chosen += read_materials(files)
+    inputs = [(Path(m.source), f"the material file of {m.name!r}") for m in chosen]
+    if atlas is not None:
+        inputs += [(Path(atlas), "the atlas (--atlas)"), (Path(atlas).with_suffix(".json"), "the atlas's manifest")]
+    refuse_inputs_in_folder(output, inputs)
     with MaterialProgress("studied", verbosity) as on_material:
         written = write_separable_report(chosen, output, atlas, repeats=repeats, on_material=on_material,
                                          skip_without_terms=not names)  # fmt: skip

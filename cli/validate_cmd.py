@@ -19,7 +19,7 @@ from atlasgen.cli.options import (
     verbosity_options,
 )
 from atlasgen.errors import GoalsMissed
-from atlasgen.io.output_paths import check_cache_folder, check_output_folder
+from atlasgen.io.output_paths import check_cache_folder, check_output_folder, refuse_inputs_in_folder
 from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.reports.validation import (
     describe_materials,
@@ -155,6 +155,10 @@ def validate(
     if not merge:
         _refuse_repeated_scenes(scenes)
     check_output_folder(output, "the report folder (-o)", writes=("report.json", "index.html"))
+    if not merge:
+        refuse_inputs_in_folder(output, [(atlas, "the atlas (--atlas)"), (atlas.with_suffix(".json"), "the atlas's manifest"),
+                                         *((Path(s), "the scene (--scene)") for s in scenes if s not in STANDARD_SCENES),
+                                         *((Path(m), "the material file") for m in materials if Path(m).is_file())])  # fmt: skip
     refuse_another_report(output, "validation")  # before minutes of rendering: the commit refuses it again
     if not merge:  # the caches are written as the renders finish: refused now, not after them
         check_cache_folder(bake_cache, "--cache")

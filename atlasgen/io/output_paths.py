@@ -16,7 +16,7 @@ from atlasgen.errors import OutputError, OutputNameError, shorten
 from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, TEMP_SUFFIX, refuse_another_sets, refuse_inside_store, refuse_other_writers
 from atlasgen.io.text import special_file_kind
 
-__all__ = ["check_cache_folder", "check_output_folder", "check_output_paths", "check_suffix"]
+__all__ = ["check_cache_folder", "check_output_folder", "check_output_paths", "check_suffix", "refuse_inputs_in_folder"]
 
 
 def _key(path: Path) -> str:
@@ -140,6 +140,17 @@ def check_output_folder(path, role: str, writes=()) -> None:
     if writes:
         refuse_another_sets([path / name for name in writes], path / writes[0])
         refuse_other_writers(path / writes[0])
+
+
+def refuse_inputs_in_folder(folder, inputs, role: str = "the report folder (-o)") -> None:
+    """Refuse ``inputs`` (``(path, what)`` pairs) lying directly in a report's ``folder``: the report's files (plots
+    named by material, say) are known only once measured, and a scene named speed_error.png or a material named
+    index.md there was replaced by the report, exit 0. A link is judged by where it lies, not where it points."""
+    real = os.path.realpath(folder)
+    for path, what in inputs:
+        if os.path.realpath(os.path.dirname(os.path.abspath(path))) == real:
+            raise OutputError(f"{Path(path).as_posix()}: {what} lies in {role}, {Path(folder).as_posix()}, whose files "
+                              "the report replaces; expected the inputs outside it")  # fmt: skip
 
 
 def check_cache_folder(path, role: str) -> None:

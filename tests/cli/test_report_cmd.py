@@ -138,3 +138,17 @@ def test_report_library_refuses_a_separable_folder_that_holds_no_separable_repor
         f"atlasgen: error: {(other / 'report.json').as_posix()}: the --separable folder holds no separable report; "
         "expected a folder atlasgen report separable wrote, or no --separable\n"), res.output  # fmt: skip
     assert not (tmp_path / "report").exists()
+
+
+def test_report_separable_refuses_a_material_file_lying_in_its_folder(tmp_path):
+    """A hostile sweep: a separable material copied as s2/index.md and studied into -o s2 was replaced by the report's
+    Markdown summary, exit 0."""
+    folder = tmp_path / "s2"
+    folder.mkdir()
+    material = folder / "index.md"
+    material.write_text(GLOSS)
+    res = CliRunner().invoke(app, ["report", "separable", "-m", str(material), "--repeats", "1", "-o", str(folder)])
+    assert res.exit_code == 4 and res.stderr == (
+        f"atlasgen: error: {material.as_posix()}: the material file of 'index' lies in the report folder (-o), "
+        f"{folder.as_posix()}, whose files the report replaces; expected the inputs outside it\n"), res.output  # fmt: skip
+    assert material.read_text() == GLOSS and sorted(p.name for p in folder.iterdir()) == ["index.md"]

@@ -522,3 +522,20 @@ def test_a_scene_given_twice_is_a_usage_error(second, tmp_path):
     assert result.exit_code == 2, result.output
     assert f"{second} is given twice (the first: --scene {first}); expected each scene once" in result.output
     assert not (tmp_path / "v").exists()
+
+
+def test_an_input_lying_in_the_report_folder_is_refused_before_any_work(tmp_path):
+    """A hostile sweep: a scene file named v3/speed_error.png (or an atlas so named) given with -o v3 was replaced by
+    the report's plot, exit 0. Inputs lying in the report folder are refused before anything renders."""
+    folder = tmp_path / "v3"
+    folder.mkdir()
+    scene = folder / "speed_error.png"
+    scene.write_text("[camera]\nposition = [0, 0, 4]\ntarget = [0, 0, 0]\n")
+    res = CliRunner().invoke(app, ["validate", "--atlas", str(tmp_path / "a.dds"), "--scene", str(scene), "--no-physical",
+                                   "-o", str(folder), "clay"])  # fmt: skip
+    assert res.exit_code == 4 and res.stderr == (
+        f"atlasgen: error: {scene.as_posix()}: the scene (--scene) lies in the report folder (-o), {folder.as_posix()}, "
+        "whose files the report replaces; expected the inputs outside it\n"), res.output  # fmt: skip
+    assert sorted(p.name for p in folder.iterdir()) == ["speed_error.png"]
+    res = CliRunner().invoke(app, ["validate", "--atlas", str(folder / "a.dds"), "--no-physical", "-o", str(folder), "clay"])
+    assert res.exit_code == 4 and "the atlas (--atlas) lies in the report folder (-o)" in res.stderr, res.output
