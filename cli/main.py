@@ -46,6 +46,7 @@ from atlasgen.errors import (
     REPORT_BUGS_TO,
     AtlasgenError,
     BakeWarnings,
+    OutputError,
     Terminated,
     shorten,
 )
@@ -57,6 +58,7 @@ from atlasgen.io.package_data import shipped_library
 from atlasgen.materials.material import read_materials, select_scene_materials
 from atlasgen.materials.materialx_document import is_materialx_file
 from atlasgen.models import check_manifest_models
+from atlasgen.reports.report_kind import folder_report_kind
 from atlasgen.start_up import INTERRUPTED_LINE, TERMINATED_LINE
 
 __all__ = ["app", "main", "fail_on_errors", "exit_for", "one_line_message", "FiniteFloatRange"]
@@ -350,6 +352,8 @@ def bake(
     # Every output path is checked before anything (the cache included) is written.
     check_bake_outputs(output, materials, preview, depfile, cache_dir, scene, ids_from, allow_empty, cache_only, every_material,
                        depfile_target)  # fmt: skip
+    if not cache_only:
+        _refuse_a_report_as_manifest(sibling_paths(output)["manifest"])
     jobs = available_cpus() if jobs is None else jobs
     if cache_only:
         # Formatted first, so that a path make cannot read is refused before anything is baked.
@@ -405,6 +409,15 @@ def bake(
             nothing = [f"{Path(scene).as_posix()}: the scene has no objects; the atlas holds no materials"]
         echo_warnings([*nothing, *result.warnings, *result.material_warnings])
         click.echo(result.describe(output, zstd))
+
+
+def _refuse_a_report_as_manifest(manifest: Path) -> None:
+    """Refuse an atlas named report.* in a report's folder: its manifest's name is the report's report.json, which the
+    bake read as a damaged manifest (exit 3, advising to delete another command's report)."""
+    kind = folder_report_kind(manifest.parent) if manifest.name == "report.json" else None
+    if kind is not None:
+        raise OutputError(f"{manifest.as_posix()}: the manifest written beside the atlas would replace a {kind} report; "
+                          "expected a folder of its own for each command's outputs")  # fmt: skip
 
 
 #: bake's options that shape only the atlas and its side files, which --cache-only does not write.

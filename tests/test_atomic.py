@@ -5,6 +5,7 @@ killed at any step leaves the primary stale or the whole new set, and the next r
 from __future__ import annotations
 
 import errno
+import json
 import os
 import shutil
 import subprocess
@@ -702,3 +703,26 @@ def test_a_file_in_the_store_s_place_is_named_with_what_was_expected(tmp_path):
     assert str(info.value) == (f"{(tmp_path / '.o.atlasgen').as_posix()}: expected the folder atlasgen keeps this output "
                                "set's files in, got a file; move it away (the name is atlasgen's)")  # fmt: skip
     assert sorted(p.name for p in tmp_path.iterdir()) == [".o.atlasgen"] and (tmp_path / ".o.atlasgen").read_text() == "mine"
+
+
+def test_a_named_writer_may_not_share_a_set_a_report_replaces_whole(tmp_path):
+    """A hostile sweep: `bake -o L1/index.dds` beside `report library -o L1` committed into the page's set (exit 0), and
+    the report's next run was refused. A whole commit records its files as a report's; a named writer is refused
+    them, before its work and at its commit, and the report replaces its own set again."""
+    from atlasgen.io.atomic import WHOLE_WRITER, refuse_another_sets
+
+    page = {tmp_path / "index.html": b"page", tmp_path / "slices" / "a.png": b"img"}
+    write_files_atomically(page, primary=tmp_path / "index.html", whole=True)
+    expected = (f"{(tmp_path / 'index.html').as_posix()}: written by a report into the output set (.index.atlasgen) it "
+                "replaces whole; expected a folder of its own for each command's outputs; nothing was replaced")  # fmt: skip
+    with pytest.raises(OutputError) as early:
+        refuse_another_sets([tmp_path / "index.dds"], tmp_path / "index.dds", "bake")
+    with pytest.raises(OutputError) as late:
+        write_files_atomically({tmp_path / "index.dds": b"atlas"}, primary=tmp_path / "index.dds", writer="bake")
+    assert str(early.value) == str(late.value) == expected
+    assert visible(tmp_path) == {"index.html": b"page", "slices/a.png": b"img"}
+    write_files_atomically({tmp_path / "index.html": b"page 2"}, primary=tmp_path / "index.html", whole=True)
+    assert visible(tmp_path) == {"index.html": b"page 2"}
+    store = tmp_path / ".index.atlasgen"
+    record = store / f"{os.readlink(store / 'current')}{WRITERS_SUFFIX}"
+    assert json.loads(record.read_text()) == {"index.html": WHOLE_WRITER}

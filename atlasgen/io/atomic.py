@@ -81,6 +81,7 @@ __all__ = [
     "STORE_SUFFIX",
     "LOCK_TIMEOUT_S",
     "WRITERS_SUFFIX",
+    "WHOLE_WRITER",
     "MAX_OUTPUT_NAME_BYTES",
 ]
 
@@ -105,6 +106,9 @@ LOCK_TIMEOUT_S = 120.0
 #: ``X.exr``): a commit that names its writer may not replace the other's files, and does not carry forward
 #: its own earlier files that it no longer writes (a render's old depfile beside a render that wrote none).
 WRITERS_SUFFIX = ".writers"
+#: The writer recorded for the files of a commit that replaces its set whole and names no writer (a report's folder):
+#: a named writer (a bake, a render) may not share such a set, which the report's next commit would replace.
+WHOLE_WRITER = "a report, replaced whole"
 
 #: Test hook: when set, called as ``hook(step, path)`` before each step of a commit: ``"write"``
 #: (a new file for ``path``), ``"migrate"`` (``path`` turned into its link), ``"link"`` (a new
@@ -351,6 +355,13 @@ def _refuse_taken(home: Path, store: Path, paths, writer: str | None, owners: di
     """Refuse ``paths`` that ``owners`` (the current generation's writers) record as another writer's files."""
     if writer is None:
         return
+    # A report's set: `bake -o L1/index.dds` beside `report library -o L1` committed into the page's set, and the
+    # report's next run was refused (or, before that check, removed the atlas).
+    for stored, other in sorted(owners.items()):
+        if other == WHOLE_WRITER and _linked(home, store, [stored]):
+            raise OutputError(f"{_target_path(home, stored).as_posix()}: written by a report into the output set "
+                              f"({store.name}) it replaces whole; expected a folder of its own for each command's "
+                              "outputs; nothing was replaced")  # fmt: skip
     for path in paths:
         other = owners.get(_stored_name(home, Path(path)))
         if other is not None and other != writer:
@@ -514,9 +525,10 @@ def _refuse_another_sets(path: Path, store: Path | None) -> None:
 def _refuse_others_files(home: Path, store: Path, names, writer: str | None, owners: dict) -> None:
     """Refuse to replace a set whole where ``names`` (its current files) hold one another writer wrote: a report
     folder holding a bake's ``index.dds`` set (the same key, ``index``) had that atlas's files removed, exit 0."""
+    mine = WHOLE_WRITER if writer is None else writer
     for stored in _linked(home, store, names):
         other = owners.get(stored)
-        if other is not None and other != writer:
+        if other is not None and other not in (writer, mine):
             raise OutputError(f"{_target_path(home, stored).as_posix()}: written by `atlasgen {other}` into the output set "
                               f"({store.name}) this command replaces whole; expected a folder of its own for each "
                               "command's outputs; nothing was replaced")  # fmt: skip
@@ -679,7 +691,8 @@ def _commit(home: Path, store: Path, primary: Path, items: list, removals: list,
         gone = {names[path] for path in removals}
         carried = set(_linked(home, store, set() if whole else old - fresh - gone - own))
         writers = {stored: w for stored, w in owners.items() if stored in carried}
-        writers.update({stored: writer for stored in fresh} if writer is not None else {})
+        recorded = WHOLE_WRITER if whole and writer is None else writer
+        writers.update({stored: recorded for stored in fresh} if recorded is not None else {})
         try:
             _write_writers(store, gen, writers)
         except OSError as exc:

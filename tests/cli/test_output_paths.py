@@ -543,3 +543,15 @@ def test_one_file_read_for_many_materials_is_compared_once(tmp_path, monkeypatch
     assert len(calls) == len(outputs)
     with pytest.raises(output_paths.OutputError, match=r"would overwrite the material file of 'm0' \(.*library.mtlx\)"):
         output_paths.check_output_paths([(document, "the atlas (-o)")], inputs)
+
+
+def test_an_atlas_whose_manifest_would_replace_a_report_is_refused(tmp_path, library):
+    """A hostile sweep: `bake -o v1/report.dds` in a validation folder read its report.json as the atlas's damaged
+    manifest: exit 3, advising to delete another command's report. A report folder written before reports recorded
+    themselves in their set is told by its report.json."""
+    folder = tmp_path / "v1"
+    folder.mkdir()
+    (folder / "report.json").write_text('{"results": []}')
+    _refused(tmp_path, ["bake", str(library), "-o", str(folder / "report.dds")],
+             f"{(folder / 'report.json').as_posix()}: the manifest written beside the atlas would replace a validation "
+             "report; expected a folder of its own for each command's outputs")  # fmt: skip
