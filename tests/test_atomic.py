@@ -726,3 +726,13 @@ def test_a_named_writer_may_not_share_a_set_a_report_replaces_whole(tmp_path):
     store = tmp_path / ".index.atlasgen"
     record = store / f"{os.readlink(store / 'current')}{WRITERS_SUFFIX}"
     assert json.loads(record.read_text()) == {"index.html": WHOLE_WRITER}
+
+
+def test_a_failed_commit_removes_the_folders_it_made(tmp_path):
+    """A hostile sweep: a validation report refused at its commit (index.html was a folder) left a new, empty images/
+    folder in the report folder. The folders a commit makes go again when it fails; those that were there stay."""
+    (tmp_path / "index.html").mkdir()
+    with pytest.raises(OutputError, match="cannot replace"):
+        write_files_atomically({tmp_path / "images" / "deep" / "a.png": b"img", tmp_path / "index.html": b"page"},
+                               primary=tmp_path / "index.html", whole=True)  # fmt: skip
+    assert not (tmp_path / "images").exists() and (tmp_path / "index.html").is_dir()

@@ -611,17 +611,42 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     # changed meanwhile), a path that is another set's link left an empty store behind on every command.
     refuse_another_sets([p for p, _ in items], primary, writer)
     home = _folder(primary)
+    # The folders this commit makes, removed again (where still empty) if it fails: a report refused at its commit
+    # left a new, empty images/ folder behind.
+    created = [f for f in dict.fromkeys(_missing_folders([home, *(_folder(p) for p, _ in items)]))]
     try:
-        home.mkdir(parents=True, exist_ok=True)
-        for path, _ in items:
-            _folder(path).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{exc.filename or home.as_posix()}: cannot write output folder ({exc.strerror})") from None
-    key = set_key(primary)
-    with output_lock(home, key):
-        store = home / f".{key}{STORE_SUFFIX}"
-        _collect_garbage(home, store)
-        _commit(home, store, primary, items, removals, whole, writer)
+        try:
+            home.mkdir(parents=True, exist_ok=True)
+            for path, _ in items:
+                _folder(path).mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"{exc.filename or home.as_posix()}: cannot write output folder ({exc.strerror})") from None
+        key = set_key(primary)
+        with output_lock(home, key):
+            store = home / f".{key}{STORE_SUFFIX}"
+            _collect_garbage(home, store)
+            _commit(home, store, primary, items, removals, whole, writer)
+    except BaseException:
+        _remove_empty(created)
+        raise
+
+
+def _missing_folders(folders) -> list[Path]:
+    """Each of ``folders`` and its ancestors that do not exist yet, deepest first."""
+    missing: dict[Path, None] = {}
+    for folder in folders:
+        at = Path(os.path.abspath(folder))
+        while not os.path.lexists(at) and at != at.parent:
+            missing[at] = None
+            at = at.parent
+    return sorted(missing, key=lambda p: len(p.parts), reverse=True)
+
+
+def _remove_empty(folders) -> None:
+    """Remove ``folders`` (deepest first) where they are empty; leave the rest."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
 
 
 def _commit(home: Path, store: Path, primary: Path, items: list, removals: list, whole: bool = False,

@@ -138,6 +138,8 @@ def check_output_folder(path, role: str, writes=()) -> None:
     _check_folder(path, role, "output folder")
     refuse_inside_store(path, folder=True)
     if writes:
+        # A folder in a file's place failed the commit, after the command's work.
+        check_output_paths([(path / name, f"the report's {name}") for name in writes])
         refuse_another_sets([path / name for name in writes], path / writes[0])
         refuse_other_writers(path / writes[0])
 
@@ -165,9 +167,15 @@ def _check_folder(path: Path, role: str, noun: str) -> None:
     if path.exists() and not path.is_dir():
         kind = special_file_kind(path) or "an existing file"
         raise OutputError(f"{path.as_posix()}: {role} is {kind}; expected a folder path")
+    if path.is_symlink() and not path.exists():
+        # mkdir then failed on the link (File exists), after the command's work, naming no option.
+        raise OutputError(f"{path.as_posix()}: {role} is a symbolic link to {os.readlink(path)!r}, which does not exist; "
+                          f"expected a folder path")  # fmt: skip
     blocker = _blocking_file(path)
     if blocker is not None:
-        raise _blocked(path, blocker, noun=noun)
+        kind = special_file_kind(blocker) or "a file"
+        raise OutputError(f"{path.as_posix()}: cannot write {noun}: {role} lies under {blocker.as_posix()}, which is "
+                          f"{kind}; expected a folder path")  # fmt: skip
     _refuse_unwritable(path, f"{path.as_posix()}: {role}")
 
 

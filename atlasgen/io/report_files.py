@@ -9,7 +9,7 @@ from pathlib import Path
 
 from atlasgen.errors import FieldError, InputError, shorten
 from atlasgen.io.output_paths import check_output_paths
-from atlasgen.io.text import decode_utf8, loads_json, read_input_bytes
+from atlasgen.io.text import MISSING, decode_utf8, loads_json, path_kind, read_input_bytes
 
 __all__ = [
     "rebase_path",
@@ -97,6 +97,12 @@ def report_json_paths(sources, kind: str, command: str) -> list[Path]:
     InputError
         No sources at all; the message names the ``command`` that writes them.
     """
+    for s in sources:
+        kind_of = path_kind(s)
+        if Path(s).suffix != ".json" and kind_of not in ("a directory", MISSING):
+            # Read as s/report.json, it failed with "cannot read (Not a directory)", saying nothing of what was wanted.
+            raise InputError(f"{Path(s).as_posix()}: a --merge source is {kind_of or 'a file'}; expected a report folder "
+                             f"{command} -o wrote, or its report.json")  # fmt: skip
     paths = [Path(s) if Path(s).suffix == ".json" else Path(s) / "report.json" for s in sources]
     if not paths:
         raise InputError(f"no {kind} reports to merge; expected folders written by {command} -o")

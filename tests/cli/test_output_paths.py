@@ -182,7 +182,14 @@ def test_a_report_folder_that_is_a_file_is_refused_before_any_work(tmp_path, com
     blocker.write_text("not a folder")
     # validate's was click's own check, exit 2 where the exit-code table says 4.
     _refused(tmp_path, [*command, "-o", str(blocker)], "the report folder (-o) is an existing file; expected a folder path")
-    _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder ({blocker.as_posix()} is a file)")
+    # The line names the option and what was expected, where it said "cannot write output folder (X is a file)".
+    _refused(tmp_path, [*command, "-o", str(blocker / "sub")], f"cannot write output folder: the report folder (-o) lies "
+             f"under {blocker.as_posix()}, which is a file; expected a folder path")  # fmt: skip
+    # A link to nothing failed only after the work, on mkdir ("File exists"), naming no option.
+    dangling = tmp_path / "dangling"
+    dangling.symlink_to("nowhere")
+    _refused(tmp_path, [*command, "-o", str(dangling)], f"{dangling.as_posix()}: the report folder (-o) is a symbolic "
+             "link to 'nowhere', which does not exist; expected a folder path")  # fmt: skip
 
 
 @pytest.mark.parametrize(("command", "output", "what"), [(["preview", "{material}"], "p.png", "the preview (-o)"),
@@ -496,7 +503,8 @@ def test_a_cache_folder_under_a_file_is_named_a_cache_folder_before_any_work(tmp
     args = [a.format(material=library / "clay.toml") for a in command]
     out = tmp_path / ("x.png" if command[0] == "preview" else "report")
     _refused(tmp_path, [*args, "-o", str(out), option, str(blocker / "cache")],
-             f"{(blocker / 'cache').as_posix()}: cannot write cache folder ({blocker.as_posix()} is a file)")  # fmt: skip
+             f"{(blocker / 'cache').as_posix()}: cannot write cache folder: {option} lies under {blocker.as_posix()}, "
+             "which is a file; expected a folder path")  # fmt: skip
 
 
 @pytest.mark.parametrize(("command", "option"), [(["validate", "{material}"], "--cache"),

@@ -539,3 +539,16 @@ def test_an_input_lying_in_the_report_folder_is_refused_before_any_work(tmp_path
     assert sorted(p.name for p in folder.iterdir()) == ["speed_error.png"]
     res = CliRunner().invoke(app, ["validate", "--atlas", str(folder / "a.dds"), "--no-physical", "-o", str(folder), "clay"])
     assert res.exit_code == 4 and "the atlas (--atlas) lies in the report folder (-o)" in res.stderr, res.output
+
+
+@pytest.mark.parametrize("command", [["validate"], ["report", "separable"]])
+def test_a_merge_source_that_is_a_file_says_what_was_expected(tmp_path, command):
+    """A hostile sweep: a material file given to --merge was read as its folder's report.json: "cannot read (Not a
+    directory)", without what a source must be."""
+    source = tmp_path / "red-plastic.toml"
+    source.write_text('type = "lambert"\n')
+    writer = "atlasgen validate" if command == ["validate"] else "atlasgen report separable"
+    res = CliRunner().invoke(app, [*command, "--merge", str(source), "-o", str(tmp_path / "m")])
+    assert res.exit_code == 3 and res.stderr == (f"atlasgen: error: {source.as_posix()}: a --merge source is a file; "
+                                                 f"expected a report folder {writer} -o wrote, or its report.json\n")  # fmt: skip
+    assert not (tmp_path / "m").exists()
