@@ -613,7 +613,7 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
     home = _folder(primary)
     # The folders this commit makes, removed again (where still empty) if it fails: a report refused at its commit
     # left a new, empty images/ folder behind.
-    created = [f for f in dict.fromkeys(_missing_folders([home, *(_folder(p) for p, _ in items)]))]
+    created = _missing_folders([home, *(_folder(p) for p, _ in items)])
     try:
         try:
             home.mkdir(parents=True, exist_ok=True)

@@ -43,12 +43,11 @@ def _blocking_file(path: Path) -> Path | None:
     return None if parent is None or parent.is_dir() else parent
 
 
-def _blocked(folder: Path, blocker: Path, output: str | None = None, noun: str = "output folder") -> OutputError:
-    """The refusal of an output folder (``noun``) that ``blocker``, an existing file on its path, stands in for;
-    ``output`` (``"b/x.d: --depfile"``) names the output file it is the folder of, where there is one."""
+def _blocked(folder: Path, blocker: Path, output: str) -> OutputError:
+    """The refusal of an output file (``output``: ``"b/x.d: --depfile"``) whose folder ``folder`` cannot be made:
+    ``blocker``, an existing file on its path, stands in for it."""
     kind = special_file_kind(blocker) or "a file"
-    where = f"{output}: cannot write its folder {folder.as_posix()}" if output else f"{folder.as_posix()}: cannot write {noun}"
-    return OutputError(f"{where} ({blocker.as_posix()} is {kind})")
+    return OutputError(f"{output}: cannot write its folder {folder.as_posix()} ({blocker.as_posix()} is {kind})")
 
 
 def check_output_paths(outputs, inputs=()) -> None:
