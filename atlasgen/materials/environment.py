@@ -78,29 +78,47 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
         image = sky_image(height, width, sky_parameters(env), scale=env.intensity).astype(np.float64)
     else:
         raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
-    _refuse_beyond_half(env, float(np.max(image)))
+    peak = float(np.max(image))
+    if peak > HALF_MAX:
+        _refuse_beyond_half(env, peak, _peak_at_unit_intensity(env, image, height, width))
     return image.astype(np.float32)
 
 
-def _refuse_beyond_half(env: Environment, peak: float) -> None:
-    """One line where the image's radiance exceeds :data:`HALF_MAX`: the renderer's rgba16float texture would
-    hold infinity there, and its prefiltered levels and harmonics NaN, which render black."""
-    if peak <= HALF_MAX:
-        return
-    field, what = "environment", {"uniform": "the radiance", "file": f"the image {env.file.as_posix() if env.file else ''}",
-                                  "sky": "the sky (its sun's disc: sun_irradiance over the disc's solid angle)"}[env.source]  # fmt: skip
+def _peak_at_unit_intensity(env: Environment, image: np.ndarray, height: int, width: int) -> float:
+    """The image's peak with intensity 1: what the source reaches before intensity scales it."""
+    if env.source == "sky":
+        return float(np.max(sky_image(height, width, sky_parameters(env), scale=1.0)))
+    if env.source == "uniform":
+        return float(max(env.radiance))
+    return float(np.max(image)) / env.intensity if env.intensity > 0.0 else 0.0
+
+
+def _refuse_beyond_half(env: Environment, peak: float, alone: float) -> None:
+    """One line for an image whose radiance (``peak``; ``alone`` at intensity 1) exceeds :data:`HALF_MAX`: the
+    renderer's rgba16float texture would hold infinity there, and its prefiltered levels and harmonics NaN, which
+    render black. It names the field to change: ``intensity`` where the source alone fits (a sky's default horizon
+    at intensity 1e6 was blamed on a ``horizon`` the scene never set, with the sun's peak as its value), else the
+    source's own field, with the value that field reaches."""
+    k = env.intensity
+    field, what, value = "environment", {"uniform": "the radiance", "file": f"the image {env.file.as_posix() if env.file else ''}",
+                                         "sky": "the sky's sun disc (sun_irradiance over the disc's solid angle)"}[env.source], alone  # fmt: skip
     if env.source == "sky" and env.sky is not None:
         # The gradient's colours reach the peak themselves, the sun adding to them: name the brightest where it is
         # over (a ground of 1e5 with no sun was blamed on the sun's disc), else the disc.
-        colours = {name: max(getattr(env.sky, name)) * env.intensity for name in ("zenith", "horizon", "ground")}
+        colours = {name: float(max(getattr(env.sky, name))) for name in ("zenith", "horizon", "ground")}
         brightest = max(colours, key=colours.get)
-        if colours[brightest] > HALF_MAX:
-            field, what = f"environment.{brightest}", f"the sky's {brightest} colour"
+        if colours[brightest] * k > HALF_MAX:
+            field, what, value = f"environment.{brightest}", f"the sky's {brightest} colour", colours[brightest]
         else:
             field = "environment.sun_irradiance"
-    raise SceneError(env.scene, field, f"{what} reaches {peak:.6g} W/(m^2 sr) with intensity, beyond the "
-                     f"{HALF_MAX:g} the renderer's half-float environment texture holds; expected at most {HALF_MAX:g} "
-                     "(lower intensity)")  # fmt: skip
+    if value <= HALF_MAX and k != 1.0:
+        raise SceneError(env.scene, "environment.intensity", f"intensity {k:.6g} takes {what} ({value:.6g}) to "
+                         f"{value * k:.6g} W/(m^2 sr), beyond the {HALF_MAX:g} the renderer's half-float environment "
+                         f"texture holds; expected an intensity of at most {HALF_MAX / value:.6g}")  # fmt: skip
+    raise SceneError(env.scene, field, f"{what} reaches {value * k:.6g} W/(m^2 sr)"
+                     f"{' with intensity' if k != 1.0 else ''}, beyond the {HALF_MAX:g} the renderer's half-float "
+                     f"environment texture holds; expected at most {HALF_MAX:g}"
+                     f"{' (lower intensity)' if k != 1.0 else ''}")  # fmt: skip
 
 
 def mitsuba_emitter(env: Environment, sky_height: int = 512) -> dict:

@@ -142,15 +142,28 @@ def test_any_value_parses_or_is_refused_on_one_line(value):
 @pytest.mark.parametrize(
     ("text", "field", "words"),
     [
-        ("environment = [70000, 1, 1]", "environment", "the radiance reaches 70000 W/(m^2 sr) with intensity, beyond the 65504"),
-        ("[environment]\nsource = [40000, 1, 1]\nintensity = 2", "environment", "the radiance reaches 80000"),
+        ("environment = [70000, 1, 1]", "environment", "the radiance reaches 70000 W/(m^2 sr), beyond the 65504"),
+        ("[environment]\nsource = [70000, 1, 1]\nintensity = 2", "environment",
+         "the radiance reaches 140000 W/(m^2 sr) with intensity, beyond the 65504"),
+        # Where the source alone fits, intensity is what to change, and the line says how far.
+        ("[environment]\nsource = [40000, 1, 1]\nintensity = 2", "environment.intensity",
+         "intensity 2 takes the radiance (40000) to 80000 W/(m^2 sr), beyond the 65504 the renderer's half-float "
+         "environment texture holds; expected an intensity of at most 1.6376"),
         ('[environment]\nsource = "sky"\nsun_irradiance = 3e38', "environment.sun_irradiance",
-         "the sky (its sun's disc: sun_irradiance over"),
+         "the sky's sun disc (sun_irradiance over the disc's solid angle) reaches"),
         # Found by a hostile sweep: a sky's own colour over the limit, with no sun, was blamed on the sun's disc.
         ('[environment]\nsource = "sky"\nsun_irradiance = 0\nground = [1e5, 1, 1]', "environment.ground",
          "the sky's ground colour reaches 100000"),
-        ('[environment]\nsource = "sky"\nzenith = [4e4, 1, 1]\nintensity = 2', "environment.zenith",
-         "the sky's zenith colour reaches 80000"),
+        ('[environment]\nsource = "sky"\nzenith = [4e4, 1, 1]\nintensity = 2', "environment.intensity",
+         "intensity 2 takes the sky's zenith colour (40000) to 80000"),
+        # Found by a hostile sweep: a bright sky of default colours named a horizon (and the sun's peak, 6.8e8) and a
+        # sun_irradiance the scene never set.
+        ('[environment]\nsource = "sky"\nintensity = 1e6', "environment.intensity",
+         "intensity 1e+06 takes the sky's horizon colour (1) to 1e+06 W/(m^2 sr)"),
+        ('[environment]\nsource = "sky"\nintensity = 1e38', "environment.intensity",
+         "intensity 1e+38 takes the sky's horizon colour (1) to 1e+38 W/(m^2 sr)"),
+        ('[environment]\nsource = "sky"\nintensity = 5000', "environment.intensity",
+         "intensity 5000 takes the sky's sun disc (sun_irradiance over the disc's solid angle) (40.0882) to 200441"),
     ],
 )  # fmt: skip
 @pytest.mark.filterwarnings("error::RuntimeWarning")  # the overflow is expected, and refused, not warned about
