@@ -285,6 +285,11 @@ def _read_light(r: _Reader, raw, i) -> Light:
         # The fall-off divides by outer - inner in float32 radians (the renderer's and Mitsuba's spot): 29.999999999999996
         # below 30 degrees is the same angle there, and packing the light divided by zero (an internal error).
         if not np.float32(math.radians(inner)) < np.float32(math.radians(outer)):
+            if "inner_angle" not in raw:
+                # The default inner angle was blamed on a key the scene never set (outer_angle = 1e-43).
+                raise SceneError(r.path, f"{name}.outer_angle", f"expected an angle whose default inner_angle (3/4 of it, "
+                                                                f"{inner!r} degrees) is below it in float32 radians, got "
+                                                                f"{outer!r}; give a wider cone, or an inner_angle below it")  # fmt: skip
             same = ", the same angle in float32 radians" if inner < outer else ""
             raise SceneError(r.path, f"{name}.inner_angle", f"expected an angle below outer_angle ({outer!r} degrees), "
                                                             f"got {inner!r}{same}")  # fmt: skip

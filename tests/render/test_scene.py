@@ -105,6 +105,13 @@ opacity = 0.25
             "lights[0].inner_angle",
             "expected an angle below outer_angle (30.0 degrees), got 29.999999999999996, the same angle in float32 radians",
         ),
+        # Found by a hostile sweep: a cone too narrow for its default inner angle blamed an inner_angle never set.
+        (
+            "[[lights]]\ntype = 'spot'\nintensity = 1\nposition = [0, 0, 0]\ndirection = [0, 0, -1]\nouter_angle = 1e-43\n",
+            "lights[0].outer_angle",
+            "expected an angle whose default inner_angle (3/4 of it, 7.500000000000001e-44 degrees) is below it in float32 "
+            "radians, got 1e-43; give a wider cone, or an inner_angle below it",
+        ),
         ("[[lights]]\ntype = 'point'\nintensity = -1\nposition = [0, 0, 0]\n", "lights[0].intensity", ">= 0"),
         # Each within float32, their product not: the light's packed radiance was infinite, its unlit pixels NaN.
         (
