@@ -17,6 +17,7 @@ __all__ = [
     "MISSING",
     "check_path_text",
     "decode_utf8",
+    "explain_toml_error",
     "loads_json",
     "parse_toml",
     "path_kind",
@@ -220,6 +221,48 @@ def _unique_keys(pairs: list) -> dict:
     return out
 
 
+#: A TOML key, bare, quoted or dotted (TOML 1.0, "Keys").
+_TOML_KEY = r"""(?:[A-Za-z0-9_-]+|"(?:[^"\\]|\\.)*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_-]+|"(?:[^"\\]|\\.)*"|'[^']*'))*"""
+_TOML_STATEMENT = re.compile(rf"\s*(?:(\[\[?)\s*({_TOML_KEY})\s*\]\]?|({_TOML_KEY})\s*=)")
+_TOML_AT = r"\((?:at line (\d+), column \d+|at end of document)\)$"
+
+
+def explain_toml_error(message: str, text: str) -> str:
+    r"""tomllib's ``message`` on ``text``, with the key it means where tomllib names none.
+
+    tomllib (Python 3.11) says "Cannot overwrite a value (at line 12, column 12)" for a key given twice, or a
+    value and a table of one name, at the end of the offending statement: the key is read back from the last
+    statement that starts at or before that line. Any other message is returned as it is.
+
+    >>> explain_toml_error("Cannot overwrite a value (at line 2, column 6)", "a = 1\na = 2\n")
+    "line 2: 'a' is already set (the key given twice, or a table of its name); expected each key once"
+    >>> explain_toml_error("Cannot declare ('x', 'y') twice (at line 3, column 3)", "")
+    'line 3: the table [x.y] is declared twice; expected each table once'
+    """
+    declared = re.match(r"Cannot declare \((.*)\) twice " + _TOML_AT, message)
+    if declared:
+        names = re.findall(r"'((?:[^'\\]|\\.)*)'|\"((?:[^\"\\]|\\.)*)\"", declared.group(1))
+        table = ".".join(a or b for a, b in names)
+        return f"line {declared.group(2)}: the table [{table}] is declared twice; expected each table once"
+    overwrite = re.match(r"Cannot overwrite a value " + _TOML_AT, message)
+    if not overwrite:
+        return message
+    lines = text.splitlines()
+    last = int(overwrite.group(1)) if overwrite.group(1) else len(lines)
+    for number in range(min(last, len(lines)), 0, -1):
+        statement = _TOML_STATEMENT.match(lines[number - 1])
+        if statement:
+            if statement.group(2):
+                return (f"line {number}: the table header {statement.group(1)}{statement.group(2)}"
+                        f"{statement.group(1).replace('[', ']')} names a key already set; expected each key once")  # fmt: skip
+            key = shorten(statement.group(3))
+            shown_key = key if key.startswith(("'", '"')) else repr(key)
+            return (
+                f"line {number}: {shown_key} is already set (the key given twice, or a table of its name); expected each key once"
+            )
+    return message
+
+
 def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:
     """``text`` parsed as TOML, or ``error(shown, None, "malformed TOML: ...")`` on one line.
 
@@ -229,7 +272,7 @@ def parse_toml(text: str, shown: str, error: type[FieldError]) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise error(shown, None, f"malformed TOML: {exc}") from None
+        raise error(shown, None, f"malformed TOML: {explain_toml_error(str(exc), text)}") from None
     except RecursionError:
         raise error(shown, None, "malformed TOML: arrays or inline tables nested too deeply to read") from None
     except ValueError as exc:  # tomllib lets int() refuse an integer of over 4300 digits as a plain ValueError

@@ -108,3 +108,34 @@ def test_an_integer_tomllib_will_not_convert_is_malformed_not_a_bug(tmp_path):
     scene.write_text("[camera]\nposition = [" + "9" * 5000 + ", 0, 0]\n")
     with pytest.raises(SceneError, match="malformed TOML: Exceeds the limit"):
         read_scene(scene)
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        # Found by a hostile sweep: "malformed TOML: Cannot overwrite a value (at line 13, column 10)" named no key.
+        ("range = 5.0\nrange = 6.0\n", "line 16: 'range' is already set (the key given twice, or a table of its name); "
+                                       "expected each key once"),
+        ("range = [5.0,\n  6.0]\nrange = [\n  1.0,\n]\n", "line 17: 'range'"),  # the statement that starts the value
+        ('"range" = 5.0\n"range" = 6.0\n', 'line 16: "range" is already set'),
+        ("[image.width]\nkind = 1\n", "line 15: the table header [image.width] names a key already set; expected each "
+                                      "key once"),
+        ("[lights]\nkind = 1\n", "line 15: the table [lights] is declared twice; expected each table once"),
+        ("[camera]\nfov = 20\n", "line 15: the table [camera] is declared twice; expected each table once"),
+    ],
+)  # fmt: skip
+def test_a_key_given_twice_is_named_with_its_line(tmp_path, extra, words):
+    scene = tmp_path / "scene.toml"
+    scene.write_bytes(SCENE + extra.encode())
+    with pytest.raises(SceneError) as info:
+        read_scene(scene)
+    assert str(info.value).startswith(f"{scene.as_posix()}: malformed TOML: {words}"), str(info.value)
+
+
+def test_a_material_s_key_given_twice_is_named_too(tmp_path):
+    material = tmp_path / "clay.toml"
+    material.write_text('type = "lambert"\ncolour = [0.6, 0.5, 0.4]\ncolour = [1, 1, 1]')  # no newline: "end of document"
+    with pytest.raises(MaterialError) as info:
+        read_material_file(material)
+    assert str(info.value) == (f"{material.as_posix()}: malformed TOML: line 3: 'colour' is already set (the key given "
+                               "twice, or a table of its name); expected each key once")  # fmt: skip
