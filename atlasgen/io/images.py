@@ -83,6 +83,11 @@ def error_text(geterror, default: str) -> str:
 
     >>> error_text(lambda: "bad\\n header  ", "unreadable"), error_text(lambda: "", "unreadable")
     ('bad header', 'unreadable')
+
+    A line it repeats (a truncated EXR's "End of file" came twice, for each attempt to read it) is given once:
+
+    >>> error_text(lambda: "End of file\\nEnd of file\\nBad header", "unreadable")
+    'End of file Bad header'
     >>> error_text(lambda: b"\\xff".decode("utf-8"), "unreadable")
     'unreadable (its message quotes bytes that are not UTF-8)'
     """
@@ -90,7 +95,8 @@ def error_text(geterror, default: str) -> str:
         text = geterror()
     except UnicodeDecodeError:
         return f"{default} (its message quotes bytes that are not UTF-8)"
-    return " ".join(text.split()) or default
+    lines = dict.fromkeys(" ".join(line.split()) for line in text.splitlines())
+    return " ".join(line for line in lines if line) or default
 
 
 def is_utf8_path(path) -> bool:

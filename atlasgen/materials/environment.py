@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from atlasgen.errors import SceneError
+from atlasgen.errors import FieldError, SceneError
 from atlasgen.io.environment_file import read_environment_file
 from atlasgen.optics.equirect import resample_equirect, rotation_matrix
 from atlasgen.optics.sky import SkyParameters, sky_image
@@ -59,8 +59,8 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
     """The environment's radiance as an equirectangular float32 image ``(height, width, 3)`` (Mitsuba's layout).
 
     ``uniform``: the constant radiance x intensity. ``file``: the image read
-    (:func:`atlasgen.io.environment_file.read_environment_file`, errors naming that file as a
-    :class:`~atlasgen.errors.SceneError`), turned and resampled in one step
+    (:func:`atlasgen.io.environment_file.read_environment_file`, errors naming the scene, its ``environment``
+    and that file as a :class:`~atlasgen.errors.SceneError`), turned and resampled in one step
     (:func:`atlasgen.optics.equirect.resample_equirect`: point-sampled up, averaged down), times
     intensity. ``sky``: built at this size with its sun turned (:func:`sky_parameters`), times
     intensity.
@@ -70,7 +70,12 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
     elif env.source == "file":
         if env.file is None:
             raise ValueError("a file environment needs its file")
-        pixels = read_environment_file(env.file, SceneError)
+        try:
+            pixels = read_environment_file(env.file)
+        except FieldError as exc:
+            # The image alone was named ("one.exr: expected an equirectangular image ..."): the scene and its field too,
+            # as a too-bright image is.
+            raise SceneError(env.scene, "environment", f"{exc.path}: {exc.expected}") from None
         same = pixels.shape[:2] == (height, width) and env.rotate == 0.0
         image = pixels.astype(np.float64) if same else resample_equirect(pixels, height, width, env.rotate).astype(np.float64)
         image = image * env.intensity

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import doctest
 import os
 import struct
 import zlib
@@ -11,7 +12,13 @@ import numpy as np
 import pytest
 
 from atlasgen.errors import OutputError
+from atlasgen.io import images
 from atlasgen.io.images import encode_exr, encode_png, openable_name, write_exr, write_png
+
+
+def test_the_examples_in_the_docstrings_hold():
+    result = doctest.testmod(images)
+    assert result.attempted > 0 and result.failed == 0
 
 
 def read(path):

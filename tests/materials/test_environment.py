@@ -43,10 +43,13 @@ def test_a_file_is_read_turned_and_scaled(tmp_path):
     np.testing.assert_allclose(small, 0.5 * resample_equirect(pixels, 8, 16, 10.0), rtol=1e-6)
 
 
-def test_a_bad_file_is_a_scene_error_naming_the_image(tmp_path):
+def test_a_bad_file_is_a_scene_error_naming_the_scene_its_field_and_the_image(tmp_path):
+    """Found by a hostile sweep: the line named the image alone, not the scene that names it, nor the field."""
     write_exr(tmp_path / "wide.exr", np.ones((4, 12, 3), np.float32))
-    with pytest.raises(SceneError, match=r"wide\.exr: expected an equirectangular image twice as wide as high, got 12x4$"):
-        environment_image(Environment("file", file=tmp_path / "wide.exr"), 8, 16)
+    with pytest.raises(SceneError) as info:
+        environment_image(Environment("file", file=tmp_path / "wide.exr", scene="scenes/x.toml"), 8, 16)
+    assert str(info.value) == (f"scenes/x.toml: field 'environment': {(tmp_path / 'wide.exr').as_posix()}: expected an "
+                               "equirectangular image twice as wide as high, got 12x4")  # fmt: skip
 
 
 def test_the_sky_turns_its_sun_and_scales():
