@@ -250,3 +250,21 @@ def test_an_unknown_key_s_refusal_lists_every_key_a_material_file_may_hold(tmp_p
     path.write_text('type = "lambert"\ndescripton = "x"\n')
     with pytest.raises(MaterialError, match=r"field 'descripton': unknown key \(did you mean 'description'\?\)"):
         read_materials([path])
+
+
+@pytest.mark.slow
+def test_a_process_that_bakes_a_material_again_sees_its_image_saved_anew(mitsuba_llvm, tmp_path):
+    """Found by a hostile sweep: the in-process fit cache was keyed on the BSDF's parameters, which name the image by
+    its path, so `preview --watch` showed the first texture's fit after every later save of the texture."""
+    from atlasgen.bake.adaptive import bake_material
+
+    material = _textured(tmp_path)
+    (red,) = read_materials([material])
+    first = bake_material(red).values
+    _textured(tmp_path, colour=(0, 255, 0))
+    (green,) = read_materials([material])
+    again = bake_material(green).values
+    assert red.params == green.params  # the same path: only the image's bytes differ
+    # The diffuse response's colour follows the image: red, then green.
+    assert first[0, ..., 0].mean() > 10 * first[0, ..., 1].mean()
+    assert again[0, ..., 1].mean() > 10 * again[0, ..., 0].mean()

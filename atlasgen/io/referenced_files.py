@@ -19,7 +19,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["referenced_files", "map_files", "relative_files", "absolute_files", "real_folder_path"]
+__all__ = ["referenced_files", "map_files", "relative_files", "absolute_files", "real_folder_path", "files_state"]
 
 #: The parameter key Mitsuba's plugins name a file by.
 FILE_KEY = "filename"
@@ -43,6 +43,27 @@ def referenced_files(params: dict, prefix: str = "") -> list[tuple[str, str]]:
 
     walk(params, prefix)
     return found
+
+
+def files_state(params: dict) -> tuple:
+    """What an in-process cache keyed on ``params`` must add to its key: each file they name, with its size, time
+    stamp and inode (None for one that cannot be read). ``params`` name a file by its path, so a cache keyed on them
+    alone kept the first texture's fit after the texture was saved anew (``preview --watch`` showed it, stale).
+
+    >>> files_state({"type": "diffuse"})
+    ()
+    >>> files_state({"b": {"type": "bitmap", "filename": "/nonexistent/x.png"}})
+    (('/nonexistent/x.png', None),)
+    """
+    state = []
+    for _, name in referenced_files(params):
+        try:
+            st = os.stat(name)
+        except (OSError, ValueError):
+            state.append((name, None))
+        else:
+            state.append((name, (st.st_size, st.st_mtime_ns, st.st_ino)))
+    return tuple(state)
 
 
 def map_files(params: dict, change: Callable[[str], str]) -> dict:

@@ -28,6 +28,7 @@ import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH, texel_centres
 from atlasgen.errors import MaterialError
+from atlasgen.io.referenced_files import files_state
 from atlasgen.models.base import Model, SliceSet
 from atlasgen.optics.interpolation import sample_slice
 from atlasgen.optics.projection import (
@@ -420,15 +421,16 @@ def mitsuba_f_cos(bsdf_dict: dict, path="<bsdf>", field: str = "bsdf"):
 
 
 @lru_cache(maxsize=32)
-def _fitted(bsdf_json: str, gloss_json: str):
+def _fitted(bsdf_json: str, gloss_json: str, files: tuple):
     rgba, info = fit_slice(mitsuba_f_cos(json.loads(bsdf_json)), json.loads(gloss_json))
     rgba.setflags(write=False)
     return rgba, info
 
 
 def fitted_bsdf_slice(bsdf_dict: dict, gloss=None):
-    """The (cached) slice fitted to a Mitsuba BSDF dict and its fit description (:func:`fit_slice`)."""
-    return _fitted(json.dumps(bsdf_dict, sort_keys=True), json.dumps(gloss))
+    """The (cached) slice fitted to a Mitsuba BSDF dict and its fit description (:func:`fit_slice`); the files the
+    dict names are part of the key (:func:`~atlasgen.io.referenced_files.files_state`)."""
+    return _fitted(json.dumps(bsdf_dict, sort_keys=True), json.dumps(gloss), files_state(bsdf_dict))
 
 
 def bake_from_physics(model: Model, values: dict, path="<material>", gloss: float = FIT_GLOSS) -> SliceSet:

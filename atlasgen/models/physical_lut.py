@@ -17,6 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from atlasgen.io.referenced_files import files_state
 from atlasgen.models.base import encode_scaled
 from atlasgen.models.physical_fit import AZIMUTHS, fit_slice
 from atlasgen.optics.interpolation import sample_slice
@@ -76,7 +77,7 @@ class _Memo:
 
 
 @lru_cache(maxsize=32)
-def _fit_lut(params_json: str, glosses: tuple, srgb: bool, measure: str = "relative_rms"):
+def _fit_lut(params_json: str, glosses: tuple, srgb: bool, measure: str = "relative_rms", files: tuple = ()):
     source = make_source(json.loads(params_json))
     selection = error_sample_for(source, SELECTION_SEED)
     reference, _ = reference_values(source, selection)
@@ -108,7 +109,9 @@ def fit_lut(params: dict, glosses=LUT_GLOSSES, srgb: bool = True, measure: str =
     the importance-sampled selection pairs instead; never on the sample the figures are reported on.
     ``measure`` is the error the gloss is judged by: a key of :func:`lut_errors`.
     """
-    return _fit_lut(json.dumps(params, sort_keys=True), tuple(float(g) for g in glosses), bool(srgb), str(measure))
+    return _fit_lut(
+        json.dumps(params, sort_keys=True), tuple(float(g) for g in glosses), bool(srgb), str(measure), files_state(params)
+    )
 
 
 def lut_errors(rgba: np.ndarray, gloss: float, reference: np.ndarray, sample) -> dict:
