@@ -193,14 +193,15 @@ class Previewer:
         """The scene a preview renders for the material ``name`` (:mod:`atlasgen.preview.scene`)."""
         return parse_preview_scene(preview_scene_data(name, self.floor.name, self.ball_file))
 
-    def preview(self, paths, use_cache: bool = True, aovs: bool = False, drafts: bool = False) -> Preview:
+    def preview(self, paths, use_cache: bool = True, aovs: bool = False, drafts: bool = False, output=None) -> Preview:
         """Bake the materials under ``paths`` into one atlas and render each: one labelled picture,
         or a contact sheet of them. ``use_cache=False`` bakes them afresh (a file they name changed,
         which the cache's key does not cover). ``aovs`` keeps each picture's g-buffer read-backs (a
         reference needs the material-ID AOV). ``drafts`` bakes what the cache lacks as drafts where the
         model has them (:meth:`~atlasgen.models.base.Model.bake_draft`: a separable material's SVD and
         choice of K without the report sample's figures): the picture is the full bake's, its label says
-        the error is being measured, and :meth:`complete` measures it (``Preview.pending``).
+        the error is being measured, and :meth:`complete` measures it (``Preview.pending``). ``output``, the
+        picture's path where it is to be written, is refused where it is a file the materials read.
 
         Raises the bake's and the renderer's errors (:class:`~atlasgen.errors.MaterialError` with
         the file and field, :class:`~atlasgen.errors.BackendError` without a GPU) before anything is
@@ -217,6 +218,12 @@ class Previewer:
         # Each material's file and the files it reads (a measured BSDF's data, a bitmap, a document's xi:includes),
         # absolute where a file named them relatively: read_material resolved them (Material.includes).
         inputs = [Path(m.source) for m in materials] + [Path(f) for m in materials for f in m.includes]
+        if output is not None:
+            # A picture written over a texture the material reads replaced it, and a watch then saw its own write
+            # as a change and drew again, forever (check_preview_output sees the material files alone).
+            check_output_paths([(Path(output), "the preview (-o)")],
+                               [(Path(f), f"a file the material file of {m.name!r} includes") for m in materials
+                                for f in m.includes])  # fmt: skip
         t1 = time.perf_counter()
         timings["read"] = t1 - t0
         result = bake_atlas([*materials, self.floor], cache_dir=self.cache_dir if use_cache else None, drafts=drafts)
@@ -338,7 +345,7 @@ class Previewer:
         ``output`` as it was.
         """
         check_preview_output(output, paths, self.cache_dir)
-        preview = self.preview(paths, use_cache, aovs=reference, drafts=drafts)
+        preview = self.preview(paths, use_cache, aovs=reference, drafts=drafts, output=output)
         if reference:
             self.add_references(preview, max_spp)
         t = time.perf_counter()

@@ -217,7 +217,7 @@ def watch_preview(
                 if reference:
                     # The atlas picture first, its references shown as rendering: the thread refines them.
                     check_preview_output(output, paths)
-                    preview = previewer.preview(paths, use_cache, aovs=True, drafts=True)
+                    preview = previewer.preview(paths, use_cache, aovs=True, drafts=True, output=output)
                     preview.png = encode_png(compose_picture(preview.shots, {}), compression=PNG_COMPRESSION)
                     write_file_atomically(output, preview.png)
                 else:

@@ -211,3 +211,23 @@ def test_the_reference_s_samples_are_bounded_as_validate_s_are(tmp_path):
     )
     assert res.exit_code == 2
     assert "'--reference-spp': 65537 is not in the range 4<=x<=65536" in res.output
+
+
+def test_a_picture_over_a_file_the_material_reads_is_refused(mitsuba_llvm, tmp_path, monkeypatch):
+    """Found by a hostile sweep: `preview tb.toml -o tex.png` replaced the texture the material reads with the
+    picture (exit 0), and a watch saw its own write as a change and drew again, forever."""
+    import numpy as np
+
+    from atlasgen.io.images import write_png
+
+    monkeypatch.chdir(tmp_path)
+    write_png(tmp_path / "tex.png", np.full((4, 4, 3), 200, np.uint8))
+    texture = (tmp_path / "tex.png").read_bytes()
+    (tmp_path / "tb.toml").write_text('type = "bsdf"\ngloss = 0.5\nbsdf = { type = "diffuse", reflectance = '
+                                      '{ type = "bitmap", filename = "tex.png" } }\n')  # fmt: skip
+    res = CliRunner().invoke(app, ["preview", "tb.toml", "-o", "tex.png", "--no-cache"])
+    assert res.exit_code == 4, res.output
+    assert res.stderr == ("atlasgen: error: tex.png: the preview (-o) would overwrite a file the material file of 'tb' "
+                          f"includes ({(tmp_path / 'tex.png').as_posix()}); expected an output path that is not an "
+                          "input\n"), res.stderr  # fmt: skip
+    assert (tmp_path / "tex.png").read_bytes() == texture
