@@ -184,8 +184,9 @@ class Previewer:
     @property
     def ball_file(self) -> Path:
         """The ball's mesh file the scene names (:func:`~atlasgen.preview.scene.ball_mesh_file`), beside the
-        bake cache, written on first use."""
-        if self._ball_file is None:
+        bake cache, written on first use and again where it has gone since (a watch outlives `make clean`, whose
+        removed cache failed every later save on the missing mesh)."""
+        if self._ball_file is None or not self._ball_file.is_file():
             self._ball_file = ball_mesh_file(self.ball, None if self.cache_dir is None else self.cache_dir / "preview")
         return self._ball_file
 

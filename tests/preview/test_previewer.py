@@ -151,3 +151,16 @@ def test_a_drafts_picture_is_the_full_bakes_and_its_label_follows(warm, tmp_path
     assert (warm.cache_dir / "glossy.npz").is_file()  # the completion filled the cache
     again = warm.preview([glossy], drafts=True)
     assert again.pending == {} and again.png == full.png
+
+
+def test_the_ball_s_mesh_file_is_written_again_where_it_has_gone(tmp_path):
+    """Found by a hostile sweep: `rm -rf build` (make clean) under a watch removed the ball's mesh file, which the
+    previewer remembered: every later save failed on "no such mesh file", and the watch never drew again."""
+    import shutil
+
+    previewer = Previewer(tmp_path / "cache")
+    first = previewer.ball_file
+    assert first.is_file()
+    shutil.rmtree(tmp_path / "cache")
+    assert previewer.ball_file == first and first.is_file()
+    assert previewer.scene_for("clay").objects  # the scene's parser finds the mesh file it names
