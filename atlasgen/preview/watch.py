@@ -62,8 +62,9 @@ class Update:
 
 def picture_kept(output) -> str:
     """What a failed update leaves at ``output``: the last picture, or none where the watch has drawn none yet (a
-    material broken from the start said "kept the last picture" of a picture that did not exist)."""
-    return "kept the last picture" if Path(output).exists() else "no picture yet"
+    material broken from the start said "kept the last picture" of a picture that did not exist, and of a folder or a
+    link put in its place)."""
+    return "kept the last picture" if os.path.isfile(output) and not os.path.islink(output) else "no picture yet"
 
 
 def describe_update(update: Update, output, steps: bool = True) -> str:

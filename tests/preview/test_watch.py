@@ -129,6 +129,18 @@ def test_a_material_broken_from_the_start_says_there_is_no_picture_yet(write_mat
     run_watch([clay], out, StandIn(), script, max_updates=2)
 
 
+def test_a_folder_or_a_link_in_the_picture_s_place_is_no_picture_kept(tmp_path):
+    """Found by a hostile sweep: with the picture replaced by a folder, a failed update said "kept the last picture"."""
+    from atlasgen.preview.watch import picture_kept
+
+    (tmp_path / "p.png").mkdir()
+    (tmp_path / "a.toml").write_text(CLAY)
+    (tmp_path / "l.png").symlink_to(tmp_path / "a.toml")
+    (tmp_path / "f.png").write_bytes(b"png")
+    kept = [picture_kept(tmp_path / name) for name in ("p.png", "l.png", "f.png", "none.png")]
+    assert kept == ["no picture yet", "no picture yet", "kept the last picture", "no picture yet"]
+
+
 def test_a_folder_takes_new_material_files(write_material, tmp_path):
     write_material("clay", CLAY)
     folder, out = tmp_path / "materials", tmp_path / "sheet.png"
