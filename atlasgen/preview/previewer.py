@@ -214,7 +214,9 @@ class Previewer:
         if not materials:
             shown = ", ".join(Path(p).as_posix() for p in paths)
             raise InputError(f"{shown}: no material files; expected .toml files, or folders holding them")
-        check_unique_names([*materials, self.floor])
+        # The floor first: a material named as it is is the one refused (the floor's installed file was named, which
+        # no user can edit).
+        check_unique_names([self.floor, *materials])
         self._check_room(materials)
         # Each material's file and the files it reads (a measured BSDF's data, a bitmap, a document's xi:includes),
         # absolute where a file named them relatively: read_material resolved them (Material.includes).

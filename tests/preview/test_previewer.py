@@ -164,3 +164,13 @@ def test_the_ball_s_mesh_file_is_written_again_where_it_has_gone(tmp_path):
     shutil.rmtree(tmp_path / "cache")
     assert previewer.ball_file == first and first.is_file()
     assert previewer.scene_for("clay").objects  # the scene's parser finds the mesh file it names
+
+
+@pytest.mark.parametrize("name", ["atlasgen-preview-floor", "Atlasgen_Preview_Floor"])
+def test_a_material_named_as_the_floor_is_the_one_refused(tmp_path, name):
+    """Found by a hostile sweep: the refusal named the floor's installed file, which no user can edit."""
+    material = tmp_path / "fl.toml"
+    material.write_text(f'type = "lambert"\nname = "{name}"\n')
+    with pytest.raises(MaterialError) as info:
+        Previewer(None).preview([material])
+    assert str(info.value).startswith(f"{material.as_posix()}: field 'name': duplicate material name {name!r}"), info.value
