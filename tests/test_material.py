@@ -268,3 +268,20 @@ def test_a_process_that_bakes_a_material_again_sees_its_image_saved_anew(mitsuba
     # The diffuse response's colour follows the image: red, then green.
     assert first[0, ..., 0].mean() > 10 * first[0, ..., 1].mean()
     assert again[0, ..., 1].mean() > 10 * again[0, ..., 0].mean()
+
+
+@pytest.mark.slow
+def test_an_image_that_is_no_image_is_one_line_to_the_process_s_end(mitsuba_llvm, tmp_path):
+    """Found by a hostile sweep: after Mitsuba's one-line refusal, OpenImageIO printed three more lines at exit
+    ("exited with a pending error message that was never retrieved"), left by the texture size check."""
+    import subprocess
+    import sys
+
+    (tmp_path / "tex.png").write_text("garbage\n")
+    (tmp_path / "tb.toml").write_text('type = "bsdf"\ngloss = 0.5\nbsdf = { type = "diffuse", reflectance = '
+                                      '{ type = "bitmap", filename = "tex.png" } }\n')  # fmt: skip
+    res = subprocess.run([sys.executable, "-m", "atlasgen", "bake", "tb.toml", "-o", "out/a.dds"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert res.returncode == 3, res.stderr
+    assert res.stderr.startswith("atlasgen: error: tb.toml: field 'bsdf.reflectance.filename': Mitsuba rejected")
+    assert len(res.stderr.splitlines()) == 1 and res.stdout == "", res.stderr

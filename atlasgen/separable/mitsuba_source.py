@@ -299,6 +299,9 @@ def _check_bitmap(spec: dict, path, field: str) -> None:
 
     image = oiio.ImageInput.open(filename)
     if image is None:
+        # Taken, or OpenImageIO prints it at exit ("exited with a pending error message"): three more lines after
+        # Mitsuba's refusal, which names the file.
+        oiio.geterror()
         return
     try:
         width, height = image.spec().width, image.spec().height
