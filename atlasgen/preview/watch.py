@@ -186,6 +186,7 @@ def watch_preview(
     sources = _Sources(paths)
     done, first = 0, True
     refining: list[threading.Event] = []
+    drawn: list[Preview] = []  # the picture at the output, whose references a failed update must not leave unrendered
     write_lock = threading.Lock()
 
     def refine(preview: Preview, cancel: threading.Event) -> None:
@@ -225,6 +226,9 @@ def watch_preview(
                     preview = previewer.write(paths, output, use_cache, drafts=True)
         except AtlasgenError as exc:
             result = Update(changed, None, exc)
+            if reference and drawn:
+                # The references of the picture kept were cancelled above: it said "reference: rendering" for good.
+                start_refining(drawn[-1])
         else:
             sources.learn(preview)
             # A copy: the label's completion below rebinds the preview's fields, and a caller
@@ -249,9 +253,13 @@ def watch_preview(
             if on_label is not None:
                 on_label(preview, label_error)
         if reference:
-            cancel = threading.Event()
-            refining.append(cancel)
-            threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True).start()
+            drawn[:] = [preview]
+            start_refining(preview)
+
+    def start_refining(preview: Preview) -> None:
+        cancel = threading.Event()
+        refining.append(cancel)
+        threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True).start()
 
     while not stop.is_set():
         folders = sources.folders()

@@ -277,3 +277,42 @@ def test_a_drafts_picture_comes_first_and_its_label_right_after(write_material, 
         assert [png for png, _ in labelled] == [CLAY.encode() + b"+label", saved + b"+label"]
         assert lines[1] == lines[3] == "error figures measured in 0.260 s"
         assert out.read_bytes() == saved + b"+label"
+
+
+def test_a_bad_save_leaves_the_kept_picture_s_references_rendering(write_material, tmp_path, monkeypatch):
+    """Found by a hostile sweep: with --reference, a bad save cancelled the kept picture's references and nothing
+    started them again; the picture said "reference: rendering" for good. A stand-in reference that renders until
+    it is cancelled counts its starts: one for the first picture, one more after the bad save."""
+    from types import SimpleNamespace
+
+    from atlasgen.preview import watch as watch_module
+
+    starts: queue.Queue[int] = queue.Queue()
+
+    def refine_reference(mi, scene, entry, manifest, radiance, aovs, max_spp=None, stop=None):
+        starts.put(1)
+        stop.wait(PATIENCE)
+        return iter(())
+
+    monkeypatch.setattr(watch_module, "load_reference_mitsuba", lambda: None)
+    monkeypatch.setattr(watch_module, "refine_reference", refine_reference)
+    monkeypatch.setattr(watch_module, "compose_picture", lambda shots, references: None)
+    monkeypatch.setattr(watch_module, "encode_png", lambda picture, compression=None: b"png")
+
+    class WithShots(StandIn):
+        def preview(self, paths, use_cache=True, aovs=False, drafts=False, output=None):
+            shown = self.write(paths, tmp_path / "scratch.png", use_cache)
+            shown.shots = [SimpleNamespace(name="clay", scene=None, entry=None, radiance=None, aovs=None)]
+            return shown
+
+    clay = write_material("clay", CLAY)
+
+    def script(next_update):
+        assert next_update().error is None
+        assert starts.get(timeout=PATIENCE) == 1  # the first picture's references
+        clay.write_text('type = "lambert"\ncolour = [0.7, 0.5]\n')
+        assert next_update().error is not None
+        # Started before the update is reported: well inside the time run_watch waits for this script.
+        assert starts.get(timeout=PATIENCE / 4) == 1, "the kept picture's references were not started again"
+
+    run_watch([clay], tmp_path / "clay.png", WithShots(), script, max_updates=1, reference=True)
