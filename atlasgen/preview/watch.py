@@ -45,6 +45,9 @@ __all__ = ["Update", "watch_preview", "describe_update", "describe_label"]
 STEP_MS = 5
 #: How often the watch wakes with nothing to report, ms: to start, and to see ``stop`` without events.
 IDLE_MS = 100
+#: Most seconds the end of a watch waits for a reference thread to finish its pass (a pass at the cap's samples
+#: takes seconds on the CPU); one still running after it is left, as a daemon.
+REFERENCE_JOIN_S = 60.0
 
 
 @dataclass
@@ -187,6 +190,7 @@ def watch_preview(
     done, first = 0, True
     refining: list[threading.Event] = []
     drawn: list[Preview] = []  # the picture at the output, whose references a failed update must not leave unrendered
+    threads: list[threading.Thread] = []
     write_lock = threading.Lock()
 
     def refine(preview: Preview, cancel: threading.Event) -> None:
@@ -259,36 +263,45 @@ def watch_preview(
     def start_refining(preview: Preview) -> None:
         cancel = threading.Event()
         refining.append(cancel)
-        threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True).start()
+        thread = threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True)
+        threads[:] = [t for t in threads if t.is_alive()] + [thread]
+        thread.start()
 
-    while not stop.is_set():
-        folders = sources.folders()
-        changes = watchfiles.watch(*folders, watch_filter=lambda _, path: sources.wants(path), step=STEP_MS,
-                                   stop_event=stop, rust_timeout=IDLE_MS, yield_on_timeout=True, recursive=False)  # fmt: skip
-        try:
-            for batch in changes:
-                if first:
-                    # The watch is running by now, so no save made while the first picture renders is lost.
-                    first = False
-                    update([])
-                elif batch:
-                    changed = sorted({sources.name(path) for _, path in batch})
-                    # The bake cache's key is the material file alone: a file it names changed under it.
-                    update(changed, use_cache=not any(os.path.abspath(path) in sources.referenced for _, path in batch))
-                    done += 1
-                    if max_updates is not None and done >= max_updates:
-                        return done
-                if sources.folders() != folders:
-                    break  # a material names a file in another folder now: watch that one too
-        except KeyboardInterrupt as exc:
-            # watchfiles' Rust wait checks for signals and raises a plain KeyboardInterrupt for any: a SIGTERM's
-            # Terminated (exit 143) would have ended the watch as a Ctrl-C does, with success.
-            received = as_received(exc)
-            if received is exc:
-                raise
-            raise received from None
-        finally:
-            changes.close()
-    for cancel in refining:
-        cancel.set()
+    try:
+        while not stop.is_set():
+            folders = sources.folders()
+            changes = watchfiles.watch(*folders, watch_filter=lambda _, path: sources.wants(path), step=STEP_MS,
+                                       stop_event=stop, rust_timeout=IDLE_MS, yield_on_timeout=True, recursive=False)  # fmt: skip
+            try:
+                for batch in changes:
+                    if first:
+                        # The watch is running by now, so no save made while the first picture renders is lost.
+                        first = False
+                        update([])
+                    elif batch:
+                        changed = sorted({sources.name(path) for _, path in batch})
+                        # The bake cache's key is the material file alone: a file it names changed under it.
+                        update(changed, use_cache=not any(os.path.abspath(path) in sources.referenced for _, path in batch))
+                        done += 1
+                        if max_updates is not None and done >= max_updates:
+                            return done
+                    if sources.folders() != folders:
+                        break  # a material names a file in another folder now: watch that one too
+            except KeyboardInterrupt as exc:
+                # watchfiles' Rust wait checks for signals and raises a plain KeyboardInterrupt for any: a SIGTERM's
+                # Terminated (exit 143) would have ended the watch as a Ctrl-C does, with success.
+                received = as_received(exc)
+                if received is exc:
+                    raise
+                raise received from None
+            finally:
+                changes.close()
+    finally:
+        # A reference thread still inside Mitsuba when the interpreter ends aborted the process (Ctrl-C or SIGTERM
+        # ended it with "Fatal Python error: PyGILState_Release", exit 134): each is stopped at its next pass and
+        # waited for.
+        for cancel in refining:
+            cancel.set()
+        for thread in threads:
+            thread.join(REFERENCE_JOIN_S)
     return done

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -139,6 +140,30 @@ def test_sigterm_ends_a_watch_as_it_ends_every_command(gpu_device, tmp_path, wri
     assert child.returncode == 143, stderr
     assert stderr.splitlines()[-1] == "atlasgen: terminated" and "stopped watching" not in stderr
     assert out.read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["Ctrl-C", "SIGTERM"])
+def test_a_watch_ended_while_its_reference_renders_ends_cleanly(gpu_device, mitsuba_llvm, tmp_path, write_material, stop):
+    """Found by a hostile sweep: Ctrl-C or SIGTERM while the reference rendered in its thread aborted the process
+    (exit 134, "Fatal Python error: PyGILState_Release" and a thread dump), three runs in three."""
+    clay = write_material("clay", CLAY)
+    out = tmp_path / "clay.png"
+    script = Path(sys.executable).parent / "atlasgen"
+    child = subprocess.Popen([str(script), "preview", str(clay), "--watch", "--reference", "--reference-spp", "64",
+                              "-o", str(out), "--cache", str(tmp_path / "c")], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=os.environ)  # fmt: skip
+    try:
+        first = child.stdout.readline()
+        assert first.startswith(f"first picture: {out.as_posix()} in "), first
+        time.sleep(5)  # the reference's passes under way (at 3 s, Mitsuba was still loading)
+        child.send_signal(stop)
+        stderr = child.stderr.read()
+        child.wait(timeout=120)
+    finally:
+        child.kill()
+    assert child.returncode == (0 if stop == signal.SIGINT else 143), stderr
+    assert stderr.splitlines()[-1] == ("stopped watching" if stop == signal.SIGINT else "atlasgen: terminated"), stderr
 
 
 @pytest.mark.parametrize("verbosity", [[], ["-q"]])
