@@ -94,22 +94,29 @@ def describe_label(preview: Preview, error: AtlasgenError | None = None) -> str:
     return f"{shown} ({timing})" if shown else f"error figures {timing}"
 
 
+def _keys(path) -> list[str]:
+    """The paths a save of ``path`` is reported at: its own, and where it is a symbolic link, its target's (an editor
+    saves the target, in the target's folder: a watch of the link's folder saw nothing)."""
+    own, real = os.path.abspath(path), os.path.realpath(path)
+    return [own] if real == own else [own, real]
+
+
 class _Sources:
-    """The files a preview reads, by absolute path, and the folders to watch for them."""
+    """The files a preview reads, by absolute path (and a link's target's), and the folders to watch for them."""
 
     def __init__(self, paths):
         self.given = [Path(p) for p in paths]
         self.folders_given = {os.path.abspath(p) for p in self.given if p.is_dir()}
-        self.shown = {os.path.abspath(p): p.as_posix() for p in self.given if not p.is_dir()}
+        self.shown = {key: p.as_posix() for p in self.given if not p.is_dir() for key in _keys(p)}
         self.referenced: set[str] = set()
 
     def learn(self, preview: Preview) -> None:
         """Watch the files ``preview`` was made from too (a folder's materials, the files they name)."""
         for path in preview.inputs:
-            key = os.path.abspath(path)
-            self.shown.setdefault(key, Path(path).as_posix())
-            if path not in self.given and not is_material_file_name(Path(path).name):
-                self.referenced.add(key)
+            for key in _keys(path):
+                self.shown.setdefault(key, Path(path).as_posix())
+                if path not in self.given and not is_material_file_name(Path(path).name):
+                    self.referenced.add(key)
 
     def folders(self) -> list[str]:
         return sorted(self.folders_given | {os.path.dirname(k) for k in self.shown})

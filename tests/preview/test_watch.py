@@ -316,3 +316,27 @@ def test_a_bad_save_leaves_the_kept_picture_s_references_rendering(write_materia
         assert starts.get(timeout=PATIENCE / 4) == 1, "the kept picture's references were not started again"
 
     run_watch([clay], tmp_path / "clay.png", WithShots(), script, max_updates=1, reference=True)
+
+
+@pytest.mark.parametrize("where", ["another folder", "the same folder"])
+def test_saves_to_a_linked_material_s_target_are_seen(tmp_path, where):
+    """Found by a hostile sweep: with the material given as a symbolic link, saves to its target (what an editor
+    writes) were never seen, in another folder or in the link's own."""
+    real = tmp_path / ("real" if where == "another folder" else "mats") / "b.toml"
+    real.parent.mkdir()
+    real.write_text(CLAY)
+    (tmp_path / "mats").mkdir(exist_ok=True)
+    link = tmp_path / "mats" / "clay.toml"
+    link.symlink_to(real)
+    out = tmp_path / "clay.png"
+
+    def script(next_update):
+        assert next_update().error is None and out.read_bytes() == CLAY.encode()
+        rename_over(real, CLAY.replace("0.3", "0.2"))
+        update = next_update()
+        assert update.changed == [link.as_posix()] and out.read_bytes() == CLAY.replace("0.3", "0.2").encode()
+        real.write_text('type = "lambert"\ncolour = [0.7, 0.5]\n')
+        assert "field 'colour'" in str(next_update().error)
+
+    done, _ = run_watch([link], out, StandIn(), script, max_updates=2)
+    assert done == 2
