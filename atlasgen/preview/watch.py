@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import os
+import stat
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -92,6 +93,15 @@ def describe_label(preview: Preview, error: AtlasgenError | None = None) -> str:
     shown = "; ".join(f"{shot.name}: {error_text(shot.entry) or 'exact'}" for shot in preview.shots)
     timing = f"measured in {sum(preview.label_timings.values()):.3f} s"
     return f"{shown} ({timing})" if shown else f"error figures {timing}"
+
+
+def _folder_identity(folder: str) -> tuple | None:
+    """The folder's device and inode, or None where no folder stands there."""
+    try:
+        st = os.stat(folder)
+    except (OSError, ValueError):
+        return None
+    return (st.st_dev, st.st_ino) if stat.S_ISDIR(st.st_mode) else None
 
 
 def _keys(path) -> list[str]:
@@ -275,25 +285,59 @@ def watch_preview(
         thread.start()
 
     try:
+        revived: list[str] = []
+        known: dict[str, tuple | None] = {}  # each folder as it stood when last watched
         while not stop.is_set():
             folders = sources.folders()
-            changes = watchfiles.watch(*folders, watch_filter=lambda _, path: sources.wants(path), step=STEP_MS,
-                                       stop_event=stop, rust_timeout=IDLE_MS, yield_on_timeout=True, recursive=False)  # fmt: skip
+            # A folder removed (rm -rf, a checkout) takes its watch with it, and one that is not there cannot be
+            # watched: each is watched while it stands, and the watch starts again where one goes or comes back (the
+            # watch went silent for good after its folder was removed and made again). A folder made again is read
+            # afresh: what it holds was saved unwatched.
+            standing = {folder: _folder_identity(folder) for folder in folders}
+            revived += [sources.name(f) for f in folders if f in known and standing[f] not in (None, known[f])]
+            known.update(standing)
+            watched = [folder for folder, identity in standing.items() if identity is not None]
+            if not watched:
+                if revived:  # no folder to watch, so no save to miss: said now
+                    update(sorted(set(revived)), use_cache=False)
+                    revived = []
+                    done += 1
+                    if max_updates is not None and done >= max_updates:
+                        return done
+                stop.wait(IDLE_MS / 1000)
+                continue
+            # A watched folder's own removal is reported too: one made again at once may take the same inode.
+            folder_set = set(watched)
+            changes = watchfiles.watch(*watched, watch_filter=lambda _, path: sources.wants(path) or path in folder_set,
+                                       step=STEP_MS, stop_event=stop, rust_timeout=IDLE_MS, yield_on_timeout=True,
+                                       recursive=False)  # fmt: skip
             try:
                 for batch in changes:
+                    removed = {path for _, path in batch if path in folder_set}
+                    batch = {(change, path) for change, path in batch if path not in folder_set}
                     if first:
                         # The watch is running by now, so no save made while the first picture renders is lost.
                         first = False
                         update([])
-                    elif batch:
-                        changed = sorted({sources.name(path) for _, path in batch})
-                        # The bake cache's key is the material file alone: a file it names changed under it.
-                        update(changed, use_cache=not any(os.path.abspath(path) in sources.referenced for _, path in batch))
+                    elif batch or revived:
+                        changed = sorted({sources.name(path) for _, path in batch} | set(revived))
+                        # The bake cache's key is the material file alone: a file it names changed under it (or may
+                        # have, in a folder made again while it was not watched).
+                        update(changed, use_cache=not revived and not any(os.path.abspath(path) in sources.referenced
+                                                                          for _, path in batch))  # fmt: skip
+                        revived = []
                         done += 1
                         if max_updates is not None and done >= max_updates:
                             return done
                     if sources.folders() != folders:
                         break  # a material names a file in another folder now: watch that one too
+                    now = {folder: _folder_identity(folder) for folder in standing}
+                    if removed or now != standing:
+                        # A folder found gone before its removal was reported (the watch ends with its events
+                        # unread): its files are said to have changed, as the removal's events would have.
+                        revived += [sources.name(f) for f, identity in now.items() if identity is None and f not in removed]
+                        known.update(dict.fromkeys(removed))
+                        break
             except KeyboardInterrupt as exc:
                 # watchfiles' Rust wait checks for signals and raises a plain KeyboardInterrupt for any: a SIGTERM's
                 # Terminated (exit 143) would have ended the watch as a Ctrl-C does, with success.

@@ -340,3 +340,30 @@ def test_saves_to_a_linked_material_s_target_are_seen(tmp_path, where):
 
     done, _ = run_watch([link], out, StandIn(), script, max_updates=2)
     assert done == 2
+
+
+@pytest.mark.parametrize("given", ["the file", "the folder"])
+def test_a_folder_removed_and_made_again_is_watched_again(tmp_path, given):
+    """Found by a hostile sweep: after `rm -rf mats` and the folder made again (a checkout does both), the watch
+    said the file was gone, then saw no save at all, good or bad."""
+    import shutil
+
+    folder = tmp_path / "mats"
+    folder.mkdir()
+    clay = folder / "clay.toml"
+    clay.write_text(CLAY)
+    out = tmp_path / "clay.png"
+
+    def script(next_update):
+        assert next_update().error is None
+        shutil.rmtree(folder)
+        gone = next_update()
+        assert gone.preview is None and "no such file or folder" in str(gone.error)
+        folder.mkdir()
+        clay.write_text(CLAY.replace("0.3", "0.2"))
+        back = next_update()
+        assert back.error is None and out.read_bytes() == CLAY.replace("0.3", "0.2").encode(), back
+        clay.write_text('type = "lambert"\ncolour = [0.7, 0.5]\n')
+        assert "field 'colour'" in str(next_update().error)
+
+    run_watch([clay if given == "the file" else folder], out, StandIn(), script, max_updates=3)
