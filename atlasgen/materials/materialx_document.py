@@ -252,7 +252,8 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
                 f"{name}.surfaceshader",
                 f"surface shader {category!r} is not supported; expected one of {', '.join(SURFACE_MODELS)}",
             )
-        spec = _read_shader(shown, name, category, shader, flatten)
+        # The file that writes the shader's inputs: an included file's value was blamed on the including document.
+        spec = _read_shader(_where(documents, shader.getName()), name, category, shader, flatten)
         spec["not_in_table"] += _material_not_in_table(node) + _variants_not_applied(doc, name)
         # The file's name, not the path as given: the manifest's ``source`` locates the file, and a
         # path as given made the manifest (and the content hash) depend on the working folder.

@@ -761,3 +761,14 @@ def test_an_enumerated_integer_beyond_its_values_is_refused(tmp_path, mode):
     path = _document(tmp_path, _material("M", "gltf_pbr", f'<input name="alpha_mode" type="integer" value="{mode}" />'))
     with pytest.raises(MaterialError, match=rf"field 'M.alpha_mode': expected integer within 0 .. 2 .*, got {mode}$"):
         read_material_file(path)
+
+
+def test_a_bad_value_in_an_included_file_names_that_file(tmp_path):
+    """Found by a hostile sweep: a value out of range in an included file was refused naming the including document,
+    which holds no such field."""
+    lib = _document(tmp_path, _material("velvet", "standard_surface",
+                                        '<input name="base_color" type="color3" value="2.25, 0.06, 0.05" />'))  # fmt: skip
+    path = _including(tmp_path, "lib.mtlx")
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{lib.as_posix()}: field 'velvet.base_color': expected color3 within"), info.value
