@@ -55,7 +55,7 @@ def files_state(params: dict) -> tuple:
     >>> files_state({"b": {"type": "bitmap", "filename": "/nonexistent/x.png"}})
     (('/nonexistent/x.png', None),)
     """
-    state = []
+    state: list[tuple[str, tuple[int, int, int] | None]] = []
     for _, name in referenced_files(params):
         try:
             st = os.stat(name)
