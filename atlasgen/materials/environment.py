@@ -85,7 +85,7 @@ def environment_image(env: Environment, height: int, width: int) -> np.ndarray:
         raise ValueError(f"unknown environment source {env.source!r}; expected one of {ENVIRONMENT_SOURCES}")
     peak = float(np.max(image))
     if peak > HALF_MAX:
-        _refuse_beyond_half(env, peak, _peak_at_unit_intensity(env, image, height, width))
+        _refuse_beyond_half(env, _peak_at_unit_intensity(env, image, height, width))
     return image.astype(np.float32)
 
 
@@ -98,8 +98,8 @@ def _peak_at_unit_intensity(env: Environment, image: np.ndarray, height: int, wi
     return float(np.max(image)) / env.intensity if env.intensity > 0.0 else 0.0
 
 
-def _refuse_beyond_half(env: Environment, peak: float, alone: float) -> None:
-    """One line for an image whose radiance (``peak``; ``alone`` at intensity 1) exceeds :data:`HALF_MAX`: the
+def _refuse_beyond_half(env: Environment, alone: float) -> None:
+    """One line for an image whose radiance (``alone`` at intensity 1, times it) exceeds :data:`HALF_MAX`: the
     renderer's rgba16float texture would hold infinity there, and its prefiltered levels and harmonics NaN, which
     render black. It names the field to change: ``intensity`` where the source alone fits (a sky's default horizon
     at intensity 1e6 was blamed on a ``horizon`` the scene never set, with the sun's peak as its value), else the

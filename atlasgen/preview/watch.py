@@ -205,9 +205,8 @@ def watch_preview(
     stop = stop or threading.Event()
     sources = _Sources(paths)
     done, first = 0, True
-    refining: list[threading.Event] = []
-    drawn: list[Preview] = []  # the picture at the output, whose references a failed update must not leave unrendered
-    threads: list[threading.Thread] = []
+    refiners: list[tuple[threading.Event, threading.Thread]] = []  # each reference thread still running, and its cancel
+    drawn: Preview | None = None  # the picture at the output, whose references a failed update must not leave unrendered
     write_lock = threading.Lock()
 
     def refine(preview: Preview, cancel: threading.Event) -> None:
@@ -232,9 +231,9 @@ def watch_preview(
                 on_reference(None, exc)
 
     def update(changed: list[str], use_cache: bool = True) -> None:
-        for cancel in refining:
+        nonlocal drawn
+        for cancel, _ in refiners:
             cancel.set()
-        refining.clear()
         try:
             with write_lock:
                 if reference:
@@ -247,9 +246,9 @@ def watch_preview(
                     preview = previewer.write(paths, output, use_cache, drafts=True)
         except AtlasgenError as exc:
             result = Update(changed, None, exc)
-            if reference and drawn:
+            if reference and drawn is not None:
                 # The references of the picture kept were cancelled above: it said "reference: rendering" for good.
-                start_refining(drawn[-1])
+                start_refining(drawn)
         else:
             sources.learn(preview)
             # A copy: the label's completion below rebinds the preview's fields, and a caller
@@ -274,14 +273,13 @@ def watch_preview(
             if on_label is not None:
                 on_label(preview, label_error)
         if reference:
-            drawn[:] = [preview]
+            drawn = preview
             start_refining(preview)
 
     def start_refining(preview: Preview) -> None:
         cancel = threading.Event()
-        refining.append(cancel)
         thread = threading.Thread(target=refine, args=(preview, cancel), name="atlasgen-reference", daemon=True)
-        threads[:] = [t for t in threads if t.is_alive()] + [thread]
+        refiners[:] = [(c, t) for c, t in refiners if t.is_alive()] + [(cancel, thread)]
         thread.start()
 
     try:
@@ -351,8 +349,8 @@ def watch_preview(
         # A reference thread still inside Mitsuba when the interpreter ends aborted the process (Ctrl-C or SIGTERM
         # ended it with "Fatal Python error: PyGILState_Release", exit 134): each is stopped at its next pass and
         # waited for.
-        for cancel in refining:
+        for cancel, _ in refiners:
             cancel.set()
-        for thread in threads:
+        for _, thread in refiners:
             thread.join(REFERENCE_JOIN_S)
     return done
