@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import os
 import signal
 import sys
 import threading
+import time
 
 from atlasgen.errors import Terminated
 from atlasgen.start_up import exit_on_interrupt, exit_on_terminate, install_start_up_interrupts
@@ -20,6 +22,7 @@ __all__ = [
     "raise_terminated",
     "as_received",
     "raise_unraisable_interrupts",
+    "send_once_returned",
     "interrupt_behind",
 ]
 
@@ -67,10 +70,10 @@ def raise_unraisable_interrupts() -> None:
     collector's, wgpu's and trimesh's objects have them) raises there, where Python can only print
     "Exception ignored in ..." with a traceback and carry on: the command then ran to the end and
     replaced its outputs. The hook sends the same signal again, so that its handler runs in the
-    command's own code, as any other interrupt does. It is sent from another thread a moment later:
-    sent from the hook, the handler would run at the hook's next instruction, inside the hook, where
-    an exception is as unraisable as in the callback. Every other unraisable error goes to the hook
-    that was installed before.
+    command's own code, as any other interrupt does. It is sent from another thread once the hook
+    has returned (:func:`send_once_returned`): sent while the hook runs, the handler would run inside
+    it, where an exception is as unraisable as in the callback. Every other unraisable error goes to
+    the hook that was installed before.
     """
     previous = sys.unraisablehook
     if getattr(previous, "raises_interrupts", False):
@@ -79,14 +82,30 @@ def raise_unraisable_interrupts() -> None:
     def hook(unraisable) -> None:
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
             signum = signal.SIGTERM if isinstance(unraisable.exc_value, Terminated) else signal.SIGINT
-            resend = threading.Timer(0.01, os.kill, (os.getpid(), signum))
-            resend.daemon = True  # a command already ending is not held up for it
-            resend.start()
+            # A bare thread: threading.Thread.start waits for the thread to run, and on a loaded machine a
+            # threading.Timer's signal landed in that wait, inside the hook (once in 20 under load).
+            _thread.start_new_thread(send_once_returned, (signum, sys._getframe().f_code, threading.get_ident()))
             return
         previous(unraisable)
 
     hook.raises_interrupts = True  # type: ignore[attr-defined]
     sys.unraisablehook = hook
+
+
+def send_once_returned(signum: int, code, thread_id: int, poll_s: float = 0.001) -> None:
+    """Send ``signum`` to this process once thread ``thread_id``'s stack holds no frame of ``code``.
+
+    Python runs a signal's handler in the main thread at its next instruction, wherever that is: a
+    delay alone cannot say the thread has left ``code`` by then, however long, on a loaded machine.
+    """
+    while True:
+        frame = sys._current_frames().get(thread_id)
+        while frame is not None and frame.f_code is not code:
+            frame = frame.f_back
+        if frame is None:
+            break
+        time.sleep(poll_s)
+    os.kill(os.getpid(), signum)
 
 
 #: The signals :func:`deferred_interrupts` holds: what each is raised as once the block is done, and the
