@@ -20,8 +20,9 @@ from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
-from atlasgen.io.fields import is_number
-from atlasgen.io.report_files import check_merge_output, check_number, read_report_json, report_json_paths
+from atlasgen.io.json_shape import Count, Fields, Figure, Flag, Items, Nullable, Number, Text, check_shape
+from atlasgen.io.report_files import check_merge_output, read_report_json, report_json_paths
+from atlasgen.io.text import read_input_bytes
 from atlasgen.reports.html import Chart
 from atlasgen.reports.report_kind import refuse_another_report
 from atlasgen.reports.separable import (
@@ -30,6 +31,9 @@ from atlasgen.reports.separable import (
     format_separable_report,
     rebase_study_paths,
 )
+from atlasgen.separable.approximate import TARGETS
+from atlasgen.separable.factorize import FACTORIZATIONS
+from atlasgen.separable.parametrization import PARAMETRIZATIONS
 
 __all__ = ["PLOT_KINDS", "merge_separable_reports"]
 
@@ -61,79 +65,100 @@ def _read_studies(path: Path) -> list:
     return studies
 
 
-def _check_chosen(path: Path, where: str, item: dict) -> None:
-    """Refuse a study whose summary row would print what no study measures: the merged table printed a
-    relative RMS of -0.5 as "-50.00%" and ``terms = "three"`` as written (``validate --merge`` refuses both)."""
-    chosen = item["chosen"]
-    if not isinstance(chosen, dict):
-        raise FieldError(path.as_posix(), f"{where}.chosen", f"expected an object, got {type(chosen).__name__}")
-    for key in ("terms", "grid"):
-        value = chosen.get(key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise FieldError(
-                path.as_posix(), f"{where}.chosen.{key}", f"expected a whole number >= 1, got {shorten(repr(value))}"
+#: Measures of error, each a figure, as :func:`atlasgen.separable.error.measure_errors` names them.
+_ERRORS = Fields(
+    {"relative_rms": Figure()},
+    others=Figure(),
+    keys=("relative_rms_se", "log_error", "log_error_se", "relative_log_rms", "relative_log_rms_se"),
+)
+_CURVE = Items(Figure())  # a figure per K = 1, 2, ...
+_NONNEGATIVE_ROW = Fields({"terms": Count(), "relative_rms": Figure(), "relative_rms_8bit": Figure()})
+_LABEL = Fields({"text": Text(), "left": Number(), "top": Number(), "x": Number(), "y": Number()})
+#: One study as :func:`atlasgen.reports.separable.study_material` writes it (its name checked apart), every field: a
+#: hand-edited figure is refused where it is, not printed ("-100.00%", "K=one") or blamed on a field read after it.
+STUDY_SHAPE = Fields(
+    {
+        "name": Text(),
+        "source": Text(),
+        "chosen": Fields(
+            {
+                "parametrization": Text(tuple(PARAMETRIZATIONS)),
+                "target": Text(TARGETS),
+                "terms": Count(),
+                "grid": Count(),
+                "factorization": Text(FACTORIZATIONS),
+                "float": _ERRORS,
+                "8bit_srgb": _ERRORS,
+            }
+        ),  # fmt: skip
+        "by_terms": Fields(others=Fields({"float": _CURVE, "8bit": _CURVE, "log_float": _CURVE}), keys=TARGETS),
+        "by_parametrization": Fields(others=_CURVE, keys=tuple(PARAMETRIZATIONS)),
+        "by_resolution": Items(
+            Fields({"resolution": Count(), "terms": Count(), "relative_rms": Figure(), "seconds": Figure(), "cost": Figure()}),
+            unique=("resolution", "terms"),
+        ),  # fmt: skip
+        "nonnegative": Fields({"nmf": Items(_NONNEGATIVE_ROW, unique=("terms",)), "nd": _NONNEGATIVE_ROW}),
+        "timings": Fields(others=Figure()),
+    },
+    {
+        "atlas": Nullable(
+            Fields(
+                {"path": Text()},
+                {"other_bake": Flag(), "missing": Text()},
+                others=Figure(),
+                keys=_ERRORS.keys + ("relative_rms",),
             )
-    for part in ("float", "8bit_srgb"):
-        figures = chosen.get(part)
-        if not isinstance(figures, dict):
-            raise FieldError(path.as_posix(), f"{where}.chosen.{part}", f"expected an object, got {shorten(repr(figures))}")
-        check_number(path, f"{where}.chosen.{part}.relative_rms", figures.get("relative_rms"), allow_none=False, minimum=0)
-    _check_chosen_against_by_terms(path, where, chosen, item.get("by_terms"))
-    timings = item["timings"]
-    if isinstance(timings, dict):
-        for key, value in timings.items():
-            check_number(path, f"{where}.timings.{key}", value, minimum=0)
-    _check_rows(path, where, item)
+        ),  # fmt: skip
+        "pareto": Items(
+            Fields({"cost": Figure(), "seconds": Figure(), "relative_rms": Figure(), "resolution": Count(), "terms": Count()}),
+            unique=("resolution", "terms"),
+        ),  # fmt: skip
+        "charts": Fields(others=Fields({"width": Count(), "height": Count(), "labels": Items(_LABEL)}), keys=PLOT_KINDS),
+    },
+)
+
+
+def _check_chosen(path: Path, where: str, item: dict) -> None:
+    """Refuse a study whose fields are not what atlasgen report separable writes (:data:`STUDY_SHAPE`), or whose
+    chosen figures are not its own table's."""
+    check_shape(path, where, item, STUDY_SHAPE)
+    _check_chosen_against_by_terms(path, where, item["chosen"], item["by_terms"])
 
 
 def _check_chosen_against_by_terms(path: Path, where: str, chosen: dict, by_terms) -> None:
     """Refuse SVD chosen figures that are not the study's own table at the chosen K: the terms are a prefix of one
     factorization, so the chosen row repeats ``by_terms[target]`` at K (an edited ``terms = 7`` printed K = 3's
     figures as K = 7's). An NMF choice (a MaterialX bake's) is in no SVD table, so it is not compared."""
-    if chosen.get("factorization", "svd") != "svd" or not isinstance(by_terms, dict):
+    if chosen["factorization"] != "svd":
         return
-    table = by_terms.get(chosen.get("target"))
-    if not isinstance(table, dict):
-        return
+    table = by_terms.get(chosen["target"])
+    if table is None:
+        raise FieldError(path.as_posix(), f"{where}.chosen.target", f"expected a target of the study's by_terms "
+                         f"({', '.join(by_terms) or 'none'}), got {chosen['target']!r}")  # fmt: skip
     k = chosen["terms"]
     for part, column in (("float", "float"), ("8bit_srgb", "8bit")):
-        errors = table.get(column)
-        if not isinstance(errors, list) or len(errors) < k or not is_number(errors[k - 1]):
+        errors = table[column]
+        if len(errors) < k:  # a fixed K past the K = 1 .. 8 the study measures: nothing to compare
             continue
         got, expected = chosen[part]["relative_rms"], errors[k - 1]
         if not math.isclose(got, expected, rel_tol=1e-6, abs_tol=1e-12):
             raise FieldError(path.as_posix(), f"{where}.chosen.{part}.relative_rms", f"expected {expected:g}, the study's "
-                             f"by_terms.{chosen.get('target')}.{column} at the chosen K = {k}, got {got:g}")  # fmt: skip
+                             f"by_terms.{chosen['target']}.{column} at the chosen K = {k}, got {got:g}")  # fmt: skip
 
 
-#: Per table of a study, its rows' figures (numbers >= 0) and counts (whole numbers >= 1): the page formats some and
-#: the merge copies every one, so a hand-edited "x" was merged into its report.json where formatting did not fail.
-_ROWS = {"pareto": (("cost", "seconds", "relative_rms"), ("resolution", "terms")),
-         "by_resolution": (("relative_rms", "seconds", "cost"), ("resolution", "terms"))}  # fmt: skip
+#: A plot's first bytes (PNG, ISO/IEC 15948 5.2), and the most bytes one may have: the report's are about 50 kB.
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PLOT_LIMIT = 64 << 20
 
 
-def _check_rows(path: Path, where: str, item: dict) -> None:
-    """Refuse a study whose table rows or chart sizes are not what atlasgen report separable writes, naming the field."""
-    for table, (figures, counts) in _ROWS.items():
-        rows = item.get(table)
-        if not isinstance(rows, list) or not all(isinstance(row, dict) for row in rows):
-            raise FieldError(path.as_posix(), f"{where}.{table}", f"expected a list of rows, got {shorten(repr(rows))}")
-        for i, row in enumerate(rows):
-            for key in figures:
-                check_number(path, f"{where}.{table}[{i}].{key}", row.get(key), minimum=0)
-            for key in counts:
-                value = row.get(key)
-                if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
-                    raise FieldError(path.as_posix(), f"{where}.{table}[{i}].{key}",
-                                     f"expected a whole number >= 1, got {shorten(repr(value))}")  # fmt: skip
-    charts = item.get("charts") or {}
-    if not isinstance(charts, dict):
-        raise FieldError(path.as_posix(), f"{where}.charts", f"expected an object of charts, got {shorten(repr(charts))}")
-    for kind, chart in charts.items():
-        sizes = [chart.get(k) for k in ("width", "height")] if isinstance(chart, dict) else [None]
-        if not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in sizes):
-            raise FieldError(path.as_posix(), f"{where}.charts.{kind}", "expected a chart's width and height in pixels "
-                             f"and its labels, got {shorten(repr(chart))}")  # fmt: skip
+def _read_plot(png: Path, kind: str, name: str) -> bytes:
+    """The bytes of ``name``'s ``kind`` plot, refused unless a regular PNG file: a named pipe hung the merge, /dev/zero
+    filled the memory, and an empty file was copied into the merged page as a broken image."""
+    what = f"the {kind} plot of {name!r}"
+    data = read_input_bytes(png, f"no such file ({what})", limit=(_PLOT_LIMIT, f"{what}, a PNG image"))
+    if not data.startswith(_PNG_SIGNATURE):
+        raise InputError(f"{png.as_posix()}: expected {what}, a PNG image, got {len(data)} bytes of something else")
+    return data
 
 
 def _charts(study: MaterialStudy) -> dict:
@@ -217,12 +242,7 @@ def merge_separable_reports(sources, output) -> dict:
             plots[study.name] = {}
             for kind in PLOT_KINDS:
                 png = path.parent / f"{study.name}-{kind}.png"
-                try:
-                    files[output / png.name] = png.read_bytes()
-                except OSError as exc:
-                    raise InputError(
-                        f"{png.as_posix()}: cannot read the {kind} plot of {study.name!r} ({exc.strerror})"
-                    ) from None
+                files[output / png.name] = _read_plot(png, kind, study.name)
                 plots[study.name][kind] = output / png.name
             origins.append((study, path, index))
     studies = [study for study, _, _ in origins]

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -168,7 +170,23 @@ def test_bad_sources_are_refused_and_nothing_is_written(reports, tmp_path):
         merge_separable_reports([broken], out)
     data = json.loads((folders["lobe"] / "report.json").read_text())
     (broken / "report.json").write_text(json.dumps(data))
-    with pytest.raises(InputError, match=r"lobe-terms.png: cannot read the terms plot"):
+    with pytest.raises(InputError, match=r"lobe-terms.png: no such file \(the terms plot of 'lobe'\)"):
+        merge_separable_reports([broken], out)
+    for kind in PLOT_KINDS:  # the other three, good
+        shutil.copy(folders["lobe"] / f"lobe-{kind}.png", broken)
+    plot = broken / "lobe-pareto.png"
+    # A hostile sweep's: a named pipe hung the merge, /dev/zero filled the memory, an empty file was merged as a plot.
+    plot.unlink()
+    os.mkfifo(plot)
+    with pytest.raises(InputError, match=r"lobe-pareto.png: expected a regular file, got a named pipe"):
+        merge_separable_reports([broken], out)
+    plot.unlink()
+    plot.symlink_to("/dev/zero")
+    with pytest.raises(InputError, match=r"lobe-pareto.png: expected a regular file, got a character device"):
+        merge_separable_reports([broken], out)
+    plot.unlink()
+    plot.write_bytes(b"")
+    with pytest.raises(InputError, match=r"expected the pareto plot of 'lobe', a PNG image, got 0 bytes of something"):
         merge_separable_reports([broken], out)
     assert not out.exists()
 

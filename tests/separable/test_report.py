@@ -195,28 +195,46 @@ def _set(data, keys, value):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("keys", "value", "expected"), [
-    # Deeper than the checks read: named by the field formatting stopped on (it named only the entry).
-    (["by_terms"], None, "field '[0].by_terms': expected the value atlasgen report separable writes there, got None"),
-    # Read before the failure (a formatter reads a row's figures, then formats them): named by its kind against its
-    # siblings (the last read was a good one).
-    (["chosen", "float", "relative_rms_se"], "x", "field '[0].chosen.float.relative_rms_se': expected the value "
-                                                  "atlasgen report separable writes there, got 'x'"),
-    # Checked ahead, where formatting might not fail and the merge copied them into its report.json.
-    (["by_resolution"], "x", "field '[0].by_resolution': expected a list of rows, got 'x'"),
-    (["by_resolution", 0, "cost"], "x", "field '[0].by_resolution[0].cost': expected a finite number or null, got 'x'"),
+    (["by_terms"], None, "field '[0].by_terms': expected an object, got None"),
+    (["chosen", "float", "relative_rms_se"], "x", "field '[0].chosen.float.relative_rms_se': expected a finite number, "
+                                                  "got 'x'"),
+    (["by_resolution"], "x", "field '[0].by_resolution': expected a list, got 'x'"),
+    (["by_resolution", 0, "cost"], "x", "field '[0].by_resolution[0].cost': expected a finite number, got 'x'"),
     (["by_resolution", 1, "terms"], "x", "field '[0].by_resolution[1].terms': expected a whole number >= 1, got 'x'"),
-    (["pareto", 0, "seconds"], "x", "field '[0].pareto[0].seconds': expected a finite number or null, got 'x'"),
-    (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms': expected a chart's width and height in pixels"),
-    (["charts"], [1, 2], "field '[0].charts': expected an object of charts, got [1, 2]"),
-    (["by_terms", "f_cos", "float", 1], "small", "field '[0].by_terms.f_cos.float[1]': expected the value atlasgen "
-                                                 "report separable writes there, got 'small'"),
-    (["chosen"], "x", "field '[0].chosen': expected an object, got str"),
+    (["pareto", 0, "seconds"], "x", "field '[0].pareto[0].seconds': expected a finite number, got 'x'"),
+    (["charts"], {"terms": {"width": "a"}}, "field '[0].charts.terms.height': expected a value, got none (no such key)"),
+    (["charts", "terms", "width"], "a", "field '[0].charts.terms.width': expected a whole number >= 1, got 'a'"),
+    (["charts"], [1, 2], "field '[0].charts': expected an object, got [1, 2]"),
+    (["by_terms", "f_cos", "float", 1], "small", "field '[0].by_terms.f_cos.float[1]': expected a finite number, "
+                                                 "got 'small'"),
+    (["chosen"], "x", "field '[0].chosen': expected an object, got 'x'"),
     (["chosen", "float", "relative_rms"], "big", "field '[0].chosen.float.relative_rms': expected a finite number, got 'big'"),
     (["name"], [1], "entry 0: expected a material name (a letter then letters, digits, '-' or '_', at most 63), got [1]"),
     # A name is the plots' file names: these read, and would write, files outside the study's folder.
     (["name"], "../lobe", "entry 0: expected a material name (a letter then letters, digits, '-' or '_', at most 63), "
                           "got '../lobe'"),
     (["name"], "sub/lobe", "entry 0: expected a material name"),
+    # A hostile sweep's: an internal error (a list as a dict key; a template's missing attribute) ...
+    (["chosen", "target"], ["x"], "field '[0].chosen.target': expected a string, got ['x']"),
+    (["charts", "pareto", "labels"], "abc", "field '[0].charts.pareto.labels': expected a list, got 'abc'"),
+    (["charts", "pareto", "labels"], [{"text": "a"}], "field '[0].charts.pareto.labels[0].left': expected a value, "
+                                                      "got none (no such key)"),
+    # ... the wrong field named (the last one read before the failure) ...
+    (["by_resolution", 0, "terms"], None, "field '[0].by_resolution[0].terms': expected a whole number >= 1, got None"),
+    (["timings"], [1], "field '[0].timings': expected an object, got [1]"),
+    # ... and merged with exit 0, printed as measured: -100.00%, "± 100.00%", "K=one", "grid None".
+    (["by_terms", "f_cos", "float", 0], True, "field '[0].by_terms.f_cos.float[0]': expected a finite number, got True"),
+    (["nonnegative", "nmf", 0, "relative_rms"], -1, "field '[0].nonnegative.nmf[0].relative_rms': expected a number "
+                                                    ">= 0, got -1"),
+    (["chosen", "float", "relative_rms_se"], True, "field '[0].chosen.float.relative_rms_se': expected a finite number, "
+                                                   "got True"),
+    (["atlas"], {"path": "a.dds", "relative_rms": -0.4}, "field '[0].atlas.relative_rms': expected a number >= 0"),
+    (["nonnegative", "nmf", 0, "terms"], "one", "field '[0].nonnegative.nmf[0].terms': expected a whole number >= 1"),
+    (["pareto", 0, "resolution"], None, "field '[0].pareto[0].resolution': expected a whole number >= 1, got None"),
+    (["chosen", "target"], "bogus", "field '[0].chosen.target': expected one of f_cos, f_proxy, got 'bogus'"),
+    (["chosen", "factorization"], "bogus", "field '[0].chosen.factorization': expected one of svd, nmf, nd, got 'bogus'"),
+    (["by_resolution", 1, "terms"], 1, "field '[0].by_resolution[1]': expected one row per (resolution, terms), "
+                                            "not a second, got (8, 1)"),
 ])  # fmt: skip
 def test_a_hand_edited_study_is_refused_on_one_line_not_an_internal_error(lobe_study, tmp_path, keys, value, expected):
     from atlasgen.cli.report_cmd import report
