@@ -33,6 +33,7 @@ from atlasgen.optics.quantize import dequantize_rgba
 
 __all__ = [
     "Atlas",
+    "MAX_INCLUDE_BYTES",
     "apply_slice_scale",
     "read_atlas",
     "as_atlas",
@@ -123,6 +124,9 @@ def as_atlas(atlas) -> Atlas:
 #: Bytes an atlas file may have: the whole 64x32x256 RGBA8 mip chain is 2.8 MB uncompressed, so this leaves
 #: room for any header and key/value data, and a device, or a file that is no atlas, is refused before it is read.
 MAX_ATLAS_BYTES = 16 * 2**20
+#: Bytes a shader include beside an atlas may have: a 256-slice library's is under 1 MB; a larger file (3 GB read
+#: whole ended render in a MemoryError) is refused before it is read.
+MAX_INCLUDE_BYTES = 64 << 20
 
 
 def read_atlas(path) -> Atlas:
@@ -143,7 +147,7 @@ def read_atlas(path) -> Atlas:
         The manifest is not a valid manifest.
     """
     path = Path(path)
-    if path.is_dir():
+    if path_kind(path) == "a directory":  # path.is_dir() raised on a name too long (ENAMETOOLONG), an internal error
         raise InputError(f"{path.as_posix()}: expected an atlas texture (DDS or KTX2), got a directory")
     if path.suffix.lower() == ".json":  # the manifest, which a first user may take for the atlas
         raise InputError(f"{path.as_posix()}: expected the atlas texture (.dds or .ktx2) beside this manifest, "

@@ -712,7 +712,9 @@ class MaterialEntry:
             first_slice=first,
             slice_count=slice_count,
             type=f.nonempty("type"),
-            source=f.string("source"),
+            # A path from the manifest's folder, or "" (baked from memory): a NUL ended info -v's path lookup in an
+            # internal error.
+            source=f.take("source", "a material file's path (no NUL character)", lambda v: isinstance(v, str) and "\0" not in v),
             content_hash=f.string("content_hash"),
             description=f.string("description"),
             params=f.mapping("params"),

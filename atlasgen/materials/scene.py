@@ -44,6 +44,9 @@ __all__ = [
 
 #: Lights one frame can take; they live in one texture (a row each) read by one lighting pass.
 MAX_LIGHTS = 1024
+#: The largest scene file read: one of MAX_LIGHTS lights and as many objects is under 1 MB, and a larger file (a
+#: device, a runaway generator's) is refused before it is read whole.
+MAX_SCENE_BYTES = 16 << 20
 SHAPES = ("sphere", "plane", "box", "torus", "mesh")
 #: The ``[environment]`` keys that only the built-in sky uses (:class:`atlasgen.optics.sky.SkyParameters`).
 SKY_KEYS = ("sun_direction", "sun_irradiance", "sun_colour", "sun_radius", "zenith", "horizon", "ground")
@@ -463,7 +466,7 @@ def read_scene(path) -> Scene:
     """
     path = Path(path)
     shown = path.as_posix()
-    text = read_input_text(path, "no such scene file", "UTF-8 TOML text", SceneError)
+    text = read_input_text(path, "no such scene file", "UTF-8 TOML text", SceneError, MAX_SCENE_BYTES)
     return parse_scene(parse_toml(text, shown, SceneError), shown, path.parent)
 
 

@@ -61,7 +61,7 @@ from atlasgen.separable.storage import CHANNEL_LAYOUT, FACTOR_RESOLUTION, encode
 from atlasgen.separable.transmission import encode_transmission_slice, transmission_slice
 from atlasgen.shaders.lang import Function, Let, Return, float_literal
 from atlasgen.shaders.separable import TARGETS, separable_declarations, separable_table_bytes
-from atlasgen.shaders.separable_analytic import analytic_call, analytic_declarations
+from atlasgen.shaders.separable_analytic import DISTRIBUTION_CODES, FRESNEL_CODES, analytic_call, analytic_declarations
 
 __all__ = ["Separable", "MAX_AUTO_TERMS", "ANALYTIC_SHADER_SOURCES", "LUT_F_COS", "analytic_params", "fit_gloss", "FILM_KEYS",
            "representation_radiance",
@@ -756,6 +756,12 @@ class Separable(Model):
         if isinstance(rep, AnalyticRepresentation):
             for param in (p for p in cls.params if p.name in ("alpha", "ior")):
                 param.coerce(getattr(rep, param.name), shown, ManifestError, f"{where}.representation.{param.name}")
+            # The lighting shader's switch codes: an unknown name ended render with an internal KeyError.
+            for field, value, known in (("distribution", rep.distribution, DISTRIBUTION_CODES),
+                                        ("fresnel", rep.fresnel, FRESNEL_CODES)):  # fmt: skip
+                if value not in known:
+                    raise ManifestError(shown, f"{where}.representation.{field}",
+                                        f"expected one of {', '.join(known)}, got {shorten(repr(value))}")  # fmt: skip
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import FieldError, InputError
-from atlasgen.io.atlas import check_include, read_atlas
+from atlasgen.io.atlas import MAX_INCLUDE_BYTES, check_include, read_atlas
 from atlasgen.io.manifest import Manifest
 from atlasgen.io.text import read_input_text
 from atlasgen.models import check_manifest_models
@@ -62,9 +62,8 @@ def read_render_atlas(dds_path, atlas=None) -> RenderAtlas:
     if atlas.image.layout != "array":
         raise InputError(f"{shown}: the renderer needs a 2D-array atlas (bake with --layout array), got a {atlas.image.layout}")
     include_path = dds_path.with_suffix(".wgsl")
-    include = read_input_text(
-        include_path, "no shader include beside the atlas; re-run atlasgen bake", "a WGSL include (UTF-8 text)", FieldError
-    )
+    include = read_input_text(include_path, "no shader include beside the atlas; re-run atlasgen bake",
+                              "a WGSL include (UTF-8 text)", FieldError, MAX_INCLUDE_BYTES)  # fmt: skip
     check_include(atlas, include_path, include)
     check_manifest_models(atlas.manifest, dds_path.with_suffix(".json").as_posix())
     return RenderAtlas(list(atlas.image.levels), atlas.srgb, atlas.manifest, include, shown)

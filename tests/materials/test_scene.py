@@ -256,3 +256,14 @@ def test_a_gloss_the_material_does_not_use_is_named():
         "s.toml: objects[1].gloss = 0.3 has no effect on 'terms': a separable material is shaded from its own terms, "
         "with no lobe a gloss sets",
     ]
+
+
+def test_a_scene_file_over_its_limit_is_refused_unread(tmp_path):
+    """A 3 GB file was read whole: a MemoryError (exit 1) on a smaller machine, or the machine's memory."""
+    from atlasgen.materials.scene import MAX_SCENE_BYTES
+
+    path = tmp_path / "huge.toml"
+    with open(path, "wb") as f:
+        f.truncate(MAX_SCENE_BYTES + 1)  # sparse: no disk used
+    with pytest.raises(SceneError, match=rf"huge.toml: expected UTF-8 TOML text, at most {MAX_SCENE_BYTES} bytes, got"):
+        read_scene(path)

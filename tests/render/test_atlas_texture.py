@@ -82,6 +82,15 @@ ONE_TERM = {"factor_scale": [[[1.0, 1.0, 1.0], [1.0, 1.0, 1.0]]], "factor_bias":
     ({"type": "separable", "representation": {"kind": "analytic", "distribution": "ggx", "alpha": 1e-20, "fresnel": "none",
       "f0": [1, 1, 1], "ior": 1.5, "specular": [1, 1, 1], "diffuse": [0, 0, 0]}},
      "materials[0].representation.alpha", "expected a finite number >= 1e-06 and <= 4, got 1e-20"),
+    # Names the lighting shader's switch codes look up (a hostile sweep's KeyError, exit 1, where info passed them).
+    ({"type": "separable", "representation": {"kind": "analytic", "distribution": "GGX", "alpha": 0.5, "fresnel": "none",
+      "f0": [1, 1, 1], "ior": 1.5, "specular": [1, 1, 1], "diffuse": [0, 0, 0]}},
+     "materials[0].representation.distribution", "expected one of ggx, beckmann, lambert, got 'GGX'"),
+    ({"type": "separable", "representation": {"kind": "analytic", "distribution": "ggx", "alpha": 0.5, "fresnel": "bogus",
+      "f0": [1, 1, 1], "ior": 1.5, "specular": [1, 1, 1], "diffuse": [0, 0, 0]}},
+     "materials[0].representation.fresnel", "expected one of schlick, exact, none, got 'bogus'"),
+    # A path's NUL ended info -v's lookup of the material file in an internal error.
+    ({"source": "a\u0000b.toml"}, "materials[0].source", "expected a material file's path (no NUL character)"),
 ])  # fmt: skip
 def test_an_entry_its_model_cannot_shade_is_refused_naming_the_field(baked, edit, field, expected):
     """The renderer generates its include from the manifest: an edited type reached get_model (KeyError, exit 1)
@@ -107,3 +116,20 @@ def test_an_entry_its_model_cannot_shade_is_refused_naming_the_field(baked, edit
     with pytest.raises(ManifestError) as info:
         read_render_atlas(path)
     assert str(info.value).startswith(f"{manifest.as_posix()}: field '{field}': {expected}"), str(info.value)
+
+
+def test_an_include_over_its_limit_is_refused_unread(baked, monkeypatch):
+    """A 3 GB include was read whole and decoded: render ended in a MemoryError (exit 1) on a smaller machine."""
+    from atlasgen.render import atlas_texture
+
+    path = baked()
+    monkeypatch.setattr(atlas_texture, "MAX_INCLUDE_BYTES", path.with_suffix(".wgsl").stat().st_size - 1)
+    with pytest.raises(InputError, match=r"atlas-array.wgsl: expected a WGSL include \(UTF-8 text\), at most \d+ bytes, got"):
+        read_render_atlas(path)
+
+
+def test_an_atlas_name_too_long_for_the_system_is_refused_on_one_line(tmp_path):
+    """Path.is_dir() raised ENAMETOOLONG (exit 1), where a scene path as long was refused."""
+    path = tmp_path / ("a" * 300 + ".dds")
+    with pytest.raises(InputError, match=r"a\.dds: cannot read \(File name too long\)"):
+        read_render_atlas(path)
