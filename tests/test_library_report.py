@@ -300,6 +300,21 @@ def test_odd_validation_and_timings_files_are_refused_on_one_line(tmp_path, writ
     row = {"material": "clay", "scene": "front", "references": {}, "page": 5}
     (vdir / "report.json").write_text(json.dumps({"results": [row]}))
     assert "field 'results[0].page': expected a page path as atlasgen validate writes it, got 5" in refusal(validation_dir=vdir)
+    # A hostile sweep's: a second result of a material on a scene (shown as two rows, one edited), a page outside.
+    (vdir / "report.json").write_text(json.dumps({"results": [{**row, "page": "materials/clay/index.html"}] * 2}))
+    assert ("field 'results[1]': expected one result per material and scene, got a second of material 'clay' on scene "
+            "'front' (results[0])") in refusal(validation_dir=vdir)  # fmt: skip
+    (vdir / "report.json").write_text(json.dumps({"results": [{**row, "page": "/etc/passwd"}]}))
+    assert "field 'results[0].page': expected a page inside the report's folder" in refusal(validation_dir=vdir)
+    (vdir / "report.json").write_text(json.dumps({"results": [{**row, "page": "../../x.html"}]}))
+    assert "field 'results[0].page': expected a page inside the report's folder" in refusal(validation_dir=vdir)
+    (vdir / "report.json").unlink()
+    # null, [] and a material's timings of 0 were read as none: every bake time '–', without a word.
+    for text, expected in (("null", "expected a bake's timings (a JSON object), got null"),
+                           ("[]", "expected a bake's timings (a JSON object), got list"),
+                           ('{"materials": {"clay": 0}}', "field 'materials.clay': expected an object of timings, got 0")):  # fmt: skip
+        timings.write_text(text)
+        assert refusal().endswith(expected)
     timings.unlink()
     timings.mkdir()
     assert refusal() == f"{timings.as_posix()}: expected a regular file, got a folder"
@@ -326,6 +341,13 @@ def test_the_page_may_not_be_written_into_a_report_it_reads(tmp_path, write_mate
     with pytest.raises(OutputError, match=r"theirs: the report folder \(-o\) is the .* report \(--.*\)'s folder"):
         write_library_report(atlas, tmp_path / "." / "theirs", physical=False, **{which: theirs})
     assert (theirs / "index.html").read_text() == "<html>theirs</html>"
+    # A hostile sweep's: a material's page folder of theirs (copied as plain files, so no output set guarded it).
+    page = theirs / "materials" / "clay" / "index.html"
+    page.parent.mkdir(parents=True)
+    page.write_text("<html>their page</html>")
+    with pytest.raises(OutputError, match=r"clay: the report folder \(-o\) is inside the .* report \(--.*\)'s folder"):
+        write_library_report(atlas, page.parent, physical=False, **{which: theirs})
+    assert page.read_text() == "<html>their page</html>"
 
 
 def test_an_auto_choice_s_candidates_are_told_apart_and_only_the_baked_one_is_chosen():

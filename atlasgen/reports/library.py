@@ -146,11 +146,12 @@ def _read_validation(folder) -> dict | None:
 def _bake_seconds(timings, path, name: str) -> float | None:
     """``materials.<name>.bake_s`` of a bake's timings file: a finite number, or None where absent."""
     if not isinstance(timings, dict):
-        raise FieldError(Path(path).as_posix(), None, f"expected a bake's timings (a JSON object), got {type(timings).__name__}")
+        got = "null" if timings is None else type(timings).__name__
+        raise FieldError(Path(path).as_posix(), None, f"expected a bake's timings (a JSON object), got {got}")
     materials = timings.get("materials", {})
     if not isinstance(materials, dict):
         raise FieldError(Path(path).as_posix(), "materials", f"expected an object of per-material timings, got {materials!r}")
-    entry = materials.get(name) or {}
+    entry = materials.get(name, {})
     if not isinstance(entry, dict):
         raise FieldError(Path(path).as_posix(), f"materials.{name}", f"expected an object of timings, got {entry!r}")
     return check_number(path, f"materials.{name}.bake_s", entry.get("bake_s"), minimum=0.0)
@@ -346,13 +347,20 @@ def write_library_report(
     Raises
     ------
     OutputError
-        ``out_dir`` is the validation or separable report's own folder: its ``index.html`` is theirs.
+        ``out_dir`` is the validation or separable report's own folder, or inside it: its pages are theirs.
     """
     for folder, role in ((validation_dir, "the validation report (--validation)"),
                          (separable_dir, "the separable report (--separable)")):  # fmt: skip
-        if folder is not None and os.path.realpath(folder) == os.path.realpath(out_dir):
+        if folder is None:
+            continue
+        theirs, ours = Path(os.path.realpath(folder)), Path(os.path.realpath(out_dir))
+        if ours == theirs:
             raise OutputError(f"{Path(out_dir).as_posix()}: the report folder (-o) is {role}'s folder, whose index.html "
                               "it would overwrite; expected a folder of its own")  # fmt: skip
+        # Inside it (a material's page folder of a validation copied as plain files), the page replaced one of theirs.
+        if theirs in ours.parents:
+            raise OutputError(f"{Path(out_dir).as_posix()}: the report folder (-o) is inside {role}'s folder, whose pages "
+                              "it could overwrite; expected a folder of its own")  # fmt: skip
     # A file given as the separable report's folder was linked from the page as one, where --validation's is refused.
     _refuse_file_as_folder(separable_dir, "the separable report (--separable)", "atlasgen report separable")
     _refuse_another_report(separable_dir, "separable", "the separable report (--separable)", "atlasgen report separable")
@@ -361,7 +369,9 @@ def write_library_report(
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
     check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
-    timings = _read_json(timings_path) or {}
+    # No file: no bake times (an atlas baked before they were kept). A file of null or [] was read as none, every
+    # material's bake time shown as '–' without a word.
+    timings = _read_json(timings_path) if Path(timings_path).exists() else {}
     validation = _read_validation(validation_dir)
     validation, validation_notes = _check_identity(validation, atlas, Path(validation_dir or ".") / "report.json",
                                                    warn or (lambda line: None), note or (lambda line: None))  # fmt: skip

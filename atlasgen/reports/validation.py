@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
@@ -1056,6 +1056,24 @@ def check_result_figures(path, results, merged: bool = False) -> None:
                                      f"expected an object of goals, got {shorten(repr(goal))}")  # fmt: skip
                 for key in ("psnr_db", "flip"):
                     check_number(path, f"results[{i}].look.goal.{key}", goal.get(key), minimum=0.0)
+    _check_one_result_each(path, results)
+
+
+def _check_one_result_each(path, results: list) -> None:
+    """One result per material and scene, each page inside the report's folder: the library page showed a second
+    result of a material on a scene (PSNR 70.1 and 10.0, one edited) as two rows, where validate --merge refuses it,
+    and linked a page of "/etc/passwd" as ../../../../etc/passwd."""
+    seen: dict = {}
+    for i, row in enumerate(results):
+        key = (row["material"], row["scene"])
+        if key in seen:
+            raise FieldError(Path(path).as_posix(), f"results[{i}]", f"expected one result per material and scene, "
+                             f"got a second of material {key[0]!r} on scene {key[1]!r} (results[{seen[key]}])")  # fmt: skip
+        seen[key] = i
+        page = row.get("page")
+        if page is not None and (PurePosixPath(page).is_absolute() or ".." in PurePosixPath(page).parts):
+            raise FieldError(Path(path).as_posix(), f"results[{i}].page", f"expected a page inside the report's folder "
+                             f"(a relative path without '..'), got {shorten(repr(page))}")  # fmt: skip
 
 
 def _check_verdict(path, where: str, part: dict) -> None:
