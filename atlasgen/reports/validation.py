@@ -29,6 +29,7 @@ from atlasgen.io.report_files import (
     rebase_path,
     report_json_paths,
 )
+from atlasgen.io.text import path_kind
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
@@ -898,7 +899,12 @@ _ROW_NUMBERS = {"exposure": (0.0, None), "atlas_seconds": (0.0, None), "goal_psn
 _REFERENCE_NUMBERS = {"seconds": (0.0, None), "speed_ratio": (0.0, None), "rmse": (0.0, None), "psnr_db": (None, None),
                       "flip": (0.0, 1.0), "linear_rmse": (0.0, None), "linear_relative_rms": (0.0, None),
                       "noise_floor_db": (None, None), "masked_fraction": (0.0, 1.0), "spp": (1.0, None),
-                      "coverage": (0.0, 1.0), "clipped_pixels": (0.0, None)}  # fmt: skip
+                      "coverage": (0.0, 1.0), "clipped_pixels": (0.0, None), "whole_frame_psnr_db": (None, None),
+                      "unclipped_psnr_db": (None, None), "unclipped_exposure": (0.0, None)}  # fmt: skip
+#: A comparison's figures over one region (grazing N.V, the rest) and one part of the error's breakdown: a merge copied
+#: a FLIP of -1, a coverage of 500% and a PSNR of true into its page.
+_REGION_NUMBERS = {"coverage": (0.0, 1.0), "pixels": (0.0, None), "psnr_db": (None, None), "flip": (0.0, 1.0)}
+_BREAKDOWN_NUMBERS = {"psnr_db": (None, None), "flip": (0.0, 1.0), "linear_relative_rms": (0.0, None)}
 
 
 def _check_figures(path: Path, data: dict) -> None:
@@ -952,6 +958,12 @@ def _check_verdicts(path: Path, data: dict) -> None:
                              f"({goal}), got {str(ref['meets_goal']).lower()}; re-run atlasgen validate")  # fmt: skip
     for i, row in enumerate(data["results"]):
         _check_look_verdict(path, f"results[{i}]", row)
+        for kind, ref in row["references"].items():
+            # The storage goals judge the model reference alone (_goal): an edited "missed" on a physical comparison
+            # was printed beside "all goals met".
+            if kind != "model" and ref.get("meets_goal") is not None:
+                raise FieldError(path.as_posix(), f"results[{i}].references.{kind}.meets_goal", "expected null (the "
+                                 f"goals judge the model reference alone), got {_verdict_text(ref['meets_goal'])}")  # fmt: skip
 
 
 def _refuse_verdict_without_flip(path: Path, where: str, ref: dict, verdict) -> None:
@@ -1044,7 +1056,9 @@ def check_result_figures(path, results, merged: bool = False) -> None:
                 raise FieldError(Path(path).as_posix(), f"results[{i}].references.{kind}.images", "expected image paths")
             for key, (low, high) in _REFERENCE_NUMBERS.items():
                 check_number(path, f"results[{i}].references.{kind}.{key}", ref.get(key), minimum=low, maximum=high)
+            _check_parts(path, f"results[{i}].references.{kind}.regions", ref.get("regions"), _REGION_NUMBERS)
             _check_verdict(path, f"results[{i}].references.{kind}", ref)
+        _check_parts(path, f"results[{i}].error_breakdown", row.get("error_breakdown"), _BREAKDOWN_NUMBERS)
         look = row.get("look")
         if look is not None:
             _check_fields(path, f"results[{i}].look", look, _LOOK_FIELDS, ())
@@ -1057,6 +1071,21 @@ def check_result_figures(path, results, merged: bool = False) -> None:
                 for key in ("psnr_db", "flip"):
                     check_number(path, f"results[{i}].look.goal.{key}", goal.get(key), minimum=0.0)
     _check_one_result_each(path, results)
+
+
+def _check_parts(path, where: str, parts, numbers: dict) -> None:
+    """An object of named parts (absent or null: none), each an object whose ``numbers`` are finite within bounds."""
+    if parts is None:
+        return
+    if not isinstance(parts, dict):
+        raise FieldError(Path(path).as_posix(), where, f"expected an object of parts, got {shorten(repr(parts))}")
+    for name, part in parts.items():
+        if not isinstance(part, dict):
+            raise FieldError(
+                Path(path).as_posix(), f"{where}.{name}", f"expected an object of figures, got {shorten(repr(part))}"
+            )
+        for key, (low, high) in numbers.items():
+            check_number(path, f"{where}.{name}.{key}", part.get(key), minimum=low, maximum=high)
 
 
 def _check_one_result_each(path, results: list) -> None:
@@ -1102,14 +1131,36 @@ def _check_claimed(path, where: str, claimed) -> None:
         check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
+def _is_png(path: Path) -> bool:
+    """Whether ``path`` is a regular file that starts with PNG's signature: a .png link to /etc/passwd was linked
+    from the merged page as an image."""
+    if path_kind(path) is not None:
+        return False
+    try:
+        with open(path, "rb") as file:
+            return file.read(8) == b"\x89PNG\r\n\x1a\n"
+    except OSError:
+        return False
+
+
 def _rebased_image(rel: str, report: Path, out_dir: Path, field: str) -> str:
     """:func:`~atlasgen.io.report_files.rebase_path` of an image path of the source ``report`` (read from ``field``), which must be one a validation
     writes: relative, a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
-    if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not (report.parent / rel).is_file():
+    if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not _is_png(report.parent / rel):
         raise FieldError(
             report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
         )
     return rebase_path(rel, report.parent, out_dir)
+
+
+def _total_seconds(paths, reports) -> float:
+    """The runs' ``total_seconds`` added up, refused where the sum passes a double (1e308 twice): its inf failed the
+    merged report.json's writing, and the line blamed another field."""
+    total = sum(r["total_seconds"] for r in reports)
+    if not math.isfinite(total):
+        raise FieldError(", ".join(p.as_posix() for p in paths), "total_seconds", "expected run times whose sum a "
+                         f"double holds, got {' + '.join(format(r['total_seconds'], 'g') for r in reports)}")  # fmt: skip
+    return total
 
 
 def _joined(values) -> str:
@@ -1244,7 +1295,7 @@ def merge_validation_reports(sources, out_dir) -> dict:
         "settings": first["settings"],
         "environment": environment,
         # The work the merged page stands for: the sum of the runs it is made of.
-        "total_seconds": sum(r["total_seconds"] for r in reports),
+        "total_seconds": _total_seconds(paths, reports),
         "summary": None,  # below, where a hand-edited result that it cannot read is refused on one line
         "results": rows,
         "merged_from": [rebase_path(".", p.parent, out_dir) for p in paths],

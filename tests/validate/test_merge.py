@@ -222,6 +222,18 @@ def _put(value, *keys):
      "results[0].look.goal.flip", "expected a finite number or null, got '0.05'"),
     (_put({"meets_goal": None, "goal": [30]}, "results", 0, "look"), "results[0].look.goal",
      "expected an object of goals, got [30]"),
+    # A hostile sweep's, merged with exit 0 and printed: a region's FLIP of -1 and coverage of 500%, a breakdown's
+    # FLIP of 5 and PSNR of true ("1.00"), a whole frame's PSNR of true.
+    (_put({"grazing": {"coverage": 0.1, "pixels": 3, "psnr_db": 40.0, "flip": -1.0}}, "results", 0, "references", "*",
+          "regions"), ".regions.grazing.flip", "expected a number in [0, 1], got -1.0"),
+    (_put({"rest": {"coverage": 5.0, "pixels": 3, "psnr_db": 40.0, "flip": 0.1}}, "results", 0, "references", "*",
+          "regions"), ".regions.rest.coverage", "expected a number in [0, 1], got 5.0"),
+    (_put({"table_8bit": {"psnr_db": 40.0, "flip": 5.0}}, "results", 0, "error_breakdown"),
+     "results[0].error_breakdown.table_8bit.flip", "expected a number in [0, 1], got 5.0"),
+    (_put({"table_float": {"psnr_db": True}}, "results", 0, "error_breakdown"),
+     "results[0].error_breakdown.table_float.psnr_db", "expected a finite number or null, got True"),
+    (_put(True, "results", 0, "references", "*", "whole_frame_psnr_db"), ".whole_frame_psnr_db",
+     "expected a finite number or null, got True"),
 ])  # fmt: skip
 def test_a_hand_edited_report_is_refused_naming_the_field(merged, tmp_path, change, field, expected):
     """Each of these was an internal error (KeyError, TypeError, AttributeError) or merged silently."""
@@ -373,10 +385,9 @@ def test_a_result_the_page_cannot_print_is_named_by_file_and_entry(merged, tmp_p
     with pytest.raises(InputError) as info:
         merge_validation_reports([first, edited], tmp_path / "merged")
     message = str(info.value)
-    # Named by the field the page stopped on (it named the result only).
+    # Named by the field (it named the result only), now checked before the page is formatted.
     assert message == (f"{(edited / 'report.json').as_posix()}: field 'results[0].error_breakdown.table_float': expected "
-                       "the value atlasgen validate writes there, got 'x' (string indices must be integers, "
-                       f"not 'str'; {row['material']} on {row['scene']})"), message  # fmt: skip
+                       "an object of figures, got 'x'"), message  # fmt: skip
     assert first.as_posix() not in message and "\n" not in message
     assert not (tmp_path / "merged").exists()
 
@@ -437,3 +448,54 @@ def test_the_merged_environment_keeps_each_field_s_type(merged):
     from atlasgen.reports import validation
 
     assert doctest.testmod(validation).failed == 0  # _combined's examples
+
+
+def test_a_verdict_on_another_reference_than_the_model_is_refused(merged, tmp_path):
+    """The storage goals judge the model reference alone: an edited "missed" on the physical comparison was printed
+    in the metrics table beside "all goals met" for the same material."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    other = "physical"
+
+    def judge_physics(data):
+        references = data["results"][0]["references"]
+        references[other] = {**references.get(other, references["model"]), "meets_goal": False}
+
+    folder = _edited(merged, tmp_path, judge_physics)
+    with pytest.raises(
+        InputError,
+        match=rf"field 'results\[0\].references.{other}.meets_goal': expected null \(the "
+        r"goals judge the model reference alone\), got false",
+    ):
+        merge_validation_reports([folder], tmp_path / "merged")
+
+
+def test_an_image_that_is_no_png_and_run_times_past_a_double_are_refused(merged, tmp_path):
+    """A .png link to /etc/passwd was linked from the merged page as an image; two runs of 1e308 s summed to inf,
+    whose writing failed with a line that blamed another field."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    folder = _edited(merged, tmp_path, _put("images/pw.png", "results", 0, "atlas_image"))
+    (folder / "images" / "pw.png").symlink_to("/etc/passwd")
+    with pytest.raises(
+        InputError,
+        match=r"field 'results\[0\].atlas_image': expected the path of a PNG image beside "
+        r"the report, got 'images/pw.png'",
+    ):
+        merge_validation_reports([folder], tmp_path / "merged")
+    out, parts, _ = merged
+    sources = []
+    for name in list(parts)[:2]:
+        sources.append(tmp_path / name)
+        shutil.copytree(out / "materials" / name, sources[-1], symlinks=False)
+        data = json.loads((sources[-1] / "report.json").read_text())
+        data["total_seconds"] = 1e308
+        (sources[-1] / "report.json").unlink()
+        (sources[-1] / "report.json").write_text(json.dumps(data))
+    with pytest.raises(
+        InputError,
+        match=r"field 'total_seconds': expected run times whose sum a double holds, got "
+        r"1e\+308 \+ 1e\+308",
+    ):
+        merge_validation_reports(sources, tmp_path / "merged")
+    assert not (tmp_path / "merged").exists()
