@@ -80,8 +80,9 @@ def test_report_library_names_with_v_the_figures_of_materials_the_atlas_lacks(tm
     read = read_atlas(atlas)
     folder = tmp_path / "validation"
     folder.mkdir()
-    rows = [{"material": name, "scene": "front", "references": {"model": {"psnr_db": 61.25, "flip": 0.004}},
-             "atlas_identity": atlas_identity(read, read.material("clay"))} for name in ("clay", "snow", "ink", "snow")]  # fmt: skip
+    rows = [{"material": name, "scene": scene, "references": {"model": {"psnr_db": 61.25, "flip": 0.004}},
+             "atlas_identity": atlas_identity(read, read.material("clay"))}
+            for name, scene in (("clay", "front"), ("snow", "front"), ("ink", "front"), ("snow", "back"))]  # fmt: skip
     (folder / "report.json").write_text(json.dumps({"results": rows}))
     args = ["report", "library", "--atlas", str(atlas), "--validation", str(folder), "--no-physical"]
     runner = CliRunner()
