@@ -20,8 +20,34 @@ import numpy as np
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import scratch_folder, write_file_atomically
 from atlasgen.io.referenced_files import real_folder_path
+from atlasgen.io.text import path_kind
 
-__all__ = ["encode_png", "encode_exr", "write_png", "write_exr", "is_utf8_path", "openable_name", "error_text"]
+__all__ = [
+    "PNG_SIGNATURE",
+    "encode_png",
+    "encode_exr",
+    "write_png",
+    "write_exr",
+    "is_png_file",
+    "is_utf8_path",
+    "openable_name",
+    "error_text",
+]
+
+#: A PNG file's first eight bytes (ISO/IEC 15948, 5.2).
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def is_png_file(path) -> bool:
+    """Whether ``path`` is a regular file that starts with :data:`PNG_SIGNATURE` (a named pipe or device is not read:
+    :func:`atlasgen.io.text.path_kind`)."""
+    if path_kind(path) is not None:
+        return False
+    try:
+        with open(path, "rb") as file:
+            return file.read(len(PNG_SIGNATURE)) == PNG_SIGNATURE
+    except OSError:
+        return False
 
 
 def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None, attributes=None, near=None) -> bytes:

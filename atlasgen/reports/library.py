@@ -96,14 +96,6 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
     return [{"representation": chosen, "cost": table.costs.get(chosen), "error": error, "measure": measure, "chosen": True}]
 
 
-def _read_json(path):
-    """The JSON at ``path``, or None where there is nothing (:func:`~atlasgen.io.report_files.read_json_file`)."""
-    path = Path(path)
-    if not path.exists():
-        return None
-    return read_json_file(path)
-
-
 def _refuse_file_as_folder(folder, role: str, command: str) -> None:
     """Refuse ``folder`` (a report's ``role``) where it is a file, a pipe or a device: the folder ``command -o`` wrote
     is wanted."""
@@ -371,7 +363,7 @@ def write_library_report(
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
     # No file: no bake times (an atlas baked before they were kept). A file of null or [] was read as none, every
     # material's bake time shown as '–' without a word.
-    timings = _read_json(timings_path) if Path(timings_path).exists() else {}
+    timings = read_json_file(timings_path) if Path(timings_path).exists() else {}
     validation = _read_validation(validation_dir)
     validation, validation_notes = _check_identity(validation, atlas, Path(validation_dir or ".") / "report.json",
                                                    warn or (lambda line: None), note or (lambda line: None))  # fmt: skip

@@ -20,6 +20,7 @@ from atlasgen.contract import NAME_PATTERN
 from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
+from atlasgen.io.images import PNG_SIGNATURE
 from atlasgen.io.json_shape import Count, Fields, Figure, Flag, Items, Nullable, Number, Text, check_shape
 from atlasgen.io.report_files import check_merge_output, read_report_json, report_json_paths
 from atlasgen.io.text import read_input_bytes
@@ -146,8 +147,7 @@ def _check_chosen_against_by_terms(path: Path, where: str, chosen: dict, by_term
                              f"by_terms.{chosen['target']}.{column} at the chosen K = {k}, got {got:g}")  # fmt: skip
 
 
-#: A plot's first bytes (PNG, ISO/IEC 15948 5.2), and the most bytes one may have: the report's are about 50 kB.
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: The most bytes a plot may have: the report's are about 50 kB.
 _PLOT_LIMIT = 64 << 20
 
 
@@ -156,7 +156,7 @@ def _read_plot(png: Path, kind: str, name: str) -> bytes:
     filled the memory, and an empty file was copied into the merged page as a broken image."""
     what = f"the {kind} plot of {name!r}"
     data = read_input_bytes(png, f"no such file ({what})", limit=(_PLOT_LIMIT, f"{what}, a PNG image"))
-    if not data.startswith(_PNG_SIGNATURE):
+    if not data.startswith(PNG_SIGNATURE):
         raise InputError(f"{png.as_posix()}: expected {what}, a PNG image, got {len(data)} bytes of something else")
     return data
 

@@ -21,7 +21,7 @@ from atlasgen.errors import FieldError, InputError, describe_failure, shorten
 from atlasgen.io.atomic import write_files_atomically
 from atlasgen.io.field_reads import FieldReads, expected_written
 from atlasgen.io.fields import is_number, shown
-from atlasgen.io.images import encode_png
+from atlasgen.io.images import encode_png, is_png_file
 from atlasgen.io.report_files import (
     check_merge_output,
     check_number,
@@ -29,7 +29,6 @@ from atlasgen.io.report_files import (
     rebase_path,
     report_json_paths,
 )
-from atlasgen.io.text import path_kind
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
@@ -1131,22 +1130,11 @@ def _check_claimed(path, where: str, claimed) -> None:
         check_number(path, f"{where}.{key}", value, minimum=0.0)
 
 
-def _is_png(path: Path) -> bool:
-    """Whether ``path`` is a regular file that starts with PNG's signature: a .png link to /etc/passwd was linked
-    from the merged page as an image."""
-    if path_kind(path) is not None:
-        return False
-    try:
-        with open(path, "rb") as file:
-            return file.read(8) == b"\x89PNG\r\n\x1a\n"
-    except OSError:
-        return False
-
-
 def _rebased_image(rel: str, report: Path, out_dir: Path, field: str) -> str:
     """:func:`~atlasgen.io.report_files.rebase_path` of an image path of the source ``report`` (read from ``field``), which must be one a validation
-    writes: relative, a PNG that is there (a hand-edited "/etc/passwd" or "../../x" was linked from the merged page)."""
-    if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not _is_png(report.parent / rel):
+    writes: relative, a PNG that is there (a hand-edited "/etc/passwd", "../../x" or a .png link to /etc/passwd was
+    linked from the merged page)."""
+    if Path(rel).is_absolute() or Path(rel).suffix.lower() != ".png" or not is_png_file(report.parent / rel):
         raise FieldError(
             report.as_posix(), field, f"expected the path of a PNG image beside the report, got {shorten(repr(rel))}"
         )
