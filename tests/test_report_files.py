@@ -46,7 +46,25 @@ def test_nan_and_infinities_are_refused_with_one_line(tmp_path, constant):
     name = constant
     with pytest.raises(InputError) as refused:
         read_report_json(path, "validation", "atlasgen validate")
-    assert str(refused.value) == f"{path.as_posix()}: expected finite numbers (JSON has no {name}), got {name}"
+    assert (
+        str(refused.value)
+        == f"{path.as_posix()}: field 'total_seconds': expected a finite number (JSON has no {name}), got {name}"
+    )
+
+
+@pytest.mark.parametrize("text,line", [
+    ('{"results": [{"psnr": 1}, {"refs": {"model": {"psnr": [2, NaN]}}}], "flip": Infinity}',
+     "field 'results[1].refs.model.psnr[1]': expected a finite number (JSON has no NaN), got NaN"),
+    ('{"a\\nb": {"c": 1e999}}', "field 'a\\nb.c': expected a finite number (beyond a double's range), got 1e999"),
+    ("-Infinity", "expected a finite number (JSON has no -Infinity), got -Infinity"),
+])  # fmt: skip
+def test_the_line_names_the_field_of_the_first_number_json_cannot_hold(tmp_path, text, line):
+    """The reader meets the constant before it knows any field: the line names the field all the same."""
+    path = tmp_path / "report.json"
+    path.write_text(text)
+    with pytest.raises(InputError) as refused:
+        read_report_json(path, "validation", "atlasgen validate")
+    assert str(refused.value) == f"{path.as_posix()}: {line}"
 
 
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), "1.5", True, [1], {}])
@@ -99,7 +117,8 @@ def test_a_merged_validation_report_with_nan_is_refused_through_the_cli(tmp_path
     result = CliRunner().invoke(app, ["validate", "--merge", str(source), "-o", str(tmp_path / "out")])
     assert result.exit_code == 3, result.output
     assert result.output.splitlines() == [
-        f"atlasgen: error: {(source / 'report.json').as_posix()}: expected finite numbers (JSON has no NaN), got NaN"
+        f"atlasgen: error: {(source / 'report.json').as_posix()}: field 'total_seconds': expected a finite number "
+        "(JSON has no NaN), got NaN"
     ]
     assert not (tmp_path / "out").exists()
 

@@ -3,6 +3,7 @@ and the checks that keep a hand-edited or damaged figure out of a merged report.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path
@@ -22,37 +23,56 @@ __all__ = [
 ]
 
 
-def _refuse_constant(path: Path):
-    def refuse(name: str):
-        raise InputError(f"{path.as_posix()}: expected finite numbers (JSON has no {name}), got {name}")
+class _NonFinite:
+    """Where the reader met a number JSON cannot hold: ``shown`` as the file has it, ``why`` it is refused."""
 
-    return refuse
+    def __init__(self, shown: str, why: str):
+        self.shown, self.why = shown, why
 
 
-def _finite_float(path: Path):
-    def parse(text: str) -> float:
-        value = float(text)
-        if not math.isfinite(value):  # 1e999: valid JSON, but beyond a double (Python reads it as inf)
-            raise InputError(f"{path.as_posix()}: expected finite numbers, got {shorten(text)} (beyond a double's range)")
-        return value
+def _non_finite_float(text: str):
+    value = float(text)
+    # 1e999: valid JSON, but beyond a double (Python reads it as inf).
+    return value if math.isfinite(value) else _NonFinite(shorten(text), " (beyond a double's range)")
 
-    return parse
+
+def _first_non_finite(value, field: str = ""):
+    """``(field, marker)`` of the first :class:`_NonFinite` in ``value`` in the file's order (``results[0].psnr_db``), or None."""
+    if isinstance(value, _NonFinite):
+        return field, value
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        if not isinstance(key, int):  # a key's escaped control characters would break the one line
+            key = key if key.isprintable() else json.dumps(key)[1:-1]
+        found = _first_non_finite(item, f"{field}[{key}]" if isinstance(key, int) else f"{field}.{key}" if field else key)
+        if found is not None:
+            return found
+    return None
 
 
 def loads_finite_json(text: str, path) -> object:
     """``json.loads`` that refuses ``NaN``, ``Infinity`` and ``-Infinity`` (Python's extensions to JSON),
-    and a number too large for a double (``1e999``, which Python would read as infinity).
+    and a number too large for a double (``1e999``, which Python would read as infinity), naming the field
+    that holds the first of them (the reader meets them before it knows any field, so they are marked while
+    reading and found after).
 
     Raises
     ------
     InputError
-        One line naming the file: malformed JSON, or one of those constants.
+        One line naming the file: malformed JSON; or, a :class:`~atlasgen.errors.FieldError`, one of those
+        numbers and the field that holds it.
     """
     path = Path(path)
     try:
-        return loads_json(text, parse_constant=_refuse_constant(path), parse_float=_finite_float(path))
+        data = loads_json(text, parse_constant=lambda name: _NonFinite(name, f" (JSON has no {name})"),
+                          parse_float=_non_finite_float)  # fmt: skip
     except ValueError as exc:
         raise InputError(f"{path.as_posix()}: malformed JSON ({exc})") from None
+    found = _first_non_finite(data)
+    if found is not None:
+        field, marker = found
+        raise FieldError(path.as_posix(), field or None, f"expected a finite number{marker.why}, got {marker.shown}")
+    return data
 
 
 def rebase_path(rel: str, start, folder) -> str:

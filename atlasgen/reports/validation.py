@@ -925,6 +925,13 @@ def _check_figures(path: Path, data: dict) -> None:
         raise FieldError(path.as_posix(), "settings.scenes", f"expected a list of scenes, each an object with a 'name', "
                          f"got {shorten(repr(scenes))}")  # fmt: skip
     check_result_figures(path, data["results"], merged=True)
+    names = [s["name"] for s in scenes]
+    for i, row in enumerate(data["results"]):
+        # The page sizes each result's images by its scene's entry: a result on a scene the report did not render
+        # merged with no size, beside settings that never named it.
+        if names and row["scene"] not in names:
+            raise FieldError(path.as_posix(), f"results[{i}].scene", f"expected a scene of settings.scenes "
+                             f"({', '.join(shorten(repr(n)) for n in names)}), got {shorten(repr(row['scene']))}")  # fmt: skip
     _check_verdicts(path, data)
 
 
@@ -938,7 +945,7 @@ def _check_verdicts(path: Path, data: dict) -> None:
         return  # the page's own check names such goals
     for i, row in enumerate(data["results"]):
         ref = row["references"].get("model")
-        if not isinstance(ref, dict) or not isinstance(ref.get("meets_goal"), bool):
+        if not isinstance(ref, dict) or not _verdict_to_check(path, i, row, ref):
             continue
         psnr, flip, own = ref.get("psnr_db"), ref.get("flip"), row.get("goal_psnr_db")
         _refuse_verdict_without_flip(path, f"results[{i}].references.model", ref, ref["meets_goal"])
@@ -954,7 +961,7 @@ def _check_verdicts(path: Path, data: dict) -> None:
             goal = f"PSNR >= {own:g} dB" if is_number(own) else _goals_text(goals)
             raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected "
                              f"{_verdict_text(expected)} from its figures (PSNR {_psnr_text(psnr)} dB, FLIP {_fmt(flip, '.4f')}) and the goals "
-                             f"({goal}), got {str(ref['meets_goal']).lower()}; re-run atlasgen validate")  # fmt: skip
+                             f"({goal}), got {_verdict_text(ref['meets_goal'])}; re-run atlasgen validate")  # fmt: skip
     for i, row in enumerate(data["results"]):
         _check_look_verdict(path, f"results[{i}]", row)
         for kind, ref in row["references"].items():
@@ -963,6 +970,28 @@ def _check_verdicts(path: Path, data: dict) -> None:
             if kind != "model" and ref.get("meets_goal") is not None:
                 raise FieldError(path.as_posix(), f"results[{i}].references.{kind}.meets_goal", "expected null (the "
                                  f"goals judge the model reference alone), got {_verdict_text(ref['meets_goal'])}")  # fmt: skip
+
+
+def _goals_apply(row: dict) -> bool | None:
+    """Whether the storage goals judge a result's model reference (:func:`_goal`: its model's
+    ``validation_goals``), or None where the report's ``type`` names no model this atlasgen knows."""
+    from atlasgen.models import get_model  # the registry imports every model: only a report that is checked needs it
+
+    try:
+        return bool(get_model(row["type"]).validation_goals) if isinstance(row.get("type"), str) else None
+    except KeyError:
+        return None
+
+
+def _verdict_to_check(path: Path, i: int, row: dict, ref: dict) -> bool:
+    """Whether a model reference's recorded verdict is checked against its figures (:func:`_check_verdicts`): a
+    true or false, or a null where the goals judge the model (a verdict nulled by hand dropped the result from the
+    summary's count); a true or false where they do not (a model that claims its own error) is refused."""
+    verdict, applies = ref.get("meets_goal"), _goals_apply(row)
+    if isinstance(verdict, bool) and applies is False:
+        raise FieldError(path.as_posix(), f"results[{i}].references.model.meets_goal", f"expected null (a {row['type']} "
+                         f"material claims its own error, which the goals do not judge), got {_verdict_text(verdict)}")  # fmt: skip
+    return isinstance(verdict, bool) or (verdict is None and applies is True)
 
 
 def _refuse_verdict_without_flip(path: Path, where: str, ref: dict, verdict) -> None:
@@ -1011,7 +1040,8 @@ def _check_look_verdict(path: Path, where: str, row: dict) -> None:
 _ROW_FIELDS = {"material": (str, "a material name", False), "scene": (str, "a scene name", False),
                "atlas_image": (str, "an image path", True), "page": (str, "a page path", True),
                "notes": (list, "a list of notes", True), "look": (dict, "an object", True),
-               "error_breakdown": (dict, "an object", True), "atlas_identity": (dict, "an object", True)}  # fmt: skip
+               "error_breakdown": (dict, "an object", True), "atlas_identity": (dict, "an object", True),
+               "type": (str, "a material type", True)}  # fmt: skip
 _REFERENCE_FIELDS = {"images": (dict, "an object of image paths", True)}
 #: A look's words, which the page prints and tests as text: a hand-edited ``not_judged: true`` failed deep in the
 #: page ("'bool' object has no attribute 'startswith'").

@@ -268,8 +268,9 @@ def test_a_number_beyond_a_double_is_refused_not_merged_as_infinity(lobe_study, 
     (edited / "report.json").write_text(text.replace(repr(figure), "1e999", 1))
     res = CliRunner().invoke(report, ["separable", "--merge", str(edited), "-o", str(tmp_path / "out")])
     assert res.exit_code == 3, res.output
-    assert res.output.splitlines() == [f"atlasgen: error: {(edited / 'report.json').as_posix()}: expected finite "
-                                       "numbers, got 1e999 (beyond a double's range)"]  # fmt: skip
+    assert res.output.splitlines() == [f"atlasgen: error: {(edited / 'report.json').as_posix()}: field "
+                                       "'[0].chosen.float.relative_rms': expected a finite number (beyond a double's "
+                                       "range), got 1e999"]  # fmt: skip
 
 
 @pytest.mark.slow

@@ -307,6 +307,44 @@ def test_a_verdict_beside_no_figures_is_refused(merged, tmp_path):
     assert json.loads((tmp_path / "merged" / "report.json").read_text())["summary"]
 
 
+def test_a_verdict_nulled_or_given_where_the_goals_do_not_judge_is_refused(merged, tmp_path):
+    """A hostile sweep's: a model verdict nulled by hand dropped the result from the summary's count (LUT 3/3 for
+    4/4), and a verdict on a material that claims its own error was counted; a type of 5 and a result on a scene
+    the report never rendered merged."""
+    from atlasgen.reports.validation import merge_validation_reports
+
+    def model_of(material):
+        def change(data):
+            row = next(r for r in data["results"] if r["material"] == material)
+            row["references"]["model"]["meets_goal"] = None if material == "matte" else True
+
+        return change
+
+    folder = _edited(merged, tmp_path / "nulled", model_of("matte"), material="matte")
+    with pytest.raises(InputError) as info:
+        merge_validation_reports([folder], tmp_path / "merged")
+    assert ".references.model.meets_goal': expected true from its figures (PSNR " in str(info.value) and \
+        str(info.value).endswith("got null; re-run atlasgen validate"), str(info.value)  # fmt: skip
+    folder = _edited(merged, tmp_path / "claimed", model_of("gloss"), material="gloss")
+    with pytest.raises(InputError, match=r"\.references\.model\.meets_goal': expected null \(a separable material claims "
+                                         r"its own error, which the goals do not judge\), got true$"):  # fmt: skip
+        merge_validation_reports([folder], tmp_path / "merged")
+    folder = _edited(merged, tmp_path / "scene", _put("side", "results", 0, "scene"))
+    with pytest.raises(InputError, match=r"field 'results\[0\]\.scene': expected a scene of settings\.scenes \('front', "
+                                         r"'back'\), got 'side'$"):  # fmt: skip
+        merge_validation_reports([folder], tmp_path / "merged")
+    folder = _edited(merged, tmp_path / "type", _put(5, "results", 0, "type"))
+    with pytest.raises(InputError, match=r"field 'results\[0\]\.type': expected a material type as atlasgen validate "
+                                         r"writes it, got 5$"):  # fmt: skip
+        merge_validation_reports([folder], tmp_path / "merged")
+    # A type this atlasgen has no model for (a plug-in's) keeps its recorded verdict, null included.
+    merge_validation_reports([_edited(merged, tmp_path / "plugin", lambda data: [
+        r.update(type="plugin-model") or r["references"]["model"].update(meets_goal=None) for r in data["results"]],
+        material="matte")], tmp_path / "merged")  # fmt: skip
+    merged_rows = json.loads((tmp_path / "merged" / "report.json").read_text())["results"]
+    assert [r["references"]["model"]["meets_goal"] for r in merged_rows] == [None] * len(merged_rows)
+
+
 def _met_look(data, forge) -> None:
     """A row's look made met, its reference's figures far beyond its goal and its floor, then ``forge`` applied."""
     row = next(r for r in data["results"] if (r.get("look") or {}).get("reference") in r["references"])

@@ -72,6 +72,7 @@ def validation_run(validation_atlas, mitsuba_rgb, gpu_context, tmp_path_factory)
         back = validate_atlas(validation_atlas, ["matte", "skin", "leaf", "film"], scenes=["back"], resolution=TINY,
                               physical_spp=4, max_physical_spp=64)  # fmt: skip
         run.runs += back.runs
+        run.settings["scenes"] += back.settings["scenes"]  # as one run on both scenes lists them
         (folder / "run.pickle").write_bytes(pickle.dumps(run))
 
     folder = shared_folder(tmp_path_factory, "validation-run", build)
