@@ -29,6 +29,7 @@ from atlasgen.io.report_files import (
     rebase_path,
     report_json_paths,
 )
+from atlasgen.models import get_model
 from atlasgen.optics.display import display_clip
 from atlasgen.optics.quantize import quantize_rgba
 from atlasgen.reports.comparisons import validation_pairs
@@ -975,8 +976,6 @@ def _check_verdicts(path: Path, data: dict) -> None:
 def _goals_apply(row: dict) -> bool | None:
     """Whether the storage goals judge a result's model reference (:func:`_goal`: its model's
     ``validation_goals``), or None where the report's ``type`` names no model this atlasgen knows."""
-    from atlasgen.models import get_model  # the registry imports every model: only a report that is checked needs it
-
     try:
         return bool(get_model(row["type"]).validation_goals) if isinstance(row.get("type"), str) else None
     except KeyError:
