@@ -84,7 +84,10 @@ NOT_IN_TABLE = {
                  "occlusion": (1.0, _OCCLUSION)},
     "UsdPreviewSurface": {"emissiveColor": ((0.0, 0.0, 0.0), "emission"), "opacity": (1.0, "opacity"),
                           "displacement": (0.0, "displacement (it moves geometry, which a slice does not hold)"),
-                          "occlusion": (1.0, _OCCLUSION)},
+                          "occlusion": (1.0, _OCCLUSION),
+                          "normal": ((0.0, 0.0, 1.0), "a tilted tangent-space normal (the response then varies with the "
+                                     "azimuth, which a slice indexed by N.L and N.V does not hold; the geometry's own "
+                                     "normal is baked)")},
 }  # fmt: skip
 #: Per surface model: (its thin-walled switch, its subsurface weight). A thin wall's subsurface is light passing
 #: through the sheet (MaterialX's graphs shade it with a translucent BSDF), which a slice of N.L >= 0 cannot hold:
@@ -230,10 +233,25 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
     with _named_as_included(included):
         _refuse_duplicate_names(documents)
         _refuse_values_written_as_text(documents)
+        _refuse_ignored_children(documents, doc)
         _refuse_namespaces(documents)
         _refuse_library_names(documents, doc, libraries)
         _refuse_library_implementations(documents, doc, libraries)
     doc.importLibrary(libraries)
+    with _named_as_included(included):
+        out = _read_materials(shown, path, documents, doc, included, flatten)
+    # Last, so that the checks above name their own field: what MaterialX itself finds wrong (a connection
+    # to an output the node does not have, say), which its generator would otherwise shade regardless.
+    # An input with no value is read as the nodedef's default, as MaterialX's generator shades it.
+    _, message = doc.validate()
+    faults = [line.strip() for line in message.splitlines() if line.strip() and not line.strip().startswith(_NO_VALUE)]
+    if faults:
+        raise MaterialError(shown, None, f"expected a document MaterialX validates, got: {_validation_fault(faults[0])}")
+    return out
+
+
+def _read_materials(shown: str, path: Path, documents: list, doc, included: list, flatten) -> list[dict]:
+    """Each ``surfacematerial`` of the read ``doc`` as :func:`read_materialx_document` returns it."""
     nodes = _material_nodes(documents, doc)
     if not nodes:
         raise MaterialError(shown, None, "expected at least one surfacematerial node, found none")
@@ -265,13 +283,6 @@ def read_materialx_document(path, flatten=None) -> list[dict]:
         out.append({"name": name, "type": "separable", "params": params, "source": shown,
                     "content_hash": material_digest(name, params), "includes": tuple(p.as_posix() for p, _, _, _ in included),
                     "description": f"MaterialX {category} {name!r} from {path.name}"})  # fmt: skip
-    # Last, so that the checks above name their own field: what MaterialX itself finds wrong (a connection
-    # to an output the node does not have, say), which its generator would otherwise shade regardless.
-    # An input with no value is read as the nodedef's default, as MaterialX's generator shades it.
-    _, message = doc.validate()
-    faults = [line.strip() for line in message.splitlines() if line.strip() and not line.strip().startswith(_NO_VALUE)]
-    if faults:
-        raise MaterialError(shown, None, f"expected a document MaterialX validates, got: {_validation_fault(faults[0])}")
     return out
 
 
@@ -526,6 +537,10 @@ def _include_options(mx, path: Path, included: list):
     return options
 
 
+#: The elements that give a node's input its value: ``<input>``, and a 1.37 document's ``<bindinput>`` and ``<parameter>``.
+_VALUE_TAGS = ("input", "bindinput", "parameter")
+
+
 def _refuse_values_written_as_text(documents: list) -> None:
     """Refuse an ``<input>`` whose value is written as its text (``<input name="roughness" type="float">0</input>``;
     ``documents``: ``(shown, tree)``): MaterialX reads only the ``value`` attribute, so the nodedef's default was
@@ -533,10 +548,26 @@ def _refuse_values_written_as_text(documents: list) -> None:
     for shown, root in documents:
         for parent in root.iter():
             for child in parent:
-                if child.tag == "input" and (child.text or "").strip() and child.get("value") is None:
+                # A 1.37 document's <bindinput> and <parameter> become inputs as MaterialX reads it, their text dropped.
+                if child.tag in _VALUE_TAGS and (child.text or "").strip() and child.get("value") is None:
                     raise MaterialError(shown, f"{parent.get('name')}.{child.get('name')}", "expected the value in a "
                                         f"value attribute (value=\"{child.text.strip()[:40]}\"), got it as the element's "
                                         "text, which MaterialX ignores")  # fmt: skip
+
+
+def _refuse_ignored_children(documents: list, doc) -> None:
+    """Refuse a child of a surface shader node that MaterialX did not read as an input (``documents``: ``(shown,
+    tree)``; ``doc``: the document as read): a 1.39 document's ``<parameter name="specular_roughness" value="0">``
+    is no input to MaterialX, so the nodedef's default was baked in its place without a word (a 1.37 document's
+    becomes an input as it is read, and is baked)."""
+    for shown, root in documents:
+        for element in root:
+            node = doc.getNode(element.get("name") or "") if element.tag in SURFACE_MODELS else None
+            for child in element if node is not None else ():
+                if child.tag not in ("input", "output") and node.getInput(child.get("name") or "") is None:
+                    raise MaterialError(shown, f"{element.get('name')}.{child.get('name')}", f"expected an <input> "
+                                        f"element, got <{shorten(child.tag, 40)}>, which MaterialX does not read as an "
+                                        "input of the node")  # fmt: skip
 
 
 def _refuse_duplicate_names(documents: list) -> None:
@@ -802,7 +833,8 @@ def _read_shader(shown: str, material: str, category: str, shader, flatten) -> d
             continue
         reference = neutral if neutral is not None else 0.0
         if value is not None and _differs(value, reference if not isinstance(reference, tuple) else reference):
-            not_in_table.append(f"{key} = {value}: {what}")
+            shown_value = shown_values(value) if isinstance(value, list | tuple) else value  # as the no-default inputs'
+            not_in_table.append(f"{key} = {shown_value}: {what}")
             if neutral is not None:
                 oracle_inputs[key] = list(neutral) if isinstance(neutral, tuple) else neutral
     if category in _THIN_WALLED_SUBSURFACE:

@@ -68,7 +68,9 @@ def check_input_value(path, field: str, kind: str, value, limits):
             path, field, f"expected {EXPECTED_VALUES.get(kind, 'finite numbers')}, got {shown_values(components)}"
         )
     low, high = limits if limits is not None else (None, None)
-    for bound, outside in ((low, lambda v, b: v < b), (high, lambda v, b: v > b)):
+    # In float32, as MaterialX holds both: a value written as the nodedef's uimax (6.283185) read as a float32
+    # above the same text read as a double, and was refused as outside a range that its message showed it at.
+    for bound, outside in ((low, lambda v, b: np.float32(v) < np.float32(b)), (high, lambda v, b: np.float32(v) > np.float32(b))):
         if bound is not None and any(outside(v, b) for v, b in zip(components, bound, strict=False)):
             if low is not None and high is not None:
                 span = f"within {shown_values(low)} .. {shown_values(high)} (the nodedef's uimin .. uimax)"

@@ -772,3 +772,67 @@ def test_a_bad_value_in_an_included_file_names_that_file(tmp_path):
     with pytest.raises(MaterialError) as info:
         read_material_file(path)
     assert str(info.value).startswith(f"{lib.as_posix()}: field 'velvet.base_color': expected color3 within"), info.value
+
+
+@pytest.mark.parametrize("element", [
+    # A 1.37 document's forms, which MaterialX upgrades to inputs as it reads them, their text dropped.
+    '<material name="M"><shaderref name="sr" node="standard_surface">'
+    '<bindinput name="specular_roughness" type="float">0</bindinput></shaderref></material>',
+    '<standard_surface name="SR_M" type="surfaceshader"><parameter name="specular_roughness" type="float">0</parameter>'
+    '</standard_surface><surfacematerial name="M" type="material">'
+    '<input name="surfaceshader" type="surfaceshader" nodename="SR_M" /></surfacematerial>',
+])  # fmt: skip
+def test_a_1_37_value_written_as_text_is_refused_not_defaulted(tmp_path, element):
+    """A hostile sweep's: a mirror written as a <bindinput>'s or <parameter>'s text baked at the default roughness."""
+    path = tmp_path / "old.mtlx"
+    path.write_text(f'<?xml version="1.0"?>\n<materialx version="1.37">\n{element}\n</materialx>\n')
+    with pytest.raises(
+        MaterialError,
+        match=r"\.specular_roughness': expected the value in a value attribute "
+        r"\(value=\"0\"\), got it as the element's text, which MaterialX ignores$",
+    ):
+        read_material_file(path)
+
+
+def test_a_child_of_the_shader_that_materialx_does_not_read_as_an_input_is_refused(tmp_path):
+    """A hostile sweep's: a 1.39 document's <parameter value="0"> is no input to MaterialX, and baked the default."""
+    path = _document(tmp_path, _material("M", "standard_surface", '<parameter name="specular_roughness" type="float" '
+                                         'value="0" />'))  # fmt: skip
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value) == (f"{path.as_posix()}: field 'SR_M.specular_roughness': expected an <input> element, got "
+                               "<parameter>, which MaterialX does not read as an input of the node")  # fmt: skip
+    old = tmp_path / "old.mtlx"  # in 1.37 the same element is an input, and is baked
+    old.write_text(path.read_text().replace('version="1.39"', 'version="1.37"').replace('value="0"', 'value="0.3"'))
+    assert read_material_file(old)[0].params["materialx"]["inputs"] == {"specular_roughness": pytest.approx(0.3)}
+
+
+def test_a_usd_tangent_space_normal_is_named_and_the_geometry_s_is_shaded(tmp_path):
+    """A hostile sweep's: a tilted normal made the oracle's f cos vary with the azimuth and baked without a word."""
+    path = _document(tmp_path, _material("M", "UsdPreviewSurface", '<input name="normal" type="vector3" '
+                                         'value="0.2, 0, 0.98" />'))  # fmt: skip
+    spec = read_material_file(path)[0].params["materialx"]
+    assert spec["oracle_inputs"]["normal"] == [0.0, 0.0, 1.0]
+    assert [c.split(":")[0] for c in spec["not_in_table"]] == ["normal = 0.2, 0, 0.98"]
+    untilted = _document(tmp_path, _material("M", "UsdPreviewSurface", '<input name="normal" type="vector3" '
+                                             'value="0, 0, 1" />'), "flat.mtlx")  # fmt: skip
+    assert read_material_file(untilted)[0].params["materialx"]["not_in_table"] == []
+
+
+def test_a_value_at_the_nodedef_s_limit_reads_as_within_it(tmp_path):
+    """A hostile sweep's: 6.283185, glTF's uimax for anisotropy_rotation, read as a float32 above the same text read
+    as a double, and was refused "within 0 .. 6.283185, got 6.283185"."""
+    path = _document(tmp_path, _material("M", "gltf_pbr", '<input name="anisotropy_rotation" type="float" '
+                                         'value="6.283185" />'))  # fmt: skip
+    assert read_material_file(path)[0].params["materialx"]["inputs"]["anisotropy_rotation"] == pytest.approx(6.283185)
+
+
+def test_a_shader_s_refusal_in_an_included_file_names_the_document_that_includes_it(tmp_path):
+    """A hostile sweep's: a mirror in an included file named that file alone."""
+    _document(tmp_path, _material("B", "standard_surface", '<input name="specular_roughness" type="float" value="0" />'),
+              "inc.mtlx")  # fmt: skip
+    path = _including(tmp_path, "inc.mtlx")
+    with pytest.raises(MaterialError) as info:
+        read_material_file(path)
+    assert str(info.value).startswith(f"{(tmp_path / 'inc.mtlx').as_posix()}: field 'B.specular_roughness': expected ")
+    assert str(info.value).endswith(f" (included by {path.as_posix()})")
