@@ -287,7 +287,8 @@ def _read_materials(shown: str, path: Path, documents: list, doc, included: list
 
 
 #: A line of ``Document.validate``'s report: what is wrong, then the element as XML (its attributes in order).
-_FAULT = re.compile(r'(?s)(?P<what>.*?):\s*<(?P<tag>[\w:]+)\s+name="(?P<name>[^"]*)"')
+#: MaterialX writes the name unescaped, so a name holding a quote ends at the quote before the next attribute or the end.
+_FAULT = re.compile(r'(?s)(?P<what>.*?):\s*<(?P<tag>[\w:]+)\s+name="(?P<name>.*?)"(?=\s+[\w:]+="|\s*/?>)')
 
 
 def _validation_fault(line: str) -> str:
@@ -296,6 +297,8 @@ def _validation_fault(line: str) -> str:
 
     >>> _validation_fault('Interface name not found in referenced declaration: <input name="base_color" type="color3" />')
     "Interface name not found in referenced declaration: input 'base_color'"
+    >>> print(_validation_fault('Invalid element name: <surfacematerial name="mat"a" type="material">'))
+    Invalid element name: surfacematerial 'mat"a'
     """
     match = _FAULT.match(line)
     return shorten(f"{match['what']}: {match['tag']} {match['name']!r}" if match else line, 160)
