@@ -124,7 +124,7 @@ def _watch(paths, output, cache, verbosity, reference=False, max_spp=None) -> No
         elif verbosity == VERBOSE:
             click.echo(f"reference {name}: {', '.join(reference_lines(shot)[1:])} ({shot.seconds:.1f} s)")
 
-    check_preview_output(output, paths)
+    check_preview_output(output, paths, cache)  # before the line that says the watch has begun
     if verbosity != QUIET:
         click.echo(f"watching {', '.join(Path(p).as_posix() for p in paths)} (Ctrl-C to stop)", err=True)
     try:

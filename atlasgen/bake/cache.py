@@ -21,6 +21,7 @@ from atlasgen.errors import describe_failure
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import update_with_array
 from atlasgen.io.fields import FLOAT32_MAX, is_number
+from atlasgen.io.npz import NPY_HEADERS
 from atlasgen.models.base import SliceSet
 
 __all__ = [
@@ -98,8 +99,6 @@ def cache_path(cache_dir, material) -> Path:
 
 #: Bytes an entry's metadata may inflate to; a bake writes a few kB.
 _MAX_META_BYTES = 16 << 20
-#: The .npy header readers by format version (NumPy writes 1.0, or 2.0 for a header over 64 kB).
-_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
 
 
 def _check_shape(shape, dtype) -> None:
@@ -117,7 +116,7 @@ def _check_archive(path: Path) -> None:
             raise ValueError(f"metadata of {meta.file_size} bytes")
         with archive.open("values.npy") as member:
             version = np.lib.format.read_magic(member)
-            read_header = _NPY_HEADERS.get(version)
+            read_header = NPY_HEADERS.get(version)
             if read_header is None:
                 raise ValueError(f".npy format version {version}")
             shape, _, dtype = read_header(member)

@@ -160,6 +160,9 @@ def check_preview_output(output, sources, cache_dir=None) -> None:
             raise OutputNameError(f"{Path(cache_dir).as_posix()}: --cache is the preview (-o); expected a cache folder "
                                   "of another name")  # fmt: skip
         check_cache_folder(cache_dir, "--cache")
+        # The ball's mesh and the environment are kept in a folder of the cache's: a file of its name failed the
+        # preview after its bake with "cannot write output folder (File exists)", naming no option.
+        check_cache_folder(Path(cache_dir) / "preview", "--cache's preview folder")
 
 
 class Previewer:

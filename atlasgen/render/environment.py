@@ -34,7 +34,9 @@ from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.contract import HEIGHT, LAYERS
 from atlasgen.io.atlas import apply_slice_scale
 from atlasgen.io.atomic import write_file_atomically
+from atlasgen.io.digest import update_with_array
 from atlasgen.io.manifest import MaterialEntry
+from atlasgen.io.npz import read_npz_arrays
 from atlasgen.materials.environment import Environment, environment_image
 from atlasgen.models.separable import representation_radiance
 from atlasgen.optics.environment_tables import (
@@ -87,6 +89,35 @@ class EnvironmentData:
 prepare_environment = EnvironmentData.of
 
 
+#: Bytes a cached environment's arrays may hold (an entry of the built-in sky holds about 3 MB).
+_MAX_ENTRY_BYTES = 256 << 20
+#: The most prefiltered levels an entry may list.
+_MAX_LEVELS = 32
+
+
+def _environment_digest(data: EnvironmentData) -> str:
+    """SHA-256 of an environment's arrays, each with its shape and type (:func:`~atlasgen.io.digest.update_with_array`)."""
+    digest = hashlib.sha256()
+    for array in (data.image, data.sh, *data.levels):
+        update_with_array(digest, np.asarray(array))
+    return digest.hexdigest()
+
+
+def _load_environment(path: Path) -> EnvironmentData:
+    """The environment an entry holds, or ValueError (OSError, KeyError) for anything but an entry this module
+    wrote: :func:`~atlasgen.io.npz.read_npz_arrays` reads it (a pipe, a truncated archive or a header declaring
+    112 GiB ended in a hang or an internal error), and its arrays must be the ones stored (their digest): images
+    of NaN, an image of one texel or a ``count`` of -3 loaded as the sky, or failed in the renderer."""
+    arrays = read_npz_arrays(path, _MAX_ENTRY_BYTES)
+    count = arrays["count"]
+    if count.shape != () or count.dtype.kind not in "iu" or not 1 <= int(count) <= _MAX_LEVELS:
+        raise ValueError(f"a level count of {count!r}")
+    data = EnvironmentData(arrays["image"], arrays["sh"], [arrays[f"level_{k}"] for k in range(int(count))])
+    if str(arrays["digest"]) != _environment_digest(data):
+        raise ValueError("arrays other than the ones stored")
+    return data
+
+
 def cached_environment(env: Environment, cache_dir=None) -> EnvironmentData:
     """:meth:`EnvironmentData.of` ``env``, kept in ``cache_dir`` (``environment-<key>.npz``) for a built-in one.
 
@@ -95,7 +126,7 @@ def cached_environment(env: Environment, cache_dir=None) -> EnvironmentData:
     environment's parameters, the bake-relevant code (:func:`atlasgen.bake.cache.tool_fingerprint`, which
     covers ``optics`` and ``materials``) and this module. A ``file`` environment, whose image can change
     under the same name, is always built; so is any with ``cache_dir`` None. An entry that does not load
-    is built again and replaced.
+    as it was stored (:func:`_load_environment`) is built again and replaced.
     """
     if cache_dir is None or env.source == "file":
         return EnvironmentData.of(env)
@@ -103,13 +134,13 @@ def cached_environment(env: Environment, cache_dir=None) -> EnvironmentData:
     digest.update(Path(__file__).read_bytes())
     path = Path(cache_dir) / f"environment-{digest.hexdigest()[:24]}.npz"
     try:
-        with np.load(path) as z:
-            return EnvironmentData(z["image"], z["sh"], [z[f"level_{k}"] for k in range(int(z["count"]))])
+        return _load_environment(path)
     except (OSError, ValueError, KeyError):
         pass
     data = EnvironmentData.of(env)
     out = io.BytesIO()
-    np.savez(out, image=data.image, sh=data.sh, count=len(data.levels), **{f"level_{k}": v for k, v in enumerate(data.levels)})
+    np.savez(out, image=data.image, sh=data.sh, count=len(data.levels), digest=_environment_digest(data),
+             **{f"level_{k}": v for k, v in enumerate(data.levels)})  # fmt: skip
     write_file_atomically(path, out.getvalue())
     return data
 

@@ -563,3 +563,24 @@ def test_an_atlas_whose_manifest_would_replace_a_report_is_refused(tmp_path, lib
     _refused(tmp_path, ["bake", str(library), "-o", str(folder / "report.dds")],
              f"{(folder / 'report.json').as_posix()}: the manifest written beside the atlas would replace a validation "
              "report; expected a folder of its own for each command's outputs")  # fmt: skip
+
+
+def test_a_watch_s_cache_that_is_a_file_is_its_one_line_before_it_begins(tmp_path, library):
+    """A hostile sweep's: `preview --watch --cache FILE` printed "watching ..." and then the refusal."""
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    _refused(tmp_path, ["preview", "--watch", str(library / "clay.toml"), "-o", str(tmp_path / "x.png"), "--cache",
+                        str(afile)], f"{afile.as_posix()}: --cache is an existing file; expected a folder path")  # fmt: skip
+
+
+def test_a_file_where_the_preview_keeps_its_own_cache_is_refused_naming_the_option(tmp_path, library):
+    """A hostile sweep's: a file at <cache>/preview failed the preview after its bake, "cannot write output folder
+    (File exists)", naming no option."""
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "preview").write_text("not a folder")
+    _refused(
+        tmp_path,
+        ["preview", str(library / "clay.toml"), "-o", str(tmp_path / "x.png"), "--cache", str(cache)],
+        f"{(cache / 'preview').as_posix()}: --cache's preview folder is an existing file; expected a folder path",
+    )

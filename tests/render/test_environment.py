@@ -39,3 +39,58 @@ def test_a_file_environment_is_never_cached(tmp_path, monkeypatch):
     env = Environment("file", file=tmp_path / "sky.exr")
     assert cached_environment(env, tmp_path) == cached_environment(env, tmp_path) == "built"
     assert len(calls) == 2 and not list(tmp_path.iterdir())
+
+
+def _rewritten(arrays: dict) -> bytes:
+    import io
+
+    out = io.BytesIO()
+    np.savez(out, **arrays)
+    return out.getvalue()
+
+
+def _huge_header(entry) -> bytes:
+    """The entry with its image's .npy header declaring a (100000, 100000, 3) image (112 GiB)."""
+    import io
+    import zipfile
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(entry) as source, zipfile.ZipFile(out, "w") as target:
+        for info in source.infolist():
+            data = source.read(info)
+            if info.filename == "image.npy":
+                header = np.lib.format.header_data_from_array_1_0(np.zeros((1, 1, 3), np.float32))
+                body = io.BytesIO()
+                np.lib.format.write_array_header_1_0(body, {**header, "shape": (100000, 100000, 3)})
+                data = body.getvalue() + data[-64:]
+            target.writestr(info, data)
+    return out.getvalue()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", ["truncated", "empty", "fifo", "huge header", "count -3", "nan", "one texel"])
+def test_a_damaged_environment_entry_is_built_again_not_loaded(tmp_path, damage):
+    """A hostile sweep's: a truncated or empty entry and a huge header ended in an internal error, a pipe in the
+    entry's place hung preview, and NaN images, an image of one texel or a level count of -3 loaded as the sky."""
+    import os
+
+    sky = Environment("sky", intensity=0.6, sky=SkyParameters())
+    built = cached_environment(sky, tmp_path)
+    (entry,) = tmp_path.glob("environment-*.npz")
+    good = entry.read_bytes()
+    with np.load(entry) as z:
+        arrays = dict(z)
+    damaged = {"truncated": lambda: good[:5000], "empty": lambda: b"", "huge header": lambda: _huge_header(entry),
+               "count -3": lambda: _rewritten({**arrays, "count": np.array(-3)}),
+               "nan": lambda: _rewritten({**arrays, "image": np.full_like(arrays["image"], np.nan)}),
+               "one texel": lambda: _rewritten({**arrays, "image": np.zeros((1, 1, 1)), "sh": np.zeros(1)})}  # fmt: skip
+    data = None if damage == "fifo" else damaged[damage]()
+    entry.unlink()
+    if data is None:
+        os.mkfifo(entry)
+    else:
+        entry.write_bytes(data)
+    again = cached_environment(sky, tmp_path)
+    np.testing.assert_array_equal(again.image, built.image)
+    np.testing.assert_array_equal(again.sh, built.sh)
+    assert entry.is_file() and entry.read_bytes() == good  # replaced by the entry built again
