@@ -58,6 +58,15 @@ def shown_values(values) -> str:
     return ", ".join(_shown(float(v)) for v in values)
 
 
+def _single(v: float) -> float:
+    """``v`` as a float32 holds it, where one can (1e300 stays itself: no float32, and refused as such by its bounds).
+
+    >>> _single(6.283185) > 6.283185, _single(1e300)
+    (True, 1e+300)
+    """
+    return float(np.float32(v)) if abs(v) <= FLOAT32_MAX else v
+
+
 def check_input_value(path, field: str, kind: str, value, limits):
     """``value`` (plain) if it is finite and within the nodedef's ``limits`` (low, high), else refused on one line."""
     if isinstance(value, bool) or isinstance(value, str):
@@ -70,7 +79,7 @@ def check_input_value(path, field: str, kind: str, value, limits):
     low, high = limits if limits is not None else (None, None)
     # In float32, as MaterialX holds both: a value written as the nodedef's uimax (6.283185) read as a float32
     # above the same text read as a double, and was refused as outside a range that its message showed it at.
-    for bound, outside in ((low, lambda v, b: np.float32(v) < np.float32(b)), (high, lambda v, b: np.float32(v) > np.float32(b))):
+    for bound, outside in ((low, lambda v, b: _single(v) < _single(b)), (high, lambda v, b: _single(v) > _single(b))):
         if bound is not None and any(outside(v, b) for v, b in zip(components, bound, strict=False)):
             if low is not None and high is not None:
                 span = f"within {shown_values(low)} .. {shown_values(high)} (the nodedef's uimin .. uimax)"
