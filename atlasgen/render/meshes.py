@@ -290,6 +290,9 @@ def encode_mesh_ply(mesh: Mesh) -> bytes:
 #: Most triangles a mesh file may have: 8M draw in seconds on a software GPU; the 16M of a 300 MB PLY took
 #: 4 GB of memory in the buffers built from them.
 MAX_MESH_TRIANGLES = 8_000_000
+#: Most triangles a scene's meshes may hold in all, each distinct mesh counted once: a 13 kB scene of 100 tori of
+#: 1024 segments, each radius its own mesh, took 5 GB of memory.
+MAX_SCENE_TRIANGLES = 16_000_000
 #: A vertex (or texture or normal) index 0 on an OBJ face line, however written (00, -0, +0), before any
 #: comment: OBJ counts from 1, and trimesh reads 0 as another vertex, silently.
 _OBJ_ZERO_INDEX = re.compile(r"(?m)^[ \t]*f[ \t][^\n#]*?(?<=[ \t/])[+-]?0+(?=[/ \t\r#]|$)")
@@ -301,10 +304,13 @@ def _obj_text(path: Path, scene_path, field) -> str:
     OBJ is text, and bytes outside UTF-8 (a Latin-1 comment) send trimesh to a charset detector it does
     not depend on: decoded here, what UTF-8 cannot say kept as U+FFFD (comments and names only)."""
     try:
-        text = path.read_bytes().decode("utf-8", errors="replace")
+        # utf-8-sig: a byte-order mark read as part of the first line dropped that line (its first vertex) silently.
+        text = path.read_bytes().decode("utf-8-sig", errors="replace")
     except OSError as exc:
         raise SceneError(scene_path, field, f"cannot read mesh {path.as_posix()!r} ({exc.strerror})") from None
-    text = _OBJ_COMMENT.sub("", text)
+    # A tab is OBJ whitespace as a space is, but trimesh drops a 'v' or 'f' line whose keyword a tab follows, silently:
+    # the vertices after it shifted by one, or the face vanished.
+    text = _OBJ_COMMENT.sub("", text).replace("\t", " ")
     zero = _OBJ_ZERO_INDEX.search(text)
     if zero is not None:
         line = text.count("\n", 0, zero.start()) + 1
@@ -339,6 +345,10 @@ _PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort"
               "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}  # fmt: skip
 #: Bytes a PLY header may take before ``end_header``: a header is a few hundred.
 _PLY_HEADER_BYTES = 64 << 10
+
+
+#: PLY's floating-point types, by their names in the header (PLY 1.0 and the sized forms).
+_PLY_REALS = ("float", "double", "float32", "float64")
 
 
 def _ply_header(path: Path) -> tuple[bytes, int, list[list[str]]] | None:
@@ -384,10 +394,16 @@ def _ply_elements(path: Path, header=None):
 
 
 def _check_ply_counts(path: Path, scene_path, field) -> None:
-    """Refuse a PLY whose header declares more elements than its body can hold, or more faces than a mesh may
-    have: trimesh read an ASCII file declaring 2e9 vertices as one without triangles, and a binary one
-    as "unexpected length". A header it cannot parse is left to trimesh's own message."""
-    layout = _ply_elements(path)
+    """Refuse a PLY whose header declares more elements than its body can hold, more faces than a mesh may
+    have, or face indices that are not integers: trimesh read an ASCII file declaring 2e9 vertices as one
+    without triangles, and a binary one as "unexpected length", and truncated a float index (0.5 as vertex 0).
+    A header it cannot parse is left to trimesh's own message."""
+    header = _ply_header(path)
+    for w in header[2] if header is not None else ():
+        if len(w) == 5 and w[:2] == ["property", "list"] and w[4] in ("vertex_indices", "vertex_index") and w[3] in _PLY_REALS:
+            raise SceneError(scene_path, field, f"mesh {path.as_posix()!r}: its faces' {w[4]} are of type {w[3]}; "
+                                                "expected an integer type (a vertex index is a whole number)")  # fmt: skip
+    layout = _ply_elements(path, header)
     if layout is None:
         return
     text, elements, declared, have = layout

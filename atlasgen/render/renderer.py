@@ -47,7 +47,7 @@ from atlasgen.render.environment import EnvironmentLighting, shows_environment
 from atlasgen.render.gbuffer import GBuffer, GBufferPass, decode_normals, pack_object
 from atlasgen.render.layout import FRAME, NO_MATERIAL, OBJECT, OBJECT_UNIFORM_STRIDE, LightType, declaration_wgsl
 from atlasgen.render.lighting import LightingPass, check_light_distances, material_dispatch_wgsl, pack_lights, upload_lights
-from atlasgen.render.meshes import Mesh, build_mesh
+from atlasgen.render.meshes import MAX_SCENE_TRIANGLES, Mesh, build_mesh
 from atlasgen.render.outline import OutlinePass, outline_parameters
 from atlasgen.render.translucency import screen_rectangle, sort_back_to_front, translucent_steps
 from atlasgen.shaders.passes import assemble_shader
@@ -238,8 +238,13 @@ class Renderer:
             self._culling_pass = CullingPass(self.device)
         return self._culling_pass
 
+    @staticmethod
+    def _mesh_key(obj) -> tuple:
+        """What makes an object's mesh: objects with one key share one."""
+        return (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
+
     def _mesh(self, obj, scene_path="<scene>") -> _GpuMesh:
-        key = (obj.shape, str(obj.file), obj.segments, obj.minor_radius)
+        key = self._mesh_key(obj)
         if key not in self._meshes:
             import wgpu
 
@@ -290,8 +295,14 @@ class Renderer:
         view_proj = projection_matrix(scene.camera, scene.width, scene.height) @ view_matrix(scene.camera)
         _, _, forward = camera_basis(scene.camera)
         eye = np.asarray(scene.camera.position, dtype=np.float64)
+        triangles: dict = {}
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj, scene.path)
+            triangles[self._mesh_key(obj)] = mesh.index_count // 3
+            if sum(triangles.values()) > MAX_SCENE_TRIANGLES:
+                raise SceneError(scene.path, f"objects[{obj.index}]", f"{sum(triangles.values())} triangles in the "
+                                 f"scene's meshes with this object's; expected at most {MAX_SCENE_TRIANGLES} in all "
+                                 "(fewer segments, or objects sharing a mesh)")  # fmt: skip
             model = object_matrix(obj)
             object_data += pack_object(model, obj.albedo, shading_gloss(obj.gloss, entry), entry.first_slice)
             corners = np.array([[x, y, z, 1.0] for x in mesh.bounds[:, 0] for y in mesh.bounds[:, 1] for z in mesh.bounds[:, 2]])

@@ -410,3 +410,37 @@ def test_a_binary_ply_of_another_length_says_so_in_words(tmp_path):
                        "are not the elements it declares (element vertex 3, element face 1); expected those elements "
                        "and nothing after them"), message  # fmt: skip
     assert not re.search(r"\b[A-Z]\w*Error\b|unexpected length", message), message
+
+
+_SQUARE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n"
+
+
+@pytest.mark.parametrize("written", [
+    _SQUARE.replace("v ", "v\t", 1),  # the first vertex: the others shifted by one, another triangle drawn
+    _SQUARE.replace("f 2", "f\t2"),  # the second face vanished
+    _SQUARE.replace(" ", "\t"),  # every line: refused as "has no triangles"
+    "\ufeff" + _SQUARE,  # a byte-order mark: the first vertex dropped
+])  # fmt: skip
+def test_an_obj_with_tabs_or_a_byte_order_mark_reads_as_with_spaces(tmp_path, written):
+    """A hostile sweep's: trimesh drops a 'v' or 'f' line whose keyword a tab follows, and a line that a byte-order
+    mark starts, without a word (OBJ words are split by any whitespace)."""
+    plain, other = tmp_path / "plain.obj", tmp_path / "other.obj"
+    plain.write_text(_SQUARE)
+    other.write_text(written, encoding="utf-8")
+    a, b = read_mesh(plain), read_mesh(other)
+    np.testing.assert_array_equal(b.positions, a.positions)
+    np.testing.assert_array_equal(b.indices, a.indices)
+    assert len(b.indices) == 2
+
+
+@pytest.mark.parametrize("kind", ["float", "double"])
+def test_a_ply_whose_face_indices_are_not_integers_is_refused(tmp_path, kind):
+    """A hostile sweep's: a face '3 0.5 1.7 2' read as vertices 0, 1, 2, without a word."""
+    path = tmp_path / "m.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    f"element face 1\nproperty list uchar {kind} vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n"
+                    "3 0.5 1.7 2\n")  # fmt: skip
+    with pytest.raises(SceneError) as info:
+        read_mesh(path, "s.toml", "objects[0].file")
+    assert str(info.value) == (f"s.toml: field 'objects[0].file': mesh {path.as_posix()!r}: its faces' vertex_indices are "
+                               f"of type {kind}; expected an integer type (a vertex index is a whole number)")  # fmt: skip

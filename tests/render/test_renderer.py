@@ -115,6 +115,27 @@ def test_unknown_material_is_a_scene_error(renderer, scene_from):
     assert "glossy, lambert, mips, plain, toon" in str(info.value)
 
 
+def test_a_scene_whose_meshes_pass_the_triangle_limit_is_refused_at_the_object(renderer, scene_from, monkeypatch):
+    """A hostile sweep's: 100 tori of 1024 segments, each its own radius, took 5 GB (the limit is lowered here to
+    stand for it). Objects sharing a mesh count it once."""
+    import atlasgen.render.renderer as module
+    from atlasgen.render.meshes import make_sphere
+
+    sphere = "[[objects]]\nshape = 'sphere'\nmaterial = 'lambert'\nsegments = {}\n"
+    limit = len(make_sphere(16).indices) + len(make_sphere(17).indices)  # the first two meshes, and not the third
+    monkeypatch.setattr(module, "MAX_SCENE_TRIANGLES", limit)
+    shared = scene_from(SCENE + sphere.format(16) * 5, path="s.toml")
+    assert renderer.render(shared).radiance.shape[:2] == (shared.height, shared.width)
+    scene = scene_from(SCENE + sphere.format(16) + sphere.format(17) + sphere.format(16) + sphere.format(18), path="s.toml")
+    with pytest.raises(SceneError) as info:
+        renderer.render(scene)
+    assert str(info.value).startswith("s.toml: field 'objects[3]': ")
+    assert str(info.value).endswith(
+        f" triangles in the scene's meshes with this object's; expected at most {limit} in "
+        "all (fewer segments, or objects sharing a mesh)"
+    )
+
+
 def test_empty_scene_is_background(renderer, scene_from):
     scene = scene_from(SCENE.replace("[render]", "[render]\n") + "")
     result = renderer.render(scene)
