@@ -20,7 +20,12 @@ import os
 import sys
 import tempfile
 
-__all__ = ["REQUEST_VARIABLE", "keep_backend_messages_to_errors", "apply_requested_backend_level"]
+__all__ = [
+    "REQUEST_VARIABLE",
+    "keep_backend_messages_to_errors",
+    "apply_requested_backend_level",
+    "native_lines_of_a_failure_dropped",
+]
 
 #: Set to 1 by :func:`keep_backend_messages_to_errors`; spawned processes inherit it.
 REQUEST_VARIABLE = "ATLASGEN_BACKEND_ERRORS_ONLY"
@@ -44,10 +49,12 @@ def apply_requested_backend_level() -> None:
 
 
 @contextlib.contextmanager
-def _stderr_held_back():
-    """Run the block with file descriptor 2 sent to a temporary file, written out only if the block raises.
+def _stderr_held_back(written_out_on: str = "failure"):
+    """Run the block with file descriptor 2 sent to a temporary file, written out only where the block raises
+    (``written_out_on = "failure"``), or only where it does not (``"success"``).
 
-    At the descriptor, not ``sys.stderr``: Dr.Jit's C++ writes to it directly.
+    At the descriptor, not ``sys.stderr``: Dr.Jit's and Mitsuba's C++ (and the libraries they load) write to it
+    directly.
     """
     sys.stderr.flush()
     saved = os.dup(2)
@@ -56,13 +63,26 @@ def _stderr_held_back():
         try:
             yield
         except BaseException:
-            os.dup2(saved, 2)
-            held.seek(0)
-            os.write(2, held.read())
+            if written_out_on == "failure":
+                os.dup2(saved, 2)
+                held.seek(0)
+                os.write(2, held.read())
             raise
+        else:
+            if written_out_on == "success":
+                os.dup2(saved, 2)
+                held.seek(0)
+                os.write(2, held.read())
         finally:
             os.dup2(saved, 2)
             os.close(saved)
+
+
+def native_lines_of_a_failure_dropped():
+    """A context whose block's lines on file descriptor 2 are written out where it succeeds and dropped where it
+    raises: the caller's one-line error then says what failed. Mitsuba's ``load_dict`` printed libpng's "libpng
+    error: ... bad header" or nanobind's "implicit conversion ... failed!" before the refusal that quotes it."""
+    return _stderr_held_back("success")
 
 
 def _errors_only(drjit) -> None:

@@ -9,11 +9,12 @@ import re
 
 import numpy as np
 
+from atlasgen.backend_messages import native_lines_of_a_failure_dropped
 from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
-from atlasgen.errors import BackendError, MaterialError, did_you_mean, shorten
+from atlasgen.errors import BackendError, InputError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, is_number, shown
-from atlasgen.io.text import special_file_kind
+from atlasgen.io.text import read_input_bytes, special_file_kind
 
 __all__ = [
     "VARIANT",
@@ -182,6 +183,11 @@ def _node(spec: dict, field: str, name: str | None) -> tuple[str, dict]:
     return next(((where, node) for key, where, node in _nodes(spec, field) if key == name), (field, spec))
 
 
+def _toml(value) -> str:
+    """``value`` as TOML writes it, lists too: ``[true, "0.5", [0.5]]``."""
+    return f"[{', '.join(_toml(v) for v in value)}]" if isinstance(value, list) else _shown(value).replace("'", '"')
+
+
 def _shown(value) -> str:
     return "true" if value is True else "false" if value is False else repr(value) if isinstance(value, str) else str(value)
 
@@ -257,12 +263,83 @@ def _colour_numbers(value) -> list | None:
     inner = value.get("value")
     if value.get("type") == "rgb" and isinstance(inner, list):
         return [x for x in inner if is_number(x)]
+    if value.get("type") == "uniform" and is_number(inner):
+        return [inner]
     if value.get("type") == "spectrum":
         if is_number(inner):
             return [inner]
         if isinstance(inner, list):
-            return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and isinstance(pair[1], (int, float))]
+            return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and is_number(pair[1])]
+        if isinstance(value.get("filename"), str):
+            try:
+                return [v for _, v in read_spectrum_file(value["filename"])]
+            except (InputError, ValueError):
+                return None  # refused with its own line (_check_tables) before this is asked
     return None
+
+
+#: Bytes a spectrum file may have: a measured one is a few kB.
+_SPECTRUM_BYTES = 1 << 20
+#: A number as Mitsuba's spectrum files write it.
+_SPECTRUM_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+def read_spectrum_file(filename) -> list[list[float]]:
+    """The ``[wavelength, value]`` pairs of a spectrum file, as Mitsuba's ``spectrum`` plugin reads one: a pair a
+    line, ``#`` starting a comment; at least two, the wavelengths increasing.
+
+    Mitsuba checks an inline spectrum's pairs but not a file's: an unsorted file, or one of one line, baked all
+    black with exit 0, and a negative one passed the check of a negative reflectance.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read (missing, a folder or a pipe, over 1 MB).
+    ValueError
+        A line that is not two numbers, fewer than two pairs, or wavelengths not increasing; the message says which.
+    """
+    text = read_input_bytes(filename, limit=(_SPECTRUM_BYTES, "a spectrum file")).decode("utf-8", errors="replace")
+    pairs = []
+    for number, line in enumerate(text.splitlines(), 1):
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        if len(words) != 2 or not all(_SPECTRUM_NUMBER.fullmatch(w) for w in words):
+            raise ValueError(f"line {number} is {shorten(repr(line.strip()))}; expected 'wavelength value', two numbers")
+        pairs.append([float(w) for w in words])
+    if len(pairs) < 2:
+        raise ValueError(f"{len(pairs)} wavelength-value pairs; expected at least 2")
+    for (a, _), (b, _) in zip(pairs, pairs[1:], strict=False):
+        if not b > a:
+            raise ValueError(f"wavelength {b:g} after {a:g}; expected the wavelengths increasing")
+    return pairs
+
+
+def _check_tables(spec: dict, path, field: str) -> None:
+    """Refuse a colour table whose values are not numbers (a ``true`` read as 1, a string failed in nanobind with a
+    second line), a spectrum file that Mitsuba would read as black (:func:`read_spectrum_file`), and a ``volume``
+    texture without the volume it reads (Mitsuba crashed on it: SIGSEGV, no line at all)."""
+    kind, value = spec.get("type"), spec.get("value")
+    if kind == "rgb" and "value" in spec and not (is_number(value) or (
+            isinstance(value, list) and len(value) == 3 and all(is_number(v) for v in value))):  # fmt: skip
+        # As Mitsuba's own refusal of two numbers is explained (explain_mitsuba_error), naming the colour.
+        raise MaterialError(
+            path, field, f'expected {{type = "rgb", value = [r, g, b]}} (three numbers), got value = {_toml(value)}'
+        )
+    if kind == "spectrum" and "value" in spec and not (is_number(value) or (isinstance(value, list) and all(
+            isinstance(p, list) and len(p) == 2 and all(is_number(x) for x in p) for p in value))):  # fmt: skip
+        raise MaterialError(path, f"{field}.value", f"expected a number or [[wavelength, value], ...], pairs of numbers, "
+                                                    f"got {_toml(value)}")  # fmt: skip
+    if kind == "spectrum" and isinstance(spec.get("filename"), str):
+        try:
+            read_spectrum_file(spec["filename"])
+        except InputError as exc:
+            raise MaterialError(path, f"{field}.filename", f"expected a spectrum file Mitsuba reads: {exc}") from None
+        except ValueError as exc:
+            raise MaterialError(path, f"{field}.filename", f"{shorten(spec['filename'])}: {exc}") from None
+    if kind == "volume" and not isinstance(spec.get("volume"), dict):
+        raise MaterialError(path, f"{field}.volume", f"expected the volume a volume texture reads (a table, e.g. "
+                                                     f"{{type = \"constvolume\", value = 0.5}}), got {_shown(spec.get('volume'))}")  # fmt: skip
 
 
 def _check_meaningful(spec: dict, path, field: str) -> None:
@@ -289,6 +366,10 @@ def _check_meaningful(spec: dict, path, field: str) -> None:
 MAX_BITMAP_TEXELS = 8192 * 8192
 
 
+class _Unopened(Exception):
+    """OpenImageIO could not open a texture (it returns None, and keeps its message)."""
+
+
 def _check_bitmap(spec: dict, path, field: str) -> None:
     """Refuse a ``bitmap`` texture whose header declares more than :data:`MAX_BITMAP_TEXELS`, read from the header
     alone (a file that does not open is left to Mitsuba, whose complaint names it)."""
@@ -297,8 +378,13 @@ def _check_bitmap(spec: dict, path, field: str) -> None:
         return
     import OpenImageIO as oiio
 
-    image = oiio.ImageInput.open(filename)
-    if image is None:
+    try:
+        # A file libpng cannot read printed "libpng error: ... bad header" before Mitsuba's refusal, which says it too.
+        with native_lines_of_a_failure_dropped():
+            image = oiio.ImageInput.open(filename)
+            if image is None:
+                raise _Unopened
+    except _Unopened:
         # Taken, or OpenImageIO prints it at exit ("exited with a pending error message"): three more lines after
         # Mitsuba's refusal, which names the file.
         oiio.geterror()
@@ -333,6 +419,7 @@ def _check_bsdf_values(spec: dict, path, field: str) -> None:
     if not isinstance(plugin, str) or not plugin:
         raise MaterialError(path, f"{field}.type", f"expected a Mitsuba plugin name (a string), got {shown(plugin)}")
     _check_bitmap(spec, path, field)
+    _check_tables(spec, path, field)
     for key, value in spec.items():
         where = f"{field}.{key}"
         if isinstance(value, dict):
@@ -445,7 +532,8 @@ def load_mitsuba_bsdf(
     _check_bsdf_values(spec, path, field)
     mi = _mitsuba()
     try:
-        obj = mi.load_dict(dict(spec))
+        with native_lines_of_a_failure_dropped():
+            obj = mi.load_dict(dict(spec))
     except Exception as exc:
         raise MaterialError(path, *explain_mitsuba_error(str(exc), spec, field)) from None
     if not isinstance(obj, mi.BSDF):

@@ -303,3 +303,51 @@ def test_doctests():
 
     result = doctest.testmod(mitsuba_source)
     assert result.attempted > 0 and result.failed == 0
+
+
+@pytest.mark.parametrize(("reflectance", "field", "expected"), [
+    ({"type": "volume"}, "bsdf.reflectance.volume", "expected the volume a volume texture reads (a table, e.g. "
+     '{type = "constvolume", value = 0.5}), got None'),
+    ({"type": "rgb", "value": [True, False, True]}, "bsdf.reflectance", '(three numbers), got value = [true, false, true]'),
+    ({"type": "rgb", "value": ["0.5", "0.5", "0.5"]}, "bsdf.reflectance", "(three numbers), got value = "),
+    ({"type": "spectrum", "value": [[400, True], [700, False]]}, "bsdf.reflectance.value",
+     "expected a number or [[wavelength, value], ...], pairs of numbers, got "),
+    ({"type": "spectrum", "filename": "{unsorted}"}, "bsdf.reflectance.filename",
+     "wavelength 400 after 700; expected the wavelengths increasing"),
+    ({"type": "spectrum", "filename": "{one}"}, "bsdf.reflectance.filename",
+     "1 wavelength-value pairs; expected at least 2"),
+    ({"type": "spectrum", "filename": "{negative}"}, "bsdf.reflectance", "expected a reflectance >= 0 in every channel"),
+    ({"type": "uniform", "value": -1.0}, "bsdf.reflectance", "expected a reflectance >= 0 in every channel"),
+])  # fmt: skip
+def test_a_colour_table_mitsuba_would_take_wrongly_is_refused_on_one_line(tmp_path, capfd, reflectance, field, expected):
+    """A hostile sweep's: a volume texture without its volume crashed the bake (SIGSEGV, no line); booleans read as
+    numbers; strings failed with nanobind's line before the refusal; a spectrum file unsorted or of one line baked
+    black, and a negative one (as a negative uniform spectrum) passed the check of a negative reflectance."""
+    files = {"unsorted": "700 0.1\n400 0.5\n", "one": "400 0.1\n", "negative": "# measured\n400 -0.5\n700 -0.5\n"}
+    for name, text in files.items():
+        (tmp_path / f"{name}.spd").write_text(text)
+    if "filename" in reflectance:
+        reflectance = {**reflectance, "filename": str(tmp_path / f"{reflectance['filename'][1:-1]}.spd")}
+    with pytest.raises(MaterialError) as info:
+        load_mitsuba_bsdf({"type": "diffuse", "reflectance": reflectance}, "m.toml")
+    assert str(info.value).startswith(f"m.toml: field '{field}': ") and expected in str(info.value), str(info.value)
+    assert capfd.readouterr().err == ""
+
+
+def test_a_spectrum_file_mitsuba_reads_is_taken_with_its_comments(tmp_path, mitsuba_llvm):
+    from atlasgen.separable.mitsuba_source import read_spectrum_file
+
+    path = tmp_path / "s.spd"
+    path.write_text("# wavelength value\n400 0.5\n\n700 0.25  # red\n")
+    assert read_spectrum_file(path) == [[400.0, 0.5], [700.0, 0.25]]
+    load_mitsuba_bsdf({"type": "diffuse", "reflectance": {"type": "spectrum", "filename": str(path)}}, "m.toml")
+
+
+@pytest.mark.parametrize("texture", [b"\x89PNG\r\n\x1a\n" + bytes(100), b"\xff\xd8\xff\xe0\x00\x10JFIF\x00"])
+def test_a_texture_no_library_reads_is_one_line_without_the_library_s_own(tmp_path, capfd, mitsuba_llvm, texture):
+    """A hostile sweep's: libpng's "libpng error: ... bad header" (or libjpeg's warning) came before the refusal."""
+    path = tmp_path / ("t.png" if texture.startswith(b"\x89") else "t.jpg")
+    path.write_bytes(texture)
+    with pytest.raises(MaterialError, match=r"^m\.toml: field 'bsdf\.reflectance': Mitsuba rejected the BSDF 'bitmap'"):
+        load_mitsuba_bsdf({"type": "diffuse", "reflectance": {"type": "bitmap", "filename": str(path)}}, "m.toml")
+    assert capfd.readouterr().err == ""
