@@ -21,6 +21,7 @@ from atlasgen.io.atomic import (
     TEMP_SUFFIX,
     WRITERS_SUFFIX,
     remove_stale_temporaries,
+    store_path,
     write_file_atomically,
     write_files_atomically,
 )
@@ -309,6 +310,33 @@ def test_make_sees_a_new_mtime_and_a_copied_folder_still_reads(tmp_path):
         assert visible(tmp_path / copy) == {"a.dds": b"d2", "a.json": b"j", "img/x.png": b"x"}, copy
     shutil.rmtree(out)
     assert visible(tmp_path / "copy") == {"a.dds": b"d2", "a.json": b"j", "img/x.png": b"x"}  # relative: not into `out`
+
+
+@pytest.mark.parametrize("current", ["a folder", "a link to 'elsewhere'"])
+def test_a_store_whose_current_is_no_generation_link_is_refused_and_nothing_changes(tmp_path, current):
+    """A hostile sweep's: after `cp -rL` made a folder of `current`, a commit read the store as holding no generation,
+    removed every output's link and the generation, and then failed on the folder, saying "every output was left as
+    it was"."""
+    out = tmp_path / "out"
+    write_files_atomically({out / "a.json": b"j", out / "a.dds": b"d"})
+    store = store_path(out / "a.dds")
+    link = store / "current"
+    if current == "a folder":
+        shutil.copytree(link, store / "copy")  # what cp -rL leaves: the generation's files in a folder of its name
+        link.unlink()
+        (store / "copy").rename(link)
+    else:
+        link.unlink()
+        link.symlink_to("elsewhere")
+    before = {p.relative_to(tmp_path).as_posix(): (p.is_symlink(), p.read_bytes() if p.is_file() else None)
+              for p in tmp_path.rglob("*")}  # fmt: skip
+    with pytest.raises(OutputError) as info:
+        write_files_atomically({out / "a.json": b"j2", out / "a.dds": b"d2"})
+    assert str(info.value).startswith(f"{link.as_posix()}: expected the link to the generation that a.dds's set reads "
+                                      f"(gen-<n>), got {current}; nothing was changed")  # fmt: skip
+    after = {p.relative_to(tmp_path).as_posix(): (p.is_symlink(), p.read_bytes() if p.is_file() else None)
+             for p in tmp_path.rglob("*")}  # fmt: skip
+    assert after == before
 
 
 def _library(tmp_path: Path, colour: str) -> Path:

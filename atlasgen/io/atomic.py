@@ -62,6 +62,7 @@ from pathlib import Path
 
 from atlasgen.errors import InputError, OutputError, shorten
 from atlasgen.interrupts import deferred_interrupts
+from atlasgen.io.text import special_file_kind
 
 __all__ = [
     "write_files_atomically",
@@ -408,6 +409,23 @@ def _drop_links(home: Path, store: Path, names, keep: set) -> None:
         _discard(path)
 
 
+def _check_current(store: Path, primary: Path) -> None:
+    """Refuse a store whose ``current`` is there but is no link to a generation: a copy that followed links (``cp
+    -rL``) makes a folder of it, whose files the outputs' links still reach. Read as "no generation yet", every
+    generation was garbage: a bake removed the outputs' links and the generation, then failed on the folder,
+    saying "every output was left as it was"."""
+    entry = store / CURRENT
+    if not os.path.lexists(entry) or _current(store) is not None:
+        return
+    if entry.is_symlink():
+        got = f"a link to {os.readlink(entry)!r}"
+    else:
+        got = "a folder" if entry.is_dir() else special_file_kind(entry) or "a file"
+    raise OutputError(f"{entry.as_posix()}: expected the link to the generation that {primary.name}'s set reads "
+                      f"(gen-<n>), got {got}; nothing was changed (a copy that follows links, cp -rL, makes a folder "
+                      "of it: copy output folders with cp -a)")  # fmt: skip
+
+
 def _collect_garbage(home: Path, store: Path, previous: str | None = None) -> None:
     """Remove what earlier commits left in ``store`` (the caller holds the lock): every generation
     but ``current`` (and ``previous``), with the links of names only they held (a commit killed
@@ -624,6 +642,7 @@ def write_files_atomically(contents: dict, primary=None, remove=(), whole: bool 
         key = set_key(primary)
         with output_lock(home, key):
             store = home / f".{key}{STORE_SUFFIX}"
+            _check_current(store, primary)
             _collect_garbage(home, store)
             _commit(home, store, primary, items, removals, whole, writer)
     except BaseException:
