@@ -34,6 +34,7 @@ from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.errors import describe_failure
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import array_digest
+from atlasgen.io.npz import read_npz_arrays
 
 __all__ = [
     "ReferenceCache",
@@ -154,14 +155,16 @@ class ReferenceCache:
         if not path.is_file():
             return None
         try:
-            with np.load(path, allow_pickle=False) as data:
-                record = json.loads(str(data["record"]))
-                if not isinstance(record, dict) or record.pop("key", None) != key:
-                    return self._reject(path, "its record is not this entry's (another key)")
-                arrays = {k: (np.array(data[k]) if k in data.files else None) for k in _ARRAYS}
+            # Read within what a render of its size holds: a 0.78 MB compressed entry inflated to 805 MB in np.load,
+            # before its shape was checked.
+            data = read_npz_arrays(path, _entry_bytes(size))
+            record = json.loads(str(data["record"]))
+            if not isinstance(record, dict) or record.pop("key", None) != key:
+                return self._reject(path, "its record is not this entry's (another key)")
+            arrays = {k: data.get(k) for k in _ARRAYS}
+            why = _entry_problem(record, arrays, size)
         except Exception as exc:  # noqa: BLE001 - a damaged entry (zipfile, numpy, json errors) is as good as absent
             return self._reject(path, f"unreadable ({describe_failure(exc)})")
-        why = _entry_problem(record, arrays, size)
         if why is not None:
             return self._reject(path, why)
         record.pop("digests")
@@ -170,6 +173,17 @@ class ReferenceCache:
     def _reject(self, path: Path, why: str) -> None:
         self.rejected.append(f"{path.as_posix()}: {why}; rendered again")
         return None
+
+
+#: Bytes of an entry's record: a description and a few numbers.
+_RECORD_BYTES = 1 << 20
+
+
+def _entry_bytes(size=None) -> int:
+    """The most bytes an entry's arrays may inflate to: its images at ``size`` = ``(height, width)``, or a 4096 x 4096
+    render's where the size is not known."""
+    height, width = (4096, 4096) if size is None else (int(size[0]), int(size[1]))
+    return _RECORD_BYTES + len(_ARRAYS) * height * width * 3 * 4
 
 
 def _entry_problem(record: dict, arrays: dict, size=None) -> str | None:
@@ -185,7 +199,9 @@ def _entry_problem(record: dict, arrays: dict, size=None) -> str | None:
         value = fields[name]
         if not isinstance(value, kinds) or isinstance(value, bool):
             return f"its record's {name!r} is {type(value).__name__}; expected {' or '.join(k.__name__ for k in kinds)}"
-    if fields["spp"] < 1 or not (math.isfinite(fields["seconds"]) and fields["seconds"] >= 0):
+    # An integer beyond a double (10**400, valid JSON) is no render's time either: math.isfinite raised on it.
+    seconds_ok = not isinstance(fields["seconds"], int) or abs(fields["seconds"]) <= 1e300
+    if fields["spp"] < 1 or not (seconds_ok and math.isfinite(fields["seconds"]) and fields["seconds"] >= 0):
         return "its record's sample count or seconds are not a render's"
     image = arrays["image"]
     if image is None:

@@ -129,3 +129,25 @@ def test_an_unreadable_entry_is_a_miss_and_said(tmp_path, content):
     assert cache.get(KEY, SIZE) is None
     assert len(cache.rejected) == 1 and cache.rejected[0].startswith(f"{path.as_posix()}: unreadable (")
     assert cache.rejected[0].endswith("); rendered again")
+
+
+def test_a_record_time_beyond_a_double_is_a_miss_and_said(tmp_path):
+    """A hostile sweep's: seconds = 10**400 (valid JSON, no float) failed math.isfinite: an internal error, exit 1,
+    on every later run until the entry was removed by hand."""
+    path = _stored(tmp_path)
+    _rewrite(path, record={"seconds": 10**400})
+    cache = ReferenceCache(tmp_path)
+    assert cache.get(KEY, SIZE) is None
+    assert cache.rejected == [f"{path.as_posix()}: its record's sample count or seconds are not a render's; rendered again"]
+
+
+def test_an_entry_inflating_beyond_a_render_of_its_size_is_a_miss_read_from_its_headers(tmp_path):
+    """A hostile sweep's: a 0.78 MB compressed entry inflated to 805 MB in np.load before its shape was checked."""
+    path = _stored(tmp_path)
+    with np.load(path) as data:
+        stored = dict(data)
+    np.savez_compressed(path, **{**stored, "image": np.zeros((1024, 1024, 3), np.float32)})  # 12.6 MB inflated
+    assert path.stat().st_size < 100_000
+    cache = ReferenceCache(tmp_path)
+    assert cache.get(KEY, SIZE) is None
+    assert len(cache.rejected) == 1 and cache.rejected[0].startswith(f"{path.as_posix()}: unreadable (arrays of more than ")
