@@ -26,14 +26,26 @@ export XDG_RUNTIME_DIR ?= /tmp/atlasgen-xdg-$(shell id -u)
 # make splits file names on spaces, so "scenes/toon stage.toml" was two words: sha256sum errors on every make, a junk
 # hash, "No rule to make target" for render and a material left out of the atlas without a word. A colon or a percent
 # sign broke the Makefile itself ("target pattern contains no '%'"), a quote the shell's recipes (syntax errors), a
-# dollar sign the name ("materials/cost.toml: no such file"). Refused on one line.
+# dollar sign the name ("materials/cost.toml: no such file"). The shell's own characters went into the recipes as they
+# are: "a>b.toml" emptied a file b.toml, "a&b.toml" ran half a bake in the background, a bracket or a backquote was a
+# syntax error, a tab or a line break another name. Refused on one line.
 HASH := \#
 UNNAMEABLE_PATTERNS := -name '* *' -o -name '*:*' -o -name '*%*' -o -name "*'*" -o -name '*"*' -o -name '*$$*' -o -name '*\#*' \
-	-o -name '*;*' -o -name '*\\*' -o -name '*[[*?]*'
-UNNAMEABLE_FILES := $(shell find materials scenes -maxdepth 1 \( $(UNNAMEABLE_PATTERNS) \) \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null)
+	-o -name '*;*' -o -name '*\\*' -o -name '*[[*?]*' -o -name '*[<>|&()`{}]*' -o -name '*[[:cntrl:]]*'
+UNNAMEABLE_FILES := $(shell find materials scenes -maxdepth 1 \( $(UNNAMEABLE_PATTERNS) \) \( -name '*.toml' -o -name '*.mtlx' \) 2>/dev/null \
+	| LC_ALL=C sed 's/[[:cntrl:]]/?/g')
 ifneq ($(UNNAMEABLE_FILES),)
 ifeq ($(filter clean setup apt,$(MAKECMDGOALS)),)
-$(error $(UNNAMEABLE_FILES): a file name with a space or one of : % ' " $$ $(HASH) ; \ * ? [, which make cannot name; expected names without them (rename it; atlasgen itself reads it as it is))
+$(error $(UNNAMEABLE_FILES): a file name with a space, a control character or one of : % ' " $$ $(HASH) ; \ * ? [ < > | & ( ) ` { }, which make cannot name; expected names without them (rename it; atlasgen itself reads it as it is))
+endif
+endif
+# A folder named as a material or scene file (materials/glaze.toml/) was globbed as one: make ended 0 with grep's and
+# sha256sum's "Is a directory", baked the folder's own files into the atlas without a word, and never settled.
+NOT_FILES := $(shell find materials scenes -maxdepth 1 -mindepth 1 \( -name '*.toml' -o -name '*.mtlx' \) ! -type f \
+	! \( -type l -xtype f \) 2>/dev/null | LC_ALL=C sed 's/[[:cntrl:]]/?/g')
+ifneq ($(NOT_FILES),)
+ifeq ($(filter clean setup apt,$(MAKECMDGOALS)),)
+$(error $(NOT_FILES): a folder, a dangling link or another file that is no regular file, named as a material or scene file; expected a file (rename or remove it))
 endif
 endif
 TOML_FILES := $(sort $(wildcard materials/*.toml))
@@ -150,7 +162,8 @@ $(BUILD)/materials.list:
 
 # build/hashes/<file>.sha256: each material and scene file's content hash, rewritten only when the content changes.
 # Its time stamp moves with the content, not the file's: two files swapped by renaming (every name and
-# time stamp kept) or an older file copied in with its time (cp -p, rsync -a, tar) re-bake.
+# time stamp kept) or an older file copied in with its time (cp -p, rsync -a, tar) re-bake. The files they name
+# (meshes, images, measured data) are followed by time stamp alone, as their depfiles name them (README, `make render`).
 HASH_DIR := $(BUILD)/hashes
 # Scene files too (scenes/*.toml): a scene swapped in with an older time stamp re-bakes and re-renders.
 HASHED_FILES := $(MATERIAL_FILES) $(sort $(wildcard scenes/*.toml))

@@ -74,3 +74,20 @@ def test_a_name_make_reads_as_syntax_is_refused_as_a_prerequisite_or_a_target(ch
     with pytest.raises(OutputNameError) as info:  # the target is an option's value: exit 2
         format_depfile(f"out{char}.png", ["ok.obj"])
     assert f"as a make target: make reads {char!r}" in str(info.value) and info.value.exit_code == 2
+
+
+def test_a_file_inside_the_working_folder_is_named_from_it_wherever_the_tree_lies(tmp_path, monkeypatch):
+    """A hostile sweep's: a file a material names reached the depfile as an absolute path (the reader resolves it
+    from the material's folder), so the same tree built in two folders gave two depfiles; one outside stays absolute."""
+    from atlasgen.io.depfile import encode_depfile
+
+    written = []
+    for tree in ("one", "two"):
+        folder = tmp_path / tree
+        (folder / "materials").mkdir(parents=True)
+        monkeypatch.chdir(folder)
+        texture = folder / "materials" / "tex.png"
+        written.append(encode_depfile("build/a.dds", ["materials/a.toml", str(texture), "/elsewhere/b.png"]))
+    assert written[0] == written[1]
+    assert written[0].decode().splitlines()[:4] == ["build/a.dds: \\", "  materials/a.toml \\", "  materials/tex.png \\",
+                                                    "  /elsewhere/b.png"]  # fmt: skip

@@ -622,7 +622,9 @@ def test_a_material_no_longer_separable_re_merges_the_separable_report(tree):
 
 @pytest.mark.parametrize("name", ["materials/wet clay.toml", "scenes/toon stage.toml", "materials/a:b.toml",
                                   "materials/50%.toml", "materials/it's.toml", 'materials/dq"x.toml', "materials/cost$5.toml",
-                                  "materials/h#x.toml", "materials/w[1].toml"])  # fmt: skip
+                                  "materials/h#x.toml", "materials/w[1].toml", "materials/a>b.toml", "materials/a&b.toml",
+                                  "materials/a(b).toml", "materials/a`b.toml", "materials/a|b.toml", "materials/a{b,c}.toml",
+                                  "materials/a\tb.toml"])  # fmt: skip
 def test_a_file_name_make_cannot_name_is_refused_on_one_line(tree, name):
     """make splits names on spaces: every make printed sha256sum errors, render failed with "No rule to make target"
     and a material with a space was left out of the atlas without a word. A colon or a percent sign broke the Makefile
@@ -630,10 +632,32 @@ def test_a_file_name_make_cannot_name_is_refused_on_one_line(tree, name):
     (tree / name).write_text('type = "lambert"\n')
     result = _make(tree, "-n", "atlas", "render")
     assert result.returncode == 2 and result.stdout == "", result.stdout
-    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(UNNAMEABLE_FILES)')}: *** {name}: a file name "
-                                          "with a space or one of : % ' \" $ # ; \\ * ? [, which make cannot name; expected "
-                                          "names without them (rename it; atlasgen itself reads it as it is).  Stop."]  # fmt: skip
+    shown = name.replace("\t", "?")
+    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(UNNAMEABLE_FILES)')}: *** {shown}: a file name "
+                                          "with a space, a control character or one of : % ' \" $ # ; \\ * ? [ < > | & ( ) "
+                                          "` { }, which make cannot name; expected names without them (rename it; atlasgen "
+                                          "itself reads it as it is).  Stop."]  # fmt: skip
     assert not (tree / "build" / "hashes" / f"{name.split(' ')[0]}.sha256").exists()  # the junk hash it wrote
+    assert not (tree / "b.toml").exists()  # "a>b.toml" emptied (or made) a file b.toml
+
+
+@pytest.mark.parametrize("kind", ["folder", "dangling link"])
+def test_a_folder_or_dangling_link_named_as_a_material_is_refused_on_one_line(tree, kind):
+    """A hostile sweep's: materials/glaze.toml/ made make end 0 with grep's and sha256sum's "Is a directory", baked the
+    folder's own files without a word, and never settled; a dangling link printed their lines before atlasgen's."""
+    path = tree / "materials" / "odd.toml"
+    if kind == "folder":
+        path.mkdir()
+        (path / "inner.toml").write_text('type = "lambert"\n')
+    else:
+        path.symlink_to("nowhere.toml")
+    result = _make(tree, "-n", "atlas", "render")
+    assert result.returncode == 2 and result.stdout == "", result.stdout
+    assert result.stderr.splitlines() == [f"Makefile:{_line_of(tree, '$(error $(NOT_FILES)')}: *** materials/odd.toml: a "
+                                          "folder, a dangling link or another file that is no regular file, named as a "
+                                          "material or scene file; expected a file (rename or remove it).  Stop."]  # fmt: skip
+    path.unlink() if kind != "folder" else None
+    (tree / "materials" / "odd.toml").unlink(missing_ok=True) if kind != "folder" else None
 
 
 def _line_of(tree: Path, text: str) -> int:

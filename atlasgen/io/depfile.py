@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from atlasgen.errors import InputError, OutputNameError, shorten
@@ -46,6 +47,22 @@ def _escape(path, role: str = "prerequisite") -> str:
     return text.replace("$", "$$").replace("#", r"\#").replace(" ", r"\ ").replace(":", r"\:")
 
 
+def _from_working_folder(path) -> str:
+    """``path`` from the working folder where it is an absolute path inside it (a file a material names, which the
+    reader resolves from the material's folder), else as given: an absolute one made the same tree's depfiles differ
+    by where the tree lies.
+
+    >>> import os
+    >>> _from_working_folder(os.path.join(os.getcwd(), "materials", "t.png")), _from_working_folder("/elsewhere/t.png")
+    ('materials/t.png', '/elsewhere/t.png')
+    """
+    text = os.fspath(path)
+    here = os.getcwd()
+    if os.path.isabs(text) and text.startswith(here.rstrip(os.sep) + os.sep):
+        return Path(os.path.relpath(text, here)).as_posix()
+    return text
+
+
 def format_depfile(target, prerequisites) -> str:
     """``target: prerequisite ...``, then an empty rule per prerequisite.
 
@@ -59,7 +76,7 @@ def format_depfile(target, prerequisites) -> str:
     InputError
         A path holds a line break, which a depfile cannot hold.
     """
-    prerequisites = list(dict.fromkeys(_escape(p) for p in prerequisites))
+    prerequisites = list(dict.fromkeys(_escape(_from_working_folder(p)) for p in prerequisites))
     lines = [" \\\n  ".join([f"{_escape(target, 'target')}:", *prerequisites]), ""]
     lines += [f"{p}:" for p in prerequisites]
     return "\n".join(lines) + "\n"
