@@ -77,7 +77,10 @@ sees them change together, at one instant, even if the command is killed
 
 What this asks of other tools: copy an output folder with its links (`cp -r`, `cp -a`,
 `rsync -a`, `tar`; the links are relative, so the copy reads its own generation), or copy the
-files themselves (`cp -L`, `rsync -L`); `rsync -r` without `-l` skips links. A single file copied
+files themselves (`cp -L`, `rsync -L`); `rsync -r` without `-l` skips links. A folder copied with
+`cp -rL` reads, but its store's `current` is then a folder, not the link to a generation, and a
+command writing there refuses it (exit 4, nothing changed) rather than guess which generation it
+holds: copy it again with `cp -a`, or with `cp -L` and without the `.X.atlasgen` folders. A single file copied
 out (`cp X.dds elsewhere/`) is a plain file. Open a report page by its documented path: a tool that
 resolves the link first (`realpath`) finds the page inside `gen-<n>`, where a report's links to
 other folders do not lead. A reader holding a file open keeps reading its generation. A file
