@@ -42,7 +42,7 @@ def folder_report_kind(folder) -> str | None:
         if path.stat().st_size > _MAX_BYTES:
             return None
         return report_kind(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # RecursionError: arrays nested too deeply for the decoder
         return None
 
 

@@ -20,6 +20,7 @@ from atlasgen.io.atlas import read_atlas
 from atlasgen.io.atomic import staged_folder
 from atlasgen.io.report_files import rebase_path
 from atlasgen.materials.material import check_unique_names
+from atlasgen.models import check_manifest_models
 from atlasgen.models.separable import Separable
 from atlasgen.reports.html import CSS_PX_PER_INCH, Chart, figure_chart, label_points, plot_style, render_page
 from atlasgen.reports.report_kind import refuse_another_report
@@ -557,11 +558,15 @@ def write_separable_report(
     manifest = None
     if atlas_path is not None:
         # A missing or damaged atlas, or one without its manifest, is refused, not reported as "not in atlas".
-        manifest = read_atlas(atlas_path).manifest
+        read = read_atlas(atlas_path)
+        manifest = read.manifest
         if manifest is None:
             shown = Path(atlas_path).as_posix()
             raise InputError(f"{shown}: no manifest beside the atlas (expected {Path(atlas_path).with_suffix('.json').as_posix()}); "
                              f"re-run atlasgen bake -o {shown}")  # fmt: skip
+        # As info and report library do: an entry edited to a parametrization no model has failed deep in the study
+        # (an internal error), and one edited to another target or type was measured as it is not stored.
+        check_manifest_models(manifest, read.manifest_path.as_posix())
     folder = Path(output)
     refuse_another_report(folder, "separable")  # before the studies' minutes of work
     # The terms each bake stores: an "auto" material's chosen K, grid, factorization and target, where its own

@@ -24,6 +24,7 @@ SEPARABLE = [{"name": "gold", "source": "gold.toml"}]
         (SEPARABLE, "separable", None),
         ({"something": "else"}, "validation", None),  # not a report of ours: the commit decides
         ("not json", "separable", None),
+        ("[" * 2000 + "]" * 2000, "separable", None),  # too deep for the decoder: a RecursionError was an internal error
         (None, "validation", None),  # no report.json yet
     ],
 )

@@ -163,6 +163,39 @@ def test_a_missing_atlas_is_refused_not_reported_as_not_in_atlas(write_material,
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.parametrize(("key", "expected"), [
+    ("parametrization", "expected one of half_diff, "),
+    ("target", "expected one of f_cos, f_proxy, got 'bogus'"),
+    ("type", "expected one of the models atlasgen knows ("),
+])  # fmt: skip
+def test_an_atlas_whose_manifest_entry_no_model_can_use_is_refused_before_the_study(
+    write_material, tmp_path, separable_atlas, key, expected
+):
+    """A hostile sweep's: an entry edited to another parametrization failed deep in the study (an internal error),
+    and one edited to another target or type was measured as it is not stored (exit 0), where info refuses them."""
+    import shutil
+
+    from atlasgen.cli.report_cmd import report
+
+    atlas, _ = separable_atlas
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    for suffix in (".dds", ".json"):
+        shutil.copy(Path(atlas).with_suffix(suffix), edited / f"atlas{suffix}")
+    manifest = json.loads((edited / "atlas.json").read_text())
+    index = next(i for i, m in enumerate(manifest["materials"]) if m["name"] == "phong")
+    manifest["materials"][index][key] = "bogus"
+    (edited / "atlas.json").write_text(json.dumps(manifest))
+    write_material("phong", 'type = "separable"\nsource = "blinn_phong"\nexponent = 40.0\nterms = 2\n')
+    res = CliRunner().invoke(report, ["separable", "phong", "-m", str(tmp_path / "materials"), "--atlas",
+                                      str(edited / "atlas.dds"), "--repeats", "1", "-o", str(tmp_path / "r")])  # fmt: skip
+    assert res.exit_code == 3, res.output
+    lines = res.output.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"atlasgen: error: {(edited / 'atlas.json').as_posix()}: field "
+                                                   f"'materials[{index}].{key}': {expected}"), lines  # fmt: skip
+    assert not (tmp_path / "r").exists()
+
+
 def test_merging_an_empty_report_is_refused(tmp_path):
     from atlasgen.cli.report_cmd import report
 
