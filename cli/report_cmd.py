@@ -102,7 +102,11 @@ def separable(names, materials_dir, library, atlas, output, repeats, merge, verb
             raise InputError(f"{materials_dir.as_posix()}: no separable materials to report on; "
                              f'expected materials with type = "{Separable.type_name}"')  # fmt: skip
     if files:
-        chosen += read_materials(files)
+        given = read_materials(files)
+        if not given:  # an empty folder named X.toml: the line named nothing
+            raise InputError(f"{', '.join(f.as_posix() for f in files)}: no separable materials to report on; "
+                             f'expected materials with type = "{Separable.type_name}"')  # fmt: skip
+        chosen += given
     inputs = [(Path(m.source), f"the material file of {m.name!r}") for m in chosen]
     if atlas is not None:
         inputs += [(Path(atlas), "the atlas (--atlas)"), (Path(atlas).with_suffix(".json"), "the atlas's manifest")]

@@ -196,6 +196,18 @@ def test_an_atlas_whose_manifest_entry_no_model_can_use_is_refused_before_the_st
     assert not (tmp_path / "r").exists()
 
 
+def test_an_empty_folder_given_as_a_material_file_is_named(tmp_path):
+    """A hostile sweep's: `report separable dir.toml`, an empty folder, said "no separable materials" naming nothing."""
+    from atlasgen.cli.report_cmd import report
+
+    folder = tmp_path / "dir.toml"
+    folder.mkdir()
+    res = CliRunner().invoke(report, ["separable", str(folder), "-o", str(tmp_path / "r")])
+    assert res.exit_code == 3, res.output
+    assert res.output.splitlines() == [f"atlasgen: error: {folder.as_posix()}: no separable materials to report on; "
+                                       'expected materials with type = "separable"']  # fmt: skip
+
+
 def test_merging_an_empty_report_is_refused(tmp_path):
     from atlasgen.cli.report_cmd import report
 
