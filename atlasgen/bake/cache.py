@@ -21,7 +21,7 @@ from atlasgen.errors import describe_failure
 from atlasgen.io.atomic import write_file_atomically
 from atlasgen.io.digest import update_with_array
 from atlasgen.io.fields import FLOAT32_MAX, is_number
-from atlasgen.io.npz import NPY_HEADERS
+from atlasgen.io.npz import read_npy_header
 from atlasgen.models.base import SliceSet
 
 __all__ = [
@@ -115,11 +115,7 @@ def _check_archive(path: Path) -> None:
         if meta.file_size > _MAX_META_BYTES:
             raise ValueError(f"metadata of {meta.file_size} bytes")
         with archive.open("values.npy") as member:
-            version = np.lib.format.read_magic(member)
-            read_header = NPY_HEADERS.get(version)
-            if read_header is None:
-                raise ValueError(f".npy format version {version}")
-            shape, _, dtype = read_header(member)
+            shape, _, dtype = read_npy_header(member)
     _check_shape(shape, dtype)
 
 

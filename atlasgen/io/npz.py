@@ -16,10 +16,19 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["NPY_HEADERS", "read_npz_arrays"]
+__all__ = ["read_npy_header", "read_npz_arrays"]
 
 #: The .npy header readers by format version (NumPy writes 1.0, or 2.0 for a header over 64 kB).
-NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+_NPY_HEADERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+
+
+def read_npy_header(member) -> tuple:
+    """``(shape, fortran_order, dtype)`` of the ``.npy`` array that the open file ``member`` starts with, its data
+    unread; ValueError for an unknown format version or a malformed header."""
+    read_header = _NPY_HEADERS.get(np.lib.format.read_magic(member))
+    if read_header is None:
+        raise ValueError("an unknown .npy format version")
+    return read_header(member)
 
 
 def read_npz_arrays(path, max_bytes: int) -> dict[str, np.ndarray]:
@@ -43,10 +52,7 @@ def read_npz_arrays(path, max_bytes: int) -> dict[str, np.ndarray]:
                 if not info.filename.endswith(".npy"):
                     raise ValueError(f"a member {info.filename!r} that is no .npy array")
                 with archive.open(info) as member:
-                    read_header = NPY_HEADERS.get(np.lib.format.read_magic(member))
-                    if read_header is None:
-                        raise ValueError("an unknown .npy format version")
-                    shape, fortran, dtype = read_header(member)
+                    shape, fortran, dtype = read_npy_header(member)
                     if dtype.hasobject:
                         raise ValueError("an array of Python objects")
                     size = math.prod(shape) * dtype.itemsize

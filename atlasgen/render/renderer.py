@@ -299,8 +299,9 @@ class Renderer:
         for obj, entry in zip(scene.objects, entries):
             mesh = self._mesh(obj, scene.path)
             triangles[self._mesh_key(obj)] = mesh.index_count // 3
-            if sum(triangles.values()) > MAX_SCENE_TRIANGLES:
-                raise SceneError(scene.path, f"objects[{obj.index}]", f"{sum(triangles.values())} triangles in the "
+            total = sum(triangles.values())
+            if total > MAX_SCENE_TRIANGLES:
+                raise SceneError(scene.path, f"objects[{obj.index}]", f"{total} triangles in the "
                                  f"scene's meshes with this object's; expected at most {MAX_SCENE_TRIANGLES} in all "
                                  "(fewer segments, or objects sharing a mesh)")  # fmt: skip
             model = object_matrix(obj)

@@ -270,12 +270,7 @@ def _colour_numbers(value) -> list | None:
             return [inner]
         if isinstance(inner, list):
             return [pair[1] for pair in inner if isinstance(pair, list) and len(pair) == 2 and is_number(pair[1])]
-        if isinstance(value.get("filename"), str):
-            try:
-                return [v for _, v in read_spectrum_file(value["filename"])]
-            except (InputError, ValueError):
-                return None  # refused with its own line (_check_tables) before this is asked
-    return None
+    return None  # a texture, or a spectrum file: _check_tables reads that, once
 
 
 #: Bytes a spectrum file may have: a measured one is a few kB.
@@ -332,24 +327,32 @@ def _check_tables(spec: dict, path, field: str) -> None:
                                                     f"got {_toml(value)}")  # fmt: skip
     if kind == "spectrum" and isinstance(spec.get("filename"), str):
         try:
-            read_spectrum_file(spec["filename"])
+            pairs = read_spectrum_file(spec["filename"])
         except InputError as exc:
             raise MaterialError(path, f"{field}.filename", f"expected a spectrum file Mitsuba reads: {exc}") from None
         except ValueError as exc:
             raise MaterialError(path, f"{field}.filename", f"{shorten(spec['filename'])}: {exc}") from None
+        parent, _, key = field.rpartition(".")
+        if key in COLOUR_KEYS:  # the colour this spectrum is, checked as its parent checks an inline one
+            _refuse_negative(path, parent, key, [v for _, v in pairs], spec)
     if kind == "volume" and not isinstance(spec.get("volume"), dict):
         raise MaterialError(path, f"{field}.volume", f"expected the volume a volume texture reads (a table, e.g. "
                                                      f"{{type = \"constvolume\", value = 0.5}}), got {_shown(spec.get('volume'))}")  # fmt: skip
+
+
+def _refuse_negative(path, field: str, key: str, numbers, value) -> None:
+    """Refuse the colour ``key`` of the table at ``field`` where one of its ``numbers`` is negative."""
+    if numbers and min(numbers) < 0.0:
+        noun = "a complex index part" if key in ("eta", "k") else "a reflectance"
+        raise MaterialError(path, f"{field}.{key}", f"expected {noun} >= 0 in every channel, got {shown(value)}")
 
 
 def _check_meaningful(spec: dict, path, field: str) -> None:
     """Refuse what no material means: a negative colour (:data:`COLOUR_KEYS`), a weight outside [0, 1]
     (:data:`WEIGHT_KEYS`), a conductor with eta = k = 0 (its Fresnel term is 0/0: NaN in every sample)."""
     for key in COLOUR_KEYS:
-        numbers = _colour_numbers(spec.get(key)) if key in spec else None
-        if numbers and min(numbers) < 0.0:
-            noun = "a complex index part" if key in ("eta", "k") else "a reflectance"
-            raise MaterialError(path, f"{field}.{key}", f"expected {noun} >= 0 in every channel, got {shown(spec[key])}")
+        if key in spec:
+            _refuse_negative(path, field, key, _colour_numbers(spec[key]), spec[key])
     for key in WEIGHT_KEYS:
         value = spec.get(key)
         if is_number(value) and not 0.0 <= value <= 1.0:
