@@ -13,7 +13,7 @@ from atlasgen.io.fields import counted
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry, SeparableRepresentation
 from atlasgen.io.report_files import check_number, read_json_file
 from atlasgen.io.text import special_file_kind
-from atlasgen.models import check_manifest_models, get_model
+from atlasgen.models import check_manifest_models, check_manifest_params, get_model
 from atlasgen.reports.comparisons import manifest_pairs
 from atlasgen.reports.html import (
     CSS_PX_PER_INCH,
@@ -360,6 +360,8 @@ def write_library_report(
     if atlas.manifest is None:
         raise InputError(f"{Path(atlas_path).as_posix()}: no manifest beside the atlas; run atlasgen bake first")
     check_manifest_models(atlas.manifest, atlas.manifest_path.as_posix())
+    if physical:  # the Pareto charts rebuild each material's reference from its params
+        check_manifest_params(atlas.manifest, atlas.manifest_path.as_posix())
     timings_path = Path(atlas_path).with_suffix("").as_posix() + ".timings.json"
     # No file: no bake times (an atlas baked before they were kept). A file of null or [] was read as none, every
     # material's bake time shown as '–' without a word.

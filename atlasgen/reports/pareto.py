@@ -29,9 +29,8 @@ from atlasgen.bake.adaptive import bake_supersampled
 from atlasgen.bake.cache import tool_fingerprint
 from atlasgen.bake.workers import worker_pool
 from atlasgen.errors import AtlasgenError
-from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import AnalyticRepresentation, LutRepresentation, MaterialEntry
-from atlasgen.models import get_model
+from atlasgen.models import get_model, manifest_params
 from atlasgen.models.physical_error import candidates_key, physical_candidates
 from atlasgen.reports.html import Chart, figure_chart, figure_png, label_points, pareto_front, plot_style
 
@@ -68,16 +67,12 @@ _MEMO: dict = {}
 
 
 def _compute(job):
-    type_name, params, gloss = job
+    entry, gloss = job
     try:
-        model = get_model(type_name)
-        # The manifest's params are the model's values as baked; checked again, so a damaged
-        # manifest is named in one line rather than failing deep inside a BRDF.
-        unset = {p.name for p in model.params if p.default is None}  # written as null, given as absent
-        values = validate_params(model.params, {k: v for k, v in params.items() if not (v is None and k in unset)},
-                                 "<manifest params>")  # fmt: skip
-        model.check(values, "<manifest params>")
-        return physical_candidates(model, values, bake_supersampled, gloss=gloss)
+        # The manifest's params are the model's values as baked. The report checked them first
+        # (check_manifest_params), naming the manifest and the field; a backend missing is said here.
+        values = manifest_params(entry, "the manifest", f"material {entry.name!r}", deep=True)
+        return physical_candidates(get_model(entry.type), values, bake_supersampled, gloss=gloss)
     except AtlasgenError as exc:  # e.g. Mitsuba missing: the page says so, and nothing is cached
         return {"reference": None, "reason": f"not measured: {exc}", "transient": True}
 
@@ -143,7 +138,7 @@ def library_candidates(entries, cache_dir=None, jobs: int = MAX_JOBS, warn=None)
         else:
             todo.append((entry, key))
     jobs = max(1, min(int(jobs), len(todo), os.cpu_count() or 1))
-    work = [(e.type, e.params, _gloss(e)) for e, _ in todo]
+    work = [(e, _gloss(e)) for e, _ in todo]
     if jobs > 1:
         with worker_pool(jobs) as pool:
             results = list(pool.map(_compute, work))

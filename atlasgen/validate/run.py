@@ -27,15 +27,14 @@ from types import SimpleNamespace
 import numpy as np
 
 from atlasgen.bake.cache import load_cached
-from atlasgen.errors import BackendError, InputError, ManifestError, MaterialError, SceneError, did_you_mean
+from atlasgen.errors import BackendError, InputError, ManifestError, SceneError, did_you_mean
 from atlasgen.io.atlas import Atlas, read_atlas
-from atlasgen.io.fields import validate_params
 from atlasgen.io.manifest import Manifest
 from atlasgen.io.referenced_files import referenced_files
 from atlasgen.io.text import MISSING, path_kind
 from atlasgen.materials.material import MAX_MATERIAL_BYTES, read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
-from atlasgen.models import check_manifest_models, get_model
+from atlasgen.models import check_manifest_models
 from atlasgen.optics.display import display_clip
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
@@ -266,8 +265,7 @@ def plan_validation(atlas_path, materials=None, scenes=DEFAULT_SCENES, resolutio
             float_slices[name] = slices
             entry_model(entry, slices)  # a fitted slice's table, for every FittedSlice of this material
         # Before the reference is built from them: a manifest's params are read as the model reads a material file's.
-        _check_params_current(atlas_path, entry)
-        _check_param_values(atlas_path, atlas.manifest.materials.index(entry), entry)
+        _check_referenced_files(atlas_path, atlas.manifest.materials.index(entry), entry)
         model_reference(entry)  # raises InputError when no reference is possible
         entries.append(entry)
     if not entries:
@@ -350,33 +348,9 @@ def _material_names(item, atlas, entries_by_name) -> list[str]:
     return names
 
 
-def _check_params_current(atlas_path, entry) -> None:
-    """The model reference evaluates today's model code with the manifest's parameters:
-    refuse an atlas whose parameter set no longer matches (baked by another version)."""
-    expected = {p.name for p in get_model(entry.type).params}
-    got = set(entry.params)
-    if got != expected:
-        missing, extra = sorted(expected - got), sorted(got - expected)
-        what = "; ".join(x for x in (f"missing {', '.join(missing)}" if missing else "",
-                                     f"unknown {', '.join(extra)}" if extra else "") if x)  # fmt: skip
-        raise InputError(
-            f"{atlas_path.with_suffix('.json').as_posix()}: material {entry.name!r}: parameters do not match the "
-            f"current '{entry.type}' model ({what}); expected an atlas baked by this atlasgen: re-run atlasgen bake"
-        )
-
-
-def _check_param_values(atlas_path, index: int, entry) -> None:
-    """Refuse a manifest entry whose parameter values its model would refuse in a material file, naming
-    ``materials[index].params.<name>``: the manifest's reader checks their names only, and a hand-edited
-    ``"ior": "glass"`` reached the Fresnel code (an internal error), a NaN Mitsuba's (naming ``<bsdf>``)."""
-    schema = get_model(entry.type).params
-    # An optional parameter left unset is written as null: read as absent, as in a material file.
-    unset = {p.name for p in schema if p.default is None}
-    given = {k: v for k, v in entry.params.items() if not (v is None and k in unset)}
-    try:
-        validate_params(schema, given, atlas_path.with_suffix(".json").as_posix())
-    except MaterialError as exc:
-        raise ManifestError(exc.path, f"materials[{index}].params.{exc.field}", exc.expected) from None
+def _check_referenced_files(atlas_path, index: int, entry) -> None:
+    """Refuse a manifest entry naming a file that is no longer there, naming ``materials[index].params.<name>``
+    (check_manifest_models has checked each parameter's value as a material file's)."""
     # A file the material names (its manifest holds it relative to itself): moved or deleted since the bake, Mitsuba's
     # references failed with OpenImageIO's complaints and an internal error.
     for where, name in referenced_files(entry.params):

@@ -274,3 +274,61 @@ def test_every_command_that_asks_an_entry_s_model_refuses_an_unknown_one(runner,
         assert res.stderr.strip().startswith(f"atlasgen: error: {manifest.as_posix()}: field 'materials[0].type': expected "
                                              "one of the models atlasgen knows (")  # fmt: skip
     assert not (tmp_path / "report").exists() and not (tmp_path / "validation").exists()
+
+
+def _edit_manifest(atlas: Path, edit) -> Path:
+    """Apply ``edit`` to the manifest beside ``atlas`` (a link into the bake's output set: replaced, not written through)."""
+    manifest = atlas.with_suffix(".json")
+    data = json.loads(manifest.read_text())
+    edit(data["materials"])
+    manifest.unlink()
+    manifest.write_text(json.dumps(data))
+    return manifest
+
+
+def test_every_command_that_reads_a_manifest_refuses_a_parameter_its_model_would(runner, library, tmp_path):
+    """A colour edited to a string: info and report library exited 0 (the page's Pareto note named '<manifest
+    params>'); each command now names the manifest's field, as a material file's would be."""
+    atlas = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(library), "-o", str(atlas), "-q"]).exit_code == 0
+    manifest = _edit_manifest(atlas, lambda materials: materials[0]["params"].update(colour="oops"))
+    for command in (["info", str(atlas)],
+                    ["report", "library", "--atlas", str(atlas), "-o", str(tmp_path / "report")],
+                    ["report", "library", "--atlas", str(atlas), "-o", str(tmp_path / "report"), "--no-physical"],
+                    ["validate", "--atlas", str(atlas), "-o", str(tmp_path / "validation")]):  # fmt: skip
+        res = runner.invoke(app, command)
+        assert res.exit_code == 3, (command, res.output)
+        assert res.stderr == (f"atlasgen: error: {manifest.as_posix()}: field 'materials[0].params.colour': expected a "
+                              "colour [r, g, b] or '#rrggbb', got 'oops'\n")  # fmt: skip
+    assert not (tmp_path / "report").exists() and not (tmp_path / "validation").exists()
+
+
+def test_a_manifest_of_another_model_version_is_named_by_every_command(runner, library, tmp_path):
+    """A parameter set other than the model's (another atlasgen's bake): said once for every command, not only by
+    validate."""
+    atlas = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(library), "-o", str(atlas), "-q"]).exit_code == 0
+    manifest = _edit_manifest(atlas, lambda materials: materials[1]["params"].update(gain=2.0))
+    res = runner.invoke(app, ["info", str(atlas)])
+    assert res.exit_code == 3, res.output
+    assert res.stderr == (f"atlasgen: error: {manifest.as_posix()}: field 'materials[1].params': expected the current "
+                          "'lambert' model's parameters, got others (unknown gain): an atlas baked by another atlasgen; "
+                          "re-run atlasgen bake\n")  # fmt: skip
+
+
+def test_the_library_report_checks_the_params_its_charts_rebuild_references_from(runner, write_material, tmp_path):
+    """Thresholds edited out of order, which only the model's own check sees: the Pareto charts rebuild each
+    material's reference from its params, so the report refuses them, naming the field; without the charts
+    (--no-physical) nothing reads them."""
+    write_material("cel", 'type = "toon"\nthresholds = [0.2, 0.6]\ncolours = [[0.1, 0.1, 0.1], [0.5, 0.5, 0.5], '
+                          '[1, 1, 1]]\n')  # fmt: skip
+    atlas = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(atlas), "-q"]).exit_code == 0
+    manifest = _edit_manifest(atlas, lambda materials: materials[0]["params"].update(thresholds=[0.6, 0.2]))
+    res = runner.invoke(app, ["report", "library", "--atlas", str(atlas), "-o", str(tmp_path / "report")])
+    assert res.exit_code == 3, res.output
+    assert res.stderr == (f"atlasgen: error: {manifest.as_posix()}: field 'materials[0].params.thresholds': expected "
+                          "strictly ascending values, got [0.6, 0.2]\n")  # fmt: skip
+    assert not (tmp_path / "report").exists()
+    res = runner.invoke(app, ["report", "library", "--atlas", str(atlas), "-o", str(tmp_path / "report"), "--no-physical"])
+    assert res.exit_code == 0, res.output

@@ -126,8 +126,8 @@ def test_atlas_baked_by_another_model_version_is_refused(validation_atlas, tmp_p
     del coat["params"]["ior"]
     coat["params"]["gain"] = 2.0
     odd.with_suffix(".json").write_text(json.dumps(manifest))
-    with pytest.raises(InputError, match="'coat': parameters do not match the current 'fresnel' model "
-                                         r"\(missing ior; unknown gain\).*re-run atlasgen bake"):  # fmt: skip
+    with pytest.raises(InputError, match=r"field 'materials\[\d+\]\.params': expected the current 'fresnel' model's "
+                                         r"parameters, got others \(missing ior; unknown gain\).*re-run atlasgen bake"):  # fmt: skip
         plan_validation(odd, ["coat"])
 
 
