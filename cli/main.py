@@ -222,7 +222,7 @@ def app(ctx, debug):
 @click.option(
     "-o",
     "--output",
-    type=PathArg(path_type=Path),
+    type=PathArg(path_type=Path, file_output=True),
     default=Path("build/atlas.dds"),
     show_default=True,
     help="Atlas to write, X.dds or X.ktx2; X.json (manifest), the includes (X.wgsl, X.glsl, X.hlsl: --include) and X.timings.json go beside it.",
@@ -236,7 +236,9 @@ def app(ctx, debug):
 )
 @click.option("--linear", is_flag=True, help="Store RGB linearly (DXGI 28, VK 37) instead of sRGB (DXGI 29, VK 43).")
 @click.option("--zstd", is_flag=True, help="Supercompress each mip level with Zstandard (needs -o X.ktx2).")
-@click.option("--preview", type=PathArg(path_type=Path), default=None, help="Also write a labelled contact sheet PNG.")
+@click.option(
+    "--preview", type=PathArg(path_type=Path, file_output=True), default=None, help="Also write a labelled contact sheet PNG."
+)
 @click.option("--scene", type=PathArg(path_type=Path), default=None, help="Bake only the materials this scene references.")
 @click.option(
     "--ids-from",
@@ -262,7 +264,7 @@ def app(ctx, debug):
 @click.option("--cache-only", is_flag=True, help="Only fill the cache (with --cache); write no atlas (its options are refused).")
 @click.option(
     "--depfile",
-    type=PathArg(path_type=Path),
+    type=PathArg(path_type=Path, file_output=True),
     default=None,
     help="Also write a Make dependency file: the atlas (or --depfile-target) against each material file, the files "
     "MaterialX documents include, and with --cache each cache entry (not with --cache-only, which fills them).",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import sys
 
 import click
@@ -40,15 +41,21 @@ class PathArg(click.Path):
 
     It refuses ``-`` as well: by the convention of command-line tools it means standard input or output, which
     no atlasgen command reads or writes, and ``--depfile -`` quietly wrote a file named ``-``. ``./-`` names
-    that file."""
+    that file.
 
-    def __init__(self, *args, **kwargs):
+    With ``file_output``, a path ending in a separator is refused too: it names a folder (``-o newdir.png/``), and
+    pathlib drops the separator, so a file ``newdir.png`` was written instead, as ``cp`` or ``open`` would not."""
+
+    def __init__(self, *args, file_output: bool = False, **kwargs):
         kwargs.setdefault("readable", False)
+        self.file_output = file_output
         super().__init__(*args, **kwargs)
 
     def convert(self, value, param, ctx):
         if isinstance(value, str) and not value:
             self.fail("expected a path, got an empty string", param, ctx)
+        if self.file_output and isinstance(value, str) and value.endswith(("/", os.sep)):
+            self.fail(f"{value!r} ends in '/', a folder's path; expected a file's path", param, ctx)
         if isinstance(value, str) and value == "-":
             self.fail("'-' would be a file named '-', not standard input or output, which atlasgen neither reads "
                       "nor writes; expected a path (./- for a file of that name)", param, ctx)  # fmt: skip

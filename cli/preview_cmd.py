@@ -22,7 +22,7 @@ def _steps(timings: dict) -> str:
 
 @click.command("preview", context_settings=HELP_OPTIONS)
 @click.argument("paths", nargs=-1, required=True, type=PathArg(path_type=Path))
-@click.option("-o", "--output", type=PathArg(path_type=Path), default=None,
+@click.option("-o", "--output", type=PathArg(path_type=Path, file_output=True), default=None,
               help="PNG to write.  [default: build/preview/NAME.png, NAME the material file's stem or the folder's "
                    "name; build/preview/contact-sheet.png for several]")  # fmt: skip
 @click.option("--cache", "cache_dir", type=PathArg(path_type=Path), metavar="DIRECTORY", default=DEFAULT_CACHE_DIR,

@@ -21,14 +21,14 @@ AOVS = ("normal", "depth", "id", "albedo")
 @click.argument("scene", type=PathArg(path_type=Path))
 @click.option("--atlas", type=PathArg(path_type=Path), metavar="FILE", default=Path("build/atlas.dds"),
               show_default=True, help="Baked atlas; its manifest X.json and include X.wgsl must sit beside it.")  # fmt: skip
-@click.option("-o", "--output", type=PathArg(path_type=Path), required=True,
+@click.option("-o", "--output", type=PathArg(path_type=Path, file_output=True), required=True,
               help="EXR to write (linear radiance); a tone-mapped PNG is written beside it.")  # fmt: skip
 @click.option("--aov", type=click.Choice(AOVS), default=None,
               help="Write this g-buffer layer to OUTPUT instead of the lit image (no PNG).")  # fmt: skip
 @click.option("--mip-bias", type=FiniteFloatRange(-16.0, 16.0), default=None, metavar="FLOAT",
               help="Added to the depth-chosen mip level (overrides the scene).")  # fmt: skip
 @click.option("--no-outlines", is_flag=True, help="Skip the toon-outline pass.")
-@click.option("--depfile", type=PathArg(path_type=Path), default=None, metavar="FILE",
+@click.option("--depfile", type=PathArg(path_type=Path, file_output=True), default=None, metavar="FILE",
               help="Also write a Make dependency file, with the image: the PNG (the EXR with --aov) against every file "
                    "the render reads (the scene, the atlas and its manifest and include, meshes, the environment image).")  # fmt: skip
 @verbosity_options(verbose="Also print the scene's size, objects, lights and materials before rendering.")

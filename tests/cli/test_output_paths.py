@@ -320,6 +320,21 @@ def test_a_dash_is_refused_not_written_as_a_file_named_dash(tmp_path, library, m
     assert (tmp_path / "-").read_text().startswith("a.dds:")
 
 
+@pytest.mark.parametrize("command", ["bake -o", "bake --preview", "bake --depfile", "render -o", "render --depfile",
+                                     "preview -o"])  # fmt: skip
+def test_a_file_output_ending_in_a_slash_is_refused_not_written_as_a_file(tmp_path, library, monkeypatch, command):
+    """``-o newdir.png/`` names a folder: pathlib dropped the slash and a file ``newdir.png`` was written."""
+    monkeypatch.chdir(tmp_path)
+    name, option = command.split()
+    scene = tmp_path / "s.toml"
+    scene.write_text("[[objects]]\nshape = 'sphere'\nmaterial = 'clay'\n")
+    base = {"bake": ["bake", str(library), "-o", "a.dds"], "render": ["render", str(scene), "-o", "r.png"],
+            "preview": ["preview", str(library / "clay.toml")]}[name]  # fmt: skip
+    args = [*base, option, "newdir.png/"] if option != "-o" or name == "preview" else [*base[:-1], "newdir.png/"]
+    _refused(tmp_path, args, "'newdir.png/' ends in '/', a folder's path; expected a file's path", code=2)
+    assert not (tmp_path / "newdir.png").exists()
+
+
 def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
     """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],
