@@ -366,7 +366,25 @@ def _inflate(path: Path, level: int, frame: bytes, expected: int) -> bytes:
         raise _field_error(path, name, f"inflates to more than uncompressedByteLength {expected} bytes")
     if len(out) < expected:
         raise _field_error(path, name, f"inflates to {len(out)} bytes; expected {expected}")
+    _check_whole_frames(path, name, frame)
     return bytes(out)
+
+
+def _check_whole_frames(path: Path, name: str, data: bytes) -> None:
+    """Refuse a level whose last Zstandard frame is cut short: the stream reader above stops once it has the level's
+    bytes, and a frame missing its checksum, or followed by the start of another, passed as whole. Each frame is
+    decoded again up to its end (the data inflated to the level's size already, so this is bounded)."""
+    rest = data
+    while rest:
+        decoder = zstandard.ZstdDecompressor().decompressobj()
+        try:
+            decoder.decompress(rest)
+        except zstandard.ZstdError as exc:
+            raise _field_error(path, name, f"corrupt Zstandard data ({exc})") from None
+        if not decoder.eof:
+            raise _field_error(path, name, f"a Zstandard frame cut short at byte {len(data)} of the level; expected "
+                                           "whole frames")  # fmt: skip
+        rest = decoder.unused_data
 
 
 def read_ktx2(path, data: bytes | None = None) -> KTX2Image:

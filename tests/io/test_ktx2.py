@@ -274,6 +274,15 @@ def _bomb(content_size: bool) -> bytes:
     return _put(blob[:start] + frame, 88, "<Q", len(frame))
 
 
+def _base_frame(frame_of) -> bytes:
+    """The tiny zstd file with its base level (the file's last bytes) replaced by ``frame_of(a checksummed frame of
+    the level's own bytes)``."""
+    blob = _tiny(True)
+    frame = frame_of(zstandard.ZstdCompressor(write_checksum=True).compress(_tiny_levels()[0].tobytes()))
+    start = _level0_offset(blob)
+    return _put(blob[:start] + frame, 88, "<Q", len(frame))
+
+
 #: The basic descriptor block of the tiny file: after the header, 3 level index entries and dfdTotalSize.
 DFD_BLOCK = 80 + 3 * 24 + 4
 
@@ -308,6 +317,12 @@ DAMAGED = {
     "truncated dfd": (lambda: _tiny()[:200], "'dfdByteLength'"),
     "truncated base level": (lambda: _tiny()[:-1], "'levels[0].byteLength'"),
     "truncated zstd level": (lambda: _tiny(True)[:-3], "'levels[0]"),
+    # The level's bytes are all there: the stream reader stopped at them and took the frame as whole.
+    "zstd checksum cut": (lambda: _base_frame(lambda f: f[:-2]), "'levels[0]': a Zstandard frame cut short"),
+    "zstd frame then a partial one": (
+        lambda: _base_frame(lambda f: f + f[:6]),
+        "'levels[0]': a Zstandard frame cut short",
+    ),  # fmt: skip
     "vkFormat": (lambda: _put(_tiny(), 12, "<I", 44), "'vkFormat'"),
     "typeSize": (lambda: _put(_tiny(), 16, "<I", 4), "'typeSize'"),
     "faceCount": (lambda: _put(_tiny(), 36, "<I", 6), "'faceCount'"),
