@@ -99,24 +99,50 @@ def shown(value, limit: int = 80) -> str:
     return shorten(_written(value), limit)
 
 
-def _written(value) -> str:
-    """``repr(value)``, but an integer too long to write out (in a list or table too) by its size.
+def _written(value, budget: int = 400, depth: int = 0) -> str:
+    """``repr(value)``, but an integer too long to write out (in a list or table too) by its size, and a list or table
+    written only as far as a line shows (about ``budget`` characters, ``...`` for the rest; ``[...]`` below
+    :data:`_DEPTH_SHOWN` levels).
 
     Python refuses to write an integer of over 4300 digits (``sys.int_max_str_digits``), which a 3.6 kB TOML hex
-    literal is: its repr raised ValueError, an internal error where the field's line was due.
+    literal is: its repr raised ValueError, an internal error where the field's line was due. A list nested 500 deep
+    exceeded the recursion limit (an internal error too), and one of 33 million numbers was written out whole to show
+    80 characters of it.
 
     >>> _written([16 ** 5000, 0.5]), _written({"a": -(2 ** 4001)})
     ('[an integer of 20001 bits (about 6021 digits), 0.5]', "{'a': -an integer of 4002 bits (about 1205 digits)}")
+    >>> nested = 1
+    >>> for _ in range(21):
+    ...     nested = [nested]
+    >>> _written(nested), len(_written(list(range(10 ** 6))))
+    ('[[[[[[[[[[[[[[[[[[[[[...]]]]]]]]]]]]]]]]]]]]]', 410)
     """
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > _INT_BITS_SHOWN:
         return f"{'-' if value < 0 else ''}an integer of {value.bit_length()} bits (about {_decimal_digits(value)} digits)"
-    if isinstance(value, list):
-        return "[" + ", ".join(map(_written, value)) + "]"
-    if isinstance(value, tuple):
-        return "(" + ", ".join(map(_written, value)) + ("," if len(value) == 1 else "") + ")"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{_written(k)}: {_written(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (list, tuple, dict)):
+        opening, closing = "[]" if isinstance(value, list) else "()" if isinstance(value, tuple) else "{}"
+        if depth >= _DEPTH_SHOWN:
+            return f"{opening}...{closing}"
+        parts, used = [], 0
+        items = value.items() if isinstance(value, dict) else value
+        for item in items:
+            if used > budget:
+                parts.append("...")
+                break
+            if isinstance(value, dict):
+                k, v = item
+                text = f"{_written(k, budget - used, depth + 1)}: {_written(v, budget - used, depth + 1)}"
+            else:
+                text = _written(item, budget - used, depth + 1)
+            parts.append(text)
+            used += len(text) + 2
+        tail = "," if isinstance(value, tuple) and len(value) == 1 else ""
+        return opening + ", ".join(parts) + tail + closing
     return repr(value)
+
+
+#: Lists and tables nested deeper than this are shown as ``[...]``.
+_DEPTH_SHOWN = 20
 
 
 #: Integers up to this many bits are shown as written (about 1200 digits, cut to the line's limit); longer ones by size.

@@ -456,6 +456,51 @@ class SeparableFactors(_Record):
         )
 
 
+#: Linux's PATH_MAX: the longest path an entry's ``source`` may hold.
+MAX_PATH_BYTES = 4096
+#: A material's look goal (``[validate]`` in its file), kept in an entry's ``extra``: key -> (check, expected).
+_LOOK_GOAL = {"psnr_db": (lambda v: _is_finite(v) and v > 0, "a finite number > 0 (dB)"),
+              "flip": (lambda v: _is_finite(v) and 0 <= v <= 1, "a finite number in [0, 1]")}  # fmt: skip
+
+
+def _check_look_goal(f: _Fields) -> None:
+    """An entry's ``validate`` (the material's look goal, which validation judges the look against): an object of
+    ``psnr_db`` and/or ``flip``. Edited to a string, a number or a NaN goal, it was an internal error there."""
+    if f.mapping("validate", optional=True) is None:
+        return
+    goal = f.child("validate")
+    for key in goal.data:
+        if key not in _LOOK_GOAL:
+            raise ManifestError(f.shown, goal.name(key), f"unknown key; expected a look goal's {' and/or '.join(_LOOK_GOAL)}")
+    for key, (ok, expected) in _LOOK_GOAL.items():
+        goal.take(key, expected, ok, optional=True)
+
+
+def _checked_auto(f: _Fields) -> dict | None:
+    """``auto``: the run-time choice (``representation = "auto"``) that the library report and a material's description
+    read: the error budget, the representation chosen, and the candidates, each a representation with a finite cost
+    and error, the chosen one among them. A hand-edited one (no ``candidates``, a cost of NaN) was an internal error
+    in the report."""
+    if f.mapping("auto", optional=True) is None:
+        return None
+    auto = f.child("auto")
+    auto.number("error_budget", minimum=0)
+    auto.string("cost_device")
+    auto.string("cost_unit")
+    chosen = auto.nonempty("chosen")
+    candidates = auto.array("candidates", "a list of objects", _OBJECT)
+    for i, candidate in enumerate(candidates):
+        c = _Fields(f.shown, auto.name(f"candidates[{i}]"), candidate)
+        c.nonempty("representation")
+        c.number("cost", minimum=0)
+        c.number("error", minimum=0)
+        c.number("error_se", optional=True, nullable=True, minimum=0)
+        c.boolean("meets_budget")
+    if chosen not in [c["representation"] for c in candidates]:
+        auto.fail("chosen", "one of its candidates' representations", chosen)
+    return auto.data
+
+
 @dataclass(kw_only=True)
 class LutRepresentation(_Record):
     """A LUT material baked within an ``error_budget``: the supersampling that met it
@@ -476,7 +521,7 @@ class LutRepresentation(_Record):
         return cls(kind=f.string("kind"), supersampling=f.integer("supersampling", 1),
                    error_budget=f.number("error_budget"), reconstruction_error=f.number("reconstruction_error"),
                    meets_budget=f.boolean("meets_budget"), candidates=f.array("candidates", "a list of objects", _OBJECT),
-                   auto=f.mapping("auto", optional=True))  # fmt: skip
+                   auto=_checked_auto(f))  # fmt: skip
 
 
 @dataclass(kw_only=True)
@@ -502,7 +547,7 @@ class SeparableRepresentation(_Record):
                    estimated_error_8bit=f.number("estimated_error_8bit"),
                    estimated_error_8bit_se=f.number("estimated_error_8bit_se", optional=True, minimum=0), meets_budget=f.boolean("meets_budget", nullable=True),
                    candidates=_checked_candidates(f),
-                   auto=f.mapping("auto", optional=True))  # fmt: skip
+                   auto=_checked_auto(f))  # fmt: skip
 
 
 #: A separable candidate's error lists: per K, a relative RMS (and its standard error), finite and at least 0.
@@ -549,7 +594,7 @@ class AnalyticRepresentation(_Record):
         return cls(kind=f.string("kind"), distribution=f.nonempty("distribution"), alpha=f.shader_number("alpha", positive=True),
                    fresnel=f.nonempty("fresnel"), f0=_rgb(f, "f0"),
                    ior=f.shader_number("ior", positive=True), specular=_rgb(f, "specular"), diffuse=_rgb(f, "diffuse"),
-                   auto=f.mapping("auto", optional=True))  # fmt: skip
+                   auto=_checked_auto(f))  # fmt: skip
 
 
 def _rgb(f: _Fields, key: str) -> list:
@@ -697,6 +742,7 @@ class MaterialEntry:
         fit = f.child("fit", optional=True)
         has_factors = any(k in data for k in SeparableFactors.keys())
         known = set(COMMON_KEYS) | {"representation", "fit"} | set(SeparableFactors.keys())
+        _check_look_goal(f)
         return cls(
             name=f.take(
                 "name",
@@ -714,7 +760,12 @@ class MaterialEntry:
             type=f.nonempty("type"),
             # A path from the manifest's folder, or "" (baked from memory): a NUL ended info -v's path lookup in an
             # internal error.
-            source=f.take("source", "a material file's path (no NUL character)", lambda v: isinstance(v, str) and "\0" not in v),
+            # A path longer than PATH_MAX names no file, and info -v's realpath of one of 1.6 MB took minutes.
+            source=f.take(
+                "source",
+                f"a material file's path (no NUL character) of at most {MAX_PATH_BYTES} bytes",
+                lambda v: isinstance(v, str) and "\0" not in v and len(v.encode("utf-8", "surrogatepass")) <= MAX_PATH_BYTES,
+            ),
             content_hash=f.string("content_hash"),
             description=f.string("description"),
             params=f.mapping("params"),
@@ -923,9 +974,10 @@ def with_absolute_files(manifest: Manifest, folder) -> Manifest:
     return replace(manifest, materials=[replace(m, params=absolute_files(m.params, folder)) for m in manifest.materials])
 
 
-#: The largest manifest read: 256 materials with every auto candidate recorded are a few megabytes; a 100 MB
-#: one took 10 s and 0.66 GB to refuse nothing.
-MAX_MANIFEST_BYTES = 64 << 20
+#: The largest manifest read: 256 materials with every auto candidate recorded are a few megabytes (the shipped
+#: library's 16 are 75 kB). A 100 MB one took 10 s and 0.66 GB to refuse nothing, and one just under 64 MiB of
+#: empty lists 1.7 GB to parse: 8 MiB bounds that near 0.2 GB.
+MAX_MANIFEST_BYTES = 8 << 20
 
 
 def read_manifest_text(path) -> str:

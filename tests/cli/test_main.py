@@ -303,6 +303,22 @@ def test_every_command_that_reads_a_manifest_refuses_a_parameter_its_model_would
     assert not (tmp_path / "report").exists() and not (tmp_path / "validation").exists()
 
 
+def test_a_parameter_nested_beyond_the_recursion_limit_is_named_in_one_line(runner, library, tmp_path):
+    """A colour of lists 600 deep: writing the value into the line recursed past Python's limit (RecursionError,
+    an internal error) in info, render and validate."""
+    atlas = tmp_path / "a.dds"
+    assert runner.invoke(app, ["bake", str(library), "-o", str(atlas), "-q"]).exit_code == 0
+    nested = 0
+    for _ in range(600):
+        nested = [nested]
+    manifest = _edit_manifest(atlas, lambda materials: materials[0]["params"].update(colour=nested))
+    res = runner.invoke(app, ["info", str(atlas)])
+    assert res.exit_code == 3, res.output
+    assert res.stderr.startswith(f"atlasgen: error: {manifest.as_posix()}: field 'materials[0].params.colour': expected a "
+                                 "colour [r, g, b] of 3 numbers in [0, 1], got [[[[")  # fmt: skip
+    assert len(res.stderr.splitlines()) == 1
+
+
 def test_a_manifest_of_another_model_version_is_named_by_every_command(runner, library, tmp_path):
     """A parameter set other than the model's (another atlasgen's bake): said once for every command, not only by
     validate."""

@@ -270,6 +270,23 @@ def _set(path, value):
     return change
 
 
+#: A whole ``representation = "auto"`` record, on the golden's separable entry: the cases below damage one part.
+AUTO = {"error_budget": 0.04, "cost_device": "llvmpipe", "cost_unit": "ns per pixel per light", "chosen": "separable:2",
+        "candidates": [{"representation": "lut", "cost": 11.2, "error": 0.2, "meets_budget": False},
+                       {"representation": "separable:2", "cost": 21.9, "error": 0.02, "error_se": 0.001,
+                        "meets_budget": True}]}  # fmt: skip
+
+
+def _auto(change=None):
+    def edit(data):
+        auto = copy.deepcopy(AUTO)
+        if change is not None:
+            change(auto)
+        data["materials"][5]["representation"]["auto"] = auto
+
+    return edit
+
+
 REFUSED = {
     "a list": ([], None, "expected an atlas manifest (a JSON object), got an empty list"),
     "empty object": ({}, "format_version", f"missing; expected format version {FORMAT_VERSION}"),
@@ -438,6 +455,54 @@ REFUSED = {
         "materials[0].flags.outline",
         'expected true or false, got "yes"',
     ),
+    # The library report read these (a KeyError, a TypeError, a log axis of NaN: internal errors).
+    "auto without candidates": (
+        _with(_auto(lambda a: a.pop("candidates"))),
+        "materials[5].representation.auto.candidates",
+        "missing; expected a list of objects",
+    ),
+    "auto candidates as text": (
+        _with(_auto(lambda a: a.update(candidates="xyz"))),
+        "materials[5].representation.auto.candidates",
+        'expected a list of objects, got "xyz"',
+    ),
+    "auto candidate without a representation": (
+        _with(_auto(lambda a: a["candidates"][0].pop("representation"))),
+        "materials[5].representation.auto.candidates[0].representation",
+        "missing; expected a non-empty string",
+    ),
+    "auto candidate's negative cost": (
+        _with(_auto(lambda a: a["candidates"][1].update(cost=-1))),
+        "materials[5].representation.auto.candidates[1].cost",
+        "expected a finite number >= 0, got -1",
+    ),
+    "auto chosen no candidate": (
+        _with(_auto(lambda a: a.update(chosen="separable:9"))),
+        "materials[5].representation.auto.chosen",
+        'expected one of its candidates\' representations, got "separable:9"',
+    ),
+    # Validation's look goal (a ValueError or TypeError there).
+    "look goal as text": (
+        _with(_set(["materials", 0, "validate"], "abc")),
+        "materials[0].validate",
+        'expected an object, got "abc"',
+    ),
+    "look goal psnr as text": (
+        _with(_set(["materials", 0, "validate"], {"psnr_db": "x"})),
+        "materials[0].validate.psnr_db",
+        'expected a finite number > 0 (dB), got "x"',
+    ),
+    "look goal's unknown key": (
+        _with(_set(["materials", 0, "validate"], {"gain": 2})),
+        "materials[0].validate.gain",
+        "unknown key; expected a look goal's psnr_db and/or flip",
+    ),
+    # info -v's realpath of a 1.6 MB path took minutes.
+    "a source beyond PATH_MAX": (
+        _with(_set(["materials", 0, "source"], "a/" * 2100 + "x.toml")),
+        "materials[0].source",
+        "expected a material file's path (no NUL character) of at most 4096 bytes",
+    ),
     "factor beyond float32": (
         _with(_set(["materials", 5, "factor_scale", 0, 1, 2], 1e300)),
         "materials[5].factor_scale[0]",
@@ -457,7 +522,7 @@ def test_each_refusal_is_one_line_naming_the_file_and_the_field(case, tmp_path):
 
 #: What the schema cannot say: id = first_slice, the DXGI/encoding pairing and the transmission slice's place,
 #: and what JSON itself cannot hold (Python's reader takes Infinity, a 400-digit integer and a lone surrogate).
-_BEYOND_THE_SCHEMA = {"id not first slice", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
+_BEYOND_THE_SCHEMA = {"id not first slice", "auto chosen no candidate", "dxgi mismatch", "transmission slice", "transmission of a one-slice entry",
                       "constant not the name's", "two names, one constant",
                       "terms not the term slices", "terms counting the transmission slice",
                       "not a finite figure",
