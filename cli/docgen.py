@@ -68,7 +68,9 @@ sees them change together, at one instant, even if the command is killed
 - **Found before the work.** An output, report or cache folder that takes no new file (read-only to
   a user who is not root, immutable, on a read-only mount; probed by making and removing an empty
   folder in it, or in the nearest existing folder above it) is refused with exit 4 and one line
-  naming the output, its option and the folder, before anything bakes or renders.
+  naming the output, its option and the folder, before anything bakes or renders. So is an output
+  that lies under another output's path (`--preview a.dds/sheet.png`, `--cache a.dds`, a preview's
+  `--cache` under its `-o`), and one whose folder is a symbolic link to nothing.
 - **Plain files of an older atlasgen** are taken over first without a visible change: a holding
   generation gets a hard link of each, `current` points at it, and a link is renamed over each
   file (the same bytes before and after), then the commit swaps as above.

@@ -80,11 +80,34 @@ def check_output_paths(outputs, inputs=()) -> None:
         except OSError as exc:  # a name the system cannot take (too long, say): stat() itself fails
             raise OutputError(f"{path.as_posix()}: {role}: cannot write ({exc.strerror or type(exc).__name__}); "
                               "expected a path the file system can hold") from None  # fmt: skip
+    _refuse_nested_outputs(seen)
     probed = set()
     for path, role in outputs:  # a bake's cache entries share one folder: probed once
         if _key(path.parent) not in probed:
             probed.add(_key(path.parent))
             _refuse_unwritable(path.parent, f"{path.as_posix()}: {role}")
+
+
+def _refuse_nested_outputs(seen: dict) -> None:
+    """Refuse an output lying under another output's path (``--preview a.dds/sheet.png``, ``--cache a.dds``): the
+    commit made the one a folder and then could not write the other, after the work, naming neither option."""
+    for key, (path, role) in seen.items():
+        for parent in Path(key).parents:
+            other = seen.get(str(parent))
+            if other is not None:
+                raise OutputError(f"{path.as_posix()}: {role} lies under {other[0].as_posix()}, {other[1]}'s path; "
+                                  "expected outputs beside each other, not one inside another")  # fmt: skip
+
+
+def _dangling_folder(path: Path) -> Path | None:
+    """The nearest folder on ``path``'s way that is a symbolic link to nothing, else None: making it failed after the
+    work ("cannot write output folder (File exists)"), naming no option."""
+    for parent in path.parents:
+        if parent.exists():
+            return None
+        if parent.is_symlink():
+            return parent
+    return None
 
 
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
@@ -109,6 +132,10 @@ def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     blocker = _blocking_file(path)
     if blocker is not None:
         raise _blocked(path.parent, blocker, f"{shown}: {role}")
+    dangling = _dangling_folder(path)
+    if dangling is not None:
+        raise OutputError(f"{shown}: {role}: its folder {dangling.as_posix()} is a symbolic link to "
+                          f"{os.readlink(dangling)!r}, which does not exist; expected a folder path")  # fmt: skip
     refuse_inside_store(path)
     key = _key(path)
     if key in seen:
@@ -170,6 +197,10 @@ def _check_folder(path: Path, role: str, noun: str) -> None:
         # mkdir then failed on the link (File exists), after the command's work, naming no option.
         raise OutputError(f"{path.as_posix()}: {role} is a symbolic link to {os.readlink(path)!r}, which does not exist; "
                           f"expected a folder path")  # fmt: skip
+    dangling = _dangling_folder(path)
+    if dangling is not None:
+        raise OutputError(f"{path.as_posix()}: {role}: its folder {dangling.as_posix()} is a symbolic link to "
+                          f"{os.readlink(dangling)!r}, which does not exist; expected a folder path")  # fmt: skip
     blocker = _blocking_file(path)
     if blocker is not None:
         kind = special_file_kind(blocker) or "a file"

@@ -155,10 +155,12 @@ def check_preview_output(output, sources, cache_dir=None) -> None:
     check_output_paths([(Path(output), "the preview (-o)")], inputs)
     refuse_set_link(output)  # before rendering: write_file_atomically refuses it again
     if cache_dir is not None:
-        if os.path.realpath(cache_dir) == os.path.realpath(output):
+        cache, image = Path(os.path.realpath(cache_dir)), Path(os.path.realpath(output))
+        if cache == image or image in cache.parents:
             # The cache was made and filled under the preview's name, and the preview then failed on the folder.
-            raise OutputNameError(f"{Path(cache_dir).as_posix()}: --cache is the preview (-o); expected a cache folder "
-                                  "of another name")  # fmt: skip
+            where = "is" if cache == image else "lies under"
+            raise OutputNameError(f"{Path(cache_dir).as_posix()}: --cache {where} the preview (-o); expected a cache "
+                                  "folder of another name")  # fmt: skip
         check_cache_folder(cache_dir, "--cache")
         # The ball's mesh and the environment are kept in a folder of the cache's: a file of its name failed the
         # preview after its bake with "cannot write output folder (File exists)", naming no option.

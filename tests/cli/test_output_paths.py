@@ -335,6 +335,32 @@ def test_a_file_output_ending_in_a_slash_is_refused_not_written_as_a_file(tmp_pa
     assert not (tmp_path / "newdir.png").exists()
 
 
+@pytest.mark.parametrize(("extra", "expected"), [
+    (["--preview", "a.dds/sheet.png"], "a.dds/sheet.png: --preview lies under a.dds, the atlas (-o)'s path; expected "
+                                       "outputs beside each other, not one inside another"),
+    (["--cache", "a.dds"], "a.dds/clay.npz: the cache entry of 'clay' lies under a.dds, the atlas (-o)'s path"),
+    (["--preview", "p.png", "--depfile", "p.png/b.d"], "p.png/b.d: --depfile lies under p.png, --preview's path"),
+])  # fmt: skip
+def test_an_output_under_another_output_s_path_is_refused_before_the_work(tmp_path, library, monkeypatch, extra,
+                                                                          expected):  # fmt: skip
+    """The commit made the one path a folder, then failed on the other (\"a.dds: cannot replace (Is a directory)\"),
+    after the bake, leaving the folder and its cache entries behind."""
+    monkeypatch.chdir(tmp_path)
+    _refused(tmp_path, ["bake", str(library), "-o", "a.dds", *extra], expected)
+
+
+@pytest.mark.parametrize("args", [["bake", "MATERIALS", "-o", "dang/a.dds"],
+                                  ["bake", "MATERIALS", "-o", "a.dds", "--cache", "dang/sub"],
+                                  ["preview", "MATERIALS/clay.toml", "-o", "dang/c.png", "--no-cache"]])  # fmt: skip
+def test_an_output_in_a_folder_that_links_to_nothing_is_refused_before_the_work(tmp_path, library, monkeypatch, args):
+    """mkdir failed on the dangling link after the work: "dang: cannot write output folder (File exists)"."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "dang").symlink_to("nowhere")
+    args = [a.replace("MATERIALS", str(library)) for a in args]
+    _refused(tmp_path, args, "its folder dang is a symbolic link to 'nowhere', which does not exist; expected a folder "
+                             "path")  # fmt: skip
+
+
 def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
     """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],

@@ -52,6 +52,16 @@ def test_a_cache_named_as_the_preview_is_refused_before_any_work(tmp_path, monke
     assert not (tmp_path / "pv").exists()
 
 
+def test_a_cache_under_the_preview_s_path_is_refused_before_any_work(tmp_path, monkeypatch, write_material):
+    """--cache pv/c.png/cache made pv/c.png a folder of cache entries; the preview then failed on it."""
+    monkeypatch.chdir(tmp_path)
+    clay = write_material("clay", CLAY)
+    res = CliRunner().invoke(app, ["preview", str(clay), "-o", "pv/c.png", "--cache", "pv/c.png/cache"])
+    assert res.exit_code == 2 and res.stderr == ("atlasgen: error: pv/c.png/cache: --cache lies under the preview (-o); "
+                                                 "expected a cache folder of another name\n"), res.output  # fmt: skip
+    assert not (tmp_path / "pv").exists()
+
+
 def test_materials_that_leave_the_floor_no_slice_are_refused_naming_the_floor(tmp_path, monkeypatch):
     # 256 one-slice materials fill the atlas: the preview's floor needs one more.
     monkeypatch.chdir(tmp_path)
