@@ -78,11 +78,22 @@ def ball_mesh_file(mesh: Mesh, folder=None) -> Path:
     The scene names the file and its parser checks it exists; the renderer is handed the mesh
     itself (:meth:`~atlasgen.render.renderer.Renderer.add_mesh`), so the file is read only by
     whoever renders the scene elsewhere. The name changes with the mesh, so a stale file is
-    never taken for the current one.
+    never taken for the current one. A file of that name whose bytes are not the mesh's (truncated, edited) is
+    written again: ``preview --reference`` renders it with Mitsuba, and a damaged one failed every run after,
+    blamed on a ``<scene>`` the user never wrote.
     """
     digest = hashlib.sha256(mesh.interleaved().tobytes() + mesh.indices.tobytes()).hexdigest()[:16]
     folder = Path(folder) if folder is not None else Path(tempfile.gettempdir()) / f"atlasgen-preview-{os.getuid()}"
     path = folder / f"material-ball-{digest}.ply"
-    if not path.is_file():
-        write_file_atomically(path, encode_mesh_ply(mesh))
+    data = encode_mesh_ply(mesh)
+    if not _holds(path, data):
+        write_file_atomically(path, data)
     return path
+
+
+def _holds(path: Path, data: bytes) -> bool:
+    """Whether ``path`` is a regular file of exactly ``data``."""
+    try:
+        return path.is_file() and path.stat().st_size == len(data) and path.read_bytes() == data
+    except OSError:
+        return False

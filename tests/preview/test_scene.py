@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from atlasgen.errors import SceneError
+from atlasgen.errors import OutputError, SceneError
 from atlasgen.preview.scene import ENVIRONMENT, ball_mesh_file, parse_preview_scene, preview_scene_data
 from atlasgen.render.meshes import make_material_ball, make_sphere
 
@@ -46,6 +46,19 @@ def test_the_balls_file_is_named_by_its_content_and_written_once(tmp_path):
     other = ball_mesh_file(make_material_ball(32), tmp_path)
     assert other != first and other.parent == first.parent == tmp_path
     assert first.read_bytes().startswith(b"ply\n")
+
+
+def test_a_damaged_ball_mesh_file_is_written_again(tmp_path):
+    """A truncated cached PLY failed preview --reference on every run after (Mitsuba reads it), blamed on a scene the
+    user never wrote: its bytes are the mesh's or it is written again."""
+    path = ball_mesh_file(make_material_ball(24), tmp_path)
+    whole = path.read_bytes()
+    path.write_bytes(whole[:3000])
+    assert ball_mesh_file(make_material_ball(24), tmp_path) == path and path.read_bytes() == whole
+    path.unlink()
+    path.mkdir()  # not a file at all: refused by the write, not taken as the mesh
+    with pytest.raises(OutputError):
+        ball_mesh_file(make_material_ball(24), tmp_path)
 
 
 @pytest.mark.slow
