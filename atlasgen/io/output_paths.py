@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import unicodedata
 from pathlib import Path
 
 from atlasgen.errors import OutputError, OutputNameError, shorten
@@ -113,7 +114,9 @@ def _dangling_folder(path: Path) -> Path | None:
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     """:func:`check_output_paths` for one output, ``seen`` holding the outputs checked before it."""
     shown = path.as_posix()
-    control = next((c for c in shown if ord(c) < 0x20 or ord(c) == 0x7F), None)
+    # C0, DEL and C1 (NEL, CSI: a terminal's escapes), and Unicode's line and paragraph separators, which line-based
+    # readers (Python's splitlines, the error lines here) break at.
+    control = next((c for c in shown if unicodedata.category(c) in ("Cc", "Zl", "Zp")), None)
     if control is not None:
         # A line break in a name split the command's "wrote ..." line in two, and a make rule that names it.
         raise OutputNameError(f"{shorten(repr(shown))}: {role}: a name holding the control character {control!r}; "

@@ -275,12 +275,15 @@ def test_an_output_that_is_a_named_pipe_is_refused_not_replaced(tmp_path, librar
         assert stat.S_ISFIFO(os.lstat(pipe).st_mode) and target.is_symlink() == through_link, line
 
 
-@pytest.mark.parametrize("option", ["-o", "--depfile", "--preview"])
-def test_an_output_name_with_a_line_break_is_refused(tmp_path, library, option):
-    """Found by a hostile sweep: `--depfile $'od/a\\nb.d'` wrote the file, exit 0, and its "wrote" line split in two."""
-    names = {"-o": "a\nb.dds", "--depfile": "a\nb.d", "--preview": "a\tb.png"}
+@pytest.mark.parametrize(("option", "mark"), [("-o", "\n"), ("--depfile", "\n"), ("--preview", "\t"), ("-o", "\u0085"),
+                                            ("--depfile", "\u2028"), ("--preview", "\u009b")])  # fmt: skip
+def test_an_output_name_with_a_line_break_is_refused(tmp_path, library, option, mark):
+    """Found by hostile sweeps: `--depfile $'od/a\\nb.d'` wrote the file, exit 0, and its "wrote" line split in two; so
+    did NEL and U+2028, which Python's splitlines breaks at, and a C1 CSI reached the terminal."""
+    suffix = {"-o": ".dds", "--depfile": ".d", "--preview": ".png"}[option]
+    name = f"a{mark}b{suffix}"
     args = ["bake", str(library), "-o", str(tmp_path / "x.dds")]
-    args = [*args[:2], "-o", str(tmp_path / names["-o"])] if option == "-o" else [*args, option, str(tmp_path / names[option])]
+    args = [*args[:2], "-o", str(tmp_path / name)] if option == "-o" else [*args, option, str(tmp_path / name)]
     line = _refused(tmp_path, args, "expected a path without line breaks, tabs or other control characters", code=2)
     assert "a name holding the control character" in line
 
