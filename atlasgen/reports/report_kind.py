@@ -21,14 +21,18 @@ _MAX_BYTES = 256 << 20
 
 
 def report_kind(data) -> str | None:
-    """``"validation"``, ``"separable"`` or None for parsed ``report.json`` contents.
+    """``"validation"``, ``"separable"`` or None for parsed ``report.json`` contents. A separable report studies at
+    least one material (``atlasgen report separable`` refuses a library without one): ``[]`` is none of ours, and was
+    linked from the library page as the factorisation report.
 
     >>> report_kind({"results": [], "settings": {}}), report_kind([{"name": "gold"}]), report_kind({"a": 1})
     ('validation', 'separable', None)
+    >>> report_kind([]) is None
+    True
     """
     if isinstance(data, dict) and "results" in data:
         return "validation"
-    if isinstance(data, list) and all(isinstance(study, dict) and "name" in study for study in data):
+    if isinstance(data, list) and data and all(isinstance(study, dict) and "name" in study for study in data):
         return "separable"
     return None
 

@@ -127,12 +127,15 @@ def test_report_library_into_a_folder_of_another_command_s_set_is_refused_before
     assert sorted(p.name for p in atlas.parent.iterdir()) == before and atlas.is_file()
 
 
-def test_report_library_refuses_a_separable_folder_that_holds_no_separable_report(tmp_path):
-    """A hostile sweep: another library page (an index.html, no report.json) given as --separable was linked from the
-    page as the separable factorisation report, exit 0."""
+@pytest.mark.parametrize("report", [None, "[]"])
+def test_report_library_refuses_a_separable_folder_that_holds_no_separable_report(tmp_path, report):
+    """Hostile sweeps: another library page (an index.html, no report.json) given as --separable was linked from the
+    page as the separable factorisation report, exit 0; so was a folder whose report.json studies nothing."""
     other = tmp_path / "rep"
     other.mkdir()
     (other / "index.html").write_text("<html>a library page</html>")
+    if report is not None:
+        (other / "report.json").write_text(report)
     res = CliRunner().invoke(app, ["report", "library", "--atlas", str(tmp_path / "X.dds"), "--separable", str(other),
                                    "-o", str(tmp_path / "report"), "--no-physical"])  # fmt: skip
     assert res.exit_code == 3 and res.stderr == (
