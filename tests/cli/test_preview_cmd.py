@@ -41,24 +41,16 @@ def test_bad_input_is_one_line_and_the_picture_stays(tmp_path, monkeypatch, writ
     assert old.read_bytes() == b"the last good picture"
 
 
-def test_a_cache_named_as_the_preview_is_refused_before_any_work(tmp_path, monkeypatch, write_material):
+@pytest.mark.parametrize(("cache", "where"), [("pv/c.png", "is"), ("pv/c.png/cache", "lies under")])
+def test_a_cache_at_or_under_the_preview_s_path_is_refused_before_any_work(tmp_path, monkeypatch, write_material, cache,
+                                                                           where):  # fmt: skip
     """A hostile sweep: --cache pv/c.png with -o pv/c.png made the folder pv/c.png and filled it with cache entries,
-    then failed on writing the picture over it (exit 4, "it was left as it was")."""
+    then failed on writing the picture over it (exit 4, "it was left as it was"); so did a cache under it."""
     monkeypatch.chdir(tmp_path)
     clay = write_material("clay", CLAY)
-    res = CliRunner().invoke(app, ["preview", str(clay), "-o", "pv/c.png", "--cache", "pv/c.png"])
-    assert res.exit_code == 2 and res.stderr == ("atlasgen: error: pv/c.png: --cache is the preview (-o); expected a "
-                                                 "cache folder of another name\n"), res.output  # fmt: skip
-    assert not (tmp_path / "pv").exists()
-
-
-def test_a_cache_under_the_preview_s_path_is_refused_before_any_work(tmp_path, monkeypatch, write_material):
-    """--cache pv/c.png/cache made pv/c.png a folder of cache entries; the preview then failed on it."""
-    monkeypatch.chdir(tmp_path)
-    clay = write_material("clay", CLAY)
-    res = CliRunner().invoke(app, ["preview", str(clay), "-o", "pv/c.png", "--cache", "pv/c.png/cache"])
-    assert res.exit_code == 2 and res.stderr == ("atlasgen: error: pv/c.png/cache: --cache lies under the preview (-o); "
-                                                 "expected a cache folder of another name\n"), res.output  # fmt: skip
+    res = CliRunner().invoke(app, ["preview", str(clay), "-o", "pv/c.png", "--cache", cache])
+    assert res.exit_code == 2 and res.stderr == (f"atlasgen: error: {cache}: --cache {where} the preview (-o); expected "
+                                                 "a cache folder of another name\n"), res.output  # fmt: skip
     assert not (tmp_path / "pv").exists()
 
 
