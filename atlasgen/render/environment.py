@@ -91,8 +91,6 @@ prepare_environment = EnvironmentData.of
 
 #: Bytes a cached environment's arrays may hold (an entry of the built-in sky holds about 3 MB).
 _MAX_ENTRY_BYTES = 256 << 20
-#: The most prefiltered levels an entry may list.
-_MAX_LEVELS = 32
 
 
 def _environment_digest(data: EnvironmentData) -> str:
@@ -110,11 +108,23 @@ def _load_environment(path: Path) -> EnvironmentData:
     of NaN, an image of one texel or a ``count`` of -3 loaded as the sky, or failed in the renderer."""
     arrays = read_npz_arrays(path, _MAX_ENTRY_BYTES)
     count = arrays["count"]
-    if count.shape != () or count.dtype.kind not in "iu" or not 1 <= int(count) <= _MAX_LEVELS:
+    if count.shape != () or count.dtype.kind not in "iu" or int(count) != PREFILTER_LEVELS:
         raise ValueError(f"a level count of {count!r}")
     data = EnvironmentData(arrays["image"], arrays["sh"], [arrays[f"level_{k}"] for k in range(int(count))])
     if str(arrays["digest"]) != _environment_digest(data):
         raise ValueError("arrays other than the ones stored")
+    # The digest is the entry's own, so a forged entry passes it: what the renderer uploads is checked as well. Ten
+    # levels failed the texture's creation, harmonics of another shape their packing (internal errors), and NaN
+    # drew the ball black.
+    expected = [(IMAGE_HEIGHT >> k, (2 * IMAGE_HEIGHT) >> k, 3) for k in range(PREFILTER_LEVELS)]
+    shapes = [data.image.shape, data.sh.shape, *(level.shape for level in data.levels)]
+    if shapes != [expected[0], ((SH_ORDER + 1) ** 2, 3), *expected]:
+        raise ValueError(f"arrays of shapes {shapes}")
+    for array in (data.image, data.sh, *data.levels):
+        if array.dtype.kind != "f" or not np.all(np.isfinite(array)):
+            raise ValueError("arrays that are not finite numbers")
+    if any(np.any(array < 0) for array in (data.image, *data.levels)):
+        raise ValueError("negative radiance")
     return data
 
 

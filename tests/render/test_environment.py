@@ -67,11 +67,26 @@ def _huge_header(entry) -> bytes:
     return out.getvalue()
 
 
+def _forged(arrays: dict, image=None, sh=None, levels=None) -> bytes:
+    """The entry's arrays changed and given a digest of their own, as a hand-made entry would be."""
+    from atlasgen.render.environment import _environment_digest
+
+    count = int(arrays["count"])
+    image = arrays["image"] if image is None else image
+    sh = arrays["sh"] if sh is None else sh
+    levels = [arrays[f"level_{k}"] for k in range(count)] if levels is None else levels
+    digest = _environment_digest(EnvironmentData(image, sh, levels))
+    return _rewritten({"image": image, "sh": sh, "count": np.array(len(levels)), "digest": np.array(digest),
+                       **{f"level_{k}": v for k, v in enumerate(levels)}})  # fmt: skip
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("damage", ["truncated", "empty", "fifo", "huge header", "count -3", "nan", "one texel"])
+@pytest.mark.parametrize("damage", ["truncated", "empty", "fifo", "huge header", "count -3", "nan", "one texel",
+                                    "forged ten levels", "forged harmonics", "forged nan"])  # fmt: skip
 def test_a_damaged_environment_entry_is_built_again_not_loaded(tmp_path, damage):
-    """A hostile sweep's: a truncated or empty entry and a huge header ended in an internal error, a pipe in the
-    entry's place hung preview, and NaN images, an image of one texel or a level count of -3 loaded as the sky."""
+    """Hostile sweeps': a truncated or empty entry and a huge header ended in an internal error, a pipe in the
+    entry's place hung preview, and NaN images, an image of one texel or a level count of -3 loaded as the sky; so
+    did entries forged with a digest of their own."""
     import os
 
     sky = Environment("sky", intensity=0.6, sky=SkyParameters())
@@ -83,7 +98,12 @@ def test_a_damaged_environment_entry_is_built_again_not_loaded(tmp_path, damage)
     damaged = {"truncated": lambda: good[:5000], "empty": lambda: b"", "huge header": lambda: _huge_header(entry),
                "count -3": lambda: _rewritten({**arrays, "count": np.array(-3)}),
                "nan": lambda: _rewritten({**arrays, "image": np.full_like(arrays["image"], np.nan)}),
-               "one texel": lambda: _rewritten({**arrays, "image": np.zeros((1, 1, 1)), "sh": np.zeros(1)})}  # fmt: skip
+               "one texel": lambda: _rewritten({**arrays, "image": np.zeros((1, 1, 1)), "sh": np.zeros(1)}),
+               # A digest of their own: ten levels failed the texture's creation, other harmonics their packing (internal
+               # errors), and NaN drew the ball black.
+               "forged ten levels": lambda: _forged(arrays, levels=[arrays["level_0"]] * 10),
+               "forged harmonics": lambda: _forged(arrays, sh=np.zeros((2, 2))),
+               "forged nan": lambda: _forged(arrays, image=arrays["image"] * np.nan)}  # fmt: skip
     data = None if damage == "fifo" else damaged[damage]()
     entry.unlink()
     if data is None:
