@@ -67,6 +67,9 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         spec = inp.spec()
         if kind not in _FORMATS:
             raise error(shown, None, f"expected an OpenEXR or Radiance HDR image, got a {kind} image")
+        if spec.deep:
+            # read_image flattened nothing: most texels came back as 0, others as a different NaN each run.
+            raise error(shown, None, "expected a flat image, got a deep OpenEXR (samples per pixel)")
         names = tuple(spec.channelnames)
         if spec.nchannels not in (3, 4) or names[:3] != ("R", "G", "B"):
             raise error(shown, None, f"expected RGB or RGBA channels, got {', '.join(names) or 'none'}")

@@ -69,6 +69,20 @@ def test_each_bad_file_is_one_line_naming_it(tmp_path, name, make, words):
     assert message.startswith(f"{path.as_posix()}: ") and "\n" not in message and words in message, message
 
 
+def test_a_deep_exr_is_refused_not_read_as_zeros(tmp_path):
+    """A hostile sweep: a deep copy of a constant sky read most texels as 0 (a darker render, exit 0), or was refused
+    for a different NaN count each run."""
+    import OpenImageIO as oiio
+
+    flat = oiio.ImageBuf(oiio.ImageSpec(16, 8, 3, oiio.FLOAT))
+    oiio.ImageBufAlgo.fill(flat, (0.5, 0.5, 0.5))
+    path = tmp_path / "deep.exr"
+    assert oiio.ImageBufAlgo.deepen(flat).write(str(path))
+    with pytest.raises(SceneError) as info:
+        read_environment_file(path, SceneError)
+    assert str(info.value) == f"{path.as_posix()}: expected a flat image, got a deep OpenEXR (samples per pixel)"
+
+
 def test_a_missing_file_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="no such environment image"):
         read_environment_file(tmp_path / "gone.exr")
