@@ -119,7 +119,8 @@ def _refuse_beyond_half(env: Environment, alone: float) -> None:
     if value <= HALF_MAX and k != 1.0:
         raise SceneError(env.scene, "environment.intensity", f"intensity {k:.6g} takes {what} ({value:.6g}) to "
                          f"{value * k:.6g} W/(m^2 sr), beyond the {HALF_MAX:g} the renderer's half-float environment "
-                         f"texture holds; expected an intensity of at most {HALF_MAX / value:.6g}")  # fmt: skip
+                         f"texture holds; expected an intensity of at most {HALF_MAX / max(alone, value):.6g}"
+                         f"{'' if alone <= value else f' (the whole image peaks at {alone:.6g} with intensity 1)'}")  # fmt: skip
     raise SceneError(env.scene, field, f"{what} reaches {value * k:.6g} W/(m^2 sr)"
                      f"{' with intensity' if k != 1.0 else ''}, beyond the {HALF_MAX:g} the renderer's half-float "
                      f"environment texture holds; expected at most {HALF_MAX:g}"

@@ -178,6 +178,24 @@ def test_an_environment_beyond_half_float_is_refused_when_it_is_built(text, fiel
     assert str(info.value).startswith(f"scenes/x.toml: field '{field}': {words}"), str(info.value)
 
 
+@pytest.mark.parametrize("intensity", ["70000", "1e6", "5000"])
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_the_intensity_a_refusal_suggests_is_built(intensity):
+    """A hostile sweep: a sky at intensity 70000 was told to use at most 65504 (its horizon's limit), which was then
+    refused for the sun disc's peak. The suggested intensity builds, and a little more does not."""
+    import re
+
+    from atlasgen.materials.environment import environment_image
+
+    with pytest.raises(SceneError) as info:
+        environment_image(_scene(f'[environment]\nsource = "sky"\nintensity = {intensity}').environment, 32, 64)
+    suggested = float(re.search(r"expected an intensity of at most ([0-9.e+]+)", str(info.value)).group(1))
+    assert environment_image(_scene(f'[environment]\nsource = "sky"\nintensity = {suggested * 0.9999}').environment,
+                             32, 64).max() <= 65504.0  # fmt: skip
+    with pytest.raises(SceneError):
+        environment_image(_scene(f'[environment]\nsource = "sky"\nintensity = {suggested * 1.001}').environment, 32, 64)
+
+
 def test_an_environment_at_half_float_s_largest_value_is_built():
     from atlasgen.materials.environment import environment_image
 
