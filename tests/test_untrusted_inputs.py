@@ -132,6 +132,11 @@ def _forged(values: np.ndarray, meta: dict) -> dict:
         "forged: seconds as text": signed(values, timings={**meta["timings"], "bake_s": "abc"}),
         "forged: NaN seconds": signed(values, timings={**meta["timings"], "bake_s": float("nan")}),
         "forged: a fit record of 5": signed(values, extra={**meta["extra"], "fit": 5}),
+        # The bake judged the fit's error as a float (exit 1), and wrote a NaN one into the manifest, which no reader
+        # then read.
+        "forged: a fit error as text": signed(values, extra={**meta["extra"], "fit": {"relative_rms": "bad"}}),
+        "forged: a NaN fit error": signed(values, extra={**meta["extra"], "fit": {"relative_rms": float("nan")}}),
+        "forged: NaN deep in the metadata": signed(values, extra={**meta["extra"], "notes": [{"x": float("inf")}]}),
     }
 
 

@@ -119,6 +119,16 @@ def _check_archive(path: Path) -> None:
     _check_shape(shape, dtype)
 
 
+def _all_finite(value, depth: int = 0) -> bool:
+    """Whether every number in the JSON ``value`` is finite (depth-bounded: metadata nests a few levels)."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, (list, dict)):
+        items = value.values() if isinstance(value, dict) else value
+        return depth < 64 and all(_all_finite(v, depth + 1) for v in items)
+    return True
+
+
 def _check_entry(values: np.ndarray, meta, most_slices: int) -> None:
     """Raise ValueError unless the stored slices look like the material's model's: (n, H, W, 4) with n at most
     ``most_slices`` (what the model bakes), finite in float32 (a bake refuses a material whose slices are
@@ -132,6 +142,13 @@ def _check_entry(values: np.ndarray, meta, most_slices: int) -> None:
     fit = meta["extra"].get("fit")
     if fit is not None and not isinstance(fit, dict):
         raise ValueError("a fit record that is not an object")
+    # The bake judges a material by these errors before the manifest is read back (a string was an internal error),
+    # and the manifest cannot hold a NaN (one was written into it, which every reader then refused).
+    for record in (fit or {}, meta["extra"].get("errors_8bit") or {}):
+        if "relative_rms" in record and not (is_number(record["relative_rms"]) and record["relative_rms"] >= 0):
+            raise ValueError(f"an error of {record['relative_rms']!r}")
+    if not _all_finite(meta["extra"]):
+        raise ValueError("metadata holding NaN or infinity")
     _check_shape(values.shape, values.dtype)
     if values.shape[0] > most_slices:
         raise ValueError(f"{values.shape[0]} slices where the model bakes at most {most_slices}")
