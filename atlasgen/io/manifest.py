@@ -485,14 +485,16 @@ def _checked_auto(f: _Fields) -> dict | None:
         return None
     auto = f.child("auto")
     auto.number("error_budget", minimum=0)
-    auto.string("cost_device")
-    auto.string("cost_unit")
+    # A choice by run-time cost names the cost table's device and unit, and each candidate's cost; a separable
+    # material baked as representation = "lut" records its one candidate's error alone.
+    auto.string("cost_device", optional=True)
+    auto.string("cost_unit", optional=True)
     chosen = auto.nonempty("chosen")
     candidates = auto.array("candidates", "a list of objects", _OBJECT)
     for i, candidate in enumerate(candidates):
         c = _Fields(f.shown, auto.name(f"candidates[{i}]"), candidate)
         c.nonempty("representation")
-        c.number("cost", minimum=0)
+        c.number("cost", optional=True, minimum=0)
         c.number("error", minimum=0)
         c.number("error_se", optional=True, nullable=True, minimum=0)
         c.boolean("meets_budget")

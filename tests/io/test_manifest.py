@@ -207,6 +207,22 @@ def test_a_budgeted_lut_manifest_validates_against_the_schema(tmp_path, write_ma
     assert list(_schema("manifest").iter_errors(json.loads(format_manifest(manifest)))) == []
 
 
+@pytest.mark.parametrize("lut", [False, True], ids=["by cost", "representation lut"])
+def test_an_auto_record_is_read_and_validates_against_the_schema(tmp_path, lut):
+    """Both records the separable model writes: a choice by run-time cost (the cost table's device and unit, each
+    candidate's cost) and a representation = "lut" bake's one candidate, with no cost."""
+    auto = copy.deepcopy(AUTO)
+    if lut:
+        del auto["cost_device"], auto["cost_unit"]
+        auto["candidates"] = [{k: v for k, v in auto["candidates"][0].items() if k != "cost"}]
+        auto["chosen"] = "lut"
+    data = _with(_auto(lambda a: (a.clear(), a.update(auto))))
+    path = tmp_path / "atlas.json"
+    path.write_text(json.dumps(data))
+    assert read_manifest(path).materials[5].representation.auto == auto
+    assert list(_schema("manifest").iter_errors(data)) == []
+
+
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_info_json_of_the_golden_atlases_validates_against_its_schema(variant, tmp_path):
     dds = tmp_path / f"{variant}.dds"
