@@ -58,6 +58,20 @@ def test_every_referenced_image_exists(tmp_path, write_material):
 
 
 @pytest.mark.slow
+def test_a_separable_material_baked_as_one_lut_slice_gets_its_cost_from_the_table(tmp_path, write_material):
+    """representation = "lut" records its one candidate without a cost: the page took c["cost"] (a KeyError, exit
+    1); the cost is the shipped table's for a LUT slice."""
+    from atlasgen.separable.auto import read_lighting_cost
+
+    write_material("gloss", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\nrepresentation = "lut"\n')
+    atlas = tmp_path / "atlas.dds"
+    write_bake(bake_atlas(read_materials([tmp_path / "materials"])), atlas)
+    (candidate,) = read_json(atlas.with_suffix(".json"))["materials"][0]["representation"]["auto"]["candidates"]
+    assert "cost" not in candidate
+    index = write_library_report(atlas, tmp_path / "report", physical=False)
+    assert f"{read_lighting_cost().costs['lut']:.3g}" in index.read_text()
+
+
 def test_validation_figures_are_read_from_report_json(tmp_path, write_material):
     import json
 

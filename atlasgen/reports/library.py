@@ -74,9 +74,10 @@ def _runtime_candidates(entry: MaterialEntry, table) -> list[dict]:
     auto = getattr(rep, "auto", None)
     if auto:
         # An SVD and an NMF candidate share a K: each is named by its factorization, and only the one baked is chosen.
+        # A representation = "lut" bake records no cost: the table's.
         baked = entry.factors.factorization if entry.factors is not None else None
         return [{"representation": c["representation"] + (f" ({c['factorization']})" if c.get("factorization") else ""),
-                 "cost": c["cost"], "error": c["error"], "measure": c.get("error_kind") or auto.get("error_measure"),
+                 "cost": c["cost"] if "cost" in c else table.costs.get(c["representation"]), "error": c["error"], "measure": c.get("error_kind") or auto.get("error_measure"),
                  "chosen": c["representation"] == auto["chosen"] and c.get("factorization") in (None, baked)}
                 for c in auto["candidates"]]  # fmt: skip
     if isinstance(rep, SeparableRepresentation):
