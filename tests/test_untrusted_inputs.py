@@ -172,6 +172,33 @@ def _damaged(data: bytes, key: str) -> dict:
     }
 
 
+@pytest.mark.parametrize(("field", "value"), [("parametrization", "bogus"), ("target", ["f_cos"])])
+def test_a_forged_separable_entry_naming_no_parametrization_is_baked_again(tmp_path, write_material, field, value):
+    """The separable model's own check of a cache entry (Model.check_cached): a parametrization of 'bogus' given a
+    digest of its own ended the bake in an internal KeyError, where the rebuild looked it up."""
+    import io
+
+    from atlasgen.bake.cache import _entry_digest
+
+    write_material("g", 'type = "separable"\nsource = "ggx"\nalpha = 0.3\n')
+    materials = read_materials([tmp_path / "materials"])
+    cache = tmp_path / "cache"
+    reference = bake_atlas(materials, cache_dir=cache)
+    entry = cache_path(cache, materials[0])
+    with np.load(entry) as data:
+        values, meta = np.array(data["values"]), json.loads(str(data["meta"]))
+    assert meta["extra"][field] != value
+    meta["extra"][field] = value
+    meta["digest"] = _entry_digest(values, meta)
+    buffer = io.BytesIO()
+    np.savez(buffer, values=values, meta=np.array(json.dumps(meta)))
+    entry.write_bytes(buffer.getvalue())
+    result = bake_atlas(materials, cache_dir=cache)
+    assert result.timings["cache"]["baked"] == ["g"]
+    assert any(w.startswith(f"{entry.as_posix()}: unreadable cache entry (a {field} of ") for w in result.warnings)
+    assert all(np.array_equal(x, y) for x, y in zip(result.levels, reference.levels))
+
+
 def _too_many_slices(key: str, slices: int = 4000) -> bytes:
     """A small compressed entry whose values inflate to 4000 slices, 524 MB, where an atlas holds 256."""
     import io

@@ -180,6 +180,7 @@ def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
                 return None
             values = np.array(data["values"])
         _check_entry(values, meta, material.slice_count)
+        material.model.check_cached(meta["extra"])
     except Exception as exc:  # noqa: BLE001 - zipfile, numpy and json raise many types for a damaged file
         if warnings is not None:
             warnings.append(f"{path.as_posix()}: unreadable cache entry ({describe_failure(exc)}); "

@@ -234,6 +234,11 @@ class Model:
     def encode(self, values: dict, slices: SliceSet, rgb_scale="auto", alpha_scale="auto") -> EncodedSlices:
         return encode_scaled(slices.values, rgb_scale, alpha_scale)
 
+    def check_cached(self, extra: dict) -> None:
+        """Raise ValueError where the fields a bake of this model recorded beside its slices (``extra``, read back
+        from a bake cache entry) name what :meth:`encode` and :meth:`finalize` would look up and fail on. The
+        entry's digest finds damage, not an entry forged with a digest of its own; the default checks nothing."""
+
     def finalize(self, values: dict, slices: SliceSet, encoded: EncodedSlices, decoded: np.ndarray) -> dict:
         """Extra manifest fields measured on the 8-bit result.
 

@@ -738,6 +738,12 @@ class Separable(Model):
         lut = any(isinstance(e.representation, LutRepresentation) for e in entries)
         return separable_declarations(entries) + (analytic_declarations() if analytic else []) + ([LUT_F_COS] if lut else [])
 
+    def check_cached(self, extra: dict) -> None:
+        """The parametrization and target the rebuild looks up (a forged cache entry's 'bogus' was a KeyError)."""
+        for field, known in (("parametrization", PARAMETRIZATIONS), ("target", TARGETS)):
+            if field in extra and extra[field] not in known:
+                raise ValueError(f"a {field} of {shorten(repr(extra[field]))}")
+
     @classmethod
     def check_entry(cls, entry, shown: str, where: str) -> None:
         """Factors to rebuild, unless the entry is held as one LUT slice or in closed form, in a parametrization
