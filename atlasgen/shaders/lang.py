@@ -35,6 +35,8 @@ __all__ = [
     "For",
     "Return",
     "Switch",
+    "switch_lines",
+    "SWITCH_CASES_MAX",
     "emit",
     "float_literal",
 ]
@@ -282,18 +284,40 @@ def _statements(lang: str, body, indent: int) -> list[str]:
             lines += _statements(lang, st.body, indent + 1)
             lines.append(f"{pad}}}")
         elif isinstance(st, Switch):
-            lines.append(
-                f"{pad}switch {expr(lang, st.value)} {{" if lang == "wgsl" else f"{pad}switch ({expr(lang, st.value)}) {{"
-            )
-            for label, case in st.cases:
-                inner = " ".join(line.strip() for line in _statements(lang, case, 0))
-                lines.append(f"{pad}    case {label}u: {{ {inner} }}")
-            inner = " ".join(line.strip() for line in _statements(lang, st.default, 0))
-            lines.append(f"{pad}    default: {{ {inner} }}")
-            lines.append(f"{pad}}}")
+            cases = [(label, " ".join(line.strip() for line in _statements(lang, case, 0))) for label, case in st.cases]
+            default = " ".join(line.strip() for line in _statements(lang, st.default, 0))
+            lines += switch_lines(lang, expr(lang, st.value), cases, default, pad)
         else:
             raise TypeError(f"not a statement: {st!r}")
     return lines
+
+
+#: The most cases one switch statement holds. Mesa's lavapipe (22.3, the project's software GPU) miscompiled a switch
+#: of about 80 cases or more from WGSL or GLSL: its default returned case 1's value and cases 0 and 1 swapped, so a
+#: library of 256 materials had 174 material IDs read with another's flags and scale (measured; 65 cases were right).
+SWITCH_CASES_MAX = 32
+
+
+def switch_lines(lang: str, value: str, cases, default: str, pad: str = "") -> list[str]:
+    """``switch`` over the u32 ``value`` in ``lang``: ``cases`` ((label, body text), ...), then ``default`` (body text).
+
+    Over :data:`SWITCH_CASES_MAX` cases, an outer switch on ``value >> 5`` picks a switch of the (at most 32) labels
+    that share those bits, each with the same default: the same function, in switches a driver compiles right."""
+    head = f"switch {value} {{" if lang == "wgsl" else f"switch ({value}) {{"
+    if len(cases) <= SWITCH_CASES_MAX:
+        return [pad + head, *(f"{pad}    case {label}u: {{ {body} }}" for label, body in cases),
+                f"{pad}    default: {{ {default} }}", f"{pad}}}"]  # fmt: skip
+    shift = SWITCH_CASES_MAX.bit_length() - 1
+    groups: dict[int, list] = {}
+    for label, body in cases:
+        groups.setdefault(int(label) >> shift, []).append((label, body))
+    outer = f"({value}) >> {shift}u"
+    lines = [pad + (f"switch {outer} {{" if lang == "wgsl" else f"switch ({outer}) {{")]
+    for block, group in groups.items():
+        lines.append(f"{pad}    case {block}u: {{")
+        lines += switch_lines(lang, value, group, default, pad + "        ")
+        lines.append(f"{pad}    }}")
+    return [*lines, f"{pad}    default: {{ {default} }}", f"{pad}}}"]
 
 
 def _declaration(lang: str, d) -> list[str]:
