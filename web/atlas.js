@@ -30,16 +30,20 @@ export async function loadAtlas(url) {
 
 // The include is Vulkan GLSL 4.50, a texture and a sampler apart; WebGL2's GLSL ES 3.00 has
 // combined samplers only. These macros make each texture parameter a sampler, the separate
-// sampler an unused int, and sampler2DArray(tex, samp) the texture itself.
+// sampler an unused int, and sampler2DArray(tex, samp) the texture itself (sampler3D for a
+// --layout volume include, whose atlas is a 3D texture).
 export const GLSL_ES_PRELUDE = `precision highp float;
 precision highp int;
 precision highp sampler2D;
 precision highp sampler2DArray;
+precision highp sampler3D;
 #define texture2DArray sampler2DArray
 #define texture2D sampler2D
+#define texture3D sampler3D
 #define sampler int
 #define sampler2DArray(t, s) t
 #define sampler2D(t, s) t
+#define sampler3D(t, s) t
 `;
 
 // A ShaderMaterial (GLSL ES 3.00) whose fragment shader is `body`, after the include X.glsl.
