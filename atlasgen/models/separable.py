@@ -771,7 +771,11 @@ class Separable(Model):
 
     @classmethod
     def include_data(cls, entries: list) -> bytes:
-        """``X.separable.bin``: the include's ``SEPARABLE_TABLE`` for engines that upload it as a buffer."""
+        """``X.separable.bin``: the include's ``SEPARABLE_TABLE`` for engines that upload it as a buffer; none where
+        no entry stores factors (each held as one LUT slice or in closed form), as the include then has no table (a
+        side-car of one header row was written beside an include without one)."""
+        if not any(e.factors is not None for e in entries):
+            return b""
         return separable_table_bytes(entries)
 
     @classmethod

@@ -60,6 +60,18 @@ def test_a_bake_without_separable_materials_removes_the_old_side_car(tmp_path, b
     assert not sidecar.exists()
 
 
+@pytest.mark.parametrize("representation", ["analytic", "lut"])
+def test_separable_materials_without_factors_write_no_side_car(tmp_path, write_material, representation):
+    """Held in closed form or as one LUT slice, no entry has factors and the include no SEPARABLE_TABLE: a side-car of
+    one header row was written beside it, which docs/engine-integration.md calls exactly the include's table."""
+    write_material("gloss", f'type = "separable"\nsource = "beckmann"\nalpha = 0.3\nrepresentation = "{representation}"\n')
+    out = tmp_path / "build" / "atlas.dds"
+    res = CliRunner().invoke(app, ["bake", str(tmp_path / "materials"), "-o", str(out), "-q"])
+    assert res.exit_code == 0, res.output
+    assert "SEPARABLE_TABLE" not in out.with_suffix(".wgsl").read_text()
+    assert not out.with_suffix(".separable.bin").exists()
+
+
 def test_includes_of_languages_not_asked_for_are_removed(tmp_path, write_material):
     write_material("clay", 'type = "lambert"\n')
     out = tmp_path / "build" / "atlas.dds"
