@@ -6,6 +6,7 @@ import numpy as np
 
 from atlasgen.contract import HEIGHT, WIDTH
 from atlasgen.io.images import encode_png
+from atlasgen.io.oiio import import_oiio
 from atlasgen.optics.quantize import dequantize_rgba, quantize_rgba
 from atlasgen.optics.srgb import encode_srgb
 
@@ -45,7 +46,7 @@ def render_contact_sheet(result) -> bytes:
     Texels are shown as stored (sRGB display of the 8-bit codes, before the slice
     scale), which is what a texture viewer would show an artist; alpha is grey.
     """
-    import OpenImageIO as oiio
+    oiio = import_oiio()
 
     srgb = result.manifest.srgb
     cells = []

@@ -14,6 +14,7 @@ import numpy as np
 
 from atlasgen.errors import FieldError, InputError
 from atlasgen.io.images import error_text, openable_name
+from atlasgen.io.oiio import import_oiio
 from atlasgen.io.text import MISSING, path_kind
 
 __all__ = ["ENVIRONMENT_SUFFIXES", "MIN_ENVIRONMENT_HEIGHT", "MAX_ENVIRONMENT_HEIGHT", "read_environment_file"]
@@ -47,7 +48,7 @@ def read_environment_file(path, error: type[FieldError] = FieldError) -> np.ndar
         larger than :data:`MAX_ENVIRONMENT_HEIGHT`, or holding a non-finite or negative value (the message
         says how many and where).
     """
-    import OpenImageIO as oiio
+    oiio = import_oiio()
 
     shown = Path(path).as_posix()
     if Path(path).suffix.lower() not in ENVIRONMENT_SUFFIXES:

@@ -19,6 +19,7 @@ import numpy as np
 
 from atlasgen.errors import OutputError
 from atlasgen.io.atomic import scratch_folder, write_file_atomically
+from atlasgen.io.oiio import import_oiio
 from atlasgen.io.referenced_files import real_folder_path
 from atlasgen.io.text import path_kind
 
@@ -58,7 +59,7 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
     so that a failure names the output and needs room only where the output goes; in the
     system's temporary folder when ``near`` is None.
     """
-    import OpenImageIO as oiio
+    oiio = import_oiio()
 
     h, w, c = pixels.shape
     spec = oiio.ImageSpec(w, h, c, pixel_type)

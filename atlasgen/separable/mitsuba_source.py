@@ -14,6 +14,7 @@ from atlasgen.contract import SPECULAR_ALPHA_MIN, SPECULAR_ROUGHNESS_MIN
 from atlasgen.errors import BackendError, InputError, MaterialError, did_you_mean, shorten
 from atlasgen.interrupts import deferred_interrupts
 from atlasgen.io.fields import fits_float32, is_number, shown
+from atlasgen.io.oiio import import_oiio
 from atlasgen.io.text import read_input_bytes, special_file_kind
 
 __all__ = [
@@ -379,7 +380,7 @@ def _check_bitmap(spec: dict, path, field: str) -> None:
     filename = spec.get("filename")
     if spec.get("type") != "bitmap" or not isinstance(filename, str) or special_file_kind(filename) is not None:
         return
-    import OpenImageIO as oiio
+    oiio = import_oiio()
 
     try:
         # A file libpng cannot read printed "libpng error: ... bad header" before Mitsuba's refusal, which says it too.
