@@ -14,7 +14,15 @@ import unicodedata
 from pathlib import Path
 
 from atlasgen.errors import OutputError, OutputNameError, shorten
-from atlasgen.io.atomic import MAX_OUTPUT_NAME_BYTES, TEMP_SUFFIX, refuse_another_sets, refuse_inside_store, refuse_other_writers
+from atlasgen.interrupts import deferred_interrupts
+from atlasgen.io.atomic import (
+    MAX_OUTPUT_NAME_BYTES,
+    TEMP_SUFFIX,
+    refuse_another_sets,
+    refuse_inside_store,
+    refuse_other_writers,
+    remove_stale_temporaries,
+)
 from atlasgen.io.text import special_file_kind
 
 __all__ = ["check_cache_folder", "check_output_folder", "check_output_paths", "check_suffix", "refuse_inputs_in_folder"]
@@ -212,6 +220,10 @@ def _check_folder(path: Path, role: str, noun: str) -> None:
     _refuse_unwritable(path, f"{path.as_posix()}: {role}")
 
 
+#: The name of the empty folder a probe makes and removes (:func:`_refuse_unwritable`).
+_PROBE = "atlasgen-probe"
+
+
 def _refuse_unwritable(folder: Path, where: str) -> None:
     """Refuse ``where`` (``"b/x.dds: the atlas (-o)"``) when ``folder``, or the nearest existing folder above it that
     the command would make it in, takes no new entry.
@@ -221,8 +233,12 @@ def _refuse_unwritable(folder: Path, where: str) -> None:
     at = folder.absolute() if folder.is_dir() else _nearest_existing(folder)
     if at is None:
         return
+    # Named by this process, as the commit's temporaries are: one a kill left between making and removing it was
+    # there for good (its name held no pid); the next probe here removes it. Ctrl-C waits for the two steps.
+    remove_stale_temporaries(at / _PROBE)
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".atlasgen-probe.", suffix=TEMP_SUFFIX, dir=at))
+        with deferred_interrupts():
+            os.rmdir(tempfile.mkdtemp(prefix=f".{_PROBE}.{os.getpid()}.", suffix=TEMP_SUFFIX, dir=at))
     except OSError as exc:
         raise OutputError(
             f"{where}: cannot write in {at.as_posix()} ({exc.strerror or type(exc).__name__}); "

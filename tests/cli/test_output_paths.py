@@ -364,6 +364,26 @@ def test_an_output_in_a_folder_that_links_to_nothing_is_refused_before_the_work(
                              "path")  # fmt: skip
 
 
+def test_a_probe_folder_a_killed_run_left_is_removed_by_the_next(tmp_path, library):
+    """A kill between the writability probe's mkdir and rmdir left .atlasgen-probe.<random>.atlasgen.tmp in the output
+    folder for good: its name held no pid. Named by its process now, the next run's probe removes a dead one's."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = out / f".atlasgen-probe.{int(dead.stdout)}.x1y2z3w4.atlasgen.tmp"
+    stale.mkdir()
+    live = out / f".atlasgen-probe.{os.getpid()}.a1b2c3d4.atlasgen.tmp"  # a running process's: left alone
+    live.mkdir()
+    res = CliRunner().invoke(app, ["bake", str(library), "-o", str(out / "a.dds"), "-q"])
+    assert res.exit_code == 0, res.output
+    assert not stale.exists() and live.is_dir()
+    assert [p.name for p in out.iterdir() if "probe" in p.name] == [live.name]
+
+
 def test_a_named_ids_from_manifest_must_exist(tmp_path, library):
     """Only the atlas's own manifest may be missing (its first bake); a missing --ids-from would renumber silently."""
     _refused(tmp_path, ["bake", str(library), "-o", str(tmp_path / "a.dds"), "--ids-from", str(tmp_path / "none.json")],
