@@ -159,8 +159,9 @@ def _check_entry(values: np.ndarray, meta, most_slices: int) -> None:
 
 
 def load_cached(cache_dir, material, warnings=None) -> SliceSet | None:
-    """The cached slices of ``material`` (its ``name``, ``source``, ``content_hash`` and ``slice_count``, the
-    most slices its model bakes), or None when absent, stale or unreadable.
+    """The cached slices of ``material`` (its ``name``, ``source``, ``content_hash``, ``slice_count``, the
+    most slices its model bakes, and ``model``, which checks what it recorded beside them: :meth:`~atlasgen.models.base.
+    Model.check_cached`), or None when absent, stale or unreadable.
 
     An entry that cannot be read (truncated, overwritten, not an ``.npz``, slices of the
     wrong shape) is as good as absent: the material is baked again and the entry

@@ -34,7 +34,7 @@ from atlasgen.io.referenced_files import referenced_files
 from atlasgen.io.text import MISSING, path_kind
 from atlasgen.materials.material import MAX_MATERIAL_BYTES, read_material_file
 from atlasgen.materials.scene import with_fitted_surfaces
-from atlasgen.models import check_manifest_models
+from atlasgen.models import check_manifest_models, get_model
 from atlasgen.optics.display import display_clip
 from atlasgen.render.atlas_texture import read_render_atlas
 from atlasgen.render.renderer import Renderer
@@ -630,9 +630,8 @@ def _float_slices(entry, bake_cache):
     keyed by the material file's content hash, as the manifest records it, and the bake code), or None."""
     if bake_cache is None:
         return None
-    material = SimpleNamespace(
-        name=entry.name, source=entry.source, content_hash=entry.content_hash, slice_count=entry.slice_count
-    )
+    material = SimpleNamespace(name=entry.name, source=entry.source, content_hash=entry.content_hash,
+                               slice_count=entry.slice_count, model=get_model(entry.type))  # fmt: skip
     slices = load_cached(bake_cache, material)
     if slices is None or slices.values.shape[0] != entry.slice_count:
         return None
