@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from atlasgen.errors import OutputError
-from atlasgen.io.atomic import scratch_folder, write_file_atomically
+from atlasgen.io.atomic import remove_stale_temporaries, scratch_folder, write_file_atomically
 from atlasgen.io.oiio import import_oiio
 from atlasgen.io.referenced_files import real_folder_path
 from atlasgen.io.text import path_kind
@@ -76,7 +76,7 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
     # OpenImageIO takes UTF-8 names only (pybind11 refused a folder named with byte 0xff, an internal error):
     # beside such an output, the scratch file goes to the system's temporary folder.
     beside = near is not None and is_utf8_path(near)
-    scratch = scratch_folder(near) if beside else tempfile.TemporaryDirectory(prefix="atlasgen-image-")
+    scratch = scratch_folder(near) if beside else _system_scratch()
     with scratch as folder:
         path = str(Path(folder) / f"image{suffix}")
         out = oiio.ImageOutput.create(path)
@@ -99,6 +99,15 @@ def _encode(pixels: np.ndarray, pixel_type: str, suffix: str, channel_names=None
             return Path(path).read_bytes()
         except OSError as exc:
             raise OutputError(f"{shown} ({exc.strerror})") from None
+
+
+def _system_scratch():
+    """A private folder in the system's temporary folder, named by this process as the commit's temporaries are, after
+    removing those of processes that are gone: a kill (or a Ctrl-C during the clean-up) left an
+    ``atlasgen-image-<random>`` folder there that no later run removed."""
+    stand_in = Path(tempfile.gettempdir()) / "atlasgen-image"
+    remove_stale_temporaries(stand_in)
+    return scratch_folder(stand_in)
 
 
 def error_text(geterror, default: str) -> str:

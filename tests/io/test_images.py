@@ -238,3 +238,22 @@ def test_a_name_openimageio_cannot_take_leads_to_the_file_a_dotdot_after_a_link_
     with openable_name(tmp_path / "lnk" / ".." / name) as opened:
         assert opened != str(tmp_path / "lnk" / ".." / name)  # not UTF-8: a link was made
         assert Path(opened).read_bytes() == b"the file the path names"
+
+
+def test_a_scratch_folder_a_killed_run_left_in_the_temporary_folder_is_removed(tmp_path, monkeypatch):
+    """encode_png without an output beside it writes in the system's temporary folder: a kill, or a Ctrl-C during the
+    clean-up, left an atlasgen-image-<random> folder there for good. Named by its process now, the next encode removes
+    a dead one's and leaves a running one's."""
+    import subprocess
+    import sys
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = int(subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True).stdout)
+    stale = tmp_path / f".atlasgen-image.{dead}.k3j4h5g6.atlasgen.tmp"
+    (stale / "sub").mkdir(parents=True)
+    (stale / "image.png").write_bytes(b"half a picture")
+    live = tmp_path / f".atlasgen-image.{os.getpid()}.q1w2e3r4.atlasgen.tmp"
+    live.mkdir()
+    assert images.encode_png(np.zeros((2, 3, 3), np.uint8))[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [live.name]
