@@ -60,22 +60,18 @@ def _stderr_held_back(written_out_on: str = "failure"):
     saved = os.dup(2)
     with tempfile.TemporaryFile() as held:
         os.dup2(held.fileno(), 2)
+        failed = False
         try:
             yield
         except BaseException:
-            if written_out_on == "failure":
-                os.dup2(saved, 2)
-                held.seek(0)
-                os.write(2, held.read())
+            failed = True
             raise
-        else:
-            if written_out_on == "success":
-                os.dup2(saved, 2)
-                held.seek(0)
-                os.write(2, held.read())
         finally:
             os.dup2(saved, 2)
             os.close(saved)
+            if failed == (written_out_on == "failure"):
+                held.seek(0)
+                os.write(2, held.read())
 
 
 def native_lines_of_a_failure_dropped():

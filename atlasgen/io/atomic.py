@@ -70,6 +70,7 @@ __all__ = [
     "staged_folder",
     "scratch_folder",
     "remove_stale_temporaries",
+    "temp_prefix",
     "output_lock",
     "lock_timeout",
     "set_key",
@@ -123,7 +124,9 @@ def _step(step: str, path: Path) -> None:
         commit_hook(step, path)
 
 
-def _temp_prefix(name: str) -> str:
+def temp_prefix(name: str) -> str:
+    """The start of a temporary's name beside ``name``: ``.<name>.<pid>.`` (then a random part and TEMP_SUFFIX), which
+    :func:`remove_stale_temporaries` recognises once the process is gone."""
     return f".{name}.{os.getpid()}."
 
 
@@ -493,7 +496,7 @@ def _write_file(path: Path, data: bytes) -> None:
 
 def _link_into(path: Path, text: str) -> None:
     """Turn ``path`` (a plain file, a foreign link) into the link ``text`` by one rename."""
-    tmp = Path(tempfile.mktemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=_folder(path)))
+    tmp = Path(tempfile.mktemp(prefix=temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=_folder(path)))
     os.symlink(text, tmp)
     try:
         os.replace(tmp, path)
@@ -823,7 +826,7 @@ def write_file_atomically(path, data: bytes) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(path)
-        fd, made = tempfile.mkstemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
+        fd, made = tempfile.mkstemp(prefix=temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=folder)
         tmp: str | None = made
     except OSError as exc:
         raise OutputError(f"{folder.as_posix()}: cannot write output folder ({exc.strerror})") from None
@@ -868,7 +871,7 @@ def staged_folder(folder, primary=None, whole: bool = False):
     try:
         parent.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(folder)
-        staging = Path(tempfile.mkdtemp(prefix=_temp_prefix(folder.name), suffix=TEMP_SUFFIX, dir=parent))
+        staging = Path(tempfile.mkdtemp(prefix=temp_prefix(folder.name), suffix=TEMP_SUFFIX, dir=parent))
     except OSError as exc:
         raise OutputError(f"{parent.as_posix()}: cannot write output folder ({exc.strerror})") from None
     try:
@@ -897,7 +900,7 @@ def scratch_folder(path):
     parent = path.parent if str(path.parent) else Path(".")
     try:
         parent.mkdir(parents=True, exist_ok=True)
-        scratch = Path(tempfile.mkdtemp(prefix=_temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=parent))
+        scratch = Path(tempfile.mkdtemp(prefix=temp_prefix(path.name), suffix=TEMP_SUFFIX, dir=parent))
     except OSError as exc:
         raise OutputError(f"{parent.as_posix()}: cannot write output folder ({exc.strerror})") from None
     try:

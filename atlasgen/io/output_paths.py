@@ -22,6 +22,7 @@ from atlasgen.io.atomic import (
     refuse_inside_store,
     refuse_other_writers,
     remove_stale_temporaries,
+    temp_prefix,
 )
 from atlasgen.io.text import special_file_kind
 
@@ -108,15 +109,16 @@ def _refuse_nested_outputs(seen: dict) -> None:
                                   "expected outputs beside each other, not one inside another")  # fmt: skip
 
 
-def _dangling_folder(path: Path) -> Path | None:
-    """The nearest folder on ``path``'s way that is a symbolic link to nothing, else None: making it failed after the
-    work ("cannot write output folder (File exists)"), naming no option."""
+def _refuse_dangling_folder(path: Path, where: str) -> None:
+    """Refuse ``where`` (``"b/x.dds: the atlas (-o)"``) where the nearest folder on ``path``'s way that does not exist
+    is a symbolic link to nothing: making it failed after the work ("cannot write output folder (File exists)"),
+    naming no option."""
     for parent in path.parents:
         if parent.exists():
-            return None
+            return
         if parent.is_symlink():
-            return parent
-    return None
+            raise OutputError(f"{where}: its folder {parent.as_posix()} is a symbolic link to {os.readlink(parent)!r}, "
+                              "which does not exist; expected a folder path")  # fmt: skip
 
 
 def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
@@ -143,10 +145,7 @@ def _check_output(path: Path, role: str, inputs, seen: dict) -> None:
     blocker = _blocking_file(path)
     if blocker is not None:
         raise _blocked(path.parent, blocker, f"{shown}: {role}")
-    dangling = _dangling_folder(path)
-    if dangling is not None:
-        raise OutputError(f"{shown}: {role}: its folder {dangling.as_posix()} is a symbolic link to "
-                          f"{os.readlink(dangling)!r}, which does not exist; expected a folder path")  # fmt: skip
+    _refuse_dangling_folder(path, f"{shown}: {role}")
     refuse_inside_store(path)
     key = _key(path)
     if key in seen:
@@ -208,10 +207,7 @@ def _check_folder(path: Path, role: str, noun: str) -> None:
         # mkdir then failed on the link (File exists), after the command's work, naming no option.
         raise OutputError(f"{path.as_posix()}: {role} is a symbolic link to {os.readlink(path)!r}, which does not exist; "
                           f"expected a folder path")  # fmt: skip
-    dangling = _dangling_folder(path)
-    if dangling is not None:
-        raise OutputError(f"{path.as_posix()}: {role}: its folder {dangling.as_posix()} is a symbolic link to "
-                          f"{os.readlink(dangling)!r}, which does not exist; expected a folder path")  # fmt: skip
+    _refuse_dangling_folder(path, f"{path.as_posix()}: {role}")
     blocker = _blocking_file(path)
     if blocker is not None:
         kind = special_file_kind(blocker) or "a file"
@@ -238,7 +234,7 @@ def _refuse_unwritable(folder: Path, where: str) -> None:
     remove_stale_temporaries(at / _PROBE)
     try:
         with deferred_interrupts():
-            os.rmdir(tempfile.mkdtemp(prefix=f".{_PROBE}.{os.getpid()}.", suffix=TEMP_SUFFIX, dir=at))
+            os.rmdir(tempfile.mkdtemp(prefix=temp_prefix(_PROBE), suffix=TEMP_SUFFIX, dir=at))
     except OSError as exc:
         raise OutputError(
             f"{where}: cannot write in {at.as_posix()} ({exc.strerror or type(exc).__name__}); "

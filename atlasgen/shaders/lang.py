@@ -298,21 +298,23 @@ def _statements(lang: str, body, indent: int) -> list[str]:
 SWITCH_CASES_MAX = 32
 
 
+def _switch_head(lang: str, value: str) -> str:
+    return f"switch {value} {{" if lang == "wgsl" else f"switch ({value}) {{"
+
+
 def switch_lines(lang: str, value: str, cases, default: str, pad: str = "") -> list[str]:
     """``switch`` over the u32 ``value`` in ``lang``: ``cases`` ((label, body text), ...), then ``default`` (body text).
 
     Over :data:`SWITCH_CASES_MAX` cases, an outer switch on ``value >> 5`` picks a switch of the (at most 32) labels
     that share those bits, each with the same default: the same function, in switches a driver compiles right."""
-    head = f"switch {value} {{" if lang == "wgsl" else f"switch ({value}) {{"
     if len(cases) <= SWITCH_CASES_MAX:
-        return [pad + head, *(f"{pad}    case {label}u: {{ {body} }}" for label, body in cases),
+        return [pad + _switch_head(lang, value), *(f"{pad}    case {label}u: {{ {body} }}" for label, body in cases),
                 f"{pad}    default: {{ {default} }}", f"{pad}}}"]  # fmt: skip
     shift = SWITCH_CASES_MAX.bit_length() - 1
     groups: dict[int, list] = {}
     for label, body in cases:
         groups.setdefault(int(label) >> shift, []).append((label, body))
-    outer = f"({value}) >> {shift}u"
-    lines = [pad + (f"switch {outer} {{" if lang == "wgsl" else f"switch ({outer}) {{")]
+    lines = [pad + _switch_head(lang, f"({value}) >> {shift}u")]
     for block, group in groups.items():
         lines.append(f"{pad}    case {block}u: {{")
         lines += switch_lines(lang, value, group, default, pad + "        ")
